@@ -1,0 +1,60 @@
+//! The one trait through which the runtime knows a user's system.
+//!
+//! `#[lagrangian]` implements [`Lagrangian`] for the type of the annotated
+//! `impl` block; the runtime never sees the macro otherwise. The trait can also
+//! be implemented by hand, which is how the runtime's own tests use it.
+
+use num_dual::DualNum;
+
+/// A real scalar the Lagrangian can be evaluated on: `f64` itself or any of
+/// num-dual's dual numbers over `f64`.
+///
+/// Generated code is generic over this trait, so one body serves plain
+/// evaluation, first derivatives ([`Dual64`](num_dual::Dual64)) and the mixed
+/// second derivatives of the one-step map ([`HyperDual64`](num_dual::HyperDual64)).
+pub trait Scalar: DualNum<Primitive = f64> + Copy {}
+
+impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}
+
+/// A mechanical (or electromechanical) system with `N` degrees of freedom,
+/// described by its Lagrangian `L(t, q, v)`.
+///
+/// Every method is generic over the [`Scalar`] it is evaluated on. Methods
+/// with a default body describe optional parts of the model: a system without
+/// dissipation or applied forces leaves them alone.
+pub trait Lagrangian<const N: usize> {
+    /// `true` when `L` does not depend explicitly on time.
+    ///
+    /// The generated implementation sets it from the signature of the user's
+    /// `lagrangian` method (with or without a `t: f64` argument).
+    const AUTONOMOUS: bool;
+
+    /// `CYCLIC[i]` is `true` when `L` does not depend on `q[i]`, so that the
+    /// momentum `p[i]` is conserved (Noether, translation of coordinate `i`).
+    ///
+    /// The macro proves it syntactically: `q[i]` never appears in the body and
+    /// `q` is only ever indexed by integer literals. `false` means "not proven",
+    /// not "depends".
+    const CYCLIC: [bool; N];
+
+    /// The Lagrangian `L(t, q, v)`.
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D;
+
+    /// `true` when [`dissipation`](Self::dissipation) is provided.
+    const HAS_DISSIPATION: bool = false;
+
+    /// Rayleigh dissipation function `R(q, v)`; the force it exerts is `−∂R/∂v`.
+    fn dissipation<D: Scalar>(&self, q: [D; N], v: [D; N]) -> D {
+        let _ = (q, v);
+        D::zero()
+    }
+
+    /// `true` when [`force`](Self::force) is provided.
+    const HAS_FORCE: bool = false;
+
+    /// Applied generalised forces `Q(t, q, v)` (forces, torques, electromotive forces).
+    fn force<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> [D; N] {
+        let _ = (t, q, v);
+        [D::zero(); N]
+    }
+}
