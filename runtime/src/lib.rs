@@ -3,9 +3,26 @@
 //!
 //! Most users depend on the facade crate `lagrangian` and never name this
 //! crate; it is separate so that the proc-macro crate and the numerics can be
-//! built and tested apart.
+//! built and tested apart. The runtime knows a user's system only through the
+//! [`Lagrangian`] trait.
 
+pub mod derivatives;
+pub mod discrete;
+mod error;
+mod integrator;
+pub mod mechanics;
+pub mod newton;
+mod state;
+pub mod symplectic;
 pub mod system;
 
+pub use derivatives::{ActionGradient, Segment, StepDerivatives};
+pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
+pub use error::Error;
+pub use integrator::{Integrator, IntegratorBuilder, Stats};
+pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
+pub use newton::{NewtonOptions, NewtonReport};
 pub use num_dual;
+pub use state::State;
+pub use symplectic::TangentMap;
 pub use system::{Lagrangian, Scalar};

@@ -1,0 +1,230 @@
+//! Derivatives of the step action from hyper-dual evaluations (MATH.md §4).
+//!
+//! An evaluation of `A` on [`HyperDual64`] with the first infinitesimal seeded
+//! on one coordinate `a` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second on a
+//! coordinate `b` yields `A`, `∂A/∂a`, `∂A/∂b` and `∂²A/∂a∂b` at once.
+//!
+//! Why scalar hyper-duals and `N²` evaluations instead of one evaluation on
+//! `HyperDualSVec64<N, N>`: num-dual's vector duals keep their derivative parts
+//! in `Option<SMatrix>`, and under cargo's default release profile (16 codegen
+//! units, no fat LTO) the generated code around them is not inlined; measured
+//! on the double pendulum (2 cores, default `--release`), the mixed block
+//! `∂²A/∂q_k∂q_{k+1}` cost 430 ns with nested `DualSVec64<2>`, 165 ns with
+//! `DualSVec<Dual64, 2>` and 53 ns with four scalar `HyperDual64` evaluations.
+//! Scalar duals are plain structs of four `f64` and stay fast under every
+//! profile. Their cost grows like `N²` evaluations of `L`, which is the right
+//! trade for the small `N` of mechanical systems.
+
+use nalgebra::SMatrix;
+use num_dual::{Dual64, HyperDual64};
+
+use crate::discrete::DiscreteLagrangian;
+use crate::system::Lagrangian;
+
+/// Two consecutive extended nodes `x_k = (t0, q0)` and `x_{k+1} = (t1, q1)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment<const N: usize> {
+    /// `t_k`.
+    pub t0: f64,
+    /// `q_k`.
+    pub q0: [f64; N],
+    /// `t_{k+1}`.
+    pub t1: f64,
+    /// `q_{k+1}`.
+    pub q1: [f64; N],
+}
+
+/// One coordinate of a [`Segment`]: the variable a derivative is taken with respect to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Var {
+    /// `t_k`.
+    T0,
+    /// `q_k[i]`.
+    Q0(usize),
+    /// `t_{k+1}`.
+    T1,
+    /// `q_{k+1}[i]`.
+    Q1(usize),
+}
+
+/// The pieces of the one-step map at a segment: the action, its gradients with
+/// respect to both nodes' positions and the mixed block `∂²A/∂q_k∂q_{k+1}`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepDerivatives<const N: usize> {
+    /// `A(x_k, x_{k+1})`.
+    pub action: f64,
+    /// `∂A/∂q_k`: added to `p_k` it is the DEL residual.
+    pub d_q0: [f64; N],
+    /// `∂A/∂q_{k+1}`: the momentum `p_{k+1}`.
+    pub d_q1: [f64; N],
+    /// `∂²A/∂q_k∂q_{k+1}`, row `i` for `q_k[i]`, column `j` for `q_{k+1}[j]`:
+    /// the Jacobian of the DEL residual with respect to the unknown `q_{k+1}`.
+    pub d2_q0_q1: SMatrix<f64, N, N>,
+}
+
+/// First derivatives of the action with respect to every coordinate of a segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ActionGradient<const N: usize> {
+    /// `A(x_k, x_{k+1})`.
+    pub action: f64,
+    /// `∂A/∂t_k`.
+    pub d_t0: f64,
+    /// `∂A/∂q_k`.
+    pub d_q0: [f64; N],
+    /// `∂A/∂t_{k+1}`.
+    pub d_t1: f64,
+    /// `∂A/∂q_{k+1}`.
+    pub d_q1: [f64; N],
+}
+
+/// The coordinate `v` of a segment held as four separate values.
+#[inline(always)]
+fn slot<'a, T, const N: usize>(
+    v: Var,
+    t0: &'a mut T,
+    q0: &'a mut [T; N],
+    t1: &'a mut T,
+    q1: &'a mut [T; N],
+) -> &'a mut T {
+    match v {
+        Var::T0 => t0,
+        Var::T1 => t1,
+        Var::Q0(i) => &mut q0[i],
+        Var::Q1(i) => &mut q1[i],
+    }
+}
+
+/// `A` on hyper-duals with `ε1` seeded on `a` and `ε2` on `b`.
+#[inline(always)]
+pub(crate) fn hyper_action<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: Var,
+    b: Var,
+) -> HyperDual64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut t0 = HyperDual64::from(seg.t0);
+    let mut t1 = HyperDual64::from(seg.t1);
+    let mut q0 = seg.q0.map(HyperDual64::from);
+    let mut q1 = seg.q1.map(HyperDual64::from);
+    slot(a, &mut t0, &mut q0, &mut t1, &mut q1).eps1 = 1.0;
+    slot(b, &mut t0, &mut q0, &mut t1, &mut q1).eps2 = 1.0;
+    method.action(system, t0, q0, t1, q1)
+}
+
+/// `A` on duals with `ε` seeded on `a`.
+#[inline(always)]
+fn dual_action<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>, a: Var) -> Dual64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut t0 = Dual64::from(seg.t0);
+    let mut t1 = Dual64::from(seg.t1);
+    let mut q0 = seg.q0.map(Dual64::from);
+    let mut q1 = seg.q1.map(Dual64::from);
+    slot(a, &mut t0, &mut q0, &mut t1, &mut q1).eps = 1.0;
+    method.action(system, t0, q0, t1, q1)
+}
+
+/// Residual part, next momentum and Newton Jacobian of the fixed-step map:
+/// `N²` hyper-dual evaluations of `A`, nothing else.
+#[inline]
+pub fn step_derivatives<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> StepDerivatives<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut out = StepDerivatives {
+        action: 0.0,
+        d_q0: [0.0; N],
+        d_q1: [0.0; N],
+        d2_q0_q1: SMatrix::zeros(),
+    };
+    for i in 0..N {
+        for j in 0..N {
+            let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(j));
+            out.action = a.re;
+            out.d_q0[i] = a.eps1;
+            out.d_q1[j] = a.eps2;
+            out.d2_q0_q1[(i, j)] = a.eps1eps2;
+        }
+    }
+    out
+}
+
+/// `∂A/∂q_{k+1}`, the momentum at the end of a segment: `N` dual evaluations.
+#[inline]
+pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    core::array::from_fn(|j| dual_action(system, method, seg, Var::Q1(j)).eps)
+}
+
+/// Every first derivative of `A` on a segment (`N + 1` hyper-dual evaluations).
+pub fn action_gradient<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> ActionGradient<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let times = hyper_action(system, method, seg, Var::T0, Var::T1);
+    let mut out = ActionGradient {
+        action: times.re,
+        d_t0: times.eps1,
+        d_q0: [0.0; N],
+        d_t1: times.eps2,
+        d_q1: [0.0; N],
+    };
+    for i in 0..N {
+        let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(i));
+        out.d_q0[i] = a.eps1;
+        out.d_q1[i] = a.eps2;
+    }
+    out
+}
+
+/// `∂A/∂t_{k+1}` alone (one dual evaluation); `−∂A/∂t_{k+1}` is the discrete energy `E_{k+1}`.
+pub fn end_time_derivative<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> f64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    dual_action(system, method, seg, Var::T1).eps
+}
+
+/// The position blocks of the Hessian of `A`: `(∂²A/∂q_k², ∂²A/∂q_k∂q_{k+1}, ∂²A/∂q_{k+1}²)`.
+///
+/// Used for the tangent map of a step (symplecticity, MATH.md §8); not needed
+/// by the stepper itself.
+pub fn position_hessian<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> (SMatrix<f64, N, N>, SMatrix<f64, N, N>, SMatrix<f64, N, N>)
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
+        SMatrix::<f64, N, N>::from_fn(|i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
+    };
+    (
+        block(Var::Q0, Var::Q0),
+        block(Var::Q0, Var::Q1),
+        block(Var::Q1, Var::Q1),
+    )
+}

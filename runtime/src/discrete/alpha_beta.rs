@@ -1,0 +1,62 @@
+//! The α-β family of discrete Lagrangians.
+//!
+//! ```text
+//! A(t_k, q_k, t_{k+1}, q_{k+1}) = h · L(t_k + βh, α q_k + β q_{k+1}, (q_{k+1} − q_k)/h),   α + β = 1
+//! ```
+//!
+//! Source: Luo, Guo, Li & Wu, paper 000, "case 2" (§III.B). Order 1 for
+//! `α ≠ ½`, order 2 at `α = ½` (where it is [`Midpoint`](super::Midpoint)).
+//! `α = 1` and `α = 0` are the two symplectic Euler methods.
+
+use super::{DiscreteLagrangian, secant_velocity};
+use crate::system::{Lagrangian, Scalar};
+
+/// The α-β discrete Lagrangian `A = h L(t_k + βh, α q_k + β q_{k+1}, v̂)`, `β = 1 − α`.
+///
+/// Order 1, or 2 when `α = ½`. Build it with [`AlphaBeta::new`], which checks
+/// that `α` is finite.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaBeta {
+    alpha: f64,
+}
+
+impl AlphaBeta {
+    /// The member with weight `alpha` on `q_k` (and `1 − alpha` on `q_{k+1}`).
+    ///
+    /// Returns `None` if `alpha` is not finite. Values outside `[0, 1]` are
+    /// allowed (they are still variational integrators) but unusual.
+    pub fn new(alpha: f64) -> Option<Self> {
+        alpha.is_finite().then_some(Self { alpha })
+    }
+
+    /// `α = 1`: symplectic Euler with the potential taken at `q_k`.
+    pub const EULER_A: Self = Self { alpha: 1.0 };
+
+    /// `α = 0`: symplectic Euler with the potential taken at `q_{k+1}`.
+    pub const EULER_B: Self = Self { alpha: 0.0 };
+
+    /// The weight `α` on `q_k`.
+    pub fn alpha(&self) -> f64 {
+        self.alpha
+    }
+}
+
+impl DiscreteLagrangian for AlphaBeta {
+    fn order(&self) -> u32 {
+        if self.alpha == 0.5 { 2 } else { 1 }
+    }
+
+    #[inline(always)]
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let alpha = self.alpha;
+        let beta = 1.0 - alpha;
+        let h = t1 - t0;
+        let v = secant_velocity(&q0, &q1, h.recip());
+        let q = core::array::from_fn(|i| q0[i] * alpha + q1[i] * beta);
+        system.lagrangian(t0 + h * beta, q, v) * h
+    }
+}

@@ -1,0 +1,34 @@
+//! The midpoint discrete Lagrangian.
+//!
+//! ```text
+//! A(t_k, q_k, t_{k+1}, q_{k+1}) = h · L(t_k + h/2, (q_k + q_{k+1})/2, (q_{k+1} − q_k)/h),   h = t_{k+1} − t_k
+//! ```
+//!
+//! Source: de León & Martín de Diego, paper 003 §3.1; Chen, Guo & Wu, paper 004
+//! eq. (2.15). Order 2. For `L = ½ vᵀMv − V(q)` it is the implicit midpoint
+//! rule in `(q, p)`; it is symmetric, so its error expansion has even powers only.
+
+use super::{DiscreteLagrangian, secant_velocity};
+use crate::system::{Lagrangian, Scalar};
+
+/// The midpoint rule: `A = h L(t_k + h/2, (q_k+q_{k+1})/2, (q_{k+1}−q_k)/h)`. Order 2.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Midpoint;
+
+impl DiscreteLagrangian for Midpoint {
+    fn order(&self) -> u32 {
+        2
+    }
+
+    #[inline(always)]
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let h = t1 - t0;
+        let v = secant_velocity(&q0, &q1, h.recip());
+        let q_mid = core::array::from_fn(|i| (q0[i] + q1[i]) * 0.5);
+        system.lagrangian(t0 + h * 0.5, q_mid, v) * h
+    }
+}

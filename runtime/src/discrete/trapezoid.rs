@@ -1,0 +1,34 @@
+//! The trapezoidal discrete Lagrangian.
+//!
+//! ```text
+//! A(t_k, q_k, t_{k+1}, q_{k+1}) = h/2 · [ L(t_k, q_k, v̂) + L(t_{k+1}, q_{k+1}, v̂) ],   v̂ = (q_{k+1} − q_k)/h
+//! ```
+//!
+//! Source: Chen, Guo & Wu, paper 004 §2.2 (linear element, trapezoidal
+//! quadrature). Order 2. For `L = ½ vᵀMv − V(q)` with constant `M` it is the
+//! Störmer–Verlet method and its update is explicit (Newton converges in one
+//! iteration).
+
+use super::{DiscreteLagrangian, secant_velocity};
+use crate::system::{Lagrangian, Scalar};
+
+/// The trapezoidal rule: `A = h/2 [L(t_k, q_k, v̂) + L(t_{k+1}, q_{k+1}, v̂)]`. Order 2.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Trapezoid;
+
+impl DiscreteLagrangian for Trapezoid {
+    fn order(&self) -> u32 {
+        2
+    }
+
+    #[inline(always)]
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let h = t1 - t0;
+        let v = secant_velocity(&q0, &q1, h.recip());
+        (system.lagrangian(t0, q0, v) + system.lagrangian(t1, q1, v)) * (h * 0.5)
+    }
+}

@@ -1,0 +1,92 @@
+//! The error type of the runtime: every failure is a value, never a panic.
+
+use crate::state::State;
+
+/// What went wrong, with the state the integrator was left in and the
+/// diagnostics of the failed solve.
+///
+/// A failed step leaves the integrator exactly as it was before the step, so
+/// `state` is also the state a retry starts from (for example after
+/// [`Integrator::set_step_size`](crate::Integrator::set_step_size)).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error<const N: usize> {
+    /// Newton's method reached its iteration cap, or its corrections grew twice in a row.
+    #[error(
+        "newton did not converge in the step from t = {} (step {}, h = {h:e}): {iterations} iterations, residual norm {residual_norm:e}, last correction {correction_norm:e}",
+        .state.t, .state.step
+    )]
+    NewtonDidNotConverge {
+        /// The state the step started from (and the integrator still holds).
+        state: State<N>,
+        /// The step size that was tried.
+        h: f64,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// `‖R‖∞` at the last iterate.
+        residual_norm: f64,
+        /// `‖Δ‖∞` of the last correction.
+        correction_norm: f64,
+    },
+    /// The Newton Jacobian `∂²A/∂q_k∂q_{k+1}` (the discrete Legendre transform)
+    /// is singular or too ill-conditioned to invert.
+    #[error(
+        "singular or ill-conditioned jacobian in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}: reciprocal condition number {rcond:e}",
+        .state.t, .state.step
+    )]
+    SingularJacobian {
+        /// The state the step started from (and the integrator still holds).
+        state: State<N>,
+        /// The step size that was tried.
+        h: f64,
+        /// The Newton iteration at which it happened.
+        iterations: usize,
+        /// Estimated reciprocal condition number in the 1-norm (0 if exactly singular).
+        rcond: f64,
+    },
+    /// A NaN or an infinity appeared.
+    #[error(
+        "non-finite {quantity} in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}",
+        .state.t, .state.step
+    )]
+    NonFinite {
+        /// The state the step started from (and the integrator still holds).
+        state: State<N>,
+        /// The step size that was tried.
+        h: f64,
+        /// The Newton iteration at which it happened (0: after convergence).
+        iterations: usize,
+        /// Which value: `residual`, `jacobian`, `correction`, `position` or `momentum`.
+        quantity: &'static str,
+    },
+    /// A step size that is zero, negative or not finite.
+    #[error("invalid step size h = {h}: it must be finite and positive")]
+    InvalidStepSize {
+        /// The rejected step size.
+        h: f64,
+    },
+    /// Initial data that cannot start an integration.
+    #[error("invalid initial data: {reason}")]
+    InvalidInitialData {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// A target time behind the current time, or not finite.
+    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
+    InvalidTarget {
+        /// The rejected target time.
+        target: f64,
+        /// The current state.
+        state: State<N>,
+    },
+    /// The velocity for a momentum could not be found (inverse Legendre transform).
+    #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
+    InverseLegendre {
+        /// The state whose velocity was sought.
+        state: State<N>,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// `‖∂L/∂v − p‖∞` at the last iterate.
+        residual_norm: f64,
+    },
+}

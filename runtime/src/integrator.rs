@@ -1,0 +1,424 @@
+//! The fixed-step variational integrator (MATH.md §3, position–momentum form).
+//!
+//! ```text
+//! given (t_k, q_k, p_k):   solve  p_k + ∂A/∂q_k (x_k, x_{k+1}) = 0   for q_{k+1},   t_{k+1} = t_k + h
+//!                          then   p_{k+1} = ∂A/∂q_{k+1} (x_k, x_{k+1})
+//! ```
+//!
+//! Each Newton iteration is one hyper-dual sweep of the action; the state is
+//! only replaced once a step has converged, so a failed step leaves the
+//! integrator as it was.
+
+use nalgebra::SVector;
+
+use crate::derivatives::{self, Segment};
+use crate::discrete::DiscreteLagrangian;
+use crate::error::Error;
+use crate::mechanics::DiscreteMechanics;
+use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport};
+use crate::state::State;
+use crate::symplectic::{self, TangentMap};
+use crate::system::Lagrangian;
+
+/// Counters of the work an integrator has done.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Steps taken successfully.
+    pub steps: u64,
+    /// Newton iterations (residual-and-Jacobian evaluations) over all successful steps.
+    pub newton_iterations: u64,
+    /// Steps that failed and were not applied.
+    pub failed_steps: u64,
+    /// The report of the last successful Newton solve.
+    pub last: NewtonReport,
+}
+
+/// Configuration of an integrator before it is given its initial state.
+///
+/// Made by [`Integrator::new`]; [`start`](Self::start) checks everything and
+/// returns the running [`Integrator`].
+#[derive(Clone, Debug)]
+pub struct IntegratorBuilder<S, M> {
+    system: S,
+    method: M,
+    h: f64,
+    newton: NewtonOptions,
+}
+
+impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
+    /// Replaces the Newton settings.
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = options;
+        self
+    }
+
+    /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
+    ///
+    /// Fails with [`Error::InvalidStepSize`] for a step that is not finite and
+    /// positive, and with [`Error::InvalidInitialData`] for non-finite data or
+    /// where `∂²L/∂v²` is singular (the Legendre transform is not regular and
+    /// the one-step map does not exist).
+    pub fn start<const N: usize>(
+        self,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<Integrator<S, M, N>, Error<N>>
+    where
+        S: Lagrangian<N>,
+    {
+        check_step(self.h)?;
+        if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
+            return Err(Error::InvalidInitialData {
+                reason: "t0, q0 and v0 must be finite",
+            });
+        }
+        let p0 = self.system.momentum(t0, q0, v0);
+        if !all_finite(&p0) || !self.system.lagrangian_value(t0, q0, v0).is_finite() {
+            return Err(Error::InvalidInitialData {
+                reason: "the lagrangian or its momentum is not finite at the initial data",
+            });
+        }
+        let hessian = self.system.velocity_hessian(t0, q0, v0);
+        if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
+            return Err(Error::InvalidInitialData {
+                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+            });
+        }
+        Ok(Integrator {
+            system: self.system,
+            method: self.method,
+            h: self.h,
+            newton: self.newton,
+            state: State {
+                step: 0,
+                t: t0,
+                q: q0,
+                p: p0,
+            },
+            previous: None,
+            v0,
+            clock: Clock { t: t0, step: 0 },
+            stats: Stats::default(),
+        })
+    }
+}
+
+/// Where `t_k = t + (k − step)·h` is measured from; reset whenever `h` changes,
+/// so that times stay exact multiples of `h` instead of accumulating round-off.
+#[derive(Clone, Copy, Debug)]
+struct Clock {
+    t: f64,
+    step: u64,
+}
+
+/// A fixed-step variational integrator for a system `S` with `N` degrees of
+/// freedom and a discrete Lagrangian `M`.
+///
+/// ```
+/// use lagrangian_runtime::{Integrator, Lagrangian, Midpoint, Scalar};
+///
+/// /// A harmonic oscillator, implemented by hand (`#[lagrangian]` writes this for you).
+/// struct Oscillator;
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+///     }
+/// }
+///
+/// let mut sim = Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
+/// sim.run(628, |_| {})?;
+/// assert!((sim.state().t - 6.28).abs() < 1e-12);
+/// assert!((sim.state().q[0] - 6.28f64.cos()).abs() < 1e-4);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct Integrator<S, M, const N: usize> {
+    system: S,
+    method: M,
+    h: f64,
+    newton: NewtonOptions,
+    state: State<N>,
+    /// Node `k − 1` as `(t, q)`; `None` at the start.
+    previous: Option<(f64, [f64; N])>,
+    v0: [f64; N],
+    clock: Clock,
+    stats: Stats,
+}
+
+impl<S, M: DiscreteLagrangian> Integrator<S, M, 0> {
+    /// Configures an integrator for `system` with the discrete Lagrangian
+    /// `method` and step `h`; continue with [`IntegratorBuilder::start`].
+    #[allow(clippy::new_ret_no_self)]
+    pub fn new(system: S, method: M, h: f64) -> IntegratorBuilder<S, M> {
+        IntegratorBuilder {
+            system,
+            method,
+            h,
+            newton: NewtonOptions::default(),
+        }
+    }
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
+    /// The current state `(k, t_k, q_k, p_k)`.
+    pub fn state(&self) -> &State<N> {
+        &self.state
+    }
+
+    /// The system being integrated.
+    pub fn system(&self) -> &S {
+        &self.system
+    }
+
+    /// The discrete Lagrangian in use.
+    pub fn method(&self) -> &M {
+        &self.method
+    }
+
+    /// The current step size.
+    pub fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    /// Work counters.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// The Newton settings in use.
+    pub fn newton_options(&self) -> &NewtonOptions {
+        &self.newton
+    }
+
+    /// Changes the step size for the following steps (for example to retry a
+    /// failed step with a smaller one). The integrator stays variational: the
+    /// DEL equations hold with the step sizes actually taken.
+    pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
+        check_step(h)?;
+        self.clock = Clock {
+            t: self.state.t,
+            step: self.state.step,
+        };
+        self.h = h;
+        Ok(())
+    }
+
+    /// Takes one step of size [`step_size`](Self::step_size).
+    ///
+    /// On failure nothing changes: the state, the step size and the predictor
+    /// are those from before the call.
+    pub fn step(&mut self) -> Result<&State<N>, Error<N>> {
+        let t1 = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
+        self.step_to(t1)
+    }
+
+    /// One step from `t_k` to `t1`.
+    fn step_to(&mut self, t1: f64) -> Result<&State<N>, Error<N>> {
+        let State {
+            step,
+            t: t0,
+            q: q0,
+            p: p0,
+        } = self.state;
+        let h = t1 - t0;
+        let predictor = self.predict(t1);
+        let (system, method) = (&self.system, &self.method);
+        let eval = |x: &SVector<f64, N>| {
+            let seg = Segment {
+                t0,
+                q0,
+                t1,
+                q1: (*x).into(),
+            };
+            let d = derivatives::step_derivatives(system, method, &seg);
+            (SVector::from_fn(|i, _| p0[i] + d.d_q0[i]), d.d2_q0_q1)
+        };
+        let outcome = newton::solve(SVector::from(predictor), &self.newton, eval);
+        let (q1, report) = match outcome {
+            Ok((q1, report)) => (<[f64; N]>::from(q1), report),
+            Err(failure) => return Err(self.fail(h, failure)),
+        };
+        let p1 = derivatives::end_momentum(system, method, &Segment { t0, q0, t1, q1 });
+        if !all_finite(&q1) || !all_finite(&p1) {
+            let quantity = if all_finite(&q1) {
+                "momentum"
+            } else {
+                "position"
+            };
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite {
+                state: self.state,
+                h,
+                iterations: report.iterations,
+                quantity,
+            });
+        }
+        self.previous = Some((t0, q0));
+        self.state = State {
+            step: step + 1,
+            t: t1,
+            q: q1,
+            p: p1,
+        };
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.last = report;
+        Ok(&self.state)
+    }
+
+    /// Linear extrapolation through the last two nodes (or `q_0 + h v_0` at the start).
+    fn predict(&self, t1: f64) -> [f64; N] {
+        let State { t, q, .. } = self.state;
+        match self.previous {
+            Some((tp, qp)) => {
+                let r = (t1 - t) / (t - tp);
+                core::array::from_fn(|i| q[i] + (q[i] - qp[i]) * r)
+            }
+            None => core::array::from_fn(|i| q[i] + (t1 - t) * self.v0[i]),
+        }
+    }
+
+    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
+        self.stats.failed_steps += 1;
+        let state = self.state;
+        match failure {
+            NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
+                state,
+                h,
+                iterations: r.iterations,
+                residual_norm: r.residual_norm,
+                correction_norm: r.correction_norm,
+            },
+            NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian {
+                state,
+                h,
+                iterations,
+                rcond,
+            },
+            NewtonFailure::NonFinite {
+                iterations,
+                quantity,
+            } => Error::NonFinite {
+                state,
+                h,
+                iterations,
+                quantity,
+            },
+        }
+    }
+
+    /// Takes `n` steps, calling `observe` after each with the integrator.
+    ///
+    /// Stops at the first failure, with the integrator at the last good state.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps until `t_end`, calling `observe` after each step. The last step
+    /// is shortened so that the integrator stops at `t_end` exactly; the step
+    /// size is then restored.
+    pub fn run_until(
+        &mut self,
+        t_end: f64,
+        mut observe: impl FnMut(&Self),
+    ) -> Result<(), Error<N>> {
+        if !t_end.is_finite() || t_end < self.state.t {
+            return Err(Error::InvalidTarget {
+                target: t_end,
+                state: self.state,
+            });
+        }
+        // Steps that land within this of t_end count as landing on it.
+        let slack = 1e-9 * self.h;
+        loop {
+            let next = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
+            if next <= t_end + slack {
+                self.step()?;
+                observe(self);
+                continue;
+            }
+            if t_end - self.state.t > slack {
+                self.step_to(t_end)?;
+                // The shortened step moved the clock's origin.
+                self.clock = Clock {
+                    t: self.state.t,
+                    step: self.state.step,
+                };
+                observe(self);
+            }
+            return Ok(());
+        }
+    }
+
+    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (MATH.md §3); at
+    /// `k = 0`, the continuous energy of the initial data.
+    pub fn discrete_energy(&self) -> f64 {
+        match self.previous {
+            Some((tp, qp)) => {
+                let seg = Segment {
+                    t0: tp,
+                    q0: qp,
+                    t1: self.state.t,
+                    q1: self.state.q,
+                };
+                -derivatives::end_time_derivative(&self.system, &self.method, &seg)
+            }
+            None => self.system.energy(self.state.t, self.state.q, self.v0),
+        }
+    }
+
+    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
+    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        let State { t, q, p, .. } = self.state;
+        let guess = match self.previous {
+            Some((tp, qp)) => core::array::from_fn(|i| (q[i] - qp[i]) / (t - tp)),
+            None => self.v0,
+        };
+        self.system
+            .velocity(t, q, p, guess)
+            .map_err(|f| Error::InverseLegendre {
+                state: self.state,
+                iterations: f.iterations,
+                residual_norm: f.residual_norm,
+            })
+    }
+
+    /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
+    pub fn energy(&self) -> Result<f64, Error<N>> {
+        let v = self.velocity()?;
+        Ok(self.system.energy(self.state.t, self.state.q, v))
+    }
+
+    /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
+    /// (MATH.md §8), or `None` before the first step or where `∂²A/∂q_k∂q_{k+1}`
+    /// is singular.
+    pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
+        let (t0, q0) = self.previous?;
+        let seg = Segment {
+            t0,
+            q0,
+            t1: self.state.t,
+            q1: self.state.q,
+        };
+        symplectic::tangent_map(&self.system, &self.method, &seg)
+    }
+}
+
+fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
+    if h.is_finite() && h > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidStepSize { h })
+    }
+}
+
+fn all_finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}

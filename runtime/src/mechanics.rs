@@ -1,0 +1,177 @@
+//! Continuous and discrete mechanics of a system, as callable functions.
+//!
+//! [`DiscreteMechanics`] is implemented for every [`Lagrangian`], so a type
+//! annotated with `#[lagrangian]` gets these methods for free: the momentum and
+//! energy of `L`, the partials `D1..D4` of a discrete Lagrangian, the DEL
+//! residual and its Jacobian, ready to be fed to a solver of the user's own.
+
+use nalgebra::{SMatrix, SVector};
+use num_dual::{Dual64, HyperDual64};
+
+use crate::derivatives::{self, Segment, StepDerivatives};
+use crate::discrete::DiscreteLagrangian;
+use crate::newton::{self, NewtonFailure, NewtonOptions};
+use crate::system::Lagrangian;
+
+/// The discrete Lagrangian `L_d = A/h` of a segment and its partials
+/// `D1..D4` with respect to `t_k, q_k, t_{k+1}, q_{k+1}` (MATH.md §2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiscretePartials<const N: usize> {
+    /// `L_d(t_k, q_k, t_{k+1}, q_{k+1})`.
+    pub l_d: f64,
+    /// `D1 L_d = ∂L_d/∂t_k`.
+    pub d1: f64,
+    /// `D2 L_d = ∂L_d/∂q_k`.
+    pub d2: [f64; N],
+    /// `D3 L_d = ∂L_d/∂t_{k+1}`.
+    pub d3: f64,
+    /// `D4 L_d = ∂L_d/∂q_{k+1}`.
+    pub d4: [f64; N],
+}
+
+/// Why the velocity of a given momentum could not be found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LegendreFailure {
+    /// Newton iterations spent.
+    pub iterations: usize,
+    /// `‖∂L/∂v − p‖∞` at the last iterate (infinite if the Hessian was singular or a value not finite).
+    pub residual_norm: f64,
+}
+
+/// Mechanics derived from a [`Lagrangian`]; implemented for every such system.
+pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
+    /// `L(t, q, v)` in plain `f64`.
+    fn lagrangian_value(&self, t: f64, q: [f64; N], v: [f64; N]) -> f64 {
+        self.lagrangian(t, q, v)
+    }
+
+    /// The momentum `p = ∂L/∂v(t, q, v)`.
+    fn momentum(&self, t: f64, q: [f64; N], v: [f64; N]) -> [f64; N] {
+        core::array::from_fn(|i| {
+            let mut vd = v.map(Dual64::from);
+            vd[i].eps = 1.0;
+            self.lagrangian(Dual64::from(t), q.map(Dual64::from), vd)
+                .eps
+        })
+    }
+
+    /// The energy `E_L = v·∂L/∂v − L`.
+    fn energy(&self, t: f64, q: [f64; N], v: [f64; N]) -> f64 {
+        let p = self.momentum(t, q, v);
+        (0..N).map(|i| v[i] * p[i]).sum::<f64>() - self.lagrangian(t, q, v)
+    }
+
+    /// The Hessian `∂²L/∂v²`; the Legendre transform is regular where it is invertible.
+    fn velocity_hessian(&self, t: f64, q: [f64; N], v: [f64; N]) -> SMatrix<f64, N, N> {
+        SMatrix::from_fn(|i, j| {
+            let mut vd = v.map(HyperDual64::from);
+            vd[i].eps1 = 1.0;
+            vd[j].eps2 = 1.0;
+            self.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd)
+                .eps1eps2
+        })
+    }
+
+    /// The velocity `v` with `∂L/∂v(t, q, v) = p` (inverse Legendre
+    /// transform), by Newton's method from `guess`.
+    fn velocity(
+        &self,
+        t: f64,
+        q: [f64; N],
+        p: [f64; N],
+        guess: [f64; N],
+    ) -> Result<[f64; N], LegendreFailure> {
+        let eval = |v: &SVector<f64, N>| {
+            let v: [f64; N] = (*v).into();
+            let m = self.momentum(t, q, v);
+            let r = SVector::<f64, N>::from_fn(|i, _| m[i] - p[i]);
+            (r, self.velocity_hessian(t, q, v))
+        };
+        match newton::solve(SVector::from(guess), &NewtonOptions::default(), eval) {
+            Ok((v, _)) => Ok(v.into()),
+            Err(NewtonFailure::NotConverged(r)) => Err(LegendreFailure {
+                iterations: r.iterations,
+                residual_norm: r.residual_norm,
+            }),
+            Err(
+                NewtonFailure::Singular { iterations, .. }
+                | NewtonFailure::NonFinite { iterations, .. },
+            ) => Err(LegendreFailure {
+                iterations,
+                residual_norm: f64::INFINITY,
+            }),
+        }
+    }
+
+    /// `L_d` and its partials `D1..D4` for a discrete Lagrangian on a segment.
+    fn discrete_partials<M: DiscreteLagrangian>(
+        &self,
+        method: &M,
+        seg: &Segment<N>,
+    ) -> DiscretePartials<N> {
+        let h = seg.t1 - seg.t0;
+        let g = derivatives::action_gradient(self, method, seg);
+        let l_d = g.action / h;
+        DiscretePartials {
+            l_d,
+            d1: (g.d_t0 + l_d) / h,
+            d2: g.d_q0.map(|x| x / h),
+            d3: (g.d_t1 - l_d) / h,
+            d4: g.d_q1.map(|x| x / h),
+        }
+    }
+
+    /// Residual, next momentum and Newton Jacobian of one step (see [`StepDerivatives`]).
+    fn step_derivatives<M: DiscreteLagrangian>(
+        &self,
+        method: &M,
+        seg: &Segment<N>,
+    ) -> StepDerivatives<N> {
+        derivatives::step_derivatives(self, method, seg)
+    }
+
+    /// The DEL residual at node `k`,
+    /// `∂A(x_k, x_{k+1})/∂q_k + ∂A(x_{k−1}, x_k)/∂q_k`, for three nodes `(t, q)`.
+    fn del_residual<M: DiscreteLagrangian>(
+        &self,
+        method: &M,
+        prev: (f64, [f64; N]),
+        node: (f64, [f64; N]),
+        next: (f64, [f64; N]),
+    ) -> [f64; N] {
+        let behind = Segment {
+            t0: prev.0,
+            q0: prev.1,
+            t1: node.0,
+            q1: node.1,
+        };
+        let ahead = Segment {
+            t0: node.0,
+            q0: node.1,
+            t1: next.0,
+            q1: next.1,
+        };
+        let p = derivatives::end_momentum(self, method, &behind);
+        let d = derivatives::action_gradient(self, method, &ahead);
+        core::array::from_fn(|i| d.d_q0[i] + p[i])
+    }
+
+    /// The Jacobian of [`del_residual`](Self::del_residual) with respect to
+    /// `q_{k+1}`: `∂²A(x_k, x_{k+1})/∂q_k∂q_{k+1}`.
+    fn del_jacobian<M: DiscreteLagrangian>(
+        &self,
+        method: &M,
+        node: (f64, [f64; N]),
+        next: (f64, [f64; N]),
+    ) -> SMatrix<f64, N, N> {
+        let ahead = Segment {
+            t0: node.0,
+            q0: node.1,
+            t1: next.0,
+            q1: next.1,
+        };
+        derivatives::step_derivatives(self, method, &ahead).d2_q0_q1
+    }
+}
+
+impl<S: Lagrangian<N> + ?Sized, const N: usize> DiscreteMechanics<N> for S {}
