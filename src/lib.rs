@@ -1,4 +1,89 @@
-//! lagrangian: structure-preserving integrators from a Lagrangian written as plain Rust.
+//! # lagrangian
+//!
+//! Structure-preserving integrators from a Lagrangian written as plain Rust.
+//!
+//! You write `L(q, v)` as ordinary `f64` code inside an `impl` block annotated
+//! with [`#[lagrangian]`](macro@lagrangian). The macro rewrites it so that it can
+//! be evaluated on num-dual's dual numbers and implements [`Lagrangian`] for your
+//! type; the runtime then integrates it with a variational integrator: one
+//! Newton solve of the discrete Euler–Lagrange equation per step, with the
+//! residual, the next momentum and the Jacobian all coming from hyper-dual
+//! evaluations of the step action. The result is symplectic, conserves the
+//! momenta of symmetries exactly and keeps the energy error bounded over
+//! arbitrarily long runs.
+//!
+//! ## A pendulum in ten lines
+//!
+//! ```
+//! use lagrangian::prelude::*;
+//!
+//! pub struct Pendulum { pub m: f64, pub l: f64, pub g: f64 }
+//!
+//! #[lagrangian]
+//! impl Pendulum {
+//!     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+//!         0.5 * self.m * self.l * self.l * v[0] * v[0] + self.m * self.g * self.l * q[0].cos()
+//!     }
+//! }
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let pendulum = Pendulum { m: 1.0, l: 1.0, g: 9.81 };
+//! // The midpoint rule with h = 0.01, from θ = 1 rad at rest.
+//! let mut sim = Integrator::new(pendulum, Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
+//! let e0 = sim.energy()?;
+//! sim.run(10_000, |_| {})?;
+//! let state = sim.state();
+//! assert!((state.t - 100.0).abs() < 1e-9);
+//! // 10⁴ steps later the energy error is still O(h²) and does not drift.
+//! assert!(((sim.energy()? - e0) / e0).abs() < 1e-4);
+//! # Ok(()) }
+//! ```
+//!
+//! ## What you can write
+//!
+//! The signature is `fn lagrangian(&self, [t: f64,] q: [f64; N], v: [f64; N]) -> f64`;
+//! `N`, the number of degrees of freedom, is the array length. The body may use
+//! `let` bindings (also `mut` with `+=` and friends), arithmetic with literals
+//! on either side, fields of `self` as constants, `if`/`else`, `for` loops over
+//! integer ranges, and the methods `sin cos tan asin acos atan atan2 sinh cosh
+//! tanh asinh acosh atanh exp exp2 exp_m1 ln ln_1p log log2 log10 sqrt cbrt
+//! powi powf abs signum recip mul_add`. Anything else is a compile error that
+//! points at the offending token and says what is allowed.
+//!
+//! ## Using the pieces
+//!
+//! Every [`Lagrangian`] also gets the methods of [`DiscreteMechanics`]: the
+//! momentum and energy of `L`, the partials `D1..D4` of a discrete Lagrangian,
+//! the DEL residual and its Jacobian, so you can feed them to a solver of your
+//! own:
+//!
+//! ```
+//! use lagrangian::prelude::*;
+//! use lagrangian::Segment;
+//!
+//! struct Oscillator;
+//!
+//! #[lagrangian]
+//! impl Oscillator {
+//!     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+//!         0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+//!     }
+//! }
+//!
+//! let seg = Segment { t0: 0.0, q0: [1.0], t1: 0.1, q1: [0.995] };
+//! let d = Oscillator.step_derivatives(&Midpoint, &seg);
+//! // ∂²A/∂q_k∂q_{k+1} = −1/h − h/4 for the midpoint rule.
+//! assert!((d.d2_q0_q1[(0, 0)] - (-10.0 - 0.025)).abs() < 1e-12);
+//! let parts = Oscillator.discrete_partials(&Midpoint, &seg);
+//! assert!((parts.d2[0] * 0.1 - d.d_q0[0]).abs() < 1e-12);
+//! ```
+//!
+//! ## Errors, not panics
+//!
+//! A step that fails (Newton does not converge, the Jacobian is singular, a
+//! value is not finite) returns an [`Error`] carrying the state and the
+//! diagnostics, and leaves the integrator as it was, so the caller can retry
+//! with another step size.
 
 pub use lagrangian_macros::lagrangian;
 pub use lagrangian_runtime::*;
@@ -6,7 +91,10 @@ pub use lagrangian_runtime::*;
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
-    pub use lagrangian_runtime::{Lagrangian, Scalar};
+    pub use lagrangian_runtime::{
+        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, Error, Integrator, Lagrangian, Midpoint, NewtonOptions,
+        Scalar, State, Trapezoid,
+    };
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
