@@ -70,7 +70,8 @@
 //!     }
 //! }
 //!
-//! let seg = Segment { t0: 0.0, q0: [1.0], t1: 0.1, q1: [0.995] };
+//! // The step from (t, q) = (0, 1) to (0.1, 0.995).
+//! let seg = Segment { t0: 0.0, h: 0.1, q0: [1.0], dq: [-0.005] };
 //! let d = Oscillator.step_derivatives(&Midpoint, &seg);
 //! // ∂²A/∂q_k∂q_{k+1} = −1/h − h/4 for the midpoint rule.
 //! assert!((d.d2_q0_q1[(0, 0)] - (-10.0 - 0.025)).abs() < 1e-12);

@@ -52,9 +52,9 @@ fn check<S: Lagrangian<N>, const N: usize>(
     seg: Segment<N>,
     partials: fn([f64; N], [f64; N]) -> ([f64; N], [f64; N], [[f64; N]; N], [[f64; N]; N], [[f64; N]; N]),
 ) {
-    let h = seg.t1 - seg.t0;
-    let qm: [f64; N] = core::array::from_fn(|i| 0.5 * (seg.q0[i] + seg.q1[i]));
-    let vh: [f64; N] = core::array::from_fn(|i| (seg.q1[i] - seg.q0[i]) / h);
+    let h = seg.h;
+    let qm: [f64; N] = core::array::from_fn(|i| seg.q0[i] + 0.5 * seg.dq[i]);
+    let vh: [f64; N] = core::array::from_fn(|i| seg.dq[i] / h);
     let (l_q, l_v, l_qq, l_qv, l_vv) = partials(qm, vh);
 
     let d_q0: [f64; N] = core::array::from_fn(|i| 0.5 * h * l_q[i] - l_v[i]);
@@ -66,7 +66,7 @@ fn check<S: Lagrangian<N>, const N: usize>(
     assert!(rel_err(&got.d_q1, &d_q1) <= TOL, "∂A/∂q_k+1 {:?} vs {:?}", got.d_q1, d_q1);
     assert!(rel_err(got.d2_q0_q1.as_slice(), jac.as_slice()) <= TOL, "jacobian {} vs {}", got.d2_q0_q1, jac);
 
-    let jac_del = system.del_jacobian(&Midpoint, (seg.t0, seg.q0), (seg.t1, seg.q1));
+    let jac_del = system.del_jacobian(&Midpoint, (seg.t0, seg.q0), (seg.t1(), seg.q1()));
     assert!(rel_err(jac_del.as_slice(), jac.as_slice()) <= TOL);
 
     let d = system.discrete_partials(&Midpoint, &seg);
@@ -82,7 +82,7 @@ fn check<S: Lagrangian<N>, const N: usize>(
 #[test]
 fn pendulum_midpoint_derivatives_match_hand_derived_formulas() {
     for (q0, q1, h) in [(0.3, 0.32, 0.01), (-2.0, -1.7, 0.1), (3.0, 3.1, 0.05)] {
-        check(&PENDULUM, Segment { t0: 0.4, q0: [q0], t1: 0.4 + h, q1: [q1] }, pendulum_partials);
+        check(&PENDULUM, Segment::between((0.4, [q0]), (0.4 + h, [q1])), pendulum_partials);
     }
 }
 
@@ -90,7 +90,7 @@ fn pendulum_midpoint_derivatives_match_hand_derived_formulas() {
 fn double_pendulum_midpoint_derivatives_match_hand_derived_formulas() {
     for (q0, q1, h) in [([0.3, -0.2], [0.31, -0.19], 0.01), ([2.0, 1.0], [2.2, 0.7], 0.1), ([-1.0, 3.0], [-0.9, 3.05], 0.05)]
     {
-        check(&DOUBLE_PENDULUM, Segment { t0: 1.0, q0, t1: 1.0 + h, q1 }, double_pendulum_partials);
+        check(&DOUBLE_PENDULUM, Segment::between((1.0, q0), (1.0 + h, q1)), double_pendulum_partials);
     }
 }
 
@@ -98,8 +98,8 @@ fn double_pendulum_midpoint_derivatives_match_hand_derived_formulas() {
 fn del_residual_is_the_sum_of_both_steps_partials() {
     let s = &DOUBLE_PENDULUM;
     let (n0, n1, n2) = ((0.0, [0.3, -0.2]), (0.01, [0.305, -0.196]), (0.02, [0.309, -0.191]));
-    let behind = s.step_derivatives(&Midpoint, &Segment { t0: n0.0, q0: n0.1, t1: n1.0, q1: n1.1 });
-    let ahead = s.step_derivatives(&Midpoint, &Segment { t0: n1.0, q0: n1.1, t1: n2.0, q1: n2.1 });
+    let behind = s.step_derivatives(&Midpoint, &Segment::between(n0, n1));
+    let ahead = s.step_derivatives(&Midpoint, &Segment::between(n1, n2));
     let want: [f64; 2] = core::array::from_fn(|i| behind.d_q1[i] + ahead.d_q0[i]);
     let got = s.del_residual(&Midpoint, n0, n1, n2);
     for i in 0..2 {

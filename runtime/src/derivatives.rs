@@ -19,19 +19,41 @@ use nalgebra::SMatrix;
 use num_dual::{Dual64, HyperDual64};
 
 use crate::discrete::DiscreteLagrangian;
-use crate::system::Lagrangian;
+use crate::system::{Lagrangian, Scalar};
 
-/// Two consecutive extended nodes `x_k = (t0, q0)` and `x_{k+1} = (t1, q1)`.
+/// One step between two extended nodes, `x_k = (t0, q0)` and
+/// `x_{k+1} = (t0 + h, q0 + dq)`, held as start and increments so that the
+/// secant velocity `dq/h` carries no cancellation error (see
+/// [`DiscreteLagrangian::action`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Segment<const N: usize> {
     /// `t_k`.
     pub t0: f64,
+    /// `h = t_{k+1} − t_k`.
+    pub h: f64,
     /// `q_k`.
     pub q0: [f64; N],
-    /// `t_{k+1}`.
-    pub t1: f64,
-    /// `q_{k+1}`.
-    pub q1: [f64; N],
+    /// `q_{k+1} − q_k`.
+    pub dq: [f64; N],
+}
+
+impl<const N: usize> Segment<N> {
+    /// The segment from node `(t0, q0)` to node `(t1, q1)`.
+    pub fn between(start: (f64, [f64; N]), end: (f64, [f64; N])) -> Self {
+        let (t0, q0) = start;
+        let (t1, q1) = end;
+        Self { t0, h: t1 - t0, q0, dq: core::array::from_fn(|i| q1[i] - q0[i]) }
+    }
+
+    /// `t_{k+1} = t0 + h`.
+    pub fn t1(&self) -> f64 {
+        self.t0 + self.h
+    }
+
+    /// `q_{k+1} = q0 + dq`.
+    pub fn q1(&self) -> [f64; N] {
+        core::array::from_fn(|i| self.q0[i] + self.dq[i])
+    }
 }
 
 /// One coordinate of a [`Segment`]: the variable a derivative is taken with respect to.
@@ -77,21 +99,37 @@ pub struct ActionGradient<const N: usize> {
     pub d_q1: [f64; N],
 }
 
-/// The coordinate `v` of a segment held as four separate values.
+/// A segment as dual numbers `(t0, h, q0, dq)`.
+type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
+
+/// Lifts a segment to dual numbers and seeds one infinitesimal on `v` through
+/// `set`. Moving `t_k` or `q_k` with the end node fixed also moves the
+/// increment by the opposite amount, hence the two entries for `T0` and `Q0`.
 #[inline(always)]
-fn slot<'a, T, const N: usize>(
-    v: Var,
-    t0: &'a mut T,
-    q0: &'a mut [T; N],
-    t1: &'a mut T,
-    q1: &'a mut [T; N],
-) -> &'a mut T {
-    match v {
-        Var::T0 => t0,
-        Var::T1 => t1,
-        Var::Q0(i) => &mut q0[i],
-        Var::Q1(i) => &mut q1[i],
+fn lift<T: Scalar, const N: usize>(
+    seg: &Segment<N>,
+    seeds: &[Var],
+    set: impl Fn(&mut T, usize, f64),
+) -> DualSegment<T, N> {
+    let mut t0 = T::from(seg.t0);
+    let mut h = T::from(seg.h);
+    let mut q0 = seg.q0.map(T::from);
+    let mut dq = seg.dq.map(T::from);
+    for (k, v) in seeds.iter().enumerate() {
+        match *v {
+            Var::T0 => {
+                set(&mut t0, k, 1.0);
+                set(&mut h, k, -1.0);
+            }
+            Var::T1 => set(&mut h, k, 1.0),
+            Var::Q0(i) => {
+                set(&mut q0[i], k, 1.0);
+                set(&mut dq[i], k, -1.0);
+            }
+            Var::Q1(i) => set(&mut dq[i], k, 1.0),
+        }
     }
+    (t0, h, q0, dq)
 }
 
 /// `A` on hyper-duals with `ε1` seeded on `a` and `ε2` on `b`.
@@ -107,13 +145,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let mut t0 = HyperDual64::from(seg.t0);
-    let mut t1 = HyperDual64::from(seg.t1);
-    let mut q0 = seg.q0.map(HyperDual64::from);
-    let mut q1 = seg.q1.map(HyperDual64::from);
-    slot(a, &mut t0, &mut q0, &mut t1, &mut q1).eps1 = 1.0;
-    slot(b, &mut t0, &mut q0, &mut t1, &mut q1).eps2 = 1.0;
-    method.action(system, t0, q0, t1, q1)
+    let (t0, h, q0, dq) =
+        lift(seg, &[a, b], |x: &mut HyperDual64, k, s| if k == 0 { x.eps1 += s } else { x.eps2 += s });
+    method.action(system, t0, h, q0, dq)
 }
 
 /// `A` on duals with `ε` seeded on `a`.
@@ -123,32 +157,19 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let mut t0 = Dual64::from(seg.t0);
-    let mut t1 = Dual64::from(seg.t1);
-    let mut q0 = seg.q0.map(Dual64::from);
-    let mut q1 = seg.q1.map(Dual64::from);
-    slot(a, &mut t0, &mut q0, &mut t1, &mut q1).eps = 1.0;
-    method.action(system, t0, q0, t1, q1)
+    let (t0, h, q0, dq) = lift(seg, &[a], |x: &mut Dual64, _, s| x.eps += s);
+    method.action(system, t0, h, q0, dq)
 }
 
 /// Residual part, next momentum and Newton Jacobian of the fixed-step map:
 /// `N²` hyper-dual evaluations of `A`, nothing else.
 #[inline]
-pub fn step_derivatives<S, M, const N: usize>(
-    system: &S,
-    method: &M,
-    seg: &Segment<N>,
-) -> StepDerivatives<N>
+pub fn step_derivatives<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> StepDerivatives<N>
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let mut out = StepDerivatives {
-        action: 0.0,
-        d_q0: [0.0; N],
-        d_q1: [0.0; N],
-        d2_q0_q1: SMatrix::zeros(),
-    };
+    let mut out = StepDerivatives { action: 0.0, d_q0: [0.0; N], d_q1: [0.0; N], d2_q0_q1: SMatrix::zeros() };
     for i in 0..N {
         for j in 0..N {
             let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(j));
@@ -172,23 +193,14 @@ where
 }
 
 /// Every first derivative of `A` on a segment (`N + 1` hyper-dual evaluations).
-pub fn action_gradient<S, M, const N: usize>(
-    system: &S,
-    method: &M,
-    seg: &Segment<N>,
-) -> ActionGradient<N>
+pub fn action_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ActionGradient<N>
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
     let times = hyper_action(system, method, seg, Var::T0, Var::T1);
-    let mut out = ActionGradient {
-        action: times.re,
-        d_t0: times.eps1,
-        d_q0: [0.0; N],
-        d_t1: times.eps2,
-        d_q1: [0.0; N],
-    };
+    let mut out =
+        ActionGradient { action: times.re, d_t0: times.eps1, d_q0: [0.0; N], d_t1: times.eps2, d_q1: [0.0; N] };
     for i in 0..N {
         let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(i));
         out.d_q0[i] = a.eps1;
@@ -222,9 +234,5 @@ where
     let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
         SMatrix::<f64, N, N>::from_fn(|i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
     };
-    (
-        block(Var::Q0, Var::Q0),
-        block(Var::Q0, Var::Q1),
-        block(Var::Q1, Var::Q1),
-    )
+    (block(Var::Q0, Var::Q0), block(Var::Q0, Var::Q1), block(Var::Q1, Var::Q1))
 }

@@ -50,8 +50,7 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         core::array::from_fn(|i| {
             let mut vd = v.map(Dual64::from);
             vd[i].eps = 1.0;
-            self.lagrangian(Dual64::from(t), q.map(Dual64::from), vd)
-                .eps
+            self.lagrangian(Dual64::from(t), q.map(Dual64::from), vd).eps
         })
     }
 
@@ -67,20 +66,13 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
             let mut vd = v.map(HyperDual64::from);
             vd[i].eps1 = 1.0;
             vd[j].eps2 = 1.0;
-            self.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd)
-                .eps1eps2
+            self.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd).eps1eps2
         })
     }
 
     /// The velocity `v` with `∂L/∂v(t, q, v) = p` (inverse Legendre
     /// transform), by Newton's method from `guess`.
-    fn velocity(
-        &self,
-        t: f64,
-        q: [f64; N],
-        p: [f64; N],
-        guess: [f64; N],
-    ) -> Result<[f64; N], LegendreFailure> {
+    fn velocity(&self, t: f64, q: [f64; N], p: [f64; N], guess: [f64; N]) -> Result<[f64; N], LegendreFailure> {
         let eval = |v: &SVector<f64, N>| {
             let v: [f64; N] = (*v).into();
             let m = self.momentum(t, q, v);
@@ -89,27 +81,18 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         };
         match newton::solve(SVector::from(guess), &NewtonOptions::default(), eval) {
             Ok((v, _)) => Ok(v.into()),
-            Err(NewtonFailure::NotConverged(r)) => Err(LegendreFailure {
-                iterations: r.iterations,
-                residual_norm: r.residual_norm,
-            }),
-            Err(
-                NewtonFailure::Singular { iterations, .. }
-                | NewtonFailure::NonFinite { iterations, .. },
-            ) => Err(LegendreFailure {
-                iterations,
-                residual_norm: f64::INFINITY,
-            }),
+            Err(NewtonFailure::NotConverged(r)) => {
+                Err(LegendreFailure { iterations: r.iterations, residual_norm: r.residual_norm })
+            }
+            Err(NewtonFailure::Singular { iterations, .. } | NewtonFailure::NonFinite { iterations, .. }) => {
+                Err(LegendreFailure { iterations, residual_norm: f64::INFINITY })
+            }
         }
     }
 
     /// `L_d` and its partials `D1..D4` for a discrete Lagrangian on a segment.
-    fn discrete_partials<M: DiscreteLagrangian>(
-        &self,
-        method: &M,
-        seg: &Segment<N>,
-    ) -> DiscretePartials<N> {
-        let h = seg.t1 - seg.t0;
+    fn discrete_partials<M: DiscreteLagrangian>(&self, method: &M, seg: &Segment<N>) -> DiscretePartials<N> {
+        let h = seg.h;
         let g = derivatives::action_gradient(self, method, seg);
         let l_d = g.action / h;
         DiscretePartials {
@@ -122,11 +105,7 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
     }
 
     /// Residual, next momentum and Newton Jacobian of one step (see [`StepDerivatives`]).
-    fn step_derivatives<M: DiscreteLagrangian>(
-        &self,
-        method: &M,
-        seg: &Segment<N>,
-    ) -> StepDerivatives<N> {
+    fn step_derivatives<M: DiscreteLagrangian>(&self, method: &M, seg: &Segment<N>) -> StepDerivatives<N> {
         derivatives::step_derivatives(self, method, seg)
     }
 
@@ -139,18 +118,8 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         node: (f64, [f64; N]),
         next: (f64, [f64; N]),
     ) -> [f64; N] {
-        let behind = Segment {
-            t0: prev.0,
-            q0: prev.1,
-            t1: node.0,
-            q1: node.1,
-        };
-        let ahead = Segment {
-            t0: node.0,
-            q0: node.1,
-            t1: next.0,
-            q1: next.1,
-        };
+        let behind = Segment::between(prev, node);
+        let ahead = Segment::between(node, next);
         let p = derivatives::end_momentum(self, method, &behind);
         let d = derivatives::action_gradient(self, method, &ahead);
         core::array::from_fn(|i| d.d_q0[i] + p[i])
@@ -164,12 +133,7 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         node: (f64, [f64; N]),
         next: (f64, [f64; N]),
     ) -> SMatrix<f64, N, N> {
-        let ahead = Segment {
-            t0: node.0,
-            q0: node.1,
-            t1: next.0,
-            q1: next.1,
-        };
+        let ahead = Segment::between(node, next);
         derivatives::step_derivatives(self, method, &ahead).d2_q0_q1
     }
 }

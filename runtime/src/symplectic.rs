@@ -52,11 +52,7 @@ impl<const N: usize> TangentMap<N> {
 }
 
 /// The tangent map of the step over `seg`, or `None` where `A12` is singular.
-pub fn tangent_map<S, M, const N: usize>(
-    system: &S,
-    method: &M,
-    seg: &Segment<N>,
-) -> Option<TangentMap<N>>
+pub fn tangent_map<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> Option<TangentMap<N>>
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
@@ -65,10 +61,5 @@ where
     let inv = a12.try_inverse()?;
     let dq_dq = -inv * a11;
     let dq_dp = -inv;
-    Some(TangentMap {
-        dq_dq,
-        dq_dp,
-        dp_dq: a12.transpose() + a22 * dq_dq,
-        dp_dp: a22 * dq_dp,
-    })
+    Some(TangentMap { dq_dq, dq_dp, dp_dq: a12.transpose() + a22 * dq_dq, dp_dp: a22 * dq_dp })
 }

@@ -47,16 +47,15 @@ impl DiscreteLagrangian for AlphaBeta {
     }
 
     #[inline(always)]
-    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where
         S: Lagrangian<N> + ?Sized,
         D: Scalar,
     {
-        let alpha = self.alpha;
-        let beta = 1.0 - alpha;
-        let h = t1 - t0;
-        let v = secant_velocity(&q0, &q1, h.recip());
-        let q = core::array::from_fn(|i| q0[i] * alpha + q1[i] * beta);
+        let beta = 1.0 - self.alpha;
+        let v = secant_velocity(&dq, h);
+        // α q_k + β q_{k+1} = q_k + β dq
+        let q = core::array::from_fn(|i| q0[i] + dq[i] * beta);
         system.lagrangian(t0 + h * beta, q, v) * h
     }
 }

@@ -21,14 +21,13 @@ impl DiscreteLagrangian for Midpoint {
     }
 
     #[inline(always)]
-    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where
         S: Lagrangian<N> + ?Sized,
         D: Scalar,
     {
-        let h = t1 - t0;
-        let v = secant_velocity(&q0, &q1, h.recip());
-        let q_mid = core::array::from_fn(|i| (q0[i] + q1[i]) * 0.5);
+        let v = secant_velocity(&dq, h);
+        let q_mid = core::array::from_fn(|i| q0[i] + dq[i] * 0.5);
         system.lagrangian(t0 + h * 0.5, q_mid, v) * h
     }
 }

@@ -25,19 +25,23 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     /// Order of the one-step map for a regular Lagrangian.
     fn order(&self) -> u32;
 
-    /// The step action `A(t0, q0, t1, q1) ≈ ∫_{t0}^{t1} L(t, q(t), q̇(t)) dt`.
-    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    /// The step action `A ≈ ∫_{t0}^{t0+h} L(t, q(t), q̇(t)) dt` of the step from
+    /// `(t0, q0)` to `(t0 + h, q0 + dq)`.
+    ///
+    /// The step is given by its increments `h` and `dq` rather than by its end
+    /// point: the secant velocity `dq/h` is then free of the cancellation in
+    /// `q1 − q0`, which for a growing coordinate (an angle after many turns, the
+    /// time itself) would put round-off of the size of `ulp(q)/h` into every
+    /// momentum and break exact conservation laws.
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where
         S: Lagrangian<N> + ?Sized,
         D: Scalar;
 }
 
-/// `(q1 − q0) / h`, the constant velocity of the linear interpolant.
+/// `dq / h`, the constant velocity of the linear interpolant.
 #[inline(always)]
-pub(crate) fn secant_velocity<D: Scalar, const N: usize>(
-    q0: &[D; N],
-    q1: &[D; N],
-    inv_h: D,
-) -> [D; N] {
-    core::array::from_fn(|i| (q1[i] - q0[i]) * inv_h)
+pub(crate) fn secant_velocity<D: Scalar, const N: usize>(dq: &[D; N], h: D) -> [D; N] {
+    let inv_h = h.recip();
+    dq.map(|x| x * inv_h)
 }

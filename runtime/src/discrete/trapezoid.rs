@@ -22,13 +22,13 @@ impl DiscreteLagrangian for Trapezoid {
     }
 
     #[inline(always)]
-    fn action<S, D, const N: usize>(&self, system: &S, t0: D, q0: [D; N], t1: D, q1: [D; N]) -> D
+    fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where
         S: Lagrangian<N> + ?Sized,
         D: Scalar,
     {
-        let h = t1 - t0;
-        let v = secant_velocity(&q0, &q1, h.recip());
-        (system.lagrangian(t0, q0, v) + system.lagrangian(t1, q1, v)) * (h * 0.5)
+        let v = secant_velocity(&dq, h);
+        let q1 = core::array::from_fn(|i| q0[i] + dq[i]);
+        (system.lagrangian(t0, q0, v) + system.lagrangian(t0 + h, q1, v)) * (h * 0.5)
     }
 }
