@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Runs every example in release mode; each prints its energy and momentum errors.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+for example in harmonic_oscillator pendulum double_pendulum kepler; do
+    echo "== $example"
+    cargo run --quiet --release --example "$example"
+done
