@@ -79,6 +79,12 @@ pub enum Error<const N: usize> {
         /// The current state.
         state: State<N>,
     },
+    /// The system uses a feature the runtime does not integrate yet.
+    #[error("not supported yet: {what}")]
+    Unsupported {
+        /// What is missing.
+        what: &'static str,
+    },
     /// The velocity for a momentum could not be found (inverse Legendre transform).
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
     InverseLegendre {

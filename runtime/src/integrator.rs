@@ -55,14 +55,21 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
     /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
     ///
     /// Fails with [`Error::InvalidStepSize`] for a step that is not finite and
-    /// positive, and with [`Error::InvalidInitialData`] for non-finite data or
+    /// positive, with [`Error::InvalidInitialData`] for non-finite data or
     /// where `∂²L/∂v²` is singular (the Legendre transform is not regular and
-    /// the one-step map does not exist).
+    /// the one-step map does not exist), and with [`Error::Unsupported`] for a
+    /// system with `force` or `dissipation` (not integrated yet).
     pub fn start<const N: usize>(self, t0: f64, q0: [f64; N], v0: [f64; N]) -> Result<Integrator<S, M, N>, Error<N>>
     where
         S: Lagrangian<N>,
     {
         check_step(self.h)?;
+        if S::HAS_FORCE || S::HAS_DISSIPATION {
+            // Integrating them without the Lagrange–d'Alembert terms would be silently wrong.
+            return Err(Error::Unsupported {
+                what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
+            });
+        }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
