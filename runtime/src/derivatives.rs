@@ -182,6 +182,75 @@ where
     out
 }
 
+/// The pieces of the extended (variable-step) map: the fixed-step ones plus
+/// the time derivatives, all from `(N + 1)²` hyper-dual evaluations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExtendedStepDerivatives<const N: usize> {
+    /// `∂A/∂q_k`.
+    pub d_q0: [f64; N],
+    /// `∂A/∂t_k`: with `−E_k` it is the residual of the energy equation.
+    pub d_t0: f64,
+    /// `∂²A/∂q_k∂q_{k+1}`.
+    pub d2_q0_q1: SMatrix<f64, N, N>,
+    /// `∂²A/∂q_k∂t_{k+1}`.
+    pub d2_q0_t1: nalgebra::SVector<f64, N>,
+    /// `∂²A/∂t_k∂q_{k+1}`.
+    pub d2_t0_q1: nalgebra::SVector<f64, N>,
+    /// `∂²A/∂t_k∂t_{k+1}`.
+    pub d2_t0_t1: f64,
+}
+
+/// Residuals and Jacobian of the variable-step map (MATH.md §3).
+#[inline]
+pub fn extended_step_derivatives<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> ExtendedStepDerivatives<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut out = ExtendedStepDerivatives {
+        d_q0: [0.0; N],
+        d_t0: 0.0,
+        d2_q0_q1: SMatrix::zeros(),
+        d2_q0_t1: nalgebra::SVector::zeros(),
+        d2_t0_q1: nalgebra::SVector::zeros(),
+        d2_t0_t1: 0.0,
+    };
+    for i in 0..=N {
+        for j in 0..=N {
+            let a = if i < N { Var::Q0(i) } else { Var::T0 };
+            let b = if j < N { Var::Q1(j) } else { Var::T1 };
+            let v = hyper_action(system, method, seg, a, b);
+            match (i < N, j < N) {
+                (true, true) => out.d2_q0_q1[(i, j)] = v.eps1eps2,
+                (true, false) => out.d2_q0_t1[i] = v.eps1eps2,
+                (false, true) => out.d2_t0_q1[j] = v.eps1eps2,
+                (false, false) => out.d2_t0_t1 = v.eps1eps2,
+            }
+            if i < N {
+                out.d_q0[i] = v.eps1;
+            } else {
+                out.d_t0 = v.eps1;
+            }
+        }
+    }
+    out
+}
+
+/// `(∂A/∂q_{k+1}, ∂A/∂t_{k+1})`: the momentum and minus the energy at the
+/// end of a segment (`N + 1` dual evaluations).
+#[inline]
+pub fn end_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ([f64; N], f64)
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    (end_momentum(system, method, seg), dual_action(system, method, seg, Var::T1).eps)
+}
+
 /// `∂A/∂q_{k+1}`, the momentum at the end of a segment: `N` dual evaluations.
 #[inline]
 pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]

@@ -59,11 +59,40 @@ pub enum Error<const N: usize> {
         /// Which value: `residual`, `jacobian`, `correction`, `position` or `momentum`.
         quantity: &'static str,
     },
+    /// The step was refused: for variable steps, the energy equation has no
+    /// acceptable root (`h ≤ 0`, outside `[h_min, h_max]`, or changing faster
+    /// than the allowed ratio).
+    #[error(
+        "step rejected from t = {} (step {}, h = {h:e}) after {iterations} iterations: {reason}",
+        .state.t, .state.step
+    )]
+    StepRejected {
+        /// The state the step started from (and the integrator still holds).
+        state: State<N>,
+        /// The last step size tried.
+        h: f64,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// Why.
+        reason: &'static str,
+    },
     /// A step size that is zero, negative or not finite.
     #[error("invalid step size h = {h}: it must be finite and positive")]
     InvalidStepSize {
         /// The rejected step size.
         h: f64,
+    },
+    /// Variable-step bounds that are not finite, not positive, `h_min > h_max`, or a ratio below 1.
+    #[error(
+        "invalid step bounds h_min = {h_min}, h_max = {h_max}, max_ratio = {max_ratio}: need 0 < h_min ≤ h_max, both finite, and max_ratio ≥ 1"
+    )]
+    InvalidStepBounds {
+        /// The rejected lower bound.
+        h_min: f64,
+        /// The rejected upper bound.
+        h_max: f64,
+        /// The rejected ratio.
+        max_ratio: f64,
     },
     /// Initial data that cannot start an integration.
     #[error("invalid initial data: {reason}")]

@@ -15,7 +15,7 @@ use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport};
+use crate::newton::{self, Breakdown, Extended, NewtonFailure, NewtonOptions, NewtonReport};
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
@@ -43,9 +43,59 @@ pub struct IntegratorBuilder<S, M> {
     method: M,
     h: f64,
     newton: NewtonOptions,
+    policy: StepPolicy,
+}
+
+/// How the integrator chooses its step sizes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StepPolicy {
+    /// Every step has the configured size `h` (MATH.md §3, fixed step).
+    Fixed,
+    /// Energy-preserving variable steps (Lee; Kane, Marsden & Ortiz; paper
+    /// 001 §3, 003 §3.2): each `h_k` is an unknown of the step, fixed by the
+    /// discrete energy equation `E_{k+1} = E_k` (for a time-dependent `L`, the
+    /// energy-evolution equation of paper 003). The configured `h` is the
+    /// first guess.
+    EnergyPreserving(StepBounds),
+}
+
+/// Limits on the step sizes of [`StepPolicy::EnergyPreserving`] (MATH.md §9).
+///
+/// A step whose solution falls outside them is refused with
+/// [`Error::StepRejected`] and the integrator keeps its state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepBounds {
+    /// Smallest acceptable step.
+    pub h_min: f64,
+    /// Largest acceptable step.
+    pub h_max: f64,
+    /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`), at least 1.
+    pub max_ratio: f64,
+}
+
+impl StepBounds {
+    /// Bounds `[h0 / 1000, 1000 h0]` around a first guess, with ratio 2.
+    pub fn around(h0: f64) -> Self {
+        Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0 }
+    }
+
+    fn valid(&self) -> bool {
+        self.h_min.is_finite()
+            && self.h_max.is_finite()
+            && self.h_min > 0.0
+            && self.h_min <= self.h_max
+            && self.max_ratio >= 1.0
+    }
 }
 
 impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
+    /// Energy-preserving variable steps within `bounds`, starting from the
+    /// guess `h` given to [`Integrator::new`].
+    pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
+        self.policy = StepPolicy::EnergyPreserving(bounds);
+        self
+    }
+
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
@@ -64,6 +114,14 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
         S: Lagrangian<N>,
     {
         check_step(self.h)?;
+        if let StepPolicy::EnergyPreserving(b) = self.policy {
+            if !b.valid() {
+                return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
+            }
+            if !(b.h_min..=b.h_max).contains(&self.h) {
+                return Err(Error::InvalidStepSize { h: self.h });
+            }
+        }
         if S::HAS_FORCE || S::HAS_DISSIPATION {
             // Integrating them without the Lagrange–d'Alembert terms would be silently wrong.
             return Err(Error::Unsupported {
@@ -85,7 +143,14 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
                 reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
             });
         }
+        let energy = self.system.energy(t0, q0, v0);
+        if !energy.is_finite() {
+            return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
+        }
         Ok(Integrator {
+            policy: self.policy,
+            energy,
+            time_error: 0.0,
             system: self.system,
             method: self.method,
             h: self.h,
@@ -137,6 +202,11 @@ pub struct Integrator<S, M, const N: usize> {
     h: f64,
     newton: NewtonOptions,
     state: State<N>,
+    policy: StepPolicy,
+    /// `E_k`, kept up to date by variable steps (fixed steps compute it on demand).
+    energy: f64,
+    /// Kahan compensation of `t_k` under variable steps.
+    time_error: f64,
     /// The last step, from node `k − 1` to node `k`; `None` at the start.
     previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
@@ -151,7 +221,7 @@ impl<S, M: DiscreteLagrangian> Integrator<S, M, 0> {
     /// `method` and step `h`; continue with [`IntegratorBuilder::start`].
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: S, method: M, h: f64) -> IntegratorBuilder<S, M> {
-        IntegratorBuilder { system, method, h, newton: NewtonOptions::default() }
+        IntegratorBuilder { system, method, h, newton: NewtonOptions::default(), policy: StepPolicy::Fixed }
     }
 }
 
@@ -201,26 +271,108 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// On failure nothing changes: the state, the step size and the predictor
     /// are those from before the call.
     pub fn step(&mut self) -> Result<&State<N>, Error<N>> {
+        if let StepPolicy::EnergyPreserving(bounds) = self.policy {
+            if self.previous.is_some() {
+                return self.energy_step(bounds);
+            }
+            // The first step has the given h0 (paper 000 §V starts from τ0):
+            // E_L(q0, v0) is not the discrete energy of any step, and
+            // demanding E_1 = E_L(q0, v0) has no root but h → 0. The energy
+            // conserved from then on is the discrete E_1, within O(h0²) of E_L.
+            let h = self.h;
+            self.step_by(h, self.state.t + h)?;
+            self.energy = -derivatives::end_time_derivative(
+                &self.system,
+                &self.method,
+                self.previous.as_ref().expect("set by the step just taken"),
+            );
+            return Ok(&self.state);
+        }
         let t1 = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
         self.step_by(self.h, t1)
+    }
+
+    /// One energy-preserving step after the first: solve `R_q = p_k + ∂A/∂q_k = 0` and
+    /// `R_t = −E_k + ∂A/∂t_k = 0` for `(q_{k+1}, t_{k+1})` together (MATH.md §3).
+    fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
+        let State { step, t: t0, q: q0, p: p0 } = self.state;
+        let e0 = self.energy;
+        let h_guess = self.h;
+        // Start from the DEL solution at the guessed step: the energy equation
+        // fixes h only through the O(h²) energy error of the method, so its
+        // Newton correction is trustworthy only once R_q is already zero.
+        let (dq_guess, first) = self.solve_del(h_guess)?;
+        let start = Extended { q: SVector::from(dq_guess), t: h_guess };
+        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let linearize = |x: &Extended<N>| {
+            if x.t.is_nan() || x.t <= 0.0 {
+                return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
+            }
+            let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
+            let d = derivatives::extended_step_derivatives(system, method, &seg);
+            let r = SVector::<f64, N>::from_fn(|i, _| p0[i] + d.d_q0[i]);
+            let r_t = d.d_t0 - e0;
+            let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
+            let ratio_t = r_t.abs() / e0.abs().max(d.d_t0.abs());
+            let mut lin =
+                newton::bordered_correction(r, r_t, d.d2_q0_q1, d.d2_q0_t1, d.d2_t0_q1, d.d2_t0_t1, min_rcond)?;
+            lin.residual_ratio = ratio_q.max(ratio_t);
+            Ok(lin)
+        };
+        let (x, mut report) = match newton::solve(start, &self.newton, linearize) {
+            Ok(solution) => solution,
+            Err(failure) => return Err(self.fail(h_guess, failure)),
+        };
+        report.iterations += first.iterations;
+        let h = x.t;
+        let h_prev = self.previous.map_or(h_guess, |last| last.h);
+        let reason = if h < bounds.h_min {
+            Some("the step size solving the energy equation is below h_min")
+        } else if h > bounds.h_max {
+            Some("the step size solving the energy equation is above h_max")
+        } else if h > bounds.max_ratio * h_prev || h * bounds.max_ratio < h_prev {
+            Some("the step size solving the energy equation changes faster than max_ratio allows")
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            self.stats.failed_steps += 1;
+            return Err(Error::StepRejected { state: self.state, h, iterations: report.iterations, reason });
+        }
+        let seg = Segment { t0, h, q0, dq: x.q.into() };
+        let (p1, d_t1) = derivatives::end_gradient(system, method, &seg);
+        let q1 = seg.q1();
+        if !all_finite(&q1) || !all_finite(&p1) || !d_t1.is_finite() {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity: "position" });
+        }
+        // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
+        let y = h - self.time_error;
+        let t1 = t0 + y;
+        self.time_error = (t1 - t0) - y;
+        self.earlier = self.previous.map(|last| (last.h, last.dq));
+        self.previous = Some(seg);
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
+        self.energy = -d_t1;
+        self.h = h;
+        self.clock = Clock { t: t1, step: step + 1 };
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.last = report;
+        Ok(&self.state)
+    }
+
+    /// The step policy in use.
+    pub fn policy(&self) -> StepPolicy {
+        self.policy
     }
 
     /// One step of size `h`, whose end node is stamped with time `t1`
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
     fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
-        let predictor = self.predict(h);
+        let State { step, t: t0, q: q0, .. } = self.state;
+        let (dq, report) = self.solve_del(h)?;
         let (system, method) = (&self.system, &self.method);
-        // The unknown is the increment dq = q_{k+1} − q_k (see `Segment`).
-        let eval = |x: &SVector<f64, N>| {
-            let seg = Segment { t0, h, q0, dq: (*x).into() };
-            let d = derivatives::step_derivatives(system, method, &seg);
-            (SVector::from_fn(|i, _| p0[i] + d.d_q0[i]), d.d2_q0_q1)
-        };
-        let (dq, report) = match newton::solve(SVector::from(predictor), &self.newton, eval) {
-            Ok((dq, report)) => (<[f64; N]>::from(dq), report),
-            Err(failure) => return Err(self.fail(h, failure)),
-        };
         let seg = Segment { t0, h, q0, dq };
         let p1 = derivatives::end_momentum(system, method, &seg);
         let q1 = seg.q1();
@@ -236,6 +388,25 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         self.stats.newton_iterations += report.iterations as u64;
         self.stats.last = report;
         Ok(&self.state)
+    }
+
+    /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
+    /// of a step of size `h` (see `Segment` for why the increment).
+    fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let predictor = self.predict(h);
+        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let eval = |x: &SVector<f64, N>| {
+            let seg = Segment { t0, h, q0, dq: (*x).into() };
+            let d = derivatives::step_derivatives(system, method, &seg);
+            let r = SVector::from_fn(|i, _| p0[i] + d.d_q0[i]);
+            let scale = max_abs(&p0).max(max_abs(&d.d_q0));
+            Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
+        };
+        match newton::solve(SVector::from(predictor), &self.newton, eval) {
+            Ok((dq, report)) => Ok((dq.into(), report)),
+            Err(failure) => Err(self.fail(h, failure)),
+        }
     }
 
     /// The increment predicted by quadratic extrapolation of the positions:
@@ -270,6 +441,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             },
             NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian { state, h, iterations, rcond },
             NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
+            NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
         }
     }
 
@@ -313,6 +485,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (MATH.md §3); at
     /// `k = 0`, the continuous energy of the initial data.
     pub fn discrete_energy(&self) -> f64 {
+        if let StepPolicy::EnergyPreserving(_) = self.policy {
+            return self.energy;
+        }
         match &self.previous {
             Some(seg) => -derivatives::end_time_derivative(&self.system, &self.method, seg),
             None => self.system.energy(self.state.t, self.state.q, self.v0),
@@ -349,6 +524,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
 fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
     if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
+}
+
+fn max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0, |m, v| m.max(v.abs()))
 }
 
 fn all_finite(x: &[f64]) -> bool {

@@ -77,16 +77,18 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
             let v: [f64; N] = (*v).into();
             let m = self.momentum(t, q, v);
             let r = SVector::<f64, N>::from_fn(|i, _| m[i] - p[i]);
-            (r, self.velocity_hessian(t, q, v))
+            newton::square_correction(r, self.velocity_hessian(t, q, v), NewtonOptions::default().min_rcond)
         };
         match newton::solve(SVector::from(guess), &NewtonOptions::default(), eval) {
             Ok((v, _)) => Ok(v.into()),
             Err(NewtonFailure::NotConverged(r)) => {
                 Err(LegendreFailure { iterations: r.iterations, residual_norm: r.residual_norm })
             }
-            Err(NewtonFailure::Singular { iterations, .. } | NewtonFailure::NonFinite { iterations, .. }) => {
-                Err(LegendreFailure { iterations, residual_norm: f64::INFINITY })
-            }
+            Err(
+                NewtonFailure::Singular { iterations, .. }
+                | NewtonFailure::NonFinite { iterations, .. }
+                | NewtonFailure::Rejected { iterations, .. },
+            ) => Err(LegendreFailure { iterations, residual_norm: f64::INFINITY }),
         }
     }
 

@@ -47,7 +47,8 @@ pub struct NewtonReport {
     pub iterations: usize,
     /// `‖R‖∞` at the last evaluated iterate (before the last correction).
     pub residual_norm: f64,
-    /// `‖Δ‖∞` of the last correction.
+    /// Relative size of the last correction (`‖Δ‖ / ‖x‖` blockwise, in the
+    /// weighted norm of the tolerances).
     pub correction_norm: f64,
 }
 
@@ -60,6 +61,78 @@ pub(crate) enum NewtonFailure {
     Singular { iterations: usize, rcond: f64 },
     /// The residual, the Jacobian or the correction was NaN or infinite.
     NonFinite { iterations: usize, quantity: &'static str },
+    /// The iterate left the region where the equations make sense (a
+    /// non-positive step size, for variable steps).
+    Rejected { iterations: usize, reason: &'static str },
+}
+
+/// Why one linearisation could not produce a correction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Breakdown {
+    /// Singular or ill-conditioned Jacobian, with its reciprocal condition number.
+    Singular(f64),
+    /// A value that is NaN or infinite.
+    NonFinite(&'static str),
+    /// The iterate is outside the domain of the equations.
+    Rejected(&'static str),
+}
+
+/// The Newton correction at an iterate and the size of the residual there.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Linearization<X> {
+    pub(crate) correction: X,
+    pub(crate) residual_norm: f64,
+    /// `‖R‖` relative to the size of the terms that cancel in it (for the
+    /// DEL, `‖p_k‖` and `‖∂A/∂q_k‖`): a few `ε` means `R` is pure round-off.
+    pub(crate) residual_ratio: f64,
+}
+
+impl<X> Linearization<X> {
+    /// Records the size of the terms whose cancellation forms the residual.
+    pub(crate) fn cancelling(mut self, scale: f64) -> Self {
+        self.residual_ratio = self.residual_norm / scale;
+        self
+    }
+}
+
+/// An unknown Newton can iterate on.
+pub(crate) trait Unknown: Copy {
+    /// Applies a correction.
+    fn update(&mut self, dx: &Self);
+    /// Weighted size of a correction: `max_i |dx_i| / (rtol |x_i| + atol)`
+    /// blockwise, so that `≤ 1` means converged.
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64;
+}
+
+impl<const N: usize> Unknown for SVector<f64, N> {
+    fn update(&mut self, dx: &Self) {
+        *self += dx;
+    }
+
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        dx.amax() / (rtol * self.amax() + atol)
+    }
+}
+
+/// The unknown of a variable step: the increment `dq` and the step size `h`,
+/// measured each against its own scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Extended<const N: usize> {
+    pub(crate) q: SVector<f64, N>,
+    pub(crate) t: f64,
+}
+
+impl<const N: usize> Unknown for Extended<N> {
+    fn update(&mut self, dx: &Self) {
+        self.q += dx.q;
+        self.t += dx.t;
+    }
+
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        let q = dx.q.amax() / (rtol * self.q.amax() + atol);
+        let t = dx.t.abs() / (rtol * self.t.abs() + atol);
+        q.max(t)
+    }
 }
 
 /// Reciprocal condition number `1 / (‖J‖₁ ‖J⁻¹‖₁)`.
@@ -68,56 +141,118 @@ fn rcond<const N: usize>(j: &SMatrix<f64, N, N>, inv: &SMatrix<f64, N, N>) -> f6
     1.0 / (norm1(j) * norm1(inv))
 }
 
-/// Solves `R(x) = 0` from `x`, where `eval` returns `(R(x), ∂R/∂x)`.
-pub(crate) fn solve<const N: usize, F>(
-    mut x: SVector<f64, N>,
+/// Checks a residual and its Jacobian and inverts the Jacobian.
+fn checked_inverse<const N: usize>(
+    r: &SVector<f64, N>,
+    j: &SMatrix<f64, N, N>,
+    min_rcond: f64,
+) -> Result<SMatrix<f64, N, N>, Breakdown> {
+    if !r.iter().all(|v| v.is_finite()) {
+        return Err(Breakdown::NonFinite("residual"));
+    }
+    if !j.iter().all(|v| v.is_finite()) {
+        return Err(Breakdown::NonFinite("jacobian"));
+    }
+    let inv = j.try_inverse().ok_or(Breakdown::Singular(0.0))?;
+    let rc = rcond(j, &inv);
+    if rc.is_nan() || rc < min_rcond {
+        return Err(Breakdown::Singular(rc));
+    }
+    Ok(inv)
+}
+
+/// The correction `−J⁻¹ R` of a square system.
+pub(crate) fn square_correction<const N: usize>(
+    r: SVector<f64, N>,
+    j: SMatrix<f64, N, N>,
+    min_rcond: f64,
+) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
+    let inv = checked_inverse(&r, &j, min_rcond)?;
+    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
+}
+
+/// The correction of the bordered system
+/// `[[A, b], [cᵀ, d]] (Δq, Δt) = −(r, r_t)` by block elimination (Schur
+/// complement `s = d − cᵀA⁻¹b`), keeping static `N × N` sizes.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn bordered_correction<const N: usize>(
+    r: SVector<f64, N>,
+    r_t: f64,
+    a: SMatrix<f64, N, N>,
+    b: SVector<f64, N>,
+    c: SVector<f64, N>,
+    d: f64,
+    min_rcond: f64,
+) -> Result<Linearization<Extended<N>>, Breakdown> {
+    if !r_t.is_finite() || !b.iter().chain(c.iter()).all(|v| v.is_finite()) || !d.is_finite() {
+        return Err(Breakdown::NonFinite("energy equation"));
+    }
+    let inv = checked_inverse(&r, &a, min_rcond)?;
+    let ainv_b = inv * b;
+    let ainv_r = inv * r;
+    let s = d - c.dot(&ainv_b);
+    // Relative size of the Schur complement: near zero where the energy
+    // equation loses its root in h (MATH.md §9).
+    let scale = d.abs() + c.iter().zip(ainv_b.iter()).map(|(x, y)| (x * y).abs()).sum::<f64>();
+    let rc = s.abs() / scale;
+    if rc.is_nan() || rc < min_rcond {
+        return Err(Breakdown::Singular(rc));
+    }
+    let dt = (c.dot(&ainv_r) - r_t) / s;
+    let dq = -(ainv_r + ainv_b * dt);
+    Ok(Linearization {
+        correction: Extended { q: dq, t: dt },
+        residual_norm: r.amax().max(r_t.abs()),
+        residual_ratio: f64::INFINITY,
+    })
+}
+
+/// Newton's method from `x`; `linearize` returns the correction at an iterate.
+pub(crate) fn solve<X: Unknown, F>(
+    mut x: X,
     options: &NewtonOptions,
-    mut eval: F,
-) -> Result<(SVector<f64, N>, NewtonReport), NewtonFailure>
+    mut linearize: F,
+) -> Result<(X, NewtonReport), NewtonFailure>
 where
-    F: FnMut(&SVector<f64, N>) -> (SVector<f64, N>, SMatrix<f64, N, N>),
+    F: FnMut(&X) -> Result<Linearization<X>, Breakdown>,
 {
     let mut report = NewtonReport::default();
     let mut previous: Option<f64> = None;
     let mut growing = 0;
     for iterations in 1..=options.max_iterations {
         report.iterations = iterations;
-        let (r, j) = eval(&x);
-        report.residual_norm = r.amax();
-        if !report.residual_norm.is_finite() {
-            return Err(NewtonFailure::NonFinite { iterations, quantity: "residual" });
+        let step = linearize(&x).map_err(|b| match b {
+            Breakdown::Singular(rcond) => NewtonFailure::Singular { iterations, rcond },
+            Breakdown::NonFinite(quantity) => NewtonFailure::NonFinite { iterations, quantity },
+            Breakdown::Rejected(reason) => NewtonFailure::Rejected { iterations, reason },
+        })?;
+        report.residual_norm = step.residual_norm;
+        x.update(&step.correction);
+        if step.residual_ratio <= 4.0 * f64::EPSILON {
+            // The residual was round-off of its own terms: this correction was
+            // the last one that can change anything.
+            return Ok((x, report));
         }
-        if !j.iter().all(|v| v.is_finite()) {
-            return Err(NewtonFailure::NonFinite { iterations, quantity: "jacobian" });
-        }
-        let Some(inv) = j.try_inverse() else {
-            return Err(NewtonFailure::Singular { iterations, rcond: 0.0 });
-        };
-        let rc = rcond(&j, &inv);
-        if rc.is_nan() || rc < options.min_rcond {
-            return Err(NewtonFailure::Singular { iterations, rcond: rc });
-        }
-        let dx = -(inv * r);
-        let dn = dx.amax();
-        report.correction_norm = dn;
-        if !dn.is_finite() {
+        let ratio = x.error_ratio(&step.correction, options.rtol, options.atol);
+        report.correction_norm = ratio * options.rtol;
+        if !ratio.is_finite() {
             return Err(NewtonFailure::NonFinite { iterations, quantity: "correction" });
         }
-        x += dx;
-        let size = x.amax();
-        let target = options.rtol * size + options.atol;
-        if dn <= target {
+        if ratio <= 1.0 {
             return Ok((x, report));
         }
         if let Some(prev) = previous {
-            let theta = dn / prev;
-            if theta < 1.0 && theta / (1.0 - theta) * dn <= target {
+            let theta = ratio / prev;
+            if theta < 1.0 && theta / (1.0 - theta) * ratio <= 1.0 {
                 return Ok((x, report));
             }
-            // Round-off floor: the corrections stopped shrinking at a level
-            // where the iterate is already accurate to ~1e-10; more iterations
-            // only stir the last bits.
-            if theta >= 0.5 && dn <= 1e3 * f64::EPSILON * size {
+            // Round-off floor: the corrections stopped shrinking, and either
+            // they are already tiny or the residual is round-off of its terms
+            // (an ill-conditioned energy equation turns that round-off into
+            // corrections of h far above ε); more iterations only stir bits.
+            if theta >= 0.5
+                && (ratio * options.rtol <= 1e3 * f64::EPSILON || step.residual_ratio <= 64.0 * f64::EPSILON)
+            {
                 return Ok((x, report));
             }
             growing = if theta >= 1.0 { growing + 1 } else { 0 };
@@ -125,7 +260,7 @@ where
                 break;
             }
         }
-        previous = Some(dn);
+        previous = Some(ratio);
     }
     Err(NewtonFailure::NotConverged(report))
 }
@@ -140,7 +275,7 @@ mod tests {
         let eval = |x: &SVector<f64, 2>| {
             let r = SVector::<f64, 2>::new(x[0] * x[0] + x[1] * x[1] - 4.0, x[0] * x[1] - 1.0);
             let j = SMatrix::<f64, 2, 2>::new(2.0 * x[0], 2.0 * x[1], x[1], x[0]);
-            (r, j)
+            square_correction(r, j, 1e-13)
         };
         let (x, report) = solve(SVector::<f64, 2>::new(2.0, 0.3), &NewtonOptions::default(), eval).unwrap();
         assert!((x[0] * x[0] + x[1] * x[1] - 4.0).abs() < 1e-14);
@@ -150,15 +285,18 @@ mod tests {
 
     #[test]
     fn reports_a_singular_jacobian() {
-        let eval =
-            |_: &SVector<f64, 2>| (SVector::<f64, 2>::new(1.0, 1.0), SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 4.0));
+        let eval = |_: &SVector<f64, 2>| {
+            square_correction(SVector::<f64, 2>::new(1.0, 1.0), SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 4.0), 1e-13)
+        };
         let err = solve(SVector::<f64, 2>::zeros(), &NewtonOptions::default(), eval).unwrap_err();
         assert!(matches!(err, NewtonFailure::Singular { iterations: 1, .. }), "{err:?}");
     }
 
     #[test]
     fn reports_non_finite_residuals() {
-        let eval = |_: &SVector<f64, 1>| (SVector::<f64, 1>::new(f64::NAN), SMatrix::<f64, 1, 1>::new(1.0));
+        let eval = |_: &SVector<f64, 1>| {
+            square_correction(SVector::<f64, 1>::new(f64::NAN), SMatrix::<f64, 1, 1>::new(1.0), 1e-13)
+        };
         let err = solve(SVector::<f64, 1>::zeros(), &NewtonOptions::default(), eval).unwrap_err();
         assert_eq!(err, NewtonFailure::NonFinite { iterations: 1, quantity: "residual" });
     }
@@ -166,9 +304,22 @@ mod tests {
     #[test]
     fn gives_up_on_a_problem_without_root() {
         // x² + 1 = 0 has no real root: the iteration wanders and must stop.
-        let eval =
-            |x: &SVector<f64, 1>| (SVector::<f64, 1>::new(x[0] * x[0] + 1.0), SMatrix::<f64, 1, 1>::new(2.0 * x[0]));
+        let eval = |x: &SVector<f64, 1>| {
+            square_correction(SVector::<f64, 1>::new(x[0] * x[0] + 1.0), SMatrix::<f64, 1, 1>::new(2.0 * x[0]), 1e-13)
+        };
         let err = solve(SVector::<f64, 1>::new(0.7), &NewtonOptions::default(), eval).unwrap_err();
         assert!(matches!(err, NewtonFailure::NotConverged(_) | NewtonFailure::Singular { .. }), "{err:?}");
+    }
+
+    #[test]
+    fn bordered_elimination_matches_a_dense_solve() {
+        let a = SMatrix::<f64, 2, 2>::new(4.0, 1.0, -2.0, 3.0);
+        let (b, c, d) = (SVector::<f64, 2>::new(0.5, -1.0), SVector::<f64, 2>::new(2.0, 0.25), 1.5);
+        let (r, r_t) = (SVector::<f64, 2>::new(1.0, -2.0), 0.75);
+        let full = SMatrix::<f64, 3, 3>::new(4.0, 1.0, 0.5, -2.0, 3.0, -1.0, 2.0, 0.25, 1.5);
+        let want = -(full.try_inverse().unwrap() * SVector::<f64, 3>::new(1.0, -2.0, 0.75));
+        let got = bordered_correction(r, r_t, a, b, c, d, 1e-13).unwrap().correction;
+        assert!((got.q[0] - want[0]).abs() < 1e-14 && (got.q[1] - want[1]).abs() < 1e-14);
+        assert!((got.t - want[2]).abs() < 1e-14);
     }
 }
