@@ -281,11 +281,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // conserved from then on is the discrete E_1, within O(h0²) of E_L.
             let h = self.h;
             self.step_by(h, self.state.t + h)?;
-            self.energy = -derivatives::end_time_derivative(
-                &self.system,
-                &self.method,
-                self.previous.as_ref().expect("set by the step just taken"),
-            );
+            self.reread_energy();
             return Ok(&self.state);
         }
         let t1 = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
@@ -466,20 +462,48 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // Steps that land within this of t_end count as landing on it.
         let slack = 1e-9 * self.h;
         loop {
-            let next = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
-            if next <= t_end + slack {
+            // How far the next step may reach: exactly h for fixed steps; for
+            // energy-preserving steps h is solved for, and may grow by the ratio.
+            let reach = match self.policy {
+                StepPolicy::Fixed => self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h,
+                StepPolicy::EnergyPreserving(b) => self.state.t + self.h * b.max_ratio,
+            };
+            if reach <= t_end + slack {
                 self.step()?;
                 observe(self);
                 continue;
             }
             if t_end - self.state.t > slack {
-                self.step_by(t_end - self.state.t, t_end)?;
-                // The shortened step moved the clock's origin.
-                self.clock = Clock { t: self.state.t, step: self.state.step };
+                self.final_step(t_end)?;
                 observe(self);
             }
             return Ok(());
         }
+    }
+
+    /// Sets `E_k = −∂A/∂t_k` from the last step (after a step of given size).
+    fn reread_energy(&mut self) {
+        if let Some(last) = &self.previous {
+            self.energy = -derivatives::end_time_derivative(&self.system, &self.method, last);
+        }
+    }
+
+    /// A step of the size that lands on `t_end`; for energy-preserving steps
+    /// it is a fixed step (the energy equation is not imposed on it) after
+    /// which the discrete energy is re-read, so `E_k` stays consistent.
+    fn final_step(&mut self, t_end: f64) -> Result<(), Error<N>> {
+        let h = self.h;
+        self.step_by(t_end - self.state.t, t_end)?;
+        match self.policy {
+            StepPolicy::Fixed => self.clock = Clock { t: self.state.t, step: self.state.step },
+            StepPolicy::EnergyPreserving(_) => {
+                self.reread_energy();
+                self.time_error = 0.0;
+                // Keep the solved step as the next guess, not the shortened one.
+                self.h = h;
+            }
+        }
+        Ok(())
     }
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (MATH.md §3); at
