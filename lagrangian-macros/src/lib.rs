@@ -1,8 +1,71 @@
-//! The `#[lagrangian]` attribute macro.
+//! The `#[lagrangian]` attribute of the `lagrangian` crate.
+//!
+//! It turns a Lagrangian written as plain `f64` Rust into an implementation
+//! of `lagrangian::Lagrangian`, generic over dual numbers so that the runtime
+//! can differentiate it. Use it through the `lagrangian` crate, which
+//! re-exports it; the generated code names `::lagrangian::__private` only.
+//!
+//! The expansion is a small compiler, one module per stage:
+//! [`parse`](crate::parse) picks the recognised methods out of the block,
+//! [`validate`](crate::validate) checks their signatures and lowers their
+//! bodies into the [`ir`](crate::ir), [`analyse`](crate::analyse) finds which
+//! values depend on `t`, `q` and `v`, and [`generate`](crate::generate)
+//! prints the trait impl. [`expand`](crate::expand) runs them in turn and
+//! errors accumulate in a [`ctxt::Ctxt`](crate::ctxt::Ctxt).
+
+mod analyse;
+mod ctxt;
+mod expand;
+mod generate;
+mod ir;
+mod parse;
+mod validate;
+
 use proc_macro::TokenStream;
 
-/// Placeholder until the macro pipeline lands.
+/// Implements `lagrangian::Lagrangian` for the type of an `impl` block.
+///
+/// ```ignore
+/// use lagrangian::prelude::*;
+///
+/// pub struct Pendulum { pub m: f64, pub l: f64, pub g: f64 }
+///
+/// #[lagrangian]
+/// impl Pendulum {
+///     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+///         0.5 * self.m * self.l * self.l * v[0] * v[0] + self.m * self.g * self.l * q[0].cos()
+///     }
+/// }
+/// ```
+///
+/// The block must define `fn lagrangian(&self, [t: f64,] q: [f64; N], v:
+/// [f64; N]) -> f64` (a `t` parameter makes the system non-autonomous) and
+/// may define `fn dissipation(&self, q, v) -> f64` and `fn force(&self, [t,]
+/// q, v) -> [f64; N]`. The methods stay in the block as written; the trait
+/// impl evaluates the same bodies on dual numbers.
+///
+/// The bodies may use: literals, `self` fields, constants, `q[i]` and `v[i]`,
+/// `+ - * /`, comparisons, `&& || !`, `let` and `let mut`, `= += -= *= /=` on
+/// local variables, `if`/`else`, `for i in a..b`, `return`, arrays `[a, b]`
+/// and `[x; n]`, `as` casts, and the `f64` methods `sin cos tan asin acos
+/// atan atan2 sinh cosh tanh asinh acosh atanh exp exp2 exp_m1 ln ln_1p log
+/// log2 log10 sqrt cbrt powi powf abs signum recip mul_add` (also written
+/// `f64::sin(x)`). Anything else is a compile error naming the construct.
 #[proc_macro_attribute]
-pub fn lagrangian(_attr: TokenStream, item: TokenStream) -> TokenStream {
-    item
+pub fn lagrangian(attr: TokenStream, item: TokenStream) -> TokenStream {
+    match syn::parse::<syn::Item>(item) {
+        Ok(syn::Item::Impl(item)) => expand::expand(attr.into(), item).into(),
+        // Anything else is kept, so that the rest of the crate still sees it.
+        Ok(other) => {
+            let error = syn::Error::new_spanned(
+                &other,
+                "`#[lagrangian]` goes on an `impl` block defining \
+                 `fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64`",
+            );
+            let mut out = error.into_compile_error();
+            quote::ToTokens::to_tokens(&other, &mut out);
+            out.into()
+        }
+        Err(error) => error.into_compile_error().into(),
+    }
 }

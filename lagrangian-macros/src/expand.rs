@@ -1,0 +1,85 @@
+//! The pipeline: parse → validate → analyse → generate, with a fallback that
+//! still emits the user's block (and a stub trait impl) after errors.
+
+use crate::ctxt::Ctxt;
+use crate::parse::Input;
+use crate::{analyse, generate, validate};
+use proc_macro2::TokenStream;
+use syn::ItemImpl;
+
+/// Expands `#[lagrangian]` with arguments `attr` on `item`.
+pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
+    let cx = Ctxt::new();
+    if !attr.is_empty() {
+        cx.error_spanned_by(&attr, "`#[lagrangian]` takes no arguments");
+    }
+    let input = Input::from_syn(&item);
+    let mut system = validate::validate(&cx, &input);
+    let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
+    match (cx.check(), system, analysis) {
+        (Ok(()), Some(system), Some(analysis)) if analysis.consistent => generate::expand(&item, &system, &analysis),
+        // The body mixes types in a way rustc rejects on the user's own
+        // method; generated code would only repeat that error.
+        (Ok(()), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), None),
+        (Err(error), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), Some(error)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use quote::quote;
+    use syn::parse_quote;
+
+    #[test]
+    fn a_valid_block_expands_to_itself_plus_the_trait_impl() {
+        let out = expand(
+            TokenStream::new(),
+            parse_quote! {
+                impl Pendulum {
+                    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { v[0] * v[0] - q[0].cos() }
+                }
+            },
+        )
+        .to_string();
+        assert!(!out.contains("compile_error"), "{out}");
+        assert!(out.contains("impl :: lagrangian :: __private :: Lagrangian < 1 > for Pendulum"), "{out}");
+    }
+
+    #[test]
+    fn every_error_of_a_block_is_reported_and_a_stub_follows() {
+        let out = expand(
+            quote!(oops),
+            parse_quote! {
+                impl P {
+                    fn lagrangian(&mut self, q: [f64; 2], v: [f64; 2]) -> f64 {
+                        let s = q[2] + v[0].floor();
+                        self.m = s;
+                        s
+                    }
+                    fn force(&self, q: [f64; 3], v: [f64; 3]) -> [f64; 3] { [0.0; 3] }
+                }
+            },
+        )
+        .to_string();
+        let errors = out.matches("compile_error").count();
+        // The attribute argument, the receiver, `q[2]`, `floor`, writing to
+        // `self`, and `force`'s two lengths and its return type.
+        assert_eq!(errors, 8, "{out}");
+        assert!(out.contains("impl :: lagrangian :: __private :: Lagrangian < 2 > for P"), "{out}");
+        assert!(out.contains("unreachable"), "{out}");
+    }
+
+    #[test]
+    fn rustc_type_errors_get_a_silent_stub() {
+        let out = expand(
+            TokenStream::new(),
+            parse_quote! {
+                impl P { fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { 2 * q[0] } }
+            },
+        )
+        .to_string();
+        assert!(!out.contains("compile_error"), "{out}");
+        assert!(out.contains("unreachable"), "{out}");
+    }
+}

@@ -1,0 +1,635 @@
+//! Code generation: the user's block, then the `Lagrangian` trait impl whose
+//! methods are the analysed bodies printed generic over the scalar type `D`.
+//!
+//! Printing follows the classes: constant subexpressions come out as the user
+//! wrote them, in `f64`, and only active ones are touched. The rewrites are
+//! those needed because `D` implements `D op f64` but not `f64 op D`, and
+//! compares and converts only through its real part.
+
+use crate::analyse::{Analysis, Cyclic};
+use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
+use crate::parse::{Len, MethodKind};
+use proc_macro2::{Ident, Span, TokenStream};
+use quote::{ToTokens, quote, quote_spanned};
+use syn::{BinOp, ImplItem, ItemImpl, Type};
+
+/// The user's block followed by the trait impl.
+pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> TokenStream {
+    let user_impl = user_impl(item);
+    let (impl_generics, _, where_clause) = item.generics.split_for_impl();
+    let self_ty = &item.self_ty;
+    let n = system.n.generic_arg();
+    let autonomous = system.lagrangian.time.is_none();
+    let cyclic = cyclic(&system.n, &analysis.cyclic);
+    let has_dissipation = system.dissipation.is_some().then(|| {
+        quote!(
+            const HAS_DISSIPATION: bool = true;
+        )
+    });
+    let has_force = system.force.is_some().then(|| {
+        quote!(
+            const HAS_FORCE: bool = true;
+        )
+    });
+    let methods = std::iter::once(&system.lagrangian)
+        .chain(&system.dissipation)
+        .chain(&system.force)
+        .map(|function| method(function, &n));
+    quote! {
+        #user_impl
+
+        // The bodies are the user's code: lints about it were already raised
+        // on the `f64` methods above and must not be raised twice.
+        #[allow(
+            unused_variables,
+            unused_mut,
+            unused_parens,
+            unused_assignments,
+            unreachable_code,
+            clippy::all,
+            clippy::pedantic
+        )]
+        impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
+            const AUTONOMOUS: bool = #autonomous;
+            const CYCLIC: [bool; #n] = #cyclic;
+            #has_dissipation
+            #has_force
+            #(#methods)*
+        }
+    }
+}
+
+/// What is emitted when the block cannot be rewritten: the errors, the
+/// user's block unchanged, and, when `N` is known, a trait impl with the
+/// right `N` and a body that is never run, so that code using the type as a
+/// `Lagrangian` does not add "trait not implemented" errors to the real ones.
+/// `error` is `None` when rustc reports the problem itself.
+pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, error: Option<syn::Error>) -> TokenStream {
+    let error = error.map(syn::Error::into_compile_error);
+    let user_impl = user_impl(item);
+    let stub = n.map(|n| {
+        let (impl_generics, _, where_clause) = item.generics.split_for_impl();
+        let self_ty = &item.self_ty;
+        let n = n.generic_arg();
+        let d = scalar_type();
+        quote! {
+            impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
+                const AUTONOMOUS: bool = true;
+                const CYCLIC: [bool; #n] = [false; #n];
+                fn lagrangian<#d: ::lagrangian::__private::Scalar>(
+                    &self, _: #d, _: [#d; #n], _: [#d; #n]
+                ) -> #d {
+                    ::core::unreachable!("`#[lagrangian]` failed to expand")
+                }
+            }
+        }
+    });
+    quote!(#error #user_impl #stub)
+}
+
+/// The user's block as written, with `#[allow(dead_code)]` on the recognised
+/// methods: they are usually only called through the trait.
+fn user_impl(item: &ItemImpl) -> TokenStream {
+    let mut item = item.clone();
+    for impl_item in &mut item.items {
+        if let ImplItem::Fn(func) = impl_item
+            && MethodKind::from_ident(&func.sig.ident).is_some()
+        {
+            func.attrs.push(syn::parse_quote!(#[allow(dead_code)]));
+        }
+    }
+    item.into_token_stream()
+}
+
+/// The generic parameter of the generated methods.
+fn scalar_type() -> Ident {
+    Ident::new("__D", Span::call_site())
+}
+
+/// The value of `CYCLIC`.
+fn cyclic(n: &Len, cyclic: &Cyclic) -> TokenStream {
+    match n.value() {
+        Some(n) => {
+            let flags = (0..n).map(|i| cyclic.is_cyclic(i));
+            quote!([#(#flags),*])
+        }
+        None if cyclic.any => quote!([false; #n]),
+        // `N` is a constant the macro cannot evaluate: let the compiler.
+        None => {
+            let read = &cyclic.read;
+            quote!({
+                let mut cyclic = [true; #n];
+                #(cyclic[#read] = false;)*
+                cyclic
+            })
+        }
+    }
+}
+
+/// One trait method.
+fn method(function: &Function, n: &TokenStream) -> TokenStream {
+    let d = scalar_type();
+    let name = &function.name;
+    let binder = |binder: &Binder| match binder {
+        Some(ident) => ident.to_token_stream(),
+        None => quote!(_),
+    };
+    let (q, v) = (binder(&function.q), binder(&function.v));
+    let params = if function.kind.takes_time() {
+        let t = function.time.as_ref().map_or_else(|| quote!(_), binder);
+        quote!(#t: #d, #q: [#d; #n], #v: [#d; #n])
+    } else {
+        quote!(#q: [#d; #n], #v: [#d; #n])
+    };
+    let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
+    let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
+    let body = printer.block(&function.body, Some(function.return_class()));
+    quote! {
+        #[inline]
+        fn #name<#d: ::lagrangian::__private::Scalar>(&self, #params) -> #ret #body
+    }
+}
+
+/// Prints the IR of one function as code generic over `D`.
+struct Printer<'a> {
+    locals: &'a [Local],
+    /// The class of the function's value: `return`s are coerced to it.
+    ret: Class,
+    /// The scalar type parameter.
+    d: Ident,
+}
+
+impl Printer<'_> {
+    /// A block; `to` is the class its final expression must be coerced to.
+    fn block(&self, block: &Block, to: Option<Class>) -> TokenStream {
+        let last = block.stmts.len().saturating_sub(1);
+        let stmts = block.stmts.iter().enumerate().map(|(i, stmt)| match (stmt, to) {
+            (Stmt::Expr { expr, semi: false }, Some(to)) if i == last => self.coerce(expr, to),
+            _ => self.stmt(stmt),
+        });
+        quote!({ #(#stmts)* })
+    }
+
+    fn stmt(&self, stmt: &Stmt) -> TokenStream {
+        match stmt {
+            Stmt::Let { local, mutable, ty, init } => {
+                let Local { name, class } = &self.locals[local.0];
+                let mutability = mutable.then(|| quote!(mut));
+                let ty = ty.as_ref().map(|ty| {
+                    let ty = if class.is_active() { self.active_type(ty) } else { (**ty).clone() };
+                    quote!(: #ty)
+                });
+                let init = self.coerce(init, *class);
+                quote!(let #mutability #name #ty = #init;)
+            }
+            Stmt::Expr { expr, semi } => {
+                let expr = self.expr(expr);
+                let semi = semi.then(|| quote!(;));
+                quote!(#expr #semi)
+            }
+            Stmt::Item(item) => item.to_token_stream(),
+        }
+    }
+
+    /// `ty` with `f64` replaced by `D`, for annotations of active variables.
+    fn active_type(&self, ty: &Type) -> Type {
+        let mut ty = ty.clone();
+        match &mut ty {
+            ty if crate::parse::is_f64(ty) => {
+                let d = &self.d;
+                return syn::parse_quote!(#d);
+            }
+            Type::Array(array) => *array.elem = self.active_type(&array.elem),
+            Type::Paren(paren) => *paren.elem = self.active_type(&paren.elem),
+            _ => {}
+        }
+        ty
+    }
+
+    /// An expression at its own class.
+    fn expr(&self, expr: &Expr) -> TokenStream {
+        match &expr.kind {
+            ExprKind::Lit(lit) => lit.to_token_stream(),
+            ExprKind::Path(path) => path.to_token_stream(),
+            ExprKind::SelfValue(token) => token.to_token_stream(),
+            ExprKind::Param(_, ident) | ExprKind::Local(_, ident) => ident.to_token_stream(),
+            ExprKind::Field { base, member } => {
+                let base = self.expr(base);
+                quote!(#base.#member)
+            }
+            ExprKind::Index { base, index } => {
+                let (base, index) = (self.expr(base), self.expr(index));
+                quote!(#base[#index])
+            }
+            ExprKind::Unary { op, expr } => {
+                let expr = self.expr(expr);
+                quote!(#op #expr)
+            }
+            ExprKind::Binary { lhs, op, rhs } => self.binary(lhs, op, rhs),
+            // `f64 as f64` on an active value: the value is already `D`.
+            ExprKind::Cast { expr: inner, .. } if expr.class.is_active() => self.expr(inner),
+            // An active value to an integer: through its real part, like a
+            // comparison; an integer has no derivative to lose.
+            ExprKind::Cast { expr: inner, ty } if inner.class.is_active() => {
+                let inner = self.real(inner);
+                quote!(#inner as #ty)
+            }
+            ExprKind::Cast { expr: inner, ty } => {
+                let inner = self.expr(inner);
+                quote!(#inner as #ty)
+            }
+            ExprKind::Paren(inner) => {
+                let inner = self.expr(inner);
+                quote!((#inner))
+            }
+            ExprKind::Block(block) => self.block(block, None),
+            ExprKind::If { .. } => self.if_expr(expr, expr.class),
+            ExprKind::For { var, start, limits, end, body } => {
+                let var = match var {
+                    Some((_, ident)) => ident.to_token_stream(),
+                    None => quote!(_),
+                };
+                let (start, end) = (self.expr(start), self.expr(end));
+                let body = self.block(body, None);
+                quote!(for #var in #start #limits #end #body)
+            }
+            ExprKind::MethodCall { .. } => self.method_call(expr),
+            ExprKind::Array(elems) => {
+                let elems = elems.iter().map(|elem| match expr.class {
+                    Class::ActiveArray => self.coerce(elem, Class::Active),
+                    _ => self.expr(elem),
+                });
+                quote!([#(#elems),*])
+            }
+            ExprKind::Repeat { elem, len } => {
+                let elem = match expr.class {
+                    Class::ActiveArray => self.coerce(elem, Class::Active),
+                    _ => self.expr(elem),
+                };
+                quote!([#elem; #len])
+            }
+            ExprKind::Assign { place, op, value } => {
+                let target = self.expr(place);
+                match op {
+                    // `D op= f64` exists: a constant needs no conversion.
+                    Some(op) => {
+                        let value = self.expr(value);
+                        quote!(#target #op #value)
+                    }
+                    None => {
+                        let value = self.coerce(value, place.class);
+                        quote!(#target = #value)
+                    }
+                }
+            }
+            ExprKind::Return(value) => {
+                let value = value.as_ref().map(|value| self.coerce(value, self.ret));
+                quote!(return #value)
+            }
+            ExprKind::Break(token) => token.to_token_stream(),
+            ExprKind::Continue(token) => token.to_token_stream(),
+        }
+    }
+
+    /// `expr` converted to class `to`: constants become `D` (or arrays of
+    /// `D`). The conversion is pushed into blocks, `if` branches and array
+    /// literals, so it lands on the constant parts only.
+    fn coerce(&self, expr: &Expr, to: Class) -> TokenStream {
+        if !to.is_active() || expr.class.is_active() || expr.class == Class::Unit {
+            return self.expr(expr);
+        }
+        match (&expr.kind, to) {
+            (ExprKind::Paren(inner), _) => {
+                let inner = self.coerce(inner, to);
+                quote!((#inner))
+            }
+            (ExprKind::Block(block), _) => self.block(block, Some(to)),
+            (ExprKind::If { .. }, _) => self.if_expr(expr, to),
+            (ExprKind::Array(elems), Class::ActiveArray) => {
+                let elems = elems.iter().map(|elem| self.coerce(elem, Class::Active));
+                quote!([#(#elems),*])
+            }
+            (ExprKind::Repeat { elem, len }, Class::ActiveArray) => {
+                let elem = self.coerce(elem, Class::Active);
+                quote!([#elem; #len])
+            }
+            (_, Class::ActiveArray) => {
+                let (d, array) = (&self.d, self.receiver(expr));
+                quote_spanned!(expr.span=> #array.map(#d::from))
+            }
+            _ => self.to_active(expr),
+        }
+    }
+
+    /// A constant scalar as `D`.
+    fn to_active(&self, expr: &Expr) -> TokenStream {
+        let (d, value) = (&self.d, self.expr(expr));
+        quote_spanned!(expr.span=> #d::from(#value))
+    }
+
+    /// `expr` as an active receiver: converted if constant.
+    fn active_receiver(&self, expr: &Expr) -> TokenStream {
+        if expr.class.is_active() { self.receiver(expr) } else { self.to_active(expr) }
+    }
+
+    /// The `f64` real part of an active scalar (the scalar itself if
+    /// constant), for comparisons and integer casts.
+    fn real(&self, expr: &Expr) -> TokenStream {
+        if expr.class.is_active() {
+            let receiver = self.receiver(expr);
+            quote_spanned!(expr.span=> #receiver.re())
+        } else {
+            self.expr(expr)
+        }
+    }
+
+    /// `expr` where a method call may follow it: parenthesized unless it binds
+    /// at least as tightly as a method call.
+    fn receiver(&self, expr: &Expr) -> TokenStream {
+        if binds_like_postfix(expr) {
+            self.expr(expr)
+        } else {
+            let expr = self.expr(expr);
+            quote!((#expr))
+        }
+    }
+
+    /// `expr` as an operand moved to the other side of a binary operator:
+    /// parenthesized unless it is postfix, unary or a cast, which bind more
+    /// tightly than any binary operator whichever side they are on.
+    fn moved_operand(&self, expr: &Expr) -> TokenStream {
+        match expr.kind {
+            ExprKind::Unary { .. } | ExprKind::Cast { .. } => self.expr(expr),
+            _ => self.receiver(expr),
+        }
+    }
+
+    fn binary(&self, lhs: &Expr, op: &BinOp, rhs: &Expr) -> TokenStream {
+        let constant_then_active = !lhs.class.is_active() && rhs.class.is_active();
+        match op {
+            // `c + x` → `x + c`: `D` has `D op f64` but not `f64 op D`, and
+            // IEEE addition and multiplication commute exactly.
+            BinOp::Add(_) | BinOp::Mul(_) if constant_then_active => {
+                let (lhs, rhs) = (self.moved_operand(rhs), self.moved_operand(lhs));
+                quote!(#lhs #op #rhs)
+            }
+            // `c - x` → `D::from(c) - x`: subtraction and division do not
+            // commute.
+            BinOp::Sub(_) | BinOp::Div(_) if constant_then_active => {
+                let (lhs, rhs) = (self.to_active(lhs), self.expr(rhs));
+                quote!(#lhs #op #rhs)
+            }
+            BinOp::Lt(_) | BinOp::Le(_) | BinOp::Gt(_) | BinOp::Ge(_) | BinOp::Eq(_) | BinOp::Ne(_) => {
+                let (lhs, rhs) = (self.real(lhs), self.real(rhs));
+                quote!(#lhs #op #rhs)
+            }
+            _ => {
+                let (lhs, rhs) = (self.expr(lhs), self.expr(rhs));
+                quote!(#lhs #op #rhs)
+            }
+        }
+    }
+
+    /// An `if` whose branches are coerced to `to`.
+    fn if_expr(&self, expr: &Expr, to: Class) -> TokenStream {
+        let ExprKind::If { cond, then_branch, else_branch } = &expr.kind else {
+            return self.expr(expr);
+        };
+        let to = to.is_active().then_some(to);
+        let cond = self.expr(cond);
+        let then_branch = self.block(then_branch, to);
+        let else_branch = else_branch.as_ref().map(|else_branch| {
+            let else_branch = match to {
+                Some(to) => self.coerce(else_branch, to),
+                None => self.expr(else_branch),
+            };
+            quote!(else #else_branch)
+        });
+        quote!(if #cond #then_branch #else_branch)
+    }
+
+    fn method_call(&self, expr: &Expr) -> TokenStream {
+        let ExprKind::MethodCall { receiver, method, math, args, path } = &expr.kind else {
+            return self.expr(expr);
+        };
+        if !expr.class.is_active() {
+            // Plain `f64` (or integer) arithmetic: as written.
+            return match path {
+                Some(path) => {
+                    let operands = std::iter::once(&**receiver).chain(args).map(|x| self.expr(x));
+                    quote!(#path(#(#operands),*))
+                }
+                None => {
+                    let receiver = self.expr(receiver);
+                    let args = args.iter().map(|arg| self.expr(arg));
+                    quote!(#receiver.#method(#(#args),*))
+                }
+            };
+        }
+        match (math, args.as_slice()) {
+            // An active exponent needs the dual-exponent power.
+            (Math::Powf, [exponent]) if exponent.class.is_active() => {
+                let (receiver, exponent) = (self.active_receiver(receiver), self.expr(exponent));
+                quote_spanned!(method.span()=> #receiver.powd(#exponent))
+            }
+            // `log` takes an `f64` base; `f64::log` is `ln() / base.ln()`.
+            (Math::Log, [base]) if base.class.is_active() => {
+                let (receiver, base) = (self.active_receiver(receiver), self.receiver(base));
+                quote_spanned!(method.span()=> (#receiver.ln() / #base.ln()))
+            }
+            (Math::Uniform, _) => {
+                let receiver = self.active_receiver(receiver);
+                let args = args.iter().map(|arg| self.coerce(arg, Class::Active));
+                quote!(#receiver.#method(#(#args),*))
+            }
+            // The receiver is active and the arguments are `f64` or `i32`.
+            _ => {
+                let receiver = self.receiver(receiver);
+                let args = args.iter().map(|arg| self.expr(arg));
+                quote!(#receiver.#method(#(#args),*))
+            }
+        }
+    }
+}
+
+/// Whether `expr` prints as something a method call can follow without
+/// parentheses.
+fn binds_like_postfix(expr: &Expr) -> bool {
+    match &expr.kind {
+        ExprKind::Lit(_)
+        | ExprKind::Path(_)
+        | ExprKind::SelfValue(_)
+        | ExprKind::Param(..)
+        | ExprKind::Local(..)
+        | ExprKind::Field { .. }
+        | ExprKind::Index { .. }
+        | ExprKind::MethodCall { .. }
+        | ExprKind::Paren(_)
+        | ExprKind::Array(_)
+        | ExprKind::Repeat { .. } => true,
+        // Printed as its operand when active.
+        ExprKind::Cast { expr: inner, .. } if expr.class.is_active() => binds_like_postfix(inner),
+        _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ctxt::Ctxt;
+    use crate::parse::Input;
+    use syn::parse_quote;
+
+    /// The trait impl generated for `item`, as a string.
+    fn generated(item: &ItemImpl) -> String {
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(item)).unwrap();
+        let analysis = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        expand(item, &system, &analysis).to_string()
+    }
+
+    /// The generated `lagrangian` body for a one-coordinate Lagrangian.
+    fn body(body: syn::Block) -> String {
+        let out = generated(&parse_quote! {
+            impl P { fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 #body }
+        });
+        let start = out.find("-> __D").map_or(0, |i| i + "-> __D".len());
+        let body = out[start..].trim();
+        // Drop the brace closing the impl.
+        body.strip_suffix('}').unwrap_or(body).trim().to_owned()
+    }
+
+    #[test]
+    fn pendulum() {
+        let item: ItemImpl = parse_quote! {
+            impl Pendulum {
+                fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+                    0.5 * self.m * self.l * self.l * v[0] * v[0] + self.m * self.g * self.l * q[0].cos()
+                }
+            }
+        };
+        let expected = quote! {
+            impl ::lagrangian::__private::Lagrangian<1> for Pendulum {
+                const AUTONOMOUS: bool = true;
+                const CYCLIC: [bool; 1] = [false];
+                #[inline]
+                fn lagrangian<__D: ::lagrangian::__private::Scalar>(&self, _: __D, q: [__D; 1], v: [__D; 1]) -> __D {
+                    v[0] * (0.5 * self.m * self.l * self.l) * v[0]
+                        + q[0].cos() * (self.m * self.g * self.l)
+                }
+            }
+        };
+        let out = generated(&item);
+        assert!(out.starts_with("impl Pendulum"), "{out}");
+        assert!(out.contains("# [allow (dead_code)] fn lagrangian"), "{out}");
+        assert!(out.ends_with(&expected.to_string()), "{out}");
+    }
+
+    #[test]
+    fn constant_on_the_left() {
+        assert_eq!(
+            body(parse_quote!({ 1.0 - q[0] + 2.0 / v[0] + 3.0 * t })),
+            quote!({ __D::from(1.0) - q[0] + __D::from(2.0) / v[0] + t * 3.0 }).to_string()
+        );
+        // The moved operand keeps its grouping: `c + (a + b)` is not `c + a + b`.
+        assert_eq!(body(parse_quote!({ self.a + self.b + t })), quote!({ t + (self.a + self.b) }).to_string());
+    }
+
+    #[test]
+    fn comparisons_use_the_real_part() {
+        assert_eq!(
+            body(parse_quote!({ if 0.0 < q[0] && q[0] * 2.0 <= self.x { q[0] } else { 1.0 } })),
+            quote!({ if 0.0 < q[0].re() && (q[0] * 2.0).re() <= self.x { q[0] } else { __D::from(1.0) } }).to_string()
+        );
+    }
+
+    #[test]
+    fn methods_follow_their_operands() {
+        assert_eq!(
+            body(parse_quote!({ q[0].powf(self.p) + self.b.powf(v[0]) + self.c.sqrt() })),
+            quote!({ q[0].powf(self.p) + __D::from(self.b).powd(v[0]) + self.c.sqrt() }).to_string()
+        );
+        assert_eq!(
+            body(parse_quote!({ self.y.atan2(q[0]) + f64::mul_add(q[0], 2.0, t) + 2.0f64.log(v[0]) })),
+            quote!({
+                __D::from(self.y).atan2(q[0]) + q[0].mul_add(__D::from(2.0), t) + (__D::from(2.0f64).ln() / v[0].ln())
+            })
+            .to_string()
+        );
+    }
+
+    #[test]
+    fn mutable_locals_and_loops() {
+        assert_eq!(
+            body(parse_quote!({
+                let mut s: f64 = 0.0;
+                let k = 2.0;
+                for i in 0..3 {
+                    s += (i as f64) * k * v[0];
+                }
+                s
+            })),
+            quote!({
+                let mut s: __D = __D::from(0.0);
+                let k = 2.0;
+                for i in 0..3 {
+                    s += v[0] * ((i as f64) * k);
+                }
+                s
+            })
+            .to_string()
+        );
+    }
+
+    #[test]
+    fn force_arrays_are_coerced_element_by_element() {
+        let out = generated(&parse_quote! {
+            impl P {
+                fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 { v[0] * v[1] }
+                fn force(&self, q: [f64; 2], v: [f64; 2]) -> [f64; 2] {
+                    if self.on { [-self.c * v[0], 0.0] } else { self.f0 }
+                }
+            }
+        });
+        assert!(out.contains("const AUTONOMOUS : bool = true ;"), "{out}");
+        assert!(out.contains("const CYCLIC : [bool ; 2] = [true , true] ;"), "{out}");
+        assert!(out.contains("const HAS_FORCE : bool = true ;"), "{out}");
+        let expected = quote!({ if self.on { [v[0] * -self.c, __D::from(0.0)] } else { self.f0.map(__D::from) } });
+        assert!(out.contains(&expected.to_string()), "{out}");
+    }
+
+    #[test]
+    fn constant_length_and_generics_carry_over() {
+        let out = generated(&parse_quote! {
+            impl<const N: usize> Chain<N> where [f64; N]: Copy {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 { q[0] * v[1] }
+            }
+        });
+        let expected = quote! {
+            impl<const N: usize> ::lagrangian::__private::Lagrangian<N> for Chain<N> where [f64; N]: Copy {
+                const AUTONOMOUS: bool = true;
+                const CYCLIC: [bool; N] = {
+                    let mut cyclic = [true; N];
+                    cyclic[0usize] = false;
+                    cyclic
+                };
+            }
+        };
+        let expected = expected.to_string();
+        let prefix = &expected[..expected.len() - 1];
+        assert!(out.contains(prefix), "{out}");
+    }
+
+    #[test]
+    fn fallback_emits_a_stub_after_errors() {
+        let item: ItemImpl = parse_quote!(impl P { fn lagrangian(&self, q: [f64; 3], v: [f64; 3]) -> f64 { q[0] } });
+        let error = syn::Error::new(Span::call_site(), "boom");
+        let out =
+            fallback(&item, Some(&crate::validate::arity(&Input::from_syn(&item)).unwrap()), Some(error)).to_string();
+        assert!(out.starts_with(":: core :: compile_error ! { \"boom\" }"), "{out}");
+        assert!(out.contains("Lagrangian < 3 > for P"), "{out}");
+        assert!(out.contains("unreachable !"), "{out}");
+        assert!(!fallback(&item, None, None).to_string().contains("Lagrangian"));
+    }
+}

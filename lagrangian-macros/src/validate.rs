@@ -1,0 +1,355 @@
+//! Validation: checks the signatures of the recognised methods and lowers
+//! their bodies into the IR, reporting everything the rewrite cannot handle.
+//!
+//! Every check reports to the [`Ctxt`] and carries on, so one build shows all
+//! the problems of a block. The signatures are checked here; the bodies in
+//! [`body`].
+
+mod body;
+
+use crate::ctxt::Ctxt;
+use crate::ir::{Binder, System};
+use crate::parse::{Input, Len, Method, MethodKind, Param, Shape};
+use syn::{Ident, Pat, PatIdent};
+
+/// Checks `input` and builds the validated model of the block.
+///
+/// Returns `None` when no model can be built (no `lagrangian`, unknown `N`,
+/// a body that could not be lowered). A `Some` may still come with errors in
+/// `cx`, e.g. a wrong receiver: whether to generate is the caller's decision,
+/// taken on `cx`.
+pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
+    let item = input.item;
+    if let Some((_, path, _)) = &item.trait_ {
+        cx.error_spanned_by(
+            path,
+            "`#[lagrangian]` goes on an inherent impl block (`impl MySystem { ... }`), not on a trait impl",
+        );
+    }
+    let Some(lagrangian) = &input.lagrangian else {
+        // Without the Lagrangian there is no `N` to check the other methods
+        // against, so this is the only error reported for the block.
+        cx.error_spanned_by(
+            &item.self_ty,
+            "no `lagrangian` method in this impl block: `#[lagrangian]` needs \
+             `fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64`",
+        );
+        return None;
+    };
+
+    let signature = check_signature(cx, lagrangian, None);
+    let n = signature.n.clone();
+    let lagrangian = body::lower(cx, lagrangian, &signature);
+    let optional = |method: &Option<Method<'_>>| {
+        method.as_ref().map(|method| {
+            let signature = check_signature(cx, method, n.as_ref());
+            body::lower(cx, method, &signature)
+        })
+    };
+    let dissipation = optional(&input.dissipation);
+    let force = optional(&input.force);
+
+    Some(System {
+        n: n?,
+        lagrangian: lagrangian?,
+        // Absent is fine; present but not lowered is not.
+        dissipation: dissipation.map_or(Some(None), |f| f.map(Some))?,
+        force: force.map_or(Some(None), |f| f.map(Some))?,
+    })
+}
+
+/// A best guess at `N` from the Lagrangian's signature, however broken, so
+/// that the fallback can still emit a stub trait impl after errors and spare
+/// the user follow-on "trait not implemented" errors.
+pub(crate) fn arity(input: &Input<'_>) -> Option<Len> {
+    let params = &input.lagrangian.as_ref()?.params;
+    // `q` is second to last and `v` last whether or not `t` is there.
+    params.iter().rev().take(2).rev().find_map(|param| match &param.shape {
+        Shape::Array { len, .. } => Some(len.clone()),
+        _ => None,
+    })
+}
+
+/// What a method's signature says, as far as it could be read.
+pub(crate) struct Signature {
+    /// The method name as written.
+    pub(crate) name: Ident,
+    /// The time parameter, `None` when there is none.
+    pub(crate) time: Option<Binder>,
+    /// The position parameter (`None` also when unreadable).
+    pub(crate) q: Binder,
+    /// The velocity parameter.
+    pub(crate) v: Binder,
+    /// This method's `N`, from `q` (or `v` if `q` is unreadable).
+    pub(crate) n: Option<Len>,
+}
+
+/// Checks the signature of `method`. `expected` is the Lagrangian's `N`, which
+/// the optional methods must share; `None` when checking the Lagrangian.
+fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Signature {
+    let name = method.kind.name();
+    let sig = &method.func.sig;
+    let mut signature = Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None };
+
+    if sig.generics.lt_token.is_some() || sig.generics.where_clause.is_some() {
+        cx.error_spanned_by(
+            &sig.generics,
+            format!(
+                "`{name}` cannot have generic parameters: write it for `f64`, \
+                 the macro makes it generic over dual numbers"
+            ),
+        );
+    }
+    if let Some(token) = &sig.asyncness {
+        cx.error_spanned_by(token, format!("`{name}` cannot be `async`"));
+    }
+    if let Some(token) = &sig.unsafety {
+        cx.error_spanned_by(token, format!("`{name}` cannot be `unsafe`"));
+    }
+
+    match method.receiver {
+        None => cx.error_at(sig.paren_token.span.join(), format!("`{name}` must take `&self` as its first parameter")),
+        Some(receiver)
+            if receiver.reference.is_none() || receiver.mutability.is_some() || receiver.colon_token.is_some() =>
+        {
+            cx.error_spanned_by(
+                receiver,
+                format!("`{name}` must take `&self`: the system is only read, never modified"),
+            );
+        }
+        Some(_) => {}
+    }
+
+    let (time, q, v) = match (method.params.as_slice(), method.kind.takes_time()) {
+        ([q, v], _) => (None, q, v),
+        ([t, q, v], true) => (Some(t), q, v),
+        (params, _) => {
+            cx.error_at(
+                sig.paren_token.span.join(),
+                format!(
+                    "`{name}` takes {}, found {} parameter{} besides `&self`",
+                    expected_params(method.kind),
+                    params.len(),
+                    if params.len() == 1 { "" } else { "s" },
+                ),
+            );
+            check_return(cx, method, None);
+            return signature;
+        }
+    };
+
+    if let Some(t) = time {
+        signature.time = Some(binder(cx, t));
+        if !matches!(t.shape, Shape::F64) {
+            cx.error_spanned_by(t.ty, format!("the time parameter of `{name}` must be `f64`"));
+        }
+    }
+    signature.q = binder(cx, q);
+    signature.v = binder(cx, v);
+
+    let q_name = display(&signature.q, "q");
+    let v_name = display(&signature.v, "v");
+    let q_len = array_len(cx, q, &q_name, name);
+    let v_len = array_len(cx, v, &v_name, name);
+    signature.n = q_len.or(v_len).cloned();
+    match expected {
+        // The Lagrangian: `v` must match `q`.
+        None => {
+            if let (Some(q_len), Some(v_len)) = (q_len, v_len)
+                && !v_len.same_as(q_len)
+            {
+                cx.error_spanned_by(
+                    v_len,
+                    format!(
+                        "`{q_name}` and `{v_name}` must have the same length: \
+                         `{q_name}` is `[f64; {q_len}]` but `{v_name}` is `[f64; {v_len}]`"
+                    ),
+                );
+            }
+        }
+        // The optional methods: both must match the Lagrangian.
+        Some(expected) => {
+            for len in [q_len, v_len].into_iter().flatten() {
+                if !len.same_as(expected) {
+                    cx.error_spanned_by(
+                        len,
+                        format!(
+                            "`{name}` must have as many coordinates as `lagrangian`: \
+                             expected `[f64; {expected}]`, found `[f64; {len}]`"
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    check_return(cx, method, expected.or(signature.n.as_ref()));
+    signature
+}
+
+/// The accepted parameter lists, for messages.
+fn expected_params(kind: MethodKind) -> &'static str {
+    if kind.takes_time() {
+        "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`"
+    } else {
+        "`(&self, q: [f64; N], v: [f64; N])`"
+    }
+}
+
+/// How to call a parameter in messages: its name, or its role for `_`.
+fn display(binder: &Binder, role: &str) -> String {
+    binder.as_ref().map_or_else(|| role.to_owned(), Ident::to_string)
+}
+
+/// The length of `param` if it is `[f64; N]`; reports it otherwise.
+fn array_len<'p>(cx: &Ctxt, param: &'p Param<'_>, role: &str, name: &str) -> Option<&'p Len> {
+    match &param.shape {
+        Shape::Array { of_f64: true, len } => Some(len),
+        _ => {
+            cx.error_spanned_by(param.ty, format!("`{role}` in `{name}` must be `[f64; N]`"));
+            None
+        }
+    }
+}
+
+/// Checks the return type: `f64`, or `[f64; N]` for `force`. `n` is the `N`
+/// to expect, when known.
+fn check_return(cx: &Ctxt, method: &Method<'_>, n: Option<&Len>) {
+    let name = method.kind.name();
+    let expected = match (method.kind.returns_array(), n) {
+        (false, _) => "f64".to_owned(),
+        (true, Some(n)) => format!("[f64; {n}]"),
+        (true, None) => "[f64; N]".to_owned(),
+    };
+    let ok = match (&method.output, method.kind.returns_array()) {
+        (Some((_, Shape::F64)), false) => true,
+        (Some((_, Shape::Array { of_f64: true, len })), true) => n.is_none_or(|n| len.same_as(n)),
+        _ => false,
+    };
+    if ok {
+        return;
+    }
+    let message = format!("`{name}` must return `{expected}`");
+    match &method.output {
+        Some((ty, _)) => cx.error_spanned_by(ty, message),
+        None => cx.error_at(method.func.sig.paren_token.span.close(), format!("{message}: add `-> {expected}`")),
+    }
+}
+
+/// The name a parameter binds: an identifier, or `None` for `_`. Reports any
+/// other pattern.
+fn binder(cx: &Ctxt, param: &Param<'_>) -> Binder {
+    match param.pat {
+        Pat::Ident(PatIdent { by_ref: None, subpat: None, ident, .. }) => Some(ident.clone()),
+        Pat::Wild(_) => None,
+        pat => {
+            cx.error_spanned_by(pat, "parameters must be plain names such as `q` or `_`");
+            None
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use syn::{ItemImpl, parse_quote};
+
+    fn errors(item: &ItemImpl) -> Vec<String> {
+        let cx = Ctxt::new();
+        let _ = validate(&cx, &Input::from_syn(item));
+        match cx.check() {
+            Ok(()) => Vec::new(),
+            Err(error) => error.into_iter().map(|e| e.to_string()).collect(),
+        }
+    }
+
+    #[test]
+    fn accepts_the_documented_forms() {
+        let item: ItemImpl = parse_quote! {
+            impl<T: Copy> P<T> {
+                fn lagrangian(&self, _t: f64, q: [f64; 2], v: [f64; 2]) -> f64 { q[0] * v[1] }
+                fn dissipation(&self, _: [f64; 2], v: [f64; 2]) -> f64 { v[0] }
+                fn force(&self, q: [f64; 2], v: [f64; 2]) -> [f64; 2] { [q[1], v[0]] }
+                fn other(&self) {}
+            }
+        };
+        assert_eq!(errors(&item), Vec::<String>::new());
+        let cx = Ctxt::new();
+        let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+        cx.check().unwrap();
+        assert_eq!(system.n.value(), Some(2));
+        assert!(system.lagrangian.time.is_some());
+        assert!(system.force.unwrap().time.is_none());
+        assert!(system.dissipation.unwrap().q.is_none());
+    }
+
+    #[test]
+    fn extracts_a_constant_length() {
+        let item: ItemImpl = parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 { q[0] }
+            }
+        };
+        let cx = Ctxt::new();
+        let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+        cx.check().unwrap();
+        assert_eq!(system.n.value(), None);
+        assert_eq!(system.n.to_string(), "N");
+    }
+
+    #[test]
+    fn reports_a_missing_lagrangian() {
+        let item: ItemImpl = parse_quote!(impl P { fn other(&self) {} });
+        let errors = errors(&item);
+        assert_eq!(errors.len(), 1);
+        assert!(errors[0].starts_with("no `lagrangian` method"));
+    }
+
+    #[test]
+    fn reports_every_signature_error_at_once() {
+        let item: ItemImpl = parse_quote! {
+            impl P {
+                // `q` is unusable, so `N = 3` comes from `v`.
+                fn lagrangian(self, t: f32, q: [f32; 2], v: [f64; 3]) -> f32 { 0.0 }
+                fn force(&self, q: [f64; 3], v: [f64; 2]) -> [f64; 2] { [0.0; 2] }
+            }
+        };
+        let errors = errors(&item);
+        assert_eq!(
+            errors,
+            [
+                "`lagrangian` must take `&self`: the system is only read, never modified",
+                "the time parameter of `lagrangian` must be `f64`",
+                "`q` in `lagrangian` must be `[f64; N]`",
+                "`lagrangian` must return `f64`",
+                "`force` must have as many coordinates as `lagrangian`: expected `[f64; 3]`, found `[f64; 2]`",
+                "`force` must return `[f64; 3]`",
+            ]
+        );
+    }
+
+    #[test]
+    fn reports_mismatched_lengths_and_parameter_counts() {
+        let item: ItemImpl = parse_quote! {
+            impl P {
+                fn lagrangian(&self, q: [f64; 2], v: [f64; 3]) -> f64 { 0.0 }
+                fn dissipation(&self, t: f64, q: [f64; 2], v: [f64; 2]) -> f64 { 0.0 }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            [
+                "`q` and `v` must have the same length: `q` is `[f64; 2]` but `v` is `[f64; 3]`",
+                "`dissipation` takes `(&self, q: [f64; N], v: [f64; N])`, found 3 parameters besides `&self`",
+            ]
+        );
+    }
+
+    #[test]
+    fn arity_survives_broken_signatures() {
+        let item: ItemImpl = parse_quote! {
+            impl P { fn lagrangian(self, q: [f32; 4], v: f64) {} }
+        };
+        let input = Input::from_syn(&item);
+        assert_eq!(arity(&input).and_then(|n| n.value()), Some(4));
+    }
+}
