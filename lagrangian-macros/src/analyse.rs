@@ -9,6 +9,7 @@
 
 use crate::ctxt::Ctxt;
 use crate::ir::{Block, Class, Expr, ExprKind, Function, Local, LocalId, Math, ParamRef, Stmt, System};
+use crate::parse::MethodKind;
 use std::collections::BTreeSet;
 use syn::BinOp;
 
@@ -54,25 +55,27 @@ pub(crate) fn analyse(cx: &Ctxt, system: &mut System) -> Analysis {
 /// Classifies `function`; `false` if it is inconsistent (see [`Analysis`]).
 fn classify(cx: &Ctxt, function: &mut Function) -> bool {
     let ret = function.return_class();
-    let Function { body, locals, .. } = function;
+    let Function { kind, body, locals, .. } = function;
+    let kind = *kind;
     // A loop can assign an active value to a variable read earlier in its
     // body, so passes repeat until no local changes class. Classes only grow,
     // each at most a few steps; the bound is a guard, not a limit in practice.
     for _ in 0..=4 * locals.len() {
         let before: Vec<Class> = locals.iter().map(|local| local.class).collect();
-        Infer::new(locals, ret, None).body(body);
+        Infer::new(kind, locals, ret, None).body(body);
         if locals.iter().map(|local| local.class).eq(before) {
             break;
         }
     }
     // One more pass, reporting, now that every class is final.
-    let mut infer = Infer::new(locals, ret, Some(cx));
+    let mut infer = Infer::new(kind, locals, ret, Some(cx));
     infer.body(body);
     infer.consistent
 }
 
 /// One classification pass over a body.
 struct Infer<'a> {
+    kind: MethodKind,
     locals: &'a mut [Local],
     /// The class the body's value and `return`s are coerced to.
     ret: Class,
@@ -83,8 +86,8 @@ struct Infer<'a> {
 }
 
 impl<'a> Infer<'a> {
-    fn new(locals: &'a mut [Local], ret: Class, cx: Option<&'a Ctxt>) -> Self {
-        Infer { locals, ret, cx, consistent: true }
+    fn new(kind: MethodKind, locals: &'a mut [Local], ret: Class, cx: Option<&'a Ctxt>) -> Self {
+        Infer { kind, locals, ret, cx, consistent: true }
     }
 
     fn mismatch(&mut self) {
@@ -363,7 +366,7 @@ impl<'a> Infer<'a> {
     /// Reports an error, in the final pass only.
     fn report(&mut self, span: proc_macro2::Span, message: &str) {
         if let Some(cx) = self.cx {
-            cx.error_at(span, message);
+            cx.body_error_at(self.kind, span, message);
         }
     }
 }
@@ -521,7 +524,9 @@ mod tests {
         let cx = Ctxt::new();
         let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
         analyse(&cx, &mut system);
-        let errors: Vec<String> = cx.check().unwrap_err().into_iter().map(|e| e.to_string()).collect();
-        assert_eq!(errors, ["indexing with a value that depends on `t`, `q` or `v` is not supported"]);
+        assert_eq!(
+            cx.check().unwrap_err().messages(),
+            ["indexing with a value that depends on `t`, `q` or `v` is not supported"]
+        );
     }
 }

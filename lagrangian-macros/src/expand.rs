@@ -21,7 +21,7 @@ pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
         // The body mixes types in a way rustc rejects on the user's own
         // method; generated code would only repeat that error.
         (Ok(()), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), None),
-        (Err(error), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), Some(error)),
+        (Err(errors), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), Some(&errors)),
     }
 }
 

@@ -7,6 +7,7 @@
 //! compares and converts only through its real part.
 
 use crate::analyse::{Analysis, Cyclic};
+use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
 use crate::parse::{Len, MethodKind};
 use proc_macro2::{Ident, Span, TokenStream};
@@ -15,7 +16,7 @@ use syn::{BinOp, ImplItem, ItemImpl, Type};
 
 /// The user's block followed by the trait impl.
 pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> TokenStream {
-    let user_impl = user_impl(item);
+    let user_impl = user_impl(item, None);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
     let self_ty = &item.self_ty;
     let n = system.n.generic_arg();
@@ -63,10 +64,10 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> T
 /// user's block unchanged, and, when `N` is known, a trait impl with the
 /// right `N` and a body that is never run, so that code using the type as a
 /// `Lagrangian` does not add "trait not implemented" errors to the real ones.
-/// `error` is `None` when rustc reports the problem itself.
-pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, error: Option<syn::Error>) -> TokenStream {
-    let error = error.map(syn::Error::into_compile_error);
-    let user_impl = user_impl(item);
+/// `errors` is `None` when rustc reports the problem itself.
+pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, errors: Option<&Errors>) -> TokenStream {
+    let block_errors = errors.map(|errors| errors.at(Site::Block));
+    let user_impl = user_impl(item, errors);
     let stub = n.map(|n| {
         let (impl_generics, _, where_clause) = item.generics.split_for_impl();
         let self_ty = &item.self_ty;
@@ -84,18 +85,21 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, error: Option<syn::Erro
             }
         }
     });
-    quote!(#error #user_impl #stub)
+    quote!(#block_errors #user_impl #stub)
 }
 
 /// The user's block as written, with `#[allow(dead_code)]` on the recognised
-/// methods: they are usually only called through the trait.
-fn user_impl(item: &ItemImpl) -> TokenStream {
+/// methods (they are usually only called through the trait) and the errors
+/// found in their bodies, if any, at the start of each body (see [`Site`]).
+fn user_impl(item: &ItemImpl, errors: Option<&Errors>) -> TokenStream {
     let mut item = item.clone();
     for impl_item in &mut item.items {
-        if let ImplItem::Fn(func) = impl_item
-            && MethodKind::from_ident(&func.sig.ident).is_some()
-        {
-            func.attrs.push(syn::parse_quote!(#[allow(dead_code)]));
+        let ImplItem::Fn(func) = impl_item else { continue };
+        let Some(kind) = MethodKind::from_ident(&func.sig.ident) else { continue };
+        func.attrs.push(syn::parse_quote!(#[allow(dead_code)]));
+        let body_errors = errors.map(|errors| errors.at(Site::Body(kind))).unwrap_or_default();
+        if !body_errors.is_empty() {
+            func.block.stmts.insert(0, syn::Stmt::Item(syn::Item::Verbatim(body_errors)));
         }
     }
     item.into_token_stream()
@@ -624,10 +628,15 @@ mod tests {
     #[test]
     fn fallback_emits_a_stub_after_errors() {
         let item: ItemImpl = parse_quote!(impl P { fn lagrangian(&self, q: [f64; 3], v: [f64; 3]) -> f64 { q[0] } });
-        let error = syn::Error::new(Span::call_site(), "boom");
-        let out =
-            fallback(&item, Some(&crate::validate::arity(&Input::from_syn(&item)).unwrap()), Some(error)).to_string();
+        let cx = Ctxt::new();
+        cx.error_at(Span::call_site(), "boom");
+        cx.body_error_at(MethodKind::Lagrangian, Span::call_site(), "bang");
+        let errors = cx.check().unwrap_err();
+        let n = crate::validate::arity(&Input::from_syn(&item));
+        let out = fallback(&item, n.as_ref(), Some(&errors)).to_string();
         assert!(out.starts_with(":: core :: compile_error ! { \"boom\" }"), "{out}");
+        // The body's error opens the body, which keeps rustc from checking it.
+        assert!(out.contains("-> f64 { :: core :: compile_error ! { \"bang\" } q [0] }"), "{out}");
         assert!(out.contains("Lagrangian < 3 > for P"), "{out}");
         assert!(out.contains("unreachable !"), "{out}");
         assert!(!fallback(&item, None, None).to_string().contains("Lagrangian"));

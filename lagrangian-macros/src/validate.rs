@@ -256,10 +256,7 @@ mod tests {
     fn errors(item: &ItemImpl) -> Vec<String> {
         let cx = Ctxt::new();
         let _ = validate(&cx, &Input::from_syn(item));
-        match cx.check() {
-            Ok(()) => Vec::new(),
-            Err(error) => error.into_iter().map(|e| e.to_string()).collect(),
-        }
+        cx.check().err().map_or_else(Vec::new, |errors| errors.messages())
     }
 
     #[test]

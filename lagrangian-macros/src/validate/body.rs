@@ -121,13 +121,15 @@ fn all<T>(items: Vec<Option<T>>) -> Option<Vec<T>> {
 }
 
 impl Lower<'_> {
+    /// Reports an error about this body.
+    fn error(&self, tokens: impl ToTokens, msg: impl std::fmt::Display) {
+        self.cx.body_error_spanned_by(self.kind, tokens, msg);
+    }
+
     /// Reports an unsupported construct. `what` names it, with its verb
     /// ("closures are").
     fn unsupported<T>(&self, tokens: impl ToTokens, what: &str) -> Option<T> {
-        self.cx.error_spanned_by(
-            tokens,
-            format!("{what} not supported in `{}`; supported: {SUPPORTED}", self.kind.name()),
-        );
+        self.error(tokens, format!("{what} not supported in `{}`; supported: {SUPPORTED}", self.kind.name()));
         None
     }
 
@@ -299,7 +301,7 @@ impl Lower<'_> {
 
     fn field(&mut self, field: &syn::ExprField) -> Option<ExprKind> {
         if !is_self_rooted(&field.base) {
-            self.cx.error_spanned_by(
+            self.error(
                 field,
                 format!(
                     "field access is only supported on `self` (`self.m`, `self.params.k`) in `{}`",
@@ -319,7 +321,7 @@ impl Lower<'_> {
             (&base.kind, self.n, position.literal_index())
             && i >= n
         {
-            self.cx.error_spanned_by(&index.index, format!("index `{i}` is out of bounds for `{name}: [f64; {n}]`"));
+            self.error(&index.index, format!("index `{i}` is out of bounds for `{name}: [f64; {n}]`"));
             return None;
         }
         Some(ExprKind::Index { base: Box::new(base), index: Box::new(position) })
@@ -361,7 +363,7 @@ impl Lower<'_> {
     fn place(&mut self, place: &syn::Expr) -> Option<Expr> {
         let name = self.kind.name();
         if is_self_rooted(place) {
-            self.cx.error_spanned_by(
+            self.error(
                 place,
                 format!(
                     "writing to `self` is not allowed: `{name}` only reads the system; \
@@ -381,7 +383,7 @@ impl Lower<'_> {
         match ident.and_then(|ident| Some((ident, self.resolve(ident)?))) {
             Some((_, Binding::Local(_))) => self.expr(place),
             Some((ident, Binding::Param(_))) => {
-                self.cx.error_spanned_by(
+                self.error(
                     place,
                     format!(
                         "cannot assign to the parameter `{ident}`: copy it into a \
@@ -391,7 +393,7 @@ impl Lower<'_> {
                 None
             }
             None => {
-                self.cx.error_spanned_by(
+                self.error(
                     place,
                     format!("only local variables and elements of local arrays can be assigned in `{name}`"),
                 );
@@ -403,7 +405,7 @@ impl Lower<'_> {
     fn cast(&mut self, cast: &syn::ExprCast) -> Option<ExprKind> {
         let supported = is_f64(&cast.ty) || is_integer(&cast.ty);
         if !supported {
-            self.cx.error_spanned_by(
+            self.error(
                 &cast.ty,
                 format!("only casts to `f64` or to an integer type are supported in `{}`", self.kind.name()),
             );
@@ -437,7 +439,7 @@ impl Lower<'_> {
             _ => None,
         };
         let Some(((start, end), limits)) = range else {
-            self.cx.error_spanned_by(
+            self.error(
                 &for_loop.expr,
                 "only `for i in a..b` and `for i in a..=b` loops over integer ranges are supported",
             );
@@ -461,7 +463,7 @@ impl Lower<'_> {
         let name = self.kind.name();
         let method = &call.method;
         if is_self(&call.receiver) {
-            self.cx.error_spanned_by(
+            self.error(
                 method,
                 format!("calls to methods of `self` are not supported: inline `{method}` into `{name}`"),
             );
@@ -486,7 +488,7 @@ impl Lower<'_> {
     /// receiver; reports unsupported methods and wrong argument counts.
     fn math(&self, method: &Ident, args: usize) -> Option<Math> {
         let Some((math, arity)) = math_method(method) else {
-            self.cx.error_spanned_by(
+            self.error(
                 method,
                 format!(
                     "the method `{method}` is not supported in `{}`; supported methods: {}",
@@ -497,7 +499,7 @@ impl Lower<'_> {
             return None;
         };
         if args != arity {
-            self.cx.error_spanned_by(
+            self.error(
                 method,
                 format!("`{method}` takes {arity} argument{} besides its receiver", if arity == 1 { "" } else { "s" }),
             );
@@ -516,6 +518,9 @@ impl Lower<'_> {
         let segments: Vec<&Ident> =
             path.iter().flat_map(|path| path.path.segments.iter().map(|segment| &segment.ident)).collect();
         match segments.as_slice() {
+            // A local variable called as a function can only hold a closure,
+            // which its `let` already reported.
+            [local] if matches!(self.resolve(local), Some(Binding::Local(_))) => None,
             // `f64::sqrt(x)`: a method in path form.
             [ty, method] if *ty == "f64" => {
                 // The receiver is the first argument; none at all is reported as a
@@ -532,14 +537,14 @@ impl Lower<'_> {
                 })
             }
             [this, method] if *this == "Self" => {
-                self.cx.error_spanned_by(
+                self.error(
                     &call.func,
                     format!("calls to methods of `Self` are not supported: inline `{method}` into `{name}`"),
                 );
                 None
             }
             _ => {
-                self.cx.error_spanned_by(
+                self.error(
                     &call.func,
                     format!(
                         "calls to functions are not supported in `{name}`: inline `{}` \
@@ -598,10 +603,7 @@ mod tests {
         };
         let cx = Ctxt::new();
         let _ = super::super::validate(&cx, &Input::from_syn(&item));
-        match cx.check() {
-            Ok(()) => Vec::new(),
-            Err(error) => error.into_iter().map(|e| e.to_string()).collect(),
-        }
+        cx.check().err().map_or_else(Vec::new, |errors| errors.messages())
     }
 
     fn starts(errors: &[String]) -> Vec<&str> {
