@@ -46,7 +46,8 @@ impl KitchenSink {
         for i in 0..3 {
             kinetic += HALF * self.m * v[i] * v[i];
         }
-        let r: f64 = (q[0] * q[0] + q[1] * q[1] + 1.0).sqrt();
+        let (x, y) = (q[0], q[1]);
+        let r: f64 = (x * x + y * y + 1.0).sqrt();
         let angle = q[1].atan2(q[0]) + self.p.atan2(1.0) + 1.0_f64.atan2(q[0]);
         let mut potential = self.k[0] * r.powi(2) + self.k[1] * (1.0 - q[0]).abs().powf(self.p);
         if q[0] > 0.0 {

@@ -124,9 +124,13 @@ impl<'a> Infer<'a> {
 
     fn stmt(&mut self, stmt: &mut Stmt) -> Class {
         match stmt {
-            Stmt::Let { local, init, .. } => {
-                let class = self.expr(init);
-                self.assign(*local, class);
+            Stmt::Let { bindings, inits, .. } => {
+                for (binding, init) in bindings.iter().zip(inits) {
+                    let class = self.expr(init);
+                    if let Some(local) = binding.local {
+                        self.assign(local, class);
+                    }
+                }
                 Class::Unit
             }
             Stmt::Expr { expr, .. } => self.expr(expr),
@@ -442,8 +446,8 @@ mod tests {
             ]
         );
         // `0.5 * self.m` inside `c` stays a constant.
-        let Stmt::Let { init, .. } = &system.lagrangian.body.stmts[0] else { panic!() };
-        assert_eq!(init.class, Class::Const);
+        let Stmt::Let { inits, .. } = &system.lagrangian.body.stmts[0] else { panic!() };
+        assert_eq!(inits[0].class, Class::Const);
         assert_eq!(system.lagrangian.body.tail().unwrap().class, Class::Active);
     }
 

@@ -176,15 +176,29 @@ impl Printer<'_> {
 
     fn stmt(&self, stmt: &Stmt) -> TokenStream {
         match stmt {
-            Stmt::Let { local, mutable, ty, init } => {
-                let Local { name, class } = &self.locals[local.0];
-                let mutability = mutable.then(|| quote!(mut));
+            Stmt::Let { bindings, tuple, ty, inits } => {
+                let classes: Vec<Class> = bindings
+                    .iter()
+                    .map(|binding| binding.local.map_or(Class::Unit, |local| self.locals[local.0].class))
+                    .collect();
+                let patterns = bindings.iter().map(|binding| match binding.local {
+                    Some(local) => {
+                        let name = &self.locals[local.0].name;
+                        let mutability = binding.mutable.then(|| quote!(mut));
+                        quote!(#mutability #name)
+                    }
+                    None => quote!(_),
+                });
+                let inits = inits.iter().zip(&classes).map(|(init, class)| self.coerce(init, *class));
                 let ty = ty.as_ref().map(|ty| {
-                    let ty = if class.is_active() { self.active_type(ty) } else { (**ty).clone() };
+                    let ty = self.binding_type(ty, &classes);
                     quote!(: #ty)
                 });
-                let init = self.coerce(init, *class);
-                quote!(let #mutability #name #ty = #init;)
+                if *tuple {
+                    quote!(let (#(#patterns),*) #ty = (#(#inits),*);)
+                } else {
+                    quote!(let #(#patterns)* #ty = #(#inits)*;)
+                }
             }
             Stmt::Expr { expr, semi } => {
                 let expr = self.expr(expr);
@@ -192,6 +206,22 @@ impl Printer<'_> {
                 quote!(#expr #semi)
             }
             Stmt::Item(item) => item.to_token_stream(),
+        }
+    }
+
+    /// The annotation `ty` of variables of the given classes: `f64` becomes
+    /// `D` for active ones, element by element in a tuple type.
+    fn binding_type(&self, ty: &Type, classes: &[Class]) -> Type {
+        match (ty, classes) {
+            (ty, [class]) if class.is_active() => self.active_type(ty),
+            (Type::Tuple(tuple), classes) if tuple.elems.len() == classes.len() => {
+                let mut tuple = tuple.clone();
+                for (elem, class) in tuple.elems.iter_mut().zip(classes) {
+                    *elem = self.binding_type(elem, &[*class]);
+                }
+                Type::Tuple(tuple)
+            }
+            (ty, _) => ty.clone(),
         }
     }
 
@@ -581,6 +611,23 @@ mod tests {
                     s += v[0] * ((i as f64) * k);
                 }
                 s
+            })
+            .to_string()
+        );
+    }
+
+    #[test]
+    fn tuple_lets_are_coerced_element_by_element() {
+        assert_eq!(
+            body(parse_quote!({
+                let (x, mut y, _): (f64, f64, f64) = (q[0], 1.0, self.z);
+                y += x;
+                y
+            })),
+            quote!({
+                let (x, mut y, _): (__D, __D, f64) = (q[0], __D::from(1.0), self.z);
+                y += x;
+                y
             })
             .to_string()
         );

@@ -143,7 +143,8 @@ impl Block {
     pub(crate) fn visit(&self, f: &mut impl FnMut(&Expr) -> bool) {
         for stmt in &self.stmts {
             match stmt {
-                Stmt::Let { init: expr, .. } | Stmt::Expr { expr, .. } => expr.visit(f),
+                Stmt::Let { inits, .. } => inits.iter().for_each(|init| init.visit(f)),
+                Stmt::Expr { expr, .. } => expr.visit(f),
                 Stmt::Item(_) => {}
             }
         }
@@ -161,16 +162,17 @@ impl Block {
 
 /// A statement.
 pub(crate) enum Stmt {
-    /// `let [mut] name[: ty] = init;`
+    /// `let pattern[: ty] = init;`: one binding and one initializer, or a
+    /// tuple of bindings destructuring a tuple of as many initializers.
     Let {
-        /// The variable declared.
-        local: LocalId,
-        /// Whether it was declared `mut`.
-        mutable: bool,
+        /// The variables declared, one per initializer.
+        bindings: Vec<LetBinding>,
+        /// Whether the pattern is a tuple: `let (a, b) = (x, y);`.
+        tuple: bool,
         /// The type annotation, if any.
         ty: Option<Box<Type>>,
-        /// The initializer.
-        init: Expr,
+        /// The initializers.
+        inits: Vec<Expr>,
     },
     /// An expression, with or without a trailing `;`.
     Expr {
@@ -181,6 +183,15 @@ pub(crate) enum Stmt {
     },
     /// A `const` or `use` item, copied as written.
     Item(Box<Item>),
+}
+
+/// One variable of a `let` pattern.
+#[derive(Clone, Copy)]
+pub(crate) struct LetBinding {
+    /// The variable; `None` for `_`.
+    pub(crate) local: Option<LocalId>,
+    /// Whether it was declared `mut`.
+    pub(crate) mutable: bool,
 }
 
 /// An expression with its source span and, once analysed, its class.

@@ -7,7 +7,7 @@
 
 use super::Signature;
 use crate::ctxt::Ctxt;
-use crate::ir::{Block, Expr, ExprKind, Function, Local, LocalId, Math, ParamRef, Stmt};
+use crate::ir::{Block, Expr, ExprKind, Function, LetBinding, Local, LocalId, Math, ParamRef, Stmt};
 use crate::parse::{Len, Method, MethodKind, is_f64};
 use quote::{ToTokens, quote};
 use syn::spanned::Spanned;
@@ -174,31 +174,52 @@ impl Lower<'_> {
             Pat::Type(typed) => (&*typed.pat, Some(typed.ty.clone())),
             pat => (pat, None),
         };
-        let binding = match pat {
-            Pat::Ident(PatIdent { by_ref: None, subpat: None, ident, mutability, .. }) => {
-                Some((ident, mutability.is_some()))
-            }
-            pat => self.unsupported(pat, "patterns other than a plain name (`let x`, `let mut x`) are"),
-        };
         let init = match &local.init {
-            Some(init) => {
-                let expr = self.expr(&init.expr);
-                match &init.diverge {
-                    Some((else_token, _)) => self.unsupported(else_token, "`let ... else` is"),
-                    None => expr,
-                }
+            Some(syn::LocalInit { diverge: Some((else_token, _)), .. }) => {
+                return self.unsupported(else_token, "`let ... else` is");
             }
+            Some(init) => Some(&*init.expr),
             None => {
-                self.cx
-                    .error_spanned_by(pat, "a `let` without an initial value is not supported: write `let x = ...;`");
+                self.error(pat, "a `let` without an initial value is not supported: write `let x = ...;`");
                 None
             }
         };
-        // Declared after the initializer, which still sees an outer variable
-        // of the same name (`let x = x + 1.0;`).
-        let (ident, mutable) = binding?;
-        let local = self.declare(ident);
-        Some(Stmt::Let { local, mutable, ty, init: init? })
+        // `let (a, b) = (x, y);` is lowered element by element, the others
+        // as one binding and one initializer.
+        let (patterns, inits, tuple): (Vec<&Pat>, _, _) = match (pat, init) {
+            (Pat::Tuple(pats), Some(syn::Expr::Tuple(exprs))) if pats.elems.len() == exprs.elems.len() => {
+                (pats.elems.iter().collect(), exprs.elems.iter().map(|expr| self.expr(expr)).collect(), true)
+            }
+            (Pat::Tuple(pats), init) => {
+                self.error(pats, "tuple patterns are only supported with as many values: `let (a, b) = (x, y);`");
+                init.map(|init| self.expr(init));
+                return None;
+            }
+            (pat, init) => (vec![pat], vec![init.and_then(|init| self.expr(init))], false),
+        };
+        let bindings: Vec<_> = patterns.into_iter().map(|pat| self.binding(pat)).collect();
+        // Declared after the initializers, which still see outer variables of
+        // the same names (`let x = x + 1.0;`, `let (a, b) = (b, a);`).
+        let bindings = all(bindings)?
+            .into_iter()
+            .map(|binding| LetBinding {
+                local: binding.map(|(ident, _)| self.declare(ident)),
+                mutable: binding.is_some_and(|(_, mutable)| mutable),
+            })
+            .collect();
+        Some(Stmt::Let { bindings, tuple, ty, inits: all(inits)? })
+    }
+
+    /// The variable bound by one `let` pattern and whether it is `mut`;
+    /// `Some(None)` for `_`.
+    fn binding<'p>(&self, pat: &'p Pat) -> Option<Option<(&'p Ident, bool)>> {
+        match pat {
+            Pat::Ident(PatIdent { by_ref: None, subpat: None, ident, mutability, .. }) => {
+                Some(Some((ident, mutability.is_some())))
+            }
+            Pat::Wild(_) => Some(None),
+            pat => self.unsupported(pat, "patterns other than names, `_` and tuples of them are"),
+        }
     }
 
     fn macro_call<T>(&self, mac: &syn::Macro) -> Option<T> {
@@ -646,7 +667,8 @@ mod tests {
             let r = &q;
             self.m = q[1];
             q[0] = 1.0;
-            let (a, b) = (1.0, 2.0);
+            let [a, b] = [1.0, 2.0];
+            let pair = (1.0, 2.0);
             0.0
         });
         assert_eq!(
@@ -662,7 +684,7 @@ mod tests {
                 "references (`&`, `&mut`) are not supported in `lagrangian`",
                 "writing to `self` is not allowed",
                 "cannot assign to the parameter `q`",
-                "patterns other than a plain name (`let x`, `let mut x`) are not supported in `lagrangian`",
+                "patterns other than names, `_` and tuples of them are not supported in `lagrangian`",
                 "tuples are not supported in `lagrangian`",
             ]
         );
@@ -693,8 +715,8 @@ mod tests {
         cx.check().unwrap();
         let f = &system.lagrangian;
         assert_eq!(f.locals.len(), 3);
-        let Stmt::Let { init, .. } = &f.body.stmts[1] else { panic!("expected a let") };
-        let ExprKind::Binary { lhs, rhs, .. } = &init.kind else { panic!("expected x * G") };
+        let Stmt::Let { inits, .. } = &f.body.stmts[1] else { panic!("expected a let") };
+        let ExprKind::Binary { lhs, rhs, .. } = &inits[0].kind else { panic!("expected x * G") };
         assert!(matches!(lhs.kind, ExprKind::Local(LocalId(0), _)));
         assert!(matches!(rhs.kind, ExprKind::Path(_)));
         let Some(Expr { kind: ExprKind::Block(inner), .. }) = f.body.tail() else { panic!("expected a block") };
