@@ -19,7 +19,7 @@ impl Kepler {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let (mu, a, e) = (1.0, 1.0, 0.5);
+    let (mu, a, e): (f64, f64, f64) = (1.0, 1.0, 0.5);
     let r0 = a * (1.0 - e);
     let phi_dot = (mu * a * (1.0 - e * e)).sqrt() / (r0 * r0);
     let (h, n) = (0.01, 100_000);

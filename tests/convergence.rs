@@ -37,7 +37,7 @@ fn order_against<M: DiscreteLagrangian, S: Lagrangian<N>, const N: usize>(
 
 #[test]
 fn harmonic_oscillator_orders_against_the_analytic_solution() {
-    let (q0, v0, t_end) = (0.7, 0.4, 3.0);
+    let (q0, v0, t_end): (f64, f64, f64) = (0.7, 0.4, 3.0);
     let exact = [q0 * t_end.cos() + v0 * t_end.sin()];
     let make = || Oscillator { m: 1.0, k: 1.0 };
     for (name, order, expected) in [

@@ -26,6 +26,7 @@ fn non_finite_initial_data_is_rejected() {
 }
 
 /// `L = q v − ½ q²` is linear in `v`: the Legendre transform is singular.
+#[derive(Debug)]
 struct Degenerate;
 
 #[lagrangian]
@@ -75,6 +76,7 @@ fn newton_failure_keeps_the_state_and_a_smaller_step_recovers() {
 }
 
 /// `L = ½ v² − √q` is undefined for `q < 0`.
+#[derive(Debug)]
 struct SquareRootWell;
 
 #[lagrangian]

@@ -65,7 +65,7 @@ fn charged_particle_energy_error_is_bounded() {
 /// Largest relative change of the angular momentum `p_φ` over 1e5 steps.
 fn kepler_momentum_error<M: DiscreteLagrangian>(method: M) -> f64 {
     // e = 0.5, a = 1, μ = 1, starting at perihelion; about 160 orbits.
-    let (mu, a, e) = (1.0, 1.0, 0.5);
+    let (mu, a, e): (f64, f64, f64) = (1.0, 1.0, 0.5);
     let r0 = a * (1.0 - e);
     let phi_dot = (mu * a * (1.0 - e * e)).sqrt() / (r0 * r0);
     let mut sim = Integrator::new(KeplerPolar { mu }, method, 0.01).start(0.0, [r0, 0.0], [0.0, phi_dot]).unwrap();

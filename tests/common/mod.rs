@@ -4,6 +4,7 @@
 use lagrangian::prelude::*;
 
 /// `L = ½ m l² θ̇² + m g l cos θ`.
+#[derive(Debug)]
 pub struct Pendulum {
     pub m: f64,
     pub l: f64,
@@ -20,6 +21,7 @@ impl Pendulum {
 pub const PENDULUM: Pendulum = Pendulum { m: 1.3, l: 0.8, g: 9.81 };
 
 /// Planar double pendulum, angles from the downward vertical.
+#[derive(Debug)]
 pub struct DoublePendulum {
     pub m1: f64,
     pub m2: f64,
@@ -42,6 +44,7 @@ impl DoublePendulum {
 pub const DOUBLE_PENDULUM: DoublePendulum = DoublePendulum { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
 
 /// `L = ½ m q̇² − ½ k q²`.
+#[derive(Debug)]
 pub struct Oscillator {
     pub m: f64,
     pub k: f64,
@@ -55,6 +58,7 @@ impl Oscillator {
 }
 
 /// Planar Kepler problem in polar coordinates `(r, φ)`; `φ` is cyclic.
+#[derive(Debug)]
 pub struct KeplerPolar {
     pub mu: f64,
 }
@@ -70,6 +74,7 @@ impl KeplerPolar {
 /// A charged particle in the plane, uniform magnetic field `B ẑ` (vector
 /// potential `A = ½ B (−y, x)`) and electric potential `φ = ½ κ (x² + y²) + ε x³`:
 /// `L = ½ m |v|² + e v·A(q) − e φ(q)`, not separable in `q` and `v`.
+#[derive(Debug)]
 pub struct ChargedParticle {
     pub m: f64,
     pub e: f64,
