@@ -166,7 +166,7 @@ impl<'a> Infer<'a> {
                 self.expr(base);
                 Class::Const
             }
-            ExprKind::Index { base, index } => {
+            ExprKind::Index { base, index, .. } => {
                 let base = self.expr(base);
                 let index_class = self.expr(index);
                 if index_class.is_active() && !base.is_array() {
@@ -386,7 +386,7 @@ fn cyclic(body: &Block) -> Cyclic {
     body.visit(&mut |expr| {
         match &expr.kind {
             ExprKind::Param(ParamRef::Q, _) => uses += 1,
-            ExprKind::Index { base, index } if matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) => {
+            ExprKind::Index { base, index, .. } if matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) => {
                 if let Some(i) = index.literal_index() {
                     literal_reads += 1;
                     cyclic.read.insert(i);

@@ -10,7 +10,7 @@ use crate::analyse::{Analysis, Cyclic};
 use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
 use crate::parse::{Len, MethodKind};
-use proc_macro2::{Ident, Span, TokenStream};
+use proc_macro2::{Delimiter, Group, Ident, Span, TokenStream};
 use quote::{ToTokens, quote, quote_spanned};
 use syn::{BinOp, ImplItem, ItemImpl, Type};
 
@@ -39,17 +39,10 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> T
     quote! {
         #user_impl
 
-        // The bodies are the user's code: lints about it were already raised
-        // on the `f64` methods above and must not be raised twice.
-        #[allow(
-            unused_variables,
-            unused_mut,
-            unused_parens,
-            unused_assignments,
-            unreachable_code,
-            clippy::all,
-            clippy::pedantic
-        )]
+        // The bodies are the user's code, already linted as the `f64` methods
+        // above: a lint here would repeat one of those, or be about the
+        // rewrite rather than anything the user can change.
+        #[allow(warnings, clippy::all, clippy::pedantic, clippy::nursery, clippy::restriction)]
         impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
             const AUTONOMOUS: bool = #autonomous;
             const CYCLIC: [bool; #n] = #cyclic;
@@ -166,17 +159,19 @@ struct Printer<'a> {
 impl Printer<'_> {
     /// A block; `to` is the class its final expression must be coerced to.
     fn block(&self, block: &Block, to: Option<Class>) -> TokenStream {
+        let span = block.span;
         let last = block.stmts.len().saturating_sub(1);
         let stmts = block.stmts.iter().enumerate().map(|(i, stmt)| match (stmt, to) {
             (Stmt::Expr { expr, semi: false }, Some(to)) if i == last => self.coerce(expr, to),
             _ => self.stmt(stmt),
         });
-        quote!({ #(#stmts)* })
+        quote_spanned!(span=> { #(#stmts)* })
     }
 
     fn stmt(&self, stmt: &Stmt) -> TokenStream {
         match stmt {
-            Stmt::Let { bindings, tuple, ty, inits } => {
+            Stmt::Let { span, bindings, tuple, ty, inits } => {
+                let span = *span;
                 let classes: Vec<Class> = bindings
                     .iter()
                     .map(|binding| binding.local.map_or(Class::Unit, |local| self.locals[local.0].class))
@@ -184,26 +179,27 @@ impl Printer<'_> {
                 let patterns = bindings.iter().map(|binding| match binding.local {
                     Some(local) => {
                         let name = &self.locals[local.0].name;
-                        let mutability = binding.mutable.then(|| quote!(mut));
-                        quote!(#mutability #name)
+                        let mutability = binding.mutable.then(|| quote_spanned!(span=> mut));
+                        quote_spanned!(span=> #mutability #name)
                     }
-                    None => quote!(_),
+                    None => quote_spanned!(span=> _),
                 });
                 let inits = inits.iter().zip(&classes).map(|(init, class)| self.coerce(init, *class));
                 let ty = ty.as_ref().map(|ty| {
                     let ty = self.binding_type(ty, &classes);
-                    quote!(: #ty)
+                    quote_spanned!(span=> : #ty)
                 });
                 if *tuple {
-                    quote!(let (#(#patterns),*) #ty = (#(#inits),*);)
+                    quote_spanned!(span=> let (#(#patterns),*) #ty = (#(#inits),*);)
                 } else {
-                    quote!(let #(#patterns)* #ty = #(#inits)*;)
+                    quote_spanned!(span=> let #(#patterns)* #ty = #(#inits)*;)
                 }
             }
             Stmt::Expr { expr, semi } => {
+                let span = expr.span;
                 let expr = self.expr(expr);
-                let semi = semi.then(|| quote!(;));
-                quote!(#expr #semi)
+                let semi = semi.then(|| quote_spanned!(span=> ;));
+                quote_spanned!(span=> #expr #semi)
             }
             Stmt::Item(item) => item.to_token_stream(),
         }
@@ -242,6 +238,10 @@ impl Printer<'_> {
 
     /// An expression at its own class.
     fn expr(&self, expr: &Expr) -> TokenStream {
+        // Tokens the printer adds take the span of the user's expression, so
+        // that rustc's diagnostics about generated code coincide with (and
+        // are deduplicated against) those about the user's method.
+        let span = expr.span;
         match &expr.kind {
             ExprKind::Lit(lit) => lit.to_token_stream(),
             ExprKind::Path(path) => path.to_token_stream(),
@@ -249,43 +249,43 @@ impl Printer<'_> {
             ExprKind::Param(_, ident) | ExprKind::Local(_, ident) => ident.to_token_stream(),
             ExprKind::Field { base, member } => {
                 let base = self.expr(base);
-                quote!(#base.#member)
+                quote_spanned!(span=> #base.#member)
             }
-            ExprKind::Index { base, index } => {
-                let (base, index) = (self.expr(base), self.expr(index));
-                quote!(#base[#index])
+            ExprKind::Index { base, index, bracket } => {
+                let (base, index) = (self.expr(base), delimited(Delimiter::Bracket, *bracket, self.expr(index)));
+                quote_spanned!(span=> #base #index)
             }
             ExprKind::Unary { op, expr } => {
                 let expr = self.expr(expr);
-                quote!(#op #expr)
+                quote_spanned!(span=> #op #expr)
             }
-            ExprKind::Binary { lhs, op, rhs } => self.binary(lhs, op, rhs),
+            ExprKind::Binary { lhs, op, rhs } => self.binary(span, lhs, op, rhs),
             // `f64 as f64` on an active value: the value is already `D`.
             ExprKind::Cast { expr: inner, .. } if expr.class.is_active() => self.expr(inner),
             // An active value to an integer: through its real part, like a
             // comparison; an integer has no derivative to lose.
             ExprKind::Cast { expr: inner, ty } if inner.class.is_active() => {
                 let inner = self.real(inner);
-                quote!(#inner as #ty)
+                quote_spanned!(span=> #inner as #ty)
             }
             ExprKind::Cast { expr: inner, ty } => {
                 let inner = self.expr(inner);
-                quote!(#inner as #ty)
+                quote_spanned!(span=> #inner as #ty)
             }
             ExprKind::Paren(inner) => {
                 let inner = self.expr(inner);
-                quote!((#inner))
+                quote_spanned!(span=> (#inner))
             }
             ExprKind::Block(block) => self.block(block, None),
             ExprKind::If { .. } => self.if_expr(expr, expr.class),
             ExprKind::For { var, start, limits, end, body } => {
                 let var = match var {
                     Some((_, ident)) => ident.to_token_stream(),
-                    None => quote!(_),
+                    None => quote_spanned!(span=> _),
                 };
                 let (start, end) = (self.expr(start), self.expr(end));
                 let body = self.block(body, None);
-                quote!(for #var in #start #limits #end #body)
+                quote_spanned!(span=> for #var in #start #limits #end #body)
             }
             ExprKind::MethodCall { .. } => self.method_call(expr),
             ExprKind::Array(elems) => {
@@ -293,14 +293,14 @@ impl Printer<'_> {
                     Class::ActiveArray => self.coerce(elem, Class::Active),
                     _ => self.expr(elem),
                 });
-                quote!([#(#elems),*])
+                quote_spanned!(span=> [#(#elems),*])
             }
             ExprKind::Repeat { elem, len } => {
                 let elem = match expr.class {
                     Class::ActiveArray => self.coerce(elem, Class::Active),
                     _ => self.expr(elem),
                 };
-                quote!([#elem; #len])
+                quote_spanned!(span=> [#elem; #len])
             }
             ExprKind::Assign { place, op, value } => {
                 let target = self.expr(place);
@@ -308,17 +308,17 @@ impl Printer<'_> {
                     // `D op= f64` exists: a constant needs no conversion.
                     Some(op) => {
                         let value = self.expr(value);
-                        quote!(#target #op #value)
+                        quote_spanned!(span=> #target #op #value)
                     }
                     None => {
                         let value = self.coerce(value, place.class);
-                        quote!(#target = #value)
+                        quote_spanned!(span=> #target = #value)
                     }
                 }
             }
             ExprKind::Return(value) => {
                 let value = value.as_ref().map(|value| self.coerce(value, self.ret));
-                quote!(return #value)
+                quote_spanned!(span=> return #value)
             }
             ExprKind::Break(token) => token.to_token_stream(),
             ExprKind::Continue(token) => token.to_token_stream(),
@@ -329,23 +329,24 @@ impl Printer<'_> {
     /// `D`). The conversion is pushed into blocks, `if` branches and array
     /// literals, so it lands on the constant parts only.
     fn coerce(&self, expr: &Expr, to: Class) -> TokenStream {
+        let span = expr.span;
         if !to.is_active() || expr.class.is_active() || expr.class == Class::Unit {
             return self.expr(expr);
         }
         match (&expr.kind, to) {
             (ExprKind::Paren(inner), _) => {
                 let inner = self.coerce(inner, to);
-                quote!((#inner))
+                quote_spanned!(span=> (#inner))
             }
             (ExprKind::Block(block), _) => self.block(block, Some(to)),
             (ExprKind::If { .. }, _) => self.if_expr(expr, to),
             (ExprKind::Array(elems), Class::ActiveArray) => {
                 let elems = elems.iter().map(|elem| self.coerce(elem, Class::Active));
-                quote!([#(#elems),*])
+                quote_spanned!(span=> [#(#elems),*])
             }
             (ExprKind::Repeat { elem, len }, Class::ActiveArray) => {
                 let elem = self.coerce(elem, Class::Active);
-                quote!([#elem; #len])
+                quote_spanned!(span=> [#elem; #len])
             }
             (_, Class::ActiveArray) => {
                 let (d, array) = (&self.d, self.receiver(expr));
@@ -380,11 +381,12 @@ impl Printer<'_> {
     /// `expr` where a method call may follow it: parenthesized unless it binds
     /// at least as tightly as a method call.
     fn receiver(&self, expr: &Expr) -> TokenStream {
+        let span = expr.span;
         if binds_like_postfix(expr) {
             self.expr(expr)
         } else {
             let expr = self.expr(expr);
-            quote!((#expr))
+            quote_spanned!(span=> (#expr))
         }
     }
 
@@ -398,34 +400,35 @@ impl Printer<'_> {
         }
     }
 
-    fn binary(&self, lhs: &Expr, op: &BinOp, rhs: &Expr) -> TokenStream {
+    fn binary(&self, span: Span, lhs: &Expr, op: &BinOp, rhs: &Expr) -> TokenStream {
         let constant_then_active = !lhs.class.is_active() && rhs.class.is_active();
         match op {
             // `c + x` → `x + c`: `D` has `D op f64` but not `f64 op D`, and
             // IEEE addition and multiplication commute exactly.
             BinOp::Add(_) | BinOp::Mul(_) if constant_then_active => {
                 let (lhs, rhs) = (self.moved_operand(rhs), self.moved_operand(lhs));
-                quote!(#lhs #op #rhs)
+                quote_spanned!(span=> #lhs #op #rhs)
             }
             // `c - x` → `D::from(c) - x`: subtraction and division do not
             // commute.
             BinOp::Sub(_) | BinOp::Div(_) if constant_then_active => {
                 let (lhs, rhs) = (self.to_active(lhs), self.expr(rhs));
-                quote!(#lhs #op #rhs)
+                quote_spanned!(span=> #lhs #op #rhs)
             }
             BinOp::Lt(_) | BinOp::Le(_) | BinOp::Gt(_) | BinOp::Ge(_) | BinOp::Eq(_) | BinOp::Ne(_) => {
                 let (lhs, rhs) = (self.real(lhs), self.real(rhs));
-                quote!(#lhs #op #rhs)
+                quote_spanned!(span=> #lhs #op #rhs)
             }
             _ => {
                 let (lhs, rhs) = (self.expr(lhs), self.expr(rhs));
-                quote!(#lhs #op #rhs)
+                quote_spanned!(span=> #lhs #op #rhs)
             }
         }
     }
 
     /// An `if` whose branches are coerced to `to`.
     fn if_expr(&self, expr: &Expr, to: Class) -> TokenStream {
+        let span = expr.span;
         let ExprKind::If { cond, then_branch, else_branch } = &expr.kind else {
             return self.expr(expr);
         };
@@ -437,26 +440,28 @@ impl Printer<'_> {
                 Some(to) => self.coerce(else_branch, to),
                 None => self.expr(else_branch),
             };
-            quote!(else #else_branch)
+            quote_spanned!(span=> else #else_branch)
         });
-        quote!(if #cond #then_branch #else_branch)
+        quote_spanned!(span=> if #cond #then_branch #else_branch)
     }
 
     fn method_call(&self, expr: &Expr) -> TokenStream {
-        let ExprKind::MethodCall { receiver, method, math, args, path } = &expr.kind else {
+        let span = expr.span;
+        let ExprKind::MethodCall { receiver, method, math, args, path, paren } = &expr.kind else {
             return self.expr(expr);
         };
+        let arguments = |args: Vec<TokenStream>| delimited(Delimiter::Parenthesis, *paren, quote!(#(#args),*));
         if !expr.class.is_active() {
             // Plain `f64` (or integer) arithmetic: as written.
             return match path {
                 Some(path) => {
-                    let operands = std::iter::once(&**receiver).chain(args).map(|x| self.expr(x));
-                    quote!(#path(#(#operands),*))
+                    let operands = arguments(std::iter::once(&**receiver).chain(args).map(|x| self.expr(x)).collect());
+                    quote_spanned!(span=> #path #operands)
                 }
                 None => {
                     let receiver = self.expr(receiver);
-                    let args = args.iter().map(|arg| self.expr(arg));
-                    quote!(#receiver.#method(#(#args),*))
+                    let args = arguments(args.iter().map(|arg| self.expr(arg)).collect());
+                    quote_spanned!(span=> #receiver.#method #args)
                 }
             };
         }
@@ -473,17 +478,25 @@ impl Printer<'_> {
             }
             (Math::Uniform, _) => {
                 let receiver = self.active_receiver(receiver);
-                let args = args.iter().map(|arg| self.coerce(arg, Class::Active));
-                quote!(#receiver.#method(#(#args),*))
+                let args = arguments(args.iter().map(|arg| self.coerce(arg, Class::Active)).collect());
+                quote_spanned!(span=> #receiver.#method #args)
             }
             // The receiver is active and the arguments are `f64` or `i32`.
             _ => {
                 let receiver = self.receiver(receiver);
-                let args = args.iter().map(|arg| self.expr(arg));
-                quote!(#receiver.#method(#(#args),*))
+                let args = arguments(args.iter().map(|arg| self.expr(arg)).collect());
+                quote_spanned!(span=> #receiver.#method #args)
             }
         }
     }
+}
+
+/// `tokens` between delimiters carrying the span of the user's own, so that
+/// the generated expression spans exactly what the user wrote.
+fn delimited(delimiter: Delimiter, span: Span, tokens: TokenStream) -> Group {
+    let mut group = Group::new(delimiter, tokens);
+    group.set_span(span);
+    group
 }
 
 /// Whether `expr` prints as something a method call can follow without

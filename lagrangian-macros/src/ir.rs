@@ -134,6 +134,8 @@ impl Class {
 
 /// A block `{ stmts }`.
 pub(crate) struct Block {
+    /// The braces' span.
+    pub(crate) span: Span,
     /// Its statements; a final expression without `;` is the block's value.
     pub(crate) stmts: Vec<Stmt>,
 }
@@ -165,6 +167,8 @@ pub(crate) enum Stmt {
     /// `let pattern[: ty] = init;`: one binding and one initializer, or a
     /// tuple of bindings destructuring a tuple of as many initializers.
     Let {
+        /// The `let` keyword's span.
+        span: Span,
         /// The variables declared, one per initializer.
         bindings: Vec<LetBinding>,
         /// Whether the pattern is a tuple: `let (a, b) = (x, y);`.
@@ -243,7 +247,7 @@ impl Expr {
                     expr.visit(f);
                 }
             }
-            ExprKind::Index { base: a, index: b }
+            ExprKind::Index { base: a, index: b, .. }
             | ExprKind::Binary { lhs: a, rhs: b, .. }
             | ExprKind::Assign { place: a, value: b, .. } => {
                 a.visit(f);
@@ -296,6 +300,8 @@ pub(crate) enum ExprKind {
         base: Box<Expr>,
         /// The index.
         index: Box<Expr>,
+        /// The brackets' span.
+        bracket: Span,
     },
     /// `-expr` or `!expr`.
     Unary {
@@ -359,6 +365,8 @@ pub(crate) enum ExprKind {
         args: Vec<Expr>,
         /// The function path of the `f64::method(x, ...)` form.
         path: Option<ExprPath>,
+        /// The span of the parentheses around the arguments.
+        paren: Span,
     },
     /// `[a, b, ...]`.
     Array(Vec<Expr>),

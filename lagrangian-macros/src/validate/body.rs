@@ -154,7 +154,7 @@ impl Lower<'_> {
         self.scopes.push(Vec::new());
         let stmts = block.stmts.iter().map(|stmt| self.stmt(stmt)).collect();
         self.scopes.pop();
-        Some(Block { stmts: all(stmts)? })
+        Some(Block { span: block.brace_token.span.join(), stmts: all(stmts)? })
     }
 
     fn stmt(&mut self, stmt: &syn::Stmt) -> Option<Stmt> {
@@ -190,6 +190,8 @@ impl Lower<'_> {
             (Pat::Tuple(pats), Some(syn::Expr::Tuple(exprs))) if pats.elems.len() == exprs.elems.len() => {
                 (pats.elems.iter().collect(), exprs.elems.iter().map(|expr| self.expr(expr)).collect(), true)
             }
+            // Already reported as a `let` without a value.
+            (Pat::Tuple(_), None) => return None,
             (Pat::Tuple(pats), init) => {
                 self.error(pats, "tuple patterns are only supported with as many values: `let (a, b) = (x, y);`");
                 init.map(|init| self.expr(init));
@@ -207,7 +209,7 @@ impl Lower<'_> {
                 mutable: binding.is_some_and(|(_, mutable)| mutable),
             })
             .collect();
-        Some(Stmt::Let { bindings, tuple, ty, inits: all(inits)? })
+        Some(Stmt::Let { span: local.let_token.span, bindings, tuple, ty, inits: all(inits)? })
     }
 
     /// The variable bound by one `let` pattern and whether it is `mut`;
@@ -345,7 +347,11 @@ impl Lower<'_> {
             self.error(&index.index, format!("index `{i}` is out of bounds for `{name}: [f64; {n}]`"));
             return None;
         }
-        Some(ExprKind::Index { base: Box::new(base), index: Box::new(position) })
+        Some(ExprKind::Index {
+            base: Box::new(base),
+            index: Box::new(position),
+            bracket: index.bracket_token.span.join(),
+        })
     }
 
     fn binary(&mut self, binary: &syn::ExprBinary) -> Option<ExprKind> {
@@ -502,6 +508,7 @@ impl Lower<'_> {
             math: math?,
             args: args?,
             path: None,
+            paren: call.paren_token.span.join(),
         })
     }
 
@@ -555,6 +562,7 @@ impl Lower<'_> {
                     math: math?,
                     args: args.collect(),
                     path: path.cloned(),
+                    paren: call.paren_token.span.join(),
                 })
             }
             [this, method] if *this == "Self" => {
