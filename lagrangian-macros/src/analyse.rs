@@ -13,6 +13,10 @@ use crate::parse::MethodKind;
 use std::collections::BTreeSet;
 use syn::BinOp;
 
+/// The dual numbers implement `%` by panicking.
+const NO_REMAINDER: &str = "the remainder `%` of values that depend on `t`, `q` or `v` is not supported: \
+    it has no derivative in the dual numbers; use `%` on integers and constants only";
+
 /// What the analysis found, besides the classes written into the IR.
 pub(crate) struct Analysis {
     /// How the Lagrangian reads `q`.
@@ -244,9 +248,12 @@ impl<'a> Infer<'a> {
                 let class = self.expr(elem);
                 self.array(expr.span, &[class])
             }
-            ExprKind::Assign { place, value, .. } => {
+            ExprKind::Assign { place, op, value } => {
                 let value = self.expr(value);
-                self.expr(place);
+                let target = self.expr(place);
+                if matches!(op, Some(BinOp::RemAssign(_))) && (target.is_active() || value.is_active()) {
+                    self.report(expr.span, NO_REMAINDER);
+                }
                 match &place.kind {
                     ExprKind::Local(local, _) => self.assign(*local, value),
                     ExprKind::Index { base, .. } => {
@@ -284,7 +291,10 @@ impl<'a> Infer<'a> {
         };
         let int_with_active = matches!((lhs, rhs), (C::Int, C::Active) | (C::Active, C::Int));
         match op {
-            BinOp::Add(_) | BinOp::Sub(_) | BinOp::Mul(_) | BinOp::Div(_) => {
+            BinOp::Add(_) | BinOp::Sub(_) | BinOp::Mul(_) | BinOp::Div(_) | BinOp::Rem(_) => {
+                if matches!(op, BinOp::Rem(_)) && (lhs.is_active() || rhs.is_active()) {
+                    self.report(span, NO_REMAINDER);
+                }
                 if int_with_active || lhs.is_array() || rhs.is_array() || lhs == C::Bool || rhs == C::Bool {
                     self.mismatch();
                 }
@@ -518,6 +528,26 @@ mod tests {
         assert!(!analysis.consistent);
         let (_, analysis) = lagrangian(parse_quote!({ q[0].powi(2) * (2 as f64) }));
         assert!(analysis.consistent);
+    }
+
+    #[test]
+    fn remainder_is_for_integers_and_constants() {
+        let (system, analysis) = lagrangian(parse_quote!({
+            let mut k = 7;
+            k %= 3;
+            let c = self.a % 2.0;
+            q[k % 2] * c
+        }));
+        assert!(analysis.consistent);
+        assert_eq!(local_classes(&system)[..2], [("k".to_owned(), Class::Int), ("c".to_owned(), Class::Const)]);
+
+        let item: ItemImpl = parse_quote! {
+            impl P { fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { let mut x = q[0] % 1.0; x %= v[0]; x } }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
+        analyse(&cx, &mut system);
+        assert_eq!(cx.check().unwrap_err().messages().len(), 2);
     }
 
     #[test]

@@ -310,7 +310,7 @@ pub(crate) enum ExprKind {
         /// The operand.
         expr: Box<Expr>,
     },
-    /// Arithmetic, comparison or logic: `+ - * / < <= > >= == != && ||`.
+    /// Arithmetic, comparison or logic: `+ - * / % < <= > >= == != && ||`.
     Binary {
         /// Left operand.
         lhs: Box<Expr>,

@@ -45,12 +45,20 @@ use proc_macro::TokenStream;
 /// impl evaluates the same bodies on dual numbers.
 ///
 /// The bodies may use: literals, `self` fields, constants, `q[i]` and `v[i]`,
-/// `+ - * /`, comparisons, `&& || !`, `let` and `let mut`, `= += -= *= /=` on
-/// local variables, `if`/`else`, `for i in a..b`, `return`, arrays `[a, b]`
-/// and `[x; n]`, `as` casts, and the `f64` methods `sin cos tan asin acos
-/// atan atan2 sinh cosh tanh asinh acosh atanh exp exp2 exp_m1 ln ln_1p log
-/// log2 log10 sqrt cbrt powi powf abs signum recip mul_add` (also written
-/// `f64::sin(x)`). Anything else is a compile error naming the construct.
+/// `+ - * /`, `%` on integers and constants, comparisons (on the real part of
+/// dual numbers), `&& || !`, `let` and `let mut` (also `let (a, b) = (x,
+/// y);`), `= += -= *= /= %=` on local variables and elements of local
+/// arrays, `if`/`else`, `for i in a..b`, `break`, `continue`, `return`,
+/// arrays `[a, b]` and `[x; n]`, `as` casts to `f64` and integer types, and
+/// the `f64` methods `sin cos tan asin acos atan atan2 sinh cosh tanh asinh
+/// acosh atanh exp exp2 exp_m1 ln ln_1p log log2 log10 sqrt cbrt powi powf
+/// abs signum recip mul_add` (also written `f64::sin(x)`). Anything else is
+/// a compile error naming the construct.
+///
+/// Values that do not depend on `t`, `q` or `v` stay `f64` in the generated
+/// code; only the others become dual numbers. `CYCLIC[i]` is `true` when the
+/// Lagrangian provably ignores `q[i]`: `q` is only indexed by integer
+/// literals and never by `i`.
 #[proc_macro_attribute]
 pub fn lagrangian(attr: TokenStream, item: TokenStream) -> TokenStream {
     match syn::parse::<syn::Item>(item) {

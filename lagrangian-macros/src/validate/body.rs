@@ -15,7 +15,8 @@ use syn::{BinOp, Ident, Item, Lit, Pat, PatIdent, Type, UnOp};
 
 /// What the body may contain, for the messages about what it may not.
 const SUPPORTED: &str = "literals, `self` fields, constants, `q[i]` and `v[i]`, \
-    `+ - * /`, comparisons, `&& || !`, `let` and `let mut`, `= += -= *= /=` on local variables, \
+    `+ - * /`, `%` on integers and constants, comparisons, `&& || !`, `let` and `let mut`, \
+    `= += -= *= /= %=` on local variables, \
     `if`/`else`, `for i in a..b`, `return`, arrays `[a, b]` and `[x; n]`, `as` casts \
     and the math methods of `f64`";
 
@@ -361,6 +362,7 @@ impl Lower<'_> {
             | B::Sub(_)
             | B::Mul(_)
             | B::Div(_)
+            | B::Rem(_)
             | B::Lt(_)
             | B::Le(_)
             | B::Gt(_)
@@ -373,7 +375,7 @@ impl Lower<'_> {
                 let rhs = self.expr(&binary.right);
                 Some(ExprKind::Binary { lhs: Box::new(lhs?), op: binary.op, rhs: Box::new(rhs?) })
             }
-            B::AddAssign(_) | B::SubAssign(_) | B::MulAssign(_) | B::DivAssign(_) => {
+            B::AddAssign(_) | B::SubAssign(_) | B::MulAssign(_) | B::DivAssign(_) | B::RemAssign(_) => {
                 let place = self.place(&binary.left);
                 let value = self.expr(&binary.right);
                 Some(ExprKind::Assign { place: Box::new(place?), op: Some(binary.op), value: Box::new(value?) })
