@@ -80,7 +80,7 @@ fn charged_particle_in_a_magnetic_field_converges_at_order_two() {
         [
             y[2],
             y[3],
-            w * (-c.kappa * y[0] - 3.0 * c.eps * y[0] * y[0] + c.b * y[3]),
+            w * (-c.kappa * y[0] - 4.0 * c.eps * y[0] * y[0] * y[0] + c.b * y[3]),
             w * (-c.kappa * y[1] - c.b * y[2]),
         ]
     };

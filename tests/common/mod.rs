@@ -72,7 +72,7 @@ impl KeplerPolar {
 }
 
 /// A charged particle in the plane, uniform magnetic field `B ẑ` (vector
-/// potential `A = ½ B (−y, x)`) and electric potential `φ = ½ κ (x² + y²) + ε x³`:
+/// potential `A = ½ B (−y, x)`) and electric potential `φ = ½ κ (x² + y²) + ε x⁴`:
 /// `L = ½ m |v|² + e v·A(q) − e φ(q)`, not separable in `q` and `v`.
 #[derive(Debug)]
 pub struct ChargedParticle {
@@ -89,7 +89,7 @@ impl ChargedParticle {
         let (x, y) = (q[0], q[1]);
         let ax = -0.5 * self.b * y;
         let ay = 0.5 * self.b * x;
-        let phi = 0.5 * self.kappa * (x * x + y * y) + self.eps * x * x * x;
+        let phi = 0.5 * self.kappa * (x * x + y * y) + self.eps * x * x * x * x;
         0.5 * self.m * (v[0] * v[0] + v[1] * v[1]) + self.e * (v[0] * ax + v[1] * ay) - self.e * phi
     }
 }
