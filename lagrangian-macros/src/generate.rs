@@ -22,16 +22,8 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> T
     let n = system.n.generic_arg();
     let autonomous = system.lagrangian.time.is_none();
     let cyclic = cyclic(&system.n, &analysis.cyclic);
-    let has_dissipation = system.dissipation.is_some().then(|| {
-        quote!(
-            const HAS_DISSIPATION: bool = true;
-        )
-    });
-    let has_force = system.force.is_some().then(|| {
-        quote!(
-            const HAS_FORCE: bool = true;
-        )
-    });
+    let has_dissipation = system.dissipation.is_some().then(|| quote! { const HAS_DISSIPATION: bool = true; });
+    let has_force = system.force.is_some().then(|| quote! { const HAS_FORCE: bool = true; });
     let methods = std::iter::once(&system.lagrangian)
         .chain(&system.dissipation)
         .chain(&system.force)

@@ -5,13 +5,12 @@
 //! can differentiate it. Use it through the `lagrangian` crate, which
 //! re-exports it; the generated code names `::lagrangian::__private` only.
 //!
-//! The expansion is a small compiler, one module per stage:
-//! [`parse`](crate::parse) picks the recognised methods out of the block,
-//! [`validate`](crate::validate) checks their signatures and lowers their
-//! bodies into the [`ir`](crate::ir), [`analyse`](crate::analyse) finds which
-//! values depend on `t`, `q` and `v`, and [`generate`](crate::generate)
-//! prints the trait impl. [`expand`](crate::expand) runs them in turn and
-//! errors accumulate in a [`ctxt::Ctxt`](crate::ctxt::Ctxt).
+//! The expansion is a small compiler, one private module per stage, read top
+//! to bottom: `parse` picks the recognised methods out of the block,
+//! `validate` checks their signatures and lowers their bodies into the `ir`,
+//! `analyse` finds which values depend on `t`, `q` and `v`, and `generate`
+//! prints the trait impl. `expand` runs them in turn; errors accumulate in a
+//! `ctxt::Ctxt` so that all of them are reported at once.
 
 mod analyse;
 mod ctxt;
