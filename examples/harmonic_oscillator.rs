@@ -18,7 +18,7 @@ impl Oscillator {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let (m, k) = (2.0, 8.0);
+    let (m, k): (f64, f64) = (2.0, 8.0);
     let w = (k / m).sqrt();
     let (q0, v0, h, periods) = (1.0, 0.0, 0.01, 1000.0);
     let t_end = periods * 2.0 * std::f64::consts::PI / w;
