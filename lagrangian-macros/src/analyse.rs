@@ -235,10 +235,10 @@ impl<'a> Infer<'a> {
                 self.block(body);
                 Class::Unit
             }
-            ExprKind::MethodCall { receiver, math, args, .. } => {
+            ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let receiver = self.expr(receiver);
                 let args: Vec<Class> = args.iter_mut().map(|arg| self.expr(arg)).collect();
-                self.method(*math, receiver, &args)
+                self.method(method.span(), *math, receiver, &args)
             }
             ExprKind::Array(elems) => {
                 let classes: Vec<Class> = elems.iter_mut().map(|elem| self.expr(elem)).collect();
@@ -326,10 +326,11 @@ impl<'a> Infer<'a> {
         }
     }
 
-    fn method(&mut self, math: Math, receiver: Class, args: &[Class]) -> Class {
+    fn method(&mut self, span: proc_macro2::Span, math: Math, receiver: Class, args: &[Class]) -> Class {
         let operands = std::iter::once(receiver).chain(args.iter().copied());
+        // Not left to rustc: an extension trait could give arrays a `sin`.
         if operands.clone().any(|class| class.is_array() || class == Class::Bool) {
-            self.mismatch();
+            self.report(span, "math methods apply to numbers, not to arrays or `bool`s");
         }
         let active = match math {
             // The exponent of `powi` is an `i32`.

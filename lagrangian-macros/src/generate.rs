@@ -65,7 +65,7 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, errors: Option<&Errors>
                 fn lagrangian<#d: ::lagrangian::__private::Scalar>(
                     &self, _: #d, _: [#d; #n], _: [#d; #n]
                 ) -> #d {
-                    ::core::unreachable!("`#[lagrangian]` failed to expand")
+                    ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
                 }
             }
         }
