@@ -270,6 +270,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     ///
     /// On failure nothing changes: the state, the step size and the predictor
     /// are those from before the call.
+    #[inline]
     pub fn step(&mut self) -> Result<&State<N>, Error<N>> {
         if let StepPolicy::EnergyPreserving(bounds) = self.policy {
             if self.previous.is_some() {
@@ -365,6 +366,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// One step of size `h`, whose end node is stamped with time `t1`
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
+    #[inline]
     fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, q: q0, .. } = self.state;
         let (dq, report) = self.solve_del(h)?;
@@ -388,6 +390,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
     /// of a step of size `h` (see `Segment` for why the increment).
+    #[inline]
     fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
@@ -409,6 +412,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// the secant velocities `dq/h` of the last two steps, placed at their
     /// midpoints, extrapolated linearly to the midpoint of the new step. Its
     /// error is `O(h³)`, so Newton usually converges in two iterations.
+    #[inline]
     fn predict(&self, h: f64) -> [f64; N] {
         match (&self.previous, &self.earlier) {
             (Some(last), Some((h_earlier, dq_earlier))) => {

@@ -105,10 +105,12 @@ pub(crate) trait Unknown: Copy {
 }
 
 impl<const N: usize> Unknown for SVector<f64, N> {
+    #[inline]
     fn update(&mut self, dx: &Self) {
         *self += dx;
     }
 
+    #[inline]
     fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
         dx.amax() / (rtol * self.amax() + atol)
     }
@@ -123,11 +125,13 @@ pub(crate) struct Extended<const N: usize> {
 }
 
 impl<const N: usize> Unknown for Extended<N> {
+    #[inline]
     fn update(&mut self, dx: &Self) {
         self.q += dx.q;
         self.t += dx.t;
     }
 
+    #[inline]
     fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
         let q = dx.q.amax() / (rtol * self.q.amax() + atol);
         let t = dx.t.abs() / (rtol * self.t.abs() + atol);
@@ -136,12 +140,14 @@ impl<const N: usize> Unknown for Extended<N> {
 }
 
 /// Reciprocal condition number `1 / (‖J‖₁ ‖J⁻¹‖₁)`.
+#[inline]
 fn rcond<const N: usize>(j: &SMatrix<f64, N, N>, inv: &SMatrix<f64, N, N>) -> f64 {
     let norm1 = |m: &SMatrix<f64, N, N>| m.column_iter().map(|c| c.lp_norm(1)).fold(0.0, f64::max);
     1.0 / (norm1(j) * norm1(inv))
 }
 
 /// Checks a residual and its Jacobian and inverts the Jacobian.
+#[inline]
 fn checked_inverse<const N: usize>(
     r: &SVector<f64, N>,
     j: &SMatrix<f64, N, N>,
@@ -162,6 +168,7 @@ fn checked_inverse<const N: usize>(
 }
 
 /// The correction `−J⁻¹ R` of a square system.
+#[inline]
 pub(crate) fn square_correction<const N: usize>(
     r: SVector<f64, N>,
     j: SMatrix<f64, N, N>,
@@ -208,6 +215,7 @@ pub(crate) fn bordered_correction<const N: usize>(
 }
 
 /// Newton's method from `x`; `linearize` returns the correction at an iterate.
+#[inline]
 pub(crate) fn solve<X: Unknown, F>(
     mut x: X,
     options: &NewtonOptions,
