@@ -32,10 +32,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut worst_energy, mut worst_defect) = (0.0f64, 0.0f64);
     sim.run(n, |s| {
         worst_energy = worst_energy.max(((s.energy().unwrap_or(f64::NAN) - e0) / e0).abs());
-        if s.state().step % 1000 == 0 {
-            if let Some(m) = s.last_tangent_map() {
-                worst_defect = worst_defect.max(m.symplecticity_defect());
-            }
+        if s.state().step % 1000 == 0
+            && let Some(m) = s.last_tangent_map()
+        {
+            worst_defect = worst_defect.max(m.symplecticity_defect());
         }
     })?;
     println!("double pendulum from (2, 1) rad at rest, midpoint, h = {h}, {n} steps (t = {} s)", sim.state().t);

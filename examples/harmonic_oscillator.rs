@@ -37,6 +37,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("  max |q - q_exact|              = {worst_q:.3e}  (phase error grows like h² t)");
     println!("  max |E - E0| / E0              = {worst_energy:.3e}  (bounded, no drift)");
     println!("  |p - p_exact| at the end       = {:.3e}", (sim.state().p[0] - exact_p).abs());
-    println!("  newton iterations per step     = {:.2}", sim.stats().newton_iterations as f64 / sim.stats().steps as f64);
+    println!(
+        "  newton iterations per step     = {:.2}",
+        sim.stats().newton_iterations as f64 / sim.stats().steps as f64
+    );
     Ok(())
 }

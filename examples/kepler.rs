@@ -23,7 +23,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let r0 = a * (1.0 - e);
     let phi_dot = (mu * a * (1.0 - e * e)).sqrt() / (r0 * r0);
     let (h, n) = (0.01, 100_000);
-    println!("kepler, e = {e}, midpoint, h = {h}, {n} steps (~{:.0} orbits)", n as f64 * h / (2.0 * std::f64::consts::PI));
+    println!(
+        "kepler, e = {e}, midpoint, h = {h}, {n} steps (~{:.0} orbits)",
+        n as f64 * h / (2.0 * std::f64::consts::PI)
+    );
     println!("  cyclic coordinates detected by the macro: {:?} (r, φ)", <Kepler as Lagrangian<2>>::CYCLIC);
     let mut sim = Integrator::new(Kepler { mu }, Midpoint, h).start(0.0, [r0, 0.0], [0.0, phi_dot])?;
     let e0 = sim.energy()?;

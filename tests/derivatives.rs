@@ -16,10 +16,16 @@ use nalgebra::SMatrix;
 
 const TOL: f64 = 1e-13;
 
+/// `(L_q, L_v, L_qq, L_qv, L_vv)` at a point, with `L_qv[i][j] = ∂²L/∂q_i∂v_j`.
+type Partials<const N: usize> = ([f64; N], [f64; N], [[f64; N]; N], [[f64; N]; N], [[f64; N]; N]);
+
 /// Hand-derived partials of the double pendulum's `L` at `(q, v)`:
 /// `(L_q, L_v, L_qq, L_qv, L_vv)` with `L_qv[i][j] = ∂²L/∂q_i∂v_j`.
 #[allow(clippy::type_complexity)]
-fn double_pendulum_partials(q: [f64; 2], v: [f64; 2]) -> ([f64; 2], [f64; 2], [[f64; 2]; 2], [[f64; 2]; 2], [[f64; 2]; 2]) {
+fn double_pendulum_partials(
+    q: [f64; 2],
+    v: [f64; 2],
+) -> ([f64; 2], [f64; 2], [[f64; 2]; 2], [[f64; 2]; 2], [[f64; 2]; 2]) {
     let s = DOUBLE_PENDULUM;
     let a = (s.m1 + s.m2) * s.l1 * s.l1;
     let b = s.m2 * s.l2 * s.l2;
@@ -38,7 +44,7 @@ fn double_pendulum_partials(q: [f64; 2], v: [f64; 2]) -> ([f64; 2], [f64; 2], [[
     (l_q, l_v, l_qq, l_qv, l_vv)
 }
 
-fn pendulum_partials(q: [f64; 1], v: [f64; 1]) -> ([f64; 1], [f64; 1], [[f64; 1]; 1], [[f64; 1]; 1], [[f64; 1]; 1]) {
+fn pendulum_partials(q: [f64; 1], v: [f64; 1]) -> Partials<1> {
     let s = PENDULUM;
     let a = s.m * s.l * s.l;
     let d = s.m * s.g * s.l;
@@ -46,11 +52,10 @@ fn pendulum_partials(q: [f64; 1], v: [f64; 1]) -> ([f64; 1], [f64; 1], [[f64; 1]
 }
 
 /// Checks every generated derivative of the midpoint action on one segment.
-#[allow(clippy::type_complexity)]
 fn check<S: Lagrangian<N>, const N: usize>(
     system: &S,
     seg: Segment<N>,
-    partials: fn([f64; N], [f64; N]) -> ([f64; N], [f64; N], [[f64; N]; N], [[f64; N]; N], [[f64; N]; N]),
+    partials: fn([f64; N], [f64; N]) -> Partials<N>,
 ) {
     let h = seg.h;
     let qm: [f64; N] = core::array::from_fn(|i| seg.q0[i] + 0.5 * seg.dq[i]);
@@ -59,7 +64,8 @@ fn check<S: Lagrangian<N>, const N: usize>(
 
     let d_q0: [f64; N] = core::array::from_fn(|i| 0.5 * h * l_q[i] - l_v[i]);
     let d_q1: [f64; N] = core::array::from_fn(|i| 0.5 * h * l_q[i] + l_v[i]);
-    let jac = SMatrix::<f64, N, N>::from_fn(|i, j| 0.25 * h * l_qq[i][j] + 0.5 * (l_qv[i][j] - l_qv[j][i]) - l_vv[i][j] / h);
+    let jac =
+        SMatrix::<f64, N, N>::from_fn(|i, j| 0.25 * h * l_qq[i][j] + 0.5 * (l_qv[i][j] - l_qv[j][i]) - l_vv[i][j] / h);
 
     let got = system.step_derivatives(&Midpoint, &seg);
     assert!(rel_err(&got.d_q0, &d_q0) <= TOL, "∂A/∂q_k {:?} vs {:?}", got.d_q0, d_q0);
@@ -88,7 +94,8 @@ fn pendulum_midpoint_derivatives_match_hand_derived_formulas() {
 
 #[test]
 fn double_pendulum_midpoint_derivatives_match_hand_derived_formulas() {
-    for (q0, q1, h) in [([0.3, -0.2], [0.31, -0.19], 0.01), ([2.0, 1.0], [2.2, 0.7], 0.1), ([-1.0, 3.0], [-0.9, 3.05], 0.05)]
+    for (q0, q1, h) in
+        [([0.3, -0.2], [0.31, -0.19], 0.01), ([2.0, 1.0], [2.2, 0.7], 0.1), ([-1.0, 3.0], [-0.9, 3.05], 0.05)]
     {
         check(&DOUBLE_PENDULUM, Segment::between((1.0, q0), (1.0 + h, q1)), double_pendulum_partials);
     }

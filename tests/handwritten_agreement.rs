@@ -1,8 +1,8 @@
 //! The hand-written baselines of the benchmark compute the same trajectories
 //! as the generated integrators (otherwise the timing ratios are meaningless).
-#[path = "../benches/handwritten.rs"]
-mod handwritten;
 mod common;
+#[path = "../benches/handwritten/mod.rs"]
+mod handwritten;
 
 use common::*;
 use handwritten::*;

@@ -6,13 +6,14 @@
 
 /// The runtime's stopping rule: correction below `tol (1 + |x|)`, or the
 /// contraction estimate `θ/(1−θ)|Δ|` below it.
+#[derive(Default)]
 pub struct Stop {
     previous: Option<f64>,
 }
 
 impl Stop {
     pub fn new() -> Self {
-        Self { previous: None }
+        Self::default()
     }
 
     pub fn done(&mut self, dn: f64, xn: f64) -> bool {
@@ -112,7 +113,11 @@ pub struct DoubleParams {
 /// `(L_q, L_v, L_qq, L_qv, L_vv)` with `L_qv[i][j] = ∂²L/∂q_i∂v_j`.
 #[inline(always)]
 #[allow(clippy::type_complexity)]
-pub fn double_partials(s: &DoubleParams, q: [f64; 2], v: [f64; 2]) -> ([f64; 2], [f64; 2], [[f64; 2]; 2], [[f64; 2]; 2], [[f64; 2]; 2]) {
+pub fn double_partials(
+    s: &DoubleParams,
+    q: [f64; 2],
+    v: [f64; 2],
+) -> ([f64; 2], [f64; 2], [[f64; 2]; 2], [[f64; 2]; 2], [[f64; 2]; 2]) {
     let (sd, cd) = (q[0] - q[1]).sin_cos();
     let (s1, c1) = q[0].sin_cos();
     let (s2, c2) = q[1].sin_cos();
@@ -130,7 +135,10 @@ pub fn double_partials(s: &DoubleParams, q: [f64; 2], v: [f64; 2]) -> ([f64; 2],
 pub fn double_gradient(s: &DoubleParams, q: [f64; 2], v: [f64; 2]) -> ([f64; 2], [f64; 2]) {
     let (sd, cd) = (q[0] - q[1]).sin_cos();
     let vv = s.c * v[0] * v[1];
-    ([-vv * sd - s.d * q[0].sin(), vv * sd - s.e * q[1].sin()], [s.a * v[0] + s.c * v[1] * cd, s.b * v[1] + s.c * v[0] * cd])
+    (
+        [-vv * sd - s.d * q[0].sin(), vv * sd - s.e * q[1].sin()],
+        [s.a * v[0] + s.c * v[1] * cd, s.b * v[1] + s.c * v[0] * cd],
+    )
 }
 
 /// Solves the 2×2 system `j x = r` by Cramer's rule.
