@@ -103,3 +103,8 @@ pub mod prelude {
 pub mod __private {
     pub use lagrangian_runtime::{Lagrangian, Scalar};
 }
+
+/// The README's examples, compiled and run as doc tests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
