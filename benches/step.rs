@@ -9,45 +9,16 @@ mod handwritten;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use handwritten::*;
-use lagrangian::prelude::*;
 use lagrangian::{Integrator, Midpoint, Trapezoid};
 use std::hint::black_box;
 
-pub struct Pendulum {
-    pub m: f64,
-    pub l: f64,
-    pub g: f64,
-}
+// The systems of the tests, so the bench measures what the tests verify.
+#[path = "../tests/common/mod.rs"]
+mod common;
 
-#[lagrangian]
-impl Pendulum {
-    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
-        0.5 * self.m * self.l * self.l * v[0] * v[0] + self.m * self.g * self.l * q[0].cos()
-    }
-}
-
-pub struct DoublePendulum {
-    pub m1: f64,
-    pub m2: f64,
-    pub l1: f64,
-    pub l2: f64,
-    pub g: f64,
-}
-
-#[lagrangian]
-impl DoublePendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        let kinetic = 0.5 * (self.m1 + self.m2) * self.l1 * self.l1 * v[0] * v[0]
-            + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
-            + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
-        let potential = -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos() - self.m2 * self.g * self.l2 * q[1].cos();
-        kinetic - potential
-    }
-}
+use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 
 const H: f64 = 0.01;
-const P: Pendulum = Pendulum { m: 1.3, l: 0.8, g: 9.81 };
-const DP: DoublePendulum = DoublePendulum { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
 
 fn pendulum_params() -> PendulumParams {
     PendulumParams { a: P.m * P.l * P.l, d: P.m * P.g * P.l }
