@@ -15,7 +15,7 @@
 //! profile. Their cost grows like `N²` evaluations of `L`, which is the right
 //! trade for the small `N` of mechanical systems.
 
-use nalgebra::SMatrix;
+use nalgebra::{DMatrix, SMatrix};
 use num_dual::{Dual64, HyperDual64};
 
 use crate::discrete::DiscreteLagrangian;
@@ -304,4 +304,27 @@ where
         SMatrix::<f64, N, N>::from_fn(|i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
     };
     (block(Var::Q0, Var::Q0), block(Var::Q0, Var::Q1), block(Var::Q1, Var::Q1))
+}
+
+/// The blocks of the Hessian of `A` in the extended coordinates
+/// `x = (t, q)`: `(∂²A/∂x_k², ∂²A/∂x_k∂x_{k+1}, ∂²A/∂x_{k+1}²)`, each
+/// `(N+1)×(N+1)` with the time first.
+///
+/// Used for the tangent map of a variable step (MATH.md §8), a diagnostic:
+/// it allocates, unlike the stepper.
+pub fn extended_hessian<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>)
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let start = |i: usize| if i == 0 { Var::T0 } else { Var::Q0(i - 1) };
+    let end = |i: usize| if i == 0 { Var::T1 } else { Var::Q1(i - 1) };
+    let block = |a: &dyn Fn(usize) -> Var, b: &dyn Fn(usize) -> Var| {
+        DMatrix::from_fn(N + 1, N + 1, |i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
+    };
+    (block(&start, &start), block(&start, &end), block(&end, &end))
 }

@@ -76,6 +76,30 @@ pub enum Error<const N: usize> {
         /// Why.
         reason: &'static str,
     },
+    /// Variable steps: no step size in the admissible bracket satisfies the
+    /// energy equation (MATH.md §9). The energy equation fixes `h` only
+    /// through the `O(h²)` energy error of the discrete Lagrangian, and where
+    /// the factor that sets the step density changes sign (paper 000 §IV) its
+    /// root disappears. Retry with a smaller `h`, wider bounds, a fixed step,
+    /// or [`EnergyFallback::LeastSquares`](crate::EnergyFallback::LeastSquares).
+    #[error(
+        "no step size in [{h_lo:e}, {h_hi:e}] solves the energy equation from t = {} (step {}): the least relative energy mismatch is {mismatch:e}, at h = {h_best:e} ({iterations} newton iterations)",
+        .state.t, .state.step
+    )]
+    NoEnergyStep {
+        /// The state the step started from (and the integrator still holds).
+        state: State<N>,
+        /// The smallest admissible step.
+        h_lo: f64,
+        /// The largest admissible step.
+        h_hi: f64,
+        /// The admissible step with the least energy mismatch.
+        h_best: f64,
+        /// `|E_{k+1} − E_k| / |E_k|` at `h_best`.
+        mismatch: f64,
+        /// Newton iterations spent on the DEL solves of the search.
+        iterations: usize,
+    },
     /// A step size that is zero, negative or not finite.
     #[error("invalid step size h = {h}: it must be finite and positive")]
     InvalidStepSize {

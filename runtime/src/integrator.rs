@@ -15,10 +15,14 @@ use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, Breakdown, Extended, NewtonFailure, NewtonOptions, NewtonReport};
+use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport};
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
+
+mod variable_step;
+
+pub use variable_step::{EnergyFallback, StepBounds};
 
 /// Counters of the work an integrator has done.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -29,6 +33,9 @@ pub struct Stats {
     pub newton_iterations: u64,
     /// Steps that failed and were not applied.
     pub failed_steps: u64,
+    /// Energy-preserving steps taken by [`EnergyFallback::LeastSquares`]
+    /// because no step size satisfied the energy equation.
+    pub energy_fallbacks: u64,
     /// The report of the last successful Newton solve.
     pub last: NewtonReport,
 }
@@ -44,6 +51,7 @@ pub struct IntegratorBuilder<S, M> {
     h: f64,
     newton: NewtonOptions,
     policy: StepPolicy,
+    fallback: EnergyFallback,
 }
 
 /// How the integrator chooses its step sizes.
@@ -59,40 +67,18 @@ pub enum StepPolicy {
     EnergyPreserving(StepBounds),
 }
 
-/// Limits on the step sizes of [`StepPolicy::EnergyPreserving`] (MATH.md §9).
-///
-/// A step whose solution falls outside them is refused with
-/// [`Error::StepRejected`] and the integrator keeps its state.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StepBounds {
-    /// Smallest acceptable step.
-    pub h_min: f64,
-    /// Largest acceptable step.
-    pub h_max: f64,
-    /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`), at least 1.
-    pub max_ratio: f64,
-}
-
-impl StepBounds {
-    /// Bounds `[h0 / 1000, 1000 h0]` around a first guess, with ratio 2.
-    pub fn around(h0: f64) -> Self {
-        Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0 }
-    }
-
-    fn valid(&self) -> bool {
-        self.h_min.is_finite()
-            && self.h_max.is_finite()
-            && self.h_min > 0.0
-            && self.h_min <= self.h_max
-            && self.max_ratio >= 1.0
-    }
-}
-
 impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
     /// Energy-preserving variable steps within `bounds`, starting from the
     /// guess `h` given to [`Integrator::new`].
     pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
         self.policy = StepPolicy::EnergyPreserving(bounds);
+        self
+    }
+
+    /// What energy-preserving steps do where no admissible step size
+    /// satisfies the energy equation (default: [`EnergyFallback::Fail`]).
+    pub fn energy_fallback(mut self, fallback: EnergyFallback) -> Self {
+        self.fallback = fallback;
         self
     }
 
@@ -149,6 +135,7 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
         }
         Ok(Integrator {
             policy: self.policy,
+            fallback: self.fallback,
             energy,
             time_error: 0.0,
             system: self.system,
@@ -203,6 +190,7 @@ pub struct Integrator<S, M, const N: usize> {
     newton: NewtonOptions,
     state: State<N>,
     policy: StepPolicy,
+    fallback: EnergyFallback,
     /// `E_k`, kept up to date by variable steps (fixed steps compute it on demand).
     energy: f64,
     /// Kahan compensation of `t_k` under variable steps.
@@ -221,7 +209,14 @@ impl<S, M: DiscreteLagrangian> Integrator<S, M, 0> {
     /// `method` and step `h`; continue with [`IntegratorBuilder::start`].
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: S, method: M, h: f64) -> IntegratorBuilder<S, M> {
-        IntegratorBuilder { system, method, h, newton: NewtonOptions::default(), policy: StepPolicy::Fixed }
+        IntegratorBuilder {
+            system,
+            method,
+            h,
+            newton: NewtonOptions::default(),
+            policy: StepPolicy::Fixed,
+            fallback: EnergyFallback::Fail,
+        }
     }
 }
 
@@ -287,76 +282,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         }
         let t1 = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
         self.step_by(self.h, t1)
-    }
-
-    /// One energy-preserving step after the first: solve `R_q = p_k + ∂A/∂q_k = 0` and
-    /// `R_t = −E_k + ∂A/∂t_k = 0` for `(q_{k+1}, t_{k+1})` together (MATH.md §3).
-    fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
-        let e0 = self.energy;
-        let h_guess = self.h;
-        // Start from the DEL solution at the guessed step: the energy equation
-        // fixes h only through the O(h²) energy error of the method, so its
-        // Newton correction is trustworthy only once R_q is already zero.
-        let (dq_guess, first) = self.solve_del(h_guess)?;
-        let start = Extended { q: SVector::from(dq_guess), t: h_guess };
-        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
-        let linearize = |x: &Extended<N>| {
-            if x.t.is_nan() || x.t <= 0.0 {
-                return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
-            }
-            let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
-            let d = derivatives::extended_step_derivatives(system, method, &seg);
-            let r = SVector::<f64, N>::from_fn(|i, _| p0[i] + d.d_q0[i]);
-            let r_t = d.d_t0 - e0;
-            let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
-            let ratio_t = r_t.abs() / e0.abs().max(d.d_t0.abs());
-            let mut lin =
-                newton::bordered_correction(r, r_t, d.d2_q0_q1, d.d2_q0_t1, d.d2_t0_q1, d.d2_t0_t1, min_rcond)?;
-            lin.residual_ratio = ratio_q.max(ratio_t);
-            Ok(lin)
-        };
-        let (x, mut report) = match newton::solve(start, &self.newton, linearize) {
-            Ok(solution) => solution,
-            Err(failure) => return Err(self.fail(h_guess, failure)),
-        };
-        report.iterations += first.iterations;
-        let h = x.t;
-        let h_prev = self.previous.map_or(h_guess, |last| last.h);
-        let reason = if h < bounds.h_min {
-            Some("the step size solving the energy equation is below h_min")
-        } else if h > bounds.h_max {
-            Some("the step size solving the energy equation is above h_max")
-        } else if h > bounds.max_ratio * h_prev || h * bounds.max_ratio < h_prev {
-            Some("the step size solving the energy equation changes faster than max_ratio allows")
-        } else {
-            None
-        };
-        if let Some(reason) = reason {
-            self.stats.failed_steps += 1;
-            return Err(Error::StepRejected { state: self.state, h, iterations: report.iterations, reason });
-        }
-        let seg = Segment { t0, h, q0, dq: x.q.into() };
-        let (p1, d_t1) = derivatives::end_gradient(system, method, &seg);
-        let q1 = seg.q1();
-        if !all_finite(&q1) || !all_finite(&p1) || !d_t1.is_finite() {
-            self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity: "position" });
-        }
-        // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
-        let y = h - self.time_error;
-        let t1 = t0 + y;
-        self.time_error = (t1 - t0) - y;
-        self.earlier = self.previous.map(|last| (last.h, last.dq));
-        self.previous = Some(seg);
-        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
-        self.energy = -d_t1;
-        self.h = h;
-        self.clock = Clock { t: t1, step: step + 1 };
-        self.stats.steps += 1;
-        self.stats.newton_iterations += report.iterations as u64;
-        self.stats.last = report;
-        Ok(&self.state)
     }
 
     /// The step policy in use.

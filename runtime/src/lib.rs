@@ -19,7 +19,7 @@ pub mod system;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
 pub use error::Error;
-pub use integrator::{Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
+pub use integrator::{EnergyFallback, Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
 pub use num_dual;

@@ -41,13 +41,7 @@ impl<const N: usize> TangentMap<N> {
 
     /// `max |Mᵀ𝕁M − 𝕁|` with `𝕁 = [[0, I], [−I, 0]]`: zero for a symplectic map.
     pub fn symplecticity_defect(&self) -> f64 {
-        let m = self.matrix();
-        let mut j = DMatrix::zeros(2 * N, 2 * N);
-        for i in 0..N {
-            j[(i, N + i)] = 1.0;
-            j[(N + i, i)] = -1.0;
-        }
-        (m.transpose() * &j * &m - j).amax()
+        defect(&self.matrix())
     }
 }
 
@@ -62,4 +56,44 @@ where
     let dq_dq = -inv * a11;
     let dq_dp = -inv;
     Some(TangentMap { dq_dq, dq_dp, dp_dq: a12.transpose() + a22 * dq_dq, dp_dp: a22 * dq_dp })
+}
+
+/// The tangent map of a variable step in the extended phase space,
+/// `∂(x_{k+1}, π_{k+1})/∂(x_k, π_k)` with `x = (t, q)` and `π = (−E, p)`,
+/// as a `(2N+2)×(2N+2)` matrix ordered `(t, q, −E, p)`; `None` where the
+/// extended mixed block `∂²A/∂x_k∂x_{k+1}` is singular.
+///
+/// A variable step solves `π_k + ∂A/∂x_k = 0`, `π_{k+1} = ∂A/∂x_{k+1}`
+/// (MATH.md §3), the fixed-step equations one dimension up, so the same
+/// implicit-function formulas apply to the `(N+1)`-dimensional blocks, and
+/// the map preserves `dq∧dp − dt∧dE` (001 (3.17), 003 §3.2).
+pub fn extended_tangent_map<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> Option<DMatrix<f64>>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let n = N + 1;
+    let (a11, a12, a22) = derivatives::extended_hessian(system, method, seg);
+    let inv = a12.clone().try_inverse()?;
+    let dx_dx = -&inv * &a11;
+    let dx_dp = -inv;
+    let dp_dx = a12.transpose() + &a22 * &dx_dx;
+    let dp_dp = &a22 * &dx_dp;
+    let mut m = DMatrix::zeros(2 * n, 2 * n);
+    m.view_mut((0, 0), (n, n)).copy_from(&dx_dx);
+    m.view_mut((0, n), (n, n)).copy_from(&dx_dp);
+    m.view_mut((n, 0), (n, n)).copy_from(&dp_dx);
+    m.view_mut((n, n), (n, n)).copy_from(&dp_dp);
+    Some(m)
+}
+
+/// `max |Mᵀ𝕁M − 𝕁|` of a square tangent map ordered `(positions, momenta)`.
+pub fn defect(m: &DMatrix<f64>) -> f64 {
+    let n = m.nrows() / 2;
+    let mut j = DMatrix::zeros(2 * n, 2 * n);
+    for i in 0..n {
+        j[(i, n + i)] = 1.0;
+        j[(n + i, i)] = -1.0;
+    }
+    (m.transpose() * &j * m - j).amax()
 }

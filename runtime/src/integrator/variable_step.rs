@@ -1,0 +1,372 @@
+//! Energy-preserving variable steps (MATH.md §3, §9; paper 001 §3, 003 §3.2).
+//!
+//! ```text
+//! given (t_k, q_k, p_k, E_k):   solve  R_q = p_k  + ∂A/∂q_k (x_k, x_{k+1}) = 0
+//!                                      R_t = −E_k + ∂A/∂t_k (x_k, x_{k+1}) = 0   for (q_{k+1}, t_{k+1})
+//!                               then   p_{k+1} = ∂A/∂q_{k+1},   E_{k+1} = −∂A/∂t_{k+1}
+//! ```
+//!
+//! For an autonomous `L` the second equation says `E_{k+1} = E_k`; for a
+//! time-dependent one it is the discrete energy balance
+//! `E_{k+1} − E_k = −(∂A/∂t_k + ∂A/∂t_{k+1})` (paper 003).
+//!
+//! The step size enters the energy equation only through the `O(h²)` energy
+//! error of the discrete Lagrangian, so the equation can lose its root: in
+//! the continuous limit the step density obeys `ρ ∝ (V''p² + V'²)^{1/3}`
+//! for `½p² + V(q)` (paper 000 (4.8)), and where that factor changes sign no
+//! positive step conserves the energy. Each step is therefore solved in two
+//! stages:
+//!
+//! 1. Newton on `(q_{k+1}, t_{k+1})` together (bordered `(N+1)×(N+1)`
+//!    Jacobian), started from the DEL solution at the guessed step. This is
+//!    the fast path and succeeds almost always.
+//! 2. If it fails or leaves the admissible bracket
+//!    `[max(h_min, h_{k−1}/r), min(h_max, r·h_{k−1})]`, a safeguarded 1-D solve
+//!    of `g(h) = ∂A/∂t_k(q_{k+1}(h), h) − E_k` on that bracket, where
+//!    `q_{k+1}(h)` solves the DEL at step `h` and `g'(h)` is the Schur
+//!    complement of the bordered Jacobian. It samples the bracket for a sign
+//!    change, then runs Newton safeguarded by bisection. Without a sign change
+//!    it minimises `|g|` by golden section: the integrator then either reports
+//!    [`Error::NoEnergyStep`] (the default) or, with
+//!    [`EnergyFallback::LeastSquares`], takes the step of least energy error
+//!    (Kane, Marsden & Ortiz's least-squares choice).
+//!
+//! A step never goes backwards in time and never leaves the bracket.
+
+use nalgebra::SVector;
+
+use super::{Integrator, all_finite, max_abs};
+use crate::derivatives::{self, Segment};
+use crate::discrete::DiscreteLagrangian;
+use crate::error::Error;
+use crate::newton::{self, Breakdown, Extended, NewtonReport};
+use crate::state::State;
+use crate::system::Lagrangian;
+
+/// Limits on the step sizes of
+/// [`StepPolicy::EnergyPreserving`](super::StepPolicy::EnergyPreserving) (MATH.md §9).
+///
+/// Every step lies in `[max(h_min, h_{k−1}/max_ratio), min(h_max, max_ratio·h_{k−1})]`;
+/// when no step there satisfies the energy equation the integrator applies its
+/// [`EnergyFallback`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepBounds {
+    /// Smallest acceptable step.
+    pub h_min: f64,
+    /// Largest acceptable step.
+    pub h_max: f64,
+    /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`), at least 1.
+    pub max_ratio: f64,
+}
+
+impl StepBounds {
+    /// Bounds `[h0 / 1000, 1000 h0]` around a first guess, with ratio 2.
+    pub fn around(h0: f64) -> Self {
+        Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0 }
+    }
+
+    pub(super) fn valid(&self) -> bool {
+        self.h_min.is_finite()
+            && self.h_max.is_finite()
+            && self.h_min > 0.0
+            && self.h_min <= self.h_max
+            && self.max_ratio >= 1.0
+    }
+
+    /// The admissible steps after a step of size `h_prev`.
+    fn bracket(&self, h_prev: f64) -> (f64, f64) {
+        let lo = self.h_min.max(h_prev / self.max_ratio);
+        let hi = self.h_max.min(h_prev * self.max_ratio);
+        (lo.min(hi), hi)
+    }
+}
+
+/// What an energy-preserving integrator does when no admissible step size
+/// satisfies the energy equation (MATH.md §9).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EnergyFallback {
+    /// Return [`Error::NoEnergyStep`] with the state unchanged (the default).
+    #[default]
+    Fail,
+    /// Take the admissible step that minimises `|E_{k+1} − E_k|` (Kane,
+    /// Marsden & Ortiz's least-squares step). The step still solves the DEL
+    /// exactly, so it stays symplectic in `(q, p)`; the discrete energy
+    /// changes by the reported mismatch, and the steps after it conserve
+    /// the new value. Counted in [`Stats::energy_fallbacks`](super::Stats::energy_fallbacks).
+    LeastSquares,
+}
+
+/// One evaluation of the energy equation along the DEL solutions.
+#[derive(Clone, Copy, Debug)]
+struct Probe<const N: usize> {
+    /// The step, its DEL solved.
+    seg: Segment<N>,
+    /// `g(h) = ∂A/∂t_k − E_k`.
+    g: f64,
+    /// `g'(h)`, the Schur complement of the bordered Jacobian (NaN where `∂²A/∂q_k∂q_{k+1}` is singular).
+    slope: f64,
+    /// The size of the terms that cancel in `g`.
+    scale: f64,
+}
+
+impl<const N: usize> Probe<N> {
+    /// `g` is round-off of its own terms.
+    fn solved(&self) -> bool {
+        self.g.abs() <= 8.0 * f64::EPSILON * self.scale
+    }
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
+    /// One energy-preserving step after the first.
+    pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
+        let h_prev = self.previous.map_or(self.h, |last| last.h);
+        let (lo, hi) = bounds.bracket(h_prev);
+        let guess = self.h.clamp(lo, hi);
+        // Trial solves below may fail; only the outcome of the whole step counts.
+        let stats = self.stats;
+        let outcome = self.coupled(guess, lo, hi).or_else(|spent| self.bracketed(guess, lo, hi, spent));
+        self.stats = stats;
+        match outcome {
+            Ok((seg, report, fallback)) => self.accept(seg, report, fallback),
+            Err(e) => {
+                self.stats.failed_steps += 1;
+                Err(e)
+            }
+        }
+    }
+
+    /// Stage 1: Newton on `(dq, h)` from the DEL solution at `guess`. `Err`
+    /// carries the iterations spent when it fails or lands outside `[lo, hi]`.
+    fn coupled(&mut self, guess: f64, lo: f64, hi: f64) -> Result<(Segment<N>, NewtonReport, bool), usize> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let e0 = self.energy;
+        // Start from the DEL solution at the guessed step: the energy equation
+        // fixes h only through the O(h²) energy error of the method, so its
+        // Newton correction is trustworthy only once R_q is already zero.
+        let (dq_guess, first) = self.solve_del(guess).map_err(|_| 0usize)?;
+        let start = Extended { q: SVector::from(dq_guess), t: guess };
+        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let linearize = |x: &Extended<N>| {
+            if x.t.is_nan() || x.t <= 0.0 {
+                return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
+            }
+            let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
+            let d = derivatives::extended_step_derivatives(system, method, &seg);
+            let r = SVector::<f64, N>::from_fn(|i, _| p0[i] + d.d_q0[i]);
+            let r_t = d.d_t0 - e0;
+            let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
+            let ratio_t = r_t.abs() / e0.abs().max(d.d_t0.abs());
+            let mut lin =
+                newton::bordered_correction(r, r_t, d.d2_q0_q1, d.d2_q0_t1, d.d2_t0_q1, d.d2_t0_t1, min_rcond)?;
+            lin.residual_ratio = ratio_q.max(ratio_t);
+            Ok(lin)
+        };
+        match newton::solve(start, &self.newton, linearize) {
+            Ok((x, mut report)) if x.t >= lo && x.t <= hi => {
+                report.iterations += first.iterations;
+                Ok((Segment { t0, h: x.t, q0, dq: x.q.into() }, report, false))
+            }
+            Ok((_, report)) => Err(first.iterations + report.iterations),
+            Err(_) => Err(first.iterations + self.newton.max_iterations),
+        }
+    }
+
+    /// `g(h)` and `g'(h)` with the DEL solved at step `h`.
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<N>, Error<N>> {
+        let State { t: t0, q: q0, .. } = self.state;
+        let (dq, report) = self.solve_del(h)?;
+        *spent += report.iterations;
+        let seg = Segment { t0, h, q0, dq };
+        let d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
+        let slope = match d.d2_q0_q1.try_inverse() {
+            Some(inv) => d.d2_t0_t1 - d.d2_t0_q1.dot(&(inv * d.d2_q0_t1)),
+            None => f64::NAN,
+        };
+        let g = d.d_t0 - self.energy;
+        if !g.is_finite() {
+            return Err(Error::NonFinite { state: self.state, h, iterations: *spent, quantity: "energy equation" });
+        }
+        Ok(Probe { seg, g, slope, scale: self.energy.abs().max(d.d_t0.abs()) })
+    }
+
+    /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
+    fn bracketed(
+        &mut self,
+        guess: f64,
+        lo: f64,
+        hi: f64,
+        mut spent: usize,
+    ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
+        let spent = &mut spent;
+        let at_guess = self.probe(guess, spent)?;
+        if at_guess.solved() {
+            return Ok((at_guess.seg, self.report(&at_guess, *spent), false));
+        }
+        // Sample the bracket, nearest points first, for a sign change.
+        let mut left = at_guess;
+        let mut right = at_guess;
+        let mut bracket = None;
+        for k in 1..=8 {
+            let f = k as f64 / 8.0;
+            for h in [guess - f * (guess - lo), guess + f * (hi - guess)] {
+                if h == guess || h == left.seg.h || h == right.seg.h {
+                    continue;
+                }
+                let p = self.probe(h, spent)?;
+                if p.solved() {
+                    return Ok((p.seg, self.report(&p, *spent), false));
+                }
+                let (near, below) = if h < guess { (&mut left, true) } else { (&mut right, false) };
+                if p.g.signum() != near.g.signum() {
+                    bracket = Some(if below { (p, *near) } else { (*near, p) });
+                    break;
+                }
+                *near = p;
+            }
+            if bracket.is_some() {
+                break;
+            }
+        }
+        match bracket {
+            Some((a, b)) => self.root(a, b, spent).map(|p| (p.seg, self.report(&p, *spent), false)),
+            None => self.least_squares(lo, hi, at_guess, spent),
+        }
+    }
+
+    /// Newton on `g`, safeguarded by bisection, inside a sign change
+    /// `a.h < b.h` (the classic `rtsafe` scheme: bisect whenever Newton would
+    /// leave the bracket or does not halve the previous correction).
+    fn root(&mut self, mut a: Probe<N>, mut b: Probe<N>, spent: &mut usize) -> Result<Probe<N>, Error<N>> {
+        let mut x = if a.g.abs() < b.g.abs() { a } else { b };
+        let mut dx_old = b.seg.h - a.seg.h;
+        let mut dx = dx_old;
+        for _ in 0..200 {
+            let (ha, hb) = (a.seg.h, b.seg.h);
+            let newton = x.seg.h - x.g / x.slope;
+            let h = if newton > ha && newton < hb && (2.0 * x.g).abs() <= (dx_old * x.slope).abs() {
+                dx_old = dx;
+                dx = x.g / x.slope;
+                newton
+            } else {
+                dx_old = dx;
+                dx = 0.5 * (hb - ha);
+                ha + dx
+            };
+            if dx.abs() <= 4.0 * f64::EPSILON * h || h <= ha || h >= hb {
+                return Ok(x);
+            }
+            let p = self.probe(h, spent)?;
+            if p.solved() {
+                return Ok(p);
+            }
+            if p.g.signum() == a.g.signum() {
+                a = p;
+            } else {
+                b = p;
+            }
+            x = p;
+        }
+        Ok(x)
+    }
+
+    /// No sign change found: minimise `|g|` over `[lo, hi]` by golden section,
+    /// then report it or take it, as the fallback says.
+    fn least_squares(
+        &mut self,
+        lo: f64,
+        hi: f64,
+        start: Probe<N>,
+        spent: &mut usize,
+    ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
+        const INV_PHI: f64 = 0.618_033_988_749_894_8;
+        let (mut a, mut b) = (lo, hi);
+        let mut c = b - INV_PHI * (b - a);
+        let mut d = a + INV_PHI * (b - a);
+        let mut pc = self.probe(c, spent)?;
+        let mut pd = self.probe(d, spent)?;
+        let mut best = start;
+        for _ in 0..60 {
+            for p in [pc, pd] {
+                if p.g.abs() < best.g.abs() {
+                    best = p;
+                }
+                if p.g.signum() != start.g.signum() || p.solved() {
+                    // A root after all, between two roots the sampling stepped over.
+                    let (l, r) = if p.seg.h < start.seg.h { (p, start) } else { (start, p) };
+                    let root = if p.solved() { p } else { self.root(l, r, spent)? };
+                    return Ok((root.seg, self.report(&root, *spent), false));
+                }
+            }
+            if b - a <= 1e-9 * b {
+                break;
+            }
+            if pc.g.abs() < pd.g.abs() {
+                (b, d, pd) = (d, c, pc);
+                c = b - INV_PHI * (b - a);
+                pc = self.probe(c, spent)?;
+            } else {
+                (a, c, pc) = (c, d, pd);
+                d = a + INV_PHI * (b - a);
+                pd = self.probe(d, spent)?;
+            }
+        }
+        match self.fallback {
+            EnergyFallback::LeastSquares => Ok((best.seg, self.report(&best, *spent), true)),
+            EnergyFallback::Fail => Err(Error::NoEnergyStep {
+                state: self.state,
+                h_lo: lo,
+                h_hi: hi,
+                h_best: best.seg.h,
+                mismatch: best.g.abs() / best.scale,
+                iterations: *spent,
+            }),
+        }
+    }
+
+    fn report(&self, p: &Probe<N>, iterations: usize) -> NewtonReport {
+        NewtonReport { iterations, residual_norm: p.g.abs(), correction_norm: 0.0 }
+    }
+
+    /// Applies a solved step: `p_{k+1}`, `E_{k+1}`, the Kahan-summed time.
+    fn accept(&mut self, seg: Segment<N>, report: NewtonReport, fallback: bool) -> Result<&State<N>, Error<N>> {
+        let State { step, t: t0, .. } = self.state;
+        let h = seg.h;
+        let (p1, d_t1) = derivatives::end_gradient(&self.system, &self.method, &seg);
+        let q1 = seg.q1();
+        if !all_finite(&q1) || !all_finite(&p1) || !d_t1.is_finite() {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity: "position" });
+        }
+        // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
+        let y = h - self.time_error;
+        let t1 = t0 + y;
+        self.time_error = (t1 - t0) - y;
+        self.earlier = self.previous.map(|last| (last.h, last.dq));
+        self.previous = Some(seg);
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
+        self.energy = -d_t1;
+        self.h = h;
+        self.clock = super::Clock { t: t1, step: step + 1 };
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.energy_fallbacks += u64::from(fallback);
+        self.stats.last = report;
+        Ok(&self.state)
+    }
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
+    /// The last step taken, from node `k − 1` to node `k`, as start and
+    /// increments; `None` before the first step.
+    pub fn last_segment(&self) -> Option<&Segment<N>> {
+        self.previous.as_ref()
+    }
+
+    /// The tangent map of the last step in the extended phase space
+    /// `(t, q, −E, p)` (MATH.md §8), a `(2N+2)×(2N+2)` matrix; see
+    /// [`symplectic::extended_tangent_map`](crate::symplectic::extended_tangent_map).
+    /// For variable steps it preserves `dq∧dp − dt∧dE`.
+    pub fn last_extended_tangent_map(&self) -> Option<nalgebra::DMatrix<f64>> {
+        crate::symplectic::extended_tangent_map(&self.system, &self.method, self.previous.as_ref()?)
+    }
+}
