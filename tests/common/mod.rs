@@ -133,3 +133,41 @@ pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
 }
+
+/// The slowly varying oscillator `L = ½ q̇² − ½ ω(εt)² q²`, with
+/// `ω(s) = 1 + ½ sin s`: a time-dependent Lagrangian whose energy
+/// `E = ½ q̇² + ½ ω² q²` changes at the rate `−∂L/∂t = ε ω ω'(εt) q²`.
+#[derive(Debug, Clone, Copy)]
+pub struct SlowOscillator {
+    pub eps: f64,
+}
+
+#[lagrangian]
+impl SlowOscillator {
+    fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 {
+        let w = 1.0 + 0.5 * (self.eps * t).sin();
+        0.5 * v[0] * v[0] - 0.5 * w * w * q[0] * q[0]
+    }
+}
+
+impl SlowOscillator {
+    /// `ω(εt)`.
+    pub fn omega(&self, t: f64) -> f64 {
+        1.0 + 0.5 * (self.eps * t).sin()
+    }
+
+    /// `(q, v)` at `t` from `(q0, v0)` at 0 by RK4 with `n` steps.
+    pub fn reference(&self, q0: f64, v0: f64, t: f64, n: usize) -> (f64, f64) {
+        // Time is carried as a third component so the autonomous RK4 applies.
+        let [q, v, _] = rk4(
+            |y: &[f64; 3]| {
+                let w = self.omega(y[2]);
+                [y[1], -w * w * y[0], 1.0]
+            },
+            [q0, v0, 0.0],
+            t / n as f64,
+            n,
+        );
+        (q, v)
+    }
+}
