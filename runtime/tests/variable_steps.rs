@@ -139,6 +139,14 @@ fn kepler_energy_and_angular_momentum_are_conserved_over_1e5_steps() {
     assert!(hi / lo > 2.0, "[{lo}, {hi}]");
     let (err, _, _) = energy_drift(Kepler, Trapezoid, 0.01, q0, v0, 100_000);
     assert!(err <= 1e-12, "trapezoid: {err:e}");
+    // p_φ (φ is cyclic): conserved by the DEL whatever the steps.
+    let mut sim =
+        Integrator::new(Kepler, Midpoint, 0.01).energy_preserving(StepBounds::around(0.01)).start(0.0, q0, v0).unwrap();
+    let p0 = sim.state().p[1];
+    let mut drift = 0.0f64;
+    sim.run(100_000, |s| drift = drift.max((s.state().p[1] - p0).abs() / p0)).unwrap();
+    println!("angular momentum drift {drift:e}");
+    assert!(drift <= 1e-13, "angular momentum drift {drift:e}");
 }
 
 #[test]

@@ -140,11 +140,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     fn coupled(&mut self, guess: f64, lo: f64, hi: f64) -> Result<(Segment<N>, NewtonReport, bool), usize> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e0 = self.energy;
-        // Start from the DEL solution at the guessed step: the energy equation
-        // fixes h only through the O(h²) energy error of the method, so its
-        // Newton correction is trustworthy only once R_q is already zero.
-        let (dq_guess, first) = self.solve_del(guess).map_err(|_| 0usize)?;
-        let start = Extended { q: SVector::from(dq_guess), t: guess };
+        // With two steps of history, start from the extrapolated step and the
+        // quadratic position predictor, both O(h³) accurate. Otherwise start
+        // from the DEL solution at the guessed step: the energy equation fixes
+        // h only through the O(h²) energy error of the method, so its Newton
+        // correction is trustworthy only once R_q is already near zero.
+        let (start, first) = match (self.previous, self.earlier) {
+            (Some(last), Some((h_earlier, _))) => {
+                let h = (2.0 * last.h - h_earlier).clamp(lo, hi);
+                (Extended { q: SVector::from(self.predict(h)), t: h }, NewtonReport::default())
+            }
+            _ => {
+                let (dq, first) = self.solve_del(guess).map_err(|_| 0usize)?;
+                (Extended { q: SVector::from(dq), t: guess }, first)
+            }
+        };
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let linearize = |x: &Extended<N>| {
             if x.t.is_nan() || x.t <= 0.0 {
