@@ -567,6 +567,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         symplectic::tangent_map(&self.system, &self.method, self.previous.as_ref()?)
     }
 
+    /// The last step as a segment `(t_k, h, q_k, dq)`: its increment `dq` is
+    /// the one Newton solved for, free of the rounding of `q_{k+1} = q_k + dq`
+    /// (which, when every step rounds the same way, adds up over long runs).
+    /// `None` before the first step.
+    pub fn last_step(&self) -> Option<&Segment<N>> {
+        self.previous.as_ref()
+    }
+
     /// The discrete forces `(F_k^−, F_k^+)` of the last step (MATH.md §6), or
     /// `None` before the first step; zero for a system without forces.
     pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
