@@ -123,6 +123,18 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Si
     let (time, q, v) = match (method.params.as_slice(), method.kind.takes_time()) {
         ([q, v], _) => (None, q, v),
         ([t, q, v], true) => (Some(t), q, v),
+        // A time argument where none is taken: say so at that argument.
+        ([t, q, v], false) if matches!(t.shape, Shape::F64) => {
+            let (pat, ty) = (t.pat, t.ty);
+            cx.error_spanned_by(
+                quote::quote!(#pat #ty),
+                format!(
+                    "`{name}` takes no time argument: a rayleigh function is `R(q, v)`; \
+                     put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`"
+                ),
+            );
+            (None, q, v)
+        }
         (params, _) => {
             cx.error_at(
                 sig.paren_token.span.join(),
