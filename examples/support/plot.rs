@@ -4,7 +4,7 @@
 //! The font is bundled (DejaVu Sans, licence beside it) and drawn through
 //! ab_glyph, so the examples need no system font library. Include this file
 //! from an example with `#[path = "support/plot.rs"] mod plot;`.
-#![allow(dead_code)]
+#![allow(dead_code, unreachable_pub)]
 
 use std::error::Error;
 use std::path::{Path, PathBuf};
