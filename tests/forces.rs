@@ -431,7 +431,7 @@ fn systems_without_forces_report_zero_forces() {
     let mut sim = Integrator::new(Oscillator { m: 1.0, k: 1.0 }, Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
     assert!(sim.last_forces().is_none());
     sim.run(3, |_| {}).unwrap();
-    assert_eq!(sim.last_forces(), Some(lagrangian::DiscreteForces::ZERO));
+    assert_eq!(sim.last_forces(), Some(lagrangian::forcing::DiscreteForces::ZERO));
     assert!(sim.last_tangent_map().is_some());
     let mut forced = Integrator::new(damped(), Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
     forced.run(3, |_| {}).unwrap();

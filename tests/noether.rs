@@ -181,5 +181,5 @@ fn symmetries_are_checked_and_their_generators_are_what_they_say() {
     assert_eq!(sim.forcing_impulse(&rotation), Some(0.0));
     let seg = *sim.last_step().unwrap();
     assert!(noether::symmetry_defect(sim.system(), sim.method(), &seg, &rotation).abs() < 1e-15);
-    assert_eq!(forcing::discrete_forces(sim.system(), sim.method(), &seg), lagrangian::DiscreteForces::ZERO);
+    assert_eq!(forcing::discrete_forces(sim.system(), sim.method(), &seg), lagrangian::forcing::DiscreteForces::ZERO);
 }

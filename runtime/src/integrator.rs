@@ -17,7 +17,6 @@ use crate::error::Error;
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonFailure, NewtonOptions, NewtonReport};
-use crate::noether::{self, Generator};
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
@@ -595,15 +594,15 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node (MATH.md §7).
-    pub fn momentum_map(&self, symmetry: &(impl Generator<N> + ?Sized)) -> f64 {
-        noether::momentum_map(symmetry, &self.state.q, &self.state.p)
+    pub fn momentum_map(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> f64 {
+        crate::noether::momentum_map(symmetry, &self.state.q, &self.state.p)
     }
 
     /// The forcing impulse `F_k^−·ξ(q_k) + F_k^+·ξ(q_{k+1})` of the last step,
     /// which `J_{k+1} − J_k` equals for a symmetry of the action (see
     /// [`noether`](crate::noether)); `None` before the first step.
-    pub fn forcing_impulse(&self, symmetry: &(impl Generator<N> + ?Sized)) -> Option<f64> {
-        Some(noether::forcing_impulse(&self.system, &self.method, self.previous.as_ref()?, symmetry))
+    pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
+        Some(crate::noether::forcing_impulse(&self.system, &self.method, self.previous.as_ref()?, symmetry))
     }
 }
 

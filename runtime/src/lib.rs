@@ -21,7 +21,6 @@ pub mod system;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
 pub use error::Error;
-pub use forcing::{DiscreteForces, EnergyBalance};
 pub use integrator::{Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
