@@ -342,13 +342,17 @@ mod tests {
             impl P {
                 fn lagrangian(&self, q: [f64; 2], v: [f64; 3]) -> f64 { 0.0 }
                 fn dissipation(&self, t: f64, q: [f64; 2], v: [f64; 2]) -> f64 { 0.0 }
+                fn force(&self, t: f64, s: f64, q: [f64; 2], v: [f64; 2]) -> [f64; 2] { [0.0; 2] }
             }
         };
         assert_eq!(
             errors(&item),
             [
                 "`q` and `v` must have the same length: `q` is `[f64; 2]` but `v` is `[f64; 3]`",
-                "`dissipation` takes `(&self, q: [f64; N], v: [f64; N])`, found 3 parameters besides `&self`",
+                "`dissipation` takes no time argument: a rayleigh function is `R(q, v)`; \
+                 put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`",
+                "`force` takes `(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+                 found 4 parameters besides `&self`",
             ]
         );
     }
