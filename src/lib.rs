@@ -162,7 +162,7 @@ pub mod prelude {
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
-    pub use lagrangian_runtime::{Lagrangian, Scalar};
+    pub use lagrangian_runtime::{Lagrangian, Scalar, Symmetry};
 }
 
 /// The README's examples, compiled and run as doc tests.

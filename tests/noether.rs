@@ -56,7 +56,10 @@ fn rotation_momentum_of_cartesian_kepler_is_conserved_over_1e5_steps() {
     // ξ(q) = (−y, x): J = x p_y − y p_x, the angular momentum. No coordinate
     // is cyclic in Cartesian form; the symmetry is declared.
     assert_eq!(<FreeKeplerCartesian as Lagrangian<2>>::CYCLIC, [false, false]);
-    let rotation = Symmetry::rotation(0, 1).unwrap();
+    // Declared with `#[lagrangian(symmetry = rotation(0, 1))]`.
+    let declared: Vec<Symmetry<2>> = Symmetry::declared::<FreeKeplerCartesian>().collect();
+    assert_eq!(declared, [Symmetry::rotation(0, 1).unwrap()]);
+    let rotation = declared[0];
     let kepler = || FreeKeplerCartesian { mu: 1.0 };
     let drift = |method, h| momentum_drift(kepler(), method, h, kepler_initial(), &rotation, N_LONG);
     assert_conserved("Cartesian Kepler, midpoint", drift(Midpoint, H_EXACT), drift(Midpoint, 0.01));
@@ -74,9 +77,10 @@ fn translation_momenta_are_conserved_over_1e5_steps() {
     let initial = ([1.0, 0.0], [0.0, 2.0]);
     let drift = |h| momentum_drift(pendulum(), Midpoint, h, initial, &cyclic[0], N_LONG);
     assert_conserved("spherical pendulum p_φ", drift(H_EXACT), drift(0.01));
-    // A translation of both bodies together, declared as a closure: the
-    // total momentum of a Morse pair, J = p_1 + p_2.
-    let both = |_: &[f64; 2]| [1.0, 1.0];
+    // A translation of both bodies together, declared as a generator in the
+    // attribute: the total momentum of a Morse pair, J = p_1 + p_2.
+    let both = <MorsePair as Lagrangian<2>>::SYMMETRIES[0];
+    assert_eq!(both.generator(&[0.3, -2.0]), [1.0, 1.0]);
     let pair = || MorsePair { m1: 1.0, m2: 2.0, d: 1.0, w: 1.5, r0: 1.0 };
     let initial = ([0.0, 1.3], [0.7, -0.1]);
     let drift = |h| momentum_drift(pair(), Midpoint, h, initial, &both, N_LONG);
@@ -170,6 +174,11 @@ fn symmetries_are_checked_and_their_generators_are_what_they_say() {
     assert_eq!(Symmetry::<3>::rotation(2, 0).unwrap().generator(&[5.0, 6.0, 7.0]), [7.0, 0.0, -5.0]);
     assert_eq!(noether::momentum_map(&Symmetry::<2>::rotation(0, 1).unwrap(), &[1.0, 2.0], &[3.0, 4.0]), 4.0 - 6.0);
     assert_eq!(Symmetry::cyclic::<FreeKeplerCartesian>().count(), 0);
+    // A closure as a generator, directly (it may capture data).
+    let axis = [0.6, 0.8];
+    let along = move |_: &[f64; 2]| axis;
+    assert_eq!(noether::momentum_map(&along, &[0.0, 0.0], &[1.0, 2.0]), 0.6 + 1.6);
+    assert_eq!(Symmetry::declared::<Sensor>().count(), 0);
     assert_eq!(Symmetry::cyclic::<Sensor>().collect::<Vec<_>>(), [Symmetry::translation(1).unwrap()]);
     // Without forces the impulse is zero, before any step there is none.
     let mut sim = Integrator::new(FreeKeplerCartesian { mu: 1.0 }, Midpoint, 0.01)

@@ -24,8 +24,12 @@
 //! ([`Lagrangian::CYCLIC`], see [`Symmetry::cyclic`]) is a translation
 //! symmetry of every discrete Lagrangian of the runtime; translations of
 //! several coordinates together, rotations and other groups are declared by
-//! the user ([`Symmetry::translation`], [`Symmetry::rotation`], or any
-//! closure `Fn(&[f64; N]) -> [f64; N]` as a [`Generator`]). Midpoint, trapezoid
+//! the user, in code ([`Symmetry::translation`], [`Symmetry::rotation`],
+//! [`Symmetry::generator`], or any closure `Fn(&[f64; N]) -> [f64; N]` as a
+//! [`Generator`]) or on the system with
+//! `#[lagrangian(symmetry = rotation(0, 1), symmetry = generator(|q| ...))]`
+//! ([`Lagrangian::SYMMETRIES`], [`Symmetry::declared`]). Declaring a symmetry
+//! does not prove it: [`symmetry_defect`] measures it on a step. Midpoint, trapezoid
 //! and α-β evaluate `L` at affine combinations of `q_k` and `q_{k+1}` with the
 //! secant velocity, so every symmetry of `L` that acts linearly on `q`
 //! (translations, rotations) is a symmetry of their actions too.
@@ -49,8 +53,9 @@ impl<F: Fn(&[f64; N]) -> [f64; N], const N: usize> Generator<N> for F {
     }
 }
 
-/// A translation of one coordinate or a rotation in a coordinate plane;
-/// build it with the checked constructors.
+/// A translation of one coordinate, a rotation in a coordinate plane or a
+/// group given by its generator function; build it with the constructors
+/// (the first two check their indices).
 ///
 /// ```
 /// use lagrangian_runtime::{Generator, Symmetry};
@@ -61,14 +66,28 @@ impl<F: Fn(&[f64; N]) -> [f64; N], const N: usize> Generator<N> for F {
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Symmetry<const N: usize> {
-    kind: Kind,
+    kind: Kind<N>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Kind {
+#[derive(Clone, Copy, Debug)]
+enum Kind<const N: usize> {
     Translation(usize),
     Rotation(usize, usize),
+    Generator(fn(&[f64; N]) -> [f64; N]),
 }
+
+impl<const N: usize> PartialEq for Kind<N> {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Self::Translation(a), Self::Translation(b)) => a == b,
+            (Self::Rotation(a, b), Self::Rotation(c, d)) => (a, b) == (c, d),
+            (Self::Generator(f), Self::Generator(g)) => core::ptr::fn_addr_eq(*f, *g),
+            _ => false,
+        }
+    }
+}
+
+impl<const N: usize> Eq for Kind<N> {}
 
 impl<const N: usize> Symmetry<N> {
     /// Translation of coordinate `i`, `ξ = e_i`; its momentum map is `p_i`.
@@ -83,6 +102,19 @@ impl<const N: usize> Symmetry<N> {
     /// range or `i = j`.
     pub const fn rotation(i: usize, j: usize) -> Option<Self> {
         if i < N && j < N && i != j { Some(Self { kind: Kind::Rotation(i, j) }) } else { None }
+    }
+
+    /// A group given by its generator `ξ(q)`, as a function (a closure that
+    /// captures nothing converts to one). For a generator that needs data,
+    /// pass a capturing closure as a [`Generator`] directly instead.
+    pub const fn generator(xi: fn(&[f64; N]) -> [f64; N]) -> Self {
+        Self { kind: Kind::Generator(xi) }
+    }
+
+    /// The symmetries declared with `#[lagrangian(symmetry = ...)]`
+    /// ([`Lagrangian::SYMMETRIES`]), in the order written.
+    pub fn declared<S: Lagrangian<N> + ?Sized>() -> impl Iterator<Item = Self> {
+        S::SYMMETRIES.iter().copied()
     }
 
     /// The translations of the coordinates that `#[lagrangian]` proved cyclic
@@ -101,6 +133,7 @@ impl<const N: usize> Generator<N> for Symmetry<N> {
                 xi[i] = -q[j];
                 xi[j] = q[i];
             }
+            Kind::Generator(f) => xi = f(q),
         }
         xi
     }

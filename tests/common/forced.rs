@@ -150,13 +150,14 @@ impl KeplerCartesian {
     }
 }
 
-/// Kepler without forces (no `force`, no `dissipation`): rotation-invariant.
+/// Kepler without forces (no `force`, no `dissipation`): rotation-invariant,
+/// declared in the attribute.
 #[derive(Debug)]
 pub struct FreeKeplerCartesian {
     pub mu: f64,
 }
 
-#[lagrangian]
+#[lagrangian(symmetry = rotation(0, 1))]
 impl FreeKeplerCartesian {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
         let r = (q[0] * q[0] + q[1] * q[1]).sqrt();
@@ -182,7 +183,8 @@ impl SphericalPendulum {
 }
 
 /// Two bodies on a line joined by a Morse spring: invariant under the
-/// translation of both, `ξ = (1, 1)`, a generator the user declares.
+/// translation of both, `ξ = (1, 1)`, a generator the user declares (here in
+/// the attribute).
 #[derive(Debug)]
 pub struct MorsePair {
     pub m1: f64,
@@ -192,7 +194,7 @@ pub struct MorsePair {
     pub r0: f64,
 }
 
-#[lagrangian]
+#[lagrangian(symmetry = generator(|_| [1.0, 1.0]))]
 impl MorsePair {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
         let e = 1.0 - (-self.w * (q[1] - q[0] - self.r0)).exp();
