@@ -100,13 +100,13 @@ pub struct ActionGradient<const N: usize> {
 }
 
 /// A segment as dual numbers `(t0, h, q0, dq)`.
-type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
+pub(crate) type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
 
 /// Lifts a segment to dual numbers and seeds one infinitesimal on `v` through
 /// `set`. Moving `t_k` or `q_k` with the end node fixed also moves the
 /// increment by the opposite amount, hence the two entries for `T0` and `Q0`.
 #[inline(always)]
-fn lift<T: Scalar, const N: usize>(
+pub(crate) fn lift<T: Scalar, const N: usize>(
     seg: &Segment<N>,
     seeds: &[Var],
     set: impl Fn(&mut T, usize, f64),
