@@ -9,6 +9,7 @@
 pub mod derivatives;
 pub mod discrete;
 mod error;
+pub mod hyperdual;
 mod integrator;
 pub mod mechanics;
 pub mod newton;
