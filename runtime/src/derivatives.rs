@@ -106,7 +106,13 @@ type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
 /// A segment as constants of a dual type.
 #[inline(always)]
 fn constant<T: Scalar, const N: usize>(seg: &Segment<N>) -> DualSegment<T, N> {
-    (T::from(seg.t0), T::from(seg.h), seg.q0.map(T::from), seg.dq.map(T::from))
+    // Loops rather than `array::map`, which moves large elements through memory.
+    let (mut q0, mut dq) = ([T::zero(); N], [T::zero(); N]);
+    for i in 0..N {
+        q0[i] = T::from(seg.q0[i]);
+        dq[i] = T::from(seg.dq[i]);
+    }
+    (T::from(seg.t0), T::from(seg.h), q0, dq)
 }
 
 /// Seeds one infinitesimal on `v` through `set(x, ±1)`. Moving `t_k` or `q_k`
