@@ -8,7 +8,7 @@
 //! eq. (2.15). Order 2. For `L = ½ vᵀMv − V(q)` it is the implicit midpoint
 //! rule in `(q, p)`; it is symmetric, so its error expansion has even powers only.
 
-use super::{DiscreteLagrangian, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::system::{Lagrangian, Scalar};
 
 /// The midpoint rule: `A = h L(t_k + h/2, (q_k+q_{k+1})/2, (q_{k+1}−q_k)/h)`. Order 2.
@@ -27,7 +27,7 @@ impl DiscreteLagrangian for Midpoint {
         D: Scalar,
     {
         let v = secant_velocity(&dq, h);
-        let q_mid = core::array::from_fn(|i| q0[i] + dq[i] * 0.5);
+        let q_mid = array(|i| q0[i] + dq[i] * 0.5);
         system.lagrangian(t0 + h * 0.5, q_mid, v) * h
     }
 }
