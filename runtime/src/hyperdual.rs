@@ -17,8 +17,13 @@
 //!
 //! # The numbers
 //!
-//! [`HyperDualArray<E1, E2>`] is `x = re + Σ_i eps1[i] ε1_i + Σ_j eps2[j] ε2_j
-//! + Σ_ij eps1eps2[i][j] ε1_i ε2_j` with `ε1_i ε1_k = ε2_j ε2_l = 0`. Seeding
+//! [`HyperDualArray<E1, E2>`] is
+//!
+//! ```text
+//! x = re + Σ_i eps1[i] ε1_i + Σ_j eps2[j] ε2_j + Σ_ij eps1eps2[i][j] ε1_i ε2_j,   ε1_i ε1_k = ε2_j ε2_l = 0.
+//! ```
+//!
+//! Seeding
 //! `ε1_i` on variable `a_i` and `ε2_j` on `b_j` and evaluating `f` gives `f`,
 //! `∂f/∂a_i` (`eps1[i]`), `∂f/∂b_j` (`eps2[j]`) and `∂²f/∂a_i∂b_j`
 //! (`eps1eps2[i][j]`). [`DualArray<E>`] is the first-order part alone.
