@@ -1,24 +1,43 @@
 //! Derivatives of the step action from hyper-dual evaluations (MATH.md §4).
 //!
-//! An evaluation of `A` on [`HyperDual64`] with the first infinitesimal seeded
-//! on one coordinate `a` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second on a
-//! coordinate `b` yields `A`, `∂A/∂a`, `∂A/∂b` and `∂²A/∂a∂b` at once.
+//! An evaluation of `A` on a hyper-dual number with the first infinitesimals
+//! seeded on coordinates `a_i` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second
+//! on coordinates `b_j` yields `A`, `∂A/∂a_i`, `∂A/∂b_j` and `∂²A/∂a_i∂b_j` at
+//! once. Each Newton iteration of a fixed step is one evaluation on
+//! [`HyperDualArray<[f64; N], [f64; N]>`](HyperDualArray) (`ε1` on `q_k`, `ε2`
+//! on `q_{k+1}`), of a variable step one evaluation on
+//! `HyperDualArray<Timed<f64, N>, Timed<f64, N>>` (the times as an extra slot
+//! on each side); the end momentum (and energy) is one evaluation on a
+//! first-order [`DualArray`].
 //!
-//! Why scalar hyper-duals and `N²` evaluations instead of one evaluation on
-//! `HyperDualSVec64<N, N>`: num-dual's vector duals keep their derivative parts
-//! in `Option<SMatrix>`, and under cargo's default release profile (16 codegen
-//! units, no fat LTO) the generated code around them is not inlined; measured
-//! on the double pendulum (2 cores, default `--release`), the mixed block
-//! `∂²A/∂q_k∂q_{k+1}` cost 430 ns with nested `DualSVec64<2>`, 165 ns with
-//! `DualSVec<Dual64, 2>` and 53 ns with four scalar `HyperDual64` evaluations.
-//! Scalar duals are plain structs of four `f64` and stay fast under every
-//! profile. Their cost grows like `N²` evaluations of `L`, which is the right
-//! trade for the small `N` of mechanical systems.
+//! Why these types (see [`crate::hyperdual`]): until this module used them, it
+//! did `N²` evaluations on num-dual's scalar `HyperDual64`, one per pair of
+//! seeds, repeating every `sin`/`cos` of the user's `L` `N²` times, because
+//! num-dual's vector duals (`Option<SMatrix>` parts, not `Copy`) are not
+//! inlined under cargo's default release profile: for the double-pendulum
+//! block, 430 ns with nested `DualSVec64<2>`, 165 ns with `DualSVec<Dual64, 2>`,
+//! 53 ns with four scalar evaluations. The array duals are `Copy` structs of
+//! `f64` arrays that LLVM unrolls, and their formulas and operation order are
+//! num-dual's, so every derivative is bit for bit the scalar one (unit test
+//! below) and the integrators' trajectories are unchanged.
+//!
+//! Measured with `cargo bench --bench step` (default `bench` profile, 2-core
+//! machine shared with other builds), ns per double-pendulum midpoint step:
+//! 519–542 with `N²` scalar evaluations, 245 with one array evaluation per
+//! iteration; with the accompanying changes (discrete Lagrangians building
+//! their arrays by loops, the generated `lagrangian` `inline(always)`)
+//! 215–225, against 143–148 for the hand-written analytic step. For the
+//! pendulum (`N = 1`, where one scalar evaluation already was one evaluation)
+//! 95–103 → 90–93 against 49–52.
+//!
+//! The scalar evaluations (`hyper_action`, `dual_action`) stay as the
+//! reference the array ones are tested against.
 
 use nalgebra::{DMatrix, SMatrix};
 use num_dual::{Dual64, HyperDual64};
 
 use crate::discrete::DiscreteLagrangian;
+use crate::hyperdual::{DualArray, HyperDualArray, Timed, Vector};
 use crate::system::{Lagrangian, Scalar};
 
 /// One step between two extended nodes, `x_k = (t0, q0)` and
@@ -102,37 +121,121 @@ pub struct ActionGradient<const N: usize> {
 /// A segment as dual numbers `(t0, h, q0, dq)`.
 pub(crate) type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
 
-/// Lifts a segment to dual numbers and seeds one infinitesimal on `v` through
-/// `set`. Moving `t_k` or `q_k` with the end node fixed also moves the
-/// increment by the opposite amount, hence the two entries for `T0` and `Q0`.
+/// A segment as constants of a dual type.
+#[inline(always)]
+fn constant<T: Scalar, const N: usize>(seg: &Segment<N>) -> DualSegment<T, N> {
+    // Loops rather than `array::map`, which moves large elements through memory.
+    let (mut q0, mut dq) = ([T::zero(); N], [T::zero(); N]);
+    for i in 0..N {
+        q0[i] = T::from(seg.q0[i]);
+        dq[i] = T::from(seg.dq[i]);
+    }
+    (T::from(seg.t0), T::from(seg.h), q0, dq)
+}
+
+/// Seeds one infinitesimal on `v` through `set(x, ±1)`. Moving `t_k` or `q_k`
+/// with the end node fixed also moves the increment by the opposite amount,
+/// hence the two entries for `T0` and `Q0`.
+#[inline(always)]
+fn seed<T, const N: usize>(x: &mut DualSegment<T, N>, v: Var, set: impl Fn(&mut T, f64)) {
+    let (t0, h, q0, dq) = x;
+    match v {
+        Var::T0 => {
+            set(t0, 1.0);
+            set(h, -1.0);
+        }
+        Var::T1 => set(h, 1.0),
+        Var::Q0(i) => {
+            set(&mut q0[i], 1.0);
+            set(&mut dq[i], -1.0);
+        }
+        Var::Q1(i) => set(&mut dq[i], 1.0),
+    }
+}
+
+/// Lifts a segment to dual numbers and seeds infinitesimal `k` on `seeds[k]`
+/// through `set(x, k, ±1)` (see [`seed`]).
 #[inline(always)]
 pub(crate) fn lift<T: Scalar, const N: usize>(
     seg: &Segment<N>,
     seeds: &[Var],
     set: impl Fn(&mut T, usize, f64),
 ) -> DualSegment<T, N> {
-    let mut t0 = T::from(seg.t0);
-    let mut h = T::from(seg.h);
-    let mut q0 = seg.q0.map(T::from);
-    let mut dq = seg.dq.map(T::from);
+    let mut x = constant(seg);
     for (k, v) in seeds.iter().enumerate() {
-        match *v {
-            Var::T0 => {
-                set(&mut t0, k, 1.0);
-                set(&mut h, k, -1.0);
-            }
-            Var::T1 => set(&mut h, k, 1.0),
-            Var::Q0(i) => {
-                set(&mut q0[i], k, 1.0);
-                set(&mut dq[i], k, -1.0);
-            }
-            Var::Q1(i) => set(&mut dq[i], k, 1.0),
-        }
+        seed(&mut x, *v, |y, s| set(y, k, s));
     }
-    (t0, h, q0, dq)
+    x
 }
 
-/// `A` on hyper-duals with `ε1` seeded on `a` and `ε2` on `b`.
+/// `A` on a [`HyperDualArray`] with `ε1_i` seeded on `a(i)` and `ε2_j` on
+/// `b(j)`: the value, both gradients and the whole mixed block at once.
+#[inline(always)]
+fn hyper_array_action<S, M, E1, E2, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+    b: impl Fn(usize) -> Var,
+) -> HyperDualArray<E1, E2>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+    E1: Vector,
+    E2: Vector,
+{
+    let mut x = constant(seg);
+    for i in 0..E1::LEN {
+        seed(&mut x, a(i), |y: &mut HyperDualArray<E1, E2>, s| *y.eps1.get_mut(i) += s);
+    }
+    for j in 0..E2::LEN {
+        seed(&mut x, b(j), |y: &mut HyperDualArray<E1, E2>, s| *y.eps2.get_mut(j) += s);
+    }
+    let (t0, h, q0, dq) = x;
+    method.action(system, t0, h, q0, dq)
+}
+
+/// `A` on a [`DualArray`] with `ε_i` seeded on `a(i)`: the value and gradient.
+#[inline(always)]
+fn dual_array_action<S, M, E, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+) -> DualArray<E>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+    E: Vector,
+{
+    let mut x = constant(seg);
+    for i in 0..E::LEN {
+        seed(&mut x, a(i), |y: &mut DualArray<E>, s| *y.eps.get_mut(i) += s);
+    }
+    let (t0, h, q0, dq) = x;
+    method.action(system, t0, h, q0, dq)
+}
+
+/// Slot `i` of the start node in the extended variables: `q_k[i]`, then `t_k` in slot `N`.
+fn start_var<const N: usize>(i: usize) -> Var {
+    if i < N { Var::Q0(i) } else { Var::T0 }
+}
+
+/// Slot `j` of the end node in the extended variables: `q_{k+1}[j]`, then `t_{k+1}` in slot `N`.
+fn end_var<const N: usize>(j: usize) -> Var {
+    if j < N { Var::Q1(j) } else { Var::T1 }
+}
+
+/// The hyper-dual of the fixed-step map: `ε1` on `q_k`, `ε2` on `q_{k+1}`.
+type StepDual<const N: usize> = HyperDualArray<[f64; N], [f64; N]>;
+
+/// The hyper-dual of the extended map: `ε1` on `(q_k, t_k)`, `ε2` on `(q_{k+1}, t_{k+1})`.
+type ExtendedDual<const N: usize> = HyperDualArray<Timed<f64, N>, Timed<f64, N>>;
+
+/// `A` on scalar hyper-duals with `ε1` seeded on `a` and `ε2` on `b`: one
+/// entry of a mixed block per evaluation. The scalar reference of the array
+/// evaluations above (the tests check they agree bit for bit).
+#[cfg_attr(not(test), allow(dead_code))]
 #[inline(always)]
 pub(crate) fn hyper_action<S, M, const N: usize>(
     system: &S,
@@ -162,28 +265,20 @@ where
 }
 
 /// Residual part, next momentum and Newton Jacobian of the fixed-step map:
-/// `N²` hyper-dual evaluations of `A`, nothing else.
+/// one evaluation of `A` on a [`HyperDualArray`] with `ε1` seeded on `q_k`
+/// and `ε2` on `q_{k+1}`.
 #[inline]
 pub fn step_derivatives<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> StepDerivatives<N>
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let mut out = StepDerivatives { action: 0.0, d_q0: [0.0; N], d_q1: [0.0; N], d2_q0_q1: SMatrix::zeros() };
-    for i in 0..N {
-        for j in 0..N {
-            let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(j));
-            out.action = a.re;
-            out.d_q0[i] = a.eps1;
-            out.d_q1[j] = a.eps2;
-            out.d2_q0_q1[(i, j)] = a.eps1eps2;
-        }
-    }
-    out
+    let a: StepDual<N> = hyper_array_action(system, method, seg, Var::Q0, Var::Q1);
+    StepDerivatives { action: a.re, d_q0: a.eps1, d_q1: a.eps2, d2_q0_q1: SMatrix::from_fn(|i, j| a.eps1eps2[i][j]) }
 }
 
 /// The pieces of the extended (variable-step) map: the fixed-step ones plus
-/// the time derivatives, all from `(N + 1)²` hyper-dual evaluations.
+/// the time derivatives, all from one hyper-dual evaluation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExtendedStepDerivatives<const N: usize> {
     /// `∂A/∂q_k`.
@@ -200,7 +295,9 @@ pub struct ExtendedStepDerivatives<const N: usize> {
     pub d2_t0_t1: f64,
 }
 
-/// Residuals and Jacobian of the variable-step map (MATH.md §3).
+/// Residuals and Jacobian of the variable-step map (MATH.md §3): one
+/// evaluation of `A` on a [`HyperDualArray`] with `ε1` seeded on `(q_k, t_k)`
+/// and `ε2` on `(q_{k+1}, t_{k+1})`.
 #[inline]
 pub fn extended_step_derivatives<S, M, const N: usize>(
     system: &S,
@@ -211,71 +308,50 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let mut out = ExtendedStepDerivatives {
-        d_q0: [0.0; N],
-        d_t0: 0.0,
-        d2_q0_q1: SMatrix::zeros(),
-        d2_q0_t1: nalgebra::SVector::zeros(),
-        d2_t0_q1: nalgebra::SVector::zeros(),
-        d2_t0_t1: 0.0,
-    };
-    for i in 0..=N {
-        for j in 0..=N {
-            let a = if i < N { Var::Q0(i) } else { Var::T0 };
-            let b = if j < N { Var::Q1(j) } else { Var::T1 };
-            let v = hyper_action(system, method, seg, a, b);
-            match (i < N, j < N) {
-                (true, true) => out.d2_q0_q1[(i, j)] = v.eps1eps2,
-                (true, false) => out.d2_q0_t1[i] = v.eps1eps2,
-                (false, true) => out.d2_t0_q1[j] = v.eps1eps2,
-                (false, false) => out.d2_t0_t1 = v.eps1eps2,
-            }
-            if i < N {
-                out.d_q0[i] = v.eps1;
-            } else {
-                out.d_t0 = v.eps1;
-            }
-        }
+    let a: ExtendedDual<N> = hyper_array_action(system, method, seg, start_var::<N>, end_var::<N>);
+    let m = &a.eps1eps2;
+    ExtendedStepDerivatives {
+        d_q0: a.eps1.q,
+        d_t0: a.eps1.t,
+        d2_q0_q1: SMatrix::from_fn(|i, j| m.q[i].q[j]),
+        d2_q0_t1: nalgebra::SVector::from_fn(|i, _| m.q[i].t),
+        d2_t0_q1: nalgebra::SVector::from_fn(|j, _| m.t.q[j]),
+        d2_t0_t1: m.t.t,
     }
-    out
 }
 
 /// `(∂A/∂q_{k+1}, ∂A/∂t_{k+1})`: the momentum and minus the energy at the
-/// end of a segment (`N + 1` dual evaluations).
+/// end of a segment (one [`DualArray`] evaluation).
 #[inline]
 pub fn end_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ([f64; N], f64)
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    (end_momentum(system, method, seg), dual_action(system, method, seg, Var::T1).eps)
+    let a: DualArray<Timed<f64, N>> = dual_array_action(system, method, seg, end_var::<N>);
+    (a.eps.q, a.eps.t)
 }
 
-/// `∂A/∂q_{k+1}`, the momentum at the end of a segment: `N` dual evaluations.
+/// `∂A/∂q_{k+1}`, the momentum at the end of a segment (one [`DualArray`] evaluation).
 #[inline]
 pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    core::array::from_fn(|j| dual_action(system, method, seg, Var::Q1(j)).eps)
+    let a: DualArray<[f64; N]> = dual_array_action(system, method, seg, Var::Q1);
+    a.eps
 }
 
-/// Every first derivative of `A` on a segment (`N + 1` hyper-dual evaluations).
+/// Every first derivative of `A` on a segment (one hyper-dual evaluation,
+/// whose mixed block is not used).
 pub fn action_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ActionGradient<N>
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let times = hyper_action(system, method, seg, Var::T0, Var::T1);
-    let mut out =
-        ActionGradient { action: times.re, d_t0: times.eps1, d_q0: [0.0; N], d_t1: times.eps2, d_q1: [0.0; N] };
-    for i in 0..N {
-        let a = hyper_action(system, method, seg, Var::Q0(i), Var::Q1(i));
-        out.d_q0[i] = a.eps1;
-        out.d_q1[i] = a.eps2;
-    }
-    out
+    let a: ExtendedDual<N> = hyper_array_action(system, method, seg, start_var::<N>, end_var::<N>);
+    ActionGradient { action: a.re, d_t0: a.eps1.t, d_q0: a.eps1.q, d_t1: a.eps2.t, d_q1: a.eps2.q }
 }
 
 /// `∂A/∂t_{k+1}` alone (one dual evaluation); `−∂A/∂t_{k+1}` is the discrete energy `E_{k+1}`.
@@ -287,7 +363,8 @@ where
     dual_action(system, method, seg, Var::T1).eps
 }
 
-/// The position blocks of the Hessian of `A`: `(∂²A/∂q_k², ∂²A/∂q_k∂q_{k+1}, ∂²A/∂q_{k+1}²)`.
+/// The position blocks of the Hessian of `A`: `(∂²A/∂q_k², ∂²A/∂q_k∂q_{k+1}, ∂²A/∂q_{k+1}²)`,
+/// one hyper-dual evaluation each.
 ///
 /// Used for the tangent map of a step (symplecticity, MATH.md §8); not needed
 /// by the stepper itself.
@@ -301,7 +378,8 @@ where
     M: DiscreteLagrangian,
 {
     let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
-        SMatrix::<f64, N, N>::from_fn(|i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
+        let x: StepDual<N> = hyper_array_action(system, method, seg, a, b);
+        SMatrix::<f64, N, N>::from_fn(|i, j| x.eps1eps2[i][j])
     };
     (block(Var::Q0, Var::Q0), block(Var::Q0, Var::Q1), block(Var::Q1, Var::Q1))
 }
@@ -321,10 +399,101 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let start = |i: usize| if i == 0 { Var::T0 } else { Var::Q0(i - 1) };
-    let end = |i: usize| if i == 0 { Var::T1 } else { Var::Q1(i - 1) };
-    let block = |a: &dyn Fn(usize) -> Var, b: &dyn Fn(usize) -> Var| {
-        DMatrix::from_fn(N + 1, N + 1, |i, j| hyper_action(system, method, seg, a(i), b(j)).eps1eps2)
+    // Row or column `r` of the blocks (time first) is slot `slot(r)` of the duals (time last).
+    let slot = |r: usize| if r == 0 { N } else { r - 1 };
+    let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
+        let x: ExtendedDual<N> = hyper_array_action(system, method, seg, a, b);
+        DMatrix::from_fn(N + 1, N + 1, |i, j| x.mixed(slot(i), slot(j)))
     };
-    (block(&start, &start), block(&start, &end), block(&end, &end))
+    (block(start_var::<N>, start_var::<N>), block(start_var::<N>, end_var::<N>), block(end_var::<N>, end_var::<N>))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
+
+    /// A time-dependent, non-separable system with two degrees of freedom.
+    struct Coupled;
+
+    impl Lagrangian<2> for Coupled {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 2] = [false, false];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
+            let kinetic =
+                (v[0] * v[0] + (q[1] * q[1] * 0.3 + 1.0) * v[1] * v[1]) * 0.5 + v[0] * v[1] * (q[0] - q[1]).cos() * 0.4;
+            kinetic + t.sin() * q[0] - (q[1] * 0.2).exp() + q[0].cos() * 2.0 / (q[1] * q[1] + 1.5).sqrt()
+        }
+    }
+
+    const SEG: Segment<2> = Segment { t0: 0.7, h: 0.03, q0: [1.1, -0.4], dq: [0.021, 0.013] };
+
+    /// The array evaluations against one scalar hyper-dual (or dual)
+    /// evaluation per entry: equal bit for bit.
+    fn agree<M: DiscreteLagrangian>(method: &M) {
+        let (s, seg) = (&Coupled, &SEG);
+        let scalar = |a: Var, b: Var| hyper_action(s, method, seg, a, b);
+
+        let d = step_derivatives(s, method, seg);
+        for i in 0..2 {
+            for j in 0..2 {
+                let x = scalar(Var::Q0(i), Var::Q1(j));
+                assert_eq!((d.action, d.d_q0[i], d.d_q1[j], d.d2_q0_q1[(i, j)]), (x.re, x.eps1, x.eps2, x.eps1eps2));
+            }
+        }
+
+        let e = extended_step_derivatives(s, method, seg);
+        for i in 0..=2 {
+            for j in 0..=2 {
+                let x = scalar(start_var::<2>(i), end_var::<2>(j));
+                let (d1, d2) = match (i < 2, j < 2) {
+                    (true, true) => (e.d_q0[i], e.d2_q0_q1[(i, j)]),
+                    (true, false) => (e.d_q0[i], e.d2_q0_t1[i]),
+                    (false, true) => (e.d_t0, e.d2_t0_q1[j]),
+                    (false, false) => (e.d_t0, e.d2_t0_t1),
+                };
+                assert_eq!((d1, d2), (x.eps1, x.eps1eps2), "({i}, {j})");
+            }
+        }
+
+        let (p, d_t1) = end_gradient(s, method, seg);
+        assert_eq!(p, end_momentum(s, method, seg));
+        assert_eq!(p, [0, 1].map(|j| dual_action(s, method, seg, Var::Q1(j)).eps));
+        assert_eq!(d_t1, dual_action(s, method, seg, Var::T1).eps);
+        assert_eq!(d_t1, end_time_derivative(s, method, seg));
+
+        let g = action_gradient(s, method, seg);
+        let times = scalar(Var::T0, Var::T1);
+        assert_eq!((g.action, g.d_t0, g.d_t1), (times.re, times.eps1, times.eps2));
+        for i in 0..2 {
+            let x = scalar(Var::Q0(i), Var::Q1(i));
+            assert_eq!((g.d_q0[i], g.d_q1[i]), (x.eps1, x.eps2));
+        }
+
+        let (h00, h01, h11) = position_hessian(s, method, seg);
+        let (x00, x01, x11) = extended_hessian(s, method, seg);
+        let time_first = |i: usize, q: fn(usize) -> Var, t: Var| if i == 0 { t } else { q(i - 1) };
+        for i in 0..2 {
+            for j in 0..2 {
+                assert_eq!(h00[(i, j)], scalar(Var::Q0(i), Var::Q0(j)).eps1eps2);
+                assert_eq!(h01[(i, j)], scalar(Var::Q0(i), Var::Q1(j)).eps1eps2);
+                assert_eq!(h11[(i, j)], scalar(Var::Q1(i), Var::Q1(j)).eps1eps2);
+            }
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                let (s0, s1) = (|i| time_first(i, Var::Q0, Var::T0), |i| time_first(i, Var::Q1, Var::T1));
+                assert_eq!(x00[(i, j)], scalar(s0(i), s0(j)).eps1eps2);
+                assert_eq!(x01[(i, j)], scalar(s0(i), s1(j)).eps1eps2);
+                assert_eq!(x11[(i, j)], scalar(s1(i), s1(j)).eps1eps2);
+            }
+        }
+    }
+
+    #[test]
+    fn array_evaluations_equal_scalar_ones_bit_for_bit() {
+        agree(&Midpoint);
+        agree(&Trapezoid);
+        agree(&AlphaBeta::new(0.3).unwrap());
+    }
 }

@@ -535,10 +535,12 @@ fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
     if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
 }
 
+#[inline]
 fn max_abs(x: &[f64]) -> f64 {
     x.iter().fold(0.0, |m, v| m.max(v.abs()))
 }
 
+#[inline]
 fn all_finite(x: &[f64]) -> bool {
     x.iter().all(|v| v.is_finite())
 }

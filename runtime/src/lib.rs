@@ -10,6 +10,7 @@ pub mod derivatives;
 pub mod discrete;
 mod error;
 pub mod forcing;
+pub mod hyperdual;
 mod integrator;
 pub mod mechanics;
 pub mod newton;

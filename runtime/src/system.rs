@@ -12,8 +12,10 @@ use crate::noether::Symmetry;
 /// num-dual's dual numbers over `f64`.
 ///
 /// Generated code is generic over this trait, so one body serves plain
-/// evaluation, first derivatives ([`Dual64`](num_dual::Dual64)) and the mixed
-/// second derivatives of the one-step map ([`HyperDual64`](num_dual::HyperDual64)).
+/// evaluation, first derivatives ([`Dual64`](num_dual::Dual64),
+/// [`DualArray`](crate::hyperdual::DualArray)) and the mixed second
+/// derivatives of the one-step map ([`HyperDual64`](num_dual::HyperDual64),
+/// [`HyperDualArray`](crate::hyperdual::HyperDualArray)).
 pub trait Scalar: DualNum<Primitive = f64> + Copy {}
 
 impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}

@@ -8,7 +8,7 @@
 //! `α ≠ ½`, order 2 at `α = ½` (where it is [`Midpoint`](super::Midpoint)).
 //! `α = 1` and `α = 0` are the two symplectic Euler methods.
 
-use super::{DiscreteLagrangian, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::system::{Lagrangian, Scalar};
 
 /// The α-β discrete Lagrangian `A = h L(t_k + βh, α q_k + β q_{k+1}, v̂)`, `β = 1 − α`.
@@ -55,7 +55,7 @@ impl DiscreteLagrangian for AlphaBeta {
         let beta = 1.0 - self.alpha;
         let v = secant_velocity(&dq, h);
         // α q_k + β q_{k+1} = q_k + β dq
-        let q = core::array::from_fn(|i| q0[i] + dq[i] * beta);
+        let q = array(|i| q0[i] + dq[i] * beta);
         system.lagrangian(t0 + h * beta, q, v) * h
     }
 

@@ -11,7 +11,7 @@
 //! Forces use the trait's default, the same midpoint rule:
 //! `F_k^− = F_k^+ = (h/2) F(t_k + h/2, (q_k + q_{k+1})/2, v̂)` (MATH.md §6).
 
-use super::{DiscreteLagrangian, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::system::{Lagrangian, Scalar};
 
 /// The midpoint rule: `A = h L(t_k + h/2, (q_k+q_{k+1})/2, (q_{k+1}−q_k)/h)`. Order 2.
@@ -30,7 +30,7 @@ impl DiscreteLagrangian for Midpoint {
         D: Scalar,
     {
         let v = secant_velocity(&dq, h);
-        let q_mid = core::array::from_fn(|i| q0[i] + dq[i] * 0.5);
+        let q_mid = array(|i| q0[i] + dq[i] * 0.5);
         system.lagrangian(t0 + h * 0.5, q_mid, v) * h
     }
 }

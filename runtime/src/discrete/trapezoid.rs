@@ -9,7 +9,7 @@
 //! Störmer–Verlet method and its update is explicit (Newton converges in one
 //! iteration).
 
-use super::{DiscreteLagrangian, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::forcing::generalized_force;
 use crate::system::{Lagrangian, Scalar};
 
@@ -29,7 +29,7 @@ impl DiscreteLagrangian for Trapezoid {
         D: Scalar,
     {
         let v = secant_velocity(&dq, h);
-        let q1 = core::array::from_fn(|i| q0[i] + dq[i]);
+        let q1 = array(|i| q0[i] + dq[i]);
         (system.lagrangian(t0, q0, v) + system.lagrangian(t0 + h, q1, v)) * (h * 0.5)
     }
 

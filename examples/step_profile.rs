@@ -1,0 +1,89 @@
+//! A fixed number of steps of one benchmark case, for instruction counts that
+//! do not depend on the load of the machine:
+//!
+//! ```text
+//! cargo build --release --example step_profile
+//! valgrind --tool=callgrind target/release/examples/step_profile "double pendulum" midpoint 20000
+//! ```
+//!
+//! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
+//! `variable` (energy-preserving midpoint, from the start of the bench's
+//! variable-step group), or `hand` (the hand-written midpoint of the bench).
+#![allow(missing_docs)]
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+#[path = "../benches/handwritten/mod.rs"]
+mod handwritten;
+
+use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
+use handwritten::*;
+use lagrangian::{Integrator, Midpoint, StepBounds, Trapezoid};
+use std::hint::black_box;
+
+const H: f64 = 0.01;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let (case, method, n) = (args[1].as_str(), args[2].as_str(), args[3].parse::<usize>().unwrap());
+    let start = std::time::Instant::now();
+    let q = match (case, method) {
+        ("pendulum", "hand") => {
+            let mut s = PendulumMidpoint::new(PendulumParams { a: P.m * P.l * P.l, d: P.m * P.g * P.l }, H, 1.0, 0.0);
+            (0..n).for_each(|_| s.step().unwrap());
+            vec![s.q]
+        }
+        ("pendulum", "midpoint") => run(Integrator::new(Pendulum { ..P }, Midpoint, H).start(0.0, [1.0], [0.0]), n),
+        ("pendulum", "trapezoid") => run(Integrator::new(Pendulum { ..P }, Trapezoid, H).start(0.0, [1.0], [0.0]), n),
+        ("pendulum", "variable") => run(
+            Integrator::new(Pendulum { ..P }, Midpoint, H).energy_preserving(StepBounds::around(H)).start(
+                0.0,
+                [1.0],
+                [0.0],
+            ),
+            n,
+        ),
+        ("double pendulum", "hand") => {
+            let p = DoubleParams {
+                a: (DP.m1 + DP.m2) * DP.l1 * DP.l1,
+                b: DP.m2 * DP.l2 * DP.l2,
+                c: DP.m2 * DP.l1 * DP.l2,
+                d: (DP.m1 + DP.m2) * DP.g * DP.l1,
+                e: DP.m2 * DP.g * DP.l2,
+            };
+            let mut s = DoubleStepper::new(p, DoubleMethod::Midpoint, H, [1.0, -0.5], [0.0, 0.5]);
+            (0..n).for_each(|_| s.step().unwrap());
+            s.q.to_vec()
+        }
+        ("double pendulum", "midpoint") => {
+            run(Integrator::new(DoublePendulum { ..DP }, Midpoint, H).start(0.0, [1.0, -0.5], [0.0, 0.5]), n)
+        }
+        ("double pendulum", "trapezoid") => {
+            run(Integrator::new(DoublePendulum { ..DP }, Trapezoid, H).start(0.0, [1.0, -0.5], [0.0, 0.5]), n)
+        }
+        ("double pendulum", "variable") => run(
+            Integrator::new(DoublePendulum { ..DP }, Midpoint, H).energy_preserving(StepBounds::around(H)).start(
+                0.0,
+                [0.5, 0.3],
+                [0.0, 0.0],
+            ),
+            n,
+        ),
+        _ => panic!("unknown case {case:?} {method:?}"),
+    };
+    let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
+    println!("{ns:.1} ns/step, q = {:?}", black_box(q));
+}
+
+fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::DiscreteLagrangian, const N: usize>(
+    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error<N>>,
+    n: usize,
+) -> Vec<f64> {
+    let mut sim = sim.unwrap();
+    for _ in 0..n {
+        black_box(sim.step().unwrap());
+    }
+    let s = sim.stats();
+    eprintln!("newton iterations per step: {:.3}", s.newton_iterations as f64 / s.steps as f64);
+    sim.state().q.to_vec()
+}
