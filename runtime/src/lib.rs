@@ -9,6 +9,7 @@
 pub mod derivatives;
 pub mod discrete;
 mod error;
+pub mod galerkin;
 mod integrator;
 pub mod mechanics;
 pub mod newton;
@@ -19,6 +20,7 @@ pub mod system;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
 pub use error::Error;
+pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
