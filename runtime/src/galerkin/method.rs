@@ -74,7 +74,9 @@ pub struct Galerkin<const S: usize, const R: usize> {
     quadrature: Quadrature<R>,
     /// Control nodes `τ_1 … τ_s` (`τ_0 = 0`).
     pub(crate) control: [f64; S],
-    /// `ℓ_0 … ℓ_{s−1}` at `c_j`: the basis of the equations (rows) of a step.
+    /// `ℓ_0 … ℓ_{s−1}` at `c_j`: the basis of the equations (rows) of a step,
+    /// with `ℓ_0 = 1 − Σ_{m≥1} ℓ_m` (used for the Jacobian only; the residual
+    /// of the `q_k` row is formed as `∂A/∂q_k|_D − Σ_m ∂A/∂D_m`).
     pub(crate) row: [[f64; S]; R],
     /// `ℓ_0' … ℓ_{s−1}'` at `c_j`.
     pub(crate) row_d: [[f64; S]; R],
@@ -113,10 +115,19 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         }
         for (j, &c) in quadrature.nodes().iter().enumerate() {
             for m in 0..S {
-                g.row[j][m] = lagrange(&x, m, c);
-                g.row_d[j][m] = lagrange_derivative(&x, m, c);
                 g.col[j][m] = lagrange(&x, m + 1, c);
                 g.col_d[j][m] = lagrange_derivative(&x, m + 1, c);
+            }
+            // ℓ_0 = 1 − Σ_{m≥1} ℓ_m exactly as the increment form uses it, not
+            // as the product formula rounds it: the derivative in q_k must be
+            // the derivative of the same action, or the map is not symplectic
+            // to round-off and the energy drifts (measured: 5e-10 phase error
+            // on Kepler over ten orbits with s = 6 before this).
+            g.row[j][0] = 1.0 - g.col[j].iter().sum::<f64>();
+            g.row_d[j][0] = -g.col_d[j].iter().sum::<f64>();
+            for m in 1..S {
+                g.row[j][m] = g.col[j][m - 1];
+                g.row_d[j][m] = g.col_d[j][m - 1];
             }
         }
         for m in 0..S {
@@ -215,16 +226,21 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         for j in 0..R {
             let (t, q, v) = self.point(t0, h, (&q0, &[0.0; N]), d, j);
             let (lq, lv) = gradient_at(system, t, q, v);
-            let b = self.quadrature.weights()[j];
-            let (r0, r0d) = (self.row[j][0], self.row_d[j][0]);
+            let w = self.quadrature.weights()[j] * h;
+            // ∂A/∂Q_0 = ∂A/∂q_k at fixed increments − Σ_m ∂A/∂D_m.
             for i in 0..N {
-                g0[i] += b * (h * r0 * lq[i] + r0d * lv[i]);
+                g0[i] += w * lq[i];
             }
             for m in 0..S {
                 let (c, cd) = (self.col[j][m], self.col_d[j][m]);
                 for i in 0..N {
-                    g[m][i] += b * (h * c * lq[i] + cd * lv[i]);
+                    g[m][i] += w * (c * lq[i]) + w * (cd * (lv[i] / h));
                 }
+            }
+        }
+        for gm in &g {
+            for i in 0..N {
+                g0[i] -= gm[i];
             }
         }
         (g0, g)
@@ -283,7 +299,6 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         d: &[[f64; N]; S],
         j: usize,
     ) -> (f64, [f64; N], [f64; N]) {
-        let inv_h = 1.0 / h;
         let (col, col_d) = (&self.col[j], &self.col_d[j]);
         let q = core::array::from_fn(|i| {
             let mut x = e[i];
@@ -297,7 +312,9 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
             for m in 0..S {
                 x += col_d[m] * d[m][i];
             }
-            x * inv_h
+            // Divided, not multiplied by a rounded 1/h: ∂v/∂D_m = ℓ_m'/h then
+            // holds without a systematic relative error.
+            x / h
         });
         (t0 + self.quadrature.nodes()[j] * h, q, v)
     }

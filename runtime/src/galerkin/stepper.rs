@@ -93,6 +93,7 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
             newton: self.newton,
             state: State { step: 0, t: t0, q: q0, p: p0 },
             carry: [0.0; N],
+            p_carry: [0.0; N],
             last: None,
             v0,
             clock: (t0, 0),
@@ -144,6 +145,8 @@ pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usiz
     state: State<N>,
     /// Kahan compensation: the position is `state.q + carry`.
     carry: [f64; N],
+    /// Kahan compensation of the momentum: it is `state.p + p_carry`.
+    p_carry: [f64; N],
     last: Option<LastStep<N, S>>,
     v0: [f64; N],
     /// `(t, step)` that `t_k = t + (k − step) h` is measured from.
@@ -323,30 +326,33 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         let e = self.carry;
         let guess = Nodes(self.predict(h));
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
-        let linearize = |x: &Nodes<N, S>| linearize(system, g, t0, h, (&q0, &e), &p0, &x.0, min_rcond);
+        let pc = self.p_carry;
+        let linearize = |x: &Nodes<N, S>| linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond);
         let (d, report) = match newton::solve(guess, &self.newton, linearize) {
             Ok((x, report)) => (x.0, report),
             Err(failure) => return Err(self.fail(h, failure)),
         };
-        // p_{k+1} = ∂A/∂Q_s at the solution.
-        let mut p1 = [0.0; N];
+        // p_{k+1} = ∂A/∂Q_s at the solution, which by the q_k row equals
+        // p_k + Δp with Δp = ∂A/∂q_k|_D − Σ_{interior m} ∂A/∂D_m (the impulse of
+        // the step). Summed as p_k + Δp with Kahan's compensation, like q:
+        // the rounding of p then grows like ε|Δp| = O(εh) per step instead of
+        // ε|p|, and so does the energy error it causes (Brouwer's law).
+        let mut dp = [0.0; N];
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
             let (lq, lv) = gradient_at(system, t, q, v);
-            let b = g.quadrature().weights()[j];
-            let (c, cd) = (g.col[j][S - 1], g.col_d[j][S - 1]);
+            let w = g.quadrature().weights()[j] * h;
             for i in 0..N {
-                p1[i] += b * (h * c * lq[i] + cd * lv[i]);
+                let mut x = w * lq[i];
+                for m in 0..S - 1 {
+                    x -= w * (g.col[j][m] * lq[i]) + w * (g.col_d[j][m] * (lv[i] / h));
+                }
+                dp[i] += x;
             }
         }
+        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
         // q_{k+1} = (q_k + e_k) + D_s, Kahan-summed.
-        let mut q1 = [0.0; N];
-        let mut carry = [0.0; N];
-        for i in 0..N {
-            let u = e[i] + d[S - 1][i];
-            q1[i] = q0[i] + u;
-            carry[i] = u - (q1[i] - q0[i]);
-        }
+        let (q1, carry) = kahan(&q0, &e, &d[S - 1]);
         if !all_finite(&q1) || !all_finite(&p1) {
             let quantity = if all_finite(&q1) { "momentum" } else { "position" };
             self.stats.failed_steps += 1;
@@ -354,6 +360,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         }
         self.last = Some(LastStep { t0, h, q0, carry: e, d });
         self.carry = carry;
+        self.p_carry = p_carry;
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
@@ -441,7 +448,7 @@ fn linearize<Sys, const N: usize, const S: usize, const R: usize>(
     t0: f64,
     h: f64,
     base: (&[f64; N], &[f64; N]),
-    p0: &[f64; N],
+    (p0, pc): (&[f64; N], &[f64; N]),
     d: &BlockVector<N, S>,
     min_rcond: f64,
 ) -> Result<Linearization<Nodes<N, S>>, Breakdown>
@@ -450,22 +457,36 @@ where
 {
     let inv_h = 1.0 / h;
     let mut r: BlockVector<N, S> = [[0.0; N]; S];
-    r[0] = *p0;
     // Size of the terms that cancel in each block row.
     let mut scale = [0.0; S];
     scale[0] = max_abs(p0);
     let mut jac: BlockMatrix<N, S> = [[[[0.0; N]; S]; N]; S];
+    let mut direct = [0.0; N];
+    let mut grad: BlockVector<N, S> = [[0.0; N]; S];
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
         let pd = PointDerivatives::at(system, t, q, v);
         let b = g.quadrature().weights()[j];
         let (row, row_d, col, col_d) = (&g.row[j], &g.row_d[j], &g.col[j], &g.col_d[j]);
-        for rho in 0..S {
-            let (a, ad) = (b * h * row[rho], b * row_d[rho]);
+        // The weight w = b h is rounded once and shared by every row, and the
+        // coefficients of the basis are not premultiplied: all rows are then
+        // derivatives of the same action Σ w_j L, whatever the rounding.
+        let w = b * h;
+        let lv_h: [f64; N] = core::array::from_fn(|i| pd.v[i] / h);
+        // ∂A/∂q_k at fixed increments.
+        for i in 0..N {
+            let x = w * pd.q[i];
+            direct[i] += x;
+            scale[0] = f64::max(scale[0], x.abs());
+        }
+        // ∂A/∂D_m for the nodes m = 1 … s.
+        for m in 0..S {
+            let (c, cd) = (col[m], col_d[m]);
             for i in 0..N {
-                let (x, y) = (a * pd.q[i], ad * pd.v[i]);
-                r[rho][i] += x + y;
-                scale[rho] = f64::max(scale[rho], x.abs() + y.abs());
+                let (x, y) = (w * (c * pd.q[i]), w * (cd * lv_h[i]));
+                grad[m][i] += x + y;
+                let k = if m + 1 < S { m + 1 } else { 0 };
+                scale[k] = f64::max(scale[k], x.abs() + y.abs());
             }
         }
         for n in 0..S {
@@ -489,6 +510,20 @@ where
             }
         }
     }
+    // Rows: p_k + ∂A/∂Q_0 = p_k + ∂A/∂q_k|_D − Σ_m ∂A/∂D_m, then ∂A/∂D_m for
+    // the interior nodes. Formed this way, the q_k row is the derivative of
+    // exactly the action the other rows differentiate (see `Galerkin::new`).
+    for i in 0..N {
+        // (p_k − ∂A/∂D_s) + (compensation + ∂A/∂q_k|_D − Σ_interior ∂A/∂D_m)
+        let mut x = pc[i] + direct[i];
+        for gm in &grad[..S - 1] {
+            x -= gm[i];
+        }
+        r[0][i] = (p0[i] - grad[S - 1][i]) + x;
+    }
+    for rho in 1..S {
+        r[rho] = grad[rho - 1];
+    }
     if !r.as_flattened().iter().all(|x| x.is_finite()) {
         return Err(Breakdown::NonFinite("residual"));
     }
@@ -507,6 +542,19 @@ where
         residual_ratio = residual_ratio.max(max_abs(&r[rho]) / scale[rho]);
     }
     Ok(Linearization { correction, residual_norm: max_abs(r.as_flattened()), residual_ratio })
+}
+
+/// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
+#[inline(always)]
+fn kahan<const N: usize>(a: &[f64; N], c: &[f64; N], b: &[f64; N]) -> ([f64; N], [f64; N]) {
+    let mut sum = [0.0; N];
+    let mut carry = [0.0; N];
+    for i in 0..N {
+        let u = c[i] + b[i];
+        sum[i] = a[i] + u;
+        carry[i] = u - (sum[i] - a[i]);
+    }
+    (sum, carry)
 }
 
 fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
