@@ -324,30 +324,42 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
-        let guess = Nodes(self.predict(h));
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
         let linearize = |x: &Nodes<N, S>| linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond);
-        let (d, report) = match newton::solve(guess, &self.newton, linearize) {
+        // First guess: the last polynomial extrapolated. If Newton fails from
+        // there (a large step, a fast change), once more from the straight line
+        // at the last secant velocity (at v0 for the first step) before giving up.
+        let solved = match newton::solve(Nodes(self.predict(h)), &self.newton, linearize) {
+            Ok(done) => Ok(done),
+            Err(first) => {
+                let v = match &self.last {
+                    Some(last) => last.d[S - 1].map(|x| x / last.h),
+                    None => self.v0,
+                };
+                let line = Nodes(g.control.map(|tau| v.map(|v| v * tau * h)));
+                newton::solve(line, &self.newton, linearize).map_err(|_| first)
+            }
+        };
+        let (d, report) = match solved {
             Ok((x, report)) => (x.0, report),
             Err(failure) => return Err(self.fail(h, failure)),
         };
-        // p_{k+1} = ∂A/∂Q_s at the solution, which by the q_k row equals
-        // p_k + Δp with Δp = ∂A/∂q_k|_D − Σ_{interior m} ∂A/∂D_m (the impulse of
-        // the step). Summed as p_k + Δp with Kahan's compensation, like q:
-        // the rounding of p then grows like ε|Δp| = O(εh) per step instead of
-        // ε|p|, and so does the energy error it causes (Brouwer's law).
+        // p_{k+1} = ∂A/∂Q_s at the solution, which the q_k row and the
+        // interior rows turn into the momentum balance
+        //     p_{k+1} = p_k + ∂A/∂q_k|_D = p_k + h Σ_j b_j ∂L/∂q(c_j)
+        // (the update of the equivalent partitioned Runge–Kutta method). Taken
+        // in this form, the momentum of a cyclic coordinate is conserved
+        // exactly (its ∂L/∂q is zero) instead of up to the round-off of the
+        // interior rows, and summed with Kahan's compensation like q, the
+        // rounding of p grows like ε|Δp| = O(εh) per step instead of ε|p|.
         let mut dp = [0.0; N];
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
-            let (lq, lv) = gradient_at(system, t, q, v);
+            let (lq, _) = gradient_at(system, t, q, v);
             let w = g.quadrature().weights()[j] * h;
             for i in 0..N {
-                let mut x = w * lq[i];
-                for m in 0..S - 1 {
-                    x -= w * (g.col[j][m] * lq[i]) + w * (g.col_d[j][m] * (lv[i] / h));
-                }
-                dp[i] += x;
+                dp[i] += w * lq[i];
             }
         }
         let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
