@@ -53,8 +53,9 @@ fn invalid_step_sizes_and_initial_data_are_refused() {
         .start(0.0, [f64::NAN], [0.0])
         .unwrap_err();
     assert!(matches!(err, Error::InvalidInitialData { .. }), "{err}");
-    let mut sim =
-        GalerkinIntegrator::new(Pendulum { ..PENDULUM }, Galerkin::<2, 2>::gauss(), 0.1).start(0.0, [0.1], [0.0]).unwrap();
+    let mut sim = GalerkinIntegrator::new(Pendulum { ..PENDULUM }, Galerkin::<2, 2>::gauss(), 0.1)
+        .start(0.0, [0.1], [0.0])
+        .unwrap();
     assert!(matches!(sim.set_step_size(-1.0), Err(Error::InvalidStepSize { .. })));
     assert_eq!(sim.step_size(), 0.1);
     assert!(matches!(sim.run_until(-1.0, |_| {}), Err(Error::InvalidTarget { .. })));
@@ -112,8 +113,9 @@ fn newton_failure_keeps_the_state_and_a_smaller_step_recovers() {
 
 #[test]
 fn run_until_lands_on_the_target() {
-    let mut sim =
-        GalerkinIntegrator::new(Pendulum { ..PENDULUM }, Galerkin::<4, 4>::gauss(), 0.3).start(0.0, [1.0], [0.0]).unwrap();
+    let mut sim = GalerkinIntegrator::new(Pendulum { ..PENDULUM }, Galerkin::<4, 4>::gauss(), 0.3)
+        .start(0.0, [1.0], [0.0])
+        .unwrap();
     sim.run_until(10.0, |_| {}).unwrap();
     assert_eq!(sim.state().t, 10.0);
     assert_eq!(sim.step_size(), 0.3);

@@ -48,7 +48,8 @@ fn final_q<Sys: Lagrangian<N>, const N: usize, const S: usize>(
     q0: [f64; N],
     v0: [f64; N],
 ) -> [f64; N] {
-    let mut sim = GalerkinIntegrator::new(system, Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0).unwrap();
+    let mut sim =
+        GalerkinIntegrator::new(system, Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0).unwrap();
     sim.run(n, |_| {}).unwrap();
     assert!((sim.state().t - t_end).abs() <= 1e-12 * t_end);
     sim.state().q
@@ -139,7 +140,10 @@ fn degrees_seven_and_eight_show_orders_14_and_16_on_the_pendulum() {
         [(7, small_amplitude_order::<7>(0.01, 1e5, 1.3, 1.9)), (8, small_amplitude_order::<8>(0.01, 1e5, 1.9, 2.5))]
     {
         let want = 2.0 * s as f64;
-        assert!((fitted - want).abs() <= 0.5, "s = {s}: fitted order {fitted:.3}, want {want} ± 0.5; errors {errors:?}");
+        assert!(
+            (fitted - want).abs() <= 0.5,
+            "s = {s}: fitted order {fitted:.3}, want {want} ± 0.5; errors {errors:?}"
+        );
         println!("pendulum θ0 = 0.01, s = {s}: fitted order {fitted:.3}, errors {:.1e} … {:.1e}", errors[0], errors[4]);
     }
 }

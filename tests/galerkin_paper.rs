@@ -87,7 +87,8 @@ fn quadratic_element_stepper_satisfies_2_49_to_2_51_with_a_potential() {
     let [[q_kp_half], [q_kp1]] = sim.last_nodes().unwrap();
     // M_mn = ∫₀¹ φ_m φ_n for the nodes 0, ½, 1.
     let m = [[4.0, 2.0, -1.0], [2.0, 16.0, 2.0], [-1.0, 2.0, 4.0]].map(|r| r.map(|x| x / 30.0));
-    let grad_g = |a: f64, b: f64, c: f64| core::array::from_fn::<f64, 3, _>(|i| m[i][0] * a + m[i][1] * b + m[i][2] * c);
+    let grad_g =
+        |a: f64, b: f64, c: f64| core::array::from_fn::<f64, 3, _>(|i| m[i][0] * a + m[i][1] * b + m[i][2] * c);
     let d1 = grad_g(q_k, q_kp_half, q_kp1)[0];
     let d2 = grad_g(q_km1, q_km_half, q_k)[2];
     let stencil = (q_km1 - 8.0 * q_km_half + 14.0 * q_k - 8.0 * q_kp_half + q_kp1) / (3.0 * h * h);
@@ -190,10 +191,8 @@ fn gauss_lobatto_quadrature_with_s_plus_1_points_has_order_2s() {
     let steps3 = [254usize, 302, 359, 427, 508];
     for (s, steps) in [(2usize, steps2), (3, steps3)] {
         let h: Vec<f64> = steps.iter().map(|&n| t / n as f64).collect();
-        let err: Vec<f64> = steps
-            .iter()
-            .map(|&n| (if s == 2 { run::<2, 3>(n, t) } else { run::<3, 4>(n, t) } - exact).abs())
-            .collect();
+        let err: Vec<f64> =
+            steps.iter().map(|&n| (if s == 2 { run::<2, 3>(n, t) } else { run::<3, 4>(n, t) } - exact).abs()).collect();
         let order = fitted_order(&h, &err);
         assert!((order - 2.0 * s as f64).abs() <= 0.15, "Lobatto s = {s}: order {order}, errors {err:?}");
     }

@@ -31,11 +31,20 @@ fn step_map_is_symplectic_to_round_off() {
         let cases = [
             ("pendulum s=2", worst_defect::<_, 1, 2>(Pendulum { ..PENDULUM }, h, [2.0], [0.0], 50)),
             ("pendulum s=4", worst_defect::<_, 1, 4>(Pendulum { ..PENDULUM }, h, [2.0], [0.0], 50)),
-            ("double pendulum s=2", worst_defect::<_, 2, 2>(DoublePendulum { ..DOUBLE_PENDULUM }, h, [1.0, -0.5], [0.0, 0.5], 50)),
-            ("double pendulum s=4", worst_defect::<_, 2, 4>(DoublePendulum { ..DOUBLE_PENDULUM }, h, [1.0, -0.5], [0.0, 0.5], 50)),
+            (
+                "double pendulum s=2",
+                worst_defect::<_, 2, 2>(DoublePendulum { ..DOUBLE_PENDULUM }, h, [1.0, -0.5], [0.0, 0.5], 50),
+            ),
+            (
+                "double pendulum s=4",
+                worst_defect::<_, 2, 4>(DoublePendulum { ..DOUBLE_PENDULUM }, h, [1.0, -0.5], [0.0, 0.5], 50),
+            ),
             ("kepler s=2", worst_defect::<_, 2, 2>(KeplerPolar { mu: 1.0 }, 0.5 * h, kq, kv, 50)),
             ("kepler s=4", worst_defect::<_, 2, 4>(KeplerPolar { mu: 1.0 }, 0.5 * h, kq, kv, 50)),
-            ("charged particle s=4", worst_defect::<_, 2, 4>(ChargedParticle { ..CHARGED }, h, [0.5, 0.0], [0.0, 0.8], 50)),
+            (
+                "charged particle s=4",
+                worst_defect::<_, 2, 4>(ChargedParticle { ..CHARGED }, h, [0.5, 0.0], [0.0, 0.8], 50),
+            ),
         ];
         for (name, d) in cases {
             println!("{name}, h = {h}: defect {d:.1e}");
@@ -110,7 +119,8 @@ fn energy_error_is_bounded_without_drift_over_1e5_steps() {
 #[test]
 fn kepler_angular_momentum_is_conserved_to_round_off_over_1e5_steps() {
     let (q0, v0) = kepler_start(0.5);
-    let mut sim = GalerkinIntegrator::new(KeplerPolar { mu: 1.0 }, Galerkin::<4, 4>::gauss(), 0.2).start(0.0, q0, v0).unwrap();
+    let mut sim =
+        GalerkinIntegrator::new(KeplerPolar { mu: 1.0 }, Galerkin::<4, 4>::gauss(), 0.2).start(0.0, q0, v0).unwrap();
     let l0 = sim.state().p[1];
     let mut worst = 0.0f64;
     sim.run(100_000, |s| worst = worst.max((s.state().p[1] - l0).abs() / l0)).unwrap();

@@ -326,19 +326,27 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         let e = self.carry;
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
-        let linearize = |x: &Nodes<N, S>| linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond);
+        // The condition estimate costs a few extra solves: made on the first
+        // iteration of each solve only (the Jacobian changes by O(correction)
+        // after it; an exactly singular one still stops the LU).
+        let first = core::cell::Cell::new(true);
+        let linearize = |x: &Nodes<N, S>| {
+            let check = if first.replace(false) { min_rcond } else { 0.0 };
+            linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, check)
+        };
         // First guess: the last polynomial extrapolated. If Newton fails from
         // there (a large step, a fast change), once more from the straight line
         // at the last secant velocity (at v0 for the first step) before giving up.
-        let solved = match newton::solve(Nodes(self.predict(h)), &self.newton, linearize) {
+        let solved = match newton::solve(Nodes(self.predict(h)), &self.newton, &linearize) {
             Ok(done) => Ok(done),
-            Err(first) => {
+            Err(first_failure) => {
                 let v = match &self.last {
                     Some(last) => last.d[S - 1].map(|x| x / last.h),
                     None => self.v0,
                 };
                 let line = Nodes(g.control.map(|tau| v.map(|v| v * tau * h)));
-                newton::solve(line, &self.newton, linearize).map_err(|_| first)
+                first.set(true);
+                newton::solve(line, &self.newton, &linearize).map_err(|_| first_failure)
             }
         };
         let (d, report) = match solved {
@@ -543,9 +551,11 @@ where
         LuFailure::Singular => Breakdown::Singular(0.0),
         LuFailure::NonFinite => Breakdown::NonFinite("jacobian"),
     })?;
-    let rc = lu.rcond();
-    if rc.is_nan() || rc < min_rcond {
-        return Err(Breakdown::Singular(rc));
+    if min_rcond > 0.0 {
+        let rc = lu.rcond();
+        if rc.is_nan() || rc < min_rcond {
+            return Err(Breakdown::Singular(rc));
+        }
     }
     let x = lu.solve(&r);
     let correction = Nodes(x.map(|b| b.map(|v| -v)));
