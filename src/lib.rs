@@ -157,6 +157,7 @@ pub mod prelude {
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, Error, Integrator, Lagrangian, Midpoint, NewtonOptions,
         Scalar, State, Trapezoid,
     };
+    pub use lagrangian_runtime::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
