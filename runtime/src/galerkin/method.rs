@@ -110,9 +110,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
             return g;
         }
         let x = family.nodes(S);
-        for m in 0..S {
-            g.control[m] = x[m + 1];
-        }
+        g.control.copy_from_slice(&x[1..=S]);
         for (j, &c) in quadrature.nodes().iter().enumerate() {
             for m in 0..S {
                 g.col[j][m] = lagrange(&x, m + 1, c);

@@ -178,7 +178,7 @@ pub(crate) fn gauss_lobatto_into(nodes: &mut [f64], weights: &mut [f64]) {
         weights[i] = w;
         weights[n - i] = w;
     }
-    if n % 2 == 0 {
+    if n.is_multiple_of(2) {
         let (p, _) = legendre(n, 0.0);
         nodes[n / 2] = 0.5;
         weights[n / 2] = scale / (p * p);

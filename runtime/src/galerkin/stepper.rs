@@ -541,9 +541,7 @@ where
         }
         r[0][i] = (p0[i] - grad[S - 1][i]) + x;
     }
-    for rho in 1..S {
-        r[rho] = grad[rho - 1];
-    }
+    r[1..].copy_from_slice(&grad[..S - 1]);
     if !r.as_flattened().iter().all(|x| x.is_finite()) {
         return Err(Breakdown::NonFinite("residual"));
     }
