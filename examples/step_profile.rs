@@ -8,7 +8,10 @@
 //!
 //! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
 //! `variable` (energy-preserving midpoint, from the start of the bench's
-//! variable-step group), or `hand` (the hand-written midpoint of the bench).
+//! variable-step group), `hand` (the hand-written midpoint of the bench) or
+//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else).
+//! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
+//! which is steadier on a shared machine.
 #![allow(missing_docs)]
 
 #[path = "../tests/common/mod.rs"]
@@ -18,7 +21,8 @@ mod handwritten;
 
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 use handwritten::*;
-use lagrangian::{Integrator, Midpoint, StepBounds, Trapezoid};
+use lagrangian::derivatives::step_derivatives;
+use lagrangian::{Integrator, Midpoint, Segment, StepBounds, Trapezoid};
 use std::hint::black_box;
 
 const H: f64 = 0.01;
@@ -69,6 +73,23 @@ fn main() {
             ),
             n,
         ),
+        (_, "derivatives") => {
+            // The derivative evaluation alone: one `step_derivatives` (residual
+            // part, momentum, Jacobian) per "step", at nearby segments (every input
+            // varies, so that nothing is hoisted out of the loop).
+            let mut acc = 0.0;
+            for k in 0..n {
+                let x = black_box(1e-9 * k as f64);
+                acc += if case == "pendulum" {
+                    let seg = Segment { t0: 0.0, h: H, q0: [1.0 + x], dq: [0.001 + x] };
+                    step_derivatives(&Pendulum { ..P }, &Midpoint, &seg).d2_q0_q1[0]
+                } else {
+                    let seg = Segment { t0: 0.0, h: H, q0: [1.0 + x, -0.5 - x], dq: [0.001 + x, 0.002 - x] };
+                    step_derivatives(&DoublePendulum { ..DP }, &Midpoint, &seg).d2_q0_q1[(0, 1)]
+                };
+            }
+            vec![acc]
+        }
         _ => panic!("unknown case {case:?} {method:?}"),
     };
     let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
