@@ -79,6 +79,67 @@
 //! assert!((parts.d2[0] * 0.1 - d.d_q0[0]).abs() < 1e-12);
 //! ```
 //!
+//! ## Forces, dissipation and symmetries
+//!
+//! Two optional methods add non-conservative forces (MATH.md §6): a Rayleigh
+//! dissipation function `fn dissipation(&self, q, v) -> f64`, whose force
+//! `−∂R/∂v` is taken with dual numbers, and applied forces or electromotive
+//! forces `fn force(&self, [t,] q, v) -> [f64; N]`. The integrator then solves
+//! the discrete Lagrange–d'Alembert equations, with each discrete Lagrangian's
+//! own quadrature for the forces ([`DiscreteLagrangian::forces`]), and reports
+//! the discrete energy balance ([`Integrator::energy_balance`], see
+//! [`forcing`]). Symmetries are declared as [`Symmetry`] values or closures
+//! `ξ(q)`; their discrete momentum maps change by exactly the forcing impulse
+//! of each step ([`noether`]):
+//!
+//! ```
+//! use lagrangian::prelude::*;
+//! use lagrangian::Symmetry;
+//!
+//! /// A series RLC circuit with a battery; the charge q is the coordinate.
+//! struct Rlc { l: f64, r: f64, c: f64, e: f64 }
+//!
+//! #[lagrangian]
+//! impl Rlc {
+//!     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+//!         0.5 * self.l * v[0] * v[0] - 0.5 * q[0] * q[0] / self.c
+//!     }
+//!     fn dissipation(&self, _q: [f64; 1], v: [f64; 1]) -> f64 {
+//!         0.5 * self.r * v[0] * v[0]
+//!     }
+//!     fn force(&self, _q: [f64; 1], _v: [f64; 1]) -> [f64; 1] {
+//!         [self.e]
+//!     }
+//! }
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let mut sim = Integrator::new(Rlc { l: 0.5, r: 2.0, c: 0.01, e: 9.0 }, Midpoint, 1e-3).start(0.0, [0.0], [0.0])?;
+//! sim.run(5_000, |s| {
+//!     // E_{k+1} − E_k = W_k, the work of the battery and the resistor:
+//!     // exact (to round-off) for a quadratic L and the midpoint rule.
+//!     if let Some(balance) = s.energy_balance() {
+//!         assert!(balance.residual().abs() < 1e-12);
+//!     }
+//! })?;
+//! // The capacitor charges to C E.
+//! assert!((sim.state().q[0] - 0.01 * 9.0).abs() < 1e-4);
+//!
+//! // The momentum map of q ↦ q + ε, J = p, changes by the forcing impulse
+//! // of the step plus the symmetry defect: the capacitor breaks the symmetry.
+//! let translation = Symmetry::translation(0).unwrap();
+//! let before = sim.momentum_map(&translation);
+//! sim.step()?;
+//! let impulse = sim.forcing_impulse(&translation).unwrap();
+//! let step = sim.last_step().unwrap();
+//! let defect = lagrangian::noether::symmetry_defect(sim.system(), sim.method(), step, &translation);
+//! assert!((sim.momentum_map(&translation) - before - impulse - defect).abs() < 1e-12);
+//! # Ok(()) }
+//! ```
+//!
+//! A coordinate the macro proves cyclic gives a translation symmetry
+//! ([`Symmetry::cyclic`]). Variable, energy-preserving steps refuse systems
+//! with forces ([`Error::Unsupported`]): their energy is not conserved.
+//!
 //! ## Errors, not panics
 //!
 //! A step that fails (Newton does not converge, the Jacobian is singular, a
@@ -96,12 +157,13 @@ pub mod prelude {
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, Error, Integrator, Lagrangian, Midpoint, NewtonOptions,
         Scalar, State, Trapezoid,
     };
+    pub use lagrangian_runtime::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
-    pub use lagrangian_runtime::{Lagrangian, Scalar};
+    pub use lagrangian_runtime::{Lagrangian, Scalar, Symmetry};
 }
 
 /// The README's examples, compiled and run as doc tests.

@@ -3,21 +3,24 @@
 
 use crate::ctxt::Ctxt;
 use crate::parse::Input;
-use crate::{analyse, generate, validate};
+use crate::{analyse, attr, generate, validate};
 use proc_macro2::TokenStream;
 use syn::ItemImpl;
 
 /// Expands `#[lagrangian]` with arguments `attr` on `item`.
 pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
     let cx = Ctxt::new();
-    if !attr.is_empty() {
-        cx.error_spanned_by(&attr, "`#[lagrangian]` takes no arguments");
-    }
+    let symmetries = attr::parse(&cx, attr);
     let input = Input::from_syn(&item);
     let mut system = validate::validate(&cx, &input);
+    if let Some(system) = &system {
+        attr::check(&cx, &symmetries, &system.n);
+    }
     let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
     match (cx.check(), system, analysis) {
-        (Ok(()), Some(system), Some(analysis)) if analysis.consistent => generate::expand(&item, &system, &analysis),
+        (Ok(()), Some(system), Some(analysis)) if analysis.consistent => {
+            generate::expand(&item, &system, &analysis, &symmetries)
+        }
         // The body mixes types in a way rustc rejects on the user's own
         // method; generated code would only repeat that error.
         (Ok(()), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), None),

@@ -7,6 +7,7 @@
 //! compares and converts only through its real part.
 
 use crate::analyse::{Analysis, Cyclic};
+use crate::attr::SymmetryDecl;
 use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
 use crate::parse::{Len, MethodKind};
@@ -15,7 +16,12 @@ use quote::{ToTokens, quote, quote_spanned};
 use syn::{BinOp, ImplItem, ItemImpl, Type};
 
 /// The user's block followed by the trait impl.
-pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> TokenStream {
+pub(crate) fn expand(
+    item: &ItemImpl,
+    system: &System,
+    analysis: &Analysis,
+    symmetries: &[SymmetryDecl],
+) -> TokenStream {
     let user_impl = user_impl(item, None);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
     let self_ty = &item.self_ty;
@@ -24,6 +30,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> T
     let cyclic = cyclic(&system.n, &analysis.cyclic);
     let has_dissipation = system.dissipation.is_some().then(|| quote! { const HAS_DISSIPATION: bool = true; });
     let has_force = system.force.is_some().then(|| quote! { const HAS_FORCE: bool = true; });
+    let symmetries = declared_symmetries(&n, symmetries);
     let methods = std::iter::once(&system.lagrangian)
         .chain(&system.dissipation)
         .chain(&system.force)
@@ -40,6 +47,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis) -> T
             const CYCLIC: [bool; #n] = #cyclic;
             #has_dissipation
             #has_force
+            #symmetries
             #(#methods)*
         }
     }
@@ -93,6 +101,32 @@ fn user_impl(item: &ItemImpl, errors: Option<&Errors>) -> TokenStream {
 /// The generic parameter of the generated methods.
 fn scalar_type() -> Ident {
     Ident::new("__D", Span::call_site())
+}
+
+/// `const SYMMETRIES` for the declared symmetries, or nothing. The checked
+/// constructors run in the constant, so an index the macro could not check
+/// (a symbolic `N`) fails at compile time, at the index.
+fn declared_symmetries(n: &TokenStream, symmetries: &[SymmetryDecl]) -> Option<TokenStream> {
+    if symmetries.is_empty() {
+        return None;
+    }
+    let symmetry = quote!(::lagrangian::__private::Symmetry::<#n>);
+    let checked = |call: TokenStream, span: Span| {
+        quote_spanned! {span=>
+            match #call {
+                ::core::option::Option::Some(symmetry) => symmetry,
+                ::core::option::Option::None => ::core::panic!("symmetry index out of range"),
+            }
+        }
+    };
+    let items = symmetries.iter().map(|decl| match decl {
+        SymmetryDecl::Translation(i) => checked(quote!(#symmetry::translation(#i)), i.span()),
+        SymmetryDecl::Rotation(i, j) => checked(quote!(#symmetry::rotation(#i, #j)), j.span()),
+        SymmetryDecl::Generator(f) => quote!(#symmetry::generator(#f)),
+    });
+    Some(quote! {
+        const SYMMETRIES: &'static [::lagrangian::__private::Symmetry<#n>] = &[#(#items),*];
+    })
 }
 
 /// The value of `CYCLIC`.
@@ -528,7 +562,7 @@ mod tests {
         let mut system = crate::validate::validate(&cx, &Input::from_syn(item)).unwrap();
         let analysis = crate::analyse::analyse(&cx, &mut system);
         cx.check().unwrap();
-        expand(item, &system, &analysis).to_string()
+        expand(item, &system, &analysis, &[]).to_string()
     }
 
     /// The generated `lagrangian` body for a one-coordinate Lagrangian.

@@ -13,6 +13,7 @@
 //! `ctxt::Ctxt` so that all of them are reported at once.
 
 mod analyse;
+mod attr;
 mod ctxt;
 mod expand;
 mod generate;
@@ -53,6 +54,12 @@ use proc_macro::TokenStream;
 /// acosh atanh exp exp2 exp_m1 ln ln_1p log log2 log10 sqrt cbrt powi powf
 /// abs signum recip mul_add` (also written `f64::sin(x)`). Anything else is
 /// a compile error naming the construct.
+///
+/// Symmetries (MATH.md §7) can be declared in the attribute, for the
+/// runtime's `noether` module to follow their momentum maps:
+/// `#[lagrangian(symmetry = translation(i), symmetry = rotation(i, j),
+/// symmetry = generator(|q: &[f64; N]| [...]))]`. They become
+/// `Lagrangian::SYMMETRIES`; indices are checked against `N`.
 ///
 /// Values that do not depend on `t`, `q` or `v` stay `f64` in the generated
 /// code; only the others become dual numbers. `CYCLIC[i]` is `true` when the

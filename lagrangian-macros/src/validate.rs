@@ -123,6 +123,18 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Si
     let (time, q, v) = match (method.params.as_slice(), method.kind.takes_time()) {
         ([q, v], _) => (None, q, v),
         ([t, q, v], true) => (Some(t), q, v),
+        // A time argument where none is taken: say so at that argument.
+        ([t, q, v], false) if matches!(t.shape, Shape::F64) => {
+            let (pat, ty) = (t.pat, t.ty);
+            cx.error_spanned_by(
+                quote::quote!(#pat #ty),
+                format!(
+                    "`{name}` takes no time argument: a rayleigh function is `R(q, v)`; \
+                     put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`"
+                ),
+            );
+            (None, q, v)
+        }
         (params, _) => {
             cx.error_at(
                 sig.paren_token.span.join(),
@@ -330,13 +342,17 @@ mod tests {
             impl P {
                 fn lagrangian(&self, q: [f64; 2], v: [f64; 3]) -> f64 { 0.0 }
                 fn dissipation(&self, t: f64, q: [f64; 2], v: [f64; 2]) -> f64 { 0.0 }
+                fn force(&self, t: f64, s: f64, q: [f64; 2], v: [f64; 2]) -> [f64; 2] { [0.0; 2] }
             }
         };
         assert_eq!(
             errors(&item),
             [
                 "`q` and `v` must have the same length: `q` is `[f64; 2]` but `v` is `[f64; 3]`",
-                "`dissipation` takes `(&self, q: [f64; N], v: [f64; N])`, found 3 parameters besides `&self`",
+                "`dissipation` takes no time argument: a rayleigh function is `R(q, v)`; \
+                 put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`",
+                "`force` takes `(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+                 found 4 parameters besides `&self`",
             ]
         );
     }

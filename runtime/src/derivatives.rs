@@ -119,7 +119,7 @@ pub struct ActionGradient<const N: usize> {
 }
 
 /// A segment as dual numbers `(t0, h, q0, dq)`.
-type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
+pub(crate) type DualSegment<T, const N: usize> = (T, T, [T; N], [T; N]);
 
 /// A segment as constants of a dual type.
 #[inline(always)]
@@ -156,7 +156,7 @@ fn seed<T, const N: usize>(x: &mut DualSegment<T, N>, v: Var, set: impl Fn(&mut 
 /// Lifts a segment to dual numbers and seeds infinitesimal `k` on `seeds[k]`
 /// through `set(x, k, ±1)` (see [`seed`]).
 #[inline(always)]
-fn lift<T: Scalar, const N: usize>(
+pub(crate) fn lift<T: Scalar, const N: usize>(
     seg: &Segment<N>,
     seeds: &[Var],
     set: impl Fn(&mut T, usize, f64),

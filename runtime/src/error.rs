@@ -132,6 +132,13 @@ pub enum Error<const N: usize> {
         /// The current state.
         state: State<N>,
     },
+    /// A discrete Lagrangian that cannot define a step: a Galerkin method of
+    /// degree 0, or with a quadrature that is invalid or too weak for its degree.
+    #[error("invalid discrete lagrangian: {reason}")]
+    InvalidMethod {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// The system uses a feature the runtime does not integrate yet.
     #[error("not supported yet: {what}")]
     Unsupported {

@@ -14,6 +14,7 @@ use nalgebra::SVector;
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
+use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport};
 use crate::state::State;
@@ -93,8 +94,11 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
     /// Fails with [`Error::InvalidStepSize`] for a step that is not finite and
     /// positive, with [`Error::InvalidInitialData`] for non-finite data or
     /// where `∂²L/∂v²` is singular (the Legendre transform is not regular and
-    /// the one-step map does not exist), and with [`Error::Unsupported`] for a
-    /// system with `force` or `dissipation` (not integrated yet).
+    /// the one-step map does not exist) or the generalised force is not
+    /// finite there, and with [`Error::Unsupported`] for a system with `force`
+    /// or `dissipation` under [`StepPolicy::EnergyPreserving`] (its energy is
+    /// not conserved; see [`forcing`](crate::forcing) for the fixed-step
+    /// Lagrange–d'Alembert integrator and its energy balance).
     pub fn start<const N: usize>(self, t0: f64, q0: [f64; N], v0: [f64; N]) -> Result<Integrator<S, M, N>, Error<N>>
     where
         S: Lagrangian<N>,
@@ -108,14 +112,19 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
                 return Err(Error::InvalidStepSize { h: self.h });
             }
         }
-        if S::HAS_FORCE || S::HAS_DISSIPATION {
-            // Integrating them without the Lagrange–d'Alembert terms would be silently wrong.
+        if forcing::is_forced::<S, N>() && matches!(self.policy, StepPolicy::EnergyPreserving(_)) {
             return Err(Error::Unsupported {
-                what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
+                what: "energy-preserving steps for a system with `force` or `dissipation`: its energy is not \
+                       conserved, so the energy equation that fixes the step sizes does not hold; use fixed steps",
             });
         }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        if !all_finite(&forcing::generalized_force(&self.system, t0, q0, v0)) {
+            return Err(Error::InvalidInitialData {
+                reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
+            });
         }
         let p0 = self.system.momentum(t0, q0, v0);
         if !all_finite(&p0) || !self.system.lagrangian_value(t0, q0, v0).is_finite() {
@@ -297,7 +306,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (dq, report) = self.solve_del(h)?;
         let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
-        let p1 = derivatives::end_momentum(system, method, &seg);
+        // p_{k+1} = ∂A/∂q_{k+1} + F_k^+.
+        let p1 = forcing::end_momentum(system, method, &seg);
         let q1 = seg.q1();
         if !all_finite(&q1) || !all_finite(&p1) {
             let quantity = if all_finite(&q1) { "momentum" } else { "position" };
@@ -322,7 +332,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let eval = |x: &SVector<f64, N>| {
             let seg = Segment { t0, h, q0, dq: (*x).into() };
-            let d = derivatives::step_derivatives(system, method, &seg);
+            // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
+            let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
             let r = SVector::from_fn(|i, _| p0[i] + d.d_q0[i]);
             let scale = max_abs(&p0).max(max_abs(&d.d_q0));
             Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
@@ -470,8 +481,53 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
     /// (MATH.md §8), or `None` before the first step or where `∂²A/∂q_k∂q_{k+1}`
     /// is singular.
+    ///
+    /// Also `None` for a system with forces: its step map is not symplectic,
+    /// and the tangent map would need the derivatives of the discrete forces.
     pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
+        if forcing::is_forced::<S, N>() {
+            return None;
+        }
         symplectic::tangent_map(&self.system, &self.method, self.previous.as_ref()?)
+    }
+
+    /// The last step as a segment `(t_k, h, q_k, dq)`: its increment `dq` is
+    /// the one Newton solved for, free of the rounding of `q_{k+1} = q_k + dq`
+    /// (which, when every step rounds the same way, adds up over long runs).
+    /// `None` before the first step.
+    pub fn last_step(&self) -> Option<&Segment<N>> {
+        self.previous.as_ref()
+    }
+
+    /// The discrete forces `(F_k^−, F_k^+)` of the last step (MATH.md §6), or
+    /// `None` before the first step; zero for a system without forces.
+    pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
+        Some(forcing::discrete_forces(&self.system, &self.method, self.previous.as_ref()?))
+    }
+
+    /// The energy balance `E_{k+1} − E_k − W_k` across node `k`, the node
+    /// between the last two steps (see [`forcing`](crate::forcing) for `W_k`
+    /// and when the balance is exact), or `None` before the second step.
+    ///
+    /// The step before the last is rebuilt from the last one and its stored
+    /// increment, so its start point carries the round-off of one subtraction.
+    pub fn energy_balance(&self) -> Option<EnergyBalance> {
+        let ahead = self.previous.as_ref()?;
+        let (h, dq) = self.earlier?;
+        let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };
+        Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
+    }
+
+    /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node (MATH.md §7).
+    pub fn momentum_map(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> f64 {
+        crate::noether::momentum_map(symmetry, &self.state.q, &self.state.p)
+    }
+
+    /// The forcing impulse `F_k^−·ξ(q_k) + F_k^+·ξ(q_{k+1})` of the last step,
+    /// which `J_{k+1} − J_k` equals for a symmetry of the action (see
+    /// [`noether`](crate::noether)); `None` before the first step.
+    pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
+        Some(crate::noether::forcing_impulse(&self.system, &self.method, self.previous.as_ref()?, symmetry))
     }
 }
 

@@ -6,6 +6,8 @@
 
 use num_dual::DualNum;
 
+use crate::noether::Symmetry;
+
 /// A real scalar the Lagrangian can be evaluated on: `f64` itself or any of
 /// num-dual's dual numbers over `f64`.
 ///
@@ -38,6 +40,11 @@ pub trait Lagrangian<const N: usize> {
     /// `q` is only ever indexed by integer literals. `false` means "not proven",
     /// not "depends".
     const CYCLIC: [bool; N];
+
+    /// Symmetries the user declared with `#[lagrangian(symmetry = ...)]`
+    /// (MATH.md §7), whose momentum maps the runtime can follow
+    /// ([`noether`](crate::noether)). Declared, not proven; empty by default.
+    const SYMMETRIES: &'static [Symmetry<N>] = &[];
 
     /// The Lagrangian `L(t, q, v)`.
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D;

@@ -3,6 +3,8 @@
 
 use lagrangian::prelude::*;
 
+pub mod forced;
+
 /// `L = ½ m l² θ̇² + m g l cos θ`.
 #[derive(Debug)]
 pub struct Pendulum {

@@ -58,4 +58,19 @@ impl DiscreteLagrangian for AlphaBeta {
         let q = array(|i| q0[i] + dq[i] * beta);
         system.lagrangian(t0 + h * beta, q, v) * h
     }
+
+    /// The same one-point rule for the forces: `F` at `(t_k + βh, α q_k + β q_{k+1}, v̂)`
+    /// with `F_k^− = α h F` and `F_k^+ = β h F`, the weights the linear
+    /// interpolant gives `δq_k` and `δq_{k+1}` at that point.
+    #[inline(always)]
+    fn forces<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> ([D; N], [D; N])
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let beta = 1.0 - self.alpha;
+        let v = secant_velocity(&dq, h);
+        let q = core::array::from_fn(|i| q0[i] + dq[i] * beta);
+        crate::forcing::one_point(system, (t0 + h * beta, q, v), h, self.alpha)
+    }
 }

@@ -7,6 +7,9 @@
 //! Source: de León & Martín de Diego, paper 003 §3.1; Chen, Guo & Wu, paper 004
 //! eq. (2.15). Order 2. For `L = ½ vᵀMv − V(q)` it is the implicit midpoint
 //! rule in `(q, p)`; it is symmetric, so its error expansion has even powers only.
+//!
+//! Forces use the trait's default, the same midpoint rule:
+//! `F_k^− = F_k^+ = (h/2) F(t_k + h/2, (q_k + q_{k+1})/2, v̂)` (MATH.md §6).
 
 use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::system::{Lagrangian, Scalar};

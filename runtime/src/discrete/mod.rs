@@ -37,6 +37,31 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     where
         S: Lagrangian<N> + ?Sized,
         D: Scalar;
+
+    /// The discrete forces `(F_k^−, F_k^+)` of the step from `(t0, q0)` to
+    /// `(t0 + h, q0 + dq)`: `F_k^−·δq_k + F_k^+·δq_{k+1}` approximates the
+    /// virtual work `∫ F·δq dt` of the generalised force
+    /// [`generalized_force`](crate::forcing::generalized_force) `F = Q − ∂R/∂v`
+    /// (MATH.md §6, discrete Lagrange–d'Alembert).
+    ///
+    /// Each method evaluates `F` with its own quadrature, at the secant
+    /// velocity `dq/h`, and shares each quadrature point's impulse between the
+    /// two nodes as the linear interpolant of `δq` does. The default is the
+    /// midpoint rule, `F_k^− = F_k^+ = (h/2) F(t0 + h/2, q0 + dq/2, dq/h)`,
+    /// which is of order 2; a discrete Lagrangian of higher order should
+    /// override it with its own quadrature. Generic over the [`Scalar`], so
+    /// the Newton Jacobian gets `∂F_k^−/∂q_{k+1}` from the same dual seeding
+    /// as the action.
+    #[inline(always)]
+    fn forces<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> ([D; N], [D; N])
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let v = secant_velocity(&dq, h);
+        let q_mid = core::array::from_fn(|i| q0[i] + dq[i] * 0.5);
+        crate::forcing::one_point(system, (t0 + h * 0.5, q_mid, v), h, 0.5)
+    }
 }
 
 /// `dq / h`, the constant velocity of the linear interpolant.

@@ -10,6 +10,7 @@
 //! iteration).
 
 use super::{DiscreteLagrangian, array, secant_velocity};
+use crate::forcing::generalized_force;
 use crate::system::{Lagrangian, Scalar};
 
 /// The trapezoidal rule: `A = h/2 [L(t_k, q_k, v̂) + L(t_{k+1}, q_{k+1}, v̂)]`. Order 2.
@@ -30,5 +31,21 @@ impl DiscreteLagrangian for Trapezoid {
         let v = secant_velocity(&dq, h);
         let q1 = array(|i| q0[i] + dq[i]);
         (system.lagrangian(t0, q0, v) + system.lagrangian(t0 + h, q1, v)) * (h * 0.5)
+    }
+
+    /// The trapezoidal rule for the forces too: `F_k^− = (h/2) F(t_k, q_k, v̂)`,
+    /// `F_k^+ = (h/2) F(t_{k+1}, q_{k+1}, v̂)`.
+    #[inline(always)]
+    fn forces<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> ([D; N], [D; N])
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let v = secant_velocity(&dq, h);
+        let q1 = core::array::from_fn(|i| q0[i] + dq[i]);
+        let half = h * 0.5;
+        let minus = generalized_force(system, t0, q0, v).map(|x| x * half);
+        let plus = generalized_force(system, t0 + h, q1, v).map(|x| x * half);
+        (minus, plus)
     }
 }

@@ -1,0 +1,135 @@
+//! The arguments of the attribute: `#[lagrangian(symmetry = ..., ...)]`.
+//!
+//! Each `symmetry = ...` declares a one-parameter group acting on the
+//! configuration space (MATH.md §7) whose discrete momentum map the runtime
+//! can follow: `translation(i)`, `rotation(i, j)` or `generator(f)` with `f`
+//! a closure or function `&[f64; N] -> [f64; N]` giving `ξ(q)`. The indices
+//! are checked against `N` when `N` is a literal; a declared symmetry is not
+//! proven (the runtime's `noether::symmetry_defect` measures it).
+
+use crate::ctxt::Ctxt;
+use crate::parse::Len;
+use proc_macro2::TokenStream;
+use syn::punctuated::Punctuated;
+use syn::{Expr, ExprCall, ExprLit, Lit, LitInt, Meta, Token};
+
+/// One declared symmetry.
+pub(crate) enum SymmetryDecl {
+    /// `translation(i)`.
+    Translation(LitInt),
+    /// `rotation(i, j)`.
+    Rotation(LitInt, LitInt),
+    /// `generator(f)`.
+    Generator(Box<Expr>),
+}
+
+const EXPECTED: &str = "`symmetry = translation(i)`, `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
+
+/// Parses the attribute's arguments, reporting what it cannot read.
+pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Vec<SymmetryDecl> {
+    if attr.is_empty() {
+        return Vec::new();
+    }
+    let metas = match syn::parse::Parser::parse2(Punctuated::<Meta, Token![,]>::parse_terminated, attr) {
+        Ok(metas) => metas,
+        Err(error) => {
+            cx.error_at(error.span(), format!("`#[lagrangian]` takes {EXPECTED}"));
+            return Vec::new();
+        }
+    };
+    let mut out = Vec::new();
+    for meta in metas {
+        let Meta::NameValue(pair) = &meta else {
+            cx.error_spanned_by(&meta, format!("unknown argument: `#[lagrangian]` takes {EXPECTED}"));
+            continue;
+        };
+        if !pair.path.is_ident("symmetry") {
+            cx.error_spanned_by(&pair.path, format!("unknown argument: `#[lagrangian]` takes {EXPECTED}"));
+            continue;
+        }
+        if let Some(decl) = symmetry(cx, &pair.value) {
+            out.push(decl);
+        }
+    }
+    out
+}
+
+/// One `symmetry = <value>`.
+fn symmetry(cx: &Ctxt, value: &Expr) -> Option<SymmetryDecl> {
+    let Expr::Call(ExprCall { func, args, paren_token, .. }) = value else {
+        cx.error_spanned_by(value, format!("expected {EXPECTED}"));
+        return None;
+    };
+    let kind = match &**func {
+        Expr::Path(path) if path.qself.is_none() => path.path.get_ident().map(ToString::to_string),
+        _ => None,
+    };
+    let args: Vec<&Expr> = args.iter().collect();
+    let arity = |expected: usize, what: &str| {
+        if args.len() == expected {
+            true
+        } else {
+            cx.error_at(paren_token.span.join(), format!("`{}` takes {what}", kind.as_deref().unwrap_or_default()));
+            false
+        }
+    };
+    match kind.as_deref() {
+        Some("translation") => {
+            arity(1, "one coordinate index, as in `translation(0)`").then_some(())?;
+            Some(SymmetryDecl::Translation(index(cx, args[0])?))
+        }
+        Some("rotation") => {
+            arity(2, "two coordinate indices, as in `rotation(0, 1)`").then_some(())?;
+            let (i, j) = (index(cx, args[0]), index(cx, args[1]));
+            Some(SymmetryDecl::Rotation(i?, j?))
+        }
+        Some("generator") => {
+            arity(1, "one closure or function `|q: &[f64; N]| -> [f64; N]` giving ξ(q)").then_some(())?;
+            Some(SymmetryDecl::Generator(Box::new(args[0].clone())))
+        }
+        _ => {
+            cx.error_spanned_by(func, format!("unknown symmetry: expected {EXPECTED}"));
+            None
+        }
+    }
+}
+
+/// A coordinate index: an integer literal.
+fn index(cx: &Ctxt, expr: &Expr) -> Option<LitInt> {
+    match expr {
+        Expr::Lit(ExprLit { lit: Lit::Int(lit), .. }) if lit.base10_parse::<usize>().is_ok() => Some(lit.clone()),
+        _ => {
+            cx.error_spanned_by(expr, "a coordinate index must be an integer literal such as `0`");
+            None
+        }
+    }
+}
+
+/// Checks the indices against `N` (when it is a literal) and that a
+/// rotation turns two different coordinates.
+pub(crate) fn check(cx: &Ctxt, decls: &[SymmetryDecl], n: &Len) {
+    let in_range = |lit: &LitInt| {
+        let (Some(n), Ok(i)) = (n.value(), lit.base10_parse::<usize>()) else { return };
+        if i >= n {
+            let valid = match n {
+                0 => "no coordinates".to_owned(),
+                1 => "1 coordinate, `q[0]`".to_owned(),
+                n => format!("{n} coordinates, `q[0]` to `q[{}]`", n - 1),
+            };
+            cx.error_spanned_by(lit, format!("coordinate index {i} is out of range: the system has {valid}"));
+        }
+    };
+    for decl in decls {
+        match decl {
+            SymmetryDecl::Translation(i) => in_range(i),
+            SymmetryDecl::Rotation(i, j) => {
+                in_range(i);
+                in_range(j);
+                if i.base10_parse::<usize>().ok() == j.base10_parse::<usize>().ok() {
+                    cx.error_spanned_by(j, "a rotation turns the plane of two different coordinates");
+                }
+            }
+            SymmetryDecl::Generator(_) => {}
+        }
+    }
+}

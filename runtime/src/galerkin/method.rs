@@ -1,0 +1,431 @@
+//! The Galerkin discrete Lagrangian of degree `s` with an `r`-point quadrature.
+//!
+//! ```text
+//! A(t_k, h; Q_0, Q_1, …, Q_s) = h Σ_{j=1}^{r} b_j L( t_k + c_j h,  Σ_m ℓ_m(c_j) Q_m,  Σ_m ℓ_m'(c_j) Q_m / h )
+//! ```
+//!
+//! `Q_0 = q_k`, `Q_s = q_{k+1}`, `Q_1 … Q_{s−1}` the interior nodes of the
+//! degree-`s` polynomial through the control nodes `τ_m` ([`NodeFamily`]),
+//! `(c_j, b_j)` the quadrature ([`Quadrature`]). The interior nodes are
+//! eliminated by `∂A/∂Q_m = 0` (paper 004 (2.38)); what remains is a discrete
+//! Lagrangian of `(q_k, q_{k+1})`.
+//!
+//! Source: Chen, Guo & Wu, paper 004 §2.2 (`s = 1`: the linear element,
+//! (2.23)–(2.24), with the potential integrated by the quadrature) and §2.3
+//! (`s = 2`: the quadratic element, (2.33)–(2.39)); the general degree and the
+//! order result are Marsden & West, *Acta Numerica* 2001, §2.6, and Hairer,
+//! Lubich & Wanner, *Geometric Numerical Integration*, §VI.6.3.
+//!
+//! Order: with `s` Gauss–Legendre points the one-step map on the nodal values
+//! is of order `2s` (it coincides with the `s`-stage Gauss collocation method
+//! for `L = ½ vᵀMv − V(q)`); with `s + 1` Gauss–Lobatto points it is of order
+//! `2s` as well (Lobatto IIIA–IIIB). In general, order `min(2s, p)` for a
+//! quadrature of order `p`. The quadrature must integrate the kinetic term of
+//! the step polynomial exactly (degree `2s − 2`), otherwise the interior nodes
+//! are not determined ([`Galerkin::check`]).
+//!
+//! # Derivatives by the chain rule
+//!
+//! With `W_j = (q_h(c_j), q_h'(c_j)/h)`, every derivative of `A` with
+//! respect to the nodes follows from the gradient `(L_q, L_v)` and the
+//! `2N × 2N` Hessian of `L` at the `r` quadrature points:
+//!
+//! ```text
+//! ∂A/∂Q_m        = Σ_j b_j ( h ℓ_m L_q + ℓ_m' L_v )
+//! ∂²A/∂Q_m∂Q_n   = Σ_j b_j ( h ℓ_m ℓ_n L_qq + ℓ_m ℓ_n' L_qv + ℓ_m' ℓ_n L_vq + ℓ_m' ℓ_n' L_vv / h )
+//! ```
+//!
+//! (all `ℓ` at `c_j`), so a Newton iteration costs `r · N(2N + 1)` scalar
+//! hyper-dual evaluations of `L` whatever the degree. Positions are
+//! evaluated in increment form, `q_h(c_j) = q_k + Σ_{m≥1} ℓ_m(c_j) D_m` with
+//! `D_m = Q_m − q_k`, and velocities as `Σ_{m≥1} ℓ_m'(c_j) D_m / h`, free of
+//! the cancellation in `Q_m − q_k` (see
+//! [`DiscreteLagrangian::action`](crate::DiscreteLagrangian::action)).
+
+use nalgebra::DMatrix;
+use num_dual::HyperDual64;
+
+use super::basis::{NodeFamily, lagrange, lagrange_derivative};
+use super::quadrature::Quadrature;
+use crate::system::{Lagrangian, Scalar};
+
+/// The Galerkin discrete Lagrangian with a polynomial of degree `S` and an
+/// `R`-point quadrature (see the [module documentation](self) for the
+/// formula, source and order).
+///
+/// Built once; the Lagrange basis values and derivatives at the quadrature
+/// points are tabulated then, so stepping never recomputes them.
+///
+/// ```
+/// use lagrangian_runtime::galerkin::{Galerkin, NodeFamily, Quadrature};
+///
+/// // Degree 4 with 4 Gauss–Legendre points: order 8.
+/// let g = Galerkin::<4, 4>::gauss();
+/// assert_eq!(g.order(), 8);
+/// // The same polynomial space with equispaced nodes (paper 004) and 5 Lobatto points.
+/// let e = Galerkin::<4, 5>::new(NodeFamily::Equispaced, Quadrature::gauss_lobatto());
+/// assert!(e.check().is_ok());
+/// // Too weak: 2 Gauss points cannot integrate the kinetic term of degree 6.
+/// assert!(Galerkin::<4, 2>::new(NodeFamily::GaussLobatto, Quadrature::gauss_legendre()).check().is_err());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Galerkin<const S: usize, const R: usize> {
+    family: NodeFamily,
+    quadrature: Quadrature<R>,
+    /// Control nodes `τ_1 … τ_s` (`τ_0 = 0`).
+    pub(crate) control: [f64; S],
+    /// `ℓ_0 … ℓ_{s−1}` at `c_j`: the basis of the equations (rows) of a step,
+    /// with `ℓ_0 = 1 − Σ_{m≥1} ℓ_m` (used for the Jacobian only; the residual
+    /// of the `q_k` row is formed as `∂A/∂q_k|_D − Σ_m ∂A/∂D_m`).
+    pub(crate) row: [[f64; S]; R],
+    /// `ℓ_0' … ℓ_{s−1}'` at `c_j`.
+    pub(crate) row_d: [[f64; S]; R],
+    /// `ℓ_1 … ℓ_s` at `c_j`: the basis of the unknowns (columns) of a step.
+    pub(crate) col: [[f64; S]; R],
+    /// `ℓ_1' … ℓ_s'` at `c_j`.
+    pub(crate) col_d: [[f64; S]; R],
+    /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
+    /// increments of one step to the next (same step size).
+    pub(crate) extrapolate: [[f64; S]; S],
+}
+
+impl<const S: usize, const R: usize> Galerkin<S, R> {
+    /// Degree `S` with control nodes `family` and the given quadrature.
+    ///
+    /// Never panics; an unusable combination (`S = 0`, an invalid or too weak
+    /// quadrature) is reported by [`check`](Self::check) and refused by the
+    /// integrator with [`Error::InvalidMethod`](crate::Error::InvalidMethod).
+    pub fn new(family: NodeFamily, quadrature: Quadrature<R>) -> Self {
+        let mut g = Self {
+            family,
+            quadrature,
+            control: [0.0; S],
+            row: [[0.0; S]; R],
+            row_d: [[0.0; S]; R],
+            col: [[0.0; S]; R],
+            col_d: [[0.0; S]; R],
+            extrapolate: [[0.0; S]; S],
+        };
+        if S == 0 {
+            return g;
+        }
+        let x = family.nodes(S);
+        g.control.copy_from_slice(&x[1..=S]);
+        for (j, &c) in quadrature.nodes().iter().enumerate() {
+            for m in 0..S {
+                g.col[j][m] = lagrange(&x, m + 1, c);
+                g.col_d[j][m] = lagrange_derivative(&x, m + 1, c);
+            }
+            // ℓ_0 = 1 − Σ_{m≥1} ℓ_m exactly as the increment form uses it, not
+            // as the product formula rounds it: the derivative in q_k must be
+            // the derivative of the same action, or the map is not symplectic
+            // to round-off and the energy drifts (measured: 5e-10 phase error
+            // on Kepler over ten orbits with s = 6 before this).
+            g.row[j][0] = 1.0 - g.col[j].iter().sum::<f64>();
+            g.row_d[j][0] = -g.col_d[j].iter().sum::<f64>();
+            for m in 1..S {
+                g.row[j][m] = g.col[j][m - 1];
+                g.row_d[j][m] = g.col_d[j][m - 1];
+            }
+        }
+        for m in 0..S {
+            for n in 0..S {
+                let delta = if n + 1 == S { 1.0 } else { 0.0 };
+                g.extrapolate[m][n] = lagrange(&x, n + 1, 1.0 + x[m + 1]) - delta;
+            }
+        }
+        g
+    }
+
+    /// The node family of the step polynomial.
+    pub fn family(&self) -> NodeFamily {
+        self.family
+    }
+
+    /// The quadrature rule.
+    pub fn quadrature(&self) -> &Quadrature<R> {
+        &self.quadrature
+    }
+
+    /// The degree `s` of the step polynomial.
+    pub fn degree(&self) -> usize {
+        S
+    }
+
+    /// The control nodes `τ_1 … τ_s` in `(0, 1]` (`τ_0 = 0` is implied).
+    pub fn control_nodes(&self) -> &[f64; S] {
+        &self.control
+    }
+
+    /// The order of the one-step map on nodal values for a regular
+    /// Lagrangian: `min(2s, quadrature order)`, where a rule exact to degree
+    /// `d` has order `d + 1` (0 for an invalid combination).
+    pub fn order(&self) -> u32 {
+        match (self.check(), self.quadrature.exactness()) {
+            (Ok(()), Some(d)) => (2 * S).min(d + 1) as u32,
+            _ => 0,
+        }
+    }
+
+    /// `Ok` for a usable method, otherwise why not.
+    pub fn check(&self) -> Result<(), &'static str> {
+        if S == 0 {
+            return Err("the degree s of a Galerkin discrete Lagrangian must be at least 1");
+        }
+        self.quadrature.check()?;
+        let exact = self.quadrature.exactness().unwrap_or(0);
+        if exact + 2 < 2 * S {
+            return Err("the quadrature is too weak for the degree: it must integrate polynomials of degree 2s − 2 \
+                 exactly (the kinetic term), i.e. at least s Gauss–Legendre or s + 1 Gauss–Lobatto points");
+        }
+        Ok(())
+    }
+
+    /// The step action `A` on any [`Scalar`], from `(t0, h, q0)` and the
+    /// node increments `d[m − 1] = Q_m − q_k`, `m = 1 … s` (`d[s − 1]` is
+    /// `q_{k+1} − q_k`).
+    ///
+    /// The stepper does not call it (it uses the chain rule, see the module
+    /// documentation); it is the formula itself, for checks and for
+    /// derivatives by seeding dual numbers.
+    pub fn action<Sys, D, const N: usize>(&self, system: &Sys, t0: D, h: D, q0: [D; N], d: [[D; N]; S]) -> D
+    where
+        Sys: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let inv_h = h.recip();
+        let mut sum = D::zero();
+        for j in 0..R {
+            let q = core::array::from_fn(|i| q0[i] + (0..S).fold(D::zero(), |a, m| a + d[m][i] * self.col[j][m]));
+            let v = core::array::from_fn(|i| (0..S).fold(D::zero(), |a, m| a + d[m][i] * self.col_d[j][m]) * inv_h);
+            let t = t0 + h * self.quadrature.nodes()[j];
+            sum += system.lagrangian(t, q, v) * self.quadrature.weights()[j];
+        }
+        sum * h
+    }
+
+    /// `(∂A/∂Q_0, [∂A/∂Q_1, …, ∂A/∂Q_s])`: the gradient of the action with
+    /// respect to every node, by the chain rule from `N` hyper-dual
+    /// evaluations of `L` per quadrature point. `∂A/∂Q_s` is the momentum
+    /// `p_{k+1}` of the step.
+    pub fn node_gradient<Sys, const N: usize>(
+        &self,
+        system: &Sys,
+        t0: f64,
+        h: f64,
+        q0: [f64; N],
+        d: &[[f64; N]; S],
+    ) -> ([f64; N], [[f64; N]; S])
+    where
+        Sys: Lagrangian<N> + ?Sized,
+    {
+        let mut g0 = [0.0; N];
+        let mut g = [[0.0; N]; S];
+        for j in 0..R {
+            let (t, q, v) = self.point(t0, h, (&q0, &[0.0; N]), d, j);
+            let (lq, lv) = gradient_at(system, t, q, v);
+            let w = self.quadrature.weights()[j] * h;
+            // ∂A/∂Q_0 = ∂A/∂q_k at fixed increments − Σ_m ∂A/∂D_m.
+            for i in 0..N {
+                g0[i] += w * lq[i];
+            }
+            for m in 0..S {
+                let (c, cd) = (self.col[j][m], self.col_d[j][m]);
+                for i in 0..N {
+                    g[m][i] += w * (c * lq[i]) + w * (cd * (lv[i] / h));
+                }
+            }
+        }
+        for gm in &g {
+            for i in 0..N {
+                g0[i] -= gm[i];
+            }
+        }
+        (g0, g)
+    }
+
+    /// The full Hessian `∂²A/∂Q_m∂Q_n` over the nodes `m, n = 0 … s`, as a
+    /// dense `(s+1)N × (s+1)N` matrix ordered by node, then coordinate.
+    ///
+    /// For checks and for the tangent map of a step (MATH.md §8); it
+    /// allocates, and the stepper never calls it.
+    pub fn node_hessian<Sys, const N: usize>(
+        &self,
+        system: &Sys,
+        t0: f64,
+        h: f64,
+        q0: [f64; N],
+        d: &[[f64; N]; S],
+    ) -> DMatrix<f64>
+    where
+        Sys: Lagrangian<N> + ?Sized,
+    {
+        let n_all = (S + 1) * N;
+        let mut out = DMatrix::zeros(n_all, n_all);
+        for j in 0..R {
+            let (t, q, v) = self.point(t0, h, (&q0, &[0.0; N]), d, j);
+            let p = PointDerivatives::at(system, t, q, v);
+            let b = self.quadrature.weights()[j];
+            // ℓ_m and ℓ_m' at c_j for m = 0 … s.
+            let l = |m: usize| if m < S { self.row[j][m] } else { self.col[j][S - 1] };
+            let dl = |m: usize| if m < S { self.row_d[j][m] } else { self.col_d[j][S - 1] };
+            for m in 0..=S {
+                for n in 0..=S {
+                    for i in 0..N {
+                        for k in 0..N {
+                            out[(m * N + i, n * N + k)] += b
+                                * (h * l(m) * l(n) * p.qq[i][k]
+                                    + l(m) * dl(n) * p.qv[i][k]
+                                    + dl(m) * l(n) * p.qv[k][i]
+                                    + dl(m) * dl(n) * p.vv[i][k] / h);
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Time, position and velocity at quadrature point `j` of the step that
+    /// starts at `q0 + e` (`e`: the compensation of a Kahan-summed position).
+    #[inline(always)]
+    pub(crate) fn point<const N: usize>(
+        &self,
+        t0: f64,
+        h: f64,
+        (q0, e): (&[f64; N], &[f64; N]),
+        d: &[[f64; N]; S],
+        j: usize,
+    ) -> (f64, [f64; N], [f64; N]) {
+        let (col, col_d) = (&self.col[j], &self.col_d[j]);
+        let q = core::array::from_fn(|i| {
+            let mut x = e[i];
+            for m in 0..S {
+                x += col[m] * d[m][i];
+            }
+            q0[i] + x
+        });
+        let v = core::array::from_fn(|i| {
+            let mut x = 0.0;
+            for m in 0..S {
+                x += col_d[m] * d[m][i];
+            }
+            // Divided, not multiplied by a rounded 1/h: ∂v/∂D_m = ℓ_m'/h then
+            // holds without a systematic relative error.
+            x / h
+        });
+        (t0 + self.quadrature.nodes()[j] * h, q, v)
+    }
+}
+
+impl<const S: usize, const R: usize> Galerkin<S, R> {
+    /// Control node `τ_m`, `m = 0 … s`.
+    #[inline]
+    fn tau(&self, m: usize) -> f64 {
+        if m == 0 { 0.0 } else { self.control[m - 1] }
+    }
+
+    /// `ℓ_n(τ)`, `n = 0 … s`, without allocating.
+    pub(crate) fn basis(&self, n: usize, tau: f64) -> f64 {
+        (0..=S).filter(|&k| k != n).map(|k| (tau - self.tau(k)) / (self.tau(n) - self.tau(k))).product()
+    }
+
+    /// `ℓ_n'(τ)`, `n = 0 … s`, without allocating.
+    pub(crate) fn basis_derivative(&self, n: usize, tau: f64) -> f64 {
+        (0..=S)
+            .filter(|&k| k != n)
+            .map(|k| {
+                let rest: f64 = (0..=S)
+                    .filter(|&l| l != n && l != k)
+                    .map(|l| (tau - self.tau(l)) / (self.tau(n) - self.tau(l)))
+                    .product();
+                rest / (self.tau(n) - self.tau(k))
+            })
+            .sum()
+    }
+}
+
+impl<const S: usize> Galerkin<S, S> {
+    /// Degree `S` on Gauss–Lobatto control nodes with `S` Gauss–Legendre
+    /// points: the optimal choice, of order `2S` (Gauss collocation).
+    pub fn gauss() -> Self {
+        Self::new(NodeFamily::GaussLobatto, Quadrature::gauss_legendre())
+    }
+}
+
+/// `(L_q, L_v)` at one point: `N` hyper-dual evaluations, seeding `q_i` and `v_i` together.
+#[inline(always)]
+pub(crate) fn gradient_at<Sys, const N: usize>(system: &Sys, t: f64, q: [f64; N], v: [f64; N]) -> ([f64; N], [f64; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    let mut lq = [0.0; N];
+    let mut lv = [0.0; N];
+    for i in 0..N {
+        let mut qd = q.map(HyperDual64::from);
+        let mut vd = v.map(HyperDual64::from);
+        qd[i].eps1 = 1.0;
+        vd[i].eps2 = 1.0;
+        let l = system.lagrangian(HyperDual64::from(t), qd, vd);
+        lq[i] = l.eps1;
+        lv[i] = l.eps2;
+    }
+    (lq, lv)
+}
+
+/// Gradient and Hessian of `L` in `(q, v)` at one point.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PointDerivatives<const N: usize> {
+    pub(crate) q: [f64; N],
+    pub(crate) v: [f64; N],
+    /// `∂²L/∂q_i∂q_k`.
+    pub(crate) qq: [[f64; N]; N],
+    /// `∂²L/∂q_i∂v_k`.
+    pub(crate) qv: [[f64; N]; N],
+    /// `∂²L/∂v_i∂v_k`.
+    pub(crate) vv: [[f64; N]; N],
+}
+
+impl<const N: usize> PointDerivatives<N> {
+    /// `N(2N + 1)` hyper-dual evaluations, one per pair `a ≤ b` of the `2N`
+    /// coordinates `(q, v)`; the gradient comes with them.
+    #[inline(always)]
+    pub(crate) fn at<Sys: Lagrangian<N> + ?Sized>(system: &Sys, t: f64, q: [f64; N], v: [f64; N]) -> Self {
+        let mut out = Self { q: [0.0; N], v: [0.0; N], qq: [[0.0; N]; N], qv: [[0.0; N]; N], vv: [[0.0; N]; N] };
+        let t = HyperDual64::from(t);
+        for a in 0..2 * N {
+            for b in a..2 * N {
+                let mut qd = q.map(HyperDual64::from);
+                let mut vd = v.map(HyperDual64::from);
+                if a < N {
+                    qd[a].eps1 = 1.0
+                } else {
+                    vd[a - N].eps1 = 1.0
+                }
+                if b < N {
+                    qd[b].eps2 = 1.0
+                } else {
+                    vd[b - N].eps2 = 1.0
+                }
+                let l = system.lagrangian(t, qd, vd);
+                if b == a {
+                    if a < N { out.q[a] = l.eps1 } else { out.v[a - N] = l.eps1 }
+                }
+                let x = l.eps1eps2;
+                match (a < N, b < N) {
+                    (true, true) => {
+                        out.qq[a][b] = x;
+                        out.qq[b][a] = x;
+                    }
+                    (true, false) => out.qv[a][b - N] = x,
+                    // b ≥ a ≥ N: both are velocities.
+                    (false, _) => {
+                        out.vv[a - N][b - N] = x;
+                        out.vv[b - N][a - N] = x;
+                    }
+                }
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,34 @@
+//! Galerkin discrete Lagrangians of any degree and their fixed-step
+//! integrator (MATH.md §5; paper 004 §2.2–2.3).
+//!
+//! The step polynomial of degree `s` passes through `q_k`, `s − 1` interior
+//! nodes and `q_{k+1}`; the action of the step is its Lagrangian integrated by
+//! a quadrature rule. The interior nodes are unknowns of the step, solved
+//! together with the discrete Euler–Lagrange equation as one Newton block of
+//! size `sN`.
+//!
+//! | file | what |
+//! | --- | --- |
+//! | `quadrature.rs` | Gauss–Legendre and Gauss–Lobatto rules with any number of points; midpoint, trapezoid, Simpson |
+//! | `basis.rs` | control nodes (equispaced or Gauss–Lobatto) and the Lagrange basis |
+//! | `method.rs` | [`Galerkin<S, R>`]: the discrete Lagrangian, its gradient and Hessian by the chain rule; order `min(2s, quadrature order)` |
+//! | `linear.rs` | paper 004 §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
+//! | `quadratic.rs` | paper 004 §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
+//! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
+//! | `stepper.rs` | [`GalerkinIntegrator`]: the fixed-step integrator, tangent map |
+//!
+//! Variable (energy-preserving) steps are not supported with Galerkin
+//! discrete Lagrangians; [`GalerkinIntegrator`] has no API for them.
+
+mod basis;
+mod linalg;
+mod linear;
+mod method;
+mod quadratic;
+mod quadrature;
+mod stepper;
+
+pub use basis::NodeFamily;
+pub use method::Galerkin;
+pub use quadrature::{Quadrature, QuadratureKind};
+pub use stepper::{GalerkinBuilder, GalerkinIntegrator, tangent_map};

@@ -1,0 +1,592 @@
+//! The fixed-step Galerkin variational integrator.
+//!
+//! ```text
+//! given (t_k, q_k, p_k), unknowns D_m = Q_m − q_k, m = 1 … s  (s − 1 interior nodes and q_{k+1} − q_k):
+//!     p_k + ∂A/∂Q_0 = 0              N equations  (the DEL, MATH.md §3)
+//!     ∂A/∂Q_m = 0,  m = 1 … s − 1    (s − 1)N equations  (paper 004 (2.38))
+//! then q_{k+1} = q_k + D_s,  p_{k+1} = ∂A/∂Q_s
+//! ```
+//!
+//! One Newton block of size `sN`: the residual and the Jacobian
+//! `∂²A/∂Q_ρ∂Q_n` (rows `ρ = 0 … s−1`, columns `n = 1 … s`) are assembled by
+//! the chain rule from the gradient and Hessian of `L` at the quadrature
+//! points ([`Galerkin`](super::Galerkin)), and the correction comes from a
+//! statically sized LU with partial pivoting; nothing is allocated while
+//! stepping. The first guess extrapolates the previous step's polynomial to
+//! the new interval (error `O(h^{s+1})`); the first step starts from the
+//! straight line `q_0 + τ h v_0`.
+//!
+//! Positions are summed with Kahan's compensation: the integrator holds
+//! `q_k` and the rounding error `e_k` of the sum `q_0 + Σ D_s`, and evaluates
+//! the step polynomial at `q_k + (e_k + Σ_m ℓ_m D_m)`, so the round-off of
+//! the positions grows like `h · ε` per step instead of `ε`.
+//!
+//! Variable steps are not supported with Galerkin discrete Lagrangians.
+
+use crate::error::Error;
+use crate::integrator::Stats;
+use crate::mechanics::DiscreteMechanics;
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
+use crate::state::State;
+use crate::symplectic::TangentMap;
+use crate::system::Lagrangian;
+
+use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
+use super::method::{Galerkin, PointDerivatives, gradient_at};
+
+/// Configuration of a [`GalerkinIntegrator`] before it is given its initial state.
+#[derive(Clone, Debug)]
+pub struct GalerkinBuilder<Sys, const S: usize, const R: usize> {
+    system: Sys,
+    method: Galerkin<S, R>,
+    h: f64,
+    newton: NewtonOptions,
+}
+
+impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
+    /// Replaces the Newton settings.
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = options;
+        self
+    }
+
+    /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
+    ///
+    /// Fails with [`Error::InvalidMethod`] for an unusable discrete
+    /// Lagrangian (`s = 0`, an invalid or too weak quadrature), and otherwise
+    /// like [`IntegratorBuilder::start`](crate::IntegratorBuilder::start).
+    pub fn start<const N: usize>(
+        self,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<GalerkinIntegrator<Sys, N, S, R>, Error<N>>
+    where
+        Sys: Lagrangian<N>,
+    {
+        self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
+        check_step(self.h)?;
+        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+            return Err(Error::Unsupported {
+                what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
+            });
+        }
+        if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
+            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        let p0 = self.system.momentum(t0, q0, v0);
+        if !all_finite(&p0) || !self.system.lagrangian_value(t0, q0, v0).is_finite() {
+            return Err(Error::InvalidInitialData {
+                reason: "the lagrangian or its momentum is not finite at the initial data",
+            });
+        }
+        let hessian = self.system.velocity_hessian(t0, q0, v0);
+        if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
+            return Err(Error::InvalidInitialData {
+                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+            });
+        }
+        Ok(GalerkinIntegrator {
+            system: self.system,
+            method: self.method,
+            h: self.h,
+            newton: self.newton,
+            state: State { step: 0, t: t0, q: q0, p: p0 },
+            carry: [0.0; N],
+            p_carry: [0.0; N],
+            last: None,
+            v0,
+            clock: (t0, 0),
+            stats: Stats::default(),
+        })
+    }
+}
+
+/// The last step taken: where it started and its node increments.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LastStep<const N: usize, const S: usize> {
+    t0: f64,
+    h: f64,
+    q0: [f64; N],
+    carry: [f64; N],
+    d: [[f64; N]; S],
+}
+
+/// A fixed-step variational integrator built on the Galerkin discrete
+/// Lagrangian [`Galerkin<S, R>`](Galerkin), for a system with `N` degrees of
+/// freedom.
+///
+/// ```
+/// use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
+/// use lagrangian_runtime::{Lagrangian, Scalar};
+///
+/// struct Oscillator;
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+///     }
+/// }
+///
+/// // Degree 4, 4 Gauss points: order 8. Ten steps per period are plenty.
+/// let mut sim = GalerkinIntegrator::new(Oscillator, Galerkin::<4, 4>::gauss(), 0.2 * std::f64::consts::PI)
+///     .start(0.0, [1.0], [0.0])?;
+/// sim.run(10, |_| {})?;
+/// assert!((sim.state().q[0] - 1.0).abs() < 1e-8);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize> {
+    system: Sys,
+    method: Galerkin<S, R>,
+    h: f64,
+    newton: NewtonOptions,
+    state: State<N>,
+    /// Kahan compensation: the position is `state.q + carry`.
+    carry: [f64; N],
+    /// Kahan compensation of the momentum: it is `state.p + p_carry`.
+    p_carry: [f64; N],
+    last: Option<LastStep<N, S>>,
+    v0: [f64; N],
+    /// `(t, step)` that `t_k = t + (k − step) h` is measured from.
+    clock: (f64, u64),
+    stats: Stats,
+}
+
+impl<Sys, const S: usize, const R: usize> GalerkinIntegrator<Sys, 0, S, R> {
+    /// Configures an integrator for `system` with the Galerkin discrete
+    /// Lagrangian `method` and step `h`; continue with [`GalerkinBuilder::start`].
+    #[allow(clippy::new_ret_no_self)]
+    pub fn new(system: Sys, method: Galerkin<S, R>, h: f64) -> GalerkinBuilder<Sys, S, R> {
+        GalerkinBuilder { system, method, h, newton: NewtonOptions::default() }
+    }
+}
+
+/// The unknown of a step: the node increments `D_1 … D_s`.
+#[derive(Clone, Copy, Debug)]
+struct Nodes<const N: usize, const S: usize>(BlockVector<N, S>);
+
+impl<const N: usize, const S: usize> Unknown for Nodes<N, S> {
+    #[inline]
+    fn update(&mut self, dx: &Self) {
+        for (x, d) in self.0.as_flattened_mut().iter_mut().zip(dx.0.as_flattened()) {
+            *x += d;
+        }
+    }
+
+    #[inline]
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        max_abs(dx.0.as_flattened()) / (rtol * max_abs(self.0.as_flattened()) + atol)
+    }
+}
+
+impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> GalerkinIntegrator<Sys, N, S, R> {
+    /// The current state `(k, t_k, q_k, p_k)`.
+    pub fn state(&self) -> &State<N> {
+        &self.state
+    }
+
+    /// The system being integrated.
+    pub fn system(&self) -> &Sys {
+        &self.system
+    }
+
+    /// The discrete Lagrangian in use.
+    pub fn method(&self) -> &Galerkin<S, R> {
+        &self.method
+    }
+
+    /// The current step size.
+    pub fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    /// Work counters (Newton iterations per step: `newton_iterations / steps`).
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// The Newton settings in use.
+    pub fn newton_options(&self) -> &NewtonOptions {
+        &self.newton
+    }
+
+    /// The node values `Q_1 … Q_s` of the last step's polynomial (`Q_s = q_k`),
+    /// or `None` before the first step.
+    pub fn last_nodes(&self) -> Option<[[f64; N]; S]> {
+        let last = self.last?;
+        Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
+    }
+
+    /// Changes the step size for the following steps.
+    pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
+        check_step(h)?;
+        self.clock = (self.state.t, self.state.step);
+        self.h = h;
+        Ok(())
+    }
+
+    /// Takes one step of size [`step_size`](Self::step_size).
+    ///
+    /// On failure nothing changes and the error carries the state and the
+    /// Newton diagnostics.
+    #[inline]
+    pub fn step(&mut self) -> Result<&State<N>, Error<N>> {
+        let t1 = self.clock.0 + (self.state.step + 1 - self.clock.1) as f64 * self.h;
+        self.step_by(self.h, t1)
+    }
+
+    /// Takes `n` steps, calling `observe` after each.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps until `t_end`; the last step is shortened to land on it exactly.
+    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+        if !t_end.is_finite() || t_end < self.state.t {
+            return Err(Error::InvalidTarget { target: t_end, state: self.state });
+        }
+        let slack = 1e-9 * self.h;
+        loop {
+            let reach = self.clock.0 + (self.state.step + 1 - self.clock.1) as f64 * self.h;
+            if reach <= t_end + slack {
+                self.step()?;
+                observe(self);
+                continue;
+            }
+            if t_end - self.state.t > slack {
+                self.step_by(t_end - self.state.t, t_end)?;
+                self.clock = (self.state.t, self.state.step);
+                observe(self);
+            }
+            return Ok(());
+        }
+    }
+
+    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
+    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        let State { t, q, p, .. } = self.state;
+        let guess = match &self.last {
+            // The velocity at the end of the last step's polynomial.
+            Some(last) => core::array::from_fn(|i| {
+                (0..S).map(|n| self.method.basis_derivative(n + 1, 1.0) * last.d[n][i]).sum::<f64>() / last.h
+            }),
+            None => self.v0,
+        };
+        self.system.velocity(t, q, p, guess).map_err(|f| Error::InverseLegendre {
+            state: self.state,
+            iterations: f.iterations,
+            residual_norm: f.residual_norm,
+        })
+    }
+
+    /// The energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
+    pub fn energy(&self) -> Result<f64, Error<N>> {
+        let v = self.velocity()?;
+        Ok(self.system.energy(self.state.t, self.state.q, v))
+    }
+
+    /// The first guess for the increments of a step of size `h`.
+    #[inline]
+    fn predict(&self, h: f64) -> BlockVector<N, S> {
+        let g = &self.method;
+        match &self.last {
+            Some(last) if last.h == h => core::array::from_fn(|m| {
+                core::array::from_fn(|i| (0..S).map(|n| g.extrapolate[m][n] * last.d[n][i]).sum())
+            }),
+            Some(last) => {
+                // Extrapolate the last polynomial, in its own variable τ ∈ [0, 1],
+                // to the control nodes of the new step, 1 + τ_m h/h_last.
+                let rho = h / last.h;
+                let mut out = [[0.0; N]; S];
+                for m in 0..S {
+                    let tau = 1.0 + g.control[m] * rho;
+                    for n in 0..S {
+                        let w = g.basis(n + 1, tau) - if n + 1 == S { 1.0 } else { 0.0 };
+                        for i in 0..N {
+                            out[m][i] += w * last.d[n][i];
+                        }
+                    }
+                }
+                out
+            }
+            None => g.control.map(|tau| self.v0.map(|v| v * tau * h)),
+        }
+    }
+
+    /// One step of size `h` stamped with end time `t1`.
+    #[inline]
+    fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
+        let State { step, t: t0, q: q0, p: p0 } = self.state;
+        let e = self.carry;
+        let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let pc = self.p_carry;
+        // The condition estimate costs a few extra solves: made on the first
+        // iteration of each solve only (the Jacobian changes by O(correction)
+        // after it; an exactly singular one still stops the LU).
+        let first = core::cell::Cell::new(true);
+        let linearize = |x: &Nodes<N, S>| {
+            let check = if first.replace(false) { min_rcond } else { 0.0 };
+            linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, check)
+        };
+        // First guess: the last polynomial extrapolated. If Newton fails from
+        // there (a large step, a fast change), once more from the straight line
+        // at the last secant velocity (at v0 for the first step) before giving up.
+        let solved = match newton::solve(Nodes(self.predict(h)), &self.newton, &linearize) {
+            Ok(done) => Ok(done),
+            Err(first_failure) => {
+                let v = match &self.last {
+                    Some(last) => last.d[S - 1].map(|x| x / last.h),
+                    None => self.v0,
+                };
+                let line = Nodes(g.control.map(|tau| v.map(|v| v * tau * h)));
+                first.set(true);
+                newton::solve(line, &self.newton, &linearize).map_err(|_| first_failure)
+            }
+        };
+        let (d, report) = match solved {
+            Ok((x, report)) => (x.0, report),
+            Err(failure) => return Err(self.fail(h, failure)),
+        };
+        // p_{k+1} = ∂A/∂Q_s at the solution, which the q_k row and the
+        // interior rows turn into the momentum balance
+        //     p_{k+1} = p_k + ∂A/∂q_k|_D = p_k + h Σ_j b_j ∂L/∂q(c_j)
+        // (the update of the equivalent partitioned Runge–Kutta method). Taken
+        // in this form, the momentum of a cyclic coordinate is conserved
+        // exactly (its ∂L/∂q is zero) instead of up to the round-off of the
+        // interior rows, and summed with Kahan's compensation like q, the
+        // rounding of p grows like ε|Δp| = O(εh) per step instead of ε|p|.
+        let mut dp = [0.0; N];
+        for j in 0..R {
+            let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
+            let (lq, _) = gradient_at(system, t, q, v);
+            let w = g.quadrature().weights()[j] * h;
+            for i in 0..N {
+                dp[i] += w * lq[i];
+            }
+        }
+        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
+        // q_{k+1} = (q_k + e_k) + D_s, Kahan-summed.
+        let (q1, carry) = kahan(&q0, &e, &d[S - 1]);
+        if !all_finite(&q1) || !all_finite(&p1) {
+            let quantity = if all_finite(&q1) { "momentum" } else { "position" };
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+        }
+        self.last = Some(LastStep { t0, h, q0, carry: e, d });
+        self.carry = carry;
+        self.p_carry = p_carry;
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.last = report;
+        Ok(&self.state)
+    }
+
+    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
+        self.stats.failed_steps += 1;
+        let state = self.state;
+        match failure {
+            NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
+                state,
+                h,
+                iterations: r.iterations,
+                residual_norm: r.residual_norm,
+                correction_norm: r.correction_norm,
+            },
+            NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian { state, h, iterations, rcond },
+            NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
+            NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
+        }
+    }
+
+    /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
+    /// (MATH.md §8), or `None` before the first step or where the Newton
+    /// block is singular.
+    ///
+    /// By the implicit function theorem on the block system, with the
+    /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
+    /// [`Galerkin::node_hessian`]. Allocates; a diagnostic, not for the
+    /// stepping loop.
+    pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
+        let last = self.last?;
+        let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
+        tangent_map(&self.system, &self.method, last.t0, last.h, q0, &last.d)
+    }
+}
+
+/// The tangent map of the Galerkin step from `(t0, q0)` with node increments `d`.
+///
+/// ```text
+/// F(X; q_k, p_k) = (p_k + ∂A/∂Q_0, ∂A/∂Q_1, …, ∂A/∂Q_{s−1}) = 0,   X = (Q_1, …, Q_s)
+/// dX = −J⁻¹ (H_{·0} dq_k + E dp_k),   J = H_{ρ n} (ρ = 0…s−1, n = 1…s),   E = (I, 0, …, 0)ᵀ
+/// dq_{k+1} = dQ_s,   dp_{k+1} = H_{s0} dq_k + Σ_n H_{sn} dQ_n
+/// ```
+pub fn tangent_map<Sys, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    method: &Galerkin<S, R>,
+    t0: f64,
+    h: f64,
+    q0: [f64; N],
+    d: &[[f64; N]; S],
+) -> Option<TangentMap<N>>
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    use nalgebra::{DMatrix, SMatrix};
+    let hess = method.node_hessian(system, t0, h, q0, d);
+    let sn = S * N;
+    let j = hess.view((0, N), (sn, sn)).into_owned();
+    // Right-hand sides: columns for dq_k (N) then dp_k (N).
+    let mut rhs = DMatrix::zeros(sn, 2 * N);
+    rhs.view_mut((0, 0), (sn, N)).copy_from(&hess.view((0, 0), (sn, N)));
+    for i in 0..N {
+        rhs[(i, N + i)] = 1.0;
+    }
+    let dx = -j.lu().solve(&rhs)?;
+    let dq1 = dx.view((sn - N, 0), (N, 2 * N)).into_owned();
+    let mut dp1 = hess.view((sn, N), (N, sn)) * &dx;
+    let h_s0 = hess.view((sn, 0), (N, N)).into_owned();
+    let mut top = dp1.view_mut((0, 0), (N, N));
+    top += &h_s0;
+    let block = |m: &DMatrix<f64>, c: usize| SMatrix::<f64, N, N>::from_fn(|a, b| m[(a, c + b)]);
+    let out = TangentMap { dq_dq: block(&dq1, 0), dq_dp: block(&dq1, N), dp_dq: block(&dp1, 0), dp_dp: block(&dp1, N) };
+    out.matrix().iter().all(|x| x.is_finite()).then_some(out)
+}
+
+/// Residual and Newton correction of the block system at the increments `d`.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn linearize<Sys, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    g: &Galerkin<S, R>,
+    t0: f64,
+    h: f64,
+    base: (&[f64; N], &[f64; N]),
+    (p0, pc): (&[f64; N], &[f64; N]),
+    d: &BlockVector<N, S>,
+    min_rcond: f64,
+) -> Result<Linearization<Nodes<N, S>>, Breakdown>
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    let inv_h = 1.0 / h;
+    let mut r: BlockVector<N, S> = [[0.0; N]; S];
+    // Size of the terms that cancel in each block row.
+    let mut scale = [0.0; S];
+    scale[0] = max_abs(p0);
+    let mut jac: BlockMatrix<N, S> = [[[[0.0; N]; S]; N]; S];
+    let mut direct = [0.0; N];
+    let mut grad: BlockVector<N, S> = [[0.0; N]; S];
+    for j in 0..R {
+        let (t, q, v) = g.point(t0, h, base, d, j);
+        let pd = PointDerivatives::at(system, t, q, v);
+        let b = g.quadrature().weights()[j];
+        let (row, row_d, col, col_d) = (&g.row[j], &g.row_d[j], &g.col[j], &g.col_d[j]);
+        // The weight w = b h is rounded once and shared by every row, and the
+        // coefficients of the basis are not premultiplied: all rows are then
+        // derivatives of the same action Σ w_j L, whatever the rounding.
+        let w = b * h;
+        let lv_h: [f64; N] = core::array::from_fn(|i| pd.v[i] / h);
+        // ∂A/∂q_k at fixed increments.
+        for i in 0..N {
+            let x = w * pd.q[i];
+            direct[i] += x;
+            scale[0] = f64::max(scale[0], x.abs());
+        }
+        // ∂A/∂D_m for the nodes m = 1 … s.
+        for m in 0..S {
+            let (c, cd) = (col[m], col_d[m]);
+            for i in 0..N {
+                let (x, y) = (w * (c * pd.q[i]), w * (cd * lv_h[i]));
+                grad[m][i] += x + y;
+                let k = if m + 1 < S { m + 1 } else { 0 };
+                scale[k] = f64::max(scale[k], x.abs() + y.abs());
+            }
+        }
+        for n in 0..S {
+            // The column block n of this point's contribution, before the row basis.
+            let (c, cd) = (b * col[n], b * col_d[n]);
+            let mut yq = [[0.0; N]; N];
+            let mut yv = [[0.0; N]; N];
+            for i in 0..N {
+                for k in 0..N {
+                    yq[i][k] = h * c * pd.qq[i][k] + cd * pd.qv[i][k];
+                    yv[i][k] = c * pd.qv[k][i] + cd * inv_h * pd.vv[i][k];
+                }
+            }
+            for rho in 0..S {
+                let (l, ld) = (row[rho], row_d[rho]);
+                for i in 0..N {
+                    for k in 0..N {
+                        jac[rho][i][n][k] += l * yq[i][k] + ld * yv[i][k];
+                    }
+                }
+            }
+        }
+    }
+    // Rows: p_k + ∂A/∂Q_0 = p_k + ∂A/∂q_k|_D − Σ_m ∂A/∂D_m, then ∂A/∂D_m for
+    // the interior nodes. Formed this way, the q_k row is the derivative of
+    // exactly the action the other rows differentiate (see `Galerkin::new`).
+    for i in 0..N {
+        // (p_k − ∂A/∂D_s) + (compensation + ∂A/∂q_k|_D − Σ_interior ∂A/∂D_m)
+        let mut x = pc[i] + direct[i];
+        for gm in &grad[..S - 1] {
+            x -= gm[i];
+        }
+        r[0][i] = (p0[i] - grad[S - 1][i]) + x;
+    }
+    if S > 1 {
+        r[1..S].copy_from_slice(&grad[..S - 1]);
+    }
+    if !r.as_flattened().iter().all(|x| x.is_finite()) {
+        return Err(Breakdown::NonFinite("residual"));
+    }
+    let lu = Lu::factor(&jac).map_err(|f| match f {
+        LuFailure::Singular => Breakdown::Singular(0.0),
+        LuFailure::NonFinite => Breakdown::NonFinite("jacobian"),
+    })?;
+    if min_rcond > 0.0 {
+        let rc = lu.rcond();
+        if rc.is_nan() || rc < min_rcond {
+            return Err(Breakdown::Singular(rc));
+        }
+    }
+    let x = lu.solve(&r);
+    let correction = Nodes(x.map(|b| b.map(|v| -v)));
+    let mut residual_ratio: f64 = 0.0;
+    for rho in 0..S {
+        residual_ratio = residual_ratio.max(max_abs(&r[rho]) / scale[rho]);
+    }
+    Ok(Linearization { correction, residual_norm: max_abs(r.as_flattened()), residual_ratio })
+}
+
+/// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
+#[inline(always)]
+fn kahan<const N: usize>(a: &[f64; N], c: &[f64; N], b: &[f64; N]) -> ([f64; N], [f64; N]) {
+    let mut sum = [0.0; N];
+    let mut carry = [0.0; N];
+    for i in 0..N {
+        let u = c[i] + b[i];
+        sum[i] = a[i] + u;
+        carry[i] = u - (sum[i] - a[i]);
+    }
+    (sum, carry)
+}
+
+fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
+    if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
+}
+
+fn max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0, |m, v| m.max(v.abs()))
+}
+
+fn all_finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
