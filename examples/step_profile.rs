@@ -8,7 +8,8 @@
 //!
 //! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
 //! `variable` (energy-preserving midpoint, from the start of the bench's
-//! variable-step group), `hand` (the hand-written midpoint of the bench) or
+//! variable-step group), `damped` (double pendulum with joint friction, a
+//! forced step), `hand` (the hand-written midpoint of the bench) or
 //! `derivatives` (one `step_derivatives` evaluation per "step", nothing else).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
@@ -26,6 +27,27 @@ use lagrangian::{Integrator, Midpoint, Segment, StepBounds, Trapezoid};
 use std::hint::black_box;
 
 const H: f64 = 0.01;
+
+/// The double pendulum of the tests with joint friction: a forced (Lagrange–d'Alembert) step.
+struct DampedDoublePendulum {
+    p: DoublePendulum,
+    c: f64,
+}
+
+#[lagrangian::lagrangian]
+impl DampedDoublePendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let (m1, m2, l1, l2, g) = (self.p.m1, self.p.m2, self.p.l1, self.p.l2, self.p.g);
+        let kinetic = 0.5 * (m1 + m2) * l1 * l1 * v[0] * v[0]
+            + 0.5 * m2 * l2 * l2 * v[1] * v[1]
+            + m2 * l1 * l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + (m1 + m2) * g * l1 * q[0].cos() + m2 * g * l2 * q[1].cos()
+    }
+
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * self.c * (v[0] * v[0] + (v[1] - v[0]) * (v[1] - v[0]))
+    }
+}
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -90,6 +112,14 @@ fn main() {
             }
             vec![acc]
         }
+        ("double pendulum", "damped") => run(
+            Integrator::new(DampedDoublePendulum { p: DoublePendulum { ..DP }, c: 0.05 }, Midpoint, H).start(
+                0.0,
+                [1.0, -0.5],
+                [0.0, 0.5],
+            ),
+            n,
+        ),
         _ => panic!("unknown case {case:?} {method:?}"),
     };
     let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
