@@ -9,7 +9,7 @@
 //! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
 //! `variable` (energy-preserving midpoint, from the start of the bench's
 //! variable-step group), `damped` (double pendulum with joint friction, a
-//! forced step), `hand` (the hand-written midpoint of the bench) or
+//! forced step), `energy` (a midpoint step and `Integrator::energy` after it), `hand` (the hand-written midpoint of the bench) or
 //! `derivatives` (one `step_derivatives` evaluation per "step", nothing else).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
@@ -111,6 +111,17 @@ fn main() {
                 };
             }
             vec![acc]
+        }
+        ("double pendulum", "energy") => {
+            // A step and the energy readout `E_L(q_k, v(p_k))` (inverse Legendre transform) after each.
+            let mut sim =
+                Integrator::new(DoublePendulum { ..DP }, Midpoint, H).start(0.0, [1.0, -0.5], [0.0, 0.5]).unwrap();
+            let mut e = 0.0;
+            for _ in 0..n {
+                sim.step().unwrap();
+                e += sim.energy().unwrap();
+            }
+            vec![e]
         }
         ("double pendulum", "damped") => run(
             Integrator::new(DampedDoublePendulum { p: DoublePendulum { ..DP }, c: 0.05 }, Midpoint, H).start(
