@@ -8,7 +8,11 @@
 //!
 //! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
 //! `variable` (energy-preserving midpoint, from the start of the bench's
-//! variable-step group), or `hand` (the hand-written midpoint of the bench).
+//! variable-step group), `damped` (double pendulum with joint friction, a
+//! forced step), `energy` (a midpoint step and `Integrator::energy` after it), `hand` (the hand-written midpoint of the bench) or
+//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else).
+//! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
+//! which is steadier on a shared machine.
 #![allow(missing_docs)]
 
 #[path = "../tests/common/mod.rs"]
@@ -18,10 +22,32 @@ mod handwritten;
 
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 use handwritten::*;
-use lagrangian::{Integrator, Midpoint, StepBounds, Trapezoid};
+use lagrangian::derivatives::step_derivatives;
+use lagrangian::{Integrator, Midpoint, Segment, StepBounds, Trapezoid};
 use std::hint::black_box;
 
 const H: f64 = 0.01;
+
+/// The double pendulum of the tests with joint friction: a forced (Lagrange–d'Alembert) step.
+struct DampedDoublePendulum {
+    p: DoublePendulum,
+    c: f64,
+}
+
+#[lagrangian::lagrangian]
+impl DampedDoublePendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let (m1, m2, l1, l2, g) = (self.p.m1, self.p.m2, self.p.l1, self.p.l2, self.p.g);
+        let kinetic = 0.5 * (m1 + m2) * l1 * l1 * v[0] * v[0]
+            + 0.5 * m2 * l2 * l2 * v[1] * v[1]
+            + m2 * l1 * l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + (m1 + m2) * g * l1 * q[0].cos() + m2 * g * l2 * q[1].cos()
+    }
+
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * self.c * (v[0] * v[0] + (v[1] - v[0]) * (v[1] - v[0]))
+    }
+}
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -66,6 +92,42 @@ fn main() {
                 0.0,
                 [0.5, 0.3],
                 [0.0, 0.0],
+            ),
+            n,
+        ),
+        (_, "derivatives") => {
+            // The derivative evaluation alone: one `step_derivatives` (residual
+            // part, momentum, Jacobian) per "step", at nearby segments (every input
+            // varies, so that nothing is hoisted out of the loop).
+            let mut acc = 0.0;
+            for k in 0..n {
+                let x = black_box(1e-9 * k as f64);
+                acc += if case == "pendulum" {
+                    let seg = Segment { t0: 0.0, h: H, q0: [1.0 + x], dq: [0.001 + x] };
+                    step_derivatives(&Pendulum { ..P }, &Midpoint, &seg).d2_q0_q1[0]
+                } else {
+                    let seg = Segment { t0: 0.0, h: H, q0: [1.0 + x, -0.5 - x], dq: [0.001 + x, 0.002 - x] };
+                    step_derivatives(&DoublePendulum { ..DP }, &Midpoint, &seg).d2_q0_q1[(0, 1)]
+                };
+            }
+            vec![acc]
+        }
+        ("double pendulum", "energy") => {
+            // A step and the energy readout `E_L(q_k, v(p_k))` (inverse Legendre transform) after each.
+            let mut sim =
+                Integrator::new(DoublePendulum { ..DP }, Midpoint, H).start(0.0, [1.0, -0.5], [0.0, 0.5]).unwrap();
+            let mut e = 0.0;
+            for _ in 0..n {
+                sim.step().unwrap();
+                e += sim.energy().unwrap();
+            }
+            vec![e]
+        }
+        ("double pendulum", "damped") => run(
+            Integrator::new(DampedDoublePendulum { p: DoublePendulum { ..DP }, c: 0.05 }, Midpoint, H).start(
+                0.0,
+                [1.0, -0.5],
+                [0.0, 0.5],
             ),
             n,
         ),

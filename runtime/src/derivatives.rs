@@ -195,6 +195,19 @@ where
     method.action(system, t0, h, q0, dq)
 }
 
+/// A segment on [`DualArray`]s with `ε_i` seeded on `a(i)`.
+#[inline(always)]
+pub(crate) fn lift_dual_array<E: Vector, const N: usize>(
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+) -> DualSegment<DualArray<E>, N> {
+    let mut x = constant(seg);
+    for i in 0..E::LEN {
+        seed(&mut x, a(i), |y: &mut DualArray<E>, s| *y.eps.get_mut(i) += s);
+    }
+    x
+}
+
 /// `A` on a [`DualArray`] with `ε_i` seeded on `a(i)`: the value and gradient.
 #[inline(always)]
 fn dual_array_action<S, M, E, const N: usize>(
@@ -208,11 +221,7 @@ where
     M: DiscreteLagrangian,
     E: Vector,
 {
-    let mut x = constant(seg);
-    for i in 0..E::LEN {
-        seed(&mut x, a(i), |y: &mut DualArray<E>, s| *y.eps.get_mut(i) += s);
-    }
-    let (t0, h, q0, dq) = x;
+    let (t0, h, q0, dq) = lift_dual_array(seg, a);
     method.action(system, t0, h, q0, dq)
 }
 

@@ -6,10 +6,10 @@
 //! residual and its Jacobian, ready to be fed to a solver of the user's own.
 
 use nalgebra::{SMatrix, SVector};
-use num_dual::{Dual64, HyperDual64};
 
 use crate::derivatives::{self, Segment, StepDerivatives};
 use crate::discrete::DiscreteLagrangian;
+use crate::hyperdual::{DualArray, HyperDualArray};
 use crate::newton::{self, NewtonFailure, NewtonOptions};
 use crate::system::Lagrangian;
 
@@ -45,13 +45,14 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         self.lagrangian(t, q, v)
     }
 
-    /// The momentum `p = ∂L/∂v(t, q, v)`.
+    /// The momentum `p = ∂L/∂v(t, q, v)`: one evaluation on a [`DualArray`]
+    /// seeded on all of `v`.
     fn momentum(&self, t: f64, q: [f64; N], v: [f64; N]) -> [f64; N] {
-        core::array::from_fn(|i| {
-            let mut vd = v.map(Dual64::from);
-            vd[i].eps = 1.0;
-            self.lagrangian(Dual64::from(t), q.map(Dual64::from), vd).eps
-        })
+        let mut vd = v.map(DualArray::<[f64; N]>::from_re);
+        for (i, x) in vd.iter_mut().enumerate() {
+            x.eps[i] = 1.0;
+        }
+        self.lagrangian(DualArray::from_re(t), q.map(DualArray::from_re), vd).eps
     }
 
     /// The energy `E_L = v·∂L/∂v − L`.
@@ -60,14 +61,17 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         (0..N).map(|i| v[i] * p[i]).sum::<f64>() - self.lagrangian(t, q, v)
     }
 
-    /// The Hessian `∂²L/∂v²`; the Legendre transform is regular where it is invertible.
+    /// The Hessian `∂²L/∂v²`; the Legendre transform is regular where it is
+    /// invertible. One evaluation on a [`HyperDualArray`] seeded on `v` twice.
     fn velocity_hessian(&self, t: f64, q: [f64; N], v: [f64; N]) -> SMatrix<f64, N, N> {
-        SMatrix::from_fn(|i, j| {
-            let mut vd = v.map(HyperDual64::from);
-            vd[i].eps1 = 1.0;
-            vd[j].eps2 = 1.0;
-            self.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd).eps1eps2
-        })
+        type H<const N: usize> = HyperDualArray<[f64; N], [f64; N]>;
+        let mut vd = v.map(H::<N>::from_re);
+        for (i, x) in vd.iter_mut().enumerate() {
+            x.eps1[i] = 1.0;
+            x.eps2[i] = 1.0;
+        }
+        let l = self.lagrangian(H::from_re(t), q.map(H::from_re), vd);
+        SMatrix::from_fn(|i, j| l.eps1eps2[i][j])
     }
 
     /// The velocity `v` with `∂L/∂v(t, q, v) = p` (inverse Legendre
@@ -141,3 +145,44 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
 }
 
 impl<S: Lagrangian<N> + ?Sized, const N: usize> DiscreteMechanics<N> for S {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::system::Scalar;
+    use num_dual::{Dual64, HyperDual64};
+
+    /// Non-separable, with a quotient and a square root in the velocities.
+    struct Relativistic;
+
+    impl Lagrangian<2> for Relativistic {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 2] = [false, false];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
+            let speed2 = v[0] * v[0] + v[1] * v[1] * (q[0] * q[0] + 1.0);
+            -(D::from(1.0) - speed2 * 0.2).sqrt() + v[0] * v[1] / (q[1] * q[1] + 2.0) + t.sin() / q[0]
+        }
+    }
+
+    /// One array evaluation against one scalar evaluation per entry: equal bit for bit.
+    #[test]
+    fn momentum_and_velocity_hessian_equal_the_scalar_evaluations() {
+        let (t, q, v) = (0.3, [1.2, -0.7], [0.9, -1.1]);
+        let p = Relativistic.momentum(t, q, v);
+        let m = Relativistic.velocity_hessian(t, q, v);
+        for i in 0..2 {
+            let mut vd = v.map(Dual64::from);
+            vd[i].eps = 1.0;
+            assert_eq!(p[i], Relativistic.lagrangian(Dual64::from(t), q.map(Dual64::from), vd).eps);
+            for j in 0..2 {
+                let mut vd = v.map(HyperDual64::from);
+                vd[i].eps1 = 1.0;
+                vd[j].eps2 = 1.0;
+                let x = Relativistic.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd);
+                assert_eq!(m[(i, j)], x.eps1eps2, "({i}, {j})");
+            }
+        }
+        let v_back = Relativistic.velocity(t, q, p, [0.85, -1.05]).unwrap();
+        assert!((v_back[0] - v[0]).abs() < 1e-14 && (v_back[1] - v[1]).abs() < 1e-14, "{v_back:?}");
+    }
+}

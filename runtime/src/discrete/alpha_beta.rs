@@ -70,7 +70,7 @@ impl DiscreteLagrangian for AlphaBeta {
     {
         let beta = 1.0 - self.alpha;
         let v = secant_velocity(&dq, h);
-        let q = core::array::from_fn(|i| q0[i] + dq[i] * beta);
+        let q = array(|i| q0[i] + dq[i] * beta);
         crate::forcing::one_point(system, (t0 + h * beta, q, v), h, self.alpha)
     }
 }

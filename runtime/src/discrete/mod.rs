@@ -59,7 +59,7 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
         D: Scalar,
     {
         let v = secant_velocity(&dq, h);
-        let q_mid = core::array::from_fn(|i| q0[i] + dq[i] * 0.5);
+        let q_mid = array(|i| q0[i] + dq[i] * 0.5);
         crate::forcing::one_point(system, (t0 + h * 0.5, q_mid, v), h, 0.5)
     }
 }

@@ -42,10 +42,10 @@ impl DiscreteLagrangian for Trapezoid {
         D: Scalar,
     {
         let v = secant_velocity(&dq, h);
-        let q1 = core::array::from_fn(|i| q0[i] + dq[i]);
+        let q1 = array(|i| q0[i] + dq[i]);
         let half = h * 0.5;
-        let minus = generalized_force(system, t0, q0, v).map(|x| x * half);
-        let plus = generalized_force(system, t0 + h, q1, v).map(|x| x * half);
+        let (f0, f1) = (generalized_force(system, t0, q0, v), generalized_force(system, t0 + h, q1, v));
+        let (minus, plus) = (array(|i| f0[i] * half), array(|i| f1[i] * half));
         (minus, plus)
     }
 }
