@@ -1,5 +1,6 @@
 //! The error type of the runtime: every failure is a value, never a panic.
 
+use crate::newton::NewtonFailure;
 use crate::state::State;
 
 /// What went wrong, with the state the integrator was left in and the
@@ -155,4 +156,27 @@ pub enum Error<const N: usize> {
         /// `‖∂L/∂v − p‖∞` at the last iterate.
         residual_norm: f64,
     },
+}
+
+impl<const N: usize> Error<N> {
+    /// The error of a step from `state` with size `h` whose Newton solve failed.
+    pub(crate) fn from_newton(failure: NewtonFailure, state: State<N>, h: f64) -> Self {
+        match failure {
+            NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
+                state,
+                h,
+                iterations: r.iterations,
+                residual_norm: r.residual_norm,
+                correction_norm: r.correction_norm,
+            },
+            NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian { state, h, iterations, rcond },
+            NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
+            NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
+        }
+    }
+
+    /// `Ok` for a finite, positive step size.
+    pub(crate) fn check_step(h: f64) -> Result<(), Self> {
+        if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
+    }
 }

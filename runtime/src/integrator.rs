@@ -16,7 +16,7 @@ use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport};
+use crate::newton::{self, NewtonFailure, NewtonOptions, NewtonReport, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
@@ -103,7 +103,7 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
     where
         S: Lagrangian<N>,
     {
-        check_step(self.h)?;
+        Error::<N>::check_step(self.h)?;
         if let StepPolicy::EnergyPreserving(b) = self.policy {
             if !b.valid() {
                 return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
@@ -264,7 +264,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// failed step with a smaller one). The integrator stays variational: the
     /// DEL equations hold with the step sizes actually taken.
     pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
-        check_step(h)?;
+        Error::<N>::check_step(h)?;
         self.clock = Clock { t: self.state.t, step: self.state.step };
         self.h = h;
         Ok(())
@@ -366,19 +366,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
         self.stats.failed_steps += 1;
-        let state = self.state;
-        match failure {
-            NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
-                state,
-                h,
-                iterations: r.iterations,
-                residual_norm: r.residual_norm,
-                correction_norm: r.correction_norm,
-            },
-            NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian { state, h, iterations, rcond },
-            NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
-            NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
-        }
+        Error::from_newton(failure, self.state, h)
     }
 
     /// Takes `n` steps, calling `observe` after each with the integrator.
@@ -529,18 +517,4 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
         Some(crate::noether::forcing_impulse(&self.system, &self.method, self.previous.as_ref()?, symmetry))
     }
-}
-
-fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
-    if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
-}
-
-#[inline]
-fn max_abs(x: &[f64]) -> f64 {
-    x.iter().fold(0.0, |m, v| m.max(v.abs()))
-}
-
-#[inline]
-fn all_finite(x: &[f64]) -> bool {
-    x.iter().all(|v| v.is_finite())
 }

@@ -273,6 +273,18 @@ where
     Err(NewtonFailure::NotConverged(report))
 }
 
+/// `max |x_i|`: the scale of the terms that cancel in a residual.
+#[inline]
+pub(crate) fn max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0, |m, v| m.max(v.abs()))
+}
+
+/// Every entry finite.
+#[inline]
+pub(crate) fn all_finite(x: &[f64]) -> bool {
+    x.iter().all(|v| v.is_finite())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

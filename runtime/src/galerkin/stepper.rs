@@ -31,7 +31,7 @@ use core::cell::Cell;
 use crate::error::Error;
 use crate::integrator::Stats;
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
@@ -70,7 +70,7 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
         Sys: Lagrangian<N>,
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
-        check_step(self.h)?;
+        Error::<N>::check_step(self.h)?;
         if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
             return Err(Error::Unsupported {
                 what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
@@ -226,7 +226,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
 
     /// Changes the step size for the following steps.
     pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
-        check_step(h)?;
+        Error::<N>::check_step(h)?;
         self.clock = (self.state.t, self.state.step);
         self.h = h;
         Ok(())
@@ -434,19 +434,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
 
     fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
         self.stats.failed_steps += 1;
-        let state = self.state;
-        match failure {
-            NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
-                state,
-                h,
-                iterations: r.iterations,
-                residual_norm: r.residual_norm,
-                correction_norm: r.correction_norm,
-            },
-            NewtonFailure::Singular { iterations, rcond } => Error::SingularJacobian { state, h, iterations, rcond },
-            NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
-            NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
-        }
+        Error::from_newton(failure, self.state, h)
     }
 
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
@@ -665,16 +653,4 @@ fn kahan<const N: usize>(a: &[f64; N], c: &[f64; N], b: &[f64; N]) -> ([f64; N],
         carry[i] = u - (sum[i] - a[i]);
     }
     (sum, carry)
-}
-
-fn check_step<const N: usize>(h: f64) -> Result<(), Error<N>> {
-    if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
-}
-
-fn max_abs(x: &[f64]) -> f64 {
-    x.iter().fold(0.0, |m, v| m.max(v.abs()))
-}
-
-fn all_finite(x: &[f64]) -> bool {
-    x.iter().all(|v| v.is_finite())
 }

@@ -35,11 +35,12 @@
 
 use nalgebra::SVector;
 
-use super::{Integrator, all_finite, max_abs};
+use super::Integrator;
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
+use crate::newton::{all_finite, max_abs};
 use crate::state::State;
 use crate::system::Lagrangian;
 
