@@ -66,6 +66,18 @@ pub(crate) enum NewtonFailure {
     Rejected { iterations: usize, reason: &'static str },
 }
 
+impl NewtonFailure {
+    /// Newton iterations spent before the failure.
+    pub(crate) fn iterations(&self) -> usize {
+        match *self {
+            NewtonFailure::NotConverged(r) => r.iterations,
+            NewtonFailure::Singular { iterations, .. }
+            | NewtonFailure::NonFinite { iterations, .. }
+            | NewtonFailure::Rejected { iterations, .. } => iterations,
+        }
+    }
+}
+
 /// Why one linearisation could not produce a correction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Breakdown {

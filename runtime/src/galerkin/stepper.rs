@@ -372,7 +372,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         let mut solved = attempt(predicted, S >= 2);
         for (guess, simplify) in [(None, false), (Some(()), false)] {
             let Err(failure) = &solved else { break };
-            spent += failure_iterations(failure);
+            spent += failure.iterations();
             let guess = match guess {
                 None => predicted,
                 Some(()) => {
@@ -611,16 +611,6 @@ where
         residual_ratio = residual_ratio.max(max_abs(&r[rho]) / scale[rho]);
     }
     Ok((Linearization { correction, residual_norm: max_abs(r.as_flattened()), residual_ratio }, lu))
-}
-
-/// Newton iterations spent by a failed solve.
-fn failure_iterations(failure: &NewtonFailure) -> usize {
-    match *failure {
-        NewtonFailure::NotConverged(r) => r.iterations,
-        NewtonFailure::Singular { iterations, .. }
-        | NewtonFailure::NonFinite { iterations, .. }
-        | NewtonFailure::Rejected { iterations, .. } => iterations,
-    }
 }
 
 /// The failure with `spent` earlier iterations added to its count.

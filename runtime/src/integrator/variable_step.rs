@@ -178,7 +178,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 Ok((Segment { t0, h: x.t, q0, dq: x.q.into() }, report, false))
             }
             Ok((_, report)) => Err(first.iterations + report.iterations),
-            Err(_) => Err(first.iterations + self.newton.max_iterations),
+            Err(failure) => Err(first.iterations + failure.iterations()),
         }
     }
 
