@@ -1,6 +1,7 @@
 //! The error type of the runtime: every failure is a value, never a panic.
 
 use crate::newton::NewtonFailure;
+use crate::real::Real;
 use crate::state::State;
 
 /// What went wrong, with the state the integrator was left in and the
@@ -8,10 +9,13 @@ use crate::state::State;
 ///
 /// A failed step leaves the integrator exactly as it was before the step, so
 /// `state` is also the state a retry starts from (for example after
-/// [`Integrator::set_step_size`](crate::Integrator::set_step_size)).
+/// [`Integrator::set_step_size`](crate::Integrator::set_step_size)). `T` is
+/// the real type of that state (`f64` but for a
+/// [`GalerkinIntegrator`](crate::GalerkinIntegrator) run in extended precision);
+/// diagnostics such as step sizes and residual norms are always `f64`.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum Error<const N: usize> {
+pub enum Error<const N: usize, T: Real = f64> {
     /// Newton's method reached its iteration cap, or its corrections grew twice in a row.
     #[error(
         "newton did not converge in the step from t = {} (step {}, h = {h:e}): {iterations} iterations, residual norm {residual_norm:e}, last correction {correction_norm:e}",
@@ -19,7 +23,7 @@ pub enum Error<const N: usize> {
     )]
     NewtonDidNotConverge {
         /// The state the step started from (and the integrator still holds).
-        state: State<N>,
+        state: State<N, T>,
         /// The step size that was tried.
         h: f64,
         /// Newton iterations spent.
@@ -37,7 +41,7 @@ pub enum Error<const N: usize> {
     )]
     SingularJacobian {
         /// The state the step started from (and the integrator still holds).
-        state: State<N>,
+        state: State<N, T>,
         /// The step size that was tried.
         h: f64,
         /// The Newton iteration at which it happened.
@@ -52,7 +56,7 @@ pub enum Error<const N: usize> {
     )]
     NonFinite {
         /// The state the step started from (and the integrator still holds).
-        state: State<N>,
+        state: State<N, T>,
         /// The step size that was tried.
         h: f64,
         /// The Newton iteration at which it happened (0: after convergence).
@@ -69,7 +73,7 @@ pub enum Error<const N: usize> {
     )]
     StepRejected {
         /// The state the step started from (and the integrator still holds).
-        state: State<N>,
+        state: State<N, T>,
         /// The last step size tried.
         h: f64,
         /// Newton iterations spent.
@@ -89,7 +93,7 @@ pub enum Error<const N: usize> {
     )]
     NoEnergyStep {
         /// The state the step started from (and the integrator still holds).
-        state: State<N>,
+        state: State<N, T>,
         /// The smallest admissible step.
         h_lo: f64,
         /// The largest admissible step.
@@ -131,7 +135,7 @@ pub enum Error<const N: usize> {
         /// The rejected target time.
         target: f64,
         /// The current state.
-        state: State<N>,
+        state: State<N, T>,
     },
     /// A discrete Lagrangian that cannot define a step: a Galerkin method of
     /// degree 0, or with a quadrature that is invalid or too weak for its degree.
@@ -150,7 +154,7 @@ pub enum Error<const N: usize> {
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
     InverseLegendre {
         /// The state whose velocity was sought.
-        state: State<N>,
+        state: State<N, T>,
         /// Newton iterations spent.
         iterations: usize,
         /// `‖∂L/∂v − p‖∞` at the last iterate.
@@ -158,9 +162,9 @@ pub enum Error<const N: usize> {
     },
 }
 
-impl<const N: usize> Error<N> {
+impl<const N: usize, T: Real> Error<N, T> {
     /// The error of a step from `state` with size `h` whose Newton solve failed.
-    pub(crate) fn from_newton(failure: NewtonFailure, state: State<N>, h: f64) -> Self {
+    pub(crate) fn from_newton(failure: NewtonFailure, state: State<N, T>, h: f64) -> Self {
         match failure {
             NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
                 state,

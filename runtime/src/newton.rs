@@ -114,6 +114,9 @@ pub(crate) trait Unknown: Copy {
     /// Weighted size of a correction: `max_i |dx_i| / (rtol |x_i| + atol)`
     /// blockwise, so that `≤ 1` means converged.
     fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64;
+    /// The relative precision of the unknown's numbers, which sets the
+    /// round-off floors of the convergence test.
+    const EPSILON: f64 = f64::EPSILON;
 }
 
 impl<const N: usize> Unknown for SVector<f64, N> {
@@ -248,7 +251,7 @@ where
         })?;
         report.residual_norm = step.residual_norm;
         x.update(&step.correction);
-        if step.residual_ratio <= 4.0 * f64::EPSILON {
+        if step.residual_ratio <= 4.0 * X::EPSILON {
             // The residual was round-off of its own terms: this correction was
             // the last one that can change anything.
             return Ok((x, report));
@@ -270,9 +273,7 @@ where
             // they are already tiny or the residual is round-off of its terms
             // (an ill-conditioned energy equation turns that round-off into
             // corrections of h far above ε); more iterations only stir bits.
-            if theta >= 0.5
-                && (ratio * options.rtol <= 1e3 * f64::EPSILON || step.residual_ratio <= 64.0 * f64::EPSILON)
-            {
+            if theta >= 0.5 && (ratio * options.rtol <= 1e3 * X::EPSILON || step.residual_ratio <= 64.0 * X::EPSILON) {
                 return Ok((x, report));
             }
             growing = if theta >= 1.0 { growing + 1 } else { 0 };
@@ -285,17 +286,7 @@ where
     Err(NewtonFailure::NotConverged(report))
 }
 
-/// `max |x_i|`: the scale of the terms that cancel in a residual.
-#[inline]
-pub(crate) fn max_abs(x: &[f64]) -> f64 {
-    x.iter().fold(0.0, |m, v| m.max(v.abs()))
-}
-
-/// Every entry finite.
-#[inline]
-pub(crate) fn all_finite(x: &[f64]) -> bool {
-    x.iter().all(|v| v.is_finite())
-}
+pub(crate) use crate::real::{all_finite, max_abs};
 
 #[cfg(test)]
 mod tests {

@@ -2,14 +2,17 @@
 
 /// The integrator's state at node `k`: time, position and discrete momentum
 /// `p_k = ∂A(x_{k−1}, x_k)/∂q_k` (MATH.md §3).
+///
+/// `T` is the real type of the integrator: `f64`, or an extended-precision
+/// [`Real`](crate::Real) for a Galerkin integrator run in it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct State<const N: usize> {
+pub struct State<const N: usize, T = f64> {
     /// Node index `k` (0 at the start).
     pub step: u64,
     /// `t_k`.
-    pub t: f64,
+    pub t: T,
     /// `q_k`.
-    pub q: [f64; N],
+    pub q: [T; N],
     /// `p_k`.
-    pub p: [f64; N],
+    pub p: [T; N],
 }

@@ -23,6 +23,7 @@
 //! block does.
 
 use super::quadrature::gauss_lobatto_into;
+use crate::real::Real;
 
 /// Where the control nodes of the step polynomial sit in `[0, 1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -36,32 +37,32 @@ pub enum NodeFamily {
 
 impl NodeFamily {
     /// The `s + 1` control nodes `τ_0 = 0 < … < τ_s = 1`.
-    pub(crate) fn nodes(self, s: usize) -> Vec<f64> {
+    pub(crate) fn nodes<T: Real>(self, s: usize) -> Vec<T> {
         match self {
-            NodeFamily::Equispaced => (0..=s).map(|m| m as f64 / s as f64).collect(),
+            NodeFamily::Equispaced => (0..=s).map(|m| T::from(m as f64) / s as f64).collect(),
             NodeFamily::GaussLobatto => lobatto_nodes(s + 1),
         }
     }
 }
 
 /// The `n ≥ 2` Gauss–Lobatto points on `[0, 1]`.
-fn lobatto_nodes(n: usize) -> Vec<f64> {
-    let (mut x, mut w) = (vec![0.0; n], vec![0.0; n]);
+fn lobatto_nodes<T: Real>(n: usize) -> Vec<T> {
+    let (mut x, mut w) = (vec![T::zero(); n], vec![T::zero(); n]);
     gauss_lobatto_into(&mut x, &mut w);
     x
 }
 
 /// `ℓ_m(τ)` for the nodes `x`.
-pub(crate) fn lagrange(x: &[f64], m: usize, tau: f64) -> f64 {
+pub(crate) fn lagrange<T: Real>(x: &[T], m: usize, tau: T) -> T {
     (0..x.len()).filter(|&k| k != m).map(|k| (tau - x[k]) / (x[m] - x[k])).product()
 }
 
 /// `ℓ_m'(τ)` for the nodes `x`.
-pub(crate) fn lagrange_derivative(x: &[f64], m: usize, tau: f64) -> f64 {
+pub(crate) fn lagrange_derivative<T: Real>(x: &[T], m: usize, tau: T) -> T {
     (0..x.len())
         .filter(|&k| k != m)
         .map(|k| {
-            let rest: f64 = (0..x.len()).filter(|&l| l != m && l != k).map(|l| (tau - x[l]) / (x[m] - x[l])).product();
+            let rest: T = (0..x.len()).filter(|&l| l != m && l != k).map(|l| (tau - x[l]) / (x[m] - x[l])).product();
             rest / (x[m] - x[k])
         })
         .sum()
@@ -75,7 +76,7 @@ mod tests {
     fn basis_interpolates_and_differentiates_polynomials() {
         for family in [NodeFamily::Equispaced, NodeFamily::GaussLobatto] {
             for s in 1..=8 {
-                let x = family.nodes(s);
+                let x = family.nodes::<f64>(s);
                 assert_eq!(x.len(), s + 1);
                 assert_eq!((x[0], x[s]), (0.0, 1.0));
                 // p(τ) = (τ − 0.3)^s is reproduced, with its derivative.
@@ -93,7 +94,7 @@ mod tests {
 
     #[test]
     fn many_lobatto_nodes_are_increasing() {
-        let x = lobatto_nodes(40);
+        let x = lobatto_nodes::<f64>(40);
         assert_eq!(x.len(), 40);
         assert!(x.windows(2).all(|w| w[0] < w[1]));
     }

@@ -10,20 +10,22 @@
 //! condition number in the 1-norm is estimated from the factors by Hager's
 //! method (Higham, *Accuracy and Stability*, Alg. 15.4), a few extra solves.
 
+use crate::real::Real;
+
 /// A vector of the block system: `S` blocks of `N`.
-pub(crate) type BlockVector<const N: usize, const S: usize> = [[f64; N]; S];
+pub(crate) type BlockVector<const N: usize, const S: usize, T = f64> = [[T; N]; S];
 
 /// A matrix of the block system: `S × S` blocks of `N × N`, row-major by
 /// `(row node, row coordinate)`.
-pub(crate) type BlockMatrix<const N: usize, const S: usize> = [[[[f64; N]; S]; N]; S];
+pub(crate) type BlockMatrix<const N: usize, const S: usize, T = f64> = [[[[T; N]; S]; N]; S];
 
 /// The factors `PA = LU` (unit lower `L` below the diagonal, `U` on and above).
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Lu<const N: usize, const S: usize> {
-    lu: BlockMatrix<N, S>,
+pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
+    lu: BlockMatrix<N, S, T>,
     perm: [[usize; N]; S],
     /// `‖A‖₁`.
-    norm1: f64,
+    norm1: T,
 }
 
 /// Why a factorisation failed.
@@ -35,18 +37,19 @@ pub(crate) enum LuFailure {
     NonFinite,
 }
 
-impl<const N: usize, const S: usize> Lu<N, S> {
+impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     /// Factors `a`.
     #[inline]
-    pub(crate) fn factor(a: &BlockMatrix<N, S>) -> Result<Self, LuFailure> {
-        let mut out = Self { lu: *a, perm: [[0; N]; S], norm1: 0.0 };
+    pub(crate) fn factor(a: &BlockMatrix<N, S, T>) -> Result<Self, LuFailure> {
+        let zero = T::zero();
+        let mut out = Self { lu: *a, perm: [[0; N]; S], norm1: zero };
         let n = S * N;
         let perm = out.perm.as_flattened_mut();
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i;
         }
         let rows = out.lu.as_flattened_mut();
-        let mut col_sums = [[0.0; N]; S];
+        let mut col_sums = [[zero; N]; S];
         for row in rows.iter() {
             for (s, x) in col_sums.as_flattened_mut().iter_mut().zip(row.as_flattened()) {
                 *s += x.abs();
@@ -55,7 +58,7 @@ impl<const N: usize, const S: usize> Lu<N, S> {
         if !col_sums.as_flattened().iter().all(|x| x.is_finite()) {
             return Err(LuFailure::NonFinite);
         }
-        out.norm1 = col_sums.as_flattened().iter().fold(0.0, |m: f64, x| m.max(*x));
+        out.norm1 = col_sums.as_flattened().iter().fold(zero, |m, &x| if x > m { x } else { m });
         for k in 0..n {
             let mut piv = k;
             let mut max = rows[k].as_flattened()[k].abs();
@@ -66,19 +69,19 @@ impl<const N: usize, const S: usize> Lu<N, S> {
                     piv = i;
                 }
             }
-            if max == 0.0 {
+            if max == zero {
                 return Err(LuFailure::Singular);
             }
             rows.swap(k, piv);
             perm.swap(k, piv);
             let (top, bottom) = rows.split_at_mut(k + 1);
             let pr = top[k].as_flattened();
-            let inv = 1.0 / pr[k];
+            let inv = pr[k].recip();
             for row in bottom.iter_mut() {
                 let r = row.as_flattened_mut();
                 let f = r[k] * inv;
                 r[k] = f;
-                if f != 0.0 {
+                if f != zero {
                     for c in k + 1..n {
                         r[c] -= f * pr[c];
                     }
@@ -90,12 +93,12 @@ impl<const N: usize, const S: usize> Lu<N, S> {
 
     /// `x` with `A x = b`.
     #[inline]
-    pub(crate) fn solve(&self, b: &BlockVector<N, S>) -> BlockVector<N, S> {
+    pub(crate) fn solve(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
         let n = S * N;
         let rows = self.lu.as_flattened();
         let perm = self.perm.as_flattened();
         let bf = b.as_flattened();
-        let mut x = [[0.0; N]; S];
+        let mut x = [[T::zero(); N]; S];
         let y = x.as_flattened_mut();
         for i in 0..n {
             let r = rows[i].as_flattened();
@@ -117,7 +120,7 @@ impl<const N: usize, const S: usize> Lu<N, S> {
     }
 
     /// `z` with `Aᵀ z = b` (`Aᵀ = Uᵀ Lᵀ P`).
-    fn solve_transposed(&self, b: &BlockVector<N, S>) -> BlockVector<N, S> {
+    fn solve_transposed(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
         let n = S * N;
         let rows = self.lu.as_flattened();
         let perm = self.perm.as_flattened();
@@ -139,7 +142,7 @@ impl<const N: usize, const S: usize> Lu<N, S> {
             }
             wf[i] = v;
         }
-        let mut z = [[0.0; N]; S];
+        let mut z = [[T::zero(); N]; S];
         let zf = z.as_flattened_mut();
         for i in 0..n {
             zf[perm[i]] = wf[i];
@@ -150,28 +153,29 @@ impl<const N: usize, const S: usize> Lu<N, S> {
     /// Estimated `1 / (‖A‖₁ ‖A⁻¹‖₁)` (Hager's method, at most five rounds).
     pub(crate) fn rcond(&self) -> f64 {
         let n = S * N;
-        let mut x = [[1.0 / n as f64; N]; S];
-        let mut est = 0.0;
+        let (zero, one) = (T::zero(), T::one());
+        let mut x = [[T::from(1.0 / n as f64); N]; S];
+        let mut est = zero;
         for round in 0..5 {
             let y = self.solve(&x);
-            let norm: f64 = y.as_flattened().iter().map(|v| v.abs()).sum();
+            let norm: T = y.as_flattened().iter().map(|v| v.abs()).sum();
             if round > 0 && norm <= est {
                 break;
             }
             est = norm;
-            let xi = y.map(|b| b.map(|v| if v >= 0.0 { 1.0 } else { -1.0 }));
+            let xi = y.map(|b| b.map(|v| if v >= zero { one } else { -one }));
             let z = self.solve_transposed(&xi);
             let zf = z.as_flattened();
             let (j, zmax) =
-                zf.iter().enumerate().fold((0, 0.0), |(j, m), (i, v)| if v.abs() > m { (i, v.abs()) } else { (j, m) });
-            let ztx: f64 = zf.iter().zip(x.as_flattened()).map(|(a, b)| a * b).sum();
+                zf.iter().enumerate().fold((0, zero), |(j, m), (i, v)| if v.abs() > m { (i, v.abs()) } else { (j, m) });
+            let ztx: T = zf.iter().zip(x.as_flattened()).map(|(&a, &b)| a * b).sum();
             if round > 0 && zmax <= ztx {
                 break;
             }
-            x = [[0.0; N]; S];
-            x.as_flattened_mut()[j] = 1.0;
+            x = [[zero; N]; S];
+            x.as_flattened_mut()[j] = one;
         }
-        1.0 / (self.norm1 * est)
+        (self.norm1 * est).recip().to_f64()
     }
 }
 

@@ -43,10 +43,11 @@
 //! [`DiscreteLagrangian::action`](crate::DiscreteLagrangian::action)).
 
 use nalgebra::DMatrix;
-use num_dual::HyperDual64;
+use num_dual::HyperDual;
 
 use super::basis::{NodeFamily, lagrange, lagrange_derivative};
 use super::quadrature::Quadrature;
+use crate::real::Real;
 use crate::system::{Lagrangian, Scalar};
 
 /// The Galerkin discrete Lagrangian with a polynomial of degree `S` and an
@@ -69,47 +70,47 @@ use crate::system::{Lagrangian, Scalar};
 /// assert!(Galerkin::<4, 2>::new(NodeFamily::GaussLobatto, Quadrature::gauss_legendre()).check().is_err());
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Galerkin<const S: usize, const R: usize> {
+pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     family: NodeFamily,
-    quadrature: Quadrature<R>,
+    quadrature: Quadrature<R, T>,
     /// Control nodes `τ_1 … τ_s` (`τ_0 = 0`).
-    pub(crate) control: [f64; S],
+    pub(crate) control: [T; S],
     /// `ℓ_0 … ℓ_{s−1}` at `c_j`: the basis of the equations (rows) of a step,
     /// with `ℓ_0 = 1 − Σ_{m≥1} ℓ_m` (used for the Jacobian only; the residual
     /// of the `q_k` row is formed as `∂A/∂q_k|_D − Σ_m ∂A/∂D_m`).
-    pub(crate) row: [[f64; S]; R],
+    pub(crate) row: [[T; S]; R],
     /// `ℓ_0' … ℓ_{s−1}'` at `c_j`.
-    pub(crate) row_d: [[f64; S]; R],
+    pub(crate) row_d: [[T; S]; R],
     /// `ℓ_1 … ℓ_s` at `c_j`: the basis of the unknowns (columns) of a step.
-    pub(crate) col: [[f64; S]; R],
+    pub(crate) col: [[T; S]; R],
     /// `ℓ_1' … ℓ_s'` at `c_j`.
-    pub(crate) col_d: [[f64; S]; R],
+    pub(crate) col_d: [[T; S]; R],
     /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
     /// increments of one step to the next (same step size).
-    pub(crate) extrapolate: [[f64; S]; S],
+    pub(crate) extrapolate: [[T; S]; S],
 }
 
-impl<const S: usize, const R: usize> Galerkin<S, R> {
+impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
     /// Degree `S` with control nodes `family` and the given quadrature.
     ///
     /// Never panics; an unusable combination (`S = 0`, an invalid or too weak
     /// quadrature) is reported by [`check`](Self::check) and refused by the
     /// integrator with [`Error::InvalidMethod`](crate::Error::InvalidMethod).
-    pub fn new(family: NodeFamily, quadrature: Quadrature<R>) -> Self {
+    pub fn new(family: NodeFamily, quadrature: Quadrature<R, T>) -> Self {
         let mut g = Self {
             family,
             quadrature,
-            control: [0.0; S],
-            row: [[0.0; S]; R],
-            row_d: [[0.0; S]; R],
-            col: [[0.0; S]; R],
-            col_d: [[0.0; S]; R],
-            extrapolate: [[0.0; S]; S],
+            control: [T::zero(); S],
+            row: [[T::zero(); S]; R],
+            row_d: [[T::zero(); S]; R],
+            col: [[T::zero(); S]; R],
+            col_d: [[T::zero(); S]; R],
+            extrapolate: [[T::zero(); S]; S],
         };
         if S == 0 {
             return g;
         }
-        let x = family.nodes(S);
+        let x = family.nodes::<T>(S);
         g.control.copy_from_slice(&x[1..=S]);
         for (j, &c) in quadrature.nodes().iter().enumerate() {
             for m in 0..S {
@@ -121,8 +122,8 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
             // the derivative of the same action, or the map is not symplectic
             // to round-off and the energy drifts (measured: 5e-10 phase error
             // on Kepler over ten orbits with s = 6 before this).
-            g.row[j][0] = 1.0 - g.col[j].iter().sum::<f64>();
-            g.row_d[j][0] = -g.col_d[j].iter().sum::<f64>();
+            g.row[j][0] = T::one() - g.col[j].iter().copied().sum::<T>();
+            g.row_d[j][0] = -g.col_d[j].iter().copied().sum::<T>();
             for m in 1..S {
                 g.row[j][m] = g.col[j][m - 1];
                 g.row_d[j][m] = g.col_d[j][m - 1];
@@ -131,7 +132,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         for m in 0..S {
             for n in 0..S {
                 let delta = if n + 1 == S { 1.0 } else { 0.0 };
-                g.extrapolate[m][n] = lagrange(&x, n + 1, 1.0 + x[m + 1]) - delta;
+                g.extrapolate[m][n] = lagrange(&x, n + 1, T::one() + x[m + 1]) - delta;
             }
         }
         g
@@ -143,7 +144,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
     }
 
     /// The quadrature rule.
-    pub fn quadrature(&self) -> &Quadrature<R> {
+    pub fn quadrature(&self) -> &Quadrature<R, T> {
         &self.quadrature
     }
 
@@ -153,7 +154,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
     }
 
     /// The control nodes `τ_1 … τ_s` in `(0, 1]` (`τ_0 = 0` is implied).
-    pub fn control_nodes(&self) -> &[f64; S] {
+    pub fn control_nodes(&self) -> &[T; S] {
         &self.control
     }
 
@@ -180,7 +181,9 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         }
         Ok(())
     }
+}
 
+impl<const S: usize, const R: usize> Galerkin<S, R> {
     /// The step action `A` on any [`Scalar`], from `(t0, h, q0)` and the
     /// node increments `d[m − 1] = Q_m − q_k`, `m = 1 … s` (`d[s − 1]` is
     /// `q_{k+1} − q_k`).
@@ -285,18 +288,20 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         }
         out
     }
+}
 
+impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
     /// Time, position and velocity at quadrature point `j` of the step that
     /// starts at `q0 + e` (`e`: the compensation of a Kahan-summed position).
     #[inline(always)]
     pub(crate) fn point<const N: usize>(
         &self,
-        t0: f64,
-        h: f64,
-        (q0, e): (&[f64; N], &[f64; N]),
-        d: &[[f64; N]; S],
+        t0: T,
+        h: T,
+        (q0, e): (&[T; N], &[T; N]),
+        d: &[[T; N]; S],
         j: usize,
-    ) -> (f64, [f64; N], [f64; N]) {
+    ) -> (T, [T; N], [T; N]) {
         let (col, col_d) = (&self.col[j], &self.col_d[j]);
         let q = core::array::from_fn(|i| {
             let mut x = e[i];
@@ -306,7 +311,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
             q0[i] + x
         });
         let v = core::array::from_fn(|i| {
-            let mut x = 0.0;
+            let mut x = T::zero();
             for m in 0..S {
                 x += col_d[m] * d[m][i];
             }
@@ -316,26 +321,24 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
         });
         (t0 + self.quadrature.nodes()[j] * h, q, v)
     }
-}
 
-impl<const S: usize, const R: usize> Galerkin<S, R> {
     /// Control node `τ_m`, `m = 0 … s`.
     #[inline]
-    fn tau(&self, m: usize) -> f64 {
-        if m == 0 { 0.0 } else { self.control[m - 1] }
+    fn tau(&self, m: usize) -> T {
+        if m == 0 { T::zero() } else { self.control[m - 1] }
     }
 
     /// `ℓ_n(τ)`, `n = 0 … s`, without allocating.
-    pub(crate) fn basis(&self, n: usize, tau: f64) -> f64 {
+    pub(crate) fn basis(&self, n: usize, tau: T) -> T {
         (0..=S).filter(|&k| k != n).map(|k| (tau - self.tau(k)) / (self.tau(n) - self.tau(k))).product()
     }
 
     /// `ℓ_n'(τ)`, `n = 0 … s`, without allocating.
-    pub(crate) fn basis_derivative(&self, n: usize, tau: f64) -> f64 {
+    pub(crate) fn basis_derivative(&self, n: usize, tau: T) -> T {
         (0..=S)
             .filter(|&k| k != n)
             .map(|k| {
-                let rest: f64 = (0..=S)
+                let rest: T = (0..=S)
                     .filter(|&l| l != n && l != k)
                     .map(|l| (tau - self.tau(l)) / (self.tau(n) - self.tau(l)))
                     .product();
@@ -345,7 +348,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
     }
 }
 
-impl<const S: usize> Galerkin<S, S> {
+impl<const S: usize, T: Real> Galerkin<S, S, T> {
     /// Degree `S` on Gauss–Lobatto control nodes with `S` Gauss–Legendre
     /// points: the optimal choice, of order `2S` (Gauss collocation).
     pub fn gauss() -> Self {
@@ -355,18 +358,19 @@ impl<const S: usize> Galerkin<S, S> {
 
 /// `(L_q, L_v)` at one point: `N` hyper-dual evaluations, seeding `q_i` and `v_i` together.
 #[inline(always)]
-pub(crate) fn gradient_at<Sys, const N: usize>(system: &Sys, t: f64, q: [f64; N], v: [f64; N]) -> ([f64; N], [f64; N])
+pub(crate) fn gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [T; N])
 where
     Sys: Lagrangian<N> + ?Sized,
+    T: Real,
 {
-    let mut lq = [0.0; N];
-    let mut lv = [0.0; N];
+    let mut lq = [T::zero(); N];
+    let mut lv = [T::zero(); N];
     for i in 0..N {
-        let mut qd = q.map(HyperDual64::from);
-        let mut vd = v.map(HyperDual64::from);
-        qd[i].eps1 = 1.0;
-        vd[i].eps2 = 1.0;
-        let l = system.lagrangian(HyperDual64::from(t), qd, vd);
+        let mut qd = q.map(HyperDual::from_re);
+        let mut vd = v.map(HyperDual::from_re);
+        qd[i].eps1 = T::one();
+        vd[i].eps2 = T::one();
+        let l = system.lagrangian(HyperDual::from_re(t), qd, vd);
         lq[i] = l.eps1;
         lv[i] = l.eps2;
     }
@@ -375,37 +379,38 @@ where
 
 /// Gradient and Hessian of `L` in `(q, v)` at one point.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct PointDerivatives<const N: usize> {
-    pub(crate) q: [f64; N],
-    pub(crate) v: [f64; N],
+pub(crate) struct PointDerivatives<const N: usize, T = f64> {
+    pub(crate) q: [T; N],
+    pub(crate) v: [T; N],
     /// `∂²L/∂q_i∂q_k`.
-    pub(crate) qq: [[f64; N]; N],
+    pub(crate) qq: [[T; N]; N],
     /// `∂²L/∂q_i∂v_k`.
-    pub(crate) qv: [[f64; N]; N],
+    pub(crate) qv: [[T; N]; N],
     /// `∂²L/∂v_i∂v_k`.
-    pub(crate) vv: [[f64; N]; N],
+    pub(crate) vv: [[T; N]; N],
 }
 
-impl<const N: usize> PointDerivatives<N> {
+impl<const N: usize, T: Real> PointDerivatives<N, T> {
     /// `N(2N + 1)` hyper-dual evaluations, one per pair `a ≤ b` of the `2N`
     /// coordinates `(q, v)`; the gradient comes with them.
     #[inline(always)]
-    pub(crate) fn at<Sys: Lagrangian<N> + ?Sized>(system: &Sys, t: f64, q: [f64; N], v: [f64; N]) -> Self {
-        let mut out = Self { q: [0.0; N], v: [0.0; N], qq: [[0.0; N]; N], qv: [[0.0; N]; N], vv: [[0.0; N]; N] };
-        let t = HyperDual64::from(t);
+    pub(crate) fn at<Sys: Lagrangian<N> + ?Sized>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> Self {
+        let z = T::zero();
+        let mut out = Self { q: [z; N], v: [z; N], qq: [[z; N]; N], qv: [[z; N]; N], vv: [[z; N]; N] };
+        let t = HyperDual::from_re(t);
         for a in 0..2 * N {
             for b in a..2 * N {
-                let mut qd = q.map(HyperDual64::from);
-                let mut vd = v.map(HyperDual64::from);
+                let mut qd = q.map(HyperDual::from_re);
+                let mut vd = v.map(HyperDual::from_re);
                 if a < N {
-                    qd[a].eps1 = 1.0
+                    qd[a].eps1 = T::one()
                 } else {
-                    vd[a - N].eps1 = 1.0
+                    vd[a - N].eps1 = T::one()
                 }
                 if b < N {
-                    qd[b].eps2 = 1.0
+                    qd[b].eps2 = T::one()
                 } else {
-                    vd[b - N].eps2 = 1.0
+                    vd[b - N].eps2 = T::one()
                 }
                 let l = system.lagrangian(t, qd, vd);
                 if b == a {

@@ -1,5 +1,6 @@
 //! Quadrature rules on `[0, 1]`: Gauss–Legendre and Gauss–Lobatto with any
-//! number of points, computed to full `f64` accuracy.
+//! number of points, computed to the full accuracy of the [`Real`] type
+//! (`f64`, or an extended-precision type for reference runs).
 //!
 //! ```text
 //! ∫₀¹ f(τ) dτ ≈ Σ_j b_j f(c_j)
@@ -32,21 +33,24 @@ pub enum QuadratureKind {
     GaussLobatto,
 }
 
-/// A quadrature rule with `R` points on `[0, 1]`: nodes `c_j`, weights `b_j`.
+use crate::real::Real;
+
+/// A quadrature rule with `R` points on `[0, 1]`: nodes `c_j`, weights `b_j`,
+/// in the real type `T`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Quadrature<const R: usize> {
+pub struct Quadrature<const R: usize, T = f64> {
     kind: QuadratureKind,
-    nodes: [f64; R],
-    weights: [f64; R],
+    nodes: [T; R],
+    weights: [T; R],
 }
 
-impl<const R: usize> Quadrature<R> {
+impl<const R: usize, T: Real> Quadrature<R, T> {
     /// The `R`-point Gauss–Legendre rule (order `2R`, exact to degree `2R − 1`).
     ///
     /// `R = 0` gives an empty rule that [`check`](Self::check) rejects.
     pub fn gauss_legendre() -> Self {
-        let mut nodes = [0.0; R];
-        let mut weights = [0.0; R];
+        let mut nodes = [T::zero(); R];
+        let mut weights = [T::zero(); R];
         gauss_legendre_into(&mut nodes, &mut weights);
         Self { kind: QuadratureKind::GaussLegendre, nodes, weights }
     }
@@ -55,8 +59,8 @@ impl<const R: usize> Quadrature<R> {
     ///
     /// `R < 2` gives a rule that [`check`](Self::check) rejects.
     pub fn gauss_lobatto() -> Self {
-        let mut nodes = [f64::NAN; R];
-        let mut weights = [f64::NAN; R];
+        let mut nodes = [T::from(f64::NAN); R];
+        let mut weights = [T::from(f64::NAN); R];
         if R >= 2 {
             gauss_lobatto_into(&mut nodes, &mut weights);
         }
@@ -69,12 +73,12 @@ impl<const R: usize> Quadrature<R> {
     }
 
     /// The nodes `c_j` in `[0, 1]`, increasing.
-    pub fn nodes(&self) -> &[f64; R] {
+    pub fn nodes(&self) -> &[T; R] {
         &self.nodes
     }
 
     /// The weights `b_j`, summing to 1.
-    pub fn weights(&self) -> &[f64; R] {
+    pub fn weights(&self) -> &[T; R] {
         &self.weights
     }
 
@@ -89,7 +93,7 @@ impl<const R: usize> Quadrature<R> {
     }
 
     /// `Σ_j b_j f(c_j)`.
-    pub fn integrate(&self, f: impl Fn(f64) -> f64) -> f64 {
+    pub fn integrate(&self, f: impl Fn(T) -> T) -> T {
         self.nodes.iter().zip(&self.weights).map(|(&c, &b)| b * f(c)).sum()
     }
 
@@ -125,38 +129,40 @@ impl Quadrature<3> {
 }
 
 /// Fills `nodes` and `weights` with the Gauss–Legendre rule of their length.
-fn gauss_legendre_into(nodes: &mut [f64], weights: &mut [f64]) {
+fn gauss_legendre_into<T: Real>(nodes: &mut [T], weights: &mut [T]) {
     let r = nodes.len();
+    let one = T::one();
     for i in 0..r / 2 {
         // Root i of P_r counted from x = +1, so x > 0; its mirror is −x.
-        let mut x = (core::f64::consts::PI * (i as f64 + 0.75) / (r as f64 + 0.5)).cos();
-        x = newton_root(x, |x| {
+        let guess = (core::f64::consts::PI * (i as f64 + 0.75) / (r as f64 + 0.5)).cos();
+        let x = newton_root(T::from(guess), |x| {
             let (p, dp) = legendre(r, x);
             p / dp
         });
         // b = 1 / ((1 − x²) P_r'²): of the equivalent forms at a root, the
         // least sensitive to the last bit of x (measured against 40-digit
-        // values: relative error ≤ 2e-15 up to r = 16, 2e-14 at r = 40).
+        // values: relative error ≤ 2e-15 up to r = 16, 2e-14 at r = 40, in f64).
         let (_, dp) = legendre(r, x);
-        let w = 1.0 / ((1.0 - x) * (1.0 + x) * dp * dp);
-        nodes[i] = 0.5 * (1.0 - x);
-        nodes[r - 1 - i] = 0.5 * (1.0 + x);
+        let w = ((one - x) * (one + x) * dp * dp).recip();
+        nodes[i] = (one - x) * 0.5;
+        nodes[r - 1 - i] = (one + x) * 0.5;
         weights[i] = w;
         weights[r - 1 - i] = w;
     }
     if r % 2 == 1 {
-        let (_, dp) = legendre(r, 0.0);
-        nodes[r / 2] = 0.5;
-        weights[r / 2] = 1.0 / (dp * dp);
+        let (_, dp) = legendre(r, T::zero());
+        nodes[r / 2] = T::from(0.5);
+        weights[r / 2] = (dp * dp).recip();
     }
 }
 
 /// Fills `nodes` and `weights` with the Gauss–Lobatto rule of their length (at least 2).
-pub(crate) fn gauss_lobatto_into(nodes: &mut [f64], weights: &mut [f64]) {
+pub(crate) fn gauss_lobatto_into<T: Real>(nodes: &mut [T], weights: &mut [T]) {
     let n = nodes.len() - 1;
-    let scale = 1.0 / (n as f64 * (n + 1) as f64);
-    nodes[0] = 0.0;
-    nodes[n] = 1.0;
+    let one = T::one();
+    let scale = (T::from(n as f64) * (n + 1) as f64).recip();
+    nodes[0] = T::zero();
+    nodes[n] = one;
     weights[0] = scale;
     weights[n] = scale;
     for i in 1..(n + 1).div_ceil(2) {
@@ -164,51 +170,51 @@ pub(crate) fn gauss_lobatto_into(nodes: &mut [f64], weights: &mut [f64]) {
             continue;
         }
         // Root i of P_n' counted from x = +1.
-        let mut x = (core::f64::consts::PI * i as f64 / n as f64).cos();
-        x = newton_root(x, |x| {
+        let guess = (core::f64::consts::PI * i as f64 / n as f64).cos();
+        let x = newton_root(T::from(guess), |x| {
             let (p, dp) = legendre(n, x);
             // (1 − x²) P_n'' = 2x P_n' − n(n+1) P_n
-            let d2p = (2.0 * x * dp - (n * (n + 1)) as f64 * p) / (1.0 - x * x);
+            let d2p = (x * 2.0 * dp - p * (n * (n + 1)) as f64) / (one - x * x);
             dp / d2p
         });
         let (p, _) = legendre(n, x);
         let w = scale / (p * p);
-        nodes[i] = 0.5 * (1.0 - x);
-        nodes[n - i] = 0.5 * (1.0 + x);
+        nodes[i] = (one - x) * 0.5;
+        nodes[n - i] = (one + x) * 0.5;
         weights[i] = w;
         weights[n - i] = w;
     }
     if n.is_multiple_of(2) {
-        let (p, _) = legendre(n, 0.0);
-        nodes[n / 2] = 0.5;
+        let (p, _) = legendre(n, T::zero());
+        nodes[n / 2] = T::from(0.5);
         weights[n / 2] = scale / (p * p);
     }
 }
 
 /// `(P_n(x), P_n'(x))` by the three-term recurrence; `|x| < 1` for the derivative.
-pub(crate) fn legendre(n: usize, x: f64) -> (f64, f64) {
+pub(crate) fn legendre<T: Real>(n: usize, x: T) -> (T, T) {
     if n == 0 {
-        return (1.0, 0.0);
+        return (T::one(), T::zero());
     }
-    let (mut p0, mut p1) = (1.0, x);
+    let (mut p0, mut p1) = (T::one(), x);
     for k in 1..n {
         let k = k as f64;
-        let p2 = ((2.0 * k + 1.0) * x * p1 - k * p0) / (k + 1.0);
+        let p2 = (x * (2.0 * k + 1.0) * p1 - p0 * k) / (k + 1.0);
         p0 = p1;
         p1 = p2;
     }
     // (1 − x²) P_n' = n (P_{n−1} − x P_n)
-    (p1, n as f64 * (p0 - x * p1) / (1.0 - x * x))
+    (p1, (p0 - x * p1) * n as f64 / (T::one() - x * x))
 }
 
 /// Newton's method `x ← x − f/f'` (given as `step(x) = f/f'`) until the step
 /// stops shrinking, then one more step.
-fn newton_root(mut x: f64, step: impl Fn(f64) -> f64) -> f64 {
-    let mut last = f64::INFINITY;
+fn newton_root<T: Real>(mut x: T, step: impl Fn(T) -> T) -> T {
+    let mut last = T::from(f64::INFINITY);
     for _ in 0..100 {
         let dx = step(x);
         x -= dx;
-        if dx.abs() >= last || dx == 0.0 {
+        if dx.abs() >= last || dx == T::zero() {
             break;
         }
         last = dx.abs();

@@ -31,24 +31,26 @@ use core::cell::Cell;
 use crate::error::Error;
 use crate::integrator::Stats;
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown, all_finite, max_abs};
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
+use crate::real::{Real, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
+use nalgebra::SMatrix;
 
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
 use super::method::{Galerkin, PointDerivatives, gradient_at};
 
 /// Configuration of a [`GalerkinIntegrator`] before it is given its initial state.
 #[derive(Clone, Debug)]
-pub struct GalerkinBuilder<Sys, const S: usize, const R: usize> {
+pub struct GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> {
     system: Sys,
-    method: Galerkin<S, R>,
-    h: f64,
+    method: Galerkin<S, R, T>,
+    h: T,
     newton: NewtonOptions,
 }
 
-impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
+impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T> {
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
@@ -62,15 +64,15 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
     /// like [`IntegratorBuilder::start`](crate::IntegratorBuilder::start).
     pub fn start<const N: usize>(
         self,
-        t0: f64,
-        q0: [f64; N],
-        v0: [f64; N],
-    ) -> Result<GalerkinIntegrator<Sys, N, S, R>, Error<N>>
+        t0: T,
+        q0: [T; N],
+        v0: [T; N],
+    ) -> Result<GalerkinIntegrator<Sys, N, S, R, T>, Error<N, T>>
     where
         Sys: Lagrangian<N>,
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
-        Error::<N>::check_step(self.h)?;
+        Error::<N, T>::check_step(self.h.to_f64())?;
         if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
             return Err(Error::Unsupported {
                 what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
@@ -79,13 +81,15 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
-        let p0 = self.system.momentum(t0, q0, v0);
-        if !all_finite(&p0) || !self.system.lagrangian_value(t0, q0, v0).is_finite() {
+        let point = PointDerivatives::at(&self.system, t0, q0, v0);
+        let p0 = point.v;
+        if !all_finite(&p0) || !self.system.lagrangian(t0, q0, v0).is_finite() {
             return Err(Error::InvalidInitialData {
                 reason: "the lagrangian or its momentum is not finite at the initial data",
             });
         }
-        let hessian = self.system.velocity_hessian(t0, q0, v0);
+        // Regularity is a yes-or-no question: asked of the Hessian rounded to f64.
+        let hessian = SMatrix::<f64, N, N>::from_fn(|i, k| point.vv[i][k].to_f64());
         if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
             return Err(Error::InvalidInitialData {
                 reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
@@ -97,8 +101,8 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
             h: self.h,
             newton: self.newton,
             state: State { step: 0, t: t0, q: q0, p: p0 },
-            carry: [0.0; N],
-            p_carry: [0.0; N],
+            carry: [T::zero(); N],
+            p_carry: [T::zero(); N],
             last: None,
             v0,
             clock: (t0, 0),
@@ -109,12 +113,12 @@ impl<Sys, const S: usize, const R: usize> GalerkinBuilder<Sys, S, R> {
 
 /// The last step taken: where it started and its node increments.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct LastStep<const N: usize, const S: usize> {
-    t0: f64,
-    h: f64,
-    q0: [f64; N],
-    carry: [f64; N],
-    d: [[f64; N]; S],
+struct LastStep<const N: usize, const S: usize, T> {
+    t0: T,
+    h: T,
+    q0: [T; N],
+    carry: [T; N],
+    d: [[T; N]; S],
 }
 
 /// A fixed-step variational integrator built on the Galerkin discrete
@@ -142,41 +146,46 @@ struct LastStep<const N: usize, const S: usize> {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Clone, Debug)]
-pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize> {
+pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize, T = f64> {
     system: Sys,
-    method: Galerkin<S, R>,
-    h: f64,
+    method: Galerkin<S, R, T>,
+    h: T,
     newton: NewtonOptions,
-    state: State<N>,
+    state: State<N, T>,
     /// Kahan compensation: the position is `state.q + carry`.
-    carry: [f64; N],
+    carry: [T; N],
     /// Kahan compensation of the momentum: it is `state.p + p_carry`.
-    p_carry: [f64; N],
-    last: Option<LastStep<N, S>>,
-    v0: [f64; N],
+    p_carry: [T; N],
+    last: Option<LastStep<N, S, T>>,
+    v0: [T; N],
     /// `(t, step)` that `t_k = t + (k − step) h` is measured from.
-    clock: (f64, u64),
+    clock: (T, u64),
     stats: Stats,
 }
 
-impl<Sys, const S: usize, const R: usize> GalerkinIntegrator<Sys, 0, S, R> {
+impl<Sys, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, 0, S, R, T> {
     /// Configures an integrator for `system` with the Galerkin discrete
     /// Lagrangian `method` and step `h`; continue with [`GalerkinBuilder::start`].
+    ///
+    /// The real type `T` of the method is the type of the whole run: `f64`,
+    /// or [`DoubleDouble`](crate::DoubleDouble) for about 32 digits.
     #[allow(clippy::new_ret_no_self)]
-    pub fn new(system: Sys, method: Galerkin<S, R>, h: f64) -> GalerkinBuilder<Sys, S, R> {
+    pub fn new(system: Sys, method: Galerkin<S, R, T>, h: T) -> GalerkinBuilder<Sys, S, R, T> {
         GalerkinBuilder { system, method, h, newton: NewtonOptions::default() }
     }
 }
 
 /// The unknown of a step: the node increments `D_1 … D_s`.
 #[derive(Clone, Copy, Debug)]
-struct Nodes<const N: usize, const S: usize>(BlockVector<N, S>);
+struct Nodes<const N: usize, const S: usize, T>(BlockVector<N, S, T>);
 
-impl<const N: usize, const S: usize> Unknown for Nodes<N, S> {
+impl<const N: usize, const S: usize, T: Real> Unknown for Nodes<N, S, T> {
+    const EPSILON: f64 = T::EPSILON;
+
     #[inline]
     fn update(&mut self, dx: &Self) {
         for (x, d) in self.0.as_flattened_mut().iter_mut().zip(dx.0.as_flattened()) {
-            *x += d;
+            *x += *d;
         }
     }
 
@@ -186,9 +195,9 @@ impl<const N: usize, const S: usize> Unknown for Nodes<N, S> {
     }
 }
 
-impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> GalerkinIntegrator<Sys, N, S, R> {
+impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, N, S, R, T> {
     /// The current state `(k, t_k, q_k, p_k)`.
-    pub fn state(&self) -> &State<N> {
+    pub fn state(&self) -> &State<N, T> {
         &self.state
     }
 
@@ -198,12 +207,12 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     }
 
     /// The discrete Lagrangian in use.
-    pub fn method(&self) -> &Galerkin<S, R> {
+    pub fn method(&self) -> &Galerkin<S, R, T> {
         &self.method
     }
 
     /// The current step size.
-    pub fn step_size(&self) -> f64 {
+    pub fn step_size(&self) -> T {
         self.h
     }
 
@@ -219,14 +228,14 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
 
     /// The node values `Q_1 … Q_s` of the last step's polynomial (`Q_s = q_k`),
     /// or `None` before the first step.
-    pub fn last_nodes(&self) -> Option<[[f64; N]; S]> {
+    pub fn last_nodes(&self) -> Option<[[T; N]; S]> {
         let last = self.last?;
         Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
     }
 
     /// Changes the step size for the following steps.
-    pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
-        Error::<N>::check_step(h)?;
+    pub fn set_step_size(&mut self, h: T) -> Result<(), Error<N, T>> {
+        Error::<N, T>::check_step(h.to_f64())?;
         self.clock = (self.state.t, self.state.step);
         self.h = h;
         Ok(())
@@ -237,13 +246,13 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     /// On failure nothing changes and the error carries the state and the
     /// Newton diagnostics.
     #[inline]
-    pub fn step(&mut self) -> Result<&State<N>, Error<N>> {
-        let t1 = self.clock.0 + (self.state.step + 1 - self.clock.1) as f64 * self.h;
+    pub fn step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
+        let t1 = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
         self.step_by(self.h, t1)
     }
 
     /// Takes `n` steps, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -252,13 +261,13 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     }
 
     /// Steps until `t_end`; the last step is shortened to land on it exactly.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         if !t_end.is_finite() || t_end < self.state.t {
-            return Err(Error::InvalidTarget { target: t_end, state: self.state });
+            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: self.state });
         }
-        let slack = 1e-9 * self.h;
+        let slack = self.h * 1e-9;
         loop {
-            let reach = self.clock.0 + (self.state.step + 1 - self.clock.1) as f64 * self.h;
+            let reach = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
             if reach <= t_end + slack {
                 self.step()?;
                 observe(self);
@@ -273,32 +282,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         }
     }
 
-    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
-    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
-        let State { t, q, p, .. } = self.state;
-        let guess = match &self.last {
-            // The velocity at the end of the last step's polynomial.
-            Some(last) => core::array::from_fn(|i| {
-                (0..S).map(|n| self.method.basis_derivative(n + 1, 1.0) * last.d[n][i]).sum::<f64>() / last.h
-            }),
-            None => self.v0,
-        };
-        self.system.velocity(t, q, p, guess).map_err(|f| Error::InverseLegendre {
-            state: self.state,
-            iterations: f.iterations,
-            residual_norm: f.residual_norm,
-        })
-    }
-
-    /// The energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
-    pub fn energy(&self) -> Result<f64, Error<N>> {
-        let v = self.velocity()?;
-        Ok(self.system.energy(self.state.t, self.state.q, v))
-    }
-
     /// The first guess for the increments of a step of size `h`.
     #[inline]
-    fn predict(&self, h: f64) -> BlockVector<N, S> {
+    fn predict(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
         match &self.last {
             Some(last) if last.h == h => core::array::from_fn(|m| {
@@ -308,9 +294,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
                 // Extrapolate the last polynomial, in its own variable τ ∈ [0, 1],
                 // to the control nodes of the new step, 1 + τ_m h/h_last.
                 let rho = h / last.h;
-                let mut out = [[0.0; N]; S];
+                let mut out = [[T::zero(); N]; S];
                 for m in 0..S {
-                    let tau = 1.0 + g.control[m] * rho;
+                    let tau = T::one() + g.control[m] * rho;
                     for n in 0..S {
                         let w = g.basis(n + 1, tau) - if n + 1 == S { 1.0 } else { 0.0 };
                         for i in 0..N {
@@ -326,7 +312,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
 
     /// One step of size `h` stamped with end time `t1`.
     #[inline]
-    fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
+    fn step_by(&mut self, h: T, t1: T) -> Result<&State<N, T>, Error<N, T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
@@ -340,10 +326,10 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         // the straight line at the last secant velocity (v0 at the first step).
         // The condition estimate is made on the first iteration of each solve.
         let first = Cell::new(true);
-        let frozen: Cell<Option<Lu<N, S>>> = Cell::new(None);
+        let frozen: Cell<Option<Lu<N, S, T>>> = Cell::new(None);
         let simplified = Cell::new(true);
         let last_correction: Cell<Option<f64>> = Cell::new(None);
-        let linearize = |x: &Nodes<N, S>| {
+        let linearize = |x: &Nodes<N, S, T>| {
             let check = if first.replace(false) { min_rcond } else { 0.0 };
             let reuse = if simplified.get() { frozen.get() } else { None };
             let (lin, lu) = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, check, reuse.as_ref())?;
@@ -358,7 +344,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
             }
             Ok(lin)
         };
-        let attempt = |guess: BlockVector<N, S>, simplify: bool| {
+        let attempt = |guess: BlockVector<N, S, T>, simplify: bool| {
             first.set(true);
             frozen.set(None);
             last_correction.set(None);
@@ -405,7 +391,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         // exactly (its ∂L/∂q is zero) instead of up to the round-off of the
         // interior rows, and summed with Kahan's compensation like q, the
         // rounding of p grows like ε|Δp| = O(εh) per step instead of ε|p|.
-        let mut dp = [0.0; N];
+        let mut dp = [T::zero(); N];
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
             let (lq, _) = gradient_at(system, t, q, v);
@@ -420,7 +406,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         if !all_finite(&q1) || !all_finite(&p1) {
             let quantity = if all_finite(&q1) { "momentum" } else { "position" };
             self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+            return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
         self.last = Some(LastStep { t0, h, q0, carry: e, d });
         self.carry = carry;
@@ -432,9 +418,35 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         Ok(&self.state)
     }
 
-    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
+    fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<N, T> {
         self.stats.failed_steps += 1;
-        Error::from_newton(failure, self.state, h)
+        Error::from_newton(failure, self.state, h.to_f64())
+    }
+}
+
+/// Readouts that solve in `f64` (the inverse Legendre transform, the tangent map).
+impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> GalerkinIntegrator<Sys, N, S, R> {
+    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
+    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        let State { t, q, p, .. } = self.state;
+        let guess = match &self.last {
+            // The velocity at the end of the last step's polynomial.
+            Some(last) => core::array::from_fn(|i| {
+                (0..S).map(|n| self.method.basis_derivative(n + 1, 1.0) * last.d[n][i]).sum::<f64>() / last.h
+            }),
+            None => self.v0,
+        };
+        self.system.velocity(t, q, p, guess).map_err(|f| Error::InverseLegendre {
+            state: self.state,
+            iterations: f.iterations,
+            residual_norm: f.residual_norm,
+        })
+    }
+
+    /// The energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
+    pub fn energy(&self) -> Result<f64, Error<N>> {
+        let v = self.velocity()?;
+        Ok(self.system.energy(self.state.t, self.state.q, v))
     }
 
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
@@ -494,28 +506,30 @@ where
 /// Residual and Newton correction of the block system at the increments `d`.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn linearize<Sys, const N: usize, const S: usize, const R: usize>(
+fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     system: &Sys,
-    g: &Galerkin<S, R>,
-    t0: f64,
-    h: f64,
-    base: (&[f64; N], &[f64; N]),
-    (p0, pc): (&[f64; N], &[f64; N]),
-    d: &BlockVector<N, S>,
+    g: &Galerkin<S, R, T>,
+    t0: T,
+    h: T,
+    base: (&[T; N], &[T; N]),
+    (p0, pc): (&[T; N], &[T; N]),
+    d: &BlockVector<N, S, T>,
     min_rcond: f64,
-    frozen: Option<&Lu<N, S>>,
-) -> Result<(Linearization<Nodes<N, S>>, Lu<N, S>), Breakdown>
+    frozen: Option<&Lu<N, S, T>>,
+) -> Result<(Linearization<Nodes<N, S, T>>, Lu<N, S, T>), Breakdown>
 where
     Sys: Lagrangian<N> + ?Sized,
+    T: Real,
 {
-    let inv_h = 1.0 / h;
-    let mut r: BlockVector<N, S> = [[0.0; N]; S];
+    let zero = T::zero();
+    let inv_h = h.recip();
+    let mut r: BlockVector<N, S, T> = [[zero; N]; S];
     // Size of the terms that cancel in each block row.
     let mut scale = [0.0; S];
     scale[0] = max_abs(p0);
-    let mut jac: BlockMatrix<N, S> = [[[[0.0; N]; S]; N]; S];
-    let mut direct = [0.0; N];
-    let mut grad: BlockVector<N, S> = [[0.0; N]; S];
+    let mut jac: BlockMatrix<N, S, T> = [[[[zero; N]; S]; N]; S];
+    let mut direct = [zero; N];
+    let mut grad: BlockVector<N, S, T> = [[zero; N]; S];
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
         // The Hessian only when the Jacobian is to be assembled.
@@ -535,12 +549,12 @@ where
         // coefficients of the basis are not premultiplied: all rows are then
         // derivatives of the same action Σ w_j L, whatever the rounding.
         let w = b * h;
-        let lv_h: [f64; N] = core::array::from_fn(|i| lv[i] / h);
+        let lv_h: [T; N] = core::array::from_fn(|i| lv[i] / h);
         // ∂A/∂q_k at fixed increments.
         for i in 0..N {
             let x = w * lq[i];
             direct[i] += x;
-            scale[0] = f64::max(scale[0], x.abs());
+            scale[0] = f64::max(scale[0], x.to_f64().abs());
         }
         // ∂A/∂D_m for the nodes m = 1 … s.
         for m in 0..S {
@@ -549,15 +563,15 @@ where
                 let (x, y) = (w * (c * lq[i]), w * (cd * lv_h[i]));
                 grad[m][i] += x + y;
                 let k = if m + 1 < S { m + 1 } else { 0 };
-                scale[k] = f64::max(scale[k], x.abs() + y.abs());
+                scale[k] = f64::max(scale[k], (x.abs() + y.abs()).to_f64());
             }
         }
         let Some(pd) = pd else { continue };
         for n in 0..S {
             // The column block n of this point's contribution, before the row basis.
             let (c, cd) = (b * col[n], b * col_d[n]);
-            let mut yq = [[0.0; N]; N];
-            let mut yv = [[0.0; N]; N];
+            let mut yq = [[zero; N]; N];
+            let mut yv = [[zero; N]; N];
             for i in 0..N {
                 for k in 0..N {
                     yq[i][k] = h * c * pd.qq[i][k] + cd * pd.qv[i][k];
@@ -588,7 +602,7 @@ where
     if S > 1 {
         r[1..S].copy_from_slice(&grad[..S - 1]);
     }
-    if !r.as_flattened().iter().all(|x| x.is_finite()) {
+    if !all_finite(r.as_flattened()) {
         return Err(Breakdown::NonFinite("residual"));
     }
     let lu = match frozen {
@@ -634,9 +648,9 @@ fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFailure {
 
 /// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
 #[inline(always)]
-fn kahan<const N: usize>(a: &[f64; N], c: &[f64; N], b: &[f64; N]) -> ([f64; N], [f64; N]) {
-    let mut sum = [0.0; N];
-    let mut carry = [0.0; N];
+fn kahan<T: Real, const N: usize>(a: &[T; N], c: &[T; N], b: &[T; N]) -> ([T; N], [T; N]) {
+    let mut sum = [T::zero(); N];
+    let mut carry = [T::zero(); N];
     for i in 0..N {
         let u = c[i] + b[i];
         sum[i] = a[i] + u;
