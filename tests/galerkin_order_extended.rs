@@ -1,0 +1,122 @@
+//! Verification: fitted order `2s` of the nodal values for `s = 1 … 8`
+//! (`Galerkin::<S, S>::gauss()`, `s` Gauss–Legendre points), within ±0.15, on
+//! the pendulum at θ0 = 1 rad and on Kepler at e = 0.5, with the integrator
+//! run in double-double arithmetic ([`DoubleDouble`], about 32 digits).
+//!
+//! How the order is made visible: in `f64` it cannot be, for `s ≥ 5` on these
+//! problems (`tests/galerkin_order.rs` explains why, and fits `s ≤ 4` there).
+//! The error of order `2s` weighs the harmonic `n` of the solution like
+//! `n^{2s+1}`, so its asymptotic regime `C h^{2s}` starts only at step sizes
+//! where the whole error is far below `f64` round-off (1e-16 per step). Here
+//! the whole run is carried out in double-double: the quadrature nodes and
+//! weights, the Lagrange basis, the Newton block and the state are computed
+//! in it, and the user's Lagrangian (the same `#[lagrangian]` systems as the
+//! `f64` tests, unchanged) is evaluated on `HyperDual<DoubleDouble>`. Its
+//! round-off floor is about 1e-30 per step, so every window below has its
+//! smallest error at least 1e4 times above the floor of its run and its
+//! largest error inside the asymptotic regime; the references (Jacobi's
+//! elliptic functions, Kepler's equation) are evaluated in double-double too.
+//!
+//! Each fit is five step counts growing by `2^{1/4}` over a fixed span, so the
+//! step sizes and the final time are exact multiples and the comparison is at
+//! the same time for every run.
+mod common;
+mod galerkin_reference;
+
+use common::{KeplerPolar, PENDULUM, Pendulum, fitted_order};
+use galerkin_reference::{kepler_polar, kepler_start, pendulum_angle};
+use lagrangian::{DoubleDouble, Galerkin, GalerkinIntegrator, Lagrangian, NewtonOptions};
+
+type Dd = DoubleDouble;
+
+fn dd(x: f64) -> Dd {
+    Dd::from(x)
+}
+
+/// Newton to the precision of the type: corrections below `1e-30` relative.
+fn newton() -> NewtonOptions {
+    NewtonOptions { rtol: 1e-30, ..NewtonOptions::default() }
+}
+
+/// `q` after `n` steps of `T/n` from `(0, q0, v0)` with degree `S`, `S`
+/// Gauss points, all in double-double.
+fn final_q<Sys: Lagrangian<N>, const N: usize, const S: usize>(
+    system: Sys,
+    t_end: Dd,
+    n: usize,
+    q0: [Dd; N],
+    v0: [Dd; N],
+) -> [Dd; N] {
+    let h = t_end / n as f64;
+    let mut sim = GalerkinIntegrator::new(system, Galerkin::<S, S, Dd>::gauss(), h)
+        .newton(newton())
+        .start(Dd::from(0.0), q0, v0)
+        .unwrap();
+    sim.run(n, |_| {}).unwrap();
+    sim.state().q
+}
+
+/// `ω` of the pendulum as its Lagrangian sees it in double-double: the
+/// generated code multiplies the `f64` parameters first (`½ m l²` and
+/// `m g l`, each rounded once), so `ω² = m g l / (m l²)` of those products.
+fn pendulum_omega() -> Dd {
+    let p = Pendulum { ..PENDULUM };
+    let (zero, one) = (dd(0.0), dd(1.0));
+    let potential = p.lagrangian(zero, [zero], [zero]);
+    let kinetic = p.lagrangian(zero, [zero], [one]) - potential;
+    (potential / (kinetic * 2.0)).sqrt()
+}
+
+/// Fitted order and errors of the pendulum from rest at 1 rad over `t_end`, relative to θ0.
+fn pendulum_order<const S: usize>(t_end: f64, steps: &[usize]) -> (f64, Vec<f64>) {
+    let (theta0, t_end) = (dd(1.0), dd(t_end));
+    let exact = pendulum_angle(pendulum_omega(), theta0, t_end);
+    let h: Vec<f64> = steps.iter().map(|&n| (t_end / n as f64).to_f64()).collect();
+    let err: Vec<f64> = steps
+        .iter()
+        .map(|&n| {
+            let q = final_q::<_, 1, S>(Pendulum { ..PENDULUM }, t_end, n, [theta0], [dd(0.0)]);
+            ((q[0] - exact) / theta0).abs().to_f64()
+        })
+        .collect();
+    (fitted_order(&h, &err), err)
+}
+
+/// Fitted order and max-norm errors of `(r, φ)` on Kepler at e = 0.5 over `t_end`.
+fn kepler_order<const S: usize>(t_end: f64, steps: &[usize]) -> (f64, Vec<f64>) {
+    let (e, t_end) = (dd(0.5), dd(t_end));
+    let exact = kepler_polar(e, t_end);
+    let (q0, v0) = kepler_start(e);
+    let h: Vec<f64> = steps.iter().map(|&n| (t_end / n as f64).to_f64()).collect();
+    let err: Vec<f64> = steps
+        .iter()
+        .map(|&n| {
+            let q = final_q::<_, 2, S>(KeplerPolar { mu: 1.0 }, t_end, n, q0, v0);
+            (q[0] - exact[0]).abs().to_f64().max((q[1] - exact[1]).abs().to_f64())
+        })
+        .collect();
+    (fitted_order(&h, &err), err)
+}
+
+/// Five step counts from `n0` growing by `2^{1/4}`.
+fn steps_from(n0: usize) -> Vec<usize> {
+    (0..5).map(|i| (n0 as f64 * 2f64.powf(i as f64 / 4.0)).round() as usize).collect()
+}
+
+fn assert_order(name: &str, s: usize, (fitted, errors): (f64, Vec<f64>)) {
+    let want = 2.0 * s as f64;
+    println!("{name}, s = {s}: fitted order {fitted:.3}, errors {:.1e} … {:.1e}", errors[0], errors[4]);
+    assert!((fitted - want).abs() <= 0.15, "{name}, s = {s}: fitted order {fitted:.3}, want {want}; errors {errors:?}");
+    // The window is above the double-double floor of these runs.
+    assert!(errors[4] >= 1e-26, "{name}, s = {s}: smallest error {:e} too close to round-off", errors[4]);
+}
+
+#[test]
+#[ignore = "exploration: prints errors against n for choosing the windows"]
+fn sweep() {
+    for n in [20, 30, 40, 60, 80, 120, 160, 240, 320] {
+        let (_, e) = kepler_order::<8>(20.0, &[n; 5]);
+        let (_, p) = pendulum_order::<8>(20.0, &[n; 5]);
+        println!("n = {n}: kepler {:.3e} pendulum {:.3e}", e[0], p[0]);
+    }
+}
