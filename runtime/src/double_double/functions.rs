@@ -85,6 +85,12 @@ pub(super) fn cbrt(x: DD) -> DD {
     if x.hi == 0.0 || !x.is_finite() {
         return DD::from(x.hi.cbrt());
     }
+    // Outside 2^±600 the residual x − y³ would under- or overflow: scale by a power of 2³.
+    let k = exponent(x.hi);
+    if k.abs() > 600 {
+        let third = k / 3;
+        return cbrt(x.ldexp(-3 * third)).ldexp(third);
+    }
     let a = x.abs();
     let mut y = DD::from(a.hi.cbrt());
     for _ in 0..2 {

@@ -164,6 +164,8 @@ const CBRT: &[(f64, f64, &str)] = &[
     (0.1, -5.551115123125783e-18, "4.641588833612778892410076350919441808885e-1"),
     (10.0, 0.0, "2.154434690031883721759293566519350495259"),
     (-0.3333333333333333, -1.850371707708594e-17, "-6.933612743506347048433522747859610832511e-1"),
+    (4e-300, -1.0023637e-316, "1.587401051968199474751705386423161623461e-100"),
+    (-5e305, 8.608032298368228e288, "-7.937005259840997373758528196361540649734e+101"),
 ];
 
 const SIN: &[(f64, f64, &str)] = &[
@@ -739,6 +741,11 @@ fn generic_scalar_code_runs_in_double_double() {
     let total: DD = q.iter().sum();
     let prod: DD = v.iter().product();
     assert!(rel_err(total, dd("0.1")) <= 1e-31 && rel_err(prod, dd("0.025")) <= 1e-31);
+    // num-dual's own drivers work on it too.
+    let (f0, f1, f2) = num_dual::second_derivative(|x| x.sin() * x, dd("0.5"));
+    let (s, c) = dd("0.5").sin_cos();
+    assert!(rel_err(f0, s * 0.5) <= 1e-31 && rel_err(f1, s + c * 0.5) <= 1e-31);
+    assert!(rel_err(f2, c * 2.0 - s * 0.5) <= 1e-30);
     fn assert_traits<T: Copy + Send + Sync + Default + num_dual::DualNumCopy>() {}
     assert_traits::<DD>();
 }
