@@ -82,6 +82,13 @@ pub use text::ParseDoubleDoubleError;
 /// See the [module documentation](self) for the precision, the range and the
 /// sources of the algorithms. The value is always normalised; non-finite
 /// values keep `lo = 0`. Comparisons are those of the real number `hi + lo`.
+///
+/// The elementary functions (`sqrt`, `exp`, `sin`, `atan2`, …) are the methods
+/// of num-dual's [`DualNum`] trait, so bring it into scope
+/// (`use lagrangian_runtime::num_dual::DualNum;`) to call them on a
+/// `DoubleDouble` directly; generic code bounded by [`Scalar`](crate::Scalar)
+/// has them already. Invalid arguments give NaN and overflow gives `±∞`, as
+/// for `f64`; nothing panics.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct DoubleDouble {
     hi: f64,
