@@ -57,6 +57,11 @@ pub(super) fn powf(x: DD, n: f64) -> DD {
     if x.hi == 0.0 {
         return if n > 0.0 { DD::ZERO } else { DD::INFINITY };
     }
+    if x.hi < 0.0 && n.fract() == 0.0 {
+        // An integer power beyond i32 of a negative base: the sign from the parity, as for f64.
+        let magnitude = exp(ln(-x).mul_f64(n));
+        return if n % 2.0 == 0.0 { magnitude } else { -magnitude };
+    }
     exp(ln(x).mul_f64(n))
 }
 

@@ -574,6 +574,10 @@ fn exact_operations() {
     assert_eq!(DD::from(10.0).exp2(), DD::from(1024.0));
     assert_eq!(DD::from(-3.0).exp2(), DD::from(0.125));
     assert_eq!(DD::from(1024.0).log2(), DD::from(10.0));
+    assert_eq!(DD::from(-2.0).powf(3.0), DD::from(-8.0));
+    assert_eq!(DD::from(-1.0).powf(1e10), DD::ONE);
+    assert_eq!(DD::from(-1.0).powf(1e10 + 1.0), -DD::ONE);
+    assert!(DD::from(-2.0).powf(0.5).is_nan());
     assert_eq!(DD::from(0.0).exp(), DD::ONE);
     assert_eq!(DD::from(1.0).ln(), DD::ZERO);
     assert_eq!(DD::from_i64(i64::MAX).map(|x| x - DD::from(2f64.powi(63))), Some(DD::from(-1.0)));
