@@ -8,6 +8,7 @@
 
 pub mod derivatives;
 pub mod discrete;
+pub mod double_double;
 mod error;
 pub mod forcing;
 pub mod galerkin;
@@ -23,6 +24,7 @@ pub mod system;
 
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
+pub use double_double::DoubleDouble;
 pub use error::Error;
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{EnergyFallback, Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
