@@ -157,7 +157,7 @@ pub mod prelude {
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, Error, Integrator, Lagrangian, Midpoint, NewtonOptions,
         Scalar, State, Trapezoid,
     };
-    pub use lagrangian_runtime::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
+    pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

@@ -48,3 +48,13 @@ pub(crate) fn max_abs<T: Real>(x: &[T]) -> f64 {
 pub(crate) fn all_finite<T: Real>(x: &[T]) -> bool {
     x.iter().all(|v| v.is_finite())
 }
+
+impl Real for crate::DoubleDouble {
+    /// `2^-104`: the double-double unit of its ≈ 106-bit significand.
+    const EPSILON: f64 = crate::DoubleDouble::EPSILON.hi();
+
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        crate::DoubleDouble::is_finite(self)
+    }
+}

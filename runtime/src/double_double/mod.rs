@@ -174,7 +174,7 @@ impl DoubleDouble {
 
     /// The leading part, `fl(hi + lo)`.
     #[inline]
-    pub fn hi(self) -> f64 {
+    pub const fn hi(self) -> f64 {
         self.hi
     }
 
