@@ -165,9 +165,9 @@ fn sweep() {
             last = Some((n, e[0], p[0]));
         }
     }
-    let ns: Vec<usize> = (0..12).map(|i| (64.0 * 2f64.powf(i as f64 / 2.0)).round() as usize).collect();
+    let ns: Vec<usize> = (0..11).map(|i| (64.0 * 2f64.powf(i as f64 / 2.0)).round() as usize).collect();
+    run::<5>(20.0, &ns);
+    run::<6>(20.0, &ns);
     run::<7>(20.0, &ns);
     run::<8>(20.0, &ns);
-    let ns: Vec<usize> = ns.iter().map(|n| n * 5).collect();
-    run::<8>(100.0, &ns[4..]);
 }

@@ -17,6 +17,15 @@
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
 //! | `stepper.rs` | [`GalerkinIntegrator`]: the fixed-step integrator, tangent map |
 //!
+//! Everything here is written over a [`Real`](crate::Real) type `T`, `f64`
+//! by default: `Galerkin::<S, S, DoubleDouble>::gauss()` builds the method
+//! with nodes, weights and basis in double-double, and a
+//! [`GalerkinIntegrator`] built on it runs the whole step (Newton block,
+//! state, Kahan sums) in that type. This is how orders up to 16 are verified
+//! (`tests/galerkin_order_extended.rs`). The readouts that solve in `f64`
+//! ([`GalerkinIntegrator::velocity`], [`GalerkinIntegrator::energy`],
+//! [`GalerkinIntegrator::last_tangent_map`]) exist for `T = f64` only.
+//!
 //! Variable (energy-preserving) steps are not supported with Galerkin
 //! discrete Lagrangians; [`GalerkinIntegrator`] has no API for them.
 

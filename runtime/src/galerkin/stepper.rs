@@ -145,6 +145,38 @@ struct LastStep<const N: usize, const S: usize, T> {
 /// assert!((sim.state().q[0] - 1.0).abs() < 1e-8);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+///
+/// # Extended precision
+///
+/// The whole run can be made in another [`Real`] type: the quadrature, the
+/// basis, the Newton block and the state are then computed in it, and the
+/// same Lagrangian is evaluated on num-dual's hyper-duals over it. With
+/// [`DoubleDouble`](crate::DoubleDouble) (about 32 digits), order 16 shows
+/// errors `f64` cannot hold; tighten Newton's `rtol` to the type's precision.
+///
+/// ```
+/// # use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
+/// # use lagrangian_runtime::{Lagrangian, Scalar};
+/// # struct Oscillator;
+/// # impl Lagrangian<1> for Oscillator {
+/// #     const AUTONOMOUS: bool = true;
+/// #     const CYCLIC: [bool; 1] = [false];
+/// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+/// #         (v[0] * v[0] - q[0] * q[0]) * 0.5
+/// #     }
+/// # }
+/// use lagrangian_runtime::{DoubleDouble, NewtonOptions};
+///
+/// // Degree 8, order 16: one period in 40 steps, back to q = 1 within 1e-28.
+/// let h = DoubleDouble::TAU / 40.0;
+/// let (zero, one) = (DoubleDouble::from(0.0), DoubleDouble::from(1.0));
+/// let mut sim = GalerkinIntegrator::new(Oscillator, Galerkin::<8, 8, DoubleDouble>::gauss(), h)
+///     .newton(NewtonOptions { rtol: 1e-30, ..NewtonOptions::default() })
+///     .start(zero, [one], [zero])?;
+/// sim.run(40, |_| {})?;
+/// assert!((sim.state().q[0] - one).abs() < DoubleDouble::from(1e-28));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize, T = f64> {
     system: Sys,
