@@ -171,3 +171,56 @@ fn sweep() {
     run::<7>(20.0, &ns);
     run::<8>(20.0, &ns);
 }
+
+/// The double-double run is the same method as the `f64` run: at a step
+/// where the error (1e-9) is far above `f64` round-off, both agree to the
+/// `f64` floor of 20 time units.
+#[test]
+fn double_double_and_f64_runs_agree_to_f64_round_off() {
+    let (n, t_end) = (226, 20.0);
+    let (q0, v0) = kepler_start(0.5);
+    let mut sim = GalerkinIntegrator::new(KeplerPolar { mu: 1.0 }, Galerkin::<4, 4>::gauss(), t_end / n as f64)
+        .start(0.0, q0, v0)
+        .unwrap();
+    sim.run(n, |_| {}).unwrap();
+    let single = sim.state().q;
+    let (q0, v0) = kepler_start(dd(0.5));
+    let double = final_q::<_, 2, 4>(KeplerPolar { mu: 1.0 }, dd(t_end), n, q0, v0);
+    let exact = kepler_polar(0.5, t_end);
+    for i in 0..2 {
+        let gap = (double[i].to_f64() - single[i]).abs();
+        assert!(gap <= 1e-13, "coordinate {i}: f64 {} vs double-double {}", single[i], double[i]);
+        assert!((single[i] - exact[i]).abs() >= 1e-11, "the error must be far above the gap");
+    }
+}
+
+/// A failed step in double-double is a typed error carrying the
+/// double-double state, and the integrator is left as it was.
+#[test]
+fn a_failed_double_double_step_keeps_its_state() {
+    let (q0, v0) = kepler_start(dd(0.5));
+    // h = 1 is too large for the pericentre passage at r = 0.5.
+    let mut sim = GalerkinIntegrator::new(KeplerPolar { mu: 1.0 }, Galerkin::<8, 8, Dd>::gauss(), dd(1.0))
+        .newton(newton())
+        .start(dd(0.0), q0, v0)
+        .unwrap();
+    let failure = loop {
+        let before = *sim.state();
+        match sim.step() {
+            Ok(_) => assert!(sim.state().step < 40, "expected a failure within 40 steps"),
+            Err(error) => break (before, error),
+        }
+    };
+    let (before, error) = failure;
+    assert_eq!(*sim.state(), before);
+    use lagrangian::Error;
+    match error {
+        Error::NewtonDidNotConverge { state, iterations, .. }
+        | Error::SingularJacobian { state, iterations, .. }
+        | Error::NonFinite { state, iterations, .. } => {
+            assert_eq!(state, before);
+            assert!(iterations > 0);
+        }
+        other => panic!("unexpected error {other}"),
+    }
+}
