@@ -286,8 +286,6 @@ where
     Err(NewtonFailure::NotConverged(report))
 }
 
-pub(crate) use crate::real::{all_finite, max_abs};
-
 #[cfg(test)]
 mod tests {
     use super::*;

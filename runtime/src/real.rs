@@ -13,7 +13,7 @@ use crate::system::Scalar;
 
 /// A real number type: `f64` itself, or an extended-precision type whose
 /// [`DualNum::re`](num_dual::DualNum::re) rounds it to `f64`.
-pub trait Real: Scalar + Send + Sync + Default {
+pub trait Real: Scalar + Send + Sync {
     /// The relative spacing of the type's numbers near 1 (`f64::EPSILON`
     /// for `f64`): Newton's round-off floors scale with it.
     const EPSILON: f64;
@@ -37,6 +37,16 @@ impl Real for f64 {
     }
 }
 
+impl Real for crate::DoubleDouble {
+    /// `2^-104`: the double-double unit of its ≈ 106-bit significand.
+    const EPSILON: f64 = crate::DoubleDouble::EPSILON.hi();
+
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        crate::DoubleDouble::is_finite(self)
+    }
+}
+
 /// `max |x_i|` rounded to `f64`.
 #[inline]
 pub(crate) fn max_abs<T: Real>(x: &[T]) -> f64 {
@@ -47,14 +57,4 @@ pub(crate) fn max_abs<T: Real>(x: &[T]) -> f64 {
 #[inline]
 pub(crate) fn all_finite<T: Real>(x: &[T]) -> bool {
     x.iter().all(|v| v.is_finite())
-}
-
-impl Real for crate::DoubleDouble {
-    /// `2^-104`: the double-double unit of its ≈ 106-bit significand.
-    const EPSILON: f64 = crate::DoubleDouble::EPSILON.hi();
-
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        crate::DoubleDouble::is_finite(self)
-    }
 }

@@ -10,7 +10,7 @@
 //! condition number in the 1-norm is estimated from the factors by Hager's
 //! method (Higham, *Accuracy and Stability*, Alg. 15.4), a few extra solves.
 
-use crate::real::Real;
+use crate::real::{Real, all_finite};
 
 /// A vector of the block system: `S` blocks of `N`.
 pub(crate) type BlockVector<const N: usize, const S: usize, T = f64> = [[T; N]; S];
@@ -55,7 +55,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
                 *s += x.abs();
             }
         }
-        if !col_sums.as_flattened().iter().all(|x| x.is_finite()) {
+        if !all_finite(col_sums.as_flattened()) {
             return Err(LuFailure::NonFinite);
         }
         out.norm1 = col_sums.as_flattened().iter().fold(zero, |m, &x| if x > m { x } else { m });

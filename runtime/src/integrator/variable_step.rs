@@ -40,7 +40,7 @@ use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
-use crate::newton::{all_finite, max_abs};
+use crate::real::{all_finite, max_abs};
 use crate::state::State;
 use crate::system::Lagrangian;
 
