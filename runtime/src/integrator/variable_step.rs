@@ -201,33 +201,65 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
+    ///
+    /// A trial step size whose DEL cannot be solved (Newton fails, or `g` is
+    /// not finite there) narrows the bracket to the side of the guess away
+    /// from it, instead of ending the step: a large trial step is the usual
+    /// failure, and the smaller ones may still hold a root or the least
+    /// mismatch. Only when no trial in the bracket solves does the step fail,
+    /// with the error of the last trial.
     fn bracketed(
         &mut self,
         guess: f64,
-        lo: f64,
-        hi: f64,
+        mut lo: f64,
+        mut hi: f64,
         mut spent: usize,
     ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
         let spent = &mut spent;
-        let at_guess = self.probe(guess, spent)?;
+        // The first probe that solves: the guess, or halfway down towards `lo`
+        // while trials fail (each failure lowers `hi`).
+        let mut h = guess;
+        let at_guess = loop {
+            match self.probe(h, spent) {
+                Ok(p) => break p,
+                Err(e) => {
+                    hi = h;
+                    let next = lo + 0.5 * (h - lo);
+                    if h <= lo || h - lo <= 1e-9 * h || next >= h {
+                        return Err(e);
+                    }
+                    h = if h - lo <= 1e-3 * h { lo } else { next };
+                }
+            }
+        };
         if at_guess.solved() {
             return Ok((at_guess.seg, self.report(&at_guess, *spent), false));
         }
+        let guess = at_guess.seg.h;
         // Sample the bracket, nearest points first, for a sign change.
         let mut left = at_guess;
         let mut right = at_guess;
         let mut bracket = None;
         for k in 1..=8 {
             let f = k as f64 / 8.0;
-            for h in [guess - f * (guess - lo), guess + f * (hi - guess)] {
-                if h == guess || h == left.seg.h || h == right.seg.h {
+            for below in [true, false] {
+                let h = if below { guess - f * (guess - lo) } else { guess + f * (hi - guess) };
+                if h == guess || h == left.seg.h || h == right.seg.h || h < lo || h > hi {
                     continue;
                 }
-                let p = self.probe(h, spent)?;
+                let Ok(p) = self.probe(h, spent) else {
+                    // Unreachable trial: the bracket ends short of it.
+                    if below {
+                        lo = h;
+                    } else {
+                        hi = h;
+                    }
+                    continue;
+                };
                 if p.solved() {
                     return Ok((p.seg, self.report(&p, *spent), false));
                 }
-                let (near, below) = if h < guess { (&mut left, true) } else { (&mut right, false) };
+                let near = if below { &mut left } else { &mut right };
                 if p.g.signum() != near.g.signum() {
                     bracket = Some(if below { (p, *near) } else { (*near, p) });
                     break;
@@ -246,7 +278,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// Newton on `g`, safeguarded by bisection, inside a sign change
     /// `a.h < b.h` (the classic `rtsafe` scheme: bisect whenever Newton would
-    /// leave the bracket or does not halve the previous correction).
+    /// leave the bracket or does not halve the previous correction). A trial
+    /// whose DEL fails is replaced by the bisection point; a second failure
+    /// in a row ends the search with that error.
     fn root(&mut self, mut a: Probe<N>, mut b: Probe<N>, spent: &mut usize) -> Result<Probe<N>, Error<N>> {
         let mut x = if a.g.abs() < b.g.abs() { a } else { b };
         let mut dx_old = b.seg.h - a.seg.h;
@@ -266,7 +300,17 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             if dx.abs() <= 4.0 * f64::EPSILON * h || h <= ha || h >= hb {
                 return Ok(x);
             }
-            let p = self.probe(h, spent)?;
+            let p = match self.probe(h, spent) {
+                Ok(p) => p,
+                Err(e) => {
+                    let mid = ha + 0.5 * (hb - ha);
+                    if h == mid {
+                        return Err(e);
+                    }
+                    dx = 0.5 * (hb - ha);
+                    self.probe(mid, spent)?
+                }
+            };
             if p.solved() {
                 return Ok(p);
             }
@@ -281,7 +325,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// No sign change found: minimise `|g|` over `[lo, hi]` by golden section,
-    /// then report it or take it, as the fallback says.
+    /// then report it or take it, as the fallback says. Trial steps whose DEL
+    /// fails count as infinitely bad.
     fn least_squares(
         &mut self,
         lo: f64,
@@ -290,14 +335,15 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         spent: &mut usize,
     ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
+        let mismatch = |p: &Option<Probe<N>>| p.map_or(f64::INFINITY, |p| p.g.abs());
         let (mut a, mut b) = (lo, hi);
         let mut c = b - INV_PHI * (b - a);
         let mut d = a + INV_PHI * (b - a);
-        let mut pc = self.probe(c, spent)?;
-        let mut pd = self.probe(d, spent)?;
+        let mut pc = self.probe(c, spent).ok();
+        let mut pd = self.probe(d, spent).ok();
         let mut best = start;
         for _ in 0..60 {
-            for p in [pc, pd] {
+            for p in [pc, pd].into_iter().flatten() {
                 if p.g.abs() < best.g.abs() {
                     best = p;
                 }
@@ -311,14 +357,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             if b - a <= 1e-9 * b {
                 break;
             }
-            if pc.g.abs() < pd.g.abs() {
+            if mismatch(&pc) < mismatch(&pd) {
                 (b, d, pd) = (d, c, pc);
                 c = b - INV_PHI * (b - a);
-                pc = self.probe(c, spent)?;
+                pc = self.probe(c, spent).ok();
             } else {
                 (a, c, pc) = (c, d, pd);
                 d = a + INV_PHI * (b - a);
-                pd = self.probe(d, spent)?;
+                pd = self.probe(d, spent).ok();
             }
         }
         match self.fallback {
