@@ -86,6 +86,11 @@ pub(crate) enum Var {
     T1,
     /// `q_{k+1}[i]`.
     Q1(usize),
+    /// `q_k[i]` with the increment held fixed, so that the end node moves
+    /// with it: `∂A/∂q_k + ∂A/∂q_{k+1}`.
+    Translate(usize),
+    /// `t_k` with the step size held fixed: `∂A/∂t_k + ∂A/∂t_{k+1}`.
+    Delay,
 }
 
 /// The pieces of the one-step map at a segment: the action, its gradients with
@@ -150,6 +155,8 @@ fn seed<T, const N: usize>(x: &mut DualSegment<T, N>, v: Var, set: impl Fn(&mut 
             set(&mut dq[i], -1.0);
         }
         Var::Q1(i) => set(&mut dq[i], 1.0),
+        Var::Translate(i) => set(&mut q0[i], 1.0),
+        Var::Delay => set(t0, 1.0),
     }
 }
 
@@ -350,6 +357,31 @@ where
 {
     let a: DualArray<[f64; N]> = dual_array_action(system, method, seg, Var::Q1);
     a.eps
+}
+
+/// `∂A/∂q_k + ∂A/∂q_{k+1}`, the derivative of `A` under a translation of
+/// both nodes (one [`DualArray`] evaluation). Added to `p_k` at a solution
+/// of the DEL it is `p_{k+1}`: the momentum *change* of the step, which the
+/// integrator sums with Kahan's compensation instead of re-rounding `p_{k+1}`.
+#[inline]
+pub fn momentum_change<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let a: DualArray<[f64; N]> = dual_array_action(system, method, seg, Var::Translate);
+    a.eps
+}
+
+/// `∂A/∂t_k + ∂A/∂t_{k+1}`, the derivative of `A` under a shift of both
+/// times (one dual evaluation; zero for an autonomous `L`). At a solution of
+/// the energy equation, minus it is the energy change `E_{k+1} − E_k`.
+pub fn time_shift_derivative<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> f64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    dual_action(system, method, seg, Var::Delay).eps
 }
 
 /// Every first derivative of `A` on a segment (one hyper-dual evaluation,

@@ -214,6 +214,25 @@ where
     p
 }
 
+/// The momentum change of a solved step,
+/// `p_{k+1} − p_k = ∂A/∂q_k + ∂A/∂q_{k+1} + F_k^− + F_k^+` (the DEL makes
+/// `p_k = −∂A/∂q_k − F_k^−`): the increment the integrator Kahan-sums.
+#[inline]
+pub fn momentum_change<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut dp = derivatives::momentum_change(system, method, seg);
+    if is_forced::<S, N>() {
+        let f = discrete_forces(system, method, seg);
+        for i in 0..N {
+            dp[i] += f.minus[i] + f.plus[i];
+        }
+    }
+    dp
+}
+
 /// The energy balance across node `k`, between the step behind it and the
 /// step ahead of it (see the [module documentation](self)).
 #[derive(Clone, Copy, Debug, PartialEq)]

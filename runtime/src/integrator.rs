@@ -148,17 +148,59 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
             fallback: self.fallback,
             energy,
             time_error: 0.0,
+            energy_carry: 0.0,
             system: self.system,
             method: self.method,
             h: self.h,
             newton: self.newton,
             state: State { step: 0, t: t0, q: q0, p: p0 },
+            carry: Compensation::default(),
             previous: None,
             earlier: None,
             v0,
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
         })
+    }
+}
+
+/// The rounding errors of the Kahan sums of `q_k` and `p_k`: the exact sums
+/// are `q_k + q` and `p_k + p`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Compensation<const N: usize> {
+    pub(crate) q: [f64; N],
+    pub(crate) p: [f64; N],
+}
+
+impl<const N: usize> Default for Compensation<N> {
+    fn default() -> Self {
+        Self { q: [0.0; N], p: [0.0; N] }
+    }
+}
+
+/// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
+#[inline(always)]
+pub(crate) fn kahan<T: crate::real::Real, const N: usize>(a: &[T; N], c: &[T; N], b: &[T; N]) -> ([T; N], [T; N]) {
+    let mut sum = [T::zero(); N];
+    let mut carry = [T::zero(); N];
+    for i in 0..N {
+        let u = c[i] + b[i];
+        sum[i] = a[i] + u;
+        carry[i] = u - (sum[i] - a[i]);
+    }
+    (sum, carry)
+}
+
+/// Which of the values a step publishes is not finite, if any.
+pub(crate) fn non_finite<T: crate::real::Real, const N: usize>(t: T, q: &[T; N], p: &[T; N]) -> Option<&'static str> {
+    if !all_finite(q) {
+        Some("position")
+    } else if !all_finite(p) {
+        Some("momentum")
+    } else if !t.is_finite() {
+        Some("time")
+    } else {
+        None
     }
 }
 
@@ -199,12 +241,16 @@ pub struct Integrator<S, M, const N: usize> {
     h: f64,
     newton: NewtonOptions,
     state: State<N>,
+    /// Kahan compensation of `q_k` and `p_k`.
+    carry: Compensation<N>,
     policy: StepPolicy,
     fallback: EnergyFallback,
     /// `E_k`, kept up to date by variable steps (fixed steps compute it on demand).
     energy: f64,
     /// Kahan compensation of `t_k` under variable steps.
     time_error: f64,
+    /// Kahan compensation of the energy target `energy`.
+    energy_carry: f64,
     /// The last step, from node `k − 1` to node `k`; `None` at the start.
     previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
@@ -305,16 +351,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     fn step_by(&mut self, h: f64, t1: f64) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, q: q0, .. } = self.state;
         let (dq, report) = self.solve_del(h)?;
-        let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
-        // p_{k+1} = ∂A/∂q_{k+1} + F_k^+.
-        let p1 = forcing::end_momentum(system, method, &seg);
-        let q1 = seg.q1();
-        if !all_finite(&q1) || !all_finite(&p1) {
-            let quantity = if all_finite(&q1) { "momentum" } else { "position" };
+        let (q1, p1, carry) = self.advance(&seg);
+        if let Some(quantity) = non_finite(t1, &q1, &p1) {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
         }
+        self.carry = carry;
         self.earlier = self.previous.map(|last| (last.h, last.dq));
         self.previous = Some(seg);
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
@@ -324,6 +367,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         Ok(&self.state)
     }
 
+    /// `(q_{k+1}, p_{k+1})` after the solved step `seg`, each the Kahan sum of
+    /// the node's value and the step's increment: `q_{k+1} = q_k + Δq`,
+    /// `p_{k+1} = p_k + Δp` with `Δp = ∂A/∂q_k + ∂A/∂q_{k+1} + F_k^− + F_k^+`
+    /// taken at fixed increment. Summed this way the rounding of the nodes
+    /// does not accumulate (it is carried into the next sum), so a moving
+    /// centre of mass or large coordinates do not bias the energy or the
+    /// momenta. Returns the new compensation too; changes nothing.
+    #[inline]
+    fn advance(&self, seg: &Segment<N>) -> ([f64; N], [f64; N], Compensation<N>) {
+        let dp = forcing::momentum_change(&self.system, &self.method, seg);
+        let (q1, q) = kahan(&self.state.q, &self.carry.q, &seg.dq);
+        let (p1, p) = kahan(&self.state.p, &self.carry.p, &dp);
+        (q1, p1, Compensation { q, p })
+    }
+
     /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
     /// of a step of size `h` (see `Segment` for why the increment).
     #[inline]
@@ -331,11 +389,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let pc = self.carry.p;
         let eval = |x: &SVector<f64, N>| {
             let seg = Segment { t0, h, q0, dq: (*x).into() };
             // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
             let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
-            let r = SVector::from_fn(|i, _| p0[i] + d.d_q0[i]);
+            // The momentum carries its compensation: p_k is p0 + pc.
+            let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
             let scale = max_abs(&p0).max(max_abs(&d.d_q0));
             Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
         };
@@ -412,6 +472,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// Sets `E_k = −∂A/∂t_k` from the last step (after a step of given size).
     fn reread_energy(&mut self) {
+        self.energy_carry = 0.0;
         if let Some(last) = &self.previous {
             self.energy = -derivatives::end_time_derivative(&self.system, &self.method, last);
         }
@@ -437,10 +498,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (MATH.md §3); at
     /// `k = 0`, the continuous energy of the initial data.
+    ///
+    /// Under energy-preserving steps it is read off the last step like for
+    /// fixed steps, so it shows what the steps achieve, not the target they
+    /// were solved for.
     pub fn discrete_energy(&self) -> f64 {
-        if let StepPolicy::EnergyPreserving(_) = self.policy {
-            return self.energy;
-        }
         match &self.previous {
             Some(seg) => -derivatives::end_time_derivative(&self.system, &self.method, seg),
             None => self.system.energy(self.state.t, self.state.q, self.v0),

@@ -35,12 +35,12 @@
 
 use nalgebra::SVector;
 
-use super::Integrator;
+use super::{Integrator, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
-use crate::real::{all_finite, max_abs};
+use crate::real::max_abs;
 use crate::state::State;
 use crate::system::Lagrangian;
 
@@ -157,13 +157,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
         };
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let pc = self.carry.p;
         let linearize = |x: &Extended<N>| {
             if x.t.is_nan() || x.t <= 0.0 {
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
             }
             let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
             let d = derivatives::extended_step_derivatives(system, method, &seg);
-            let r = SVector::<f64, N>::from_fn(|i, _| p0[i] + d.d_q0[i]);
+            let r = SVector::<f64, N>::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
             let r_t = d.d_t0 - e0;
             let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
             let ratio_t = r_t.abs() / e0.abs().max(d.d_t0.abs());
@@ -388,20 +389,36 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     fn accept(&mut self, seg: Segment<N>, report: NewtonReport, fallback: bool) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, .. } = self.state;
         let h = seg.h;
-        let (p1, d_t1) = derivatives::end_gradient(&self.system, &self.method, &seg);
-        let q1 = seg.q1();
-        if !all_finite(&q1) || !all_finite(&p1) || !d_t1.is_finite() {
-            self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity: "position" });
-        }
+        let (_, d_t1) = derivatives::end_gradient(&self.system, &self.method, &seg);
+        let (q1, p1, carry) = self.advance(&seg);
         // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
         let y = h - self.time_error;
         let t1 = t0 + y;
+        let quantity = if d_t1.is_finite() { non_finite(t1, &q1, &p1) } else { Some("energy") };
+        if let Some(quantity) = quantity {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+        }
         self.time_error = (t1 - t0) - y;
+        self.carry = carry;
         self.earlier = self.previous.map(|last| (last.h, last.dq));
         self.previous = Some(seg);
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
-        self.energy = -d_t1;
+        if fallback {
+            // The least-squares step changed the energy: conserve its new value.
+            (self.energy, self.energy_carry) = (-d_t1, 0.0);
+        } else {
+            // E_{k+1} = E_k − (∂A/∂t_k + ∂A/∂t_{k+1}), Kahan-summed: the target
+            // of the energy equation is not re-read from the step, whose solve
+            // leaves a residual of one sign (Newton approaches a root from one
+            // side), so that residuals do not add up over long runs.
+            let de =
+                if S::AUTONOMOUS { 0.0 } else { -derivatives::time_shift_derivative(&self.system, &self.method, &seg) };
+            let y = de - self.energy_carry;
+            let e1 = self.energy + y;
+            self.energy_carry = (e1 - self.energy) - y;
+            self.energy = e1;
+        }
         self.h = h;
         self.clock = super::Clock { t: t1, step: step + 1 };
         self.stats.steps += 1;
