@@ -111,9 +111,10 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// The rejected step size.
         h: f64,
     },
-    /// Variable-step bounds that are not finite, not positive, `h_min > h_max`, or a ratio below 1.
+    /// Variable-step bounds that are not finite, not positive, `h_min > h_max`,
+    /// or a ratio that is not finite and above 1.
     #[error(
-        "invalid step bounds h_min = {h_min}, h_max = {h_max}, max_ratio = {max_ratio}: need 0 < h_min ≤ h_max, both finite, and max_ratio ≥ 1"
+        "invalid step bounds h_min = {h_min}, h_max = {h_max}, max_ratio = {max_ratio}: need 0 < h_min ≤ h_max, both finite, and 1 < max_ratio < ∞"
     )]
     InvalidStepBounds {
         /// The rejected lower bound.
@@ -127,6 +128,14 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("invalid initial data: {reason}")]
     InvalidInitialData {
         /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// Newton settings that cannot work: a tolerance that is not finite and
+    /// positive (or `atol` negative), no iteration allowed, or a condition
+    /// threshold outside `[0, 1)`.
+    #[error("invalid newton options: {reason}")]
+    InvalidNewtonOptions {
+        /// What is wrong with them.
         reason: &'static str,
     },
     /// A target time behind the current time, or not finite.
@@ -177,6 +186,16 @@ impl<const N: usize, T: Real> Error<N, T> {
             NewtonFailure::NonFinite { iterations, quantity } => Error::NonFinite { state, h, iterations, quantity },
             NewtonFailure::Rejected { iterations, reason } => Error::StepRejected { state, h, iterations, reason },
         }
+    }
+
+    /// `Ok` for a usable configuration: a finite, positive step size, valid
+    /// Newton options and at least one degree of freedom.
+    pub(crate) fn check_setup(h: f64, newton: &crate::newton::NewtonOptions) -> Result<(), Self> {
+        if N == 0 {
+            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (N = 0)" });
+        }
+        newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
+        Self::check_step(h)
     }
 
     /// `Ok` for a finite, positive step size.

@@ -104,7 +104,7 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
     where
         S: Lagrangian<N>,
     {
-        Error::<N>::check_step(self.h)?;
+        Error::<N>::check_setup(self.h, &self.newton)?;
         if let StepPolicy::EnergyPreserving(b) = self.policy {
             if !b.valid() {
                 return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
@@ -189,6 +189,24 @@ pub(crate) fn kahan<T: crate::real::Real, const N: usize>(a: &[T; N], c: &[T; N]
         carry[i] = u - (sum[i] - a[i]);
     }
     (sum, carry)
+}
+
+/// `true` when the increment `dq` of a converged step is more than `10⁶`
+/// times both the predicted one and the last one (scaled to the same step),
+/// and larger than the position `q` itself: Newton found a root, but not one a
+/// trajectory reaches. Smooth motion changes its increment by a factor
+/// `e^{λh}` per step; a growth of `10⁶` in one step is an unresolved (or, for
+/// explicit discrete Lagrangians, unstable) step size, or a spurious root of
+/// the DEL far away. Motion that starts from an increment of exactly zero (a
+/// first-order α-β step from rest) has no scale to compare with and passes.
+pub(crate) fn implausible_growth<const N: usize>(
+    dq: &[f64; N],
+    predicted: &[f64; N],
+    last: &[f64; N],
+    q: &[f64; N],
+) -> bool {
+    let scale = max_abs(predicted).max(max_abs(last));
+    scale > 0.0 && max_abs(dq) > 1e6 * scale.max(1e-6 * max_abs(q))
 }
 
 /// Which of the values a step publishes is not finite, if any.
@@ -310,8 +328,16 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// Changes the step size for the following steps (for example to retry a
     /// failed step with a smaller one). The integrator stays variational: the
     /// DEL equations hold with the step sizes actually taken.
+    ///
+    /// Under energy-preserving steps `h` is the next guess and must lie in
+    /// `[h_min, h_max]`.
     pub fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>> {
         Error::<N>::check_step(h)?;
+        if let StepPolicy::EnergyPreserving(b) = self.policy
+            && !(b.h_min..=b.h_max).contains(&h)
+        {
+            return Err(Error::InvalidStepSize { h });
+        }
         self.clock = Clock { t: self.state.t, step: self.state.step };
         self.h = h;
         Ok(())
@@ -400,7 +426,17 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
-            Ok((dq, report)) => Ok((dq.into(), report)),
+            Ok((dq, report)) => {
+                let dq: [f64; N] = dq.into();
+                if let Some(last) = &self.previous
+                    && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
+                {
+                    let reason = "the solution's increment is over 1e6 times the predicted and the last one: \
+                                  a root far from the trajectory (an unstable or unresolved step size)";
+                    return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
+                }
+                Ok((dq, report))
+            }
             Err(failure) => Err(self.fail(h, failure)),
         }
     }
@@ -441,32 +477,43 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         Ok(())
     }
 
-    /// Steps until `t_end`, calling `observe` after each step. The last step
-    /// is shortened so that the integrator stops at `t_end` exactly; the step
-    /// size is then restored.
+    /// Steps until `t_end`, calling `observe` after each step, and stops at
+    /// `t_end` exactly: the last step is shortened to land on it (a step
+    /// that would end within `10⁻⁹ h` of it is stretched by that much
+    /// instead), and the step size is then restored. A target equal to the
+    /// current time is a no-op.
+    ///
+    /// Under energy-preserving steps every step, the last included, is at
+    /// most the largest admissible step `min(h_max, max_ratio·h_{k−1})`; the
+    /// last one is a fixed step of the remaining length (the energy equation
+    /// is not imposed on it) and may be shorter than `h_min`.
     pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
         if !t_end.is_finite() || t_end < self.state.t {
             return Err(Error::InvalidTarget { target: t_end, state: self.state });
         }
-        // Steps that land within this of t_end count as landing on it.
-        let slack = 1e-9 * self.h;
         loop {
-            // How far the next step may reach: exactly h for fixed steps; for
-            // energy-preserving steps h is solved for, and may grow by the ratio.
-            let reach = match self.policy {
-                StepPolicy::Fixed => self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h,
-                StepPolicy::EnergyPreserving(b) => self.state.t + self.h * b.max_ratio,
-            };
-            if reach <= t_end + slack {
-                self.step()?;
-                observe(self);
-                continue;
+            let remaining = t_end - self.state.t;
+            if remaining <= 0.0 {
+                return Ok(());
             }
-            if t_end - self.state.t > slack {
+            let last = match self.policy {
+                StepPolicy::Fixed => {
+                    let next = self.clock.t + (self.state.step + 1 - self.clock.step) as f64 * self.h;
+                    next >= t_end - 1e-9 * self.h
+                }
+                StepPolicy::EnergyPreserving(b) => {
+                    let h_prev = self.previous.map_or(self.h, |last| last.h);
+                    let reach = if self.previous.is_some() { b.bracket(h_prev).1 } else { self.h };
+                    remaining <= reach
+                }
+            };
+            if last {
                 self.final_step(t_end)?;
                 observe(self);
+                return Ok(());
             }
-            return Ok(());
+            self.step()?;
+            observe(self);
         }
     }
 
@@ -579,5 +626,28 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// [`noether`](crate::noether)); `None` before the first step.
     pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
         Some(crate::noether::forcing_impulse(&self.system, &self.method, self.previous.as_ref()?, symmetry))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_published_value_is_checked() {
+        assert_eq!(non_finite(1.0, &[1.0], &[1.0]), None);
+        assert_eq!(non_finite(f64::INFINITY, &[1.0], &[1.0]), Some("time"));
+        assert_eq!(non_finite(1.0, &[f64::NAN], &[1.0]), Some("position"));
+        assert_eq!(non_finite(1.0, &[1.0], &[f64::NEG_INFINITY]), Some("momentum"));
+    }
+
+    #[test]
+    fn growth_by_a_million_is_implausible() {
+        assert!(!implausible_growth(&[1e5], &[1.0], &[0.5], &[1.0]));
+        assert!(implausible_growth(&[2e6], &[1.0], &[0.5], &[1.0]));
+        // Not beyond the position itself.
+        assert!(!implausible_growth(&[2e6], &[1.0], &[0.5], &[1e7]));
+        // No scale to compare with.
+        assert!(!implausible_growth(&[1.0], &[0.0], &[0.0], &[1.0]));
     }
 }

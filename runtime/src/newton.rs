@@ -40,6 +40,27 @@ impl Default for NewtonOptions {
     }
 }
 
+impl NewtonOptions {
+    /// `Ok` when the settings can work: `rtol` finite and positive, `atol`
+    /// finite and non-negative, at least one iteration, `min_rcond` in
+    /// `[0, 1)`. The integrators check this at `start`.
+    pub fn validate(&self) -> Result<(), &'static str> {
+        if !(self.rtol.is_finite() && self.rtol > 0.0) {
+            return Err("`rtol` must be finite and positive");
+        }
+        if !(self.atol.is_finite() && self.atol >= 0.0) {
+            return Err("`atol` must be finite and non-negative");
+        }
+        if self.max_iterations == 0 {
+            return Err("`max_iterations` must be at least 1");
+        }
+        if !(self.min_rcond >= 0.0 && self.min_rcond < 1.0) {
+            return Err("`min_rcond` must lie in [0, 1)");
+        }
+        Ok(())
+    }
+}
+
 /// How a Newton solve ended when it converged.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NewtonReport {

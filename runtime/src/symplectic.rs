@@ -41,7 +41,7 @@ impl<const N: usize> TangentMap<N> {
 
     /// `max |Mᵀ𝕁M − 𝕁|` with `𝕁 = [[0, I], [−I, 0]]`: zero for a symplectic map.
     pub fn symplecticity_defect(&self) -> f64 {
-        defect(&self.matrix())
+        defect(&self.matrix()).unwrap_or(f64::NAN)
     }
 }
 
@@ -87,13 +87,17 @@ where
     Some(m)
 }
 
-/// `max |Mᵀ𝕁M − 𝕁|` of a square tangent map ordered `(positions, momenta)`.
-pub fn defect(m: &DMatrix<f64>) -> f64 {
+/// `max |Mᵀ𝕁M − 𝕁|` of a square tangent map ordered `(positions, momenta)`,
+/// or `None` for a matrix that is not square with an even size.
+pub fn defect(m: &DMatrix<f64>) -> Option<f64> {
+    if !m.is_square() || !m.nrows().is_multiple_of(2) {
+        return None;
+    }
     let n = m.nrows() / 2;
     let mut j = DMatrix::zeros(2 * n, 2 * n);
     for i in 0..n {
         j[(i, n + i)] = 1.0;
         j[(n + i, i)] = -1.0;
     }
-    (m.transpose() * &j * m - j).amax()
+    Some((m.transpose() * &j * m - j).amax())
 }

@@ -29,7 +29,7 @@
 use core::cell::Cell;
 
 use crate::error::Error;
-use crate::integrator::Stats;
+use crate::integrator::{Stats, implausible_growth, kahan, non_finite};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
 use crate::real::{Real, all_finite, max_abs};
@@ -72,7 +72,7 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
         Sys: Lagrangian<N>,
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
-        Error::<N, T>::check_step(self.h.to_f64())?;
+        Error::<N, T>::check_setup(self.h.to_f64(), &self.newton)?;
         if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
             return Err(Error::Unsupported {
                 what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
@@ -267,6 +267,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// Changes the step size for the following steps.
     pub fn set_step_size(&mut self, h: T) -> Result<(), Error<N, T>> {
+        if !h.is_finite() {
+            return Err(Error::InvalidStepSize { h: h.to_f64() });
+        }
         Error::<N, T>::check_step(h.to_f64())?;
         self.clock = (self.state.t, self.state.step);
         self.h = h;
@@ -292,25 +295,27 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         Ok(())
     }
 
-    /// Steps until `t_end`; the last step is shortened to land on it exactly.
+    /// Steps until `t_end` and stops there exactly, like
+    /// [`Integrator::run_until`](crate::Integrator::run_until): the last step
+    /// is shortened to land on `t_end` (or stretched by at most `10⁻⁹ h`);
+    /// a target equal to the current time is a no-op.
     pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         if !t_end.is_finite() || t_end < self.state.t {
             return Err(Error::InvalidTarget { target: t_end.to_f64(), state: self.state });
         }
-        let slack = self.h * 1e-9;
         loop {
-            let reach = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
-            if reach <= t_end + slack {
-                self.step()?;
-                observe(self);
-                continue;
+            if t_end - self.state.t <= T::zero() {
+                return Ok(());
             }
-            if t_end - self.state.t > slack {
+            let next = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
+            if next >= t_end - self.h * 1e-9 {
                 self.step_by(t_end - self.state.t, t_end)?;
                 self.clock = (self.state.t, self.state.step);
                 observe(self);
+                return Ok(());
             }
-            return Ok(());
+            self.step()?;
+            observe(self);
         }
     }
 
@@ -415,6 +420,16 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             Ok((x, report)) => (x.0, report),
             Err(failure) => return Err(self.fail(h, failure)),
         };
+        if let Some(last) = &self.last {
+            let f = |x: &[T; N]| x.map(|v| v.to_f64());
+            let rho = (h / last.h).to_f64();
+            let reached = f(&last.d[S - 1]).map(|x| x * rho);
+            if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&q0)) {
+                let reason = "the solution's increment is over 1e6 times the predicted and the last one: \
+                              a root far from the trajectory (an unstable or unresolved step size)";
+                return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
+            }
+        }
         // p_{k+1} = ∂A/∂Q_s at the solution, which the q_k row and the
         // interior rows turn into the momentum balance
         //     p_{k+1} = p_k + ∂A/∂q_k|_D = p_k + h Σ_j b_j ∂L/∂q(c_j)
@@ -424,9 +439,14 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         // interior rows, and summed with Kahan's compensation like q, the
         // rounding of p grows like ε|Δp| = O(εh) per step instead of ε|p|.
         let mut dp = [T::zero(); N];
+        let mut lagrangian_finite = true;
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
             let (lq, _) = gradient_at(system, t, q, v);
+            // The derivatives can be finite where L is not (L = ln(1 − q)
+            // past q = 1 has a finite derivative on the wrong branch): the
+            // step is only valid where the action itself is.
+            lagrangian_finite &= system.lagrangian(t, q, v).is_finite();
             let w = g.quadrature().weights()[j] * h;
             for i in 0..N {
                 dp[i] += w * lq[i];
@@ -435,8 +455,16 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
         // q_{k+1} = (q_k + e_k) + D_s, Kahan-summed.
         let (q1, carry) = kahan(&q0, &e, &d[S - 1]);
-        if !all_finite(&q1) || !all_finite(&p1) {
-            let quantity = if all_finite(&q1) { "momentum" } else { "position" };
+        // L at the end node too, which Gauss points do not reach.
+        if lagrangian_finite {
+            let one = T::one();
+            let v1: [T; N] = core::array::from_fn(|i| {
+                (0..S).map(|n| g.basis_derivative(n + 1, one) * d[n][i]).fold(T::zero(), |a, b| a + b) / h
+            });
+            lagrangian_finite = system.lagrangian(t1, q1, v1).is_finite();
+        }
+        let quantity = if lagrangian_finite { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
+        if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
@@ -676,17 +704,4 @@ fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFailure {
             NewtonFailure::Rejected { iterations: iterations + spent, reason }
         }
     }
-}
-
-/// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
-#[inline(always)]
-fn kahan<T: Real, const N: usize>(a: &[T; N], c: &[T; N], b: &[T; N]) -> ([T; N], [T; N]) {
-    let mut sum = [T::zero(); N];
-    let mut carry = [T::zero(); N];
-    for i in 0..N {
-        let u = c[i] + b[i];
-        sum[i] = a[i] + u;
-        carry[i] = u - (sum[i] - a[i]);
-    }
-    (sum, carry)
 }

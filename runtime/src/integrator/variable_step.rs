@@ -56,7 +56,7 @@ pub struct StepBounds {
     pub h_min: f64,
     /// Largest acceptable step.
     pub h_max: f64,
-    /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`), at least 1.
+    /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`): finite and above 1.
     pub max_ratio: f64,
 }
 
@@ -71,11 +71,12 @@ impl StepBounds {
             && self.h_max.is_finite()
             && self.h_min > 0.0
             && self.h_min <= self.h_max
-            && self.max_ratio >= 1.0
+            && self.max_ratio.is_finite()
+            && self.max_ratio > 1.0
     }
 
     /// The admissible steps after a step of size `h_prev`.
-    fn bracket(&self, h_prev: f64) -> (f64, f64) {
+    pub(super) fn bracket(&self, h_prev: f64) -> (f64, f64) {
         let lo = self.h_min.max(h_prev / self.max_ratio);
         let hi = self.h_max.min(h_prev * self.max_ratio);
         (lo.min(hi), hi)
