@@ -417,6 +417,21 @@ def check_alpha_beta():
                 errs.append(abs((e - H) / h / a1 - 1))
             print(f"  {sysm.name} / {m.name}: a1 = {fmt(a1)}; |((Ehat - H)/h)/a1 - 1| for h = 2^-6..2^-10: "
                   + ", ".join(fmt(x, 2) for x in errs))
+            if alpha == "0.3":
+                adj = alpha_beta("0.7")
+                da1 = flow_derivative(lambda qq, vv: a1_alpha_beta(sysm, alpha, qq, vv), sysm, q_, v)
+                rows = []
+                for h in hs[:4]:
+                    e_a = m.step(sysm, q_, p_, h, v)
+                    e_adj = adj.step(sysm, q_, p_, h, v)[2]
+                    diff = ((e_a[2] - H - a1 * h) - (e_adj - H + a1 * h)) / h ** 2
+                    v1 = sysm.velocity(e_a[0], e_a[1])
+                    e2 = (sysm.energy(e_a[0], v1) - H) / h ** 2
+                    rows.append((h, diff, e2))
+                print(f"    a2^alpha - a2^adj against (da1/dt)/2 = {fmt(da1 / 2)}: "
+                      + ", ".join(fmt(r[1], 6) for r in rows) + f" (h = 2^-6..2^-9)")
+                print(f"    (H(z1) - H(z))/h^2 against -(da1/dt)/2 = {fmt(-da1 / 2)}: "
+                      + ", ".join(fmt(r[2], 6) for r in rows))
 
 
 def check_galerkin():
@@ -610,6 +625,15 @@ def check_runs():
     print(f"  pendulum from 1 rad, midpoint, h0 = 0.02, one period: " + describe_run(sysm, MIDPOINT, nodes, stop))
     print(f"    steps in [{fmt(min(n[3] for n in nodes), 5)}, {fmt(max(n[3] for n in nodes), 5)}], |a2| in "
           f"[{fmt(min(a2s), 4)}, {fmt(max(a2s), 4)}], h_(k-1)^3 |a2(z_k)| in [{fmt(min(vals), 5)}, {fmt(max(vals), 5)}]")
+    quarter = mp.ellipk(mp.sin(mp.mpf(1) / 2) ** 2) / mp.sqrt(mp.mpf("9.81"))
+    for method, label in ((TRAPEZOID, "trapezoid, a2 = (2 g cos q v^2 - g^2 sin^2 q)/8"),
+                          (SIMPSON, "linear element with Simpson, a2 = -g^2 sin^2 q/8 (double zero at q = 0)"),
+                          (alpha_beta("0.3"), "alpha = 0.3, a1 = -0.4 v.L_q (zero at turning points and at q = 0)")):
+        nodes, stop = variable_steps(sysm, method, [1], [0], mp.mpf("0.02"), 2.1)
+        hs = [n[3] for n in nodes]
+        print(f"    {label}: " + (f"stops at t = {fmt(stop[0], 4)}, q = {fmt(stop[1][0], 3)}" if stop else
+                                  f"no stop up to t = {fmt(nodes[-1][0], 4)}, steps in [{fmt(min(hs), 4)}, {fmt(max(hs), 4)}]")
+              + f" (quarter period {fmt(quarter, 4)})")
     # 3. Kepler e = 0.9 (polar), from perihelion
     sysm = kepler_polar()
     e = mp.mpf("0.9")
