@@ -59,39 +59,18 @@
 //! no step behind it, and `E_0` is the continuous energy of the initial data.
 
 use nalgebra::SMatrix;
-use num_dual::{Dual, Dual64};
+use num_dual::Dual64;
 
 use crate::derivatives::{self, Segment, StepDerivatives, Var};
 use crate::discrete::DiscreteLagrangian;
-use crate::system::{Lagrangian, Scalar};
+use crate::system::Lagrangian;
+
+pub use crate::system::generalized_force;
 
 /// Whether the system has any non-conservative force.
 #[inline(always)]
 pub(crate) const fn is_forced<S: Lagrangian<N> + ?Sized, const N: usize>() -> bool {
     S::HAS_FORCE || S::HAS_DISSIPATION
-}
-
-/// The generalised force `F = Q(t, q, v) − ∂R/∂v(q, v)` on any [`Scalar`].
-///
-/// `∂R/∂v_i` comes from one evaluation of `R` on a dual number over `D`
-/// seeded on `v_i` (`N` evaluations in all). Systems without `force` or
-/// `dissipation` get zeros without evaluating anything.
-#[inline]
-pub fn generalized_force<S, D, const N: usize>(system: &S, t: D, q: [D; N], v: [D; N]) -> [D; N]
-where
-    S: Lagrangian<N> + ?Sized,
-    D: Scalar,
-{
-    let mut f = if S::HAS_FORCE { system.force(t, q, v) } else { [D::zero(); N] };
-    if S::HAS_DISSIPATION {
-        let q = q.map(Dual::from_re);
-        for i in 0..N {
-            let mut vd = v.map(Dual::from_re);
-            vd[i].eps = D::one();
-            f[i] -= system.dissipation(q, vd).eps;
-        }
-    }
-    f
 }
 
 /// The discrete forces of one step: `F_k^−` acts on `q_k`, `F_k^+` on `q_{k+1}`,
@@ -302,31 +281,11 @@ pub fn dissipated_power<S: Lagrangian<N> + ?Sized, const N: usize>(system: &S, q
         .sum()
 }
 
-/// The discrete forces of the quadrature rule that evaluates `F` at one point
-/// `(t, q, v)` with weight `h` and shares the impulse between the nodes as
-/// the linear interpolant of `δq` does there: `α h F` on `q_k` and `β h F` on
-/// `q_{k+1}`, `α + β = 1`.
-#[inline(always)]
-pub(crate) fn one_point<S, D, const N: usize>(
-    system: &S,
-    (t, q, v): (D, [D; N], [D; N]),
-    h: D,
-    alpha: f64,
-) -> ([D; N], [D; N])
-where
-    S: Lagrangian<N> + ?Sized,
-    D: Scalar,
-{
-    let f = generalized_force(system, t, q, v);
-    let minus = crate::discrete::array(|i| f[i] * h * alpha);
-    let plus = crate::discrete::array(|i| f[i] * h * (1.0 - alpha));
-    (minus, plus)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
+    use crate::system::Scalar;
 
     /// Non-linear force and dissipation, both depending on `q` and `v`.
     struct Forced;

@@ -19,6 +19,7 @@ pub mod newton;
 pub mod noether;
 mod real;
 mod state;
+mod symmetry;
 pub mod symplectic;
 pub mod system;
 

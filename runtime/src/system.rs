@@ -4,9 +4,9 @@
 //! `impl` block; the runtime never sees the macro otherwise. The trait can also
 //! be implemented by hand, which is how the runtime's own tests use it.
 
-use num_dual::DualNum;
+use num_dual::{Dual, DualNum};
 
-use crate::noether::Symmetry;
+use crate::symmetry::Symmetry;
 
 /// A real scalar the Lagrangian can be evaluated on: `f64` itself or any of
 /// num-dual's dual numbers over `f64`.
@@ -66,4 +66,27 @@ pub trait Lagrangian<const N: usize> {
         let _ = (t, q, v);
         [D::zero(); N]
     }
+}
+
+/// The generalised force `F = Q(t, q, v) − ∂R/∂v(q, v)` on any [`Scalar`].
+///
+/// `∂R/∂v_i` comes from one evaluation of `R` on a dual number over `D`
+/// seeded on `v_i` (`N` evaluations in all). Systems without `force` or
+/// `dissipation` get zeros without evaluating anything.
+#[inline]
+pub fn generalized_force<S, D, const N: usize>(system: &S, t: D, q: [D; N], v: [D; N]) -> [D; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    D: Scalar,
+{
+    let mut f = if S::HAS_FORCE { system.force(t, q, v) } else { [D::zero(); N] };
+    if S::HAS_DISSIPATION {
+        let q = q.map(Dual::from_re);
+        for i in 0..N {
+            let mut vd = v.map(Dual::from_re);
+            vd[i].eps = D::one();
+            f[i] -= system.dissipation(q, vd).eps;
+        }
+    }
+    f
 }

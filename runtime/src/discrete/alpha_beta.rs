@@ -71,6 +71,6 @@ impl DiscreteLagrangian for AlphaBeta {
         let beta = 1.0 - self.alpha;
         let v = secant_velocity(&dq, h);
         let q = array(|i| q0[i] + dq[i] * beta);
-        crate::forcing::one_point(system, (t0 + h * beta, q, v), h, self.alpha)
+        super::one_point(system, (t0 + h * beta, q, v), h, self.alpha)
     }
 }

@@ -41,7 +41,7 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     /// The discrete forces `(F_k^−, F_k^+)` of the step from `(t0, q0)` to
     /// `(t0 + h, q0 + dq)`: `F_k^−·δq_k + F_k^+·δq_{k+1}` approximates the
     /// virtual work `∫ F·δq dt` of the generalised force
-    /// [`generalized_force`](crate::forcing::generalized_force) `F = Q − ∂R/∂v`
+    /// [`generalized_force`](crate::system::generalized_force) `F = Q − ∂R/∂v`
     /// (MATH.md §6, discrete Lagrange–d'Alembert).
     ///
     /// Each method evaluates `F` with its own quadrature, at the secant
@@ -60,7 +60,7 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     {
         let v = secant_velocity(&dq, h);
         let q_mid = array(|i| q0[i] + dq[i] * 0.5);
-        crate::forcing::one_point(system, (t0 + h * 0.5, q_mid, v), h, 0.5)
+        one_point(system, (t0 + h * 0.5, q_mid, v), h, 0.5)
     }
 }
 
@@ -82,4 +82,25 @@ pub(crate) fn array<D: Scalar, const N: usize>(f: impl Fn(usize) -> D) -> [D; N]
         *x = f(i);
     }
     out
+}
+
+/// The discrete forces of the quadrature rule that evaluates `F` at one point
+/// `(t, q, v)` with weight `h` and shares the impulse between the nodes as
+/// the linear interpolant of `δq` does there: `α h F` on `q_k` and `β h F` on
+/// `q_{k+1}`, `α + β = 1`.
+#[inline(always)]
+pub(crate) fn one_point<S, D, const N: usize>(
+    system: &S,
+    (t, q, v): (D, [D; N], [D; N]),
+    h: D,
+    alpha: f64,
+) -> ([D; N], [D; N])
+where
+    S: Lagrangian<N> + ?Sized,
+    D: Scalar,
+{
+    let f = crate::system::generalized_force(system, t, q, v);
+    let minus = array(|i| f[i] * h * alpha);
+    let plus = array(|i| f[i] * h * (1.0 - alpha));
+    (minus, plus)
 }

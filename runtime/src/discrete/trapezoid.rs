@@ -10,7 +10,7 @@
 //! iteration).
 
 use super::{DiscreteLagrangian, array, secant_velocity};
-use crate::forcing::generalized_force;
+use crate::system::generalized_force;
 use crate::system::{Lagrangian, Scalar};
 
 /// The trapezoidal rule: `A = h/2 [L(t_k, q_k, v̂) + L(t_{k+1}, q_{k+1}, v̂)]`. Order 2.
