@@ -2,10 +2,16 @@
 //!
 //! ```text
 //! given (t_k, q_k, p_k), unknowns D_m = Q_m − q_k, m = 1 … s  (s − 1 interior nodes and q_{k+1} − q_k):
-//!     p_k + ∂A/∂Q_0 = 0              N equations  (the DEL, MATH.md §3)
-//!     ∂A/∂Q_m = 0,  m = 1 … s − 1    (s − 1)N equations  (paper 004 (2.38))
-//! then q_{k+1} = q_k + D_s,  p_{k+1} = ∂A/∂Q_s
+//!     p_k + ∂A/∂Q_0 + F^0 = 0              N equations  (the DEL, MATH.md §3)
+//!     ∂A/∂Q_m + F^m = 0,  m = 1 … s − 1    (s − 1)N equations  (paper 004 (2.38))
+//! then q_{k+1} = q_k + D_s,  p_{k+1} = ∂A/∂Q_s + F^s = p_k + h Σ_j b_j (∂L/∂q + F)(c_j)
 //! ```
+//!
+//! `F^m = h Σ_j b_j ℓ_m(c_j) F(t_j, q(c_j), q̇(c_j))` is the discrete force on
+//! node `m` of the generalised force `F = Q − ∂R/∂v` (MATH.md §6): the
+//! virtual work `∫ F·δq dt` of the interpolated variation `δq = Σ_m ℓ_m δQ_m`
+//! by the step's own quadrature, so the discrete Lagrange–d'Alembert
+//! principle keeps the method's order 2s. Without forces `F^m = 0`.
 //!
 //! One Newton block of size `sN`: the residual and the Jacobian
 //! `∂²A/∂Q_ρ∂Q_n` (rows `ρ = 0 … s−1`, columns `n = 1 … s`) are assembled by
@@ -35,7 +41,7 @@ use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions
 use crate::real::{Real, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
-use crate::system::Lagrangian;
+use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
@@ -73,13 +79,13 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
         Error::<N, T>::check_setup(self.h.to_f64(), &self.newton)?;
-        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-            return Err(Error::Unsupported {
-                what: "`force` and `dissipation` are not integrated yet; the integrator would ignore them",
-            });
-        }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        if !all_finite(&generalized_force(&self.system, t0, q0, v0)) {
+            return Err(Error::InvalidInitialData {
+                reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
+            });
         }
         let point = PointDerivatives::at(&self.system, t0, q0, v0);
         let p0 = point.v;
@@ -442,7 +448,15 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let mut lagrangian_finite = true;
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
-            let (lq, _) = gradient_at(system, t, q, v);
+            let (mut lq, _) = gradient_at(system, t, q, v);
+            if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+                // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on all
+                // s + 1 nodes sum to h Σ_j b_j F_j (the basis sums to one).
+                let f = generalized_force(system, t, q, v);
+                for i in 0..N {
+                    lq[i] += f[i];
+                }
+            }
             // The derivatives can be finite where L is not (L = ln(1 − q)
             // past q = 1 has a finite derivative on the wrong branch): the
             // step is only valid where the action itself is.
@@ -509,6 +523,46 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
         Ok(self.system.energy(self.state.t, self.state.q, v))
     }
 
+    /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node.
+    pub fn momentum_map(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> f64 {
+        crate::noether::momentum_map(symmetry, &self.state.q, &self.state.p)
+    }
+
+    /// The forcing impulse `Σ_m F^m·ξ(Q_m)` of the last step over its nodes
+    /// `Q_0 = q_{k−1}, …, Q_s = q_k`, with `F^m = h Σ_j b_j ℓ_m(c_j) F(c_j)` the
+    /// discrete force on node `m`; `None` before the first step.
+    ///
+    /// For a symmetry of `L` (`ξ` with `∂L/∂q·ξ + ∂L/∂v·ξ'(q)v = 0` along the
+    /// step) the step action is invariant, the interior equations
+    /// `∂A/∂Q_m + F^m = 0` hold, and so `J_k − J_{k−1}` equals this impulse
+    /// (the discrete Noether theorem with forcing, through the basis).
+    pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
+        let last = self.last?;
+        let g = &self.method;
+        let mut fnode = [[0.0; N]; S];
+        let mut f_end = [0.0; N];
+        for j in 0..R {
+            let (t, q, v) = g.point(last.t0, last.h, (&last.q0, &last.carry), &last.d, j);
+            let f = generalized_force(&self.system, t, q, v);
+            let w = g.quadrature().weights()[j] * last.h;
+            for i in 0..N {
+                for m in 0..S {
+                    fnode[m][i] += w * (g.row[j][m] * f[i]);
+                }
+                f_end[i] += w * (g.col[j][S - 1] * f[i]);
+            }
+        }
+        let node = |m: usize| -> [f64; N] {
+            core::array::from_fn(|i| last.q0[i] + (last.carry[i] + if m == 0 { 0.0 } else { last.d[m - 1][i] }))
+        };
+        let dot = |a: &[f64; N], b: &[f64; N]| (0..N).map(|i| a[i] * b[i]).sum::<f64>();
+        let mut impulse = dot(&f_end, &symmetry.generator(&node(S)));
+        for m in 0..S {
+            impulse += dot(&fnode[m], &symmetry.generator(&node(m)));
+        }
+        Some(impulse)
+    }
+
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
     /// (MATH.md §8), or `None` before the first step or where the Newton
     /// block is singular.
@@ -517,7 +571,12 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
     /// [`Galerkin::node_hessian`]. Allocates; a diagnostic, not for the
     /// stepping loop.
+    ///
+    /// Also `None` for a system with forces, whose step map is not symplectic.
     pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
+        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+            return None;
+        }
         let last = self.last?;
         let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
         tangent_map(&self.system, &self.method, last.t0, last.h, q0, &last.d)
@@ -590,6 +649,10 @@ where
     let mut jac: BlockMatrix<N, S, T> = [[[[zero; N]; S]; N]; S];
     let mut direct = [zero; N];
     let mut grad: BlockVector<N, S, T> = [[zero; N]; S];
+    // Discrete forces on the nodes Q_0 … Q_{s−1} (the last node's, F^s, only
+    // enters p_{k+1}).
+    let mut fnode: BlockVector<N, S, T> = [[zero; N]; S];
+    let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
         // The Hessian only when the Jacobian is to be assembled.
@@ -605,6 +668,40 @@ where
         };
         let b = g.quadrature().weights()[j];
         let (row, row_d, col, col_d) = (&g.row[j], &g.row_d[j], &g.col[j], &g.col_d[j]);
+        // Lagrange–d'Alembert: the virtual work h Σ_j b_j F_j·δq(c_j) puts
+        // h b_j ℓ_m(c_j) F_j on node m (paper 002's discrete forces, through
+        // the basis); with the Jacobian, their derivatives in the unknowns.
+        let force = forced.then(|| match frozen {
+            Some(_) => (generalized_force(system, t, q, v), None),
+            None => {
+                let (f, dq, dv) = force_derivatives(system, t, q, v);
+                (f, Some((dq, dv)))
+            }
+        });
+        if let Some((f, df)) = &force {
+            let w = b * h;
+            for m in 0..S {
+                for i in 0..N {
+                    let x = w * (row[m] * f[i]);
+                    fnode[m][i] += x;
+                    let k = m;
+                    scale[k] = f64::max(scale[k], x.abs().to_f64());
+                }
+            }
+            if let Some((dq, dv)) = df {
+                for n in 0..S {
+                    let (c, cd) = (b * h * col[n], b * col_d[n]);
+                    for rho in 0..S {
+                        let l = row[rho];
+                        for i in 0..N {
+                            for k in 0..N {
+                                jac[rho][i][n][k] += l * (c * dq[i][k] + cd * dv[i][k]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
         // The weight w = b h is rounded once and shared by every row, and the
         // coefficients of the basis are not premultiplied: all rows are then
         // derivatives of the same action Σ w_j L, whatever the rounding.
@@ -657,10 +754,12 @@ where
         for gm in &grad[..S - 1] {
             x -= gm[i];
         }
-        r[0][i] = (p0[i] - grad[S - 1][i]) + x;
+        r[0][i] = (p0[i] - grad[S - 1][i]) + (x + fnode[0][i]);
     }
-    if S > 1 {
-        r[1..S].copy_from_slice(&grad[..S - 1]);
+    for m in 1..S {
+        for i in 0..N {
+            r[m][i] = grad[m - 1][i] + fnode[m][i];
+        }
     }
     if !all_finite(r.as_flattened()) {
         return Err(Breakdown::NonFinite("residual"));
@@ -704,4 +803,42 @@ fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFailure {
             NewtonFailure::Rejected { iterations: iterations + spent, reason }
         }
     }
+}
+
+/// The generalised force `F = Q − ∂R/∂v` at one point and its Jacobians
+/// `(∂F_i/∂q_k, ∂F_i/∂v_k)`: `2N` evaluations on duals over `T`.
+#[inline]
+#[allow(clippy::type_complexity)]
+fn force_derivatives<Sys, T, const N: usize>(
+    system: &Sys,
+    t: T,
+    q: [T; N],
+    v: [T; N],
+) -> ([T; N], [[T; N]; N], [[T; N]; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    use num_dual::Dual;
+    let z = T::zero();
+    let (mut f, mut dq, mut dv) = ([z; N], [[z; N]; N], [[z; N]; N]);
+    for k in 0..2 * N {
+        let mut qd = q.map(Dual::from_re);
+        let mut vd = v.map(Dual::from_re);
+        if k < N {
+            qd[k].eps = T::one();
+        } else {
+            vd[k - N].eps = T::one();
+        }
+        let y = generalized_force(system, Dual::from_re(t), qd, vd);
+        for i in 0..N {
+            f[i] = y[i].re;
+            if k < N {
+                dq[i][k] = y[i].eps;
+            } else {
+                dv[i][k - N] = y[i].eps;
+            }
+        }
+    }
+    (f, dq, dv)
 }
