@@ -56,37 +56,31 @@ fn forced_galerkin_converges_at_order_2s() {
     }
 }
 
+/// `(J_0, J_n, worst |J_k − J_{k−1} − impulse_k| relative)` over `n` steps of
+/// Galerkin degree `S`.
+fn noether_balance<const S: usize>(n: usize) -> (f64, f64, f64) {
+    let rotation = Symmetry::<2>::rotation(0, 1).unwrap();
+    let system = KeplerCartesian { mu: 1.0, c: 0.01, s: 0.02 };
+    let mut sim =
+        GalerkinIntegrator::new(system, Galerkin::<S, S>::gauss(), 0.05).start(0.0, [1.0, 0.0], [0.0, 1.1]).unwrap();
+    let j_first = sim.momentum_map(&rotation);
+    let mut worst = 0.0f64;
+    for _ in 0..n {
+        let before = sim.momentum_map(&rotation);
+        sim.step().unwrap();
+        let after = sim.momentum_map(&rotation);
+        let impulse = sim.forcing_impulse(&rotation).unwrap();
+        let size = before.abs().max(after.abs()).max(impulse.abs());
+        worst = worst.max((after - before - impulse).abs() / size);
+    }
+    (j_first, sim.momentum_map(&rotation), worst)
+}
+
 /// Kepler with drag and a tangential thrust: rotation-invariant `L`, forces
 /// that change the angular momentum. Every step balances it to round-off.
 #[test]
 fn forced_galerkin_balances_the_noether_impulse() {
-    let rotation = Symmetry::<2>::rotation(0, 1).unwrap();
-    for s in [2usize, 4] {
-        let system = KeplerCartesian { mu: 1.0, c: 0.01, s: 0.02 };
-        let (q0, v0) = ([1.0, 0.0], [0.0, 1.1]);
-        let mut worst = 0.0f64;
-        let mut j_first = 0.0;
-        let mut j_last = 0.0;
-        macro_rules! run {
-            ($s:literal) => {{
-                let mut sim =
-                    GalerkinIntegrator::new(system, Galerkin::<$s, $s>::gauss(), 0.05).start(0.0, q0, v0).unwrap();
-                j_first = sim.momentum_map(&rotation);
-                for _ in 0..4000 {
-                    let before = sim.momentum_map(&rotation);
-                    sim.step().unwrap();
-                    let after = sim.momentum_map(&rotation);
-                    let impulse = sim.forcing_impulse(&rotation).unwrap();
-                    let size = before.abs().max(after.abs()).max(impulse.abs());
-                    worst = worst.max((after - before - impulse).abs() / size);
-                }
-                j_last = sim.momentum_map(&rotation);
-            }};
-        }
-        match s {
-            2 => run!(2),
-            _ => run!(4),
-        }
+    for (s, (j_first, j_last, worst)) in [(2, noether_balance::<2>(4000)), (4, noether_balance::<4>(4000))] {
         println!("s = {s}: J {j_first:.4} → {j_last:.4} over 4000 steps; worst |ΔJ − impulse| relative {worst:.1e}");
         assert!((j_last - j_first).abs() > 0.1, "the forces should change J");
         assert!(worst < 1e-13, "s = {s}: {worst:e}");
