@@ -15,7 +15,8 @@
 //! | `linear.rs` | paper 004 §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
 //! | `quadratic.rs` | paper 004 §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
-//! | `stepper.rs` | [`GalerkinIntegrator`]: the fixed-step integrator, tangent map |
+//! | `stepper.rs` | [`GalerkinIntegrator`]: the integrator (fixed steps, forces), tangent map |
+//! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |
 //!
 //! Everything here is written over a [`Real`](crate::Real) type `T`, `f64`
 //! by default: `Galerkin::<S, S, DoubleDouble>::gauss()` builds the method
@@ -26,10 +27,12 @@
 //! ([`GalerkinIntegrator::velocity`], [`GalerkinIntegrator::energy`],
 //! [`GalerkinIntegrator::last_tangent_map`]) exist for `T = f64` only.
 //!
-//! Variable (energy-preserving) steps are not supported with Galerkin
-//! discrete Lagrangians; [`GalerkinIntegrator`] has no API for them.
+//! Energy-preserving variable steps ([`GalerkinBuilder::energy_preserving`])
+//! solve the step size with the nodes (`energy.rs`), for autonomous systems
+//! without forces.
 
 mod basis;
+mod energy;
 mod linalg;
 mod linear;
 mod method;

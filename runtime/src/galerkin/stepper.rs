@@ -35,9 +35,9 @@
 use core::cell::Cell;
 
 use crate::error::Error;
-use crate::integrator::{Stats, implausible_growth, kahan, non_finite};
+use crate::integrator::{Stats, StepBounds, implausible_growth, kahan, non_finite};
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{Real, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
@@ -54,9 +54,20 @@ pub struct GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> {
     method: Galerkin<S, R, T>,
     h: T,
     newton: NewtonOptions,
+    policy: Option<StepBounds>,
 }
 
 impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T> {
+    /// Energy-preserving variable steps within `bounds` (paper 004 §3: the
+    /// step size as an unknown fixed by the discrete energy equation),
+    /// starting from the guess `h` given to [`GalerkinIntegrator::new`]. For
+    /// autonomous systems without forces; see [`galerkin`](super) for what
+    /// is conserved and what is not supported yet.
+    pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
+        self.policy = Some(bounds);
+        self
+    }
+
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
@@ -79,6 +90,26 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
         Error::<N, T>::check_setup(self.h.to_f64(), &self.newton)?;
+        if let Some(b) = self.policy {
+            if !b.valid() {
+                return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
+            }
+            if !(b.h_min..=b.h_max).contains(&self.h.to_f64()) {
+                return Err(Error::InvalidStepSize { h: self.h.to_f64() });
+            }
+            if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+                return Err(Error::Unsupported {
+                    what: "energy-preserving steps for a system with `force` or `dissipation`: its energy is not \
+                           conserved, so the energy equation that fixes the step sizes does not hold; use fixed steps",
+                });
+            }
+            if !Sys::AUTONOMOUS {
+                return Err(Error::Unsupported {
+                    what: "energy-preserving galerkin steps for a time-dependent lagrangian; use fixed steps, \
+                           or the energy-preserving midpoint and trapezoid rules",
+                });
+            }
+        }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
@@ -113,13 +144,16 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
             v0,
             clock: (t0, 0),
             stats: Stats::default(),
+            policy: self.policy,
+            energy: T::zero(),
+            time_error: T::zero(),
         })
     }
 }
 
 /// The last step taken: where it started and its node increments.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct LastStep<const N: usize, const S: usize, T> {
+pub(super) struct LastStep<const N: usize, const S: usize, T> {
     t0: T,
     h: T,
     q0: [T; N],
@@ -185,20 +219,26 @@ struct LastStep<const N: usize, const S: usize, T> {
 /// ```
 #[derive(Clone, Debug)]
 pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize, T = f64> {
-    system: Sys,
-    method: Galerkin<S, R, T>,
-    h: T,
-    newton: NewtonOptions,
-    state: State<N, T>,
+    pub(super) system: Sys,
+    pub(super) method: Galerkin<S, R, T>,
+    pub(super) h: T,
+    pub(super) newton: NewtonOptions,
+    pub(super) state: State<N, T>,
     /// Kahan compensation: the position is `state.q + carry`.
-    carry: [T; N],
+    pub(super) carry: [T; N],
     /// Kahan compensation of the momentum: it is `state.p + p_carry`.
-    p_carry: [T; N],
-    last: Option<LastStep<N, S, T>>,
-    v0: [T; N],
+    pub(super) p_carry: [T; N],
+    pub(super) last: Option<LastStep<N, S, T>>,
+    pub(super) v0: [T; N],
     /// `(t, step)` that `t_k = t + (k − step) h` is measured from.
-    clock: (T, u64),
-    stats: Stats,
+    pub(super) clock: (T, u64),
+    pub(super) stats: Stats,
+    /// Energy-preserving steps within these bounds, or fixed steps (`None`).
+    pub(super) policy: Option<StepBounds>,
+    /// The discrete energy the energy-preserving steps conserve.
+    pub(super) energy: T,
+    /// Kahan compensation of `t_k` under energy-preserving steps.
+    pub(super) time_error: T,
 }
 
 impl<Sys, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, 0, S, R, T> {
@@ -209,13 +249,13 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, 0, S,
     /// or [`DoubleDouble`](crate::DoubleDouble) for about 32 digits.
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: Sys, method: Galerkin<S, R, T>, h: T) -> GalerkinBuilder<Sys, S, R, T> {
-        GalerkinBuilder { system, method, h, newton: NewtonOptions::default() }
+        GalerkinBuilder { system, method, h, newton: NewtonOptions::default(), policy: None }
     }
 }
 
 /// The unknown of a step: the node increments `D_1 … D_s`.
 #[derive(Clone, Copy, Debug)]
-struct Nodes<const N: usize, const S: usize, T>(BlockVector<N, S, T>);
+pub(super) struct Nodes<const N: usize, const S: usize, T>(pub(super) BlockVector<N, S, T>);
 
 impl<const N: usize, const S: usize, T: Real> Unknown for Nodes<N, S, T> {
     const EPSILON: f64 = T::EPSILON;
@@ -273,7 +313,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// Changes the step size for the following steps.
     pub fn set_step_size(&mut self, h: T) -> Result<(), Error<N, T>> {
-        if !h.is_finite() {
+        if !h.is_finite() || self.policy.is_some_and(|b| !(b.h_min..=b.h_max).contains(&h.to_f64())) {
             return Err(Error::InvalidStepSize { h: h.to_f64() });
         }
         Error::<N, T>::check_step(h.to_f64())?;
@@ -288,6 +328,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
     /// Newton diagnostics.
     #[inline]
     pub fn step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
+        if let Some(bounds) = self.policy {
+            return self.energy_step(bounds);
+        }
         let t1 = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
         self.step_by(self.h, t1)
     }
@@ -313,10 +356,24 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             if t_end - self.state.t <= T::zero() {
                 return Ok(());
             }
-            let next = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
-            if next >= t_end - self.h * 1e-9 {
+            let last = match (self.policy, self.last) {
+                (Some(b), Some(last)) => (t_end - self.state.t).to_f64() <= b.bracket(last.h.to_f64()).1,
+                (Some(_), None) => t_end - self.state.t <= self.h,
+                (None, _) => {
+                    let next = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
+                    next >= t_end - self.h * 1e-9
+                }
+            };
+            if last {
+                let h = self.h;
                 self.step_by(t_end - self.state.t, t_end)?;
                 self.clock = (self.state.t, self.state.step);
+                if self.policy.is_some() {
+                    // A fixed landing step: conserve its energy from here on,
+                    // and keep the solved step as the next guess.
+                    self.reread_energy();
+                    self.h = h;
+                }
                 observe(self);
                 return Ok(());
             }
@@ -327,7 +384,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
-    fn predict(&self, h: T) -> BlockVector<N, S, T> {
+    pub(super) fn predict(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
         match &self.last {
             Some(last) if last.h == h => core::array::from_fn(|m| {
@@ -355,8 +412,8 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// One step of size `h` stamped with end time `t1`.
     #[inline]
-    fn step_by(&mut self, h: T, t1: T) -> Result<&State<N, T>, Error<N, T>> {
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
+    pub(super) fn step_by(&mut self, h: T, t1: T) -> Result<&State<N, T>, Error<N, T>> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e = self.carry;
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
@@ -436,6 +493,23 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
             }
         }
+        self.commit(h, t1, d, report)
+    }
+
+    /// Applies a step of size `h` (end time `t1`) whose block system is
+    /// solved by the increments `d`: the momentum update, the Kahan sums and
+    /// the checks of every published value. On failure nothing changes.
+    #[inline]
+    pub(super) fn commit(
+        &mut self,
+        h: T,
+        t1: T,
+        d: BlockVector<N, S, T>,
+        report: NewtonReport,
+    ) -> Result<&State<N, T>, Error<N, T>> {
+        let State { step, t: t0, q: q0, p: p0 } = self.state;
+        let e = self.carry;
+        let (system, g) = (&self.system, &self.method);
         // p_{k+1} = ∂A/∂Q_s at the solution, which the q_k row and the
         // interior rows turn into the momentum balance
         //     p_{k+1} = p_k + ∂A/∂q_k|_D = p_k + h Σ_j b_j ∂L/∂q(c_j)
@@ -492,7 +566,35 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         Ok(&self.state)
     }
 
-    fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<N, T> {
+    /// The size of the last step, `None` before the first.
+    pub(super) fn last_step_size(&self) -> Option<T> {
+        self.last.map(|l| l.h)
+    }
+
+    /// `(t0, h, q0, carry, d)` of the last step.
+    #[allow(clippy::type_complexity)]
+    pub(super) fn last_step_parts(&self) -> Option<(T, T, [T; N], [T; N], BlockVector<N, S, T>)> {
+        self.last.map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
+    }
+
+    /// The discrete energy `E_k = Σ_j b_j E_L(c_j)` of the last step (minus
+    /// `∂A/∂h` at fixed nodes, for an autonomous `L`): under
+    /// energy-preserving steps, the quantity conserved. `None` before the
+    /// first step and for a time-dependent `L`.
+    pub fn discrete_energy(&self) -> Option<T> {
+        if !Sys::AUTONOMOUS {
+            return None;
+        }
+        let (t0, h, q0, carry, d) = self.last_step_parts()?;
+        Some(super::energy::step_energy(&self.system, &self.method, t0, h, (&q0, &carry), &d))
+    }
+
+    /// The step policy: `Some(bounds)` for energy-preserving steps.
+    pub fn policy(&self) -> Option<StepBounds> {
+        self.policy
+    }
+
+    pub(super) fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<N, T> {
         self.stats.failed_steps += 1;
         Error::from_newton(failure, self.state, h.to_f64())
     }
@@ -625,7 +727,7 @@ where
 /// Residual and Newton correction of the block system at the increments `d`.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
+pub(super) fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     system: &Sys,
     g: &Galerkin<S, R, T>,
     t0: T,
@@ -787,7 +889,7 @@ where
 }
 
 /// The failure with `spent` earlier iterations added to its count.
-fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFailure {
+pub(super) fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFailure {
     match failure {
         NewtonFailure::NotConverged(mut r) => {
             r.iterations += spent;

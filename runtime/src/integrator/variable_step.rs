@@ -66,7 +66,7 @@ impl StepBounds {
         Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0 }
     }
 
-    pub(super) fn valid(&self) -> bool {
+    pub(crate) fn valid(&self) -> bool {
         self.h_min.is_finite()
             && self.h_max.is_finite()
             && self.h_min > 0.0
@@ -76,7 +76,7 @@ impl StepBounds {
     }
 
     /// The admissible steps after a step of size `h_prev`.
-    pub(super) fn bracket(&self, h_prev: f64) -> (f64, f64) {
+    pub(crate) fn bracket(&self, h_prev: f64) -> (f64, f64) {
         let lo = self.h_min.max(h_prev / self.max_ratio);
         let hi = self.h_max.min(h_prev * self.max_ratio);
         (lo.min(hi), hi)

@@ -1,0 +1,249 @@
+//! Energy-preserving variable steps for Galerkin discrete Lagrangians: the
+//! step size as one more unknown (MATH.md §3; paper 004 §3, time steps as
+//! variables).
+//!
+//! ```text
+//! unknowns (D_1 … D_s, h):   the sN equations of the fixed step, at step size h
+//!                            E(D, h) − E_k = 0,   E = −∂A/∂h = Σ_j b_j E_L(q_h(c_j), q̇_h(c_j))
+//! ```
+//!
+//! For an autonomous `L` the discrete energy of a Galerkin step is the
+//! quadrature of the continuous energy `E_L = v·∂L/∂v − L` along the step
+//! polynomial (differentiate `A = h Σ_j b_j L(q(c_j), Σ_n ℓ_n'(c_j) D_n / h)`
+//! in `h` at fixed nodes), and the energy equation `−E_k + ∂A/∂t_k = 0` says
+//! that it equals the previous step's. The step size is found by Newton on
+//! `g(h) = E(D(h), h) − E_k` along the solutions `D(h)` of the node
+//! equations (each solved to full precision), with the slope from the
+//! bordered Jacobian
+//!
+//! ```text
+//! [ J   b ]       b = ∂r/∂h = Σ_j b_j [ℓ_ρ (L_q − L_qv v) − ℓ_ρ' L_vv v / h]
+//! [ cᵀ  d ]       c = ∂E/∂D,  d = ∂E/∂h = −Σ_j b_j vᵀL_vv v / h
+//! ```
+//!
+//! as its Schur complement `g'(h) = d − c·J⁻¹b` (the block LU of the fixed
+//! step gives `J⁻¹b`, which also moves the nodes with `h`). A coupled Newton
+//! on `(D, h)` together was tried first and abandoned: the energy error of a
+//! method of order `2s` is `O(h^{2s+1})`, so `g'` is small and round-off
+//! fixes `h` only to about `64 ε |E| / |g'|` (1e-6 relative for s = 3 at
+//! h = 0.025 on the pendulum); every such correction of `h` disturbed the
+//! nodes, and the coupled iteration never met its tolerance. The first step has the given size (its energy, not the
+//! continuous `E_L(q0, v0)`, is the one conserved), and a step whose size
+//! leaves the admissible bracket `[max(h_min, h_{k−1}/r), min(h_max, r·h_{k−1})]`,
+//! or whose Newton solve fails, is refused with the state kept.
+//!
+//! Not yet: a bracket search when the coupled solve fails (the second-order
+//! methods have one), time-dependent Lagrangians, and forces (whose energy
+//! is not conserved).
+
+use super::linalg::BlockVector;
+use super::method::PointDerivatives;
+use super::stepper::{GalerkinIntegrator, Nodes, linearize};
+use crate::error::Error;
+use crate::integrator::StepBounds;
+use crate::newton::{self, NewtonFailure, NewtonReport};
+use crate::real::Real;
+use crate::state::State;
+use crate::system::Lagrangian;
+
+/// The discrete energy `Σ_j b_j E_L(c_j)` of a step of size `h` with increments `d`.
+pub(super) fn step_energy<Sys, T, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    g: &super::Galerkin<S, R, T>,
+    t0: T,
+    h: T,
+    base: (&[T; N], &[T; N]),
+    d: &BlockVector<N, S, T>,
+) -> T
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    let mut e = T::zero();
+    for j in 0..R {
+        let (t, q, v) = g.point(t0, h, base, d, j);
+        let (_, lv) = super::method::gradient_at(system, t, q, v);
+        let l = system.lagrangian(t, q, v);
+        let mut ej = -l;
+        for i in 0..N {
+            ej += v[i] * lv[i];
+        }
+        e += g.quadrature().weights()[j] * ej;
+    }
+    e
+}
+
+impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, N, S, R, T> {
+    /// The energy equation at step size `h`, its node equations solved from
+    /// the guess `d`: the nodes, `g(h) = E − E_k`, `g'(h)` (the Schur
+    /// complement `d − c·J⁻¹b`), `J⁻¹b = −∂D/∂h`, the size of the terms of
+    /// `E`, and the Newton iterations spent.
+    #[allow(clippy::type_complexity)]
+    fn energy_probe(
+        &self,
+        h: T,
+        d: BlockVector<N, S, T>,
+    ) -> Result<(BlockVector<N, S, T>, T, T, BlockVector<N, S, T>, f64, usize), NewtonFailure> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let (e, pc) = (self.carry, self.p_carry);
+        let (system, g) = (&self.system, &self.method);
+        let mut factored = None;
+        let min_rcond = self.newton.min_rcond;
+        let fixed = |x: &Nodes<N, S, T>| {
+            let (lin, lu) = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, None)?;
+            factored = Some(lu);
+            Ok(lin)
+        };
+        let (x, report) = newton::solve(Nodes(d), &self.newton, fixed)?;
+        let lu = factored.ok_or(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "jacobian" })?;
+        let d = x.0;
+        let zero = T::zero();
+        let mut border: BlockVector<N, S, T> = [[zero; N]; S];
+        let mut c: BlockVector<N, S, T> = [[zero; N]; S];
+        let (mut dd, mut energy, mut scale) = (zero, zero, self.energy.to_f64().abs());
+        for j in 0..R {
+            let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
+            let pd = PointDerivatives::at(system, t, q, v);
+            let b = g.quadrature().weights()[j];
+            let l = system.lagrangian(t, q, v);
+            let mut ej = -l;
+            let mut vlvv = [zero; N];
+            let mut lqv_v = [zero; N];
+            let mut vvv = zero;
+            for i in 0..N {
+                ej += v[i] * pd.v[i];
+                for k in 0..N {
+                    vlvv[i] += pd.vv[i][k] * v[k];
+                    lqv_v[i] += pd.qv[i][k] * v[k];
+                }
+            }
+            for i in 0..N {
+                vvv += v[i] * vlvv[i];
+            }
+            energy += b * ej;
+            scale = scale.max((b * l).to_f64().abs());
+            dd -= b * vvv / h;
+            let (row, row_d, col, col_d) = (&g.row[j], &g.row_d[j], &g.col[j], &g.col_d[j]);
+            for rho in 0..S {
+                for i in 0..N {
+                    border[rho][i] += b * (row[rho] * (pd.q[i] - lqv_v[i]) - row_d[rho] * vlvv[i] / h);
+                }
+            }
+            for n in 0..S {
+                for k in 0..N {
+                    // ∂E/∂q_k = Σ_i v_i ∂²L/∂v_i∂q_k − ∂L/∂q_k,  ∂E/∂v_k = (L_vv v)_k.
+                    let mut de_dq = -pd.q[k];
+                    for i in 0..N {
+                        de_dq += v[i] * pd.qv[k][i];
+                    }
+                    c[n][k] += b * (col[n] * de_dq + col_d[n] * vlvv[k] / h);
+                }
+            }
+        }
+        let w = lu.solve(&border);
+        let cw = c.as_flattened().iter().zip(w.as_flattened()).fold(zero, |s, (x, y)| s + *x * *y);
+        let slope = dd - cw;
+        let gh = energy - self.energy;
+        if !gh.is_finite() || !slope.is_finite() {
+            return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "energy equation" });
+        }
+        Ok((d, gh, slope, w, scale, report.iterations))
+    }
+
+    /// One energy-preserving step after the first (see the module documentation).
+    pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N, T>, Error<N, T>> {
+        let Some(last) = self.last_step_size() else {
+            return self.first_energy_step();
+        };
+        let (lo, hi) = bounds.bracket(last.to_f64());
+        let mut h = T::from(self.h.to_f64().clamp(lo, hi));
+        let mut d = self.predict(h);
+        let mut spent = 0;
+        let mut solved = None;
+        for _ in 0..self.newton.max_iterations {
+            let (nodes, gh, slope, w, scale, iterations) = match self.energy_probe(h, d) {
+                Ok(probe) => probe,
+                Err(failure) => return Err(self.fail(h, super::stepper::with_iterations(failure, spent))),
+            };
+            spent += iterations;
+            d = nodes;
+            // Round-off of the energy's own terms moves h by this much: the
+            // energy error of a method of order 2s is O(h^{2s+1}), so g' is
+            // small and h is fixed to fewer digits than the nodes.
+            let floor = 64.0 * T::EPSILON * scale;
+            let h_floor = floor / slope.to_f64().abs();
+            if gh.to_f64().abs() <= floor {
+                solved = Some((gh, scale));
+                break;
+            }
+            let mut dh = -gh / slope;
+            if dh.to_f64().abs() <= (self.newton.rtol * h.to_f64()).max(h_floor) {
+                solved = Some((gh, scale));
+                break;
+            }
+            // The energy equation can have far roots (a step many times larger
+            // that happens to match the energy); stay in the bracket, going at
+            // most halfway to its end.
+            let target = (h + dh).to_f64();
+            if target < lo || target > hi {
+                let bound = if target < lo { lo } else { hi };
+                dh = T::from(0.5 * (bound - h.to_f64()));
+                if dh.to_f64().abs() <= h_floor {
+                    break;
+                }
+            }
+            // The nodes follow the step size: D(h + dh) ≈ D − J⁻¹b dh.
+            for (x, y) in d.as_flattened_mut().iter_mut().zip(w.as_flattened()) {
+                *x -= *y * dh;
+            }
+            h += dh;
+        }
+        let State { t: t0, q: q0, .. } = self.state;
+        let mismatch = match solved {
+            Some((gh, _)) => (gh / self.energy).to_f64().abs(),
+            None => {
+                let e1 = step_energy(&self.system, &self.method, t0, h, (&q0, &self.carry), &d);
+                ((e1 - self.energy) / self.energy).to_f64().abs()
+            }
+        };
+        if solved.is_none() || !(lo..=hi).contains(&h.to_f64()) {
+            self.stats.failed_steps += 1;
+            return Err(Error::NoEnergyStep {
+                state: self.state,
+                h_lo: lo,
+                h_hi: hi,
+                h_best: h.to_f64(),
+                mismatch,
+                iterations: spent,
+            });
+        }
+        // t_{k+1} = t_k + h with Kahan compensation.
+        let y = h - self.time_error;
+        let t1 = t0 + y;
+        let time_error = (t1 - t0) - y;
+        let report = NewtonReport { iterations: spent, residual_norm: mismatch, correction_norm: 0.0 };
+        self.commit(h, t1, d, report)?;
+        self.time_error = time_error;
+        self.h = h;
+        self.clock = (self.state.t, self.state.step);
+        Ok(&self.state)
+    }
+
+    /// The first energy-preserving step: a step of the given size, whose
+    /// discrete energy becomes the one conserved.
+    fn first_energy_step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
+        let h = self.h;
+        let t1 = self.state.t + h;
+        self.step_by(h, t1)?;
+        self.reread_energy();
+        Ok(&self.state)
+    }
+
+    /// Sets the energy target to the discrete energy of the last step.
+    pub(super) fn reread_energy(&mut self) {
+        if let Some((t0, h, q0, carry, d)) = self.last_step_parts() {
+            self.energy = step_energy(&self.system, &self.method, t0, h, (&q0, &carry), &d);
+            self.time_error = T::zero();
+        }
+    }
+}
