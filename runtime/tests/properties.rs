@@ -156,6 +156,8 @@ enum Op {
     ScaleStep(f64),
     /// `run_until(t + c·unit)`, `unit` a step the run can take.
     RunUntil(f64),
+    /// `run(n)`.
+    Run(usize),
 }
 
 #[derive(Clone, Debug)]
@@ -238,6 +240,7 @@ fn ops() -> impl Strategy<Value = Vec<Op>> {
             1 => 0.0..8.0f64,
         ]
         .prop_map(Op::RunUntil),
+        1 => (0usize..6).prop_map(Op::Run),
     ];
     proptest::collection::vec(op, 1..16)
 }
@@ -270,27 +273,48 @@ fn case() -> impl Strategy<Value = Case> {
 
 // ---------------------------------------------------------------- tally
 
-/// Outcomes by name, for the summary printed with `--nocapture`.
+/// Outcomes by name, for the summary printed with `--nocapture`, and the
+/// first case of each observation worth a look.
 #[derive(Default)]
-struct Tally(BTreeMap<String, u64>);
+struct Tally {
+    counts: BTreeMap<String, u64>,
+    examples: BTreeMap<String, String>,
+    /// The case being run, for the examples.
+    current: String,
+}
 
 impl Tally {
     fn add(&mut self, key: impl Into<String>) {
-        *self.0.entry(key.into()).or_default() += 1;
+        *self.counts.entry(key.into()).or_default() += 1;
+    }
+    /// Counts an observation that is allowed but noteworthy, keeping its first case.
+    fn note(&mut self, key: &str, detail: impl FnOnce() -> String) {
+        self.add(key);
+        if !self.examples.contains_key(key) {
+            let example = format!("{}\n    {}", detail(), self.current);
+            self.examples.insert(key.to_string(), example);
+        }
     }
     fn get(&self, key: &str) -> u64 {
-        self.0.get(key).copied().unwrap_or(0)
+        self.counts.get(key).copied().unwrap_or(0)
     }
     fn print(&self, title: &str) {
         println!("\n{title}");
-        for (k, n) in &self.0 {
-            println!("  {k:<48} {n:>9}");
+        let failures: u64 = self.counts.iter().filter(|(k, _)| k.ends_with("(failed)")).map(|(_, n)| n).sum();
+        println!("  {:<56} {:>9}", "panics", self.get("panics"));
+        println!("  {:<56} {:>9}", "failed operations", failures);
+        println!("  {:<56} {:>9}", "states lost (must be 0)", self.get("states lost"));
+        for (k, n) in &self.counts {
+            println!("  {k:<56} {n:>9}");
+        }
+        for (k, example) in &self.examples {
+            println!("  first case of \"{k}\": {example}");
         }
     }
 }
 
 fn cases() -> u32 {
-    std::env::var("LAGRANGIAN_PROP_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(1500)
+    std::env::var("LAGRANGIAN_PROP_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(4000)
 }
 
 fn runner(cases: u32) -> TestRunner {
@@ -350,6 +374,7 @@ trait Sim<const N: usize> {
     fn step(&mut self) -> Result<State<N>, Error<N>>;
     fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>>;
     fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>>;
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>>;
     fn state(&self) -> State<N>;
     fn step_size(&self) -> f64;
     fn steps(&self) -> u64;
@@ -366,6 +391,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Sim<N> for Integra
     }
     fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>> {
         Integrator::run_until(self, t, |s| observe(s.state()))
+    }
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>> {
+        Integrator::run(self, n, |s| observe(s.state()))
     }
     fn state(&self) -> State<N> {
         *Integrator::state(self)
@@ -391,6 +419,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Sim<N> 
     fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>> {
         GalerkinIntegrator::run_until(self, t, |s| observe(s.state()))
     }
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>> {
+        GalerkinIntegrator::run(self, n, |s| observe(s.state()))
+    }
     fn state(&self) -> State<N> {
         *GalerkinIntegrator::state(self)
     }
@@ -413,6 +444,7 @@ enum Applied {
     Step,
     SetStep(f64),
     RunUntil(f64),
+    Run(usize),
 }
 
 /// One applied operation: what it did and the state after it.
@@ -471,23 +503,31 @@ fn apply<const N: usize>(
                     prop_assert_eq!(s.step, before.step + 1);
                     prop_assert!(s.t >= before.t, "time went back: {} -> {}", before.t, s.t);
                     if s.t == before.t {
-                        tally.add("step: ok, t did not advance (h below the spacing of t)");
+                        tally.note("step: ok, t did not advance (h below the spacing of t)", || {
+                            format!("{before:?} -> {s:?}")
+                        });
                     }
                     prop_assert_eq!(sim.steps(), steps0 + 1);
                     let (energy, velocity) = guarded(tally, "discrete_energy/velocity", || sim.extras())?;
                     if !energy.is_finite() {
-                        tally.add("step: ok, discrete energy not finite");
+                        tally.note("step: ok, discrete energy not finite", || format!("{s:?}: E = {energy}"));
                     }
                     match velocity {
                         Ok(v) => prop_assert!(v.iter().all(|x| x.is_finite()), "velocity {v:?}"),
                         Err(e) => {
                             prop_assert_eq!(kind(&e), "InverseLegendre");
-                            tally.add("step: ok, velocity InverseLegendre");
+                            tally.note("step: ok, velocity InverseLegendre", || format!("{e}"));
                         }
                     }
                 }
                 Err(e) => {
-                    tally.add(format!("step: {}", kind(e)));
+                    tally.add(format!("step: {} (failed)", kind(e)));
+                    let kept = bits(&sim.state()) == bits(&before)
+                        && sim.step_size().to_bits() == h0.to_bits()
+                        && sim.steps() == steps0;
+                    if !kept {
+                        tally.add("states lost");
+                    }
                     let carried = step_error_state(e);
                     prop_assert!(carried.is_some(), "a step failed with a non-step error: {e}");
                     prop_assert_eq!(bits(carried.unwrap()), bits(&before), "the error carries another state");
@@ -511,7 +551,7 @@ fn apply<const N: usize>(
                     prop_assert_eq!(sim.step_size().to_bits(), h.to_bits());
                 }
                 Err(e) => {
-                    tally.add(format!("set_step_size: {}", kind(e)));
+                    tally.add(format!("set_step_size: {} (failed)", kind(e)));
                     prop_assert_eq!(kind(e), "InvalidStepSize");
                     prop_assert_eq!(sim.step_size().to_bits(), h0.to_bits());
                 }
@@ -538,6 +578,9 @@ fn apply<const N: usize>(
             })?;
             prop_assert!(bad.is_none(), "run_until published {:?}", bad);
             let after = sim.state();
+            if bits(&after) != bits(&seen) {
+                tally.add("states lost");
+            }
             prop_assert_eq!(bits(&after), bits(&seen), "run_until's last observed state is not its state");
             match &result {
                 Ok(()) => {
@@ -553,7 +596,7 @@ fn apply<const N: usize>(
                     }
                 }
                 Err(e) => {
-                    tally.add(format!("run_until: {}", kind(e)));
+                    tally.add(format!("run_until: {} (failed)", kind(e)));
                     if !target.is_finite() || target < before.t {
                         prop_assert!(
                             matches!(e, Error::InvalidTarget { state, .. } if bits(state) == bits(&before)),
@@ -566,6 +609,38 @@ fn apply<const N: usize>(
                         prop_assert_eq!(bits(carried.unwrap()), bits(&after), "the error carries another state");
                         prop_assert!(after.t < target, "failed after reaching its target");
                     }
+                }
+            }
+            Ok((record(op, format!("{result:?}"), sim), false))
+        }
+        Applied::Run(n) => {
+            let mut seen = before;
+            let mut bad = None;
+            let result = guarded(tally, "run", || {
+                sim.run(n, &mut |s| {
+                    if !finite(s) || s.step != seen.step + 1 || s.t < seen.t {
+                        bad.get_or_insert((seen, *s));
+                    }
+                    seen = *s;
+                })
+            })?;
+            prop_assert!(bad.is_none(), "run published {:?}", bad);
+            let after = sim.state();
+            if bits(&after) != bits(&seen) {
+                tally.add("states lost");
+            }
+            prop_assert_eq!(bits(&after), bits(&seen), "run's last observed state is not its state");
+            match &result {
+                Ok(()) => {
+                    tally.add("run: ok");
+                    prop_assert_eq!(after.step, before.step + n as u64);
+                }
+                Err(e) => {
+                    tally.add(format!("run: {} (failed)", kind(e)));
+                    let carried = step_error_state(e);
+                    prop_assert!(carried.is_some(), "run failed with a non-step error: {e}");
+                    prop_assert_eq!(bits(carried.unwrap()), bits(&after), "the error carries another state");
+                    prop_assert!(after.step < before.step + n as u64);
                 }
             }
             Ok((record(op, format!("{result:?}"), sim), false))
@@ -597,6 +672,7 @@ fn exercise<const N: usize>(
             Op::Step => Applied::Step,
             Op::ScaleStep(f) => Applied::SetStep(sim.step_size() * f),
             Op::RunUntil(c) => Applied::RunUntil(sim.state().t + c * unit(case, sim.step_size())),
+            Op::Run(n) => Applied::Run(n),
         };
         let (rec, failed) = apply(&mut *sim, applied, tally, energy)?;
         let step_failed = failed && matches!(applied, Applied::Step);
@@ -615,7 +691,7 @@ fn exercise<const N: usize>(
     // Determinism: the same operations on a fresh integrator, the same results bit for bit.
     let mut twin = fresh();
     for (op, rec, _) in &log {
-        let (again, _) = apply(&mut *twin, *op, tally, energy)?;
+        let (again, _) = apply(&mut *twin, *op, &mut Tally::default(), energy)?;
         prop_assert_eq!(&again, rec, "a replay differs");
     }
     // A failed step leaves no trace: without them, every state is the same.
@@ -624,7 +700,7 @@ fn exercise<const N: usize>(
         if *failed {
             continue;
         }
-        let (again, _) = apply(&mut *clean, *op, tally, energy)?;
+        let (again, _) = apply(&mut *clean, *op, &mut Tally::default(), energy)?;
         prop_assert_eq!((&again.state, again.h), (&rec.state, rec.h), "the clean run differs after {:?}", op);
     }
     tally.add("cases stepped");
@@ -696,7 +772,7 @@ fn check_start<const N: usize, T>(
         }
         (Ok(_), Some(kind)) => Err(TestCaseError::fail(format!("{which} accepted a case that is {kind}"))),
         (Err(e), expected) => {
-            tally.add(format!("{which}: {}", kind(e)));
+            tally.add(format!("{which}: {} (failed)", kind(e)));
             prop_assert_eq!(kind(e), expected.unwrap_or("InvalidInitialData"), "{}", e);
             Ok(false)
         }
@@ -788,6 +864,7 @@ fn by_method<S: Lagrangian<N> + Copy + 'static, const N: usize>(
 
 fn one_case(case: &Case, galerkin: bool, tally: &mut Tally) -> Result<(), TestCaseError> {
     tally.add("cases run");
+    tally.current = format!("{case:?}");
     macro_rules! go {
         ($s:expr) => {
             if galerkin { galerkin_case($s, case, tally) } else { by_method($s, case, tally) }
