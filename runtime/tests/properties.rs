@@ -380,6 +380,8 @@ trait Sim<const N: usize> {
     fn steps(&self) -> u64;
     /// Values published besides the state: must not panic.
     fn extras(&self) -> (f64, Result<[f64; N], Error<N>>);
+    /// Every other published diagnostic, called only to see that none panics.
+    fn diagnostics(&self);
 }
 
 impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Sim<N> for Integrator<S, M, N> {
@@ -407,6 +409,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Sim<N> for Integra
     fn extras(&self) -> (f64, Result<[f64; N], Error<N>>) {
         (self.discrete_energy(), self.velocity())
     }
+    fn diagnostics(&self) {
+        let _ = (self.energy(), self.last_tangent_map(), self.last_forces(), self.energy_balance());
+        let _ = (self.last_step(), self.last_extended_tangent_map());
+    }
 }
 
 impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Sim<N> for GalerkinIntegrator<Sys, N, S, R> {
@@ -433,6 +439,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Sim<N> 
     }
     fn extras(&self) -> (f64, Result<[f64; N], Error<N>>) {
         (0.0, self.velocity())
+    }
+    fn diagnostics(&self) {
+        let _ = (self.energy(), self.last_tangent_map(), self.last_nodes());
     }
 }
 
@@ -509,6 +518,7 @@ fn apply<const N: usize>(
                     }
                     prop_assert_eq!(sim.steps(), steps0 + 1);
                     let (energy, velocity) = guarded(tally, "discrete_energy/velocity", || sim.extras())?;
+                    guarded(tally, "diagnostics", || sim.diagnostics())?;
                     if !energy.is_finite() {
                         tally.note("step: ok, discrete energy not finite", || format!("{s:?}: E = {energy}"));
                     }
