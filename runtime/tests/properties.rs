@@ -27,8 +27,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::{
-    AlphaBeta, DiscreteLagrangian, EnergyFallback, Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar,
-    State, StepBounds, Trapezoid,
+    AlphaBeta, DiscreteLagrangian, DoubleDouble, EnergyFallback, Error, Integrator, Lagrangian, Midpoint,
+    NewtonOptions, Real, Scalar, State, StepBounds, Trapezoid,
 };
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
@@ -327,7 +327,7 @@ fn runner(cases: u32) -> TestRunner {
 
 // ---------------------------------------------------------------- errors
 
-fn kind<const N: usize>(e: &Error<N>) -> &'static str {
+fn kind<const N: usize, T: Real>(e: &Error<N, T>) -> &'static str {
     match e {
         Error::NewtonDidNotConverge { .. } => "NewtonDidNotConverge",
         Error::SingularJacobian { .. } => "SingularJacobian",
@@ -347,7 +347,7 @@ fn kind<const N: usize>(e: &Error<N>) -> &'static str {
 }
 
 /// The state a step error carries, for the kinds a step can fail with.
-fn step_error_state<const N: usize>(e: &Error<N>) -> Option<&State<N>> {
+fn step_error_state<const N: usize, T: Real>(e: &Error<N, T>) -> Option<&State<N, T>> {
     match e {
         Error::NewtonDidNotConverge { state, .. }
         | Error::SingularJacobian { state, .. }
@@ -917,6 +917,135 @@ fn property(name: &str, cases: u32, galerkin: bool) {
     assert_eq!(tally.get("runaway"), 0);
     // The suite is only worth something if it reaches the interesting paths.
     assert!(tally.get("cases stepped") > 0 && tally.get("step: ok") > 0);
+}
+
+/// The Galerkin integrator in double-double: the same checks on a smaller
+/// scale (states compared through `Debug`, which prints both words of each
+/// number exactly, since double-doubles have no bit pattern of their own).
+fn double_double_case<Sys, const N: usize>(system: Sys, case: &Case, tally: &mut Tally) -> Result<(), TestCaseError>
+where
+    Sys: Lagrangian<N> + Copy,
+{
+    type Dd = DoubleDouble;
+    let dd = |x: [f64; 2]| -> [Dd; N] { core::array::from_fn(|i| Dd::from(x[i])) };
+    let show = |s: &State<N, Dd>| format!("{s:?}");
+    let finite = |s: &State<N, Dd>| s.t.is_finite() && s.q.iter().chain(&s.p).all(|x| x.is_finite());
+    let started = guarded(tally, "double-double start", || {
+        GalerkinIntegrator::new(system, Galerkin::<2, 2, Dd>::gauss(), Dd::from(case.h)).newton(case.newton).start(
+            Dd::from(case.t0),
+            dd(case.q0),
+            dd(case.v0),
+        )
+    })?;
+    let mut expected = expected_start_error(case, N, false, true);
+    let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
+    if expected.is_none() && !system.lagrangian(case.t0, q0, v0).is_finite() {
+        expected = Some("InvalidInitialData");
+    }
+    let mut sim = match started {
+        Ok(sim) => {
+            prop_assert!(expected.is_none(), "double-double start accepted a case that is {:?}", expected);
+            tally.add("double-double start: ok");
+            sim
+        }
+        Err(e) => {
+            tally.add(format!("double-double start: {} (failed)", kind(&e)));
+            prop_assert_eq!(kind(&e), expected.unwrap_or("InvalidInitialData"), "{}", e);
+            return Ok(());
+        }
+    };
+    for &op in &case.ops {
+        let before = *sim.state();
+        let (h0, steps0) = (sim.step_size(), sim.stats().steps);
+        let result = match op {
+            Op::Step => guarded(tally, "double-double step", || sim.step().map(|_| ()))?,
+            Op::Run(n) => guarded(tally, "double-double run", || sim.run(n, |_| {}))?,
+            Op::ScaleStep(f) => {
+                let r = guarded(tally, "double-double set_step_size", || sim.set_step_size(h0 * f))?;
+                match &r {
+                    Ok(()) => tally.add("double-double set_step_size: ok"),
+                    Err(e) => {
+                        tally.add(format!("double-double set_step_size: {} (failed)", kind(e)));
+                        prop_assert_eq!(kind(e), "InvalidStepSize");
+                        prop_assert_eq!(format!("{:?}", sim.step_size()), format!("{h0:?}"));
+                    }
+                }
+                prop_assert_eq!(show(sim.state()), show(&before));
+                continue;
+            }
+            Op::RunUntil(c) => {
+                let target = before.t + h0 * c;
+                let r = guarded(tally, "double-double run_until", || sim.run_until(target, |_| {}))?;
+                match &r {
+                    Ok(()) => prop_assert!(sim.state().t == target, "landed on {:?}, not {:?}", sim.state().t, target),
+                    Err(Error::InvalidTarget { state, .. }) => {
+                        prop_assert!(!target.is_finite() || target < before.t, "refused {target:?}");
+                        prop_assert_eq!(show(state), show(&before));
+                        prop_assert_eq!(show(sim.state()), show(&before));
+                    }
+                    Err(_) => {}
+                }
+                r
+            }
+        };
+        let which = format!("{op:?}");
+        let which = which.split('(').next().unwrap_or_default();
+        match result {
+            Ok(()) => {
+                tally.add(format!("double-double {which}: ok"));
+                prop_assert!(finite(sim.state()), "published {:?}", sim.state());
+            }
+            Err(e) => {
+                tally.add(format!("double-double {which}: {} (failed)", kind(&e)));
+                let _ = guarded(tally, "error display", || e.to_string())?;
+                if let Error::InvalidTarget { .. } = e {
+                    continue;
+                }
+                let carried = step_error_state(&e);
+                prop_assert!(carried.is_some(), "failed with a non-step error: {e}");
+                prop_assert_eq!(show(carried.unwrap()), show(sim.state()), "the error carries another state");
+                prop_assert!(finite(sim.state()));
+                if matches!(op, Op::Step) {
+                    let kept = show(sim.state()) == show(&before)
+                        && format!("{:?}", sim.step_size()) == format!("{h0:?}")
+                        && sim.stats().steps == steps0;
+                    if !kept {
+                        tally.add("states lost");
+                    }
+                    prop_assert!(kept, "a failed double-double step changed the integrator");
+                }
+            }
+        }
+    }
+    tally.add("cases stepped");
+    Ok(())
+}
+
+#[test]
+fn double_double_galerkin_under_random_and_adversarial_input() {
+    let cases = cases().div_ceil(8);
+    let tally = RefCell::new(Tally::default());
+    let mut runner = runner(cases);
+    let result = runner.run(&case(), |case| {
+        let tally = &mut *tally.borrow_mut();
+        tally.add("cases run");
+        tally.current = format!("{case:?}");
+        match case.system % 4 {
+            0 => double_double_case(Pendulum, &case, tally),
+            1 => double_double_case(DoublePendulum, &case, tally),
+            2 => double_double_case(KeplerPolar, &case, tally),
+            _ => double_double_case(LogWall, &case, tally),
+        }
+    });
+    let tally = tally.into_inner();
+    tally.print(&format!(
+        "GalerkinIntegrator<DoubleDouble>: {cases} cases (tallies include shrinking if a case failed)"
+    ));
+    if let Err(e) = result {
+        panic!("double-double: {e}");
+    }
+    assert_eq!(tally.get("panics"), 0);
+    assert!(tally.get("cases stepped") > 0 && tally.get("double-double Step: ok") > 0);
 }
 
 #[test]
