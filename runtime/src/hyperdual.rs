@@ -12,12 +12,12 @@
 //! evaluation but keep their parts in `Option<SMatrix>`, are not `Copy`, and
 //! under cargo's default release profile are not inlined (measured 165–430 ns
 //! for the double-pendulum block against 53 ns for four scalar evaluations).
-//! The types here are plain structs of `f64` arrays, `Copy`, and every
-//! operation is a loop over a constant-size array that LLVM unrolls.
+//! The types here are plain structs of arrays, `Copy`, and every operation is
+//! a loop over a constant-size array that LLVM unrolls.
 //!
 //! # The numbers
 //!
-//! [`HyperDualArray<E1, E2>`] is
+//! [`HyperDualArray<E1, E2, T>`] is
 //!
 //! ```text
 //! x = re + Σ_i eps1[i] ε1_i + Σ_j eps2[j] ε2_j + Σ_ij eps1eps2[i][j] ε1_i ε2_j,   ε1_i ε1_k = ε2_j ε2_l = 0.
@@ -26,11 +26,16 @@
 //! Seeding
 //! `ε1_i` on variable `a_i` and `ε2_j` on `b_j` and evaluating `f` gives `f`,
 //! `∂f/∂a_i` (`eps1[i]`), `∂f/∂b_j` (`eps2[j]`) and `∂²f/∂a_i∂b_j`
-//! (`eps1eps2[i][j]`). [`DualArray<E>`] is the first-order part alone.
+//! (`eps1eps2[i][j]`). [`DualArray<E, T>`] is the first-order part alone.
 //!
-//! The parts are a [`Vector`]: `[f64; N]`, or [`Timed<f64, N>`] (`N` position
-//! slots and one time slot, which stands in for the `[f64; N + 1]` that const
-//! generics cannot name) for the extended, variable-step map.
+//! Every component is a [`Real`] `T`: `f64` (the default, so
+//! `DualArray<[f64; N]>` is `DualArray<[f64; N], f64>`) or an extended
+//! precision such as [`DoubleDouble`](crate::DoubleDouble). The parts are a
+//! [`Vector`] of `T`: `[T; N]`; [`Timed<T, N>`] (`N` position slots and one
+//! time slot, which stands in for the `[T; N + 1]` that const generics cannot
+//! name) for the extended, variable-step map; or [`Pair<[T; N], [T; N]>`]
+//! (the `2N` slots of `(q, v)`) for all first and second derivatives of a
+//! Lagrangian at one point.
 //!
 //! Every unary function goes through one chain rule, with `f0, f1, f2` the
 //! value and first two derivatives of the scalar function at `re`:
@@ -41,9 +46,10 @@
 //!
 //! and products and quotients follow the product and quotient rules
 //! component by component. The formulas and the order of the floating-point
-//! operations are those of num-dual's scalar `HyperDual64` and `Dual64`, so
-//! component `(i, j)` of one evaluation is bit for bit the scalar hyper-dual
-//! evaluation seeded on `(a_i, b_j)` (the tests check this for every function).
+//! operations are those of num-dual's scalar `HyperDual<T>` and `Dual<T>`
+//! (including its `f64` constants, such as `ln 2` for `exp2`), so component
+//! `(i, j)` of one evaluation is bit for bit the scalar hyper-dual evaluation
+//! seeded on `(a_i, b_j)` (the tests check this for every function).
 //!
 //! Comparisons look at the real part only, as in num-dual, so generic code
 //! takes the same branches as on `f64`. The remainder `x % y` is defined
@@ -57,37 +63,40 @@ use core::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Rem, RemAss
 use num_dual::{DualNum, DualStruct, Mappable};
 use num_traits::{FromPrimitive, Inv, Num, One, Signed, Zero};
 
-/// Fixed-size storage of derivative components, operated on component by component.
-pub trait Slots: Copy + fmt::Debug + Send + Sync + 'static {
+use crate::real::Real;
+
+/// Fixed-size storage of derivative components of type `T`, operated on
+/// component by component.
+pub trait Slots<T: Real = f64>: Copy + fmt::Debug + Send + Sync + 'static {
     /// Every component zero.
     const ZERO: Self;
 
     /// Applies `f` to every component.
-    fn map(self, f: impl Fn(f64) -> f64 + Copy) -> Self;
+    fn map(self, f: impl Fn(T) -> T + Copy) -> Self;
 
     /// Combines corresponding components of `self` and `other`.
-    fn zip(self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self;
+    fn zip(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self;
 }
 
-impl Slots for f64 {
-    const ZERO: Self = 0.0;
+impl<T: Real> Slots<T> for T {
+    const ZERO: Self = T::ZERO;
 
     #[inline(always)]
-    fn map(self, f: impl Fn(f64) -> f64 + Copy) -> Self {
+    fn map(self, f: impl Fn(T) -> T + Copy) -> Self {
         f(self)
     }
 
     #[inline(always)]
-    fn zip(self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self {
+    fn zip(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
         f(self, other)
     }
 }
 
-impl<T: Slots, const N: usize> Slots for [T; N] {
-    const ZERO: Self = [T::ZERO; N];
+impl<T: Real, S: Slots<T>, const N: usize> Slots<T> for [S; N] {
+    const ZERO: Self = [S::ZERO; N];
 
     #[inline(always)]
-    fn map(mut self, f: impl Fn(f64) -> f64 + Copy) -> Self {
+    fn map(mut self, f: impl Fn(T) -> T + Copy) -> Self {
         for x in &mut self {
             *x = x.map(f);
         }
@@ -95,7 +104,7 @@ impl<T: Slots, const N: usize> Slots for [T; N] {
     }
 
     #[inline(always)]
-    fn zip(mut self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self {
+    fn zip(mut self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
         for i in 0..N {
             self[i] = self[i].zip(other[i], f);
         }
@@ -115,62 +124,91 @@ pub struct Timed<T, const N: usize> {
     pub t: T,
 }
 
-impl<T: Slots, const N: usize> Slots for Timed<T, N> {
-    const ZERO: Self = Self { q: [T::ZERO; N], t: T::ZERO };
+impl<T: Real, S: Slots<T>, const N: usize> Slots<T> for Timed<S, N> {
+    const ZERO: Self = Self { q: [S::ZERO; N], t: S::ZERO };
 
     #[inline(always)]
-    fn map(self, f: impl Fn(f64) -> f64 + Copy) -> Self {
+    fn map(self, f: impl Fn(T) -> T + Copy) -> Self {
         Self { q: Slots::map(self.q, f), t: self.t.map(f) }
     }
 
     #[inline(always)]
-    fn zip(self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self {
+    fn zip(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
         Self { q: self.q.zip(other.q, f), t: self.t.zip(other.t, f) }
     }
 }
 
-/// The derivative part of one infinitesimal: `LEN` indexed slots, and the
-/// shape of its outer product with another such part.
-pub trait Vector: Slots {
+/// Two vectors side by side: the slots of `a`, then those of `b`.
+///
+/// `Pair<[T; N], [T; N]>` holds the `2N` variables `(q, v)` of a Lagrangian
+/// (slot `i < N` is `q[i]`, slot `N + i` is `v[i]`), which `[T; 2N]` cannot
+/// name with const generics: seeded on both infinitesimals of a
+/// [`HyperDualArray`], one evaluation of `L` gives its value, gradient and
+/// whole Hessian in `(q, v)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pair<A, B> {
+    /// The first slots.
+    pub a: A,
+    /// The slots after those of `a`.
+    pub b: B,
+}
+
+impl<T: Real, A: Slots<T>, B: Slots<T>> Slots<T> for Pair<A, B> {
+    const ZERO: Self = Self { a: A::ZERO, b: B::ZERO };
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(T) -> T + Copy) -> Self {
+        Self { a: self.a.map(f), b: self.b.map(f) }
+    }
+
+    #[inline(always)]
+    fn zip(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
+        Self { a: self.a.zip(other.a, f), b: self.b.zip(other.b, f) }
+    }
+}
+
+/// The derivative part of one infinitesimal: `LEN` indexed slots of `T`, and
+/// the shape of its outer product with another such part.
+pub trait Vector<T: Real = f64>: Slots<T> {
     /// The number of slots.
     const LEN: usize;
 
     /// The outer product `self ⊗ Q`: one `Q` per slot of `self`.
-    type Outer<Q: Vector>: Slots;
+    type Outer<Q: Vector<T>>: Slots<T>;
 
     /// Slot `i`.
-    fn get(&self, i: usize) -> f64;
+    fn get(&self, i: usize) -> T;
 
     /// Slot `i`, to write.
-    fn get_mut(&mut self, i: usize) -> &mut f64;
+    fn get_mut(&mut self, i: usize) -> &mut T;
 
     /// Replaces entry `(i, j)` of `m` by `f(i, j, m_ij, other_ij)`.
-    fn outer_zip<Q: Vector>(
+    fn outer_zip<Q: Vector<T>>(
         m: Self::Outer<Q>,
         other: &Self::Outer<Q>,
-        f: impl Fn(usize, usize, f64, f64) -> f64,
+        f: impl Fn(usize, usize, T, T) -> T,
     ) -> Self::Outer<Q>;
 
     /// Entry `(i, j)` of an outer product.
-    fn outer_get<Q: Vector>(m: &Self::Outer<Q>, i: usize, j: usize) -> f64;
+    fn outer_get<Q: Vector<T>>(m: &Self::Outer<Q>, i: usize, j: usize) -> T;
 }
 
-impl<const N: usize> Vector for [f64; N] {
+impl<T: Real, const N: usize> Vector<T> for [T; N] {
     const LEN: usize = N;
-    type Outer<Q: Vector> = [Q; N];
+    type Outer<Q: Vector<T>> = [Q; N];
 
     #[inline(always)]
-    fn get(&self, i: usize) -> f64 {
+    fn get(&self, i: usize) -> T {
         self[i]
     }
 
     #[inline(always)]
-    fn get_mut(&mut self, i: usize) -> &mut f64 {
+    fn get_mut(&mut self, i: usize) -> &mut T {
         &mut self[i]
     }
 
     #[inline(always)]
-    fn outer_zip<Q: Vector>(mut m: [Q; N], other: &[Q; N], f: impl Fn(usize, usize, f64, f64) -> f64) -> [Q; N] {
+    fn outer_zip<Q: Vector<T>>(mut m: [Q; N], other: &[Q; N], f: impl Fn(usize, usize, T, T) -> T) -> [Q; N] {
         for i in 0..N {
             for j in 0..Q::LEN {
                 let x = m[i].get_mut(j);
@@ -181,32 +219,32 @@ impl<const N: usize> Vector for [f64; N] {
     }
 
     #[inline(always)]
-    fn outer_get<Q: Vector>(m: &[Q; N], i: usize, j: usize) -> f64 {
+    fn outer_get<Q: Vector<T>>(m: &[Q; N], i: usize, j: usize) -> T {
         m[i].get(j)
     }
 }
 
-impl<const N: usize> Vector for Timed<f64, N> {
+impl<T: Real, const N: usize> Vector<T> for Timed<T, N> {
     const LEN: usize = N + 1;
-    type Outer<Q: Vector> = Timed<Q, N>;
+    type Outer<Q: Vector<T>> = Timed<Q, N>;
 
     #[inline(always)]
-    fn get(&self, i: usize) -> f64 {
+    fn get(&self, i: usize) -> T {
         if i < N { self.q[i] } else { self.t }
     }
 
     #[inline(always)]
-    fn get_mut(&mut self, i: usize) -> &mut f64 {
+    fn get_mut(&mut self, i: usize) -> &mut T {
         if i < N { &mut self.q[i] } else { &mut self.t }
     }
 
     #[inline(always)]
-    fn outer_zip<Q: Vector>(
+    fn outer_zip<Q: Vector<T>>(
         m: Timed<Q, N>,
         other: &Timed<Q, N>,
-        f: impl Fn(usize, usize, f64, f64) -> f64,
+        f: impl Fn(usize, usize, T, T) -> T,
     ) -> Timed<Q, N> {
-        let q = <[f64; N]>::outer_zip(m.q, &other.q, &f);
+        let q = <[T; N]>::outer_zip(m.q, &other.q, &f);
         let mut t = m.t;
         for j in 0..Q::LEN {
             let x = t.get_mut(j);
@@ -216,55 +254,86 @@ impl<const N: usize> Vector for Timed<f64, N> {
     }
 
     #[inline(always)]
-    fn outer_get<Q: Vector>(m: &Timed<Q, N>, i: usize, j: usize) -> f64 {
+    fn outer_get<Q: Vector<T>>(m: &Timed<Q, N>, i: usize, j: usize) -> T {
         if i < N { m.q[i].get(j) } else { m.t.get(j) }
+    }
+}
+
+impl<T: Real, A: Vector<T>, B: Vector<T>> Vector<T> for Pair<A, B> {
+    const LEN: usize = A::LEN + B::LEN;
+    type Outer<Q: Vector<T>> = Pair<A::Outer<Q>, B::Outer<Q>>;
+
+    #[inline(always)]
+    fn get(&self, i: usize) -> T {
+        if i < A::LEN { self.a.get(i) } else { self.b.get(i - A::LEN) }
+    }
+
+    #[inline(always)]
+    fn get_mut(&mut self, i: usize) -> &mut T {
+        if i < A::LEN { self.a.get_mut(i) } else { self.b.get_mut(i - A::LEN) }
+    }
+
+    #[inline(always)]
+    fn outer_zip<Q: Vector<T>>(
+        m: Self::Outer<Q>,
+        other: &Self::Outer<Q>,
+        f: impl Fn(usize, usize, T, T) -> T,
+    ) -> Self::Outer<Q> {
+        let a = A::outer_zip(m.a, &other.a, &f);
+        let b = B::outer_zip(m.b, &other.b, |i, j, x, y| f(A::LEN + i, j, x, y));
+        Pair { a, b }
+    }
+
+    #[inline(always)]
+    fn outer_get<Q: Vector<T>>(m: &Self::Outer<Q>, i: usize, j: usize) -> T {
+        if i < A::LEN { A::outer_get(&m.a, i, j) } else { B::outer_get(&m.b, i - A::LEN, j) }
     }
 }
 
 /// A dual number `re + Σ_i eps[i] ε_i` with `ε_i ε_j = 0`: the value and
 /// gradient of a function of the variables seeded in `eps`.
 #[derive(Clone, Copy, Debug)]
-pub struct DualArray<E: Vector> {
+pub struct DualArray<E: Vector<T>, T: Real = f64> {
     /// The value.
-    pub re: f64,
+    pub re: T,
     /// The first derivatives.
     pub eps: E,
 }
 
-impl<E: Vector> DualArray<E> {
+impl<E: Vector<T>, T: Real> DualArray<E, T> {
     /// The number with the given parts.
     #[inline(always)]
-    pub const fn new(re: f64, eps: E) -> Self {
+    pub const fn new(re: T, eps: E) -> Self {
         Self { re, eps }
     }
 
     /// A constant: `re` with zero derivatives.
     #[inline(always)]
-    pub const fn from_re(re: f64) -> Self {
+    pub const fn from_re(re: T) -> Self {
         Self { re, eps: E::ZERO }
     }
 
     /// The variable `i`: `re` with `eps[i] = 1`.
     #[inline]
-    pub fn variable(re: f64, i: usize) -> Self {
+    pub fn variable(re: T, i: usize) -> Self {
         let mut x = Self::from_re(re);
-        *x.eps.get_mut(i) = 1.0;
+        *x.eps.get_mut(i) = T::one();
         x
     }
 
     /// `f(re) + f'(re)·eps` for `f0 = f(re)`, `f1 = f'(re)` (`f2` is unused).
     #[inline(always)]
-    fn chain(&self, f0: f64, f1: f64, _f2: f64) -> Self {
+    fn chain(&self, f0: T, f1: T, _f2: T) -> Self {
         Self { re: f0, eps: self.eps.map(|x| x * f1) }
     }
 
     #[inline(always)]
-    fn map_parts(self, f: impl Fn(f64) -> f64 + Copy) -> Self {
+    fn map_parts(self, f: impl Fn(T) -> T + Copy) -> Self {
         Self { re: f(self.re), eps: self.eps.map(f) }
     }
 
     #[inline(always)]
-    fn zip_parts(self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self {
+    fn zip_parts(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
         Self { re: f(self.re, other.re), eps: self.eps.zip(other.eps, f) }
     }
 
@@ -284,7 +353,7 @@ impl<E: Vector> DualArray<E> {
     }
 }
 
-impl<E: Vector> fmt::Display for DualArray<E> {
+impl<E: Vector<T>, T: Real> fmt::Display for DualArray<E, T> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} + {:?}ε", self.re, self.eps)
     }
@@ -296,9 +365,9 @@ impl<E: Vector> fmt::Display for DualArray<E> {
 ///
 /// See the [module documentation](self) for the algebra.
 #[derive(Clone, Copy, Debug)]
-pub struct HyperDualArray<E1: Vector, E2: Vector> {
+pub struct HyperDualArray<E1: Vector<T>, E2: Vector<T>, T: Real = f64> {
     /// The value.
-    pub re: f64,
+    pub re: T,
     /// First derivatives with respect to the variables of `ε1`.
     pub eps1: E1,
     /// First derivatives with respect to the variables of `ε2`.
@@ -307,28 +376,28 @@ pub struct HyperDualArray<E1: Vector, E2: Vector> {
     pub eps1eps2: E1::Outer<E2>,
 }
 
-impl<E1: Vector, E2: Vector> HyperDualArray<E1, E2> {
+impl<E1: Vector<T>, E2: Vector<T>, T: Real> HyperDualArray<E1, E2, T> {
     /// The number with the given parts.
     #[inline(always)]
-    pub const fn new(re: f64, eps1: E1, eps2: E2, eps1eps2: E1::Outer<E2>) -> Self {
+    pub const fn new(re: T, eps1: E1, eps2: E2, eps1eps2: E1::Outer<E2>) -> Self {
         Self { re, eps1, eps2, eps1eps2 }
     }
 
     /// A constant: `re` with zero derivatives.
     #[inline(always)]
-    pub const fn from_re(re: f64) -> Self {
-        Self { re, eps1: E1::ZERO, eps2: E2::ZERO, eps1eps2: <E1::Outer<E2> as Slots>::ZERO }
+    pub const fn from_re(re: T) -> Self {
+        Self { re, eps1: E1::ZERO, eps2: E2::ZERO, eps1eps2: <E1::Outer<E2> as Slots<T>>::ZERO }
     }
 
     /// Entry `(i, j)` of the mixed block, `∂²f/∂a_i∂b_j`.
     #[inline(always)]
-    pub fn mixed(&self, i: usize, j: usize) -> f64 {
+    pub fn mixed(&self, i: usize, j: usize) -> T {
         E1::outer_get::<E2>(&self.eps1eps2, i, j)
     }
 
     /// The chain rule for `f0 = f(re)`, `f1 = f'(re)`, `f2 = f''(re)`.
     #[inline(always)]
-    fn chain(&self, f0: f64, f1: f64, f2: f64) -> Self {
+    fn chain(&self, f0: T, f1: T, f2: T) -> Self {
         let (a, b) = (&self.eps1, &self.eps2);
         Self {
             re: f0,
@@ -339,12 +408,12 @@ impl<E1: Vector, E2: Vector> HyperDualArray<E1, E2> {
     }
 
     #[inline(always)]
-    fn map_parts(self, f: impl Fn(f64) -> f64 + Copy) -> Self {
+    fn map_parts(self, f: impl Fn(T) -> T + Copy) -> Self {
         Self { re: f(self.re), eps1: self.eps1.map(f), eps2: self.eps2.map(f), eps1eps2: self.eps1eps2.map(f) }
     }
 
     #[inline(always)]
-    fn zip_parts(self, other: Self, f: impl Fn(f64, f64) -> f64 + Copy) -> Self {
+    fn zip_parts(self, other: Self, f: impl Fn(T, T) -> T + Copy) -> Self {
         Self {
             re: f(self.re, other.re),
             eps1: self.eps1.zip(other.eps1, f),
@@ -375,7 +444,7 @@ impl<E1: Vector, E2: Vector> HyperDualArray<E1, E2> {
         let (x1, x2, y1, y2) = (&self.eps1, &self.eps2, &other.eps1, &other.eps2);
         let inv = b.recip();
         let inv2 = inv * inv;
-        let c = 2.0 * a * inv2 * inv;
+        let c = a * 2.0 * inv2 * inv;
         Self {
             re: a * inv,
             eps1: x1.zip(*y1, |x, y| (x * b - y * a) * inv2),
@@ -387,27 +456,28 @@ impl<E1: Vector, E2: Vector> HyperDualArray<E1, E2> {
     }
 }
 
-impl<E1: Vector, E2: Vector> fmt::Display for HyperDualArray<E1, E2> {
+impl<E1: Vector<T>, E2: Vector<T>, T: Real> fmt::Display for HyperDualArray<E1, E2, T> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{} + {:?}ε1 + {:?}ε2 + {:?}ε1ε2", self.re, self.eps1, self.eps2, self.eps1eps2)
     }
 }
 
-/// Everything `num_dual::DualNum<Primitive = f64>` asks of a type with
-/// inherent `from_re`, `chain`, `map_parts`, `zip_parts`, `mul_dual` and `div_dual`.
+/// Everything `num_dual::DualNum<Primitive = f64>` asks of a type over the
+/// [`Real`] `T` with inherent `from_re`, `chain`, `map_parts`, `zip_parts`,
+/// `mul_dual` and `div_dual`.
 macro_rules! impl_dual_num {
     ([$($gen:tt)*] $ty:ty, $nderiv:expr) => {
         impl<$($gen)*> From<f64> for $ty {
             #[inline(always)]
             fn from(re: f64) -> Self {
-                Self::from_re(re)
+                Self::from_re(T::from(re))
             }
         }
 
         impl<$($gen)*> Zero for $ty {
             #[inline]
             fn zero() -> Self {
-                Self::from_re(0.0)
+                Self::from_re(T::zero())
             }
 
             #[inline]
@@ -419,7 +489,7 @@ macro_rules! impl_dual_num {
         impl<$($gen)*> One for $ty {
             #[inline]
             fn one() -> Self {
-                Self::from_re(1.0)
+                Self::from_re(T::one())
             }
 
             #[inline]
@@ -483,7 +553,8 @@ macro_rules! impl_dual_num {
             #[inline]
             fn rem(self, other: Self) -> Self {
                 let r = self.re % other.re;
-                let n = ((self.re - r) / other.re).round();
+                // Rounded to f64: an integer quotient, exact below 2^53.
+                let n = DualStruct::re(&((self.re - r) / other.re)).round();
                 let mut out = self - other * n;
                 out.re = r;
                 out
@@ -589,11 +660,11 @@ macro_rules! impl_dual_num {
         }
 
         impl<$($gen)*> Num for $ty {
-            type FromStrRadixErr = <f64 as Num>::FromStrRadixErr;
+            type FromStrRadixErr = <T as Num>::FromStrRadixErr;
             /// Parses a real number (zero derivatives).
             #[inline]
             fn from_str_radix(s: &str, radix: u32) -> Result<Self, Self::FromStrRadixErr> {
-                <f64 as Num>::from_str_radix(s, radix).map(Self::from_re)
+                <T as Num>::from_str_radix(s, radix).map(Self::from_re)
             }
         }
 
@@ -632,15 +703,15 @@ macro_rules! impl_dual_num {
 
         impl<$($gen)*> DualStruct for $ty {
             type Real = f64;
-            type Inner = f64;
+            type Inner = T;
 
             #[inline]
             fn re(&self) -> f64 {
-                self.re
+                self.re.re()
             }
 
             #[inline]
-            fn from_inner(inner: &f64) -> Self {
+            fn from_inner(inner: &T) -> Self {
                 Self::from_re(*inner)
             }
         }
@@ -687,17 +758,17 @@ macro_rules! impl_dual_num {
 
         impl<$($gen)*> DualNum for $ty {
             type Primitive = f64;
-            const NDERIV: usize = $nderiv;
-            type InnerDual = f64;
+            const NDERIV: usize = T::NDERIV + $nderiv;
+            type InnerDual = T;
 
             #[inline(always)]
-            fn from_re(re: f64) -> Self {
+            fn from_re(re: T) -> Self {
                 Self::from_re(re)
             }
 
             #[inline]
-            fn scale(self, factor: &f64) -> Self {
-                self.map_parts(|x| x * factor)
+            fn scale(self, factor: &T) -> Self {
+                self.map_parts(|x| x * *factor)
             }
 
             #[inline]
@@ -836,7 +907,7 @@ macro_rules! impl_dual_num {
             #[inline]
             fn asin(&self) -> Self {
                 let x = self.re;
-                let rec = (1.0 - x * x).recip();
+                let rec = (T::one() - x * x).recip();
                 let f1 = rec.sqrt();
                 self.chain(x.asin(), f1, x * f1 * rec)
             }
@@ -844,7 +915,7 @@ macro_rules! impl_dual_num {
             #[inline]
             fn acos(&self) -> Self {
                 let x = self.re;
-                let rec = (1.0 - x * x).recip();
+                let rec = (T::one() - x * x).recip();
                 let f1 = -rec.sqrt();
                 self.chain(x.acos(), f1, x * f1 * rec)
             }
@@ -852,7 +923,7 @@ macro_rules! impl_dual_num {
             #[inline]
             fn atan(&self) -> Self {
                 let x = self.re;
-                let rec = (1.0 + x * x).recip();
+                let rec = (T::one() + x * x).recip();
                 self.chain(x.atan(), rec, -x * rec * rec * 2.0)
             }
 
@@ -883,7 +954,7 @@ macro_rules! impl_dual_num {
             #[inline]
             fn asinh(&self) -> Self {
                 let x = self.re;
-                let rec = (1.0 + x * x).recip();
+                let rec = (T::one() + x * x).recip();
                 let f1 = rec.sqrt();
                 self.chain(x.asinh(), f1, -x * f1 * rec)
             }
@@ -899,7 +970,7 @@ macro_rules! impl_dual_num {
             #[inline]
             fn atanh(&self) -> Self {
                 let x = self.re;
-                let rec = (1.0 - x * x).recip();
+                let rec = (T::one() - x * x).recip();
                 self.chain(x.atanh(), rec, x * rec * rec * 2.0)
             }
 
@@ -978,14 +1049,14 @@ macro_rules! impl_dual_num {
         $(
             #[inline]
             fn $method(n: $prim) -> Option<Self> {
-                <f64 as FromPrimitive>::$method(n).map(Self::from_re)
+                T::$method(n).map(Self::from_re)
             }
         )*
     };
 }
 
-impl_dual_num!([E: Vector] DualArray<E>, 1);
-impl_dual_num!([E1: Vector, E2: Vector] HyperDualArray<E1, E2>, 2);
+impl_dual_num!([E: Vector<T>, T: Real] DualArray<E, T>, 1);
+impl_dual_num!([E1: Vector<T>, E2: Vector<T>, T: Real] HyperDualArray<E1, E2, T>, 2);
 
 #[cfg(test)]
 mod tests;
