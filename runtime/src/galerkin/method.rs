@@ -548,8 +548,16 @@ mod tests {
             for b in a..2 * N {
                 let mut qd = q.map(HyperDual::from_re);
                 let mut vd = v.map(HyperDual::from_re);
-                if a < N { qd[a].eps1 = T::one() } else { vd[a - N].eps1 = T::one() }
-                if b < N { qd[b].eps2 = T::one() } else { vd[b - N].eps2 = T::one() }
+                if a < N {
+                    qd[a].eps1 = T::one()
+                } else {
+                    vd[a - N].eps1 = T::one()
+                }
+                if b < N {
+                    qd[b].eps2 = T::one()
+                } else {
+                    vd[b - N].eps2 = T::one()
+                }
                 let l = system.lagrangian(t, qd, vd);
                 if b == a {
                     if a < N { out.q[a] = l.eps1 } else { out.v[a - N] = l.eps1 }
