@@ -18,6 +18,10 @@ pub trait Real: Scalar + Send + Sync {
     /// for `f64`): Newton's round-off floors scale with it.
     const EPSILON: f64;
 
+    /// Zero, as a constant (the zero derivative parts of the
+    /// [array duals](crate::hyperdual)).
+    const ZERO: Self;
+
     /// `true` when the number is neither infinite nor NaN.
     fn is_finite(self) -> bool;
 
@@ -30,6 +34,7 @@ pub trait Real: Scalar + Send + Sync {
 
 impl Real for f64 {
     const EPSILON: f64 = f64::EPSILON;
+    const ZERO: Self = 0.0;
 
     #[inline(always)]
     fn is_finite(self) -> bool {
@@ -40,6 +45,7 @@ impl Real for f64 {
 impl Real for crate::DoubleDouble {
     /// `2^-104`: the double-double unit of its ≈ 106-bit significand.
     const EPSILON: f64 = crate::DoubleDouble::EPSILON.hi();
+    const ZERO: Self = crate::DoubleDouble::ZERO;
 
     #[inline(always)]
     fn is_finite(self) -> bool {

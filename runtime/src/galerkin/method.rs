@@ -35,18 +35,20 @@
 //! ∂²A/∂Q_m∂Q_n   = Σ_j b_j ( h ℓ_m ℓ_n L_qq + ℓ_m ℓ_n' L_qv + ℓ_m' ℓ_n L_vq + ℓ_m' ℓ_n' L_vv / h )
 //! ```
 //!
-//! (all `ℓ` at `c_j`), so a Newton iteration costs `r · N(2N + 1)` scalar
-//! hyper-dual evaluations of `L` whatever the degree. Positions are
+//! (all `ℓ` at `c_j`), so a Newton iteration costs `r` evaluations of `L`
+//! whatever the degree, each on one array hyper-dual seeded on all `2N`
+//! coordinates `(q, v)` (or on an array dual when only the gradient is
+//! needed; see [`crate::hyperdual`]). Positions are
 //! evaluated in increment form, `q_h(c_j) = q_k + Σ_{m≥1} ℓ_m(c_j) D_m` with
 //! `D_m = Q_m − q_k`, and velocities as `Σ_{m≥1} ℓ_m'(c_j) D_m / h`, free of
 //! the cancellation in `Q_m − q_k` (see
 //! [`DiscreteLagrangian::action`](crate::DiscreteLagrangian::action)).
 
 use nalgebra::DMatrix;
-use num_dual::HyperDual;
 
 use super::basis::{NodeFamily, lagrange, lagrange_derivative};
 use super::quadrature::Quadrature;
+use crate::hyperdual::{DualArray, HyperDualArray, Pair, Vector};
 use crate::real::Real;
 use crate::system::{Lagrangian, Scalar};
 
@@ -208,8 +210,8 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
     }
 
     /// `(∂A/∂Q_0, [∂A/∂Q_1, …, ∂A/∂Q_s])`: the gradient of the action with
-    /// respect to every node, by the chain rule from `N` hyper-dual
-    /// evaluations of `L` per quadrature point. `∂A/∂Q_s` is the momentum
+    /// respect to every node, by the chain rule from one array-dual
+    /// evaluation of `L` per quadrature point. `∂A/∂Q_s` is the momentum
     /// `p_{k+1}` of the step.
     pub fn node_gradient<Sys, const N: usize>(
         &self,
@@ -356,31 +358,47 @@ impl<const S: usize, T: Real> Galerkin<S, S, T> {
     }
 }
 
-/// `(L_q, L_v)` at one point: `N` hyper-dual evaluations, seeding `q_i` and `v_i` together.
+/// The `2N` variables `(q, v)` of `L` at one point, as the slots of one
+/// infinitesimal: slot `i` is `q[i]`, slot `N + i` is `v[i]`.
+type Seeds<const N: usize, T> = Pair<[T; N], [T; N]>;
+
+/// `(L, L_q, L_v)` at one point: one evaluation of `L` on a [`DualArray`]
+/// seeded on all of `(q, v)`.
+#[inline(always)]
+pub(crate) fn point_gradient<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> (T, [T; N], [T; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    let qd = core::array::from_fn(|i| DualArray::<Seeds<N, T>, T>::variable(q[i], i));
+    let vd = core::array::from_fn(|i| DualArray::variable(v[i], N + i));
+    let l = system.lagrangian(DualArray::from_re(t), qd, vd);
+    (l.re, l.eps.a, l.eps.b)
+}
+
+/// `(L_q, L_v)` at one point (see [`point_gradient`]).
 #[inline(always)]
 pub(crate) fn gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [T; N])
 where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
 {
-    let mut lq = [T::zero(); N];
-    let mut lv = [T::zero(); N];
-    for i in 0..N {
-        let mut qd = q.map(HyperDual::from_re);
-        let mut vd = v.map(HyperDual::from_re);
-        qd[i].eps1 = T::one();
-        vd[i].eps2 = T::one();
-        let l = system.lagrangian(HyperDual::from_re(t), qd, vd);
-        lq[i] = l.eps1;
-        lv[i] = l.eps2;
-    }
+    let (_, lq, lv) = point_gradient(system, t, q, v);
     (lq, lv)
 }
 
-/// Gradient and Hessian of `L` in `(q, v)` at one point.
+/// The rows of the Hessian of `L` per evaluation above `N = ROWS / 2`.
+const ROWS: usize = 8;
+
+/// Value, gradient and Hessian of `L` in `(q, v)` at one point.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PointDerivatives<const N: usize, T = f64> {
+    /// `L`.
+    #[allow(dead_code)] // for the stepper's energy and action readouts; checked by the tests
+    pub(crate) value: T,
+    /// `∂L/∂q_i`.
     pub(crate) q: [T; N],
+    /// `∂L/∂v_i`.
     pub(crate) v: [T; N],
     /// `∂²L/∂q_i∂q_k`.
     pub(crate) qq: [[T; N]; N],
@@ -391,12 +409,140 @@ pub(crate) struct PointDerivatives<const N: usize, T = f64> {
 }
 
 impl<const N: usize, T: Real> PointDerivatives<N, T> {
-    /// `N(2N + 1)` hyper-dual evaluations, one per pair `a ≤ b` of the `2N`
-    /// coordinates `(q, v)`; the gradient comes with them.
+    /// One evaluation of `L` on a [`HyperDualArray`] with both
+    /// infinitesimals seeded on all `2N` coordinates `(q, v)`: the value, the
+    /// gradient (`ε1`) and the whole Hessian (`ε1ε2`) at once. Component
+    /// `(a, b)` is the scalar hyper-dual evaluation seeded on `(a, b)` (bit
+    /// for bit in `f64`); the blocks `qq` and `vv` are exactly symmetric.
+    ///
+    /// Above `N = 4` the `ε1` side is seeded on blocks of [`ROWS`] coordinates
+    /// instead, one evaluation per block (`⌈2N/8⌉` in all): about the same
+    /// arithmetic, but each number holds `1 + 8 + 2N + 16N` components
+    /// instead of `(2N + 1)²` (34 kB at `N = 32`, which overflowed a 2 MiB
+    /// thread stack).
     #[inline(always)]
     pub(crate) fn at<Sys: Lagrangian<N> + ?Sized>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> Self {
+        if N > ROWS / 2 {
+            return Self::by_rows(system, t, q, v);
+        }
+        type D<const N: usize, T> = HyperDualArray<Seeds<N, T>, Seeds<N, T>, T>;
+        let seed = |x: T, slot: usize| {
+            let mut d = D::<N, T>::from_re(x);
+            *d.eps1.get_mut(slot) = T::one();
+            *d.eps2.get_mut(slot) = T::one();
+            d
+        };
+        let qd = core::array::from_fn(|i| seed(q[i], i));
+        let vd = core::array::from_fn(|i| seed(v[i], N + i));
+        let l = system.lagrangian(D::from_re(t), qd, vd);
+        let h = &l.eps1eps2;
+        let mut out = Self {
+            value: l.re,
+            q: l.eps1.a,
+            v: l.eps1.b,
+            qq: h.a.map(|row| row.a),
+            qv: h.a.map(|row| row.b),
+            vv: h.b.map(|row| row.b),
+        };
+        out.mirror();
+        out
+    }
+
+    /// [`at`](Self::at) by blocks of [`ROWS`] rows of the Hessian.
+    #[inline(always)]
+    fn by_rows<Sys: Lagrangian<N> + ?Sized>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> Self {
+        type D<const N: usize, T> = HyperDualArray<[T; ROWS], Seeds<N, T>, T>;
         let z = T::zero();
-        let mut out = Self { q: [z; N], v: [z; N], qq: [[z; N]; N], qv: [[z; N]; N], vv: [[z; N]; N] };
+        let mut out = Self { value: z, q: [z; N], v: [z; N], qq: [[z; N]; N], qv: [[z; N]; N], vv: [[z; N]; N] };
+        for first in (0..2 * N).step_by(ROWS) {
+            // ε2 on every coordinate, ε1 on coordinates first … first + ROWS − 1.
+            let seed = |x: T, slot: usize| {
+                let mut d = D::<N, T>::from_re(x);
+                *d.eps2.get_mut(slot) = T::one();
+                if (first..first + ROWS).contains(&slot) {
+                    d.eps1[slot - first] = T::one();
+                }
+                d
+            };
+            let qd = core::array::from_fn(|i| seed(q[i], i));
+            let vd = core::array::from_fn(|i| seed(v[i], N + i));
+            let l = system.lagrangian(D::from_re(t), qd, vd);
+            (out.value, out.q, out.v) = (l.re, l.eps2.a, l.eps2.b);
+            for (r, row) in l.eps1eps2.iter().enumerate() {
+                match first + r {
+                    a if a < N => (out.qq[a], out.qv[a]) = (row.a, row.b),
+                    a if a < 2 * N => out.vv[a - N] = row.b,
+                    _ => break,
+                }
+            }
+        }
+        out.mirror();
+        out
+    }
+
+    /// Copies the upper triangles of `qq` and `vv` onto the lower ones. The
+    /// triangles agree already in `f64` (they add the same products in
+    /// swapped order); double-double addition is not commutative bit for
+    /// bit, and the row blocks compute the two triangles in different
+    /// evaluations.
+    #[inline(always)]
+    fn mirror(&mut self) {
+        for i in 0..N {
+            for k in 0..i {
+                self.qq[i][k] = self.qq[k][i];
+                self.vv[i][k] = self.vv[k][i];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The one-evaluation derivatives against the scalar hyper-dual ones they
+    //! replaced (kept here as the reference), in `f64` and in `DoubleDouble`.
+
+    use num_dual::HyperDual;
+
+    use super::*;
+    use crate::DoubleDouble;
+    use crate::real::max_abs;
+
+    /// The former `gradient_at`: `N` scalar hyper-dual evaluations, `q_i` on `ε1` and `v_i` on `ε2`.
+    fn reference_gradient<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [T; N])
+    where
+        Sys: Lagrangian<N>,
+        T: Real,
+    {
+        let mut lq = [T::zero(); N];
+        let mut lv = [T::zero(); N];
+        for i in 0..N {
+            let mut qd = q.map(HyperDual::from_re);
+            let mut vd = v.map(HyperDual::from_re);
+            qd[i].eps1 = T::one();
+            vd[i].eps2 = T::one();
+            let l = system.lagrangian(HyperDual::from_re(t), qd, vd);
+            lq[i] = l.eps1;
+            lv[i] = l.eps2;
+        }
+        (lq, lv)
+    }
+
+    /// The former `PointDerivatives::at`: `N(2N + 1)` scalar hyper-dual
+    /// evaluations, one per pair `a ≤ b` of the `2N` coordinates `(q, v)`.
+    fn reference_point<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> PointDerivatives<N, T>
+    where
+        Sys: Lagrangian<N>,
+        T: Real,
+    {
+        let z = T::zero();
+        let mut out = PointDerivatives {
+            value: system.lagrangian(t, q, v),
+            q: [z; N],
+            v: [z; N],
+            qq: [[z; N]; N],
+            qv: [[z; N]; N],
+            vv: [[z; N]; N],
+        };
         let t = HyperDual::from_re(t);
         for a in 0..2 * N {
             for b in a..2 * N {
@@ -423,7 +569,6 @@ impl<const N: usize, T: Real> PointDerivatives<N, T> {
                         out.qq[b][a] = x;
                     }
                     (true, false) => out.qv[a][b - N] = x,
-                    // b ≥ a ≥ N: both are velocities.
                     (false, _) => {
                         out.vv[a - N][b - N] = x;
                         out.vv[b - N][a - N] = x;
@@ -432,5 +577,189 @@ impl<const N: usize, T: Real> PointDerivatives<N, T> {
             }
         }
         out
+    }
+
+    struct Pendulum;
+
+    impl Lagrangian<1> for Pendulum {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 1] = [false];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+            v[0] * v[0] * (0.5 * 1.3 * 0.64) + q[0].cos() * (1.3 * 9.81 * 0.8)
+        }
+    }
+
+    struct DoublePendulum;
+
+    impl Lagrangian<2> for DoublePendulum {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false; 2];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+            let (m1, m2, l1, l2, g) = (1.0, 1.5, 1.0, 0.7, 9.81);
+            let kinetic = v[0] * v[0] * (0.5 * (m1 + m2) * l1 * l1)
+                + v[1] * v[1] * (0.5 * m2 * l2 * l2)
+                + v[0] * v[1] * (q[0] - q[1]).cos() * (m2 * l1 * l2);
+            kinetic + q[0].cos() * ((m1 + m2) * g * l1) + q[1].cos() * (m2 * g * l2)
+        }
+    }
+
+    /// Cartesian Kepler: a quotient and a square root.
+    struct Kepler;
+
+    impl Lagrangian<2> for Kepler {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false; 2];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+            (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip() * 1.7
+        }
+    }
+
+    /// A charged particle in a time-dependent, non-uniform field:
+    /// `L = ½ m|v|² + e v·A(t, q) − e φ(q)`, so the `qv` block is full.
+    struct Charged;
+
+    impl Lagrangian<3> for Charged {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 3] = [false; 3];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 3], v: [D; 3]) -> D {
+            let (x, y, z) = (q[0], q[1], q[2]);
+            let b = (t * 0.3).cos() * 0.8 + 1.1;
+            let a = [-y * b * 0.5, x * b * 0.5 + (x * z).sin() * 0.2, (x * y).atan() * (-t).exp()];
+            let phi = (z * z + 1.0).ln() + (x / (y * y + 2.0)) * 0.4;
+            (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * (0.5 * 2.1) + (v[0] * a[0] + v[1] * a[1] + v[2] * a[2]) * 0.9
+                - phi * 0.9
+        }
+    }
+
+    /// Two particles in 3-D with a Morse bond, a velocity-dependent drag-free
+    /// coupling and a wall: `N = 6` with every kind of operation.
+    struct Molecule;
+
+    impl Lagrangian<6> for Molecule {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 6] = [false; 6];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 6], v: [D; 6]) -> D {
+            let d = [q[3] - q[0], q[4] - q[1], q[5] - q[2]];
+            let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let morse = (D::one() - (-(r - 1.2) * 1.5).exp()).powi(2) * 3.0;
+            let kinetic = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) * 0.5
+                + (v[3] * v[3] + v[4] * v[4] + v[5] * v[5]) * 0.75
+                + (v[0] * v[3] + v[1] * v[4]) * (d[2] / r).tanh() * 0.1;
+            let wall = (q[2] + 3.0).powf(-2.5) + q[1].atan2(q[0] + 2.5).sinh() * 0.05;
+            kinetic - morse - wall
+        }
+    }
+
+    /// A chain of pendula with torsion springs: `N` large enough for the
+    /// Hessian by blocks of rows.
+    struct Chain<const N: usize>;
+
+    impl<const N: usize> Lagrangian<N> for Chain<N> {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; N] = [false; N];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; N], v: [D; N]) -> D {
+            let mut l = D::zero();
+            for i in 0..N {
+                l += v[i] * v[i] * (0.5 + 0.1 * i as f64) + q[i].cos() * 0.5 + (v[i] * q[i]).sin() * 0.05;
+                if i + 1 < N {
+                    l += (q[i + 1] - q[i]).cos() + v[i] * v[i + 1] * q[i].sin() * 0.2;
+                }
+            }
+            l
+        }
+    }
+
+    /// `|got − want| ≤ 8 ε scale` for every entry, `ε` the type's unit.
+    fn check<T: Real>(what: &str, got: &[T], want: &[T], scale: f64) {
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            let err = (*g - *w).to_f64().abs();
+            assert!(
+                err <= 8.0 * T::EPSILON * scale,
+                "{what}[{k}]: {g} against {w}, difference {err:e} (scale {scale:e})"
+            );
+        }
+    }
+
+    /// The new derivatives agree with the reference at `(t, q, v)` to the
+    /// round-off of `T`, and the Hessian blocks `qq`, `vv` are symmetric bit for bit.
+    fn agree<Sys: Lagrangian<N>, T: Real, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) {
+        let want = reference_point(system, t, q, v);
+        let (want_lq, want_lv) = reference_gradient(system, t, q, v);
+        let got = PointDerivatives::at(system, t, q, v);
+        let (value, lq, lv) = point_gradient(system, t, q, v);
+        let (lq2, lv2) = gradient_at(system, t, q, v);
+
+        let gradient_scale = max_abs(&want.q).max(max_abs(&want.v)).max(want.value.to_f64().abs());
+        check("value", &[got.value, value], &[want.value; 2], gradient_scale);
+        check("L_q (hyper-dual)", &got.q, &want.q, gradient_scale);
+        check("L_v (hyper-dual)", &got.v, &want.v, gradient_scale);
+        check("L_q (dual)", &lq, &want_lq, gradient_scale);
+        check("L_v (dual)", &lv, &want_lv, gradient_scale);
+        assert_eq!((lq, lv), (lq2, lv2));
+        let flat = |m: &[[T; N]; N]| m.iter().flatten().copied().collect::<Vec<T>>();
+        let hessian_scale = max_abs(&flat(&want.qq)).max(max_abs(&flat(&want.qv))).max(max_abs(&flat(&want.vv)));
+        assert!(hessian_scale > 0.0);
+        check("L_qq", &flat(&got.qq), &flat(&want.qq), hessian_scale);
+        check("L_qv", &flat(&got.qv), &flat(&want.qv), hessian_scale);
+        check("L_vv", &flat(&got.vv), &flat(&want.vv), hessian_scale);
+        for i in 0..N {
+            for k in 0..N {
+                assert!(got.qq[i][k] == got.qq[k][i] && got.vv[i][k] == got.vv[k][i], "asymmetric at ({i}, {k})");
+            }
+        }
+    }
+
+    /// Points with every coordinate and velocity non-zero, from a seed.
+    fn point<const N: usize>(seed: f64) -> (f64, [f64; N], [f64; N]) {
+        let q = core::array::from_fn(|i| 0.4 * (seed + 1.3 * i as f64).sin() + 0.15 * (i as f64 + 1.0));
+        let v = core::array::from_fn(|i| 0.9 * (2.1 * seed - 0.7 * i as f64).cos() - 0.2);
+        (0.35 * seed, q, v)
+    }
+
+    /// Every system at several points, in `T` built from `f64` data by `lift`.
+    fn all_systems<T: Real>(lift: impl Fn(f64) -> T + Copy) {
+        for seed in [0.3, 1.7, -2.4, 4.1] {
+            let lift_point = |(t, q, v): (f64, [f64; 1], [f64; 1])| (lift(t), q.map(lift), v.map(lift));
+            let (t, q, v) = lift_point(point::<1>(seed));
+            agree(&Pendulum, t, q, v);
+            let (t, q, v) = point::<2>(seed);
+            agree(&DoublePendulum, lift(t), q.map(lift), v.map(lift));
+            agree(&Kepler, lift(t), q.map(lift), v.map(lift));
+            let (t, q, v) = point::<3>(seed);
+            agree(&Charged, lift(t), q.map(lift), v.map(lift));
+            let (t, q, v) = point::<6>(seed);
+            agree(&Molecule, lift(t), q.map(lift), v.map(lift));
+            // 2N = 18: two full blocks of rows and a partial one.
+            let (t, q, v) = point::<9>(seed);
+            agree(&Chain::<9>, lift(t), q.map(lift), v.map(lift));
+        }
+    }
+
+    #[test]
+    fn one_evaluation_agrees_with_scalar_hyper_duals_in_f64() {
+        all_systems(|x| x);
+    }
+
+    #[test]
+    fn one_evaluation_agrees_with_scalar_hyper_duals_in_double_double() {
+        // Data with a non-zero low part, so the low halves take part.
+        all_systems(|x| DoubleDouble::from(x) / DoubleDouble::from(3.0) * DoubleDouble::from(3.0 + 1e-9));
+    }
+
+    /// Independent of any dual numbers: the Kepler derivatives by hand.
+    #[test]
+    fn kepler_derivatives_by_hand() {
+        let (q, v) = ([0.6, -0.8], [0.3, 1.1]);
+        let p = PointDerivatives::at(&Kepler, 0.0, q, v);
+        // r = 1, L = ½|v|² + 1.7/r, L_q = −1.7 q/r³, L_qq = 1.7(3 q qᵀ − I)/r³.
+        assert!((p.value - (0.5 * (0.09 + 1.21) + 1.7)).abs() < 1e-15);
+        for i in 0..2 {
+            assert!((p.q[i] + 1.7 * q[i]).abs() < 1e-15 && p.v[i] == v[i]);
+            for k in 0..2 {
+                let delta = if i == k { 1.0 } else { 0.0 };
+                assert!((p.qq[i][k] - 1.7 * (3.0 * q[i] * q[k] - delta)).abs() < 1e-14);
+                assert_eq!((p.qv[i][k], p.vv[i][k]), (0.0, delta));
+            }
+        }
     }
 }
