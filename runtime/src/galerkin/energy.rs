@@ -62,8 +62,7 @@ where
     let mut e = T::zero();
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
-        let (_, lv) = super::method::gradient_at(system, t, q, v);
-        let l = system.lagrangian(t, q, v);
+        let (l, _, lv) = super::method::point_gradient(system, t, q, v);
         let mut ej = -l;
         for i in 0..N {
             ej += v[i] * lv[i];
@@ -105,7 +104,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
             let pd = PointDerivatives::at(system, t, q, v);
             let b = g.quadrature().weights()[j];
-            let l = system.lagrangian(t, q, v);
+            let l = pd.value;
             let mut ej = -l;
             let mut vlvv = [zero; N];
             let mut lqv_v = [zero; N];

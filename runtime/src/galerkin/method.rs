@@ -394,7 +394,6 @@ const ROWS: usize = 8;
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PointDerivatives<const N: usize, T = f64> {
     /// `L`.
-    #[allow(dead_code)] // for the stepper's energy and action readouts; checked by the tests
     pub(crate) value: T,
     /// `∂L/∂q_i`.
     pub(crate) q: [T; N],

@@ -45,7 +45,7 @@ use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
-use super::method::{Galerkin, PointDerivatives, gradient_at};
+use super::method::{Galerkin, PointDerivatives, gradient_at, point_gradient};
 
 /// Configuration of a [`GalerkinIntegrator`] before it is given its initial state.
 #[derive(Clone, Debug)]
@@ -522,7 +522,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let mut lagrangian_finite = true;
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
-            let (mut lq, _) = gradient_at(system, t, q, v);
+            let (l, mut lq, _) = point_gradient(system, t, q, v);
             if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
                 // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on all
                 // s + 1 nodes sum to h Σ_j b_j F_j (the basis sums to one).
@@ -534,7 +534,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             // The derivatives can be finite where L is not (L = ln(1 − q)
             // past q = 1 has a finite derivative on the wrong branch): the
             // step is only valid where the action itself is.
-            lagrangian_finite &= system.lagrangian(t, q, v).is_finite();
+            lagrangian_finite &= l.is_finite();
             let w = g.quadrature().weights()[j] * h;
             for i in 0..N {
                 dp[i] += w * lq[i];
