@@ -109,8 +109,7 @@ pub fn sweep(
 
 /// The index of the coarsest point that, with the next two, meets `target`.
 pub fn select(points: &[Point], target: f64) -> Option<usize> {
-    (0..points.len().saturating_sub(2))
-        .find(|&k| points[k..k + 3].iter().all(|p| p.error.is_some_and(|e| e <= target)))
+    (0..points.len().saturating_sub(2)).find(|&k| points[k..k + 3].iter().all(|p| p.error.is_some_and(|e| e <= target)))
 }
 
 /// The worst error of the selected point and the next two.

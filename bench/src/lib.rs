@@ -7,13 +7,15 @@
 //! `cargo run --release -p lagrangian-bench` writes `target/report/`; see
 //! [`cli`] for the options and [`report`] for the JSON schema.
 
+pub mod calibrate;
 pub mod compositions;
 pub mod exact;
 pub mod handwritten;
 pub mod methods;
+pub mod output;
 mod peers;
 pub mod problem;
 pub mod problems;
-pub mod calibrate;
+pub mod readme;
 pub mod report;
 pub mod suite;

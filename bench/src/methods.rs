@@ -295,12 +295,11 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     record: &mut impl FnMut(f64, f64),
 ) -> Run {
     let (q0, v0) = model.initial();
-    let mut sim = match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64)
-        .start(0.0, q0, v0)
-    {
-        Ok(sim) => sim,
-        Err(e) => return Run::failed(e.to_string(), 0.0),
-    };
+    let mut sim =
+        match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0) {
+            Ok(sim) => sim,
+            Err(e) => return Run::failed(e.to_string(), 0.0),
+        };
     let result = sim.run(n, |sim| {
         if samples > 0 {
             let s = sim.state();

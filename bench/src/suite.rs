@@ -86,7 +86,7 @@ impl Suite {
     }
     fn bad_input_timeout(self) -> Duration {
         Duration::from_secs(match self {
-            Suite::Tiny => 5,
+            Suite::Tiny => 2,
             _ => 20,
         })
     }
@@ -280,8 +280,16 @@ fn long_energy(
                 s => s,
             };
             let run = p.run(m, setting, t_long, 400);
-            let max_abs = run.energy.iter().map(|s| s.1.abs()).fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
-            Some(EnergySeries { method: m.name(), setting, t_end: t_long, failure: run.failure, max_abs, samples: run.energy })
+            let max_abs =
+                run.energy.iter().map(|s| s.1.abs()).fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
+            Some(EnergySeries {
+                method: m.name(),
+                setting,
+                t_end: t_long,
+                failure: run.failure,
+                max_abs,
+                samples: run.energy,
+            })
         })
         .collect()
 }
@@ -296,7 +304,8 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>]) ->
     let mut out = Stress::default();
     // Largest step: scanning down from one period by 2^{1/2}, the first step
     // that integrates the (scaled) horizon with the energy within 10%.
-    let criterion = "largest h = period·2^(-k/2) that runs to T without a failure and keeps |E − E0|/|E0| ≤ 0.1 at 50 samples";
+    let criterion =
+        "largest h = period·2^(-k/2) that runs to T without a failure and keeps |E − E0|/|E0| ≤ 0.1 at 50 samples";
     let fixed = fixed_step(methods);
     let b = bar(config, (problems.len() * fixed.len()) as u64, "largest step".into());
     for p in problems {
@@ -340,12 +349,16 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>]) ->
             let settings: Vec<Setting> = if m.adaptive() {
                 tolerances.iter().map(|&t| Setting::Tolerance(t)).collect()
             } else {
-                per_orbit.iter().map(|&k| Setting::Steps((k as f64 * t_end / p.time_scale()).round() as usize)).collect()
+                per_orbit
+                    .iter()
+                    .map(|&k| Setting::Steps((k as f64 * t_end / p.time_scale()).round() as usize))
+                    .collect()
             };
             for setting in settings {
                 let run = p.run(m, setting, t_end, 100);
                 let error = reference.as_ref().ok().and_then(|r| calibrate::error_of(&run.q, &r.q));
-                let energy_error = (run.failure.is_none()).then(|| run.energy.iter().map(|s| s.1.abs()).fold(0.0, f64::max));
+                let energy_error =
+                    (run.failure.is_none()).then(|| run.energy.iter().map(|s| s.1.abs()).fold(0.0, f64::max));
                 out.hard_orbits.push(HardOrbit {
                     problem: p.id().to_string(),
                     method: m.name(),
@@ -408,10 +421,9 @@ fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
                 Ok(Ok(None)) => continue,
                 Ok(Ok(Some(run))) => match run.failure {
                     Some(f) => f,
-                    None => format!(
-                        "no error: q(T) = {:?}",
-                        run.q.iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>()
-                    ),
+                    None => {
+                        format!("no error: q(T) = {:?}", run.q.iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>())
+                    }
                 },
                 Ok(Err(panic)) => format!("panicked: {}", panic_message(&*panic)),
                 Err(_) => format!("did not return within {} s", config.suite.bad_input_timeout().as_secs()),
