@@ -87,7 +87,8 @@ impl Suite {
     fn bad_input_timeout(self) -> Duration {
         Duration::from_secs(match self {
             Suite::Tiny => 2,
-            _ => 20,
+            Suite::Quick => 5,
+            Suite::Default | Suite::Full => 20,
         })
     }
 }
