@@ -161,18 +161,18 @@ impl Run {
     }
 }
 
-/// Runs `method` with `setting` to `t_end`; with `samples > 0`, records the
-/// relative energy error at about that many evenly spaced times (the timing
-/// then includes the sampling).
+/// Runs `method` with `setting` from `(q0, v0)` at `t = 0` to `t_end`; with
+/// `samples > 0`, records the relative energy error at about that many evenly
+/// spaced times (the timing then includes the sampling).
 pub fn run<M: Model<N>, const N: usize, const D: usize>(
     model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
     method: Method,
     setting: Setting,
     t_end: f64,
     samples: usize,
 ) -> Run {
     assert_eq!(D, 2 * N, "the first-order state has 2N components");
-    let (q0, v0) = model.initial();
     let e0 = model.energy(&q0, &v0);
     let scale = e0.abs().max(f64::MIN_POSITIVE);
     let every = if samples > 0 { t_end / samples as f64 } else { f64::INFINITY };
@@ -192,7 +192,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     let start = Instant::now();
     let mut out = match (method, setting) {
         (Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6, Setting::Tolerance(tol)) => {
-            crate::peers::run::<M, N, D>(model, method, tol, t_end, samples)
+            crate::peers::run::<M, N, D>(model, (q0, v0), method, tol, t_end, samples)
         }
         (Method::Verlet | Method::Yoshida6 | Method::KahanLi8, Setting::Steps(n)) => {
             let Some(minv) = model.inverse_mass() else {
@@ -224,20 +224,24 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
             macro_rules! degree {
                 ($($s:literal)*) => {
                     match s {
-                        $($s => galerkin::<M, N, $s>(model, n, t_end, samples, &mut record),)*
+                        $($s => galerkin::<M, N, $s>(model, (q0, v0), n, t_end, samples, &mut record),)*
                         _ => Run::failed(format!("no Galerkin degree {s} in the report (2 to 8)"), 0.0),
                     }
                 };
             }
             degree!(2 3 4 5 6 7 8)
         }
-        (Method::Midpoint, Setting::Steps(n)) => variational(model, Midpoint, n, t_end, false, samples, &mut record),
-        (Method::Trapezoid, Setting::Steps(n)) => variational(model, Trapezoid, n, t_end, false, samples, &mut record),
+        (Method::Midpoint, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Midpoint, n, t_end, false, samples, &mut record)
+        }
+        (Method::Trapezoid, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Trapezoid, n, t_end, false, samples, &mut record)
+        }
         (Method::AlphaBeta, Setting::Steps(n)) => {
-            variational(model, AlphaBeta::EULER_A, n, t_end, false, samples, &mut record)
+            variational(model, (q0, v0), AlphaBeta::EULER_A, n, t_end, false, samples, &mut record)
         }
         (Method::EnergyMidpoint, Setting::Steps(n)) => {
-            variational(model, Midpoint, n, t_end, true, samples, &mut record)
+            variational(model, (q0, v0), Midpoint, n, t_end, true, samples, &mut record)
         }
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
@@ -249,8 +253,10 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     out
 }
 
+#[allow(clippy::too_many_arguments)]
 fn variational<M: Model<N>, L: DiscreteLagrangian, const N: usize>(
     model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
     method: L,
     n: usize,
     t_end: f64,
@@ -258,7 +264,6 @@ fn variational<M: Model<N>, L: DiscreteLagrangian, const N: usize>(
     samples: usize,
     record: &mut impl FnMut(f64, f64),
 ) -> Run {
-    let (q0, v0) = model.initial();
     let h = t_end / n as f64;
     let builder = Integrator::new(model.system(), method, h);
     let started = if energy_preserving {
@@ -289,12 +294,12 @@ fn variational<M: Model<N>, L: DiscreteLagrangian, const N: usize>(
 
 fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
     n: usize,
     t_end: f64,
     samples: usize,
     record: &mut impl FnMut(f64, f64),
 ) -> Run {
-    let (q0, v0) = model.initial();
     let mut sim =
         match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0) {
             Ok(sim) => sim,

@@ -42,12 +42,12 @@ const MAX_STEPS: usize = 20_000_000;
 /// relative energy error at that many evenly spaced times (dense output).
 pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
     model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
     method: Method,
     tol: f64,
     t_end: f64,
     samples: usize,
 ) -> Run {
-    let (q0, v0) = model.initial();
     let y0 = SVector::<f64, D>::from_fn(|i, _| if i < N { q0[i] } else { v0[i - N] });
     let e0 = model.energy(&q0, &v0);
     let energy_of = |y: &SVector<f64, D>| {

@@ -66,50 +66,6 @@ pub trait Problem: Send + Sync {
 /// Adapts a [`Model`] with `N` degrees of freedom (`D = 2N`).
 pub struct Adapter<M, const N: usize, const D: usize>(pub M);
 
-/// The model with its initial data replaced.
-#[derive(Clone)]
-struct Restarted<M, const N: usize> {
-    model: M,
-    q0: [f64; N],
-    v0: [f64; N],
-}
-
-impl<M: Model<N>, const N: usize> Model<N> for Restarted<M, N> {
-    type Sys = M::Sys;
-    const ID: &'static str = M::ID;
-    const TITLE: &'static str = M::TITLE;
-    fn system(&self) -> M::Sys {
-        self.model.system()
-    }
-    fn initial(&self) -> ([f64; N], [f64; N]) {
-        (self.q0, self.v0)
-    }
-    fn horizon(&self) -> f64 {
-        self.model.horizon()
-    }
-    fn coarsest_steps(&self) -> usize {
-        self.model.coarsest_steps()
-    }
-    fn time_scale(&self) -> f64 {
-        self.model.time_scale()
-    }
-    fn accel(&self, q: &[f64; N], v: &[f64; N]) -> [f64; N] {
-        self.model.accel(q, v)
-    }
-    fn energy(&self, q: &[f64; N], v: &[f64; N]) -> f64 {
-        self.model.energy(q, v)
-    }
-    fn inverse_mass(&self) -> Option<[f64; N]> {
-        self.model.inverse_mass()
-    }
-    fn force(&self, q: &[f64; N]) -> [f64; N] {
-        self.model.force(q)
-    }
-    fn reference_steps(&self, t_end: f64) -> usize {
-        self.model.reference_steps(t_end)
-    }
-}
-
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
 }
@@ -155,13 +111,13 @@ where
         self.0.inverse_mass().is_some()
     }
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run {
-        methods::run::<M, N, D>(&self.0, method, setting, t_end, samples)
+        methods::run::<M, N, D>(&self.0, self.0.initial(), method, setting, t_end, samples)
     }
     fn run_from(&self, q0: Vec<f64>, v0: Vec<f64>, method: Method, setting: Setting, t_end: f64) -> Run {
         let (Ok(q0), Ok(v0)) = (<[f64; N]>::try_from(q0), <[f64; N]>::try_from(v0)) else {
             return Run { failure: Some(format!("initial data must have {N} components")), ..Run::default() };
         };
-        methods::run::<Restarted<M, N>, N, D>(&Restarted { model: self.0.clone(), q0, v0 }, method, setting, t_end, 0)
+        methods::run::<M, N, D>(&self.0, (q0, v0), method, setting, t_end, 0)
     }
     fn double_double_galerkin(&self, t_end: f64, n: usize) -> Result<Vec<f64>, String> {
         Ok(galerkin_dd(&self.0, t_end, n)?.iter().map(|x| x.to_f64()).collect())
