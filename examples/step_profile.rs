@@ -17,7 +17,7 @@
 
 #[path = "../tests/common/mod.rs"]
 mod common;
-#[path = "../benches/handwritten/mod.rs"]
+#[path = "../bench/src/handwritten.rs"]
 mod handwritten;
 
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};

@@ -1,12 +1,11 @@
 //! The hand-written baselines of the benchmark compute the same trajectories
 //! as the generated integrators (otherwise the timing ratios are meaningless).
+#[path = "../../tests/common/mod.rs"]
 mod common;
-#[path = "../benches/handwritten/mod.rs"]
-mod handwritten;
 
 use common::*;
-use handwritten::*;
 use lagrangian::{Integrator, Midpoint, Trapezoid};
+use lagrangian_bench::handwritten::*;
 
 #[test]
 fn pendulum_midpoint_agrees_with_the_hand_written_one() {

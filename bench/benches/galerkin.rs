@@ -14,9 +14,9 @@ use std::time::Duration;
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use lagrangian::{Galerkin, GalerkinIntegrator};
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../../tests/common/mod.rs"]
 mod common;
-#[path = "../tests/galerkin_reference/mod.rs"]
+#[path = "../../tests/galerkin_reference/mod.rs"]
 mod reference;
 
 use common::{PENDULUM as P, Pendulum};

@@ -5,7 +5,7 @@
 //! what a user of the crate compiles with unless they change it.
 #![allow(missing_docs)]
 
-mod handwritten;
+use lagrangian_bench::handwritten;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use handwritten::*;
@@ -13,7 +13,7 @@ use lagrangian::{Integrator, Midpoint, StepBounds, Trapezoid};
 use std::hint::black_box;
 
 // The systems of the tests, so the bench measures what the tests verify.
-#[path = "../tests/common/mod.rs"]
+#[path = "../../tests/common/mod.rs"]
 mod common;
 
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};

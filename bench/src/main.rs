@@ -1,0 +1,124 @@
+//! `lagrangian-bench`: runs the work–precision and stress suite and writes
+//! the report (see `--help`).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use lagrangian_bench::methods::Method;
+use lagrangian_bench::suite::{self, Config, Suite};
+use lagrangian_bench::{output, readme};
+
+const HELP: &str = "\
+lagrangian-bench: work–precision and stress report of the lagrangian integrators
+
+USAGE:
+    cargo run --release -p lagrangian-bench -- [OPTIONS]
+    cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE]
+
+OPTIONS:
+    --quick                  short horizons, two targets (about 2 minutes on 2 cores)
+    --full                   ten targets, larger time budgets, longer energy runs
+    --tiny                   smallest sizes (for the test suite)
+    --problem ID[,ID..]      only these problems (repeatable)
+    --method NAME[,NAME..]   only these methods (repeatable)
+    --out DIR                output directory (default target/report)
+    --reference-tolerance X  relative agreement a reference must reach (default 1e-14)
+    --no-progress            no progress bars
+    --list                   list problems and methods
+    -h, --help               this text
+
+readme: rewrites the README's generated performance table (between the
+`<!-- bench:headline -->` markers) from a report's JSON (default
+target/report/report.json and README.md).
+";
+
+fn main() -> ExitCode {
+    let args = std::env::args().skip(1).collect();
+    // Double-double Galerkin references on 18 degrees of freedom keep large blocks on the stack.
+    let worker = std::thread::Builder::new().stack_size(256 << 20).spawn(move || run(args));
+    let result = match worker.map(|w| w.join()) {
+        Ok(Ok(result)) => result,
+        Ok(Err(_)) => Err("the report panicked (a bug: please report it)".to_string()),
+        Err(e) => Err(format!("cannot start the worker thread: {e}")),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn values(args: &mut impl Iterator<Item = String>, flag: &str) -> Result<Vec<String>, String> {
+    let v = args.next().ok_or_else(|| format!("`{flag}` needs a value"))?;
+    Ok(v.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
+}
+
+fn run(args: Vec<String>) -> Result<(), String> {
+    let mut args = args.into_iter();
+    let mut suite = Suite::Default;
+    let mut problems: Option<Vec<String>> = None;
+    let mut methods: Option<Vec<Method>> = None;
+    let mut out = PathBuf::from("target/report");
+    let mut reference_tolerance = 1e-14;
+    let mut progress = true;
+    let mut readme_mode = false;
+    let mut from = PathBuf::from("target/report/report.json");
+    let mut readme_path = PathBuf::from("README.md");
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "readme" => readme_mode = true,
+            "--from" => from = PathBuf::from(args.next().ok_or("`--from` needs a file")?),
+            "--readme" => readme_path = PathBuf::from(args.next().ok_or("`--readme` needs a file")?),
+            "--quick" => suite = Suite::Quick,
+            "--full" => suite = Suite::Full,
+            "--tiny" => suite = Suite::Tiny,
+            "--no-progress" => progress = false,
+            "--out" => out = PathBuf::from(args.next().ok_or("`--out` needs a directory")?),
+            "--reference-tolerance" => {
+                let v = args.next().ok_or("`--reference-tolerance` needs a number")?;
+                reference_tolerance =
+                    v.parse().map_err(|_| format!("`--reference-tolerance`: `{v}` is not a number"))?;
+            }
+            "--problem" => {
+                let known = suite::problem_ids();
+                for id in values(&mut args, "--problem")? {
+                    if !known.contains(&id.as_str()) {
+                        return Err(format!("unknown problem `{id}` (known: {})", known.join(", ")));
+                    }
+                    problems.get_or_insert_with(Vec::new).push(id);
+                }
+            }
+            "--method" => {
+                for name in values(&mut args, "--method")? {
+                    let m = Method::parse(&name).ok_or_else(|| {
+                        let known: Vec<String> = Method::all().iter().map(|m| m.name()).collect();
+                        format!("unknown method `{name}` (known: {})", known.join(", "))
+                    })?;
+                    methods.get_or_insert_with(Vec::new).push(m);
+                }
+            }
+            "--list" => {
+                println!("problems: {}", suite::problem_ids().join(", "));
+                let known: Vec<String> = Method::all().iter().map(|m| m.name()).collect();
+                println!("methods: {}", known.join(", "));
+                return Ok(());
+            }
+            "-h" | "--help" => {
+                print!("{HELP}");
+                return Ok(());
+            }
+            other => return Err(format!("unknown argument `{other}` (see --help)")),
+        }
+    }
+    if readme_mode {
+        return readme::update(&from, &readme_path);
+    }
+    let config = Config { suite, problems, methods, reference_tolerance, progress };
+    let report = suite::run(&config)?;
+    output::write(&report, &out)?;
+    println!("report written to {}", out.display());
+    print!("{}", output::headline(&report, &report.targets));
+    Ok(())
+}

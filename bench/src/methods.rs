@@ -1,0 +1,322 @@
+//! The methods of the report and how each one is run on a [`Model`].
+
+use std::time::Instant;
+
+use lagrangian::prelude::*;
+use lagrangian::{GalerkinIntegrator, StepBounds};
+use serde::{Deserialize, Serialize};
+
+use crate::compositions::{Composition, Stepper};
+use crate::problems::Model;
+
+/// Every method of the report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub enum Method {
+    /// Project: midpoint discrete Lagrangian, fixed steps (order 2).
+    Midpoint,
+    /// Project: trapezoid discrete Lagrangian, fixed steps (order 2).
+    Trapezoid,
+    /// Project: α-β discrete Lagrangian with α = 1 (symplectic Euler, order 1).
+    AlphaBeta,
+    /// Project: Galerkin of degree `s` with `s` Gauss points (order `2s`).
+    Galerkin(u8),
+    /// Project: midpoint with energy-preserving variable steps (`StepBounds::around(h0)`).
+    EnergyMidpoint,
+    /// Peer: ode_solvers 0.6 DOP853 (rtol = atol = tol, sparse output).
+    OdeSolversDop853,
+    /// Peer: differential-equations 0.5 DOP853 (rtol = atol = tol).
+    DiffEqDop853,
+    /// Peer: differential-equations 0.5 adaptive Gauss–Legendre IRK, 3 stages, order 6 (finite-difference Jacobian).
+    DiffEqGauss6,
+    /// Hand-written: Störmer–Verlet.
+    Verlet,
+    /// Hand-written: Yoshida's order 6 composition.
+    Yoshida6,
+    /// Hand-written: Kahan–Li order 8 composition.
+    KahanLi8,
+}
+
+/// Who wrote a method.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Family {
+    /// This project.
+    Project,
+    /// Another crate.
+    Peer,
+    /// Hand-written in this crate.
+    HandWritten,
+}
+
+/// What a method is calibrated by.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Setting {
+    /// A number of fixed steps over the horizon (initial step `T/n` for variable steps).
+    Steps(usize),
+    /// `rtol = atol`.
+    Tolerance(f64),
+}
+
+impl Method {
+    /// All methods, in report order.
+    pub fn all() -> Vec<Method> {
+        let mut m = vec![Method::Midpoint, Method::Trapezoid, Method::AlphaBeta];
+        m.extend((2..=8).map(Method::Galerkin));
+        m.extend([
+            Method::EnergyMidpoint,
+            Method::OdeSolversDop853,
+            Method::DiffEqDop853,
+            Method::DiffEqGauss6,
+            Method::Verlet,
+            Method::Yoshida6,
+            Method::KahanLi8,
+        ]);
+        m
+    }
+
+    /// The name used on the command line, in the JSON and in tables.
+    pub fn name(self) -> String {
+        match self {
+            Method::Midpoint => "midpoint".into(),
+            Method::Trapezoid => "trapezoid".into(),
+            Method::AlphaBeta => "alpha-beta".into(),
+            Method::Galerkin(s) => format!("galerkin-{s}"),
+            Method::EnergyMidpoint => "energy-midpoint".into(),
+            Method::OdeSolversDop853 => "ode_solvers-dop853".into(),
+            Method::DiffEqDop853 => "diffeq-dop853".into(),
+            Method::DiffEqGauss6 => "diffeq-gauss6".into(),
+            Method::Verlet => "verlet".into(),
+            Method::Yoshida6 => "yoshida6".into(),
+            Method::KahanLi8 => "kahan-li8".into(),
+        }
+    }
+
+    /// The method with this [`name`](Method::name).
+    pub fn parse(name: &str) -> Option<Method> {
+        Method::all().into_iter().find(|m| m.name() == name)
+    }
+
+    /// Who wrote it.
+    pub fn family(self) -> Family {
+        match self {
+            Method::Midpoint | Method::Trapezoid | Method::AlphaBeta | Method::Galerkin(_) | Method::EnergyMidpoint => {
+                Family::Project
+            }
+            Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 => Family::Peer,
+            Method::Verlet | Method::Yoshida6 | Method::KahanLi8 => Family::HandWritten,
+        }
+    }
+
+    /// The classical order.
+    pub fn order(self) -> u32 {
+        match self {
+            Method::Midpoint | Method::Trapezoid | Method::EnergyMidpoint | Method::Verlet => 2,
+            Method::AlphaBeta => 1,
+            Method::Galerkin(s) => 2 * s as u32,
+            Method::OdeSolversDop853 | Method::DiffEqDop853 => 8,
+            Method::DiffEqGauss6 | Method::Yoshida6 => 6,
+            Method::KahanLi8 => 8,
+        }
+    }
+
+    /// `true` when the method is calibrated by a tolerance rather than a step count.
+    pub fn adaptive(self) -> bool {
+        matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6)
+    }
+
+    /// `true` for the hand-written compositions, which need a separable Hamiltonian.
+    pub fn needs_separable(self) -> bool {
+        self.family() == Family::HandWritten
+    }
+
+    /// `true` for symplectic methods (bounded energy error expected).
+    pub fn symplectic(self) -> bool {
+        !matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853)
+    }
+}
+
+/// The outcome of one run.
+#[derive(Clone, Debug, Default)]
+pub struct Run {
+    /// Final positions (empty when the run failed).
+    pub q: Vec<f64>,
+    /// The failure, if any (the method's own error message).
+    pub failure: Option<String>,
+    /// Steps taken (accepted steps for adaptive methods).
+    pub steps: u64,
+    /// Newton iterations per step (project methods).
+    pub newton_per_step: Option<f64>,
+    /// Right-hand-side or force evaluations (peers and compositions).
+    pub evaluations: Option<u64>,
+    /// Wall-clock seconds of the integration alone.
+    pub seconds: f64,
+    /// `(t, (E − E0)/|E0|)` samples, when asked for.
+    pub energy: Vec<(f64, f64)>,
+}
+
+impl Run {
+    fn failed(message: String, seconds: f64) -> Run {
+        Run { failure: Some(message), seconds, ..Run::default() }
+    }
+}
+
+/// Runs `method` with `setting` from `(q0, v0)` at `t = 0` to `t_end`; with
+/// `samples > 0`, records the relative energy error at about that many evenly
+/// spaced times (the timing then includes the sampling).
+pub fn run<M: Model<N>, const N: usize, const D: usize>(
+    model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
+    method: Method,
+    setting: Setting,
+    t_end: f64,
+    samples: usize,
+) -> Run {
+    assert_eq!(D, 2 * N, "the first-order state has 2N components");
+    let e0 = model.energy(&q0, &v0);
+    let scale = e0.abs().max(f64::MIN_POSITIVE);
+    let every = if samples > 0 { t_end / samples as f64 } else { f64::INFINITY };
+    let mut next = every;
+    let mut energy = Vec::with_capacity(samples + 1);
+    if samples > 0 {
+        energy.push((0.0, 0.0));
+    }
+    let mut record = |t: f64, e: f64| {
+        if t >= next * (1.0 - 1e-12) {
+            energy.push((t, (e - e0) / scale));
+            while next <= t * (1.0 + 1e-12) {
+                next += every;
+            }
+        }
+    };
+    let start = Instant::now();
+    let mut out = match (method, setting) {
+        (Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6, Setting::Tolerance(tol)) => {
+            crate::peers::run::<M, N, D>(model, (q0, v0), method, tol, t_end, samples)
+        }
+        (Method::Verlet | Method::Yoshida6 | Method::KahanLi8, Setting::Steps(n)) => {
+            let Some(minv) = model.inverse_mass() else {
+                return Run::failed("not applicable: the Hamiltonian is not separable".into(), 0.0);
+            };
+            let c = match method {
+                Method::Verlet => Composition::Verlet,
+                Method::Yoshida6 => Composition::Yoshida6,
+                _ => Composition::KahanLi8,
+            };
+            let force = |q: &[f64; N]| model.force(q);
+            let mut s = Stepper::new(c, minv, &force, t_end / n as f64, q0, v0);
+            for k in 0..n {
+                s.step(&force);
+                if samples > 0 {
+                    record((k + 1) as f64 * t_end / n as f64, model.energy(&s.q, &s.velocity()));
+                }
+            }
+            let finite = s.q.iter().all(|x| x.is_finite());
+            Run {
+                q: if finite { s.q.to_vec() } else { Vec::new() },
+                failure: (!finite).then(|| "non-finite state".to_string()),
+                steps: n as u64,
+                evaluations: Some(s.evaluations),
+                ..Run::default()
+            }
+        }
+        (Method::Galerkin(s), Setting::Steps(n)) => {
+            macro_rules! degree {
+                ($($s:literal)*) => {
+                    match s {
+                        $($s => galerkin::<M, N, $s>(model, (q0, v0), n, t_end, samples, &mut record),)*
+                        _ => Run::failed(format!("no Galerkin degree {s} in the report (2 to 8)"), 0.0),
+                    }
+                };
+            }
+            degree!(2 3 4 5 6 7 8)
+        }
+        (Method::Midpoint, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Midpoint, n, t_end, false, samples, &mut record)
+        }
+        (Method::Trapezoid, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Trapezoid, n, t_end, false, samples, &mut record)
+        }
+        (Method::AlphaBeta, Setting::Steps(n)) => {
+            variational(model, (q0, v0), AlphaBeta::EULER_A, n, t_end, false, samples, &mut record)
+        }
+        (Method::EnergyMidpoint, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Midpoint, n, t_end, true, samples, &mut record)
+        }
+        (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
+    };
+    out.seconds = start.elapsed().as_secs_f64();
+    if samples > 0 {
+        out.energy.append(&mut energy);
+        out.energy.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    out
+}
+
+#[allow(clippy::too_many_arguments)]
+fn variational<M: Model<N>, L: DiscreteLagrangian, const N: usize>(
+    model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
+    method: L,
+    n: usize,
+    t_end: f64,
+    energy_preserving: bool,
+    samples: usize,
+    record: &mut impl FnMut(f64, f64),
+) -> Run {
+    let h = t_end / n as f64;
+    let builder = Integrator::new(model.system(), method, h);
+    let started = if energy_preserving {
+        builder.energy_preserving(StepBounds::around(h)).start(0.0, q0, v0)
+    } else {
+        builder.start(0.0, q0, v0)
+    };
+    let mut sim = match started {
+        Ok(sim) => sim,
+        Err(e) => return Run::failed(e.to_string(), 0.0),
+    };
+    let observe = |sim: &Integrator<M::Sys, L, N>| {
+        if samples > 0 {
+            let s = sim.state();
+            if let Ok(v) = sim.velocity() {
+                record(s.t, model.energy(&s.q, &v));
+            }
+        }
+    };
+    let result = if energy_preserving { sim.run_until(t_end, observe) } else { sim.run(n, observe) };
+    let stats = sim.stats();
+    let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
+    match result {
+        Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+        Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+    }
+}
+
+fn galerkin<M: Model<N>, const N: usize, const S: usize>(
+    model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
+    n: usize,
+    t_end: f64,
+    samples: usize,
+    record: &mut impl FnMut(f64, f64),
+) -> Run {
+    let mut sim =
+        match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0) {
+            Ok(sim) => sim,
+            Err(e) => return Run::failed(e.to_string(), 0.0),
+        };
+    let result = sim.run(n, |sim| {
+        if samples > 0 {
+            let s = sim.state();
+            if let Ok(v) = sim.velocity() {
+                record(s.t, model.energy(&s.q, &v));
+            }
+        }
+    });
+    let stats = sim.stats();
+    let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
+    match result {
+        Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+        Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+    }
+}

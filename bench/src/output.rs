@@ -1,0 +1,503 @@
+//! Writes a [`Report`] to a directory: `report.json`, `report.md`,
+//! `report.html`, and per problem a work–precision plot and an energy plot
+//! (SVG and PNG). Everything is written to a temporary sibling directory
+//! first and renamed into place at the end, so a failed run never leaves a
+//! half-written report that looks complete.
+
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use plotters::prelude::*;
+
+use crate::methods::{Family, Setting};
+use crate::report::*;
+
+/// Writes the report to `out` (replacing an earlier report there).
+pub fn write(report: &Report, out: &Path) -> Result<(), String> {
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    fs::create_dir_all(&parent).map_err(|e| format!("cannot create the output directory {}: {e}", parent.display()))?;
+    let name = out.file_name().map_or_else(|| "report".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = parent.join(format!(".{name}.partial-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&tmp);
+    fs::create_dir(&tmp).map_err(|e| format!("cannot write to {}: {e}", parent.display()))?;
+    let result = write_into(report, &tmp).and_then(|()| {
+        let old = parent.join(format!(".{name}.old-{}", std::process::id()));
+        if out.exists() {
+            fs::rename(out, &old).map_err(|e| format!("cannot replace {}: {e}", out.display()))?;
+        }
+        fs::rename(&tmp, out).map_err(|e| format!("cannot move the report into {}: {e}", out.display()))?;
+        let _ = fs::remove_dir_all(&old);
+        Ok(())
+    });
+    if result.is_err() {
+        let _ = fs::remove_dir_all(&tmp);
+    }
+    result
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> String + '_ {
+    move |e| format!("cannot write {}: {e}", path.display())
+}
+
+fn write_into(report: &Report, dir: &Path) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(report).map_err(|e| format!("cannot serialise the report: {e}"))?;
+    let path = dir.join("report.json");
+    fs::write(&path, json).map_err(io(&path))?;
+    for p in &report.problems {
+        work_precision_plot(p, &dir.join(format!("{}-work-precision", p.id)))?;
+        energy_plot(p, &dir.join(format!("{}-energy", p.id)))?;
+    }
+    let blocks = document(report);
+    let path = dir.join("report.md");
+    fs::write(&path, markdown(&blocks)).map_err(io(&path))?;
+    let path = dir.join("report.html");
+    fs::write(&path, html(&blocks)).map_err(io(&path))?;
+    Ok(())
+}
+
+// ------------------------------------------------------------------ plots
+
+const COLORS: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+
+fn register_font() {
+    static FONT: Once = Once::new();
+    FONT.call_once(|| {
+        // The font the examples bundle (DejaVu Sans, licence beside it).
+        plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            include_bytes!("../../examples/support/DejaVuSans.ttf"),
+        )
+        .unwrap_or_else(|_| panic!("the bundled font is a valid TrueType file"));
+    });
+}
+
+/// Label, points, and whether to mark each point.
+type Line = (String, Vec<(f64, f64)>, bool);
+
+/// A log–log (or lin–log) line chart with a legend.
+struct Chart<'a> {
+    title: &'a str,
+    x_label: &'a str,
+    y_label: &'a str,
+    log_x: bool,
+    series: Vec<Line>,
+}
+
+fn range(values: impl Iterator<Item = f64>, log: bool) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && (!log || *v > 0.0))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return if log { (1e-16, 1.0) } else { (0.0, 1.0) };
+    }
+    if log {
+        (lo / 2.0, hi * 2.0)
+    } else if hi > lo {
+        (lo, hi)
+    } else {
+        (lo - 1.0, hi + 1.0)
+    }
+}
+
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, plotters::coord::Shift>, chart: &Chart<'_>) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("plot {}: {e}", chart.title);
+    root.fill(&WHITE).map_err(err)?;
+    let xs = range(chart.series.iter().flat_map(|s| s.1.iter().map(|p| p.0)), chart.log_x);
+    let ys = range(chart.series.iter().flat_map(|s| s.1.iter().map(|p| p.1)), true);
+    let mut builder = ChartBuilder::on(&root);
+    builder.caption(chart.title, ("sans-serif", 20)).margin(12).x_label_area_size(40).y_label_area_size(70);
+    macro_rules! body {
+        ($c:expr) => {{
+            let mut c = $c;
+            c.configure_mesh()
+                .x_desc(chart.x_label)
+                .y_desc(chart.y_label)
+                .y_label_formatter(&|v| format!("{v:.0e}"))
+                .draw()
+                .map_err(err)?;
+            for (i, (label, points, markers)) in chart.series.iter().enumerate() {
+                let color = COLORS[i % COLORS.len()];
+                let dashed = i >= COLORS.len();
+                let style =
+                    ShapeStyle { color: color.to_rgba(), filled: false, stroke_width: if dashed { 1 } else { 2 } };
+                let pts: Vec<(f64, f64)> = points
+                    .iter()
+                    .copied()
+                    .filter(|p| p.0.is_finite() && p.1 > 0.0 && (!chart.log_x || p.0 > 0.0))
+                    .collect();
+                c.draw_series(LineSeries::new(pts.clone(), style))
+                    .map_err(err)?
+                    .label(label.as_str())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], style));
+                if *markers {
+                    c.draw_series(pts.iter().map(|&p| Circle::new(p, 2, color.filled()))).map_err(err)?;
+                }
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperRight)
+                .label_font(("sans-serif", 12))
+                .draw()
+                .map_err(err)?;
+        }};
+    }
+    if chart.log_x {
+        body!(builder.build_cartesian_2d((xs.0..xs.1).log_scale(), (ys.0..ys.1).log_scale()).map_err(err)?);
+    } else {
+        body!(builder.build_cartesian_2d(xs.0..xs.1, (ys.0..ys.1).log_scale()).map_err(err)?);
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+fn save(chart: &Chart<'_>, base: &Path) -> Result<(), String> {
+    register_font();
+    let size = (900, 600);
+    // Appended, not `with_extension`: ids such as `kepler-0.5` contain a dot.
+    let svg = PathBuf::from(format!("{}.svg", base.display()));
+    draw(SVGBackend::new(&svg, size).into_drawing_area(), chart)?;
+    let png = PathBuf::from(format!("{}.png", base.display()));
+    draw(BitMapBackend::new(&png, size).into_drawing_area(), chart)?;
+    Ok(())
+}
+
+fn work_precision_plot(p: &ProblemReport, base: &Path) -> Result<(), String> {
+    let series = p
+        .sweeps
+        .iter()
+        .map(|s| {
+            let pts = s.points.iter().filter_map(|pt| Some((pt.seconds, pt.error?))).collect();
+            (s.method.clone(), pts, true)
+        })
+        .collect();
+    let title = format!("{}: final error against time", p.title);
+    save(
+        &Chart {
+            title: &title, x_label: "time of one run (s)", y_label: "max |q(T) − q_ref(T)|", log_x: true, series
+        },
+        base,
+    )
+}
+
+fn energy_plot(p: &ProblemReport, base: &Path) -> Result<(), String> {
+    let series = p
+        .energy
+        .iter()
+        .map(|e| (e.method.clone(), e.samples.iter().map(|&(t, d)| (t, d.abs().max(1e-17))).collect(), false))
+        .collect();
+    let title = format!("{}: energy error over a long run", p.title);
+    save(&Chart { title: &title, x_label: "t", y_label: "|E − E0| / |E0|", log_x: false, series }, base)
+}
+
+// --------------------------------------------------------------- document
+
+/// A piece of the Markdown/HTML report.
+enum Block {
+    Heading(u8, String),
+    Para(String),
+    Image(String, String),
+    Table(Vec<String>, Vec<Vec<String>>),
+}
+
+fn e(x: f64) -> String {
+    format!("{x:.1e}")
+}
+
+fn setting(s: &Setting) -> String {
+    match s {
+        Setting::Steps(n) => format!("{n} steps"),
+        Setting::Tolerance(t) => format!("tol {t:.1e}"),
+    }
+}
+
+fn ms(s: f64) -> String {
+    if s < 0.1 { format!("{:.3} ms", s * 1e3) } else { format!("{:.1} ms", s * 1e3) }
+}
+
+fn family(f: Family) -> &'static str {
+    match f {
+        Family::Project => "project",
+        Family::Peer => "peer crate",
+        Family::HandWritten => "hand-written",
+    }
+}
+
+fn best(b: &Option<Best>) -> String {
+    b.as_ref().map_or_else(|| "—".into(), |b| format!("{} ({}, {})", b.method, ms(b.seconds), setting(&b.setting)))
+}
+
+/// The headline table: per problem and target, the fastest project method and the fastest other method.
+pub fn headline(report: &Report, targets: &[f64]) -> String {
+    let mut s = String::from(
+        "| problem | target | best project method | best peer crate | best hand-written |\n| --- | --- | --- | --- | --- |\n",
+    );
+    for p in &report.problems {
+        for r in p.recommendations.iter().filter(|r| targets.contains(&r.target)) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                p.id,
+                e(r.target),
+                best(&r.best_project),
+                best(&r.best_peer),
+                best(&r.best_hand_written)
+            );
+        }
+    }
+    s
+}
+
+fn document(r: &Report) -> Vec<Block> {
+    use Block::*;
+    let mut d = vec![
+        Heading(1, "lagrangian: work–precision and stress report".into()),
+        Para(format!(
+            "Suite `{}`, lagrangian-bench {}, {} cores ({}/{}). Error = `max_i |q_i(T) − q_i^ref(T)|` at the horizon T. \
+             Each method is calibrated per target with the rule: the coarsest step count (largest tolerance) for which \
+             it and the next two finer settings meet the target. Times are wall-clock seconds of one thread \
+             (minimum of the repeats for the calibrated settings), on a machine shared with other work. \
+             Every number is in `report.json` (schema in `bench/src/report.rs`).",
+            r.suite, r.crate_version, r.machine.cores, r.machine.os, r.machine.arch
+        )),
+        Heading(2, "Headline".into()),
+    ];
+    let (header, rows) = table_of(&headline(r, &r.targets));
+    d.push(Table(header, rows));
+    for p in &r.problems {
+        d.push(Heading(2, p.title.clone()));
+        d.push(Para(format!(
+            "T = {}, {} degrees of freedom. Reference: {} ({}; difference {:.1e}, accepted ≤ {:.1e}).",
+            p.horizon, p.dim, p.reference.kind, p.reference.check, p.reference.agreement, p.reference.accepted
+        )));
+        d.push(Image(format!("{}-work-precision.svg", p.id), format!("{} work–precision", p.id)));
+        let mut header = vec!["method".to_string(), "who".into(), "order".into()];
+        header.extend(r.targets.iter().map(|t| format!("≤ {}", e(*t))));
+        let rows = p
+            .sweeps
+            .iter()
+            .map(|s| {
+                let mut row = vec![s.method.clone(), family(s.family).into(), s.order.to_string()];
+                row.extend(r.targets.iter().map(|&t| {
+                    p.calibrated.iter().find(|c| c.method == s.method && c.target == t).map_or("—".into(), |c| match (
+                        c.seconds, &c.setting, c.error,
+                    ) {
+                        (Some(sec), Some(set), Some(err)) => format!("{} ({}, err {})", ms(sec), setting(set), e(err)),
+                        _ => "not reached".into(),
+                    })
+                }));
+                row
+            })
+            .collect();
+        d.push(Para("Time to reach each target (setting, error of that run); \"not reached\": the sweep stopped (failure or time budget) first.".into()));
+        d.push(Table(header, rows));
+        let rows = p
+            .recommendations
+            .iter()
+            .map(|rec| vec![e(rec.target), best(&rec.best), best(&rec.best_project), best(&rec.best_peer)])
+            .collect();
+        d.push(Para("Recommended method per accuracy:".into()));
+        d.push(Table(
+            vec!["target".into(), "fastest".into(), "fastest project method".into(), "fastest peer crate".into()],
+            rows,
+        ));
+        let mut header = vec!["Newton iterations per step".to_string()];
+        header.extend(r.targets.iter().map(|t| format!("≤ {}", e(*t))));
+        let rows = p
+            .sweeps
+            .iter()
+            .filter(|s| s.family == Family::Project)
+            .map(|s| {
+                let mut row = vec![s.method.clone()];
+                row.extend(r.targets.iter().map(|&t| {
+                    p.calibrated
+                        .iter()
+                        .find(|c| c.method == s.method && c.target == t)
+                        .and_then(|c| c.newton_per_step)
+                        .map_or("—".into(), |n| format!("{n:.2}"))
+                }));
+                row
+            })
+            .collect();
+        d.push(Table(header, rows));
+        d.push(Image(format!("{}-energy.svg", p.id), format!("{} energy error", p.id)));
+        let rows = p
+            .energy
+            .iter()
+            .map(|s| {
+                vec![
+                    s.method.clone(),
+                    setting(&s.setting),
+                    format!("{}", s.t_end),
+                    s.max_abs.map_or("—".into(), e),
+                    s.failure.clone().unwrap_or_else(|| "ok".into()),
+                ]
+            })
+            .collect();
+        d.push(Para(
+            "Long runs with the settings calibrated at the loosest target (same h or tolerance, longer T):".into(),
+        ));
+        d.push(Table(
+            vec!["method".into(), "setting".into(), "T".into(), "max |E − E0|/|E0|".into(), "outcome".into()],
+            rows,
+        ));
+    }
+    d.push(Heading(2, "Stress".into()));
+    d.push(Heading(3, "Largest step each fixed-step method survives".into()));
+    if let Some(c) = r.stress.largest_step.first() {
+        d.push(Para(format!("Criterion: {}.", c.criterion)));
+    }
+    let rows = r
+        .stress
+        .largest_step
+        .iter()
+        .map(|l| {
+            vec![
+                l.problem.clone(),
+                l.method.clone(),
+                l.h.map_or("none".into(), |h| format!("{h:.4}")),
+                l.h_over_period.map_or("—".into(), |x| format!("{x:.3}")),
+            ]
+        })
+        .collect();
+    d.push(Table(vec!["problem".into(), "method".into(), "largest h".into(), "h / period".into()], rows));
+    d.push(Heading(3, "Hard orbits: Kepler e = 0.9 and 0.99".into()));
+    let rows = r
+        .stress
+        .hard_orbits
+        .iter()
+        .map(|h| {
+            vec![
+                h.problem.clone(),
+                h.method.clone(),
+                setting(&h.setting),
+                h.error.map_or("—".into(), e),
+                h.energy_error.map_or("—".into(), e),
+                short(&h.outcome),
+            ]
+        })
+        .collect();
+    d.push(Table(
+        vec![
+            "problem".into(),
+            "method".into(),
+            "setting".into(),
+            "error".into(),
+            "max energy error".into(),
+            "outcome".into(),
+        ],
+        rows,
+    ));
+    d.push(Heading(3, "Bad input".into()));
+    let rows = r.stress.bad_input.iter().map(|b| vec![b.class.clone(), b.method.clone(), short(&b.outcome)]).collect();
+    d.push(Table(vec!["input".into(), "method".into(), "what it returned".into()], rows));
+    d
+}
+
+fn short(s: &str) -> String {
+    let s = s.replace('|', "\\|").replace('\n', " ");
+    if s.chars().count() > 160 { format!("{}…", s.chars().take(160).collect::<String>()) } else { s }
+}
+
+/// Splits a Markdown table (as [`headline`] writes it) into header and rows.
+fn table_of(md: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let cells = |l: &str| l.trim().trim_matches('|').split(" | ").map(|c| c.trim().to_string()).collect::<Vec<_>>();
+    let mut lines = md.lines();
+    let header = lines.next().map(cells).unwrap_or_default();
+    (header, lines.skip(1).map(cells).collect())
+}
+
+fn markdown(blocks: &[Block]) -> String {
+    let mut s = String::new();
+    for b in blocks {
+        match b {
+            Block::Heading(l, t) => {
+                let _ = writeln!(s, "{} {t}\n", "#".repeat(*l as usize));
+            }
+            Block::Para(t) => {
+                let _ = writeln!(s, "{t}\n");
+            }
+            Block::Image(src, alt) => {
+                let _ = writeln!(s, "![{alt}]({src})\n");
+            }
+            Block::Table(h, rows) => {
+                let _ = writeln!(s, "| {} |", h.join(" | "));
+                let _ = writeln!(s, "|{}", " --- |".repeat(h.len()));
+                for r in rows {
+                    let _ = writeln!(s, "| {} |", r.join(" | "));
+                }
+                s.push('\n');
+            }
+        }
+    }
+    s
+}
+
+fn escape(t: &str) -> String {
+    t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace("\\|", "|")
+}
+
+/// Inline code spans of the Markdown text as `<code>`.
+fn inline(t: &str) -> String {
+    escape(t)
+        .split('`')
+        .enumerate()
+        .map(|(i, part)| if i % 2 == 1 { format!("<code>{part}</code>") } else { part.to_string() })
+        .collect()
+}
+
+fn html(blocks: &[Block]) -> String {
+    let mut s = String::from(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>lagrangian report</title>\n<style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;font-size:90%}td,th{border:1px solid #ccc;padding:2px 6px}img{max-width:100%}</style></head><body>\n",
+    );
+    for b in blocks {
+        match b {
+            Block::Heading(l, t) => {
+                let _ = writeln!(s, "<h{l}>{}</h{l}>", inline(t));
+            }
+            Block::Para(t) => {
+                let _ = writeln!(s, "<p>{}</p>", inline(t));
+            }
+            Block::Image(src, alt) => {
+                let _ = writeln!(s, "<p><img src=\"{}\" alt=\"{}\"></p>", escape(src), escape(alt));
+            }
+            Block::Table(h, rows) => {
+                s.push_str("<table><tr>");
+                for c in h {
+                    let _ = write!(s, "<th>{}</th>", inline(c));
+                }
+                s.push_str("</tr>\n");
+                for r in rows {
+                    s.push_str("<tr>");
+                    for c in r {
+                        let _ = write!(s, "<td>{}</td>", inline(c));
+                    }
+                    s.push_str("</tr>\n");
+                }
+                s.push_str("</table>\n");
+            }
+        }
+    }
+    s.push_str("</body></html>\n");
+    s
+}

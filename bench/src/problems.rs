@@ -1,0 +1,486 @@
+//! The test problems: each a `#[lagrangian]` system with its initial data,
+//! horizon, first-order form (for the DOP853 peers), energy, and — where the
+//! Hamiltonian is separable, `H = ½ pᵀM⁻¹p + V(q)` with constant diagonal `M` —
+//! the force `−∇V` the hand-written compositions need.
+
+use lagrangian::prelude::*;
+
+use crate::exact;
+
+/// Double-double, the reference precision.
+pub type Dd = DoubleDouble;
+
+/// One problem with `N` degrees of freedom, as the report needs it.
+pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
+    /// The `#[lagrangian]` system the project's integrators run.
+    type Sys: Lagrangian<N>;
+    /// Short name used on the command line and in file names.
+    const ID: &'static str;
+    /// Title for plots and tables.
+    const TITLE: &'static str;
+    /// The system.
+    fn system(&self) -> Self::Sys;
+    /// `(q0, v0)` at `t = 0`.
+    fn initial(&self) -> ([f64; N], [f64; N]);
+    /// The final time of the work–precision runs.
+    fn horizon(&self) -> f64;
+    /// A step count at that horizon coarse enough that no method meets a
+    /// useful target with it: the calibration sweeps start here.
+    fn coarsest_steps(&self) -> usize;
+    /// A typical period (or time scale), for the stress section's step sizes.
+    fn time_scale(&self) -> f64;
+    /// `q̈` as a function of `(q, q̇)`: the first-order form of the peers.
+    fn accel(&self, q: &[f64; N], v: &[f64; N]) -> [f64; N];
+    /// The energy `E(q, q̇)`.
+    fn energy(&self, q: &[f64; N], v: &[f64; N]) -> f64;
+    /// Diagonal inverse mass when the Hamiltonian is separable with constant mass.
+    fn inverse_mass(&self) -> Option<[f64; N]> {
+        None
+    }
+    /// `−∇V(q)` (used only when [`Model::inverse_mass`] is `Some`).
+    fn force(&self, q: &[f64; N]) -> [f64; N] {
+        let _ = q;
+        [f64::NAN; N]
+    }
+    /// The exact `q(t)` in any precision, when known in closed form.
+    fn exact<T: Real>(&self, t: T) -> Option<[T; N]> {
+        let _ = t;
+        None
+    }
+    /// Step count of the double-double Galerkin (`s = 8`) reference at `t_end`;
+    /// it is checked against a run with twice as many steps.
+    fn reference_steps(&self, t_end: f64) -> usize;
+}
+
+// ---------------------------------------------------------------- pendulum
+
+/// `L = ½ θ̇² + ω² cos θ` (unit mass and length, `ω² = g/l`).
+#[derive(Debug, Clone, Copy)]
+pub struct PendulumSys {
+    /// `g/l`.
+    pub w2: f64,
+}
+
+#[lagrangian]
+impl PendulumSys {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] + self.w2 * q[0].cos()
+    }
+}
+
+/// The pendulum from rest at 1 rad, `g/l = 9.81`, over 50¼ periods.
+#[derive(Debug, Clone, Copy)]
+pub struct Pendulum {
+    /// Multiplies the horizon (1 in the report, smaller in tiny runs).
+    pub scale: f64,
+}
+
+impl Pendulum {
+    const W2: f64 = 9.81;
+    const THETA0: f64 = 1.0;
+    fn period(&self) -> f64 {
+        exact::pendulum_period(Self::W2.sqrt(), Self::THETA0)
+    }
+}
+
+impl Model<1> for Pendulum {
+    type Sys = PendulumSys;
+    const ID: &'static str = "pendulum";
+    const TITLE: &'static str = "Pendulum (1 rad, 50¼ periods)";
+    fn system(&self) -> PendulumSys {
+        PendulumSys { w2: Self::W2 }
+    }
+    fn initial(&self) -> ([f64; 1], [f64; 1]) {
+        ([Self::THETA0], [0.0])
+    }
+    fn horizon(&self) -> f64 {
+        // A quarter period more, so T is at the bottom of a swing: at a turning
+        // point the angle error would be quadratic in the phase error.
+        (50.0 * self.scale + 0.25) * self.period()
+    }
+    fn coarsest_steps(&self) -> usize {
+        (self.horizon() / self.period() * 3.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        self.period()
+    }
+    fn accel(&self, q: &[f64; 1], _v: &[f64; 1]) -> [f64; 1] {
+        [-Self::W2 * q[0].sin()]
+    }
+    fn energy(&self, q: &[f64; 1], v: &[f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - Self::W2 * q[0].cos()
+    }
+    fn inverse_mass(&self) -> Option<[f64; 1]> {
+        Some([1.0])
+    }
+    fn force(&self, q: &[f64; 1]) -> [f64; 1] {
+        [-Self::W2 * q[0].sin()]
+    }
+    fn exact<T: Real>(&self, t: T) -> Option<[T; 1]> {
+        // ω as the Lagrangian sees it: the f64 value of g/l, square-rooted in T.
+        let omega = (T::one() * Self::W2).sqrt();
+        Some([exact::pendulum_angle(omega, T::one() * Self::THETA0, t)])
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.05).ceil() as usize
+    }
+}
+
+// ------------------------------------------------------------------ Kepler
+
+/// `L = ½|q̇|² + 1/|q|` (planar, `μ = 1`).
+#[derive(Debug, Clone, Copy)]
+pub struct KeplerSys;
+
+#[lagrangian]
+impl KeplerSys {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+}
+
+/// The Kepler orbit with semi-major axis 1 and eccentricity `e`, from
+/// pericentre, over 10 orbits (period `2π`).
+#[derive(Debug, Clone, Copy)]
+pub struct Kepler<const E: u16> {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl<const E: u16> Kepler<E> {
+    /// The eccentricity, `E / 1000`.
+    pub const ECC: f64 = E as f64 / 1000.0;
+}
+
+macro_rules! kepler_ids {
+    ($($e:literal => $id:literal, $title:literal;)*) => {$(
+        impl Model<2> for Kepler<$e> {
+            type Sys = KeplerSys;
+            const ID: &'static str = $id;
+            const TITLE: &'static str = $title;
+            fn system(&self) -> KeplerSys {
+                KeplerSys
+            }
+            fn initial(&self) -> ([f64; 2], [f64; 2]) {
+                exact::kepler_start(Self::ECC)
+            }
+            fn horizon(&self) -> f64 {
+                10.0 * self.scale * 2.0 * core::f64::consts::PI
+            }
+            fn coarsest_steps(&self) -> usize {
+                (self.horizon() / (2.0 * core::f64::consts::PI) * 6.0).ceil() as usize
+            }
+            fn time_scale(&self) -> f64 {
+                2.0 * core::f64::consts::PI
+            }
+            fn accel(&self, q: &[f64; 2], _v: &[f64; 2]) -> [f64; 2] {
+                self.force(q)
+            }
+            fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
+                0.5 * (v[0] * v[0] + v[1] * v[1]) - 1.0 / q[0].hypot(q[1])
+            }
+            fn inverse_mass(&self) -> Option<[f64; 2]> {
+                Some([1.0, 1.0])
+            }
+            fn force(&self, q: &[f64; 2]) -> [f64; 2] {
+                let r2 = q[0] * q[0] + q[1] * q[1];
+                let r3 = r2 * r2.sqrt();
+                [-q[0] / r3, -q[1] / r3]
+            }
+            fn exact<T: Real>(&self, t: T) -> Option<[T; 2]> {
+                Some(exact::kepler_position(T::one() * Self::ECC, t))
+            }
+            fn reference_steps(&self, t_end: f64) -> usize {
+                (t_end / 0.01).ceil() as usize
+            }
+        }
+    )*};
+}
+
+kepler_ids! {
+    500 => "kepler-0.5", "Kepler e = 0.5 (10 orbits)";
+    900 => "kepler-0.9", "Kepler e = 0.9 (10 orbits)";
+    990 => "kepler-0.99", "Kepler e = 0.99 (10 orbits)";
+}
+
+// ----------------------------------------------------------- Hénon–Heiles
+
+/// `L = ½|q̇|² − ½(x² + y²) − x²y + y³/3`.
+#[derive(Debug, Clone, Copy)]
+pub struct HenonHeilesSys;
+
+#[lagrangian]
+impl HenonHeilesSys {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let (x, y) = (q[0], q[1]);
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - 0.5 * (x * x + y * y) - x * x * y + y * y * y / 3.0
+    }
+}
+
+/// Hénon–Heiles from `q = (0, 0.1)`, `q̇ = (0.4, 0)` (energy ≈ 0.0847, a
+/// regular orbit), to `t = 100`.
+#[derive(Debug, Clone, Copy)]
+pub struct HenonHeiles {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl Model<2> for HenonHeiles {
+    type Sys = HenonHeilesSys;
+    const ID: &'static str = "henon-heiles";
+    const TITLE: &'static str = "Hénon–Heiles (E ≈ 0.085, t ≤ 100)";
+    fn system(&self) -> HenonHeilesSys {
+        HenonHeilesSys
+    }
+    fn initial(&self) -> ([f64; 2], [f64; 2]) {
+        ([0.0, 0.1], [0.4, 0.0])
+    }
+    fn horizon(&self) -> f64 {
+        100.0 * self.scale
+    }
+    fn coarsest_steps(&self) -> usize {
+        (self.horizon() / 2.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        2.0 * core::f64::consts::PI
+    }
+    fn accel(&self, q: &[f64; 2], _v: &[f64; 2]) -> [f64; 2] {
+        self.force(q)
+    }
+    fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
+        let (x, y) = (q[0], q[1]);
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 0.5 * (x * x + y * y) + x * x * y - y * y * y / 3.0
+    }
+    fn inverse_mass(&self) -> Option<[f64; 2]> {
+        Some([1.0, 1.0])
+    }
+    fn force(&self, q: &[f64; 2]) -> [f64; 2] {
+        let (x, y) = (q[0], q[1]);
+        [-x - 2.0 * x * y, -y - x * x + y * y]
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.1).ceil() as usize
+    }
+}
+
+// ------------------------------------------------------ outer solar system
+
+/// Number of bodies of the outer solar system.
+pub const BODIES: usize = 6;
+
+/// Gravitational constant in AU³ / (solar mass · day²).
+pub const GRAVITY: f64 = 2.95912208286e-4;
+
+/// Masses in solar masses: the Sun with the inner planets, Jupiter, Saturn,
+/// Uranus, Neptune, Pluto (Hairer, Lubich & Wanner, *Geometric Numerical
+/// Integration*, §I.2.4, Table 2.1).
+pub const MASSES: [f64; BODIES] =
+    [1.00000597682, 0.000954786104043, 0.000285583733151, 0.0000437273164546, 0.0000517759138449, 1.0 / 1.3e8];
+
+/// Positions (AU) on September 5, 1994, 0h00 GST, same source.
+pub const POSITIONS: [[f64; 3]; BODIES] = [
+    [0.0, 0.0, 0.0],
+    [-3.5023653, -3.8169847, -1.5507963],
+    [9.0755314, -3.0458353, -1.6483708],
+    [8.3101420, -16.2901086, -7.2521278],
+    [11.4707666, -25.7294829, -10.8169456],
+    [-15.5387357, -25.2225594, -3.1902382],
+];
+
+/// Velocities (AU/day), same source.
+pub const VELOCITIES: [[f64; 3]; BODIES] = [
+    [0.0, 0.0, 0.0],
+    [0.00565429, -0.00412490, -0.00190589],
+    [0.00168318, 0.00483525, 0.00192462],
+    [0.00354178, 0.00137102, 0.00055029],
+    [0.00288930, 0.00114527, 0.00039677],
+    [0.00276725, -0.00170702, -0.00136504],
+];
+
+/// `L = Σ ½ mᵢ|q̇ᵢ|² + Σ_{i<j} G mᵢ mⱼ / |qᵢ − qⱼ|`, coordinates `q[3i + k]`.
+#[derive(Debug, Clone, Copy)]
+pub struct SolarSys;
+
+#[lagrangian]
+impl SolarSys {
+    fn lagrangian(&self, q: [f64; 18], v: [f64; 18]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..6 {
+            let m = MASSES[i];
+            kinetic += 0.5 * m * (v[3 * i] * v[3 * i] + v[3 * i + 1] * v[3 * i + 1] + v[3 * i + 2] * v[3 * i + 2]);
+        }
+        let mut potential = 0.0;
+        for i in 0..6 {
+            for j in (i + 1)..6 {
+                let dx = q[3 * i] - q[3 * j];
+                let dy = q[3 * i + 1] - q[3 * j + 1];
+                let dz = q[3 * i + 2] - q[3 * j + 2];
+                potential -= GRAVITY * MASSES[i] * MASSES[j] / (dx * dx + dy * dy + dz * dz).sqrt();
+            }
+        }
+        kinetic - potential
+    }
+}
+
+/// The outer solar system over 20 000 days (4.6 Jupiter orbits).
+#[derive(Debug, Clone, Copy)]
+pub struct OuterSolarSystem {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl Model<18> for OuterSolarSystem {
+    type Sys = SolarSys;
+    const ID: &'static str = "outer-solar-system";
+    const TITLE: &'static str = "Outer solar system (20 000 days)";
+    fn system(&self) -> SolarSys {
+        SolarSys
+    }
+    fn initial(&self) -> ([f64; 18], [f64; 18]) {
+        let mut q = [0.0; 18];
+        let mut v = [0.0; 18];
+        for i in 0..BODIES {
+            for k in 0..3 {
+                q[3 * i + k] = POSITIONS[i][k];
+                v[3 * i + k] = VELOCITIES[i][k];
+            }
+        }
+        (q, v)
+    }
+    fn horizon(&self) -> f64 {
+        20_000.0 * self.scale
+    }
+    fn coarsest_steps(&self) -> usize {
+        (self.horizon() / 500.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        4332.6
+    }
+    fn accel(&self, q: &[f64; 18], _v: &[f64; 18]) -> [f64; 18] {
+        let mut a = self.force(q);
+        for i in 0..BODIES {
+            for k in 0..3 {
+                a[3 * i + k] /= MASSES[i];
+            }
+        }
+        a
+    }
+    fn energy(&self, q: &[f64; 18], v: &[f64; 18]) -> f64 {
+        let mut e = 0.0;
+        for i in 0..BODIES {
+            let v2: f64 = (0..3).map(|k| v[3 * i + k] * v[3 * i + k]).sum();
+            e += 0.5 * MASSES[i] * v2;
+            for j in i + 1..BODIES {
+                let r2: f64 = (0..3).map(|k| (q[3 * i + k] - q[3 * j + k]).powi(2)).sum();
+                e -= GRAVITY * MASSES[i] * MASSES[j] / r2.sqrt();
+            }
+        }
+        e
+    }
+    fn inverse_mass(&self) -> Option<[f64; 18]> {
+        Some(core::array::from_fn(|c| 1.0 / MASSES[c / 3]))
+    }
+    fn force(&self, q: &[f64; 18]) -> [f64; 18] {
+        let mut f = [0.0; 18];
+        for i in 0..BODIES {
+            for j in i + 1..BODIES {
+                let d: [f64; 3] = core::array::from_fn(|k| q[3 * i + k] - q[3 * j + k]);
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let s = GRAVITY * MASSES[i] * MASSES[j] / (r2 * r2.sqrt());
+                for k in 0..3 {
+                    f[3 * i + k] -= s * d[k];
+                    f[3 * j + k] += s * d[k];
+                }
+            }
+        }
+        f
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 50.0).ceil() as usize
+    }
+}
+
+// --------------------------------------------------------- double pendulum
+
+/// Planar double pendulum, angles from the downward vertical.
+#[derive(Debug, Clone, Copy)]
+pub struct DoublePendulumSys {
+    /// Upper mass.
+    pub m1: f64,
+    /// Lower mass.
+    pub m2: f64,
+    /// Upper rod.
+    pub l1: f64,
+    /// Lower rod.
+    pub l2: f64,
+    /// Gravity.
+    pub g: f64,
+}
+
+#[lagrangian]
+impl DoublePendulumSys {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let kinetic = 0.5 * (self.m1 + self.m2) * self.l1 * self.l1 * v[0] * v[0]
+            + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
+            + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        let potential = -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos() - self.m2 * self.g * self.l2 * q[1].cos();
+        kinetic - potential
+    }
+}
+
+/// The double pendulum of the facade's tests from `(1, −0.5)`, `q̇ = (0, 0.5)`,
+/// over a short horizon (`t ≤ 10`: it is chaotic).
+#[derive(Debug, Clone, Copy)]
+pub struct DoublePendulum {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl DoublePendulum {
+    const P: DoublePendulumSys = DoublePendulumSys { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
+}
+
+impl Model<2> for DoublePendulum {
+    type Sys = DoublePendulumSys;
+    const ID: &'static str = "double-pendulum";
+    const TITLE: &'static str = "Double pendulum (t ≤ 10)";
+    fn system(&self) -> DoublePendulumSys {
+        Self::P
+    }
+    fn initial(&self) -> ([f64; 2], [f64; 2]) {
+        ([1.0, -0.5], [0.0, 0.5])
+    }
+    fn horizon(&self) -> f64 {
+        10.0 * self.scale
+    }
+    fn coarsest_steps(&self) -> usize {
+        (self.horizon() / 0.2).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        2.0
+    }
+    fn accel(&self, q: &[f64; 2], v: &[f64; 2]) -> [f64; 2] {
+        // M(q) q̈ = f(q, q̇) from the Euler–Lagrange equations, solved by Cramer's rule.
+        let p = Self::P;
+        let (a, b, c) = ((p.m1 + p.m2) * p.l1 * p.l1, p.m2 * p.l2 * p.l2, p.m2 * p.l1 * p.l2);
+        let (s, co) = (q[0] - q[1]).sin_cos();
+        let m = [[a, c * co], [c * co, b]];
+        let f = [
+            -c * v[1] * v[1] * s - (p.m1 + p.m2) * p.g * p.l1 * q[0].sin(),
+            c * v[0] * v[0] * s - p.m2 * p.g * p.l2 * q[1].sin(),
+        ];
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        [(f[0] * m[1][1] - f[1] * m[0][1]) / det, (m[0][0] * f[1] - m[1][0] * f[0]) / det]
+    }
+    fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
+        let p = Self::P;
+        0.5 * (p.m1 + p.m2) * p.l1 * p.l1 * v[0] * v[0]
+            + 0.5 * p.m2 * p.l2 * p.l2 * v[1] * v[1]
+            + p.m2 * p.l1 * p.l2 * v[0] * v[1] * (q[0] - q[1]).cos()
+            - (p.m1 + p.m2) * p.g * p.l1 * q[0].cos()
+            - p.m2 * p.g * p.l2 * q[1].cos()
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.01).ceil() as usize
+    }
+}

@@ -1,0 +1,240 @@
+//! The report's data: one JSON file, `report.json`, with this schema
+//! (`schema_version` 1; fields are never renamed or removed within a version,
+//! and the deserialising structs below refuse unknown fields, so a file that
+//! parses into [`Report`] matches the schema).
+//!
+//! ```text
+//! Report
+//!   schema_version: 1
+//!   suite: "tiny" | "quick" | "default" | "full"
+//!   crate_version, machine { cores, os, arch }
+//!   targets: [f64]                       target errors, max_i |q_i(T) − q_i^ref(T)|
+//!   problems: [ProblemReport]
+//!     id, title, dim, horizon
+//!     reference: { q, kind, check, agreement, accepted, seconds }
+//!     sweeps: [{ method, family, order, points: [Point] }]
+//!       Point { setting: {"steps": n} | {"tolerance": t}, error | null, seconds, steps,
+//!               newton_per_step | null, evaluations | null, failure | null }
+//!     calibrated: [{ method, family, target, setting | null, error | null,
+//!                    worst_of_three | null, seconds | null, repeats, newton_per_step | null, evaluations | null }]
+//!     recommendations: [{ target, best | null, best_project | null, best_peer | null, best_hand_written | null }]
+//!       each best: { method, seconds, setting }
+//!     energy: [{ method, setting, t_end, failure | null, max_abs: f64 | null, samples: [[t, (E − E0)/|E0|]] }]
+//!   stress
+//!     largest_step: [{ problem, method, h | null, h_over_period | null, criterion }]
+//!     hard_orbits: [{ problem, method, setting, error | null, energy_error | null, outcome }]
+//!     bad_input: [{ class, method, outcome }]
+//! ```
+//!
+//! `seconds` are wall-clock times of one thread; `calibrated.seconds` is the
+//! minimum over `repeats` runs of the selected setting, the sweeps' times are
+//! single runs.
+
+use serde::{Deserialize, Serialize};
+
+use crate::calibrate::Point;
+use crate::methods::{Family, Setting};
+use crate::problem::Reference;
+
+/// The version of the schema described in the module docs.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Report {
+    /// [`SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// Which suite produced it.
+    pub suite: String,
+    /// Version of `lagrangian-bench`.
+    pub crate_version: String,
+    /// Where it ran.
+    pub machine: Machine,
+    /// Target errors.
+    pub targets: Vec<f64>,
+    /// One entry per problem.
+    pub problems: Vec<ProblemReport>,
+    /// The stress section.
+    pub stress: Stress,
+}
+
+/// The machine.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    /// Available parallelism.
+    pub cores: usize,
+    /// `std::env::consts::OS`.
+    pub os: String,
+    /// `std::env::consts::ARCH`.
+    pub arch: String,
+}
+
+/// One problem.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ProblemReport {
+    /// Short name.
+    pub id: String,
+    /// Title.
+    pub title: String,
+    /// Degrees of freedom.
+    pub dim: usize,
+    /// Final time `T` of the work–precision runs.
+    pub horizon: f64,
+    /// The reference `q(T)` and its check.
+    pub reference: Reference,
+    /// Every run of every sweep.
+    pub sweeps: Vec<Sweep>,
+    /// The selected setting per method and target.
+    pub calibrated: Vec<Calibrated>,
+    /// The fastest methods per target.
+    pub recommendations: Vec<Recommendation>,
+    /// Energy error over a long run.
+    pub energy: Vec<EnergySeries>,
+}
+
+/// The sweep of one method.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Sweep {
+    /// Method name.
+    pub method: String,
+    /// Who wrote it.
+    pub family: Family,
+    /// Classical order.
+    pub order: u32,
+    /// Coarse to fine.
+    pub points: Vec<Point>,
+}
+
+/// A method calibrated to a target.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Calibrated {
+    /// Method name.
+    pub method: String,
+    /// Who wrote it.
+    pub family: Family,
+    /// Target error.
+    pub target: f64,
+    /// The selected setting; `None` when the sweep never met the target.
+    pub setting: Option<Setting>,
+    /// The error of the selected setting.
+    pub error: Option<f64>,
+    /// The worst error of it and the next two finer settings.
+    pub worst_of_three: Option<f64>,
+    /// Minimum seconds over `repeats` runs.
+    pub seconds: Option<f64>,
+    /// Runs timed.
+    pub repeats: u32,
+    /// Newton iterations per step.
+    pub newton_per_step: Option<f64>,
+    /// Evaluations.
+    pub evaluations: Option<u64>,
+}
+
+/// The fastest method meeting a target.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Best {
+    /// Method name.
+    pub method: String,
+    /// Its time.
+    pub seconds: f64,
+    /// Its setting.
+    pub setting: Setting,
+}
+
+/// Recommendations at one target.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Recommendation {
+    /// Target error.
+    pub target: f64,
+    /// Fastest of all.
+    pub best: Option<Best>,
+    /// Fastest project method.
+    pub best_project: Option<Best>,
+    /// Fastest peer crate.
+    pub best_peer: Option<Best>,
+    /// Fastest hand-written composition.
+    pub best_hand_written: Option<Best>,
+}
+
+/// Energy error samples of one long run.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EnergySeries {
+    /// Method name.
+    pub method: String,
+    /// Its setting (calibrated at the loosest target).
+    pub setting: Setting,
+    /// Final time of the long run.
+    pub t_end: f64,
+    /// The failure, if the run stopped.
+    pub failure: Option<String>,
+    /// `max |E − E0|/|E0|` over the samples.
+    pub max_abs: Option<f64>,
+    /// `(t, (E − E0)/|E0|)`.
+    pub samples: Vec<(f64, f64)>,
+}
+
+/// The stress section.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Stress {
+    /// Largest step each fixed-step method survives.
+    pub largest_step: Vec<LargestStep>,
+    /// Kepler e = 0.9 and 0.99.
+    pub hard_orbits: Vec<HardOrbit>,
+    /// What each method does with bad input.
+    pub bad_input: Vec<BadInput>,
+}
+
+/// Largest surviving step.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LargestStep {
+    /// Problem id.
+    pub problem: String,
+    /// Method name.
+    pub method: String,
+    /// The largest step on the grid that survived, scanning down.
+    pub h: Option<f64>,
+    /// `h` over the problem's period.
+    pub h_over_period: Option<f64>,
+    /// What "survived" means.
+    pub criterion: String,
+}
+
+/// One run on a hard orbit.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct HardOrbit {
+    /// Problem id.
+    pub problem: String,
+    /// Method name.
+    pub method: String,
+    /// Steps or tolerance.
+    pub setting: Setting,
+    /// Final position error.
+    pub error: Option<f64>,
+    /// `max |E − E0|/|E0|` over the run.
+    pub energy_error: Option<f64>,
+    /// `"ok"`, or the failure.
+    pub outcome: String,
+}
+
+/// One bad-input case.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BadInput {
+    /// The class of bad input.
+    pub class: String,
+    /// Method name.
+    pub method: String,
+    /// The error it returned, `"panicked: …"`, `"no error: …"`, or `"did not return within …"`.
+    pub outcome: String,
+}

@@ -1,0 +1,451 @@
+//! Runs the suites: references, calibration sweeps, timing of the selected
+//! settings, long energy runs and the stress section, into a [`Report`].
+
+use std::sync::mpsc;
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::calibrate::{self, Limits};
+use crate::methods::{Family, Method, Setting};
+use crate::problem::{self, Problem};
+use crate::report::*;
+
+/// Which suite.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Suite {
+    /// For the test suite: horizons ×0.02, two loose targets, tiny budgets.
+    Tiny,
+    /// `--quick`: horizons ×0.2, two targets, ≤ 2 minutes on 2 cores.
+    Quick,
+    /// The default.
+    Default,
+    /// `--full`: ten targets, larger budgets and longer energy runs.
+    Full,
+}
+
+impl Suite {
+    /// Name in the JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Suite::Tiny => "tiny",
+            Suite::Quick => "quick",
+            Suite::Default => "default",
+            Suite::Full => "full",
+        }
+    }
+    /// Multiplies every problem's horizon.
+    pub fn scale(self) -> f64 {
+        match self {
+            Suite::Tiny => 0.02,
+            Suite::Quick => 0.2,
+            Suite::Default | Suite::Full => 1.0,
+        }
+    }
+    /// Target errors.
+    pub fn targets(self) -> Vec<f64> {
+        match self {
+            Suite::Tiny => vec![1e-3, 1e-6],
+            Suite::Quick => vec![1e-4, 1e-8],
+            Suite::Default => vec![1e-4, 1e-7, 1e-10],
+            Suite::Full => (3..=12).map(|k| 10f64.powi(-k)).collect(),
+        }
+    }
+    fn limits(self, smallest_target: f64) -> Limits {
+        let (run_budget, per_octave) = match self {
+            Suite::Tiny => (0.02, 2),
+            Suite::Quick => (0.25, 4),
+            Suite::Default => (2.0, 8),
+            Suite::Full => (20.0, 8),
+        };
+        Limits { smallest_target, run_budget, per_octave }
+    }
+    fn repeats(self) -> u32 {
+        match self {
+            Suite::Tiny | Suite::Quick => 1,
+            Suite::Default => 3,
+            Suite::Full => 5,
+        }
+    }
+    /// Long energy runs: this many horizons.
+    fn long_factor(self) -> f64 {
+        match self {
+            Suite::Tiny => 2.0,
+            Suite::Quick => 10.0,
+            Suite::Default => 100.0,
+            Suite::Full => 1000.0,
+        }
+    }
+    /// Steps per orbit of the hard-orbit runs (tolerances for the adaptive ones).
+    fn hard_settings(self) -> (Vec<usize>, Vec<f64>) {
+        match self {
+            Suite::Tiny => (vec![200], vec![1e-6]),
+            Suite::Quick => (vec![200, 2000], vec![1e-6, 1e-9]),
+            Suite::Default | Suite::Full => (vec![200, 2000, 20000], vec![1e-6, 1e-9, 1e-12]),
+        }
+    }
+    fn bad_input_timeout(self) -> Duration {
+        Duration::from_secs(match self {
+            Suite::Tiny => 2,
+            Suite::Quick => 5,
+            Suite::Default | Suite::Full => 20,
+        })
+    }
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// The suite.
+    pub suite: Suite,
+    /// Problem ids (`None`: all).
+    pub problems: Option<Vec<String>>,
+    /// Methods (`None`: all).
+    pub methods: Option<Vec<Method>>,
+    /// Relative agreement a reference must reach in its check.
+    pub reference_tolerance: f64,
+    /// Show progress bars.
+    pub progress: bool,
+}
+
+/// The ids of every problem of the work–precision suite.
+pub fn problem_ids() -> Vec<&'static str> {
+    problem::all(1.0).iter().map(|p| p.id()).collect()
+}
+
+fn bar(config: &Config, len: u64, prefix: String) -> ProgressBar {
+    if !config.progress {
+        return ProgressBar::hidden();
+    }
+    let b = ProgressBar::new(len);
+    b.set_style(
+        ProgressStyle::with_template("{prefix:>20} [{bar:30}] {pos}/{len} {elapsed:>4} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    b.set_prefix(prefix);
+    b
+}
+
+/// Runs the suite. Fails on a reference that does not pass its check.
+pub fn run(config: &Config) -> Result<Report, String> {
+    let suite = config.suite;
+    let targets = suite.targets();
+    let smallest = targets.iter().copied().fold(f64::INFINITY, f64::min);
+    let methods = config.methods.clone().unwrap_or_else(Method::all);
+    let problems: Vec<Box<dyn Problem>> = problem::all(suite.scale())
+        .into_iter()
+        .filter(|p| config.problems.as_ref().is_none_or(|ids| ids.iter().any(|id| id == p.id())))
+        .collect();
+    let mut reports = Vec::new();
+    for p in &problems {
+        let applicable: Vec<Method> = methods.iter().copied().filter(|&m| p.applies(m)).collect();
+        let t_end = p.horizon();
+        let b = bar(config, applicable.len() as u64 * 2 + 1, p.id().to_string());
+        b.set_message("reference");
+        let reference = p.reference(t_end, config.reference_tolerance)?;
+        b.inc(1);
+        let limits = suite.limits(smallest);
+        let mut sweeps = Vec::new();
+        let mut calibrated = Vec::new();
+        for &m in &applicable {
+            b.set_message(format!("sweep {}", m.name()));
+            let points = calibrate::sweep(&**p, m, &reference.q, t_end, limits, |pt| {
+                b.set_message(format!("sweep {} {:?}", m.name(), pt.setting));
+            });
+            b.inc(1);
+            b.set_message(format!("timing {}", m.name()));
+            for &target in &targets {
+                calibrated.push(time_selected(&**p, m, &points, target, &reference.q, t_end, suite.repeats()));
+            }
+            b.inc(1);
+            sweeps.push(Sweep { method: m.name(), family: m.family(), order: m.order(), points });
+        }
+        let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
+        b.set_message("long energy runs");
+        let energy = long_energy(&**p, &applicable, &calibrated, targets[0], t_end * suite.long_factor());
+        b.finish_with_message("done");
+        reports.push(ProblemReport {
+            id: p.id().to_string(),
+            title: p.title().to_string(),
+            dim: p.dim(),
+            horizon: t_end,
+            reference,
+            sweeps,
+            calibrated,
+            recommendations,
+            energy,
+        });
+    }
+    let stress = stress(config, &methods, &problems);
+    Ok(Report {
+        schema_version: SCHEMA_VERSION,
+        suite: suite.name().to_string(),
+        crate_version: env!("CARGO_PKG_VERSION").to_string(),
+        machine: Machine {
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            os: std::env::consts::OS.to_string(),
+            arch: std::env::consts::ARCH.to_string(),
+        },
+        targets,
+        problems: reports,
+        stress,
+    })
+}
+
+fn time_selected(
+    p: &dyn Problem,
+    m: Method,
+    points: &[calibrate::Point],
+    target: f64,
+    reference: &[f64],
+    t_end: f64,
+    repeats: u32,
+) -> Calibrated {
+    let mut c = Calibrated {
+        method: m.name(),
+        family: m.family(),
+        target,
+        setting: None,
+        error: None,
+        worst_of_three: None,
+        seconds: None,
+        repeats: 0,
+        newton_per_step: None,
+        evaluations: None,
+    };
+    let Some(k) = calibrate::select(points, target) else {
+        return c;
+    };
+    let setting = points[k].setting;
+    c.setting = Some(setting);
+    c.worst_of_three = calibrate::worst_of_three(points, k);
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats {
+        let run = p.run(m, setting, t_end, 0);
+        best = best.min(run.seconds);
+        let pt = calibrate::point(setting, &run, reference);
+        c.error = pt.error;
+        c.newton_per_step = pt.newton_per_step;
+        c.evaluations = pt.evaluations;
+    }
+    c.seconds = Some(best);
+    c.repeats = repeats;
+    c
+}
+
+fn recommend(calibrated: &[Calibrated], target: f64) -> Recommendation {
+    let best = |family: Option<Family>| {
+        calibrated
+            .iter()
+            .filter(|c| c.target == target && family.is_none_or(|f| c.family == f))
+            .filter_map(|c| Some(Best { method: c.method.clone(), seconds: c.seconds?, setting: c.setting? }))
+            .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+    };
+    Recommendation {
+        target,
+        best: best(None),
+        best_project: best(Some(Family::Project)),
+        best_peer: best(Some(Family::Peer)),
+        best_hand_written: best(Some(Family::HandWritten)),
+    }
+}
+
+/// The methods of the long energy runs (those that apply and were calibrated).
+const LONG_RUN: [Method; 7] = [
+    Method::Midpoint,
+    Method::Galerkin(4),
+    Method::EnergyMidpoint,
+    Method::Verlet,
+    Method::KahanLi8,
+    Method::OdeSolversDop853,
+    Method::DiffEqDop853,
+];
+
+fn long_energy(
+    p: &dyn Problem,
+    applicable: &[Method],
+    calibrated: &[Calibrated],
+    target: f64,
+    t_long: f64,
+) -> Vec<EnergySeries> {
+    let t_end = p.horizon();
+    LONG_RUN
+        .iter()
+        .filter(|m| applicable.contains(m))
+        .filter_map(|&m| {
+            let c = calibrated.iter().find(|c| c.method == m.name() && c.target == target)?;
+            // Keep h (or the tolerance) of the calibrated run: scale the step count with the horizon.
+            let setting = match c.setting? {
+                Setting::Steps(n) => Setting::Steps((n as f64 * t_long / t_end).round() as usize),
+                s => s,
+            };
+            let run = p.run(m, setting, t_long, 400);
+            let max_abs =
+                run.energy.iter().map(|s| s.1.abs()).fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
+            Some(EnergySeries {
+                method: m.name(),
+                setting,
+                t_end: t_long,
+                failure: run.failure,
+                max_abs,
+                samples: run.energy,
+            })
+        })
+        .collect()
+}
+
+/// The fixed-step methods of the largest-step scan.
+fn fixed_step(methods: &[Method]) -> Vec<Method> {
+    methods.iter().copied().filter(|m| !m.adaptive()).collect()
+}
+
+fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>]) -> Stress {
+    let suite = config.suite;
+    let mut out = Stress::default();
+    // Largest step: scanning down from one period by 2^{1/2}, the first step
+    // that integrates the (scaled) horizon with the energy within 10%.
+    let criterion =
+        "largest h = period·2^(-k/2) that runs to T without a failure and keeps |E − E0|/|E0| ≤ 0.1 at 50 samples";
+    let fixed = fixed_step(methods);
+    let b = bar(config, (problems.len() * fixed.len()) as u64, "largest step".into());
+    for p in problems {
+        for &m in fixed.iter().filter(|&&m| p.applies(m)) {
+            b.set_message(format!("{} {}", p.id(), m.name()));
+            let t_end = p.horizon();
+            let mut found = None;
+            for k in 0..40 {
+                let h = p.time_scale() * 2f64.powf(-(k as f64) / 2.0);
+                let n = (t_end / h).ceil() as usize;
+                let run = p.run(m, Setting::Steps(n), t_end, 50);
+                let bounded = run.energy.iter().all(|s| s.1.abs() <= 0.1);
+                if run.failure.is_none() && bounded && !run.q.is_empty() {
+                    found = Some(t_end / n as f64);
+                    break;
+                }
+            }
+            out.largest_step.push(LargestStep {
+                problem: p.id().to_string(),
+                method: m.name(),
+                h: found,
+                h_over_period: found.map(|h| h / p.time_scale()),
+                criterion: criterion.to_string(),
+            });
+            b.inc(1);
+        }
+    }
+    b.finish_with_message("done");
+    // Hard orbits.
+    let (per_orbit, tolerances) = suite.hard_settings();
+    let hard: Vec<Box<dyn Problem>> = vec![
+        problem::all(suite.scale()).into_iter().find(|p| p.id() == "kepler-0.9").expect("kepler-0.9 is a problem"),
+        problem::kepler_099(suite.scale()),
+    ];
+    let b = bar(config, (hard.len() * methods.len()) as u64, "hard orbits".into());
+    for p in &hard {
+        let t_end = p.horizon();
+        let reference = p.reference(t_end, config.reference_tolerance);
+        for &m in methods.iter().filter(|&&m| p.applies(m)) {
+            b.set_message(format!("{} {}", p.id(), m.name()));
+            let settings: Vec<Setting> = if m.adaptive() {
+                tolerances.iter().map(|&t| Setting::Tolerance(t)).collect()
+            } else {
+                per_orbit
+                    .iter()
+                    .map(|&k| Setting::Steps((k as f64 * t_end / p.time_scale()).round() as usize))
+                    .collect()
+            };
+            for setting in settings {
+                let run = p.run(m, setting, t_end, 100);
+                let error = reference.as_ref().ok().and_then(|r| calibrate::error_of(&run.q, &r.q));
+                let energy_error =
+                    (run.failure.is_none()).then(|| run.energy.iter().map(|s| s.1.abs()).fold(0.0, f64::max));
+                out.hard_orbits.push(HardOrbit {
+                    problem: p.id().to_string(),
+                    method: m.name(),
+                    setting,
+                    error,
+                    energy_error,
+                    outcome: run.failure.unwrap_or_else(|| "ok".to_string()),
+                });
+            }
+            b.inc(1);
+        }
+    }
+    b.finish_with_message("done");
+    out.bad_input = bad_input(config, methods);
+    out
+}
+
+/// The bad-input classes: `(class, problem, q0, v0, t_end)`; `None` keeps the problem's own.
+type Case = (&'static str, &'static str, Option<Vec<f64>>, Option<Vec<f64>>, Option<f64>);
+
+fn cases() -> Vec<Case> {
+    vec![
+        ("NaN initial position", "pendulum", Some(vec![f64::NAN]), None, None),
+        ("infinite initial velocity", "pendulum", None, Some(vec![f64::INFINITY]), None),
+        ("zero step (T = 0)", "pendulum", None, None, Some(0.0)),
+        ("negative step (T < 0)", "pendulum", None, None, Some(-1.0)),
+        ("NaN step (T = NaN)", "pendulum", None, None, Some(f64::NAN)),
+        ("singular start: Kepler at r = 0", "kepler-0.5", Some(vec![0.0, 0.0]), None, None),
+    ]
+}
+
+fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
+    let cases = cases();
+    let b = bar(config, (cases.len() * methods.len()) as u64, "bad input".into());
+    // Panics are outcomes here, not noise on the terminal.
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let mut out = Vec::new();
+    for (class, id, q0, v0, t_end) in cases {
+        for &m in methods {
+            b.set_message(format!("{class}: {}", m.name()));
+            let (tx, rx) = mpsc::channel();
+            let (q0, v0) = (q0.clone(), v0.clone());
+            let scale = config.suite.scale();
+            let setting = if m.adaptive() { Setting::Tolerance(1e-8) } else { Setting::Steps(100) };
+            // A thread, so that a method that never returns is reported instead of hanging the report.
+            std::thread::spawn(move || {
+                let result = std::panic::catch_unwind(|| {
+                    let p = problem::all(scale).into_iter().find(|p| p.id() == id).expect("a known problem");
+                    if !p.applies(m) {
+                        return None;
+                    }
+                    let t = t_end.unwrap_or(p.horizon());
+                    let (dq, dv) = initial_of(&*p);
+                    Some(p.run_from(q0.unwrap_or(dq), v0.unwrap_or(dv), m, setting, t))
+                });
+                let _ = tx.send(result);
+            });
+            let outcome = match rx.recv_timeout(config.suite.bad_input_timeout()) {
+                Ok(Ok(None)) => continue,
+                Ok(Ok(Some(run))) => match run.failure {
+                    Some(f) => f,
+                    None => {
+                        format!("no error: q(T) = {:?}", run.q.iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>())
+                    }
+                },
+                Ok(Err(panic)) => format!("panicked: {}", panic_message(&*panic)),
+                Err(_) => format!("did not return within {} s", config.suite.bad_input_timeout().as_secs()),
+            };
+            b.inc(1);
+            out.push(BadInput { class: class.to_string(), method: m.name(), outcome });
+        }
+    }
+    std::panic::set_hook(hook);
+    b.finish_with_message("done");
+    out
+}
+
+fn initial_of(p: &dyn Problem) -> (Vec<f64>, Vec<f64>) {
+    p.initial()
+}
+
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "(no message)".to_string())
+}

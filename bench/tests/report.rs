@@ -1,0 +1,140 @@
+//! The report end to end: the binary's tiny suite writes every file, the JSON
+//! parses into the schema, the calibrated numbers equal a direct run; bad
+//! command lines and output directories fail cleanly.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use lagrangian_bench::calibrate::{self, Limits};
+use lagrangian_bench::methods::{Method, Setting};
+use lagrangian_bench::problem;
+use lagrangian_bench::report::{Report, SCHEMA_VERSION};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lagrangian-bench"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("lagrangian-bench-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+#[test]
+fn tiny_report_writes_every_file() {
+    let dir = scratch("tiny");
+    let out = dir.join("report");
+    let status = bin()
+        .args(["--tiny", "--no-progress", "--problem", "pendulum,kepler-0.5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let report: Report = serde_json::from_slice(&read(&out.join("report.json"))).expect("the JSON matches the schema");
+    assert_eq!(report.schema_version, SCHEMA_VERSION);
+    assert_eq!(report.suite, "tiny");
+    assert_eq!(report.problems.iter().map(|p| p.id.as_str()).collect::<Vec<_>>(), ["pendulum", "kepler-0.5"]);
+    for p in &report.problems {
+        assert_eq!(p.sweeps.len(), Method::all().len(), "every method applies to {}", p.id);
+        assert!(p.recommendations.iter().all(|r| r.best.is_some()), "{}: some method meets each tiny target", p.id);
+        assert!(!p.energy.is_empty());
+        for kind in ["work-precision", "energy"] {
+            let png = read(&out.join(format!("{}-{kind}.png", p.id)));
+            assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{} {kind}", p.id);
+            let svg = String::from_utf8(read(&out.join(format!("{}-{kind}.svg", p.id)))).unwrap();
+            assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"), "{} {kind}", p.id);
+        }
+    }
+    assert!(!report.stress.largest_step.is_empty() && !report.stress.hard_orbits.is_empty());
+    assert!(report.stress.bad_input.iter().any(|b| b.method == "midpoint" && b.outcome.contains("must be finite")));
+    let md = String::from_utf8(read(&out.join("report.md"))).unwrap();
+    assert!(md.contains("![pendulum work–precision](pendulum-work-precision.svg)"));
+    let html = String::from_utf8(read(&out.join("report.html"))).unwrap();
+    assert!(html.contains("<img src=\"kepler-0.5-energy.svg\""));
+    // Nothing temporary left beside it.
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, [std::ffi::OsString::from("report")]);
+    // The README section is generated from this JSON.
+    let readme = dir.join("README.md");
+    std::fs::write(&readme, "intro\n<!-- bench:headline:begin -->\nstale\n<!-- bench:headline:end -->\nrest\n")
+        .unwrap();
+    let status =
+        bin().arg("readme").arg("--from").arg(out.join("report.json")).arg("--readme").arg(&readme).output().unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let text = std::fs::read_to_string(&readme).unwrap();
+    assert!(text.starts_with("intro\n") && text.ends_with("rest\n") && !text.contains("stale"));
+    assert!(text.contains("| pendulum | 1.0e-3 |"), "{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_command_lines_fail_with_a_message() {
+    for (args, expected) in [
+        (vec!["--problem", "pendulum,nope"], "unknown problem `nope`"),
+        (vec!["--method", "rk4"], "unknown method `rk4`"),
+        (vec!["--frobnicate"], "unknown argument `--frobnicate`"),
+        (vec!["--out"], "`--out` needs a directory"),
+    ] {
+        let out = bin().args(&args).output().unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expected), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn unwritable_output_and_failing_reference_leave_nothing() {
+    let dir = scratch("bad");
+    // A file where a directory is needed.
+    let blocker = dir.join("file");
+    std::fs::write(&blocker, "x").unwrap();
+    let out = bin()
+        .args(["--tiny", "--no-progress", "--problem", "pendulum", "--method", "verlet", "--out"])
+        .arg(blocker.join("report"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot"), "{}", String::from_utf8_lossy(&out.stderr));
+    // A reference check that cannot pass (double-double runs never agree to 0 exactly on Hénon–Heiles).
+    let target = dir.join("report");
+    let out = bin()
+        .args(["--tiny", "--no-progress", "--problem", "henon-heiles", "--method", "verlet"])
+        .args(["--reference-tolerance", "0", "--out"])
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("failed its check"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, [std::ffi::OsString::from("file")], "nothing written");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn calibration_meets_the_target_and_matches_a_direct_run() {
+    let p = problem::all(0.1).into_iter().find(|p| p.id() == "pendulum").unwrap();
+    let t = p.horizon();
+    let reference = p.reference(t, 1e-14).unwrap();
+    let target = 1e-6;
+    for method in [Method::Galerkin(3), Method::Midpoint, Method::OdeSolversDop853] {
+        let limits = Limits { smallest_target: target, run_budget: 5.0, per_octave: 4 };
+        let points = calibrate::sweep(&*p, method, &reference.q, t, limits, |_| {});
+        let k = calibrate::select(&points, target).unwrap_or_else(|| panic!("{method:?}: {points:?}"));
+        // The rule: the selected setting and the next two meet the target, and it is the coarsest such.
+        assert!(points[k..k + 3].iter().all(|pt| pt.error.unwrap() <= target));
+        assert!((0..k).all(|j| points[j..j + 3].iter().any(|pt| pt.error.is_none_or(|e| e > target))));
+        // The recorded error is that of a direct run with the same setting (runs are deterministic).
+        let direct = p.run(method, points[k].setting, t, 0);
+        let error = calibrate::error_of(&direct.q, &reference.q).unwrap();
+        assert_eq!(error, points[k].error.unwrap(), "{method:?}");
+        if let Setting::Steps(n) = points[k].setting {
+            assert_eq!(direct.steps, n as u64);
+        }
+    }
+}
