@@ -88,8 +88,8 @@ pub enum Error<const N: usize, T: Real = f64> {
     /// root disappears. Retry with a smaller `h`, wider bounds, a fixed step,
     /// or [`EnergyFallback::LeastSquares`](crate::EnergyFallback::LeastSquares).
     #[error(
-        "no step size in [{h_lo:e}, {h_hi:e}] solves the energy equation from t = {} (step {}): the least relative energy mismatch is {mismatch:e}, at h = {h_best:e} ({iterations} newton iterations)",
-        .state.t, .state.step
+        "no step size in [{h_lo:e}, {h_hi:e}] solves the energy equation from t = {} (step {}): the least relative energy mismatch is {mismatch:e}, at h = {h_best:e} ({iterations} newton iterations){}",
+        .state.t, .state.step, root_test_text(.root_test)
     )]
     NoEnergyStep {
         /// The state the step started from (and the integrator still holds).
@@ -104,6 +104,15 @@ pub enum Error<const N: usize, T: Real = f64> {
         mismatch: f64,
         /// Newton iterations spent on the DEL solves of the search.
         iterations: usize,
+        /// The local root test at the state, for the midpoint and trapezoid
+        /// rules (`None` otherwise): `(x, low, high)` with
+        /// `x = a₂(z_k) / (a₃ h_{k−1})`, where `Ê(h) ≈ H + a₂h² + a₃h³` is the
+        /// energy of a step of size `h` from the node (`a₃` by a difference of
+        /// `a₂` across the last step). The local model of the energy equation
+        /// has an admissible root iff `x ≥ high` or `x ≤ low`; `low < x < high`
+        /// means the leading energy-error coefficient is about to change sign
+        /// along the orbit. Derived in the theory notes on energy steps.
+        root_test: Option<(f64, f64, f64)>,
     },
     /// A step size that is zero, negative or not finite.
     #[error("invalid step size h = {h}: it must be finite and positive")]
@@ -201,5 +210,16 @@ impl<const N: usize, T: Real> Error<N, T> {
     /// `Ok` for a finite, positive step size.
     pub(crate) fn check_step(h: f64) -> Result<(), Self> {
         if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
+    }
+}
+
+/// The root test of [`Error::NoEnergyStep`] as text for its message.
+fn root_test_text(test: &Option<(f64, f64, f64)>) -> String {
+    match test {
+        Some((x, low, high)) => format!(
+            "; root test x = {x:.3} ({}: a root needs x ≤ {low:.3} or x ≥ {high:.3})",
+            if *x > *low && *x < *high { "inside the band without a root" } else { "outside the band" }
+        ),
+        None => String::new(),
     }
 }

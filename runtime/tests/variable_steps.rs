@@ -412,3 +412,44 @@ fn a_failed_trial_step_narrows_the_energy_bracket() {
     // Back near perihelion (r = 0.01) after one period.
     assert!(r < 0.1, "r = {r}");
 }
+
+struct Oscillator;
+impl Lagrangian<1> for Oscillator {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        (v[0] * v[0] - q[0] * q[0]) * 0.5
+    }
+}
+
+/// The trapezoid rule's leading energy-error coefficient on the oscillator,
+/// `a₂ ∝ 2v² − q²` (κ = ¼), first changes sign at ωt = atan(1/√2) = 0.6155
+/// from (1, 0): energy-preserving trapezoid steps stop just before, and the
+/// error's root test says the state is in the band without a root. The
+/// midpoint rule (a₂ ∝ −(v² + q²), never zero) runs on.
+#[test]
+fn no_energy_step_reports_the_root_test_of_the_local_model() {
+    let mut sim = Integrator::new(Oscillator, Trapezoid, 0.05)
+        .energy_preserving(StepBounds::around(0.05))
+        .start(0.0, [1.0], [0.0])
+        .unwrap();
+    let err = loop {
+        if let Err(e) = sim.step() {
+            break e;
+        }
+        assert!(sim.state().t < 2.0, "the trapezoid steps should have stopped");
+    };
+    println!("trapezoid, oscillator: stopped at t = {:.4}: {err}", sim.state().t);
+    match err {
+        Error::NoEnergyStep { root_test: Some((x, low, high)), .. } => {
+            assert!(low < x && x < high, "x = {x} outside ({low}, {high})");
+            assert!((0.4..0.62).contains(&sim.state().t), "t = {}", sim.state().t);
+        }
+        other => panic!("expected a missing energy step with its root test, got {other:?}"),
+    }
+    let mut midpoint = Integrator::new(Oscillator, Midpoint, 0.05)
+        .energy_preserving(StepBounds::around(0.05))
+        .start(0.0, [1.0], [0.0])
+        .unwrap();
+    midpoint.run(2000, |_| {}).unwrap();
+}

@@ -46,6 +46,11 @@ impl DiscreteLagrangian for AlphaBeta {
         if self.alpha == 0.5 { 2 } else { 1 }
     }
 
+    fn energy_error_kappa(&self) -> Option<f64> {
+        // α = ½ is the midpoint rule.
+        (self.alpha == 0.5).then_some(0.0)
+    }
+
     #[inline(always)]
     fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where

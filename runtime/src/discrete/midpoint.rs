@@ -23,6 +23,10 @@ impl DiscreteLagrangian for Midpoint {
         2
     }
 
+    fn energy_error_kappa(&self) -> Option<f64> {
+        Some(0.0)
+    }
+
     #[inline(always)]
     fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where

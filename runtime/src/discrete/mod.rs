@@ -38,6 +38,16 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
         S: Lagrangian<N> + ?Sized,
         D: Scalar;
 
+    /// The constant `κ` of the leading energy error of one step,
+    /// `Ê(h) − H ≈ a₂ h²` with `a₂ = [(1 − 12κ) vᵀL_qq v − aᵀL_vv a] / 8`
+    /// (`a` the acceleration), for the second-order one-point rules: 0 for
+    /// the midpoint rule, ¼ for the trapezoid rule (derived in the theory
+    /// notes on energy steps). `None` where no such constant applies (the
+    /// first-order α-β rules); the default.
+    fn energy_error_kappa(&self) -> Option<f64> {
+        None
+    }
+
     /// The discrete forces `(F_k^−, F_k^+)` of the step from `(t0, q0)` to
     /// `(t0 + h, q0 + dq)`: `F_k^−·δq_k + F_k^+·δq_{k+1}` approximates the
     /// virtual work `∫ F·δq dt` of the generalised force

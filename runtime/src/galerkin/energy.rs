@@ -214,6 +214,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                 h_best: h.to_f64(),
                 mismatch,
                 iterations: spent,
+                root_test: None,
             });
         }
         // t_{k+1} = t_k + h with Kahan compensation.

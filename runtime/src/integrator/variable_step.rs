@@ -35,10 +35,11 @@
 
 use nalgebra::SVector;
 
-use super::{Integrator, non_finite};
+use super::{Integrator, StepPolicy, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
+use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
 use crate::real::max_abs;
 use crate::state::State;
@@ -378,8 +379,67 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 h_best: best.seg.h,
                 mismatch: best.g.abs() / best.scale,
                 iterations: *spent,
+                root_test: self.root_test(),
             }),
         }
+    }
+
+    /// The local root test `(x, low, high)` of [`Error::NoEnergyStep`] at the
+    /// current node, for discrete Lagrangians with a known energy-error
+    /// constant `κ` ([`DiscreteLagrangian::energy_error_kappa`]).
+    ///
+    /// `Ê_z(h) − H(z) ≈ a₂ h² + a₃ h³` for a step of size `h` from node `z`,
+    /// `a₂ = [(1 − 12κ) vᵀL_qq v − aᵀL_vv a]/8` with `a = L_vv⁻¹(L_q − L_vq v)`;
+    /// `a₃ = (a₂(z_k) − a₂(z_{k−1}))/(3h')` from the node behind; with
+    /// `x = a₂/(a₃ h')` and the step ratio bound `r`, the local model has an
+    /// admissible root iff `x ≥ (r² − r + 1)/(r(r − 1))` or `x ≤ −3` (`r ≥ 2`;
+    /// `−(r² − r + 1)/(r − 1)` below). A diagnostic, computed on the error path only.
+    fn root_test(&self) -> Option<(f64, f64, f64)> {
+        let kappa = self.method.energy_error_kappa()?;
+        let StepPolicy::EnergyPreserving(bounds) = self.policy else { return None };
+        let last = self.previous?;
+        let h = last.h;
+        let guess = last.dq.map(|x| x / h);
+        let State { t, q, p, .. } = self.state;
+        let a2_here = self.energy_coefficient(kappa, t, q, p, guess)?;
+        let p_behind = derivatives::step_derivatives(&self.system, &self.method, &last).d_q0.map(|x| -x);
+        let a2_behind = self.energy_coefficient(kappa, last.t0, last.q0, p_behind, guess)?;
+        let x = 3.0 * a2_here / (a2_here - a2_behind);
+        let r = bounds.max_ratio;
+        let high = (r * r - r + 1.0) / (r * (r - 1.0));
+        let low = if r >= 2.0 { -3.0 } else { -(r * r - r + 1.0) / (r - 1.0) };
+        x.is_finite().then_some((x, low, high))
+    }
+
+    /// `a₂` at the node `(t, q, p)` (see [`root_test`](Self::root_test)).
+    fn energy_coefficient(&self, kappa: f64, t: f64, q: [f64; N], p: [f64; N], guess: [f64; N]) -> Option<f64> {
+        use nalgebra::SMatrix;
+        use num_dual::HyperDual64;
+        let v = self.system.velocity(t, q, p, guess).ok()?;
+        // Second derivatives of L in (q, v) by scalar hyper-duals: off the
+        // stepping path, so plainness beats speed here.
+        let at = |a: usize, b: usize| {
+            let mut qd = q.map(HyperDual64::from_re);
+            let mut vd = v.map(HyperDual64::from_re);
+            for (k, eps1) in [(a, true), (b, false)] {
+                let x = if k < N { &mut qd[k] } else { &mut vd[k - N] };
+                if eps1 {
+                    x.eps1 = 1.0;
+                } else {
+                    x.eps2 = 1.0;
+                }
+            }
+            self.system.lagrangian(HyperDual64::from_re(t), qd, vd)
+        };
+        let lq = SVector::<f64, N>::from_fn(|i, _| at(i, i).eps1);
+        let lqq = SMatrix::<f64, N, N>::from_fn(|i, j| at(i, j).eps1eps2);
+        // ∂²L/∂v_i∂q_j
+        let lvq = SMatrix::<f64, N, N>::from_fn(|i, j| at(N + i, j).eps1eps2);
+        let lvv = SMatrix::<f64, N, N>::from_fn(|i, j| at(N + i, N + j).eps1eps2);
+        let v = SVector::<f64, N>::from(v);
+        let a = lvv.try_inverse()? * (lq - lvq * v);
+        let a2 = ((1.0 - 12.0 * kappa) * v.dot(&(lqq * v)) - a.dot(&(lvv * a))) / 8.0;
+        a2.is_finite().then_some(a2)
     }
 
     fn report(&self, p: &Probe<N>, iterations: usize) -> NewtonReport {
