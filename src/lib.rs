@@ -154,8 +154,8 @@ pub use lagrangian_runtime::*;
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
     pub use lagrangian_runtime::{
-        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, Error, Integrator, Lagrangian, Midpoint, NewtonOptions,
-        Scalar, State, Trapezoid,
+        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, EnergyFallback, Error, Integrator, Lagrangian, Midpoint,
+        NewtonOptions, Scalar, State, StepBounds, Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
 }
