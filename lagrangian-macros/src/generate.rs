@@ -179,12 +179,13 @@ fn method(function: &Function, n: &TokenStream) -> TokenStream {
     let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
     let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
     let body = printer.block(&function.body, Some(function.return_class()));
+    let self_token = syn::Token![self](function.self_span);
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
     // argument through memory (measured 10% of a double-pendulum step).
     quote! {
         #[inline(always)]
-        fn #name<#d: ::lagrangian::__private::Scalar>(&self, #params) -> #ret #body
+        fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
     }
 }
 

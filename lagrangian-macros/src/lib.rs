@@ -14,6 +14,7 @@
 
 mod analyse;
 mod attr;
+mod chains;
 mod ctxt;
 mod expand;
 mod generate;
@@ -68,7 +69,11 @@ use proc_macro::TokenStream;
 #[proc_macro_attribute]
 pub fn lagrangian(attr: TokenStream, item: TokenStream) -> TokenStream {
     match syn::parse::<syn::Item>(item) {
-        Ok(syn::Item::Impl(item)) => expand::expand(attr.into(), item).into(),
+        Ok(syn::Item::Impl(mut item)) => {
+            // First, so that no later walk recurses along a long chain.
+            chains::split(&mut item);
+            expand::expand(attr.into(), item).into()
+        }
         // Anything else is kept, so that the rest of the crate still sees it.
         Ok(other) => {
             let error = syn::Error::new_spanned(

@@ -87,6 +87,7 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
     Some(Function {
         kind: method.kind,
         name: signature.name.clone(),
+        self_span: method.receiver.map_or_else(proc_macro2::Span::call_site, |receiver| receiver.self_token.span),
         time: signature.time.clone(),
         q: signature.q.clone(),
         v: signature.v.clone(),
