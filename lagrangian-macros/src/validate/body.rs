@@ -82,6 +82,7 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
         params,
         scopes: Vec::new(),
         locals: Vec::new(),
+        failed: Vec::new(),
     };
     let body = lower.block(&method.func.block)?;
     Some(Function {
@@ -108,6 +109,9 @@ struct Lower<'a> {
     scopes: Vec<Vec<(Ident, LocalId)>>,
     /// Every local declared so far.
     locals: Vec<Local>,
+    /// Locals whose initializer was reported (`let f = |x| ...;`): their
+    /// uses are not reported again.
+    failed: Vec<LocalId>,
 }
 
 /// What a name refers to.
@@ -204,13 +208,18 @@ impl Lower<'_> {
         let bindings: Vec<_> = patterns.into_iter().map(|pat| self.binding(pat)).collect();
         // Declared after the initializers, which still see outer variables of
         // the same names (`let x = x + 1.0;`, `let (a, b) = (b, a);`).
-        let bindings = all(bindings)?
+        let bindings: Vec<LetBinding> = all(bindings)?
             .into_iter()
             .map(|binding| LetBinding {
                 local: binding.map(|(ident, _)| self.declare(ident)),
                 mutable: binding.is_some_and(|(_, mutable)| mutable),
             })
             .collect();
+        for (binding, init) in bindings.iter().zip(&inits) {
+            if let (Some(local), None) = (binding.local, init.as_ref()) {
+                self.failed.push(local);
+            }
+        }
         Some(Stmt::Let { span: local.let_token.span, bindings, tuple, ty, inits: all(inits)? })
     }
 
@@ -563,6 +572,8 @@ impl Lower<'_> {
             // A local holding a function value (`let c = f64::cos;`, or one
             // chosen by an `if`): the rewrite cannot see which function it
             // holds, so it cannot make it generic over the dual numbers.
+            // Its initializer was reported already.
+            [local] if matches!(self.resolve(local), Some(Binding::Local(id)) if self.failed.contains(&id)) => None,
             [local] if matches!(self.resolve(local), Some(Binding::Local(_)) | Some(Binding::Param(_))) => {
                 self.error(
                     &call.func,
@@ -730,6 +741,27 @@ mod tests {
                 "cannot assign to the parameter `q`",
                 "patterns other than names, `_` and tuples of them are not supported in `lagrangian`",
                 "tuples are not supported in `lagrangian`",
+            ]
+        );
+    }
+
+    #[test]
+    fn calls_of_variables_and_function_values_are_reported_once() {
+        let body = parse_quote!({
+            let c = f64::cos;
+            let g = G;
+            let h = |x: f64| x;
+            c(q[0]) + g(q[1]) + h(v[0]) + q(1)
+        });
+        assert_eq!(
+            starts(&errors(body)),
+            [
+                "the function `f64", // `::cos` (`starts` cuts at the first `:`)
+                "closures are not supported in `lagrangian`",
+                // `c` and `h` were reported at their `let`; `g` holds an
+                // opaque constant that could be a function.
+                "calling the variable `g` is not supported in `lagrangian`",
+                "calling the variable `q` is not supported in `lagrangian`",
             ]
         );
     }
