@@ -391,9 +391,7 @@ fn quadrants(a: f64) -> Quadrants {
 fn frac_2_pi_window(skip: usize) -> [u64; 4] {
     let (limb, bit) = (skip / 64, skip % 64);
     let at = |i: usize| FRAC_2_PI_BITS.get(i).copied().unwrap_or(0);
-    core::array::from_fn(|i| {
-        if bit == 0 { at(limb + i) } else { at(limb + i) << bit | at(limb + i + 1) >> (64 - bit) }
-    })
+    core::array::from_fn(|i| if bit == 0 { at(limb + i) } else { at(limb + i) << bit | at(limb + i + 1) >> (64 - bit) })
 }
 
 /// A 320-bit number shifted right by `shift` bits.
