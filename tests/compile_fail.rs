@@ -6,5 +6,8 @@
 
 #[test]
 fn ui() {
-    trybuild::TestCases::new().compile_fail("tests/ui/*.rs");
+    let cases = trybuild::TestCases::new();
+    cases.compile_fail("tests/ui/*.rs");
+    // Forms that look unusual but are accepted, and run.
+    cases.pass("tests/ui/pass/*.rs");
 }

@@ -23,7 +23,19 @@ pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
         }
         // The body mixes types in a way rustc rejects on the user's own
         // method; generated code would only repeat that error.
-        (Ok(()), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), None),
+        (Ok(()), Some(_), _) => generate::fallback(&item, validate::arity(&input).as_ref(), None),
+        // Every stage reports what makes it give up, so this is a bug; it
+        // must still not end in a stub that only fails at run time.
+        (Ok(()), None, _) => {
+            let cx = Ctxt::new();
+            cx.error_spanned_by(
+                &item.self_ty,
+                "internal error: `#[lagrangian]` cannot rewrite this block but found nothing to report; \
+                 please report this with the block",
+            );
+            let errors = cx.check().err();
+            generate::fallback(&item, validate::arity(&input).as_ref(), errors.as_ref())
+        }
         (Err(errors), ..) => generate::fallback(&item, validate::arity(&input).as_ref(), Some(&errors)),
     }
 }

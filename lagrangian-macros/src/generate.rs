@@ -23,6 +23,7 @@ pub(crate) fn expand(
     symmetries: &[SymmetryDecl],
 ) -> TokenStream {
     let user_impl = user_impl(item, None);
+    let cfgs = cfgs(item);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
     let self_ty = &item.self_ty;
     let n = system.n.generic_arg();
@@ -41,6 +42,7 @@ pub(crate) fn expand(
         // The bodies are the user's code, already linted as the `f64` methods
         // above: a lint here would repeat one of those, or be about the
         // rewrite rather than anything the user can change.
+        #cfgs
         #[allow(warnings, clippy::all, clippy::pedantic, clippy::nursery, clippy::restriction)]
         impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
             const AUTONOMOUS: bool = #autonomous;
@@ -66,7 +68,9 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, errors: Option<&Errors>
         let self_ty = &item.self_ty;
         let n = n.generic_arg();
         let d = scalar_type();
+        let cfgs = cfgs(item);
         quote! {
+            #cfgs
             impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
                 const AUTONOMOUS: bool = true;
                 const CYCLIC: [bool; #n] = [false; #n];
@@ -79,6 +83,14 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, errors: Option<&Errors>
         }
     });
     quote!(#block_errors #user_impl #stub)
+}
+
+/// The `#[cfg(...)]` attributes of the block, for the trait impl: with
+/// `#[lagrangian] #[cfg(feature = "x")] impl S { ... }` the macro runs before
+/// the `cfg` is evaluated, and the trait impl must exist exactly when the
+/// block does.
+fn cfgs(item: &ItemImpl) -> TokenStream {
+    item.attrs.iter().filter(|attr| attr.path().is_ident("cfg")).map(ToTokens::to_token_stream).collect()
 }
 
 /// The user's block as written, with `#[allow(dead_code)]` on the recognised
@@ -167,12 +179,13 @@ fn method(function: &Function, n: &TokenStream) -> TokenStream {
     let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
     let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
     let body = printer.block(&function.body, Some(function.return_class()));
+    let self_token = syn::Token![self](function.self_span);
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
     // argument through memory (measured 10% of a double-pendulum step).
     quote! {
         #[inline(always)]
-        fn #name<#d: ::lagrangian::__private::Scalar>(&self, #params) -> #ret #body
+        fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
     }
 }
 

@@ -35,6 +35,10 @@ pub(crate) struct Function {
     pub(crate) kind: MethodKind,
     /// The method name as written, for spans.
     pub(crate) name: Ident,
+    /// The span of the user's `self`: the generated method's `self` must come
+    /// from the same place (the same macro hygiene) as the `self.field`s of
+    /// the body, e.g. when the block is written by a `macro_rules!`.
+    pub(crate) self_span: Span,
     /// The time parameter; `None` when the signature has no `t`.
     pub(crate) time: Option<Binder>,
     /// The position parameter.

@@ -14,6 +14,7 @@
 
 mod analyse;
 mod attr;
+mod chains;
 mod ctxt;
 mod expand;
 mod generate;
@@ -61,6 +62,23 @@ use proc_macro::TokenStream;
 /// symmetry = generator(|q: &[f64; N]| [...]))]`. They become
 /// `Lagrangian::SYMMETRIES`; indices are checked against `N`.
 ///
+/// The receiver may be written `&self` or `self: &Self`. `#[cfg]` on the
+/// recognised methods is refused (the trait implementation could not follow
+/// it); put the `#[cfg]` on the block instead, one block per configuration,
+/// and the macro carries it over to the trait implementation.
+///
+/// Long expressions: a chain of one precedence level (`a + b - c + ...`,
+/// `a * b * ...`, `&&`, `||`) of more than 64 operands is split, in the
+/// method as written and in the generated one, into a block of partial
+/// results of 64 operands each: the same operations in the same order, so
+/// the same result bit for bit. rustc itself overflows its default stack on
+/// a flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
+/// products compile (`tests/long_expressions.rs`). Nesting — parentheses,
+/// blocks, `else if` — is not flattened: syn's parser and every later stage
+/// recurse on it. syn's parser alone overflows rustc's default stack between
+/// 500 and 1000 nested parentheses (measured with rustc 1.95), so expressions
+/// must stay within a few hundred levels of nesting.
+///
 /// Values that do not depend on `t`, `q` or `v` stay `f64` in the generated
 /// code; only the others become dual numbers. `CYCLIC[i]` is `true` when the
 /// Lagrangian provably ignores `q[i]`: `q` is only indexed by integer
@@ -68,7 +86,11 @@ use proc_macro::TokenStream;
 #[proc_macro_attribute]
 pub fn lagrangian(attr: TokenStream, item: TokenStream) -> TokenStream {
     match syn::parse::<syn::Item>(item) {
-        Ok(syn::Item::Impl(item)) => expand::expand(attr.into(), item).into(),
+        Ok(syn::Item::Impl(mut item)) => {
+            // First, so that no later walk recurses along a long chain.
+            chains::split(&mut item);
+            expand::expand(attr.into(), item).into()
+        }
         // Anything else is kept, so that the rest of the crate still sees it.
         Ok(other) => {
             let error = syn::Error::new_spanned(

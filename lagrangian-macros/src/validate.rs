@@ -26,6 +26,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
             "`#[lagrangian]` goes on an inherent impl block (`impl MySystem { ... }`), not on a trait impl",
         );
     }
+    check_cfgs(cx, item);
     let Some(lagrangian) = &input.lagrangian else {
         // Without the Lagrangian there is no `N` to check the other methods
         // against, so this is the only error reported for the block.
@@ -37,13 +38,18 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         return None;
     };
 
-    let signature = check_signature(cx, lagrangian, None);
+    let signature = check_signature(cx, lagrangian, &item.self_ty, None);
     let n = signature.n.clone();
-    let lagrangian = body::lower(cx, lagrangian, &signature);
+    // A body written to return another type (`Ok(x)` for `Result<f64, _>`)
+    // is not lowered: its errors would all follow from the signature's.
+    let lower = |method: &Method<'_>, signature: &Signature| {
+        if signature.returns { body::lower(cx, method, signature) } else { None }
+    };
+    let lagrangian = lower(lagrangian, &signature);
     let optional = |method: &Option<Method<'_>>| {
         method.as_ref().map(|method| {
-            let signature = check_signature(cx, method, n.as_ref());
-            body::lower(cx, method, &signature)
+            let signature = check_signature(cx, method, &item.self_ty, n.as_ref());
+            lower(method, &signature)
         })
     };
     let dissipation = optional(&input.dissipation);
@@ -55,6 +61,65 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         // Absent is fine; present but not lowered is not.
         dissipation: dissipation.map_or(Some(None), |f| f.map(Some))?,
         force: force.map_or(Some(None), |f| f.map(Some))?,
+    })
+}
+
+/// Refuses `#[cfg]` on the recognised methods.
+///
+/// The macro sees every method before configuration, so under `#[cfg(a)] fn
+/// lagrangian` and `#[cfg(not(a))] fn lagrangian` it would have to emit one
+/// trait implementation per combination of the predicates of every cfg'd
+/// method, each under `#[cfg(all(...))]`, and check and rewrite every
+/// variant. A `#[cfg]` on the whole impl block says the same with one
+/// expansion per block, and the macro carries that `#[cfg]` over to the trait
+/// implementation (see `generate::cfgs`), so that is what the error asks for.
+/// `#[cfg_attr(pred, cfg(...))]` is a `#[cfg]` too; a `#[cfg_attr]` carrying
+/// other attributes (`inline`) is harmless and passes.
+fn check_cfgs(cx: &Ctxt, item: &syn::ItemImpl) {
+    for attr in item.attrs.iter().filter(|attr| attr.path().is_ident("cfg_attr") && carries_cfg(attr)) {
+        cx.error_spanned_by(
+            attr,
+            "`#[cfg_attr(..., cfg(...))]` on a `#[lagrangian]` block is not supported: \
+             write the `#[cfg(...)]` itself",
+        );
+    }
+    for func in item.items.iter().filter_map(|item| match item {
+        syn::ImplItem::Fn(func) => Some(func),
+        _ => None,
+    }) {
+        let Some(kind) = MethodKind::from_ident(&func.sig.ident) else { continue };
+        let name = kind.name();
+        for attr in &func.attrs {
+            let cfg = attr.path().is_ident("cfg") || (attr.path().is_ident("cfg_attr") && carries_cfg(attr));
+            if cfg {
+                cx.error_spanned_by(
+                    attr,
+                    format!(
+                        "`#[cfg]` on `{name}` is not supported: the generated trait implementation \
+                         cannot follow it; put each configuration in its own impl block, \
+                         `#[lagrangian] #[cfg(...)] impl ... {{ fn {name}(...) }}`"
+                    ),
+                );
+            }
+        }
+    }
+}
+
+/// Whether a `#[cfg_attr(pred, attrs...)]` expands to a `#[cfg]`, directly or
+/// through a nested `cfg_attr`.
+fn carries_cfg(attr: &syn::Attribute) -> bool {
+    use syn::punctuated::Punctuated;
+    let Ok(metas) = attr.parse_args_with(Punctuated::<syn::Meta, syn::Token![,]>::parse_terminated) else {
+        // Malformed: rustc reports it.
+        return false;
+    };
+    metas.iter().skip(1).any(|meta| {
+        meta.path().is_ident("cfg")
+            || (meta.path().is_ident("cfg_attr")
+                && matches!(meta, syn::Meta::List(list) if {
+                    let nested: syn::Attribute = syn::parse_quote!(#[#list]);
+                    carries_cfg(&nested)
+                }))
     })
 }
 
@@ -82,14 +147,16 @@ pub(crate) struct Signature {
     pub(crate) v: Binder,
     /// This method's `N`, from `q` (or `v` if `q` is unreadable).
     pub(crate) n: Option<Len>,
+    /// Whether the return type is the right one.
+    pub(crate) returns: bool,
 }
 
 /// Checks the signature of `method`. `expected` is the Lagrangian's `N`, which
 /// the optional methods must share; `None` when checking the Lagrangian.
-fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Signature {
+fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected: Option<&Len>) -> Signature {
     let name = method.kind.name();
     let sig = &method.func.sig;
-    let mut signature = Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None };
+    let mut signature = Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None, returns: false };
 
     if sig.generics.lt_token.is_some() || sig.generics.where_clause.is_some() {
         cx.error_spanned_by(
@@ -109,9 +176,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Si
 
     match method.receiver {
         None => cx.error_at(sig.paren_token.span.join(), format!("`{name}` must take `&self` as its first parameter")),
-        Some(receiver)
-            if receiver.reference.is_none() || receiver.mutability.is_some() || receiver.colon_token.is_some() =>
-        {
+        Some(receiver) if !is_shared_self(receiver, self_ty) => {
             cx.error_spanned_by(
                 receiver,
                 format!("`{name}` must take `&self`: the system is only read, never modified"),
@@ -145,7 +210,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Si
                     if params.len() == 1 { "" } else { "s" },
                 ),
             );
-            check_return(cx, method, None);
+            signature.returns = check_return(cx, method, None);
             return signature;
         }
     };
@@ -194,7 +259,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, expected: Option<&Len>) -> Si
             }
         }
     }
-    check_return(cx, method, expected.or(signature.n.as_ref()));
+    signature.returns = check_return(cx, method, expected.or(signature.n.as_ref()));
     signature
 }
 
@@ -224,8 +289,8 @@ fn array_len<'p>(cx: &Ctxt, param: &'p Param<'_>, role: &str, name: &str) -> Opt
 }
 
 /// Checks the return type: `f64`, or `[f64; N]` for `force`. `n` is the `N`
-/// to expect, when known.
-fn check_return(cx: &Ctxt, method: &Method<'_>, n: Option<&Len>) {
+/// to expect, when known. `false` if it was reported.
+fn check_return(cx: &Ctxt, method: &Method<'_>, n: Option<&Len>) -> bool {
     let name = method.kind.name();
     let expected = match (method.kind.returns_array(), n) {
         (false, _) => "f64".to_owned(),
@@ -238,12 +303,41 @@ fn check_return(cx: &Ctxt, method: &Method<'_>, n: Option<&Len>) {
         _ => false,
     };
     if ok {
-        return;
+        return true;
     }
     let message = format!("`{name}` must return `{expected}`");
     match &method.output {
         Some((ty, _)) => cx.error_spanned_by(ty, message),
         None => cx.error_at(method.func.sig.paren_token.span.close(), format!("{message}: add `-> {expected}`")),
+    }
+    false
+}
+
+/// Whether the receiver is a shared borrow of the system: `&self`, or
+/// `self: &Self` / `self: &MySystem` written out.
+fn is_shared_self(receiver: &syn::Receiver, self_ty: &syn::Type) -> bool {
+    if receiver.mutability.is_some() {
+        return false;
+    }
+    if receiver.colon_token.is_none() {
+        return receiver.reference.is_some();
+    }
+    let syn::Type::Reference(reference) = strip_parens(&receiver.ty) else { return false };
+    let elem = strip_parens(&reference.elem);
+    let is_self = matches!(elem, syn::Type::Path(path) if path.qself.is_none() && path.path.is_ident("Self"));
+    let same = || {
+        use quote::ToTokens;
+        elem.to_token_stream().to_string() == strip_parens(self_ty).to_token_stream().to_string()
+    };
+    reference.mutability.is_none() && (is_self || same())
+}
+
+/// `ty` without parentheses or invisible groups around it.
+fn strip_parens(ty: &syn::Type) -> &syn::Type {
+    match ty {
+        syn::Type::Paren(inner) => strip_parens(&inner.elem),
+        syn::Type::Group(inner) => strip_parens(&inner.elem),
+        ty => ty,
     }
 }
 

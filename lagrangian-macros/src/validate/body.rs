@@ -82,11 +82,13 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
         params,
         scopes: Vec::new(),
         locals: Vec::new(),
+        failed: Vec::new(),
     };
     let body = lower.block(&method.func.block)?;
     Some(Function {
         kind: method.kind,
         name: signature.name.clone(),
+        self_span: method.receiver.map_or_else(proc_macro2::Span::call_site, |receiver| receiver.self_token.span),
         time: signature.time.clone(),
         q: signature.q.clone(),
         v: signature.v.clone(),
@@ -107,6 +109,9 @@ struct Lower<'a> {
     scopes: Vec<Vec<(Ident, LocalId)>>,
     /// Every local declared so far.
     locals: Vec<Local>,
+    /// Locals whose initializer was reported (`let f = |x| ...;`): their
+    /// uses are not reported again.
+    failed: Vec<LocalId>,
 }
 
 /// What a name refers to.
@@ -203,13 +208,18 @@ impl Lower<'_> {
         let bindings: Vec<_> = patterns.into_iter().map(|pat| self.binding(pat)).collect();
         // Declared after the initializers, which still see outer variables of
         // the same names (`let x = x + 1.0;`, `let (a, b) = (b, a);`).
-        let bindings = all(bindings)?
+        let bindings: Vec<LetBinding> = all(bindings)?
             .into_iter()
             .map(|binding| LetBinding {
                 local: binding.map(|(ident, _)| self.declare(ident)),
                 mutable: binding.is_some_and(|(_, mutable)| mutable),
             })
             .collect();
+        for (binding, init) in bindings.iter().zip(&inits) {
+            if let (Some(local), None) = (binding.local, init.as_ref()) {
+                self.failed.push(local);
+            }
+        }
         Some(Stmt::Let { span: local.let_token.span, bindings, tuple, ty, inits: all(inits)? })
     }
 
@@ -239,7 +249,7 @@ impl Lower<'_> {
                 Lit::Int(_) | Lit::Float(_) | Lit::Bool(_) => ExprKind::Lit(lit.lit.clone()),
                 other => return self.unsupported(other, "string, byte and character literals are"),
             },
-            E::Path(path) => self.path(path),
+            E::Path(path) => self.path(path)?,
             E::Field(field) => self.field(field)?,
             E::Index(index) => self.index(index)?,
             E::Unary(unary) => match unary.op {
@@ -308,19 +318,30 @@ impl Lower<'_> {
         Some(Expr::new(kind, expr.span()))
     }
 
-    fn path(&self, path: &syn::ExprPath) -> ExprKind {
+    fn path(&self, path: &syn::ExprPath) -> Option<ExprKind> {
+        if let Some(function) = function_value(path) {
+            self.error(
+                path,
+                format!(
+                    "the function `{function}` used as a value is not supported in `{}`: the macro \
+                     rewrites calls, not function values; call it where it is needed, as in `x.cos()`",
+                    self.kind.name()
+                ),
+            );
+            return None;
+        }
         let Some(ident) = path.path.get_ident().filter(|_| path.qself.is_none()) else {
-            return ExprKind::Path(path.clone());
+            return Some(ExprKind::Path(path.clone()));
         };
         if ident == "self" {
-            return ExprKind::SelfValue(syn::Token![self](ident.span()));
+            return Some(ExprKind::SelfValue(syn::Token![self](ident.span())));
         }
-        match self.resolve(ident) {
+        Some(match self.resolve(ident) {
             Some(Binding::Param(param)) => ExprKind::Param(param, ident.clone()),
             Some(Binding::Local(local)) => ExprKind::Local(local, ident.clone()),
             // Not a variable: a constant in scope (`PI`, `G`); rustc resolves it.
             None => ExprKind::Path(path.clone()),
-        }
+        })
     }
 
     fn field(&mut self, field: &syn::ExprField) -> Option<ExprKind> {
@@ -548,9 +569,22 @@ impl Lower<'_> {
         let segments: Vec<&Ident> =
             path.iter().flat_map(|path| path.path.segments.iter().map(|segment| &segment.ident)).collect();
         match segments.as_slice() {
-            // A local variable called as a function can only hold a closure,
-            // which its `let` already reported.
-            [local] if matches!(self.resolve(local), Some(Binding::Local(_))) => None,
+            // A local holding a function value (`let c = f64::cos;`, or one
+            // chosen by an `if`): the rewrite cannot see which function it
+            // holds, so it cannot make it generic over the dual numbers.
+            // Its initializer was reported already.
+            [local] if matches!(self.resolve(local), Some(Binding::Local(id)) if self.failed.contains(&id)) => None,
+            [local] if matches!(self.resolve(local), Some(Binding::Local(_)) | Some(Binding::Param(_))) => {
+                self.error(
+                    &call.func,
+                    format!(
+                        "calling the variable `{local}` is not supported in `{name}`: the macro cannot \
+                         rewrite a function held in a variable; call the math method itself, \
+                         as in `x.cos()` or `f64::cos(x)`"
+                    ),
+                );
+                None
+            }
             // `f64::sqrt(x)`: a method in path form.
             [ty, method] if *ty == "f64" => {
                 // The receiver is the first argument; none at all is reported as a
@@ -588,6 +622,17 @@ impl Lower<'_> {
             }
         }
     }
+}
+
+/// The name of an `f64` function written as a value, `f64::cos` or
+/// `std::f64::cos`: a path through `f64` ending in a lower-case name (the
+/// associated constants, `f64::EPSILON`, and `std::f64::consts::PI` are upper
+/// case).
+fn function_value(path: &syn::ExprPath) -> Option<String> {
+    let segments: Vec<&Ident> = path.path.segments.iter().map(|segment| &segment.ident).collect();
+    let [.., ty, last] = segments.as_slice() else { return None };
+    let lower = last.to_string().chars().next().is_some_and(char::is_lowercase);
+    (path.qself.is_none() && *ty == "f64" && lower).then(|| format!("f64::{last}"))
 }
 
 /// `self`, possibly parenthesized.
@@ -696,6 +741,27 @@ mod tests {
                 "cannot assign to the parameter `q`",
                 "patterns other than names, `_` and tuples of them are not supported in `lagrangian`",
                 "tuples are not supported in `lagrangian`",
+            ]
+        );
+    }
+
+    #[test]
+    fn calls_of_variables_and_function_values_are_reported_once() {
+        let body = parse_quote!({
+            let c = f64::cos;
+            let g = G;
+            let h = |x: f64| x;
+            c(q[0]) + g(q[1]) + h(v[0]) + q(1)
+        });
+        assert_eq!(
+            starts(&errors(body)),
+            [
+                "the function `f64", // `::cos` (`starts` cuts at the first `:`)
+                "closures are not supported in `lagrangian`",
+                // `c` and `h` were reported at their `let`; `g` holds an
+                // opaque constant that could be a function.
+                "calling the variable `g` is not supported in `lagrangian`",
+                "calling the variable `q` is not supported in `lagrangian`",
             ]
         );
     }

@@ -252,18 +252,30 @@ pub(super) fn ln_1p(x: DD) -> DD {
     if x.hi > -0.29 && x.hi < 0.41 { atanh_series(x / (x + 2.0)).ldexp(1) } else { ln(x + 1.0) }
 }
 
-/// `(sin x, cos x)`: `x = k·π/2 + r` with `|r| ≲ π/4` (four-part `π/2`), the
-/// Taylor series of `sin r`, `cos r = √(1 − sin² r)`, and the quadrant of `k`.
+/// Above this `|x|` the quadrant is found by [`reduce_large`]: the rounded
+/// `k = x·2/π` of the short reduction is no longer the nearest integer
+/// (from `2^53·π/2` on it is not even an integer multiple of 1), and four
+/// parts of `π/2` no longer cancel `x` to full accuracy.
+const LARGE_ARGUMENT: f64 = 1_048_576.0; // 2^20
+
+/// `(sin x, cos x)`: `x = k·π/2 + r` with `|r| ≲ π/4` (four-part `π/2` up to
+/// 2^20, [`reduce_large`] beyond), the Taylor series of `sin r`,
+/// `cos r = √(1 − sin² r)`, and the quadrant `k mod 4`.
 pub(super) fn sin_cos(x: DD) -> (DD, DD) {
     if !x.is_finite() {
         return (DD::NAN, DD::NAN);
     }
-    let k = (x.hi * consts::FRAC_2_PI).round();
-    let r = if k == 0.0 {
-        x
+    let (quadrant, r) = if x.hi.abs() < LARGE_ARGUMENT {
+        let k = (x.hi * consts::FRAC_2_PI).round();
+        let r = if k == 0.0 {
+            x
+        } else {
+            let [p1, p2, p3, p4] = FRAC_PI_2_PARTS;
+            x - DD::from(p1).mul_f64(k) - DD::from(p2).mul_f64(k) - DD::from(p3).mul_f64(k) - DD::from(p4 * k)
+        };
+        (k.rem_euclid(4.0) as u8, r)
     } else {
-        let [p1, p2, p3, p4] = FRAC_PI_2_PARTS;
-        x - DD::from(p1).mul_f64(k) - DD::from(p2).mul_f64(k) - DD::from(p3).mul_f64(k) - DD::from(p4 * k)
+        reduce_large(x)
     };
     let r2 = r.square();
     let mut term = r;
@@ -278,12 +290,168 @@ pub(super) fn sin_cos(x: DD) -> (DD, DD) {
         }
     }
     let c = sqrt((DD::ONE - s) * (DD::ONE + s));
-    match k.rem_euclid(4.0) as u8 {
+    match quadrant {
         0 => (s, c),
         1 => (c, -s),
         2 => (-s, -c),
         _ => (-c, s),
     }
+}
+
+/// The first 1536 bits of `2/π`, most significant first: bit `p` of the
+/// table is the coefficient of `2^−p`. Enough for any `f64`: an exponent of
+/// up to `2^1023` skips its first ~970 bits and uses the next 256.
+const FRAC_2_PI_BITS: [u64; 24] = [
+    0xA2F9836E4E441529,
+    0xFC2757D1F534DDC0,
+    0xDB6295993C439041,
+    0xFE5163ABDEBBC561,
+    0xB7246E3A424DD2E0,
+    0x06492EEA09D1921C,
+    0xFE1DEB1CB129A73E,
+    0xE88235F52EBB4484,
+    0xE99C7026B45F7E41,
+    0x3991D639835339F4,
+    0x9C845F8BBDF9283B,
+    0x1FF897FFDE05980F,
+    0xEF2F118B5A0A6D1F,
+    0x6D367ECF27CB09B7,
+    0x4F463F669E5FEA2D,
+    0x7527BAC7EBE5F17B,
+    0x3D0739F78A5292EA,
+    0x6BFB5FB11F8D5D08,
+    0x56033046FC7B6BAB,
+    0xF0CFBC209AF4361D,
+    0xA9E391615EE61B08,
+    0x6599855F14A06840,
+    0x8DFFD8804D732731,
+    0x06061556CA73A8C9,
+];
+
+/// A fixed-point number of quadrants, `x·2/π mod 4`: 256 bits, most
+/// significant limb first, 2 integer bits and 254 fraction bits.
+type Quadrants = [u64; 4];
+
+/// Payne–Hanek reduction (Payne and Hanek, "Radian reduction for
+/// trigonometric functions", 1983): `x = k·π/2 + r` with `|r| ≤ π/4` for any
+/// finite `x`, as `(k mod 4, r)`.
+///
+/// Each part of `x = hi + lo` is an integer `m < 2^53` times `2^e`; only the
+/// bits of `2/π` that can reach the last two integer bits and the fraction
+/// of `m·2^e·2/π` matter, a 256-bit window, multiplied exactly in integers.
+/// The two parts' products are added modulo 4, exactly; the tail of `2/π`
+/// beyond the window adds under `2^−200` quadrants. The nearest quadrant is
+/// then taken off and the remaining fraction (at least `2^−62` for any
+/// double, Kahan and McDonald's worst case being near `2^−61`) is converted
+/// with 128 significant bits and multiplied by `π/2`.
+fn reduce_large(x: DD) -> (u8, DD) {
+    let sum = add(quadrants(x.hi), quadrants(x.lo));
+    // Round to the nearest quadrant: add one half, keep the integer bits.
+    let k = (add(sum, [1 << 61, 0, 0, 0])[0] >> 62) as u8;
+    let fraction = sub(sum, [u64::from(k) << 62, 0, 0, 0]);
+    // Two's complement over 256 bits; |fraction| ≤ 1/2 quadrant.
+    let negative = fraction[0] >> 63 == 1;
+    let magnitude = if negative { sub([0; 4], fraction) } else { fraction };
+    let r = to_dd(magnitude) * DD::FRAC_PI_2;
+    (k, if negative { -r } else { r })
+}
+
+/// `a·2/π mod 4` for one `f64`, exactly up to the truncation of `2/π`.
+fn quadrants(a: f64) -> Quadrants {
+    if a == 0.0 {
+        return [0; 4];
+    }
+    let bits = a.abs().to_bits();
+    let biased = (bits >> 52) as i32;
+    let fraction = bits & ((1 << 52) - 1);
+    // `|a| = m·2^e` with an integer `m`; subnormals have no hidden bit.
+    let (m, e) = if biased == 0 { (fraction, -1074) } else { (fraction | 1 << 52, biased - 1075) };
+    // Bits `p ≤ e − 2` of `2/π` make multiples of 4: skip them.
+    let skip = (e - 2).max(0) as usize;
+    let window = frac_2_pi_window(skip);
+    // `m × window`, 5 limbs, most significant first.
+    let mut product = [0u64; 5];
+    let mut carry = 0u128;
+    for i in (0..4).rev() {
+        let t = u128::from(m) * u128::from(window[i]) + carry;
+        product[i + 1] = t as u64;
+        carry = t >> 64;
+    }
+    product[0] = carry as u64;
+    // The product is worth `product·2^(e − skip − 256)`; in units of 2^−254
+    // that is `product·2^(e − skip − 2)`: for `e ≥ 2` the low 256 bits, for
+    // smaller `e` the product shifted right by `2 − e`.
+    let shift = if e >= 2 { 0 } else { (2 - e) as usize };
+    let shifted = shift_right(product, shift);
+    let out = [shifted[1], shifted[2], shifted[3], shifted[4]];
+    if a < 0.0 { sub([0; 4], out) } else { out }
+}
+
+/// Bits `skip + 1 ..= skip + 256` of `2/π`.
+fn frac_2_pi_window(skip: usize) -> [u64; 4] {
+    let (limb, bit) = (skip / 64, skip % 64);
+    let at = |i: usize| FRAC_2_PI_BITS.get(i).copied().unwrap_or(0);
+    core::array::from_fn(|i| if bit == 0 { at(limb + i) } else { at(limb + i) << bit | at(limb + i + 1) >> (64 - bit) })
+}
+
+/// A 320-bit number shifted right by `shift` bits.
+fn shift_right(x: [u64; 5], shift: usize) -> [u64; 5] {
+    let (limbs, bit) = (shift / 64, shift % 64);
+    // Limb `j` of `x` lands in limb `j + limbs`; none outside `0..5`.
+    let at = |i: usize| i.checked_sub(limbs).and_then(|j| x.get(j)).copied().unwrap_or(0);
+    core::array::from_fn(|i| {
+        if bit == 0 { at(i) } else { at(i) >> bit | i.checked_sub(1).map_or(0, |i| at(i) << (64 - bit)) }
+    })
+}
+
+/// `a + b mod 2^256`.
+fn add(a: Quadrants, b: Quadrants) -> Quadrants {
+    let mut out = [0; 4];
+    let mut carry = false;
+    for i in (0..4).rev() {
+        let (s, c1) = a[i].overflowing_add(b[i]);
+        let (s, c2) = s.overflowing_add(u64::from(carry));
+        out[i] = s;
+        carry = c1 || c2;
+    }
+    out
+}
+
+/// `a − b mod 2^256`.
+fn sub(a: Quadrants, b: Quadrants) -> Quadrants {
+    let mut out = [0; 4];
+    let mut borrow = false;
+    for i in (0..4).rev() {
+        let (d, b1) = a[i].overflowing_sub(b[i]);
+        let (d, b2) = d.overflowing_sub(u64::from(borrow));
+        out[i] = d;
+        borrow = b1 || b2;
+    }
+    out
+}
+
+/// A non-negative fixed-point number of quadrants (254 fraction bits) as a
+/// double-double, from its leading 128 bits: 53 exact ones in `hi`, the
+/// next 75 rounded into `lo` (relative error below `2^−127`).
+fn to_dd(x: Quadrants) -> DD {
+    let high = u128::from(x[0]) << 64 | u128::from(x[1]);
+    let low = u128::from(x[2]) << 64 | u128::from(x[3]);
+    // `top` holds the leading 128 bits; its last bit weighs `2^weight`.
+    let (top, weight) = match (high, low) {
+        (0, 0) => return DD::ZERO,
+        (0, low) => {
+            let lead = low.leading_zeros();
+            (low << lead, -254 - lead as i32)
+        }
+        (high, low) => {
+            let lead = high.leading_zeros();
+            let top = if lead == 0 { high } else { high << lead | low >> (128 - lead) };
+            (top, 128 - 254 - lead as i32)
+        }
+    };
+    let hi = (top >> 75) as f64;
+    let lo = (top & ((1 << 75) - 1)) as f64;
+    DD::new(hi * 2f64.powi(weight + 75), lo * 2f64.powi(weight))
 }
 
 /// `atan2(y, x)`: special cases as for `f64`, then one Newton step on
