@@ -40,6 +40,15 @@ pub struct Stats {
     pub energy_fallbacks: u64,
     /// The report of the last successful Newton solve.
     pub last: NewtonReport,
+    /// For a system declared discontinuous (`Lagrangian::DISCONTINUOUS`):
+    /// the largest relative change of the discrete energy over one step,
+    /// `|E_{k+1} − E_k| / |E_k|`, and the time `t_{k+1}` where it happened.
+    /// A smooth `L` changes it by `O(h³)` per step; a jump of the potential
+    /// by `ΔV` shows as `ΔV/|E|`. Zero for systems not declared discontinuous
+    /// (the check costs one evaluation of the energy per step).
+    pub largest_energy_jump: f64,
+    /// The time at which [`largest_energy_jump`](Self::largest_energy_jump) happened.
+    pub largest_energy_jump_at: f64,
 }
 
 /// Configuration of an integrator before it is given its initial state.
@@ -384,6 +393,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
         }
         self.carry = carry;
+        if S::DISCONTINUOUS {
+            self.watch_energy(&seg, t1);
+        }
         self.earlier = self.previous.map(|last| (last.h, last.dq));
         self.previous = Some(seg);
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
@@ -406,6 +418,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (q1, q) = kahan(&self.state.q, &self.carry.q, &seg.dq);
         let (p1, p) = kahan(&self.state.p, &self.carry.p, &dp);
         (q1, p1, Compensation { q, p })
+    }
+
+    /// Records the relative change of the discrete energy across the node
+    /// between the last step and `seg` (see [`Stats::largest_energy_jump`]).
+    pub(super) fn watch_energy(&mut self, seg: &Segment<N>, t1: f64) {
+        let after = -derivatives::end_time_derivative(&self.system, &self.method, seg);
+        let before = match &self.previous {
+            Some(last) => -derivatives::end_time_derivative(&self.system, &self.method, last),
+            None => self.system.energy(self.state.t, self.state.q, self.v0),
+        };
+        let jump = (after - before).abs() / before.abs().max(f64::MIN_POSITIVE);
+        if jump.is_finite() && jump > self.stats.largest_energy_jump {
+            self.stats.largest_energy_jump = jump;
+            self.stats.largest_energy_jump_at = t1;
+        }
     }
 
     /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`

@@ -46,6 +46,17 @@ pub trait Lagrangian<const N: usize> {
     /// ([`noether`](crate::noether)). Declared, not proven; empty by default.
     const SYMMETRIES: &'static [Symmetry<N>] = &[];
 
+    /// `true` when `L` may be discontinuous in `(t, q, v)`: a branch, an
+    /// index, a bound or a cast that depends on the coordinates, velocities or
+    /// time (a potential step, a mass that jumps). Variational integrators
+    /// assume a smooth `L`; across a discontinuity the discrete energy jumps
+    /// and the trajectory is wrong at first order. `#[lagrangian]` refuses
+    /// such a body unless the user acknowledges it with
+    /// `#[lagrangian(discontinuous)]`, which sets this; the integrators then
+    /// watch the discrete energy for jumps (see
+    /// [`Stats::largest_energy_jump`](crate::Stats::largest_energy_jump)).
+    const DISCONTINUOUS: bool = false;
+
     /// The Lagrangian `L(t, q, v)`.
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D;
 

@@ -4,7 +4,8 @@
 
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::{
-    Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, Trapezoid, symplectic,
+    Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, Trapezoid, num_dual::DualNum,
+    symplectic,
 };
 use nalgebra::DMatrix;
 
@@ -198,4 +199,43 @@ fn unusable_settings_are_typed_errors() {
     assert_eq!(symplectic::defect(&DMatrix::zeros(3, 3)), None);
     assert_eq!(symplectic::defect(&DMatrix::zeros(2, 4)), None);
     assert_eq!(symplectic::defect(&DMatrix::identity(4, 4)), Some(0.0));
+}
+
+/// A particle meeting a potential step of height 0.3 at q = 0.5, declared
+/// discontinuous.
+struct PotentialStep;
+impl Lagrangian<1> for PotentialStep {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const DISCONTINUOUS: bool = true;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        let step = if q[0].re() > 0.5 { 0.3 } else { 0.0 };
+        v[0] * v[0] * 0.5 - step
+    }
+}
+
+/// The same particle without the step, declared discontinuous all the same.
+struct FreeDeclared;
+impl Lagrangian<1> for FreeDeclared {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [true];
+    const DISCONTINUOUS: bool = true;
+    fn lagrangian<D: Scalar>(&self, _t: D, _q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.5
+    }
+}
+
+#[test]
+fn a_declared_discontinuity_shows_as_an_energy_jump() {
+    // From q = 0 at speed 1: the step is crossed at t ≈ 0.5; E = 0.5.
+    let mut sim = Integrator::new(PotentialStep, Midpoint, 0.01).start(0.0, [0.0], [1.0]).unwrap();
+    sim.run_until(1.0, |_| {}).unwrap();
+    let stats = sim.stats();
+    println!("largest energy jump {:.3} at t = {:.3}", stats.largest_energy_jump, stats.largest_energy_jump_at);
+    assert!(stats.largest_energy_jump > 0.1, "{stats:?}");
+    assert!((0.49..0.53).contains(&stats.largest_energy_jump_at), "{stats:?}");
+    // Smooth motion: no jump beyond round-off.
+    let mut free = Integrator::new(FreeDeclared, Midpoint, 0.01).start(0.0, [0.0], [1.0]).unwrap();
+    free.run_until(1.0, |_| {}).unwrap();
+    assert!(free.stats().largest_energy_jump < 1e-12, "{:?}", free.stats());
 }

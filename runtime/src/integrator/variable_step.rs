@@ -462,6 +462,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         }
         self.time_error = (t1 - t0) - y;
         self.carry = carry;
+        if S::DISCONTINUOUS {
+            self.watch_energy(&seg, t1);
+        }
         self.earlier = self.previous.map(|last| (last.h, last.dq));
         self.previous = Some(seg);
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
