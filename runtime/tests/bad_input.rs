@@ -4,8 +4,7 @@
 
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::{
-    Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, Trapezoid, num_dual::DualNum,
-    symplectic,
+    Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, Trapezoid, symplectic,
 };
 use nalgebra::DMatrix;
 
