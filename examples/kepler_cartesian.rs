@@ -1,7 +1,7 @@
 //! Kepler problem in Cartesian coordinates, `L = ½|v|² + μ/r`: no coordinate
 //! is cyclic, but `L` is invariant under rotations in the (x, y) plane, so the
 //! discrete momentum map of `Symmetry::rotation(0, 1)`, `J = x p_y − y p_x`,
-//! is conserved (MATH.md §7). With a drag `R = ½ c|v|²` and a tangential
+//! is conserved (docs/theory.md §7). With a drag `R = ½ c|v|²` and a tangential
 //! thrust, `J` changes by exactly the forcing impulse of each step.
 //!
 //! Prints both checks and plots the orbits and `J(t)` into

@@ -1,4 +1,4 @@
-//! Paper 000 §V: the pendulum with a periodically perturbed gravity,
+//! Luo, Guo, Li & Wu §V: the pendulum with a periodically perturbed gravity,
 //! `H = l²/2 + (1 − cos θ)(1 − 0.1 sin 0.02t)`, integrated with
 //! energy-preserving (variable-step) midpoint steps from `l0 = θ0 = 0.5`,
 //! `t0 = 0`, `τ0 = 0.5`, to `t = 10000 s`.

@@ -1,6 +1,6 @@
 //! Series RLC circuit driven by `E(t) = E0 cos(Ω t)`, the charge `q` on the
 //! capacitor as coordinate: `L = ½ ℓ q̇² − q²/(2C)` (magnetic minus electric
-//! energy, paper 002 eq. (1)–(2)), the resistor as `R = ½ r q̇²` (eq. (5)) and
+//! energy, Fu, Dai & Tang eq. (1)–(2)), the resistor as `R = ½ r q̇²` (eq. (5)) and
 //! the source as a time-dependent force.
 //!
 //! Prints the error in charge and current against the exact solution at

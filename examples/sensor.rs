@@ -1,4 +1,4 @@
-//! Paper 002 §4 (Fu, Dai & Tang): the electromechanical sensor. An armature
+//! Fu, Dai & Tang §4 (Fu, Dai & Tang): the electromechanical sensor. An armature
 //! of mass `m` on a spring `k` under gravity moves inside a winding whose
 //! self-inductance `L1(x)` depends on the armature position `x`; the winding
 //! is in series with a resistor `R` and a battery `E`. Coordinates: `x` and
@@ -108,7 +108,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let variable = Sensor { a: 0.2, ..constant };
     let (h, t_end) = (1e-3, 2.0);
     println!(
-        "electromechanical sensor (paper 002 §4), midpoint, h = {h}, t ≤ {t_end}: m = {}, k = {}, L0 = {}, R = {}, E = {}",
+        "electromechanical sensor (Fu, Dai & Tang §4), midpoint, h = {h}, t ≤ {t_end}: m = {}, k = {}, L0 = {}, R = {}, E = {}",
         constant.m, constant.k, constant.l0, constant.r, constant.e
     );
     println!("  cyclic coordinates (x, q): {:?}", <Sensor as Lagrangian<2>>::CYCLIC);
@@ -136,7 +136,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     let dir = plot::output_dir("sensor")?;
     Figure {
-        title: "Electromechanical sensor (paper 002 §4), midpoint rule, h = 1e-3",
+        title: "Electromechanical sensor (Fu, Dai & Tang §4), midpoint rule, h = 1e-3",
         x_label: "t [s]",
         x_range: (0.0, t_end),
         panels: vec![

@@ -1,7 +1,7 @@
 //! The slowly varying oscillator `L = ½ q̇² − ½ ω(εt)² q²`, with
 //! `ω(s) = 1 + ½ sin s` and `ε = 0.01`, integrated with fixed and with
 //! energy-preserving variable midpoint steps (a time-dependent Lagrangian:
-//! the energy is not conserved but balanced, `dE/dt = −∂L/∂t`, paper 003).
+//! the energy is not conserved but balanced, `dE/dt = −∂L/∂t`, de León & Martín de Diego).
 //!
 //! Prints the energy of both runs against an RK4 reference and the
 //! adiabatic invariant `E/ω`, and plots `q`, `E` and the variable steps into

@@ -6,7 +6,7 @@ for example in harmonic_oscillator pendulum double_pendulum kepler perturbed_pen
     echo "== $example"
     cargo run --quiet --release --example "$example"
 done
-# Forces, dissipation and Noether momentum maps (MATH.md §6–§7).
+# Forces, dissipation and Noether momentum maps (docs/theory.md §6–§7).
 for example in damped_oscillator rlc_circuit sensor kepler_cartesian; do
     echo "== $example"
     cargo run --quiet --release --example "$example"

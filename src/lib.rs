@@ -81,7 +81,7 @@
 //!
 //! ## Forces, dissipation and symmetries
 //!
-//! Two optional methods add non-conservative forces (MATH.md §6): a Rayleigh
+//! Two optional methods add non-conservative forces (docs/theory.md §6): a Rayleigh
 //! dissipation function `fn dissipation(&self, q, v) -> f64`, whose force
 //! `−∂R/∂v` is taken with dual numbers, and applied forces or electromotive
 //! forces `fn force(&self, [t,] q, v) -> [f64; N]`. The integrator then solves

@@ -1,6 +1,6 @@
-//! Verification: forces and dissipation (MATH.md §6, paper 002). Order of the
+//! Verification: forces and dissipation (docs/theory.md §6, Fu, Dai & Tang). Order of the
 //! forced integrators against analytic solutions, the discrete energy
-//! balance, paper 002's electromechanical sensor and its first integral, and
+//! balance, Fu, Dai & Tang's electromechanical sensor and its first integral, and
 //! what bad forces do.
 mod common;
 
@@ -153,7 +153,7 @@ fn energy_balance_residual_is_third_order_otherwise() {
     assert!((fit(trapezoid) - 3.0).abs() < 0.2);
 }
 
-/// The discrete first integral of paper 002 §4 along a run: returns the
+/// The discrete first integral of Fu, Dai & Tang §4 along a run: returns the
 /// largest `|I_k − I_0| / scale_k` with `I_k = p_{q,k} + r Q_k − E t_k`,
 /// `scale_k = max(|p_{q,k}|, r |Q_k|, E t_k)`, and `Q_k = q_k − q_0` the charge
 /// that has flowed, summed (compensated) from the step increments: the
@@ -184,7 +184,7 @@ fn first_integral_drift<M: DiscreteLagrangian>(sensor: Sensor, method: M, h: f64
 
 #[test]
 fn paper_002_first_integral_holds_along_the_discrete_solution() {
-    // Paper 002 §4: L = ½ m ẋ² + ½ L1 q̇² − ½ k x² + m g x, resistor ½ r q̇²,
+    // Fu, Dai & Tang §4: L = ½ m ẋ² + ½ L1 q̇² − ½ k x² + m g x, resistor ½ r q̇²,
     // battery E on the charge. The charge q is cyclic (the macro proves it,
     // `CYCLIC = [false, true]`), so ξ = e_q (the paper's η = 1) generates a
     // symmetry of every discrete Lagrangian, with momentum map J_k = p_{q,k}.

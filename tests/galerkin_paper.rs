@@ -1,4 +1,4 @@
-//! Verification against paper 004 and against independent evaluations:
+//! Verification against Chen, Guo & Wu (finite elements) and against independent evaluations:
 //!
 //! * §2.3, (2.49)–(2.50): the quadratic element for `L = ½ q̇²` gives exactly
 //!   the five-point stencil and the interior-node equation; with a potential,
@@ -45,7 +45,7 @@ fn quadratic_element_reproduces_the_stencil_2_49_and_the_interior_equation_2_50(
     let d_ahead = [[q[3] - q[2]], [q[4] - q[2]]];
     let (_, g_behind) = g.node_gradient(&Free, 0.0, h, [q[0]], &d_behind);
     let (g0_ahead, g_ahead) = g.node_gradient(&Free, h, h, [q[2]], &d_ahead);
-    // DEL at node k in the A-form of MATH.md §2: ∂A(x_{k−1}, x_k)/∂q_k + ∂A(x_k, x_{k+1})/∂q_k.
+    // DEL at node k in the A-form of docs/theory.md §2: ∂A(x_{k−1}, x_k)/∂q_k + ∂A(x_k, x_{k+1})/∂q_k.
     let del = g_behind[1][0] + g0_ahead[0];
     let stencil = (q[0] - 8.0 * q[1] + 14.0 * q[2] - 8.0 * q[3] + q[4]) / (3.0 * h);
     assert!(close(del, stencil, 1e-14), "DEL {del} vs stencil {stencil}");

@@ -9,7 +9,7 @@ use galerkin_reference::kepler_start;
 use lagrangian::{Galerkin, GalerkinIntegrator, Lagrangian};
 
 /// `max |MᵀJM − J|` over the first `n` steps, `M` the tangent map of the step
-/// (implicit function theorem on the block system, MATH.md §8).
+/// (implicit function theorem on the block system, docs/theory.md §8).
 fn worst_defect<Sys: Lagrangian<N>, const N: usize, const S: usize>(
     system: Sys,
     h: f64,

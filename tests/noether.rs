@@ -1,4 +1,4 @@
-//! Verification: the discrete Noether theorem (MATH.md §7). Momentum maps of
+//! Verification: the discrete Noether theorem (docs/theory.md §7). Momentum maps of
 //! translations, rotations and user generators are conserved to round-off
 //! without forces, and balanced by the forcing impulse at every step with
 //! them.

@@ -1,4 +1,4 @@
-//! Paper 000 §V, on the run `examples/perturbed_pendulum.rs` records: the
+//! Luo, Guo, Li & Wu §V, on the run `examples/perturbed_pendulum.rs` records: the
 //! energy-preserving steps follow the pendulum and the slow perturbation.
 
 #[path = "../examples/support/perturbed.rs"]
@@ -8,12 +8,12 @@ use perturbed::PERTURBATION;
 
 #[test]
 fn steps_follow_the_swing_and_the_slow_perturbation() {
-    let nodes = perturbed::record(10_000.0).expect("the run of paper 000 §V completes");
+    let nodes = perturbed::record(10_000.0).expect("the run of Luo, Guo, Li & Wu §V completes");
     assert!(nodes.len() > 15_000, "{} steps", nodes.len());
     assert!(nodes.iter().all(|n| n.tau > 0.0));
 
     // τ smallest near θ = 0 and largest near the extremes of θ, swing by
-    // swing (paper 000 Fig. 3; site density ∝ (V''p² + V'²)^{1/3}, (4.8)).
+    // swing (Luo, Guo, Li & Wu Fig. 3; site density ∝ (V''p² + V'²)^{1/3}, (4.8)).
     // Measured: 100% and 100% of ~3100 swings.
     let swing = perturbed::swing_statistics(&nodes);
     assert!(swing.swings > 3000, "{swing:?}");

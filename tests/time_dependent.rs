@@ -1,4 +1,4 @@
-//! Verification for time-dependent Lagrangians (MATH.md §3; paper 003):
+//! Verification for time-dependent Lagrangians (docs/theory.md §3; de León & Martín de Diego):
 //! the discrete energy balance under variable steps, the order of the
 //! discrete energy under fixed steps, and the order of variable steps.
 
@@ -18,7 +18,7 @@ fn the_macro_sees_the_time_argument() {
 
 #[test]
 fn variable_steps_satisfy_the_discrete_energy_balance_at_every_step() {
-    // E_{k+1} − E_k + ∂A/∂t_k + ∂A/∂t_{k+1} = 0 (paper 003 §3.2), with
+    // E_{k+1} − E_k + ∂A/∂t_k + ∂A/∂t_{k+1} = 0 (de León & Martín de Diego §3.2), with
     // E_k = −∂A(x_{k−1}, x_k)/∂t_k read from the integrator and the partials
     // of the step just taken recomputed from its segment.
     let h0 = 0.05;

@@ -1,4 +1,4 @@
-//! The perturbed pendulum of paper 000 §V and the measurements made on it;
+//! The perturbed pendulum of Luo, Guo, Li & Wu §V and the measurements made on it;
 //! shared by `examples/perturbed_pendulum.rs` (which writes the CSV and the
 //! plots) and `tests/perturbed_pendulum.rs` (which asserts on them).
 //!

@@ -1,4 +1,4 @@
-//! Derivatives of the step action from hyper-dual evaluations (MATH.md §4).
+//! Derivatives of the step action from hyper-dual evaluations (docs/theory.md §4).
 //!
 //! An evaluation of `A` on a hyper-dual number with the first infinitesimals
 //! seeded on coordinates `a_i` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second
@@ -311,7 +311,7 @@ pub struct ExtendedStepDerivatives<const N: usize> {
     pub d2_t0_t1: f64,
 }
 
-/// Residuals and Jacobian of the variable-step map (MATH.md §3): one
+/// Residuals and Jacobian of the variable-step map (docs/theory.md §3): one
 /// evaluation of `A` on a [`HyperDualArray`] with `ε1` seeded on `(q_k, t_k)`
 /// and `ε2` on `(q_{k+1}, t_{k+1})`.
 #[inline]
@@ -407,7 +407,7 @@ where
 /// The position blocks of the Hessian of `A`: `(∂²A/∂q_k², ∂²A/∂q_k∂q_{k+1}, ∂²A/∂q_{k+1}²)`,
 /// one hyper-dual evaluation each.
 ///
-/// Used for the tangent map of a step (symplecticity, MATH.md §8); not needed
+/// Used for the tangent map of a step (symplecticity, docs/theory.md §8); not needed
 /// by the stepper itself.
 pub fn position_hessian<S, M, const N: usize>(
     system: &S,
@@ -429,7 +429,7 @@ where
 /// `x = (t, q)`: `(∂²A/∂x_k², ∂²A/∂x_k∂x_{k+1}, ∂²A/∂x_{k+1}²)`, each
 /// `(N+1)×(N+1)` with the time first.
 ///
-/// Used for the tangent map of a variable step (MATH.md §8), a diagnostic:
+/// Used for the tangent map of a variable step (docs/theory.md §8), a diagnostic:
 /// it allocates, unlike the stepper.
 pub fn extended_hessian<S, M, const N: usize>(
     system: &S,

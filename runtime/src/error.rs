@@ -82,9 +82,9 @@ pub enum Error<const N: usize, T: Real = f64> {
         reason: &'static str,
     },
     /// Variable steps: no step size in the admissible bracket satisfies the
-    /// energy equation (MATH.md §9). The energy equation fixes `h` only
+    /// energy equation (docs/theory.md §9). The energy equation fixes `h` only
     /// through the `O(h²)` energy error of the discrete Lagrangian, and where
-    /// the factor that sets the step density changes sign (paper 000 §IV) its
+    /// the factor that sets the step density changes sign (Luo, Guo, Li & Wu §IV) its
     /// root disappears. Retry with a smaller `h`, wider bounds, a fixed step,
     /// or [`EnergyFallback::LeastSquares`](crate::EnergyFallback::LeastSquares).
     #[error(

@@ -1,11 +1,11 @@
 //! Forces and dissipation: the discrete Lagrange–d'Alembert principle
-//! (MATH.md §6; Fu, Dai & Tang, paper 002 §2).
+//! (docs/theory.md §6; Fu, Dai & Tang, Fu, Dai & Tang §2).
 //!
 //! The continuous equations are `d/dt ∂L/∂v − ∂L/∂q = F` with the generalised
 //! force `F(t, q, v) = Q(t, q, v) − ∂R/∂v(q, v)`: the applied forces and
 //! electromotive forces `Q` of [`Lagrangian::force`] and the dissipative forces
 //! of the Rayleigh function `R` of [`Lagrangian::dissipation`] (a resistor
-//! contributes `½ R q̇²`, paper 002 eq. (5)). `∂R/∂v` is taken with a dual
+//! contributes `½ R q̇²`, Fu, Dai & Tang eq. (5)). `∂R/∂v` is taken with a dual
 //! number nested over whatever scalar the force is evaluated on, so the Newton
 //! Jacobian gets the derivatives of the dissipative force from the same
 //! seeding as those of the action.
@@ -25,7 +25,7 @@
 //! # Energy balance
 //!
 //! With `E_k = −∂A(x_{k−1}, x_k)/∂t_k` the discrete energy of the step behind
-//! node `k` (MATH.md §3) and `v̂_k = (q_{k+1} − q_k)/h` the secant velocity of
+//! node `k` (docs/theory.md §3) and `v̂_k = (q_{k+1} − q_k)/h` the secant velocity of
 //! the step ahead of it, the work of the forces at node `k` is
 //!
 //! ```text
@@ -36,7 +36,7 @@
 //! closes the balance `E_{k+1} − E_k = W_k` exactly (to round-off and the Newton
 //! tolerance) for the midpoint rule, fixed steps and an autonomous Lagrangian
 //! that is quadratic in `(q, v)` (linear mechanics and circuits: the damped
-//! oscillator, the RLC circuit, paper 002's sensor with a constant inductance),
+//! oscillator, the RLC circuit, Fu, Dai & Tang's sensor with a constant inductance),
 //! whatever the forces. Proof: for the midpoint rule `E_{k+1} = E_L(z_k)`, the
 //! continuous energy at the step's midpoint state `z_k = (q̄_k, v̂_k)`,
 //! `q̄_k = (q_k + q_{k+1})/2`. Write `L_q^k, L_v^k` for `∂L/∂q, ∂L/∂v` at `z_k`.
@@ -236,7 +236,7 @@ impl EnergyBalance {
 /// `x_k`) and `ahead` (from `x_k` to `x_{k+1}`).
 ///
 /// The work uses the forces and secant velocities of both steps; the
-/// energies are the discrete ones of MATH.md §3.
+/// energies are the discrete ones of docs/theory.md §3.
 pub fn energy_balance<S, M, const N: usize>(
     system: &S,
     method: &M,

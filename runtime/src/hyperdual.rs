@@ -5,7 +5,7 @@
 //! # Why
 //!
 //! Each Newton iteration of a step needs `∂A/∂q_k`, `∂A/∂q_{k+1}` and the
-//! block `∂²A/∂q_k∂q_{k+1}` of the step action (MATH.md §4). With num-dual's
+//! block `∂²A/∂q_k∂q_{k+1}` of the step action (docs/theory.md §4). With num-dual's
 //! scalar [`HyperDual64`](num_dual::HyperDual64) that takes `N²` evaluations of
 //! `A`, one per pair of seeds, and every `sin`/`cos` of the user's Lagrangian is
 //! recomputed `N²` times. num-dual's vector hyper-duals would do it in one

@@ -1,4 +1,4 @@
-//! The fixed-step variational integrator (MATH.md §3, position–momentum form).
+//! The fixed-step variational integrator (docs/theory.md §3, position–momentum form).
 //!
 //! ```text
 //! given (t_k, q_k, p_k):   solve  p_k + ∂A/∂q_k (x_k, x_{k+1}) = 0   for q_{k+1},   t_{k+1} = t_k + h
@@ -68,12 +68,12 @@ pub struct IntegratorBuilder<S, M> {
 /// How the integrator chooses its step sizes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StepPolicy {
-    /// Every step has the configured size `h` (MATH.md §3, fixed step).
+    /// Every step has the configured size `h` (docs/theory.md §3, fixed step).
     Fixed,
     /// Energy-preserving variable steps (Lee; Kane, Marsden & Ortiz; paper
     /// 001 §3, 003 §3.2): each `h_k` is an unknown of the step, fixed by the
     /// discrete energy equation `E_{k+1} = E_k` (for a time-dependent `L`, the
-    /// energy-evolution equation of paper 003). The configured `h` is the
+    /// energy-evolution equation of de León & Martín de Diego). The configured `h` is the
     /// first guess.
     EnergyPreserving(StepBounds),
 }
@@ -362,7 +362,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             if self.previous.is_some() {
                 return self.energy_step(bounds);
             }
-            // The first step has the given h0 (paper 000 §V starts from τ0):
+            // The first step has the given h0 (Luo, Guo, Li & Wu §V starts from τ0):
             // E_L(q0, v0) is not the discrete energy of any step, and
             // demanding E_1 = E_L(q0, v0) has no root but h → 0. The energy
             // conserved from then on is the discrete E_1, within O(h0²) of E_L.
@@ -570,7 +570,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         Ok(())
     }
 
-    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (MATH.md §3); at
+    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` (docs/theory.md §3); at
     /// `k = 0`, the continuous energy of the initial data.
     ///
     /// Under energy-preserving steps it is read off the last step like for
@@ -604,7 +604,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
-    /// (MATH.md §8), or `None` before the first step or where `∂²A/∂q_k∂q_{k+1}`
+    /// (docs/theory.md §8), or `None` before the first step or where `∂²A/∂q_k∂q_{k+1}`
     /// is singular.
     ///
     /// Also `None` for a system with forces: its step map is not symplectic,
@@ -624,7 +624,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         self.previous.as_ref()
     }
 
-    /// The discrete forces `(F_k^−, F_k^+)` of the last step (MATH.md §6), or
+    /// The discrete forces `(F_k^−, F_k^+)` of the last step (docs/theory.md §6), or
     /// `None` before the first step; zero for a system without forces.
     pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
         Some(forcing::discrete_forces(&self.system, &self.method, self.previous.as_ref()?))
@@ -643,7 +643,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
     }
 
-    /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node (MATH.md §7).
+    /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node (docs/theory.md §7).
     pub fn momentum_map(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> f64 {
         crate::noether::momentum_map(symmetry, &self.state.q, &self.state.p)
     }

@@ -14,7 +14,7 @@ use crate::newton::{self, NewtonFailure, NewtonOptions};
 use crate::system::Lagrangian;
 
 /// The discrete Lagrangian `L_d = A/h` of a segment and its partials
-/// `D1..D4` with respect to `t_k, q_k, t_{k+1}, q_{k+1}` (MATH.md §2).
+/// `D1..D4` with respect to `t_k, q_k, t_{k+1}, q_{k+1}` (docs/theory.md §2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DiscretePartials<const N: usize> {
     /// `L_d(t_k, q_k, t_{k+1}, q_{k+1})`.

@@ -235,7 +235,7 @@ pub(crate) fn bordered_correction<const N: usize>(
     let ainv_r = inv * r;
     let s = d - c.dot(&ainv_b);
     // Relative size of the Schur complement: near zero where the energy
-    // equation loses its root in h (MATH.md §9).
+    // equation loses its root in h (docs/theory.md §9).
     let scale = d.abs() + c.iter().zip(ainv_b.iter()).map(|(x, y)| (x * y).abs()).sum::<f64>();
     let rc = s.abs() / scale;
     if rc.is_nan() || rc < min_rcond {

@@ -1,5 +1,5 @@
 //! Symmetries and discrete momentum maps: the discrete Noether theorem with
-//! forcing (MATH.md §7; paper 002 eqs. (15)–(17); paper 003 §3.3).
+//! forcing (docs/theory.md §7; Fu, Dai & Tang eqs. (15)–(17); de León & Martín de Diego §3.3).
 //!
 //! A one-parameter group acting on the configuration space, `q ↦ q + ε ξ(q)`
 //! to first order, is described by its generator `ξ`. If the step action is

@@ -1,7 +1,7 @@
 //! The state of an integrator at a node.
 
 /// The integrator's state at node `k`: time, position and discrete momentum
-/// `p_k = ∂A(x_{k−1}, x_k)/∂q_k` (MATH.md §3).
+/// `p_k = ∂A(x_{k−1}, x_k)/∂q_k` (docs/theory.md §3).
 ///
 /// `T` is the real type of the integrator: `f64`, or an extended-precision
 /// [`Real`](crate::Real) for a Galerkin integrator run in it.

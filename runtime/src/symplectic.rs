@@ -1,4 +1,4 @@
-//! The tangent map of a step and its symplecticity defect (MATH.md §8).
+//! The tangent map of a step and its symplecticity defect (docs/theory.md §8).
 //!
 //! Differentiating `p_k + ∂A/∂q_k = 0`, `p_{k+1} = ∂A/∂q_{k+1}` by the
 //! implicit function theorem, with `A11 = ∂²A/∂q_k²`, `A12 = ∂²A/∂q_k∂q_{k+1}`
@@ -64,7 +64,7 @@ where
 /// extended mixed block `∂²A/∂x_k∂x_{k+1}` is singular.
 ///
 /// A variable step solves `π_k + ∂A/∂x_k = 0`, `π_{k+1} = ∂A/∂x_{k+1}`
-/// (MATH.md §3), the fixed-step equations one dimension up, so the same
+/// (docs/theory.md §3), the fixed-step equations one dimension up, so the same
 /// implicit-function formulas apply to the `(N+1)`-dimensional blocks, and
 /// the map preserves `dq∧dp − dt∧dE` (001 (3.17), 003 §3.2).
 pub fn extended_tangent_map<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> Option<DMatrix<f64>>

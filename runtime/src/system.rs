@@ -42,7 +42,7 @@ pub trait Lagrangian<const N: usize> {
     const CYCLIC: [bool; N];
 
     /// Symmetries the user declared with `#[lagrangian(symmetry = ...)]`
-    /// (MATH.md §7), whose momentum maps the runtime can follow
+    /// (docs/theory.md §7), whose momentum maps the runtime can follow
     /// ([`noether`](crate::noether)). Declared, not proven; empty by default.
     const SYMMETRIES: &'static [Symmetry<N>] = &[];
 

@@ -1,8 +1,8 @@
-//! Verification of energy-preserving variable steps (MATH.md §3, §9), on
+//! Verification of energy-preserving variable steps (docs/theory.md §3, §9), on
 //! systems implemented by hand against the runtime's trait.
 //!
 //! The energy that is conserved is the discrete energy `E_1` of the first
-//! step, which is taken with the given `h0` (paper 000 §V starts from τ0);
+//! step, which is taken with the given `h0` (Luo, Guo, Li & Wu §V starts from τ0);
 //! `E_1` is within `O(h0²)` of `E_L(q0, v0)`.
 #![allow(missing_docs)]
 
@@ -90,7 +90,7 @@ fn double_pendulum_energy_is_conserved_to_round_off_over_1e5_steps() {
 fn double_pendulum_at_large_amplitude_loses_the_energy_step_and_says_so() {
     // From (1, −0.5), v0 = (0, 0.5): the energy mismatch g(h) stays positive
     // on the whole admissible bracket at step 36 (t = 0.313): its minimum is
-    // 1.6e-5 relative, at h = 0.0167 (MATH.md §9, paper 000 §IV: the factor
+    // 1.6e-5 relative, at h = 0.0167 (docs/theory.md §9, Luo, Guo, Li & Wu §IV: the factor
     // that sets the step density changes sign). The same happens for every
     // h0 tried, at the same place on the orbit: a property of the method.
     let h0 = 0.01;

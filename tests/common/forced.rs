@@ -1,4 +1,4 @@
-//! Systems with forces and dissipation (MATH.md §6) and with symmetries (§7),
+//! Systems with forces and dissipation (docs/theory.md §6) and with symmetries (§7),
 //! shared by `tests/forces.rs` and `tests/noether.rs`.
 
 use lagrangian::prelude::*;
@@ -88,7 +88,7 @@ impl Rlc {
     }
 }
 
-/// Paper 002 §4, the electromechanical sensor: armature `x` (`q[0]`) and
+/// Fu, Dai & Tang §4, the electromechanical sensor: armature `x` (`q[0]`) and
 /// charge `q` (`q[1]`), `L = ½ m ẋ² + ½ L1(x) q̇² − ½ k x² + m g x` with
 /// `L1(x) = L0 / (1 + x/a)`, resistor `R = ½ r q̇²` and battery EMF `E` on the
 /// charge. `a = ∞` gives the constant inductance `L1 = L0`.

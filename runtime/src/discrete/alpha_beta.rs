@@ -4,7 +4,7 @@
 //! A(t_k, q_k, t_{k+1}, q_{k+1}) = h · L(t_k + βh, α q_k + β q_{k+1}, (q_{k+1} − q_k)/h),   α + β = 1
 //! ```
 //!
-//! Source: Luo, Guo, Li & Wu, paper 000, "case 2" (§III.B). Order 1 for
+//! Source: Luo, Guo, Li & Wu, Luo, Guo, Li & Wu, "case 2" (§III.B). Order 1 for
 //! `α ≠ ½`, order 2 at `α = ½` (where it is [`Midpoint`](super::Midpoint)).
 //! `α = 1` and `α = 0` are the two symplectic Euler methods.
 

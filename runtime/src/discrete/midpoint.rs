@@ -4,12 +4,12 @@
 //! A(t_k, q_k, t_{k+1}, q_{k+1}) = h · L(t_k + h/2, (q_k + q_{k+1})/2, (q_{k+1} − q_k)/h),   h = t_{k+1} − t_k
 //! ```
 //!
-//! Source: de León & Martín de Diego, paper 003 §3.1; Chen, Guo & Wu, paper 004
+//! Source: de León & Martín de Diego, de León & Martín de Diego §3.1; Chen, Guo & Wu, Chen, Guo & Wu (finite elements)
 //! eq. (2.15). Order 2. For `L = ½ vᵀMv − V(q)` it is the implicit midpoint
 //! rule in `(q, p)`; it is symmetric, so its error expansion has even powers only.
 //!
 //! Forces use the trait's default, the same midpoint rule:
-//! `F_k^− = F_k^+ = (h/2) F(t_k + h/2, (q_k + q_{k+1})/2, v̂)` (MATH.md §6).
+//! `F_k^− = F_k^+ = (h/2) F(t_k + h/2, (q_k + q_{k+1})/2, v̂)` (docs/theory.md §6).
 
 use super::{DiscreteLagrangian, array, secant_velocity};
 use crate::system::{Lagrangian, Scalar};

@@ -1,6 +1,6 @@
 //! Discrete Lagrangians: the step action `A(t_k, q_k, t_{k+1}, q_{k+1}) ≈ ∫ L dt`.
 //!
-//! MATH.md §2 and §5. The runtime works with the action `A = h · L_d` rather
+//! docs/theory.md §2 and §5. The runtime works with the action `A = h · L_d` rather
 //! than with `L_d`, which removes every factor `h` from the discrete
 //! Euler–Lagrange and energy equations. Each method lives in its own file whose
 //! documentation gives its formula, source and order.
@@ -20,7 +20,7 @@ use crate::system::{Lagrangian, Scalar};
 ///
 /// `action` is generic over the [`Scalar`] so that one evaluation on
 /// hyper-dual numbers yields the residual, the next momentum and the Newton
-/// Jacobian of the one-step map (MATH.md §4).
+/// Jacobian of the one-step map (docs/theory.md §4).
 pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     /// Order of the one-step map for a regular Lagrangian.
     fn order(&self) -> u32;
@@ -52,7 +52,7 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
     /// `(t0 + h, q0 + dq)`: `F_k^−·δq_k + F_k^+·δq_{k+1}` approximates the
     /// virtual work `∫ F·δq dt` of the generalised force
     /// [`generalized_force`](crate::system::generalized_force) `F = Q − ∂R/∂v`
-    /// (MATH.md §6, discrete Lagrange–d'Alembert).
+    /// (docs/theory.md §6, discrete Lagrange–d'Alembert).
     ///
     /// Each method evaluates `F` with its own quadrature, at the secant
     /// velocity `dq/h`, and shares each quadrature point's impulse between the

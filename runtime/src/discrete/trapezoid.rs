@@ -4,7 +4,7 @@
 //! A(t_k, q_k, t_{k+1}, q_{k+1}) = h/2 · [ L(t_k, q_k, v̂) + L(t_{k+1}, q_{k+1}, v̂) ],   v̂ = (q_{k+1} − q_k)/h
 //! ```
 //!
-//! Source: Chen, Guo & Wu, paper 004 §2.2 (linear element, trapezoidal
+//! Source: Chen, Guo & Wu, Chen, Guo & Wu (finite elements) §2.2 (linear element, trapezoidal
 //! quadrature). Order 2. For `L = ½ vᵀMv − V(q)` with constant `M` it is the
 //! Störmer–Verlet method and its update is explicit (Newton converges in one
 //! iteration).

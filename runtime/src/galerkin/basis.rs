@@ -15,7 +15,7 @@
 //! Lobatto nodes). They are evaluated once, when a
 //! [`Galerkin`](super::Galerkin) is built, never while stepping.
 //!
-//! Node families: equispaced `τ_m = m/s` (paper 004 §2.3 uses `0, ½, 1`) or
+//! Node families: equispaced `τ_m = m/s` (Chen, Guo & Wu (finite elements) §2.3 uses `0, ½, 1`) or
 //! the Gauss–Lobatto points, whose Lebesgue constant grows like `log s`
 //! instead of `2^s/(s log s)`, so the interior nodes stay well conditioned
 //! at high degree. The discrete trajectory does not depend on the choice (the
@@ -28,7 +28,7 @@ use crate::real::Real;
 /// Where the control nodes of the step polynomial sit in `[0, 1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum NodeFamily {
-    /// `τ_m = m/s`, as in paper 004.
+    /// `τ_m = m/s`, as in Chen, Guo & Wu (finite elements).
     Equispaced,
     /// The `s + 1` Gauss–Lobatto points (better conditioned at high degree).
     #[default]

@@ -1,5 +1,5 @@
 //! Energy-preserving variable steps for Galerkin discrete Lagrangians: the
-//! step size as one more unknown (MATH.md §3; paper 004 §3, time steps as
+//! step size as one more unknown (docs/theory.md §3; Chen, Guo & Wu (finite elements) §3, time steps as
 //! variables).
 //!
 //! ```text

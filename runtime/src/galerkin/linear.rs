@@ -1,17 +1,17 @@
-//! The linear element of paper 004 §2.2: `s = 1`, the potential integrated
+//! The linear element of Chen, Guo & Wu (finite elements) §2.2: `s = 1`, the potential integrated
 //! along the segment by a quadrature.
 //!
 //! ```text
 //! A(q_k, q_{k+1}) = h Σ_j b_j L(t_k + c_j h, (1 − c_j) q_k + c_j q_{k+1}, (q_{k+1} − q_k)/h)
 //! ```
 //!
-//! For `L = ½ q̇² − V(q)` this is paper 004 (2.23)–(2.24),
+//! For `L = ½ q̇² − V(q)` this is Chen, Guo & Wu (finite elements) (2.23)–(2.24),
 //! `L_d = ½ ((q_{k+1} − q_k)/h)² − F(q_k, q_{k+1})` with
 //! `F = (1/h) ∫ V(linear interpolant) dt` replaced by the quadrature: the
 //! velocity is constant on the segment, so the kinetic term is exact with any
 //! rule. No interior nodes: the step is the plain DEL.
 //!
-//! * midpoint rule → [`Midpoint`](crate::Midpoint), paper 004 (2.15)–(2.16); order 2;
+//! * midpoint rule → [`Midpoint`](crate::Midpoint), Chen, Guo & Wu (finite elements) (2.15)–(2.16); order 2;
 //! * trapezoid rule → [`Trapezoid`](crate::Trapezoid) (Störmer–Verlet for
 //!   separable `L`); order 2;
 //! * Simpson's rule → a new member, order 2 (the linear interpolant limits it);
@@ -23,7 +23,7 @@ use super::method::Galerkin;
 use super::quadrature::Quadrature;
 
 impl<const R: usize> Galerkin<1, R> {
-    /// The linear element with the given quadrature (paper 004 §2.2). Order 2.
+    /// The linear element with the given quadrature (Chen, Guo & Wu (finite elements) §2.2). Order 2.
     pub fn linear(quadrature: Quadrature<R>) -> Self {
         Self::new(NodeFamily::Equispaced, quadrature)
     }

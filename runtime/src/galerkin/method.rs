@@ -7,10 +7,10 @@
 //! `Q_0 = q_k`, `Q_s = q_{k+1}`, `Q_1 … Q_{s−1}` the interior nodes of the
 //! degree-`s` polynomial through the control nodes `τ_m` ([`NodeFamily`]),
 //! `(c_j, b_j)` the quadrature ([`Quadrature`]). The interior nodes are
-//! eliminated by `∂A/∂Q_m = 0` (paper 004 (2.38)); what remains is a discrete
+//! eliminated by `∂A/∂Q_m = 0` (Chen, Guo & Wu (finite elements) (2.38)); what remains is a discrete
 //! Lagrangian of `(q_k, q_{k+1})`.
 //!
-//! Source: Chen, Guo & Wu, paper 004 §2.2 (`s = 1`: the linear element,
+//! Source: Chen, Guo & Wu, Chen, Guo & Wu (finite elements) §2.2 (`s = 1`: the linear element,
 //! (2.23)–(2.24), with the potential integrated by the quadrature) and §2.3
 //! (`s = 2`: the quadratic element, (2.33)–(2.39)); the general degree and the
 //! order result are Marsden & West, *Acta Numerica* 2001, §2.6, and Hairer,
@@ -65,7 +65,7 @@ use crate::system::{Lagrangian, Scalar};
 /// // Degree 4 with 4 Gauss–Legendre points: order 8.
 /// let g = Galerkin::<4, 4>::gauss();
 /// assert_eq!(g.order(), 8);
-/// // The same polynomial space with equispaced nodes (paper 004) and 5 Lobatto points.
+/// // The same polynomial space with equispaced nodes (Chen, Guo & Wu (finite elements)) and 5 Lobatto points.
 /// let e = Galerkin::<4, 5>::new(NodeFamily::Equispaced, Quadrature::gauss_lobatto());
 /// assert!(e.check().is_ok());
 /// // Too weak: 2 Gauss points cannot integrate the kinetic term of degree 6.
@@ -252,7 +252,7 @@ impl<const S: usize, const R: usize> Galerkin<S, R> {
     /// The full Hessian `∂²A/∂Q_m∂Q_n` over the nodes `m, n = 0 … s`, as a
     /// dense `(s+1)N × (s+1)N` matrix ordered by node, then coordinate.
     ///
-    /// For checks and for the tangent map of a step (MATH.md §8); it
+    /// For checks and for the tangent map of a step (docs/theory.md §8); it
     /// allocates, and the stepper never calls it.
     pub fn node_hessian<Sys, const N: usize>(
         &self,

@@ -1,5 +1,5 @@
 //! Galerkin discrete Lagrangians of any degree and their fixed-step
-//! integrator (MATH.md §5; paper 004 §2.2–2.3).
+//! integrator (docs/theory.md §5; Chen, Guo & Wu (finite elements) §2.2–2.3).
 //!
 //! The step polynomial of degree `s` passes through `q_k`, `s − 1` interior
 //! nodes and `q_{k+1}`; the action of the step is its Lagrangian integrated by
@@ -12,8 +12,8 @@
 //! | `quadrature.rs` | Gauss–Legendre and Gauss–Lobatto rules with any number of points; midpoint, trapezoid, Simpson |
 //! | `basis.rs` | control nodes (equispaced or Gauss–Lobatto) and the Lagrange basis |
 //! | `method.rs` | [`Galerkin<S, R>`]: the discrete Lagrangian, its gradient and Hessian by the chain rule; order `min(2s, quadrature order)` |
-//! | `linear.rs` | paper 004 §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
-//! | `quadratic.rs` | paper 004 §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
+//! | `linear.rs` | Chen, Guo & Wu (finite elements) §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
+//! | `quadratic.rs` | Chen, Guo & Wu (finite elements) §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
 //! | `stepper.rs` | [`GalerkinIntegrator`]: the integrator (fixed steps, forces), tangent map |
 //! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |

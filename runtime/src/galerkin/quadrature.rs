@@ -20,7 +20,7 @@
 //! half of the nodes is computed and the other half mirrored, so every rule is
 //! exactly symmetric about `½`.
 //!
-//! Named special cases, paper 004 §2.2: [`Quadrature::midpoint`] (Gauss, one
+//! Named special cases, Chen, Guo & Wu (finite elements) §2.2: [`Quadrature::midpoint`] (Gauss, one
 //! point), [`Quadrature::trapezoid`] (Lobatto, two points) and
 //! [`Quadrature::simpson`] (Lobatto, three points).
 

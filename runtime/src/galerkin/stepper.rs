@@ -2,13 +2,13 @@
 //!
 //! ```text
 //! given (t_k, q_k, p_k), unknowns D_m = Q_m − q_k, m = 1 … s  (s − 1 interior nodes and q_{k+1} − q_k):
-//!     p_k + ∂A/∂Q_0 + F^0 = 0              N equations  (the DEL, MATH.md §3)
-//!     ∂A/∂Q_m + F^m = 0,  m = 1 … s − 1    (s − 1)N equations  (paper 004 (2.38))
+//!     p_k + ∂A/∂Q_0 + F^0 = 0              N equations  (the DEL, docs/theory.md §3)
+//!     ∂A/∂Q_m + F^m = 0,  m = 1 … s − 1    (s − 1)N equations  (Chen, Guo & Wu (finite elements) (2.38))
 //! then q_{k+1} = q_k + D_s,  p_{k+1} = ∂A/∂Q_s + F^s = p_k + h Σ_j b_j (∂L/∂q + F)(c_j)
 //! ```
 //!
 //! `F^m = h Σ_j b_j ℓ_m(c_j) F(t_j, q(c_j), q̇(c_j))` is the discrete force on
-//! node `m` of the generalised force `F = Q − ∂R/∂v` (MATH.md §6): the
+//! node `m` of the generalised force `F = Q − ∂R/∂v` (docs/theory.md §6): the
 //! virtual work `∫ F·δq dt` of the interpolated variation `δq = Σ_m ℓ_m δQ_m`
 //! by the step's own quadrature, so the discrete Lagrange–d'Alembert
 //! principle keeps the method's order 2s. Without forces `F^m = 0`.
@@ -58,7 +58,7 @@ pub struct GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> {
 }
 
 impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T> {
-    /// Energy-preserving variable steps within `bounds` (paper 004 §3: the
+    /// Energy-preserving variable steps within `bounds` (Chen, Guo & Wu (finite elements) §3: the
     /// step size as an unknown fixed by the discrete energy equation),
     /// starting from the guess `h` given to [`GalerkinIntegrator::new`]. For
     /// autonomous systems without forces; see [`galerkin`](super) for what
@@ -666,7 +666,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
     }
 
     /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
-    /// (MATH.md §8), or `None` before the first step or where the Newton
+    /// (docs/theory.md §8), or `None` before the first step or where the Newton
     /// block is singular.
     ///
     /// By the implicit function theorem on the block system, with the
@@ -771,7 +771,7 @@ where
         let b = g.quadrature().weights()[j];
         let (row, row_d, col, col_d) = (&g.row[j], &g.row_d[j], &g.col[j], &g.col_d[j]);
         // Lagrange–d'Alembert: the virtual work h Σ_j b_j F_j·δq(c_j) puts
-        // h b_j ℓ_m(c_j) F_j on node m (paper 002's discrete forces, through
+        // h b_j ℓ_m(c_j) F_j on node m (Fu, Dai & Tang's discrete forces, through
         // the basis); with the Jacobian, their derivatives in the unknowns.
         let force = forced.then(|| match frozen {
             Some(_) => (generalized_force(system, t, q, v), None),

@@ -1,4 +1,4 @@
-//! Energy-preserving variable steps (MATH.md §3, §9; paper 001 §3, 003 §3.2).
+//! Energy-preserving variable steps (docs/theory.md §3, §9; Chen, Guo & Wu (total variation) §3, 003 §3.2).
 //!
 //! ```text
 //! given (t_k, q_k, p_k, E_k):   solve  R_q = p_k  + ∂A/∂q_k (x_k, x_{k+1}) = 0
@@ -8,12 +8,12 @@
 //!
 //! For an autonomous `L` the second equation says `E_{k+1} = E_k`; for a
 //! time-dependent one it is the discrete energy balance
-//! `E_{k+1} − E_k = −(∂A/∂t_k + ∂A/∂t_{k+1})` (paper 003).
+//! `E_{k+1} − E_k = −(∂A/∂t_k + ∂A/∂t_{k+1})` (de León & Martín de Diego).
 //!
 //! The step size enters the energy equation only through the `O(h²)` energy
 //! error of the discrete Lagrangian, so the equation can lose its root: in
 //! the continuous limit the step density obeys `ρ ∝ (V''p² + V'²)^{1/3}`
-//! for `½p² + V(q)` (paper 000 (4.8)), and where that factor changes sign no
+//! for `½p² + V(q)` (Luo, Guo, Li & Wu (4.8)), and where that factor changes sign no
 //! positive step conserves the energy. Each step is therefore solved in two
 //! stages:
 //!
@@ -46,7 +46,7 @@ use crate::state::State;
 use crate::system::Lagrangian;
 
 /// Limits on the step sizes of
-/// [`StepPolicy::EnergyPreserving`](super::StepPolicy::EnergyPreserving) (MATH.md §9).
+/// [`StepPolicy::EnergyPreserving`](super::StepPolicy::EnergyPreserving) (docs/theory.md §9).
 ///
 /// Every step lies in `[max(h_min, h_{k−1}/max_ratio), min(h_max, max_ratio·h_{k−1})]`;
 /// when no step there satisfies the energy equation the integrator applies its
@@ -85,7 +85,7 @@ impl StepBounds {
 }
 
 /// What an energy-preserving integrator does when no admissible step size
-/// satisfies the energy equation (MATH.md §9).
+/// satisfies the energy equation (docs/theory.md §9).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum EnergyFallback {
     /// Return [`Error::NoEnergyStep`] with the state unchanged (the default).
@@ -501,7 +501,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// The tangent map of the last step in the extended phase space
-    /// `(t, q, −E, p)` (MATH.md §8), a `(2N+2)×(2N+2)` matrix; see
+    /// `(t, q, −E, p)` (docs/theory.md §8), a `(2N+2)×(2N+2)` matrix; see
     /// [`symplectic::extended_tangent_map`](crate::symplectic::extended_tangent_map).
     /// For variable steps it preserves `dq∧dp − dt∧dE`.
     pub fn last_extended_tangent_map(&self) -> Option<nalgebra::DMatrix<f64>> {
