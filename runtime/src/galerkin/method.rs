@@ -90,6 +90,8 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
     /// increments of one step to the next (same step size).
     pub(crate) extrapolate: [[T; S]; S],
+    /// `ℓ_1'(1) … ℓ_s'(1)`: the velocity at the end of a step, `Σ_n ℓ_n'(1) D_n / h`.
+    pub(crate) end_d: [T; S],
 }
 
 impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
@@ -108,6 +110,7 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             col: [[T::zero(); S]; R],
             col_d: [[T::zero(); S]; R],
             extrapolate: [[T::zero(); S]; S],
+            end_d: [T::zero(); S],
         };
         if S == 0 {
             return g;
@@ -130,6 +133,9 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
                 g.row[j][m] = g.col[j][m - 1];
                 g.row_d[j][m] = g.col_d[j][m - 1];
             }
+        }
+        for m in 0..S {
+            g.end_d[m] = lagrange_derivative(&x, m + 1, T::one());
         }
         for m in 0..S {
             for n in 0..S {

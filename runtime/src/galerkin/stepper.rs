@@ -545,10 +545,15 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let (q1, carry) = kahan(&q0, &e, &d[S - 1]);
         // L at the end node too, which Gauss points do not reach.
         if lagrangian_finite {
-            let one = T::one();
-            let v1: [T; N] = core::array::from_fn(|i| {
-                (0..S).map(|n| g.basis_derivative(n + 1, one) * d[n][i]).fold(T::zero(), |a, b| a + b) / h
-            });
+            let mut v1 = [T::zero(); N];
+            for n in 0..S {
+                for i in 0..N {
+                    v1[i] += g.end_d[n] * d[n][i];
+                }
+            }
+            for x in &mut v1 {
+                *x = *x / h;
+            }
             lagrangian_finite = system.lagrangian(t1, q1, v1).is_finite();
         }
         let quantity = if lagrangian_finite { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
@@ -726,7 +731,7 @@ where
 
 /// Residual and Newton correction of the block system at the increments `d`.
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 pub(super) fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     system: &Sys,
     g: &Galerkin<S, R, T>,
