@@ -16,6 +16,7 @@ mod analyse;
 mod attr;
 mod chains;
 mod ctxt;
+mod discontinuity;
 mod expand;
 mod generate;
 mod ir;
