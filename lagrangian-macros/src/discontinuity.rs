@@ -75,7 +75,32 @@ pub(crate) fn check(cx: &Ctxt, function: &Function, acknowledged: bool) {
         return;
     }
     for (span, kind, deps) in sites(function) {
-        cx.body_error_at(function.kind, span, message(kind, deps));
+        // Two tokens with the first and last spans: the error underlines
+        // the whole condition or cast (spans cannot be joined on stable).
+        let (start, end) = span;
+        let tokens = quote::quote_spanned!(start=> start).into_iter().chain(quote::quote_spanned!(end=> end));
+        cx.body_error_spanned_by(function.kind, tokens.collect::<proc_macro2::TokenStream>(), message(kind, deps));
+    }
+}
+
+/// The span of the last token of `expr`, as far as the IR keeps it (a
+/// closing parenthesis is not kept: the span ends before it).
+fn last_span(expr: &Expr) -> Span {
+    match &expr.kind {
+        ExprKind::Binary { rhs: last, .. }
+        | ExprKind::Unary { expr: last, .. }
+        | ExprKind::Paren(last)
+        | ExprKind::Assign { value: last, .. } => last_span(last),
+        ExprKind::Cast { ty, .. } => {
+            quote::ToTokens::to_token_stream(ty).into_iter().last().map_or(expr.span, |token| token.span())
+        }
+        ExprKind::Index { bracket: last, .. } | ExprKind::MethodCall { paren: last, .. } => *last,
+        ExprKind::Local(_, ident) | ExprKind::Param(_, ident) => ident.span(),
+        ExprKind::Field { member, .. } => syn::spanned::Spanned::span(member),
+        ExprKind::Lit(lit) => lit.span(),
+        ExprKind::Path(path) => path.path.segments.last().map_or(expr.span, |segment| segment.ident.span()),
+        ExprKind::Block(block) => block.span,
+        _ => expr.span,
     }
 }
 
@@ -94,7 +119,7 @@ fn message(kind: SiteKind, deps: Deps) -> String {
 }
 
 /// The discontinuities of `function`, in source order.
-fn sites(function: &Function) -> Vec<(Span, SiteKind, Deps)> {
+fn sites(function: &Function) -> Vec<((Span, Span), SiteKind, Deps)> {
     let mut locals = vec![Deps::default(); function.locals.len()];
     // Sets only grow, by at most three parameters per local; the bound is a
     // guard, not a limit in practice.
@@ -114,13 +139,18 @@ fn sites(function: &Function) -> Vec<(Span, SiteKind, Deps)> {
 /// the sites found.
 struct Walk<'a> {
     locals: &'a mut [Deps],
-    sites: Option<&'a mut Vec<(Span, SiteKind, Deps)>>,
+    sites: Option<&'a mut Vec<((Span, Span), SiteKind, Deps)>>,
 }
 
 impl Walk<'_> {
-    fn site(&mut self, span: Span, kind: SiteKind, deps: Deps) {
+    /// Records a site spanning `expr`.
+    fn site(&mut self, expr: &Expr, kind: SiteKind, deps: Deps) {
+        self.site_between(expr.span, last_span(expr), kind, deps);
+    }
+
+    fn site_between(&mut self, start: Span, end: Span, kind: SiteKind, deps: Deps) {
         if let Some(sites) = &mut self.sites {
-            sites.push((span, kind, deps));
+            sites.push(((start, end), kind, deps));
         }
     }
 
@@ -176,7 +206,7 @@ impl Walk<'_> {
                 if crate::parse::is_f64(ty) || deps.is_empty() {
                     deps
                 } else {
-                    self.site(expr.span, SiteKind::IntegerCast, deps);
+                    self.site(expr, SiteKind::IntegerCast, deps);
                     Deps::default()
                 }
             }
@@ -186,7 +216,7 @@ impl Walk<'_> {
                 // A condition that is not a `bool` (`if v[0]`) is rustc's
                 // error to report, not a discontinuity.
                 if !cond_deps.is_empty() && cond.class == Class::Bool {
-                    self.site(cond.span, SiteKind::Condition, cond_deps);
+                    self.site(cond, SiteKind::Condition, cond_deps);
                 }
                 let then_deps = self.block(then_branch);
                 let else_deps = else_branch.as_ref().map_or(Deps::default(), |e| self.expr(e));
@@ -207,7 +237,7 @@ impl Walk<'_> {
                     deps = deps.union(self.expr(arg));
                 }
                 if method == "signum" && !deps.is_empty() {
-                    self.site(method.span(), SiteKind::Signum, deps);
+                    self.site_between(method.span(), method.span(), SiteKind::Signum, deps);
                     return Deps::default();
                 }
                 deps
