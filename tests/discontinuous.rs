@@ -54,12 +54,13 @@ fn crossing_the_step_shows_as_an_energy_jump_at_the_crossing() {
     // From q = 0 at speed 1, E = 0.5; the step at q = 0.5 is reached at
     // t = 0.5. It lowers L by 0.3, i.e. raises the potential by 0.3: a
     // relative jump of about 0.6 in one step.
-    let mut sim = Integrator::new(PotentialStep { h: 0.3, x0: 0.5 }, Midpoint, 0.01)
-        .start(0.0, [0.0], [1.0])
-        .unwrap();
+    let mut sim = Integrator::new(PotentialStep { h: 0.3, x0: 0.5 }, Midpoint, 0.01).start(0.0, [0.0], [1.0]).unwrap();
     sim.run_until(1.0, |_| {}).unwrap();
     let stats = sim.stats();
-    println!("potential step: largest energy jump {:.3} at t = {:.3}", stats.largest_energy_jump, stats.largest_energy_jump_at);
+    println!(
+        "potential step: largest energy jump {:.3} at t = {:.3}",
+        stats.largest_energy_jump, stats.largest_energy_jump_at
+    );
     assert!(stats.largest_energy_jump > 0.1, "{stats:?}");
     // Within a few steps of the crossing.
     assert!((0.48..0.54).contains(&stats.largest_energy_jump_at), "{stats:?}");

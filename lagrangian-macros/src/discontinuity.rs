@@ -309,10 +309,7 @@ mod tests {
 
     #[test]
     fn conditions_on_q_v_t_are_reported_with_what_they_depend_on() {
-        assert_eq!(
-            found(parse_quote!({ if q[0] > 0.0 { v[0] } else { 0.0 } })),
-            [condition("`q`")]
-        );
+        assert_eq!(found(parse_quote!({ if q[0] > 0.0 { v[0] } else { 0.0 } })), [condition("`q`")]);
         assert_eq!(
             found(parse_quote!({
                 let fast = v[1] * v[1] > 1.0;
@@ -324,7 +321,15 @@ mod tests {
         );
         // An `else if` is a second condition.
         assert_eq!(
-            found(parse_quote!({ if q[0] > 0.0 { 1.0 } else if self.a < q[1] + v[0] * t { 2.0 } else { 3.0 } })),
+            found(parse_quote!({
+                if q[0] > 0.0 {
+                    1.0
+                } else if self.a < q[1] + v[0] * t {
+                    2.0
+                } else {
+                    3.0
+                }
+            })),
             [condition("`q`"), condition("`t`, `q` and `v`")]
         );
         // Not a `bool`: rustc's type error, not ours.

@@ -16,12 +16,7 @@ use quote::{ToTokens, quote, quote_spanned};
 use syn::{BinOp, ImplItem, ItemImpl, Type};
 
 /// The user's block followed by the trait impl.
-pub(crate) fn expand(
-    item: &ItemImpl,
-    system: &System,
-    analysis: &Analysis,
-    args: &Args,
-) -> TokenStream {
+pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
     let user_impl = user_impl(item, None);
     let cfgs = cfgs(item);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
