@@ -59,6 +59,10 @@ impl Deps {
     }
 }
 
+/// A site: the first and last spans of its expression, what it is, and what
+/// it depends on.
+type Site = ((Span, Span), SiteKind, Deps);
+
 /// What kind of site makes the body piecewise; it words the error.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum SiteKind {
@@ -119,7 +123,7 @@ fn message(kind: SiteKind, deps: Deps) -> String {
 }
 
 /// The discontinuities of `function`, in source order.
-fn sites(function: &Function) -> Vec<((Span, Span), SiteKind, Deps)> {
+fn sites(function: &Function) -> Vec<Site> {
     let mut locals = vec![Deps::default(); function.locals.len()];
     // Sets only grow, by at most three parameters per local; the bound is a
     // guard, not a limit in practice.
@@ -139,7 +143,7 @@ fn sites(function: &Function) -> Vec<((Span, Span), SiteKind, Deps)> {
 /// the sites found.
 struct Walk<'a> {
     locals: &'a mut [Deps],
-    sites: Option<&'a mut Vec<((Span, Span), SiteKind, Deps)>>,
+    sites: Option<&'a mut Vec<Site>>,
 }
 
 impl Walk<'_> {
