@@ -29,7 +29,8 @@ impl Pendulum {
 
 const PENDULUM: Pendulum = Pendulum { m: 1.3, l: 0.8, g: 9.81 };
 
-/// Every construct at once, time-dependent; `q[2]` never appears.
+/// Every construct at once, time-dependent; `q[2]` never appears. It
+/// branches on `q` and `t`, so it must be declared discontinuous.
 pub struct KitchenSink {
     pub m: f64,
     pub k: [f64; 3],
@@ -37,7 +38,7 @@ pub struct KitchenSink {
     pub stiff: bool,
 }
 
-#[lagrangian]
+#[lagrangian(discontinuous)]
 impl KitchenSink {
     fn lagrangian(&self, t: f64, q: [f64; 3], v: [f64; 3]) -> f64 {
         use std::f64::consts::PI;
@@ -306,17 +307,17 @@ fn generic_systems_expand_for_every_n() {
     assert_eq!(eval(&tilted, 0.0, [0.5, 0.1], [1.0, 2.0]), tilted.lagrangian([0.5, 0.1], [1.0, 2.0]));
 }
 
-/// `(AUTONOMOUS, HAS_DISSIPATION, HAS_FORCE, CYCLIC)`.
-fn constants<S: Lagrangian<N>, const N: usize>() -> (bool, bool, bool, [bool; N]) {
-    (S::AUTONOMOUS, S::HAS_DISSIPATION, S::HAS_FORCE, S::CYCLIC)
+/// `(AUTONOMOUS, HAS_DISSIPATION, HAS_FORCE, CYCLIC, DISCONTINUOUS)`.
+fn constants<S: Lagrangian<N>, const N: usize>() -> (bool, bool, bool, [bool; N], bool) {
+    (S::AUTONOMOUS, S::HAS_DISSIPATION, S::HAS_FORCE, S::CYCLIC, S::DISCONTINUOUS)
 }
 
 #[test]
 fn constants_describe_the_signature_and_the_cyclic_coordinates() {
-    assert_eq!(constants::<Pendulum, 1>(), (true, false, false, [false]));
-    assert_eq!(constants::<KitchenSink, 3>(), (false, false, true, [false, false, true]));
+    assert_eq!(constants::<Pendulum, 1>(), (true, false, false, [false], false));
+    assert_eq!(constants::<KitchenSink, 3>(), (false, false, true, [false, false, true], true));
     // `force` taking `t` does not make the Lagrangian time-dependent.
-    assert_eq!(constants::<Damped, 2>(), (true, true, true, [false, false]));
-    assert_eq!(constants::<Chain<3>, 3>(), (true, false, false, [false; 3]));
-    assert_eq!(constants::<Tilted<3>, 3>(), (true, false, false, [false, true, true]));
+    assert_eq!(constants::<Damped, 2>(), (true, true, true, [false, false], false));
+    assert_eq!(constants::<Chain<3>, 3>(), (true, false, false, [false; 3], false));
+    assert_eq!(constants::<Tilted<3>, 3>(), (true, false, false, [false, true, true], false));
 }

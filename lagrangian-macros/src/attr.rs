@@ -1,4 +1,10 @@
-//! The arguments of the attribute: `#[lagrangian(symmetry = ..., ...)]`.
+//! The arguments of the attribute: `#[lagrangian(discontinuous, symmetry =
+//! ..., ...)]`.
+//!
+//! `discontinuous` acknowledges a Lagrangian that jumps where a branch on
+//! `t`, `q` or `v` changes (see `discontinuity`): the body is accepted and
+//! `Lagrangian::DISCONTINUOUS` is set, so that the runtime records the energy
+//! jumps.
 //!
 //! Each `symmetry = ...` declares a one-parameter group acting on the
 //! configuration space (MATH.md §7) whose discrete momentum map the runtime
@@ -13,6 +19,15 @@ use proc_macro2::TokenStream;
 use syn::punctuated::Punctuated;
 use syn::{Expr, ExprCall, ExprLit, Lit, LitInt, Meta, Token};
 
+/// The parsed arguments.
+#[derive(Default)]
+pub(crate) struct Args {
+    /// `discontinuous` was given.
+    pub(crate) discontinuous: bool,
+    /// The declared symmetries, in order.
+    pub(crate) symmetries: Vec<SymmetryDecl>,
+}
+
 /// One declared symmetry.
 pub(crate) enum SymmetryDecl {
     /// `translation(i)`.
@@ -25,30 +40,43 @@ pub(crate) enum SymmetryDecl {
 
 const EXPECTED: &str = "`symmetry = translation(i)`, `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
 
+/// Every argument the attribute takes.
+const ARGUMENTS: &str =
+    "`discontinuous`, `symmetry = translation(i)`, `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
+
 /// Parses the attribute's arguments, reporting what it cannot read.
-pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Vec<SymmetryDecl> {
+pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
+    let mut out = Args::default();
     if attr.is_empty() {
-        return Vec::new();
+        return out;
     }
     let metas = match syn::parse::Parser::parse2(Punctuated::<Meta, Token![,]>::parse_terminated, attr) {
         Ok(metas) => metas,
         Err(error) => {
-            cx.error_at(error.span(), format!("`#[lagrangian]` takes {EXPECTED}"));
-            return Vec::new();
+            cx.error_at(error.span(), format!("`#[lagrangian]` takes {ARGUMENTS}"));
+            return out;
         }
     };
-    let mut out = Vec::new();
     for meta in metas {
+        if let Meta::Path(path) = &meta
+            && path.is_ident("discontinuous")
+        {
+            if out.discontinuous {
+                cx.error_spanned_by(path, "`discontinuous` is given twice");
+            }
+            out.discontinuous = true;
+            continue;
+        }
         let Meta::NameValue(pair) = &meta else {
-            cx.error_spanned_by(&meta, format!("unknown argument: `#[lagrangian]` takes {EXPECTED}"));
+            cx.error_spanned_by(&meta, format!("unknown argument: `#[lagrangian]` takes {ARGUMENTS}"));
             continue;
         };
         if !pair.path.is_ident("symmetry") {
-            cx.error_spanned_by(&pair.path, format!("unknown argument: `#[lagrangian]` takes {EXPECTED}"));
+            cx.error_spanned_by(&pair.path, format!("unknown argument: `#[lagrangian]` takes {ARGUMENTS}"));
             continue;
         }
         if let Some(decl) = symmetry(cx, &pair.value) {
-            out.push(decl);
+            out.symmetries.push(decl);
         }
     }
     out

@@ -3,23 +3,26 @@
 
 use crate::ctxt::Ctxt;
 use crate::parse::Input;
-use crate::{analyse, attr, generate, validate};
+use crate::{analyse, attr, discontinuity, generate, validate};
 use proc_macro2::TokenStream;
 use syn::ItemImpl;
 
 /// Expands `#[lagrangian]` with arguments `attr` on `item`.
 pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
     let cx = Ctxt::new();
-    let symmetries = attr::parse(&cx, attr);
+    let args = attr::parse(&cx, attr);
     let input = Input::from_syn(&item);
     let mut system = validate::validate(&cx, &input);
     if let Some(system) = &system {
-        attr::check(&cx, &symmetries, &system.n);
+        attr::check(&cx, &args.symmetries, &system.n);
     }
     let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
+    if let Some(system) = &system {
+        discontinuity::check(&cx, &system.lagrangian, args.discontinuous);
+    }
     match (cx.check(), system, analysis) {
         (Ok(()), Some(system), Some(analysis)) if analysis.consistent => {
-            generate::expand(&item, &system, &analysis, &symmetries)
+            generate::expand(&item, &system, &analysis, &args)
         }
         // The body mixes types in a way rustc rejects on the user's own
         // method; generated code would only repeat that error.
@@ -96,5 +99,44 @@ mod tests {
         .to_string();
         assert!(!out.contains("compile_error"), "{out}");
         assert!(out.contains("unreachable"), "{out}");
+    }
+
+    #[test]
+    fn a_branch_on_q_is_refused_unless_acknowledged() {
+        let item: ItemImpl = parse_quote! {
+            impl Step {
+                fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+                    0.5 * v[0] * v[0] - if q[0] > 0.0 { self.h } else { 0.0 }
+                }
+            }
+        };
+        let out = expand(TokenStream::new(), item.clone()).to_string();
+        assert_eq!(out.matches("compile_error").count(), 1, "{out}");
+        assert!(out.contains("`lagrangian` is discontinuous here"), "{out}");
+        assert!(!out.contains("DISCONTINUOUS"), "{out}");
+
+        let out = expand(quote!(discontinuous), item.clone()).to_string();
+        assert!(!out.contains("compile_error"), "{out}");
+        assert!(out.contains("const DISCONTINUOUS : bool = true ;"), "{out}");
+
+        // With symmetries too, in any order; a smooth body never sets it.
+        let out = expand(quote!(symmetry = translation(0), discontinuous), item).to_string();
+        assert!(!out.contains("compile_error") && out.contains("const DISCONTINUOUS : bool = true ;"), "{out}");
+        let out = expand(
+            TokenStream::new(),
+            parse_quote! { impl P { fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { v[0] * q[0] } } },
+        )
+        .to_string();
+        assert!(!out.contains("DISCONTINUOUS"), "{out}");
+    }
+
+    #[test]
+    fn discontinuous_takes_no_value_and_is_given_once() {
+        let item: ItemImpl =
+            parse_quote! { impl P { fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { v[0] * q[0] } } };
+        for attr in [quote!(discontinuous = true), quote!(discontinuous(yes)), quote!(discontinuous, discontinuous)] {
+            let out = expand(attr.clone(), item.clone()).to_string();
+            assert_eq!(out.matches("compile_error").count(), 1, "{attr}: {out}");
+        }
     }
 }

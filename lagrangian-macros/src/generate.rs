@@ -7,7 +7,7 @@
 //! compares and converts only through its real part.
 
 use crate::analyse::{Analysis, Cyclic};
-use crate::attr::SymmetryDecl;
+use crate::attr::{Args, SymmetryDecl};
 use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
 use crate::parse::{Len, MethodKind};
@@ -16,12 +16,7 @@ use quote::{ToTokens, quote, quote_spanned};
 use syn::{BinOp, ImplItem, ItemImpl, Type};
 
 /// The user's block followed by the trait impl.
-pub(crate) fn expand(
-    item: &ItemImpl,
-    system: &System,
-    analysis: &Analysis,
-    symmetries: &[SymmetryDecl],
-) -> TokenStream {
+pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
     let user_impl = user_impl(item, None);
     let cfgs = cfgs(item);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
@@ -31,7 +26,9 @@ pub(crate) fn expand(
     let cyclic = cyclic(&system.n, &analysis.cyclic);
     let has_dissipation = system.dissipation.is_some().then(|| quote! { const HAS_DISSIPATION: bool = true; });
     let has_force = system.force.is_some().then(|| quote! { const HAS_FORCE: bool = true; });
-    let symmetries = declared_symmetries(&n, symmetries);
+    let symmetries = declared_symmetries(&n, &args.symmetries);
+    // Turns on the runtime's record of energy jumps.
+    let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
     let methods = std::iter::once(&system.lagrangian)
         .chain(&system.dissipation)
         .chain(&system.force)
@@ -49,6 +46,7 @@ pub(crate) fn expand(
             const CYCLIC: [bool; #n] = #cyclic;
             #has_dissipation
             #has_force
+            #discontinuous
             #symmetries
             #(#methods)*
         }
@@ -575,7 +573,7 @@ mod tests {
         let mut system = crate::validate::validate(&cx, &Input::from_syn(item)).unwrap();
         let analysis = crate::analyse::analyse(&cx, &mut system);
         cx.check().unwrap();
-        expand(item, &system, &analysis, &[]).to_string()
+        expand(item, &system, &analysis, &Args::default()).to_string()
     }
 
     /// The generated `lagrangian` body for a one-coordinate Lagrangian.

@@ -8,14 +8,16 @@
 //! The expansion is a small compiler, one private module per stage, read top
 //! to bottom: `parse` picks the recognised methods out of the block,
 //! `validate` checks their signatures and lowers their bodies into the `ir`,
-//! `analyse` finds which values depend on `t`, `q` and `v`, and `generate`
-//! prints the trait impl. `expand` runs them in turn; errors accumulate in a
+//! `analyse` finds which values depend on `t`, `q` and `v`, `discontinuity`
+//! where the Lagrangian jumps with them, and `generate` prints the trait
+//! impl. `expand` runs them in turn; errors accumulate in a
 //! `ctxt::Ctxt` so that all of them are reported at once.
 
 mod analyse;
 mod attr;
 mod chains;
 mod ctxt;
+mod discontinuity;
 mod expand;
 mod generate;
 mod ir;
@@ -61,6 +63,14 @@ use proc_macro::TokenStream;
 /// `#[lagrangian(symmetry = translation(i), symmetry = rotation(i, j),
 /// symmetry = generator(|q: &[f64; N]| [...]))]`. They become
 /// `Lagrangian::SYMMETRIES`; indices are checked against `N`.
+///
+/// A Lagrangian that jumps is refused unless acknowledged: an `if` whose
+/// condition depends on `t`, `q` or `v`, a cast of such a value to an
+/// integer type, or `signum` of one, in `lagrangian`, is an error (variational
+/// integrators assume a smooth `L`; the discrete energy jumps where the
+/// branch changes). `#[lagrangian(discontinuous)]` accepts the body and sets
+/// `Lagrangian::DISCONTINUOUS`, for the runtime to record the energy jumps.
+/// Kinks (`abs`) are not reported, nor are `force` and `dissipation`.
 ///
 /// The receiver may be written `&self` or `self: &Self`. `#[cfg]` on the
 /// recognised methods is refused (the trait implementation could not follow
