@@ -7,7 +7,7 @@
 //! jumps.
 //!
 //! Each `symmetry = ...` declares a one-parameter group acting on the
-//! configuration space (MATH.md §7) whose discrete momentum map the runtime
+//! configuration space (docs/theory.md §7) whose discrete momentum map the runtime
 //! can follow: `translation(i)`, `rotation(i, j)` or `generator(f)` with `f`
 //! a closure or function `&[f64; N] -> [f64; N]` giving `ξ(q)`. The indices
 //! are checked against `N` when `N` is a literal; a declared symmetry is not

@@ -58,7 +58,7 @@ use proc_macro::TokenStream;
 /// abs signum recip mul_add` (also written `f64::sin(x)`). Anything else is
 /// a compile error naming the construct.
 ///
-/// Symmetries (MATH.md §7) can be declared in the attribute, for the
+/// Symmetries (docs/theory.md §7) can be declared in the attribute, for the
 /// runtime's `noether` module to follow their momentum maps:
 /// `#[lagrangian(symmetry = translation(i), symmetry = rotation(i, j),
 /// symmetry = generator(|q: &[f64; N]| [...]))]`. They become
