@@ -552,7 +552,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                 }
             }
             for x in &mut v1 {
-                *x = *x / h;
+                *x /= h;
             }
             lagrangian_finite = system.lagrangian(t1, q1, v1).is_finite();
         }
