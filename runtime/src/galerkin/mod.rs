@@ -1,4 +1,4 @@
-//! Galerkin discrete Lagrangians of any degree and their fixed-step
+//! Galerkin discrete Lagrangians of any degree and their
 //! integrator (docs/theory.md §5; Chen, Guo & Wu (finite elements) §2.2–2.3).
 //!
 //! The step polynomial of degree `s` passes through `q_k`, `s − 1` interior

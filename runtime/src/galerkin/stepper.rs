@@ -1,4 +1,5 @@
-//! The fixed-step Galerkin variational integrator.
+//! The Galerkin variational integrator: fixed steps, forces, and the state
+//! and checks shared with its energy-preserving steps.
 //!
 //! ```text
 //! given (t_k, q_k, p_k), unknowns D_m = Q_m − q_k, m = 1 … s  (s − 1 interior nodes and q_{k+1} − q_k):
@@ -30,7 +31,8 @@
 //! the step polynomial at `q_k + (e_k + Σ_m ℓ_m D_m)`, so the round-off of
 //! the positions grows like `h · ε` per step instead of `ε`.
 //!
-//! Variable steps are not supported with Galerkin discrete Lagrangians.
+//! Energy-preserving variable steps are in `energy.rs` (the step size as one
+//! more unknown of the step).
 
 use core::cell::Cell;
 
