@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use lagrangian::prelude::*;
-use lagrangian::{Error, StepBounds};
+use lagrangian::{EnergyFallback, Error, StepBounds};
 
 /// `L = ½ v² + g cos q`, g = 9.81.
 pub struct Pendulum;
@@ -171,4 +171,39 @@ fn galerkin_energy_steps_refuse_what_they_cannot_do() {
         matches!(failure, Some(Error::NoEnergyStep { .. }) | Some(Error::NewtonDidNotConverge { .. })),
         "{failure:?}"
     );
+}
+
+/// Where no admissible step conserves the energy, the bracket is searched for
+/// a root, and with `EnergyFallback::LeastSquares` the step of least mismatch
+/// is taken and counted; the energy is conserved between such steps.
+#[test]
+fn galerkin_energy_steps_go_on_with_the_least_squares_fallback() {
+    let e: f64 = 0.5;
+    let r0 = 1.0 - e;
+    let (qk, vk) = ([r0, 0.0], [0.0, (1.0 - e * e).sqrt() / (r0 * r0)]);
+    let mut sim = GalerkinIntegrator::new(Kepler, Galerkin::<2, 2>::gauss(), 0.05)
+        .energy_preserving(StepBounds::around(0.05))
+        .energy_fallback(EnergyFallback::LeastSquares)
+        .start(0.0, qk, vk)
+        .unwrap();
+    sim.step().unwrap();
+    let mut energy = sim.discrete_energy().unwrap();
+    let (mut fallbacks, mut worst) = (0, 0.0f64);
+    let t_end = 4.0 * std::f64::consts::PI;
+    while sim.state().t < t_end {
+        sim.step().unwrap_or_else(|e| panic!("{e}"));
+        let now = sim.discrete_energy().unwrap();
+        if sim.stats().energy_fallbacks > fallbacks {
+            fallbacks = sim.stats().energy_fallbacks;
+        } else {
+            worst = worst.max(((now - energy) / energy).abs());
+        }
+        energy = now;
+    }
+    println!(
+        "Kepler e = 0.5, s = 2, two orbits: {} steps, {fallbacks} least-squares steps, energy between them ≤ {worst:.1e}",
+        sim.stats().steps
+    );
+    assert!(fallbacks > 0);
+    assert!(worst <= 1e-12, "{worst:e}");
 }

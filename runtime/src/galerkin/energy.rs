@@ -40,7 +40,7 @@ use super::linalg::BlockVector;
 use super::method::PointDerivatives;
 use super::stepper::{GalerkinIntegrator, Nodes, linearize};
 use crate::error::Error;
-use crate::integrator::StepBounds;
+use crate::integrator::{EnergyFallback, StepBounds};
 use crate::newton::{self, NewtonFailure, NewtonReport};
 use crate::real::Real;
 use crate::state::State;
@@ -158,7 +158,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let mut h = T::from(self.h.to_f64().clamp(lo, hi));
         let mut d = self.predict(h);
         let mut spent = 0;
-        let mut solved = None;
+        let mut solved: Option<(T, f64)> = None;
         for _ in 0..self.newton.max_iterations {
             let (nodes, gh, slope, w, scale, iterations) = match self.energy_probe(h, d) {
                 Ok(probe) => probe,
@@ -198,6 +198,28 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             h += dh;
         }
         let State { t: t0, q: q0, .. } = self.state;
+        let mut fallback = false;
+        if solved.is_none() {
+            // Newton on h found no root near the guess: search the whole
+            // bracket (a sign change, then bisection), and where there is none
+            // apply the configured fallback.
+            match self.search_bracket(lo, hi, &mut spent) {
+                Ok(Some((hs, ds, gh))) => {
+                    (h, d) = (hs, ds);
+                    solved = Some((gh, 0.0));
+                }
+                Ok(None) => {}
+                Err(failure) => return Err(self.fail(h, failure)),
+            }
+            if solved.is_none()
+                && self.fallback == EnergyFallback::LeastSquares
+                && let Ok((hs, ds, gh)) = self.least_squares(lo, hi, &mut spent)
+            {
+                (h, d) = (hs, ds);
+                solved = Some((gh, 0.0));
+                fallback = true;
+            }
+        }
         let mismatch = match solved {
             Some((gh, _)) => (gh / self.energy).to_f64().abs(),
             None => {
@@ -225,8 +247,99 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         self.commit(h, t1, d, report)?;
         self.time_error = time_error;
         self.h = h;
+        if fallback {
+            // The least-squares step changed the energy: conserve its new value.
+            self.reread_energy();
+            self.time_error = time_error;
+            self.stats.energy_fallbacks += 1;
+        }
         self.clock = (self.state.t, self.state.step);
         Ok(&self.state)
+    }
+
+    /// Samples `g(h)` at nine points of `[lo, hi]` for a sign change and
+    /// bisects it to round-off: `(h, nodes, g)`, or `None` without a sign
+    /// change. Probes whose node equations fail are skipped.
+    #[allow(clippy::type_complexity)]
+    fn search_bracket(
+        &self,
+        lo: f64,
+        hi: f64,
+        spent: &mut usize,
+    ) -> Result<Option<(T, BlockVector<N, S, T>, T)>, NewtonFailure> {
+        let mut probe = |h: f64| -> Option<(T, BlockVector<N, S, T>, T)> {
+            let h = T::from(h);
+            let (d, gh, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
+            *spent += iterations;
+            Some((h, d, gh))
+        };
+        let mut previous: Option<(T, BlockVector<N, S, T>, T)> = None;
+        for k in 0..=8 {
+            let Some(here) = probe(lo + (hi - lo) * k as f64 / 8.0) else { continue };
+            if let Some(before) = previous
+                && (before.2 < T::zero()) != (here.2 < T::zero())
+            {
+                let (mut a, mut b) = (before, here);
+                for _ in 0..60 {
+                    let mid = 0.5 * (a.0.to_f64() + b.0.to_f64());
+                    if mid <= a.0.to_f64() || mid >= b.0.to_f64() {
+                        break;
+                    }
+                    let Some(m) = probe(mid) else { break };
+                    if (m.2 < T::zero()) == (a.2 < T::zero()) {
+                        a = m;
+                    } else {
+                        b = m;
+                    }
+                }
+                return Ok(Some(if a.2.abs() <= b.2.abs() { a } else { b }));
+            }
+            previous = Some(here);
+        }
+        Ok(None)
+    }
+
+    /// The admissible step of least energy mismatch, by golden section on
+    /// `[lo, hi]` (Kane, Marsden & Ortiz's least-squares step).
+    #[allow(clippy::type_complexity)]
+    fn least_squares(
+        &self,
+        lo: f64,
+        hi: f64,
+        spent: &mut usize,
+    ) -> Result<(T, BlockVector<N, S, T>, T), NewtonFailure> {
+        const INV_PHI: f64 = 0.618_033_988_749_894_8;
+        let mut probe = |h: f64| -> Option<(T, BlockVector<N, S, T>, T)> {
+            let h = T::from(h);
+            let (d, gh, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
+            *spent += iterations;
+            Some((h, d, gh))
+        };
+        let size = |p: &Option<(T, BlockVector<N, S, T>, T)>| p.as_ref().map_or(f64::INFINITY, |p| p.2.to_f64().abs());
+        let (mut a, mut b) = (lo, hi);
+        let (mut c, mut d) = (b - INV_PHI * (b - a), a + INV_PHI * (b - a));
+        let (mut pc, mut pd) = (probe(c), probe(d));
+        let mut best = if size(&pc) <= size(&pd) { pc } else { pd };
+        for _ in 0..40 {
+            if b - a <= 1e-9 * b {
+                break;
+            }
+            if size(&pc) < size(&pd) {
+                (b, d, pd) = (d, c, pc);
+                c = b - INV_PHI * (b - a);
+                pc = probe(c);
+            } else {
+                (a, c, pc) = (c, d, pd);
+                d = a + INV_PHI * (b - a);
+                pd = probe(d);
+            }
+            for p in [&pc, &pd] {
+                if size(p) < size(&best) {
+                    best = *p;
+                }
+            }
+        }
+        best.ok_or(NewtonFailure::NonFinite { iterations: *spent, quantity: "energy equation" })
     }
 
     /// The first energy-preserving step: a step of the given size, whose

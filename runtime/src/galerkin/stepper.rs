@@ -37,7 +37,7 @@
 use core::cell::Cell;
 
 use crate::error::Error;
-use crate::integrator::{Stats, StepBounds, implausible_growth, kahan, non_finite};
+use crate::integrator::{EnergyFallback, Stats, StepBounds, implausible_growth, kahan, non_finite};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{Real, all_finite, max_abs};
@@ -57,6 +57,7 @@ pub struct GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> {
     h: T,
     newton: NewtonOptions,
     policy: Option<StepBounds>,
+    fallback: EnergyFallback,
 }
 
 impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T> {
@@ -67,6 +68,16 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
     /// is conserved and what is not supported yet.
     pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
         self.policy = Some(bounds);
+        self
+    }
+
+    /// What energy-preserving steps do where no admissible step size solves
+    /// the energy equation (default [`EnergyFallback::Fail`]; with
+    /// [`EnergyFallback::LeastSquares`] the step of least energy mismatch is
+    /// taken, its energy conserved from then on, and the step counted in
+    /// [`Stats::energy_fallbacks`]).
+    pub fn energy_fallback(mut self, fallback: EnergyFallback) -> Self {
+        self.fallback = fallback;
         self
     }
 
@@ -147,6 +158,7 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T>
             clock: (t0, 0),
             stats: Stats::default(),
             policy: self.policy,
+            fallback: self.fallback,
             energy: T::zero(),
             time_error: T::zero(),
         })
@@ -237,6 +249,9 @@ pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usiz
     pub(super) stats: Stats,
     /// Energy-preserving steps within these bounds, or fixed steps (`None`).
     pub(super) policy: Option<StepBounds>,
+    /// What energy-preserving steps do where no admissible step size solves
+    /// the energy equation.
+    pub(super) fallback: EnergyFallback,
     /// The discrete energy the energy-preserving steps conserve.
     pub(super) energy: T,
     /// Kahan compensation of `t_k` under energy-preserving steps.
@@ -251,7 +266,14 @@ impl<Sys, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, 0, S,
     /// or [`DoubleDouble`](crate::DoubleDouble) for about 32 digits.
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: Sys, method: Galerkin<S, R, T>, h: T) -> GalerkinBuilder<Sys, S, R, T> {
-        GalerkinBuilder { system, method, h, newton: NewtonOptions::default(), policy: None }
+        GalerkinBuilder {
+            system,
+            method,
+            h,
+            newton: NewtonOptions::default(),
+            policy: None,
+            fallback: EnergyFallback::Fail,
+        }
     }
 }
 
