@@ -845,7 +845,7 @@ where
             let build = move |case: &Case| {
                 let builder = GalerkinIntegrator::new(system, Galerkin::<$s, $s>::gauss(), case.h).newton(case.newton);
                 match case.energy {
-                    Some((bounds, _)) => builder.energy_preserving(bounds),
+                    Some((bounds, fallback)) => builder.energy_preserving(bounds).energy_fallback(fallback),
                     None => builder,
                 }
                 .start(case.t0, q0, v0)
