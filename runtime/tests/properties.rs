@@ -845,7 +845,13 @@ where
             let build = move |case: &Case| {
                 let builder = GalerkinIntegrator::new(system, Galerkin::<$s, $s>::gauss(), case.h).newton(case.newton);
                 match case.energy {
-                    Some((bounds, fallback)) => builder.energy_preserving(bounds).energy_fallback(fallback),
+                    Some((bounds, least_squares)) => {
+                        builder.energy_preserving(bounds).energy_fallback(if least_squares {
+                            EnergyFallback::LeastSquares
+                        } else {
+                            EnergyFallback::Fail
+                        })
+                    }
                     None => builder,
                 }
                 .start(case.t0, q0, v0)
