@@ -158,6 +158,7 @@ impl<S, M: DiscreteLagrangian> IntegratorBuilder<S, M> {
             energy,
             time_error: 0.0,
             energy_carry: 0.0,
+            watched_energy: None,
             system: self.system,
             method: self.method,
             h: self.h,
@@ -217,6 +218,10 @@ pub(crate) fn implausible_growth<const N: usize>(
     let scale = max_abs(predicted).max(max_abs(last));
     scale > 0.0 && max_abs(dq) > 1e6 * scale.max(1e-6 * max_abs(q))
 }
+
+/// Why a step rejected by [`implausible_growth`] is refused.
+pub(crate) const IMPLAUSIBLE_GROWTH: &str = "the solution's increment is over 1e6 times the predicted and the last one: \
+                                            a root far from the trajectory (an unstable or unresolved step size)";
 
 /// Which of the values a step publishes is not finite, if any.
 pub(crate) fn non_finite<T: crate::real::Real, const N: usize>(t: T, q: &[T; N], p: &[T; N]) -> Option<&'static str> {
@@ -278,6 +283,9 @@ pub struct Integrator<S, M, const N: usize> {
     time_error: f64,
     /// Kahan compensation of the energy target `energy`.
     energy_carry: f64,
+    /// The discrete energy of the last step, kept by the energy-jump watch of
+    /// a system declared discontinuous (`None` before the first step).
+    watched_energy: Option<f64>,
     /// The last step, from node `k − 1` to node `k`; `None` at the start.
     previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
@@ -424,10 +432,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// between the last step and `seg` (see [`Stats::largest_energy_jump`]).
     pub(super) fn watch_energy(&mut self, seg: &Segment<N>, t1: f64) {
         let after = -derivatives::end_time_derivative(&self.system, &self.method, seg);
-        let before = match &self.previous {
-            Some(last) => -derivatives::end_time_derivative(&self.system, &self.method, last),
-            None => self.system.energy(self.state.t, self.state.q, self.v0),
-        };
+        // The last step's energy was this function's `after` one step ago.
+        let before = self.watched_energy.unwrap_or_else(|| self.system.energy(self.state.t, self.state.q, self.v0));
+        self.watched_energy = Some(after);
         let jump = (after - before).abs() / before.abs().max(f64::MIN_POSITIVE);
         if jump.is_finite() && jump > self.stats.largest_energy_jump {
             self.stats.largest_energy_jump = jump;
@@ -458,8 +465,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 if let Some(last) = &self.previous
                     && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
                 {
-                    let reason = "the solution's increment is over 1e6 times the predicted and the last one: \
-                                  a root far from the trajectory (an unstable or unresolved step size)";
+                    let reason = IMPLAUSIBLE_GROWTH;
                     return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
                 }
                 Ok((dq, report))

@@ -46,6 +46,14 @@ use crate::real::Real;
 use crate::state::State;
 use crate::system::Lagrangian;
 
+/// A step size with its node equations solved and its energy mismatch `g(h) = E − E_k`.
+#[derive(Clone, Copy, Debug)]
+struct Probe<const N: usize, const S: usize, T> {
+    h: T,
+    nodes: BlockVector<N, S, T>,
+    g: T,
+}
+
 /// The discrete energy `Σ_j b_j E_L(c_j)` of a step of size `h` with increments `d`.
 pub(super) fn step_energy<Sys, T, const N: usize, const S: usize, const R: usize>(
     system: &Sys,
@@ -128,14 +136,17 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                     border[rho][i] += b * (row[rho] * (pd.q[i] - lqv_v[i]) - row_d[rho] * vlvv[i] / h);
                 }
             }
+            // ∂E/∂q_k = Σ_i v_i ∂²L/∂v_i∂q_k − ∂L/∂q_k,  ∂E/∂v_k = (L_vv v)_k.
+            let mut de_dq = [zero; N];
+            for k in 0..N {
+                de_dq[k] = -pd.q[k];
+                for i in 0..N {
+                    de_dq[k] += v[i] * pd.qv[k][i];
+                }
+            }
             for n in 0..S {
                 for k in 0..N {
-                    // ∂E/∂q_k = Σ_i v_i ∂²L/∂v_i∂q_k − ∂L/∂q_k,  ∂E/∂v_k = (L_vv v)_k.
-                    let mut de_dq = -pd.q[k];
-                    for i in 0..N {
-                        de_dq += v[i] * pd.qv[k][i];
-                    }
-                    c[n][k] += b * (col[n] * de_dq + col_d[n] * vlvv[k] / h);
+                    c[n][k] += b * (col[n] * de_dq[k] + col_d[n] * vlvv[k] / h);
                 }
             }
         }
@@ -158,7 +169,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         let mut h = T::from(self.h.to_f64().clamp(lo, hi));
         let mut d = self.predict(h);
         let mut spent = 0;
-        let mut solved: Option<(T, f64)> = None;
+        let mut solved: Option<T> = None;
         for _ in 0..self.newton.max_iterations {
             let (nodes, gh, slope, w, scale, iterations) = match self.energy_probe(h, d) {
                 Ok(probe) => probe,
@@ -172,12 +183,12 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             let floor = 64.0 * T::EPSILON * scale;
             let h_floor = floor / slope.to_f64().abs();
             if gh.to_f64().abs() <= floor {
-                solved = Some((gh, scale));
+                solved = Some(gh);
                 break;
             }
             let mut dh = -gh / slope;
             if dh.to_f64().abs() <= (self.newton.rtol * h.to_f64()).max(h_floor) {
-                solved = Some((gh, scale));
+                solved = Some(gh);
                 break;
             }
             // The energy equation can have far roots (a step many times larger
@@ -203,25 +214,18 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             // Newton on h found no root near the guess: search the whole
             // bracket (a sign change, then bisection), and where there is none
             // apply the configured fallback.
-            match self.search_bracket(lo, hi, &mut spent) {
-                Ok(Some((hs, ds, gh))) => {
-                    (h, d) = (hs, ds);
-                    solved = Some((gh, 0.0));
-                }
-                Ok(None) => {}
-                Err(failure) => return Err(self.fail(h, failure)),
+            let mut found = self.search_bracket(lo, hi, &mut spent);
+            if found.is_none() && self.fallback == EnergyFallback::LeastSquares {
+                found = self.least_squares(lo, hi, &mut spent);
+                fallback = found.is_some();
             }
-            if solved.is_none()
-                && self.fallback == EnergyFallback::LeastSquares
-                && let Ok((hs, ds, gh)) = self.least_squares(lo, hi, &mut spent)
-            {
-                (h, d) = (hs, ds);
-                solved = Some((gh, 0.0));
-                fallback = true;
+            if let Some(probe) = found {
+                (h, d) = (probe.h, probe.nodes);
+                solved = Some(probe.g);
             }
         }
         let mismatch = match solved {
-            Some((gh, _)) => (gh / self.energy).to_f64().abs(),
+            Some(gh) => (gh / self.energy).to_f64().abs(),
             None => {
                 let e1 = step_energy(&self.system, &self.method, t0, h, (&q0, &self.carry), &d);
                 ((e1 - self.energy) / self.energy).to_f64().abs()
@@ -257,68 +261,55 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         Ok(&self.state)
     }
 
+    /// `g` at step size `h`, its node equations solved from the predicted
+    /// nodes, or `None` where they cannot be; the iterations go to `spent`.
+    fn probe(&self, h: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+        let h = T::from(h);
+        let (nodes, g, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
+        *spent += iterations;
+        Some(Probe { h, nodes, g })
+    }
+
     /// Samples `g(h)` at nine points of `[lo, hi]` for a sign change and
-    /// bisects it to round-off: `(h, nodes, g)`, or `None` without a sign
-    /// change. Probes whose node equations fail are skipped.
-    #[allow(clippy::type_complexity)]
-    fn search_bracket(
-        &self,
-        lo: f64,
-        hi: f64,
-        spent: &mut usize,
-    ) -> Result<Option<(T, BlockVector<N, S, T>, T)>, NewtonFailure> {
-        let mut probe = |h: f64| -> Option<(T, BlockVector<N, S, T>, T)> {
-            let h = T::from(h);
-            let (d, gh, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
-            *spent += iterations;
-            Some((h, d, gh))
-        };
-        let mut previous: Option<(T, BlockVector<N, S, T>, T)> = None;
+    /// bisects it to round-off, or `None` without a sign change. Probes
+    /// whose node equations fail are skipped.
+    fn search_bracket(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+        let negative = |p: &Probe<N, S, T>| p.g < T::zero();
+        let mut previous: Option<Probe<N, S, T>> = None;
         for k in 0..=8 {
-            let Some(here) = probe(lo + (hi - lo) * k as f64 / 8.0) else { continue };
+            let Some(here) = self.probe(lo + (hi - lo) * k as f64 / 8.0, spent) else { continue };
             if let Some(before) = previous
-                && (before.2 < T::zero()) != (here.2 < T::zero())
+                && negative(&before) != negative(&here)
             {
                 let (mut a, mut b) = (before, here);
                 for _ in 0..60 {
-                    let mid = 0.5 * (a.0.to_f64() + b.0.to_f64());
-                    if mid <= a.0.to_f64() || mid >= b.0.to_f64() {
+                    let mid = 0.5 * (a.h.to_f64() + b.h.to_f64());
+                    if mid <= a.h.to_f64() || mid >= b.h.to_f64() {
                         break;
                     }
-                    let Some(m) = probe(mid) else { break };
-                    if (m.2 < T::zero()) == (a.2 < T::zero()) {
+                    let Some(m) = self.probe(mid, spent) else { break };
+                    if negative(&m) == negative(&a) {
                         a = m;
                     } else {
                         b = m;
                     }
                 }
-                return Ok(Some(if a.2.abs() <= b.2.abs() { a } else { b }));
+                return Some(if a.g.abs() <= b.g.abs() { a } else { b });
             }
             previous = Some(here);
         }
-        Ok(None)
+        None
     }
 
     /// The admissible step of least energy mismatch, by golden section on
-    /// `[lo, hi]` (Kane, Marsden & Ortiz's least-squares step).
-    #[allow(clippy::type_complexity)]
-    fn least_squares(
-        &self,
-        lo: f64,
-        hi: f64,
-        spent: &mut usize,
-    ) -> Result<(T, BlockVector<N, S, T>, T), NewtonFailure> {
+    /// `[lo, hi]` (Kane, Marsden & Ortiz's least-squares step); `None` where
+    /// no probe could be solved.
+    fn least_squares(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
-        let mut probe = |h: f64| -> Option<(T, BlockVector<N, S, T>, T)> {
-            let h = T::from(h);
-            let (d, gh, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
-            *spent += iterations;
-            Some((h, d, gh))
-        };
-        let size = |p: &Option<(T, BlockVector<N, S, T>, T)>| p.as_ref().map_or(f64::INFINITY, |p| p.2.to_f64().abs());
+        let size = |p: &Option<Probe<N, S, T>>| p.as_ref().map_or(f64::INFINITY, |p| p.g.to_f64().abs());
         let (mut a, mut b) = (lo, hi);
         let (mut c, mut d) = (b - INV_PHI * (b - a), a + INV_PHI * (b - a));
-        let (mut pc, mut pd) = (probe(c), probe(d));
+        let (mut pc, mut pd) = (self.probe(c, spent), self.probe(d, spent));
         let mut best = if size(&pc) <= size(&pd) { pc } else { pd };
         for _ in 0..40 {
             if b - a <= 1e-9 * b {
@@ -327,11 +318,11 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             if size(&pc) < size(&pd) {
                 (b, d, pd) = (d, c, pc);
                 c = b - INV_PHI * (b - a);
-                pc = probe(c);
+                pc = self.probe(c, spent);
             } else {
                 (a, c, pc) = (c, d, pd);
                 d = a + INV_PHI * (b - a);
-                pd = probe(d);
+                pd = self.probe(d, spent);
             }
             for p in [&pc, &pd] {
                 if size(p) < size(&best) {
@@ -339,7 +330,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                 }
             }
         }
-        best.ok_or(NewtonFailure::NonFinite { iterations: *spent, quantity: "energy equation" })
+        best
     }
 
     /// The first energy-preserving step: a step of the given size, whose

@@ -37,7 +37,7 @@
 use core::cell::Cell;
 
 use crate::error::Error;
-use crate::integrator::{EnergyFallback, Stats, StepBounds, implausible_growth, kahan, non_finite};
+use crate::integrator::{EnergyFallback, IMPLAUSIBLE_GROWTH, Stats, StepBounds, implausible_growth, kahan, non_finite};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{Real, all_finite, max_abs};
@@ -512,8 +512,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             let rho = (h / last.h).to_f64();
             let reached = f(&last.d[S - 1]).map(|x| x * rho);
             if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&q0)) {
-                let reason = "the solution's increment is over 1e6 times the predicted and the last one: \
-                              a root far from the trajectory (an unstable or unresolved step size)";
+                let reason = IMPLAUSIBLE_GROWTH;
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
             }
         }

@@ -450,7 +450,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     fn accept(&mut self, seg: Segment<N>, report: NewtonReport, fallback: bool) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, .. } = self.state;
         let h = seg.h;
-        let (_, d_t1) = derivatives::end_gradient(&self.system, &self.method, &seg);
+        // E_{k+1} alone: the momentum comes from `advance` as an increment.
+        let d_t1 = derivatives::end_time_derivative(&self.system, &self.method, &seg);
         let (q1, p1, carry) = self.advance(&seg);
         // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
         let y = h - self.time_error;
