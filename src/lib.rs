@@ -154,8 +154,8 @@ pub use lagrangian_runtime::*;
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
     pub use lagrangian_runtime::{
-        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, EnergyFallback, Error, Integrator, Lagrangian, Midpoint,
-        NewtonOptions, Scalar, State, StepBounds, Symmetry, Trapezoid,
+        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, EnergyFallback, Error, F64Readouts, Integrator, Lagrangian,
+        Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
 }

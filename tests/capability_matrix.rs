@@ -25,9 +25,9 @@ fn damped() -> DampedOscillator {
     DampedOscillator { m: 1.0, k: 4.0, c: 0.5 }
 }
 
-/// Fixed steps on the pendulum from 1 rad: relative spread of the energy over 1000 steps (≤ `tolerance`).
-fn fixed<M: DiscreteLagrangian>(m: M, tolerance: f64) -> Outcome {
-    let mut sim = Integrator::new(Pendulum, m, 0.01).start(0.0, [1.0], [0.0]).map_err(|e| e.to_string())?;
+/// Fixed steps on the pendulum from 1 rad: relative spread of the energy over 1000 steps of `h` (≤ `tolerance`).
+fn fixed<M: F64Readouts>(m: M, h: f64, tolerance: f64) -> Outcome {
+    let mut sim = Integrator::new(Pendulum, m, h).start(0.0, [1.0], [0.0]).map_err(|e| e.to_string())?;
     let e0 = sim.energy().map_err(|e| e.to_string())?;
     let mut worst = 0.0f64;
     for _ in 0..1000 {
@@ -39,9 +39,9 @@ fn fixed<M: DiscreteLagrangian>(m: M, tolerance: f64) -> Outcome {
 }
 
 /// Energy-preserving steps on the pendulum: discrete energy over 1000 steps (≤ 1e-12).
-fn energy_steps<M: DiscreteLagrangian>(m: M) -> Outcome {
-    let mut sim = Integrator::new(Pendulum, m, 0.01)
-        .energy_preserving(StepBounds::around(0.01))
+fn energy_steps<M: Method<f64>>(m: M, h: f64) -> Outcome {
+    let mut sim = Integrator::new(Pendulum, m, h)
+        .energy_preserving(StepBounds::around(h))
         .start(0.0, [1.0], [0.0])
         .map_err(|e| e.to_string())?;
     sim.step().map_err(|e| e.to_string())?;
@@ -55,9 +55,9 @@ fn energy_steps<M: DiscreteLagrangian>(m: M) -> Outcome {
     Ok(format!("discrete energy {worst:.1e}"))
 }
 
-/// Forced fixed steps on the damped oscillator: error of q(4) against the exact solution at h = 0.01.
-fn forced<M: DiscreteLagrangian>(m: M, tolerance: f64) -> Outcome {
-    let mut sim = Integrator::new(damped(), m, 0.01).start(0.0, [1.0], [0.0]).map_err(|e| e.to_string())?;
+/// Forced fixed steps on the damped oscillator: error of q(4) against the exact solution.
+fn forced<M: Method<f64>>(m: M, h: f64, tolerance: f64) -> Outcome {
+    let mut sim = Integrator::new(damped(), m, h).start(0.0, [1.0], [0.0]).map_err(|e| e.to_string())?;
     sim.run_until(4.0, |_| {}).map_err(|e| e.to_string())?;
     let err = (sim.state().q[0] - damped().exact(1.0, 4.0)[0]).abs();
     assert!(err <= tolerance, "{err:e}");
@@ -65,73 +65,26 @@ fn forced<M: DiscreteLagrangian>(m: M, tolerance: f64) -> Outcome {
 }
 
 /// Forced energy-preserving steps: refused.
-fn forced_variable<M: DiscreteLagrangian>(m: M) -> Outcome {
-    Integrator::new(damped(), m, 0.01)
-        .energy_preserving(StepBounds::around(0.01))
-        .start(0.0, [1.0], [0.0])
+fn forced_variable<T: Real, M: Method<T>>(m: M, h: f64) -> Outcome {
+    Integrator::new(damped(), m, T::from(h))
+        .energy_preserving(StepBounds::around(h))
+        .start(T::from(0.0), [T::from(1.0)], [T::from(0.0)])
         .map(|_| "started".to_string())
         .map_err(|e| e.to_string())
 }
 
-fn galerkin_fixed<const S: usize>() -> Outcome {
-    let mut sim = GalerkinIntegrator::new(Pendulum, Galerkin::<S, S>::gauss(), 0.05)
-        .start(0.0, [1.0], [0.0])
-        .map_err(|e| e.to_string())?;
-    let e0 = sim.energy().map_err(|e| e.to_string())?;
-    let mut worst = 0.0f64;
-    for _ in 0..1000 {
-        sim.step().map_err(|e| e.to_string())?;
-        worst = worst.max(((sim.energy().map_err(|e| e.to_string())? - e0) / e0).abs());
-    }
-    assert!(worst <= 1e-4, "{worst:e}");
-    Ok(format!("energy spread {worst:.1e}"))
+type Dd = DoubleDouble;
+
+fn dd(x: f64) -> Dd {
+    Dd::from(x)
 }
 
-fn galerkin_energy_steps<const S: usize>() -> Outcome {
-    let mut sim = GalerkinIntegrator::new(Pendulum, Galerkin::<S, S>::gauss(), 0.05)
-        .energy_preserving(StepBounds::around(0.05))
-        .start(0.0, [1.0], [0.0])
-        .map_err(|e| e.to_string())?;
-    sim.step().map_err(|e| e.to_string())?;
-    let e1 = sim.discrete_energy().unwrap();
-    let mut worst = 0.0f64;
-    for _ in 0..1000 {
-        sim.step().map_err(|e| e.to_string())?;
-        worst = worst.max(((sim.discrete_energy().unwrap() - e1) / e1).abs());
-    }
-    assert!(worst <= 1e-12, "{worst:e}");
-    Ok(format!("discrete energy {worst:.1e}"))
-}
-
-fn galerkin_forced<const S: usize>() -> Outcome {
-    let mut sim = GalerkinIntegrator::new(damped(), Galerkin::<S, S>::gauss(), 0.05)
-        .start(0.0, [1.0], [0.0])
-        .map_err(|e| e.to_string())?;
-    sim.run_until(4.0, |_| {}).map_err(|e| e.to_string())?;
-    let err = (sim.state().q[0] - damped().exact(1.0, 4.0)[0]).abs();
-    assert!(err <= 1e-5, "{err:e}");
-    Ok(format!("q(4) error {err:.1e}"))
-}
-
-fn galerkin_forced_variable<const S: usize>() -> Outcome {
-    GalerkinIntegrator::new(damped(), Galerkin::<S, S>::gauss(), 0.05)
-        .energy_preserving(StepBounds::around(0.05))
-        .start(0.0, [1.0], [0.0])
-        .map(|_| "started".to_string())
-        .map_err(|e| e.to_string())
-}
-
-/// Galerkin in double-double, fixed steps on the pendulum: q after one
-/// period of steps agrees with the f64 run to f64 round-off.
-fn galerkin_double_double<const S: usize>() -> Outcome {
-    let h = 0.05;
-    let dd = |x: f64| DoubleDouble::from(x);
-    let mut sim = GalerkinIntegrator::new(Pendulum, Galerkin::<S, S, DoubleDouble>::gauss(), dd(h))
-        .start(dd(0.0), [dd(1.0)], [dd(0.0)])
-        .map_err(|e| e.to_string())?;
-    let mut reference = GalerkinIntegrator::new(Pendulum, Galerkin::<S, S>::gauss(), h)
-        .start(0.0, [1.0], [0.0])
-        .map_err(|e| e.to_string())?;
+/// Double-double fixed steps on the pendulum: q after 100 steps agrees with
+/// the f64 run of the same method to f64 round-off.
+fn double_double<M: Method<f64>, D: Method<Dd>>(m: M, m_dd: D, h: f64) -> Outcome {
+    let mut sim =
+        Integrator::new(Pendulum, m_dd, dd(h)).start(dd(0.0), [dd(1.0)], [dd(0.0)]).map_err(|e| e.to_string())?;
+    let mut reference = Integrator::new(Pendulum, m, h).start(0.0, [1.0], [0.0]).map_err(|e| e.to_string())?;
     sim.run(100, |_| {}).map_err(|e| e.to_string())?;
     reference.run(100, |_| {}).map_err(|e| e.to_string())?;
     let diff = (sim.state().q[0].to_f64() - reference.state().q[0]).abs();
@@ -139,60 +92,57 @@ fn galerkin_double_double<const S: usize>() -> Outcome {
     Ok(format!("agrees with f64 to {diff:.1e}"))
 }
 
+/// Double-double energy-preserving steps on the pendulum: discrete energy over 300 steps (≤ 1e-27).
+fn double_double_energy_steps<D: Method<Dd>>(m: D, h: f64) -> Outcome {
+    let mut sim = Integrator::new(Pendulum, m, dd(h))
+        .energy_preserving(StepBounds::around(h))
+        .newton(NewtonOptions { rtol: 1e-30, ..NewtonOptions::default() })
+        .start(dd(0.0), [dd(1.0)], [dd(0.0)])
+        .map_err(|e| e.to_string())?;
+    sim.step().map_err(|e| e.to_string())?;
+    let e1 = sim.discrete_energy();
+    let mut worst = 0.0f64;
+    for _ in 0..300 {
+        sim.step().map_err(|e| e.to_string())?;
+        worst = worst.max(((sim.discrete_energy() - e1) / e1).abs().to_f64());
+    }
+    assert!(worst <= 1e-27, "{worst:e}");
+    Ok(format!("discrete energy {worst:.1e}"))
+}
+
+/// Double-double forced fixed steps on the damped oscillator: error of q(4).
+fn double_double_forced<D: Method<Dd>>(m: D, h: f64, tolerance: f64) -> Outcome {
+    let mut sim =
+        Integrator::new(damped(), m, dd(h)).start(dd(0.0), [dd(1.0)], [dd(0.0)]).map_err(|e| e.to_string())?;
+    sim.run_until(dd(4.0), |_| {}).map_err(|e| e.to_string())?;
+    let err = (sim.state().q[0].to_f64() - damped().exact(1.0, 4.0)[0]).abs();
+    assert!(err <= tolerance, "{err:e}");
+    Ok(format!("q(4) error {err:.1e}"))
+}
+
+/// One row: every cell for one method, given in f64 and in double-double.
+fn row<M: F64Readouts + Copy, D: Method<Dd> + Copy>(m: M, m_dd: D, h: f64, tol: [f64; 2]) -> [Outcome; 8] {
+    [
+        fixed(m, h, tol[0]),
+        energy_steps(m, h),
+        forced(m, h, tol[1]),
+        forced_variable::<f64, M>(m, h),
+        double_double(m, m_dd, h),
+        double_double_energy_steps(m_dd, h),
+        double_double_forced(m_dd, h, tol[1]),
+        forced_variable::<Dd, D>(m_dd, h),
+    ]
+}
+
 #[test]
 fn every_cell_integrates_with_its_property_or_is_refused_typed() {
-    let not_available = || Err("not available: `Integrator` is f64 only".to_string());
-    let rows: Vec<(&str, [Outcome; 5])> = vec![
-        (
-            "midpoint",
-            [
-                fixed(Midpoint, 1e-3),
-                energy_steps(Midpoint),
-                forced(Midpoint, 1e-4),
-                forced_variable(Midpoint),
-                not_available(),
-            ],
-        ),
-        (
-            "trapezoid",
-            [
-                fixed(Trapezoid, 1e-3),
-                energy_steps(Trapezoid),
-                forced(Trapezoid, 1e-4),
-                forced_variable(Trapezoid),
-                not_available(),
-            ],
-        ),
-        (
-            "α-β (α = 0.3)",
-            [
-                fixed(AlphaBeta::new(0.3).unwrap(), 2e-2),
-                energy_steps(AlphaBeta::new(0.3).unwrap()),
-                forced(AlphaBeta::new(0.3).unwrap(), 1e-2),
-                forced_variable(AlphaBeta::new(0.3).unwrap()),
-                not_available(),
-            ],
-        ),
-        (
-            "Galerkin s = 2",
-            [
-                galerkin_fixed::<2>(),
-                galerkin_energy_steps::<2>(),
-                galerkin_forced::<2>(),
-                galerkin_forced_variable::<2>(),
-                galerkin_double_double::<2>(),
-            ],
-        ),
-        (
-            "Galerkin s = 4",
-            [
-                galerkin_fixed::<4>(),
-                galerkin_energy_steps::<4>(),
-                galerkin_forced::<4>(),
-                galerkin_forced_variable::<4>(),
-                galerkin_double_double::<4>(),
-            ],
-        ),
+    let ab = AlphaBeta::new(0.3).unwrap();
+    let rows: Vec<(&str, [Outcome; 8])> = vec![
+        ("midpoint", row(Midpoint, Midpoint, 0.01, [1e-3, 1e-4])),
+        ("trapezoid", row(Trapezoid, Trapezoid, 0.01, [1e-3, 1e-4])),
+        ("α-β (α = 0.3)", row(ab, ab, 0.01, [2e-2, 1e-2])),
+        ("Galerkin s = 2", row(Galerkin::<2, 2>::gauss(), Galerkin::<2, 2, Dd>::gauss(), 0.05, [1e-4, 1e-5])),
+        ("Galerkin s = 4", row(Galerkin::<4, 4>::gauss(), Galerkin::<4, 4, Dd>::gauss(), 0.05, [1e-4, 1e-5])),
     ];
     let columns = [
         "fixed (f64)",
@@ -200,6 +150,9 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
         "forced fixed (f64)",
         "forced variable (f64)",
         "fixed (DoubleDouble)",
+        "energy-preserving (DoubleDouble)",
+        "forced fixed (DoubleDouble)",
+        "forced variable (DoubleDouble)",
     ];
     println!("| method | {} |", columns.join(" | "));
     println!("|---|{}", "---|".repeat(columns.len()));
@@ -218,14 +171,14 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // The expectation: what works today. Energy-preserving trapezoid, α-β
     // (α ≠ ½) and Galerkin s = 4 lose the root of the energy equation on the
     // pendulum from rest within a fraction of a swing (typed NoEnergyStep;
-    // docs/energy-steps.md says why), forced variable steps are refused for
-    // every method (`Unsupported`), and `Integrator` has no double-double.
+    // docs/energy-steps.md says why), in either number type; forced
+    // variable steps are refused for every method (`Unsupported`).
     let expected = [
-        [true, true, true, false, false],
-        [true, false, true, false, false],
-        [true, false, true, false, false],
-        [true, true, true, false, true],
-        [true, false, true, false, true],
+        [true, true, true, false, true, true, true, false],
+        [true, false, true, false, true, false, true, false],
+        [true, false, true, false, true, false, true, false],
+        [true, true, true, false, true, true, true, false],
+        [true, false, true, false, true, false, true, false],
     ];
     for (row, (cells, expected)) in cells.iter().zip(expected).enumerate() {
         assert_eq!(cells.as_slice(), expected.as_slice(), "row {} ({})", row, rows[row].0);

@@ -28,7 +28,11 @@ pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
 pub use double_double::DoubleDouble;
 pub use error::Error;
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
-pub use integrator::{EnergyFallback, Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
+#[doc(hidden)]
+pub use integrator::OnePointMemory;
+pub use integrator::{
+    EnergyFallback, F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
+};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};

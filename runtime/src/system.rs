@@ -79,6 +79,32 @@ pub trait Lagrangian<const N: usize> {
     }
 }
 
+/// A borrowed system is the same system (the integrator borrows it to run a
+/// one-point rule as a Galerkin rule in another real type).
+impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
+    const AUTONOMOUS: bool = S::AUTONOMOUS;
+    const CYCLIC: [bool; N] = S::CYCLIC;
+    const SYMMETRIES: &'static [Symmetry<N>] = S::SYMMETRIES;
+    const DISCONTINUOUS: bool = S::DISCONTINUOUS;
+    const HAS_DISSIPATION: bool = S::HAS_DISSIPATION;
+    const HAS_FORCE: bool = S::HAS_FORCE;
+
+    #[inline(always)]
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
+        (**self).lagrangian(t, q, v)
+    }
+
+    #[inline(always)]
+    fn dissipation<D: Scalar>(&self, q: [D; N], v: [D; N]) -> D {
+        (**self).dissipation(q, v)
+    }
+
+    #[inline(always)]
+    fn force<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> [D; N] {
+        (**self).force(t, q, v)
+    }
+}
+
 /// The generalised force `F = Q(t, q, v) − ∂R/∂v(q, v)` on any [`Scalar`].
 ///
 /// `∂R/∂v_i` comes from one evaluation of `R` on a dual number over `D`

@@ -51,6 +51,11 @@ impl DiscreteLagrangian for AlphaBeta {
         (self.alpha == 0.5).then_some(0.0)
     }
 
+    fn galerkin_points(&self) -> Option<([f64; 2], usize)> {
+        let beta = 1.0 - self.alpha;
+        Some(([beta, beta], usize::from(self.alpha == 0.5)))
+    }
+
     #[inline(always)]
     fn action<S, D, const N: usize>(&self, system: &S, t0: D, h: D, q0: [D; N], dq: [D; N]) -> D
     where

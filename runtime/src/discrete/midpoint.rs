@@ -19,6 +19,10 @@ use crate::system::{Lagrangian, Scalar};
 pub struct Midpoint;
 
 impl DiscreteLagrangian for Midpoint {
+    fn galerkin_points(&self) -> Option<([f64; 2], usize)> {
+        Some(([0.5, 0.5], 1))
+    }
+
     fn order(&self) -> u32 {
         2
     }

@@ -48,6 +48,17 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
         None
     }
 
+    /// The two quadrature points `(c_1, c_2)` (weights ½ each) and the
+    /// degree to which they integrate exactly, for which this rule is the
+    /// Galerkin rule of degree 1 (linear interpolation of `q`):
+    /// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j dq, dq/h)`. The integrator
+    /// runs the rule that way in a real type other than `f64`
+    /// ([`DoubleDouble`](crate::DoubleDouble)). `None` (the default) for a
+    /// rule that is not of that form; it is then refused in such a type.
+    fn galerkin_points(&self) -> Option<([f64; 2], usize)> {
+        None
+    }
+
     /// The discrete forces `(F_k^−, F_k^+)` of the step from `(t0, q0)` to
     /// `(t0 + h, q0 + dq)`: `F_k^−·δq_k + F_k^+·δq_{k+1}` approximates the
     /// virtual work `∫ F·δq dt` of the generalised force

@@ -18,6 +18,10 @@ use crate::system::{Lagrangian, Scalar};
 pub struct Trapezoid;
 
 impl DiscreteLagrangian for Trapezoid {
+    fn galerkin_points(&self) -> Option<([f64; 2], usize)> {
+        Some(([0.0, 1.0], 1))
+    }
+
     fn order(&self) -> u32 {
         2
     }

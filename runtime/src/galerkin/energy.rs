@@ -36,10 +36,12 @@
 //! methods have one), time-dependent Lagrangians, and forces (whose energy
 //! is not conserved).
 
+use super::Galerkin;
 use super::linalg::BlockVector;
 use super::method::PointDerivatives;
-use super::stepper::{GalerkinIntegrator, Nodes, linearize};
+use super::stepper::{Nodes, linearize};
 use crate::error::Error;
+use crate::integrator::{Clock, Integrator};
 use crate::integrator::{EnergyFallback, StepBounds};
 use crate::newton::{self, NewtonFailure, NewtonReport};
 use crate::real::Real;
@@ -80,7 +82,11 @@ where
     e
 }
 
-impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, N, S, R, T> {
+impl<Sys, const N: usize, const S: usize, const R: usize, T> Integrator<Sys, Galerkin<S, R, T>, N, T>
+where
+    Sys: Lagrangian<N>,
+    T: Real,
+{
     /// The energy equation at step size `h`, its node equations solved from
     /// the guess `d`: the nodes, `g(h) = E − E_k`, `g'(h)` (the Schur
     /// complement `d − c·J⁻¹b`), `J⁻¹b = −∂D/∂h`, the size of the terms of
@@ -161,13 +167,13 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
     }
 
     /// One energy-preserving step after the first (see the module documentation).
-    pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N, T>, Error<N, T>> {
-        let Some(last) = self.last_step_size() else {
-            return self.first_energy_step();
+    pub(crate) fn energy_step_nodes(&mut self, bounds: StepBounds) -> Result<(), Error<N, T>> {
+        let Some(last) = self.memory.map(|l| l.h) else {
+            return self.first_node_energy_step();
         };
         let (lo, hi) = bounds.bracket(last.to_f64());
         let mut h = T::from(self.h.to_f64().clamp(lo, hi));
-        let mut d = self.predict(h);
+        let mut d = self.predict_nodes(h);
         let mut spent = 0;
         let mut solved: Option<T> = None;
         for _ in 0..self.newton.max_iterations {
@@ -214,9 +220,9 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             // Newton on h found no root near the guess: search the whole
             // bracket (a sign change, then bisection), and where there is none
             // apply the configured fallback.
-            let mut found = self.search_bracket(lo, hi, &mut spent);
+            let mut found = self.node_search_bracket(lo, hi, &mut spent);
             if found.is_none() && self.fallback == EnergyFallback::LeastSquares {
-                found = self.least_squares(lo, hi, &mut spent);
+                found = self.node_least_squares(lo, hi, &mut spent);
                 fallback = found.is_some();
             }
             if let Some(probe) = found {
@@ -253,19 +259,19 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         self.h = h;
         if fallback {
             // The least-squares step changed the energy: conserve its new value.
-            self.reread_energy();
+            self.reread_node_energy();
             self.time_error = time_error;
             self.stats.energy_fallbacks += 1;
         }
-        self.clock = (self.state.t, self.state.step);
-        Ok(&self.state)
+        self.clock = Clock { t: self.state.t, step: self.state.step };
+        Ok(())
     }
 
     /// `g` at step size `h`, its node equations solved from the predicted
     /// nodes, or `None` where they cannot be; the iterations go to `spent`.
-    fn probe(&self, h: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_probe(&self, h: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
         let h = T::from(h);
-        let (nodes, g, _, _, _, iterations) = self.energy_probe(h, self.predict(h)).ok()?;
+        let (nodes, g, _, _, _, iterations) = self.energy_probe(h, self.predict_nodes(h)).ok()?;
         *spent += iterations;
         Some(Probe { h, nodes, g })
     }
@@ -273,11 +279,11 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
     /// Samples `g(h)` at nine points of `[lo, hi]` for a sign change and
     /// bisects it to round-off, or `None` without a sign change. Probes
     /// whose node equations fail are skipped.
-    fn search_bracket(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_search_bracket(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
         let negative = |p: &Probe<N, S, T>| p.g < T::zero();
         let mut previous: Option<Probe<N, S, T>> = None;
         for k in 0..=8 {
-            let Some(here) = self.probe(lo + (hi - lo) * k as f64 / 8.0, spent) else { continue };
+            let Some(here) = self.node_probe(lo + (hi - lo) * k as f64 / 8.0, spent) else { continue };
             if let Some(before) = previous
                 && negative(&before) != negative(&here)
             {
@@ -287,7 +293,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
                     if mid <= a.h.to_f64() || mid >= b.h.to_f64() {
                         break;
                     }
-                    let Some(m) = self.probe(mid, spent) else { break };
+                    let Some(m) = self.node_probe(mid, spent) else { break };
                     if negative(&m) == negative(&a) {
                         a = m;
                     } else {
@@ -304,12 +310,12 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
     /// The admissible step of least energy mismatch, by golden section on
     /// `[lo, hi]` (Kane, Marsden & Ortiz's least-squares step); `None` where
     /// no probe could be solved.
-    fn least_squares(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_least_squares(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
         let size = |p: &Option<Probe<N, S, T>>| p.as_ref().map_or(f64::INFINITY, |p| p.g.to_f64().abs());
         let (mut a, mut b) = (lo, hi);
         let (mut c, mut d) = (b - INV_PHI * (b - a), a + INV_PHI * (b - a));
-        let (mut pc, mut pd) = (self.probe(c, spent), self.probe(d, spent));
+        let (mut pc, mut pd) = (self.node_probe(c, spent), self.node_probe(d, spent));
         let mut best = if size(&pc) <= size(&pd) { pc } else { pd };
         for _ in 0..40 {
             if b - a <= 1e-9 * b {
@@ -318,11 +324,11 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             if size(&pc) < size(&pd) {
                 (b, d, pd) = (d, c, pc);
                 c = b - INV_PHI * (b - a);
-                pc = self.probe(c, spent);
+                pc = self.node_probe(c, spent);
             } else {
                 (a, c, pc) = (c, d, pd);
                 d = a + INV_PHI * (b - a);
-                pd = self.probe(d, spent);
+                pd = self.node_probe(d, spent);
             }
             for p in [&pc, &pd] {
                 if size(p) < size(&best) {
@@ -335,16 +341,16 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// The first energy-preserving step: a step of the given size, whose
     /// discrete energy becomes the one conserved.
-    fn first_energy_step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
+    fn first_node_energy_step(&mut self) -> Result<(), Error<N, T>> {
         let h = self.h;
         let t1 = self.state.t + h;
-        self.step_by(h, t1)?;
-        self.reread_energy();
-        Ok(&self.state)
+        self.step_nodes(h, t1)?;
+        self.reread_node_energy();
+        Ok(())
     }
 
     /// Sets the energy target to the discrete energy of the last step.
-    pub(super) fn reread_energy(&mut self) {
+    pub(crate) fn reread_node_energy(&mut self) {
         if let Some((t0, h, q0, carry, d)) = self.last_step_parts() {
             self.energy = step_energy(&self.system, &self.method, t0, h, (&q0, &carry), &d);
             self.time_error = T::zero();

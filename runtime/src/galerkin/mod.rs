@@ -15,19 +15,22 @@
 //! | `linear.rs` | Chen, Guo & Wu (finite elements) §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
 //! | `quadratic.rs` | Chen, Guo & Wu (finite elements) §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
-//! | `stepper.rs` | [`GalerkinIntegrator`]: the integrator (fixed steps, forces), tangent map |
+//! | `stepper.rs` | the Galerkin rules as a [`Method`](crate::Method) of the one [`Integrator`](crate::Integrator): the block Newton step (fixed steps, forces), tangent map |
 //! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |
+//! | `one_point.rs` | the one-point rules in `DoubleDouble`, run as degree-1 Galerkin rules with their own points |
 //!
 //! Everything here is written over a [`Real`](crate::Real) type `T`, `f64`
 //! by default: `Galerkin::<S, S, DoubleDouble>::gauss()` builds the method
-//! with nodes, weights and basis in double-double, and a
-//! [`GalerkinIntegrator`] built on it runs the whole step (Newton block,
-//! state, Kahan sums) in that type. This is how orders up to 16 are verified
-//! (`tests/galerkin_order_extended.rs`). The readouts that solve in `f64`
-//! ([`GalerkinIntegrator::velocity`], [`GalerkinIntegrator::energy`],
-//! [`GalerkinIntegrator::last_tangent_map`]) exist for `T = f64` only.
+//! with nodes, weights and basis in double-double, and the
+//! [`Integrator`](crate::Integrator) built on it runs the whole step (Newton
+//! block, state, Kahan sums) in that type. This is how orders up to 16 are
+//! verified (`tests/galerkin_order_extended.rs`). The readouts that solve in
+//! `f64` (`velocity`, `energy`, `last_tangent_map`) exist for `T = f64`
+//! only. [`GalerkinIntegrator`] is a name for the `Integrator` with a
+//! Galerkin rule, not another type.
 //!
-//! Energy-preserving variable steps ([`GalerkinBuilder::energy_preserving`])
+//! Energy-preserving variable steps
+//! ([`IntegratorBuilder::energy_preserving`](crate::IntegratorBuilder::energy_preserving))
 //! solve the step size with the nodes (`energy.rs`), for autonomous systems
 //! without forces.
 
@@ -36,6 +39,7 @@ mod energy;
 mod linalg;
 mod linear;
 mod method;
+mod one_point;
 mod quadratic;
 mod quadrature;
 mod stepper;
@@ -43,4 +47,5 @@ mod stepper;
 pub use basis::NodeFamily;
 pub use method::Galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
-pub use stepper::{GalerkinBuilder, GalerkinIntegrator, tangent_map};
+pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, tangent_map};
+pub(crate) use stepper::{GalerkinMemory, discrete_energy_of, legendre, supports_policy};

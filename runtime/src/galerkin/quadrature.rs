@@ -31,6 +31,13 @@ pub enum QuadratureKind {
     GaussLegendre,
     /// Gauss–Lobatto: both end points included, exact to degree `2r − 3`.
     GaussLobatto,
+    /// Given points with equal weights, exact to the given degree: the
+    /// one-point rules written as Galerkin rules of degree 1
+    /// ([`DiscreteLagrangian::galerkin_points`](crate::DiscreteLagrangian::galerkin_points)).
+    Points {
+        /// The highest degree integrated exactly.
+        exact_to: usize,
+    },
 }
 
 use crate::real::Real;
@@ -89,6 +96,7 @@ impl<const R: usize, T: Real> Quadrature<R, T> {
         Some(match self.kind {
             QuadratureKind::GaussLegendre => 2 * R - 1,
             QuadratureKind::GaussLobatto => 2 * R - 3,
+            QuadratureKind::Points { exact_to } => exact_to,
         })
     }
 
@@ -102,6 +110,9 @@ impl<const R: usize, T: Real> Quadrature<R, T> {
         match self.kind {
             QuadratureKind::GaussLegendre if R == 0 => Err("a Gauss–Legendre rule needs at least one point"),
             QuadratureKind::GaussLobatto if R < 2 => Err("a Gauss–Lobatto rule needs at least two points"),
+            QuadratureKind::Points { .. } if !self.nodes.iter().all(|c| c.is_finite()) => {
+                Err("the points of the quadrature must be finite")
+            }
             _ => Ok(()),
         }
     }
@@ -118,6 +129,16 @@ impl Quadrature<2> {
     /// The trapezoid rule `(f(0) + f(1))/2`: Gauss–Lobatto with two points, exact to degree 1.
     pub fn trapezoid() -> Self {
         Self::gauss_lobatto()
+    }
+}
+
+impl<T: Real> Quadrature<2, T> {
+    /// Two points `c_1, c_2` with weights ½ each, exact to degree `exact_to`
+    /// (as the caller knows it): `(f(c_1) + f(c_2))/2`. With `c_1 = c_2 = c`
+    /// it is the one-point rule `f(c)`.
+    pub fn two_points(points: [T; 2], exact_to: usize) -> Self {
+        let half = T::from(0.5);
+        Self { kind: QuadratureKind::Points { exact_to }, nodes: points, weights: [half, half] }
     }
 }
 

@@ -37,9 +37,11 @@
 use core::cell::Cell;
 
 use crate::error::Error;
-use crate::integrator::{EnergyFallback, IMPLAUSIBLE_GROWTH, Stats, StepBounds, implausible_growth, kahan, non_finite};
-use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
+use crate::integrator::{
+    F64Readouts, IMPLAUSIBLE_GROWTH, Integrator, IntegratorBuilder, Method, StepBounds, StepPolicy, implausible_growth,
+    kahan, non_finite,
+};
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonReport, Unknown};
 use crate::real::{Real, all_finite, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
@@ -49,139 +51,30 @@ use nalgebra::SMatrix;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
 use super::method::{Galerkin, PointDerivatives, gradient_at, point_gradient};
 
-/// Configuration of a [`GalerkinIntegrator`] before it is given its initial state.
-#[derive(Clone, Debug)]
-pub struct GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> {
-    system: Sys,
-    method: Galerkin<S, R, T>,
-    h: T,
-    newton: NewtonOptions,
-    policy: Option<StepBounds>,
-    fallback: EnergyFallback,
-}
-
-impl<Sys, const S: usize, const R: usize, T: Real> GalerkinBuilder<Sys, S, R, T> {
-    /// Energy-preserving variable steps within `bounds` (Chen, Guo & Wu (finite elements) §3: the
-    /// step size as an unknown fixed by the discrete energy equation),
-    /// starting from the guess `h` given to [`GalerkinIntegrator::new`]. For
-    /// autonomous systems without forces; see [`galerkin`](super) for what
-    /// is conserved and what is not supported yet.
-    pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
-        self.policy = Some(bounds);
-        self
-    }
-
-    /// What energy-preserving steps do where no admissible step size solves
-    /// the energy equation (default [`EnergyFallback::Fail`]; with
-    /// [`EnergyFallback::LeastSquares`] the step of least energy mismatch is
-    /// taken, its energy conserved from then on, and the step counted in
-    /// [`Stats::energy_fallbacks`]).
-    pub fn energy_fallback(mut self, fallback: EnergyFallback) -> Self {
-        self.fallback = fallback;
-        self
-    }
-
-    /// Replaces the Newton settings.
-    pub fn newton(mut self, options: NewtonOptions) -> Self {
-        self.newton = options;
-        self
-    }
-
-    /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
-    ///
-    /// Fails with [`Error::InvalidMethod`] for an unusable discrete
-    /// Lagrangian (`s = 0`, an invalid or too weak quadrature), and otherwise
-    /// like [`IntegratorBuilder::start`](crate::IntegratorBuilder::start).
-    pub fn start<const N: usize>(
-        self,
-        t0: T,
-        q0: [T; N],
-        v0: [T; N],
-    ) -> Result<GalerkinIntegrator<Sys, N, S, R, T>, Error<N, T>>
-    where
-        Sys: Lagrangian<N>,
-    {
-        self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
-        Error::<N, T>::check_setup(self.h.to_f64(), &self.newton)?;
-        if let Some(b) = self.policy {
-            if !b.valid() {
-                return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
-            }
-            if !(b.h_min..=b.h_max).contains(&self.h.to_f64()) {
-                return Err(Error::InvalidStepSize { h: self.h.to_f64() });
-            }
-            if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-                return Err(Error::Unsupported {
-                    what: "energy-preserving steps for a system with `force` or `dissipation`: its energy is not \
-                           conserved, so the energy equation that fixes the step sizes does not hold; use fixed steps",
-                });
-            }
-            if !Sys::AUTONOMOUS {
-                return Err(Error::Unsupported {
-                    what: "energy-preserving galerkin steps for a time-dependent lagrangian; use fixed steps, \
-                           or the energy-preserving midpoint and trapezoid rules",
-                });
-            }
-        }
-        if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
-            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
-        }
-        if !all_finite(&generalized_force(&self.system, t0, q0, v0)) {
-            return Err(Error::InvalidInitialData {
-                reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
-            });
-        }
-        let point = PointDerivatives::at(&self.system, t0, q0, v0);
-        let p0 = point.v;
-        if !all_finite(&p0) || !self.system.lagrangian(t0, q0, v0).is_finite() {
-            return Err(Error::InvalidInitialData {
-                reason: "the lagrangian or its momentum is not finite at the initial data",
-            });
-        }
-        // Regularity is a yes-or-no question: asked of the Hessian rounded to f64.
-        let hessian = SMatrix::<f64, N, N>::from_fn(|i, k| point.vv[i][k].to_f64());
-        if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
-            return Err(Error::InvalidInitialData {
-                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
-            });
-        }
-        Ok(GalerkinIntegrator {
-            system: self.system,
-            method: self.method,
-            h: self.h,
-            newton: self.newton,
-            state: State { step: 0, t: t0, q: q0, p: p0 },
-            carry: [T::zero(); N],
-            p_carry: [T::zero(); N],
-            last: None,
-            v0,
-            clock: (t0, 0),
-            stats: Stats::default(),
-            policy: self.policy,
-            fallback: self.fallback,
-            energy: T::zero(),
-            time_error: T::zero(),
-        })
-    }
-}
+/// The builder of a Galerkin integrator: [`IntegratorBuilder`] with a
+/// [`Galerkin`] rule.
+pub type GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> = IntegratorBuilder<Sys, Galerkin<S, R, T>, T>;
 
 /// The last step taken: where it started and its node increments.
+#[doc(hidden)]
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct LastStep<const N: usize, const S: usize, T> {
-    t0: T,
-    h: T,
-    q0: [T; N],
-    carry: [T; N],
-    d: [[T; N]; S],
+pub struct LastStep<const N: usize, const S: usize, T> {
+    pub(crate) t0: T,
+    pub(crate) h: T,
+    pub(crate) q0: [T; N],
+    pub(crate) carry: [T; N],
+    pub(crate) d: [[T; N]; S],
 }
 
-/// A fixed-step variational integrator built on the Galerkin discrete
-/// Lagrangian [`Galerkin<S, R>`](Galerkin), for a system with `N` degrees of
-/// freedom.
+/// What a Galerkin rule keeps between steps: the last step, `None` before the first.
+pub(crate) type GalerkinMemory<const N: usize, const S: usize, T> = Option<LastStep<N, S, T>>;
+
+/// The [`Integrator`] with a Galerkin rule [`Galerkin<S, R, T>`](Galerkin), for
+/// a system with `N` degrees of freedom (a name, not another type).
 ///
 /// ```
-/// use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
-/// use lagrangian_runtime::{Lagrangian, Scalar};
+/// use lagrangian_runtime::galerkin::Galerkin;
+/// use lagrangian_runtime::{Integrator, Lagrangian, Scalar};
 ///
 /// struct Oscillator;
 /// impl Lagrangian<1> for Oscillator {
@@ -193,7 +86,7 @@ pub(super) struct LastStep<const N: usize, const S: usize, T> {
 /// }
 ///
 /// // Degree 4, 4 Gauss points: order 8. Ten steps per period are plenty.
-/// let mut sim = GalerkinIntegrator::new(Oscillator, Galerkin::<4, 4>::gauss(), 0.2 * std::f64::consts::PI)
+/// let mut sim = Integrator::new(Oscillator, Galerkin::<4, 4>::gauss(), 0.2 * std::f64::consts::PI)
 ///     .start(0.0, [1.0], [0.0])?;
 /// sim.run(10, |_| {})?;
 /// assert!((sim.state().q[0] - 1.0).abs() < 1e-8);
@@ -202,15 +95,14 @@ pub(super) struct LastStep<const N: usize, const S: usize, T> {
 ///
 /// # Extended precision
 ///
-/// The whole run can be made in another [`Real`] type: the quadrature, the
-/// basis, the Newton block and the state are then computed in it, and the
-/// same Lagrangian is evaluated on num-dual's hyper-duals over it. With
+/// The rule's real type is the type of the whole run: the quadrature, the
+/// basis, the Newton block and the state are computed in it. With
 /// [`DoubleDouble`](crate::DoubleDouble) (about 32 digits), order 16 shows
 /// errors `f64` cannot hold; tighten Newton's `rtol` to the type's precision.
 ///
 /// ```
-/// # use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
-/// # use lagrangian_runtime::{Lagrangian, Scalar};
+/// # use lagrangian_runtime::galerkin::Galerkin;
+/// # use lagrangian_runtime::{Integrator, Lagrangian, Scalar};
 /// # struct Oscillator;
 /// # impl Lagrangian<1> for Oscillator {
 /// #     const AUTONOMOUS: bool = true;
@@ -224,58 +116,15 @@ pub(super) struct LastStep<const N: usize, const S: usize, T> {
 /// // Degree 8, order 16: one period in 40 steps, back to q = 1 within 1e-28.
 /// let h = DoubleDouble::TAU / 40.0;
 /// let (zero, one) = (DoubleDouble::from(0.0), DoubleDouble::from(1.0));
-/// let mut sim = GalerkinIntegrator::new(Oscillator, Galerkin::<8, 8, DoubleDouble>::gauss(), h)
+/// let mut sim = Integrator::new(Oscillator, Galerkin::<8, 8, DoubleDouble>::gauss(), h)
 ///     .newton(NewtonOptions { rtol: 1e-30, ..NewtonOptions::default() })
 ///     .start(zero, [one], [zero])?;
 /// sim.run(40, |_| {})?;
 /// assert!((sim.state().q[0] - one).abs() < DoubleDouble::from(1e-28));
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-#[derive(Clone, Debug)]
-pub struct GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize, T = f64> {
-    pub(super) system: Sys,
-    pub(super) method: Galerkin<S, R, T>,
-    pub(super) h: T,
-    pub(super) newton: NewtonOptions,
-    pub(super) state: State<N, T>,
-    /// Kahan compensation: the position is `state.q + carry`.
-    pub(super) carry: [T; N],
-    /// Kahan compensation of the momentum: it is `state.p + p_carry`.
-    pub(super) p_carry: [T; N],
-    pub(super) last: Option<LastStep<N, S, T>>,
-    pub(super) v0: [T; N],
-    /// `(t, step)` that `t_k = t + (k − step) h` is measured from.
-    pub(super) clock: (T, u64),
-    pub(super) stats: Stats,
-    /// Energy-preserving steps within these bounds, or fixed steps (`None`).
-    pub(super) policy: Option<StepBounds>,
-    /// What energy-preserving steps do where no admissible step size solves
-    /// the energy equation.
-    pub(super) fallback: EnergyFallback,
-    /// The discrete energy the energy-preserving steps conserve.
-    pub(super) energy: T,
-    /// Kahan compensation of `t_k` under energy-preserving steps.
-    pub(super) time_error: T,
-}
-
-impl<Sys, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, 0, S, R, T> {
-    /// Configures an integrator for `system` with the Galerkin discrete
-    /// Lagrangian `method` and step `h`; continue with [`GalerkinBuilder::start`].
-    ///
-    /// The real type `T` of the method is the type of the whole run: `f64`,
-    /// or [`DoubleDouble`](crate::DoubleDouble) for about 32 digits.
-    #[allow(clippy::new_ret_no_self)]
-    pub fn new(system: Sys, method: Galerkin<S, R, T>, h: T) -> GalerkinBuilder<Sys, S, R, T> {
-        GalerkinBuilder {
-            system,
-            method,
-            h,
-            newton: NewtonOptions::default(),
-            policy: None,
-            fallback: EnergyFallback::Fail,
-        }
-    }
-}
+pub type GalerkinIntegrator<Sys, const N: usize, const S: usize, const R: usize, T = f64> =
+    Integrator<Sys, Galerkin<S, R, T>, N, T>;
 
 /// The unknown of a step: the node increments `D_1 … D_s`.
 #[derive(Clone, Copy, Debug)]
@@ -297,120 +146,23 @@ impl<const N: usize, const S: usize, T: Real> Unknown for Nodes<N, S, T> {
     }
 }
 
-impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real> GalerkinIntegrator<Sys, N, S, R, T> {
-    /// The current state `(k, t_k, q_k, p_k)`.
-    pub fn state(&self) -> &State<N, T> {
-        &self.state
-    }
-
-    /// The system being integrated.
-    pub fn system(&self) -> &Sys {
-        &self.system
-    }
-
-    /// The discrete Lagrangian in use.
-    pub fn method(&self) -> &Galerkin<S, R, T> {
-        &self.method
-    }
-
-    /// The current step size.
-    pub fn step_size(&self) -> T {
-        self.h
-    }
-
-    /// Work counters (Newton iterations per step: `newton_iterations / steps`).
-    pub fn stats(&self) -> &Stats {
-        &self.stats
-    }
-
-    /// The Newton settings in use.
-    pub fn newton_options(&self) -> &NewtonOptions {
-        &self.newton
-    }
-
+impl<Sys, const N: usize, const S: usize, const R: usize, T> Integrator<Sys, Galerkin<S, R, T>, N, T>
+where
+    Sys: Lagrangian<N>,
+    T: Real,
+{
     /// The node values `Q_1 … Q_s` of the last step's polynomial (`Q_s = q_k`),
     /// or `None` before the first step.
     pub fn last_nodes(&self) -> Option<[[T; N]; S]> {
-        let last = self.last?;
+        let last = self.memory?;
         Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
-    }
-
-    /// Changes the step size for the following steps.
-    pub fn set_step_size(&mut self, h: T) -> Result<(), Error<N, T>> {
-        if !h.is_finite() || self.policy.is_some_and(|b| !(b.h_min..=b.h_max).contains(&h.to_f64())) {
-            return Err(Error::InvalidStepSize { h: h.to_f64() });
-        }
-        Error::<N, T>::check_step(h.to_f64())?;
-        self.clock = (self.state.t, self.state.step);
-        self.h = h;
-        Ok(())
-    }
-
-    /// Takes one step of size [`step_size`](Self::step_size).
-    ///
-    /// On failure nothing changes and the error carries the state and the
-    /// Newton diagnostics.
-    #[inline]
-    pub fn step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
-        if let Some(bounds) = self.policy {
-            return self.energy_step(bounds);
-        }
-        let t1 = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
-        self.step_by(self.h, t1)
-    }
-
-    /// Takes `n` steps, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
-        for _ in 0..n {
-            self.step()?;
-            observe(self);
-        }
-        Ok(())
-    }
-
-    /// Steps until `t_end` and stops there exactly, like
-    /// [`Integrator::run_until`](crate::Integrator::run_until): the last step
-    /// is shortened to land on `t_end` (or stretched by at most `10⁻⁹ h`);
-    /// a target equal to the current time is a no-op.
-    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
-        if !t_end.is_finite() || t_end < self.state.t {
-            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: self.state });
-        }
-        loop {
-            if t_end - self.state.t <= T::zero() {
-                return Ok(());
-            }
-            let last = match (self.policy, self.last) {
-                (Some(b), Some(last)) => (t_end - self.state.t).to_f64() <= b.bracket(last.h.to_f64()).1,
-                (Some(_), None) => t_end - self.state.t <= self.h,
-                (None, _) => {
-                    let next = self.clock.0 + self.h * (self.state.step + 1 - self.clock.1) as f64;
-                    next >= t_end - self.h * 1e-9
-                }
-            };
-            if last {
-                let h = self.h;
-                self.step_by(t_end - self.state.t, t_end)?;
-                self.clock = (self.state.t, self.state.step);
-                if self.policy.is_some() {
-                    // A fixed landing step: conserve its energy from here on,
-                    // and keep the solved step as the next guess.
-                    self.reread_energy();
-                    self.h = h;
-                }
-                observe(self);
-                return Ok(());
-            }
-            self.step()?;
-            observe(self);
-        }
     }
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
-    pub(super) fn predict(&self, h: T) -> BlockVector<N, S, T> {
+    pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
-        match &self.last {
+        match &self.memory {
             Some(last) if last.h == h => core::array::from_fn(|m| {
                 core::array::from_fn(|i| (0..S).map(|n| g.extrapolate[m][n] * last.d[n][i]).sum())
             }),
@@ -436,7 +188,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
 
     /// One step of size `h` stamped with end time `t1`.
     #[inline]
-    pub(super) fn step_by(&mut self, h: T, t1: T) -> Result<&State<N, T>, Error<N, T>> {
+    pub(crate) fn step_nodes(&mut self, h: T, t1: T) -> Result<(), Error<N, T>> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e = self.carry;
         let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
@@ -475,7 +227,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             simplified.set(simplify);
             newton::solve(Nodes(guess), &self.newton, &linearize)
         };
-        let predicted = self.predict(h);
+        let predicted = self.predict_nodes(h);
         let mut spent = 0;
         // (Degree 1 has a single block: full Newton is cheaper there, measured
         // 148 against 222 ns per pendulum step.)
@@ -486,7 +238,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             let guess = match guess {
                 None => predicted,
                 Some(()) => {
-                    let v = match &self.last {
+                    let v = match &self.memory {
                         Some(last) => last.d[S - 1].map(|x| x / last.h),
                         None => self.v0,
                     };
@@ -507,7 +259,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             Ok((x, report)) => (x.0, report),
             Err(failure) => return Err(self.fail(h, failure)),
         };
-        if let Some(last) = &self.last {
+        if let Some(last) = &self.memory {
             let f = |x: &[T; N]| x.map(|v| v.to_f64());
             let rho = (h / last.h).to_f64();
             let reached = f(&last.d[S - 1]).map(|x| x * rho);
@@ -529,7 +281,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
         t1: T,
         d: BlockVector<N, S, T>,
         report: NewtonReport,
-    ) -> Result<&State<N, T>, Error<N, T>> {
+    ) -> Result<(), Error<N, T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
         let (system, g) = (&self.system, &self.method);
@@ -584,96 +336,221 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, T: Real
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
-        self.last = Some(LastStep { t0, h, q0, carry: e, d });
+        self.memory = Some(LastStep { t0, h, q0, carry: e, d });
         self.carry = carry;
         self.p_carry = p_carry;
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
         self.stats.last = report;
-        Ok(&self.state)
-    }
-
-    /// The size of the last step, `None` before the first.
-    pub(super) fn last_step_size(&self) -> Option<T> {
-        self.last.map(|l| l.h)
+        Ok(())
     }
 
     /// `(t0, h, q0, carry, d)` of the last step.
     #[allow(clippy::type_complexity)]
     pub(super) fn last_step_parts(&self) -> Option<(T, T, [T; N], [T; N], BlockVector<N, S, T>)> {
-        self.last.map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
-    }
-
-    /// The discrete energy `E_k = Σ_j b_j E_L(c_j)` of the last step (minus
-    /// `∂A/∂h` at fixed nodes, for an autonomous `L`): under
-    /// energy-preserving steps, the quantity conserved. `None` before the
-    /// first step and for a time-dependent `L`.
-    pub fn discrete_energy(&self) -> Option<T> {
-        if !Sys::AUTONOMOUS {
-            return None;
-        }
-        let (t0, h, q0, carry, d) = self.last_step_parts()?;
-        Some(super::energy::step_energy(&self.system, &self.method, t0, h, (&q0, &carry), &d))
-    }
-
-    /// The step policy: `Some(bounds)` for energy-preserving steps.
-    pub fn policy(&self) -> Option<StepBounds> {
-        self.policy
-    }
-
-    pub(super) fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<N, T> {
-        self.stats.failed_steps += 1;
-        Error::from_newton(failure, self.state, h.to_f64())
+        self.memory.map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
     }
 }
 
+impl<const S: usize, const R: usize, T: Real> crate::integrator::Sealed for Galerkin<S, R, T> {}
+
+impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
+    type Memory<const N: usize> = GalerkinMemory<N, S, T>;
+
+    fn method_order(&self) -> u32 {
+        self.order()
+    }
+
+    fn memory<const N: usize>(&self) -> Self::Memory<N> {
+        None
+    }
+
+    fn check(&self) -> Result<(), &'static str> {
+        Galerkin::check(self)
+    }
+
+    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, T>> {
+        supports_policy::<Sys, N, T>(policy)
+    }
+
+    fn legendre<Sys: Lagrangian<N>, const N: usize>(
+        system: &Sys,
+        t0: T,
+        q0: [T; N],
+        v0: [T; N],
+    ) -> Result<([T; N], T), Error<N, T>> {
+        legendre(system, t0, q0, v0)
+    }
+
+    #[inline(always)]
+    fn fixed_step<Sys: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<Sys, Self, N, T>,
+        h: T,
+        t1: T,
+    ) -> Result<(), Error<N, T>> {
+        it.step_nodes(h, t1)
+    }
+
+    fn energy_step<Sys: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<Sys, Self, N, T>,
+        bounds: StepBounds,
+    ) -> Result<(), Error<N, T>> {
+        it.energy_step_nodes(bounds)
+    }
+
+    fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N, T>) {
+        it.reread_node_energy();
+    }
+
+    fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<T> {
+        memory.map(|last| last.h)
+    }
+
+    fn discrete_energy<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N, T>) -> T {
+        it.node_discrete_energy()
+    }
+}
+
+/// The policies a Galerkin rule supports for the system `Sys`.
+pub(crate) fn supports_policy<Sys: Lagrangian<N>, const N: usize, T: Real>(
+    policy: &StepPolicy,
+) -> Result<(), Error<N, T>> {
+    if matches!(policy, StepPolicy::EnergyPreserving(_)) && !Sys::AUTONOMOUS {
+        return Err(Error::Unsupported {
+            what: "energy-preserving galerkin steps for a time-dependent lagrangian (and one-point rules in a \
+                   real type other than f64, which run as galerkin rules); use fixed steps, or the \
+                   energy-preserving midpoint and trapezoid rules in f64",
+        });
+    }
+    Ok(())
+}
+
+/// `p0 = ∂L/∂v` and `E_L` at the initial data, in the run's real type, after
+/// the checks of [`IntegratorBuilder::start`].
+#[allow(clippy::type_complexity)]
+pub(crate) fn legendre<Sys: Lagrangian<N>, const N: usize, T: Real>(
+    system: &Sys,
+    t0: T,
+    q0: [T; N],
+    v0: [T; N],
+) -> Result<([T; N], T), Error<N, T>> {
+    let point = PointDerivatives::at(system, t0, q0, v0);
+    let p0 = point.v;
+    if !all_finite(&p0) || !point.value.is_finite() {
+        return Err(Error::InvalidInitialData {
+            reason: "the lagrangian or its momentum is not finite at the initial data",
+        });
+    }
+    // Regularity is a yes-or-no question: asked of the Hessian rounded to f64.
+    let hessian = SMatrix::<f64, N, N>::from_fn(|i, k| point.vv[i][k].to_f64());
+    if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
+        return Err(Error::InvalidInitialData {
+            reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+        });
+    }
+    let mut energy = -point.value;
+    for i in 0..N {
+        energy += v0[i] * p0[i];
+    }
+    if !energy.is_finite() {
+        return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
+    }
+    Ok((p0, energy))
+}
+
+impl<Sys, const N: usize, const S: usize, const R: usize, T> Integrator<Sys, Galerkin<S, R, T>, N, T>
+where
+    Sys: Lagrangian<N>,
+    T: Real,
+{
+    /// The discrete energy of the last step: `E = −∂A/∂t_{k+1}` at fixed
+    /// nodes, `Σ_j b_j [E_L(c_j) − h c_j ∂L/∂t(c_j)]` (for an autonomous `L`
+    /// the quadrature of the continuous energy along the step polynomial);
+    /// at `k = 0` the energy of the initial data.
+    pub(crate) fn node_discrete_energy(&self) -> T {
+        let g = &self.method;
+        discrete_energy_of(&self.system, g, self.memory.as_ref(), (self.state.t, &self.state.q, &self.v0))
+    }
+}
+
+/// The discrete energy of the step `last` of the rule `g` (see
+/// `node_discrete_energy`), or the energy at `(t, q, v0)` before the first step.
+pub(crate) fn discrete_energy_of<Sys, const N: usize, const S: usize, const R: usize, T>(
+    system: &Sys,
+    g: &Galerkin<S, R, T>,
+    last: Option<&LastStep<N, S, T>>,
+    (t, q, v0): (T, &[T; N], &[T; N]),
+) -> T
+where
+    Sys: Lagrangian<N>,
+    T: Real,
+{
+    let Some(last) = last else {
+        let (l, _, lv) = point_gradient(system, t, *q, *v0);
+        let mut e = -l;
+        for i in 0..N {
+            e += v0[i] * lv[i];
+        }
+        return e;
+    };
+    let mut e = super::energy::step_energy(system, g, last.t0, last.h, (&last.q0, &last.carry), &last.d);
+    if !Sys::AUTONOMOUS {
+        for j in 0..R {
+            let (t, q, v) = g.point(last.t0, last.h, (&last.q0, &last.carry), &last.d, j);
+            let lt = system
+                .lagrangian(
+                    num_dual::Dual::new(t, T::one()),
+                    q.map(num_dual::Dual::from_re),
+                    v.map(num_dual::Dual::from_re),
+                )
+                .eps;
+            e -= g.quadrature().weights()[j] * last.h * g.quadrature().nodes()[j] * lt;
+        }
+    }
+    e
+}
+
 /// Readouts that solve in `f64` (the inverse Legendre transform, the tangent map).
-impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> GalerkinIntegrator<Sys, N, S, R> {
-    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
-    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
-        let State { t, q, p, .. } = self.state;
-        let guess = match &self.last {
+impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
+    fn velocity_guess<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> [f64; N] {
+        match &it.memory {
             // The velocity at the end of the last step's polynomial.
             Some(last) => core::array::from_fn(|i| {
-                (0..S).map(|n| self.method.basis_derivative(n + 1, 1.0) * last.d[n][i]).sum::<f64>() / last.h
+                (0..S).map(|n| it.method.basis_derivative(n + 1, 1.0) * last.d[n][i]).sum::<f64>() / last.h
             }),
-            None => self.v0,
-        };
-        self.system.velocity(t, q, p, guess).map_err(|f| Error::InverseLegendre {
-            state: self.state,
-            iterations: f.iterations,
-            residual_norm: f.residual_norm,
-        })
+            None => it.v0,
+        }
     }
 
-    /// The energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
-    pub fn energy(&self) -> Result<f64, Error<N>> {
-        let v = self.velocity()?;
-        Ok(self.system.energy(self.state.t, self.state.q, v))
-    }
-
-    /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node.
-    pub fn momentum_map(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> f64 {
-        crate::noether::momentum_map(symmetry, &self.state.q, &self.state.p)
+    /// By the implicit function theorem on the block system, with the
+    /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
+    /// [`Galerkin::node_hessian`]. Allocates.
+    fn tangent_map<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> Option<TangentMap<N>> {
+        let last = it.memory?;
+        let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
+        tangent_map(&it.system, &it.method, last.t0, last.h, q0, &last.d)
     }
 
     /// The forcing impulse `Σ_m F^m·ξ(Q_m)` of the last step over its nodes
     /// `Q_0 = q_{k−1}, …, Q_s = q_k`, with `F^m = h Σ_j b_j ℓ_m(c_j) F(c_j)` the
-    /// discrete force on node `m`; `None` before the first step.
+    /// discrete force on node `m`.
     ///
     /// For a symmetry of `L` (`ξ` with `∂L/∂q·ξ + ∂L/∂v·ξ'(q)v = 0` along the
     /// step) the step action is invariant, the interior equations
     /// `∂A/∂Q_m + F^m = 0` hold, and so `J_k − J_{k−1}` equals this impulse
     /// (the discrete Noether theorem with forcing, through the basis).
-    pub fn forcing_impulse(&self, symmetry: &(impl crate::noether::Generator<N> + ?Sized)) -> Option<f64> {
-        let last = self.last?;
-        let g = &self.method;
+    fn forcing_impulse<Sys: Lagrangian<N>, const N: usize>(
+        it: &Integrator<Sys, Self, N>,
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64> {
+        let last = it.memory?;
+        let g = &it.method;
         let mut fnode = [[0.0; N]; S];
         let mut f_end = [0.0; N];
         for j in 0..R {
             let (t, q, v) = g.point(last.t0, last.h, (&last.q0, &last.carry), &last.d, j);
-            let f = generalized_force(&self.system, t, q, v);
+            let f = generalized_force(&it.system, t, q, v);
             let w = g.quadrature().weights()[j] * last.h;
             for i in 0..N {
                 for m in 0..S {
@@ -691,25 +568,6 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize> Galerki
             impulse += dot(&fnode[m], &symmetry.generator(&node(m)));
         }
         Some(impulse)
-    }
-
-    /// The tangent map `∂(q_k, p_k)/∂(q_{k−1}, p_{k−1})` of the last step
-    /// (docs/theory.md §8), or `None` before the first step or where the Newton
-    /// block is singular.
-    ///
-    /// By the implicit function theorem on the block system, with the
-    /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
-    /// [`Galerkin::node_hessian`]. Allocates; a diagnostic, not for the
-    /// stepping loop.
-    ///
-    /// Also `None` for a system with forces, whose step map is not symplectic.
-    pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
-        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-            return None;
-        }
-        let last = self.last?;
-        let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
-        tangent_map(&self.system, &self.method, last.t0, last.h, q0, &last.d)
     }
 }
 

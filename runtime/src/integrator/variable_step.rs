@@ -122,7 +122,7 @@ impl<const N: usize> Probe<N> {
 impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
     /// One energy-preserving step after the first.
     pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
-        let h_prev = self.previous.map_or(self.h, |last| last.h);
+        let h_prev = self.memory.previous.map_or(self.h, |last| last.h);
         let (lo, hi) = bounds.bracket(h_prev);
         let guess = self.h.clamp(lo, hi);
         // Trial solves below may fail; only the outcome of the whole step counts.
@@ -148,7 +148,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // from the DEL solution at the guessed step: the energy equation fixes
         // h only through the O(h²) energy error of the method, so its Newton
         // correction is trustworthy only once R_q is already near zero.
-        let (start, first) = match (self.previous, self.earlier) {
+        let (start, first) = match (self.memory.previous, self.memory.earlier) {
             (Some(last), Some((h_earlier, _))) => {
                 let h = (2.0 * last.h - h_earlier).clamp(lo, hi);
                 (Extended { q: SVector::from(self.predict(h)), t: h }, NewtonReport::default())
@@ -159,7 +159,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
         };
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
-        let pc = self.carry.p;
+        let pc = self.p_carry;
         let linearize = |x: &Extended<N>| {
             if x.t.is_nan() || x.t <= 0.0 {
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
@@ -397,7 +397,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     fn root_test(&self) -> Option<(f64, f64, f64)> {
         let kappa = self.method.energy_error_kappa()?;
         let StepPolicy::EnergyPreserving(bounds) = self.policy else { return None };
-        let last = self.previous?;
+        let last = self.memory.previous?;
         let h = last.h;
         let guess = last.dq.map(|x| x / h);
         let State { t, q, p, .. } = self.state;
@@ -452,7 +452,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let h = seg.h;
         // E_{k+1} alone: the momentum comes from `advance` as an increment.
         let d_t1 = derivatives::end_time_derivative(&self.system, &self.method, &seg);
-        let (q1, p1, carry) = self.advance(&seg);
+        let (q1, p1, carry, p_carry) = self.advance(&seg);
         // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
         let y = h - self.time_error;
         let t1 = t0 + y;
@@ -463,11 +463,12 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         }
         self.time_error = (t1 - t0) - y;
         self.carry = carry;
+        self.p_carry = p_carry;
         if S::DISCONTINUOUS {
             self.watch_energy(&seg, t1);
         }
-        self.earlier = self.previous.map(|last| (last.h, last.dq));
-        self.previous = Some(seg);
+        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
+        self.memory.previous = Some(seg);
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
         if fallback {
             // The least-squares step changed the energy: conserve its new value.
@@ -498,7 +499,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// The last step taken, from node `k − 1` to node `k`, as start and
     /// increments; `None` before the first step.
     pub fn last_segment(&self) -> Option<&Segment<N>> {
-        self.previous.as_ref()
+        self.memory.previous.as_ref()
     }
 
     /// The tangent map of the last step in the extended phase space
@@ -506,6 +507,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// [`symplectic::extended_tangent_map`](crate::symplectic::extended_tangent_map).
     /// For variable steps it preserves `dq∧dp − dt∧dE`.
     pub fn last_extended_tangent_map(&self) -> Option<nalgebra::DMatrix<f64>> {
-        crate::symplectic::extended_tangent_map(&self.system, &self.method, self.previous.as_ref()?)
+        crate::symplectic::extended_tangent_map(&self.system, &self.method, self.memory.previous.as_ref()?)
     }
 }

@@ -1,0 +1,140 @@
+//! What the one [`Integrator`] asks of a discrete Lagrangian.
+//!
+//! A discrete Lagrangian is a rule for the action of one step, possibly with
+//! interior unknowns: the one-point rules ([`Midpoint`](crate::Midpoint),
+//! [`Trapezoid`](crate::Trapezoid), [`AlphaBeta`](crate::AlphaBeta), and any
+//! user [`DiscreteLagrangian`](crate::DiscreteLagrangian)) have none, the
+//! Galerkin rules ([`Galerkin`](crate::Galerkin)) have `s − 1` interior nodes.
+//! The integrator owns everything the methods share — the builder and its
+//! checks, the state with its Kahan compensation, the clock, the step
+//! policy, [`Stats`](crate::Stats), `run`/`run_until` — and a method brings
+//! only how one step is solved and read: its Newton block, its
+//! energy-preserving step, the discrete energy and what it keeps of the last
+//! step. One-point rules in `f64` keep their direct fast path (one hyper-dual
+//! sweep of the action per Newton iteration); one-point rules in another
+//! [`Real`] run as the Galerkin rule of degree 1 with the same quadrature
+//! point(s), which is the same discrete Lagrangian.
+
+use super::{Integrator, StepBounds, StepPolicy};
+use crate::error::Error;
+use crate::real::Real;
+use crate::symplectic::TangentMap;
+use crate::system::Lagrangian;
+
+pub(crate) mod sealed {
+    /// Only the runtime's two families implement [`Method`](super::Method):
+    /// a new discrete Lagrangian is written as a
+    /// [`DiscreteLagrangian`](crate::DiscreteLagrangian) or as a
+    /// [`Galerkin`](crate::Galerkin) rule.
+    pub trait Sealed {}
+}
+
+/// A discrete Lagrangian as the [`Integrator`] drives it, in the real type
+/// `T` of the run. Implemented for every
+/// [`DiscreteLagrangian`](crate::DiscreteLagrangian) (in `f64` and in
+/// [`DoubleDouble`](crate::DoubleDouble)) and for every
+/// [`Galerkin`](crate::Galerkin) rule (in its own real type); sealed.
+///
+/// The items are the integrator's internals, hidden from the docs: a user
+/// only names the trait in bounds.
+pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
+    /// What the method keeps of the steps it has taken (the last step's
+    /// nodes, for the predictor and the readouts).
+    #[doc(hidden)]
+    type Memory<const N: usize>: Clone + core::fmt::Debug;
+
+    /// Order of the one-step map for a regular Lagrangian.
+    fn method_order(&self) -> u32;
+
+    /// The memory before the first step.
+    #[doc(hidden)]
+    fn memory<const N: usize>(&self) -> Self::Memory<N>;
+
+    /// `Err(reason)` for an unusable rule (an invalid quadrature).
+    #[doc(hidden)]
+    fn check(&self) -> Result<(), &'static str> {
+        Ok(())
+    }
+
+    /// `Err` for a combination of system and policy the method does not
+    /// support, with the reason.
+    #[doc(hidden)]
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, T>> {
+        let _ = policy;
+        Ok(())
+    }
+
+    /// The momentum `p0 = ∂L/∂v` and the energy `E_L` at the initial data,
+    /// after checking that they and `L` are finite and that `∂²L/∂v²` is
+    /// regular there.
+    #[doc(hidden)]
+    #[allow(clippy::type_complexity)]
+    fn legendre<S: Lagrangian<N>, const N: usize>(
+        system: &S,
+        t0: T,
+        q0: [T; N],
+        v0: [T; N],
+    ) -> Result<([T; N], T), Error<N, T>>;
+
+    /// One step of size `h` whose end node is stamped `t1`; on failure the
+    /// integrator is unchanged.
+    #[doc(hidden)]
+    fn fixed_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N, T>,
+        h: T,
+        t1: T,
+    ) -> Result<(), Error<N, T>>
+    where
+        Self: Sized;
+
+    /// One energy-preserving step (the first one included); on failure the
+    /// integrator is unchanged.
+    #[doc(hidden)]
+    fn energy_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N, T>,
+        bounds: StepBounds,
+    ) -> Result<(), Error<N, T>>
+    where
+        Self: Sized;
+
+    /// Sets the energy target of energy-preserving steps from the last step.
+    #[doc(hidden)]
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, T>)
+    where
+        Self: Sized;
+
+    /// The size of the last step; `None` before the first.
+    #[doc(hidden)]
+    fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<T>;
+
+    /// The discrete energy `E_k` of the last step; at `k = 0` the energy
+    /// of the initial data.
+    #[doc(hidden)]
+    fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, T>) -> T
+    where
+        Self: Sized;
+}
+
+/// Readouts that solve in `f64` (the inverse Legendre transform, the tangent map).
+pub trait F64Readouts: Method<f64> {
+    /// The first guess of the velocity at the current node.
+    #[doc(hidden)]
+    fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, f64>) -> [f64; N]
+    where
+        Self: Sized;
+
+    /// The tangent map of the last step.
+    #[doc(hidden)]
+    fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, f64>) -> Option<TangentMap<N>>
+    where
+        Self: Sized;
+
+    /// The forcing impulse of the last step on a symmetry.
+    #[doc(hidden)]
+    fn forcing_impulse<S: Lagrangian<N>, const N: usize>(
+        it: &Integrator<S, Self, N, f64>,
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64>
+    where
+        Self: Sized;
+}

@@ -1,0 +1,273 @@
+//! The one-point rules (`Midpoint`, `Trapezoid`, `AlphaBeta`, any user
+//! [`DiscreteLagrangian`]) as [`Method`]s.
+//!
+//! In `f64` they take the direct path: the step's only unknown is the
+//! increment `dq = q_{k+1} − q_k`, and each Newton iteration is one
+//! hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
+//! residual `p_k + ∂A/∂q_k`, the Jacobian `∂²A/∂q_k∂q_{k+1}` and, after
+//! convergence, the momentum change. In any other [`Real`](crate::Real)
+//! they run as the Galerkin rule of degree 1 whose quadrature is their own
+//! point(s) (`galerkin/one_point.rs`), which is the same discrete Lagrangian.
+
+use nalgebra::SVector;
+
+use super::method::{F64Readouts, Method, sealed};
+use super::{IMPLAUSIBLE_GROWTH, Integrator, StepBounds, implausible_growth, kahan, non_finite};
+use crate::derivatives::{self, Segment};
+use crate::discrete::DiscreteLagrangian;
+use crate::error::Error;
+use crate::forcing::{self, DiscreteForces, EnergyBalance};
+use crate::mechanics::DiscreteMechanics;
+use crate::newton::{self, NewtonFailure, NewtonReport};
+use crate::real::max_abs;
+use crate::state::State;
+use crate::symplectic::{self, TangentMap};
+use crate::system::Lagrangian;
+
+/// What a one-point rule keeps of its last two steps.
+#[derive(Clone, Copy, Debug)]
+pub struct OnePointMemory<const N: usize> {
+    /// The last step, from node `k − 1` to node `k`; `None` at the start.
+    pub(crate) previous: Option<Segment<N>>,
+    /// `(h, dq)` of the step before that, for the predictor.
+    pub(crate) earlier: Option<(f64, [f64; N])>,
+}
+
+impl<M: DiscreteLagrangian> sealed::Sealed for M {}
+
+impl<M: DiscreteLagrangian> Method<f64> for M {
+    type Memory<const N: usize> = OnePointMemory<N>;
+
+    fn method_order(&self) -> u32 {
+        self.order()
+    }
+
+    fn memory<const N: usize>(&self) -> OnePointMemory<N> {
+        OnePointMemory { previous: None, earlier: None }
+    }
+
+    fn legendre<S: Lagrangian<N>, const N: usize>(
+        system: &S,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<([f64; N], f64), Error<N>> {
+        let p0 = system.momentum(t0, q0, v0);
+        if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
+            return Err(Error::InvalidInitialData {
+                reason: "the lagrangian or its momentum is not finite at the initial data",
+            });
+        }
+        let hessian = system.velocity_hessian(t0, q0, v0);
+        if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
+            return Err(Error::InvalidInitialData {
+                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+            });
+        }
+        let energy = system.energy(t0, q0, v0);
+        if !energy.is_finite() {
+            return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
+        }
+        Ok((p0, energy))
+    }
+
+    #[inline(always)]
+    fn fixed_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N>,
+        h: f64,
+        t1: f64,
+    ) -> Result<(), Error<N>> {
+        it.step_by(h, t1)
+    }
+
+    fn energy_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N>,
+        bounds: StepBounds,
+    ) -> Result<(), Error<N>> {
+        if it.memory.previous.is_some() {
+            return it.energy_step(bounds).map(|_| ());
+        }
+        // The first step has the given h0 (Luo, Guo, Li & Wu §V starts from τ0):
+        // E_L(q0, v0) is not the discrete energy of any step, and
+        // demanding E_1 = E_L(q0, v0) has no root but h → 0. The energy
+        // conserved from then on is the discrete E_1, within O(h0²) of E_L.
+        let h = it.h;
+        it.step_by(h, it.state.t + h)?;
+        Self::reread_energy(it);
+        Ok(())
+    }
+
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N>) {
+        it.energy_carry = 0.0;
+        if let Some(last) = &it.memory.previous {
+            it.energy = -derivatives::end_time_derivative(&it.system, &it.method, last);
+        }
+    }
+
+    fn last_step_size<const N: usize>(memory: &OnePointMemory<N>) -> Option<f64> {
+        memory.previous.map(|last| last.h)
+    }
+
+    fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
+        match &it.memory.previous {
+            Some(seg) => -derivatives::end_time_derivative(&it.system, &it.method, seg),
+            None => it.system.energy(it.state.t, it.state.q, it.v0),
+        }
+    }
+}
+
+impl<M: DiscreteLagrangian> F64Readouts for M {
+    fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
+        match &it.memory.previous {
+            Some(last) => last.dq.map(|x| x / last.h),
+            None => it.v0,
+        }
+    }
+
+    fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
+        symplectic::tangent_map(&it.system, &it.method, it.memory.previous.as_ref()?)
+    }
+
+    fn forcing_impulse<S: Lagrangian<N>, const N: usize>(
+        it: &Integrator<S, Self, N>,
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64> {
+        Some(crate::noether::forcing_impulse(&it.system, &it.method, it.memory.previous.as_ref()?, symmetry))
+    }
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
+    /// One step of size `h`, whose end node is stamped with time `t1`
+    /// (`t_k + h` up to the round-off the clock avoids accumulating).
+    #[inline]
+    pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+        let State { step, t: t0, q: q0, .. } = self.state;
+        let (dq, report) = self.solve_del(h)?;
+        let seg = Segment { t0, h, q0, dq };
+        let (q1, p1, carry, p_carry) = self.advance(&seg);
+        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+        }
+        self.carry = carry;
+        self.p_carry = p_carry;
+        if S::DISCONTINUOUS {
+            self.watch_energy(&seg, t1);
+        }
+        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
+        self.memory.previous = Some(seg);
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.last = report;
+        Ok(())
+    }
+
+    /// `(q_{k+1}, p_{k+1})` after the solved step `seg`, each the Kahan sum of
+    /// the node's value and the step's increment: `q_{k+1} = q_k + Δq`,
+    /// `p_{k+1} = p_k + Δp` with `Δp = ∂A/∂q_k + ∂A/∂q_{k+1} + F_k^− + F_k^+`
+    /// taken at fixed increment. Summed this way the rounding of the nodes
+    /// does not accumulate (it is carried into the next sum), so a moving
+    /// centre of mass or large coordinates do not bias the energy or the
+    /// momenta. Returns the new compensations too; changes nothing.
+    #[inline]
+    pub(super) fn advance(&self, seg: &Segment<N>) -> ([f64; N], [f64; N], [f64; N], [f64; N]) {
+        let dp = forcing::momentum_change(&self.system, &self.method, seg);
+        let (q1, q) = kahan(&self.state.q, &self.carry, &seg.dq);
+        let (p1, p) = kahan(&self.state.p, &self.p_carry, &dp);
+        (q1, p1, q, p)
+    }
+
+    /// Records the relative change of the discrete energy across the node
+    /// between the last step and `seg` (see [`Stats::largest_energy_jump`](crate::Stats::largest_energy_jump)).
+    pub(super) fn watch_energy(&mut self, seg: &Segment<N>, t1: f64) {
+        let after = -derivatives::end_time_derivative(&self.system, &self.method, seg);
+        // The last step's energy was this function's `after` one step ago.
+        let before = self.watched_energy.unwrap_or_else(|| self.system.energy(self.state.t, self.state.q, self.v0));
+        self.watched_energy = Some(after);
+        let jump = (after - before).abs() / before.abs().max(f64::MIN_POSITIVE);
+        if jump.is_finite() && jump > self.stats.largest_energy_jump {
+            self.stats.largest_energy_jump = jump;
+            self.stats.largest_energy_jump_at = t1;
+        }
+    }
+
+    /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
+    /// of a step of size `h` (see `Segment` for why the increment).
+    #[inline]
+    pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let predictor = self.predict(h);
+        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        let pc = self.p_carry;
+        let eval = |x: &SVector<f64, N>| {
+            let seg = Segment { t0, h, q0, dq: (*x).into() };
+            // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
+            let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+            // The momentum carries its compensation: p_k is p0 + pc.
+            let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
+            let scale = max_abs(&p0).max(max_abs(&d.d_q0));
+            Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
+        };
+        match newton::solve(SVector::from(predictor), &self.newton, eval) {
+            Ok((dq, report)) => {
+                let dq: [f64; N] = dq.into();
+                if let Some(last) = &self.memory.previous
+                    && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
+                {
+                    let reason = IMPLAUSIBLE_GROWTH;
+                    return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
+                }
+                Ok((dq, report))
+            }
+            Err(failure) => Err(self.fail(h, failure)),
+        }
+    }
+
+    /// The increment predicted by quadratic extrapolation of the positions:
+    /// the secant velocities `dq/h` of the last two steps, placed at their
+    /// midpoints, extrapolated linearly to the midpoint of the new step. Its
+    /// error is `O(h³)`, so Newton usually converges in two iterations.
+    #[inline]
+    pub(super) fn predict(&self, h: f64) -> [f64; N] {
+        match (&self.memory.previous, &self.memory.earlier) {
+            (Some(last), Some((h_earlier, dq_earlier))) => {
+                let s = (last.h + h) / (last.h + h_earlier);
+                core::array::from_fn(|i| {
+                    let v = last.dq[i] / last.h;
+                    let v_earlier = dq_earlier[i] / h_earlier;
+                    h * (v + (v - v_earlier) * s)
+                })
+            }
+            (Some(last), None) => last.dq.map(|x| x * (h / last.h)),
+            _ => self.v0.map(|v| v * h),
+        }
+    }
+
+    /// The last step as a segment `(t_k, h, q_k, dq)`: its increment `dq` is
+    /// the one Newton solved for, free of the rounding of `q_{k+1} = q_k + dq`
+    /// (which, when every step rounds the same way, adds up over long runs).
+    /// `None` before the first step.
+    pub fn last_step(&self) -> Option<&Segment<N>> {
+        self.memory.previous.as_ref()
+    }
+
+    /// The discrete forces `(F_k^−, F_k^+)` of the last step (docs/theory.md §6), or
+    /// `None` before the first step; zero for a system without forces.
+    pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
+        Some(forcing::discrete_forces(&self.system, &self.method, self.memory.previous.as_ref()?))
+    }
+
+    /// The energy balance `E_{k+1} − E_k − W_k` across node `k`, the node
+    /// between the last two steps (see [`forcing`](crate::forcing) for `W_k`
+    /// and when the balance is exact), or `None` before the second step.
+    ///
+    /// The step before the last is rebuilt from the last one and its stored
+    /// increment, so its start point carries the round-off of one subtraction.
+    pub fn energy_balance(&self) -> Option<EnergyBalance> {
+        let ahead = self.memory.previous.as_ref()?;
+        let (h, dq) = self.memory.earlier?;
+        let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };
+        Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
+    }
+}
