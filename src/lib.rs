@@ -158,6 +158,7 @@ pub mod prelude {
         NewtonOptions, Scalar, State, StepBounds, Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
+    pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
