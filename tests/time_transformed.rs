@@ -11,6 +11,7 @@ mod common;
 
 use lagrangian::prelude::*;
 use lagrangian::time_transform::SStepper;
+use lagrangian::{Scalar, StepDensity};
 use std::f64::consts::PI;
 
 /// Planar Kepler, μ = 1, Cartesian.
@@ -61,7 +62,6 @@ fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
 fn r32() -> RadiusPower<2> {
     RadiusPower::new([0, 1], 1.5).unwrap()
 }
-
 
 type Tt = TimeTransformed<Kepler, RadiusPower<2>, 2>;
 
@@ -155,12 +155,19 @@ fn fixed<M: DiscreteLagrangian>(method: M, e: f64, orbits: usize, steps: u64) ->
     }
 }
 
-fn rule<M: DiscreteLagrangian>(method: M, e: f64, sigma: f64) -> Adaptive<Integrator<Tt, M, 3>, Kepler, RadiusPower<2>, 2, 3> {
+fn rule<M: DiscreteLagrangian>(
+    method: M,
+    e: f64,
+    sigma: f64,
+) -> Adaptive<Integrator<Tt, M, 3>, Kepler, RadiusPower<2>, 2, 3> {
     let (q0, v0) = kepler_start(e);
     TimeTransformed::new(Kepler, r32()).rule(method, sigma).start::<3>(0.0, q0, v0).unwrap()
 }
 
-fn galerkin<const S: usize>(e: f64, sigma: f64) -> Adaptive<GalerkinIntegrator<Tt, 3, S, S>, Kepler, RadiusPower<2>, 2, 3> {
+fn galerkin<const S: usize>(
+    e: f64,
+    sigma: f64,
+) -> Adaptive<GalerkinIntegrator<Tt, 3, S, S>, Kepler, RadiusPower<2>, 2, 3> {
     let (q0, v0) = kepler_start(e);
     TimeTransformed::new(Kepler, r32()).galerkin(Galerkin::<S, S>::gauss(), sigma).start::<3>(0.0, q0, v0).unwrap()
 }
@@ -252,7 +259,8 @@ fn order_in_the_step() {
         let trap: Vec<_> = sigmas(0.01).iter().map(|&s| (s, position_error(trapezoid(s), e))).collect();
         let g2: Vec<_> = sigmas(0.2).iter().map(|&s| (s, position_error(galerkin::<2>(e, s), e))).collect();
         let g4: Vec<_> = sigmas4(0.4).iter().map(|&s| (s, position_error(galerkin::<4>(e, s), e))).collect();
-        for (label, pts, order) in [("midpoint", &mid, 2.0), ("trapezoid", &trap, 2.0), ("galerkin 2", &g2, 4.0), ("galerkin 4", &g4, 8.0)]
+        for (label, pts, order) in
+            [("midpoint", &mid, 2.0), ("trapezoid", &trap, 2.0), ("galerkin 2", &g2, 4.0), ("galerkin 4", &g4, 8.0)]
         {
             if e == 0.99 && order == 8.0 {
                 // Measured 9.24 on these steps: the errors (2e-9 … 4e-12) are
@@ -262,7 +270,10 @@ fn order_in_the_step() {
                 continue;
             }
             let p = fitted_order(pts);
-            println!("e = {e}, {label}: errors {:?}, fitted order {p:.3}", pts.iter().map(|p| format!("{:.3e}", p.1)).collect::<Vec<_>>());
+            println!(
+                "e = {e}, {label}: errors {:?}, fitted order {p:.3}",
+                pts.iter().map(|p| format!("{:.3e}", p.1)).collect::<Vec<_>>()
+            );
             assert!((p - order).abs() < 0.15, "e = {e}, {label}: order {p}, errors {pts:?}");
         }
     }
@@ -317,4 +328,148 @@ fn symplectic_in_the_extended_phase_space() {
     let mut worst = 0.0f64;
     sim.run(1000, |s| worst = worst.max(s.last_tangent_map().unwrap().symplecticity_defect())).unwrap();
     println!("fixed-step midpoint, h = 1e-3: defect {worst:.2e}");
+}
+
+/// `L = ½ v² − ½ q²`.
+#[derive(Debug, Clone, Copy)]
+pub struct Oscillator;
+
+#[lagrangian]
+impl Oscillator {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+    }
+}
+
+/// `g = q[0]`: crosses zero with the oscillator.
+#[derive(Debug, Clone, Copy)]
+struct Position;
+
+impl StepDensity<1> for Position {
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, _t: D, q: &[D; 1]) -> D {
+        q[0]
+    }
+}
+
+/// `g = 1` up to `t = 0.5`, NaN after.
+#[derive(Debug, Clone, Copy)]
+struct NanAfterHalf;
+
+impl StepDensity<1> for NanAfterHalf {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        if t.re() > 0.5 { D::from(f64::NAN) } else { D::one() }
+    }
+}
+
+/// `g = (1 − t)²`: the steps collapse as `t → 1`.
+#[derive(Debug, Clone, Copy)]
+struct Collapsing;
+
+impl StepDensity<1> for Collapsing {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        (D::one() - t) * (D::one() - t)
+    }
+}
+
+/// `g = 1/(1 + ½ sin 3t)`, time-dependent.
+#[derive(Debug, Clone, Copy)]
+struct Breathing;
+
+impl StepDensity<1> for Breathing {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        ((t * 3.0).sin() * 0.5 + 1.0).recip()
+    }
+}
+
+#[test]
+fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
+    let err =
+        TimeTransformed::new(Oscillator, Position).rule(Midpoint, 0.1).start::<2>(0.0, [-0.5], [0.0]).unwrap_err();
+    assert!(matches!(err, TimeTransformError::InvalidDensity { value, .. } if value == -0.5), "{err:?}");
+    // A g that turns NaN inside a step: that step is refused, the state kept.
+    let mut sim =
+        TimeTransformed::new(Oscillator, NanAfterHalf).rule(Midpoint, 0.07).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let err = sim.run_until(1.0, |_| {}).unwrap_err();
+    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    assert!(value.is_nan() && state == sim.state() && state.t <= 0.5 && state.t > 0.4, "{state:?}");
+}
+
+#[test]
+fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
+    let mut sim =
+        TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let err = sim.run_until(2.0, |_| {}).unwrap_err();
+    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    assert!(dt < floor && state == sim.state() && state.t < 1.0, "{dt} {floor} {state:?}");
+}
+
+#[test]
+fn invalid_settings_and_targets_are_typed_errors() {
+    let start = |b: lagrangian::time_transform::TimeTransformedBuilder<Oscillator, RadiusPower<1>, _, 1>| {
+        b.start::<2>(0.0, [1.0], [0.0]).map(|_| ())
+    };
+    let g = RadiusPower::new([0], 1.0).unwrap();
+    let bad = RadiusPower::new([3], 1.0).unwrap();
+    assert!(RadiusPower::new([0], f64::NAN).is_none());
+    assert!(Curvature::new(0.0).is_none());
+    for sigma in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, sigma)).unwrap_err();
+        assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    }
+    let e = start(TimeTransformed::new(Oscillator, bad).rule(Midpoint, 0.1)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).penalty(-1.0)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).min_time_step(f64::NAN)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).start::<2>(0.0, [f64::NAN], [0.0]).unwrap_err();
+    assert!(matches!(e, TimeTransformError::Step(Error::InvalidInitialData { .. })), "{e:?}");
+    let mut sim =
+        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    sim.run_until(1.0, |_| {}).unwrap();
+    for target in [0.5, f64::NAN, f64::INFINITY] {
+        let before = sim.state();
+        let e = sim.run_until(target, |_| {}).unwrap_err();
+        assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
+        assert_eq!(sim.state(), before);
+    }
+    // The current time is a no-op; many targets are hit exactly.
+    sim.run_until(1.0, |_| {}).unwrap();
+    for k in 101..=300 {
+        let t = k as f64 / 100.0;
+        sim.run_until(t, |_| {}).unwrap();
+        assert_eq!(sim.state().t, t);
+    }
+}
+
+/// The driven RLC circuit (time-dependent force and dissipation) with a
+/// time-dependent monitor: order 2 (midpoint) and 4 (Galerkin s = 2)
+/// against the exact response, Lagrange–d'Alembert in `s`.
+#[test]
+fn time_dependent_forces_keep_the_order() {
+    let rlc = || common::forced::Rlc { l: 0.5, r: 1.5, c: 0.02, e0: 10.0, omega: 7.0 };
+    let t_end = 2.0;
+    let exact = rlc().exact(t_end)[0];
+    let err_mid = |s: f64| {
+        let mut sim = TimeTransformed::new(rlc(), Breathing).rule(Midpoint, s).start::<2>(0.0, [0.0], [0.0]).unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (s, (sim.state().q[0] - exact).abs())
+    };
+    let err_g2 = |s: f64| {
+        let mut sim = TimeTransformed::new(rlc(), Breathing)
+            .galerkin(Galerkin::<2, 2>::gauss(), s)
+            .start::<2>(0.0, [0.0], [0.0])
+            .unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (s, (sim.state().q[0] - exact).abs())
+    };
+    let mid: Vec<_> = [0.02, 0.01, 0.005].map(err_mid).to_vec();
+    let g2: Vec<_> = [0.05, 0.025, 0.0125].map(err_g2).to_vec();
+    let (pm, pg) = (fitted_order(&mid), fitted_order(&g2));
+    println!("driven RLC: midpoint {mid:?} order {pm:.3}; galerkin 2 {g2:?} order {pg:.3}");
+    assert!((pm - 2.0).abs() < 0.15, "{mid:?}");
+    assert!((pg - 4.0).abs() < 0.15, "{g2:?}");
 }

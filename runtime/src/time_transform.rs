@@ -222,7 +222,11 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
 
     /// Configures an adaptive integrator with a one-point discrete
     /// Lagrangian (midpoint, trapezoid, α-β) and the step `sigma` in `s`.
-    pub fn rule<Mth: DiscreteLagrangian>(self, method: Mth, sigma: f64) -> TimeTransformedBuilder<Sys, G, Rule<Mth>, N> {
+    pub fn rule<Mth: DiscreteLagrangian>(
+        self,
+        method: Mth,
+        sigma: f64,
+    ) -> TimeTransformedBuilder<Sys, G, Rule<Mth>, N> {
         TimeTransformedBuilder::new(self, Rule(method), sigma)
     }
 
@@ -902,10 +906,7 @@ where
                 self.landed = Some((end.step, t_end));
                 Ok(())
             }
-            best => Err(TimeTransformError::Landing {
-                target: t_end,
-                reached: best.map_or(t0, |(f, _)| t_end + f),
-            }),
+            best => Err(TimeTransformError::Landing { target: t_end, reached: best.map_or(t0, |(f, _)| t_end + f) }),
         }
     }
 }
