@@ -776,8 +776,10 @@ where
         let start = self.state();
         self.inner.transformed().invalid.set(None);
         if let Err(e) = self.inner.s_step() {
+            // Read the flag before restoring: the saved copy has its own.
+            let invalid = self.inner.transformed().invalid.get();
             self.inner = before;
-            return Err(match self.inner.transformed().invalid.get() {
+            return Err(match invalid {
                 Some(value) => TimeTransformError::InvalidDensity { state: start, value },
                 None => TimeTransformError::Step(e),
             });
