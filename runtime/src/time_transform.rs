@@ -792,7 +792,8 @@ where
             self.inner = before;
             return Err(TimeTransformError::InvalidDensity { state: start, value: g1 });
         }
-        if !(dt >= self.floor) {
+        // NaN fails too.
+        if dt.is_nan() || dt < self.floor {
             self.inner = before;
             return Err(TimeTransformError::TimeStepCollapsed { state: start, dt, floor: self.floor });
         }
