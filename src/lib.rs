@@ -153,12 +153,12 @@ pub use lagrangian_runtime::*;
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
+    pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
     pub use lagrangian_runtime::{
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, EnergyFallback, Error, Integrator, Lagrangian, Midpoint,
         NewtonOptions, Scalar, State, StepBounds, Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
-    pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
