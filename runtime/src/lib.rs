@@ -22,6 +22,7 @@ mod state;
 mod symmetry;
 pub mod symplectic;
 pub mod system;
+pub mod time_transform;
 
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
@@ -41,3 +42,4 @@ pub use real::Real;
 pub use state::State;
 pub use symplectic::TangentMap;
 pub use system::{Lagrangian, Scalar};
+pub use time_transform::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};

@@ -1,0 +1,884 @@
+//! Time-transformed (Sundman–Poincaré) adaptive steps that keep the
+//! structure: a fixed step in a new independent variable `s` with
+//! `dt/ds = g(t, q)` is an adaptive step in `t`, and a variational method in
+//! `s` stays symplectic (docs/time-transformation.md has the derivation).
+//!
+//! The system `L(t, q, v)` with `N` degrees of freedom becomes a system in
+//! `s` with `M = N + 1` coordinates `x = (q, t)` and the Lagrangian
+//!
+//! ```text
+//! L̃(x, x') = t' L(t, q, q'/t') + (t' − g(t, q))² / (2 c g(t, q)),     x' = dx/ds
+//! ```
+//!
+//! the Legendre dual of `K = g (H + p_t) + ½ c g (H + p_t)²`, which has the
+//! same flow as Poincaré's `g (H + p_t)` on its zero level. Its momenta are
+//! the physical `p = ∂L/∂v` and `p_t = −E + u` with `u = (t'/g − 1)/c`, which
+//! the initial data `t' = g` makes zero. `L̃` is regular where `L` is (the
+//! `c` term makes `t'` an ordinary velocity), so every discrete Lagrangian of
+//! the runtime integrates it unchanged: [`TimeTransformed`] implements
+//! [`Lagrangian<M>`](Lagrangian), and the map in `s` is symplectic in
+//! `(q, t, p, p_t)`, conserves `p_t` (hence the energy, up to a bounded `u`)
+//! for an autonomous `L` and a `g` without `t`, and conserves the momentum
+//! of every symmetry that `L` and `g` share. Time-dependent `L` and forces
+//! (Lagrange–d'Alembert in `s`: `t' F` on `q` and `−F·q'` on `t`) work too.
+//!
+//! [`Adaptive`] drives any integrator of the adapter ([`Integrator`] for the
+//! one-point rules, [`GalerkinIntegrator`] in `f64`), reports `t`, `q`, `p`
+//! and the energy in physical time, lands on requested times, and refuses a
+//! step density that is not positive and finite, or steps that stop
+//! advancing time, with typed errors that keep the state.
+
+use core::cell::Cell;
+use core::marker::PhantomData;
+use std::sync::Arc;
+
+use num_dual::HyperDual;
+
+use crate::discrete::DiscreteLagrangian;
+use crate::error::Error;
+use crate::galerkin::{Galerkin, GalerkinIntegrator};
+use crate::integrator::{F64Readouts, Integrator, Stats};
+use crate::mechanics::DiscreteMechanics;
+use crate::newton::NewtonOptions;
+use crate::real::all_finite;
+use crate::state::State;
+use crate::symplectic::TangentMap;
+use crate::system::{Lagrangian, Scalar, generalized_force};
+
+/// A step density (monitor) `g(t, q) > 0`: the physical time one unit of `s`
+/// takes, `dt/ds = g`. Small where the motion is fast.
+///
+/// `g` enters the transformed Lagrangian, whose derivatives the runtime takes
+/// with dual numbers, so the monitor is evaluated on any [`Scalar`] (a plain
+/// `f64` closure could not supply its derivatives, and without them the map
+/// would not be symplectic). It gets the system too, so a monitor may be
+/// computed from the dynamics ([`Curvature`]).
+pub trait StepDensity<const N: usize> {
+    /// `true` when `g` depends on `t`: then `t` is not cyclic in the
+    /// transformed Lagrangian and `p_t` is not conserved.
+    const TIME_DEPENDENT: bool = false;
+
+    /// `g(t, q)`.
+    fn density<S, D>(&self, system: &S, t: D, q: &[D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar;
+
+    /// `Err` for a monitor that cannot be evaluated for `N` coordinates (an
+    /// index out of range); checked before integrating.
+    fn check(&self) -> Result<(), &'static str> {
+        Ok(())
+    }
+}
+
+/// `g = |x|^α` with `x` the coordinates at `indices`: for central-force
+/// problems `α = 3/2` (steps proportional to the local orbital time scale,
+/// `r^{3/2}` for Kepler) or `α = 1`. Rotation invariant when the indices span
+/// the rotated plane, so the angular momentum stays conserved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RadiusPower<const K: usize> {
+    indices: [usize; K],
+    exponent: f64,
+}
+
+impl<const K: usize> RadiusPower<K> {
+    /// `|x|^exponent` with `x = (q[indices[0]], …)`; `None` for no index or
+    /// an exponent that is not finite. Indices out of range are refused by
+    /// [`StepDensity::check`] when the integrator starts.
+    pub fn new(indices: [usize; K], exponent: f64) -> Option<Self> {
+        (K > 0 && exponent.is_finite()).then_some(Self { indices, exponent })
+    }
+}
+
+impl<const K: usize, const N: usize> StepDensity<N> for RadiusPower<K> {
+    #[inline]
+    fn density<S, D>(&self, _system: &S, _t: D, q: &[D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let mut r2 = D::zero();
+        for &i in &self.indices {
+            r2 += q[i] * q[i];
+        }
+        r2.powf(0.5 * self.exponent)
+    }
+
+    fn check(&self) -> Result<(), &'static str> {
+        if self.indices.iter().all(|&i| i < N) {
+            Ok(())
+        } else {
+            Err("a coordinate index of the `RadiusPower` monitor is out of range")
+        }
+    }
+}
+
+/// The automatic monitor: `g = (κ² + floor²)^{-1/4}`, with
+/// `κ = ‖∂²L/∂q²(t, q, 0)‖_F` the curvature of the potential, so that `g` is
+/// the local time scale `1/ω` of small oscillations (for Kepler, `κ = √5/r³`
+/// in Cartesian coordinates and `2/r³` in polar ones: `g ∝ r^{3/2}`; for a
+/// harmonic oscillator a constant). `floor > 0` (units of `1/time²`) caps
+/// the physical step at `σ/√floor` where the potential is flat.
+///
+/// It depends on `(t, q)` only, so the map stays symplectic and
+/// time-reversible, and the Frobenius norm is invariant under rotations of
+/// Cartesian coordinates, so a rotation symmetry of `L` is kept. It assumes
+/// a roughly constant mass matrix (it reads the potential, not `∂²L/∂v²`).
+/// Cost: `N(N+1)/2` evaluations of `L` on nested hyper-duals per call.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Curvature {
+    floor: f64,
+}
+
+impl Curvature {
+    /// The automatic monitor with the given floor; `None` unless it is finite and positive.
+    pub fn new(floor: f64) -> Option<Self> {
+        (floor.is_finite() && floor > 0.0).then_some(Self { floor })
+    }
+}
+
+impl<const N: usize> StepDensity<N> for Curvature {
+    const TIME_DEPENDENT: bool = true;
+
+    fn density<S, D>(&self, system: &S, t: D, q: &[D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let mut k2 = D::from(self.floor * self.floor);
+        let v = [HyperDual::from_re(D::zero()); N];
+        for i in 0..N {
+            for j in i..N {
+                let mut qh = q.map(HyperDual::from_re);
+                qh[i].eps1 = D::one();
+                qh[j].eps2 = D::one();
+                let h = system.lagrangian(HyperDual::from_re(t), qh, v).eps1eps2;
+                k2 += if i == j { h * h } else { h * h * 2.0 };
+            }
+        }
+        k2.powf(-0.25)
+    }
+}
+
+/// The transformed system: `L̃(x, x') = t' L(t, q, q'/t') + (t' − g)²/(2cg)`
+/// in the independent variable `s`, with `x = (q, t)` (see the
+/// [module](self)). Implements [`Lagrangian<M>`](Lagrangian) for
+/// `M = N + 1` (checked at compile time).
+pub struct TimeTransformed<Sys, G, const N: usize> {
+    system: Arc<Sys>,
+    density: Arc<G>,
+    penalty: f64,
+    /// The last density value seen that was not finite and positive; the
+    /// step that met it fails (the action is NaN there).
+    invalid: Cell<Option<f64>>,
+}
+
+impl<Sys, G, const N: usize> Clone for TimeTransformed<Sys, G, N> {
+    fn clone(&self) -> Self {
+        Self {
+            system: Arc::clone(&self.system),
+            density: Arc::clone(&self.density),
+            penalty: self.penalty,
+            invalid: self.invalid.clone(),
+        }
+    }
+}
+
+impl<Sys: core::fmt::Debug, G: core::fmt::Debug, const N: usize> core::fmt::Debug for TimeTransformed<Sys, G, N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("TimeTransformed")
+            .field("system", &self.system)
+            .field("density", &self.density)
+            .field("penalty", &self.penalty)
+            .finish()
+    }
+}
+
+impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys, G, N> {
+    /// The transformed system of `system` with step density `density`.
+    pub fn new(system: Sys, density: G) -> Self {
+        Self { system: Arc::new(system), density: Arc::new(density), penalty: 0.0, invalid: Cell::new(None) }
+    }
+
+    /// The physical system.
+    pub fn system(&self) -> &Sys {
+        &self.system
+    }
+
+    /// The step density.
+    pub fn density_monitor(&self) -> &G {
+        &self.density
+    }
+
+    /// The constant `c` of the `t'` term (0 until [`start`](TimeTransformedBuilder::start) sets it).
+    pub fn penalty(&self) -> f64 {
+        self.penalty
+    }
+
+    /// `g(t, q)` in `f64`.
+    pub fn density(&self, t: f64, q: &[f64; N]) -> f64 {
+        self.density.density(&*self.system, t, q)
+    }
+
+    /// Configures an adaptive integrator with a one-point discrete
+    /// Lagrangian (midpoint, trapezoid, α-β) and the step `sigma` in `s`.
+    pub fn rule<Mth: DiscreteLagrangian>(
+        self,
+        method: Mth,
+        sigma: f64,
+    ) -> TimeTransformedBuilder<Sys, G, Rule<Mth>, N> {
+        TimeTransformedBuilder::new(self, Rule(method), sigma)
+    }
+
+    /// Configures an adaptive integrator with a Galerkin discrete Lagrangian
+    /// (order `2s` in `s` with Gauss quadrature) and the step `sigma` in `s`.
+    pub fn galerkin<const S: usize, const R: usize>(
+        self,
+        method: Galerkin<S, R>,
+        sigma: f64,
+    ) -> TimeTransformedBuilder<Sys, G, Galerkin<S, R>, N> {
+        TimeTransformedBuilder::new(self, method, sigma)
+    }
+
+    /// `g` on any scalar; NaN (and the value recorded) where it is not
+    /// finite and positive, so that the step fails with a typed error.
+    #[inline(always)]
+    fn checked_density<D: Scalar>(&self, t: D, q: &[D; N]) -> D {
+        let g = self.density.density(&*self.system, t, q);
+        let re = g.re();
+        if re.is_finite() && re > 0.0 {
+            g
+        } else {
+            self.invalid.set(Some(re));
+            D::from(f64::NAN)
+        }
+    }
+}
+
+/// `CYCLIC` of the transformed system: no position is claimed cyclic (`g`
+/// may depend on any), `t` is when neither `L` nor `g` depends on it.
+const fn extended_cyclic<const M: usize>(time_cyclic: bool) -> [bool; M] {
+    let mut out = [false; M];
+    out[M - 1] = time_cyclic;
+    out
+}
+
+impl<Sys, G, const N: usize, const M: usize> Lagrangian<M> for TimeTransformed<Sys, G, N>
+where
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+{
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; M] = extended_cyclic::<M>(Sys::AUTONOMOUS && !G::TIME_DEPENDENT);
+    const DISCONTINUOUS: bool = Sys::DISCONTINUOUS;
+    const HAS_FORCE: bool = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+
+    #[inline(always)]
+    fn lagrangian<D: Scalar>(&self, _s: D, x: [D; M], w: [D; M]) -> D {
+        const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
+        let (t, q) = split::<D, N, M>(&x);
+        let tp = w[N];
+        let g = self.checked_density(t, &q);
+        let inv = tp.recip();
+        let mut v = [D::zero(); N];
+        for i in 0..N {
+            v[i] = w[i] * inv;
+        }
+        let d = tp - g;
+        tp * self.system.lagrangian(t, q, v) + d * d / (g * (2.0 * self.penalty))
+    }
+
+    /// Lagrange–d'Alembert in `s`: the virtual work `∫ F·(δq − v δt) dt`
+    /// of the physical force is `∫ (t'F·δq − F·q' δt) ds`.
+    #[inline(always)]
+    fn force<D: Scalar>(&self, _s: D, x: [D; M], w: [D; M]) -> [D; M] {
+        let (t, q) = split::<D, N, M>(&x);
+        let tp = w[N];
+        let inv = tp.recip();
+        let mut v = [D::zero(); N];
+        for i in 0..N {
+            v[i] = w[i] * inv;
+        }
+        let f = generalized_force(&*self.system, t, q, v);
+        let mut out = [D::zero(); M];
+        let mut power = D::zero();
+        for i in 0..N {
+            out[i] = f[i] * tp;
+            power += f[i] * w[i];
+        }
+        out[N] = -power;
+        out
+    }
+}
+
+/// `(t, q)` from `x = (q, t)`.
+#[inline(always)]
+fn split<D: Scalar, const N: usize, const M: usize>(x: &[D; M]) -> (D, [D; N]) {
+    let mut q = [D::zero(); N];
+    q.copy_from_slice(&x[..N]);
+    (x[N], q)
+}
+
+/// An integrator in `s` of a [`TimeTransformed`] system, as [`Adaptive`]
+/// drives it: the [`Integrator`] with any method, in `f64`.
+pub trait SStepper<const M: usize>: Clone {
+    /// The transformed system.
+    type System;
+    /// The system being integrated.
+    fn transformed(&self) -> &Self::System;
+    /// The state in `s`: `x = (q, t)`, momenta `(p, p_t)`.
+    fn extended_state(&self) -> State<M>;
+    /// The step in `s`.
+    fn s_step_size(&self) -> f64;
+    /// Sets the step in `s`.
+    fn set_s_step_size(&mut self, sigma: f64) -> Result<(), Error<M>>;
+    /// One step in `s`; on failure nothing changes.
+    fn s_step(&mut self) -> Result<(), Error<M>>;
+    /// Work counters of the integrator in `s`.
+    fn s_stats(&self) -> Stats;
+    /// The tangent map of the last step in `(q, t, p, p_t)`.
+    fn s_tangent_map(&self) -> Option<TangentMap<M>>;
+}
+
+impl<Sys, G, Mth, const N: usize, const M: usize> SStepper<M> for Integrator<TimeTransformed<Sys, G, N>, Mth, M>
+where
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+    Mth: F64Readouts,
+{
+    type System = TimeTransformed<Sys, G, N>;
+    fn transformed(&self) -> &Self::System {
+        self.system()
+    }
+    fn extended_state(&self) -> State<M> {
+        *self.state()
+    }
+    fn s_step_size(&self) -> f64 {
+        self.step_size()
+    }
+    fn set_s_step_size(&mut self, sigma: f64) -> Result<(), Error<M>> {
+        self.set_step_size(sigma)
+    }
+    fn s_step(&mut self) -> Result<(), Error<M>> {
+        self.step().map(|_| ())
+    }
+    fn s_stats(&self) -> Stats {
+        *self.stats()
+    }
+    fn s_tangent_map(&self) -> Option<TangentMap<M>> {
+        self.last_tangent_map()
+    }
+}
+
+/// A one-point discrete Lagrangian (midpoint, trapezoid, α-β) as the method in `s`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rule<Mth>(pub Mth);
+
+/// How a method in `s` starts its integrator on the transformed system.
+pub trait SMethod<Sys, G, const N: usize, const M: usize> {
+    /// The integrator in `s`.
+    type Stepper: SStepper<M, System = TimeTransformed<Sys, G, N>>;
+    /// Starts it at `s = 0` from `(x0, x0')`.
+    fn start_s(
+        self,
+        system: TimeTransformed<Sys, G, N>,
+        sigma: f64,
+        newton: NewtonOptions,
+        x0: [f64; M],
+        w0: [f64; M],
+    ) -> Result<Self::Stepper, Error<M>>;
+}
+
+impl<Sys, G, Mth, const N: usize, const M: usize> SMethod<Sys, G, N, M> for Rule<Mth>
+where
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+    Mth: DiscreteLagrangian,
+{
+    type Stepper = Integrator<TimeTransformed<Sys, G, N>, Mth, M>;
+    fn start_s(
+        self,
+        system: TimeTransformed<Sys, G, N>,
+        sigma: f64,
+        newton: NewtonOptions,
+        x0: [f64; M],
+        w0: [f64; M],
+    ) -> Result<Self::Stepper, Error<M>> {
+        Integrator::new(system, self.0, sigma).newton(newton).start(0.0, x0, w0)
+    }
+}
+
+impl<Sys, G, const N: usize, const M: usize, const S: usize, const R: usize> SMethod<Sys, G, N, M> for Galerkin<S, R>
+where
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+{
+    type Stepper = GalerkinIntegrator<TimeTransformed<Sys, G, N>, M, S, R>;
+    fn start_s(
+        self,
+        system: TimeTransformed<Sys, G, N>,
+        sigma: f64,
+        newton: NewtonOptions,
+        x0: [f64; M],
+        w0: [f64; M],
+    ) -> Result<Self::Stepper, Error<M>> {
+        GalerkinIntegrator::new(system, self, sigma).newton(newton).start(0.0, x0, w0)
+    }
+}
+
+/// Configuration of an [`Adaptive`] integrator before its initial state.
+#[derive(Clone, Debug)]
+pub struct TimeTransformedBuilder<Sys, G, K, const N: usize> {
+    system: TimeTransformed<Sys, G, N>,
+    method: K,
+    sigma: f64,
+    newton: NewtonOptions,
+    penalty: Option<f64>,
+    min_time_step: Option<f64>,
+}
+
+impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBuilder<Sys, G, K, N> {
+    fn new(system: TimeTransformed<Sys, G, N>, method: K, sigma: f64) -> Self {
+        Self { system, method, sigma, newton: NewtonOptions::default(), penalty: None, min_time_step: None }
+    }
+
+    /// Replaces the Newton settings of the steps in `s`.
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = options;
+        self
+    }
+
+    /// The constant `c > 0` of the `(t' − g)²/(2cg)` term (units 1/energy).
+    /// The trajectories do not depend on it; it sets how the discrete `t'`
+    /// trades against the energy. Default: `1/(|p·v| + |L| + |E|)` at the
+    /// initial data (1 if that is 0).
+    pub fn penalty(mut self, c: f64) -> Self {
+        self.penalty = Some(c);
+        self
+    }
+
+    /// The smallest physical time a step in `s` may advance; a step that
+    /// advances less is refused with [`TimeTransformError::TimeStepCollapsed`].
+    /// Default: `10⁻⁸ σ g(t0, q0)`, the first step's size times `10⁻⁸`.
+    pub fn min_time_step(mut self, dt: f64) -> Self {
+        self.min_time_step = Some(dt);
+        self
+    }
+
+    /// Starts at `(t0, q0, v0)` (physical time and velocity) with `s = 0`,
+    /// `t'(0) = g(t0, q0)` and `q'(0) = g v0`, so that `p_t = −E(t0)`.
+    /// `M` is `N + 1` (checked at compile time): `.start::<3>(…)` for a
+    /// planar problem.
+    ///
+    /// Fails with [`TimeTransformError::InvalidSetting`] for a step, penalty
+    /// or floor that is not finite and positive or a monitor that cannot be
+    /// evaluated, [`TimeTransformError::InvalidDensity`] where `g(t0, q0)` is
+    /// not finite and positive, and with the integrator's own errors
+    /// ([`TimeTransformError::Step`]) for invalid initial data.
+    pub fn start<const M: usize>(
+        self,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M>, TimeTransformError<N, M>>
+    where
+        K: SMethod<Sys, G, N, M>,
+    {
+        const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
+        self.system.density.check().map_err(|reason| TimeTransformError::InvalidSetting { reason })?;
+        if !(self.sigma.is_finite() && self.sigma > 0.0) {
+            return Err(TimeTransformError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
+        }
+        if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
+            return Err(TimeTransformError::Step(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" }));
+        }
+        let state = State { step: 0, t: t0, q: q0, p: [f64::NAN; N] };
+        let g0 = self.system.density(t0, &q0);
+        if !(g0.is_finite() && g0 > 0.0) {
+            return Err(TimeTransformError::InvalidDensity { state, value: g0 });
+        }
+        let sys = &*self.system.system;
+        let (l0, e0) = (sys.lagrangian_value(t0, q0, v0), sys.energy(t0, q0, v0));
+        let pv = e0 + l0;
+        let scale = pv.abs() + l0.abs() + e0.abs();
+        let penalty = match self.penalty {
+            Some(c) if c.is_finite() && c > 0.0 => c,
+            Some(_) => {
+                return Err(TimeTransformError::InvalidSetting { reason: "the penalty must be finite and positive" });
+            }
+            None if scale.is_finite() && scale > 0.0 => 1.0 / scale,
+            None => 1.0,
+        };
+        let floor = self.min_time_step.unwrap_or(1e-8 * self.sigma * g0);
+        if !(floor.is_finite() && floor > 0.0) {
+            return Err(TimeTransformError::InvalidSetting {
+                reason: "the smallest time step must be finite and positive",
+            });
+        }
+        let mut system = self.system;
+        system.penalty = penalty;
+        let mut x0 = [0.0; M];
+        let mut w0 = [0.0; M];
+        for i in 0..N {
+            x0[i] = q0[i];
+            w0[i] = g0 * v0[i];
+        }
+        x0[N] = t0;
+        w0[N] = g0;
+        let inner = self.method.start_s(system, self.sigma, self.newton, x0, w0).map_err(TimeTransformError::Step)?;
+        Ok(Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None })
+    }
+}
+
+/// What went wrong in a time-transformed integration. The integrator is left
+/// as it was before the failed call.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum TimeTransformError<const N: usize, const M: usize> {
+    /// The integrator in `s` failed (its state is in `x = (q, t)`).
+    #[error("the step in s failed: {0}")]
+    Step(Error<M>),
+    /// `g` is not finite and positive at the state or inside the step from it.
+    #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
+    InvalidDensity {
+        /// The physical state the integrator holds.
+        state: State<N>,
+        /// The offending value of `g`.
+        value: f64,
+    },
+    /// A step in `s` advanced time by less than the floor (or not at all):
+    /// the monitor makes the steps collapse.
+    #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
+    TimeStepCollapsed {
+        /// The physical state the integrator holds.
+        state: State<N>,
+        /// The time the refused step advanced.
+        dt: f64,
+        /// The smallest time step allowed.
+        floor: f64,
+    },
+    /// A target time behind the current one, or not finite.
+    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
+    InvalidTarget {
+        /// The rejected target.
+        target: f64,
+        /// The physical state the integrator holds.
+        state: State<N>,
+    },
+    /// The search for the step in `s` that ends on the target time did not converge.
+    #[error("no step in s found that lands on t = {target}: the closest reached {reached}")]
+    Landing {
+        /// The target.
+        target: f64,
+        /// The closest time reached.
+        reached: f64,
+    },
+    /// A setting that cannot work.
+    #[error("invalid setting: {reason}")]
+    InvalidSetting {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+/// An adaptive integrator in physical time built from a fixed-step
+/// integrator `I` in `s` of the [`TimeTransformed`] system (see the
+/// [module](self)); `N` physical degrees of freedom, `M = N + 1`.
+///
+/// ```
+/// use lagrangian_runtime::time_transform::{RadiusPower, TimeTransformed};
+/// use lagrangian_runtime::{Lagrangian, Midpoint, Scalar};
+///
+/// /// Kepler in the plane, μ = 1.
+/// struct Kepler;
+/// impl Lagrangian<2> for Kepler {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 2] = [false; 2];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+///         (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+///     }
+/// }
+///
+/// let e = 0.9;
+/// let g = RadiusPower::new([0, 1], 1.5).unwrap(); // dt/ds = r^{3/2}
+/// let mut sim = TimeTransformed::new(Kepler, g)
+///     .rule(Midpoint, 0.02)
+///     .start::<3>(0.0, [1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])?;
+/// let e0 = sim.energy()?;
+/// sim.run_until(2.0 * std::f64::consts::PI, |_| {})?; // one orbit
+/// assert_eq!(sim.state().t, 2.0 * std::f64::consts::PI);
+/// assert!((sim.state().q[0] - (1.0 - e)).abs() < 1e-2);
+/// assert!(((sim.energy()? - e0) / e0).abs() < 1e-3);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct Adaptive<I, Sys, G, const N: usize, const M: usize> {
+    inner: I,
+    marker: PhantomData<fn() -> (Sys, G)>,
+    floor: f64,
+    /// `(step, t_end)` after landing on `t_end`: the published time is
+    /// `t_end` exactly while the integrator stays at that node.
+    landed: Option<(u64, f64)>,
+    v_guess: [f64; N],
+    last_dt: Option<f64>,
+}
+
+impl<I: Clone, Sys, G, const N: usize, const M: usize> Clone for Adaptive<I, Sys, G, N, M> {
+    fn clone(&self) -> Self {
+        Self { inner: self.inner.clone(), marker: PhantomData, ..*self }
+    }
+}
+
+/// The physical state in an extended one.
+fn physical<const N: usize, const M: usize>(x: &State<M>) -> State<N> {
+    let mut q = [0.0; N];
+    let mut p = [0.0; N];
+    q.copy_from_slice(&x.q[..N]);
+    p.copy_from_slice(&x.p[..N]);
+    State { step: x.step, t: x.q[N], q, p }
+}
+
+impl<I, Sys, G, const N: usize, const M: usize> Adaptive<I, Sys, G, N, M>
+where
+    I: SStepper<M, System = TimeTransformed<Sys, G, N>>,
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+{
+    /// The physical state `(k, t_k, q_k, p_k)`; `k` counts steps in `s`.
+    pub fn state(&self) -> State<N> {
+        let x = self.inner.extended_state();
+        let mut s = physical::<N, M>(&x);
+        if let Some((step, t)) = self.landed
+            && step == x.step
+        {
+            s.t = t;
+        }
+        s
+    }
+
+    /// The state in `s`: `s_k = k σ` as time, `x = (q, t)`, momenta `(p, p_t)`.
+    pub fn extended_state(&self) -> State<M> {
+        self.inner.extended_state()
+    }
+
+    /// `p_t = −E + u`, the momentum of time: conserved to round-off for an
+    /// autonomous `L` without forces and a `g` without `t`.
+    pub fn time_momentum(&self) -> f64 {
+        self.inner.extended_state().p[N]
+    }
+
+    /// The integrator in `s`.
+    pub fn inner(&self) -> &I {
+        &self.inner
+    }
+
+    /// The physical system.
+    pub fn system(&self) -> &Sys {
+        self.inner.transformed().system()
+    }
+
+    /// The step `σ` in `s`.
+    pub fn step_size(&self) -> f64 {
+        self.inner.s_step_size()
+    }
+
+    /// Work counters of the steps in `s` (landing trials not counted as steps).
+    pub fn stats(&self) -> Stats {
+        self.inner.s_stats()
+    }
+
+    /// The physical time the last step advanced, `None` before the first.
+    pub fn last_time_step(&self) -> Option<f64> {
+        self.last_dt
+    }
+
+    /// The smallest time step allowed.
+    pub fn min_time_step(&self) -> f64 {
+        self.floor
+    }
+
+    /// `g` at the current state.
+    pub fn density(&self) -> f64 {
+        let s = self.state();
+        self.inner.transformed().density(s.t, &s.q)
+    }
+
+    /// The tangent map of the last step in the extended phase space
+    /// `(q, t, p, p_t)`: symplectic; `None` before the first step and with forces.
+    pub fn last_tangent_map(&self) -> Option<TangentMap<M>> {
+        self.inner.s_tangent_map()
+    }
+
+    /// The physical velocity `v` with `∂L/∂v(t, q, v) = p`.
+    pub fn velocity(&self) -> Result<[f64; N], TimeTransformError<N, M>> {
+        let s = self.state();
+        self.system().velocity(s.t, s.q, s.p, self.v_guess).map_err(|f| {
+            TimeTransformError::Step(Error::InverseLegendre {
+                state: self.inner.extended_state(),
+                iterations: f.iterations,
+                residual_norm: f.residual_norm,
+            })
+        })
+    }
+
+    /// The physical energy `E_L(t, q, v)` at the current state.
+    pub fn energy(&self) -> Result<f64, TimeTransformError<N, M>> {
+        let v = self.velocity()?;
+        let s = self.state();
+        Ok(self.system().energy(s.t, s.q, v))
+    }
+
+    /// Sets the step in `s` for the following steps.
+    pub fn set_step_size(&mut self, sigma: f64) -> Result<(), TimeTransformError<N, M>> {
+        self.inner.set_s_step_size(sigma).map_err(TimeTransformError::Step)
+    }
+
+    /// One step of `σ` in `s`. Refused, with the state kept, where `g` is
+    /// not finite and positive inside the step or at its end, and where the
+    /// step advances time by less than [`min_time_step`](Self::min_time_step).
+    pub fn step(&mut self) -> Result<State<N>, TimeTransformError<N, M>> {
+        let before = self.inner.clone();
+        self.try_step(before)
+    }
+
+    fn try_step(&mut self, before: I) -> Result<State<N>, TimeTransformError<N, M>> {
+        let start = self.state();
+        self.inner.transformed().invalid.set(None);
+        if let Err(e) = self.inner.s_step() {
+            // Read the flag before restoring: the saved copy has its own.
+            let invalid = self.inner.transformed().invalid.get();
+            self.inner = before;
+            return Err(match invalid {
+                Some(value) => TimeTransformError::InvalidDensity { state: start, value },
+                None => TimeTransformError::Step(e),
+            });
+        }
+        let x = self.inner.extended_state();
+        let end = physical::<N, M>(&x);
+        let g1 = self.inner.transformed().density(end.t, &end.q);
+        let dt = end.t - self.inner_time(&before);
+        if !(g1.is_finite() && g1 > 0.0) {
+            self.inner = before;
+            return Err(TimeTransformError::InvalidDensity { state: start, value: g1 });
+        }
+        // NaN fails too.
+        if dt.is_nan() || dt < self.floor {
+            self.inner = before;
+            return Err(TimeTransformError::TimeStepCollapsed { state: start, dt, floor: self.floor });
+        }
+        self.after_step(&start, &end, dt);
+        Ok(self.state())
+    }
+
+    fn inner_time(&self, i: &I) -> f64 {
+        i.extended_state().q[N]
+    }
+
+    fn after_step(&mut self, start: &State<N>, end: &State<N>, dt: f64) {
+        self.landed = None;
+        self.last_dt = Some(dt);
+        for i in 0..N {
+            self.v_guess[i] = (end.q[i] - start.q[i]) / dt;
+        }
+    }
+
+    /// Takes `n` steps in `s`, calling `observe` after each.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M>> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps until the physical time `t_end` and stops there: the step that
+    /// would pass it is replaced by a partial step in `s` whose size is
+    /// solved (secant on the bracket `(0, σ)`) so that it ends on `t_end`
+    /// to within a few ulps, and the state then reports `t = t_end` exactly
+    /// (the coordinate `t` of the state in `s` keeps that last ulp). The step
+    /// `σ` is unchanged afterwards. A target equal to the current time is a
+    /// no-op.
+    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M>> {
+        let now = self.state();
+        if !t_end.is_finite() || t_end < now.t {
+            return Err(TimeTransformError::InvalidTarget { target: t_end, state: now });
+        }
+        loop {
+            let start = self.state();
+            if start.t >= t_end {
+                return Ok(());
+            }
+            let before = self.inner.clone();
+            self.try_step(before.clone())?;
+            let t = self.inner_time(&self.inner);
+            if t <= t_end {
+                observe(self);
+                continue;
+            }
+            self.inner = before;
+            self.land(t_end, t, &start)?;
+            observe(self);
+            return Ok(());
+        }
+    }
+
+    /// The partial step in `s` from the current state that ends on `t_end`,
+    /// given that the full step ends at `t_over > t_end`.
+    fn land(&mut self, t_end: f64, t_over: f64, start: &State<N>) -> Result<(), TimeTransformError<N, M>> {
+        let sigma = self.inner.s_step_size();
+        let t0 = self.inner_time(&self.inner);
+        let tol = 4.0 * f64::EPSILON * t_end.abs().max(t0.abs()).max(f64::MIN_POSITIVE);
+        if t_end - t0 <= tol {
+            self.landed = Some((self.inner.extended_state().step, t_end));
+            return Ok(());
+        }
+        // Illinois-modified regula falsi on f(σ') = t(σ') − t_end over (0, σ).
+        let (mut lo, mut f_lo) = (0.0, t0 - t_end);
+        let (mut hi, mut f_hi) = (sigma, t_over - t_end);
+        let mut side = 0i8;
+        let mut best: Option<(f64, I)> = None;
+        for _ in 0..60 {
+            let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
+            if !(s > lo && s < hi) {
+                s = 0.5 * (lo + hi);
+            }
+            let mut trial = self.inner.clone();
+            if trial.set_s_step_size(s).is_err() || trial.s_step().is_err() {
+                // Unsolvable trial: move the upper end down and try again.
+                hi = s;
+                continue;
+            }
+            let f = self.inner_time(&trial) - t_end;
+            if best.as_ref().is_none_or(|(b, _)| f.abs() < b.abs()) {
+                best = Some((f, trial.clone()));
+            }
+            if f.abs() <= tol {
+                break;
+            }
+            if f > 0.0 {
+                (hi, f_hi) = (s, f);
+                if side == 1 {
+                    f_lo *= 0.5;
+                }
+                side = 1;
+            } else {
+                (lo, f_lo) = (s, f);
+                if side == -1 {
+                    f_hi *= 0.5;
+                }
+                side = -1;
+            }
+        }
+        match best {
+            Some((f, mut trial)) if f.abs() <= 64.0 * tol => {
+                let _ = trial.set_s_step_size(sigma);
+                let end = physical::<N, M>(&trial.extended_state());
+                self.inner = trial;
+                self.after_step(start, &end, end.t - t0);
+                self.landed = Some((end.step, t_end));
+                Ok(())
+            }
+            best => Err(TimeTransformError::Landing { target: t_end, reached: best.map_or(t0, |(f, _)| t_end + f) }),
+        }
+    }
+}

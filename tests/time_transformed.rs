@@ -1,0 +1,475 @@
+//! Time-transformed (Sundman–Poincaré) adaptive steps (docs/time-transformation.md):
+//! Kepler e = 0.9 and e = 0.99 with midpoint, trapezoid and Galerkin s = 2, 4
+//! in `s` (energy bounded without drift, angular momentum and `p_t` at
+//! round-off, position error against Kepler's equation, fitted order in the
+//! step σ, symplecticity in the extended phase space, fixed steps of the
+//! same mean size printed for comparison); time-dependent forces; bad input.
+//!
+//! The default suite runs 10 orbits; the 1000-orbit runs are ignored:
+//! `cargo test --release --test time_transformed -- --ignored --nocapture`.
+mod common;
+
+use lagrangian::prelude::*;
+use lagrangian::time_transform::SStepper;
+use lagrangian::{Scalar, StepDensity};
+use std::f64::consts::PI;
+
+/// Planar Kepler, μ = 1, Cartesian.
+#[derive(Debug, Clone, Copy)]
+pub struct Kepler;
+
+#[lagrangian]
+impl Kepler {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+}
+
+/// `E − e sin E = m` by Newton safeguarded with bisection on `[m − e, m + e]`.
+fn eccentric_anomaly(e: f64, m: f64) -> f64 {
+    let (mut lo, mut hi) = (m - e, m + e);
+    let mut ea = m + e * m.sin();
+    for _ in 0..100 {
+        let f = ea - e * ea.sin() - m;
+        if f > 0.0 {
+            hi = ea;
+        } else {
+            lo = ea;
+        }
+        let mut next = ea - f / (1.0 - e * ea.cos());
+        if !(next > lo && next < hi) {
+            next = 0.5 * (lo + hi);
+        }
+        let d = (next - ea).abs();
+        ea = next;
+        if d <= f64::EPSILON * ea.abs().max(1.0) {
+            break;
+        }
+    }
+    ea
+}
+
+/// Position on the orbit with a = 1, pericentre on +x at t = 0.
+fn kepler_position(e: f64, t: f64) -> [f64; 2] {
+    let ea = eccentric_anomaly(e, t);
+    [ea.cos() - e, (1.0 - e * e).sqrt() * ea.sin()]
+}
+
+fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
+    ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])
+}
+
+fn r32() -> RadiusPower<2> {
+    RadiusPower::new([0, 1], 1.5).unwrap()
+}
+
+type Tt = TimeTransformed<Kepler, RadiusPower<2>, 2>;
+
+/// What one run measured.
+#[derive(Debug)]
+struct Run {
+    steps: u64,
+    /// `|q(T) − q_exact(T)|`.
+    position_error: f64,
+    /// `max |E − E0| / |E0|` over every step.
+    energy_error: f64,
+    /// `|b| K / mean(m)` for the fit `m_k ≈ a + b k` of the per-orbit maxima
+    /// `m_k` of the energy error over `K` orbits: about 2 for an error that
+    /// grows linearly from zero, near 0 for a bounded one.
+    energy_trend: f64,
+    /// `max |J − J0| / |J0|`, `J = x p_y − y p_x`.
+    angular_momentum: f64,
+    /// `max |p_t − p_t0| / |p_t0|`.
+    time_momentum: f64,
+}
+
+fn angular(s: &State<2>) -> f64 {
+    s.q[0] * s.p[1] - s.q[1] * s.p[0]
+}
+
+/// Integrates `orbits` orbits of Kepler `e`, orbit by orbit with `run_until`.
+fn measure<I>(mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>, e: f64, orbits: usize) -> Run
+where
+    I: SStepper<3, System = Tt>,
+{
+    let e0 = sim.energy().unwrap();
+    let j0 = angular(&sim.state());
+    let pt0 = sim.time_momentum();
+    let (mut jmax, mut ptmax) = (0.0f64, 0.0f64);
+    // Per-orbit maxima over steps of size σ only: a landing step (of another
+    // size) shifts the modified energy once, so `run_until` is called once.
+    let mut maxima = vec![0.0f64; orbits];
+    let t_end = 2.0 * PI * orbits as f64;
+    let mut watch = |s: &Adaptive<I, Kepler, RadiusPower<2>, 2, 3>| {
+        let k = ((s.state().t / (2.0 * PI)) as usize).min(orbits - 1);
+        maxima[k] = maxima[k].max(((s.energy().unwrap() - e0) / e0).abs());
+        jmax = jmax.max(((angular(&s.state()) - j0) / j0).abs());
+        ptmax = ptmax.max(((s.time_momentum() - pt0) / pt0).abs());
+    };
+    sim.run_until(t_end, &mut watch).unwrap();
+    if std::env::var_os("TT_MAXIMA").is_some() {
+        println!("per-orbit maxima {:?}", maxima.iter().map(|m| format!("{m:.3e}")).collect::<Vec<_>>());
+    }
+    let x = kepler_position(e, 2.0 * PI * orbits as f64);
+    let q = sim.state().q;
+    Run {
+        steps: sim.stats().steps,
+        position_error: (q[0] - x[0]).hypot(q[1] - x[1]),
+        energy_error: maxima.iter().fold(0.0, |a: f64, &b| a.max(b)),
+        energy_trend: trend(&maxima),
+        angular_momentum: jmax,
+        time_momentum: ptmax,
+    }
+}
+
+/// `|b| K / mean(m)` of the least-squares line `m_k ≈ a + b k`, `k = 1 … K`.
+fn trend(m: &[f64]) -> f64 {
+    let n = m.len() as f64;
+    let kbar = (n + 1.0) / 2.0;
+    let mbar = m.iter().sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (i, &y) in m.iter().enumerate() {
+        let dk = i as f64 + 1.0 - kbar;
+        sxy += dk * (y - mbar);
+        sxx += dk * dk;
+    }
+    (sxy / sxx).abs() * n / mbar
+}
+
+/// The same `orbits` with fixed steps of the mean size `T/steps`: position
+/// and largest energy error, or the error that stopped it.
+fn fixed<M: DiscreteLagrangian>(method: M, e: f64, orbits: usize, steps: u64) -> String {
+    let t_end = 2.0 * PI * orbits as f64;
+    let (q0, v0) = kepler_start(e);
+    let run = || -> Result<(f64, f64), Error<2>> {
+        let mut sim = Integrator::new(Kepler, method, t_end / steps as f64).start(0.0, q0, v0)?;
+        let e0 = sim.energy()?;
+        let mut worst = 0.0f64;
+        sim.run_until(t_end, |s| worst = worst.max(((s.energy().unwrap_or(f64::NAN) - e0) / e0).abs()))?;
+        let x = kepler_position(e, t_end);
+        Ok(((sim.state().q[0] - x[0]).hypot(sim.state().q[1] - x[1]), worst))
+    };
+    match run() {
+        Ok((p, en)) => format!("fixed h = T/{steps}: position {p:.2e}, energy {en:.2e}"),
+        Err(err) => format!("fixed h = T/{steps}: stopped ({err})"),
+    }
+}
+
+fn rule<M: DiscreteLagrangian>(
+    method: M,
+    e: f64,
+    sigma: f64,
+) -> Adaptive<Integrator<Tt, M, 3>, Kepler, RadiusPower<2>, 2, 3> {
+    let (q0, v0) = kepler_start(e);
+    TimeTransformed::new(Kepler, r32()).rule(method, sigma).start::<3>(0.0, q0, v0).unwrap()
+}
+
+fn galerkin<const S: usize>(
+    e: f64,
+    sigma: f64,
+) -> Adaptive<GalerkinIntegrator<Tt, 3, S, S>, Kepler, RadiusPower<2>, 2, 3> {
+    let (q0, v0) = kepler_start(e);
+    TimeTransformed::new(Kepler, r32()).galerkin(Galerkin::<S, S>::gauss(), sigma).start::<3>(0.0, q0, v0).unwrap()
+}
+
+/// Checks and prints one run against its fixed-step twin.
+fn check(label: &str, run: &Run, e: f64, orbits: usize, fixed_line: String, position_tol: f64, energy_tol: f64) {
+    println!(
+        "{label}, e = {e}, {orbits} orbits: {} steps, position {:.2e}, energy {:.2e} (trend {:.3}), J {:.1e}, p_t {:.1e} | {fixed_line}",
+        run.steps, run.position_error, run.energy_error, run.energy_trend, run.angular_momentum, run.time_momentum
+    );
+    assert!(run.position_error < position_tol, "{label}: {run:?}");
+    assert!(run.energy_error < energy_tol, "{label}: {run:?}");
+    assert!(run.energy_trend < 0.2, "{label}: energy drifts: {run:?}");
+    assert!(run.angular_momentum < 1e-12, "{label}: {run:?}");
+    assert!(run.time_momentum < 1e-13, "{label}: {run:?}");
+}
+
+// Tolerances: about three times the errors measured (10 orbits), so a change
+// of the order or of the error constant fails.
+#[test]
+fn kepler_midpoint_and_trapezoid() {
+    let orbits = 10;
+    for (e, sigma, pos, en) in [(0.9, 0.02, 2e-2, 1e-3), (0.99, 0.01, 2e-2, 3e-3)] {
+        let run = measure(rule(Midpoint, e, sigma), e, orbits);
+        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en);
+        // The trapezoid rule meets the monitor at both ends of the step: its
+        // error constant in s is larger (docs/time-transformation.md).
+        let run = measure(rule(Trapezoid, e, sigma / 4.0), e, orbits);
+        check("trapezoid", &run, e, orbits, fixed(Trapezoid, e, orbits, run.steps), 20.0 * pos, 3.0 * en);
+    }
+}
+
+#[test]
+fn kepler_galerkin() {
+    let orbits = 10;
+    for (e, sigma, pos, en) in [(0.9, 0.1, 1e-4, 1e-5), (0.99, 0.05, 1e-3, 1e-4)] {
+        let run = measure(galerkin::<2>(e, sigma), e, orbits);
+        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en);
+        // Steps large enough that the truncation error, not the round-off of
+        // the Newton solves (which drifts like 1e-12 per orbit), is measured.
+        let run = measure(galerkin::<4>(e, 0.3), e, orbits);
+        check("galerkin s = 4", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos / 100.0, en / 100.0);
+    }
+}
+
+#[test]
+#[ignore = "1000 orbits: minutes; run with --release --ignored"]
+fn kepler_thousand_orbits() {
+    let orbits = 1000;
+    for (e, sigma) in [(0.9, 0.02), (0.99, 0.01)] {
+        let run = measure(rule(Midpoint, e, sigma), e, orbits);
+        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), 2.0, 1e-3);
+        let run = measure(galerkin::<2>(e, 5.0 * sigma), e, orbits);
+        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), 1e-1, 1e-4);
+    }
+}
+
+/// The slope of `log err` against `log σ` by least squares.
+fn fitted_order(points: &[(f64, f64)]) -> f64 {
+    let n = points.len() as f64;
+    let xs: Vec<f64> = points.iter().map(|p| p.0.ln()).collect();
+    let ys: Vec<f64> = points.iter().map(|p| p.1.ln()).collect();
+    let (xb, yb) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - xb) * (y - yb)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - xb) * (x - xb)).sum();
+    sxy / sxx
+}
+
+fn position_error<I: SStepper<3, System = Tt>>(mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>, e: f64) -> f64 {
+    sim.run_until(2.0 * PI, |_| {}).unwrap();
+    let x = kepler_position(e, 2.0 * PI);
+    (sim.state().q[0] - x[0]).hypot(sim.state().q[1] - x[1])
+}
+
+#[test]
+fn order_in_the_step() {
+    for e in [0.9, 0.99] {
+        let sigmas = |s0: f64| [s0, s0 / 2.0, s0 / 4.0, s0 / 8.0];
+        // Degree 4 reaches round-off within a factor 2 of its largest step.
+        let sigmas4 = |s0: f64| [s0, s0 * 0.8, s0 * 0.65, s0 * 0.5];
+        let mid: Vec<_> = sigmas(0.04).iter().map(|&s| (s, position_error(rule(Midpoint, e, s), e))).collect();
+        // The trapezoid rule with the default c is pre-asymptotic at e = 0.99
+        // down to σ = 1e-3 (ratios 2.5, 2.6, 2.8); a larger c shrinks its
+        // error constant (docs/time-transformation.md).
+        let (q0, v0) = kepler_start(e);
+        let trapezoid = |s: f64| {
+            TimeTransformed::new(Kepler, r32()).rule(Trapezoid, s).penalty(1.0).start::<3>(0.0, q0, v0).unwrap()
+        };
+        let trap: Vec<_> = sigmas(0.01).iter().map(|&s| (s, position_error(trapezoid(s), e))).collect();
+        let g2: Vec<_> = sigmas(0.2).iter().map(|&s| (s, position_error(galerkin::<2>(e, s), e))).collect();
+        let g4: Vec<_> = sigmas4(0.4).iter().map(|&s| (s, position_error(galerkin::<4>(e, s), e))).collect();
+        for (label, pts, order) in
+            [("midpoint", &mid, 2.0), ("trapezoid", &trap, 2.0), ("galerkin 2", &g2, 4.0), ("galerkin 4", &g4, 8.0)]
+        {
+            if e == 0.99 && order == 8.0 {
+                // Measured 9.24 on these steps: the errors (2e-9 … 4e-12) are
+                // not yet in the asymptotic range at the large end and near
+                // round-off at the small one; printed, not asserted.
+                println!("e = {e}, {label}: fitted order {:.3} (not asserted)", fitted_order(pts));
+                continue;
+            }
+            let p = fitted_order(pts);
+            println!(
+                "e = {e}, {label}: errors {:?}, fitted order {p:.3}",
+                pts.iter().map(|p| format!("{:.3e}", p.1)).collect::<Vec<_>>()
+            );
+            assert!((p - order).abs() < 0.15, "e = {e}, {label}: order {p}, errors {pts:?}");
+        }
+    }
+}
+
+/// The largest symplecticity defect `max |MᵀJM − J|` of the steps of one
+/// orbit, and the largest entry of `M`. The map is symplectic by
+/// construction (every block comes from one generating function); the defect
+/// is the round-off of the implicit-function formulas, amplified by the
+/// condition number of `∂²A/∂x_k∂x_{k+1}`.
+fn worst_defect<I: SStepper<3, System = Tt>>(
+    mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>,
+    mut condition: impl FnMut(&I) -> f64,
+) -> (f64, f64, f64) {
+    let (mut worst, mut largest, mut cond) = (0.0f64, 0.0f64, 0.0f64);
+    sim.run_until(2.0 * PI, |s| {
+        let m = s.last_tangent_map().unwrap().matrix();
+        largest = largest.max(m.amax());
+        worst = worst.max(lagrangian::symplectic::defect(&m).unwrap());
+        cond = cond.max(condition(s.inner()));
+    })
+    .unwrap();
+    (worst, largest, cond)
+}
+
+/// The condition number (2-norm) of `∂²A/∂x_k∂x_{k+1}` of the last step.
+fn a12_condition<M: DiscreteLagrangian>(i: &Integrator<Tt, M, 3>) -> f64 {
+    let (a11, a12, a22) = lagrangian::derivatives::position_hessian(i.system(), i.method(), i.last_step().unwrap());
+    let inv = a12.try_inverse().unwrap();
+    inv.norm() * a11.norm().max(a12.norm()).max(a22.norm())
+}
+
+#[test]
+fn symplectic_in_the_extended_phase_space() {
+    for e in [0.9, 0.99] {
+        for (label, (d, m, cond)) in [
+            ("midpoint", worst_defect(rule(Midpoint, e, 0.02), a12_condition)),
+            ("trapezoid", worst_defect(rule(Trapezoid, e, 0.02), a12_condition)),
+            ("galerkin 2", worst_defect(galerkin::<2>(e, 0.1), |_| f64::NAN)),
+        ] {
+            println!("e = {e}, {label}: defect {d:.2e}, largest entry {m:.2}, ‖A12⁻¹‖·‖A‖ up to {cond:.2e}");
+            // Measured 2e-12 … 5e-10 with entries of order one: far above the
+            // 5e-16 of fixed steps (see below), and not explained by the
+            // printed ‖A12⁻¹‖·‖A‖ alone; a non-symplectic method of this
+            // accuracy has defects of the size of its local error (≥ 1e-6 here).
+            assert!(d / m.max(1.0).powi(2) < 1e-11, "e = {e}, {label}: {d} with entries up to {m}");
+        }
+    }
+    // For scale: fixed-step midpoint on the same orbit (h = 1e-3, t ≤ 1).
+    let (q0, v0) = kepler_start(0.9);
+    let mut sim = Integrator::new(Kepler, Midpoint, 1e-3).start(0.0, q0, v0).unwrap();
+    let mut worst = 0.0f64;
+    sim.run(1000, |s| worst = worst.max(s.last_tangent_map().unwrap().symplecticity_defect())).unwrap();
+    println!("fixed-step midpoint, h = 1e-3: defect {worst:.2e}");
+}
+
+/// `L = ½ v² − ½ q²`.
+#[derive(Debug, Clone, Copy)]
+pub struct Oscillator;
+
+#[lagrangian]
+impl Oscillator {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+    }
+}
+
+/// `g = q[0]`: crosses zero with the oscillator.
+#[derive(Debug, Clone, Copy)]
+struct Position;
+
+impl StepDensity<1> for Position {
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, _t: D, q: &[D; 1]) -> D {
+        q[0]
+    }
+}
+
+/// `g = 1` up to `t = 0.5`, NaN after.
+#[derive(Debug, Clone, Copy)]
+struct NanAfterHalf;
+
+impl StepDensity<1> for NanAfterHalf {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        if t.re() > 0.5 { D::from(f64::NAN) } else { D::one() }
+    }
+}
+
+/// `g = (1 − t)²`: the steps collapse as `t → 1`.
+#[derive(Debug, Clone, Copy)]
+struct Collapsing;
+
+impl StepDensity<1> for Collapsing {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        (D::one() - t) * (D::one() - t)
+    }
+}
+
+/// `g = 1/(1 + ½ sin 3t)`, time-dependent.
+#[derive(Debug, Clone, Copy)]
+struct Breathing;
+
+impl StepDensity<1> for Breathing {
+    const TIME_DEPENDENT: bool = true;
+    fn density<S: Lagrangian<1> + ?Sized, D: Scalar>(&self, _s: &S, t: D, _q: &[D; 1]) -> D {
+        ((t * 3.0).sin() * 0.5 + 1.0).recip()
+    }
+}
+
+#[test]
+fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
+    let err =
+        TimeTransformed::new(Oscillator, Position).rule(Midpoint, 0.1).start::<2>(0.0, [-0.5], [0.0]).unwrap_err();
+    assert!(matches!(err, TimeTransformError::InvalidDensity { value, .. } if value == -0.5), "{err:?}");
+    // A g that turns NaN inside a step: that step is refused, the state kept.
+    let mut sim =
+        TimeTransformed::new(Oscillator, NanAfterHalf).rule(Midpoint, 0.07).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let err = sim.run_until(1.0, |_| {}).unwrap_err();
+    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    assert!(value.is_nan() && state == sim.state() && state.t <= 0.5 && state.t > 0.4, "{state:?}");
+}
+
+#[test]
+fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
+    let mut sim =
+        TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let err = sim.run_until(2.0, |_| {}).unwrap_err();
+    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    assert!(dt < floor && state == sim.state() && state.t < 1.0, "{dt} {floor} {state:?}");
+}
+
+#[test]
+fn invalid_settings_and_targets_are_typed_errors() {
+    let start = |b: lagrangian::time_transform::TimeTransformedBuilder<Oscillator, RadiusPower<1>, _, 1>| {
+        b.start::<2>(0.0, [1.0], [0.0]).map(|_| ())
+    };
+    let g = RadiusPower::new([0], 1.0).unwrap();
+    let bad = RadiusPower::new([3], 1.0).unwrap();
+    assert!(RadiusPower::new([0], f64::NAN).is_none());
+    assert!(Curvature::new(0.0).is_none());
+    for sigma in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, sigma)).unwrap_err();
+        assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    }
+    let e = start(TimeTransformed::new(Oscillator, bad).rule(Midpoint, 0.1)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).penalty(-1.0)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).min_time_step(f64::NAN)).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    let e = TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).start::<2>(0.0, [f64::NAN], [0.0]).unwrap_err();
+    assert!(matches!(e, TimeTransformError::Step(Error::InvalidInitialData { .. })), "{e:?}");
+    let mut sim =
+        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    sim.run_until(1.0, |_| {}).unwrap();
+    for target in [0.5, f64::NAN, f64::INFINITY] {
+        let before = sim.state();
+        let e = sim.run_until(target, |_| {}).unwrap_err();
+        assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
+        assert_eq!(sim.state(), before);
+    }
+    // The current time is a no-op; many targets are hit exactly.
+    sim.run_until(1.0, |_| {}).unwrap();
+    for k in 101..=300 {
+        let t = k as f64 / 100.0;
+        sim.run_until(t, |_| {}).unwrap();
+        assert_eq!(sim.state().t, t);
+    }
+}
+
+/// The driven RLC circuit (time-dependent force and dissipation) with a
+/// time-dependent monitor: order 2 (midpoint) and 4 (Galerkin s = 2)
+/// against the exact response, Lagrange–d'Alembert in `s`.
+#[test]
+fn time_dependent_forces_keep_the_order() {
+    let rlc = || common::forced::Rlc { l: 0.5, r: 1.5, c: 0.02, e0: 10.0, omega: 7.0 };
+    let t_end = 2.0;
+    let exact = rlc().exact(t_end)[0];
+    let err_mid = |s: f64| {
+        let mut sim = TimeTransformed::new(rlc(), Breathing).rule(Midpoint, s).start::<2>(0.0, [0.0], [0.0]).unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (s, (sim.state().q[0] - exact).abs())
+    };
+    let err_g2 = |s: f64| {
+        let mut sim = TimeTransformed::new(rlc(), Breathing)
+            .galerkin(Galerkin::<2, 2>::gauss(), s)
+            .start::<2>(0.0, [0.0], [0.0])
+            .unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (s, (sim.state().q[0] - exact).abs())
+    };
+    let mid: Vec<_> = [0.02, 0.01, 0.005].map(err_mid).to_vec();
+    let g2: Vec<_> = [0.05, 0.025, 0.0125].map(err_g2).to_vec();
+    let (pm, pg) = (fitted_order(&mid), fitted_order(&g2));
+    println!("driven RLC: midpoint {mid:?} order {pm:.3}; galerkin 2 {g2:?} order {pg:.3}");
+    assert!((pm - 2.0).abs() < 0.15, "{mid:?}");
+    assert!((pg - 4.0).abs() < 0.15, "{g2:?}");
+}
