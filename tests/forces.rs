@@ -320,11 +320,14 @@ fn forced_newton_jacobian_matches_finite_differences() {
 }
 
 #[test]
-fn energy_preserving_steps_refuse_forced_systems() {
-    let result =
-        Integrator::new(damped(), Midpoint, 0.01).energy_preserving(StepBounds::around(0.01)).start(0.0, [1.0], [0.0]);
+fn galerkin_energy_preserving_steps_refuse_forced_systems() {
+    // One-point rules in f64 take energy-balance steps instead
+    // (`tests/forced_variable_steps.rs`); Galerkin rules do not have them.
+    let result = Integrator::new(damped(), Galerkin::<2, 2>::gauss(), 0.01)
+        .energy_preserving(StepBounds::around(0.01))
+        .start(0.0, [1.0], [0.0]);
     match result {
-        Err(Error::Unsupported { what }) => assert!(what.contains("energy-preserving"), "{what}"),
+        Err(Error::Unsupported { what }) => assert!(what.contains("energy-balance"), "{what}"),
         other => panic!("expected Unsupported, got {other:?}"),
     }
 }

@@ -222,6 +222,12 @@ pub struct EnergyBalance {
     pub energy_after: f64,
     /// `W_k = (F_{k−1}^+ + F_k^−)·(v̂_{k−1} + v̂_k)/2`.
     pub work: f64,
+    /// `W_k^δt = F_{k−1}^+·v̂_{k−1} + F_k^−·v̂_k`: the work the discrete
+    /// Lagrange–d'Alembert principle with time as a variable assigns to node
+    /// `k`, which forced variable steps impose exactly
+    /// ([`variational_residual`](Self::variational_residual) at round-off;
+    /// docs/theory.md §6).
+    pub variational_work: f64,
 }
 
 impl EnergyBalance {
@@ -229,6 +235,13 @@ impl EnergyBalance {
     /// Lagrangian with equal steps, `O(h³)` otherwise.
     pub fn residual(&self) -> f64 {
         self.energy_after - self.energy_before - self.work
+    }
+
+    /// `E_{k+1} − E_k − W_k^δt`: round-off under forced variable steps for an
+    /// autonomous `L` (the energy equation they solve); `O(h³)` per step
+    /// under fixed steps.
+    pub fn variational_residual(&self) -> f64 {
+        self.energy_after - self.energy_before - self.variational_work
     }
 }
 
@@ -255,11 +268,96 @@ where
             (f_behind.plus[i] + f_ahead.minus[i]) * v
         })
         .sum();
+    let variational_work =
+        (0..N).map(|i| f_behind.plus[i] * (behind.dq[i] / behind.h) + f_ahead.minus[i] * (ahead.dq[i] / ahead.h)).sum();
     EnergyBalance {
         energy_before: -derivatives::end_time_derivative(system, method, behind),
         energy_after: -derivatives::end_time_derivative(system, method, ahead),
         work,
+        variational_work,
     }
+}
+
+/// The discrete force `F_k^−` of a step and the work `w_k^− = F_k^−·v̂_k` it
+/// does on a variation of the step's start time, with their derivatives in
+/// the step's end point `(q_{k+1}, t_{k+1})` (at fixed start): what forced
+/// variable steps add to the DEL and to the energy equation
+/// (docs/theory.md §6, time as a variable in the discrete
+/// Lagrange–d'Alembert principle).
+///
+/// From `N + 1` evaluations of the method's forces on [`Dual64`], one per
+/// direction of the end point: off the fixed-step path.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct StartForcing<const N: usize> {
+    /// `F_k^−`.
+    pub(crate) minus: [f64; N],
+    /// `∂F_k^−/∂q_{k+1}` (row `i`, column `j`: `∂F_i/∂q_{k+1,j}`).
+    pub(crate) d_minus_q1: SMatrix<f64, N, N>,
+    /// `∂F_k^−/∂t_{k+1}`.
+    pub(crate) d_minus_t1: [f64; N],
+    /// `w_k^− = F_k^−·v̂_k`, `v̂_k = (q_{k+1} − q_k)/h`.
+    pub(crate) work: f64,
+    /// `∂w_k^−/∂q_{k+1}`.
+    pub(crate) d_work_q1: [f64; N],
+    /// `∂w_k^−/∂t_{k+1}`.
+    pub(crate) d_work_t1: f64,
+}
+
+/// [`StartForcing`] of the step `seg`.
+pub(crate) fn start_forcing<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> StartForcing<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut out = StartForcing {
+        minus: [0.0; N],
+        d_minus_q1: SMatrix::zeros(),
+        d_minus_t1: [0.0; N],
+        work: 0.0,
+        d_work_q1: [0.0; N],
+        d_work_t1: 0.0,
+    };
+    for j in 0..=N {
+        let mut dq = seg.dq.map(Dual64::from_re);
+        let mut h = Dual64::from_re(seg.h);
+        if j < N {
+            dq[j].eps = 1.0;
+        } else {
+            h.eps = 1.0;
+        }
+        let (minus, _) = method.forces(system, Dual64::from_re(seg.t0), h, seg.q0.map(Dual64::from_re), dq);
+        let inv_h = Dual64::from_re(1.0) / h;
+        let mut work = Dual64::from_re(0.0);
+        for i in 0..N {
+            work += minus[i] * dq[i] * inv_h;
+        }
+        for i in 0..N {
+            out.minus[i] = minus[i].re;
+            if j < N {
+                out.d_minus_q1[(i, j)] = minus[i].eps;
+            } else {
+                out.d_minus_t1[i] = minus[i].eps;
+            }
+        }
+        out.work = work.re;
+        if j < N {
+            out.d_work_q1[j] = work.eps;
+        } else {
+            out.d_work_t1 = work.eps;
+        }
+    }
+    out
+}
+
+/// `w_{k−1}^+ = F_{k−1}^+·v̂_{k−1}`: the work of the end force of the step
+/// `seg` on a variation of its end time.
+pub(crate) fn end_work<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> f64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let plus = discrete_forces(system, method, seg).plus;
+    (0..N).map(|i| plus[i] * (seg.dq[i] / seg.h)).sum()
 }
 
 /// The rate `Σ v_i ∂R/∂v_i` at which the dissipation function removes energy

@@ -119,11 +119,12 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
     /// `∂²L/∂v²` is singular (the Legendre transform is not regular and the
     /// one-step map does not exist) or the generalised force is not finite
     /// there, and with [`Error::Unsupported`] for a combination the method
-    /// does not support: energy-preserving steps for a system with `force`
-    /// or `dissipation` (its energy is not conserved; see
-    /// [`forcing`](crate::forcing) for the fixed-step Lagrange–d'Alembert
-    /// integrator and its energy balance), and energy-preserving Galerkin
-    /// steps for a time-dependent `L`.
+    /// does not support: energy-preserving Galerkin steps (and one-point
+    /// steps in a real type other than `f64`, which run as Galerkin steps)
+    /// for a time-dependent `L` or a system with `force` or `dissipation`.
+    /// For a forced system, the one-point rules' variable steps in `f64` are
+    /// fixed by the discrete energy balance `E_{k+1} − E_k = W_k`
+    /// ([`forcing`](crate::forcing)).
     pub fn start<const N: usize>(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<Integrator<S, M, N, T>, Error<N, T>>
     where
         S: Lagrangian<N>,
@@ -136,12 +137,6 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
             }
             if !(b.h_min..=b.h_max).contains(&self.h.to_f64()) {
                 return Err(Error::InvalidStepSize { h: self.h.to_f64() });
-            }
-            if S::HAS_FORCE || S::HAS_DISSIPATION {
-                return Err(Error::Unsupported {
-                    what: "energy-preserving steps for a system with `force` or `dissipation`: its energy is not \
-                           conserved, so the energy equation that fixes the step sizes does not hold; use fixed steps",
-                });
             }
         }
         self.method.supports::<S, N>(&self.policy)?;

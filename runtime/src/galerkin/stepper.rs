@@ -416,6 +416,13 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
 pub(crate) fn supports_policy<Sys: Lagrangian<N>, const N: usize, T: Real>(
     policy: &StepPolicy,
 ) -> Result<(), Error<N, T>> {
+    if matches!(policy, StepPolicy::EnergyPreserving(_)) && (Sys::HAS_FORCE || Sys::HAS_DISSIPATION) {
+        return Err(Error::Unsupported {
+            what: "energy-balance steps for a system with `force` or `dissipation` with a galerkin rule (and \
+                   one-point rules in a real type other than f64, which run as galerkin rules); use fixed steps, \
+                   or the midpoint, trapezoid and α-β rules in f64",
+        });
+    }
     if matches!(policy, StepPolicy::EnergyPreserving(_)) && !Sys::AUTONOMOUS {
         return Err(Error::Unsupported {
             what: "energy-preserving galerkin steps for a time-dependent lagrangian (and one-point rules in a \

@@ -9,6 +9,10 @@
 //! For an autonomous `L` the second equation says `E_{k+1} = E_k`; for a
 //! time-dependent one it is the discrete energy balance
 //! `E_{k+1} − E_k = −(∂A/∂t_k + ∂A/∂t_{k+1})` (de León & Martín de Diego).
+//! For a system with forces the DEL carries `F_k^−` and the energy equation
+//! the work of the forces on the time variations,
+//! `R_t = −(E_k + F_{k−1}^+·v̂_{k−1}) + ∂A/∂t_k − F_k^−·v̂_k`, so that
+//! `E_{k+1} − E_k = W_k` (energy-balance steps, docs/theory.md §6).
 //!
 //! The step size enters the energy equation only through the `O(h²)` energy
 //! error of the discrete Lagrangian, so the equation can lose its root: in
@@ -39,6 +43,7 @@ use super::{Integrator, StepPolicy, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
+use crate::forcing;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
 use crate::real::max_abs;
@@ -142,7 +147,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// carries the iterations spent when it fails or lands outside `[lo, hi]`.
     fn coupled(&mut self, guess: f64, lo: f64, hi: f64) -> Result<(Segment<N>, NewtonReport, bool), usize> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
-        let e0 = self.energy;
+        let e0 = self.energy_target();
         // With two steps of history, start from the extrapolated step and the
         // quadratic position predictor, both O(h³) accurate. Otherwise start
         // from the DEL solution at the guessed step: the energy equation fixes
@@ -165,7 +170,20 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
             }
             let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
-            let d = derivatives::extended_step_derivatives(system, method, &seg);
+            let mut d = derivatives::extended_step_derivatives(system, method, &seg);
+            if forcing::is_forced::<S, N>() {
+                // Lagrange–d'Alembert with time as a variable: F_k^− joins the
+                // DEL, and its work −F_k^−·v̂_k on δt_k the energy equation.
+                let f = forcing::start_forcing(system, method, &seg);
+                for i in 0..N {
+                    d.d_q0[i] += f.minus[i];
+                    d.d2_q0_t1[i] += f.d_minus_t1[i];
+                    d.d2_t0_q1[i] -= f.d_work_q1[i];
+                }
+                d.d2_q0_q1 += f.d_minus_q1;
+                d.d_t0 -= f.work;
+                d.d2_t0_t1 -= f.d_work_t1;
+            }
             let r = SVector::<f64, N>::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
             let r_t = d.d_t0 - e0;
             let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
@@ -191,16 +209,28 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (dq, report) = self.solve_del(h)?;
         *spent += report.iterations;
         let seg = Segment { t0, h, q0, dq };
-        let d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
+        let mut d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
+        if forcing::is_forced::<S, N>() {
+            // As in `coupled`: the forced DEL (solved by `solve_del`) and energy equation.
+            let f = forcing::start_forcing(&self.system, &self.method, &seg);
+            for i in 0..N {
+                d.d2_q0_t1[i] += f.d_minus_t1[i];
+                d.d2_t0_q1[i] -= f.d_work_q1[i];
+            }
+            d.d2_q0_q1 += f.d_minus_q1;
+            d.d_t0 -= f.work;
+            d.d2_t0_t1 -= f.d_work_t1;
+        }
         let slope = match d.d2_q0_q1.try_inverse() {
             Some(inv) => d.d2_t0_t1 - d.d2_t0_q1.dot(&(inv * d.d2_q0_t1)),
             None => f64::NAN,
         };
-        let g = d.d_t0 - self.energy;
+        let target = self.energy_target();
+        let g = d.d_t0 - target;
         if !g.is_finite() {
             return Err(Error::NonFinite { state: self.state, h, iterations: *spent, quantity: "energy equation" });
         }
-        Ok(Probe { seg, g, slope, scale: self.energy.abs().max(d.d_t0.abs()) })
+        Ok(Probe { seg, g, slope, scale: target.abs().max(d.d_t0.abs()) })
     }
 
     /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
@@ -446,6 +476,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         NewtonReport { iterations, residual_norm: p.g.abs(), correction_norm: 0.0 }
     }
 
+    /// The right side of the energy equation `∂A/∂t_k − w_k^− = E_k^−` of
+    /// the next step: `E_k`, plus, for a forced system, the work
+    /// `w_{k−1}^+ = F_{k−1}^+·v̂_{k−1}` of the last step's end force (time as
+    /// a variable in the discrete Lagrange–d'Alembert principle, docs/theory.md §6).
+    fn energy_target(&self) -> f64 {
+        match self.memory.previous {
+            Some(behind) if forcing::is_forced::<S, N>() => {
+                self.energy + forcing::end_work(&self.system, &self.method, &behind)
+            }
+            _ => self.energy,
+        }
+    }
+
     /// Applies a solved step: `p_{k+1}`, `E_{k+1}`, the Kahan-summed time.
     fn accept(&mut self, seg: Segment<N>, report: NewtonReport, fallback: bool) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, .. } = self.state;
@@ -467,9 +510,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if S::DISCONTINUOUS {
             self.watch_energy(&seg, t1);
         }
-        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
-        self.memory.previous = Some(seg);
-        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
         if fallback {
             // The least-squares step changed the energy: conserve its new value.
             (self.energy, self.energy_carry) = (-d_t1, 0.0);
@@ -478,13 +518,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // of the energy equation is not re-read from the step, whose solve
             // leaves a residual of one sign (Newton approaches a root from one
             // side), so that residuals do not add up over long runs.
-            let de =
+            let mut de =
                 if S::AUTONOMOUS { 0.0 } else { -derivatives::time_shift_derivative(&self.system, &self.method, &seg) };
+            if forcing::is_forced::<S, N>() {
+                // The discrete work across node k: E_k^− = E_k + w_{k−1}^+ + w_k^−.
+                let behind = self.memory.previous.map_or(0.0, |b| forcing::end_work(&self.system, &self.method, &b));
+                de += behind + forcing::start_forcing(&self.system, &self.method, &seg).work;
+            }
             let y = de - self.energy_carry;
             let e1 = self.energy + y;
             self.energy_carry = (e1 - self.energy) - y;
             self.energy = e1;
         }
+        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
+        self.memory.previous = Some(seg);
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
         self.h = h;
         self.clock = super::Clock { t: t1, step: step + 1 };
         self.stats.steps += 1;
