@@ -447,9 +447,8 @@ fn force_jacobians<S: Lagrangian<N>, const N: usize>(
     let mut jq = [[0.0; N]; N];
     let mut jv = [[0.0; N]; N];
     for j in 0..N {
-        let seed = |x: &[f64; N]| -> [Dual64; N] {
-            std::array::from_fn(|i| Dual64::new(x[i], f64::from(u8::from(i == j))))
-        };
+        let seed =
+            |x: &[f64; N]| -> [Dual64; N] { std::array::from_fn(|i| Dual64::new(x[i], f64::from(u8::from(i == j)))) };
         let fq = generalized_force(s, Dual64::from_re(t), seed(&q), v.map(Dual64::from_re));
         let fv = generalized_force(s, Dual64::from_re(t), q.map(Dual64::from_re), seed(&v));
         for i in 0..N {
@@ -512,8 +511,16 @@ fn check<S: Lagrangian<N>, const N: usize>(name: &str, s: &S, seed: u64) {
         let fscale = jq.iter().chain(&jv).flatten().fold(0.0f64, |a, x| a.max(x.abs()));
         for i in 0..N {
             for j in 0..N {
-                assert!(force.q.may_couple(i, j) || negligible(jq[i][j], fscale), "{name}: ∂F{i}/∂q{j} = {:e}", jq[i][j]);
-                assert!(force.v.may_couple(i, j) || negligible(jv[i][j], fscale), "{name}: ∂F{i}/∂v{j} = {:e}", jv[i][j]);
+                assert!(
+                    force.q.may_couple(i, j) || negligible(jq[i][j], fscale),
+                    "{name}: ∂F{i}/∂q{j} = {:e}",
+                    jq[i][j]
+                );
+                assert!(
+                    force.v.may_couple(i, j) || negligible(jv[i][j], fscale),
+                    "{name}: ∂F{i}/∂v{j} = {:e}",
+                    jv[i][j]
+                );
             }
         }
         let mass: Vec<Vec<f64>> = (0..N).map(|i| h[N + i][N..].to_vec()).collect();

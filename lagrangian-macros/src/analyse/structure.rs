@@ -94,6 +94,8 @@ pub(crate) fn structure(system: &System) -> Structure {
     let lagrangian = Interp::run(&system.lagrangian);
     let (separability, coupling) = match &lagrangian {
         Some(Abs::Num(val)) => (val.poly.separability(), val.pairs.coupling()),
+        // A constant of unknown type (`Self::C`).
+        Some(Abs::Int(_)) => (Separability::ConstantMass, Pairs::NONE.coupling()),
         _ => (Separability::NotProven, Pairs::GENERAL.coupling()),
     };
     // `F = Q − ∂R/∂v`: row `i` of its Jacobian is row `vᵢ` of the Hessian of `R`.
@@ -499,10 +501,7 @@ enum Abs {
     /// An array: `elems` covers every element (what a read may return), `out`
     /// how far the dependencies of each element on `q` and on `v` are from
     /// its own position (the Jacobian pattern of a returned force).
-    Array {
-        elems: Val,
-        out: [Reach; 2],
-    },
+    Array { elems: Val, out: [Reach; 2] },
 }
 
 impl Abs {
@@ -544,6 +543,9 @@ fn out_of(position: Index, deps: &BTreeSet<Atom>) -> [Reach; 2] {
 struct Interp {
     /// The constants used as index bases, by their tokens.
     consts: Vec<String>,
+    /// Whether paths name one value throughout the body: not when it
+    /// declares items (two blocks may each declare their own `const K`).
+    paths_fixed: bool,
     /// The join of the values of `return`s.
     ret: Abs,
     /// For each enclosing loop, innermost last, the join of the states at its
@@ -556,12 +558,29 @@ struct Interp {
 impl Interp {
     /// The abstract value of `function`, `None` if the analysis gave up.
     fn run(function: &Function) -> Option<Abs> {
-        let mut interp = Interp { consts: Vec::new(), ret: Abs::Unit, jumps: Vec::new(), gave_up: false };
+        let mut interp = Interp {
+            consts: Vec::new(),
+            paths_fixed: !declares_items(&function.body),
+            ret: Abs::Unit,
+            jumps: Vec::new(),
+            gave_up: false,
+        };
         let mut env: Env = vec![None; function.locals.len()];
         let value = interp.block(&function.body, &mut env);
         let ret = std::mem::replace(&mut interp.ret, Abs::Unit);
         let value = interp.join(&value.escape(None), &ret);
         (!interp.gave_up).then_some(value)
+    }
+
+    /// The number of the constant named `key`.
+    fn intern(&mut self, key: String) -> usize {
+        match self.consts.iter().position(|k| *k == key) {
+            Some(id) => id,
+            None => {
+                self.consts.push(key);
+                self.consts.len() - 1
+            }
+        }
     }
 
     fn give_up(&mut self) -> Abs {
@@ -574,9 +593,14 @@ impl Interp {
             (Abs::Unit, other) | (other, Abs::Unit) => other.clone(),
             (Abs::Num(a), Abs::Num(b)) => Abs::Num(a.join(b)),
             (Abs::Int(a), Abs::Int(b)) => Abs::Int(if a == b { *a } else { Index::Any }),
-            // An integer and an opaque constant (`self.n`).
-            (Abs::Int(_), Abs::Num(val)) | (Abs::Num(val), Abs::Int(_)) if val.deps.is_empty() => {
-                Abs::Int(Index::Any)
+            // An integer and an opaque constant (`self.n`), or a constant
+            // that is a float and a number.
+            (Abs::Int(_), Abs::Num(val)) | (Abs::Num(val), Abs::Int(_)) => {
+                if val.deps.is_empty() {
+                    Abs::Int(Index::Any)
+                } else {
+                    Abs::Num(val.join(&Val::constant()))
+                }
             }
             (Abs::Array { elems: a, out: oa }, Abs::Array { elems: b, out: ob }) => {
                 Abs::Array { elems: a.join(b), out: join2(*oa, *ob) }
@@ -630,7 +654,9 @@ impl Interp {
             (Class::Int | Class::Const, Abs::Int(index)) => Abs::Int(index),
             (Class::Int, Abs::Num(val)) if val.deps.is_empty() => Abs::Int(Index::Any),
             (Class::Bool | Class::Const | Class::Active, Abs::Num(val)) => Abs::Num(val),
-            (Class::Bool, Abs::Int(_)) => Abs::Num(Val::constant()),
+            // A constant that turned out to be a float (`let mut x = PI;`,
+            // later `x += q[0]`).
+            (Class::Bool | Class::Active, Abs::Int(_)) => Abs::Num(Val::constant()),
             (Class::ConstArray | Class::ActiveArray, value @ Abs::Array { .. }) => value,
             // Indexing opaque constant data gives constants of any shape.
             (Class::ConstArray, Abs::Int(_)) => Abs::Array { elems: Val::constant(), out: [Reach::None; 2] },
@@ -651,17 +677,9 @@ impl Interp {
             }
             ExprKind::Lit(_) | ExprKind::SelfValue(_) => Abs::Num(Val::constant()),
             // Possibly an integer, fixed during the call: a base for indices.
+            ExprKind::Path(_) if !self.paths_fixed => Abs::Num(Val::constant()),
             ExprKind::Path(_) | ExprKind::Field { .. } => match constant_key(expr) {
-                Some(key) => {
-                    let id = match self.consts.iter().position(|k| *k == key) {
-                        Some(id) => id,
-                        None => {
-                            self.consts.push(key);
-                            self.consts.len() - 1
-                        }
-                    };
-                    Abs::Int(Index::Rel(Base::Const(id), 0))
-                }
+                Some(key) => Abs::Int(Index::Rel(Base::Const(self.intern(key)), 0)),
                 None => Abs::Num(Val::constant()),
             },
             ExprKind::Param(ParamRef::Time, _) => Abs::Num(Val::atom(Atom::T)),
@@ -717,6 +735,14 @@ impl Interp {
                 match value {
                     // A jump in `L`: its derivatives say nothing across it.
                     Abs::Num(val) if !val.deps.is_empty() => self.give_up(),
+                    // `self.x as usize` and `self.x as i64` differ for a
+                    // negative `f64` field: the cast names a new constant.
+                    Abs::Int(Index::Rel(Base::Const(id), 0)) if keeps_indices(ty) => {
+                        let key = format!("{} as {}", self.consts[id], quote::ToTokens::to_token_stream(ty));
+                        Abs::Int(Index::Rel(Base::Const(self.intern(key)), 0))
+                    }
+                    // An offset makes it an integer already (`self.x + 1`
+                    // does not compile for a float).
                     Abs::Int(index) if keeps_indices(ty) => Abs::Int(index),
                     _ => Abs::Int(Index::Any),
                 }
@@ -947,6 +973,22 @@ impl Interp {
     }
 }
 
+/// Whether `block` or a block inside it declares an item (`const`, `use`).
+fn declares_items(block: &Block) -> bool {
+    let has_item = |block: &Block| block.stmts.iter().any(|stmt| matches!(stmt, Stmt::Item(_)));
+    let mut found = has_item(block);
+    block.visit(&mut |expr| {
+        found |= match &expr.kind {
+            ExprKind::Block(block) | ExprKind::If { then_branch: block, .. } | ExprKind::For { body: block, .. } => {
+                has_item(block)
+            }
+            _ => false,
+        };
+        !found
+    });
+    found
+}
+
 /// The tokens naming a constant path or a field of `self` (`N`,
 /// `Self::N`, `self.chain.n`).
 fn constant_key(expr: &Expr) -> Option<String> {
@@ -1090,6 +1132,35 @@ mod tests {
         assert_eq!(lagrangian(parse_quote!({ q[self.n] * q[N] })).coupling.q_q, G);
         assert_eq!(lagrangian(parse_quote!({ q[N - 1] * q[0] })).coupling.q_q, G);
         assert_eq!(lagrangian(parse_quote!({ q[self.a.n] * q[self.b.n] })).coupling.q_q, G);
+        // Through casts: the same cast of the same constant is the same index;
+        // a float field cast two ways may not be.
+        let s = lagrangian(parse_quote!({ q[self.x as usize] * q[self.x as usize + 1] }));
+        assert_eq!(s.coupling.q_q, W1);
+        assert_eq!(lagrangian(parse_quote!({ q[self.x as usize] * q[(self.x as i64) as usize] })).coupling.q_q, G);
+        let s = lagrangian(parse_quote!({ q[(self.n - 1) as usize] * q[self.n - 1] }));
+        assert_eq!(s.coupling.q_q, W0);
+        // Items declared in the body can give one name two values.
+        let s = lagrangian(parse_quote!({
+            let a = {
+                const K: usize = 1;
+                q[K]
+            };
+            let b = {
+                const K: usize = 2;
+                q[K]
+            };
+            a * b
+        }));
+        assert_eq!(s.coupling.q_q, G);
+        // A float constant that starts a sum.
+        let s = lagrangian(parse_quote!({
+            let mut x = Self::OFFSET;
+            for i in 0..N {
+                x += v[i] * v[i];
+            }
+            x
+        }));
+        assert_eq!((s.separability, s.coupling), (Separability::ConstantMass, coupling(W0, W0, W0)));
     }
 
     #[test]
