@@ -117,6 +117,7 @@ pub(crate) fn structure(system: &System) -> Structure {
     Structure { separability, coupling, force: ForceCoupling { q: force[0].band(), v: force[1].band() } }
 }
 
+/// The join of two `[∂F/∂q, ∂F/∂v]` reaches.
 fn join2(a: [Reach; 2], b: [Reach; 2]) -> [Reach; 2] {
     [a[0].max(b[0]), a[1].max(b[1])]
 }
@@ -240,6 +241,16 @@ enum Atom {
 }
 
 impl Atom {
+    /// The same kind of variable at an unknown index.
+    fn widen(self) -> Atom {
+        match self {
+            Atom::T => Atom::T,
+            Atom::Q(_) => Atom::Q(Index::Any),
+            Atom::V(_) => Atom::V(Index::Any),
+        }
+    }
+
+    /// Forgets offsets from loop variable `var` (every one for `None`).
     fn escape(self, var: Option<usize>) -> Atom {
         match self {
             Atom::T => Atom::T,
@@ -468,7 +479,7 @@ impl Val {
 /// their indices.
 fn normalise(mut deps: BTreeSet<Atom>) -> BTreeSet<Atom> {
     if deps.len() > MAX_DEPS {
-        deps = deps.into_iter().map(|atom| atom.escape(None).widen()).collect();
+        deps = deps.into_iter().map(Atom::widen).collect();
     }
     if deps.contains(&Atom::Q(Index::Any)) {
         deps.retain(|atom| !matches!(atom, Atom::Q(index) if *index != Index::Any));
@@ -477,16 +488,6 @@ fn normalise(mut deps: BTreeSet<Atom>) -> BTreeSet<Atom> {
         deps.retain(|atom| !matches!(atom, Atom::V(index) if *index != Index::Any));
     }
     deps
-}
-
-impl Atom {
-    fn widen(self) -> Atom {
-        match self {
-            Atom::T => Atom::T,
-            Atom::Q(_) => Atom::Q(Index::Any),
-            Atom::V(_) => Atom::V(Index::Any),
-        }
-    }
 }
 
 /// An abstract value.
