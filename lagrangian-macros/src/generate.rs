@@ -655,6 +655,34 @@ mod tests {
     }
 
     #[test]
+    fn structure_constants_are_normalised_against_a_symbolic_n() {
+        let out = generated(&parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 1..N {
+                        l += 0.5 * v[i] * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l
+                }
+            }
+        });
+        let private = ":: lagrangian :: __private ::";
+        assert!(
+            out.contains(&format!(
+                "const SEPARABILITY : {private} Separability = {private} Separability :: ConstantMass ;"
+            )),
+            "{out}"
+        );
+        assert!(
+            out.contains(&format!(
+                "q_q : {private} Pattern :: banded (N , 1usize) , q_v : {private} Pattern :: banded (N , 0usize)"
+            )),
+            "{out}"
+        );
+    }
+
+    #[test]
     fn constant_on_the_left() {
         assert_eq!(
             body(parse_quote!({ 1.0 - q[0] + 2.0 / v[0] + 3.0 * t })),

@@ -716,7 +716,8 @@ impl Interp {
                 let value = self.expr(inner, env);
                 match (op, value) {
                     (UnOp::Neg(_), Abs::Int(Index::Lit(a))) => Abs::Int(a.checked_neg().map_or(Index::Any, Index::Lit)),
-                    (UnOp::Neg(_), Abs::Int(_)) => Abs::Int(Index::Any),
+                    // `!` on an integer is the bitwise complement.
+                    (UnOp::Neg(_) | UnOp::Not(_), Abs::Int(_)) => Abs::Int(Index::Any),
                     (UnOp::Not(_), Abs::Num(val)) => Abs::Num(Val::condition(&[&val])),
                     (_, value) => value,
                 }
