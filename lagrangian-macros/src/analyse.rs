@@ -5,7 +5,13 @@
 //! cheap as the user's. A `let mut` variable is active if any value assigned
 //! to it is, so classes are propagated to a fixpoint before generation.
 //!
-//! The analysis also proves which coordinates are cyclic (`CYCLIC`).
+//! The analysis also proves which coordinates are cyclic (`CYCLIC`), and
+//! the `structure` module what the bodies prove about the Hessian of `L`
+//! and the Jacobian of the forces.
+
+mod structure;
+
+pub(crate) use structure::{Band, Separability, Structure};
 
 use crate::ctxt::Ctxt;
 use crate::ir::{Block, Class, Expr, ExprKind, Function, Local, LocalId, Math, ParamRef, Stmt, System};
@@ -26,6 +32,9 @@ pub(crate) struct Analysis {
     /// that on the user's own `f64` method, so generation is skipped instead of
     /// repeating the error in generated code.
     pub(crate) consistent: bool,
+    /// What the bodies prove about the Hessian of `L` and the Jacobian of
+    /// the forces.
+    pub(crate) structure: Structure,
 }
 
 /// How the Lagrangian reads `q`, from which `CYCLIC` follows.
@@ -53,7 +62,7 @@ pub(crate) fn analyse(cx: &Ctxt, system: &mut System) -> Analysis {
     for function in system.functions_mut() {
         consistent &= classify(cx, function);
     }
-    Analysis { cyclic: cyclic(&system.lagrangian.body), consistent }
+    Analysis { cyclic: cyclic(&system.lagrangian.body), consistent, structure: structure::structure(system) }
 }
 
 /// Classifies `function`; `false` if it is inconsistent (see [`Analysis`]).

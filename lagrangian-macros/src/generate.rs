@@ -6,7 +6,7 @@
 //! those needed because `D` implements `D op f64` but not `f64 op D`, and
 //! compares and converts only through its real part.
 
-use crate::analyse::{Analysis, Cyclic};
+use crate::analyse::{Analysis, Band, Cyclic, Separability, Structure};
 use crate::attr::{Args, SymmetryDecl};
 use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
@@ -27,6 +27,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
     let has_dissipation = system.dissipation.is_some().then(|| quote! { const HAS_DISSIPATION: bool = true; });
     let has_force = system.force.is_some().then(|| quote! { const HAS_FORCE: bool = true; });
     let symmetries = declared_symmetries(&n, &args.symmetries);
+    let structure = structure(&n, &analysis.structure);
     // Turns on the runtime's record of energy jumps.
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
     let methods = std::iter::once(&system.lagrangian)
@@ -48,6 +49,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             #has_force
             #discontinuous
             #symmetries
+            #structure
             #(#methods)*
         }
     }
@@ -156,6 +158,34 @@ fn cyclic(n: &Len, cyclic: &Cyclic) -> TokenStream {
                 cyclic
             })
         }
+    }
+}
+
+/// `SEPARABILITY`, `COUPLING` and `FORCE_COUPLING`. Bandwidths go through
+/// the runtime's `Pattern::banded`, which normalises them against `N` (a
+/// symbolic `N` is only known to the compiler).
+fn structure(n: &TokenStream, structure: &Structure) -> TokenStream {
+    let private = quote!(::lagrangian::__private);
+    let separability = match structure.separability {
+        Separability::NotProven => quote!(NotProven),
+        Separability::QuadraticKinetic => quote!(QuadraticKinetic),
+        Separability::ConstantMass => quote!(ConstantMass),
+    };
+    let pattern = |band: Band| match band {
+        Band::Width(width) => {
+            // A width beyond `usize` covers any `N`.
+            let width = usize::try_from(width).unwrap_or(usize::MAX);
+            quote!(#private::Pattern::banded(#n, #width))
+        }
+        Band::General => quote!(#private::Pattern::General),
+    };
+    let (q_q, q_v, v_v) =
+        (pattern(structure.coupling.q_q), pattern(structure.coupling.q_v), pattern(structure.coupling.v_v));
+    let (force_q, force_v) = (pattern(structure.force.q), pattern(structure.force.v));
+    quote! {
+        const SEPARABILITY: #private::Separability = #private::Separability::#separability;
+        const COUPLING: #private::Coupling = #private::Coupling { q_q: #q_q, q_v: #q_v, v_v: #v_v };
+        const FORCE_COUPLING: #private::ForceCoupling = #private::ForceCoupling { q: #force_q, v: #force_v };
     }
 }
 
@@ -600,6 +630,17 @@ mod tests {
             impl ::lagrangian::__private::Lagrangian<1> for Pendulum {
                 const AUTONOMOUS: bool = true;
                 const CYCLIC: [bool; 1] = [false];
+                const SEPARABILITY: ::lagrangian::__private::Separability =
+                    ::lagrangian::__private::Separability::ConstantMass;
+                const COUPLING: ::lagrangian::__private::Coupling = ::lagrangian::__private::Coupling {
+                    q_q: ::lagrangian::__private::Pattern::banded(1, 0usize),
+                    q_v: ::lagrangian::__private::Pattern::banded(1, 0usize),
+                    v_v: ::lagrangian::__private::Pattern::banded(1, 0usize)
+                };
+                const FORCE_COUPLING: ::lagrangian::__private::ForceCoupling = ::lagrangian::__private::ForceCoupling {
+                    q: ::lagrangian::__private::Pattern::banded(1, 0usize),
+                    v: ::lagrangian::__private::Pattern::banded(1, 0usize)
+                };
                 #[inline(always)]
                 fn lagrangian<__D: ::lagrangian::__private::Scalar>(&self, _: __D, q: [__D; 1], v: [__D; 1]) -> __D {
                     v[0] * (0.5 * self.m * self.l * self.l) * v[0]
@@ -611,6 +652,34 @@ mod tests {
         assert!(out.starts_with("impl Pendulum"), "{out}");
         assert!(out.contains("# [allow (dead_code)] fn lagrangian"), "{out}");
         assert!(out.ends_with(&expected.to_string()), "{out}");
+    }
+
+    #[test]
+    fn structure_constants_are_normalised_against_a_symbolic_n() {
+        let out = generated(&parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 1..N {
+                        l += 0.5 * v[i] * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l
+                }
+            }
+        });
+        let private = ":: lagrangian :: __private ::";
+        assert!(
+            out.contains(&format!(
+                "const SEPARABILITY : {private} Separability = {private} Separability :: ConstantMass ;"
+            )),
+            "{out}"
+        );
+        assert!(
+            out.contains(&format!(
+                "q_q : {private} Pattern :: banded (N , 1usize) , q_v : {private} Pattern :: banded (N , 0usize)"
+            )),
+            "{out}"
+        );
     }
 
     #[test]

@@ -8,10 +8,11 @@
 //! The expansion is a small compiler, one private module per stage, read top
 //! to bottom: `parse` picks the recognised methods out of the block,
 //! `validate` checks their signatures and lowers their bodies into the `ir`,
-//! `analyse` finds which values depend on `t`, `q` and `v`, `discontinuity`
-//! where the Lagrangian jumps with them, and `generate` prints the trait
-//! impl. `expand` runs them in turn; errors accumulate in a
-//! `ctxt::Ctxt` so that all of them are reported at once.
+//! `analyse` finds which values depend on `t`, `q` and `v` and what
+//! structure the bodies prove, `discontinuity` where the Lagrangian jumps
+//! with them, and `generate` prints the trait impl. `expand` runs them in
+//! turn; errors accumulate in a `ctxt::Ctxt` so that all of them are
+//! reported at once.
 
 mod analyse;
 mod attr;
@@ -93,6 +94,14 @@ use proc_macro::TokenStream;
 /// code; only the others become dual numbers. `CYCLIC[i]` is `true` when the
 /// Lagrangian provably ignores `q[i]`: `q` is only indexed by integer
 /// literals and never by `i`.
+///
+/// The macro also proves structure for the runtime to exploit
+/// (docs/structure.md): `SEPARABILITY` (whether `L = ½ vᵀM(q)v − V(t, q)`,
+/// and whether `M` is constant), `COUPLING` (diagonal, banded or general
+/// blocks of the Hessian of `L` in `(q, v)`, including bands from `for`
+/// loops over neighbours, `q[i + 1] - q[i]`) and `FORCE_COUPLING` (the same
+/// for the Jacobian of the forces). What the syntax does not prove is
+/// reported as not proven or general, never as a smaller pattern.
 #[proc_macro_attribute]
 pub fn lagrangian(attr: TokenStream, item: TokenStream) -> TokenStream {
     match syn::parse::<syn::Item>(item) {

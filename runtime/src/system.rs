@@ -6,6 +6,7 @@
 
 use num_dual::{Dual, DualNum};
 
+use crate::structure::{Coupling, ForceCoupling, Separability};
 use crate::symmetry::Symmetry;
 
 /// A real scalar the Lagrangian can be evaluated on: `f64` itself or any of
@@ -56,6 +57,35 @@ pub trait Lagrangian<const N: usize> {
     /// watch the discrete energy for jumps (see
     /// [`Stats::largest_energy_jump`](crate::Stats::largest_energy_jump)).
     const DISCONTINUOUS: bool = false;
+
+    /// Whether `L = ½ vᵀM(q)v − V(t, q)` is proven, and whether `M` is proven
+    /// constant ([`Separability`]). A separable system with constant `M` can
+    /// be stepped explicitly; one with a quadratic kinetic energy has a
+    /// Legendre map linear in `v`.
+    ///
+    /// `#[lagrangian]` proves it from the syntax of the body (see
+    /// `docs/structure.md`): the degree in `v` of every term, and what the
+    /// coefficients of the degree-2 terms depend on. The default,
+    /// [`Separability::NotProven`], is always correct.
+    const SEPARABILITY: Separability = Separability::NotProven;
+
+    /// Which coordinates and velocities enter the Hessian of `L` in `(q, v)`
+    /// together: its `q–q`, `q–v` and `v–v` blocks, each diagonal, banded or
+    /// general ([`Coupling`]). An entry outside a block's pattern is zero
+    /// everywhere; entries inside may or may not be.
+    ///
+    /// `#[lagrangian]` proves it from the index expressions of the body,
+    /// including `q[i + c]` in `for` loops over neighbours; where it cannot,
+    /// it says [`Pattern::General`](crate::structure::Pattern::General),
+    /// the default.
+    const COUPLING: Coupling = Coupling::GENERAL;
+
+    /// The coupling pattern of the Jacobian in `q` and in `v` of the
+    /// generalised force `Q − ∂R/∂v` of [`force`](Self::force) and
+    /// [`dissipation`](Self::dissipation) ([`ForceCoupling`]). General by
+    /// default; `#[lagrangian]` sets it, diagonal when neither method is
+    /// given.
+    const FORCE_COUPLING: ForceCoupling = ForceCoupling::GENERAL;
 
     /// The Lagrangian `L(t, q, v)`.
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D;
