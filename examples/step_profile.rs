@@ -10,7 +10,7 @@
 //! `variable` (energy-preserving midpoint, from the start of the bench's
 //! variable-step group), `damped` (double pendulum with joint friction, a
 //! forced step), `energy` (a midpoint step and `Integrator::energy` after it), `hand` (the hand-written midpoint of the bench) or
-//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else).
+//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else); `verlet` (the bench's hand-written Störmer–Verlet, pendulum only).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -57,6 +57,12 @@ fn main() {
         ("pendulum", "hand") => {
             let mut s = PendulumMidpoint::new(PendulumParams { a: P.m * P.l * P.l, d: P.m * P.g * P.l }, H, 1.0, 0.0);
             (0..n).for_each(|_| s.step().unwrap());
+            vec![s.q]
+        }
+        ("pendulum", "verlet") => {
+            let params = PendulumParams { a: P.m * P.l * P.l, d: P.m * P.g * P.l };
+            let mut s = PendulumVerlet { s: params, h: H, q: 1.0, p: 0.0 };
+            (0..n).for_each(|_| s.step());
             vec![s.q]
         }
         ("pendulum", "midpoint") => run(Integrator::new(Pendulum { ..P }, Midpoint, H).start(0.0, [1.0], [0.0]), n),

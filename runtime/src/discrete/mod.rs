@@ -48,6 +48,13 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
         None
     }
 
+    /// `true` when, for a Lagrangian `L = ½ vᵀMv − V(t, q)` with a constant
+    /// mass matrix (`Lagrangian::SEPARABILITY` proven by the macro) and no
+    /// forces, the DEL of this rule is explicit: the integrator then takes
+    /// the step without Newton. `true` for [`Trapezoid`], which there is
+    /// Störmer–Verlet in its variational form; `false` by default.
+    const EXPLICIT_FOR_CONSTANT_MASS: bool = false;
+
     /// The two quadrature points `(c_1, c_2)` (weights ½ each) and the
     /// degree to which they integrate exactly, for which this rule is the
     /// Galerkin rule of degree 1 (linear interpolation of `q`):

@@ -18,6 +18,12 @@ use crate::system::{Lagrangian, Scalar};
 pub struct Trapezoid;
 
 impl DiscreteLagrangian for Trapezoid {
+    /// For `L = ½ vᵀMv − V(t, q)`, `M` constant, the DEL
+    /// `p_k − M v̂ + (h/2) f(t_k, q_k) = 0` (`f = −∇V`) gives
+    /// `q_{k+1} = q_k + h M⁻¹(p_k + (h/2) f_k)` and
+    /// `p_{k+1} = p_k + (h/2)(f_k + f_{k+1})`: velocity Verlet.
+    const EXPLICIT_FOR_CONSTANT_MASS: bool = true;
+
     fn galerkin_points(&self) -> Option<([f64; 2], usize)> {
         Some(([0.0, 1.0], 1))
     }

@@ -9,7 +9,7 @@
 //! they run as the Galerkin rule of degree 1 whose quadrature is their own
 //! point(s) (`galerkin/one_point.rs`), which is the same discrete Lagrangian.
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 use super::method::{F64Readouts, Method, sealed};
 use super::{IMPLAUSIBLE_GROWTH, Integrator, StepBounds, implausible_growth, kahan, non_finite};
@@ -31,6 +31,12 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
     pub(crate) earlier: Option<(f64, [f64; N])>,
+    /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix,
+    /// once computed.
+    pub(crate) inverse_mass: Option<SMatrix<f64, N, N>>,
+    /// Explicit steps: `(k, f(t_k, q_k))`, the force `∂L/∂q(t, q, 0)` at
+    /// node `k` (valid while the state is at node `k`).
+    pub(crate) node_force: Option<(u64, [f64; N])>,
 }
 
 impl<M: DiscreteLagrangian> sealed::Sealed for M {}
@@ -43,7 +49,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn memory<const N: usize>(&self) -> OnePointMemory<N> {
-        OnePointMemory { previous: None, earlier: None }
+        OnePointMemory { previous: None, earlier: None, inverse_mass: None, node_force: None }
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(
@@ -141,6 +147,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
     #[inline]
     pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+        if Self::EXPLICIT {
+            return self.verlet_step(h, t1);
+        }
         let State { step, t: t0, q: q0, .. } = self.state;
         let (dq, report) = self.solve_del(h)?;
         let seg = Segment { t0, h, q0, dq };
@@ -160,6 +169,79 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
         self.stats.last = report;
+        Ok(())
+    }
+
+    /// The rule's DEL is explicit for this system (see
+    /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]): the macro proved
+    /// `L = ½ vᵀMv − V(t, q)` with constant `M`, and there are no forces.
+    const EXPLICIT: bool =
+        M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass() && !S::HAS_FORCE && !S::HAS_DISSIPATION;
+
+    /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, from one
+    /// first-order array-dual evaluation.
+    #[inline(always)]
+    fn potential_force(&self, t: f64, q: [f64; N]) -> [f64; N] {
+        use crate::hyperdual::DualArray;
+        let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+        let l = self.system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
+        l.eps
+    }
+
+    /// One step of the trapezoid rule on `L = ½ vᵀMv − V(t, q)` with constant
+    /// `M`, where its DEL is explicit (Störmer–Verlet, velocity form):
+    ///
+    /// ```text
+    /// q_{k+1} = q_k + h M⁻¹ (p_k + (h/2) f_k),   p_{k+1} = p_k + (h/2)(f_k + f_{k+1}),   f = −∇V
+    /// ```
+    ///
+    /// No Newton iteration (`Stats` counts none); the same Kahan sums, checks
+    /// and failure semantics as the Newton path, whose trajectories it
+    /// reproduces to round-off.
+    #[inline]
+    fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+        let State { step, t: t0, q: q0, p: p0 } = self.state;
+        let inverse_mass = match self.memory.inverse_mass {
+            Some(m) => m,
+            None => match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
+                Some(m) => m,
+                None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
+            },
+        };
+        let f0 = match self.memory.node_force {
+            Some((k, f)) if k == step => f,
+            _ => self.potential_force(t0, q0),
+        };
+        let half = 0.5 * h;
+        let mv = SVector::<f64, N>::from_fn(|i, _| (p0[i] + half * f0[i]) + self.p_carry[i]);
+        let dq: [f64; N] = (inverse_mass * mv * h).into();
+        if let Some(last) = &self.memory.previous
+            && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
+        {
+            let reason = IMPLAUSIBLE_GROWTH;
+            return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+        }
+        let (q1, carry) = kahan(&q0, &self.carry, &dq);
+        let f1 = self.potential_force(t1, q1);
+        let dp: [f64; N] = core::array::from_fn(|i| half * (f0[i] + f1[i]));
+        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
+        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
+        }
+        let seg = Segment { t0, h, q0, dq };
+        self.carry = carry;
+        self.p_carry = p_carry;
+        if S::DISCONTINUOUS {
+            self.watch_energy(&seg, t1);
+        }
+        self.memory.inverse_mass = Some(inverse_mass);
+        self.memory.node_force = Some((step + 1, f1));
+        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
+        self.memory.previous = Some(seg);
+        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
+        self.stats.steps += 1;
+        self.stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
         Ok(())
     }
 
