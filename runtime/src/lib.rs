@@ -6,10 +6,12 @@
 //! built and tested apart. The runtime knows a user's system only through the
 //! [`Lagrangian`] trait.
 
+pub mod dense;
 pub mod derivatives;
 pub mod discrete;
 pub mod double_double;
 mod error;
+pub mod events;
 pub mod forcing;
 pub mod galerkin;
 pub mod hyperdual;
@@ -18,15 +20,19 @@ pub mod mechanics;
 pub mod newton;
 pub mod noether;
 mod real;
+pub mod solution;
 mod state;
+mod stepping;
 mod symmetry;
 pub mod symplectic;
 pub mod system;
 
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
+pub use dense::Node;
 pub use double_double::DoubleDouble;
 pub use error::Error;
+pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{EnergyFallback, Integrator, IntegratorBuilder, Stats, StepBounds, StepPolicy};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
@@ -34,6 +40,8 @@ pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};
 pub use num_dual;
 pub use real::Real;
+pub use solution::{DenseKind, Plan, Solution, SolveError, Status};
 pub use state::State;
+pub use stepping::Stepping;
 pub use symplectic::TangentMap;
 pub use system::{Lagrangian, Scalar};
