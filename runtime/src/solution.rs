@@ -883,7 +883,7 @@ impl<const N: usize> Solution<N> {
         let columns = input.headers()?.len();
         let velocities = match columns {
             c if c == 2 + 2 * N => false,
-            c if c == 3 + 4 * N => true,
+            c if c == 3 + 3 * N => true,
             c => return Err(TableError::Shape { reason: format!("{c} columns do not fit N = {N}") }),
         };
         let mut sol = Self::empty();
