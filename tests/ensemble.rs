@@ -81,7 +81,8 @@ fn sharded_ensembles_serialise_and_merge() {
         let shard = Shard { start: range.start, results: ensemble::run(&inputs[range], solve) };
         files.push(serde_json::to_string(&shard).unwrap());
     }
-    let shards: Vec<Shard<Solution<1>, String>> = files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
+    let shards: Vec<Shard<Solution<1>, String>> =
+        files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
     let merged: Ensemble<Solution<1>, String> = ensemble::merge(shards).unwrap();
     assert_eq!(merged, whole);
     assert_eq!(merged.len(), 20);

@@ -69,9 +69,7 @@ fn a_terminal_event_stops_exactly_at_the_crossing() {
     let t = period();
     let mut sim = galerkin(0.01);
     let stop = |sim: &mut GalerkinIntegrator<Pendulum, 1, 4, 4>| {
-        let plan = Plan::until(100.0)
-            .dense(DenseKind::Quintic)
-            .event(Event::new(|_, q, _| q[0]).action(Action::Stop));
+        let plan = Plan::until(100.0).dense(DenseKind::Quintic).event(Event::new(|_, q, _| q[0]).action(Action::Stop));
         sim.solve(plan).unwrap()
     };
     let sol = stop(&mut sim);
@@ -95,8 +93,7 @@ fn landing_puts_nodes_on_events_and_keeps_the_grid() {
     let t = period();
     let h = 0.01;
     let mut sim = galerkin(h);
-    let plan =
-        Plan::until(2.0 * t).dense(DenseKind::Quintic).event(Event::new(|_, q, _| q[0]).action(Action::Land));
+    let plan = Plan::until(2.0 * t).dense(DenseKind::Quintic).event(Event::new(|_, q, _| q[0]).action(Action::Land));
     let sol = sim.solve(plan).unwrap();
     assert!(sol.is_finished());
     assert_eq!(sol.events.len(), 4);

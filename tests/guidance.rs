@@ -56,7 +56,10 @@ fn the_linearisation_finds_frequencies_and_growth_rates() {
     let lin = linearize(&Inverted, 0.0, [0.0], [0.0]).unwrap();
     assert!(lin.frequencies.is_empty() && (lin.growth_rates[0] - 2.0).abs() < 1e-6, "{lin:?}");
     assert_eq!(suggest_step(&Free, (0.0, [0.0], [1.0]), Rule::midpoint(), 1e-4), Err(GuidanceError::NoTimeScale));
-    assert!(matches!(suggest_step(&Spring { k: 1.0 }, (0.0, [1.0], [0.0]), Rule::midpoint(), 0.0), Err(GuidanceError::InvalidTolerance { .. })));
+    assert!(matches!(
+        suggest_step(&Spring { k: 1.0 }, (0.0, [1.0], [0.0]), Rule::midpoint(), 0.0),
+        Err(GuidanceError::InvalidTolerance { .. })
+    ));
     assert!(matches!(linearize(&Spring { k: 1.0 }, 0.0, [f64::NAN], [0.0]), Err(GuidanceError::NoAcceleration)));
 }
 
@@ -77,12 +80,16 @@ fn the_suggested_step_gives_the_requested_frequency_error() {
         assert!((error / tol - 1.0).abs() < 0.15, "tol {tol}: error {error}");
 
         let advice = suggest_step(&Spring { k }, (0.0, [1.0], [0.0]), Rule::galerkin_gauss(2), tol).unwrap();
-        let mut sim =
-            GalerkinIntegrator::new(Spring { k }, Galerkin::<2, 2>::gauss(), advice.h).start(0.0, [1.0], [0.0]).unwrap();
+        let mut sim = GalerkinIntegrator::new(Spring { k }, Galerkin::<2, 2>::gauss(), advice.h)
+            .start(0.0, [1.0], [0.0])
+            .unwrap();
         let plan = Plan::until(20.0).every(0).dense(lagrangian::DenseKind::Quintic).event(Event::new(|_, q, _| q[0]));
         let period = measured_period(sim.solve(plan).unwrap());
         let error = (2.0 * std::f64::consts::PI / omega - period).abs() / period;
-        println!("galerkin s = 2, tol {tol:e}: h = {:.3e}, ωh = {:.3e}, period error {error:.3e}", advice.h, advice.omega_h);
+        println!(
+            "galerkin s = 2, tol {tol:e}: h = {:.3e}, ωh = {:.3e}, period error {error:.3e}",
+            advice.h, advice.omega_h
+        );
         assert!((error / tol - 1.0).abs() < 0.15, "tol {tol}: error {error}");
     }
 }

@@ -3,7 +3,7 @@
 //! the partial solution, bad plans are typed errors, CSV and JSON round-trip.
 
 use lagrangian::prelude::*;
-use lagrangian::{DenseKind, Event, Plan, SolveError, Solution, Status};
+use lagrangian::{DenseKind, Event, Plan, Solution, SolveError, Status};
 
 #[derive(Clone)]
 struct DoublePendulum;
@@ -167,7 +167,10 @@ fn csv_and_json_round_trip() {
     let text = String::from_utf8(csv.clone()).unwrap();
     assert!(text.starts_with("t,step,q0,q1,p0,p1,v0,v1,energy\n0.0,0,1.0,-0.5,"), "{}", &text[..80]);
     let back = Solution::<2>::read_csv(csv.as_slice()).unwrap();
-    assert_eq!((&back.t, &back.step, &back.q, &back.p, &back.v, &back.energy), (&sol.t, &sol.step, &sol.q, &sol.p, &sol.v, &sol.energy));
+    assert_eq!(
+        (&back.t, &back.step, &back.q, &back.p, &back.v, &back.energy),
+        (&sol.t, &sol.step, &sol.q, &sol.p, &sol.v, &sol.energy)
+    );
     assert!(Solution::<3>::read_csv(csv.as_slice()).is_err(), "the column count must fit N");
 
     let mut json = Vec::new();

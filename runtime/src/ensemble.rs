@@ -83,7 +83,11 @@ impl<O, E> Ensemble<O, E> {
 }
 
 /// One member, its panic caught.
-fn one<I, O, E>(member: &(impl Fn(usize, &I) -> Result<O, E> + Sync), index: usize, input: &I) -> Result<O, MemberError<E>> {
+fn one<I, O, E>(
+    member: &(impl Fn(usize, &I) -> Result<O, E> + Sync),
+    index: usize,
+    input: &I,
+) -> Result<O, MemberError<E>> {
     match catch_unwind(AssertUnwindSafe(|| member(index, input))) {
         Ok(Ok(o)) => Ok(o),
         Ok(Err(e)) => Err(MemberError::Failed(e)),

@@ -29,9 +29,9 @@ mod symmetry;
 pub mod symplectic;
 pub mod system;
 
+pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
-pub use dense::Node;
 pub use double_double::DoubleDouble;
 pub use error::Error;
 pub use events::{Action, Direction, Event, EventRecord};

@@ -444,7 +444,8 @@ impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
 impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError<N>> {
         let s = self.sim.state();
-        let mut c = Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
+        let mut c =
+            Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
         if with_v {
             self.velocity(&mut c)?;
         }
@@ -655,8 +656,7 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
     if let Some(tolerance) = d.plan.energy_tolerance {
         d.velocity(&mut prev)?;
         let initial = d.energy(t0, prev.node.q, prev.node.v);
-        d.sol.energy_watch =
-            Some(EnergyWatch { tolerance, initial, largest: 0.0, largest_at: t0, exceeded_at: None });
+        d.sol.energy_watch = Some(EnergyWatch { tolerance, initial, largest: 0.0, largest_at: t0, exceeded_at: None });
     }
     // Save times at t0 come before the first node row.
     while d.plan.save_at.get(d.next_save) == Some(&t0) {
@@ -780,8 +780,10 @@ const PROGRESS_UNITS: u64 = 10_000;
 #[cfg(feature = "progress")]
 fn progress_bar(span: f64) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(PROGRESS_UNITS);
-    let style = indicatif::ProgressStyle::with_template("{bar:40} {percent:>3}% of t ∈ [t0, t0 + {msg}] ({elapsed}, {eta} left)")
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+    let style = indicatif::ProgressStyle::with_template(
+        "{bar:40} {percent:>3}% of t ∈ [t0, t0 + {msg}] ({elapsed}, {eta} left)",
+    )
+    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
     bar.set_style(style);
     bar.set_message(format!("{span}"));
     bar
@@ -815,9 +817,7 @@ pub(crate) mod array {
     }
 
     pub(crate) fn deserialize<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-        Vec::<f64>::deserialize(d)?
-            .try_into()
-            .map_err(|r: Vec<f64>| D::Error::invalid_length(r.len(), &"N values"))
+        Vec::<f64>::deserialize(d)?.try_into().map_err(|r: Vec<f64>| D::Error::invalid_length(r.len(), &"N values"))
     }
 }
 
