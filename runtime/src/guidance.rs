@@ -166,7 +166,7 @@ pub fn suggest_step<S: Lagrangian<N> + ?Sized, const N: usize>(
         return Err(GuidanceError::InvalidTolerance { tol });
     }
     let linearization = linearize(system, t, q, v)?;
-    if !(linearization.fastest > 0.0) {
+    if linearization.fastest.is_nan() || linearization.fastest <= 0.0 {
         return Err(GuidanceError::NoTimeScale);
     }
     let omega_h = rule.omega_h(tol);

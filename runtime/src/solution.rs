@@ -243,11 +243,11 @@ impl EnergyWatch {
     fn observe(&mut self, t: f64, energy: f64) {
         let change = (energy - self.initial).abs() / self.initial.abs().max(f64::MIN_POSITIVE);
         // NaN counts as exceeding.
-        if !(change <= self.largest) {
+        if change.is_nan() || change > self.largest {
             self.largest = change;
             self.largest_at = t;
         }
-        if self.exceeded_at.is_none() && !(change <= self.tolerance) {
+        if self.exceeded_at.is_none() && (change.is_nan() || change > self.tolerance) {
             self.exceeded_at = Some(t);
         }
     }
@@ -503,7 +503,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 
     fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError<N>> {
         let due = match &self.plan.observer {
-            Some((n, _)) => force || self.steps % *n as u64 == 0,
+            Some((n, _)) => force || self.steps.is_multiple_of(*n as u64),
             None => false,
         };
         if due {
@@ -740,7 +740,7 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
         finish_node(d, &mut end, last)?;
         #[cfg(feature = "progress")]
         if let Some(bar) = &bar
-            && (d.steps % 64 == 0 || last)
+            && (d.steps.is_multiple_of(64) || last)
         {
             bar.set_position((((end.node.t - t0) / (t_end - t0)) * PROGRESS_UNITS as f64) as u64);
         }
@@ -760,7 +760,7 @@ fn finish_node<I: Stepping<N> + Clone, const N: usize>(
     end: &mut Carried<N>,
     last: bool,
 ) -> Result<(), SolveError<N>> {
-    if d.plan.every > 0 && (last || d.steps % d.plan.every as u64 == 0) {
+    if d.plan.every > 0 && (last || d.steps.is_multiple_of(d.plan.every as u64)) {
         d.keep_node(end)?;
     }
     d.observe(end, false)?;
