@@ -57,10 +57,10 @@ pub struct EventRecord<const N: usize> {
     /// The time of the crossing.
     pub t: f64,
     /// The position there, by dense output.
-    #[cfg_attr(feature = "serde", serde(with = "crate::solution::array"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
     pub q: [f64; N],
     /// The velocity there, by dense output.
-    #[cfg_attr(feature = "serde", serde(with = "crate::solution::array"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
     pub v: [f64; N],
     /// `true` when `g` was rising through zero.
     pub rising: bool,

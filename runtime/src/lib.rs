@@ -22,6 +22,8 @@ pub mod mechanics;
 pub mod newton;
 pub mod noether;
 mod real;
+#[cfg(feature = "serde")]
+mod serde_arrays;
 pub mod solution;
 mod state;
 mod stepping;
@@ -42,8 +44,7 @@ pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};
 pub use num_dual;
 pub use real::Real;
-pub use solution::{DenseKind, Plan, Solution, SolveError, Status};
+pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
 pub use state::State;
-pub use stepping::Stepping;
 pub use symplectic::TangentMap;
 pub use system::{Lagrangian, Scalar};

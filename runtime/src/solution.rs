@@ -53,8 +53,49 @@
 use crate::dense::{DenseStep, Hermite, Node, acceleration};
 use crate::error::Error;
 use crate::events::{Action, Event, EventRecord, illinois};
+use crate::integrator::Stats;
 use crate::mechanics::DiscreteMechanics;
-use crate::stepping::Stepping;
+use crate::state::State;
+use crate::system::Lagrangian;
+
+/// An integrator as the workflow tools drive it, in `f64`: implemented for
+/// [`Integrator`](crate::Integrator) and [`GalerkinIntegrator`](crate::GalerkinIntegrator)
+/// (in `f64`) in one place, `stepping.rs`.
+pub trait Stepping<const N: usize> {
+    /// The integrated system.
+    type System: Lagrangian<N>;
+    /// The method's own interpolant of one step.
+    type Native: DenseStep<N>;
+
+    /// The system.
+    fn system(&self) -> &Self::System;
+
+    /// The state at the current node.
+    fn state(&self) -> State<N>;
+
+    /// The velocity whose momentum is the current `p_k`.
+    fn velocity(&self) -> Result<[f64; N], Error<N>>;
+
+    /// Work counters.
+    fn stats(&self) -> Stats;
+
+    /// One step of the integrator's own size (or, under energy-preserving
+    /// steps, the size the energy equation picks).
+    fn step(&mut self) -> Result<(), Error<N>>;
+
+    /// `true` when the next step would reach `t_end` or pass it, so that the
+    /// caller should land on it with [`land`](Self::land) instead; `last_h`
+    /// is the length of the last step taken (`None` before the first).
+    fn reaches(&self, t_end: f64, last_h: Option<f64>) -> bool;
+
+    /// Steps to `t` exactly (the integrators' `run_until`); from within one
+    /// step of `t` (see [`reaches`](Self::reaches)), one shortened step.
+    fn land(&mut self, t: f64) -> Result<(), Error<N>>;
+
+    /// The method's own interpolant of the last step, which ran from `start`
+    /// to the current node `end`.
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Self::Native;
+}
 
 /// Which interpolant dense output uses (see [`crate::dense`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -319,13 +360,13 @@ pub struct Solution<const N: usize> {
     /// The node index `k` of a node row, `None` for an interpolated one.
     pub step: Vec<Option<u64>>,
     /// Positions.
-    #[cfg_attr(feature = "serde", serde(with = "crate::solution::rows"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
     pub q: Vec<[f64; N]>,
     /// Momenta (`p_k` at nodes; `∂L/∂v` of the interpolated `q, v` between them).
-    #[cfg_attr(feature = "serde", serde(with = "crate::solution::rows"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
     pub p: Vec<[f64; N]>,
     /// Velocities (empty under [`Plan::without_velocities`]).
-    #[cfg_attr(feature = "serde", serde(with = "crate::solution::rows"))]
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
     pub v: Vec<[f64; N]>,
     /// The energy `E_L(t, q, v)` (empty under [`Plan::without_velocities`]).
     pub energy: Vec<f64>,
@@ -787,38 +828,6 @@ fn progress_bar(span: f64) -> indicatif::ProgressBar {
     bar.set_style(style);
     bar.set_message(format!("{span}"));
     bar
-}
-
-/// `Vec<[f64; N]>` as a sequence of sequences (serde implements arrays only
-/// up to a fixed length, not for every `N`).
-#[cfg(feature = "serde")]
-pub(crate) mod rows {
-    use serde::{Deserialize, Deserializer, Serializer, de::Error};
-
-    pub(crate) fn serialize<S: Serializer, const N: usize>(rows: &[[f64; N]], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(rows.iter().map(|r| r.as_slice()))
-    }
-
-    pub(crate) fn deserialize<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Vec<[f64; N]>, D::Error> {
-        Vec::<Vec<f64>>::deserialize(d)?
-            .into_iter()
-            .map(|r| r.try_into().map_err(|r: Vec<f64>| D::Error::invalid_length(r.len(), &"N values")))
-            .collect()
-    }
-}
-
-/// `[f64; N]` as a sequence.
-#[cfg(feature = "serde")]
-pub(crate) mod array {
-    use serde::{Deserialize, Deserializer, Serializer, de::Error};
-
-    pub(crate) fn serialize<S: Serializer, const N: usize>(x: &[f64; N], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(x.iter())
-    }
-
-    pub(crate) fn deserialize<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-        Vec::<f64>::deserialize(d)?.try_into().map_err(|r: Vec<f64>| D::Error::invalid_length(r.len(), &"N values"))
-    }
 }
 
 /// Why a solution could not be written or read.

@@ -1,57 +1,20 @@
 //! The one place where the workflow tools (solutions, dense output, events,
 //! ensembles, progress) meet the integrators.
 //!
-//! [`Stepping`] is what [`solve`](crate::solution) needs from an integrator:
-//! one step, a landing step, the state and velocity at the node, and the
-//! method's own interpolant of the last step. It is implemented here for
+//! [`Stepping`] (defined in [`crate::solution`]) is what `solve` needs from
+//! an integrator: one step, a landing step, the state and velocity at the
+//! node, and the method's own interpolant of the last step. It is implemented here for
 //! [`Integrator`] and for [`GalerkinIntegrator`] in `f64`, using only their
 //! public accessors; the `solve` methods of both live here too.
 
-use crate::dense::{DenseStep, GalerkinPolynomial, Hermite, Node};
+use crate::dense::{GalerkinPolynomial, Hermite, Node};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::galerkin::GalerkinIntegrator;
 use crate::integrator::{Integrator, Stats, StepPolicy};
-use crate::solution::{Plan, Solution, SolveError, solve};
+use crate::solution::{Plan, Solution, SolveError, Stepping, solve};
 use crate::state::State;
 use crate::system::Lagrangian;
-
-/// An integrator as the workflow tools drive it, in `f64`.
-pub trait Stepping<const N: usize> {
-    /// The integrated system.
-    type System: Lagrangian<N>;
-    /// The method's own interpolant of one step.
-    type Native: DenseStep<N>;
-
-    /// The system.
-    fn system(&self) -> &Self::System;
-
-    /// The state at the current node.
-    fn state(&self) -> State<N>;
-
-    /// The velocity whose momentum is the current `p_k`.
-    fn velocity(&self) -> Result<[f64; N], Error<N>>;
-
-    /// Work counters.
-    fn stats(&self) -> Stats;
-
-    /// One step of the integrator's own size (or, under energy-preserving
-    /// steps, the size the energy equation picks).
-    fn step(&mut self) -> Result<(), Error<N>>;
-
-    /// `true` when the next step would reach `t_end` or pass it, so that the
-    /// caller should land on it with [`land`](Self::land) instead; `last_h`
-    /// is the length of the last step taken (`None` before the first).
-    fn reaches(&self, t_end: f64, last_h: Option<f64>) -> bool;
-
-    /// Steps to `t` exactly (the integrators' `run_until`); from within one
-    /// step of `t` (see [`reaches`](Self::reaches)), one shortened step.
-    fn land(&mut self, t: f64) -> Result<(), Error<N>>;
-
-    /// The method's own interpolant of the last step, which ran from `start`
-    /// to the current node `end`.
-    fn native(&self, start: &Node<N>, end: &Node<N>) -> Self::Native;
-}
 
 /// `true` when a fixed step of size `h` from `t` ends within `10⁻⁹ h` of
 /// `t_end` or beyond it: the rule of the integrators' `run_until`.
