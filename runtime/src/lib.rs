@@ -6,29 +6,39 @@
 //! built and tested apart. The runtime knows a user's system only through the
 //! [`Lagrangian`] trait.
 
+pub mod dense;
 pub mod derivatives;
 pub mod discrete;
 pub mod double_double;
+pub mod ensemble;
 mod error;
+pub mod events;
 pub mod forcing;
 pub mod galerkin;
+pub mod guidance;
 pub mod hyperdual;
 mod integrator;
 pub mod mechanics;
 pub mod newton;
 pub mod noether;
 mod real;
+#[cfg(feature = "serde")]
+mod serde_arrays;
+pub mod solution;
 mod state;
+mod stepping;
 pub mod structure;
 mod symmetry;
 pub mod symplectic;
 pub mod system;
 pub mod time_transform;
 
+pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
 pub use double_double::DoubleDouble;
 pub use error::Error;
+pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 #[doc(hidden)]
 pub use integrator::OnePointMemory;
@@ -40,6 +50,7 @@ pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};
 pub use num_dual;
 pub use real::Real;
+pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
 pub use state::State;
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;

@@ -1,0 +1,302 @@
+//! Dense output: the solution between two nodes.
+//!
+//! An integrator publishes the state only at its nodes `t_k`. Dense output
+//! interpolates one step `[t_k, t_{k+1}]` from what the step leaves behind:
+//!
+//! | interpolant | data | interpolation error (local, `τ` inside the step) |
+//! | --- | --- | --- |
+//! | [`Hermite::cubic`] | `q, v` at both nodes | `O(h⁴)`: `h⁴ |q⁗| / 384` at mid-step |
+//! | [`Hermite::quintic`] | `q, v, a` at both nodes (`a` from the equations of motion, [`acceleration`]) | `O(h⁶)`: `h⁶ |q⁽⁶⁾| / 46080` at mid-step |
+//! | [`GalerkinPolynomial`] | the `s + 1` nodes of a Galerkin step's polynomial | `O(h^{s+1})` (the continuous Galerkin curve; its end nodes are accurate to `O(h^{2s})`) |
+//!
+//! The value between nodes also carries the error of the nodes themselves
+//! (global order `p` of the method): dense output of a method of order `p`
+//! is accurate to `O(h^{min(p, r)})` over a run, with `r` the interpolant's
+//! order above. So the cubic suits the second-order one-point rules, and a
+//! Galerkin method of order `2s ≥ 6` needs the quintic to keep its accuracy
+//! between nodes (`tests/dense_output.rs` fits these orders). The velocity
+//! at a node is the one whose momentum is the integrator's `p_k` (the inverse
+//! Legendre transform), so both interpolants are `C¹` across nodes; the
+//! Galerkin polynomial is only continuous (its slope at the nodes is not the
+//! node velocity).
+
+use nalgebra::SMatrix;
+
+use crate::hyperdual::{HyperDualArray, Pair, Timed};
+use crate::system::{Lagrangian, generalized_force};
+
+/// The state at one node as dense output and solutions need it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Node<const N: usize> {
+    /// `t_k`.
+    pub t: f64,
+    /// `q_k`.
+    pub q: [f64; N],
+    /// `p_k`, the integrator's momentum.
+    pub p: [f64; N],
+    /// `v_k` with `∂L/∂v(t_k, q_k, v_k) = p_k`.
+    pub v: [f64; N],
+}
+
+/// The interpolant of one step `[t0, t1]`.
+pub trait DenseStep<const N: usize> {
+    /// The start of the step.
+    fn t0(&self) -> f64;
+    /// The end of the step.
+    fn t1(&self) -> f64;
+    /// Position and velocity at `t` (meant for `t` in `[t0, t1]`; outside it
+    /// the polynomial is extrapolated).
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]);
+}
+
+/// Hermite interpolation of one step from the positions, velocities and
+/// (for the quintic) accelerations at both nodes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hermite<const N: usize> {
+    t0: f64,
+    h: f64,
+    q: [[f64; N]; 2],
+    v: [[f64; N]; 2],
+    /// `None`: the cubic.
+    a: Option<[[f64; N]; 2]>,
+}
+
+/// Cubic Hermite basis in powers `1, s, s², s³` for `q0, h v0, q1, h v1`.
+const CUBIC: [[f64; 6]; 4] = [
+    [1.0, 0.0, -3.0, 2.0, 0.0, 0.0],
+    [0.0, 1.0, -2.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 3.0, -2.0, 0.0, 0.0],
+    [0.0, 0.0, -1.0, 1.0, 0.0, 0.0],
+];
+
+/// Quintic Hermite basis in powers `1 … s⁵` for `q0, h v0, h² a0, q1, h v1, h² a1`.
+const QUINTIC: [[f64; 6]; 6] = [
+    [1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
+    [0.0, 1.0, 0.0, -6.0, 8.0, -3.0],
+    [0.0, 0.0, 0.5, -1.5, 1.5, -0.5],
+    [0.0, 0.0, 0.0, 10.0, -15.0, 6.0],
+    [0.0, 0.0, 0.0, -4.0, 7.0, -3.0],
+    [0.0, 0.0, 0.0, 0.5, -1.0, 0.5],
+];
+
+/// Value and derivative in `s` of the polynomial with coefficients `c`.
+#[inline]
+fn poly(c: &[f64; 6], s: f64) -> (f64, f64) {
+    let (mut value, mut slope) = (0.0, 0.0);
+    for k in (0..6).rev() {
+        slope = slope * s + value;
+        value = value * s + c[k];
+    }
+    (value, slope)
+}
+
+impl<const N: usize> Hermite<N> {
+    /// The cubic through `(q, v)` at `start` and `end`.
+    pub fn cubic(start: &Node<N>, end: &Node<N>) -> Self {
+        Self { t0: start.t, h: end.t - start.t, q: [start.q, end.q], v: [start.v, end.v], a: None }
+    }
+
+    /// The quintic through `(q, v, a)` at `start` (acceleration `a0`) and `end` (`a1`).
+    pub fn quintic(start: &Node<N>, a0: [f64; N], end: &Node<N>, a1: [f64; N]) -> Self {
+        Self { a: Some([a0, a1]), ..Self::cubic(start, end) }
+    }
+}
+
+impl<const N: usize> DenseStep<N> for Hermite<N> {
+    fn t0(&self) -> f64 {
+        self.t0
+    }
+
+    fn t1(&self) -> f64 {
+        self.t0 + self.h
+    }
+
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+        let h = self.h;
+        let s = (t - self.t0) / h;
+        let mut q = [0.0; N];
+        let mut v = [0.0; N];
+        let mut add = |c: &[f64; 6], x: &[f64; N], scale: f64| {
+            let (b, db) = poly(c, s);
+            for i in 0..N {
+                q[i] += b * scale * x[i];
+                v[i] += db * scale * x[i] / h;
+            }
+        };
+        match &self.a {
+            None => {
+                add(&CUBIC[0], &self.q[0], 1.0);
+                add(&CUBIC[1], &self.v[0], h);
+                add(&CUBIC[2], &self.q[1], 1.0);
+                add(&CUBIC[3], &self.v[1], h);
+            }
+            Some(a) => {
+                add(&QUINTIC[0], &self.q[0], 1.0);
+                add(&QUINTIC[1], &self.v[0], h);
+                add(&QUINTIC[2], &a[0], h * h);
+                add(&QUINTIC[3], &self.q[1], 1.0);
+                add(&QUINTIC[4], &self.v[1], h);
+                add(&QUINTIC[5], &a[1], h * h);
+            }
+        }
+        (q, v)
+    }
+}
+
+/// A Galerkin step's own polynomial `q(t_0 + τh) = Σ_m ℓ_m(τ) Q_m` through
+/// its `s + 1` control nodes `τ_0 = 0, τ_1, …, τ_s = 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GalerkinPolynomial<const N: usize, const S: usize> {
+    t0: f64,
+    h: f64,
+    /// `τ_1 … τ_s`.
+    tau: [f64; S],
+    /// `Q_0`.
+    q0: [f64; N],
+    /// `Q_m − Q_0`, `m = 1 … s`: differences keep the interpolation free of
+    /// the cancellation of large coordinates.
+    d: [[f64; N]; S],
+}
+
+impl<const N: usize, const S: usize> GalerkinPolynomial<N, S> {
+    /// The polynomial of a step of size `h` from `t0`, with control nodes
+    /// `tau` (`τ_1 … τ_s`), start `q0` and node values `nodes` (`Q_1 … Q_s`).
+    pub fn new(t0: f64, h: f64, tau: [f64; S], q0: [f64; N], nodes: [[f64; N]; S]) -> Self {
+        let d = nodes.map(|x| core::array::from_fn(|i| x[i] - q0[i]));
+        Self { t0, h, tau, q0, d }
+    }
+
+    fn node(&self, m: usize) -> f64 {
+        if m == 0 { 0.0 } else { self.tau[m - 1] }
+    }
+}
+
+impl<const N: usize, const S: usize> DenseStep<N> for GalerkinPolynomial<N, S> {
+    fn t0(&self) -> f64 {
+        self.t0
+    }
+
+    fn t1(&self) -> f64 {
+        self.t0 + self.h
+    }
+
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+        let s = (t - self.t0) / self.h;
+        let mut q = self.q0;
+        let mut v = [0.0; N];
+        // ℓ_m and ℓ_m' for m = 1 … s (ℓ_0 multiplies Q_0 − Q_0 = 0).
+        for m in 1..=S {
+            let (mut value, mut slope) = (1.0, 0.0);
+            for k in (0..=S).filter(|&k| k != m) {
+                let w = 1.0 / (self.node(m) - self.node(k));
+                slope = slope * (s - self.node(k)) * w + value * w;
+                value *= (s - self.node(k)) * w;
+            }
+            for i in 0..N {
+                q[i] += value * self.d[m - 1][i];
+                v[i] += slope * self.d[m - 1][i] / self.h;
+            }
+        }
+        (q, v)
+    }
+}
+
+/// The acceleration `a = q̈` of the equations of motion
+/// `d/dt ∂L/∂v − ∂L/∂q = F` at `(t, q, v)`:
+///
+/// ```text
+/// ∂²L/∂v² a = ∂L/∂q + F − ∂²L/∂v∂q v − ∂²L/∂v∂t
+/// ```
+///
+/// One evaluation of `L` on a hyper-dual seeded on `v` (first infinitesimal)
+/// and on `(q, t, v)` (second), plus the force. `None` where `∂²L/∂v²` is
+/// singular or a value is not finite.
+pub fn acceleration<S: Lagrangian<N> + ?Sized, const N: usize>(
+    system: &S,
+    t: f64,
+    q: [f64; N],
+    v: [f64; N],
+) -> Option<[f64; N]> {
+    type E2<const N: usize> = Pair<Timed<f64, N>, [f64; N]>;
+    type D<const N: usize> = HyperDualArray<[f64; N], E2<N>>;
+    let mut qd = q.map(D::<N>::from_re);
+    let mut vd = v.map(D::<N>::from_re);
+    for i in 0..N {
+        qd[i].eps2.a.q[i] = 1.0;
+        vd[i].eps1[i] = 1.0;
+        vd[i].eps2.b[i] = 1.0;
+    }
+    let mut td = D::<N>::from_re(t);
+    td.eps2.a.t = 1.0;
+    let l = system.lagrangian(td, qd, vd);
+    let f = generalized_force(system, t, q, v);
+    // Slots of ε2: q_j at j, t at N, v_j at N + 1 + j.
+    let mass = SMatrix::<f64, N, N>::from_fn(|i, j| l.mixed(i, N + 1 + j));
+    let rhs = nalgebra::SVector::<f64, N>::from_fn(|i, _| {
+        let coupling: f64 = (0..N).map(|j| l.mixed(i, j) * v[j]).sum();
+        l.eps2.a.q[i] + f[i] - coupling - l.mixed(i, N)
+    });
+    let a = mass.try_inverse()? * rhs;
+    a.iter().all(|x| x.is_finite()).then(|| core::array::from_fn(|i| a[i]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::system::Scalar;
+
+    /// Not separable, time-dependent: `L = ½(1 + q₀²) v₀² + v₀ v₁ sin t + ½ v₁² − q₀ q₁`.
+    struct Coupled;
+
+    impl Lagrangian<2> for Coupled {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 2] = [false, false];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
+            (q[0] * q[0] + 1.0) * v[0] * v[0] * 0.5 + v[0] * v[1] * t.sin() + v[1] * v[1] * 0.5 - q[0] * q[1]
+        }
+    }
+
+    /// Against the equations of motion written out by hand.
+    #[test]
+    fn acceleration_solves_the_equations_of_motion() {
+        let (t, q, v) = (0.7, [0.4, -1.1], [0.9, 0.3]);
+        let a = acceleration(&Coupled, t, q, v).unwrap();
+        let (s, c) = (t.sin(), t.cos());
+        // p₀ = (1 + q₀²) v₀ + v₁ sin t,  p₁ = v₀ sin t + v₁.
+        // ṗ₀ = 2 q₀ v₀² + (1 + q₀²) a₀ + a₁ s + v₁ c = ∂L/∂q₀ = q₀ v₀² − q₁
+        // ṗ₁ = a₀ s + v₀ c + a₁ = ∂L/∂q₁ = −q₀
+        let r0 = q[0] * v[0] * v[0] - q[1] - 2.0 * q[0] * v[0] * v[0] - v[1] * c;
+        let r1 = -q[0] - v[0] * c;
+        let m = 1.0 + q[0] * q[0];
+        let det = m - s * s;
+        let expected = [(r0 - s * r1) / det, (m * r1 - s * r0) / det];
+        for i in 0..2 {
+            assert!((a[i] - expected[i]).abs() < 1e-14, "{a:?} against {expected:?}");
+        }
+    }
+
+    #[test]
+    fn interpolants_reproduce_their_data() {
+        let start = Node { t: 1.0, q: [0.3], p: [0.0], v: [-0.2] };
+        let end = Node { t: 1.5, q: [0.1], p: [0.0], v: [0.4] };
+        for dense in [Hermite::cubic(&start, &end), Hermite::quintic(&start, [0.7], &end, [-1.3])] {
+            for node in [&start, &end] {
+                let (q, v) = dense.eval(node.t);
+                assert!((q[0] - node.q[0]).abs() < 1e-15 && (v[0] - node.v[0]).abs() < 1e-14);
+            }
+        }
+        // A cubic is reproduced exactly by both Hermite interpolants.
+        let f = |t: f64| (t * t * t - 2.0 * t, 3.0 * t * t - 2.0, 6.0 * t);
+        let node = |t: f64| Node { t, q: [f(t).0], p: [0.0], v: [f(t).1] };
+        let (a, b) = (node(1.0), node(1.5));
+        for dense in [Hermite::cubic(&a, &b), Hermite::quintic(&a, [f(1.0).2], &b, [f(1.5).2])] {
+            let (q, v) = dense.eval(1.2);
+            assert!((q[0] - f(1.2).0).abs() < 1e-14 && (v[0] - f(1.2).1).abs() < 1e-13);
+        }
+        // The Galerkin polynomial through a quadratic.
+        let g = |t: f64| 2.0 * t * t - t;
+        let poly = GalerkinPolynomial::new(1.0, 0.5, [0.5, 1.0], [g(1.0)], [[g(1.25)], [g(1.5)]]);
+        let (q, v) = poly.eval(1.1);
+        assert!((q[0] - g(1.1)).abs() < 1e-14 && (v[0] - (4.0 * 1.1 - 1.0)).abs() < 1e-13);
+    }
+}

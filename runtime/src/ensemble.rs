@@ -1,0 +1,228 @@
+//! Ensembles: one integration per input (initial conditions, parameters),
+//! run in parallel with the feature `rayon`, results in the order of the
+//! inputs.
+//!
+//! Each member is the user's closure `member(index, &input)`, which builds
+//! its own integrator and returns its result; members share nothing, so a
+//! parallel run returns exactly, bit for bit, what [`run_serial`] returns
+//! (`tests/ensemble.rs` checks 1000 pendulum runs). A member that fails (an
+//! `Err`, or a panic, which is caught) is reported with its index while the
+//! others finish.
+//!
+//! # Sharding over a cluster
+//!
+//! Built: [`shard`] gives the contiguous range of inputs of job `k` of `n`,
+//! [`Shard`] holds one job's results with the index of its first member,
+//! and [`merge`] puts the shards of all jobs back into one [`Ensemble`],
+//! checking that they cover every input once. With the feature `serde`,
+//! inputs of the user's types, [`Shard`] and [`Ensemble`] serialise (as JSON
+//! through `serde_json`, or any serde format), so each job writes its shard
+//! to a file and one last job merges them.
+//!
+//! On paper (not built or tested here, no scheduler on the test machine):
+//! a Slurm array job runs the same binary once per shard,
+//!
+//! ```text
+//! #!/bin/bash
+//! #SBATCH --array=0-63
+//! #SBATCH --cpus-per-task=8
+//! ./my_ensemble --inputs inputs.json --shard $SLURM_ARRAY_TASK_ID --shards 64 --out shard-$SLURM_ARRAY_TASK_ID.json
+//! ```
+//!
+//! where `my_ensemble` reads the inputs, takes `shard(inputs.len(),
+//! task, 64)`, runs those members with [`run`] (rayon uses the job's
+//! cores) and writes a [`Shard`]; a dependent job
+//! (`sbatch --dependency=afterok:<array job id>`) reads the 64 files and
+//! calls [`merge`]. Every member is independent, so the merged result equals
+//! a single-machine run bit for bit. MPI (rsmpi) is not offered: array jobs
+//! need no communication between members.
+
+use core::ops::Range;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+
+/// Why a member has no result.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum MemberError<E> {
+    /// The member returned an error.
+    #[error("{0}")]
+    Failed(E),
+    /// The member panicked (a bug in the member's code; the message is the panic's).
+    #[error("the member panicked: {0}")]
+    Panicked(String),
+}
+
+/// The results of an ensemble, in the order of its inputs.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Ensemble<O, E> {
+    /// One result per input.
+    pub results: Vec<Result<O, MemberError<E>>>,
+}
+
+impl<O, E> Ensemble<O, E> {
+    /// The number of members.
+    pub fn len(&self) -> usize {
+        self.results.len()
+    }
+
+    /// `true` without members.
+    pub fn is_empty(&self) -> bool {
+        self.results.is_empty()
+    }
+
+    /// The members that failed, with their indices.
+    pub fn failures(&self) -> impl Iterator<Item = (usize, &MemberError<E>)> {
+        self.results.iter().enumerate().filter_map(|(i, r)| r.as_ref().err().map(|e| (i, e)))
+    }
+
+    /// The members that succeeded, with their indices.
+    pub fn successes(&self) -> impl Iterator<Item = (usize, &O)> {
+        self.results.iter().enumerate().filter_map(|(i, r)| r.as_ref().ok().map(|o| (i, o)))
+    }
+}
+
+/// One member, its panic caught.
+fn one<I, O, E>(
+    member: &(impl Fn(usize, &I) -> Result<O, E> + Sync),
+    index: usize,
+    input: &I,
+) -> Result<O, MemberError<E>> {
+    match catch_unwind(AssertUnwindSafe(|| member(index, input))) {
+        Ok(Ok(o)) => Ok(o),
+        Ok(Err(e)) => Err(MemberError::Failed(e)),
+        Err(panic) => {
+            let text = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "(no message)".to_string());
+            Err(MemberError::Panicked(text))
+        }
+    }
+}
+
+/// Runs `member(index, &input)` for every input one after the other.
+pub fn run_serial<I, O, E>(inputs: &[I], member: impl Fn(usize, &I) -> Result<O, E> + Sync) -> Ensemble<O, E> {
+    Ensemble { results: inputs.iter().enumerate().map(|(i, x)| one(&member, i, x)).collect() }
+}
+
+/// Runs `member(index, &input)` for every input, in parallel on rayon's
+/// global thread pool (feature `rayon`; without it, serially). Results are in
+/// the order of the inputs and equal those of [`run_serial`].
+pub fn run<I: Sync, O: Send, E: Send>(
+    inputs: &[I],
+    member: impl Fn(usize, &I) -> Result<O, E> + Sync,
+) -> Ensemble<O, E> {
+    #[cfg(feature = "rayon")]
+    {
+        use rayon::prelude::*;
+        Ensemble { results: inputs.par_iter().enumerate().map(|(i, x)| one(&member, i, x)).collect() }
+    }
+    #[cfg(not(feature = "rayon"))]
+    run_serial(inputs, member)
+}
+
+/// Why a shard or a merge is refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ShardError {
+    /// `count` is zero or `index ≥ count`.
+    #[error("shard {index} of {count} does not exist")]
+    NoSuchShard {
+        /// The requested shard.
+        index: usize,
+        /// The number of shards.
+        count: usize,
+    },
+    /// The shards leave a member out or hold one twice.
+    #[error("the shards do not cover the members once: member {member} is {problem}")]
+    Coverage {
+        /// The first member in question.
+        member: usize,
+        /// `"missing"` or `"duplicated"`.
+        problem: &'static str,
+    },
+}
+
+/// The inputs of job `index` of `count` over `len` members: contiguous
+/// ranges whose sizes differ by at most one.
+pub fn shard(len: usize, index: usize, count: usize) -> Result<Range<usize>, ShardError> {
+    if count == 0 || index >= count {
+        return Err(ShardError::NoSuchShard { index, count });
+    }
+    let (base, extra) = (len / count, len % count);
+    let start = index * base + index.min(extra);
+    Ok(start..start + base + usize::from(index < extra))
+}
+
+/// The results of one job: members `start …` of the whole ensemble.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Shard<O, E> {
+    /// The index of the first member.
+    pub start: usize,
+    /// Its members' results.
+    pub results: Ensemble<O, E>,
+}
+
+/// The ensemble of all shards, in member order; refused unless they cover
+/// `0 … len` exactly once.
+pub fn merge<O, E>(mut shards: Vec<Shard<O, E>>) -> Result<Ensemble<O, E>, ShardError> {
+    shards.sort_by_key(|s| s.start);
+    let mut results = Vec::new();
+    for s in shards {
+        if s.start > results.len() {
+            return Err(ShardError::Coverage { member: results.len(), problem: "missing" });
+        }
+        if s.start < results.len() && !s.results.is_empty() {
+            return Err(ShardError::Coverage { member: s.start, problem: "duplicated" });
+        }
+        results.extend(s.results.results);
+    }
+    Ok(Ensemble { results })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_cover_every_member_once() {
+        for len in [0, 1, 7, 100, 1001] {
+            for count in [1, 2, 3, 64] {
+                let ranges: Vec<_> = (0..count).map(|k| shard(len, k, count).unwrap()).collect();
+                assert_eq!(ranges[0].start, 0);
+                assert_eq!(ranges.last().unwrap().end, len);
+                assert!(ranges.windows(2).all(|w| w[0].end == w[1].start));
+                assert!(ranges.iter().all(|r| r.len() == len / count || r.len() == len / count + 1));
+            }
+        }
+        assert_eq!(shard(10, 3, 3), Err(ShardError::NoSuchShard { index: 3, count: 3 }));
+        assert_eq!(shard(10, 0, 0), Err(ShardError::NoSuchShard { index: 0, count: 0 }));
+    }
+
+    #[test]
+    fn merging_checks_coverage_and_restores_the_order() {
+        let inputs: Vec<u32> = (0..10).collect();
+        let square = |_: usize, x: &u32| if *x == 7 { Err("seven") } else { Ok(x * x) };
+        let whole = run_serial(&inputs, square);
+        let part = |k: usize| {
+            let r = shard(10, k, 3).unwrap();
+            Shard { start: r.start, results: run_serial(&inputs[r], square) }
+        };
+        assert_eq!(merge(vec![part(2), part(0), part(1)]), Ok(whole.clone()));
+        assert_eq!(merge(vec![part(0), part(2)]), Err(ShardError::Coverage { member: 4, problem: "missing" }));
+        assert_eq!(merge(vec![part(0), part(0)]), Err(ShardError::Coverage { member: 0, problem: "duplicated" }));
+        assert_eq!(whole.failures().map(|(i, _)| i).collect::<Vec<_>>(), vec![7]);
+    }
+
+    #[test]
+    fn a_panicking_member_is_reported_and_the_others_finish() {
+        let inputs = [1, 2, 3];
+        let e = run(&inputs, |_, &x| if x == 2 { panic!("member two") } else { Ok::<_, ()>(x) });
+        assert_eq!(e.results[0], Ok(1));
+        assert_eq!(e.results[1], Err(MemberError::Panicked("member two".to_string())));
+        assert_eq!(e.results[2], Ok(3));
+    }
+}

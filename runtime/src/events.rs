@@ -1,0 +1,229 @@
+//! Events: sign changes of user functions `g(t, q, v)` along a solution.
+//!
+//! After every step [`solve`](crate::solution) compares the sign of each
+//! event function at the new node with its sign at the last one. Where it
+//! changed (in the direction the event asks for), the crossing is located
+//! on the step's [dense output](crate::dense) by the Illinois variant of
+//! regula falsi, a bracketing method that keeps the root enclosed and
+//! converges superlinearly, until the bracket is narrower than the event's
+//! time tolerance. The event's [`Action`] then says what happens:
+//! [`Record`](Action::Record) it, [`Stop`](Action::Stop) the run there, or
+//! [`Land`](Action::Land) a node on it and go on.
+//!
+//! Stopping and landing redo the step from its start with a step that ends
+//! on the event time `t*` (the integrators' `run_until`), so the integrator
+//! holds a genuine node at `t*` and can be continued from it. That node's
+//! state differs from the dense output at `t*` by the method's local error;
+//! [`EventRecord`] keeps the dense-output state, where `g` is zero to the
+//! tolerance.
+//!
+//! Limits: two crossings within one step (or between the samples set by
+//! [`Event::samples`]) cancel and are not seen; a crossing at the initial time
+//! is not reported.
+
+/// Which sign changes of `g` count.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Direction {
+    /// Both.
+    #[default]
+    Either,
+    /// From negative to non-negative.
+    Rising,
+    /// From positive to non-positive.
+    Falling,
+}
+
+/// What happens at an event.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Action {
+    /// Record it and go on; the steps are not changed.
+    #[default]
+    Record,
+    /// Record it and end the run with the integrator at a node at the event time.
+    Stop,
+    /// Record it, put a node at the event time, then go on to the end of the
+    /// step that was interrupted (fixed steps keep their grid).
+    Land,
+}
+
+/// A located event.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct EventRecord<const N: usize> {
+    /// Which event (its index in the plan).
+    pub event: usize,
+    /// The time of the crossing.
+    pub t: f64,
+    /// The position there, by dense output.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
+    pub q: [f64; N],
+    /// The velocity there, by dense output.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
+    pub v: [f64; N],
+    /// `true` when `g` was rising through zero.
+    pub rising: bool,
+}
+
+/// The event function's type: `g(t, q, v)`.
+pub type EventFn<'a, const N: usize> = Box<dyn FnMut(f64, &[f64; N], &[f64; N]) -> f64 + 'a>;
+
+/// An event function with its direction, action and tolerance.
+pub struct Event<'a, const N: usize> {
+    pub(crate) g: EventFn<'a, N>,
+    pub(crate) direction: Direction,
+    pub(crate) action: Action,
+    pub(crate) tolerance: f64,
+    pub(crate) samples: usize,
+}
+
+impl<const N: usize> core::fmt::Debug for Event<'_, N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Event")
+            .field("direction", &self.direction)
+            .field("action", &self.action)
+            .field("tolerance", &self.tolerance)
+            .field("samples", &self.samples)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a, const N: usize> Event<'a, N> {
+    /// An event at the zeros of `g(t, q, v)`: recorded, in either direction,
+    /// located to a time tolerance of `1e-14 · max(1, |t|)`.
+    pub fn new(g: impl FnMut(f64, &[f64; N], &[f64; N]) -> f64 + 'a) -> Self {
+        Self { g: Box::new(g), direction: Direction::Either, action: Action::Record, tolerance: 1e-14, samples: 1 }
+    }
+
+    /// Only sign changes in this direction.
+    pub fn direction(mut self, direction: Direction) -> Self {
+        self.direction = direction;
+        self
+    }
+
+    /// What to do at the event.
+    pub fn action(mut self, action: Action) -> Self {
+        self.action = action;
+        self
+    }
+
+    /// The relative time tolerance: the crossing is bracketed to
+    /// `tolerance · max(1, |t|)` (at least a few units of round-off).
+    pub fn tolerance(mut self, tolerance: f64) -> Self {
+        self.tolerance = tolerance;
+        self
+    }
+
+    /// Evaluate `g` at `samples − 1` equally spaced points inside each step
+    /// too (on the dense output), so that two crossings closer than a step
+    /// are seen when they fall into different samples (default 1: the nodes only).
+    pub fn samples(mut self, samples: usize) -> Self {
+        self.samples = samples;
+        self
+    }
+
+    /// `true` when `a → b` is a sign change this event counts.
+    pub(crate) fn crosses(&self, a: f64, b: f64) -> bool {
+        let rising = a < 0.0 && b >= 0.0;
+        let falling = a > 0.0 && b <= 0.0;
+        match self.direction {
+            Direction::Either => rising || falling,
+            Direction::Rising => rising,
+            Direction::Falling => falling,
+        }
+    }
+}
+
+/// Why a root could not be located.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct NotFinite {
+    pub(crate) t: f64,
+}
+
+/// The zero of `f` in `[a, b]` where `f(a) = fa` and `f(b) = fb` have
+/// opposite signs (or `fb = 0`), by the Illinois method: regula falsi,
+/// halving the value kept at an end that was kept twice in a row. Returns
+/// the end of the final bracket on the side of `b` (where the sign has
+/// changed), within `tol` of the root.
+pub(crate) fn illinois(
+    mut f: impl FnMut(f64) -> f64,
+    (mut a, mut fa): (f64, f64),
+    (mut b, mut fb): (f64, f64),
+    tol: f64,
+) -> Result<f64, NotFinite> {
+    if fb == 0.0 {
+        return Ok(b);
+    }
+    // Which end was replaced last: −1 for a, +1 for b.
+    let mut side = 0;
+    for _ in 0..200 {
+        if (b - a).abs() <= tol {
+            break;
+        }
+        let mut t = (a * fb - b * fa) / (fb - fa);
+        if !(t > a.min(b) && t < a.max(b)) {
+            t = 0.5 * (a + b);
+        }
+        let ft = f(t);
+        if !ft.is_finite() {
+            return Err(NotFinite { t });
+        }
+        if ft == 0.0 {
+            return Ok(t);
+        }
+        if (ft < 0.0) == (fb < 0.0) {
+            b = t;
+            fb = ft;
+            if side == 1 {
+                fa *= 0.5;
+            }
+            side = 1;
+        } else {
+            a = t;
+            fa = ft;
+            if side == -1 {
+                fb *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    Ok(b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn illinois_brackets_to_the_tolerance() {
+        let mut calls = 0;
+        let root = illinois(
+            |t| {
+                calls += 1;
+                t.cos() - t
+            },
+            (0.0, 1.0),
+            (1.0, 1f64.cos() - 1.0),
+            1e-15,
+        )
+        .unwrap();
+        assert!((root - 0.739_085_133_215_160_6).abs() < 2e-15, "{root}");
+        assert!(calls < 20, "{calls} evaluations");
+        // A flat function where plain regula falsi keeps one end for ever.
+        let root = illinois(|t: f64| t.powi(9) - 1e-9, (0.0, -1e-9), (1.0, 1.0 - 1e-9), 1e-14).unwrap();
+        assert!((root - 0.1).abs() < 1e-13, "{root}");
+        assert_eq!(illinois(|_| f64::NAN, (0.0, -1.0), (1.0, 1.0), 1e-12), Err(NotFinite { t: 0.5 }));
+    }
+
+    #[test]
+    fn directions_filter_sign_changes() {
+        let e = Event::<1>::new(|_, q, _| q[0]);
+        assert!(e.crosses(-1.0, 1.0) && e.crosses(1.0, -1.0) && e.crosses(-1.0, 0.0));
+        assert!(!e.crosses(0.0, 1.0) && !e.crosses(1.0, 2.0));
+        let rising = Event::<1>::new(|_, q, _| q[0]).direction(Direction::Rising);
+        assert!(rising.crosses(-1.0, 1.0) && !rising.crosses(1.0, -1.0));
+        let falling = Event::<1>::new(|_, q, _| q[0]).direction(Direction::Falling);
+        assert!(!falling.crosses(-1.0, 1.0) && falling.crosses(1.0, -1.0));
+    }
+}

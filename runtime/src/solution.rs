@@ -1,0 +1,919 @@
+//! Solutions: a run recorded as a table, with values between the nodes,
+//! events, statistics and the way the run ended.
+//!
+//! ```
+//! use lagrangian_runtime::{Integrator, Lagrangian, Midpoint, Scalar};
+//! use lagrangian_runtime::solution::Plan;
+//!
+//! #[derive(Clone)]
+//! struct Oscillator;
+//! impl Lagrangian<1> for Oscillator {
+//!     const AUTONOMOUS: bool = true;
+//!     const CYCLIC: [bool; 1] = [false];
+//!     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+//!         (v[0] * v[0] - q[0] * q[0]) * 0.5
+//!     }
+//! }
+//!
+//! let mut sim = Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
+//! let solution = sim.solve(Plan::until(1.0).every(10).save_at(vec![0.125, 0.5]))?;
+//! assert!(solution.is_finished());
+//! // Nodes 0, 10, …, 100 (t = 0 included) and the two requested times, in time order.
+//! assert_eq!(solution.len(), 13);
+//! assert_eq!(solution.t[0], 0.0);
+//! assert_eq!(solution.t[2], 0.125);
+//! assert_eq!(solution.step[2], None); // interpolated, not a node
+//! assert!((solution.q[2][0] - 0.125f64.cos()).abs() < 1e-4);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A [`Plan`] says how far to integrate and what to keep: every `n`-th node
+//! ([`Plan::every`]; the first and the last node are always kept), values at
+//! given times by [dense output](crate::dense) ([`Plan::save_at`]),
+//! [events](crate::events), an observer every `n` steps, an energy watch
+//! ([`Plan::energy_tolerance`]) and (feature `progress`) a progress bar.
+//! The rows of a [`Solution`] are in time order; `step[i]` is the node index
+//! `k` of a node and `None` for an interpolated value. Velocities are those
+//! whose momentum is `p_k` (the inverse Legendre transform, one small Newton
+//! solve per row) and the energy is `E_L(t, q, v)`;
+//! [`Plan::without_velocities`] keeps only `t, q, p` and skips those solves.
+//!
+//! A step that fails ends the run: the solution holds everything up to the
+//! last good node, its [`status`](Solution::status) is
+//! [`Status::Failed`] and [`error`](Solution::error) holds the typed error,
+//! and the integrator is at that last node. [`Solution::into_result`] turns
+//! that into an `Err` for callers who want `?`.
+//!
+//! With the feature `serde`, [`Solution`] is `Serialize`/`Deserialize` (the
+//! typed error is not: its message is kept in the status), and
+//! [`Solution::write_csv`], [`Solution::read_csv`], [`Solution::write_json`]
+//! and [`Solution::read_json`] write and read it through `csv` and
+//! `serde_json`.
+
+use crate::dense::{DenseStep, Hermite, Node, acceleration};
+use crate::error::Error;
+use crate::events::{Action, Event, EventRecord, illinois};
+use crate::integrator::Stats;
+use crate::mechanics::DiscreteMechanics;
+use crate::state::State;
+use crate::system::Lagrangian;
+
+/// An integrator as the workflow tools drive it, in `f64`: implemented for
+/// [`Integrator`](crate::Integrator) and [`GalerkinIntegrator`](crate::GalerkinIntegrator)
+/// (in `f64`) in one place, `stepping.rs`.
+pub trait Stepping<const N: usize> {
+    /// The integrated system.
+    type System: Lagrangian<N>;
+    /// The method's own interpolant of one step.
+    type Native: DenseStep<N>;
+
+    /// The system.
+    fn system(&self) -> &Self::System;
+
+    /// The state at the current node.
+    fn state(&self) -> State<N>;
+
+    /// The velocity whose momentum is the current `p_k`.
+    fn velocity(&self) -> Result<[f64; N], Error<N>>;
+
+    /// Work counters.
+    fn stats(&self) -> Stats;
+
+    /// One step of the integrator's own size (or, under energy-preserving
+    /// steps, the size the energy equation picks).
+    fn step(&mut self) -> Result<(), Error<N>>;
+
+    /// `true` when the next step would reach `t_end` or pass it, so that the
+    /// caller should land on it with [`land`](Self::land) instead; `last_h`
+    /// is the length of the last step taken (`None` before the first).
+    fn reaches(&self, t_end: f64, last_h: Option<f64>) -> bool;
+
+    /// Steps to `t` exactly (the integrators' `run_until`); from within one
+    /// step of `t` (see [`reaches`](Self::reaches)), one shortened step.
+    fn land(&mut self, t: f64) -> Result<(), Error<N>>;
+
+    /// The method's own interpolant of the last step, which ran from `start`
+    /// to the current node `end`.
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Self::Native;
+}
+
+/// Which interpolant dense output uses (see [`crate::dense`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DenseKind {
+    /// The method's own: the cubic Hermite for the one-point rules (midpoint,
+    /// trapezoid, α-β), the step polynomial for Galerkin (order `s + 1`).
+    #[default]
+    Native,
+    /// The cubic Hermite from `q, v` at both nodes (order 4).
+    Cubic,
+    /// The quintic Hermite from `q, v` and the acceleration at both nodes
+    /// (order 6; one more evaluation of the Hessian of `L` per node).
+    Quintic,
+}
+
+/// An observer called at nodes: `(node, k)`.
+type Observer<'a, const N: usize> = Box<dyn FnMut(&Node<N>) + 'a>;
+
+/// What [`solve`](crate::Integrator::solve) does: how far, what it keeps,
+/// which events it watches.
+pub struct Plan<'a, const N: usize> {
+    t_end: f64,
+    every: usize,
+    save_at: Vec<f64>,
+    dense: DenseKind,
+    events: Vec<Event<'a, N>>,
+    velocities: bool,
+    observer: Option<(usize, Observer<'a, N>)>,
+    energy_tolerance: Option<f64>,
+    #[cfg(feature = "progress")]
+    progress: bool,
+}
+
+impl<const N: usize> core::fmt::Debug for Plan<'_, N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Plan")
+            .field("t_end", &self.t_end)
+            .field("every", &self.every)
+            .field("save_at", &self.save_at)
+            .field("dense", &self.dense)
+            .field("events", &self.events)
+            .field("velocities", &self.velocities)
+            .field("energy_tolerance", &self.energy_tolerance)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a, const N: usize> Plan<'a, N> {
+    /// Integrate to `t_end` (landing on it exactly) keeping every node.
+    pub fn until(t_end: f64) -> Self {
+        Self {
+            t_end,
+            every: 1,
+            save_at: Vec::new(),
+            dense: DenseKind::Native,
+            events: Vec::new(),
+            velocities: true,
+            observer: None,
+            energy_tolerance: None,
+            #[cfg(feature = "progress")]
+            progress: false,
+        }
+    }
+
+    /// Keep every `n`-th node, counted in steps of this run, and the first
+    /// and last; `0` keeps no nodes (only [`save_at`](Self::save_at) values).
+    pub fn every(mut self, n: usize) -> Self {
+        self.every = n;
+        self
+    }
+
+    /// Keep the solution at these times (sorted, within `[t_now, t_end]`), by dense output.
+    pub fn save_at(mut self, times: Vec<f64>) -> Self {
+        self.save_at = times;
+        self
+    }
+
+    /// The interpolant for [`save_at`](Self::save_at) and events.
+    pub fn dense(mut self, kind: DenseKind) -> Self {
+        self.dense = kind;
+        self
+    }
+
+    /// Watch an event.
+    pub fn event(mut self, event: Event<'a, N>) -> Self {
+        self.events.push(event);
+        self
+    }
+
+    /// Keep `t, q, p` only: no velocity or energy columns, no inverse
+    /// Legendre solve for rows that do not need one.
+    pub fn without_velocities(mut self) -> Self {
+        self.velocities = false;
+        self
+    }
+
+    /// Call `observe` at the start and after every `n`-th step (`n ≥ 1`).
+    pub fn observe_every(mut self, n: usize, observe: impl FnMut(&Node<N>) + 'a) -> Self {
+        self.observer = Some((n, Box::new(observe)));
+        self
+    }
+
+    /// Watch the energy `E_L` at every node and report in
+    /// [`Solution::energy`](Solution::energy_watch) where its relative change
+    /// from the start first exceeded `tolerance` (see [`EnergyWatch`]).
+    pub fn energy_tolerance(mut self, tolerance: f64) -> Self {
+        self.energy_tolerance = Some(tolerance);
+        self
+    }
+
+    /// Show a progress bar on standard error while solving (hidden when
+    /// standard error is not a terminal).
+    #[cfg(feature = "progress")]
+    pub fn progress(mut self) -> Self {
+        self.progress = true;
+        self
+    }
+}
+
+/// How a run ended.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub enum Status {
+    /// It reached the end time.
+    Finished,
+    /// A [`Stop`](Action::Stop) event ended it at `t`.
+    Stopped {
+        /// The index of the event.
+        event: usize,
+        /// The event time (the integrator's last node).
+        t: f64,
+    },
+    /// A step or an event function failed; [`Solution::error`] holds the
+    /// typed error.
+    Failed {
+        /// The error's message.
+        message: String,
+    },
+}
+
+/// Counters of a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct RunStats {
+    /// Steps taken by the integrator over its life (its [`Stats`](crate::Stats)).
+    pub steps: u64,
+    /// Newton iterations over all steps (its [`Stats`](crate::Stats)).
+    pub newton_iterations: u64,
+    /// Failed steps (its [`Stats`](crate::Stats)).
+    pub failed_steps: u64,
+    /// Steps of this run that were taken again to end on an event.
+    pub redone_steps: u64,
+    /// Inverse Legendre solves for node velocities.
+    pub velocity_solves: u64,
+    /// Evaluations of event functions.
+    pub event_evaluations: u64,
+}
+
+/// The energy watch of a run ([`Plan::energy_tolerance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct EnergyWatch {
+    /// The tolerance on `|E_L − E_0| / |E_0|`.
+    pub tolerance: f64,
+    /// `E_0`, the energy at the first node.
+    pub initial: f64,
+    /// The largest relative change seen at a node.
+    pub largest: f64,
+    /// Where it happened.
+    pub largest_at: f64,
+    /// The first node time where the change exceeded the tolerance.
+    pub exceeded_at: Option<f64>,
+}
+
+impl EnergyWatch {
+    /// A warning text when the tolerance was exceeded.
+    pub fn warning(&self) -> Option<String> {
+        let t = self.exceeded_at?;
+        Some(format!(
+            "the energy changed by more than {:e} (relative) from t = {t} on; the largest change was {:e} at t = {}: \
+             the step size is probably too large (see `lagrangian_runtime::guidance`)",
+            self.tolerance, self.largest, self.largest_at
+        ))
+    }
+
+    fn observe(&mut self, t: f64, energy: f64) {
+        let change = (energy - self.initial).abs() / self.initial.abs().max(f64::MIN_POSITIVE);
+        // NaN counts as exceeding.
+        if change.is_nan() || change > self.largest {
+            self.largest = change;
+            self.largest_at = t;
+        }
+        if self.exceeded_at.is_none() && (change.is_nan() || change > self.tolerance) {
+            self.exceeded_at = Some(t);
+        }
+    }
+}
+
+/// What can go wrong in [`solve`](crate::Integrator::solve).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SolveError<const N: usize> {
+    /// A step failed (or the velocity of a node could not be found).
+    #[error(transparent)]
+    Step(#[from] Error<N>),
+    /// An end time that is not finite or lies behind the current time.
+    #[error("invalid end time {t_end}: the integrator is at t = {t}")]
+    InvalidEnd {
+        /// The requested end.
+        t_end: f64,
+        /// The current time.
+        t: f64,
+    },
+    /// A save time that is not finite, out of `[t, t_end]` or out of order.
+    #[error("`save_at[{index}]` = {time} is not sorted or not within [{t}, {t_end}]")]
+    InvalidSaveTime {
+        /// Its index.
+        index: usize,
+        /// The time.
+        time: f64,
+        /// The current time.
+        t: f64,
+        /// The end time.
+        t_end: f64,
+    },
+    /// An event function returned NaN or an infinity.
+    #[error("event {event} is not finite at t = {t}")]
+    NonFiniteEvent {
+        /// Which event.
+        event: usize,
+        /// Where.
+        t: f64,
+    },
+    /// An event with a tolerance that is not finite and positive, or no samples.
+    #[error("invalid event {event}: {reason}")]
+    InvalidEvent {
+        /// Which event.
+        event: usize,
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// Other settings of the plan that cannot work.
+    #[error("invalid plan: {reason}")]
+    InvalidPlan {
+        /// What is wrong.
+        reason: &'static str,
+    },
+    /// The acceleration for quintic dense output does not exist.
+    #[error("no acceleration at t = {t}: ∂²L/∂v² is singular or a value is not finite")]
+    NoAcceleration {
+        /// Where.
+        t: f64,
+    },
+}
+
+/// A recorded run: one row per kept node or requested time, in time order.
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct Solution<const N: usize> {
+    /// Times.
+    pub t: Vec<f64>,
+    /// The node index `k` of a node row, `None` for an interpolated one.
+    pub step: Vec<Option<u64>>,
+    /// Positions.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
+    pub q: Vec<[f64; N]>,
+    /// Momenta (`p_k` at nodes; `∂L/∂v` of the interpolated `q, v` between them).
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
+    pub p: Vec<[f64; N]>,
+    /// Velocities (empty under [`Plan::without_velocities`]).
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
+    pub v: Vec<[f64; N]>,
+    /// The energy `E_L(t, q, v)` (empty under [`Plan::without_velocities`]).
+    pub energy: Vec<f64>,
+    /// Located events, in time order.
+    pub events: Vec<EventRecord<N>>,
+    /// Counters.
+    pub stats: RunStats,
+    /// The energy watch, if the plan asked for one.
+    pub energy_watch: Option<EnergyWatch>,
+    /// How the run ended.
+    pub status: Status,
+    /// The typed error of a failed run.
+    #[cfg_attr(feature = "serde", serde(skip))]
+    pub error: Option<SolveError<N>>,
+}
+
+/// A run that failed: the partial solution and the error.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{error} (the partial solution ends at t = {})", .solution.t.last().copied().unwrap_or(f64::NAN))]
+pub struct Failed<const N: usize> {
+    /// Everything recorded up to the last good node.
+    pub solution: Box<Solution<N>>,
+    /// What failed.
+    pub error: SolveError<N>,
+}
+
+impl<const N: usize> Solution<N> {
+    fn empty() -> Self {
+        Self {
+            t: Vec::new(),
+            step: Vec::new(),
+            q: Vec::new(),
+            p: Vec::new(),
+            v: Vec::new(),
+            energy: Vec::new(),
+            events: Vec::new(),
+            stats: RunStats::default(),
+            energy_watch: None,
+            status: Status::Finished,
+            error: None,
+        }
+    }
+
+    /// The number of rows.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// `true` without rows.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// `true` when the run reached its end time.
+    pub fn is_finished(&self) -> bool {
+        self.status == Status::Finished
+    }
+
+    /// `Ok(self)` unless the run failed.
+    pub fn into_result(mut self) -> Result<Self, Failed<N>> {
+        match self.error.take() {
+            None => Ok(self),
+            Some(error) => Err(Failed { solution: Box::new(self), error }),
+        }
+    }
+
+    /// The warning of the energy watch, if it has one.
+    pub fn energy_warning(&self) -> Option<String> {
+        self.energy_watch.as_ref()?.warning()
+    }
+
+    fn push(&mut self, step: Option<u64>, t: f64, q: [f64; N], p: [f64; N], v: Option<([f64; N], f64)>) {
+        self.t.push(t);
+        self.step.push(step);
+        self.q.push(q);
+        self.p.push(p);
+        if let Some((v, e)) = v {
+            self.v.push(v);
+            self.energy.push(e);
+        }
+    }
+}
+
+/// A node as the driver carries it: the velocity only once it was needed.
+#[derive(Clone, Copy)]
+struct Carried<const N: usize> {
+    node: Node<N>,
+    step: u64,
+    has_v: bool,
+    a: Option<[f64; N]>,
+}
+
+/// The state of one run of [`solve`].
+struct Driver<'s, 'a, I, const N: usize> {
+    sim: &'s mut I,
+    plan: Plan<'a, N>,
+    sol: Solution<N>,
+    next_save: usize,
+    steps: u64,
+}
+
+enum StepInterpolant<Nat, const N: usize> {
+    Native(Nat),
+    Hermite(Hermite<N>),
+}
+
+impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+        match self {
+            Self::Native(d) => d.eval(t),
+            Self::Hermite(d) => d.eval(t),
+        }
+    }
+}
+
+impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
+    fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError<N>> {
+        let s = self.sim.state();
+        let mut c =
+            Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
+        if with_v {
+            self.velocity(&mut c)?;
+        }
+        Ok(c)
+    }
+
+    fn velocity(&mut self, c: &mut Carried<N>) -> Result<(), SolveError<N>> {
+        if !c.has_v {
+            c.node.v = self.sim.velocity()?;
+            c.has_v = true;
+            self.sol.stats.velocity_solves += 1;
+        }
+        Ok(())
+    }
+
+    fn accel(&mut self, c: &mut Carried<N>) -> Result<[f64; N], SolveError<N>> {
+        if let Some(a) = c.a {
+            return Ok(a);
+        }
+        let n = &c.node;
+        let a = acceleration(self.sim.system(), n.t, n.q, n.v).ok_or(SolveError::NoAcceleration { t: n.t })?;
+        c.a = Some(a);
+        Ok(a)
+    }
+
+    fn energy(&self, t: f64, q: [f64; N], v: [f64; N]) -> f64 {
+        self.sim.system().energy(t, q, v)
+    }
+
+    /// Keeps a node row.
+    fn keep_node(&mut self, c: &mut Carried<N>) -> Result<(), SolveError<N>> {
+        let v = if self.plan.velocities {
+            self.velocity(c)?;
+            Some((c.node.v, self.energy(c.node.t, c.node.q, c.node.v)))
+        } else {
+            None
+        };
+        self.sol.push(Some(c.step), c.node.t, c.node.q, c.node.p, v);
+        Ok(())
+    }
+
+    /// Keeps the save times in `(after, upto]`, by `dense`.
+    fn keep_saved(&mut self, dense: &StepInterpolant<I::Native, N>, after: f64, upto: f64) {
+        while let Some(&t) = self.plan.save_at.get(self.next_save) {
+            if t > upto || t <= after {
+                break;
+            }
+            let (q, v) = dense.eval(t);
+            let p = self.sim.system().momentum(t, q, v);
+            let e = self.plan.velocities.then(|| (v, self.energy(t, q, v)));
+            self.sol.push(None, t, q, p, e);
+            self.next_save += 1;
+        }
+    }
+
+    fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError<N>> {
+        let due = match &self.plan.observer {
+            Some((n, _)) => force || self.steps.is_multiple_of(*n as u64),
+            None => false,
+        };
+        if due {
+            self.velocity(c)?;
+            if let Some((_, f)) = &mut self.plan.observer {
+                f(&c.node);
+            }
+        }
+        Ok(())
+    }
+
+    fn interpolant(
+        &mut self,
+        start: &mut Carried<N>,
+        end: &mut Carried<N>,
+    ) -> Result<StepInterpolant<I::Native, N>, SolveError<N>> {
+        Ok(match self.plan.dense {
+            DenseKind::Native => StepInterpolant::Native(self.sim.native(&start.node, &end.node)),
+            DenseKind::Cubic => StepInterpolant::Hermite(Hermite::cubic(&start.node, &end.node)),
+            DenseKind::Quintic => {
+                let a0 = self.accel(start)?;
+                let a1 = self.accel(end)?;
+                StepInterpolant::Hermite(Hermite::quintic(&start.node, a0, &end.node, a1))
+            }
+        })
+    }
+
+    fn g(&mut self, i: usize, t: f64, q: &[f64; N], v: &[f64; N]) -> Result<f64, SolveError<N>> {
+        self.sol.stats.event_evaluations += 1;
+        let g = (self.plan.events[i].g)(t, q, v);
+        if g.is_finite() { Ok(g) } else { Err(SolveError::NonFiniteEvent { event: i, t }) }
+    }
+
+    /// Locates the crossings of the events over the step `start → end`.
+    /// Returns the records and the earliest stopping or landing one (index
+    /// into the records), and the event values at `end`.
+    #[allow(clippy::type_complexity)]
+    fn crossings(
+        &mut self,
+        dense: &StepInterpolant<I::Native, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+        g_start: &[f64],
+    ) -> Result<(Vec<EventRecord<N>>, Option<usize>, Vec<f64>), SolveError<N>> {
+        let mut found = Vec::new();
+        let mut g_end = Vec::with_capacity(g_start.len());
+        for i in 0..self.plan.events.len() {
+            let samples = self.plan.events[i].samples;
+            let (mut ta, mut ga) = (start.t, g_start[i]);
+            let mut stop_found = false;
+            for j in 1..=samples {
+                let (tb, qb, vb) = if j == samples {
+                    (end.t, end.q, end.v)
+                } else {
+                    let tb = start.t + (end.t - start.t) * (j as f64 / samples as f64);
+                    let (q, v) = dense.eval(tb);
+                    (tb, q, v)
+                };
+                let gb = self.g(i, tb, &qb, &vb)?;
+                if !stop_found && self.plan.events[i].crosses(ga, gb) {
+                    let tol = self.plan.events[i].tolerance * tb.abs().max(1.0) + 4.0 * f64::EPSILON * tb.abs();
+                    let mut evals = 0;
+                    let event = &mut self.plan.events[i];
+                    let root = illinois(
+                        |t| {
+                            evals += 1;
+                            let (q, v) = dense.eval(t);
+                            (event.g)(t, &q, &v)
+                        },
+                        (ta, ga),
+                        (tb, gb),
+                        tol,
+                    );
+                    self.sol.stats.event_evaluations += evals;
+                    let t = root.map_err(|e| SolveError::NonFiniteEvent { event: i, t: e.t })?;
+                    let (q, v) = dense.eval(t);
+                    found.push(EventRecord { event: i, t, q, v, rising: ga < 0.0 });
+                    stop_found = self.plan.events[i].action != Action::Record;
+                }
+                (ta, ga) = (tb, gb);
+            }
+            g_end.push(ga);
+        }
+        found.sort_by(|a, b| a.t.total_cmp(&b.t));
+        let stop = found.iter().position(|r| self.plan.events[r.event].action != Action::Record);
+        if let Some(k) = stop {
+            found.truncate(k + 1);
+        }
+        Ok((found, stop, g_end))
+    }
+}
+
+/// Integrates `sim` as `plan` says (see the [module docs](self)).
+pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
+    sim: &mut I,
+    plan: Plan<'_, N>,
+) -> Result<Solution<N>, SolveError<N>> {
+    let t0 = sim.state().t;
+    let t_end = plan.t_end;
+    if !t_end.is_finite() || t_end < t0 {
+        return Err(SolveError::InvalidEnd { t_end, t: t0 });
+    }
+    let mut previous = t0;
+    for (index, &time) in plan.save_at.iter().enumerate() {
+        if !(time >= previous && time <= t_end) {
+            return Err(SolveError::InvalidSaveTime { index, time, t: t0, t_end });
+        }
+        previous = time;
+    }
+    for (event, e) in plan.events.iter().enumerate() {
+        if !(e.tolerance.is_finite() && e.tolerance > 0.0) {
+            return Err(SolveError::InvalidEvent { event, reason: "the tolerance must be finite and positive" });
+        }
+        if e.samples == 0 {
+            return Err(SolveError::InvalidEvent { event, reason: "at least one sample per step is needed" });
+        }
+    }
+    if matches!(plan.observer, Some((0, _))) {
+        return Err(SolveError::InvalidPlan { reason: "an observer needs `n ≥ 1` in `observe_every(n, ..)`" });
+    }
+    if plan.energy_tolerance.is_some_and(|tol| !(tol.is_finite() && tol > 0.0)) {
+        return Err(SolveError::InvalidPlan { reason: "the energy tolerance must be finite and positive" });
+    }
+    let mut d = Driver { sim, plan, sol: Solution::empty(), next_save: 0, steps: 0 };
+    let error = run(&mut d).err();
+    let mut sol = d.sol;
+    let stats = d.sim.stats();
+    sol.stats.steps = stats.steps;
+    sol.stats.newton_iterations = stats.newton_iterations;
+    sol.stats.failed_steps = stats.failed_steps;
+    if let Some(e) = error {
+        sol.status = Status::Failed { message: e.to_string() };
+        sol.error = Some(e);
+    }
+    Ok(sol)
+}
+
+/// The loop of [`solve`]; an `Err` ends the run with what was recorded.
+fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> Result<(), SolveError<N>> {
+    let t_end = d.plan.t_end;
+    let has_events = !d.plan.events.is_empty();
+    let dense_needed = has_events || !d.plan.save_at.is_empty();
+    let rewind = d.plan.events.iter().any(|e| e.action != Action::Record);
+    let v_each_step = dense_needed || d.plan.energy_tolerance.is_some();
+    #[cfg(feature = "progress")]
+    let bar = d.plan.progress.then(|| progress_bar(t_end - d.sim.state().t));
+
+    let mut prev = d.node(v_each_step)?;
+    let t0 = prev.node.t;
+    if let Some(tolerance) = d.plan.energy_tolerance {
+        d.velocity(&mut prev)?;
+        let initial = d.energy(t0, prev.node.q, prev.node.v);
+        d.sol.energy_watch = Some(EnergyWatch { tolerance, initial, largest: 0.0, largest_at: t0, exceeded_at: None });
+    }
+    // Save times at t0 come before the first node row.
+    while d.plan.save_at.get(d.next_save) == Some(&t0) {
+        d.velocity(&mut prev)?;
+        let n = prev.node;
+        let e = d.plan.velocities.then(|| (n.v, d.energy(t0, n.q, n.v)));
+        d.sol.push(None, t0, n.q, n.p, e);
+        d.next_save += 1;
+    }
+    if d.plan.every > 0 {
+        d.keep_node(&mut prev)?;
+    }
+    d.observe(&mut prev, true)?;
+    let mut g_prev = Vec::with_capacity(d.plan.events.len());
+    for i in 0..d.plan.events.len() {
+        let n = prev.node;
+        g_prev.push(d.g(i, n.t, &n.q, &n.v)?);
+    }
+    let mut rejoin: Option<f64> = None;
+    let mut last_h = None;
+    while prev.node.t < t_end {
+        let before = rewind.then(|| d.sim.clone());
+        let result = match rejoin.take() {
+            Some(t) => d.sim.land(t),
+            None if d.sim.reaches(t_end, last_h) => d.sim.land(t_end),
+            None => d.sim.step(),
+        };
+        result?;
+        d.steps += 1;
+        let mut end = d.node(v_each_step)?;
+        let mut landed = None;
+        if dense_needed {
+            let dense = d.interpolant(&mut prev, &mut end)?;
+            let mut upto = end.node.t;
+            if has_events {
+                let (found, stop, g_end) = d.crossings(&dense, &prev.node, &end.node, &g_prev)?;
+                g_prev = g_end;
+                d.sol.events.extend_from_slice(&found);
+                if let Some(k) = stop {
+                    let record = found[k];
+                    upto = record.t;
+                    landed = Some((record, end.node.t));
+                }
+            }
+            d.keep_saved(&dense, prev.node.t, upto);
+        }
+        if let Some((record, t_step_end)) = landed {
+            // Redo the step from its start so that it ends on the event.
+            if let Some(before) = before {
+                *d.sim = before;
+            }
+            d.sim.land(record.t)?;
+            d.sol.stats.redone_steps += 1;
+            end = d.node(true)?;
+            for i in 0..d.plan.events.len() {
+                g_prev[i] = if i == record.event {
+                    // The side the crossing left g on: the node at t* can
+                    // differ from the dense output by the local error, and
+                    // must not count as a second crossing.
+                    let (q, v) = (record.q, record.v);
+                    d.g(i, record.t, &q, &v)?
+                } else {
+                    let n = end.node;
+                    d.g(i, n.t, &n.q, &n.v)?
+                };
+            }
+            match d.plan.events[record.event].action {
+                Action::Stop => {
+                    d.sol.status = Status::Stopped { event: record.event, t: record.t };
+                    finish_node(d, &mut end, true)?;
+                    return Ok(());
+                }
+                _ => {
+                    if t_step_end > record.t {
+                        rejoin = Some(t_step_end);
+                    }
+                }
+            }
+        }
+        let last = end.node.t >= t_end;
+        finish_node(d, &mut end, last)?;
+        #[cfg(feature = "progress")]
+        if let Some(bar) = &bar
+            && (d.steps.is_multiple_of(64) || last)
+        {
+            bar.set_position((((end.node.t - t0) / (t_end - t0)) * PROGRESS_UNITS as f64) as u64);
+        }
+        last_h = Some(end.node.t - prev.node.t);
+        prev = end;
+    }
+    #[cfg(feature = "progress")]
+    if let Some(bar) = bar {
+        bar.finish();
+    }
+    Ok(())
+}
+
+/// Node rows, observer and energy watch after a step.
+fn finish_node<I: Stepping<N> + Clone, const N: usize>(
+    d: &mut Driver<'_, '_, I, N>,
+    end: &mut Carried<N>,
+    last: bool,
+) -> Result<(), SolveError<N>> {
+    if d.plan.every > 0 && (last || d.steps.is_multiple_of(d.plan.every as u64)) {
+        d.keep_node(end)?;
+    }
+    d.observe(end, false)?;
+    if d.sol.energy_watch.is_some() {
+        d.velocity(end)?;
+        let e = d.energy(end.node.t, end.node.q, end.node.v);
+        if let Some(w) = &mut d.sol.energy_watch {
+            w.observe(end.node.t, e);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(feature = "progress")]
+const PROGRESS_UNITS: u64 = 10_000;
+
+#[cfg(feature = "progress")]
+fn progress_bar(span: f64) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(PROGRESS_UNITS);
+    let style = indicatif::ProgressStyle::with_template(
+        "{bar:40} {percent:>3}% of t ∈ [t0, t0 + {msg}] ({elapsed}, {eta} left)",
+    )
+    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+    bar.set_style(style);
+    bar.set_message(format!("{span}"));
+    bar
+}
+
+/// Why a solution could not be written or read.
+#[cfg(feature = "serde")]
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum TableError {
+    /// From the CSV reader or writer.
+    #[error("csv: {0}")]
+    Csv(#[from] csv::Error),
+    /// From the JSON reader or writer.
+    #[error("json: {0}")]
+    Json(#[from] serde_json::Error),
+    /// A CSV table whose columns do not fit a solution with `N` coordinates.
+    #[error("csv: {reason}")]
+    Shape {
+        /// What does not fit.
+        reason: String,
+    },
+}
+
+#[cfg(feature = "serde")]
+impl<const N: usize> Solution<N> {
+    /// The CSV header: `t, step, q0 …, p0 …` and, with velocities,
+    /// `v0 …, energy`.
+    fn header(&self) -> Vec<String> {
+        let mut h = vec!["t".to_string(), "step".to_string()];
+        for name in ["q", "p"] {
+            h.extend((0..N).map(|i| format!("{name}{i}")));
+        }
+        if !self.v.is_empty() {
+            h.extend((0..N).map(|i| format!("v{i}")));
+            h.push("energy".to_string());
+        }
+        h
+    }
+
+    /// Writes the rows as CSV (header `t,step,q0,…,p0,…[,v0,…,energy]`; an
+    /// empty `step` marks an interpolated row). Numbers are written by the
+    /// `csv` crate in their shortest form that reads back to the same `f64`.
+    /// Events, statistics and status are not part of the table (see
+    /// [`write_json`](Self::write_json)).
+    pub fn write_csv<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
+        let mut out = csv::Writer::from_writer(w);
+        out.write_record(self.header())?;
+        for i in 0..self.len() {
+            if self.v.is_empty() {
+                out.serialize((self.t[i], self.step[i], self.q[i].as_slice(), self.p[i].as_slice()))?;
+            } else {
+                let row = (self.q[i].as_slice(), self.p[i].as_slice(), self.v[i].as_slice(), self.energy[i]);
+                out.serialize((self.t[i], self.step[i], row))?;
+            }
+        }
+        out.flush().map_err(csv::Error::from)?;
+        Ok(())
+    }
+
+    /// Reads a table written by [`write_csv`](Self::write_csv) (status
+    /// `Finished`, no events, zero statistics: the table holds only rows).
+    pub fn read_csv<R: std::io::Read>(r: R) -> Result<Self, TableError> {
+        let mut input = csv::Reader::from_reader(r);
+        let columns = input.headers()?.len();
+        let velocities = match columns {
+            c if c == 2 + 2 * N => false,
+            c if c == 3 + 3 * N => true,
+            c => return Err(TableError::Shape { reason: format!("{c} columns do not fit N = {N}") }),
+        };
+        let mut sol = Self::empty();
+        for record in input.records() {
+            let (t, step, rest): (f64, Option<u64>, Vec<f64>) = record?.deserialize(None)?;
+            let take = |k: usize| -> [f64; N] { core::array::from_fn(|i| rest[k * N + i]) };
+            let v = velocities.then(|| (take(2), rest[3 * N]));
+            sol.push(step, t, take(0), take(1), v);
+        }
+        Ok(sol)
+    }
+
+    /// Writes the whole solution (rows, events, statistics, status) as JSON.
+    pub fn write_json<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
+        Ok(serde_json::to_writer(w, self)?)
+    }
+
+    /// Reads a solution written by [`write_json`](Self::write_json); the
+    /// typed [`error`](Self::error) of a failed run comes back as `None`
+    /// (its message is in the status).
+    pub fn read_json<R: std::io::Read>(r: R) -> Result<Self, TableError> {
+        Ok(serde_json::from_reader(r)?)
+    }
+}

@@ -1,0 +1,89 @@
+//! Ensembles: 1000 pendulum runs in parallel equal the serial runs bit for
+//! bit, in input order; failing members are reported with their index while
+//! the others finish; shards serialise and merge back into the whole.
+
+use lagrangian::ensemble::{self, Ensemble, MemberError, Shard};
+use lagrangian::prelude::*;
+use lagrangian::{Plan, Solution};
+
+#[derive(Clone)]
+struct Pendulum {
+    omega2: f64,
+}
+
+#[lagrangian]
+impl Pendulum {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] + self.omega2 * q[0].cos()
+    }
+}
+
+/// An initial angle and a gravity per member.
+fn inputs() -> Vec<(f64, f64)> {
+    (0..1000).map(|i| (0.1 + 2.9 * i as f64 / 1000.0, 9.0 + (i % 7) as f64 * 0.25)).collect()
+}
+
+/// 400 midpoint steps; the final state and the largest energy change.
+fn member(_: usize, &(theta0, omega2): &(f64, f64)) -> Result<(State<1>, f64), Error<1>> {
+    let mut sim = Integrator::new(Pendulum { omega2 }, Midpoint, 0.01).start(0.0, [theta0], [0.0])?;
+    let e0 = sim.energy()?;
+    let mut worst: f64 = 0.0;
+    sim.run(400, |s| worst = worst.max((s.energy().unwrap() - e0).abs()))?;
+    Ok((*sim.state(), worst))
+}
+
+#[test]
+fn parallel_runs_equal_serial_runs_bit_for_bit() {
+    let inputs = inputs();
+    let serial = ensemble::run_serial(&inputs, member);
+    let parallel = ensemble::run(&inputs, member);
+    assert_eq!(parallel.len(), 1000);
+    assert_eq!(parallel.failures().count(), 0);
+    for (i, (s, p)) in serial.results.iter().zip(&parallel.results).enumerate() {
+        let (s, p) = (s.as_ref().unwrap(), p.as_ref().unwrap());
+        assert_eq!(s.0.q[0].to_bits(), p.0.q[0].to_bits(), "member {i}");
+        assert_eq!(s.0.p[0].to_bits(), p.0.p[0].to_bits(), "member {i}");
+        assert_eq!(s.1.to_bits(), p.1.to_bits(), "member {i}");
+    }
+    // In input order: member i is the run from input i.
+    let (theta, omega2) = inputs[617];
+    let alone = member(617, &(theta, omega2)).unwrap();
+    assert_eq!(parallel.results[617].as_ref().unwrap(), &alone);
+}
+
+#[test]
+fn failing_members_are_reported_with_their_index() {
+    let mut inputs = inputs();
+    inputs[3].0 = f64::NAN;
+    inputs[998].1 = f64::INFINITY;
+    let result = ensemble::run(&inputs, member);
+    let failed: Vec<usize> = result.failures().map(|(i, _)| i).collect();
+    assert_eq!(failed, vec![3, 998]);
+    assert!(matches!(result.results[3], Err(MemberError::Failed(Error::InvalidInitialData { .. }))));
+    assert_eq!(result.successes().count(), 998);
+}
+
+/// Each shard solved and written as JSON, read back and merged: the same as one run.
+#[test]
+fn sharded_ensembles_serialise_and_merge() {
+    let inputs: Vec<(f64, f64)> = inputs().into_iter().step_by(50).collect();
+    let solve = |_: usize, &(theta0, omega2): &(f64, f64)| -> Result<Solution<1>, String> {
+        let mut sim = Integrator::new(Pendulum { omega2 }, Midpoint, 0.01)
+            .start(0.0, [theta0], [0.0])
+            .map_err(|e| e.to_string())?;
+        let sol = sim.solve(Plan::until(1.0).every(20)).map_err(|e| e.to_string())?;
+        sol.into_result().map_err(|e| e.to_string())
+    };
+    let whole = ensemble::run(&inputs, solve);
+    let mut files = Vec::new();
+    for k in 0..3 {
+        let range = ensemble::shard(inputs.len(), k, 3).unwrap();
+        let shard = Shard { start: range.start, results: ensemble::run(&inputs[range], solve) };
+        files.push(serde_json::to_string(&shard).unwrap());
+    }
+    let shards: Vec<Shard<Solution<1>, String>> =
+        files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
+    let merged: Ensemble<Solution<1>, String> = ensemble::merge(shards).unwrap();
+    assert_eq!(merged, whole);
+    assert_eq!(merged.len(), 20);
+}
