@@ -197,6 +197,23 @@ impl<const N: usize, T: Real> Error<N, T> {
         }
     }
 
+    /// The same error, reported at `at` instead of the state it carries (a
+    /// composition's sub-step fails at an intermediate state; the caller's
+    /// state is the one kept).
+    pub(crate) fn at_state(mut self, at: State<N, T>) -> Self {
+        match &mut self {
+            Error::NewtonDidNotConverge { state, .. }
+            | Error::SingularJacobian { state, .. }
+            | Error::NonFinite { state, .. }
+            | Error::StepRejected { state, .. }
+            | Error::NoEnergyStep { state, .. }
+            | Error::InvalidTarget { state, .. }
+            | Error::InverseLegendre { state, .. } => *state = at,
+            _ => {}
+        }
+        self
+    }
+
     /// `Ok` for a usable configuration: a finite, positive step size, valid
     /// Newton options and at least one degree of freedom.
     pub(crate) fn check_setup(h: f64, newton: &crate::newton::NewtonOptions) -> Result<(), Self> {

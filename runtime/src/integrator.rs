@@ -24,10 +24,12 @@ use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, generalized_force};
 
+mod composition;
 mod method;
 mod one_point;
 mod variable_step;
 
+pub use composition::{Composition, CompositionMemory};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;

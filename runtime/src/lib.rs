@@ -40,11 +40,11 @@ pub use double_double::DoubleDouble;
 pub use error::Error;
 pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
-#[doc(hidden)]
-pub use integrator::OnePointMemory;
 pub use integrator::{
-    EnergyFallback, F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
+    Composition, EnergyFallback, F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
 };
+#[doc(hidden)]
+pub use integrator::{CompositionMemory, OnePointMemory};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};

@@ -118,6 +118,9 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     const DISCONTINUOUS: bool = S::DISCONTINUOUS;
     const HAS_DISSIPATION: bool = S::HAS_DISSIPATION;
     const HAS_FORCE: bool = S::HAS_FORCE;
+    const SEPARABILITY: Separability = S::SEPARABILITY;
+    const COUPLING: Coupling = S::COUPLING;
+    const FORCE_COUPLING: ForceCoupling = S::FORCE_COUPLING;
 
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {

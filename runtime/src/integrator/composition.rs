@@ -1,0 +1,275 @@
+//! Symmetric compositions of the trapezoid rule: high-order variational
+//! integrators from the second-order one.
+//!
+//! ```text
+//! Φ_h = Ψ_{γ_m h} ∘ … ∘ Ψ_{γ_1 h},   Ψ = the trapezoid step,   Σ γ_i = 1,   γ_i = γ_{m+1−i}
+//! ```
+//!
+//! Each sub-step is a variational (symplectic, momentum-preserving) map, so
+//! the composition is one too: its discrete Lagrangian is the sum of the
+//! sub-steps' actions with the intermediate nodes eliminated. On a system the
+//! macro proves `½ vᵀMv − V(t, q)` with constant `M` the sub-steps are
+//! explicit Störmer–Verlet (no Newton); otherwise each one is solved by
+//! Newton like any trapezoid step. Coefficients (facts from the papers):
+//!
+//! * [`Composition::YOSHIDA4`]: 3 stages, order 4, `γ_1 = γ_3 = 1/(2 − 2^{1/3})`
+//!   (Yoshida, *Construction of higher order symplectic integrators*, Phys.
+//!   Lett. A 150, 1990; also Suzuki and Forest–Ruth).
+//! * [`Composition::YOSHIDA6`]: 7 stages, order 6, Yoshida's "solution A" (same paper).
+//! * [`Composition::KAHAN_LI8`]: 15 stages, order 8 (Kahan & Li,
+//!   *Composition constants for raising the orders of unconventional schemes
+//!   for ordinary differential equations*, Math. Comp. 66, 1997; the set
+//!   `s15odr8` of Hairer, Lubich & Wanner, *Geometric Numerical
+//!   Integration*, §V.3.2).
+//!
+//! Fixed steps only (energy-preserving steps are refused with
+//! `Error::Unsupported`); forces enter each sub-step (discrete
+//! Lagrange–d'Alembert), so a composition of forced sub-steps is forced
+//! consistently, at order 2 in the forces' quadrature.
+
+use super::method::{F64Readouts, Method, sealed};
+use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
+use crate::derivatives::{self, Segment};
+use crate::discrete::Trapezoid;
+use crate::error::Error;
+use crate::mechanics::DiscreteMechanics;
+use crate::state::State;
+use crate::symplectic::{self, TangentMap};
+use crate::system::Lagrangian;
+
+/// The largest number of stages of the built-in compositions.
+const MAX_STAGES: usize = 15;
+
+/// A symmetric composition of trapezoid steps with weights `γ_1 … γ_m`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Composition {
+    weights: &'static [f64],
+    order: u32,
+}
+
+/// `1/(2 − 2^{1/3})` and `−2^{1/3}/(2 − 2^{1/3})`.
+const Y4: [f64; 3] = [1.351_207_191_959_657_8, -1.702_414_383_919_315_5, 1.351_207_191_959_657_8];
+
+const Y6: [f64; 7] = [
+    0.784_513_610_477_560,
+    0.235_573_213_359_357,
+    -1.177_679_984_178_87,
+    1.315_186_320_683_906,
+    -1.177_679_984_178_87,
+    0.235_573_213_359_357,
+    0.784_513_610_477_560,
+];
+
+// The published 20 digits (f64 rounds them).
+#[allow(clippy::excessive_precision)]
+const KL8: [f64; 15] = [
+    0.74167036435061295345,
+    -0.40910082580003159400,
+    0.19075471029623837995,
+    -0.57386247111608226666,
+    0.29906418130365592384,
+    0.33462491824529818378,
+    0.31529309239676659663,
+    -0.79688793935291635402,
+    0.31529309239676659663,
+    0.33462491824529818378,
+    0.29906418130365592384,
+    -0.57386247111608226666,
+    0.19075471029623837995,
+    -0.40910082580003159400,
+    0.74167036435061295345,
+];
+
+impl Composition {
+    /// Yoshida's (Suzuki's, Forest–Ruth's) 3-stage composition: order 4.
+    pub const YOSHIDA4: Self = Self { weights: &Y4, order: 4 };
+    /// Yoshida's 7-stage composition ("solution A"): order 6.
+    pub const YOSHIDA6: Self = Self { weights: &Y6, order: 6 };
+    /// Kahan & Li's 15-stage composition (`s15odr8`): order 8.
+    pub const KAHAN_LI8: Self = Self { weights: &KL8, order: 8 };
+
+    /// The sub-step weights `γ_1 … γ_m`.
+    pub fn weights(&self) -> &'static [f64] {
+        self.weights
+    }
+
+    /// The order of the composed map.
+    pub fn order(&self) -> u32 {
+        self.order
+    }
+}
+
+/// What a composition keeps: the trapezoid sub-steps' memory and the
+/// sub-steps of the last composed step.
+#[derive(Clone, Copy, Debug)]
+pub struct CompositionMemory<const N: usize> {
+    pub(crate) inner: OnePointMemory<N>,
+    /// The sub-steps of the last step (the first `stages` entries).
+    pub(crate) substeps: [Segment<N>; MAX_STAGES],
+    pub(crate) stages: usize,
+    /// The size of the last composed step.
+    pub(crate) last_h: Option<f64>,
+}
+
+impl sealed::Sealed for Composition {}
+
+impl Method<f64> for Composition {
+    type Memory<const N: usize> = CompositionMemory<N>;
+
+    fn method_order(&self) -> u32 {
+        self.order
+    }
+
+    fn memory<const N: usize>(&self) -> CompositionMemory<N> {
+        let empty = Segment { t0: 0.0, h: 0.0, q0: [0.0; N], dq: [0.0; N] };
+        CompositionMemory {
+            inner: <Trapezoid as Method<f64>>::memory(&Trapezoid),
+            substeps: [empty; MAX_STAGES],
+            stages: 0,
+            last_h: None,
+        }
+    }
+
+    fn check(&self) -> Result<(), &'static str> {
+        let sum: f64 = self.weights.iter().sum();
+        if self.weights.is_empty() || self.weights.len() > MAX_STAGES || (sum - 1.0).abs() > 1e-12 {
+            return Err("a composition needs 1 to 15 sub-step weights summing to 1");
+        }
+        Ok(())
+    }
+
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+        match policy {
+            StepPolicy::Fixed => Ok(()),
+            StepPolicy::EnergyPreserving(_) => Err(Error::Unsupported {
+                what: "energy-preserving steps with a composition: its sub-steps have fixed ratios; use fixed steps",
+            }),
+        }
+    }
+
+    fn legendre<S: Lagrangian<N>, const N: usize>(
+        system: &S,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<([f64; N], f64), Error<N>> {
+        <Trapezoid as Method<f64>>::legendre(system, t0, q0, v0)
+    }
+
+    fn fixed_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N>,
+        h: f64,
+        t1: f64,
+    ) -> Result<(), Error<N>> {
+        let before = it.state;
+        let mut sub = Integrator {
+            system: &it.system,
+            method: Trapezoid,
+            h,
+            newton: it.newton,
+            state: it.state,
+            carry: it.carry,
+            p_carry: it.p_carry,
+            policy: StepPolicy::Fixed,
+            fallback: it.fallback,
+            energy: it.energy,
+            energy_carry: it.energy_carry,
+            time_error: it.time_error,
+            watched_energy: it.watched_energy,
+            memory: it.memory.inner,
+            v0: it.v0,
+            clock: it.clock,
+            stats: it.stats,
+        };
+        let mut substeps = it.memory.substeps;
+        let stages = it.method.weights.len();
+        let mut elapsed = 0.0;
+        for (i, gamma) in it.method.weights.iter().enumerate() {
+            let hi = gamma * h;
+            elapsed += gamma;
+            let ti = if i + 1 == stages { t1 } else { before.t + elapsed * h };
+            if let Err(e) = sub.step_by(hi, ti) {
+                it.stats.failed_steps += 1;
+                return Err(e.at_state(before));
+            }
+            if let Some(seg) = sub.memory.previous {
+                substeps[i] = seg;
+            }
+        }
+        let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
+        // The explicit path's cached force belongs to the composed node now.
+        memory.node_force = memory.node_force.map(|(_, f)| (before.step + 1, f));
+        it.state = State { step: before.step + 1, ..state };
+        it.carry = carry;
+        it.p_carry = p_carry;
+        it.watched_energy = watched_energy;
+        it.memory = CompositionMemory { inner: memory, substeps, stages, last_h: Some(h) };
+        it.stats.steps += 1;
+        it.stats.newton_iterations = stats.newton_iterations;
+        it.stats.last = stats.last;
+        Ok(())
+    }
+
+    fn energy_step<S: Lagrangian<N>, const N: usize>(
+        _: &mut Integrator<S, Self, N>,
+        _: StepBounds,
+    ) -> Result<(), Error<N>> {
+        // `supports` refuses the policy at `start`.
+        Err(Error::Unsupported { what: "energy-preserving steps with a composition" })
+    }
+
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(_: &mut Integrator<S, Self, N>) {}
+
+    fn last_step_size<const N: usize>(memory: &CompositionMemory<N>) -> Option<f64> {
+        memory.last_h
+    }
+
+    /// The discrete energy of the last trapezoid sub-step (the energy the
+    /// composed step ends with); the energy of the initial data at `k = 0`.
+    fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
+        match it.memory.stages {
+            0 => it.system.energy(it.state.t, it.state.q, it.v0),
+            m => -derivatives::end_time_derivative(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
+        }
+    }
+}
+
+impl F64Readouts for Composition {
+    fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
+        match it.memory.stages {
+            0 => it.v0,
+            m => {
+                let last = &it.memory.substeps[m - 1];
+                last.dq.map(|x| x / last.h)
+            }
+        }
+    }
+
+    /// The product of the sub-steps' tangent maps.
+    fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
+        let m = it.memory.stages;
+        if m == 0 {
+            return None;
+        }
+        let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substeps[0])?.matrix();
+        for seg in &it.memory.substeps[1..m] {
+            product = symplectic::tangent_map(&it.system, &Trapezoid, seg)?.matrix() * product;
+        }
+        let block = |r: usize, c: usize| nalgebra::SMatrix::<f64, N, N>::from_fn(|a, b| product[(r + a, c + b)]);
+        Some(TangentMap { dq_dq: block(0, 0), dq_dp: block(0, N), dp_dq: block(N, 0), dp_dp: block(N, N) })
+    }
+
+    /// The sum of the sub-steps' forcing impulses.
+    fn forcing_impulse<S: Lagrangian<N>, const N: usize>(
+        it: &Integrator<S, Self, N>,
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64> {
+        let m = it.memory.stages;
+        (m > 0).then(|| {
+            it.memory.substeps[..m]
+                .iter()
+                .map(|seg| crate::noether::forcing_impulse(&it.system, &Trapezoid, seg, symmetry))
+                .sum()
+        })
+    }
+}
