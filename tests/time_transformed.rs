@@ -280,23 +280,26 @@ fn order_in_the_step() {
 }
 
 /// The largest symplecticity defect `max |MᵀJM − J|` of the steps of one
-/// orbit, and the largest entry of `M`. The map is symplectic by
-/// construction (every block comes from one generating function); the defect
-/// is the round-off of the implicit-function formulas, amplified by the
-/// condition number of `∂²A/∂x_k∂x_{k+1}`.
+/// orbit, the largest entry of `M`, the condition of `∂²A/∂x_k∂x_{k+1}`,
+/// and the largest `ε/(σ c g)` over the nodes. The map is symplectic by
+/// construction (every block comes from one generating function); the
+/// defect is the round-off of the implicit-function formulas for `M`.
 fn worst_defect<I: SStepper<3, System = Tt>>(
     mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>,
     mut condition: impl FnMut(&I) -> f64,
-) -> (f64, f64, f64) {
+) -> (f64, f64, f64, f64) {
     let (mut worst, mut largest, mut cond) = (0.0f64, 0.0f64, 0.0f64);
+    let (sigma, c) = (sim.step_size(), sim.inner().transformed().penalty());
+    let mut gmin = sim.density();
     sim.run_until(2.0 * PI, |s| {
         let m = s.last_tangent_map().unwrap().matrix();
         largest = largest.max(m.amax());
         worst = worst.max(lagrangian::symplectic::defect(&m).unwrap());
         cond = cond.max(condition(s.inner()));
+        gmin = gmin.min(s.density());
     })
     .unwrap();
-    (worst, largest, cond)
+    (worst, largest, cond, f64::EPSILON / (sigma * c * gmin))
 }
 
 /// The condition number (2-norm) of `∂²A/∂x_k∂x_{k+1}` of the last step.
@@ -309,17 +312,28 @@ fn a12_condition<M: DiscreteLagrangian>(i: &Integrator<Tt, M, 3>) -> f64 {
 #[test]
 fn symplectic_in_the_extended_phase_space() {
     for e in [0.9, 0.99] {
-        for (label, (d, m, cond)) in [
+        for (label, (d, m, cond, scale)) in [
             ("midpoint", worst_defect(rule(Midpoint, e, 0.02), a12_condition)),
+            ("midpoint", worst_defect(rule(Midpoint, e, 0.005), a12_condition)),
             ("trapezoid", worst_defect(rule(Trapezoid, e, 0.02), a12_condition)),
             ("galerkin 2", worst_defect(galerkin::<2>(e, 0.1), |_| f64::NAN)),
         ] {
-            println!("e = {e}, {label}: defect {d:.2e}, largest entry {m:.2}, ‖A12⁻¹‖·‖A‖ up to {cond:.2e}");
-            // Measured 2e-12 … 5e-10 with entries of order one: far above the
-            // 5e-16 of fixed steps (see below), and not explained by the
-            // printed ‖A12⁻¹‖·‖A‖ alone; a non-symplectic method of this
-            // accuracy has defects of the size of its local error (≥ 1e-6 here).
-            assert!(d / m.max(1.0).powi(2) < 1e-11, "e = {e}, {label}: {d} with entries up to {m}");
+            println!(
+                "e = {e}, {label}: defect {d:.2e} = {:.2} ε/(σ c g_min) (ε/(σ c g_min) = {scale:.2e}), largest entry {m:.2}, ε‖A12⁻¹‖·‖A‖ up to {:.2e}",
+                d / scale,
+                f64::EPSILON * cond
+            );
+            // Measured 4e-12 … 3e-9, far above the 5e-16 of fixed steps
+            // (below) and 10–200 times ε‖A12⁻¹‖‖A‖, but 0.11–0.40 (one-point
+            // rules) and 3.6–6.1 (Galerkin s = 2, whose nodes are σ/2 apart)
+            // times ε/(σ c g_min): the tangent-map formula adds terms of size
+            // 1/(σ c g) (the second derivative of the `(t' − g)²/(2cg)` term)
+            // that cancel. Not the Newton tolerance (the same at rtol 1e-14
+            // and 4e-16; the midpoint solves by full Newton). A non-symplectic
+            // method of this accuracy has defects of the size of its local
+            // error (≥ 1e-6 here). Margin: 2.5× the largest ratio measured.
+            let bound = if label == "galerkin 2" { 15.0 } else { 1.0 };
+            assert!(d <= bound * scale, "e = {e}, {label}: {d} = {} ε/(σ c g_min), entries up to {m}", d / scale);
         }
     }
     // For scale: fixed-step midpoint on the same orbit (h = 1e-3, t ≤ 1).
