@@ -53,6 +53,8 @@ struct Outcome {
     energy_final: f64,
     energy_max: f64,
     newton_per_step: f64,
+    /// Right-hand-side evaluations (DOP853).
+    evaluations: u64,
     failure: Option<String>,
 }
 
@@ -87,7 +89,7 @@ where
             energy_final: sim.energy().map_or(f64::NAN, |e| ((e - e0) / e0).abs()),
             energy_max: worst,
             newton_per_step,
-            failure: None,
+            ..Outcome::default()
         },
         Err(e) => Outcome { failure: Some(e.to_string()), steps: stats.steps, seconds, ..Outcome::default() },
     }
@@ -110,25 +112,23 @@ struct Row {
     energy_max: f64,
 }
 
-/// The coarsest `σ` on `σ0 · 2^{-k/8}` for which it and the next two meet each target.
-fn time_transformed<G, I>(
+/// Sweeps `settings` (coarse to fine) with `run(setting, watch)`, then per
+/// target picks the coarsest setting for which it and the next two meet it.
+fn calibrate_outcomes(
     label: &str,
-    sigma0: f64,
-    build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, TimeTransformError<2, 3>>,
+    settings: impl Iterator<Item = f64>,
+    run: &dyn Fn(f64, bool) -> Outcome,
+    describe: &dyn Fn(f64, &Outcome) -> String,
     rows: &mut Vec<Row>,
-) where
-    G: StepDensity<2>,
-    I: SStepper<3, System = Tt<G>>,
-{
+) {
     let want = reference();
     let mut sweep: Vec<(f64, Outcome, Option<f64>)> = Vec::new();
-    for k in 0..200 {
-        let sigma = sigma0 * 2f64.powf(-(k as f64) / 8.0);
-        let out = tt_run(build, sigma, false);
+    for setting in settings {
+        let out = run(setting, false);
         let err = if out.failure.is_none() { calibrate::error_of(&out.q, &want) } else { None };
-        eprintln!("{label}: σ = {sigma:.4e}, {} steps, error {err:?}, {:.3} s {:?}", out.steps, out.seconds, out.failure);
+        eprintln!("{label}: {setting:.4e}, {} steps, error {err:?}, {:.3} s {:?}", out.steps, out.seconds, out.failure);
         let slow = out.seconds > BUDGET;
-        sweep.push((sigma, out, err));
+        sweep.push((setting, out, err));
         let n = sweep.len();
         if (n >= 3 && sweep[n - 3..].iter().all(|p| p.2.is_some_and(|e| e <= TARGETS[1]))) || slow {
             break;
@@ -138,10 +138,11 @@ fn time_transformed<G, I>(
         let Some(k) = (0..sweep.len().saturating_sub(2))
             .find(|&k| sweep[k..k + 3].iter().all(|p| p.2.is_some_and(|e| e <= target)))
         else {
+            let best = sweep.iter().filter_map(|p| p.2).fold(f64::INFINITY, f64::min);
             rows.push(Row {
                 method: label.into(),
                 target,
-                setting: "not reached in the sweep".into(),
+                setting: format!("not reached (smallest error in the sweep {best:.1e})"),
                 steps: 0,
                 error: f64::NAN,
                 seconds: f64::NAN,
@@ -150,20 +151,94 @@ fn time_transformed<G, I>(
             });
             continue;
         };
-        let sigma = sweep[k].0;
+        let setting = sweep[k].0;
         let error = sweep[k..k + 3].iter().filter_map(|p| p.2).fold(0.0, f64::max);
-        let seconds = median((0..REPEATS).map(|_| tt_run(build, sigma, false).seconds).collect());
-        let watched = tt_run(build, sigma, true);
+        let seconds = median((0..REPEATS).map(|_| run(setting, false).seconds).collect());
+        let watched = run(setting, true);
         rows.push(Row {
             method: label.into(),
             target,
-            setting: format!("σ = {sigma:.4}, {:.2} Newton it./step", watched.newton_per_step),
+            setting: describe(setting, &watched),
             steps: watched.steps,
             error,
             seconds,
             energy_final: watched.energy_final,
             energy_max: watched.energy_max,
         });
+    }
+}
+
+/// A time-transformed method: `σ` on `σ0 · 2^{-k/8}`.
+fn time_transformed<G, I>(
+    label: &str,
+    sigma0: f64,
+    build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, TimeTransformError<2, 3>>,
+    rows: &mut Vec<Row>,
+) where
+    G: StepDensity<2>,
+    I: SStepper<3, System = Tt<G>>,
+{
+    let sigmas = (0..200).map(|k| sigma0 * 2f64.powf(-(k as f64) / 8.0));
+    let describe = |sigma: f64, o: &Outcome| format!("σ = {sigma:.4}, {:.2} Newton it./step", o.newton_per_step);
+    calibrate_outcomes(label, sigmas, &|sigma, watch| tt_run(build, sigma, watch), &describe, rows);
+}
+
+type V4 = nalgebra034::Vector4<f64>;
+
+/// Kepler as a first-order system for DOP853.
+struct KeplerOde;
+
+impl ode_solvers::System<f64, V4> for KeplerOde {
+    fn system(&self, _t: f64, y: &V4, dy: &mut V4) {
+        let r2 = y[0] * y[0] + y[1] * y[1];
+        let r3 = r2 * r2.sqrt();
+        *dy = V4::new(y[2], y[3], -y[0] / r3, -y[1] / r3);
+    }
+}
+
+/// ode_solvers' DOP853 with `rtol = atol = tol`, sparse output (the
+/// accepted steps, no extra stages); the energy from the accepted steps.
+fn dop853(tol: f64, watch: bool) -> Outcome {
+    let (q0, v0) = exact::kepler_start(E);
+    let t = t_end();
+    let start = Instant::now();
+    let mut s = ode_solvers::Dop853::from_param(
+        KeplerOde,
+        0.0,
+        t,
+        t,
+        V4::new(q0[0], q0[1], v0[0], v0[1]),
+        tol,
+        tol,
+        0.9,
+        0.0,
+        0.333,
+        6.0,
+        t,
+        0.0,
+        50_000_000,
+        1000,
+        ode_solvers::OutputType::Sparse,
+    );
+    let result = s.integrate();
+    let seconds = start.elapsed().as_secs_f64();
+    let stats = match result {
+        Ok(stats) => stats,
+        Err(e) => return Outcome { failure: Some(e.to_string()), seconds, ..Outcome::default() },
+    };
+    let e0 = energy(&q0, &v0);
+    let rel = |y: &V4| ((energy(&[y[0], y[1]], &[y[2], y[3]]) - e0) / e0).abs();
+    match (s.x_out().last(), s.y_out().last()) {
+        (Some(&tl), Some(y)) if (tl - t).abs() <= 1e-9 * t => Outcome {
+            q: vec![y[0], y[1]],
+            steps: stats.accepted_steps as u64,
+            seconds,
+            energy_final: rel(y),
+            energy_max: if watch { s.y_out().iter().map(rel).fold(0.0, f64::max) } else { 0.0 },
+            evaluations: stats.num_eval as u64,
+            ..Outcome::default()
+        },
+        _ => Outcome { failure: Some("stopped before T".into()), seconds, ..Outcome::default() },
     }
 }
 
@@ -238,7 +313,7 @@ fn main() {
             }
         };
     }
-    tt!("tt midpoint, r^3/2", 0.02, r32, rule Midpoint);
+    tt!("tt midpoint, r^3/2", 0.004, r32, rule Midpoint);
     tt!("tt galerkin-2, r^3/2", 0.2, r32, galerkin 2);
     tt!("tt galerkin-4, r^3/2", 0.8, r32, galerkin 4);
     tt!("tt galerkin-6, r^3/2", 1.2, r32, galerkin 6);
@@ -248,7 +323,12 @@ fn main() {
 
     let problem = Adapter::<_, 2, 4>(Kepler::<900> { scale: ORBITS / 10.0 });
     assert!((problem.horizon() - t_end()).abs() <= 1e-9 * t_end(), "the report problem has another horizon");
-    for method in [Method::Galerkin(6), Method::Galerkin(8), Method::OdeSolversDop853] {
+    if wanted("ode_solvers-dop853") {
+        let tols = (0..200).map(|k| 1e-3 * 10f64.powf(-(k as f64) / 8.0)).take_while(|&t| t >= 1e-16);
+        let describe = |tol: f64, o: &Outcome| format!("rtol = atol = {tol:.2e}, {} evaluations", o.evaluations);
+        calibrate_outcomes("ode_solvers-dop853", tols, &dop853, &describe, &mut rows);
+    }
+    for method in [Method::Galerkin(6), Method::Galerkin(8)] {
         if wanted(&method.name()) {
             report_method(&problem, method, &mut rows);
         }
