@@ -153,8 +153,7 @@ fn adaptive(e: f64, sigma: f64) -> Result<Record, Box<dyn Error>> {
     let (q0, v0) = ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()]);
     let g = RadiusPower::new([0, 1], 1.5).ok_or("invalid monitor")?;
     let clock = Instant::now();
-    let mut sim =
-        TimeTransformed::new(Kepler, g).galerkin(Galerkin::<4, 4>::gauss(), sigma).start::<3>(0.0, q0, v0)?;
+    let mut sim = TimeTransformed::new(Kepler, g).galerkin(Galerkin::<4, 4>::gauss(), sigma).start::<3>(0.0, q0, v0)?;
     let e0 = sim.energy()?;
     let s0 = sim.state();
     let j0 = s0.q[0] * s0.p[1] - s0.q[1] * s0.p[0];
@@ -200,9 +199,8 @@ fn orbit_plot(path: &Path, title: &str, runs: &[&Record]) -> Result<(), Box<dyn 
     // Registering twice is harmless; a failure only means the font was there.
     let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, font);
     let points = runs.iter().flat_map(|r| r.orbit.iter()).filter(|p| p.0.abs() < 3.0 && p.1.abs() < 3.0);
-    let (x0, x1, y0, y1) = points.fold((0.0f64, 0.0f64, 0.0f64, 0.0f64), |(a, b, c, d), p| {
-        (a.min(p.0), b.max(p.0), c.min(p.1), d.max(p.1))
-    });
+    let (x0, x1, y0, y1) = points
+        .fold((0.0f64, 0.0f64, 0.0f64, 0.0f64), |(a, b, c, d), p| (a.min(p.0), b.max(p.0), c.min(p.1), d.max(p.1)));
     let pad = 0.05 * (x1 - x0).max(y1 - y0);
     let (x0, x1, y0, y1) = (x0 - pad, x1 + pad, y0 - pad, y1 + pad);
     // Plot area of 900 px across; its height follows the data's aspect ratio.
@@ -240,7 +238,12 @@ where
             .label(run.label.as_str())
             .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).label_font(("sans-serif", 14)).draw()?;
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()?;
     root.present()?;
     Ok(())
 }

@@ -60,7 +60,11 @@ struct Outcome {
 
 type Tt<G> = TimeTransformed<KeplerSys, G, 2>;
 
-fn tt_run<G, I>(build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, TimeTransformError<2, 3>>, sigma: f64, watch: bool) -> Outcome
+fn tt_run<G, I>(
+    build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, String>,
+    sigma: f64,
+    watch: bool,
+) -> Outcome
 where
     G: StepDensity<2>,
     I: SStepper<3, System = Tt<G>>,
@@ -68,7 +72,7 @@ where
     let start = Instant::now();
     let mut sim = match build(sigma) {
         Ok(sim) => sim,
-        Err(e) => return Outcome { failure: Some(e.to_string()), ..Outcome::default() },
+        Err(e) => return Outcome { failure: Some(e), ..Outcome::default() },
     };
     let (q0, v0) = exact::kepler_start(E);
     let e0 = energy(&q0, &v0);
@@ -172,7 +176,7 @@ fn calibrate_outcomes(
 fn time_transformed<G, I>(
     label: &str,
     sigma0: f64,
-    build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, TimeTransformError<2, 3>>,
+    build: &dyn Fn(f64) -> Result<Adaptive<I, KeplerSys, G, 2, 3>, String>,
     rows: &mut Vec<Row>,
 ) where
     G: StepDensity<2>,
@@ -299,7 +303,17 @@ fn main() {
     macro_rules! tt {
         ($label:expr, $sigma0:expr, $monitor:expr, rule $m:expr) => {
             if wanted($label) {
-                time_transformed($label, $sigma0, &|s| TimeTransformed::new(KeplerSys, $monitor).rule($m, s).start::<3>(0.0, q0, v0), &mut rows);
+                time_transformed(
+                    $label,
+                    $sigma0,
+                    &|s| {
+                        TimeTransformed::new(KeplerSys, $monitor)
+                            .rule($m, s)
+                            .start::<3>(0.0, q0, v0)
+                            .map_err(|e| e.to_string())
+                    },
+                    &mut rows,
+                );
             }
         };
         ($label:expr, $sigma0:expr, $monitor:expr, galerkin $s:literal) => {
@@ -307,7 +321,12 @@ fn main() {
                 time_transformed(
                     $label,
                     $sigma0,
-                    &|s| TimeTransformed::new(KeplerSys, $monitor).galerkin(Galerkin::<$s, $s>::gauss(), s).start::<3>(0.0, q0, v0),
+                    &|s| {
+                        TimeTransformed::new(KeplerSys, $monitor)
+                            .galerkin(Galerkin::<$s, $s>::gauss(), s)
+                            .start::<3>(0.0, q0, v0)
+                            .map_err(|e| e.to_string())
+                    },
                     &mut rows,
                 );
             }
@@ -334,7 +353,10 @@ fn main() {
         }
     }
 
-    println!("\nKepler e = {E}, {ORBITS} orbits (T = {:.4}), final position error max_i |q_i(T) − q_i^exact(T)|", t_end());
+    println!(
+        "\nKepler e = {E}, {ORBITS} orbits (T = {:.4}), final position error max_i |q_i(T) − q_i^exact(T)|",
+        t_end()
+    );
     println!("time: median of {REPEATS} runs; energy: |E − E0|/|E0| at T and its maximum over the run\n");
     println!("| target | method | setting | steps | error (worst of 3) | time | energy at T | max energy |");
     println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
