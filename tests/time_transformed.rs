@@ -172,8 +172,20 @@ fn galerkin<const S: usize>(
     TimeTransformed::new(Kepler, r32()).galerkin(Galerkin::<S, S>::gauss(), sigma).start::<3>(0.0, q0, v0).unwrap()
 }
 
-/// Checks and prints one run against its fixed-step twin.
-fn check(label: &str, run: &Run, e: f64, orbits: usize, fixed_line: String, position_tol: f64, energy_tol: f64) {
+/// Checks and prints one run against its fixed-step twin; `j_tol` bounds
+/// the angular momentum's relative change (round-off that grows with the
+/// number of steps).
+#[allow(clippy::too_many_arguments)]
+fn check(
+    label: &str,
+    run: &Run,
+    e: f64,
+    orbits: usize,
+    fixed_line: String,
+    position_tol: f64,
+    energy_tol: f64,
+    j_tol: f64,
+) {
     println!(
         "{label}, e = {e}, {orbits} orbits: {} steps, position {:.2e}, energy {:.2e} (trend {:.3}), J {:.1e}, p_t {:.1e} | {fixed_line}",
         run.steps, run.position_error, run.energy_error, run.energy_trend, run.angular_momentum, run.time_momentum
@@ -181,7 +193,7 @@ fn check(label: &str, run: &Run, e: f64, orbits: usize, fixed_line: String, posi
     assert!(run.position_error < position_tol, "{label}: {run:?}");
     assert!(run.energy_error < energy_tol, "{label}: {run:?}");
     assert!(run.energy_trend < 0.2, "{label}: energy drifts: {run:?}");
-    assert!(run.angular_momentum < 1e-12, "{label}: {run:?}");
+    assert!(run.angular_momentum < j_tol, "{label}: {run:?}");
     assert!(run.time_momentum < 1e-13, "{label}: {run:?}");
 }
 
@@ -192,11 +204,11 @@ fn kepler_midpoint_and_trapezoid() {
     let orbits = 10;
     for (e, sigma, pos, en) in [(0.9, 0.02, 2e-2, 1e-3), (0.99, 0.01, 2e-2, 3e-3)] {
         let run = measure(rule(Midpoint, e, sigma), e, orbits);
-        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en);
+        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en, 1e-12);
         // The trapezoid rule meets the monitor at both ends of the step: its
         // error constant in s is larger (docs/time-transformation.md).
         let run = measure(rule(Trapezoid, e, sigma / 4.0), e, orbits);
-        check("trapezoid", &run, e, orbits, fixed(Trapezoid, e, orbits, run.steps), 20.0 * pos, 3.0 * en);
+        check("trapezoid", &run, e, orbits, fixed(Trapezoid, e, orbits, run.steps), 20.0 * pos, 3.0 * en, 1e-12);
     }
 }
 
@@ -205,23 +217,41 @@ fn kepler_galerkin() {
     let orbits = 10;
     for (e, sigma, pos, en) in [(0.9, 0.1, 1e-4, 1e-5), (0.99, 0.05, 1e-3, 1e-4)] {
         let run = measure(galerkin::<2>(e, sigma), e, orbits);
-        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en);
+        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos, en, 1e-12);
         // Steps large enough that the truncation error, not the round-off of
         // the Newton solves (which drifts like 1e-12 per orbit), is measured.
         let run = measure(galerkin::<4>(e, 0.3), e, orbits);
-        check("galerkin s = 4", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos / 100.0, en / 100.0);
+        check("galerkin s = 4", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), pos / 100.0, en / 100.0, 1e-12);
     }
 }
 
 #[test]
-#[ignore = "1000 orbits: minutes; run with --release --ignored"]
+#[ignore = "1000 orbits: about 14 s in release; run with --release --ignored"]
 fn kepler_thousand_orbits() {
     let orbits = 1000;
-    for (e, sigma) in [(0.9, 0.02), (0.99, 0.01)] {
+    // (e, σ of the midpoint; position and energy tolerances of midpoint,
+    // trapezoid, Galerkin s = 2 and s = 4): twice the errors measured (one
+    // release run), so a change of order or error constant fails. The
+    // trapezoid's phase error at e = 0.9 exceeds an orbit (position 1.9): its
+    // position is not asserted there. The angular momentum is round-off that
+    // accumulates over 2e4–5e6 steps: 2e-12 (measured up to 8.8e-13). The
+    // trend of the per-orbit energy maxima measured ≤ 0.011 (2 for a linear
+    // drift from zero). Fixed steps with the same number of steps are printed.
+    for (e, sigma, tols) in [
+        (0.9, 0.02, [(0.8, 6e-4), (f64::INFINITY, 1.3e-3), (5e-3, 7e-6), (8e-6, 1.3e-8)]),
+        (0.99, 0.01, [(0.31, 1.8e-3), (1.3, 5e-3), (2.5e-4, 5.4e-6), (5e-6, 2.2e-7)]),
+    ] {
+        let j = 2e-12;
         let run = measure(rule(Midpoint, e, sigma), e, orbits);
-        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), 2.0, 1e-3);
+        check("midpoint", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), tols[0].0, tols[0].1, j);
+        let run = measure(rule(Trapezoid, e, sigma / 4.0), e, orbits);
+        check("trapezoid", &run, e, orbits, fixed(Trapezoid, e, orbits, run.steps), tols[1].0, tols[1].1, j);
         let run = measure(galerkin::<2>(e, 5.0 * sigma), e, orbits);
-        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), 1e-1, 1e-4);
+        check("galerkin s = 2", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), tols[2].0, tols[2].1, j);
+        // σ = 0.4: the energy error (1e-7 at e = 0.99) far above its
+        // round-off, which wanders by a few 1e-9 over 1000 orbits.
+        let run = measure(galerkin::<4>(e, 0.4), e, orbits);
+        check("galerkin s = 4", &run, e, orbits, fixed(Midpoint, e, orbits, run.steps), tols[3].0, tols[3].1, j);
     }
 }
 
@@ -263,7 +293,7 @@ fn order_in_the_step() {
             [("midpoint", &mid, 2.0), ("trapezoid", &trap, 2.0), ("galerkin 2", &g2, 4.0), ("galerkin 4", &g4, 8.0)]
         {
             if e == 0.99 && order == 8.0 {
-                // Measured 9.24 on these steps: the errors (2e-9 … 4e-12) are
+                // Measured 7.71 on these steps (9.24 at rtol 1e-14): the errors are
                 // not yet in the asymptotic range at the large end and near
                 // round-off at the small one; printed, not asserted.
                 println!("e = {e}, {label}: fitted order {:.3} (not asserted)", fitted_order(pts));
@@ -280,23 +310,26 @@ fn order_in_the_step() {
 }
 
 /// The largest symplecticity defect `max |MᵀJM − J|` of the steps of one
-/// orbit, and the largest entry of `M`. The map is symplectic by
-/// construction (every block comes from one generating function); the defect
-/// is the round-off of the implicit-function formulas, amplified by the
-/// condition number of `∂²A/∂x_k∂x_{k+1}`.
+/// orbit, the largest entry of `M`, the condition of `∂²A/∂x_k∂x_{k+1}`,
+/// and the largest `ε/(σ c g)` over the nodes. The map is symplectic by
+/// construction (every block comes from one generating function); the
+/// defect is the round-off of the implicit-function formulas for `M`.
 fn worst_defect<I: SStepper<3, System = Tt>>(
     mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>,
     mut condition: impl FnMut(&I) -> f64,
-) -> (f64, f64, f64) {
+) -> (f64, f64, f64, f64) {
     let (mut worst, mut largest, mut cond) = (0.0f64, 0.0f64, 0.0f64);
+    let (sigma, c) = (sim.step_size(), sim.inner().transformed().penalty());
+    let mut gmin = sim.density();
     sim.run_until(2.0 * PI, |s| {
         let m = s.last_tangent_map().unwrap().matrix();
         largest = largest.max(m.amax());
         worst = worst.max(lagrangian::symplectic::defect(&m).unwrap());
         cond = cond.max(condition(s.inner()));
+        gmin = gmin.min(s.density());
     })
     .unwrap();
-    (worst, largest, cond)
+    (worst, largest, cond, f64::EPSILON / (sigma * c * gmin))
 }
 
 /// The condition number (2-norm) of `∂²A/∂x_k∂x_{k+1}` of the last step.
@@ -309,17 +342,28 @@ fn a12_condition<M: DiscreteLagrangian>(i: &Integrator<Tt, M, 3>) -> f64 {
 #[test]
 fn symplectic_in_the_extended_phase_space() {
     for e in [0.9, 0.99] {
-        for (label, (d, m, cond)) in [
+        for (label, (d, m, cond, scale)) in [
             ("midpoint", worst_defect(rule(Midpoint, e, 0.02), a12_condition)),
+            ("midpoint", worst_defect(rule(Midpoint, e, 0.005), a12_condition)),
             ("trapezoid", worst_defect(rule(Trapezoid, e, 0.02), a12_condition)),
             ("galerkin 2", worst_defect(galerkin::<2>(e, 0.1), |_| f64::NAN)),
         ] {
-            println!("e = {e}, {label}: defect {d:.2e}, largest entry {m:.2}, ‖A12⁻¹‖·‖A‖ up to {cond:.2e}");
-            // Measured 2e-12 … 5e-10 with entries of order one: far above the
-            // 5e-16 of fixed steps (see below), and not explained by the
-            // printed ‖A12⁻¹‖·‖A‖ alone; a non-symplectic method of this
-            // accuracy has defects of the size of its local error (≥ 1e-6 here).
-            assert!(d / m.max(1.0).powi(2) < 1e-11, "e = {e}, {label}: {d} with entries up to {m}");
+            println!(
+                "e = {e}, {label}: defect {d:.2e} = {:.2} ε/(σ c g_min) (ε/(σ c g_min) = {scale:.2e}), largest entry {m:.2}, ε‖A12⁻¹‖·‖A‖ up to {:.2e}",
+                d / scale,
+                f64::EPSILON * cond
+            );
+            // Measured 4e-12 … 3e-9, far above the 5e-16 of fixed steps
+            // (below) and 10–200 times ε‖A12⁻¹‖‖A‖, but 0.11–0.40 (one-point
+            // rules) and 3.6–6.1 (Galerkin s = 2, whose nodes are σ/2 apart)
+            // times ε/(σ c g_min): the tangent-map formula adds terms of size
+            // 1/(σ c g) (the second derivative of the `(t' − g)²/(2cg)` term)
+            // that cancel. Not the Newton tolerance (the same at rtol 1e-14
+            // and 4e-16; the midpoint solves by full Newton). A non-symplectic
+            // method of this accuracy has defects of the size of its local
+            // error (≥ 1e-6 here). Margin: 2.5× the largest ratio measured.
+            let bound = if label == "galerkin 2" { 15.0 } else { 1.0 };
+            assert!(d <= bound * scale, "e = {e}, {label}: {d} = {} ε/(σ c g_min), entries up to {m}", d / scale);
         }
     }
     // For scale: fixed-step midpoint on the same orbit (h = 1e-3, t ≤ 1).

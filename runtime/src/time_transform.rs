@@ -426,6 +426,21 @@ where
     }
 }
 
+/// The default relative Newton tolerance of the steps in `s`: one ulp,
+/// where the runtime's default is `1e-14`.
+///
+/// The Galerkin steps solve by simplified Newton, which converges linearly
+/// and stops with an error of up to `rtol` that keeps its sign step after
+/// step; in `s` that bias adds up and the energy drifts. Kepler e = 0.99,
+/// Galerkin s = 4, σ = 0.4, 1000 orbits, the mean of `(E − E0)/E0` over the
+/// first and the last 100 orbits: −7.7e-9 and +1.1e-7 at `1e-14` (monotone
+/// in between), −1.46e-8 and −1.03e-8 at `4e-16` (monotone), −1.47e-8 and
+/// −1.46e-8 at `2e-16` (all ten within 4%), and within 5% at `1e-30`; 4.72,
+/// 4.91, 5.02 and 7.05 Newton iterations per step. Newton's round-off floor
+/// test ends the iteration where the corrections stop shrinking, so the
+/// tight tolerance does not make steps fail.
+pub const DEFAULT_RTOL: f64 = 2e-16;
+
 /// Configuration of an [`Adaptive`] integrator before its initial state.
 #[derive(Clone, Debug)]
 pub struct TimeTransformedBuilder<Sys, G, K, const N: usize> {
@@ -439,10 +454,12 @@ pub struct TimeTransformedBuilder<Sys, G, K, const N: usize> {
 
 impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBuilder<Sys, G, K, N> {
     fn new(system: TimeTransformed<Sys, G, N>, method: K, sigma: f64) -> Self {
-        Self { system, method, sigma, newton: NewtonOptions::default(), penalty: None, min_time_step: None }
+        let newton = NewtonOptions { rtol: DEFAULT_RTOL, ..NewtonOptions::default() };
+        Self { system, method, sigma, newton, penalty: None, min_time_step: None }
     }
 
-    /// Replaces the Newton settings of the steps in `s`.
+    /// Replaces the Newton settings of the steps in `s` (default: the
+    /// runtime's, with `rtol = 2e-16`, see [`DEFAULT_RTOL`]).
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
         self
