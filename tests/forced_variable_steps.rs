@@ -124,3 +124,26 @@ fn galerkin_balance_steps_are_refused() {
         .start(0.0, [1.0], [0.0]);
     assert!(matches!(err, Err(Error::Unsupported { .. })), "{err:?}");
 }
+
+/// Bad input on the energy-balance path: typed errors at `start`, and a
+/// failed step (Newton limited to one iteration) leaves the state as it was.
+#[test]
+fn balance_steps_bad_input_is_typed() {
+    let start = |h: f64, bounds: StepBounds, q0: f64| {
+        Integrator::new(damped(), Midpoint, h).energy_preserving(bounds).start(0.0, [q0], [0.0]).map(|_| ())
+    };
+    assert!(matches!(start(0.0, StepBounds::around(0.01), 1.0), Err(Error::InvalidStepSize { .. })));
+    assert!(matches!(start(-0.01, StepBounds::around(0.01), 1.0), Err(Error::InvalidStepSize { .. })));
+    assert!(matches!(start(0.01, StepBounds::around(0.01), f64::NAN), Err(Error::InvalidInitialData { .. })));
+    let bad = StepBounds { max_ratio: 1.0, ..StepBounds::around(0.01) };
+    assert!(matches!(start(0.01, bad, 1.0), Err(Error::InvalidStepBounds { .. })));
+    let mut sim = Integrator::new(damped(), Midpoint, 0.01)
+        .energy_preserving(StepBounds::around(0.01))
+        .newton(NewtonOptions { max_iterations: 1, ..NewtonOptions::default() })
+        .start(0.0, [1.0], [0.0])
+        .unwrap();
+    let before = *sim.state();
+    assert!(sim.step().is_err(), "one Newton iteration cannot converge");
+    assert_eq!(*sim.state(), before);
+    assert_eq!(sim.stats().failed_steps, 1);
+}
