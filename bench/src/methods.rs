@@ -250,6 +250,8 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     out.seconds = start.elapsed().as_secs_f64();
     if samples > 0 {
         out.energy.append(&mut energy);
+        // A run that blew up (its failure says so) would put NaN in the JSON, which has no NaN.
+        out.energy.retain(|s| s.1.is_finite());
         out.energy.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
     out

@@ -1,6 +1,6 @@
 //! Writes a [`Report`] to a directory: `report.json`, `report.md`,
-//! `report.html`, and per problem a work–precision plot and an energy plot
-//! (SVG and PNG). Everything is written to a temporary sibling directory
+//! `report.html`, and per problem a work–precision plot and, when the
+//! energy is conserved, an energy plot (SVG and PNG). Everything is written to a temporary sibling directory
 //! first and renamed into place at the end, so a failed run never leaves a
 //! half-written report that looks complete.
 
@@ -344,7 +344,9 @@ fn document(r: &Report) -> Vec<Block> {
             .collect();
         d.push(Table(header, rows));
         if p.energy.is_empty() {
-            d.push(Para("Energy is not conserved by this problem (time-dependent or forced): no long energy runs.".into()));
+            d.push(Para(
+                "Energy is not conserved by this problem (time-dependent or forced): no long energy runs.".into(),
+            ));
             continue;
         }
         d.push(Image(format!("{}-energy.svg", p.id), format!("{} energy error", p.id)));

@@ -745,10 +745,7 @@ impl Model<2> for Sensor {
         let p = Self::P;
         let s = 1.0 + q[0] / p.a;
         let (l1, dl1) = (p.l0 / s, -p.l0 / (p.a * s * s));
-        [
-            (0.5 * dl1 * v[1] * v[1] - p.k * q[0] + p.m * p.g) / p.m,
-            (p.e - p.r * v[1] - dl1 * v[0] * v[1]) / l1,
-        ]
+        [(0.5 * dl1 * v[1] * v[1] - p.k * q[0] + p.m * p.g) / p.m, (p.e - p.r * v[1] - dl1 * v[0] * v[1]) / l1]
     }
     fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
         let p = Self::P;

@@ -92,3 +92,12 @@ fn the_new_problems_are_what_they_claim() {
     assert!((charge - 1.2 * (2.0 - 0.05)).abs() < 0.05, "{charge}");
     assert!(x != 0.0 && x.abs() < 0.05, "{x}");
 }
+
+#[test]
+fn a_run_that_blows_up_records_only_finite_energies() {
+    // Störmer–Verlet on the chain at h = 2.5 (h·ω_max ≈ 5, beyond its stability bound 2).
+    let fpu = get("fpu-beta", 1.0);
+    let run = fpu.run(Method::Verlet, Setting::Steps(20), fpu.horizon(), 20);
+    assert_eq!(run.failure.as_deref(), Some("non-finite state"));
+    assert!(!run.energy.is_empty() && run.energy.iter().all(|s| s.1.is_finite()), "{:?}", run.energy);
+}
