@@ -1,6 +1,6 @@
 //! Writes a [`Report`] to a directory: `report.json`, `report.md`,
-//! `report.html`, and per problem a work–precision plot and an energy plot
-//! (SVG and PNG). Everything is written to a temporary sibling directory
+//! `report.html`, and per problem a work–precision plot and, when the
+//! energy is conserved, an energy plot (SVG and PNG). Everything is written to a temporary sibling directory
 //! first and renamed into place at the end, so a failed run never leaves a
 //! half-written report that looks complete.
 
@@ -50,7 +50,10 @@ fn write_into(report: &Report, dir: &Path) -> Result<(), String> {
     fs::write(&path, json).map_err(io(&path))?;
     for p in &report.problems {
         work_precision_plot(p, &dir.join(format!("{}-work-precision", p.id)))?;
-        energy_plot(p, &dir.join(format!("{}-energy", p.id)))?;
+        // No long energy runs for problems whose energy is not conserved.
+        if !p.energy.is_empty() {
+            energy_plot(p, &dir.join(format!("{}-energy", p.id)))?;
+        }
     }
     let blocks = document(report);
     let path = dir.join("report.md");
@@ -340,6 +343,12 @@ fn document(r: &Report) -> Vec<Block> {
             })
             .collect();
         d.push(Table(header, rows));
+        if p.energy.is_empty() {
+            d.push(Para(
+                "Energy is not conserved by this problem (time-dependent or forced): no long energy runs.".into(),
+            ));
+            continue;
+        }
         d.push(Image(format!("{}-energy.svg", p.id), format!("{} energy error", p.id)));
         let rows = p
             .energy
@@ -364,8 +373,14 @@ fn document(r: &Report) -> Vec<Block> {
     }
     d.push(Heading(2, "Stress".into()));
     d.push(Heading(3, "Largest step each fixed-step method survives".into()));
-    if let Some(c) = r.stress.largest_step.first() {
-        d.push(Para(format!("Criterion: {}.", c.criterion)));
+    let mut criteria: Vec<&str> = Vec::new();
+    for l in &r.stress.largest_step {
+        if !criteria.contains(&l.criterion.as_str()) {
+            criteria.push(&l.criterion);
+        }
+    }
+    for c in criteria {
+        d.push(Para(format!("Criterion: {c}.")));
     }
     let rows = r
         .stress

@@ -10,10 +10,10 @@ use crate::problems::Model;
 struct Ode<'a, M, const N: usize>(&'a M);
 
 impl<M: Model<N>, const N: usize> Ode<'_, M, N> {
-    fn rhs<const D: usize>(&self, y: &SVector<f64, D>, dy: &mut SVector<f64, D>) {
+    fn rhs<const D: usize>(&self, t: f64, y: &SVector<f64, D>, dy: &mut SVector<f64, D>) {
         let q: [f64; N] = core::array::from_fn(|i| y[i]);
         let v: [f64; N] = core::array::from_fn(|i| y[N + i]);
-        let a = self.0.accel(&q, &v);
+        let a = self.0.accel_at(t, &q, &v);
         for i in 0..N {
             dy[i] = v[i];
             dy[N + i] = a[i];
@@ -22,16 +22,16 @@ impl<M: Model<N>, const N: usize> Ode<'_, M, N> {
 }
 
 impl<M: Model<N>, const N: usize, const D: usize> ode_solvers::System<f64, SVector<f64, D>> for Ode<'_, M, N> {
-    fn system(&self, _t: f64, y: &SVector<f64, D>, dy: &mut SVector<f64, D>) {
-        self.rhs(y, dy);
+    fn system(&self, t: f64, y: &SVector<f64, D>, dy: &mut SVector<f64, D>) {
+        self.rhs(t, y, dy);
     }
 }
 
 impl<M: Model<N>, const N: usize, const D: usize> differential_equations::ode::ODE<f64, SVector<f64, D>>
     for Ode<'_, M, N>
 {
-    fn diff(&self, _t: f64, y: &SVector<f64, D>, dydt: &mut SVector<f64, D>) {
-        self.rhs(y, dydt);
+    fn diff(&self, t: f64, y: &SVector<f64, D>, dydt: &mut SVector<f64, D>) {
+        self.rhs(t, y, dydt);
     }
 }
 

@@ -45,6 +45,9 @@ pub trait Problem: Send + Sync {
     fn initial(&self) -> (Vec<f64>, Vec<f64>);
     /// Whether the hand-written compositions apply.
     fn separable(&self) -> bool;
+    /// Whether the energy is conserved (see [`Model::CONSERVATIVE`]); runs
+    /// of other problems record no energy errors.
+    fn conservative(&self) -> bool;
     /// Whether `method` applies to this problem.
     fn applies(&self, method: Method) -> bool {
         !method.needs_separable() || self.separable()
@@ -110,6 +113,9 @@ where
     fn separable(&self) -> bool {
         self.0.inverse_mass().is_some()
     }
+    fn conservative(&self) -> bool {
+        M::CONSERVATIVE
+    }
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run {
         methods::run::<M, N, D>(&self.0, self.0.initial(), method, setting, t_end, samples)
     }
@@ -165,6 +171,9 @@ pub fn all(scale: f64) -> Vec<Box<dyn Problem>> {
         Box::new(Adapter::<_, 2, 4>(p::HenonHeiles { scale })),
         Box::new(Adapter::<_, 18, 36>(p::OuterSolarSystem { scale })),
         Box::new(Adapter::<_, 2, 4>(p::DoublePendulum { scale })),
+        Box::new(Adapter::<_, { p::FPU_N }, { 2 * p::FPU_N }>(p::Fpu { scale })),
+        Box::new(Adapter::<_, 1, 2>(p::PerturbedPendulum { scale })),
+        Box::new(Adapter::<_, 2, 4>(p::Sensor { scale })),
     ]
 }
 

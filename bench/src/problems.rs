@@ -29,9 +29,19 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     fn coarsest_steps(&self) -> usize;
     /// A typical period (or time scale), for the stress section's step sizes.
     fn time_scale(&self) -> f64;
-    /// `q̈` as a function of `(q, q̇)`: the first-order form of the peers.
+    /// Whether the energy is a first integral. `false` for a time-dependent
+    /// `L` or a forced or dissipative system: the report then records no
+    /// energy errors for it (the change of energy is physics, not error).
+    const CONSERVATIVE: bool = true;
+    /// `q̈` as a function of `(q, q̇)` (autonomous problems).
     fn accel(&self, q: &[f64; N], v: &[f64; N]) -> [f64; N];
-    /// The energy `E(q, q̇)`.
+    /// `q̈` as a function of `(t, q, q̇)`: the first-order form of the peers.
+    /// Time-dependent problems override it; the default is [`Model::accel`].
+    fn accel_at(&self, t: f64, q: &[f64; N], v: &[f64; N]) -> [f64; N] {
+        let _ = t;
+        self.accel(q, v)
+    }
+    /// The energy `E(q, q̇)` (read only when [`Model::CONSERVATIVE`]).
     fn energy(&self, q: &[f64; N], v: &[f64; N]) -> f64;
     /// Diagonal inverse mass when the Hamiltonian is separable with constant mass.
     fn inverse_mass(&self) -> Option<[f64; N]> {
@@ -482,5 +492,267 @@ impl Model<2> for DoublePendulum {
     }
     fn reference_steps(&self, t_end: f64) -> usize {
         (t_end / 0.01).ceil() as usize
+    }
+}
+
+// -------------------------------------------------------------- FPU-β chain
+
+/// Number of moving particles of the FPU-β chain.
+pub const FPU_N: usize = 16;
+
+/// The Fermi–Pasta–Ulam–Tsingou β chain: `FPU_N` unit masses between two
+/// fixed walls, joined by springs with force `−(d + β d³)` for an extension `d`:
+/// `L = Σ ½ q̇ᵢ² − Σ_{bonds} (½ d² + ¼ β d⁴)`, `d = q_{i+1} − q_i`, `q_0 = q_{N+1} = 0`.
+#[derive(Debug, Clone, Copy)]
+pub struct FpuSys {
+    /// The quartic coefficient β.
+    pub beta: f64,
+}
+
+#[lagrangian]
+impl FpuSys {
+    fn lagrangian(&self, q: [f64; FPU_N], v: [f64; FPU_N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..FPU_N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        // The two bonds to the walls.
+        let (a, b) = (q[0], q[FPU_N - 1]);
+        let mut potential = 0.5 * (a * a + b * b) + 0.25 * self.beta * (a * a * a * a + b * b * b * b);
+        for i in 0..FPU_N - 1 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * self.beta * d * d * d * d;
+        }
+        kinetic - potential
+    }
+}
+
+/// The FPU-β chain (`FPU_N = 16`, `β = 1`) from rest in its lowest linear
+/// mode, amplitude 2 (largest bond extension ≈ 0.37, so the quartic term is
+/// felt), to `t = 50` (1.5 periods of that mode, 16 of the fastest).
+#[derive(Debug, Clone, Copy)]
+pub struct Fpu {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl Fpu {
+    const BETA: f64 = 1.0;
+    const AMPLITUDE: f64 = 2.0;
+    /// `−∂V/∂qᵢ` with the walls at `q_0 = q_{N+1} = 0`.
+    fn chain_force(q: &[f64; FPU_N]) -> [f64; FPU_N] {
+        // Tension of the bond to the right of particle i (i = −1 is the left wall).
+        let tension = |d: f64| d + Self::BETA * d * d * d;
+        let at = |i: isize| if i < 0 || i >= FPU_N as isize { 0.0 } else { q[i as usize] };
+        core::array::from_fn(|i| {
+            let i = i as isize;
+            tension(at(i + 1) - at(i)) - tension(at(i) - at(i - 1))
+        })
+    }
+}
+
+impl Model<FPU_N> for Fpu {
+    type Sys = FpuSys;
+    const ID: &'static str = "fpu-beta";
+    const TITLE: &'static str = "FPU-β chain (16 particles, t ≤ 50)";
+    fn system(&self) -> FpuSys {
+        FpuSys { beta: Self::BETA }
+    }
+    fn initial(&self) -> ([f64; FPU_N], [f64; FPU_N]) {
+        let k = core::f64::consts::PI / (FPU_N + 1) as f64;
+        (core::array::from_fn(|i| Self::AMPLITUDE * (k * (i + 1) as f64).sin()), [0.0; FPU_N])
+    }
+    fn horizon(&self) -> f64 {
+        50.0 * self.scale
+    }
+    fn coarsest_steps(&self) -> usize {
+        // h = 2, two thirds of the fastest period: the order-16 rule still misses 1e-4 there.
+        (self.horizon() / 2.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        // The fastest linear mode has ω = 2 sin(Nπ / (2(N + 1))) ≈ 2: its period is ≈ π.
+        core::f64::consts::PI
+    }
+    fn accel(&self, q: &[f64; FPU_N], _v: &[f64; FPU_N]) -> [f64; FPU_N] {
+        Self::chain_force(q)
+    }
+    fn energy(&self, q: &[f64; FPU_N], v: &[f64; FPU_N]) -> f64 {
+        let bond = |d: f64| 0.5 * d * d + 0.25 * Self::BETA * d * d * d * d;
+        let kinetic: f64 = v.iter().map(|v| 0.5 * v * v).sum();
+        let inner: f64 = q.windows(2).map(|w| bond(w[1] - w[0])).sum();
+        kinetic + inner + bond(q[0]) + bond(q[FPU_N - 1])
+    }
+    fn inverse_mass(&self) -> Option<[f64; FPU_N]> {
+        Some([1.0; FPU_N])
+    }
+    fn force(&self, q: &[f64; FPU_N]) -> [f64; FPU_N] {
+        Self::chain_force(q)
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.1).ceil() as usize
+    }
+}
+
+// ------------------------------------------------------ perturbed pendulum
+
+/// The pendulum with a slowly modulated gravity of Luo, Guo, Li & Wu
+/// (*Difference discrete variational principle in discrete mechanics and
+/// symplectic algorithm*, §V):
+/// `L = ½ θ̇² − (1 − cos θ)(1 − 0.1 sin 0.02t)`.
+#[derive(Debug, Clone, Copy)]
+pub struct PerturbedPendulumSys;
+
+#[lagrangian]
+impl PerturbedPendulumSys {
+    fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - (1.0 - q[0].cos()) * (1.0 - 0.1 * (0.02 * t).sin())
+    }
+}
+
+/// The perturbed pendulum from `θ = θ̇ = 0.5` (as in the paper) over one
+/// period `2π/0.02` of the perturbation (about 50 swings).
+#[derive(Debug, Clone, Copy)]
+pub struct PerturbedPendulum {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl PerturbedPendulum {
+    const PERTURBATION: f64 = 0.02;
+    fn gravity(t: f64) -> f64 {
+        1.0 - 0.1 * (Self::PERTURBATION * t).sin()
+    }
+}
+
+impl Model<1> for PerturbedPendulum {
+    type Sys = PerturbedPendulumSys;
+    const ID: &'static str = "perturbed-pendulum";
+    const TITLE: &'static str = "Perturbed pendulum (time-dependent, t ≤ 314)";
+    const CONSERVATIVE: bool = false;
+    fn system(&self) -> PerturbedPendulumSys {
+        PerturbedPendulumSys
+    }
+    fn initial(&self) -> ([f64; 1], [f64; 1]) {
+        ([0.5], [0.5])
+    }
+    fn horizon(&self) -> f64 {
+        self.scale * core::f64::consts::TAU / Self::PERTURBATION
+    }
+    fn coarsest_steps(&self) -> usize {
+        // Three steps per swing, as for the pendulum.
+        (self.horizon() / self.time_scale() * 3.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        // Small swings (amplitude ≈ 0.7 rad) of a pendulum with g/l ≈ 1.
+        core::f64::consts::TAU
+    }
+    fn accel(&self, q: &[f64; 1], v: &[f64; 1]) -> [f64; 1] {
+        self.accel_at(0.0, q, v)
+    }
+    fn accel_at(&self, t: f64, q: &[f64; 1], _v: &[f64; 1]) -> [f64; 1] {
+        [-q[0].sin() * Self::gravity(t)]
+    }
+    fn energy(&self, q: &[f64; 1], v: &[f64; 1]) -> f64 {
+        // At t = 0 (not conserved, so never read by the report).
+        0.5 * v[0] * v[0] + (1.0 - q[0].cos()) * Self::gravity(0.0)
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.05).ceil() as usize
+    }
+}
+
+// -------------------------------------------------- electromechanical sensor
+
+/// The electromechanical sensor of Fu, Dai & Tang (*Discrete variation
+/// principle and first integrals of Lagrange–Maxwell mechano-electrical
+/// dynamical systems*, §4): armature `x` (`q[0]`) on a
+/// spring, charge `q` (`q[1]`) through an inductance `L1(x) = L0 / (1 + x/a)`
+/// that the armature changes, a resistor and a battery:
+/// `L = ½ m ẋ² + ½ L1(x) q̇² − ½ k x² + m g x`, `R = ½ r q̇²`, force `(0, E)`.
+#[derive(Debug, Clone, Copy)]
+pub struct SensorSys {
+    /// Armature mass.
+    pub m: f64,
+    /// Spring constant.
+    pub k: f64,
+    /// Gravity.
+    pub g: f64,
+    /// Inductance at `x = 0`.
+    pub l0: f64,
+    /// Length scale of the inductance's dependence on `x`.
+    pub a: f64,
+    /// Resistance.
+    pub r: f64,
+    /// Battery EMF.
+    pub e: f64,
+}
+
+#[lagrangian]
+impl SensorSys {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let x = q[0];
+        let l1 = self.l0 / (1.0 + x / self.a);
+        0.5 * self.m * v[0] * v[0] + 0.5 * l1 * v[1] * v[1] - 0.5 * self.k * x * x + self.m * self.g * x
+    }
+
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * self.r * v[1] * v[1]
+    }
+
+    fn force(&self, _q: [f64; 2], _v: [f64; 2]) -> [f64; 2] {
+        [0.0, self.e]
+    }
+}
+
+/// The sensor with a position-dependent inductance (`a = 0.2`), switched on
+/// at rest, to `t = 2` (about 6 periods of the armature, 40 time constants
+/// `L0/r` of the circuit).
+#[derive(Debug, Clone, Copy)]
+pub struct Sensor {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl Sensor {
+    const P: SensorSys = SensorSys { m: 0.2, k: 80.0, g: 9.81, l0: 0.5, a: 0.2, r: 10.0, e: 12.0 };
+}
+
+impl Model<2> for Sensor {
+    type Sys = SensorSys;
+    const ID: &'static str = "sensor";
+    const TITLE: &'static str = "Electromechanical sensor (forced, dissipative, t ≤ 2)";
+    const CONSERVATIVE: bool = false;
+    fn system(&self) -> SensorSys {
+        Self::P
+    }
+    fn initial(&self) -> ([f64; 2], [f64; 2]) {
+        ([0.0, 0.0], [0.0, 0.0])
+    }
+    fn horizon(&self) -> f64 {
+        2.0 * self.scale
+    }
+    fn coarsest_steps(&self) -> usize {
+        // h = 0.2, two thirds of the armature's period and four time constants of the circuit.
+        (self.horizon() / 0.2).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        // The armature's period 2π √(m/k).
+        core::f64::consts::TAU * (Self::P.m / Self::P.k).sqrt()
+    }
+    fn accel(&self, q: &[f64; 2], v: &[f64; 2]) -> [f64; 2] {
+        // Euler–Lagrange with the Rayleigh term: m ẍ = ½ L1'(x) q̇² − k x + m g and
+        // d/dt (L1(x) q̇) = E − r q̇, i.e. L1 q̈ = E − r q̇ − L1'(x) ẋ q̇.
+        let p = Self::P;
+        let s = 1.0 + q[0] / p.a;
+        let (l1, dl1) = (p.l0 / s, -p.l0 / (p.a * s * s));
+        [(0.5 * dl1 * v[1] * v[1] - p.k * q[0] + p.m * p.g) / p.m, (p.e - p.r * v[1] - dl1 * v[0] * v[1]) / l1]
+    }
+    fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
+        let p = Self::P;
+        let l1 = p.l0 / (1.0 + q[0] / p.a);
+        0.5 * p.m * v[0] * v[0] + 0.5 * l1 * v[1] * v[1] + 0.5 * p.k * q[0] * q[0] - p.m * p.g * q[0]
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 2e-3).ceil() as usize
     }
 }
