@@ -91,7 +91,9 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     // Curves at h, errors at h and 2h: order 2 shows as a factor of 4 between them.
     let h = 0.005;
-    let trajectory = |h: f64| -> Result<Vec<(f64, f64, f64)>, Box<dyn Error>> {
+    // Rows (t, q, i).
+    type Rows = Vec<(f64, f64, f64)>;
+    let trajectory = |h: f64| -> Result<Rows, Box<dyn Error>> {
         let mut sim = Integrator::new(rlc, Midpoint, h).start(0.0, [0.0], [0.0])?;
         let mut out = vec![(0.0, 0.0, 0.0)];
         sim.run_until(t_end, |s| out.push((s.state().t, s.state().q[0], s.state().p[0] / rlc.l)))?;
@@ -108,7 +110,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     let i_error = |run: &[(f64, f64, f64)]| -> Vec<(f64, f64)> {
         run.iter().map(|&(t, _, i)| (t, i - rlc.exact(t)[1])).collect()
     };
-    let (q_error_2h, q_error_h, i_error_2h, i_error_h) = (q_error(&coarse), q_error(&fine), i_error(&coarse), i_error(&fine));
+    let (q_error_2h, q_error_h, i_error_2h, i_error_h) =
+        (q_error(&coarse), q_error(&fine), i_error(&coarse), i_error(&fine));
     let dir = plot::output_dir("rlc_circuit")?;
     Figure {
         title: "Driven series RLC circuit, midpoint rule, h = 0.005 (errors also at 0.01)",

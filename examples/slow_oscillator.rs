@@ -157,7 +157,10 @@ fn main() -> Result<(), Box<dyn Error>> {
                     Series { label: "variable steps", points: &error_var, markers: false },
                 ],
             },
-            Panel { y_label: "step τₖ (variable)", series: vec![Series { label: "", points: &tau[1..], markers: false }] },
+            Panel {
+                y_label: "step τₖ (variable)",
+                series: vec![Series { label: "", points: &tau[1..], markers: false }],
+            },
         ],
     }
     .save(&dir.join("slow_oscillator"), 1000)?;

@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use plotters::coord::Shift;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 /// One curve of a panel.
 pub struct Series<'a> {
@@ -179,11 +179,8 @@ impl Figure<'_> {
                 lo -= pad;
                 hi += pad;
             }
-            let height = if self.equal_axes {
-                frame + (scale_y(lo, hi) * (hi - lo)).round() as u32
-            } else {
-                PANEL_HEIGHT
-            };
+            let height =
+                if self.equal_axes { frame + (scale_y(lo, hi) * (hi - lo)).round() as u32 } else { PANEL_HEIGHT };
             out.push(Layout { y_range: (lo, hi), height, legend: corner });
         }
         Ok(out)
@@ -303,7 +300,12 @@ fn exponent((lo, hi): (f64, f64)) -> i32 {
 /// `n` in superscript digits, with a superscript minus.
 fn superscript(n: i32) -> String {
     const DIGITS: [char; 10] = ['⁰', '¹', '²', '³', '⁴', '⁵', '⁶', '⁷', '⁸', '⁹'];
-    let digits = n.unsigned_abs().to_string().chars().map(|c| c.to_digit(10).map_or('?', |d| DIGITS[d as usize])).collect::<String>();
+    let digits = n
+        .unsigned_abs()
+        .to_string()
+        .chars()
+        .map(|c| c.to_digit(10).map_or('?', |d| DIGITS[d as usize]))
+        .collect::<String>();
     if n < 0 { format!("⁻{digits}") } else { digits }
 }
 
