@@ -87,10 +87,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// A tick label with one decimal, never "-0.0".
+/// A tick label with at most one decimal, never "-0".
 fn tick(x: &f64) -> String {
-    let text = format!("{x:.1}");
-    if text == "-0.0" { "0.0".to_string() } else { text }
+    plot::tick_label(*x, 1)
 }
 
 fn draw<B: DrawingBackend>(

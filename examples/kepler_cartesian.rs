@@ -95,6 +95,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         title: "Cartesian Kepler: free orbit and orbit with drag and thrust",
         x_label: "x",
         x_range: (-1.6, 0.6),
+        equal_axes: true,
         panels: vec![Panel {
             y_label: "y",
             series: vec![
@@ -105,9 +106,11 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     .save(&dir.join("orbits"), 800)?;
     Figure {
-        title: "Angular momentum J = x p_y − y p_x",
+        // With unit mass p = v, so J = x p_y − y p_x is written without subscripts.
+        title: "Angular momentum J = x ẏ − y ẋ",
         x_label: "t",
         x_range: (0.0, 200.0),
+        equal_axes: false,
         panels: vec![Panel {
             y_label: "J",
             series: vec![

@@ -34,22 +34,22 @@ fn main() -> Result<(), Box<dyn Error>> {
 
     let tau: Vec<(f64, f64)> = nodes.iter().map(|n| (n.t, n.tau)).collect();
     let theta: Vec<(f64, f64)> = nodes.iter().map(|n| (n.t, n.theta)).collect();
-    let tau_panel = |markers| Panel { y_label: "τ_k (s)", series: vec![Series { label: "", points: &tau, markers }] };
+    let tau_panel = |markers| Panel { y_label: "τₖ (s)", series: vec![Series { label: "", points: &tau, markers }] };
     let figures = [
-        ("fig1_tau_0_10000", "Fig. 1: step τ_k against t_k, 0–10000 s", (0.0, 10_000.0), vec![tau_panel(false)]),
-        ("fig2_tau_0_350", "Fig. 2: step τ_k against t_k, 0–350 s", (0.0, 350.0), vec![tau_panel(false)]),
+        ("fig1_tau_0_10000", "Fig. 1: step τₖ against tₖ, 0–10000 s", (0.0, 10_000.0), vec![tau_panel(false)]),
+        ("fig2_tau_0_350", "Fig. 2: step τₖ against tₖ, 0–350 s", (0.0, 350.0), vec![tau_panel(false)]),
         (
             "fig3_theta_tau_0_16",
-            "Fig. 3: θ_k (top) and τ_k (bottom) against t_k, 0–16 s",
+            "Fig. 3: θₖ (top) and τₖ (bottom) against tₖ, 0–16 s",
             (0.0, 16.0),
             vec![
-                Panel { y_label: "θ_k (rad)", series: vec![Series { label: "", points: &theta, markers: true }] },
+                Panel { y_label: "θₖ (rad)", series: vec![Series { label: "", points: &theta, markers: true }] },
                 tau_panel(true),
             ],
         ),
     ];
     for (name, title, x_range, panels) in figures {
-        Figure { title, x_label: "t_k (s)", x_range, panels }.save(&dir.join(name), 1000)?;
+        Figure { title, x_label: "tₖ (s)", x_range, panels, equal_axes: false }.save(&dir.join(name), 1000)?;
     }
 
     let expected = std::f64::consts::TAU / PERTURBATION;

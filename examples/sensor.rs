@@ -136,22 +136,23 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     let dir = plot::output_dir("sensor")?;
     Figure {
-        title: "Electromechanical sensor (Fu, Dai & Tang §4), midpoint rule, h = 1e-3",
+        title: "Electromechanical sensor (Fu, Dai & Tang §4), midpoint rule, h = 0.001",
         x_label: "t [s]",
         x_range: (0.0, t_end),
+        equal_axes: false,
         panels: vec![
             Panel {
                 y_label: "armature x [m]",
                 series: vec![
-                    Series { label: "L1 constant", points: &fixed.x, markers: false },
-                    Series { label: "L1 = L0/(1 + x/a)", points: &moving.x, markers: false },
+                    Series { label: "L₁ constant", points: &fixed.x, markers: false },
+                    Series { label: "L₁ = L₀/(1 + x/a)", points: &moving.x, markers: false },
                 ],
             },
             Panel {
                 y_label: "current dq/dt [A]",
                 series: vec![
-                    Series { label: "L1 constant", points: &fixed.current, markers: false },
-                    Series { label: "L1 = L0/(1 + x/a)", points: &moving.current, markers: false },
+                    Series { label: "L₁ constant", points: &fixed.current, markers: false },
+                    Series { label: "L₁ = L₀/(1 + x/a)", points: &moving.current, markers: false },
                 ],
             },
         ],
