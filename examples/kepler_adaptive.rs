@@ -274,6 +274,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                     Series { label: &fx.label, points: &fx.energy, markers: false },
                 ],
             }],
+            equal_axes: false,
         }
         .save(&dir.join(format!("energy_{tag}")), 1000)?;
     }
