@@ -1,0 +1,166 @@
+//! No heap allocation in the stepping loop for small systems whose size is
+//! known at compile time (the project's standard).
+//!
+//! A counting global allocator wraps the system allocator; after a warm-up
+//! step (which may allocate what a method keeps for the whole run, such as
+//! the inverse of a constant mass matrix), 500 more steps of every method and
+//! policy on the pendulum and the double pendulum must allocate nothing.
+//! Counting is per thread, so the test harness's own threads do not
+//! interfere.
+// A counting `GlobalAlloc` cannot be written without `unsafe`; it forwards
+// every call to the system allocator unchanged.
+#![allow(unsafe_code)]
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use common::{DOUBLE_PENDULUM, PENDULUM};
+use lagrangian::prelude::*;
+use lagrangian::{AlphaBeta, Composition, DoubleDouble, GalerkinIntegrator, Method};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards every call to `System` unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // `try_with`: the thread-local may already be gone while a thread exits.
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: the caller upholds `GlobalAlloc::alloc`'s contract.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: the caller upholds `GlobalAlloc::dealloc`'s contract.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        // SAFETY: the caller upholds `GlobalAlloc::realloc`'s contract.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+/// Allocations made by 500 steps after one warm-up step.
+fn allocations_while_stepping<S, M, const N: usize, T>(mut sim: Integrator<S, M, N, T>) -> u64
+where
+    S: Lagrangian<N>,
+    M: Method<T>,
+    T: lagrangian::Real,
+{
+    sim.step().expect("warm-up step");
+    let before = allocations();
+    sim.run(500, |_| {}).expect("steps");
+    allocations() - before
+}
+
+#[test]
+fn one_point_rules_do_not_allocate() {
+    let h = 0.01;
+    let cases: [(&str, u64); 6] = [
+        (
+            "pendulum midpoint",
+            allocations_while_stepping(Integrator::new(PENDULUM, Midpoint, h).start(0.0, [1.0], [0.0]).unwrap()),
+        ),
+        (
+            "pendulum trapezoid (explicit)",
+            allocations_while_stepping(Integrator::new(PENDULUM, Trapezoid, h).start(0.0, [1.0], [0.0]).unwrap()),
+        ),
+        (
+            "pendulum α-β",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, AlphaBeta::new(0.3).unwrap(), h).start(0.0, [1.0], [0.0]).unwrap(),
+            ),
+        ),
+        (
+            "double pendulum midpoint",
+            allocations_while_stepping(
+                Integrator::new(DOUBLE_PENDULUM, Midpoint, h).start(0.0, [1.0, 0.5], [0.0, 0.0]).unwrap(),
+            ),
+        ),
+        (
+            "double pendulum trapezoid (Newton)",
+            allocations_while_stepping(
+                Integrator::new(DOUBLE_PENDULUM, Trapezoid, h).start(0.0, [1.0, 0.5], [0.0, 0.0]).unwrap(),
+            ),
+        ),
+        (
+            "pendulum energy-preserving midpoint",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, Midpoint, h)
+                    .energy_preserving(StepBounds::around(h))
+                    .start(0.0, [1.0], [0.0])
+                    .unwrap(),
+            ),
+        ),
+    ];
+    for (name, n) in cases {
+        assert_eq!(n, 0, "{name}: {n} allocations in 500 steps");
+    }
+}
+
+#[test]
+fn galerkin_compositions_and_double_double_do_not_allocate() {
+    let h = 0.05;
+    let cases: [(&str, u64); 5] = [
+        (
+            "pendulum Galerkin s = 2",
+            allocations_while_stepping(
+                GalerkinIntegrator::new(PENDULUM, Galerkin::<2, 2>::gauss(), h).start(0.0, [1.0], [0.0]).unwrap(),
+            ),
+        ),
+        (
+            "double pendulum Galerkin s = 4",
+            allocations_while_stepping(
+                GalerkinIntegrator::new(DOUBLE_PENDULUM, Galerkin::<4, 4>::gauss(), h)
+                    .start(0.0, [1.0, 0.5], [0.0, 0.0])
+                    .unwrap(),
+            ),
+        ),
+        (
+            "pendulum Yoshida 6",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, Composition::YOSHIDA6, h).start(0.0, [1.0], [0.0]).unwrap(),
+            ),
+        ),
+        (
+            "double pendulum Yoshida 4 (Newton sub-steps)",
+            allocations_while_stepping(
+                Integrator::new(DOUBLE_PENDULUM, Composition::YOSHIDA4, h).start(0.0, [1.0, 0.5], [0.0, 0.0]).unwrap(),
+            ),
+        ),
+        (
+            "pendulum midpoint in double-double",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, Midpoint, DoubleDouble::from(h))
+                    .start(DoubleDouble::from(0.0), [DoubleDouble::from(1.0)], [DoubleDouble::from(0.0)])
+                    .unwrap(),
+            ),
+        ),
+    ];
+    for (name, n) in cases {
+        assert_eq!(n, 0, "{name}: {n} allocations in 500 steps");
+    }
+}
+
+/// The counter sees this thread's allocations (so the zeros above mean something).
+#[test]
+fn the_counter_counts() {
+    let before = allocations();
+    let v: Vec<u64> = std::hint::black_box((0..100).collect());
+    assert_eq!(v.len(), 100);
+    assert!(allocations() > before);
+}
