@@ -95,13 +95,16 @@
 //!   recording is unaffected.
 //! - A non-constant [`Var`] from another recording (kept from an earlier one,
 //!   or made on another thread) used in a recording is detected by its
-//!   generation: it counts as a constant there, and [`Tape::record`] fails
+//!   generation: the operation gives a constant, and [`Tape::record`] fails
 //!   with [`TapeError::Stale`]. Generations come from a process-wide 32-bit
 //!   counter, so a collision needs a `Var` kept across 2³² recordings.
 //! - Arithmetic on [`Var`]s outside any recording computes values only: the
 //!   result is a constant.
-//! - If the closure panics, the recording is discarded (the tape's buffer
-//!   with it) and the thread has no current tape afterwards.
+//! - If the closure panics, the recording is discarded and the thread has no
+//!   current tape afterwards.
+//! - Each thread that records keeps one small struct (under 100 bytes)
+//!   allocated until the process ends: the slot the thread-local points to
+//!   (see `Slot` in the source for why).
 //!
 //! # Stack use
 //!
@@ -109,7 +112,7 @@
 //! the inputs as a slice; only `[Var; N]` arrays that generic code builds
 //! itself live on the stack (16 bytes per entry).
 
-use core::cell::RefCell;
+use core::cell::{Cell, RefCell};
 use core::fmt;
 use core::iter::{Product, Sum};
 use core::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Range, Rem, RemAssign, Sub, SubAssign};
@@ -183,7 +186,7 @@ pub enum TapeError {
 
 /// One elementary operation: at most two parents and the local partials
 /// `[∂f/∂a, ∂f/∂b, ∂²f/∂a², ∂²f/∂a∂b, ∂²f/∂b²]`. A unary node has `b = NONE`
-/// and zeros in the `b` partials; an input has `a = b = NONE`.
+/// (its `b` partials are never read); an input has `a = b = NONE`.
 #[derive(Clone, Copy, Debug)]
 struct Node {
     a: u32,
@@ -198,8 +201,20 @@ struct Recording {
     error: Option<TapeError>,
 }
 
+/// A thread's recording slot: allocated at the thread's first recording
+/// and kept (leaked, one small struct per thread that ever records) so that
+/// the thread-locals below hold only a `Copy` reference. A thread-local
+/// without a destructor is a plain address computation, inlined at every
+/// operation; one with a destructor (such as a `RefCell` holding the `Vec`)
+/// goes through an out-of-line accessor, which measured at about half of
+/// the recording time.
+type Slot = &'static RefCell<Recording>;
+
 thread_local! {
-    static CURRENT: RefCell<Option<Recording>> = const { RefCell::new(None) };
+    /// The recording operations append to, while one is active.
+    static CURRENT: Cell<Option<Slot>> = const { Cell::new(None) };
+    /// This thread's slot, once allocated.
+    static SLOT: Cell<Option<Slot>> = const { Cell::new(None) };
 }
 
 /// Generations of recordings, process-wide so that a `Var` sent to another
@@ -207,13 +222,13 @@ thread_local! {
 /// constants carry generation 0.
 static GENERATION: AtomicU32 = AtomicU32::new(1);
 
-/// Takes the current recording off the thread (if any) when dropped, so that
-/// a panicking closure leaves no tape installed.
+/// Uninstalls the current recording when dropped, so that a panicking
+/// closure leaves no tape installed.
 struct Uninstall;
 
 impl Drop for Uninstall {
     fn drop(&mut self) {
-        let _ = CURRENT.try_with(|cell| cell.try_borrow_mut().map(|mut slot| slot.take()));
+        let _ = CURRENT.try_with(|current| current.set(None));
     }
 }
 
@@ -261,48 +276,50 @@ impl Var {
     }
 
     /// The node of a binary function of `self` and `other` with value `f0`
-    /// and partials `d` (see [`Node`]).
+    /// and partials `d` (see [`Node`]); a variable parent goes first.
     #[inline(always)]
     fn binary(self, other: Self, f0: f64, d: [f64; 5]) -> Self {
-        if self.index == NONE && other.index == NONE { Self::constant(f0) } else { push(f0, self, other, d) }
+        match (self.index == NONE, other.index == NONE) {
+            (false, _) => push(f0, self, other, d),
+            (true, false) => push(f0, other, self, [d[1], d[0], d[4], d[3], d[2]]),
+            (true, true) => Self::constant(f0),
+        }
     }
 }
 
-/// Appends a node with parents `a`, `b` (either may be constant, not both)
-/// to the current recording; a constant when there is none.
-#[inline]
+/// Appends a node with parents `a` (a variable) and `b` (a variable or a
+/// constant, whose partials are then never read) to the current recording;
+/// a constant when there is none.
+///
+/// Inlined, with the rare cases out of line: it runs once per operation of
+/// the user's code, and a call per operation cost about half of the
+/// recording time.
+#[inline(always)]
 fn push(value: f64, a: Var, b: Var, d: [f64; 5]) -> Var {
-    CURRENT
-        .try_with(|cell| {
-            let Ok(mut slot) = cell.try_borrow_mut() else { return Var::constant(value) };
-            let Some(rec) = slot.as_mut() else { return Var::constant(value) };
-            let mut ia = a.index;
-            let mut ib = b.index;
-            if ia != NONE && a.generation != rec.generation {
-                rec.error.get_or_insert(TapeError::Stale);
-                ia = NONE;
-            }
-            if ib != NONE && b.generation != rec.generation {
-                rec.error.get_or_insert(TapeError::Stale);
-                ib = NONE;
-            }
-            // The parent that is a variable goes first; a constant one is
-            // dropped with its partials.
-            let node = match (ia == NONE, ib == NONE) {
-                (true, true) => return Var::constant(value),
-                (false, false) => Node { a: ia, b: ib, d },
-                (false, true) => Node { a: ia, b: NONE, d: [d[0], 0.0, d[2], 0.0, 0.0] },
-                (true, false) => Node { a: ib, b: NONE, d: [d[1], 0.0, d[4], 0.0, 0.0] },
-            };
-            let index = rec.nodes.len();
-            if index >= NONE as usize {
-                rec.error.get_or_insert(TapeError::TooLarge);
-                return Var::constant(value);
-            }
-            rec.nodes.push(node);
-            Var { value, index: index as u32, generation: rec.generation }
-        })
-        .unwrap_or(Var::constant(value))
+    let Some(slot) = CURRENT.try_with(Cell::get).ok().flatten() else { return Var::constant(value) };
+    let Ok(mut rec) = slot.try_borrow_mut() else { return Var::constant(value) };
+    let generation = rec.generation;
+    let index = rec.nodes.len();
+    let current = a.generation == generation && (b.index == NONE || b.generation == generation);
+    if current && index < NONE as usize {
+        rec.nodes.push(Node { a: a.index, b: b.index, d });
+        Var { value, index: index as u32, generation }
+    } else {
+        fail(&mut rec, index);
+        Var::constant(value)
+    }
+}
+
+/// [`push`] when a parent is from another recording or the tape is full:
+/// the recording fails, so the result's derivatives no longer matter (it
+/// becomes a constant). Takes no partials, so that `push` builds its node in
+/// registers: passing them out of line put them in memory and the node copy
+/// stalled on store forwarding.
+#[cold]
+#[inline(never)]
+fn fail(rec: &mut Recording, index: usize) {
+    let error = if index >= NONE as usize { TapeError::TooLarge } else { TapeError::Stale };
+    rec.error.get_or_insert(error);
 }
 
 /// A compact seed matrix `S` (inputs × `K`): input `j` gets the unit vector
@@ -486,7 +503,7 @@ impl Tape {
     /// `u32::MAX − 1` nodes.
     pub fn record(&mut self, inputs: &[f64], f: impl FnOnce(&[Var]) -> Var) -> Result<f64, TapeError> {
         self.recorded = false;
-        if CURRENT.with(|cell| !matches!(cell.try_borrow().map(|slot| slot.is_none()), Ok(true))) {
+        if CURRENT.with(Cell::get).is_some() {
             return Err(TapeError::Nested);
         }
         if inputs.len() >= NONE as usize {
@@ -499,13 +516,23 @@ impl Tape {
         let mut vars = core::mem::take(&mut self.vars);
         vars.clear();
         vars.extend(inputs.iter().enumerate().map(|(j, &value)| Var { value, index: j as u32, generation }));
-        CURRENT.with(|cell| *cell.borrow_mut() = Some(Recording { nodes, generation, error: None }));
+        let slot = SLOT.with(|spare| {
+            spare.get().unwrap_or_else(|| {
+                let new: Slot =
+                    Box::leak(Box::new(RefCell::new(Recording { nodes: Vec::new(), generation: 0, error: None })));
+                spare.set(Some(new));
+                new
+            })
+        });
+        // Not borrowed: only `push` borrows it, and never across user code.
+        *slot.borrow_mut() = Recording { nodes, generation, error: None };
+        CURRENT.with(|current| current.set(Some(slot)));
         let guard = Uninstall;
         let out = f(&vars);
-        let rec = CURRENT.with(|cell| cell.borrow_mut().take());
         drop(guard);
         self.vars = vars;
-        let Some(rec) = rec else { return Err(TapeError::Nested) };
+        let rec =
+            core::mem::replace(&mut *slot.borrow_mut(), Recording { nodes: Vec::new(), generation: 0, error: None });
         self.nodes = rec.nodes;
         if let Some(error) = rec.error {
             return Err(error);
