@@ -31,6 +31,7 @@ pub mod structure;
 mod symmetry;
 pub mod symplectic;
 pub mod system;
+pub mod tape;
 pub mod time_transform;
 
 pub use dense::Node;
