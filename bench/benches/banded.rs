@@ -2,14 +2,16 @@
 //! the banded LU for n = 1e2 … 1e6 with a fitted cost exponent, against
 //! faer's sparse LU (with the `faer` feature), and against dense LU at
 //! n = 100 and 256; then the dimension where the banded solver starts to beat
-//! the dense one (`BANDED_MIN_DIM`).
+//! the dense one (`prefers_banded`).
 //!
 //! Run with `cargo bench -p lagrangian-bench --bench banded` (add
 //! `--features faer` for the faer column). A plain timing loop, not
 //! criterion: each entry is the median of repeated runs of one
 //! factorisation and one solve, the matrix re-assembled outside the timed
 //! region; the systems are `−1, 4, −1.5` (tridiagonal) and
-//! `0.5, −1, 6, −1.5, 0.25` (pentadiagonal): diagonally dominant, so no
+//! `0.5, −1, 6, −1.5, 0.25` (pentadiagonal), wider bands and a full
+//! matrix with `4` on the diagonal and `−1/d²` (below) or `−0.5/d²` (above) at
+//! distance `d`: diagonally dominant, so no
 //! solver exchanges rows and all do the same arithmetic.
 #![allow(missing_docs)]
 
@@ -18,17 +20,22 @@ use std::time::{Duration, Instant};
 
 use lagrangian::banded::{BandedMatrix, DenseMatrix, StepMatrix};
 
-/// The band of row `i`: `(column offset, value)`.
-fn stencil(bandwidth: usize) -> &'static [(isize, f64)] {
+/// The band of row `i`, as `(column offset, value)`: a dominant diagonal
+/// and decaying neighbours out to `bandwidth`.
+fn stencil(bandwidth: usize) -> Vec<(isize, f64)> {
     match bandwidth {
-        1 => &[(-1, -1.0), (0, 4.0), (1, -1.5)],
-        _ => &[(-2, 0.5), (-1, -1.0), (0, 6.0), (1, -1.5), (2, 0.25)],
+        1 => vec![(-1, -1.0), (0, 4.0), (1, -1.5)],
+        2 => vec![(-2, 0.5), (-1, -1.0), (0, 6.0), (1, -1.5), (2, 0.25)],
+        b => (-(b as isize)..=b as isize)
+            .map(|d| (d, if d == 0 { 4.0 } else { -1.0 / (d * d) as f64 * if d < 0 { 1.0 } else { 0.5 } }))
+            .collect(),
     }
 }
 
 fn entries(n: usize, bandwidth: usize) -> impl Iterator<Item = (usize, usize, f64)> {
+    let stencil = stencil(bandwidth);
     (0..n).flat_map(move |i| {
-        stencil(bandwidth).iter().filter_map(move |&(d, x)| {
+        stencil.clone().into_iter().filter_map(move |(d, x)| {
             let j = i as isize + d;
             (j >= 0 && (j as usize) < n).then_some((i, j as usize, x))
         })
@@ -167,7 +174,9 @@ fn main() {
     let sizes: &[usize] = if quick { &[100, 1000] } else { &[100, 1_000, 10_000, 100_000, 1_000_000] };
 
     println!("## banded LU: factor + solve (median), µs\n");
-    println!("| bandwidth | n | banded | banded + rcond estimate | ns per unknown | faer sparse LU (numeric) | faer symbolic (once) |");
+    println!(
+        "| bandwidth | n | banded | banded + rcond estimate | ns per unknown | faer sparse LU (numeric) | faer symbolic (once) |"
+    );
     println!("| --- | --- | --- | --- | --- | --- | --- |");
     for bandwidth in [1, 2] {
         let mut points = Vec::new();
@@ -206,12 +215,20 @@ fn main() {
         }
     }
 
-    println!("\n## small n: banded against dense (for `BANDED_MIN_DIM`): assemble + factor + solve, ns\n");
+    println!("\n## a full matrix (the N-link pendulum's case): dense LU, µs\n");
+    println!("| n | dense (this crate) | nalgebra 0.34 dense LU |");
+    println!("| --- | --- | --- |");
+    for n in [100, 256] {
+        // Bandwidth n − 1 with the dominant stencil's values: every entry non-zero.
+        println!("| {n} | {:.2} | {:.2} |", time_dense(n, n - 1, budget) * 1e6, time_nalgebra(n, n - 1, budget) * 1e6);
+    }
+
+    println!("\n## small n: banded against dense (for `prefers_banded`): assemble + factor + solve, ns\n");
     println!("| bandwidth | n | banded | dense |");
     println!("| --- | --- | --- | --- |");
-    for bandwidth in [1, 2] {
-        for n in [2, 3, 4, 5, 6, 8, 12, 16, 32] {
-            if n <= bandwidth {
+    for bandwidth in [1, 2, 4, 8] {
+        for n in [2, 3, 4, 5, 6, 8, 12, 16, 24, 32, 48, 64] {
+            if n <= bandwidth || (bandwidth > 2 && n < 2 * bandwidth) {
                 continue;
             }
             println!(

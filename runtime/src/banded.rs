@@ -57,21 +57,27 @@
 //! # Which to choose
 //!
 //! [`StepSolver::for_pattern`] takes the banded solver for a banded or
-//! diagonal pattern once `n ≥` [`BANDED_MIN_DIM`], and the dense one for a
-//! general pattern or below that size (see the constant for the
-//! measurement).
+//! diagonal pattern when [`prefers_banded`] (`n ≥ 8 (bandwidth + 1)`, from
+//! the measurement documented there), and the dense one for a general
+//! pattern or a smaller matrix.
 
 use crate::structure::Pattern;
 
-/// Below this dimension [`StepSolver::for_pattern`] takes the dense solver
-/// even for a banded pattern.
+/// Whether the banded solver is expected to beat the dense one on an
+/// `n × n` matrix of (symmetric) bandwidth `bandwidth`: `n ≥ 8 (bandwidth + 1)`.
 ///
-/// Measured with `cargo bench -p lagrangian-bench --bench banded` (one run,
-/// 2 cores, load about 4): factor and solve of a tridiagonal system cost
-/// the same in both solvers at `n = 4` and the banded one is faster from
-/// `n = 6` on; the band storage never loses by more than its constant
-/// overhead below that.
-pub const BANDED_MIN_DIM: usize = 6;
+/// Measured with `cargo bench -p lagrangian-bench --bench banded` (one run
+/// on the 2-core machine under a load of about 7, so ±15 % noise):
+/// assembling, factoring and solving costs the same in both solvers at
+/// about `n = 12…16` for bandwidth 1, `16…24` for 2, `24…32` for 4 and
+/// `48` for 8; below that the dense loops' lower overhead wins by up to
+/// 3.6× (bandwidth 8, `n = 16`), above it the banded solver's `O(n b²)`
+/// work wins by a growing factor (bandwidth 1, `n = 256`: 9.5 against
+/// 148 µs). The rule sits at or just above each measured crossing, where
+/// the two differ by little.
+pub const fn prefers_banded(n: usize, bandwidth: usize) -> bool {
+    n >= 8 * (bandwidth + 1)
+}
 
 /// What went wrong with a step matrix.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
@@ -860,7 +866,7 @@ impl StepMatrix for DenseMatrix {
 /// The step matrix chosen for a pattern: banded or dense.
 #[derive(Clone, Debug)]
 pub enum StepSolver {
-    /// For a banded or diagonal pattern with `n ≥` [`BANDED_MIN_DIM`].
+    /// For a banded or diagonal pattern where [`prefers_banded`].
     Banded(BandedMatrix),
     /// For a general pattern, or a small matrix.
     Dense(DenseMatrix),
@@ -868,10 +874,10 @@ pub enum StepSolver {
 
 impl StepSolver {
     /// The banded solver when `pattern` has a bandwidth and
-    /// `n ≥` [`BANDED_MIN_DIM`], else the dense one.
+    /// [`prefers_banded`] says so, else the dense one.
     pub fn for_pattern(n: usize, pattern: Pattern) -> Result<Self, LinearSolveError> {
         match pattern.bandwidth() {
-            Some(b) if n >= BANDED_MIN_DIM => Ok(StepSolver::Banded(BandedMatrix::new(n, b, b)?)),
+            Some(b) if prefers_banded(n, b) => Ok(StepSolver::Banded(BandedMatrix::new(n, b, b)?)),
             _ => Ok(StepSolver::Dense(DenseMatrix::new(n)?)),
         }
     }

@@ -357,7 +357,9 @@ fn one_newton_loop_runs_on_both_solvers() {
     let mut banded = StepSolver::for_pattern(n, Pattern::banded(n, 1)).unwrap();
     let mut dense = StepSolver::for_pattern(n, Pattern::General).unwrap();
     assert!(matches!(banded, StepSolver::Banded(_)) && matches!(dense, StepSolver::Dense(_)));
-    assert!(matches!(StepSolver::for_pattern(3, Pattern::banded(3, 1)).unwrap(), StepSolver::Dense(_)));
+    assert!(matches!(StepSolver::for_pattern(15, Pattern::banded(15, 1)).unwrap(), StepSolver::Dense(_)));
+    assert!(matches!(StepSolver::for_pattern(16, Pattern::banded(16, 1)).unwrap(), StepSolver::Banded(_)));
+    assert!(matches!(StepSolver::for_pattern(16, Pattern::Diagonal).unwrap(), StepSolver::Banded(_)));
     let (a, b) = (bratu(&mut banded), bratu(&mut dense));
     assert!(relative_difference(&a, &b) < 1e-13);
     // The lower Bratu branch at λ = 1 peaks near u(½) = 0.1405.
