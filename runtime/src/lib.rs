@@ -6,6 +6,7 @@
 //! built and tested apart. The runtime knows a user's system only through the
 //! [`Lagrangian`] trait.
 
+pub mod banded;
 pub mod dense;
 pub mod derivatives;
 pub mod discrete;
