@@ -27,12 +27,14 @@ use crate::system::{Lagrangian, generalized_force};
 mod composition;
 mod method;
 mod one_point;
+mod sparse;
 mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
+pub use sparse::Derivatives;
 pub use variable_step::{EnergyFallback, StepBounds};
 
 /// Counters of the work an integrator has done.
@@ -72,6 +74,7 @@ pub struct IntegratorBuilder<S, M, T = f64> {
     newton: NewtonOptions,
     policy: StepPolicy,
     fallback: EnergyFallback,
+    derivatives: Derivatives,
 }
 
 /// How the integrator chooses its step sizes.
@@ -110,6 +113,15 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
         self
     }
 
+    /// How the derivatives of a step are computed and its Newton systems
+    /// solved ([`Derivatives`]); [`Derivatives::Automatic`] by default, which
+    /// takes reverse mode (a tape, banded or dense solves on the heap) for
+    /// systems larger than [`Derivatives::FORWARD_MAX_N`].
+    pub fn derivatives(mut self, derivatives: Derivatives) -> Self {
+        self.derivatives = derivatives;
+        self
+    }
+
     /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
     ///
     /// Fails with [`Error::InvalidMethod`] for an unusable discrete
@@ -142,6 +154,8 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
             }
         }
         self.method.supports::<S, N>(&self.policy)?;
+        self.derivatives.check::<N, T>()?;
+        self.method.supports_derivatives::<S, N>(self.derivatives.reverse::<N>(), &self.policy)?;
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
@@ -170,6 +184,7 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
             v0,
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
+            derivatives: self.derivatives,
         })
     }
 }
@@ -326,6 +341,8 @@ pub struct Integrator<S, M: Method<T>, const N: usize, T: Real = f64> {
     pub(crate) v0: [T; N],
     pub(crate) clock: Clock<T>,
     pub(crate) stats: Stats,
+    /// Forward or reverse mode, as configured.
+    pub(crate) derivatives: Derivatives,
 }
 
 impl<S, M: Method<T>, T: Real> Integrator<S, M, 0, T> {
@@ -345,6 +362,7 @@ impl<S, M: Method<T>, T: Real> Integrator<S, M, 0, T> {
             newton: NewtonOptions::default(),
             policy: StepPolicy::Fixed,
             fallback: EnergyFallback::Fail,
+            derivatives: Derivatives::Automatic,
         }
     }
 }
@@ -509,6 +527,11 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Integrator<S, M, N> {
     pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
         use crate::mechanics::DiscreteMechanics;
         let State { t, q, p, .. } = self.state;
+        if const { sparse::too_large_for_forward(N) } || self.derivatives.reverse::<N>() {
+            return sparse::velocity(&self.system, t, &q, &p, &M::velocity_guess(self)).map_err(
+                |(iterations, residual_norm)| Error::InverseLegendre { state: self.state, iterations, residual_norm },
+            );
+        }
         self.system.velocity(t, q, p, M::velocity_guess(self)).map_err(|f| Error::InverseLegendre {
             state: self.state,
             iterations: f.iterations,
@@ -520,6 +543,9 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Integrator<S, M, N> {
     pub fn energy(&self) -> Result<f64, Error<N>> {
         use crate::mechanics::DiscreteMechanics;
         let v = self.velocity()?;
+        if const { sparse::too_large_for_forward(N) } || self.derivatives.reverse::<N>() {
+            return Ok(sparse::energy(&self.system, self.state.t, &self.state.q, &v));
+        }
         Ok(self.system.energy(self.state.t, self.state.q, v))
     }
 

@@ -129,7 +129,7 @@ impl<X> Linearization<X> {
 }
 
 /// An unknown Newton can iterate on.
-pub(crate) trait Unknown: Copy {
+pub(crate) trait Unknown {
     /// Applies a correction.
     fn update(&mut self, dx: &Self);
     /// Weighted size of a correction: `max_i |dx_i| / (rtol |x_i| + atol)`

@@ -115,6 +115,7 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
         v0: it.v0,
         clock: it.clock,
         stats: it.stats,
+        derivatives: it.derivatives,
     };
     let outcome = op(&mut g);
     let Integrator {

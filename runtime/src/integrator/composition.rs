@@ -101,7 +101,7 @@ impl Composition {
 
 /// What a composition keeps: the trapezoid sub-steps' memory and the
 /// sub-steps of the last composed step.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct CompositionMemory<const N: usize> {
     pub(crate) inner: OnePointMemory<N>,
     /// The sub-steps of the last step (the first `stages` entries).
@@ -147,6 +147,14 @@ impl Method<f64> for Composition {
         }
     }
 
+    fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
+        &self,
+        reverse: bool,
+        policy: &StepPolicy,
+    ) -> Result<(), Error<N>> {
+        Trapezoid.supports_derivatives::<S, N>(reverse, policy)
+    }
+
     fn legendre<S: Lagrangian<N>, const N: usize>(
         system: &S,
         t0: f64,
@@ -162,6 +170,7 @@ impl Method<f64> for Composition {
         t1: f64,
     ) -> Result<(), Error<N>> {
         let before = it.state;
+        let saved = (it.memory.inner.previous, it.memory.inner.earlier, it.memory.inner.node_force);
         let mut sub = Integrator {
             system: &it.system,
             method: Trapezoid,
@@ -176,10 +185,12 @@ impl Method<f64> for Composition {
             energy_carry: it.energy_carry,
             time_error: it.time_error,
             watched_energy: it.watched_energy,
-            memory: it.memory.inner,
+            // Moved out and back (it holds the reverse-mode work on the heap).
+            memory: core::mem::replace(&mut it.memory.inner, <Trapezoid as Method<f64>>::memory(&Trapezoid)),
             v0: it.v0,
             clock: it.clock,
             stats: it.stats,
+            derivatives: it.derivatives,
         };
         let mut substeps = it.memory.substeps;
         let stages = it.method.weights.len();
@@ -189,6 +200,14 @@ impl Method<f64> for Composition {
             elapsed += gamma;
             let ti = if i + 1 == stages { t1 } else { before.t + elapsed * h };
             if let Err(e) = sub.step_by(hi, ti) {
+                // The node memory as it was; the heap caches (mass matrix,
+                // reverse-mode work) stay, the reverse-mode node force (of a
+                // sub-node) does not.
+                let Integrator { memory, .. } = sub;
+                it.memory.inner = OnePointMemory { previous: saved.0, earlier: saved.1, node_force: saved.2, ..memory };
+                if let Some(work) = it.memory.inner.sparse.as_mut() {
+                    work.forget_node_force();
+                }
                 it.stats.failed_steps += 1;
                 return Err(e.at_state(before));
             }
@@ -199,6 +218,9 @@ impl Method<f64> for Composition {
         let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
         // The explicit path's cached force belongs to the composed node now.
         memory.node_force = memory.node_force.map(|(_, f)| (before.step + 1, f));
+        if let Some(work) = memory.sparse.as_mut() {
+            work.rekey_node_force(before.step + 1);
+        }
         it.state = State { step: before.step + 1, ..state };
         it.carry = carry;
         it.p_carry = p_carry;
@@ -227,6 +249,12 @@ impl Method<f64> for Composition {
     /// The discrete energy of the last trapezoid sub-step (the energy the
     /// composed step ends with); the energy of the initial data at `k = 0`.
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
+        if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
+            return match it.memory.stages {
+                0 => it.energy,
+                m => super::sparse::step_energy(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
+            };
+        }
         match it.memory.stages {
             0 => it.system.energy(it.state.t, it.state.q, it.v0),
             m => -derivatives::end_time_derivative(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
@@ -248,7 +276,8 @@ impl F64Readouts for Composition {
     /// The product of the sub-steps' tangent maps.
     fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
         let m = it.memory.stages;
-        if m == 0 {
+        // Not offered in reverse mode (a dense 2N × 2N matrix).
+        if const { super::sparse::too_large_for_forward(N) } || m == 0 || it.derivatives.reverse::<N>() {
             return None;
         }
         let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substeps[0])?.matrix();
@@ -265,6 +294,10 @@ impl F64Readouts for Composition {
         symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
         let m = it.memory.stages;
+        if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
+            // Reverse mode refuses forces at `start`: no impulse.
+            return (m > 0).then_some(0.0);
+        }
         (m > 0).then(|| {
             it.memory.substeps[..m]
                 .iter()

@@ -64,6 +64,25 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         Ok(())
     }
 
+    /// Whether steps can take their derivatives in reverse mode (a tape;
+    /// see [`Derivatives`](crate::Derivatives)) under `policy`; `reverse` is
+    /// what the configuration chose. Only the one-point rules in `f64` have
+    /// a reverse-mode step so far.
+    #[doc(hidden)]
+    fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
+        &self,
+        reverse: bool,
+        policy: &StepPolicy,
+    ) -> Result<(), Error<N, T>> {
+        let _ = policy;
+        if reverse {
+            return Err(Error::Unsupported {
+                what: "reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`) with this method: only midpoint, trapezoid, α-β and compositions in `f64` have them",
+            });
+        }
+        Ok(())
+    }
+
     /// The momentum `p0 = ∂L/∂v` and the energy `E_L` at the initial data,
     /// after checking that they and `L` are finite and that `∂²L/∂v²` is
     /// regular there.

@@ -12,7 +12,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::method::{F64Readouts, Method, sealed};
-use super::{IMPLAUSIBLE_GROWTH, Integrator, StepBounds, implausible_growth, kahan, non_finite};
+use super::{IMPLAUSIBLE_GROWTH, Integrator, StepBounds, StepPolicy, implausible_growth, kahan, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -25,7 +25,7 @@ use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
 
 /// What a one-point rule keeps of its last two steps.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct OnePointMemory<const N: usize> {
     /// The last step, from node `k − 1` to node `k`; `None` at the start.
     pub(crate) previous: Option<Segment<N>>,
@@ -33,10 +33,15 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) earlier: Option<(f64, [f64; N])>,
     /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix,
     /// once computed.
-    pub(crate) inverse_mass: Option<SMatrix<f64, N, N>>,
+    /// On the heap: at the sizes reverse mode serves, an inline `N × N`
+    /// matrix would not fit on a thread's stack.
+    pub(crate) inverse_mass: Option<Box<SMatrix<f64, N, N>>>,
     /// Explicit steps: `(k, f(t_k, q_k))`, the force `∂L/∂q(t, q, 0)` at
     /// node `k` (valid while the state is at node `k`).
     pub(crate) node_force: Option<(u64, [f64; N])>,
+    /// Reverse-mode steps: the tape, its buffers and the factored matrices
+    /// (see [`Derivatives`](crate::Derivatives)); `None` in forward mode.
+    pub(crate) sparse: Option<Box<super::sparse::SparseWork>>,
 }
 
 impl<M: DiscreteLagrangian> sealed::Sealed for M {}
@@ -49,7 +54,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn memory<const N: usize>(&self) -> OnePointMemory<N> {
-        OnePointMemory { previous: None, earlier: None, inverse_mass: None, node_force: None }
+        OnePointMemory { previous: None, earlier: None, inverse_mass: None, node_force: None, sparse: None }
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(
@@ -58,6 +63,11 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         q0: [f64; N],
         v0: [f64; N],
     ) -> Result<([f64; N], f64), Error<N>> {
+        // `if const`: the forward-mode code below is then not even compiled
+        // for large N (its N × N values make the compiler crawl there).
+        if const { super::sparse::too_large_for_forward(N) } {
+            return super::sparse::legendre(system, t0, q0, v0);
+        }
         let p0 = system.momentum(t0, q0, v0);
         if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
             return Err(Error::InvalidInitialData {
@@ -77,6 +87,17 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         Ok((p0, energy))
     }
 
+    fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
+        &self,
+        reverse: bool,
+        policy: &StepPolicy,
+    ) -> Result<(), Error<N>> {
+        match super::sparse::unsupported::<S, N>(policy) {
+            Some(what) if reverse => Err(Error::Unsupported { what }),
+            _ => Ok(()),
+        }
+    }
+
     #[inline(always)]
     fn fixed_step<S: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<S, Self, N>,
@@ -90,6 +111,9 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         it: &mut Integrator<S, Self, N>,
         bounds: StepBounds,
     ) -> Result<(), Error<N>> {
+        if const { super::sparse::too_large_for_forward(N) } {
+            return Err(Error::Unsupported { what: "energy-preserving steps with reverse-mode derivatives" });
+        }
         if it.memory.previous.is_some() {
             return it.energy_step(bounds).map(|_| ());
         }
@@ -104,6 +128,10 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N>) {
+        if const { super::sparse::too_large_for_forward(N) } {
+            // Only energy-preserving steps reread the energy; refused here.
+            return;
+        }
         it.energy_carry = 0.0;
         if let Some(last) = &it.memory.previous {
             it.energy = -derivatives::end_time_derivative(&it.system, &it.method, last);
@@ -115,6 +143,12 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
+        if const { super::sparse::too_large_for_forward(N) } {
+            return it.sparse_discrete_energy();
+        }
+        if it.reverse() {
+            return it.sparse_discrete_energy();
+        }
         match &it.memory.previous {
             Some(seg) => -derivatives::end_time_derivative(&it.system, &it.method, seg),
             None => it.system.energy(it.state.t, it.state.q, it.v0),
@@ -131,6 +165,13 @@ impl<M: DiscreteLagrangian> F64Readouts for M {
     }
 
     fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
+        // A dense 2N × 2N matrix: not offered at the sizes reverse mode serves.
+        if const { super::sparse::too_large_for_forward(N) } {
+            return None;
+        }
+        if it.reverse() {
+            return None;
+        }
         symplectic::tangent_map(&it.system, &it.method, it.memory.previous.as_ref()?)
     }
 
@@ -138,6 +179,13 @@ impl<M: DiscreteLagrangian> F64Readouts for M {
         it: &Integrator<S, Self, N>,
         symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
+        // Reverse mode refuses forces at `start`: no impulse.
+        if const { super::sparse::too_large_for_forward(N) } {
+            return it.memory.previous.map(|_| 0.0);
+        }
+        if it.reverse() {
+            return it.memory.previous.map(|_| 0.0);
+        }
         Some(crate::noether::forcing_impulse(&it.system, &it.method, it.memory.previous.as_ref()?, symmetry))
     }
 }
@@ -147,6 +195,12 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
     #[inline]
     pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+        if const { super::sparse::too_large_for_forward(N) } {
+            return if Self::EXPLICIT { self.sparse_verlet_step(h, t1) } else { self.sparse_step(h, t1) };
+        }
+        if self.reverse() {
+            return if Self::EXPLICIT { self.sparse_verlet_step(h, t1) } else { self.sparse_step(h, t1) };
+        }
         if Self::EXPLICIT {
             return self.verlet_step(h, t1);
         }
@@ -201,8 +255,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
-        let inverse_mass = match self.memory.inverse_mass {
-            Some(m) => m,
+        let inverse_mass = match &self.memory.inverse_mass {
+            Some(m) => **m,
             None => match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
                 Some(m) => m,
                 None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
@@ -235,7 +289,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if S::DISCONTINUOUS {
             self.watch_energy(&seg, t1);
         }
-        self.memory.inverse_mass = Some(inverse_mass);
+        if self.memory.inverse_mass.is_none() {
+            self.memory.inverse_mass = Some(Box::new(inverse_mass));
+        }
         self.memory.node_force = Some((step + 1, f1));
         self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
         self.memory.previous = Some(seg);
@@ -337,16 +393,32 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// The discrete forces `(F_k^−, F_k^+)` of the last step (docs/theory.md §6), or
     /// `None` before the first step; zero for a system without forces.
     pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
+        // Reverse mode refuses forces at `start`.
+        if const { super::sparse::too_large_for_forward(N) } {
+            return self.memory.previous.map(|_| DiscreteForces { minus: [0.0; N], plus: [0.0; N] });
+        }
+        if self.reverse() {
+            return self.memory.previous.map(|_| DiscreteForces { minus: [0.0; N], plus: [0.0; N] });
+        }
         Some(forcing::discrete_forces(&self.system, &self.method, self.memory.previous.as_ref()?))
     }
 
     /// The energy balance `E_{k+1} − E_k − W_k` across node `k`, the node
     /// between the last two steps (see [`forcing`](crate::forcing) for `W_k`
-    /// and when the balance is exact), or `None` before the second step.
+    /// and when the balance is exact), or `None` before the second step and
+    /// in reverse mode ([`Derivatives`](crate::Derivatives)).
     ///
     /// The step before the last is rebuilt from the last one and its stored
     /// increment, so its start point carries the round-off of one subtraction.
     pub fn energy_balance(&self) -> Option<EnergyBalance> {
+        // Not offered in reverse mode (no forces there: the balance is the
+        // conservation of the discrete energy).
+        if const { super::sparse::too_large_for_forward(N) } {
+            return None;
+        }
+        if self.reverse() {
+            return None;
+        }
         let ahead = self.memory.previous.as_ref()?;
         let (h, dq) = self.memory.earlier?;
         let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };

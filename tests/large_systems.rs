@@ -1,0 +1,274 @@
+//! Verification: large systems in reverse mode (`Derivatives::Reverse`, the
+//! default above `Derivatives::FORWARD_MAX_N` coordinates): derivatives from
+//! a tape, banded Newton solves when the macro proved a band, dense ones on
+//! the heap otherwise.
+//!
+//! - Where both modes run, reverse mode gives forward mode's steps to
+//!   round-off: an FPU-β chain (separable, banded; explicit and Newton
+//!   steps), coupled pendula (non-separable, banded), an N-link pendulum
+//!   (dense, position-dependent mass).
+//! - FPU-β chains from 2 to 1 000 masses run in a thread with the default
+//!   2 MiB stack, with a bounded energy error.
+//! - The energy error of a chain of 1 000 oscillates without drift.
+//! - A 256-link pendulum (dense) runs.
+//! - What reverse mode does not do yet is refused with a typed error.
+use lagrangian::prelude::*;
+use lagrangian::{Derivatives, Error};
+
+/// An FPU-β chain with fixed ends, unit masses and springs.
+pub struct Fpu<const N: usize> {
+    /// Quartic coupling.
+    pub beta: f64,
+}
+
+#[lagrangian]
+impl<const N: usize> Fpu<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * self.beta * d.powi(4);
+        for i in 0..N - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * self.beta * d.powi(4);
+        }
+        d = q[N - 1];
+        potential += 0.5 * d * d + 0.25 * self.beta * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// Pendula coupled to their neighbours through the kinetic energy and a
+/// torsion spring: not separable, banded, mass matrix depending on `q`.
+pub struct CoupledPendula<const N: usize> {
+    /// Kinetic coupling (below ½ keeps the mass matrix positive definite).
+    pub c: f64,
+    /// Torsion spring.
+    pub k: f64,
+}
+
+#[lagrangian]
+impl<const N: usize> CoupledPendula<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut l = 0.0;
+        for i in 0..N {
+            l += 0.5 * v[i] * v[i] + q[i].cos();
+        }
+        for i in 1..N {
+            let (a, b) = (i - 1, i);
+            l += self.c * v[a] * v[b] * (q[a] - q[b]).cos() - 0.5 * self.k * (q[b] - q[a]).powi(2);
+        }
+        l
+    }
+}
+
+/// A planar pendulum of `N` equal links (unit masses at the joints, unit
+/// lengths, `g = 1`), angles from the downward vertical: the joint
+/// velocities are prefix sums, so every coordinate couples with every other
+/// (a dense, position-dependent mass matrix) with `O(N)` operations.
+pub struct NLinkPendulum<const N: usize>;
+
+#[lagrangian]
+impl<const N: usize> NLinkPendulum<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let (mut vx, mut vy, mut y) = (0.0, 0.0, 0.0);
+        let mut l = 0.0;
+        for i in 0..N {
+            vx += q[i].cos() * v[i];
+            vy += q[i].sin() * v[i];
+            y -= q[i].cos();
+            l += 0.5 * (vx * vx + vy * vy) - y;
+        }
+        l
+    }
+}
+
+/// A chain with one massless coordinate: its mass matrix is singular.
+pub struct MasslessEnd<const N: usize>;
+
+#[lagrangian]
+impl<const N: usize> MasslessEnd<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut l = 0.0;
+        for i in 0..N - 1 {
+            l += 0.5 * v[i] * v[i];
+        }
+        for i in 0..N {
+            l -= 0.5 * q[i] * q[i];
+        }
+        l
+    }
+}
+
+/// A smooth initial displacement of a chain: the lowest two normal modes.
+fn chain_start<const N: usize>(amplitude: f64) -> [f64; N] {
+    core::array::from_fn(|i| {
+        let x = core::f64::consts::PI * (i + 1) as f64 / (N + 1) as f64;
+        amplitude * (x.sin() + 0.3 * (2.0 * x).sin())
+    })
+}
+
+/// Largest difference of `q` and `p` between forward and reverse mode over
+/// `n` steps, relative to the largest `|q|`, `|p|`.
+fn mode_difference<S: Lagrangian<N>, M: Method<f64> + Copy, const N: usize>(
+    system: impl Fn() -> S,
+    method: M,
+    h: f64,
+    q0: [f64; N],
+    n: usize,
+) -> (f64, u64, u64) {
+    let start = |mode| Integrator::new(system(), method, h).derivatives(mode).start(0.0, q0, [0.0; N]).unwrap();
+    let (mut forward, mut reverse) = (start(Derivatives::Forward), start(Derivatives::Reverse));
+    let mut worst: f64 = 0.0;
+    for _ in 0..n {
+        forward.step().unwrap();
+        reverse.step().unwrap();
+        let (a, b) = (forward.state(), reverse.state());
+        let scale = a.q.iter().chain(a.p.iter()).fold(1e-300f64, |m, x| m.max(x.abs()));
+        for i in 0..N {
+            worst = worst.max((a.q[i] - b.q[i]).abs() / scale).max((a.p[i] - b.p[i]).abs() / scale);
+        }
+    }
+    (worst, forward.stats().newton_iterations, reverse.stats().newton_iterations)
+}
+
+#[test]
+fn reverse_mode_gives_forward_modes_steps() {
+    let fpu = || Fpu::<16> { beta: 1.0 };
+    let (d, f, r) = mode_difference(fpu, Trapezoid, 0.05, chain_start(0.5), 1000);
+    println!("FPU-β N = 16, trapezoid (explicit): {d:.2e} ({f} / {r} Newton iterations)");
+    assert!(d <= 1e-13 && f == 0 && r == 0, "{d:e} {f} {r}");
+    let (d, f, r) = mode_difference(fpu, Midpoint, 0.05, chain_start(0.5), 1000);
+    println!("FPU-β N = 16, midpoint: {d:.2e} ({f} / {r} Newton iterations)");
+    assert!(d <= 1e-13, "{d:e}");
+    assert!(r.abs_diff(f) <= f / 20, "{f} {r}");
+
+    let pendula = || CoupledPendula::<16> { c: 0.3, k: 0.5 };
+    let (d, f, r) = mode_difference(pendula, Midpoint, 0.02, chain_start(0.8), 500);
+    println!("coupled pendula N = 16, midpoint: {d:.2e} ({f} / {r} Newton iterations)");
+    assert!(d <= 1e-13, "{d:e}");
+
+    let (d, f, r) = mode_difference(|| NLinkPendulum::<8>, Midpoint, 0.01, chain_start(0.5), 300);
+    println!("8-link pendulum, midpoint (dense): {d:.2e} ({f} / {r} Newton iterations)");
+    assert!(d <= 1e-12, "{d:e}");
+}
+
+/// Normal mode `k` of a chain with fixed ends, scaled so that the largest
+/// spring strain is `strain` (0.3: well into the quartic regime for β = 1).
+fn chain_mode<const N: usize>(k: usize, strain: f64) -> [f64; N] {
+    let a = strain * (N + 1) as f64 / (k as f64 * core::f64::consts::PI);
+    core::array::from_fn(|i| a * ((i + 1) as f64 * k as f64 * core::f64::consts::PI / (N + 1) as f64).sin())
+}
+
+/// Relative energy error `max |E − E_0| / |E_0|` over `n` steps of a chain
+/// of `N` masses, sampled every `every` steps.
+fn chain_energy_error<M: lagrangian::F64Readouts + Copy, const N: usize>(
+    method: M,
+    h: f64,
+    n: usize,
+    every: usize,
+) -> Vec<f64> {
+    // Mode N/10 (period about 20 for every N): a nonlinear wave.
+    let q0 = chain_mode::<N>(N.div_ceil(10), 0.3);
+    let mut sim = Integrator::new(Fpu::<N> { beta: 1.0 }, method, h).start(0.0, q0, [0.0; N]).unwrap();
+    let e0 = sim.energy().unwrap();
+    let mut errors = Vec::new();
+    for k in 0..n / every {
+        sim.run(every, |_| {}).unwrap();
+        let e = sim.energy().unwrap();
+        assert!(e.is_finite(), "N = {N}: energy at step {}", (k + 1) * every);
+        errors.push((e - e0).abs() / e0.abs());
+    }
+    errors
+}
+
+fn chains_in_a_default_thread<M: lagrangian::F64Readouts + Copy + Send + 'static>(method: M, name: &'static str) {
+    // `std::thread::spawn` gives the default 2 MiB stack.
+    std::thread::spawn(move || {
+        let worst = |e: Vec<f64>| e.into_iter().fold(0.0f64, f64::max);
+        let runs = [
+            (2, worst(chain_energy_error::<M, 2>(method, 0.05, 200, 20))),
+            (100, worst(chain_energy_error::<M, 100>(method, 0.05, 200, 20))),
+            (1000, worst(chain_energy_error::<M, 1000>(method, 0.05, 100, 20))),
+        ];
+        for (n, e) in runs {
+            println!("{name}: FPU-β N = {n}: relative energy error {e:.2e}");
+            // O((ωh)²) for both rules, ω ≤ 2 and h = 0.05; and not zero.
+            assert!(e < 2e-3 && e > 1e-12, "{name} N = {n}: {e:e}");
+        }
+    })
+    .join()
+    .expect("no stack overflow, no panic");
+}
+
+#[test]
+fn chains_up_to_a_thousand_masses_run_in_a_default_thread_explicit() {
+    chains_in_a_default_thread(Trapezoid, "trapezoid (explicit)");
+}
+
+#[test]
+fn chains_up_to_a_thousand_masses_run_in_a_default_thread_newton() {
+    chains_in_a_default_thread(Midpoint, "midpoint (banded Newton)");
+}
+
+#[test]
+fn the_energy_error_of_a_long_chain_does_not_drift() {
+    // 1 000 masses, mode 100 excited with strains of 0.3, 4 000 midpoint
+    // steps (t = 200, about 10 periods): the error oscillates; a drift would
+    // make the second half's largest error grow beyond the first half's.
+    let e = chain_energy_error::<Midpoint, 1000>(Midpoint, 0.05, 4000, 20);
+    let (first, second) = e.split_at(e.len() / 2);
+    let max = |s: &[f64]| s.iter().copied().fold(0.0f64, f64::max);
+    let (a, b) = (max(first), max(second));
+    println!("FPU-β N = 1000, midpoint: largest energy error {a:.3e} (t ≤ 100), {b:.3e} (t > 100)");
+    assert!(a > 0.0 && b < 1.5 * a, "{a:e} {b:e}");
+}
+
+#[test]
+fn a_256_link_pendulum_runs() {
+    std::thread::spawn(|| {
+        let h = 2e-3;
+        let mut sim = Integrator::new(NLinkPendulum::<256>, Midpoint, h).start(0.0, chain_start(0.2), [0.0; 256]).unwrap();
+        let e0 = sim.energy().unwrap();
+        sim.run(50, |_| {}).unwrap();
+        let e = sim.energy().unwrap();
+        let iterations = sim.stats().newton_iterations as f64 / 50.0;
+        println!("256-link pendulum: 50 midpoint steps, relative energy change {:.2e}, {iterations} Newton iterations per step", (e - e0).abs() / e0.abs());
+        assert!((e - e0).abs() <= 1e-6 * e0.abs(), "{e0} → {e}");
+        assert!(iterations <= 6.0);
+    })
+    .join()
+    .expect("no stack overflow, no panic");
+}
+
+#[test]
+fn what_reverse_mode_does_not_do_is_refused() {
+    let q0 = chain_start::<64>(0.1);
+    let unsupported = |r: Result<(), String>| assert!(r.as_ref().is_err_and(|e| e.contains("not supported")), "{r:?}");
+    unsupported(
+        Integrator::new(Fpu::<64> { beta: 1.0 }, Midpoint, 0.05)
+            .energy_preserving(StepBounds::around(0.05))
+            .start(0.0, q0, [0.0; 64])
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
+    );
+    unsupported(
+        Integrator::new(Fpu::<64> { beta: 1.0 }, Midpoint, 0.05)
+            .derivatives(Derivatives::Forward)
+            .start(0.0, q0, [0.0; 64])
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
+    );
+    unsupported(
+        GalerkinIntegrator::new(Fpu::<64> { beta: 1.0 }, Galerkin::<2, 2>::gauss(), 0.05)
+            .start(0.0, q0, [0.0; 64])
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
+    );
+    match Integrator::new(MasslessEnd::<64>, Midpoint, 0.05).start(0.0, q0, [0.0; 64]) {
+        Err(Error::InvalidInitialData { reason }) => assert!(reason.contains("singular"), "{reason}"),
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+}
