@@ -63,8 +63,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         q0: [f64; N],
         v0: [f64; N],
     ) -> Result<([f64; N], f64), Error<N>> {
-        // `if const`: the forward-mode code below is then not even compiled
-        // for large N (its N × N values make the compiler crawl there).
+        // `if const`: codegen can skip the forward-mode code below for large N.
         if const { super::sparse::too_large_for_forward(N) } {
             return super::sparse::legendre(system, t0, q0, v0);
         }
