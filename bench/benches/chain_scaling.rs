@@ -1,0 +1,163 @@
+//! The cost of a step against the size of a chain (issue: systems must scale
+//! linearly): an FPU-β chain written with `for` loops through
+//! `#[lagrangian]`, N = 100 … 2000, in reverse mode (derivatives from a tape,
+//! banded Newton solves), against a hand-written Störmer–Verlet step of the
+//! same chain.
+//!
+//! - `trapezoid`: the explicit Störmer–Verlet path (one reverse sweep of `L`
+//!   per step for `∂L/∂q`, the constant mass matrix factored once);
+//! - `midpoint`: the implicit midpoint rule, Newton with a tridiagonal
+//!   Jacobian from a compressed second-order sweep (3 directions);
+//! - `hand-written Verlet`: the analytic force of the same chain.
+//!
+//! Prints the fitted cost exponent of each in N after the criterion groups.
+//!
+//! `cargo bench -p lagrangian-bench --bench chain_scaling`
+#![allow(missing_docs)]
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use lagrangian::prelude::*;
+
+struct Fpu<const N: usize>;
+
+const BETA: f64 = 1.0;
+
+#[lagrangian]
+impl<const N: usize> Fpu<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * BETA * d.powi(4);
+        for i in 0..N - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
+        }
+        d = q[N - 1];
+        potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// Mode `N/10` with spring strains of 0.3.
+fn start_q<const N: usize>() -> [f64; N] {
+    let k = N.div_ceil(10);
+    let a = 0.3 * (N + 1) as f64 / (k as f64 * std::f64::consts::PI);
+    core::array::from_fn(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (N + 1) as f64).sin())
+}
+
+/// The chain's force `−∇V` by hand.
+fn force(q: &[f64], f: &mut [f64]) {
+    let n = q.len();
+    let spring = |d: f64| d + BETA * d * d * d;
+    let mut left = spring(q[0]);
+    for i in 0..n {
+        let right = spring(if i + 1 < n { q[i + 1] - q[i] } else { -q[i] });
+        f[i] = right - left;
+        left = right;
+    }
+}
+
+/// Hand-written velocity Verlet, unit masses.
+struct Verlet {
+    q: Vec<f64>,
+    p: Vec<f64>,
+    f: Vec<f64>,
+}
+
+impl Verlet {
+    fn new(q: &[f64]) -> Self {
+        let mut f = vec![0.0; q.len()];
+        force(q, &mut f);
+        Self { q: q.to_vec(), p: vec![0.0; q.len()], f }
+    }
+
+    fn step(&mut self, h: f64) {
+        for i in 0..self.q.len() {
+            self.p[i] += 0.5 * h * self.f[i];
+            self.q[i] += h * self.p[i];
+        }
+        force(&self.q, &mut self.f);
+        for i in 0..self.q.len() {
+            self.p[i] += 0.5 * h * self.f[i];
+        }
+    }
+}
+
+const H: f64 = 0.05;
+const STEPS: usize = 20;
+
+/// Seconds per step, best of `repeats` runs of `STEPS` steps.
+fn seconds_per_step(repeats: usize, mut run: impl FnMut()) -> f64 {
+    (0..repeats)
+        .map(|_| {
+            let t = Instant::now();
+            run();
+            t.elapsed().as_secs_f64() / STEPS as f64
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// `(trapezoid, midpoint, hand-written)` seconds per step at size `N`.
+fn costs<const N: usize>(c: &mut Criterion) -> (f64, f64, f64) {
+    let q0 = start_q::<N>();
+    let mut g = c.benchmark_group(format!("FPU-β chain, N = {N}, {STEPS} steps"));
+    g.sample_size(10);
+    // The integrators keep stepping across iterations: only steps are timed.
+    let mut explicit = Integrator::new(Fpu::<N>, Trapezoid, H).start(0.0, q0, [0.0; N]).unwrap();
+    let mut implicit = Integrator::new(Fpu::<N>, Midpoint, H).start(0.0, q0, [0.0; N]).unwrap();
+    let mut verlet = Verlet::new(&q0);
+    let mut trapezoid = move || {
+        explicit.run(STEPS, |_| {}).unwrap();
+        black_box(explicit.state().q[0]);
+    };
+    let mut midpoint = move || {
+        implicit.run(STEPS, |_| {}).unwrap();
+        black_box(implicit.state().q[0]);
+    };
+    let mut hand = move || {
+        for _ in 0..STEPS {
+            verlet.step(H);
+        }
+        black_box(verlet.q[0]);
+    };
+    g.bench_function("trapezoid (explicit, reverse mode)", |b| b.iter(&mut trapezoid));
+    g.bench_function("midpoint (banded Newton, reverse mode)", |b| b.iter(&mut midpoint));
+    g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
+    g.finish();
+    (seconds_per_step(20, &mut trapezoid), seconds_per_step(10, &mut midpoint), seconds_per_step(50, &mut hand))
+}
+
+fn slope(n: &[f64], t: &[f64]) -> f64 {
+    let x: Vec<f64> = n.iter().map(|v| v.ln()).collect();
+    let y: Vec<f64> = t.iter().map(|v| v.ln()).collect();
+    let (mx, my) = (x.iter().sum::<f64>() / x.len() as f64, y.iter().sum::<f64>() / y.len() as f64);
+    let sxy: f64 = x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let sxx: f64 = x.iter().map(|a| (a - mx) * (a - mx)).sum();
+    sxy / sxx
+}
+
+fn scaling(c: &mut Criterion) {
+    let sizes = [100.0, 200.0, 500.0, 1000.0, 2000.0];
+    let rows = [costs::<100>(c), costs::<200>(c), costs::<500>(c), costs::<1000>(c), costs::<2000>(c)];
+    println!("\nFPU-β chain, µs per step (best of repeated runs of {STEPS} steps):");
+    println!("{:>6} {:>12} {:>12} {:>12} {:>10}", "N", "trapezoid", "midpoint", "hand Verlet", "trap/hand");
+    for (n, (t, m, h)) in sizes.iter().zip(rows) {
+        println!("{n:>6} {:>12.2} {:>12.2} {:>12.3} {:>10.1}", t * 1e6, m * 1e6, h * 1e6, t / h);
+    }
+    let column = |k: usize| -> Vec<f64> { rows.iter().map(|r| [r.0, r.1, r.2][k]).collect() };
+    println!(
+        "fitted cost exponent in N: trapezoid {:.2}, midpoint {:.2}, hand-written {:.2}",
+        slope(&sizes, &column(0)),
+        slope(&sizes, &column(1)),
+        slope(&sizes, &column(2))
+    );
+}
+
+criterion_group!(benches, scaling);
+criterion_main!(benches);
