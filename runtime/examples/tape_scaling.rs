@@ -260,11 +260,12 @@ fn main() {
     if args.get(1).map(String::as_str) == Some("probe") {
         match args.get(2).and_then(|s| s.parse::<usize>().ok()) {
             Some(16_384) => probe::<16_384>(),
+            Some(24_576) => probe::<24_576>(),
             Some(32_768) => probe::<32_768>(),
             Some(49_152) => probe::<49_152>(),
             Some(65_536) => probe::<65_536>(),
             Some(100_000) => probe::<100_000>(),
-            _ => eprintln!("probe one of 16384, 32768, 49152, 65536, 100000"),
+            _ => eprintln!("probe one of 16384, 24576, 32768, 49152, 65536, 100000"),
         }
         return;
     }

@@ -332,11 +332,11 @@ pub enum Seeds<'a> {
         /// The seeded inputs.
         columns: Range<usize>,
     },
-    /// Compressed seeds for a Hessian whose entries `(i, j)` between any
-    /// inputs `i` and `j ∈ columns` vanish unless `|i − j − shift| ≤ bandwidth`
-    /// for the row range passed to [`recover`](Seeds::recover) (`shift` being
-    /// the offset between the row and column ranges): input
-    /// `columns.start + c` gets direction `c mod (2·bandwidth + 1)`.
+    /// Compressed seeds for banded blocks: input `columns.start + c` gets
+    /// direction `c mod (2·bandwidth + 1)`. A block with rows `rows` (any
+    /// range of inputs) read back by [`recover`](Seeds::recover) is exact
+    /// when its entry `(rows.start + r, columns.start + c)` vanishes for
+    /// `|r − c| > bandwidth`; other rows of `H·S` hold sums of entries.
     Banded {
         /// The seeded inputs.
         columns: Range<usize>,
@@ -482,14 +482,20 @@ pub struct Tape {
     value: f64,
     recorded: bool,
     adjoint: Vec<f64>,
-    tangent: Vec<f64>,
-    second: Vec<f64>,
+    /// Tangents and second-order adjoints of the second-order sweep.
+    lanes: Vec<f64>,
 }
 
 impl Tape {
     /// An empty tape.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// An empty tape with room for `nodes` nodes (inputs included), so that
+    /// even the first recording of that size does not reallocate.
+    pub fn with_capacity(nodes: usize) -> Self {
+        Self { nodes: Vec::with_capacity(nodes), ..Self::default() }
     }
 
     /// Records `f` at `inputs` and returns its value.
@@ -571,7 +577,7 @@ impl Tape {
     pub fn memory_bytes(&self) -> usize {
         self.nodes.capacity() * size_of::<Node>()
             + self.vars.capacity() * size_of::<Var>()
-            + (self.adjoint.capacity() + self.tangent.capacity() + self.second.capacity()) * size_of::<f64>()
+            + (self.adjoint.capacity() + self.lanes.capacity()) * size_of::<f64>()
     }
 
     /// The number of nodes the sweeps visit: up to the output's.
@@ -642,16 +648,16 @@ impl Tape {
             let width = (k - first).min(CHUNK);
             let g = if first == 0 { Some(&mut *gradient) } else { None };
             let sweep = Sweep { nodes: &self.nodes[..live], inputs: n, seeds, first, k };
-            let (adjoint, tangent, second) = (&mut self.adjoint, &mut self.tangent, &mut self.second);
+            let (adjoint, lanes) = (&mut self.adjoint, &mut self.lanes);
             match width {
-                1 => sweep.run::<1>(adjoint, tangent, second, g, hs),
-                2 => sweep.run::<2>(adjoint, tangent, second, g, hs),
-                3 => sweep.run::<3>(adjoint, tangent, second, g, hs),
-                4 => sweep.run::<4>(adjoint, tangent, second, g, hs),
-                5 => sweep.run::<5>(adjoint, tangent, second, g, hs),
-                6 => sweep.run::<6>(adjoint, tangent, second, g, hs),
-                7 => sweep.run::<7>(adjoint, tangent, second, g, hs),
-                _ => sweep.run::<CHUNK>(adjoint, tangent, second, g, hs),
+                1 => sweep.run::<1>(adjoint, lanes, g, hs),
+                2 => sweep.run::<2>(adjoint, lanes, g, hs),
+                3 => sweep.run::<3>(adjoint, lanes, g, hs),
+                4 => sweep.run::<4>(adjoint, lanes, g, hs),
+                5 => sweep.run::<5>(adjoint, lanes, g, hs),
+                6 => sweep.run::<6>(adjoint, lanes, g, hs),
+                7 => sweep.run::<7>(adjoint, lanes, g, hs),
+                _ => sweep.run::<CHUNK>(adjoint, lanes, g, hs),
             }
             first += width;
         }
@@ -669,81 +675,84 @@ struct Sweep<'a, 's> {
 }
 
 impl Sweep<'_, '_> {
+    /// `lanes` holds, per node, its tangent then its second-order adjoint
+    /// (`W` numbers each, side by side so that a node's reads and writes
+    /// share cache lines).
     fn run<const W: usize>(
         &self,
         adjoint: &mut Vec<f64>,
-        tangent: &mut Vec<f64>,
-        second: &mut Vec<f64>,
+        lanes: &mut Vec<f64>,
         gradient: Option<&mut [f64]>,
         hs: &mut [f64],
     ) {
         let live = self.nodes.len();
         let n = self.inputs.min(live);
-        tangent.clear();
-        tangent.resize(live * W, 0.0);
-        second.clear();
-        second.resize(live * W, 0.0);
+        lanes.clear();
+        lanes.resize(2 * live * W, 0.0);
         adjoint.clear();
         adjoint.resize(live, 0.0);
-        let (tan, _) = tangent.as_chunks_mut::<W>();
-        let (sec, _) = second.as_chunks_mut::<W>();
+        let (lane, _) = lanes.as_chunks_mut::<W>();
+        let tan = |i: usize| 2 * i;
+        let sec = |i: usize| 2 * i + 1;
 
         // Forward: the tangent of every node in the W directions.
         for j in 0..n {
             if let Some(c) = self.seeds.colour(j)
                 && (self.first..self.first + W).contains(&c)
             {
-                tan[j][c - self.first] = 1.0;
+                lane[tan(j)][c - self.first] = 1.0;
             }
         }
         for i in n..live {
             let node = &self.nodes[i];
-            let ta = tan[node.a as usize];
+            let ta = lane[tan(node.a as usize)];
             let mut t = [0.0; W];
             if node.b == NONE {
                 for c in 0..W {
                     t[c] = node.d[0] * ta[c];
                 }
             } else {
-                let tb = tan[node.b as usize];
+                let tb = lane[tan(node.b as usize)];
                 for c in 0..W {
                     t[c] = node.d[0] * ta[c] + node.d[1] * tb[c];
                 }
             }
-            tan[i] = t;
+            lane[tan(i)] = t;
         }
 
         // Reverse: the adjoint and the W second-order adjoints.
         adjoint[live - 1] = 1.0;
         for i in (n..live).rev() {
             let w = adjoint[i];
-            let s = sec[i];
+            let s = lane[sec(i)];
             if w == 0.0 && s.iter().all(|&x| x == 0.0) {
                 continue;
             }
             let node = &self.nodes[i];
             let (a, d) = (node.a as usize, &node.d);
-            let ta = tan[a];
+            let ta = lane[tan(a)];
             adjoint[a] += w * d[0];
             if node.b == NONE {
-                let sa = &mut sec[a];
+                let sa = &mut lane[sec(a)];
                 for c in 0..W {
                     sa[c] += s[c] * d[0] + w * (d[2] * ta[c]);
                 }
             } else {
                 let b = node.b as usize;
-                let tb = tan[b];
+                let tb = lane[tan(b)];
                 adjoint[b] += w * d[1];
+                let sa = &mut lane[sec(a)];
                 for c in 0..W {
-                    sec[a][c] += s[c] * d[0] + w * (d[2] * ta[c] + d[3] * tb[c]);
+                    sa[c] += s[c] * d[0] + w * (d[2] * ta[c] + d[3] * tb[c]);
                 }
+                let sb = &mut lane[sec(b)];
                 for c in 0..W {
-                    sec[b][c] += s[c] * d[1] + w * (d[3] * ta[c] + d[4] * tb[c]);
+                    sb[c] += s[c] * d[1] + w * (d[3] * ta[c] + d[4] * tb[c]);
                 }
             }
         }
         for j in 0..n {
-            hs[j * self.k + self.first..j * self.k + self.first + W].copy_from_slice(&sec[j]);
+            hs[j * self.k + self.first..j * self.k + self.first + W].copy_from_slice(&lane[sec(j)]);
         }
         if let Some(g) = gradient {
             g[..n].copy_from_slice(&adjoint[..n]);
