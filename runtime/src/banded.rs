@@ -186,7 +186,9 @@ pub trait StepMatrix {
     fn add(&mut self, i: usize, j: usize, x: f64) -> Result<(), LinearSolveError>;
     /// LU factorisation with partial pivoting, in place. With
     /// `min_rcond > 0` the reciprocal condition number is estimated and a
-    /// value below `min_rcond` is an error.
+    /// value below `min_rcond` is an error. After any error the storage
+    /// holds neither the matrix nor usable factors: `clear` and assemble
+    /// again.
     fn factor(&mut self, min_rcond: f64) -> Result<Factorization, LinearSolveError>;
     /// Overwrites `b` with `A⁻¹ b`; needs a successful `factor`.
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError>;
