@@ -116,7 +116,9 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
     /// How the derivatives of a step are computed and its Newton systems
     /// solved ([`Derivatives`]); [`Derivatives::Automatic`] by default, which
     /// takes reverse mode (a tape, banded or dense solves on the heap) for
-    /// systems larger than [`Derivatives::FORWARD_MAX_N`].
+    /// systems larger than [`Derivatives::FORWARD_MAX_N`], and from
+    /// [`Derivatives::REVERSE_MIN_N`] coordinates for Newton steps reverse
+    /// mode supports.
     pub fn derivatives(mut self, derivatives: Derivatives) -> Self {
         self.derivatives = derivatives;
         self
@@ -155,7 +157,16 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
         }
         self.method.supports::<S, N>(&self.policy)?;
         self.derivatives.check::<N, T>()?;
-        self.method.supports_derivatives::<S, N>(self.derivatives.reverse::<N>(), &self.policy)?;
+        // `Automatic` is resolved here, once: reverse mode above
+        // `FORWARD_MAX_N`, and from `REVERSE_MIN_N` where the method's step
+        // would run Newton in reverse mode with everything it needs.
+        let derivatives = match self.derivatives {
+            Derivatives::Automatic if N > Derivatives::FORWARD_MAX_N => Derivatives::Reverse,
+            Derivatives::Automatic if self.method.prefers_reverse::<S, N>(&self.policy) => Derivatives::Reverse,
+            Derivatives::Automatic => Derivatives::Forward,
+            chosen => chosen,
+        };
+        self.method.supports_derivatives::<S, N>(derivatives == Derivatives::Reverse, &self.policy)?;
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
@@ -184,7 +195,7 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
             v0,
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
-            derivatives: self.derivatives,
+            derivatives,
         })
     }
 }
@@ -341,7 +352,7 @@ pub struct Integrator<S, M: Method<T>, const N: usize, T: Real = f64> {
     pub(crate) v0: [T; N],
     pub(crate) clock: Clock<T>,
     pub(crate) stats: Stats,
-    /// Forward or reverse mode, as configured.
+    /// Forward or reverse mode, as resolved at `start` (never `Automatic`).
     pub(crate) derivatives: Derivatives,
 }
 

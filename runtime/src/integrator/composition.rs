@@ -147,12 +147,16 @@ impl Method<f64> for Composition {
         }
     }
 
+    fn prefers_reverse<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> bool {
+        <Trapezoid as Method<f64>>::prefers_reverse::<S, N>(&Trapezoid, policy)
+    }
+
     fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
         &self,
         reverse: bool,
         policy: &StepPolicy,
     ) -> Result<(), Error<N>> {
-        Trapezoid.supports_derivatives::<S, N>(reverse, policy)
+        <Trapezoid as Method<f64>>::supports_derivatives::<S, N>(&Trapezoid, reverse, policy)
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(

@@ -83,6 +83,16 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         Ok(())
     }
 
+    /// Whether [`Derivatives::Automatic`](crate::Derivatives::Automatic)
+    /// should take reverse mode for this method, system and policy at sizes
+    /// where forward mode still works (measured crossover, see
+    /// [`Derivatives::REVERSE_MIN_N`](crate::Derivatives::REVERSE_MIN_N)).
+    #[doc(hidden)]
+    fn prefers_reverse<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> bool {
+        let _ = policy;
+        false
+    }
+
     /// The momentum `p0 = ∂L/∂v` and the energy `E_L` at the initial data,
     /// after checking that they and `L` are finite and that `∂²L/∂v²` is
     /// regular there.

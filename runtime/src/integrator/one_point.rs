@@ -86,6 +86,15 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         Ok((p0, energy))
     }
 
+    fn prefers_reverse<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> bool {
+        // The explicit path is cheap in forward mode up to `FORWARD_MAX_N`.
+        let explicit = M::EXPLICIT_FOR_CONSTANT_MASS
+            && S::SEPARABILITY.has_constant_mass()
+            && !S::HAS_FORCE
+            && !S::HAS_DISSIPATION;
+        N >= super::Derivatives::REVERSE_MIN_N && !explicit && super::sparse::unsupported::<S, N>(policy).is_none()
+    }
+
     fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
         &self,
         reverse: bool,
