@@ -102,9 +102,10 @@ pub struct Twin {
     pub hand_written: String,
     /// Target error.
     pub target: f64,
-    /// Calibrated time of the project method.
+    /// Time of one run of the project method at its calibrated setting
+    /// (minimum of runs alternating with the hand-written one's).
     pub generated_seconds: Option<f64>,
-    /// Calibrated time of the hand-written one.
+    /// The same for the hand-written one.
     pub hand_written_seconds: Option<f64>,
     /// Steps of the project method's calibrated setting.
     pub generated_steps: Option<u64>,

@@ -124,7 +124,9 @@ pub fn measure(suite: Suite) -> Vec<StepCost> {
     let name = "double pendulum";
     out.extend(time(name, "generated midpoint", size, || generated(&dp, Midpoint, (q0, v0), steps)));
     out.extend(time(name, "generated trapezoid", size, || generated(&dp, Trapezoid, (q0, v0), steps)));
-    for (label, method) in [("hand-written midpoint", DoubleMethod::Midpoint), ("hand-written verlet", DoubleMethod::Verlet)] {
+    for (label, method) in
+        [("hand-written midpoint", DoubleMethod::Midpoint), ("hand-written verlet", DoubleMethod::Verlet)]
+    {
         out.extend(time(name, label, size, || {
             let mut s = DoubleStepper::new(params, method, H, q0, v0);
             for _ in 0..steps {

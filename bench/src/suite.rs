@@ -190,7 +190,8 @@ pub fn run(config: &Config) -> Result<Report, String> {
             log.line(format_args!("{}: {} swept ({} runs) and timed", p.id(), m.name(), points.len()));
             sweeps.push(Sweep { method: m.name(), family: m.family(), order: m.order(), points });
         }
-        let twins = twins(&applicable, &calibrated, &targets);
+        b.set_message("generated against hand-written");
+        let twins = twins(&**p, &applicable, &calibrated, &targets, t_end, suite.repeats().max(5));
         let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
         b.set_message("long energy runs");
         log.line(format_args!("{}: long energy runs", p.id()));
@@ -233,8 +234,17 @@ pub fn run(config: &Config) -> Result<Report, String> {
     })
 }
 
-/// Each project composition against its hand-written twin, per target.
-fn twins(applicable: &[Method], calibrated: &[Calibrated], targets: &[f64]) -> Vec<Twin> {
+/// Each project composition against its hand-written twin, per target: both
+/// at their calibrated settings, timed again in alternation (`repeats` runs
+/// each, the minimum), so that a burst of load hits both alike.
+fn twins(
+    p: &dyn Problem,
+    applicable: &[Method],
+    calibrated: &[Calibrated],
+    targets: &[f64],
+    t_end: f64,
+    repeats: u32,
+) -> Vec<Twin> {
     let steps = |c: &Calibrated| match c.setting {
         Some(Setting::Steps(n)) => Some(n as u64),
         _ => None,
@@ -245,18 +255,31 @@ fn twins(applicable: &[Method], calibrated: &[Calibrated], targets: &[f64]) -> V
         for &target in targets {
             let find = |m: Method| calibrated.iter().find(|c| c.method == m.name() && c.target == target);
             let (Some(cg), Some(ch)) = (find(g), find(h)) else { continue };
-            let ratio = cg.seconds.zip(ch.seconds).map(|(a, b)| a / b);
-            let per_step = cg
-                .seconds
-                .zip(steps(cg))
-                .zip(ch.seconds.zip(steps(ch)))
-                .map(|((a, na), (b, nb))| (a / na as f64) / (b / nb as f64));
+            let (mut tg, mut th) = (cg.seconds, ch.seconds);
+            if let (Some(sg), Some(sh)) = (cg.setting, ch.setting) {
+                let (mut bg, mut bh) = (f64::INFINITY, f64::INFINITY);
+                for _ in 0..repeats {
+                    let rg = p.run(g, sg, t_end, 0);
+                    let rh = p.run(h, sh, t_end, 0);
+                    if rg.failure.is_some() || rh.failure.is_some() {
+                        break;
+                    }
+                    bg = bg.min(rg.seconds);
+                    bh = bh.min(rh.seconds);
+                }
+                if bg.is_finite() && bh.is_finite() {
+                    (tg, th) = (Some(bg), Some(bh));
+                }
+            }
+            let ratio = tg.zip(th).map(|(a, b)| a / b);
+            let per_step =
+                tg.zip(steps(cg)).zip(th.zip(steps(ch))).map(|((a, na), (b, nb))| (a / na as f64) / (b / nb as f64));
             out.push(Twin {
                 generated: g.name(),
                 hand_written: h.name(),
                 target,
-                generated_seconds: cg.seconds,
-                hand_written_seconds: ch.seconds,
+                generated_seconds: tg,
+                hand_written_seconds: th,
                 generated_steps: steps(cg),
                 hand_written_steps: steps(ch),
                 ratio,

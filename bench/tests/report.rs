@@ -53,7 +53,9 @@ fn tiny_report_writes_every_file() {
     assert!(!report.stress.largest_step.is_empty() && !report.stress.hard_orbits.is_empty());
     // Project compositions against their hand-written twins, on both (separable) problems.
     for p in &report.problems {
-        for (g, h) in [("trapezoid", "verlet"), ("composition-yoshida6", "yoshida6"), ("composition-kahan-li8", "kahan-li8")] {
+        for (g, h) in
+            [("trapezoid", "verlet"), ("composition-yoshida6", "yoshida6"), ("composition-kahan-li8", "kahan-li8")]
+        {
             let t = p.twins.iter().find(|t| t.generated == g && t.target == report.targets[0]);
             let t = t.unwrap_or_else(|| panic!("{}: no {g} against {h}", p.id));
             assert_eq!(t.hand_written, h);
