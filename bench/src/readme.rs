@@ -79,7 +79,8 @@ pub fn named(name: &str, report: &Report) -> Option<String> {
             galerkin_cost_table(report)
         ),
         "compositions" => format!(
-            "{}; each method calibrated to the target, time of one run to the horizon.\n\n{}",
+            "{}; each method calibrated to the target; time of one run to the horizon at that setting, the minimum \
+             of at least 5 runs alternating generated and hand-written.\n\n{}",
             origin(report),
             twins_table(report)
         ),
