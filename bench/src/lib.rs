@@ -18,4 +18,5 @@ pub mod problem;
 pub mod problems;
 pub mod readme;
 pub mod report;
+pub mod step_cost;
 pub mod suite;

@@ -13,7 +13,7 @@ lagrangian-bench: work–precision and stress report of the lagrangian integrato
 
 USAGE:
     cargo run --release -p lagrangian-bench -- [OPTIONS]
-    cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE]
+    cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE] [--section NAME[,NAME..]]
 
 OPTIONS:
     --quick                  short horizons, two targets (about 2 minutes on 2 cores)
@@ -27,9 +27,11 @@ OPTIONS:
     --list                   list problems and methods
     -h, --help               this text
 
-readme: rewrites the README's generated performance table (between the
-`<!-- bench:headline -->` markers) from a report's JSON (default
-target/report/report.json and README.md).
+readme: rewrites the README's generated performance tables from a report's
+JSON (default target/report/report.json and README.md): each section between
+`<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
+headline, step-cost, galerkin-step-cost, compositions (--section: only
+these).
 ";
 
 fn main() -> ExitCode {
@@ -66,10 +68,12 @@ fn run(args: Vec<String>) -> Result<(), String> {
     let mut readme_mode = false;
     let mut from = PathBuf::from("target/report/report.json");
     let mut readme_path = PathBuf::from("README.md");
+    let mut sections: Vec<String> = Vec::new();
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "readme" => readme_mode = true,
             "--from" => from = PathBuf::from(args.next().ok_or("`--from` needs a file")?),
+            "--section" => sections.extend(values(&mut args, "--section")?),
             "--readme" => readme_path = PathBuf::from(args.next().ok_or("`--readme` needs a file")?),
             "--quick" => suite = Suite::Quick,
             "--full" => suite = Suite::Full,
@@ -113,7 +117,7 @@ fn run(args: Vec<String>) -> Result<(), String> {
         }
     }
     if readme_mode {
-        return readme::update(&from, &readme_path);
+        return readme::update(&from, &readme_path, &sections);
     }
     let config = Config { suite, problems, methods, reference_tolerance, progress };
     let report = suite::run(&config)?;

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use lagrangian::prelude::*;
-use lagrangian::{GalerkinIntegrator, StepBounds};
+use lagrangian::{Composition as Generated, GalerkinIntegrator, StepBounds};
 use serde::{Deserialize, Serialize};
 
 use crate::compositions::{Composition, Stepper};
@@ -22,6 +22,12 @@ pub enum Method {
     Galerkin(u8),
     /// Project: midpoint with energy-preserving variable steps (`StepBounds::around(h0)`).
     EnergyMidpoint,
+    /// Project: Yoshida's order 4 composition of trapezoid steps (`Composition::YOSHIDA4`).
+    GeneratedYoshida4,
+    /// Project: Yoshida's order 6 composition of trapezoid steps (`Composition::YOSHIDA6`).
+    GeneratedYoshida6,
+    /// Project: Kahan–Li's order 8 composition of trapezoid steps (`Composition::KAHAN_LI8`).
+    GeneratedKahanLi8,
     /// Peer: ode_solvers 0.6 DOP853 (rtol = atol = tol, sparse output).
     OdeSolversDop853,
     /// Peer: differential-equations 0.5 DOP853 (rtol = atol = tol).
@@ -65,6 +71,9 @@ impl Method {
         m.extend((2..=8).map(Method::Galerkin));
         m.extend([
             Method::EnergyMidpoint,
+            Method::GeneratedYoshida4,
+            Method::GeneratedYoshida6,
+            Method::GeneratedKahanLi8,
             Method::OdeSolversDop853,
             Method::DiffEqDop853,
             Method::DiffEqGauss6,
@@ -83,6 +92,9 @@ impl Method {
             Method::AlphaBeta => "alpha-beta".into(),
             Method::Galerkin(s) => format!("galerkin-{s}"),
             Method::EnergyMidpoint => "energy-midpoint".into(),
+            Method::GeneratedYoshida4 => "composition-yoshida4".into(),
+            Method::GeneratedYoshida6 => "composition-yoshida6".into(),
+            Method::GeneratedKahanLi8 => "composition-kahan-li8".into(),
             Method::OdeSolversDop853 => "ode_solvers-dop853".into(),
             Method::DiffEqDop853 => "diffeq-dop853".into(),
             Method::DiffEqGauss6 => "diffeq-gauss6".into(),
@@ -100,9 +112,14 @@ impl Method {
     /// Who wrote it.
     pub fn family(self) -> Family {
         match self {
-            Method::Midpoint | Method::Trapezoid | Method::AlphaBeta | Method::Galerkin(_) | Method::EnergyMidpoint => {
-                Family::Project
-            }
+            Method::Midpoint
+            | Method::Trapezoid
+            | Method::AlphaBeta
+            | Method::Galerkin(_)
+            | Method::EnergyMidpoint
+            | Method::GeneratedYoshida4
+            | Method::GeneratedYoshida6
+            | Method::GeneratedKahanLi8 => Family::Project,
             Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 => Family::Peer,
             Method::Verlet | Method::Yoshida6 | Method::KahanLi8 => Family::HandWritten,
         }
@@ -115,8 +132,9 @@ impl Method {
             Method::AlphaBeta => 1,
             Method::Galerkin(s) => 2 * s as u32,
             Method::OdeSolversDop853 | Method::DiffEqDop853 => 8,
-            Method::DiffEqGauss6 | Method::Yoshida6 => 6,
-            Method::KahanLi8 => 8,
+            Method::DiffEqGauss6 | Method::Yoshida6 | Method::GeneratedYoshida6 => 6,
+            Method::GeneratedYoshida4 => 4,
+            Method::KahanLi8 | Method::GeneratedKahanLi8 => 8,
         }
     }
 
@@ -128,6 +146,19 @@ impl Method {
     /// `true` for the hand-written compositions, which need a separable Hamiltonian.
     pub fn needs_separable(self) -> bool {
         self.family() == Family::HandWritten
+    }
+
+    /// The hand-written composition that computes the same map as this
+    /// project composition on a separable constant-mass problem (the
+    /// trapezoid rule is Störmer–Verlet there), for the generated against
+    /// hand-written comparison.
+    pub fn hand_written_twin(self) -> Option<Method> {
+        match self {
+            Method::Trapezoid => Some(Method::Verlet),
+            Method::GeneratedYoshida6 => Some(Method::Yoshida6),
+            Method::GeneratedKahanLi8 => Some(Method::KahanLi8),
+            _ => None,
+        }
     }
 
     /// `true` for symplectic methods (bounded energy error expected).
@@ -245,6 +276,17 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
         (Method::EnergyMidpoint, Setting::Steps(n)) => {
             variational(model, (q0, v0), Midpoint, n, t_end, true, samples, &mut record)
         }
+        // Explicit Störmer–Verlet sub-steps where the macro proves a constant mass
+        // matrix, Newton sub-steps otherwise (time-dependent, forced, non-separable).
+        (Method::GeneratedYoshida4, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Generated::YOSHIDA4, n, t_end, false, samples, &mut record)
+        }
+        (Method::GeneratedYoshida6, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Generated::YOSHIDA6, n, t_end, false, samples, &mut record)
+        }
+        (Method::GeneratedKahanLi8, Setting::Steps(n)) => {
+            variational(model, (q0, v0), Generated::KAHAN_LI8, n, t_end, false, samples, &mut record)
+        }
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
     out.seconds = start.elapsed().as_secs_f64();
@@ -258,7 +300,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
 }
 
 #[allow(clippy::too_many_arguments)]
-fn variational<M: Model<N>, L: DiscreteLagrangian, const N: usize>(
+fn variational<M: Model<N>, L: F64Readouts, const N: usize>(
     model: &M,
     (q0, v0): ([f64; N], [f64; N]),
     method: L,

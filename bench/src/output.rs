@@ -271,6 +271,105 @@ pub fn headline(report: &Report, targets: &[f64]) -> String {
     s
 }
 
+fn ratio(x: Option<f64>) -> String {
+    x.map_or_else(|| "—".into(), |x| format!("{x:.2}×"))
+}
+
+/// Project compositions against their hand-written twins (the same map on a
+/// separable constant-mass problem), at equal error: every problem and target.
+pub fn twins_table(report: &Report) -> String {
+    let mut s = String::from(
+        "| problem | target | generated | hand-written | generated / hand-written time | per step |\n| --- | --- | --- | --- | --- | --- |\n",
+    );
+    let run = |seconds: Option<f64>, steps: Option<u64>| match (seconds, steps) {
+        (Some(t), Some(n)) => format!("{} ({n} steps)", ms(t)),
+        _ => "not reached".into(),
+    };
+    for p in &report.problems {
+        for t in &p.twins {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} {} | {} {} | {} | {} |",
+                p.id,
+                e(t.target),
+                t.generated,
+                run(t.generated_seconds, t.generated_steps),
+                t.hand_written,
+                run(t.hand_written_seconds, t.hand_written_steps),
+                ratio(t.ratio),
+                ratio(t.per_step_ratio)
+            );
+        }
+    }
+    s
+}
+
+/// The step-cost table: ns per step at `h` = 0.01, per system, with the
+/// generated / hand-written ratio of the midpoint rule.
+pub fn step_cost_table(report: &Report) -> String {
+    let methods = ["generated midpoint", "generated trapezoid", "hand-written midpoint", "hand-written verlet"];
+    let mut s = String::from("| ns/step |");
+    for m in methods {
+        let _ = write!(s, " {m} |");
+    }
+    s.push_str(" generated / hand midpoint |\n|");
+    s.push_str(&" --- |".repeat(methods.len() + 2));
+    s.push('\n');
+    let mut systems: Vec<&str> = Vec::new();
+    for c in report.step_costs.iter().filter(|c| methods.contains(&c.method.as_str())) {
+        if !systems.contains(&c.system.as_str()) {
+            systems.push(&c.system);
+        }
+    }
+    for system in systems {
+        let find = |m: &str| report.step_costs.iter().find(|c| c.system == system && c.method == m);
+        let _ = write!(s, "| {system} |");
+        for m in methods {
+            let cell = find(m).map_or_else(
+                || "—".into(),
+                |c| match c.newton_per_step {
+                    Some(n) if n > 0.0 => format!("{:.1} ({n:.2} Newton it.)", c.ns_per_step),
+                    _ => format!("{:.1}", c.ns_per_step),
+                },
+            );
+            let _ = write!(s, " {cell} |");
+        }
+        let r =
+            find("generated midpoint").zip(find("hand-written midpoint")).map(|(g, h)| g.ns_per_step / h.ns_per_step);
+        let _ = writeln!(s, " {} |", ratio(r));
+    }
+    s
+}
+
+/// The Galerkin step-cost table: ns and Newton iterations per step against `s`.
+pub fn galerkin_cost_table(report: &Report) -> String {
+    let rows: Vec<&StepCost> = report.step_costs.iter().filter(|c| c.method.starts_with("galerkin-")).collect();
+    let mut s = String::from("| s |");
+    for c in &rows {
+        let _ = write!(s, " {} |", c.method.trim_start_matches("galerkin-"));
+    }
+    s.push_str("\n|");
+    s.push_str(&" --- |".repeat(rows.len() + 1));
+    s.push_str("\n| ns/step |");
+    for c in &rows {
+        let _ = write!(s, " {:.0} |", c.ns_per_step);
+    }
+    s.push_str("\n| Newton iterations/step |");
+    for c in &rows {
+        let _ = write!(s, " {} |", c.newton_per_step.map_or("—".into(), |n| format!("{n:.2}")));
+    }
+    s.push('\n');
+    s
+}
+
+/// How busy the machine was, for the text under a table.
+pub fn load(report: &Report) -> String {
+    match (report.machine.load_start, report.machine.load_end) {
+        (Some(a), Some(b)) => format!("load average {a:.1} at the start, {b:.1} at the end"),
+        _ => "load average not recorded".into(),
+    }
+}
+
 fn document(r: &Report) -> Vec<Block> {
     use Block::*;
     let mut d = vec![
@@ -287,6 +386,36 @@ fn document(r: &Report) -> Vec<Block> {
     ];
     let (header, rows) = table_of(&headline(r, &r.targets));
     d.push(Table(header, rows));
+    d.push(Heading(2, "Generated against hand-written compositions".into()));
+    d.push(Para(
+        "The project's `Composition::{YOSHIDA6, KAHAN_LI8}` and its trapezoid rule against the hand-written \
+         Yoshida 6, Kahan–Li 8 and Störmer–Verlet of this crate, which compute the same maps on separable \
+         constant-mass problems (the runtime's explicit path); each calibrated to the same target, so the time ratio \
+         is the cost ratio at equal error; both timed again in alternation (minimum of at least 5 runs each), so \
+         load hits both alike. Runs under ~0.05 ms are timer noise."
+            .into(),
+    ));
+    let (header, rows) = table_of(&twins_table(r));
+    if rows.is_empty() {
+        d.push(Para("No problem with both a project composition and its hand-written twin in this run.".into()));
+    } else {
+        d.push(Table(header, rows));
+    }
+    d.push(Heading(2, "Cost of one step".into()));
+    let (header, rows) = table_of(&step_cost_table(r));
+    if rows.is_empty() {
+        d.push(Para("Not measured in this run.".into()));
+    } else {
+        d.push(Para(format!(
+            "ns per step at h = 0.01, best of the timed runs; {}; the hand-written steps have analytic \
+             derivatives (`bench/src/handwritten.rs`).",
+            load(r)
+        )));
+        d.push(Table(header, rows));
+        d.push(Para("Galerkin s = 1…8 on the pendulum from 1 rad at h = 0.1:".into()));
+        let (header, rows) = table_of(&galerkin_cost_table(r));
+        d.push(Table(header, rows));
+    }
     for p in &r.problems {
         d.push(Heading(2, p.title.clone()));
         d.push(Para(format!(

@@ -1,13 +1,16 @@
 //! The report's data: one JSON file, `report.json`, with this schema
-//! (`schema_version` 1; fields are never renamed or removed within a version,
+//! (`schema_version` 2; fields are never renamed or removed within a version,
 //! and the deserialising structs below refuse unknown fields, so a file that
-//! parses into [`Report`] matches the schema).
+//! parses into [`Report`] matches the schema). Version 2 added `machine`'s
+//! load averages, `problems[].twins` and `step_costs` (absent in a version 1
+//! file, read as empty).
 //!
 //! ```text
 //! Report
-//!   schema_version: 1
+//!   schema_version: 2
 //!   suite: "tiny" | "quick" | "default" | "full"
-//!   crate_version, machine { cores, os, arch }
+//!   crate_version, machine { cores, os, arch, load_start | null, load_end | null }
+//!                                        1-minute load averages when the suite started and ended
 //!   targets: [f64]                       target errors, max_i |q_i(T) − q_i^ref(T)|
 //!   problems: [ProblemReport]
 //!     id, title, dim, horizon
@@ -20,6 +23,11 @@
 //!     recommendations: [{ target, best | null, best_project | null, best_peer | null, best_hand_written | null }]
 //!       each best: { method, seconds, setting }
 //!     energy: [{ method, setting, t_end, failure | null, max_abs: f64 | null, samples: [[t, (E − E0)/|E0|]] }]
+//!     twins: [{ generated, hand_written, target, generated_seconds | null, hand_written_seconds | null,
+//!               generated_steps | null, hand_written_steps | null, ratio | null, per_step_ratio | null }]
+//!                                        a project composition against the hand-written one of the same map
+//!   step_costs: [{ system, method, h, steps, repeats, ns_per_step, newton_per_step | null }]
+//!                                        ns per step at a fixed h, best of `repeats` runs of `steps` steps
 //!   stress
 //!     largest_step: [{ problem, method, h | null, h_over_period | null, criterion }]
 //!     hard_orbits: [{ problem, method, setting, error | null, energy_error | null, outcome }]
@@ -37,7 +45,7 @@ use crate::methods::{Family, Setting};
 use crate::problem::Reference;
 
 /// The version of the schema described in the module docs.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// The whole report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -57,6 +65,56 @@ pub struct Report {
     pub problems: Vec<ProblemReport>,
     /// The stress section.
     pub stress: Stress,
+    /// Cost of one step at a fixed step size, generated against hand-written.
+    #[serde(default)]
+    pub step_costs: Vec<StepCost>,
+}
+
+/// ns per step of one method on one system.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StepCost {
+    /// `"pendulum"` or `"double pendulum"`.
+    pub system: String,
+    /// `"generated midpoint"`, `"hand-written midpoint"`, ….
+    pub method: String,
+    /// Step size.
+    pub h: f64,
+    /// Steps per timed run.
+    pub steps: u64,
+    /// Timed runs.
+    pub repeats: u32,
+    /// Wall-clock ns per step, best of the runs.
+    pub ns_per_step: f64,
+    /// Newton iterations per step (generated methods).
+    pub newton_per_step: Option<f64>,
+}
+
+/// A project composition against the hand-written composition that computes
+/// the same map (on a separable constant-mass problem), both calibrated to
+/// the same target.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Twin {
+    /// Project method name.
+    pub generated: String,
+    /// Hand-written method name.
+    pub hand_written: String,
+    /// Target error.
+    pub target: f64,
+    /// Time of one run of the project method at its calibrated setting
+    /// (minimum of runs alternating with the hand-written one's).
+    pub generated_seconds: Option<f64>,
+    /// The same for the hand-written one.
+    pub hand_written_seconds: Option<f64>,
+    /// Steps of the project method's calibrated setting.
+    pub generated_steps: Option<u64>,
+    /// Steps of the hand-written one's.
+    pub hand_written_steps: Option<u64>,
+    /// `generated_seconds / hand_written_seconds`: the cost ratio at equal error.
+    pub ratio: Option<f64>,
+    /// The same per step (time / steps of each).
+    pub per_step_ratio: Option<f64>,
 }
 
 /// The machine.
@@ -69,6 +127,12 @@ pub struct Machine {
     pub os: String,
     /// `std::env::consts::ARCH`.
     pub arch: String,
+    /// 1-minute load average when the suite started (`/proc/loadavg`; `None` elsewhere).
+    #[serde(default)]
+    pub load_start: Option<f64>,
+    /// The same when it ended.
+    #[serde(default)]
+    pub load_end: Option<f64>,
 }
 
 /// One problem.
@@ -93,6 +157,9 @@ pub struct ProblemReport {
     pub recommendations: Vec<Recommendation>,
     /// Energy error over a long run.
     pub energy: Vec<EnergySeries>,
+    /// Project compositions against their hand-written twins.
+    #[serde(default)]
+    pub twins: Vec<Twin>,
 }
 
 /// The sweep of one method.

@@ -1,8 +1,9 @@
 //! Runs the suites: references, calibration sweeps, timing of the selected
 //! settings, long energy runs and the stress section, into a [`Report`].
 
+use std::io::IsTerminal;
 use std::sync::mpsc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -127,9 +128,34 @@ fn bar(config: &Config, len: u64, prefix: String) -> ProgressBar {
     b
 }
 
+/// The 1-minute load average (Linux), so a report says how busy the machine was.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg").ok()?.split_whitespace().next()?.parse().ok()
+}
+
+/// Progress as plain lines when stderr is no terminal (indicatif draws nothing
+/// there), so a long run in the background shows where it is.
+struct Log {
+    on: bool,
+    start: Instant,
+}
+
+impl Log {
+    fn new(config: &Config) -> Log {
+        Log { on: config.progress && !std::io::stderr().is_terminal(), start: Instant::now() }
+    }
+    fn line(&self, what: impl std::fmt::Display) {
+        if self.on {
+            eprintln!("[{:7.1} s] {what}", self.start.elapsed().as_secs_f64());
+        }
+    }
+}
+
 /// Runs the suite. Fails on a reference that does not pass its check.
 pub fn run(config: &Config) -> Result<Report, String> {
     let suite = config.suite;
+    let load_start = load_average();
+    let log = Log::new(config);
     let targets = suite.targets();
     let smallest = targets.iter().copied().fold(f64::INFINITY, f64::min);
     let methods = config.methods.clone().unwrap_or_else(Method::all);
@@ -143,8 +169,10 @@ pub fn run(config: &Config) -> Result<Report, String> {
         let t_end = p.horizon();
         let b = bar(config, applicable.len() as u64 * 2 + 1, p.id().to_string());
         b.set_message("reference");
+        log.line(format_args!("{}: reference", p.id()));
         let reference = p.reference(t_end, config.reference_tolerance)?;
         b.inc(1);
+        log.line(format_args!("{}: reference done, sweeps of {} methods", p.id(), applicable.len()));
         let limits = suite.limits(smallest);
         let mut sweeps = Vec::new();
         let mut calibrated = Vec::new();
@@ -159,10 +187,14 @@ pub fn run(config: &Config) -> Result<Report, String> {
                 calibrated.push(time_selected(&**p, m, &points, target, &reference.q, t_end, suite.repeats()));
             }
             b.inc(1);
+            log.line(format_args!("{}: {} swept ({} runs) and timed", p.id(), m.name(), points.len()));
             sweeps.push(Sweep { method: m.name(), family: m.family(), order: m.order(), points });
         }
+        b.set_message("generated against hand-written");
+        let twins = twins(&**p, &applicable, &calibrated, &targets, t_end, suite.repeats().max(5));
         let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
         b.set_message("long energy runs");
+        log.line(format_args!("{}: long energy runs", p.id()));
         let energy = long_energy(&**p, &applicable, &calibrated, targets[0], t_end * suite.long_factor());
         b.finish_with_message("done");
         reports.push(ProblemReport {
@@ -175,10 +207,15 @@ pub fn run(config: &Config) -> Result<Report, String> {
             calibrated,
             recommendations,
             energy,
+            twins,
         });
     }
     let references: Vec<&[f64]> = reports.iter().map(|r| r.reference.q.as_slice()).collect();
+    log.line("stress");
     let stress = stress(config, &methods, &problems, &references);
+    log.line("step costs");
+    let step_costs = crate::step_cost::measure(suite);
+    log.line("done");
     Ok(Report {
         schema_version: SCHEMA_VERSION,
         suite: suite.name().to_string(),
@@ -187,11 +224,70 @@ pub fn run(config: &Config) -> Result<Report, String> {
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             os: std::env::consts::OS.to_string(),
             arch: std::env::consts::ARCH.to_string(),
+            load_start,
+            load_end: load_average(),
         },
         targets,
         problems: reports,
         stress,
+        step_costs,
     })
+}
+
+/// Each project composition against its hand-written twin, per target: both
+/// at their calibrated settings, timed again in alternation (`repeats` runs
+/// each, the minimum), so that a burst of load hits both alike.
+fn twins(
+    p: &dyn Problem,
+    applicable: &[Method],
+    calibrated: &[Calibrated],
+    targets: &[f64],
+    t_end: f64,
+    repeats: u32,
+) -> Vec<Twin> {
+    let steps = |c: &Calibrated| match c.setting {
+        Some(Setting::Steps(n)) => Some(n as u64),
+        _ => None,
+    };
+    let mut out = Vec::new();
+    for &g in applicable {
+        let Some(h) = g.hand_written_twin().filter(|h| applicable.contains(h)) else { continue };
+        for &target in targets {
+            let find = |m: Method| calibrated.iter().find(|c| c.method == m.name() && c.target == target);
+            let (Some(cg), Some(ch)) = (find(g), find(h)) else { continue };
+            let (mut tg, mut th) = (cg.seconds, ch.seconds);
+            if let (Some(sg), Some(sh)) = (cg.setting, ch.setting) {
+                let (mut bg, mut bh) = (f64::INFINITY, f64::INFINITY);
+                for _ in 0..repeats {
+                    let rg = p.run(g, sg, t_end, 0);
+                    let rh = p.run(h, sh, t_end, 0);
+                    if rg.failure.is_some() || rh.failure.is_some() {
+                        break;
+                    }
+                    bg = bg.min(rg.seconds);
+                    bh = bh.min(rh.seconds);
+                }
+                if bg.is_finite() && bh.is_finite() {
+                    (tg, th) = (Some(bg), Some(bh));
+                }
+            }
+            let ratio = tg.zip(th).map(|(a, b)| a / b);
+            let per_step =
+                tg.zip(steps(cg)).zip(th.zip(steps(ch))).map(|((a, na), (b, nb))| (a / na as f64) / (b / nb as f64));
+            out.push(Twin {
+                generated: g.name(),
+                hand_written: h.name(),
+                target,
+                generated_seconds: tg,
+                hand_written_seconds: th,
+                generated_steps: steps(cg),
+                hand_written_steps: steps(ch),
+                ratio,
+                per_step_ratio: per_step,
+            });
+        }
+    }
+    out
 }
 
 fn time_selected(
@@ -253,10 +349,11 @@ fn recommend(calibrated: &[Calibrated], target: f64) -> Recommendation {
 }
 
 /// The methods of the long energy runs (those that apply and were calibrated).
-const LONG_RUN: [Method; 7] = [
+const LONG_RUN: [Method; 8] = [
     Method::Midpoint,
     Method::Galerkin(4),
     Method::EnergyMidpoint,
+    Method::GeneratedKahanLi8,
     Method::Verlet,
     Method::KahanLi8,
     Method::OdeSolversDop853,

@@ -51,6 +51,29 @@ fn tiny_report_writes_every_file() {
         }
     }
     assert!(!report.stress.largest_step.is_empty() && !report.stress.hard_orbits.is_empty());
+    // Project compositions against their hand-written twins, on both (separable) problems.
+    for p in &report.problems {
+        for (g, h) in
+            [("trapezoid", "verlet"), ("composition-yoshida6", "yoshida6"), ("composition-kahan-li8", "kahan-li8")]
+        {
+            let t = p.twins.iter().find(|t| t.generated == g && t.target == report.targets[0]);
+            let t = t.unwrap_or_else(|| panic!("{}: no {g} against {h}", p.id));
+            assert_eq!(t.hand_written, h);
+            if let (Some(a), Some(b), Some(r)) = (t.generated_seconds, t.hand_written_seconds, t.ratio) {
+                // serde_json's default float parser may be off by an ulp.
+                assert!((r - a / b).abs() <= 1e-12 * r, "{}: {g}: {r} against {a} / {b}", p.id);
+            }
+        }
+    }
+    // Step costs: every generated and hand-written step of both systems, and Galerkin s = 1…8.
+    let costs: Vec<(&str, &str)> = report.step_costs.iter().map(|c| (c.system.as_str(), c.method.as_str())).collect();
+    for system in ["pendulum", "double pendulum"] {
+        for m in ["generated midpoint", "generated trapezoid", "hand-written midpoint", "hand-written verlet"] {
+            assert!(costs.contains(&(system, m)), "{system} {m}: {costs:?}");
+        }
+    }
+    assert_eq!(report.step_costs.iter().filter(|c| c.method.starts_with("galerkin-")).count(), 8);
+    assert!(report.step_costs.iter().all(|c| c.ns_per_step.is_finite() && c.ns_per_step > 0.0));
     assert!(report.stress.bad_input.iter().any(|b| b.method == "midpoint" && b.outcome.contains("must be finite")));
     let md = String::from_utf8(read(&out.join("report.md"))).unwrap();
     assert!(md.contains("![pendulum work–precision](pendulum-work-precision.svg)"));
@@ -61,14 +84,34 @@ fn tiny_report_writes_every_file() {
     assert_eq!(left, [std::ffi::OsString::from("report")]);
     // The README section is generated from this JSON.
     let readme = dir.join("README.md");
-    std::fs::write(&readme, "intro\n<!-- bench:headline:begin -->\nstale\n<!-- bench:headline:end -->\nrest\n")
-        .unwrap();
+    std::fs::write(
+        &readme,
+        "intro\n<!-- bench:headline:begin -->\nstale\n<!-- bench:headline:end -->\nmiddle\n\
+         <!-- bench:step-cost:begin -->\nstale\n<!-- bench:step-cost:end -->\nrest\n",
+    )
+    .unwrap();
     let status =
         bin().arg("readme").arg("--from").arg(out.join("report.json")).arg("--readme").arg(&readme).output().unwrap();
     assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
     let text = std::fs::read_to_string(&readme).unwrap();
     assert!(text.starts_with("intro\n") && text.ends_with("rest\n") && !text.contains("stale"));
     assert!(text.contains("| pendulum | 1.0e-3 |"), "{text}");
+    assert!(text.contains("\nmiddle\n") && text.contains("| double pendulum | "), "{text}");
+    // One section only, and an unknown one refused.
+    std::fs::write(&readme, "<!-- bench:compositions:begin -->\n<!-- bench:compositions:end -->\n").unwrap();
+    let status = bin()
+        .args(["readme", "--section", "compositions", "--from"])
+        .arg(out.join("report.json"))
+        .arg("--readme")
+        .arg(&readme)
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let text = std::fs::read_to_string(&readme).unwrap();
+    assert!(text.contains("| kepler-0.5 | 1.0e-3 | composition-kahan-li8 "), "{text}");
+    let status = bin().args(["readme", "--section", "nope", "--readme"]).arg(&readme).output().unwrap();
+    assert!(!status.status.success());
+    assert!(String::from_utf8_lossy(&status.stderr).contains("unknown README section `nope`"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
