@@ -111,6 +111,17 @@ pub(crate) enum Breakdown {
 }
 
 /// The Newton correction at an iterate and the size of the residual there.
+impl Breakdown {
+    /// The failure this breakdown is at Newton iteration `iterations`.
+    pub(crate) fn at(self, iterations: usize) -> NewtonFailure {
+        match self {
+            Breakdown::Singular(rcond) => NewtonFailure::Singular { iterations, rcond },
+            Breakdown::NonFinite(quantity) => NewtonFailure::NonFinite { iterations, quantity },
+            Breakdown::Rejected(reason) => NewtonFailure::Rejected { iterations, reason },
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Linearization<X> {
     pub(crate) correction: X,
@@ -265,11 +276,7 @@ where
     let mut growing = 0;
     for iterations in 1..=options.max_iterations {
         report.iterations = iterations;
-        let step = linearize(&x).map_err(|b| match b {
-            Breakdown::Singular(rcond) => NewtonFailure::Singular { iterations, rcond },
-            Breakdown::NonFinite(quantity) => NewtonFailure::NonFinite { iterations, quantity },
-            Breakdown::Rejected(reason) => NewtonFailure::Rejected { iterations, reason },
-        })?;
+        let step = linearize(&x).map_err(|b| b.at(iterations))?;
         report.residual_norm = step.residual_norm;
         x.update(&step.correction);
         if step.residual_ratio <= 4.0 * X::EPSILON {

@@ -33,7 +33,7 @@
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
 use super::{Integrator, StepPolicy, implausible_growth, kahan, non_finite};
-use crate::banded::{BandedMatrix, DenseMatrix, LinearSolveError, StepMatrix};
+use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -41,6 +41,7 @@ use crate::integrator::IMPLAUSIBLE_GROWTH;
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonReport, Unknown};
 use crate::real::max_abs;
 use crate::state::State;
+use crate::structure::Pattern;
 use crate::system::Lagrangian;
 use crate::tape::{Seeds, Tape, TapeError, Var};
 
@@ -156,70 +157,44 @@ const fn mass_bandwidth<S: Lagrangian<N>, const N: usize>() -> Option<usize> {
     }
 }
 
-/// An `n × n` Newton matrix on the heap: banded when a band is proven, dense
-/// otherwise.
-#[derive(Clone, Debug)]
-enum Jacobian {
-    Banded(BandedMatrix),
-    Dense(DenseMatrix),
+/// The Newton matrix for a step pattern with bandwidth `bandwidth` (`None`:
+/// general): banded or dense by the banded module's measured rule.
+fn step_matrix(n: usize, bandwidth: Option<usize>) -> Result<StepSolver, LinearSolveError> {
+    StepSolver::for_pattern(n, bandwidth.map_or(Pattern::General, |b| Pattern::banded(n, b)))
 }
 
-impl Jacobian {
-    fn new(n: usize, bandwidth: Option<usize>) -> Result<Self, LinearSolveError> {
-        Ok(match bandwidth {
-            Some(b) => Jacobian::Banded(BandedMatrix::new(n, b, b)?),
-            None => Jacobian::Dense(DenseMatrix::new(n)?),
-        })
-    }
-
-    fn matrix(&mut self) -> &mut dyn StepMatrix {
-        match self {
-            Jacobian::Banded(m) => m,
-            Jacobian::Dense(m) => m,
-        }
-    }
-
-    fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
-        match self {
-            Jacobian::Banded(m) => m.solve(b),
-            Jacobian::Dense(m) => m.solve(b),
-        }
-    }
-
-    /// Assembles `(i, j) ↦ entry(i, j)` over the pattern (`band` holds row
-    /// `i`'s `2b + 1` entries around the diagonal, or the whole row when
-    /// dense), then factors, refusing a singular or badly conditioned matrix.
-    fn assemble_and_factor(
-        &mut self,
-        n: usize,
-        bandwidth: Option<usize>,
-        band: &[f64],
-        min_rcond: f64,
-    ) -> Result<(), Breakdown> {
-        let width = bandwidth.map_or(n, |b| 2 * b + 1);
-        let m = self.matrix();
-        m.clear();
-        for i in 0..n {
-            let row = &band[i * width..(i + 1) * width];
-            match bandwidth {
-                Some(b) => {
-                    for (c, &x) in row.iter().enumerate() {
-                        // Column i + c − b, skipping slots outside the matrix.
-                        if let Some(j) = (i + c).checked_sub(b).filter(|&j| j < n) {
-                            m.add(i, j, x).map_err(breakdown)?;
-                        }
-                    }
-                }
-                None => {
-                    for (j, &x) in row.iter().enumerate() {
+/// Assembles `(i, j) ↦ entry` from `band` (row `i`'s `2b + 1` entries around
+/// the diagonal, or the whole row when `bandwidth` is `None`) into `m`, then
+/// factors it, refusing a singular or badly conditioned matrix.
+fn assemble_and_factor(
+    m: &mut StepSolver,
+    n: usize,
+    bandwidth: Option<usize>,
+    band: &[f64],
+    min_rcond: f64,
+) -> Result<(), Breakdown> {
+    let width = bandwidth.map_or(n, |b| 2 * b + 1);
+    m.clear();
+    for i in 0..n {
+        let row = &band[i * width..(i + 1) * width];
+        match bandwidth {
+            Some(b) => {
+                for (c, &x) in row.iter().enumerate() {
+                    // Column i + c − b, skipping slots outside the matrix.
+                    if let Some(j) = (i + c).checked_sub(b).filter(|&j| j < n) {
                         m.add(i, j, x).map_err(breakdown)?;
                     }
                 }
             }
+            None => {
+                for (j, &x) in row.iter().enumerate() {
+                    m.add(i, j, x).map_err(breakdown)?;
+                }
+            }
         }
-        m.factor(min_rcond).map_err(breakdown)?;
-        Ok(())
     }
+    m.factor(min_rcond).map_err(breakdown)?;
+    Ok(())
 }
 
 /// A linear-algebra failure as a Newton breakdown.
@@ -259,7 +234,7 @@ pub(crate) struct SparseWork {
     /// The blocks `∂²A/∂q_k∂Δq` and `∂²A/∂Δq²` in band (or dense row) storage.
     mixed: Vec<f64>,
     end: Vec<f64>,
-    jacobian: Jacobian,
+    jacobian: StepSolver,
     /// `E_{k+1} = −∂A/∂t_{k+1}` of the last step, when it was computed.
     pub(crate) energy: Option<f64>,
     /// Explicit path: the factored constant mass matrix.
@@ -300,7 +275,7 @@ impl SparseWork {
             products: vec![0.0; inputs * directions],
             mixed: vec![0.0; N * width],
             end: vec![0.0; N * width],
-            jacobian: Jacobian::new(N, bandwidth)?,
+            jacobian: step_matrix(N, bandwidth)?,
             energy: None,
             mass: None,
             node_force: None,
@@ -465,7 +440,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             let rcond_floor = if first { min_rcond } else { 0.0 };
             first = false;
-            work.jacobian.assemble_and_factor(N, bandwidth, &work.mixed, rcond_floor)?;
+            assemble_and_factor(&mut work.jacobian, N, bandwidth, &work.mixed, rcond_floor)?;
             let residual_norm = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             let mut correction = r;
             work.jacobian.solve(&mut correction).map_err(breakdown)?;
@@ -505,9 +480,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         };
         if work.mass.is_none() {
             let mass = velocity_derivatives(&self.system, t0, &q0, &[0.0; N], mass_bandwidth::<S, N>())
-                .map_err(|b| self.fail(h, failure(b)))
+                .map_err(|b| self.fail(h, b.at(0)))
                 .and_then(|(_, _, mut mass)| {
-                    mass.factor_in_place(self.newton.min_rcond).map_err(|b| self.fail(h, failure(b)))?;
+                    mass.factor_in_place(self.newton.min_rcond).map_err(|b| self.fail(h, b.at(0)))?;
                     Ok(mass)
                 })?;
             work.mass = Some(mass);
@@ -528,7 +503,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             && let Err(e) = mass.solve(&mut v)
         {
             work.node_force = Some((step, f0));
-            return Err(self.fail(h, failure(breakdown(e))));
+            return Err(self.fail(h, breakdown(e).at(0)));
         }
         let dq: [f64; N] = core::array::from_fn(|i| v[i] * h);
         if let Some(last) = &self.memory.previous
@@ -573,16 +548,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Some(e) => e,
             None => step_energy(&self.system, &self.method, seg),
         }
-    }
-}
-
-/// A breakdown of a solve outside Newton's iteration as a failure at
-/// iteration 0.
-fn failure(b: Breakdown) -> NewtonFailure {
-    match b {
-        Breakdown::Singular(rcond) => NewtonFailure::Singular { iterations: 0, rcond },
-        Breakdown::NonFinite(quantity) => NewtonFailure::NonFinite { iterations: 0, quantity },
-        Breakdown::Rejected(reason) => NewtonFailure::Rejected { iterations: 0, reason },
     }
 }
 
@@ -650,7 +615,7 @@ fn velocity_derivatives<S: Lagrangian<N>, const N: usize>(
     let width = bandwidth.map_or(N, |b| 2 * b + 1);
     let mut band = vec![0.0; N * width];
     seeds.recover(&products, 0..N, &mut band).map_err(tape_breakdown)?;
-    let matrix = Jacobian::new(N, bandwidth).map_err(breakdown)?;
+    let matrix = step_matrix(N, bandwidth).map_err(breakdown)?;
     Ok((l, gradient, Assembled { n: N, matrix, band, bandwidth }))
 }
 
@@ -658,7 +623,7 @@ fn velocity_derivatives<S: Lagrangian<N>, const N: usize>(
 #[derive(Clone, Debug)]
 struct Assembled {
     n: usize,
-    matrix: Jacobian,
+    matrix: StepSolver,
     band: Vec<f64>,
     bandwidth: Option<usize>,
 }
@@ -666,7 +631,7 @@ struct Assembled {
 impl Assembled {
     /// Assembles and factors the block.
     fn factor_in_place(&mut self, min_rcond: f64) -> Result<(), Breakdown> {
-        self.matrix.assemble_and_factor(self.n, self.bandwidth, &self.band, min_rcond)
+        assemble_and_factor(&mut self.matrix, self.n, self.bandwidth, &self.band, min_rcond)
     }
 
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
