@@ -82,6 +82,9 @@ pub fn settings(problem: &dyn Problem, method: Method, per_octave: u32) -> impl 
     })
 }
 
+/// Octaves of settings that all fail after which a sweep gives up.
+pub const FAILED_OCTAVES: usize = 3;
+
 /// Sweeps `method` on `problem` to `t_end`, calling `progress` after each run.
 pub fn sweep(
     problem: &dyn Problem,
@@ -100,7 +103,13 @@ pub fn sweep(
         points.push(p);
         let done = points.len() >= 3
             && points[points.len() - 3..].iter().all(|p| p.error.is_some_and(|e| e <= limits.smallest_target));
-        if done || slow {
+        // A method that fails over three octaves of settings in a row (energy-preserving
+        // steps losing the energy root at the same point of the orbit at every step size)
+        // will not start to succeed: without this the sweep would go on to absurd step
+        // counts, each failing run quick enough to stay under the budget.
+        let failing = points.len() >= FAILED_OCTAVES * limits.per_octave as usize
+            && points[points.len() - FAILED_OCTAVES * limits.per_octave as usize..].iter().all(|p| p.failure.is_some());
+        if done || slow || failing {
             break;
         }
     }

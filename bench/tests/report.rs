@@ -181,3 +181,17 @@ fn calibration_meets_the_target_and_matches_a_direct_run() {
         }
     }
 }
+
+#[test]
+fn a_sweep_that_fails_at_every_setting_gives_up_after_three_octaves() {
+    // Energy-preserving midpoint steps lose the energy root on the double pendulum near
+    // t = 0.29 at every step size: the sweep must stop, not refine towards 1e9 steps.
+    let p = problem::all(1.0).into_iter().find(|p| p.id() == "double-pendulum").unwrap();
+    let t = p.horizon();
+    let reference = p.reference(t, 1e-14).unwrap();
+    let limits = Limits { smallest_target: 1e-10, run_budget: 5.0, per_octave: 2 };
+    let points = calibrate::sweep(&*p, Method::EnergyMidpoint, &reference.q, t, limits, |_| {});
+    let window = calibrate::FAILED_OCTAVES * 2;
+    assert!(points.iter().all(|pt| pt.failure.is_some()), "{points:?}");
+    assert_eq!(points.len(), window, "{points:?}");
+}
