@@ -164,7 +164,9 @@ pub mod prelude {
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
-    pub use lagrangian_runtime::{Coupling, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, Symmetry};
+    pub use lagrangian_runtime::{
+        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, Symmetry,
+    };
 }
 
 /// The README's examples, compiled and run as doc tests.

@@ -57,5 +57,5 @@ pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
 pub use state::State;
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;
-pub use system::{Lagrangian, Scalar};
+pub use system::{DynLagrangian, Lagrangian, Scalar};
 pub use time_transform::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};

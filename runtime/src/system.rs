@@ -138,6 +138,66 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     }
 }
 
+/// A system whose number of degrees of freedom is known only at run time (a
+/// chain built from data, a lattice read from a file), described by its
+/// Lagrangian `L(t, q, v)` over slices.
+///
+/// It is the run-time-sized twin of [`Lagrangian`]: `#[lagrangian]` implements
+/// it when the user's `lagrangian` takes `q: &[f64], v: &[f64]` (and the impl
+/// block has `fn dimension(&self) -> usize`), with the same checks and the
+/// same structure analysis. Why a second trait: [`Lagrangian`] passes
+/// `[D; N]` by value, which a const `N` of 10⁵ cannot afford on a 2 MiB
+/// thread stack, and whose monomorphised forward-mode derivatives make the
+/// compile time grow with `N`. Slices live on the heap and have one
+/// compiled body for every size.
+///
+/// What is not here: `CYCLIC` (a slice system's cyclic coordinates would be
+/// a run-time set), declared symmetries, forces and dissipation. Such systems
+/// are stepped in reverse mode only (docs/large-systems.md).
+pub trait DynLagrangian {
+    /// `true` when `L` does not depend explicitly on time (see
+    /// [`Lagrangian::AUTONOMOUS`]).
+    const AUTONOMOUS: bool;
+
+    /// `true` when `L` may be discontinuous (see
+    /// [`Lagrangian::DISCONTINUOUS`]).
+    const DISCONTINUOUS: bool = false;
+
+    /// What the macro proved about the form of `L` (see
+    /// [`Lagrangian::SEPARABILITY`]).
+    const SEPARABILITY: Separability = Separability::NotProven;
+
+    /// The coupling pattern of the Hessian of `L` (see
+    /// [`Lagrangian::COUPLING`]). A proven bandwidth does not depend on the
+    /// dimension: offsets `q[i + c]` bound it.
+    const COUPLING: Coupling = Coupling::GENERAL;
+
+    /// The number of coordinates `n`: `q` and `v` passed to
+    /// [`lagrangian`](Self::lagrangian) have this length.
+    fn dimension(&self) -> usize;
+
+    /// The Lagrangian `L(t, q, v)` with `q.len() == v.len() == self.dimension()`.
+    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
+}
+
+/// A borrowed run-time-sized system is the same system.
+impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
+    const AUTONOMOUS: bool = S::AUTONOMOUS;
+    const DISCONTINUOUS: bool = S::DISCONTINUOUS;
+    const SEPARABILITY: Separability = S::SEPARABILITY;
+    const COUPLING: Coupling = S::COUPLING;
+
+    #[inline(always)]
+    fn dimension(&self) -> usize {
+        (**self).dimension()
+    }
+
+    #[inline(always)]
+    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+        (**self).lagrangian(t, q, v)
+    }
+}
+
 /// The generalised force `F = Q(t, q, v) − ∂R/∂v(q, v)` on any [`Scalar`].
 ///
 /// `∂R/∂v_i` comes from one evaluation of `R` on a dual number over `D`
