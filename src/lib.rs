@@ -155,8 +155,9 @@ pub mod prelude {
     pub use lagrangian_macros::lagrangian;
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
     pub use lagrangian_runtime::{
-        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, EnergyFallback, Error, F64Readouts, Integrator, Lagrangian,
-        Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Symmetry, Trapezoid,
+        AlphaBeta, DiscreteLagrangian, DiscreteMechanics, DynLagrangian, EnergyFallback, Error, F64Readouts,
+        Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Symmetry,
+        Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
 }
