@@ -184,6 +184,34 @@ pub struct Run {
     pub seconds: f64,
     /// `(t, (E − E0)/|E0|)` samples, when asked for.
     pub energy: Vec<(f64, f64)>,
+    /// `(t, |L − L0|/|L0|)` samples of the angular momentum `L`, at the same
+    /// times, when asked for and the problem conserves it.
+    pub momentum: Vec<(f64, f64)>,
+}
+
+/// The relative errors of the conserved quantities of a model at a state.
+pub(crate) struct Invariants<'a, M, const N: usize> {
+    model: &'a M,
+    e0: f64,
+    l0: Option<[f64; 3]>,
+}
+
+impl<'a, M: Model<N>, const N: usize> Invariants<'a, M, N> {
+    pub(crate) fn new(model: &'a M, q0: &[f64; N], v0: &[f64; N]) -> Self {
+        Self { model, e0: model.energy(q0, v0), l0: model.angular_momentum(q0, v0) }
+    }
+
+    /// `(E − E0)/|E0|`.
+    pub(crate) fn energy(&self, q: &[f64; N], v: &[f64; N]) -> f64 {
+        (self.model.energy(q, v) - self.e0) / self.e0.abs().max(f64::MIN_POSITIVE)
+    }
+
+    /// `|L − L0|/|L0|` (Euclidean norms), when the model conserves `L`.
+    pub(crate) fn momentum(&self, q: &[f64; N], v: &[f64; N]) -> Option<f64> {
+        let (l0, l) = (self.l0?, self.model.angular_momentum(q, v)?);
+        let norm = |x: [f64; 3]| x.iter().map(|c| c * c).sum::<f64>().sqrt();
+        Some(norm([l[0] - l0[0], l[1] - l0[1], l[2] - l0[2]]) / norm(l0).max(f64::MIN_POSITIVE))
+    }
 }
 
 impl Run {
@@ -206,17 +234,23 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     assert_eq!(D, 2 * N, "the first-order state has 2N components");
     // The energy of a time-dependent or forced problem changes by physics: nothing to record.
     let samples = if M::CONSERVATIVE { samples } else { 0 };
-    let e0 = model.energy(&q0, &v0);
-    let scale = e0.abs().max(f64::MIN_POSITIVE);
+    let invariants = Invariants::new(model, &q0, &v0);
     let every = if samples > 0 { t_end / samples as f64 } else { f64::INFINITY };
     let mut next = every;
     let mut energy = Vec::with_capacity(samples + 1);
+    let mut momentum = Vec::new();
     if samples > 0 {
         energy.push((0.0, 0.0));
+        if invariants.momentum(&q0, &v0).is_some() {
+            momentum.push((0.0, 0.0));
+        }
     }
-    let mut record = |t: f64, e: f64| {
+    let mut record = |t: f64, q: &[f64; N], v: &[f64; N]| {
         if t >= next * (1.0 - 1e-12) {
-            energy.push((t, (e - e0) / scale));
+            energy.push((t, invariants.energy(q, v)));
+            if let Some(l) = invariants.momentum(q, v) {
+                momentum.push((t, l));
+            }
             while next <= t * (1.0 + 1e-12) {
                 next += every;
             }
@@ -241,7 +275,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
             for k in 0..n {
                 s.step(&force);
                 if samples > 0 {
-                    record((k + 1) as f64 * t_end / n as f64, model.energy(&s.q, &s.velocity()));
+                    record((k + 1) as f64 * t_end / n as f64, &s.q, &s.velocity());
                 }
             }
             let finite = s.q.iter().all(|x| x.is_finite());
@@ -292,9 +326,12 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     out.seconds = start.elapsed().as_secs_f64();
     if samples > 0 {
         out.energy.append(&mut energy);
-        // A run that blew up (its failure says so) would put NaN in the JSON, which has no NaN.
-        out.energy.retain(|s| s.1.is_finite());
-        out.energy.sort_by(|a, b| a.0.total_cmp(&b.0));
+        out.momentum.append(&mut momentum);
+        for series in [&mut out.energy, &mut out.momentum] {
+            // A run that blew up (its failure says so) would put NaN in the JSON, which has no NaN.
+            series.retain(|s| s.1.is_finite());
+            series.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
     }
     out
 }
@@ -308,7 +345,7 @@ fn variational<M: Model<N>, L: F64Readouts, const N: usize>(
     t_end: f64,
     energy_preserving: bool,
     samples: usize,
-    record: &mut impl FnMut(f64, f64),
+    record: &mut impl FnMut(f64, &[f64; N], &[f64; N]),
 ) -> Run {
     let h = t_end / n as f64;
     let builder = Integrator::new(model.system(), method, h);
@@ -325,7 +362,7 @@ fn variational<M: Model<N>, L: F64Readouts, const N: usize>(
         if samples > 0 {
             let s = sim.state();
             if let Ok(v) = sim.velocity() {
-                record(s.t, model.energy(&s.q, &v));
+                record(s.t, &s.q, &v);
             }
         }
     };
@@ -344,7 +381,7 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     n: usize,
     t_end: f64,
     samples: usize,
-    record: &mut impl FnMut(f64, f64),
+    record: &mut impl FnMut(f64, &[f64; N], &[f64; N]),
 ) -> Run {
     let mut sim =
         match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0) {
@@ -355,7 +392,7 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
         if samples > 0 {
             let s = sim.state();
             if let Ok(v) = sim.velocity() {
-                record(s.t, model.energy(&s.q, &v));
+                record(s.t, &s.q, &v);
             }
         }
     });

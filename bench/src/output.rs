@@ -479,26 +479,34 @@ fn document(r: &Report) -> Vec<Block> {
             continue;
         }
         d.push(Image(format!("{}-energy.svg", p.id), format!("{} energy error", p.id)));
+        // The angular momentum column only for problems that conserve it.
+        let momentum = p.energy.iter().any(|s| s.momentum_max_abs.is_some());
         let rows = p
             .energy
             .iter()
             .map(|s| {
-                vec![
+                let mut row = vec![
                     s.method.clone(),
                     setting(&s.setting),
                     format!("{}", s.t_end),
                     s.max_abs.map_or("—".into(), e),
-                    s.failure.clone().unwrap_or_else(|| "ok".into()),
-                ]
+                ];
+                if momentum {
+                    row.push(s.momentum_max_abs.map_or("—".into(), e));
+                }
+                row.push(s.failure.clone().unwrap_or_else(|| "ok".into()));
+                row
             })
             .collect();
         d.push(Para(
             "Long runs with the settings calibrated at the loosest target (same h or tolerance, longer T):".into(),
         ));
-        d.push(Table(
-            vec!["method".into(), "setting".into(), "T".into(), "max |E − E0|/|E0|".into(), "outcome".into()],
-            rows,
-        ));
+        let mut header = vec!["method".into(), "setting".into(), "T".into(), "max |E − E0|/|E0|".into()];
+        if momentum {
+            header.push("max |L − L0|/|L0| (angular momentum)".into());
+        }
+        header.push("outcome".into());
+        d.push(Table(header, rows));
     }
     d.push(Heading(2, "Stress".into()));
     d.push(Heading(3, "Largest step each fixed-step method survives".into()));
@@ -552,6 +560,44 @@ fn document(r: &Report) -> Vec<Block> {
         ],
         rows,
     ));
+    d.push(Heading(3, "Many steps".into()));
+    d.push(Para(
+        "Each fixed-step method takes its step calibrated at the loosest target many times over (DOP853 keeps its \
+         tolerance and runs over the trapezoid rule's span); the invariants are sampled 1000 times."
+            .into(),
+    ));
+    let rows = r
+        .stress
+        .long_runs
+        .iter()
+        .map(|l| {
+            vec![
+                l.problem.clone(),
+                l.method.clone(),
+                setting(&l.setting),
+                l.steps.to_string(),
+                format!("{:.0}", l.t_end),
+                format!("{:.2} s", l.seconds),
+                l.energy_max_abs.map_or("—".into(), e),
+                l.momentum_max_abs.map_or("—".into(), e),
+                short(&l.outcome),
+            ]
+        })
+        .collect();
+    d.push(Table(
+        vec![
+            "problem".into(),
+            "method".into(),
+            "setting".into(),
+            "steps".into(),
+            "T".into(),
+            "time".into(),
+            "max |E − E0|/|E0|".into(),
+            "max |L − L0|/|L0|".into(),
+            "outcome".into(),
+        ],
+        rows,
+    ));
     d.push(Heading(3, "Bad input".into()));
     let rows = r.stress.bad_input.iter().map(|b| vec![b.class.clone(), b.method.clone(), short(&b.outcome)]).collect();
     d.push(Table(vec!["input".into(), "method".into(), "what it returned".into()], rows));
@@ -559,13 +605,14 @@ fn document(r: &Report) -> Vec<Block> {
 }
 
 fn short(s: &str) -> String {
-    let s = s.replace('|', "\\|").replace('\n', " ");
+    let s = s.replace('\n', " ");
     if s.chars().count() > 160 { format!("{}…", s.chars().take(160).collect::<String>()) } else { s }
 }
 
 /// Splits a Markdown table (as [`headline`] writes it) into header and rows.
 fn table_of(md: &str) -> (Vec<String>, Vec<Vec<String>>) {
-    let cells = |l: &str| l.trim().trim_matches('|').split(" | ").map(|c| c.trim().to_string()).collect::<Vec<_>>();
+    let cells =
+        |l: &str| l.trim().trim_matches('|').split(" | ").map(|c| c.trim().replace("\\|", "|")).collect::<Vec<_>>();
     let mut lines = md.lines();
     let header = lines.next().map(cells).unwrap_or_default();
     (header, lines.skip(1).map(cells).collect())
@@ -585,10 +632,13 @@ fn markdown(blocks: &[Block]) -> String {
                 let _ = writeln!(s, "![{alt}]({src})\n");
             }
             Block::Table(h, rows) => {
-                let _ = writeln!(s, "| {} |", h.join(" | "));
+                // A `|` inside a cell (`|E − E0|`) would split it: escape it.
+                let row =
+                    |cells: &[String]| cells.iter().map(|c| c.replace('|', "\\|")).collect::<Vec<_>>().join(" | ");
+                let _ = writeln!(s, "| {} |", row(h));
                 let _ = writeln!(s, "|{}", " --- |".repeat(h.len()));
                 for r in rows {
-                    let _ = writeln!(s, "| {} |", r.join(" | "));
+                    let _ = writeln!(s, "| {} |", row(r));
                 }
                 s.push('\n');
             }

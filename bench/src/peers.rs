@@ -3,7 +3,7 @@
 
 use nalgebra034::SVector;
 
-use crate::methods::{Method, Run};
+use crate::methods::{Invariants, Method, Run};
 use crate::problems::Model;
 
 /// The first-order form of a model, as both crates want it.
@@ -50,14 +50,29 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
     samples: usize,
 ) -> Run {
     let y0 = SVector::<f64, D>::from_fn(|i, _| if i < N { q0[i] } else { v0[i - N] });
-    let e0 = model.energy(&q0, &v0);
-    let energy_of = |y: &SVector<f64, D>| {
-        let q: [f64; N] = core::array::from_fn(|i| y[i]);
-        let v: [f64; N] = core::array::from_fn(|i| y[N + i]);
-        (model.energy(&q, &v) - e0) / e0.abs().max(f64::MIN_POSITIVE)
+    let invariants = Invariants::new(model, &q0, &v0);
+    let split = |y: &SVector<f64, D>| -> ([f64; N], [f64; N]) {
+        (core::array::from_fn(|i| y[i]), core::array::from_fn(|i| y[N + i]))
+    };
+    // `(energy, momentum)` samples at the accepted steps `ks`.
+    let sample = |t: &[f64], y: &[SVector<f64, D>], ks: Vec<usize>| -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+        let mut energy = Vec::with_capacity(ks.len());
+        let mut momentum = Vec::new();
+        for k in ks {
+            let (q, v) = split(&y[k]);
+            energy.push((t[k], invariants.energy(&q, &v)));
+            if let Some(l) = invariants.momentum(&q, &v) {
+                momentum.push((t[k], l));
+            }
+        }
+        (energy, momentum)
     };
     // The final state from the last output; `energy` the samples.
-    let finish = |y: &[SVector<f64, D>], steps: usize, evaluations: usize, energy: Vec<(f64, f64)>| -> Run {
+    let finish = |y: &[SVector<f64, D>],
+                  steps: usize,
+                  evaluations: usize,
+                  (energy, momentum): (Vec<(f64, f64)>, Vec<(f64, f64)>)|
+     -> Run {
         let Some(last) = y.last() else {
             return Run { failure: Some("no output".into()), ..Run::default() };
         };
@@ -69,6 +84,7 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
             steps: steps as u64,
             evaluations: Some(evaluations as u64),
             energy,
+            momentum,
             ..Run::default()
         }
     };
@@ -102,9 +118,8 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
             match s.integrate() {
                 Ok(stats) => {
                     let (t, y) = (s.x_out(), s.y_out());
-                    let energy =
-                        sample_indices(t, t_end, samples).into_iter().map(|k| (t[k], energy_of(&y[k]))).collect();
-                    let run = finish(y, stats.accepted_steps as usize, stats.num_eval as usize, energy);
+                    let samples = sample(t, y, sample_indices(t, t_end, samples));
+                    let run = finish(y, stats.accepted_steps as usize, stats.num_eval as usize, samples);
                     // Sparse output ends at the last accepted step, which is t_end.
                     match t.last() {
                         Some(&t) if (t - t_end).abs() <= 1e-9 * t_end.abs().max(1.0) => run,
@@ -137,11 +152,8 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
             };
             match solution {
                 Ok(sol) => {
-                    let energy = sample_indices(&sol.t, t_end, samples)
-                        .into_iter()
-                        .map(|k| (sol.t[k], energy_of(&sol.y[k])))
-                        .collect();
-                    let run = finish(&sol.y, sol.steps.accepted, sol.evals.function, energy);
+                    let samples = sample(&sol.t, &sol.y, sample_indices(&sol.t, t_end, samples));
+                    let run = finish(&sol.y, sol.steps.accepted, sol.evals.function, samples);
                     match sol.t.last() {
                         Some(&t) if (t - t_end).abs() <= 1e-9 * t_end.abs().max(1.0) => run,
                         t => Run { failure: Some(format!("stopped at t = {t:?} before {t_end}")), ..run },

@@ -43,6 +43,12 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     }
     /// The energy `E(q, q̇)` (read only when [`Model::CONSERVATIVE`]).
     fn energy(&self, q: &[f64; N], v: &[f64; N]) -> f64;
+    /// The angular momentum `Σ mᵢ qᵢ × q̇ᵢ` when the problem conserves it
+    /// (rotation-invariant `L`), `None` otherwise.
+    fn angular_momentum(&self, q: &[f64; N], v: &[f64; N]) -> Option<[f64; 3]> {
+        let _ = (q, v);
+        None
+    }
     /// Diagonal inverse mass when the Hamiltonian is separable with constant mass.
     fn inverse_mass(&self) -> Option<[f64; N]> {
         None
@@ -188,6 +194,9 @@ macro_rules! kepler_ids {
             }
             fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
                 0.5 * (v[0] * v[0] + v[1] * v[1]) - 1.0 / q[0].hypot(q[1])
+            }
+            fn angular_momentum(&self, q: &[f64; 2], v: &[f64; 2]) -> Option<[f64; 3]> {
+                Some([0.0, 0.0, q[0] * v[1] - q[1] * v[0]])
             }
             fn inverse_mass(&self) -> Option<[f64; 2]> {
                 Some([1.0, 1.0])
@@ -386,6 +395,16 @@ impl Model<18> for OuterSolarSystem {
             }
         }
         e
+    }
+    fn angular_momentum(&self, q: &[f64; 18], v: &[f64; 18]) -> Option<[f64; 3]> {
+        let mut l = [0.0; 3];
+        for i in 0..BODIES {
+            let (x, u) = (&q[3 * i..3 * i + 3], &v[3 * i..3 * i + 3]);
+            l[0] += MASSES[i] * (x[1] * u[2] - x[2] * u[1]);
+            l[1] += MASSES[i] * (x[2] * u[0] - x[0] * u[2]);
+            l[2] += MASSES[i] * (x[0] * u[1] - x[1] * u[0]);
+        }
+        Some(l)
     }
     fn inverse_mass(&self) -> Option<[f64; 18]> {
         Some(core::array::from_fn(|c| 1.0 / MASSES[c / 3]))

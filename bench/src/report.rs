@@ -1,13 +1,15 @@
 //! The report's data: one JSON file, `report.json`, with this schema
-//! (`schema_version` 2; fields are never renamed or removed within a version,
+//! (`schema_version` 3; fields are never renamed or removed within a version,
 //! and the deserialising structs below refuse unknown fields, so a file that
 //! parses into [`Report`] matches the schema). Version 2 added `machine`'s
 //! load averages, `problems[].twins` and `step_costs` (absent in a version 1
-//! file, read as empty).
+//! file, read as empty); version 3 the angular-momentum errors of the long
+//! runs (`energy[].momentum_*`) and `stress.long_runs` (absent before: read as
+//! empty).
 //!
 //! ```text
 //! Report
-//!   schema_version: 2
+//!   schema_version: 3
 //!   suite: "tiny" | "quick" | "default" | "full"
 //!   crate_version, machine { cores, os, arch, load_start | null, load_end | null }
 //!                                        1-minute load averages when the suite started and ended
@@ -22,7 +24,9 @@
 //!                    worst_of_three | null, seconds | null, repeats, newton_per_step | null, evaluations | null }]
 //!     recommendations: [{ target, best | null, best_project | null, best_peer | null, best_hand_written | null }]
 //!       each best: { method, seconds, setting }
-//!     energy: [{ method, setting, t_end, failure | null, max_abs: f64 | null, samples: [[t, (E − E0)/|E0|]] }]
+//!     energy: [{ method, setting, t_end, failure | null, max_abs: f64 | null, samples: [[t, (E − E0)/|E0|]],
+//!                momentum_max_abs: f64 | null, momentum_samples: [[t, |L − L0|/|L0|]] }]
+//!                                        L the angular momentum, for problems that conserve it
 //!     twins: [{ generated, hand_written, target, generated_seconds | null, hand_written_seconds | null,
 //!               generated_steps | null, hand_written_steps | null, ratio | null, per_step_ratio | null }]
 //!                                        a project composition against the hand-written one of the same map
@@ -32,6 +36,9 @@
 //!     largest_step: [{ problem, method, h | null, h_over_period | null, criterion }]
 //!     hard_orbits: [{ problem, method, setting, error | null, energy_error | null, outcome }]
 //!     bad_input: [{ class, method, outcome }]
+//!     long_runs: [{ problem, method, setting, steps, t_end, seconds, energy_max_abs | null,
+//!                   momentum_max_abs | null, outcome }]
+//!                                        10⁷ steps (10⁵ in --quick) at the calibrated step
 //! ```
 //!
 //! `seconds` are wall-clock times of one thread; `calibrated.seconds` is the
@@ -45,7 +52,7 @@ use crate::methods::{Family, Setting};
 use crate::problem::Reference;
 
 /// The version of the schema described in the module docs.
-pub const SCHEMA_VERSION: u32 = 2;
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// The whole report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -246,6 +253,12 @@ pub struct EnergySeries {
     pub max_abs: Option<f64>,
     /// `(t, (E − E0)/|E0|)`.
     pub samples: Vec<(f64, f64)>,
+    /// `max |L − L0|/|L0|` of the angular momentum `L`, for problems that conserve it.
+    #[serde(default)]
+    pub momentum_max_abs: Option<f64>,
+    /// `(t, |L − L0|/|L0|)` at the times of `samples`.
+    #[serde(default)]
+    pub momentum_samples: Vec<(f64, f64)>,
 }
 
 /// The stress section.
@@ -258,6 +271,33 @@ pub struct Stress {
     pub hard_orbits: Vec<HardOrbit>,
     /// What each method does with bad input.
     pub bad_input: Vec<BadInput>,
+    /// Runs of ten million steps.
+    #[serde(default)]
+    pub long_runs: Vec<LongRun>,
+}
+
+/// A run of many steps (10⁷ in the default suite) at a calibrated step size.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LongRun {
+    /// Problem id.
+    pub problem: String,
+    /// Method name.
+    pub method: String,
+    /// Steps or tolerance (calibrated at the loosest target).
+    pub setting: Setting,
+    /// Steps taken (accepted steps of an adaptive method).
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Wall-clock seconds (including 1000 samples of the invariants).
+    pub seconds: f64,
+    /// `max |E − E0|/|E0|` over the samples.
+    pub energy_max_abs: Option<f64>,
+    /// `max |L − L0|/|L0|` over the samples, when `L` is conserved.
+    pub momentum_max_abs: Option<f64>,
+    /// `"ok"`, or the failure.
+    pub outcome: String,
 }
 
 /// Largest surviving step.

@@ -77,6 +77,14 @@ impl Suite {
             Suite::Full => 1000.0,
         }
     }
+    /// Steps of the long runs of the stress section.
+    fn many_steps(self) -> usize {
+        match self {
+            Suite::Tiny => 1_000,
+            Suite::Quick => 100_000,
+            Suite::Default | Suite::Full => 10_000_000,
+        }
+    }
     /// Steps per orbit of the hard-orbit runs (tolerances for the adaptive ones).
     fn hard_settings(self) -> (Vec<usize>, Vec<f64>) {
         match self {
@@ -212,7 +220,9 @@ pub fn run(config: &Config) -> Result<Report, String> {
     }
     let references: Vec<&[f64]> = reports.iter().map(|r| r.reference.q.as_slice()).collect();
     log.line("stress");
-    let stress = stress(config, &methods, &problems, &references);
+    let mut stress = stress(config, &methods, &problems, &references);
+    log.line("long runs");
+    stress.long_runs = long_runs(config, &methods, &problems, &reports);
     log.line("step costs");
     let step_costs = crate::step_cost::measure(suite);
     log.line("done");
@@ -382,18 +392,82 @@ fn long_energy(
                 s => s,
             };
             let run = p.run(m, setting, t_long, 400);
-            let max_abs =
-                run.energy.iter().map(|s| s.1.abs()).fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))));
             Some(EnergySeries {
                 method: m.name(),
                 setting,
                 t_end: t_long,
                 failure: run.failure,
-                max_abs,
+                max_abs: max_abs(&run.energy),
                 samples: run.energy,
+                momentum_max_abs: max_abs(&run.momentum),
+                momentum_samples: run.momentum,
             })
         })
         .collect()
+}
+
+/// The methods of the ten-million-step runs: cheap steps, one of each kind.
+const MANY_STEPS: [Method; 6] = [
+    Method::Trapezoid,
+    Method::Midpoint,
+    Method::GeneratedKahanLi8,
+    Method::Verlet,
+    Method::KahanLi8,
+    Method::OdeSolversDop853,
+];
+
+/// The problems of the ten-million-step runs.
+const MANY_STEPS_PROBLEMS: [&str; 2] = ["pendulum", "kepler-0.5"];
+
+/// Runs of [`Suite::many_steps`] steps with the settings calibrated at the
+/// loosest target, on the cheap problems: whether anything accumulates
+/// (round-off in the state, drift of energy or angular momentum) over 10⁷
+/// steps. DOP853 keeps its tolerance and runs over the trapezoid rule's span.
+fn long_runs(
+    config: &Config,
+    methods: &[Method],
+    problems: &[Box<dyn Problem>],
+    reports: &[ProblemReport],
+) -> Vec<LongRun> {
+    let steps = config.suite.many_steps();
+    let mut out = Vec::new();
+    for (p, r) in problems.iter().zip(reports).filter(|(p, _)| MANY_STEPS_PROBLEMS.contains(&p.id())) {
+        let Some(&target) = r.calibrated.iter().map(|c| &c.target).next() else { continue };
+        let calibrated = |m: Method| {
+            r.calibrated.iter().find(|c| c.method == m.name() && c.target == target).and_then(|c| c.setting)
+        };
+        // The span of the trapezoid rule's run, for the adaptive peers.
+        let span = match calibrated(Method::Trapezoid) {
+            Some(Setting::Steps(n)) => steps as f64 * r.horizon / n as f64,
+            _ => continue,
+        };
+        for &m in MANY_STEPS.iter().filter(|m| methods.contains(m) && p.applies(**m)) {
+            let Some(setting) = calibrated(m) else { continue };
+            let (setting, t_end) = match setting {
+                Setting::Steps(n) => (Setting::Steps(steps), steps as f64 * r.horizon / n as f64),
+                tol => (tol, span),
+            };
+            let start = std::time::Instant::now();
+            let run = p.run(m, setting, t_end, 1000);
+            out.push(LongRun {
+                problem: p.id().to_string(),
+                method: m.name(),
+                setting,
+                steps: run.steps,
+                t_end,
+                seconds: start.elapsed().as_secs_f64(),
+                energy_max_abs: max_abs(&run.energy),
+                momentum_max_abs: max_abs(&run.momentum),
+                outcome: run.failure.unwrap_or_else(|| "ok".to_string()),
+            });
+        }
+    }
+    out
+}
+
+/// `max |x|` over samples `(t, x)`; `None` without samples.
+fn max_abs(samples: &[(f64, f64)]) -> Option<f64> {
+    samples.iter().map(|s| s.1.abs()).fold(None, |m: Option<f64>, e| Some(m.map_or(e, |m| m.max(e))))
 }
 
 /// The fixed-step methods of the largest-step scan.

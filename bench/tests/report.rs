@@ -51,6 +51,25 @@ fn tiny_report_writes_every_file() {
         }
     }
     assert!(!report.stress.largest_step.is_empty() && !report.stress.hard_orbits.is_empty());
+    // Angular momentum on Kepler: the variational methods conserve it to round-off (Noether;
+    // a rotation-invariant discrete Lagrangian), DOP853 does not; the pendulum has none.
+    let kepler = report.problems.iter().find(|p| p.id == "kepler-0.5").unwrap();
+    let momentum = |m: &str| kepler.energy.iter().find(|s| s.method == m).and_then(|s| s.momentum_max_abs);
+    for m in ["midpoint", "verlet"] {
+        let l = momentum(m).unwrap_or_else(|| panic!("{m}: no angular momentum"));
+        assert!(l <= 1e-13, "{m}: {l}");
+    }
+    let dop = momentum("ode_solvers-dop853").unwrap();
+    assert!(dop > 1e3 * momentum("midpoint").unwrap().max(1e-16), "dop853: {dop}");
+    assert!(report.problems[0].energy.iter().all(|s| s.momentum_max_abs.is_none() && s.momentum_samples.is_empty()));
+    // The many-step runs: every method on both problems, each to its full step count.
+    for p in ["pendulum", "kepler-0.5"] {
+        let runs: Vec<_> = report.stress.long_runs.iter().filter(|l| l.problem == p).collect();
+        assert_eq!(runs.len(), 6, "{p}: {runs:?}");
+        for l in runs.iter().filter(|l| l.outcome == "ok" && matches!(l.setting, Setting::Steps(_))) {
+            assert_eq!(l.steps, 1000, "{p} {}", l.method);
+        }
+    }
     // Project compositions against their hand-written twins, on both (separable) problems.
     for p in &report.problems {
         for (g, h) in
