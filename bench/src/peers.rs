@@ -38,6 +38,9 @@ impl<M: Model<N>, const N: usize, const D: usize> differential_equations::ode::O
 /// Largest number of steps a peer may take (then it reports its failure).
 const MAX_STEPS: usize = 20_000_000;
 
+/// `(energy, angular momentum)` error samples `(t, error)`.
+type Samples = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+
 /// Runs a peer with `rtol = atol = tol` to `t_end`; `samples > 0` records the
 /// relative energy error at the accepted step at or after each of that many
 /// evenly spaced times (no dense output: see the comments below).
@@ -55,7 +58,7 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
         (core::array::from_fn(|i| y[i]), core::array::from_fn(|i| y[N + i]))
     };
     // `(energy, momentum)` samples at the accepted steps `ks`.
-    let sample = |t: &[f64], y: &[SVector<f64, D>], ks: Vec<usize>| -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+    let sample = |t: &[f64], y: &[SVector<f64, D>], ks: Vec<usize>| -> Samples {
         let mut energy = Vec::with_capacity(ks.len());
         let mut momentum = Vec::new();
         for k in ks {
@@ -68,11 +71,7 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
         (energy, momentum)
     };
     // The final state from the last output; `energy` the samples.
-    let finish = |y: &[SVector<f64, D>],
-                  steps: usize,
-                  evaluations: usize,
-                  (energy, momentum): (Vec<(f64, f64)>, Vec<(f64, f64)>)|
-     -> Run {
+    let finish = |y: &[SVector<f64, D>], steps: usize, evaluations: usize, (energy, momentum): Samples| -> Run {
         let Some(last) = y.last() else {
             return Run { failure: Some("no output".into()), ..Run::default() };
         };
