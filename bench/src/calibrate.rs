@@ -64,10 +64,14 @@ pub fn point(setting: Setting, run: &Run, reference: &[f64]) -> Point {
 /// The settings of a sweep, coarse to fine.
 pub fn settings(problem: &dyn Problem, method: Method, per_octave: u32) -> impl Iterator<Item = Setting> {
     let adaptive = method.adaptive();
+    let sigma0 = method.sigma0();
     let n0 = problem.coarsest_steps().max(1) as f64;
     let mut last = 0;
     (0..400u32).filter_map(move |k| {
-        if adaptive {
+        if let Some(sigma0) = sigma0 {
+            // From `σ0` down, `per_octave` settings per factor 2.
+            Some(Setting::Sigma(sigma0 * 2f64.powf(-(k as f64) / per_octave as f64)))
+        } else if adaptive {
             // From 1e-3 down to 1e-15, `per_octave` tolerances per decade.
             let tol = 1e-3 * 10f64.powf(-(k as f64) / per_octave as f64);
             (tol >= 1e-15).then_some(Setting::Tolerance(tol))

@@ -30,7 +30,7 @@ OPTIONS:
 readme: rewrites the README's generated performance tables from a report's
 JSON (default target/report/report.json and README.md): each section between
 `<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
-headline, step-cost, galerkin-step-cost, compositions (--section: only
+headline, step-cost, galerkin-step-cost, compositions, time-transformed (--section: only
 these).
 ";
 

@@ -40,6 +40,13 @@ pub enum Method {
     Yoshida6,
     /// Hand-written: Kahan–Li order 8 composition.
     KahanLi8,
+    /// Project: time-transformed (Sundman–Poincaré) Galerkin of degree `s`,
+    /// uniform steps `σ` in the new time, with the problem's own step density
+    /// (Kepler: `r^{3/2}`); only problems that define one.
+    TimeTransformed(u8),
+    /// Project: as [`Method::TimeTransformed`] with the automatic monitor
+    /// (`Curvature`, floor 1e-3), on the same problems.
+    TimeTransformedAuto(u8),
 }
 
 /// Who wrote a method.
@@ -62,6 +69,8 @@ pub enum Setting {
     Steps(usize),
     /// `rtol = atol`.
     Tolerance(f64),
+    /// The uniform step `σ` in the transformed time of a time-transformed method.
+    Sigma(f64),
 }
 
 impl Method {
@@ -80,6 +89,9 @@ impl Method {
             Method::Verlet,
             Method::Yoshida6,
             Method::KahanLi8,
+            Method::TimeTransformed(4),
+            Method::TimeTransformed(6),
+            Method::TimeTransformedAuto(6),
         ]);
         m
     }
@@ -101,6 +113,8 @@ impl Method {
             Method::Verlet => "verlet".into(),
             Method::Yoshida6 => "yoshida6".into(),
             Method::KahanLi8 => "kahan-li8".into(),
+            Method::TimeTransformed(s) => format!("tt-galerkin-{s}"),
+            Method::TimeTransformedAuto(s) => format!("tt-auto-galerkin-{s}"),
         }
     }
 
@@ -119,7 +133,9 @@ impl Method {
             | Method::EnergyMidpoint
             | Method::GeneratedYoshida4
             | Method::GeneratedYoshida6
-            | Method::GeneratedKahanLi8 => Family::Project,
+            | Method::GeneratedKahanLi8
+            | Method::TimeTransformed(_)
+            | Method::TimeTransformedAuto(_) => Family::Project,
             Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 => Family::Peer,
             Method::Verlet | Method::Yoshida6 | Method::KahanLi8 => Family::HandWritten,
         }
@@ -130,7 +146,7 @@ impl Method {
         match self {
             Method::Midpoint | Method::Trapezoid | Method::EnergyMidpoint | Method::Verlet => 2,
             Method::AlphaBeta => 1,
-            Method::Galerkin(s) => 2 * s as u32,
+            Method::Galerkin(s) | Method::TimeTransformed(s) | Method::TimeTransformedAuto(s) => 2 * s as u32,
             Method::OdeSolversDop853 | Method::DiffEqDop853 => 8,
             Method::DiffEqGauss6 | Method::Yoshida6 | Method::GeneratedYoshida6 => 6,
             Method::GeneratedYoshida4 => 4,
@@ -141,6 +157,28 @@ impl Method {
     /// `true` when the method is calibrated by a tolerance rather than a step count.
     pub fn adaptive(self) -> bool {
         matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6)
+    }
+
+    /// The coarsest `σ` of a time-transformed method's sweep; `None` for the others.
+    pub fn sigma0(self) -> Option<f64> {
+        match self {
+            // Where Newton starts to fail on Kepler e = 0.9 (r^{3/2}); the automatic monitor
+            // is about 5^{-1/4} r^{3/2} there, so its σ is larger for the same steps.
+            Method::TimeTransformed(s) => Some(0.2 * s as f64),
+            Method::TimeTransformedAuto(s) => Some(0.5 * s as f64),
+            _ => None,
+        }
+    }
+
+    /// `true` for the methods calibrated by a step count (fixed steps, and
+    /// energy-preserving steps from `h0 = T/n`).
+    pub fn by_steps(self) -> bool {
+        !self.adaptive() && self.sigma0().is_none()
+    }
+
+    /// `true` for the time-transformed methods, which need a problem with a step density.
+    pub fn needs_time_transform(self) -> bool {
+        self.sigma0().is_some()
     }
 
     /// `true` for the hand-written compositions, which need a separable Hamiltonian.
@@ -321,6 +359,12 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
         (Method::GeneratedKahanLi8, Setting::Steps(n)) => {
             variational(model, (q0, v0), Generated::KAHAN_LI8, n, t_end, false, samples, &mut record)
         }
+        (Method::TimeTransformed(s), Setting::Sigma(sigma)) => model
+            .time_transformed(s, false, sigma, t_end, &mut record)
+            .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
+        (Method::TimeTransformedAuto(s), Setting::Sigma(sigma)) => model
+            .time_transformed(s, true, sigma, t_end, &mut record)
+            .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
     out.seconds = start.elapsed().as_secs_f64();

@@ -231,6 +231,7 @@ fn setting(s: &Setting) -> String {
     match s {
         Setting::Steps(n) => format!("{n} steps"),
         Setting::Tolerance(t) => format!("tol {t:.1e}"),
+        Setting::Sigma(s) => format!("σ = {s:.4}"),
     }
 }
 
@@ -299,6 +300,45 @@ pub fn twins_table(report: &Report) -> String {
                 ratio(t.ratio),
                 ratio(t.per_step_ratio)
             );
+        }
+    }
+    s
+}
+
+/// The methods of the time-transformed comparison: the time-transformed
+/// ones, the best fixed-step Galerkin rules and the DOP853 peers.
+const TIME_TRANSFORMED_ROWS: [&str; 7] = [
+    "tt-galerkin-4",
+    "tt-galerkin-6",
+    "tt-auto-galerkin-6",
+    "galerkin-6",
+    "galerkin-8",
+    "ode_solvers-dop853",
+    "diffeq-dop853",
+];
+
+/// Time-transformed against fixed steps and DOP853 on the eccentric Kepler
+/// orbits: every target, the calibrated setting and its cost.
+pub fn time_transformed_table(report: &Report) -> String {
+    let mut s = String::from(
+        "| problem | target | method | setting | worst error of 3 | time | Newton it./step |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for p in report.problems.iter().filter(|p| p.id.starts_with("kepler-")) {
+        for &target in &report.targets {
+            for name in TIME_TRANSFORMED_ROWS {
+                let Some(c) = p.calibrated.iter().find(|c| c.method == name && c.target == target) else { continue };
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {} | {} |",
+                    p.id,
+                    e(target),
+                    name,
+                    c.setting.as_ref().map_or("not reached".into(), setting),
+                    c.worst_of_three.map_or("—".into(), e),
+                    c.seconds.map_or("—".into(), ms),
+                    c.newton_per_step.map_or("—".into(), |x| format!("{x:.2}"))
+                );
+            }
         }
     }
     s

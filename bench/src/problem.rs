@@ -48,9 +48,11 @@ pub trait Problem: Send + Sync {
     /// Whether the energy is conserved (see [`Model::CONSERVATIVE`]); runs
     /// of other problems record no energy errors.
     fn conservative(&self) -> bool;
+    /// Whether the problem has a step density for the time-transformed methods.
+    fn time_transform(&self) -> bool;
     /// Whether `method` applies to this problem.
     fn applies(&self, method: Method) -> bool {
-        !method.needs_separable() || self.separable()
+        (!method.needs_separable() || self.separable()) && (!method.needs_time_transform() || self.time_transform())
     }
     /// One run (see [`methods::run`]).
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run;
@@ -115,6 +117,9 @@ where
     }
     fn conservative(&self) -> bool {
         M::CONSERVATIVE
+    }
+    fn time_transform(&self) -> bool {
+        M::TIME_TRANSFORM
     }
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run {
         methods::run::<M, N, D>(&self.0, self.0.initial(), method, setting, t_end, samples)

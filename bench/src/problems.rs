@@ -6,6 +6,7 @@
 use lagrangian::prelude::*;
 
 use crate::exact;
+use crate::methods::Run;
 
 /// Double-double, the reference precision.
 pub type Dd = DoubleDouble;
@@ -57,6 +58,23 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     fn force(&self, q: &[f64; N]) -> [f64; N] {
         let _ = q;
         [f64::NAN; N]
+    }
+    /// Whether [`Model::time_transformed`] runs.
+    const TIME_TRANSFORM: bool = false;
+    /// One run of a time-transformed Galerkin method of degree `s` with step
+    /// `sigma` in the new time to `t_end`, with the problem's own step density
+    /// or (`automatic`) the `Curvature` monitor; `record(t, q, v)` after each
+    /// step. `None` for problems without a step density.
+    fn time_transformed(
+        &self,
+        s: u8,
+        automatic: bool,
+        sigma: f64,
+        t_end: f64,
+        record: &mut dyn FnMut(f64, &[f64; N], &[f64; N]),
+    ) -> Option<Run> {
+        let _ = (s, automatic, sigma, t_end, record);
+        None
     }
     /// The exact `q(t)` in any precision, when known in closed form.
     fn exact<T: Real>(&self, t: T) -> Option<[T; N]> {
@@ -209,11 +227,60 @@ macro_rules! kepler_ids {
             fn exact<T: Real>(&self, t: T) -> Option<[T; 2]> {
                 Some(exact::kepler_position(T::one() * Self::ECC, t))
             }
+            const TIME_TRANSFORM: bool = true;
+            fn time_transformed(
+                &self,
+                s: u8,
+                automatic: bool,
+                sigma: f64,
+                t_end: f64,
+                record: &mut dyn FnMut(f64, &[f64; 2], &[f64; 2]),
+            ) -> Option<Run> {
+                let start = self.initial();
+                // `dt/ds = r^{3/2}`: equal steps in the mean anomaly, the classic choice.
+                let r32 = RadiusPower::new([0, 1], 1.5)?;
+                let auto = Curvature::new(1e-3)?;
+                Some(match (s, automatic) {
+                    (4, false) => kepler_tt::<_, 4>(r32, start, sigma, t_end, record),
+                    (6, false) => kepler_tt::<_, 6>(r32, start, sigma, t_end, record),
+                    (4, true) => kepler_tt::<_, 4>(auto, start, sigma, t_end, record),
+                    (6, true) => kepler_tt::<_, 6>(auto, start, sigma, t_end, record),
+                    _ => Run { failure: Some(format!("no time-transformed Galerkin s = {s} in the report")), ..Run::default() },
+                })
+            }
             fn reference_steps(&self, t_end: f64) -> usize {
                 (t_end / 0.01).ceil() as usize
             }
         }
     )*};
+}
+
+/// A time-transformed Galerkin run of Kepler's problem (see [`Model::time_transformed`]).
+fn kepler_tt<G: StepDensity<2>, const S: usize>(
+    density: G,
+    (q0, v0): ([f64; 2], [f64; 2]),
+    sigma: f64,
+    t_end: f64,
+    record: &mut dyn FnMut(f64, &[f64; 2], &[f64; 2]),
+) -> Run {
+    let mut sim = match TimeTransformed::new(KeplerSys, density)
+        .galerkin(Galerkin::<S, S>::gauss(), sigma)
+        .start::<3>(0.0, q0, v0)
+    {
+        Ok(sim) => sim,
+        Err(e) => return Run { failure: Some(e.to_string()), ..Run::default() },
+    };
+    let result = sim.run_until(t_end, |sim| {
+        if let Ok(v) = sim.velocity() {
+            record(sim.state().t, &sim.state().q, &v);
+        }
+    });
+    let stats = sim.stats();
+    let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
+    match result {
+        Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+        Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+    }
 }
 
 kepler_ids! {

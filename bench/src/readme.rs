@@ -6,7 +6,7 @@
 use std::fs;
 use std::path::Path;
 
-use crate::output::{galerkin_cost_table, headline, load, step_cost_table, twins_table};
+use crate::output::{galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table};
 use crate::report::{Report, SCHEMA_VERSION};
 
 /// The line that opens the generated headline.
@@ -16,11 +16,12 @@ pub const BEGIN: &str =
 pub const END: &str = "<!-- bench:headline:end -->";
 
 /// The generated sections: `(name, what it holds)`.
-pub const SECTIONS: [(&str, &str); 4] = [
+pub const SECTIONS: [(&str, &str); 5] = [
     ("headline", "best project method, peer crate and hand-written composition per problem and target"),
     ("step-cost", "ns per step, generated against hand-written"),
     ("galerkin-step-cost", "ns and Newton iterations per Galerkin step against s"),
     ("compositions", "project compositions against the hand-written ones at equal error"),
+    ("time-transformed", "time-transformed Galerkin against fixed steps and DOP853 on the Kepler orbits"),
 ];
 
 fn begin(name: &str) -> String {
@@ -83,6 +84,12 @@ pub fn named(name: &str, report: &Report) -> Option<String> {
              of at least 5 runs alternating generated and hand-written.\n\n{}",
             origin(report),
             twins_table(report)
+        ),
+        "time-transformed" => format!(
+            "{}; Kepler orbits over the report's horizon; time of one run at the calibrated setting (`σ` is the \
+             uniform step in the transformed time).\n\n{}",
+            origin(report),
+            time_transformed_table(report)
         ),
         _ => return None,
     };

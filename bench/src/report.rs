@@ -18,7 +18,7 @@
 //!     id, title, dim, horizon
 //!     reference: { q, kind, check, agreement, accepted, seconds }
 //!     sweeps: [{ method, family, order, points: [Point] }]
-//!       Point { setting: {"steps": n} | {"tolerance": t}, error | null, seconds, steps,
+//!       Point { setting: {"steps": n} | {"tolerance": t} | {"sigma": σ}, error | null, seconds, steps,
 //!               newton_per_step | null, evaluations | null, failure | null }
 //!     calibrated: [{ method, family, target, setting | null, error | null,
 //!                    worst_of_three | null, seconds | null, repeats, newton_per_step | null, evaluations | null }]

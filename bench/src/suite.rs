@@ -359,8 +359,9 @@ fn recommend(calibrated: &[Calibrated], target: f64) -> Recommendation {
 }
 
 /// The methods of the long energy runs (those that apply and were calibrated).
-const LONG_RUN: [Method; 8] = [
+const LONG_RUN: [Method; 9] = [
     Method::Midpoint,
+    Method::TimeTransformed(6),
     Method::Galerkin(4),
     Method::EnergyMidpoint,
     Method::GeneratedKahanLi8,
@@ -472,7 +473,7 @@ fn max_abs(samples: &[(f64, f64)]) -> Option<f64> {
 
 /// The fixed-step methods of the largest-step scan.
 fn fixed_step(methods: &[Method]) -> Vec<Method> {
-    methods.iter().copied().filter(|m| !m.adaptive()).collect()
+    methods.iter().copied().filter(|m| m.by_steps()).collect()
 }
 
 /// `references[i]` is `q(T)` of `problems[i]`.
@@ -531,7 +532,9 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>], re
         let reference = p.reference(t_end, config.reference_tolerance);
         for &m in methods.iter().filter(|&&m| p.applies(m)) {
             b.set_message(format!("{} {}", p.id(), m.name()));
-            let settings: Vec<Setting> = if m.adaptive() {
+            let settings: Vec<Setting> = if let Some(sigma0) = m.sigma0() {
+                [1.0, 0.25, 0.0625].iter().map(|&f| Setting::Sigma(f * sigma0)).collect()
+            } else if m.adaptive() {
                 tolerances.iter().map(|&t| Setting::Tolerance(t)).collect()
             } else {
                 per_orbit
@@ -583,12 +586,17 @@ fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
     std::panic::set_hook(Box::new(|_| {}));
     let mut out = Vec::new();
     for (class, id, q0, v0, t_end) in cases {
-        for &m in methods {
+        let applies = |m: Method| problem::all(config.suite.scale()).iter().any(|p| p.id() == id && p.applies(m));
+        for &m in methods.iter().filter(|&&m| applies(m)) {
             b.set_message(format!("{class}: {}", m.name()));
             let (tx, rx) = mpsc::channel();
             let (q0, v0) = (q0.clone(), v0.clone());
             let scale = config.suite.scale();
-            let setting = if m.adaptive() { Setting::Tolerance(1e-8) } else { Setting::Steps(100) };
+            let setting = match m.sigma0() {
+                Some(sigma0) => Setting::Sigma(sigma0),
+                None if m.adaptive() => Setting::Tolerance(1e-8),
+                None => Setting::Steps(100),
+            };
             // A thread, so that a method that never returns is reported instead of hanging the report.
             std::thread::spawn(move || {
                 let result = std::panic::catch_unwind(|| {
