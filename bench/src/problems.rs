@@ -8,6 +8,9 @@ use lagrangian::prelude::*;
 use crate::exact;
 use crate::methods::Run;
 
+/// Called with `(t, q, q̇)` after each step of a run.
+pub type Observer<'a, const N: usize> = dyn FnMut(f64, &[f64; N], &[f64; N]) + 'a;
+
 /// Double-double, the reference precision.
 pub type Dd = DoubleDouble;
 
@@ -71,7 +74,7 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
         automatic: bool,
         sigma: f64,
         t_end: f64,
-        record: &mut dyn FnMut(f64, &[f64; N], &[f64; N]),
+        record: &mut Observer<'_, N>,
     ) -> Option<Run> {
         let _ = (s, automatic, sigma, t_end, record);
         None
@@ -234,7 +237,7 @@ macro_rules! kepler_ids {
                 automatic: bool,
                 sigma: f64,
                 t_end: f64,
-                record: &mut dyn FnMut(f64, &[f64; 2], &[f64; 2]),
+                record: &mut Observer<'_, 2>,
             ) -> Option<Run> {
                 let start = self.initial();
                 // `dt/ds = r^{3/2}`: equal steps in the mean anomaly, the classic choice.
@@ -261,7 +264,7 @@ fn kepler_tt<G: StepDensity<2>, const S: usize>(
     (q0, v0): ([f64; 2], [f64; 2]),
     sigma: f64,
     t_end: f64,
-    record: &mut dyn FnMut(f64, &[f64; 2], &[f64; 2]),
+    record: &mut Observer<'_, 2>,
 ) -> Run {
     let mut sim = match TimeTransformed::new(KeplerSys, density)
         .galerkin(Galerkin::<S, S>::gauss(), sigma)
