@@ -279,6 +279,7 @@ fn report_method(problem: &dyn Problem, method: Method, rows: &mut Vec<Row>) {
             setting: match setting {
                 Setting::Steps(n) => format!("{n} fixed steps, h = {:.4}", t_end() / n as f64),
                 Setting::Tolerance(tol) => format!("rtol = atol = {tol:.2e}"),
+                Setting::Sigma(sigma) => format!("σ = {sigma:.4}"),
             },
             steps: points[k].steps,
             error: calibrate::worst_of_three(&points, k).unwrap_or(f64::NAN),
