@@ -336,6 +336,10 @@ impl<'a> Infer<'a> {
     }
 
     fn method(&mut self, span: proc_macro2::Span, math: Math, receiver: Class, args: &[Class]) -> Class {
+        // `q.len()`: a number of coordinates, not a function of them.
+        if math == Math::Len {
+            return Class::Int;
+        }
         let operands = std::iter::once(receiver).chain(args.iter().copied());
         // Not left to rustc: an extension trait could give arrays a `sin`.
         if operands.clone().any(|class| class.is_array() || class == Class::Bool) {
@@ -406,6 +410,12 @@ fn cyclic(body: &Block) -> Cyclic {
     body.visit(&mut |expr| {
         match &expr.kind {
             ExprKind::Param(ParamRef::Q, _) => uses += 1,
+            // `q.len()` reads no coordinate.
+            ExprKind::MethodCall { receiver, math: Math::Len, .. }
+                if matches!(receiver.kind, ExprKind::Param(ParamRef::Q, _)) =>
+            {
+                literal_reads += 1;
+            }
             ExprKind::Index { base, index, .. } if matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) => {
                 if let Some(i) = index.literal_index() {
                     literal_reads += 1;

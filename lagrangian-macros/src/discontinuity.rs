@@ -23,7 +23,7 @@
 //! `dissipation` and `force`, whose effect is not measured by the energy.
 
 use crate::ctxt::Ctxt;
-use crate::ir::{Block, Class, Expr, ExprKind, Function, LocalId, ParamRef, Stmt};
+use crate::ir::{Block, Class, Expr, ExprKind, Function, LocalId, Math, ParamRef, Stmt};
 use crate::parse::MethodKind;
 use proc_macro2::Span;
 
@@ -235,6 +235,8 @@ impl Walk<'_> {
                 self.block(body);
                 Deps::default()
             }
+            // The number of coordinates depends on none of their values.
+            ExprKind::MethodCall { math: Math::Len, .. } => Deps::default(),
             ExprKind::MethodCall { receiver, method, args, .. } => {
                 let mut deps = self.expr(receiver);
                 for arg in args {

@@ -2,7 +2,7 @@
 //! still emits the user's block (and a stub trait impl) after errors.
 
 use crate::ctxt::Ctxt;
-use crate::parse::Input;
+use crate::parse::{Dim, Input};
 use crate::{analyse, attr, discontinuity, generate, validate};
 use proc_macro2::TokenStream;
 use syn::ItemImpl;
@@ -13,8 +13,11 @@ pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
     let args = attr::parse(&cx, attr);
     let input = Input::from_syn(&item);
     let mut system = validate::validate(&cx, &input);
-    if let Some(system) = &system {
-        attr::check(&cx, &args.symmetries, &system.n);
+    match system.as_ref().map(|system| &system.n) {
+        Some(Dim::Fixed(n)) => attr::check(&cx, &args.symmetries, n),
+        // `DynLagrangian` has no `SYMMETRIES`.
+        Some(Dim::Dynamic) => attr::refuse_symmetries(&cx, &args),
+        None => {}
     }
     let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
     if let Some(system) = &system {

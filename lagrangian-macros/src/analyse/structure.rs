@@ -773,6 +773,11 @@ impl Interp {
                 self.for_loop(var.as_ref().map(|(local, _)| local.0), body, env);
                 Abs::Unit
             }
+            // Fixed during a call, the same for `q` and `v`: a base for
+            // indices (`q[q.len() - 1]`). The key is no path's tokens.
+            ExprKind::MethodCall { math: Math::Len, .. } => {
+                Abs::Int(Index::Rel(Base::Const(self.intern("<len>".to_owned())), 0))
+            }
             ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let receiver = self.expr(receiver, env);
                 let args: Vec<Abs> = args.iter().map(|arg| self.expr(arg, env)).collect();
