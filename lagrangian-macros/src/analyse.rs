@@ -338,6 +338,10 @@ impl<'a> Infer<'a> {
     fn method(&mut self, span: proc_macro2::Span, math: Math, receiver: Class, args: &[Class]) -> Class {
         // `q.len()`: a number of coordinates, not a function of them.
         if math == Math::Len {
+            // On a scalar local, rustc reports it on the user's method.
+            if !receiver.is_array() {
+                self.mismatch();
+            }
             return Class::Int;
         }
         let operands = std::iter::once(receiver).chain(args.iter().copied());

@@ -775,9 +775,11 @@ impl Interp {
             }
             // Fixed during a call, the same for `q` and `v`: a base for
             // indices (`q[q.len() - 1]`). The key is no path's tokens.
-            ExprKind::MethodCall { math: Math::Len, .. } => {
-                Abs::Int(Index::Rel(Base::Const(self.intern("<len>".to_owned())), 0))
-            }
+            ExprKind::MethodCall { receiver, math: Math::Len, .. } => match receiver.kind {
+                ExprKind::Param(..) => Abs::Int(Index::Rel(Base::Const(self.intern("<len>".to_owned())), 0)),
+                // A local may hold `q` or an array of another length.
+                _ => Abs::Int(Index::Any),
+            },
             ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let receiver = self.expr(receiver, env);
                 let args: Vec<Abs> = args.iter().map(|arg| self.expr(arg, env)).collect();

@@ -522,10 +522,14 @@ impl Lower<'_> {
         let receiver = self.expr(&call.receiver);
         let args = all(call.args.iter().map(|arg| self.expr(arg)).collect());
         // `q.len()`, `v.len()`: the bound of a loop over a run-time-sized
-        // chain (and valid on arrays too).
+        // chain (and valid on arrays too), also through a local (`let x =
+        // q;`, a local array).
         let is_len = method == "len"
             && call.args.is_empty()
-            && matches!(&receiver, Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, _), .. }));
+            && matches!(
+                &receiver,
+                Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, _) | ExprKind::Local(..), .. })
+            );
         let math = match &receiver {
             _ if is_len => Some(Math::Len),
             Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, param), .. }) => {
