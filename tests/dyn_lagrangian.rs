@@ -246,7 +246,8 @@ fn dyn_gradient<S: DynLagrangian>(s: &S, t: f64, q: &[f64], v: &[f64]) -> Vec<f6
     let x: Vec<f64> = q.iter().chain(v).copied().collect();
     (0..2 * n)
         .map(|a| {
-            let x: Vec<Dual64> = x.iter().enumerate().map(|(k, &x)| Dual64::new(x, f64::from(u8::from(k == a)))).collect();
+            let x: Vec<Dual64> =
+                x.iter().enumerate().map(|(k, &x)| Dual64::new(x, f64::from(u8::from(k == a)))).collect();
             DynLagrangian::lagrangian(s, Dual64::from_re(t), &x[..n], &x[n..]).eps
         })
         .collect()
@@ -257,7 +258,8 @@ fn array_gradient<S: Lagrangian<N>, const N: usize>(s: &S, t: f64, q: &[f64], v:
     let x: Vec<f64> = q.iter().chain(v).copied().collect();
     (0..2 * N)
         .map(|a| {
-            let x: Vec<Dual64> = x.iter().enumerate().map(|(k, &x)| Dual64::new(x, f64::from(u8::from(k == a)))).collect();
+            let x: Vec<Dual64> =
+                x.iter().enumerate().map(|(k, &x)| Dual64::new(x, f64::from(u8::from(k == a)))).collect();
             let (qd, vd): ([Dual64; N], [Dual64; N]) =
                 (std::array::from_fn(|i| x[i]), std::array::from_fn(|i| x[N + i]));
             Lagrangian::lagrangian(s, Dual64::from_re(t), qd, vd).eps

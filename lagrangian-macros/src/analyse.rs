@@ -587,4 +587,24 @@ mod tests {
             ["indexing with a value that depends on `t`, `q` or `v` is not supported"]
         );
     }
+
+    #[test]
+    fn lengths_are_integers_and_read_no_coordinate() {
+        let (system, analysis) = lagrangian(parse_quote!({
+            let n = q.len();
+            let m = v.len() - 1;
+            q[0] * v[m] + (n as f64)
+        }));
+        assert!(analysis.consistent);
+        assert_eq!(local_classes(&system), [("n".to_owned(), Class::Int), ("m".to_owned(), Class::Int)]);
+        // `q[0]` is read, `q.len()` reads nothing.
+        assert_eq!(analysis.cyclic.read, BTreeSet::from([0]));
+        assert!(!analysis.cyclic.any);
+        // `len` of a scalar is rustc's error.
+        let (_, analysis) = lagrangian(parse_quote!({
+            let x = q[0];
+            (x.len() as f64) * x
+        }));
+        assert!(!analysis.consistent);
+    }
 }

@@ -398,4 +398,21 @@ mod tests {
         assert!(messages[0].starts_with("`lagrangian` is discontinuous here: the condition depends on `q`;"));
         assert!(messages[0].ends_with("acknowledge it with `#[lagrangian(discontinuous)]`"));
     }
+
+    #[test]
+    fn the_length_of_q_is_not_a_value_of_q() {
+        // A branch on `q.len()` (a loop bound) is not a branch on `q`.
+        assert_eq!(
+            found(parse_quote!({
+                let mut s = 0.0;
+                for i in 0..q.len() {
+                    if i + 1 < v.len() {
+                        s += q[i] * q[i + 1];
+                    }
+                }
+                s
+            })),
+            []
+        );
+    }
 }

@@ -142,4 +142,26 @@ mod tests {
             assert_eq!(out.matches("compile_error").count(), 1, "{attr}: {out}");
         }
     }
+
+    #[test]
+    fn slices_expand_to_dyn_lagrangian_and_refuse_what_it_cannot_carry() {
+        let item: ItemImpl = parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { v[0] * v[0] - q[0].cos() }
+            }
+        };
+        let out = expand(TokenStream::new(), item.clone()).to_string();
+        assert!(!out.contains("compile_error"), "{out}");
+        assert!(out.contains("impl :: lagrangian :: __private :: DynLagrangian for Chain"), "{out}");
+
+        let out = expand(quote!(discontinuous), item.clone()).to_string();
+        assert!(!out.contains("compile_error") && out.contains("const DISCONTINUOUS : bool = true ;"), "{out}");
+
+        // One error per declared symmetry, then a stub.
+        let out = expand(quote!(symmetry = translation(0), symmetry = rotation(0, 1)), item).to_string();
+        assert_eq!(out.matches("compile_error").count(), 2, "{out}");
+        assert!(out.contains("`symmetry` is not supported for run-time-sized systems"), "{out}");
+        assert!(out.contains("DynLagrangian for Chain") && out.contains("unreachable"), "{out}");
+    }
 }

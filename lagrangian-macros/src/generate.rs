@@ -895,4 +895,73 @@ mod tests {
         assert!(out.contains("unreachable !"), "{out}");
         assert!(!fallback(&item, None, None).to_string().contains("Lagrangian"));
     }
+
+    #[test]
+    fn slices_implement_dyn_lagrangian() {
+        let item: ItemImpl = parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 1..q.len() {
+                        l += 0.5 * v[i] * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l * t
+                }
+            }
+        };
+        let private = quote!(::lagrangian::__private);
+        let max = quote!(::core::primitive::usize::MAX);
+        let expected = quote! {
+            impl #private::DynLagrangian for Chain {
+                const AUTONOMOUS: bool = false;
+                const SEPARABILITY: #private::Separability = #private::Separability::NotProven;
+                const COUPLING: #private::Coupling = #private::Coupling {
+                    q_q: #private::Pattern::banded(#max, 1usize),
+                    q_v: #private::Pattern::banded(#max, 0usize),
+                    v_v: #private::Pattern::banded(#max, 0usize)
+                };
+                #[inline(always)]
+                fn dimension(&self) -> usize {
+                    Self::dimension(self)
+                }
+                #[inline(always)]
+                fn lagrangian<__D: #private::Scalar>(&self, t: __D, q: &[__D], v: &[__D]) -> __D {
+                    let mut l = __D::from(0.0);
+                    for i in 1..q.len() {
+                        l += v[i] * 0.5 * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l * t
+                }
+            }
+        };
+        let out = generated(&item);
+        assert!(out.starts_with("impl Chain"), "{out}");
+        assert!(out.ends_with(&expected.to_string()), "{out}");
+        assert!(!out.contains("CYCLIC") && !out.contains("FORCE_COUPLING") && !out.contains("Lagrangian <"), "{out}");
+    }
+
+    #[test]
+    fn slice_annotations_become_slices_of_duals() {
+        let out = generated(&parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { 3 }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+                    let x: &[f64] = q;
+                    x[0] * v[0]
+                }
+            }
+        });
+        assert!(out.contains(&quote!(let x: &[__D] = q;).to_string()), "{out}");
+    }
+
+    #[test]
+    fn fallback_for_slices_is_a_dyn_stub() {
+        let item: ItemImpl = parse_quote!(impl P { fn lagrangian(&self, q: &mut [f64], v: &[f64]) -> f64 { q[0] } });
+        let n = crate::validate::arity(&Input::from_syn(&item));
+        let out = fallback(&item, n.as_ref(), None).to_string();
+        assert!(out.contains("DynLagrangian for P"), "{out}");
+        assert!(out.contains("fn dimension (& self) -> usize"), "{out}");
+        assert!(out.contains("unreachable !"), "{out}");
+    }
 }

@@ -168,7 +168,9 @@ impl Shape {
             Type::Group(inner) => Self::of(&inner.elem),
             Type::Array(array) => Shape::Array { of_f64: is_f64(&array.elem), len: Len::from_expr(&array.len) },
             Type::Reference(reference) => match strip_groups(&reference.elem) {
-                Type::Slice(slice) => Shape::Slice { of_f64: is_f64(&slice.elem), mutable: reference.mutability.is_some() },
+                Type::Slice(slice) => {
+                    Shape::Slice { of_f64: is_f64(&slice.elem), mutable: reference.mutability.is_some() }
+                }
                 _ => Shape::Other,
             },
             ty if is_f64(ty) => Shape::F64,
@@ -368,5 +370,29 @@ mod tests {
         assert!(!len(parse_quote!([f64; N])).same_as(&len(parse_quote!([f64; 2]))));
         assert_eq!(len(parse_quote!([f64; 2usize])).to_token_stream().to_string(), "2");
         assert_eq!(len(parse_quote!([f64; 2 * K])).generic_arg().to_string(), "{ 2 * K }");
+    }
+
+    #[test]
+    fn slice_shapes_and_the_dimension_method() {
+        let shape = |ty: Type| Shape::of(&ty);
+        assert!(matches!(shape(parse_quote!(&[f64])), Shape::Slice { of_f64: true, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&'a [f64])), Shape::Slice { of_f64: true, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&mut [f64])), Shape::Slice { of_f64: true, mutable: true }));
+        assert!(matches!(shape(parse_quote!(&[f32])), Shape::Slice { of_f64: false, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&[f64; 3])), Shape::Other));
+        assert!(matches!(shape(parse_quote!(Vec<f64>)), Shape::Other));
+        assert!(is_vec(&parse_quote!(std::vec::Vec<f64>)) && !is_vec(&parse_quote!(&[f64])));
+        assert!(is_usize(&parse_quote!(usize)) && !is_usize(&parse_quote!(u32)));
+
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+            }
+        };
+        let input = Input::from_syn(&item);
+        assert_eq!(input.dimension.map(|f| f.sig.ident.to_string()).as_deref(), Some("dimension"));
+        let params = &input.lagrangian.unwrap().params;
+        assert!(params.iter().all(|p| matches!(p.shape, Shape::Slice { of_f64: true, mutable: false })));
     }
 }

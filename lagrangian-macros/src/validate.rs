@@ -90,10 +90,12 @@ fn check_dimension(cx: &Ctxt, dimension: Option<&syn::ImplItemFn>, lagrangian: &
     const EXPECTED: &str = "`fn dimension(&self) -> usize`";
     let Some(func) = dimension else {
         // At the slice type that makes the system run-time-sized.
-        let at = lagrangian.params.iter().rev().nth(1).map_or_else(
-            || lagrangian.func.sig.ident.to_token_stream(),
-            |q| q.ty.to_token_stream(),
-        );
+        let at = lagrangian
+            .params
+            .iter()
+            .rev()
+            .nth(1)
+            .map_or_else(|| lagrangian.func.sig.ident.to_token_stream(), |q| q.ty.to_token_stream());
         cx.error_spanned_by(
             at,
             format!(
@@ -404,9 +406,9 @@ fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<
         (Shape::Slice { mutable: true, .. }, _) => {
             format!("`{role}` in `{name}` must be `&[f64]`, not `&mut`: `{name}` only reads the state")
         }
-        (Shape::Slice { .. }, _) => format!(
-            "`{role}` in `{name}` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only"
-        ),
+        (Shape::Slice { .. }, _) => {
+            format!("`{role}` in `{name}` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only")
+        }
         (Shape::Array { .. }, _) | (_, Form::Array(_)) => format!("`{role}` in `{name}` must be `[f64; N]`"),
         (_, _) if crate::parse::is_vec(param.ty) => format!(
             "`{role}` in `{name}` must be `&[f64]` (size known at run time) or `[f64; N]`: \
@@ -603,5 +605,112 @@ mod tests {
         };
         let input = Input::from_syn(&item);
         assert_eq!(arity(&input).as_ref().and_then(Dim::len).and_then(Len::value), Some(4));
+    }
+
+    #[test]
+    fn slices_make_a_run_time_sized_system() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 { q[q.len() - 1] * v[0] + t }
+            }
+        };
+        let cx = Ctxt::new();
+        let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+        cx.check().unwrap();
+        assert!(system.n.is_dynamic() && system.n.len().is_none());
+        assert!(system.lagrangian.time.is_some());
+        assert!(matches!(arity(&Input::from_syn(&item)), Some(Dim::Dynamic)));
+    }
+
+    #[test]
+    fn reports_what_a_run_time_sized_system_cannot_have() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+                fn dissipation(&self, q: &[f64], v: &[f64]) -> f64 { v[0] }
+                fn force(&self, q: &[f64], v: &[f64]) -> Vec<f64> { vec![] }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            [
+                "`dissipation` is not supported for run-time-sized systems (`q: &[f64]`): \
+                 `DynLagrangian` has no forces; use `q: [f64; N]`",
+                "`force` is not supported for run-time-sized systems (`q: &[f64]`): \
+                 `DynLagrangian` has no forces; use `q: [f64; N]`",
+                "a `lagrangian` taking slices (`q: &[f64]`) needs `fn dimension(&self) -> usize` in the same \
+                 impl block: the number of coordinates is known only at run time",
+            ]
+        );
+    }
+
+    #[test]
+    fn reports_wrong_slice_parameters_saying_what_is_allowed() {
+        let lagrangian = |params: proc_macro2::TokenStream| -> Vec<String> {
+            let item: ItemImpl = parse_quote! {
+                impl C {
+                    fn dimension(&self) -> usize { 2 }
+                    fn lagrangian(&self, #params) -> f64 { 0.0 }
+                }
+            };
+            errors(&item)
+        };
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64], v: [f64; 2])),
+            [
+                "`q` and `v` must both be arrays `[f64; N]` or both slices `&[f64]`: `q` is `&[f64]` but `v` is `[f64; 2]`"
+            ]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: [f64; N], v: &[f64])),
+            [
+                "`q` and `v` must both be arrays `[f64; N]` or both slices `&[f64]`: `q` is `[f64; N]` but `v` is `&[f64]`"
+            ]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: &mut [f64], v: &[f64])),
+            ["`q` in `lagrangian` must be `&[f64]`, not `&mut`: `lagrangian` only reads the state"]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64], v: &[f32])),
+            ["`v` in `lagrangian` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only"]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: Vec<f64>, v: &[f64])),
+            ["`q` in `lagrangian` must be `&[f64]` (size known at run time) or `[f64; N]`: \
+              take a `Vec<f64>` as a slice, `q: &[f64]`"]
+        );
+        assert_eq!(lagrangian(quote::quote!(q: &[f64], v: f64)), ["`v` in `lagrangian` must be `&[f64]`"]);
+        assert_eq!(lagrangian(quote::quote!(q: f64, v: f64)).len(), 2);
+        // Arrays keep their message.
+        assert_eq!(lagrangian(quote::quote!(q: Vec<f64>, v: [f64; 2])), ["`q` in `lagrangian` must be `[f64; N]`"]);
+    }
+
+    #[test]
+    fn checks_the_dimension_signature() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension<T>(self, k: T) {}
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { 0.0 }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            [
+                "`dimension` cannot have generic parameters: write `fn dimension(&self) -> usize`",
+                "`dimension` must take `&self`: write `fn dimension(&self) -> usize`",
+                "`dimension` takes no parameters besides `&self`: write `fn dimension(&self) -> usize`",
+                "`dimension` must return `usize`: add `-> usize`",
+            ]
+        );
+        // A `dimension` beside an array Lagrangian is the user's own method.
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> u8 { 2 }
+                fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 { 0.0 }
+            }
+        };
+        assert_eq!(errors(&item), Vec::<String>::new());
     }
 }
