@@ -402,6 +402,8 @@ fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<
         return;
     }
     let message = match (&param.shape, other) {
+        // Beside an array, or where slices are not accepted: an array.
+        (_, Form::Array(_)) | (Shape::Array { .. }, _) => format!("`{role}` in `{name}` must be `[f64; N]`"),
         (_, _) if !slices => format!("`{role}` in `{name}` must be `[f64; N]`"),
         (Shape::Slice { mutable: true, .. }, _) => {
             format!("`{role}` in `{name}` must be `&[f64]`, not `&mut`: `{name}` only reads the state")
@@ -409,7 +411,6 @@ fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<
         (Shape::Slice { .. }, _) => {
             format!("`{role}` in `{name}` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only")
         }
-        (Shape::Array { .. }, _) | (_, Form::Array(_)) => format!("`{role}` in `{name}` must be `[f64; N]`"),
         (_, _) if crate::parse::is_vec(param.ty) => format!(
             "`{role}` in `{name}` must be `&[f64]` (size known at run time) or `[f64; N]`: \
              take a `Vec<f64>` as a slice, `{role}: &[f64]`"
@@ -422,7 +423,10 @@ fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<
 
 /// The accepted parameter lists, for messages.
 fn expected_params(kind: MethodKind) -> &'static str {
-    if kind.takes_time() {
+    if kind == MethodKind::Lagrangian {
+        "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+         or the same with slices `q: &[f64], v: &[f64]`"
+    } else if kind.takes_time() {
         "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`"
     } else {
         "`(&self, q: [f64; N], v: [f64; N])`"
@@ -683,8 +687,14 @@ mod tests {
         );
         assert_eq!(lagrangian(quote::quote!(q: &[f64], v: f64)), ["`v` in `lagrangian` must be `&[f64]`"]);
         assert_eq!(lagrangian(quote::quote!(q: f64, v: f64)).len(), 2);
-        // Arrays keep their message.
+        // Beside an array, an array is asked for.
         assert_eq!(lagrangian(quote::quote!(q: Vec<f64>, v: [f64; 2])), ["`q` in `lagrangian` must be `[f64; N]`"]);
+        assert_eq!(lagrangian(quote::quote!(q: [f64; 2], v: &mut [f64])), ["`v` in `lagrangian` must be `[f64; N]`"]);
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64])),
+            ["`lagrangian` takes `(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+              or the same with slices `q: &[f64], v: &[f64]`, found 1 parameter besides `&self`"]
+        );
     }
 
     #[test]
