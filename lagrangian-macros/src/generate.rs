@@ -88,7 +88,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
             #separability
             #coupling
             #[inline(always)]
-            fn dimension(&self) -> usize {
+            fn dimension(&self) -> ::core::primitive::usize {
                 // The inherent method, which path resolution prefers to the
                 // trait's.
                 Self::dimension(self)
@@ -116,7 +116,7 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Dim>, errors: Option<&Errors>
                 #cfgs
                 impl #impl_generics ::lagrangian::__private::DynLagrangian for #self_ty #where_clause {
                     const AUTONOMOUS: bool = true;
-                    fn dimension(&self) -> usize {
+                    fn dimension(&self) -> ::core::primitive::usize {
                         ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
                     }
                     fn lagrangian<#d: ::lagrangian::__private::Scalar>(&self, _: #d, _: &[#d], _: &[#d]) -> #d {
@@ -922,7 +922,7 @@ mod tests {
                     v_v: #private::Pattern::banded(#max, 0usize)
                 };
                 #[inline(always)]
-                fn dimension(&self) -> usize {
+                fn dimension(&self) -> ::core::primitive::usize {
                     Self::dimension(self)
                 }
                 #[inline(always)]
@@ -961,7 +961,7 @@ mod tests {
         let n = crate::validate::arity(&Input::from_syn(&item));
         let out = fallback(&item, n.as_ref(), None).to_string();
         assert!(out.contains("DynLagrangian for P"), "{out}");
-        assert!(out.contains("fn dimension (& self) -> usize"), "{out}");
+        assert!(out.contains("fn dimension (& self) -> :: core :: primitive :: usize"), "{out}");
         assert!(out.contains("unreachable !"), "{out}");
     }
 }
