@@ -403,3 +403,31 @@ fn dimension_is_the_users_method() {
     let (q, v) = ([0.1, 0.2, 0.3], [1.0, 0.0, 0.0]);
     assert_eq!(s.lagrangian(&q, &v), DynLagrangian::lagrangian(&s, 0.0, &q, &v));
 }
+
+#[test]
+fn a_chain_of_100_000_evaluates_in_a_small_thread() {
+    // By-value arrays of this size would not fit the 2 MiB stack of a
+    // default thread; slices live on the heap.
+    let handle = std::thread::spawn(|| {
+        let (n, beta) = (100_000, 0.7);
+        let s = FpuDyn { beta, n };
+        let mut rng = Rng(6);
+        let (_, q, v) = rng.state(n);
+        // Hand-written: ½|v|² − Σ φ(d) over the links and both walls.
+        let phi = |d: f64| 0.5 * d * d + 0.25 * beta * d.powi(4);
+        let walls = phi(q[0]) + phi(q[n - 1]);
+        let links: f64 = q.windows(2).map(|w| phi(w[1] - w[0])).sum();
+        let kinetic: f64 = v.iter().map(|v| 0.5 * v * v).sum();
+        let expected = kinetic - links - walls;
+        let l = DynLagrangian::lagrangian(&s, 0.0, &q, &v);
+        // Sums of 10⁵ terms of size ≤ 1 in another order: 1e-10 relative is
+        // far above their round-off and far below any missing term.
+        assert!((l - expected).abs() <= 1e-10 * kinetic, "L = {l}, by hand {expected}");
+        // One directional derivative along v: ∂L/∂v · v = |v|² = 2 T.
+        let qd: Vec<Dual64> = q.iter().map(|&x| Dual64::from_re(x)).collect();
+        let vd: Vec<Dual64> = v.iter().map(|&x| Dual64::new(x, x)).collect();
+        let dl = DynLagrangian::lagrangian(&s, Dual64::from_re(0.0), &qd, &vd).eps;
+        assert!((dl - 2.0 * kinetic).abs() <= 1e-10 * kinetic, "∂L/∂v · v = {dl}, by hand {}", 2.0 * kinetic);
+    });
+    handle.join().expect("the evaluation thread");
+}

@@ -207,13 +207,12 @@ fn carries_cfg(attr: &syn::Attribute) -> bool {
 pub(crate) fn arity(input: &Input<'_>) -> Option<Dim> {
     let params = &input.lagrangian.as_ref()?.params;
     // `q` is second to last and `v` last whether or not `t` is there.
-    let last_two = || params.iter().rev().take(2).rev();
-    last_two()
-        .find_map(|param| match &param.shape {
-            Shape::Array { len, .. } => Some(Dim::Fixed(len.clone())),
-            _ => None,
-        })
-        .or_else(|| last_two().any(|param| matches!(param.shape, Shape::Slice { .. })).then_some(Dim::Dynamic))
+    // `q` decides, as in `check_signature`.
+    params.iter().rev().take(2).rev().find_map(|param| match &param.shape {
+        Shape::Array { len, .. } => Some(Dim::Fixed(len.clone())),
+        Shape::Slice { .. } => Some(Dim::Dynamic),
+        _ => None,
+    })
 }
 
 /// What a method's signature says, as far as it could be read.
