@@ -1,7 +1,7 @@
 //! The structure `#[lagrangian]` proves (`SEPARABILITY`, `COUPLING`,
 //! `FORCE_COUPLING`) checked against derivatives evaluated at random points,
 //! on the examples' systems, two chains written with `for` loops over
-//! neighbours, systems with a position-dependent mass matrix, and bodies
+//! neighbours (also over slices, as run-time-sized systems), systems with a position-dependent mass matrix, and bodies
 //! whose structure the analysis must not overstate.
 //!
 //! For every system, at several random points:
@@ -379,6 +379,84 @@ impl<const N: usize> Arrays<N> {
     }
 }
 
+// ------------------------------------------------- run-time-sized chains
+
+/// The FPU-β chain over slices (`DynLagrangian`), bounded by `q.len()`.
+pub struct FpuSlices {
+    pub beta: f64,
+    pub n: usize,
+}
+
+#[lagrangian]
+impl FpuSlices {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let mut l = 0.0;
+        for i in 0..v.len() {
+            l += 0.5 * v[i] * v[i];
+        }
+        for i in 0..q.len() - 1 {
+            let d = q[i + 1] - q[i];
+            l -= 0.5 * d * d + 0.25 * self.beta * d.powi(4);
+        }
+        l - 0.5 * q[0] * q[0] - 0.5 * q[q.len() - 1] * q[q.len() - 1]
+    }
+}
+
+/// The coupled pendula over slices, loops bounded by a field.
+pub struct PendulaSlices {
+    pub n: usize,
+    pub c: f64,
+}
+
+#[lagrangian]
+impl PendulaSlices {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let mut l = 0.0;
+        for i in 0..self.n {
+            l += 0.5 * v[i] * v[i] + q[i].cos();
+        }
+        for i in 1..self.n {
+            l += self.c * v[i - 1] * v[i] * (q[i - 1] - q[i]).cos();
+        }
+        l
+    }
+}
+
+/// A run-time-sized system seen at dimension `N`, its bandwidths normalised
+/// against `N` as the runtime does, so that [`check`] applies to it.
+struct AtDimension<S, const N: usize>(S);
+
+const fn normalised(p: Pattern, n: usize) -> Pattern {
+    match p {
+        Pattern::Banded { bandwidth } => Pattern::banded(n, bandwidth),
+        other => other,
+    }
+}
+
+impl<S: DynLagrangian, const N: usize> Lagrangian<N> for AtDimension<S, N> {
+    const AUTONOMOUS: bool = S::AUTONOMOUS;
+    const CYCLIC: [bool; N] = [false; N];
+    const SEPARABILITY: Separability = S::SEPARABILITY;
+    const COUPLING: Coupling = Coupling {
+        q_q: normalised(S::COUPLING.q_q, N),
+        q_v: normalised(S::COUPLING.q_v, N),
+        v_v: normalised(S::COUPLING.v_v, N),
+    };
+    const FORCE_COUPLING: ForceCoupling = ForceCoupling::NONE;
+    fn lagrangian<T: Scalar>(&self, t: T, q: [T; N], v: [T; N]) -> T {
+        assert_eq!(self.0.dimension(), N);
+        DynLagrangian::lagrangian(&self.0, t, &q, &v)
+    }
+}
+
 // ------------------------------------------------------------------ checks
 
 /// A small deterministic generator (SplitMix64), for reproducible points.
@@ -653,6 +731,19 @@ fn chains_written_with_loops_over_neighbours() {
     let s = DampedChain::<9> { k: 1.0, c: 0.2 };
     check("damped chain", &s, 14);
     assert_eq!(claims(&s), (Separability::ConstantMass, coupling(D, D, D), ForceCoupling { q: B1, v: D }));
+}
+
+#[test]
+fn run_time_sized_chains() {
+    // The same claims as the `[f64; N]` chains, at two dimensions each.
+    let s = AtDimension::<_, 7>(FpuSlices { beta: 1.0, n: 7 });
+    check("FPU-β chain (slices)", &s, 23);
+    assert_eq!(claims(&s), (Separability::ConstantMass, coupling(B1, D, D), ForceCoupling::NONE));
+    check("FPU-β chain (slices)", &AtDimension::<_, 12>(FpuSlices { beta: 0.4, n: 12 }), 24);
+    let s = AtDimension::<_, 6>(PendulaSlices { n: 6, c: 0.3 });
+    check("pendula (slices)", &s, 25);
+    assert_eq!(claims(&s), (Separability::QuadraticKinetic, coupling(B1, B1, B1), ForceCoupling::NONE));
+    check("pendula (slices)", &AtDimension::<_, 11>(PendulaSlices { n: 11, c: 0.2 }), 26);
 }
 
 #[test]

@@ -336,6 +336,14 @@ impl<'a> Infer<'a> {
     }
 
     fn method(&mut self, span: proc_macro2::Span, math: Math, receiver: Class, args: &[Class]) -> Class {
+        // `q.len()`: a number of coordinates, not a function of them.
+        if math == Math::Len {
+            // On a scalar local, rustc reports it on the user's method.
+            if !receiver.is_array() {
+                self.mismatch();
+            }
+            return Class::Int;
+        }
         let operands = std::iter::once(receiver).chain(args.iter().copied());
         // Not left to rustc: an extension trait could give arrays a `sin`.
         if operands.clone().any(|class| class.is_array() || class == Class::Bool) {
@@ -406,6 +414,12 @@ fn cyclic(body: &Block) -> Cyclic {
     body.visit(&mut |expr| {
         match &expr.kind {
             ExprKind::Param(ParamRef::Q, _) => uses += 1,
+            // `q.len()` reads no coordinate.
+            ExprKind::MethodCall { receiver, math: Math::Len, .. }
+                if matches!(receiver.kind, ExprKind::Param(ParamRef::Q, _)) =>
+            {
+                literal_reads += 1;
+            }
             ExprKind::Index { base, index, .. } if matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) => {
                 if let Some(i) = index.literal_index() {
                     literal_reads += 1;
@@ -572,5 +586,25 @@ mod tests {
             cx.check().unwrap_err().messages(),
             ["indexing with a value that depends on `t`, `q` or `v` is not supported"]
         );
+    }
+
+    #[test]
+    fn lengths_are_integers_and_read_no_coordinate() {
+        let (system, analysis) = lagrangian(parse_quote!({
+            let n = q.len();
+            let m = v.len() - 1;
+            q[0] * v[m] + (n as f64)
+        }));
+        assert!(analysis.consistent);
+        assert_eq!(local_classes(&system), [("n".to_owned(), Class::Int), ("m".to_owned(), Class::Int)]);
+        // `q[0]` is read, `q.len()` reads nothing.
+        assert_eq!(analysis.cyclic.read, BTreeSet::from([0]));
+        assert!(!analysis.cyclic.any);
+        // `len` of a scalar is rustc's error.
+        let (_, analysis) = lagrangian(parse_quote!({
+            let x = q[0];
+            (x.len() as f64) * x
+        }));
+        assert!(!analysis.consistent);
     }
 }

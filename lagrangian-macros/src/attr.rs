@@ -26,6 +26,9 @@ pub(crate) struct Args {
     pub(crate) discontinuous: bool,
     /// The declared symmetries, in order.
     pub(crate) symmetries: Vec<SymmetryDecl>,
+    /// The `symmetry` key of every `symmetry = ...`, readable or not: where
+    /// a run-time-sized system refuses them.
+    pub(crate) symmetry_keys: Vec<syn::Path>,
 }
 
 /// One declared symmetry.
@@ -75,6 +78,7 @@ pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
             cx.error_spanned_by(&pair.path, format!("unknown argument: `#[lagrangian]` takes {ARGUMENTS}"));
             continue;
         }
+        out.symmetry_keys.push(pair.path.clone());
         if let Some(decl) = symmetry(cx, &pair.value) {
             out.symmetries.push(decl);
         }
@@ -159,5 +163,18 @@ pub(crate) fn check(cx: &Ctxt, decls: &[SymmetryDecl], n: &Len) {
             }
             SymmetryDecl::Generator(_) => {}
         }
+    }
+}
+
+/// Refuses declared symmetries on a run-time-sized system: `DynLagrangian`
+/// has no `SYMMETRIES` (a symmetry of a chain of unknown length would be a
+/// run-time object).
+pub(crate) fn refuse_symmetries(cx: &Ctxt, args: &Args) {
+    for key in &args.symmetry_keys {
+        cx.error_spanned_by(
+            key,
+            "`symmetry` is not supported for run-time-sized systems (`q: &[f64]`): \
+             `DynLagrangian` has no declared symmetries; use `q: [f64; N]`",
+        );
     }
 }

@@ -23,7 +23,7 @@
 //! `dissipation` and `force`, whose effect is not measured by the energy.
 
 use crate::ctxt::Ctxt;
-use crate::ir::{Block, Class, Expr, ExprKind, Function, LocalId, ParamRef, Stmt};
+use crate::ir::{Block, Class, Expr, ExprKind, Function, LocalId, Math, ParamRef, Stmt};
 use crate::parse::MethodKind;
 use proc_macro2::Span;
 
@@ -235,6 +235,8 @@ impl Walk<'_> {
                 self.block(body);
                 Deps::default()
             }
+            // The number of coordinates depends on none of their values.
+            ExprKind::MethodCall { math: Math::Len, .. } => Deps::default(),
             ExprKind::MethodCall { receiver, method, args, .. } => {
                 let mut deps = self.expr(receiver);
                 for arg in args {
@@ -395,5 +397,22 @@ mod tests {
         assert_eq!(messages.len(), 1);
         assert!(messages[0].starts_with("`lagrangian` is discontinuous here: the condition depends on `q`;"));
         assert!(messages[0].ends_with("acknowledge it with `#[lagrangian(discontinuous)]`"));
+    }
+
+    #[test]
+    fn the_length_of_q_is_not_a_value_of_q() {
+        // A branch on `q.len()` (a loop bound) is not a branch on `q`.
+        assert_eq!(
+            found(parse_quote!({
+                let mut s = 0.0;
+                for i in 0..q.len() {
+                    if i + 1 < v.len() {
+                        s += q[i] * q[i + 1];
+                    }
+                }
+                s
+            })),
+            []
+        );
     }
 }

@@ -2,7 +2,7 @@
 //! still emits the user's block (and a stub trait impl) after errors.
 
 use crate::ctxt::Ctxt;
-use crate::parse::Input;
+use crate::parse::{Dim, Input};
 use crate::{analyse, attr, discontinuity, generate, validate};
 use proc_macro2::TokenStream;
 use syn::ItemImpl;
@@ -13,8 +13,11 @@ pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
     let args = attr::parse(&cx, attr);
     let input = Input::from_syn(&item);
     let mut system = validate::validate(&cx, &input);
-    if let Some(system) = &system {
-        attr::check(&cx, &args.symmetries, &system.n);
+    match system.as_ref().map(|system| &system.n) {
+        Some(Dim::Fixed(n)) => attr::check(&cx, &args.symmetries, n),
+        // `DynLagrangian` has no `SYMMETRIES`.
+        Some(Dim::Dynamic) => attr::refuse_symmetries(&cx, &args),
+        None => {}
     }
     let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
     if let Some(system) = &system {
@@ -138,5 +141,27 @@ mod tests {
             let out = expand(attr.clone(), item.clone()).to_string();
             assert_eq!(out.matches("compile_error").count(), 1, "{attr}: {out}");
         }
+    }
+
+    #[test]
+    fn slices_expand_to_dyn_lagrangian_and_refuse_what_it_cannot_carry() {
+        let item: ItemImpl = parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { v[0] * v[0] - q[0].cos() }
+            }
+        };
+        let out = expand(TokenStream::new(), item.clone()).to_string();
+        assert!(!out.contains("compile_error"), "{out}");
+        assert!(out.contains("impl :: lagrangian :: __private :: DynLagrangian for Chain"), "{out}");
+
+        let out = expand(quote!(discontinuous), item.clone()).to_string();
+        assert!(!out.contains("compile_error") && out.contains("const DISCONTINUOUS : bool = true ;"), "{out}");
+
+        // One error per declared symmetry, then a stub.
+        let out = expand(quote!(symmetry = translation(0), symmetry = rotation(0, 1)), item).to_string();
+        assert_eq!(out.matches("compile_error").count(), 2, "{out}");
+        assert!(out.contains("`symmetry` is not supported for run-time-sized systems"), "{out}");
+        assert!(out.contains("DynLagrangian for Chain") && out.contains("unreachable"), "{out}");
     }
 }

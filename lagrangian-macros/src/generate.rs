@@ -10,20 +10,24 @@ use crate::analyse::{Analysis, Band, Cyclic, Separability, Structure};
 use crate::attr::{Args, SymmetryDecl};
 use crate::ctxt::{Errors, Site};
 use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
-use crate::parse::{Len, MethodKind};
+use crate::parse::{Dim, Len, MethodKind};
 use proc_macro2::{Delimiter, Group, Ident, Span, TokenStream};
 use quote::{ToTokens, quote, quote_spanned};
 use syn::{BinOp, ImplItem, ItemImpl, Type};
 
-/// The user's block followed by the trait impl.
+/// The user's block followed by the trait impl: `Lagrangian<N>` for a
+/// system of arrays, `DynLagrangian` for one of slices.
 pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
+    let Dim::Fixed(len) = &system.n else {
+        return expand_dynamic(item, system, analysis, args);
+    };
     let user_impl = user_impl(item, None);
     let cfgs = cfgs(item);
     let (impl_generics, _, where_clause) = item.generics.split_for_impl();
     let self_ty = &item.self_ty;
-    let n = system.n.generic_arg();
+    let n = len.generic_arg();
     let autonomous = system.lagrangian.time.is_none();
-    let cyclic = cyclic(&system.n, &analysis.cyclic);
+    let cyclic = cyclic(len, &analysis.cyclic);
     let has_dissipation = system.dissipation.is_some().then(|| quote! { const HAS_DISSIPATION: bool = true; });
     let has_force = system.force.is_some().then(|| quote! { const HAS_FORCE: bool = true; });
     let symmetries = declared_symmetries(&n, &args.symmetries);
@@ -33,7 +37,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
     let methods = std::iter::once(&system.lagrangian)
         .chain(&system.dissipation)
         .chain(&system.force)
-        .map(|function| method(function, &n));
+        .map(|function| method(function, Some(&n)));
     quote! {
         #user_impl
 
@@ -55,20 +59,73 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
     }
 }
 
+/// The user's block followed by `DynLagrangian`: the run-time-sized form,
+/// whose `lagrangian` takes slices. `validate` refused what the trait does
+/// not carry (forces, dissipation, symmetries), so only the Lagrangian and
+/// the structure constants are printed; `dimension` calls the user's method.
+fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
+    let user_impl = user_impl(item, None);
+    let cfgs = cfgs(item);
+    let (impl_generics, _, where_clause) = item.generics.split_for_impl();
+    let self_ty = &item.self_ty;
+    let autonomous = system.lagrangian.time.is_none();
+    // A bandwidth bounds `|i − j|` whatever the dimension: `banded` with the
+    // largest `n` keeps it (0 → `Diagonal`), and the runtime normalises it
+    // against the real `n` (a band as wide as the system is general).
+    let structure = structure(&quote!(::core::primitive::usize::MAX), &analysis.structure);
+    let (separability, coupling) = (&structure.separability, &structure.coupling);
+    let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
+    let lagrangian = method(&system.lagrangian, None);
+    quote! {
+        #user_impl
+
+        // As for `Lagrangian<N>`: the bodies were linted as the user's methods.
+        #cfgs
+        #[allow(warnings, clippy::all, clippy::pedantic, clippy::nursery, clippy::restriction)]
+        impl #impl_generics ::lagrangian::__private::DynLagrangian for #self_ty #where_clause {
+            const AUTONOMOUS: bool = #autonomous;
+            #discontinuous
+            #separability
+            #coupling
+            #[inline(always)]
+            fn dimension(&self) -> ::core::primitive::usize {
+                // The inherent method, which path resolution prefers to the
+                // trait's.
+                Self::dimension(self)
+            }
+            #lagrangian
+        }
+    }
+}
+
 /// What is emitted when the block cannot be rewritten: the errors, the
 /// user's block unchanged, and, when `N` is known, a trait impl with the
 /// right `N` and a body that is never run, so that code using the type as a
 /// `Lagrangian` does not add "trait not implemented" errors to the real ones.
 /// `errors` is `None` when rustc reports the problem itself.
-pub(crate) fn fallback(item: &ItemImpl, n: Option<&Len>, errors: Option<&Errors>) -> TokenStream {
+pub(crate) fn fallback(item: &ItemImpl, n: Option<&Dim>, errors: Option<&Errors>) -> TokenStream {
     let block_errors = errors.map(|errors| errors.at(Site::Block));
     let user_impl = user_impl(item, errors);
     let stub = n.map(|n| {
         let (impl_generics, _, where_clause) = item.generics.split_for_impl();
         let self_ty = &item.self_ty;
-        let n = n.generic_arg();
         let d = scalar_type();
         let cfgs = cfgs(item);
+        let Dim::Fixed(n) = n else {
+            return quote! {
+                #cfgs
+                impl #impl_generics ::lagrangian::__private::DynLagrangian for #self_ty #where_clause {
+                    const AUTONOMOUS: bool = true;
+                    fn dimension(&self) -> ::core::primitive::usize {
+                        ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
+                    }
+                    fn lagrangian<#d: ::lagrangian::__private::Scalar>(&self, _: #d, _: &[#d], _: &[#d]) -> #d {
+                        ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
+                    }
+                }
+            };
+        };
+        let n = n.generic_arg();
         quote! {
             #cfgs
             impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
@@ -164,7 +221,7 @@ fn cyclic(n: &Len, cyclic: &Cyclic) -> TokenStream {
 /// `SEPARABILITY`, `COUPLING` and `FORCE_COUPLING`. Bandwidths go through
 /// the runtime's `Pattern::banded`, which normalises them against `N` (a
 /// symbolic `N` is only known to the compiler).
-fn structure(n: &TokenStream, structure: &Structure) -> TokenStream {
+fn structure(n: &TokenStream, structure: &Structure) -> StructureItems {
     let private = quote!(::lagrangian::__private);
     let separability = match structure.separability {
         Separability::NotProven => quote!(NotProven),
@@ -182,15 +239,36 @@ fn structure(n: &TokenStream, structure: &Structure) -> TokenStream {
     let (q_q, q_v, v_v) =
         (pattern(structure.coupling.q_q), pattern(structure.coupling.q_v), pattern(structure.coupling.v_v));
     let (force_q, force_v) = (pattern(structure.force.q), pattern(structure.force.v));
-    quote! {
-        const SEPARABILITY: #private::Separability = #private::Separability::#separability;
-        const COUPLING: #private::Coupling = #private::Coupling { q_q: #q_q, q_v: #q_v, v_v: #v_v };
-        const FORCE_COUPLING: #private::ForceCoupling = #private::ForceCoupling { q: #force_q, v: #force_v };
+    StructureItems {
+        separability: quote! {
+            const SEPARABILITY: #private::Separability = #private::Separability::#separability;
+        },
+        coupling: quote! {
+            const COUPLING: #private::Coupling = #private::Coupling { q_q: #q_q, q_v: #q_v, v_v: #v_v };
+        },
+        force_coupling: quote! {
+            const FORCE_COUPLING: #private::ForceCoupling = #private::ForceCoupling { q: #force_q, v: #force_v };
+        },
     }
 }
 
-/// One trait method.
-fn method(function: &Function, n: &TokenStream) -> TokenStream {
+/// The structure constants, one item each (`DynLagrangian` has no
+/// `FORCE_COUPLING`).
+struct StructureItems {
+    separability: TokenStream,
+    coupling: TokenStream,
+    force_coupling: TokenStream,
+}
+
+impl ToTokens for StructureItems {
+    fn to_tokens(&self, tokens: &mut TokenStream) {
+        tokens.extend([self.separability.clone(), self.coupling.clone(), self.force_coupling.clone()]);
+    }
+}
+
+/// One trait method; `n` is `None` for a run-time-sized system, whose
+/// `q` and `v` are slices.
+fn method(function: &Function, n: Option<&TokenStream>) -> TokenStream {
     let d = scalar_type();
     let name = &function.name;
     let binder = |binder: &Binder| match binder {
@@ -198,11 +276,15 @@ fn method(function: &Function, n: &TokenStream) -> TokenStream {
         None => quote!(_),
     };
     let (q, v) = (binder(&function.q), binder(&function.v));
+    let state = match n {
+        Some(n) => quote!([#d; #n]),
+        None => quote!(&[#d]),
+    };
     let params = if function.kind.takes_time() {
         let t = function.time.as_ref().map_or_else(|| quote!(_), binder);
-        quote!(#t: #d, #q: [#d; #n], #v: [#d; #n])
+        quote!(#t: #d, #q: #state, #v: #state)
     } else {
-        quote!(#q: [#d; #n], #v: [#d; #n])
+        quote!(#q: #state, #v: #state)
     };
     let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
     let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
@@ -300,6 +382,9 @@ impl Printer<'_> {
                 return syn::parse_quote!(#d);
             }
             Type::Array(array) => *array.elem = self.active_type(&array.elem),
+            // `let x: &[f64] = q;` in a run-time-sized system.
+            Type::Slice(slice) => *slice.elem = self.active_type(&slice.elem),
+            Type::Reference(reference) => *reference.elem = self.active_type(&reference.elem),
             Type::Paren(paren) => *paren.elem = self.active_type(&paren.elem),
             _ => {}
         }
@@ -809,5 +894,74 @@ mod tests {
         assert!(out.contains("Lagrangian < 3 > for P"), "{out}");
         assert!(out.contains("unreachable !"), "{out}");
         assert!(!fallback(&item, None, None).to_string().contains("Lagrangian"));
+    }
+
+    #[test]
+    fn slices_implement_dyn_lagrangian() {
+        let item: ItemImpl = parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 1..q.len() {
+                        l += 0.5 * v[i] * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l * t
+                }
+            }
+        };
+        let private = quote!(::lagrangian::__private);
+        let max = quote!(::core::primitive::usize::MAX);
+        let expected = quote! {
+            impl #private::DynLagrangian for Chain {
+                const AUTONOMOUS: bool = false;
+                const SEPARABILITY: #private::Separability = #private::Separability::NotProven;
+                const COUPLING: #private::Coupling = #private::Coupling {
+                    q_q: #private::Pattern::banded(#max, 1usize),
+                    q_v: #private::Pattern::banded(#max, 0usize),
+                    v_v: #private::Pattern::banded(#max, 0usize)
+                };
+                #[inline(always)]
+                fn dimension(&self) -> ::core::primitive::usize {
+                    Self::dimension(self)
+                }
+                #[inline(always)]
+                fn lagrangian<__D: #private::Scalar>(&self, t: __D, q: &[__D], v: &[__D]) -> __D {
+                    let mut l = __D::from(0.0);
+                    for i in 1..q.len() {
+                        l += v[i] * 0.5 * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l * t
+                }
+            }
+        };
+        let out = generated(&item);
+        assert!(out.starts_with("impl Chain"), "{out}");
+        assert!(out.ends_with(&expected.to_string()), "{out}");
+        assert!(!out.contains("CYCLIC") && !out.contains("FORCE_COUPLING") && !out.contains("Lagrangian <"), "{out}");
+    }
+
+    #[test]
+    fn slice_annotations_become_slices_of_duals() {
+        let out = generated(&parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { 3 }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+                    let x: &[f64] = q;
+                    x[0] * v[0]
+                }
+            }
+        });
+        assert!(out.contains(&quote!(let x: &[__D] = q;).to_string()), "{out}");
+    }
+
+    #[test]
+    fn fallback_for_slices_is_a_dyn_stub() {
+        let item: ItemImpl = parse_quote!(impl P { fn lagrangian(&self, q: &mut [f64], v: &[f64]) -> f64 { q[0] } });
+        let n = crate::validate::arity(&Input::from_syn(&item));
+        let out = fallback(&item, n.as_ref(), None).to_string();
+        assert!(out.contains("DynLagrangian for P"), "{out}");
+        assert!(out.contains("fn dimension (& self) -> :: core :: primitive :: usize"), "{out}");
+        assert!(out.contains("unreachable !"), "{out}");
     }
 }

@@ -5,15 +5,16 @@
 //! has been lowered into it no later stage needs an "unsupported" case. Names
 //! are already resolved: a variable is a parameter, a local or a constant.
 
-use crate::parse::{Len, MethodKind};
+use crate::parse::{Dim, MethodKind};
 use proc_macro2::Span;
 use syn::{BinOp, ExprPath, Ident, Item, Lit, Member, RangeLimits, Token, Type, UnOp};
 
 /// A validated impl block: the number of coordinates and the recognised
 /// methods, ready for analysis.
 pub(crate) struct System {
-    /// `N`, from the Lagrangian's `q: [f64; N]`.
-    pub(crate) n: Len,
+    /// `N`, from the Lagrangian's `q: [f64; N]`, or [`Dim::Dynamic`] for
+    /// `q: &[f64]`.
+    pub(crate) n: Dim,
     /// The Lagrangian.
     pub(crate) lagrangian: Function,
     /// The Rayleigh dissipation function, if given.
@@ -413,6 +414,9 @@ pub(crate) enum Math {
     Log,
     /// `atan2(x)`, `mul_add(a, b)`: all operands must have the same type.
     Uniform,
+    /// `q.len()` or `v.len()`: the number of coordinates, an integer that
+    /// depends on nothing (the dimension is fixed during a call).
+    Len,
 }
 
 #[cfg(test)]

@@ -48,8 +48,16 @@ use proc_macro::TokenStream;
 /// q, v) -> [f64; N]`. The methods stay in the block as written; the trait
 /// impl evaluates the same bodies on dual numbers.
 ///
+/// Run-time-sized systems (a chain built from data, too large for arrays on
+/// the stack) take slices instead: `fn lagrangian(&self, [t: f64,] q:
+/// &[f64], v: &[f64]) -> f64`, with `fn dimension(&self) -> usize` in the
+/// same block. The macro then implements `lagrangian::DynLagrangian`, with
+/// the same checks of the body; `force`, `dissipation` and
+/// declared symmetries, which that trait does not carry, are refused
+/// (docs/structure.md, "Run-time-sized systems").
+///
 /// The bodies may use: literals, `self` fields, constants, `q[i]` and `v[i]`,
-/// `+ - * /`, `%` on integers and constants, comparisons (on the real part of
+/// `q.len()` and `v.len()`, `+ - * /`, `%` on integers and constants, comparisons (on the real part of
 /// dual numbers), `&& || !`, `let` and `let mut` (also `let (a, b) = (x,
 /// y);`), `= += -= *= /= %=` on local variables and elements of local
 /// arrays, `if`/`else`, `for i in a..b`, `break`, `continue`, `return`,

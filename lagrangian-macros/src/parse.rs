@@ -58,17 +58,24 @@ pub(crate) struct Input<'a> {
     pub(crate) dissipation: Option<Method<'a>>,
     /// `fn force`, if present.
     pub(crate) force: Option<Method<'a>>,
+    /// `fn dimension`, if present: the size of a run-time-sized system,
+    /// whose `lagrangian` takes slices. Not rewritten, so not a
+    /// [`MethodKind`]; ignored when the Lagrangian takes arrays.
+    pub(crate) dimension: Option<&'a ImplItemFn>,
 }
 
 impl<'a> Input<'a> {
     /// Picks the recognised methods out of `item`. When a name appears twice
     /// the first one is kept: rustc reports the duplicate definition itself.
     pub(crate) fn from_syn(item: &'a ItemImpl) -> Self {
-        let mut input = Input { item, lagrangian: None, dissipation: None, force: None };
+        let mut input = Input { item, lagrangian: None, dissipation: None, force: None, dimension: None };
         for func in item.items.iter().filter_map(|item| match item {
             ImplItem::Fn(func) => Some(func),
             _ => None,
         }) {
+            if func.sig.ident == "dimension" && input.dimension.is_none() {
+                input.dimension = Some(func);
+            }
             let Some(kind) = MethodKind::from_ident(&func.sig.ident) else {
                 continue;
             };
@@ -141,6 +148,14 @@ pub(crate) enum Shape {
         /// The length.
         len: Len,
     },
+    /// `&[E]` or `&mut [E]`: a run-time-sized system when `E` is `f64` and
+    /// the borrow is shared.
+    Slice {
+        /// Whether the element type is `f64`.
+        of_f64: bool,
+        /// Whether the borrow is `&mut`.
+        mutable: bool,
+    },
     /// Anything else.
     Other,
 }
@@ -152,10 +167,39 @@ impl Shape {
             Type::Paren(inner) => Self::of(&inner.elem),
             Type::Group(inner) => Self::of(&inner.elem),
             Type::Array(array) => Shape::Array { of_f64: is_f64(&array.elem), len: Len::from_expr(&array.len) },
+            Type::Reference(reference) => match strip_groups(&reference.elem) {
+                Type::Slice(slice) => {
+                    Shape::Slice { of_f64: is_f64(&slice.elem), mutable: reference.mutability.is_some() }
+                }
+                _ => Shape::Other,
+            },
             ty if is_f64(ty) => Shape::F64,
             _ => Shape::Other,
         }
     }
+}
+
+/// `ty` without parentheses or invisible groups around it.
+fn strip_groups(ty: &Type) -> &Type {
+    match ty {
+        Type::Paren(inner) => strip_groups(&inner.elem),
+        Type::Group(inner) => strip_groups(&inner.elem),
+        ty => ty,
+    }
+}
+
+/// Whether `ty` is written `Vec<...>` (any path ending in `Vec`), for a
+/// message that points to the slice form.
+pub(crate) fn is_vec(ty: &Type) -> bool {
+    match strip_groups(ty) {
+        Type::Path(path) => path.qself.is_none() && path.path.segments.last().is_some_and(|seg| seg.ident == "Vec"),
+        _ => false,
+    }
+}
+
+/// Whether `ty` is written `usize`.
+pub(crate) fn is_usize(ty: &Type) -> bool {
+    matches!(strip_groups(ty), Type::Path(path) if path.qself.is_none() && path.path.is_ident("usize"))
 }
 
 /// Whether `ty` is written `f64`.
@@ -165,6 +209,32 @@ pub(crate) fn is_f64(ty: &Type) -> bool {
         Type::Paren(inner) => is_f64(&inner.elem),
         Type::Group(inner) => is_f64(&inner.elem),
         _ => false,
+    }
+}
+
+/// The number of coordinates of a system: fixed by its type (`[f64; N]`,
+/// the trait `Lagrangian<N>`) or known only at run time (`&[f64]`, the trait
+/// `DynLagrangian`).
+#[derive(Clone, Debug)]
+pub(crate) enum Dim {
+    /// `q: [f64; N]`.
+    Fixed(Len),
+    /// `q: &[f64]`.
+    Dynamic,
+}
+
+impl Dim {
+    /// `N`, for a fixed-size system.
+    pub(crate) fn len(&self) -> Option<&Len> {
+        match self {
+            Dim::Fixed(len) => Some(len),
+            Dim::Dynamic => None,
+        }
+    }
+
+    /// Whether the size is known only at run time.
+    pub(crate) fn is_dynamic(&self) -> bool {
+        matches!(self, Dim::Dynamic)
     }
 }
 
@@ -300,5 +370,29 @@ mod tests {
         assert!(!len(parse_quote!([f64; N])).same_as(&len(parse_quote!([f64; 2]))));
         assert_eq!(len(parse_quote!([f64; 2usize])).to_token_stream().to_string(), "2");
         assert_eq!(len(parse_quote!([f64; 2 * K])).generic_arg().to_string(), "{ 2 * K }");
+    }
+
+    #[test]
+    fn slice_shapes_and_the_dimension_method() {
+        let shape = |ty: Type| Shape::of(&ty);
+        assert!(matches!(shape(parse_quote!(&[f64])), Shape::Slice { of_f64: true, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&'a [f64])), Shape::Slice { of_f64: true, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&mut [f64])), Shape::Slice { of_f64: true, mutable: true }));
+        assert!(matches!(shape(parse_quote!(&[f32])), Shape::Slice { of_f64: false, mutable: false }));
+        assert!(matches!(shape(parse_quote!(&[f64; 3])), Shape::Other));
+        assert!(matches!(shape(parse_quote!(Vec<f64>)), Shape::Other));
+        assert!(is_vec(&parse_quote!(std::vec::Vec<f64>)) && !is_vec(&parse_quote!(&[f64])));
+        assert!(is_usize(&parse_quote!(usize)) && !is_usize(&parse_quote!(u32)));
+
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+            }
+        };
+        let input = Input::from_syn(&item);
+        assert_eq!(input.dimension.map(|f| f.sig.ident.to_string()).as_deref(), Some("dimension"));
+        let params = &input.lagrangian.unwrap().params;
+        assert!(params.iter().all(|p| matches!(p.shape, Shape::Slice { of_f64: true, mutable: false })));
     }
 }

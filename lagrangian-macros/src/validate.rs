@@ -9,7 +9,8 @@ mod body;
 
 use crate::ctxt::Ctxt;
 use crate::ir::{Binder, System};
-use crate::parse::{Input, Len, Method, MethodKind, Param, Shape};
+use crate::parse::{Dim, Input, Len, Method, MethodKind, Param, Shape};
+use quote::ToTokens;
 use syn::{Ident, Pat, PatIdent};
 
 /// Checks `input` and builds the validated model of the block.
@@ -40,28 +41,104 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
 
     let signature = check_signature(cx, lagrangian, &item.self_ty, None);
     let n = signature.n.clone();
+    let dynamic = n.as_ref().is_some_and(Dim::is_dynamic);
     // A body written to return another type (`Ok(x)` for `Result<f64, _>`)
     // is not lowered: its errors would all follow from the signature's.
     let lower = |method: &Method<'_>, signature: &Signature| {
         if signature.returns { body::lower(cx, method, signature) } else { None }
     };
-    let lagrangian = lower(lagrangian, &signature);
+    let lagrangian_fn = lower(lagrangian, &signature);
+    let expected = n.as_ref().and_then(Dim::len);
     let optional = |method: &Option<Method<'_>>| {
         method.as_ref().map(|method| {
-            let signature = check_signature(cx, method, &item.self_ty, n.as_ref());
+            if dynamic {
+                // `DynLagrangian` carries no forces: refused, not lowered.
+                cx.error_spanned_by(
+                    &method.func.sig.ident,
+                    format!(
+                        "`{}` is not supported for run-time-sized systems (`q: &[f64]`): \
+                         `DynLagrangian` has no forces; use `q: [f64; N]`",
+                        method.kind.name()
+                    ),
+                );
+                return None;
+            }
+            let signature = check_signature(cx, method, &item.self_ty, expected);
             lower(method, &signature)
         })
     };
     let dissipation = optional(&input.dissipation);
     let force = optional(&input.force);
+    if dynamic {
+        check_dimension(cx, input.dimension, lagrangian, &item.self_ty);
+    }
 
     Some(System {
         n: n?,
-        lagrangian: lagrangian?,
+        lagrangian: lagrangian_fn?,
         // Absent is fine; present but not lowered is not.
         dissipation: dissipation.map_or(Some(None), |f| f.map(Some))?,
         force: force.map_or(Some(None), |f| f.map(Some))?,
     })
+}
+
+/// Checks `fn dimension(&self) -> usize`, which a run-time-sized system
+/// needs: the runtime allocates its state from it. Its body is not
+/// rewritten (it computes an integer from the system, never from `q`), so
+/// the trait implementation calls the method as written.
+fn check_dimension(cx: &Ctxt, dimension: Option<&syn::ImplItemFn>, lagrangian: &Method<'_>, self_ty: &syn::Type) {
+    const EXPECTED: &str = "`fn dimension(&self) -> usize`";
+    let Some(func) = dimension else {
+        // At the slice type that makes the system run-time-sized.
+        let at = lagrangian
+            .params
+            .iter()
+            .rev()
+            .nth(1)
+            .map_or_else(|| lagrangian.func.sig.ident.to_token_stream(), |q| q.ty.to_token_stream());
+        cx.error_spanned_by(
+            at,
+            format!(
+                "a `lagrangian` taking slices (`q: &[f64]`) needs {EXPECTED} in the same impl block: \
+                 the number of coordinates is known only at run time"
+            ),
+        );
+        return;
+    };
+    let sig = &func.sig;
+    for attr in func.attrs.iter().filter(|attr| attr.path().is_ident("cfg")) {
+        cx.error_spanned_by(
+            attr,
+            "`#[cfg]` on `dimension` is not supported: the generated trait implementation \
+             cannot follow it; put each configuration in its own impl block",
+        );
+    }
+    if sig.generics.lt_token.is_some() || sig.generics.where_clause.is_some() {
+        cx.error_spanned_by(&sig.generics, format!("`dimension` cannot have generic parameters: write {EXPECTED}"));
+    }
+    if let Some(token) = &sig.asyncness {
+        cx.error_spanned_by(token, "`dimension` cannot be `async`");
+    }
+    if let Some(token) = &sig.unsafety {
+        cx.error_spanned_by(token, "`dimension` cannot be `unsafe`");
+    }
+    match sig.receiver() {
+        None => cx.error_at(sig.paren_token.span.join(), format!("`dimension` must take `&self`: write {EXPECTED}")),
+        Some(receiver) if !is_shared_self(receiver, self_ty) => {
+            cx.error_spanned_by(receiver, format!("`dimension` must take `&self`: write {EXPECTED}"));
+        }
+        Some(_) => {}
+    }
+    for arg in sig.inputs.iter().filter(|arg| matches!(arg, syn::FnArg::Typed(_))) {
+        cx.error_spanned_by(arg, format!("`dimension` takes no parameters besides `&self`: write {EXPECTED}"));
+    }
+    match &sig.output {
+        syn::ReturnType::Type(_, ty) if crate::parse::is_usize(ty) => {}
+        syn::ReturnType::Type(_, ty) => cx.error_spanned_by(ty, "`dimension` must return `usize`"),
+        syn::ReturnType::Default => {
+            cx.error_at(sig.paren_token.span.close(), "`dimension` must return `usize`: add `-> usize`");
+        }
+    }
 }
 
 /// Refuses `#[cfg]` on the recognised methods.
@@ -123,14 +200,17 @@ fn carries_cfg(attr: &syn::Attribute) -> bool {
     })
 }
 
-/// A best guess at `N` from the Lagrangian's signature, however broken, so
-/// that the fallback can still emit a stub trait impl after errors and spare
-/// the user follow-on "trait not implemented" errors.
-pub(crate) fn arity(input: &Input<'_>) -> Option<Len> {
+/// A best guess at `N` (or at a run-time size) from the Lagrangian's
+/// signature, however broken, so that the fallback can still emit a stub
+/// trait impl after errors and spare the user follow-on "trait not
+/// implemented" errors.
+pub(crate) fn arity(input: &Input<'_>) -> Option<Dim> {
     let params = &input.lagrangian.as_ref()?.params;
     // `q` is second to last and `v` last whether or not `t` is there.
+    // `q` decides, as in `check_signature`.
     params.iter().rev().take(2).rev().find_map(|param| match &param.shape {
-        Shape::Array { len, .. } => Some(len.clone()),
+        Shape::Array { len, .. } => Some(Dim::Fixed(len.clone())),
+        Shape::Slice { .. } => Some(Dim::Dynamic),
         _ => None,
     })
 }
@@ -145,8 +225,9 @@ pub(crate) struct Signature {
     pub(crate) q: Binder,
     /// The velocity parameter.
     pub(crate) v: Binder,
-    /// This method's `N`, from `q` (or `v` if `q` is unreadable).
-    pub(crate) n: Option<Len>,
+    /// This method's `N` (or a run-time size), from `q` (or `v` if `q` is
+    /// unreadable).
+    pub(crate) n: Option<Dim>,
     /// Whether the return type is the right one.
     pub(crate) returns: bool,
 }
@@ -226,15 +307,22 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
 
     let q_name = display(&signature.q, "q");
     let v_name = display(&signature.v, "v");
-    let q_len = array_len(cx, q, &q_name, name);
-    let v_len = array_len(cx, v, &v_name, name);
-    signature.n = q_len.or(v_len).cloned();
+    // Only the Lagrangian chooses between arrays and slices; the optional
+    // methods follow it (and exist for arrays only).
+    let slices = method.kind == MethodKind::Lagrangian;
+    let (q_form, v_form) = (form(q, slices), form(v, slices));
+    report_form(cx, q, &q_name, name, q_form, v_form, slices);
+    report_form(cx, v, &v_name, name, v_form, q_form, slices);
+    signature.n = match (q_form, v_form) {
+        (Form::Array(len), _) | (Form::Bad, Form::Array(len)) => Some(Dim::Fixed(len.clone())),
+        (Form::Slice, _) | (Form::Bad, Form::Slice) => Some(Dim::Dynamic),
+        (Form::Bad, Form::Bad) => None,
+    };
+    let (q_len, v_len) = (q_form.len(), v_form.len());
     match expected {
         // The Lagrangian: `v` must match `q`.
-        None => {
-            if let (Some(q_len), Some(v_len)) = (q_len, v_len)
-                && !v_len.same_as(q_len)
-            {
+        None => match (q_form, v_form) {
+            (Form::Array(q_len), Form::Array(v_len)) if !v_len.same_as(q_len) => {
                 cx.error_spanned_by(
                     v_len,
                     format!(
@@ -243,7 +331,21 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
                     ),
                 );
             }
-        }
+            (Form::Array(len), Form::Slice) | (Form::Slice, Form::Array(len)) => {
+                let (q_ty, v_ty) = match q_form {
+                    Form::Array(_) => (format!("[f64; {len}]"), "&[f64]".to_owned()),
+                    _ => ("&[f64]".to_owned(), format!("[f64; {len}]")),
+                };
+                cx.error_spanned_by(
+                    v.ty,
+                    format!(
+                        "`{q_name}` and `{v_name}` must both be arrays `[f64; N]` or both slices `&[f64]`: \
+                         `{q_name}` is `{q_ty}` but `{v_name}` is `{v_ty}`"
+                    ),
+                );
+            }
+            _ => {}
+        },
         // The optional methods: both must match the Lagrangian.
         Some(expected) => {
             for len in [q_len, v_len].into_iter().flatten() {
@@ -259,13 +361,71 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
             }
         }
     }
-    signature.returns = check_return(cx, method, expected.or(signature.n.as_ref()));
+    signature.returns = check_return(cx, method, expected.or(signature.n.as_ref().and_then(Dim::len)));
     signature
+}
+
+/// What a `q` or `v` parameter declares, as far as it is usable.
+#[derive(Clone, Copy)]
+enum Form<'p> {
+    /// `[f64; N]`.
+    Array(&'p Len),
+    /// `&[f64]`, where slices are accepted.
+    Slice,
+    /// Anything else (reported by [`report_form`]).
+    Bad,
+}
+
+impl<'p> Form<'p> {
+    fn len(self) -> Option<&'p Len> {
+        match self {
+            Form::Array(len) => Some(len),
+            _ => None,
+        }
+    }
+}
+
+/// The form of `param`; slices count only where `slices` allows them.
+fn form<'p>(param: &'p Param<'_>, slices: bool) -> Form<'p> {
+    match &param.shape {
+        Shape::Array { of_f64: true, len } => Form::Array(len),
+        Shape::Slice { of_f64: true, mutable: false } if slices => Form::Slice,
+        _ => Form::Bad,
+    }
+}
+
+/// Reports a `q` or `v` parameter of the wrong type, saying what is allowed:
+/// the form of the other parameter if it is usable, both forms otherwise.
+fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<'_>, other: Form<'_>, slices: bool) {
+    if !matches!(this, Form::Bad) {
+        return;
+    }
+    let message = match (&param.shape, other) {
+        // Beside an array, or where slices are not accepted: an array.
+        (_, Form::Array(_)) | (Shape::Array { .. }, _) => format!("`{role}` in `{name}` must be `[f64; N]`"),
+        (_, _) if !slices => format!("`{role}` in `{name}` must be `[f64; N]`"),
+        (Shape::Slice { mutable: true, .. }, _) => {
+            format!("`{role}` in `{name}` must be `&[f64]`, not `&mut`: `{name}` only reads the state")
+        }
+        (Shape::Slice { .. }, _) => {
+            format!("`{role}` in `{name}` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only")
+        }
+        (_, _) if crate::parse::is_vec(param.ty) => format!(
+            "`{role}` in `{name}` must be `&[f64]` (size known at run time) or `[f64; N]`: \
+             take a `Vec<f64>` as a slice, `{role}: &[f64]`"
+        ),
+        (_, Form::Slice) => format!("`{role}` in `{name}` must be `&[f64]`"),
+        (_, Form::Bad) => format!("`{role}` in `{name}` must be `[f64; N]` or `&[f64]`"),
+    };
+    cx.error_spanned_by(param.ty, message);
 }
 
 /// The accepted parameter lists, for messages.
 fn expected_params(kind: MethodKind) -> &'static str {
-    if kind.takes_time() {
+    if kind == MethodKind::Lagrangian {
+        "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+         or the same with slices `q: &[f64], v: &[f64]`"
+    } else if kind.takes_time() {
         "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`"
     } else {
         "`(&self, q: [f64; N], v: [f64; N])`"
@@ -275,17 +435,6 @@ fn expected_params(kind: MethodKind) -> &'static str {
 /// How to call a parameter in messages: its name, or its role for `_`.
 fn display(binder: &Binder, role: &str) -> String {
     binder.as_ref().map_or_else(|| role.to_owned(), Ident::to_string)
-}
-
-/// The length of `param` if it is `[f64; N]`; reports it otherwise.
-fn array_len<'p>(cx: &Ctxt, param: &'p Param<'_>, role: &str, name: &str) -> Option<&'p Len> {
-    match &param.shape {
-        Shape::Array { of_f64: true, len } => Some(len),
-        _ => {
-            cx.error_spanned_by(param.ty, format!("`{role}` in `{name}` must be `[f64; N]`"));
-            None
-        }
-    }
 }
 
 /// Checks the return type: `f64`, or `[f64; N]` for `force`. `n` is the `N`
@@ -379,7 +528,7 @@ mod tests {
         let cx = Ctxt::new();
         let system = validate(&cx, &Input::from_syn(&item)).unwrap();
         cx.check().unwrap();
-        assert_eq!(system.n.value(), Some(2));
+        assert_eq!(system.n.len().and_then(Len::value), Some(2));
         assert!(system.lagrangian.time.is_some());
         assert!(system.force.unwrap().time.is_none());
         assert!(system.dissipation.unwrap().q.is_none());
@@ -395,8 +544,9 @@ mod tests {
         let cx = Ctxt::new();
         let system = validate(&cx, &Input::from_syn(&item)).unwrap();
         cx.check().unwrap();
-        assert_eq!(system.n.value(), None);
-        assert_eq!(system.n.to_string(), "N");
+        let n = system.n.len().unwrap();
+        assert_eq!(n.value(), None);
+        assert_eq!(n.to_string(), "N");
     }
 
     #[test]
@@ -457,6 +607,119 @@ mod tests {
             impl P { fn lagrangian(self, q: [f32; 4], v: f64) {} }
         };
         let input = Input::from_syn(&item);
-        assert_eq!(arity(&input).and_then(|n| n.value()), Some(4));
+        assert_eq!(arity(&input).as_ref().and_then(Dim::len).and_then(Len::value), Some(4));
+    }
+
+    #[test]
+    fn slices_make_a_run_time_sized_system() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 { q[q.len() - 1] * v[0] + t }
+            }
+        };
+        let cx = Ctxt::new();
+        let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+        cx.check().unwrap();
+        assert!(system.n.is_dynamic() && system.n.len().is_none());
+        assert!(system.lagrangian.time.is_some());
+        assert!(matches!(arity(&Input::from_syn(&item)), Some(Dim::Dynamic)));
+    }
+
+    #[test]
+    fn reports_what_a_run_time_sized_system_cannot_have() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+                fn dissipation(&self, q: &[f64], v: &[f64]) -> f64 { v[0] }
+                fn force(&self, q: &[f64], v: &[f64]) -> Vec<f64> { vec![] }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            [
+                "`dissipation` is not supported for run-time-sized systems (`q: &[f64]`): \
+                 `DynLagrangian` has no forces; use `q: [f64; N]`",
+                "`force` is not supported for run-time-sized systems (`q: &[f64]`): \
+                 `DynLagrangian` has no forces; use `q: [f64; N]`",
+                "a `lagrangian` taking slices (`q: &[f64]`) needs `fn dimension(&self) -> usize` in the same \
+                 impl block: the number of coordinates is known only at run time",
+            ]
+        );
+    }
+
+    #[test]
+    fn reports_wrong_slice_parameters_saying_what_is_allowed() {
+        let lagrangian = |params: proc_macro2::TokenStream| -> Vec<String> {
+            let item: ItemImpl = parse_quote! {
+                impl C {
+                    fn dimension(&self) -> usize { 2 }
+                    fn lagrangian(&self, #params) -> f64 { 0.0 }
+                }
+            };
+            errors(&item)
+        };
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64], v: [f64; 2])),
+            [
+                "`q` and `v` must both be arrays `[f64; N]` or both slices `&[f64]`: `q` is `&[f64]` but `v` is `[f64; 2]`"
+            ]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: [f64; N], v: &[f64])),
+            [
+                "`q` and `v` must both be arrays `[f64; N]` or both slices `&[f64]`: `q` is `[f64; N]` but `v` is `&[f64]`"
+            ]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: &mut [f64], v: &[f64])),
+            ["`q` in `lagrangian` must be `&[f64]`, not `&mut`: `lagrangian` only reads the state"]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64], v: &[f32])),
+            ["`v` in `lagrangian` must be `&[f64]` or `[f64; N]`: the body is rewritten from `f64` only"]
+        );
+        assert_eq!(
+            lagrangian(quote::quote!(q: Vec<f64>, v: &[f64])),
+            ["`q` in `lagrangian` must be `&[f64]` (size known at run time) or `[f64; N]`: \
+              take a `Vec<f64>` as a slice, `q: &[f64]`"]
+        );
+        assert_eq!(lagrangian(quote::quote!(q: &[f64], v: f64)), ["`v` in `lagrangian` must be `&[f64]`"]);
+        assert_eq!(lagrangian(quote::quote!(q: f64, v: f64)).len(), 2);
+        // Beside an array, an array is asked for.
+        assert_eq!(lagrangian(quote::quote!(q: Vec<f64>, v: [f64; 2])), ["`q` in `lagrangian` must be `[f64; N]`"]);
+        assert_eq!(lagrangian(quote::quote!(q: [f64; 2], v: &mut [f64])), ["`v` in `lagrangian` must be `[f64; N]`"]);
+        assert_eq!(
+            lagrangian(quote::quote!(q: &[f64])),
+            ["`lagrangian` takes `(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
+              or the same with slices `q: &[f64], v: &[f64]`, found 1 parameter besides `&self`"]
+        );
+    }
+
+    #[test]
+    fn checks_the_dimension_signature() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension<T>(self, k: T) {}
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { 0.0 }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            [
+                "`dimension` cannot have generic parameters: write `fn dimension(&self) -> usize`",
+                "`dimension` must take `&self`: write `fn dimension(&self) -> usize`",
+                "`dimension` takes no parameters besides `&self`: write `fn dimension(&self) -> usize`",
+                "`dimension` must return `usize`: add `-> usize`",
+            ]
+        );
+        // A `dimension` beside an array Lagrangian is the user's own method.
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> u8 { 2 }
+                fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 { 0.0 }
+            }
+        };
+        assert_eq!(errors(&item), Vec::<String>::new());
     }
 }

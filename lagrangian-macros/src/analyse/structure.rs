@@ -773,6 +773,13 @@ impl Interp {
                 self.for_loop(var.as_ref().map(|(local, _)| local.0), body, env);
                 Abs::Unit
             }
+            // Fixed during a call, the same for `q` and `v`: a base for
+            // indices (`q[q.len() - 1]`). The key is no path's tokens.
+            ExprKind::MethodCall { receiver, math: Math::Len, .. } => match receiver.kind {
+                ExprKind::Param(..) => Abs::Int(Index::Rel(Base::Const(self.intern("<len>".to_owned())), 0)),
+                // A local may hold `q` or an array of another length.
+                _ => Abs::Int(Index::Any),
+            },
             ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let receiver = self.expr(receiver, env);
                 let args: Vec<Abs> = args.iter().map(|arg| self.expr(arg, env)).collect();
@@ -1431,5 +1438,85 @@ mod tests {
         let terms = (0..300).map(|i| quote::quote!(+ q[#i] * q[#i]));
         let body: syn::Block = syn::parse2(quote::quote!({ 0.0 #(#terms)* })).unwrap();
         assert_eq!(lagrangian(body).coupling.q_q, W0);
+    }
+
+    /// The structure of a run-time-sized `L = body` (slices, `fn dimension`).
+    fn slices(body: syn::Block) -> Structure {
+        analysed(&parse_quote! {
+            impl P {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 #body
+            }
+        })
+    }
+
+    #[test]
+    fn slice_bodies_give_bands_from_their_lengths() {
+        // The FPU-β chain bounded by `q.len()`, the last link through
+        // `q[q.len() - 1]`.
+        let s = slices(parse_quote!({
+            let n = q.len();
+            let mut l = 0.0;
+            for i in 0..v.len() {
+                l += 0.5 * v[i] * v[i];
+            }
+            for i in 0..n - 1 {
+                let d = q[i + 1] - q[i];
+                l -= 0.5 * d * d + 0.25 * self.beta * d.powi(4);
+            }
+            l - q[0].powi(2) - q[q.len() - 1].powi(4)
+        }));
+        assert_eq!(s.separability, Separability::ConstantMass);
+        assert_eq!(s.coupling, coupling(W1, W0, W0));
+        // `q.len()` and `v.len()` are one constant; offsets from it are a band.
+        assert_eq!(slices(parse_quote!({ q[q.len() - 1] * q[v.len() - 3] })).coupling.q_q, Band::Width(2));
+        // Loops bounded by a field.
+        let s = slices(parse_quote!({
+            let mut l = 0.0;
+            for i in 1..self.n {
+                l += v[i - 1] * v[i] * (q[i - 1] - q[i]).cos();
+            }
+            l
+        }));
+        assert_eq!((s.separability, s.coupling), (Separability::QuadraticKinetic, coupling(W1, W1, W1)));
+    }
+
+    #[test]
+    fn slice_bodies_that_are_not_bands_are_general() {
+        let q_q = |body: syn::Block| slices(body).coupling.q_q;
+        // The ends of the chain: the length against a literal.
+        assert_eq!(q_q(parse_quote!({ q[q.len() - 1] * q[0] })), G);
+        // The length against another constant.
+        assert_eq!(q_q(parse_quote!({ q[q.len() - 1] * q[self.n - 1] })), G);
+        // A ring: `(i + 1) % n` is not an offset.
+        assert_eq!(
+            q_q(parse_quote!({
+                let mut l = 0.0;
+                for i in 0..q.len() {
+                    l += (q[(i + 1) % q.len()] - q[i]).powi(4);
+                }
+                l
+            })),
+            G
+        );
+        // Indices from data.
+        assert_eq!(
+            q_q(parse_quote!({
+                let mut l = 0.0;
+                for i in 1..q.len() {
+                    l += q[self.order[i]] * q[i];
+                }
+                l
+            })),
+            G
+        );
+        // The length of a local is not known to be the dimension.
+        assert_eq!(
+            q_q(parse_quote!({
+                let a = [1.0, 2.0];
+                q[a.len() - 1] * q[q.len() - 1]
+            })),
+            G
+        );
     }
 }

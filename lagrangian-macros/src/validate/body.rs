@@ -8,7 +8,7 @@
 use super::Signature;
 use crate::ctxt::Ctxt;
 use crate::ir::{Block, Expr, ExprKind, Function, LetBinding, Local, LocalId, Math, ParamRef, Stmt};
-use crate::parse::{Len, Method, MethodKind, is_f64};
+use crate::parse::{Dim, Len, Method, MethodKind, is_f64};
 use quote::{ToTokens, quote};
 use syn::spanned::Spanned;
 use syn::{BinOp, Ident, Item, Lit, Pat, PatIdent, Type, UnOp};
@@ -78,7 +78,7 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
     let mut lower = Lower {
         cx,
         kind: method.kind,
-        n: signature.n.as_ref().and_then(Len::value),
+        n: signature.n.as_ref().and_then(Dim::len).and_then(Len::value),
         params,
         scopes: Vec::new(),
         locals: Vec::new(),
@@ -521,7 +521,29 @@ impl Lower<'_> {
         }
         let receiver = self.expr(&call.receiver);
         let args = all(call.args.iter().map(|arg| self.expr(arg)).collect());
-        let math = self.math(method, call.args.len());
+        // `q.len()`, `v.len()`: the bound of a loop over a run-time-sized
+        // chain (and valid on arrays too), also through a local (`let x =
+        // q;`, a local array).
+        let is_len = method == "len"
+            && call.args.is_empty()
+            && matches!(
+                &receiver,
+                Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, _) | ExprKind::Local(..), .. })
+            );
+        let math = match &receiver {
+            _ if is_len => Some(Math::Len),
+            Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, param), .. }) => {
+                self.error(
+                    method,
+                    format!(
+                        "the method `{method}` is not supported on `{param}` in `{name}`: \
+                         index it (`{param}[i]`) or take its length (`{param}.len()`)"
+                    ),
+                );
+                None
+            }
+            _ => self.math(method, call.args.len()),
+        };
         if let Some(turbofish) = &call.turbofish {
             return self.unsupported(turbofish, "type arguments on methods are");
         }

@@ -1,0 +1,18 @@
+use lagrangian::prelude::*;
+
+pub struct Chain {
+    pub n: usize,
+}
+
+#[lagrangian]
+impl Chain {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &mut [f64], v: &[f64]) -> f64 {
+        0.5 * v[0] * v[0] - q[0].cos()
+    }
+}
+
+fn main() {}

@@ -1,0 +1,23 @@
+use lagrangian::prelude::*;
+
+pub struct Chain {
+    pub n: usize,
+    pub c: f64,
+}
+
+#[lagrangian]
+impl Chain {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        0.5 * v[0] * v[0] - q[0].cos()
+    }
+
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        0.5 * self.c * v[0] * v[0]
+    }
+}
+
+fn main() {}
