@@ -37,3 +37,17 @@ fn compositions_have_their_orders() {
         assert!((order - c.order() as f64).abs() < 0.3, "{method:?}: order {order:.3}, errors {err:?}");
     }
 }
+
+#[test]
+fn weights_are_symmetric_and_consistent() {
+    for c in [Composition::Verlet, Composition::Yoshida6, Composition::KahanLi8] {
+        let w = c.weights();
+        assert_eq!(w.len(), [1, 7, 15][c as usize]);
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-14, "{c:?}");
+        // Order ≥ 3 of a symmetric composition needs Σγ³ = 0.
+        if c != Composition::Verlet {
+            assert!(w.iter().map(|g| g * g * g).sum::<f64>().abs() < 1e-13, "{c:?}");
+        }
+        assert!(w.iter().zip(w.iter().rev()).all(|(a, b)| a == b));
+    }
+}

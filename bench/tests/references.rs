@@ -5,6 +5,9 @@
 //! composition or DOP853 in `f64` at tight tolerances, which integrate the
 //! hand-written equations of motion rather than the Lagrangian.
 
+use core::f64::consts::PI;
+use lagrangian::prelude::DoubleDouble;
+use lagrangian_bench::exact::*;
 use lagrangian_bench::methods::{Method, Setting};
 use lagrangian_bench::problem::{self, Problem};
 
@@ -100,4 +103,41 @@ fn a_run_that_blows_up_records_only_finite_energies() {
     let run = fpu.run(Method::Verlet, Setting::Steps(20), fpu.horizon(), 20);
     assert_eq!(run.failure.as_deref(), Some("non-finite state"));
     assert!(!run.energy.is_empty() && run.energy.iter().all(|s| s.1.is_finite()), "{:?}", run.energy);
+}
+
+#[test]
+fn pendulum_formulas_are_consistent() {
+    assert!((jacobi_cd(0.0, 0.3) - 1.0f64).abs() < 1e-15);
+    let (w, th) = (3.0, 1.0);
+    let period = pendulum_period(w, th);
+    assert!((pendulum_angle(w, th, period) - th).abs() < 1e-13);
+    assert!(pendulum_angle(w, th, 0.25 * period).abs() < 1e-13);
+    assert!((pendulum_period(w, 1e-6) - 2.0 * PI / w).abs() < 1e-12);
+}
+
+#[test]
+fn kepler_formulas_are_consistent() {
+    for e in [0.0, 0.5, 0.9, 0.99] {
+        // Back at pericentre after 2π; the energy −1/2 and angular momentum √(1−e²) hold on the orbit.
+        let q = kepler_position(e, 2.0 * PI);
+        assert!((q[0] - (1.0 - e)).abs() < 1e-13 && q[1].abs() < 1e-12, "{e}: {q:?}");
+        let (dt, t) = (1e-5, 1.234);
+        let (a, b) = (kepler_position(e, t - dt), kepler_position(e, t + dt));
+        let q = kepler_position(e, t);
+        let v = [(b[0] - a[0]) / (2.0 * dt), (b[1] - a[1]) / (2.0 * dt)];
+        let r = q[0].hypot(q[1]);
+        let energy = 0.5 * (v[0] * v[0] + v[1] * v[1]) - 1.0 / r;
+        assert!((energy + 0.5).abs() < 1e-7, "{e}: {energy}");
+        assert!((q[0] * v[1] - q[1] * v[0] - (1.0 - e * e).sqrt()).abs() < 1e-7);
+    }
+}
+
+#[test]
+fn double_double_agrees_with_f64() {
+    let dd = |x: f64| DoubleDouble::from(x);
+    let q = kepler_position(dd(0.9), dd(7.5));
+    let f = kepler_position(0.9, 7.5);
+    assert!((q[0].to_f64() - f[0]).abs() < 1e-14 && (q[1].to_f64() - f[1]).abs() < 1e-14);
+    let th = pendulum_angle(dd(3.0), dd(1.0), dd(40.0)).to_f64();
+    assert!((th - pendulum_angle(3.0, 1.0, 40.0)).abs() < 1e-13);
 }
