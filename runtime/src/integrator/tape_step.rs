@@ -151,6 +151,19 @@ pub(crate) struct Guess<'a> {
     pub(crate) last: Option<&'a [f64]>,
 }
 
+impl Guess<'_> {
+    /// Refuses an increment `dq` from `q` that is implausibly large against
+    /// the predicted and the last one (see [`implausible_growth`]).
+    fn check(&self, dq: &[f64], q: &[f64], iterations: usize) -> Result<(), NewtonFailure> {
+        match self.last {
+            Some(last) if implausible_growth(dq, self.predictor, last, q) => {
+                Err(NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// A step that converged and whose published values are finite; nothing of
 /// the caller's state has changed yet.
 pub(crate) struct Taken {
@@ -262,8 +275,8 @@ impl SparseWork {
 
     /// One implicit step of size `h` from `node`, ending at time `t1`:
     /// Newton on the DEL with banded or dense solves, then the momentum
-    /// change and discrete energy from one more reverse sweep. Sets
-    /// [`energy`](Self::energy) only on success.
+    /// change and the step's discrete energy (returned with the step) from
+    /// one more reverse sweep.
     pub(crate) fn newton_step<Mo: TapeModel>(
         &mut self,
         model: &Mo,
@@ -338,11 +351,7 @@ impl SparseWork {
             Ok(Linearization { correction, residual_norm, residual_ratio: f64::INFINITY }.cancelling(scale))
         };
         let (dq, report) = newton::solve(guess.predictor.to_vec(), options, linearize)?;
-        if let Some(last) = guess.last
-            && implausible_growth(&dq, guess.predictor, last, q0)
-        {
-            return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: IMPLAUSIBLE_GROWTH });
-        }
+        guess.check(&dq, q0, report.iterations)?;
         Ok((dq, report))
     }
 
@@ -410,11 +419,7 @@ impl SparseWork {
             mass.solve(&mut v).map_err(|e| breakdown(e).at(0))?;
         }
         let dq: Vec<f64> = v.iter().map(|x| x * h).collect();
-        if let Some(last) = guess.last
-            && implausible_growth(&dq, guess.predictor, last, node.q)
-        {
-            return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
-        }
+        guess.check(&dq, node.q, 0)?;
         let (mut q1, mut carry) = (vec![0.0; n], vec![0.0; n]);
         kahan_into(node.q, node.q_carry, &dq, &mut q1, &mut carry);
         let mut f1 = vec![0.0; n];
