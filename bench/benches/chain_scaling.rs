@@ -246,7 +246,11 @@ fn dyn_scaling(c: &mut Criterion) {
     }
     let n: Vec<f64> = sizes.iter().map(|s| s.0 as f64).collect();
     let (t, m): (Vec<f64>, Vec<f64>) = rows.into_iter().unzip();
-    println!("fitted cost exponent in N (100 … 100 000): trapezoid {:.2}, midpoint {:.2}", slope(&n, &t), slope(&n, &m));
+    println!(
+        "fitted cost exponent in N (100 … 100 000): trapezoid {:.2}, midpoint {:.2}",
+        slope(&n, &t),
+        slope(&n, &m)
+    );
     println!("peak resident memory of the bench process (VmHWM): {}", peak_memory().unwrap_or("unavailable".into()));
 }
 

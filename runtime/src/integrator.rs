@@ -25,9 +25,9 @@ use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, generalized_force};
 
 mod composition;
+mod dynamic;
 mod method;
 mod one_point;
-mod dynamic;
 mod sparse;
 mod tape_step;
 mod variable_step;

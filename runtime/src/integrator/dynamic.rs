@@ -558,8 +558,10 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         };
         let model = Sliced { system: &self.system, points: self.points };
         let DynState { t, q, p, .. } = &self.state;
-        tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| {
-            DynError::InverseLegendre { state: self.state.clone(), iterations, residual_norm }
+        tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| DynError::InverseLegendre {
+            state: self.state.clone(),
+            iterations,
+            residual_norm,
         })
     }
 

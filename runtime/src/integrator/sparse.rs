@@ -248,8 +248,7 @@ pub(crate) fn legendre<S: Lagrangian<N>, const N: usize>(
 ) -> Result<([f64; N], f64), Error<N>> {
     // The rule is not used by the readouts of `L`; any one will do.
     let model = Fixed { system, method: &crate::Midpoint };
-    let (p, energy) =
-        tape_step::legendre(&model, t, &q, &v).map_err(|reason| Error::InvalidInitialData { reason })?;
+    let (p, energy) = tape_step::legendre(&model, t, &q, &v).map_err(|reason| Error::InvalidInitialData { reason })?;
     Ok((array(&p), energy))
 }
 

@@ -288,9 +288,8 @@ impl SparseWork {
     ) -> Result<(Taken, f64), NewtonFailure> {
         let (dq, report) = self.solve(model, node, h, guess, options)?;
         // The momentum change at fixed increment and the step's energy.
-        let swept = self
-            .record_action(model, node.t, h, node.q, &dq)
-            .and_then(|_| self.tape.gradient(&mut self.gradient));
+        let swept =
+            self.record_action(model, node.t, h, node.q, &dq).and_then(|_| self.tape.gradient(&mut self.gradient));
         if swept.is_err() {
             return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
         }
