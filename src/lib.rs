@@ -160,6 +160,7 @@ pub mod prelude {
         Trapezoid,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
+    pub use lagrangian_runtime::{DynError, DynIntegrator, DynState};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

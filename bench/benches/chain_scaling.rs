@@ -12,14 +12,21 @@
 //!
 //! Prints the fitted cost exponent of each in N after the criterion groups.
 //!
+//! Then the same chain as a run-time-sized system (`DynLagrangian`, written
+//! by hand over slices) through `DynIntegrator`, N = 100 … 100 000, with the
+//! explicit trapezoid and the banded midpoint steps, their fitted exponents
+//! and the process's peak resident memory (`VmHWM`). Fewer steps per timed
+//! run at large N keep the bench's run time sensible.
+//!
 //! `cargo bench -p lagrangian-bench --bench chain_scaling`
 #![allow(missing_docs)]
 
 use std::hint::black_box;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
+use lagrangian::{Coupling, Pattern, Separability};
 
 struct Fpu<const N: usize>;
 
@@ -159,5 +166,93 @@ fn scaling(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, scaling);
+/// The same chain, sized at run time.
+struct DynFpu(usize);
+
+impl DynLagrangian for DynFpu {
+    const AUTONOMOUS: bool = true;
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const COUPLING: Coupling =
+        Coupling { q_q: Pattern::Banded { bandwidth: 1 }, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
+
+    fn dimension(&self) -> usize {
+        self.0
+    }
+
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        let n = q.len();
+        let spring = |d: D| d * d * 0.5 + d.powi(4) * (0.25 * BETA);
+        let mut kinetic = D::zero();
+        for x in v {
+            kinetic += *x * *x * 0.5;
+        }
+        let mut potential = spring(q[0]) + spring(q[n - 1]);
+        for i in 0..n - 1 {
+            potential += spring(q[i + 1] - q[i]);
+        }
+        kinetic - potential
+    }
+}
+
+/// `(trapezoid, midpoint)` seconds per step of the run-time-sized chain of
+/// `n` masses, `steps` steps per timed run.
+fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64, f64) {
+    let k = n.div_ceil(10);
+    let a = 0.3 * (n + 1) as f64 / (k as f64 * std::f64::consts::PI);
+    let q0: Vec<f64> =
+        (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (n + 1) as f64).sin()).collect();
+    let v0 = vec![0.0; n];
+    let mut explicit = DynIntegrator::new(DynFpu(n), Trapezoid, H).start(0.0, &q0, &v0).unwrap();
+    let mut implicit = DynIntegrator::new(DynFpu(n), Midpoint, H).start(0.0, &q0, &v0).unwrap();
+    let mut trapezoid = move || {
+        explicit.run(steps, |_| {}).unwrap();
+        black_box(explicit.state().q[0]);
+    };
+    let mut midpoint = move || {
+        implicit.run(steps, |_| {}).unwrap();
+        black_box(implicit.state().q[0]);
+    };
+    let mut g = c.benchmark_group(format!("run-time-sized FPU-β chain, N = {n}, {steps} steps"));
+    g.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+    g.bench_function("trapezoid (explicit)", |b| b.iter(&mut trapezoid));
+    g.bench_function("midpoint (banded Newton)", |b| b.iter(&mut midpoint));
+    g.finish();
+    let per_step = |repeats: usize, run: &mut dyn FnMut()| {
+        (0..repeats)
+            .map(|_| {
+                let t = Instant::now();
+                run();
+                t.elapsed().as_secs_f64() / steps as f64
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    (per_step(repeats, &mut trapezoid), per_step(repeats, &mut midpoint))
+}
+
+/// `VmHWM` of this process from `/proc/self/status`, if readable.
+fn peak_memory() -> Option<String> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    status.lines().find(|l| l.starts_with("VmHWM:")).map(|l| l["VmHWM:".len()..].trim().to_string())
+}
+
+fn dyn_scaling(c: &mut Criterion) {
+    // (N, steps per timed run, repeats)
+    let sizes = [(100, 20, 20), (1_000, 20, 10), (10_000, 10, 5), (100_000, 2, 3)];
+    let rows: Vec<(f64, f64)> = sizes.iter().map(|&(n, steps, repeats)| dyn_costs(c, n, steps, repeats)).collect();
+    println!("\nrun-time-sized FPU-β chain (DynIntegrator), µs per step (best of repeated runs):");
+    println!("{:>7} {:>12} {:>12}", "N", "trapezoid", "midpoint");
+    for (&(n, _, _), (t, m)) in sizes.iter().zip(&rows) {
+        println!("{n:>7} {:>12.2} {:>12.2}", t * 1e6, m * 1e6);
+    }
+    let n: Vec<f64> = sizes.iter().map(|s| s.0 as f64).collect();
+    let (t, m): (Vec<f64>, Vec<f64>) = rows.into_iter().unzip();
+    println!(
+        "fitted cost exponent in N (100 … 100 000): trapezoid {:.2}, midpoint {:.2}",
+        slope(&n, &t),
+        slope(&n, &m)
+    );
+    println!("peak resident memory of the bench process (VmHWM): {}", peak_memory().unwrap_or("unavailable".into()));
+}
+
+criterion_group!(benches, scaling, dyn_scaling);
 criterion_main!(benches);

@@ -25,12 +25,15 @@ use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, generalized_force};
 
 mod composition;
+mod dynamic;
 mod method;
 mod one_point;
 mod sparse;
+mod tape_step;
 mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
+pub use dynamic::{DynError, DynIntegrator, DynIntegratorBuilder, DynState};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
@@ -205,12 +208,18 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
 pub(crate) fn kahan<T: crate::real::Real, const N: usize>(a: &[T; N], c: &[T; N], b: &[T; N]) -> ([T; N], [T; N]) {
     let mut sum = [T::zero(); N];
     let mut carry = [T::zero(); N];
-    for i in 0..N {
+    kahan_into(a, c, b, &mut sum, &mut carry);
+    (sum, carry)
+}
+
+/// [`kahan`] on slices of one length, into `sum` and `carry`.
+#[inline(always)]
+pub(crate) fn kahan_into<T: crate::real::Real>(a: &[T], c: &[T], b: &[T], sum: &mut [T], carry: &mut [T]) {
+    for i in 0..a.len() {
         let u = c[i] + b[i];
         sum[i] = a[i] + u;
         carry[i] = u - (sum[i] - a[i]);
     }
-    (sum, carry)
 }
 
 /// `true` when the increment `dq` of a converged step is more than `10⁶`
@@ -221,14 +230,43 @@ pub(crate) fn kahan<T: crate::real::Real, const N: usize>(a: &[T; N], c: &[T; N]
 /// explicit discrete Lagrangians, unstable) step size, or a spurious root of
 /// the DEL far away. Motion that starts from an increment of exactly zero (a
 /// first-order α-β step from rest) has no scale to compare with and passes.
-pub(crate) fn implausible_growth<const N: usize>(
-    dq: &[f64; N],
-    predicted: &[f64; N],
-    last: &[f64; N],
-    q: &[f64; N],
-) -> bool {
+pub(crate) fn implausible_growth(dq: &[f64], predicted: &[f64], last: &[f64], q: &[f64]) -> bool {
     let scale = max_abs(predicted).max(max_abs(last));
     scale > 0.0 && max_abs(dq) > 1e6 * scale.max(1e-6 * max_abs(q))
+}
+
+/// The increment of a step of size `h` predicted by quadratic extrapolation
+/// of the positions: the secant velocities `dq/h` of the last two steps
+/// (`(h, dq)` each), placed at their midpoints, extrapolated linearly to the
+/// midpoint of the new step; `v0·h` before the first step. Written to `out`.
+#[inline(always)]
+pub(crate) fn predict_into(
+    h: f64,
+    last: Option<(f64, &[f64])>,
+    earlier: Option<(f64, &[f64])>,
+    v0: &[f64],
+    out: &mut [f64],
+) {
+    match (last, earlier) {
+        (Some((h_last, dq_last)), Some((h_earlier, dq_earlier))) => {
+            let s = (h_last + h) / (h_last + h_earlier);
+            for (i, x) in out.iter_mut().enumerate() {
+                let v = dq_last[i] / h_last;
+                let v_earlier = dq_earlier[i] / h_earlier;
+                *x = h * (v + (v - v_earlier) * s);
+            }
+        }
+        (Some((h_last, dq_last)), None) => {
+            for (x, d) in out.iter_mut().zip(dq_last) {
+                *x = d * (h / h_last);
+            }
+        }
+        _ => {
+            for (x, v) in out.iter_mut().zip(v0) {
+                *x = v * h;
+            }
+        }
+    }
 }
 
 /// Why a step rejected by [`implausible_growth`] is refused.
@@ -236,7 +274,7 @@ pub(crate) const IMPLAUSIBLE_GROWTH: &str = "the solution's increment is over 1e
                                             a root far from the trajectory (an unstable or unresolved step size)";
 
 /// Which of the values a step publishes is not finite, if any.
-pub(crate) fn non_finite<T: crate::real::Real, const N: usize>(t: T, q: &[T; N], p: &[T; N]) -> Option<&'static str> {
+pub(crate) fn non_finite<T: crate::real::Real>(t: T, q: &[T], p: &[T]) -> Option<&'static str> {
     if !all_finite(q) {
         Some("position")
     } else if !all_finite(p) {

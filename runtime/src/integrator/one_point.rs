@@ -41,7 +41,7 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) node_force: Option<(u64, [f64; N])>,
     /// Reverse-mode steps: the tape, its buffers and the factored matrices
     /// (see [`Derivatives`](crate::Derivatives)); `None` in forward mode.
-    pub(crate) sparse: Option<Box<super::sparse::SparseWork>>,
+    pub(crate) sparse: Option<Box<super::tape_step::SparseWork>>,
 }
 
 impl<M: DiscreteLagrangian> sealed::Sealed for M {}
@@ -203,11 +203,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
     #[inline]
     pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
-        if const { super::sparse::too_large_for_forward(N) } {
-            return if Self::EXPLICIT { self.sparse_verlet_step(h, t1) } else { self.sparse_step(h, t1) };
-        }
-        if self.reverse() {
-            return if Self::EXPLICIT { self.sparse_verlet_step(h, t1) } else { self.sparse_step(h, t1) };
+        if const { super::sparse::too_large_for_forward(N) } || self.reverse() {
+            return self.sparse_step(h, t1, Self::EXPLICIT);
         }
         if Self::EXPLICIT {
             return self.verlet_step(h, t1);
@@ -376,18 +373,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// error is `O(h³)`, so Newton usually converges in two iterations.
     #[inline]
     pub(super) fn predict(&self, h: f64) -> [f64; N] {
-        match (&self.memory.previous, &self.memory.earlier) {
-            (Some(last), Some((h_earlier, dq_earlier))) => {
-                let s = (last.h + h) / (last.h + h_earlier);
-                core::array::from_fn(|i| {
-                    let v = last.dq[i] / last.h;
-                    let v_earlier = dq_earlier[i] / h_earlier;
-                    h * (v + (v - v_earlier) * s)
-                })
-            }
-            (Some(last), None) => last.dq.map(|x| x * (h / last.h)),
-            _ => self.v0.map(|v| v * h),
-        }
+        let mut out = [0.0; N];
+        let last = self.memory.previous.as_ref().map(|last| (last.h, &last.dq[..]));
+        let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        super::predict_into(h, last, earlier, &self.v0, &mut out);
+        out
     }
 
     /// The last step as a segment `(t_k, h, q_k, dq)`: its increment `dq` is

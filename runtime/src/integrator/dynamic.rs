@@ -1,0 +1,574 @@
+//! The run-time-sized integrator: systems whose number of coordinates is
+//! known only at run time ([`DynLagrangian`]), stepped in reverse mode with
+//! the state, the tape and the matrices on the heap.
+//!
+//! It takes the same steps as the const-size integrator's reverse mode: both
+//! call the slice-based core in `tape_step.rs` (the recording of the action,
+//! Newton with banded or dense solves, the explicit Störmer–Verlet path, the
+//! Legendre map and the energy). What differs is only where the state lives
+//! (`Vec<f64>` here, `[f64; N]` there) and how the step action is formed:
+//! here from the rule's quadrature points
+//! ([`DiscreteLagrangian::galerkin_points`]), over slices.
+
+use super::tape_step::{self, Guess, Node, SparseWork, Taken, TapeModel};
+use super::{Clock, Stats};
+use crate::discrete::DiscreteLagrangian;
+use crate::newton::{NewtonFailure, NewtonOptions};
+use crate::real::all_finite;
+use crate::structure::Coupling;
+use crate::system::DynLagrangian;
+use crate::tape::Var;
+use num_dual::DualNum;
+
+/// The state of a [`DynIntegrator`] at node `k`: time, position and discrete
+/// momentum `p_k = ∂A(x_{k−1}, x_k)/∂q_k`, on the heap.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DynState {
+    /// Node index `k` (0 at the start).
+    pub step: u64,
+    /// `t_k`.
+    pub t: f64,
+    /// `q_k`.
+    pub q: Vec<f64>,
+    /// `p_k`.
+    pub p: Vec<f64>,
+}
+
+/// What went wrong in a [`DynIntegrator`]: every failure is a value, never a
+/// panic. The variants mirror [`Error`](crate::Error)'s; those of a failed
+/// step carry the state the step started from, which is also the state the
+/// integrator still holds (a failed step changes nothing), so a retry with a
+/// smaller step ([`DynIntegrator::set_step_size`]) starts from it.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum DynError {
+    /// Newton's method reached its iteration cap, or its corrections grew twice in a row.
+    #[error(
+        "newton did not converge in the step from t = {} (step {}, h = {h:e}): {iterations} iterations, residual norm {residual_norm:e}, last correction {correction_norm:e}",
+        .state.t, .state.step
+    )]
+    NewtonDidNotConverge {
+        /// The state the step started from (and the integrator still holds).
+        state: DynState,
+        /// The step size that was tried.
+        h: f64,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// `‖R‖∞` at the last iterate.
+        residual_norm: f64,
+        /// `‖Δ‖∞` of the last correction, relative.
+        correction_norm: f64,
+    },
+    /// The Newton matrix (or the constant mass matrix of the explicit path)
+    /// is singular or too ill-conditioned to solve with.
+    #[error(
+        "singular or ill-conditioned jacobian in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}: reciprocal condition number {rcond:e}",
+        .state.t, .state.step
+    )]
+    SingularJacobian {
+        /// The state the step started from (and the integrator still holds).
+        state: DynState,
+        /// The step size that was tried.
+        h: f64,
+        /// The Newton iteration at which it happened.
+        iterations: usize,
+        /// Estimated reciprocal condition number in the 1-norm (0 if exactly singular).
+        rcond: f64,
+    },
+    /// A NaN or an infinity appeared.
+    #[error(
+        "non-finite {quantity} in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}",
+        .state.t, .state.step
+    )]
+    NonFinite {
+        /// The state the step started from (and the integrator still holds).
+        state: DynState,
+        /// The step size that was tried.
+        h: f64,
+        /// The Newton iteration at which it happened (0: after convergence).
+        iterations: usize,
+        /// Which value: `residual`, `jacobian`, `correction`, `position` or `momentum`.
+        quantity: &'static str,
+    },
+    /// The step was refused (a root far from the trajectory, a failed tape).
+    #[error(
+        "step rejected from t = {} (step {}, h = {h:e}) after {iterations} iterations: {reason}",
+        .state.t, .state.step
+    )]
+    StepRejected {
+        /// The state the step started from (and the integrator still holds).
+        state: DynState,
+        /// The step size that was tried.
+        h: f64,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// Why.
+        reason: &'static str,
+    },
+    /// A step size that is zero, negative or not finite.
+    #[error("invalid step size h = {h}: it must be finite and positive")]
+    InvalidStepSize {
+        /// The rejected step size.
+        h: f64,
+    },
+    /// `q0` or `v0` whose length is not the system's `dimension()`.
+    #[error("`{what}` has {found} entries, but the system has {expected} coordinates")]
+    WrongLength {
+        /// Which argument: `q0` or `v0`.
+        what: &'static str,
+        /// `dimension()` of the system.
+        expected: usize,
+        /// The length given.
+        found: usize,
+    },
+    /// Initial data that cannot start an integration.
+    #[error("invalid initial data: {reason}")]
+    InvalidInitialData {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// Newton settings that cannot work (see [`NewtonOptions::validate`]).
+    #[error("invalid newton options: {reason}")]
+    InvalidNewtonOptions {
+        /// What is wrong with them.
+        reason: &'static str,
+    },
+    /// A target time behind the current time, or not finite.
+    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
+    InvalidTarget {
+        /// The rejected target time.
+        target: f64,
+        /// The current state.
+        state: DynState,
+    },
+    /// A method or a size the run-time-sized integrator does not support.
+    #[error("not supported yet: {what}")]
+    Unsupported {
+        /// What is missing.
+        what: &'static str,
+    },
+    /// The velocity for a momentum could not be found (inverse Legendre transform).
+    #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
+    InverseLegendre {
+        /// The state whose velocity was sought.
+        state: DynState,
+        /// Newton iterations spent.
+        iterations: usize,
+        /// `‖∂L/∂v − p‖∞` at the last iterate.
+        residual_norm: f64,
+    },
+}
+
+impl DynError {
+    /// The error of a step from `state` with size `h` that failed.
+    fn from_newton(failure: NewtonFailure, state: DynState, h: f64) -> Self {
+        match failure {
+            NewtonFailure::NotConverged(r) => DynError::NewtonDidNotConverge {
+                state,
+                h,
+                iterations: r.iterations,
+                residual_norm: r.residual_norm,
+                correction_norm: r.correction_norm,
+            },
+            NewtonFailure::Singular { iterations, rcond } => DynError::SingularJacobian { state, h, iterations, rcond },
+            NewtonFailure::NonFinite { iterations, quantity } => DynError::NonFinite { state, h, iterations, quantity },
+            NewtonFailure::Rejected { iterations, reason } => DynError::StepRejected { state, h, iterations, reason },
+        }
+    }
+
+    /// `Ok` for a finite, positive step size.
+    fn check_step(h: f64) -> Result<(), Self> {
+        if h.is_finite() && h > 0.0 { Ok(()) } else { Err(DynError::InvalidStepSize { h }) }
+    }
+}
+
+/// A run-time-sized system and a one-point rule as the reverse-mode core
+/// sees them: the rule's action from its quadrature points,
+/// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)`, one evaluation when
+/// both points coincide (midpoint, α-β). Each term is formed with the same
+/// operations as the rule's own `action`, so the const-size and the
+/// run-time-sized integrators record the same tape.
+struct Sliced<'a, S> {
+    system: &'a S,
+    points: [f64; 2],
+}
+
+impl<S: DynLagrangian> Sliced<'_, S> {
+    /// `L(t0 + c h, q0 + c Δq, v)`.
+    fn at(&self, c: f64, t0: Var, h: Var, q0: &[Var], dq: &[Var], v: &[Var]) -> Var {
+        let (t, q): (Var, Vec<Var>) = if c == 0.0 {
+            (t0, q0.to_vec())
+        } else if c == 1.0 {
+            (t0 + h, q0.iter().zip(dq).map(|(&a, &d)| a + d).collect())
+        } else {
+            (t0 + h * c, q0.iter().zip(dq).map(|(&a, &d)| a + d * c).collect())
+        };
+        self.system.lagrangian(t, &q, v)
+    }
+}
+
+impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
+    fn coupling(&self) -> Coupling {
+        S::COUPLING
+    }
+
+    fn lagrangian(&self, t: Var, q: &[Var], v: &[Var]) -> Var {
+        self.system.lagrangian(t, q, v)
+    }
+
+    fn action(&self, t0: Var, h: Var, q0: &[Var], dq: &[Var]) -> Var {
+        let inv_h = h.recip();
+        let v: Vec<Var> = dq.iter().map(|&d| d * inv_h).collect();
+        let [c1, c2] = self.points;
+        if c1 == c2 {
+            self.at(c1, t0, h, q0, dq, &v) * h
+        } else {
+            (self.at(c1, t0, h, q0, dq, &v) + self.at(c2, t0, h, q0, dq, &v)) * (h * 0.5)
+        }
+    }
+}
+
+/// Configuration of a [`DynIntegrator`] before it is given its initial
+/// state; made by [`DynIntegrator::new`].
+#[derive(Clone, Debug)]
+pub struct DynIntegratorBuilder<S, M> {
+    system: S,
+    method: M,
+    h: f64,
+    newton: NewtonOptions,
+}
+
+impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
+    /// Replaces the Newton settings.
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = options;
+        self
+    }
+
+    /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
+    ///
+    /// Fails with [`DynError::Unsupported`] for a discrete Lagrangian
+    /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
+    /// or a system so large that the step's buffers cannot be allocated;
+    /// with [`DynError::InvalidStepSize`] for a step that is not finite and
+    /// positive, [`DynError::InvalidNewtonOptions`], [`DynError::WrongLength`]
+    /// when `q0` or `v0` does not have `dimension()` entries, and
+    /// [`DynError::InvalidInitialData`] for a system without coordinates,
+    /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
+    /// transform is not regular).
+    pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, DynError> {
+        let Some((points, _)) = self.method.galerkin_points() else {
+            return Err(DynError::Unsupported {
+                what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
+            });
+        };
+        self.newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
+        DynError::check_step(self.h)?;
+        let n = self.system.dimension();
+        if n == 0 {
+            return Err(DynError::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
+        }
+        for (what, x) in [("q0", q0), ("v0", v0)] {
+            if x.len() != n {
+                return Err(DynError::WrongLength { what, expected: n, found: x.len() });
+            }
+        }
+        if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
+            return Err(DynError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        let model = Sliced { system: &self.system, points };
+        let (p0, energy) =
+            tape_step::legendre(&model, t0, q0, v0).map_err(|reason| DynError::InvalidInitialData { reason })?;
+        let work = SparseWork::new(n, S::COUPLING).map_err(|_| DynError::Unsupported {
+            what: "a system this large with this coupling: the step matrix cannot be allocated",
+        })?;
+        Ok(DynIntegrator {
+            system: self.system,
+            method: self.method,
+            points,
+            h: self.h,
+            newton: self.newton,
+            state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
+            carry: vec![0.0; n],
+            p_carry: vec![0.0; n],
+            energy,
+            v0: v0.to_vec(),
+            previous: None,
+            earlier: None,
+            clock: Clock { t: t0, step: 0 },
+            stats: Stats::default(),
+            work: Box::new(work),
+        })
+    }
+}
+
+/// The last step: `(t_k, h, q_k, Δq)`.
+#[derive(Clone, Debug)]
+struct DynSegment {
+    t0: f64,
+    h: f64,
+    q0: Vec<f64>,
+    dq: Vec<f64>,
+}
+
+/// A variational integrator for a system whose size is known only at run
+/// time ([`DynLagrangian`]), with a one-point discrete Lagrangian `M`
+/// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
+/// [`AlphaBeta`](crate::AlphaBeta)) and fixed steps.
+///
+/// It mirrors [`Integrator`](crate::Integrator) in reverse mode
+/// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
+/// derivatives from a tape, Newton systems banded when
+/// [`DynLagrangian::COUPLING`] proves a band (dense otherwise), and for
+/// [`Trapezoid`](crate::Trapezoid) on a system with
+/// [`Separability::ConstantMass`](crate::Separability) the explicit
+/// Störmer–Verlet step (no Newton iteration). Nothing on this path uses
+/// stack space that grows with the size: a chain of 100 000 masses runs in
+/// a thread with the default 2 MiB stack.
+///
+/// A failed step changes nothing: the error carries the state the step
+/// started from, and a retry with a smaller step
+/// ([`set_step_size`](Self::set_step_size)) starts there.
+///
+/// ```
+/// use lagrangian_runtime::{DynIntegrator, DynLagrangian, Midpoint, Scalar};
+///
+/// /// Uncoupled oscillators, as many as `n`.
+/// struct Oscillators { n: usize }
+/// impl DynLagrangian for Oscillators {
+///     const AUTONOMOUS: bool = true;
+///     fn dimension(&self) -> usize { self.n }
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+///         let mut l = D::from(0.0);
+///         for i in 0..q.len() {
+///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
+///         }
+///         l
+///     }
+/// }
+///
+/// let n = 3;
+/// let mut sim = DynIntegrator::new(Oscillators { n }, Midpoint, 0.01).start(0.0, &vec![1.0; n], &vec![0.0; n])?;
+/// sim.run(628, |_| {})?;
+/// assert!((sim.state().q[2] - 6.28f64.cos()).abs() < 1e-4);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct DynIntegrator<S, M> {
+    system: S,
+    method: M,
+    /// The rule's quadrature points.
+    points: [f64; 2],
+    h: f64,
+    newton: NewtonOptions,
+    state: DynState,
+    /// Kahan compensation of the position: it is `state.q + carry`.
+    carry: Vec<f64>,
+    /// Kahan compensation of the momentum: it is `state.p + p_carry`.
+    p_carry: Vec<f64>,
+    /// The energy of the initial data.
+    energy: f64,
+    v0: Vec<f64>,
+    previous: Option<DynSegment>,
+    /// `(h, Δq)` of the step before the last, for the predictor.
+    earlier: Option<(f64, Vec<f64>)>,
+    clock: Clock<f64>,
+    stats: Stats,
+    work: Box<SparseWork>,
+}
+
+impl<S, M> DynIntegrator<S, M> {
+    /// Configures an integrator for `system` with the discrete Lagrangian
+    /// `method` and step `h`; continue with [`DynIntegratorBuilder::start`].
+    #[allow(clippy::new_ret_no_self)]
+    pub fn new(system: S, method: M, h: f64) -> DynIntegratorBuilder<S, M> {
+        DynIntegratorBuilder { system, method, h, newton: NewtonOptions::default() }
+    }
+}
+
+impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
+    /// The rule's DEL is explicit for this system (see
+    /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]).
+    const EXPLICIT: bool = M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass();
+
+    /// The current state `(k, t_k, q_k, p_k)`.
+    pub fn state(&self) -> &DynState {
+        &self.state
+    }
+
+    /// The system being integrated.
+    pub fn system(&self) -> &S {
+        &self.system
+    }
+
+    /// The discrete Lagrangian in use.
+    pub fn method(&self) -> &M {
+        &self.method
+    }
+
+    /// The number of coordinates.
+    pub fn dimension(&self) -> usize {
+        self.state.q.len()
+    }
+
+    /// The current step size.
+    pub fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    /// The size of the last step taken; `None` before the first.
+    pub fn last_step_size(&self) -> Option<f64> {
+        self.previous.as_ref().map(|last| last.h)
+    }
+
+    /// Work counters (Newton iterations per step: `newton_iterations / steps`;
+    /// 0 on the explicit path).
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// Changes the step size for the following steps (for example to retry a
+    /// failed step with a smaller one). The integrator stays variational: the
+    /// DEL equations hold with the step sizes actually taken.
+    pub fn set_step_size(&mut self, h: f64) -> Result<(), DynError> {
+        DynError::check_step(h)?;
+        self.clock = Clock { t: self.state.t, step: self.state.step };
+        self.h = h;
+        Ok(())
+    }
+
+    /// Takes one step of size [`step_size`](Self::step_size).
+    ///
+    /// On failure nothing changes: the state, the step size and the
+    /// predictor are those from before the call, and the error carries the
+    /// state and the Newton diagnostics.
+    pub fn step(&mut self) -> Result<&DynState, DynError> {
+        let t1 = self.clock.at(self.state.step + 1, self.h);
+        self.step_by(self.h, t1)?;
+        Ok(&self.state)
+    }
+
+    /// Takes `n` steps, calling `observe` after each with the integrator.
+    ///
+    /// Stops at the first failure, with the integrator at the last good state.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), DynError> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps until `t_end`, calling `observe` after each step, and stops at
+    /// `t_end` exactly: the last step is shortened to land on it (a step that
+    /// would end within `10⁻⁹ h` of it is stretched by that much instead),
+    /// and the step size is then restored. A target equal to the current
+    /// time is a no-op.
+    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), DynError> {
+        if !t_end.is_finite() || t_end < self.state.t {
+            return Err(DynError::InvalidTarget { target: t_end, state: self.state.clone() });
+        }
+        loop {
+            let remaining = t_end - self.state.t;
+            if remaining <= 0.0 {
+                return Ok(());
+            }
+            if self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9 {
+                self.step_by(remaining, t_end)?;
+                self.clock = Clock { t: self.state.t, step: self.state.step };
+                observe(self);
+                return Ok(());
+            }
+            self.step()?;
+            observe(self);
+        }
+    }
+
+    /// One step of size `h` whose end node is stamped with time `t1`.
+    fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
+        let n = self.state.q.len();
+        let mut predictor = vec![0.0; n];
+        let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
+        let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        super::predict_into(h, last, earlier, &self.v0, &mut predictor);
+        let scaled: Option<Vec<f64>> =
+            self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
+        let model = Sliced { system: &self.system, points: self.points };
+        let DynState { step, t, q, p } = &self.state;
+        let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
+        let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
+        let outcome = if Self::EXPLICIT {
+            self.work.verlet_step(&model, &node, h, t1, &guess, self.newton.min_rcond).map(|taken| (taken, None))
+        } else {
+            self.work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
+        };
+        let (taken, energy) = match outcome {
+            Ok(x) => x,
+            Err(failure) => {
+                self.stats.failed_steps += 1;
+                return Err(DynError::from_newton(failure, self.state.clone(), h));
+            }
+        };
+        if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
+            tape_step::watch_energy_jump(&mut self.stats, self.work.energy.unwrap_or(self.energy), after, t1);
+        }
+        if !Self::EXPLICIT {
+            self.work.energy = energy;
+        }
+        self.commit(taken, h, t1);
+        Ok(())
+    }
+
+    /// Replaces the state by the step `taken` from the current node.
+    fn commit(&mut self, taken: Taken, h: f64, t1: f64) {
+        let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
+        let q0 = core::mem::replace(&mut self.state.q, q1);
+        self.state.p = p1;
+        self.carry = q_carry;
+        self.p_carry = p_carry;
+        self.earlier = self.previous.take().map(|last| (last.h, last.dq));
+        self.previous = Some(DynSegment { t0: self.state.t, h, q0, dq });
+        self.state.t = t1;
+        self.state.step += 1;
+        self.stats.steps += 1;
+        self.stats.newton_iterations += report.iterations as u64;
+        self.stats.last = report;
+    }
+
+    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step
+    /// (one reverse sweep unless the step recorded it); at `k = 0`, the
+    /// continuous energy of the initial data.
+    pub fn discrete_energy(&self) -> f64 {
+        let Some(seg) = &self.previous else { return self.energy };
+        match self.work.energy {
+            Some(e) => e,
+            None => {
+                let model = Sliced { system: &self.system, points: self.points };
+                tape_step::step_energy(&model, seg.t0, seg.h, &seg.q0, &seg.dq)
+            }
+        }
+    }
+
+    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`
+    /// (Newton from the last secant velocity, with banded or dense solves).
+    pub fn velocity(&self) -> Result<Vec<f64>, DynError> {
+        let guess: Vec<f64> = match &self.previous {
+            Some(last) => last.dq.iter().map(|x| x / last.h).collect(),
+            None => self.v0.clone(),
+        };
+        let model = Sliced { system: &self.system, points: self.points };
+        let DynState { t, q, p, .. } = &self.state;
+        tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| DynError::InverseLegendre {
+            state: self.state.clone(),
+            iterations,
+            residual_norm,
+        })
+    }
+
+    /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
+    pub fn energy(&self) -> Result<f64, DynError> {
+        let v = self.velocity()?;
+        let model = Sliced { system: &self.system, points: self.points };
+        Ok(tape_step::energy(&model, self.state.t, &self.state.q, &v))
+    }
+}

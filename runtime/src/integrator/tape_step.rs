@@ -1,0 +1,622 @@
+//! The slice-based core of reverse-mode steps, shared by the const-size
+//! integrator's reverse path (`sparse.rs`) and the run-time-sized
+//! [`DynIntegrator`](crate::DynIntegrator) (`dynamic.rs`).
+//!
+//! ```text
+//! record  A(q_k, Δq, h)  on the tape          (t_k a constant, Δq = q_{k+1} − q_k)
+//! g = ∇A                 one reverse sweep    (O(ops))
+//! H·S                    second-order sweep   (O(K·ops), K seed directions on Δq)
+//! r   = p_k + ∂A/∂q_k|_{q_{k+1}} = p_k + g_{q_k} − g_{Δq}
+//! J   = ∂r/∂Δq           = H_{q_k,Δq} − H_{Δq,Δq}
+//! p_{k+1} = p_k + g_{q_k}|_{Δq}               (the momentum change at fixed increment)
+//! E_{k+1} = −∂A/∂t_{k+1} = −g_h               (the discrete energy of the step)
+//! ```
+//!
+//! Everything here works on slices of a length known at run time: the
+//! state, the tape and the matrices live on the heap, and nothing on the
+//! stack grows with the number of coordinates. A system and its discrete
+//! Lagrangian enter only through [`TapeModel`] (`L` and the step action on
+//! tape numbers), so both integrators take the same steps: the same
+//! predictor input, Newton convergence rule, plausibility check, Kahan sums
+//! and failure values.
+
+use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
+use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
+use crate::real::{all_finite, max_abs};
+use crate::structure::{Coupling, Pattern};
+use crate::tape::{Seeds, Tape, TapeError, Var};
+
+/// What the reverse-mode step functions need of a system and its discrete
+/// Lagrangian: `L` and the step action evaluated on tape numbers.
+pub(crate) trait TapeModel {
+    /// The coupling pattern of the Hessian of `L` (proven, or general).
+    fn coupling(&self) -> Coupling;
+    /// `L(t, q, v)` with `q.len() == v.len() == n`.
+    fn lagrangian(&self, t: Var, q: &[Var], v: &[Var]) -> Var;
+    /// The step action `A(t0, h, q0, dq)` of the discrete Lagrangian.
+    fn action(&self, t0: Var, h: Var, q0: &[Var], dq: &[Var]) -> Var;
+}
+
+/// The bandwidth of the step Jacobian `∂²A/∂q_k∂q_{k+1}` (and of `∂²L/∂v²`),
+/// `None` when it is not proven banded: the widest of the three Hessian
+/// blocks of `L`, since every one-point rule mixes them.
+pub(crate) fn step_bandwidth(coupling: Coupling, n: usize) -> Option<usize> {
+    narrower_than(coupling.overall(), n)
+}
+
+/// The bandwidth of the mass matrix `∂²L/∂v²`, `None` if not banded.
+pub(crate) fn mass_bandwidth(coupling: Coupling, n: usize) -> Option<usize> {
+    narrower_than(coupling.v_v, n)
+}
+
+/// A band as wide as the matrix is no band.
+fn narrower_than(pattern: Pattern, n: usize) -> Option<usize> {
+    pattern.bandwidth().filter(|&b| b.checked_mul(2).is_some_and(|w| w + 1 < n))
+}
+
+/// The Newton matrix for a step pattern with bandwidth `bandwidth` (`None`:
+/// general): banded or dense by the banded module's measured rule.
+fn step_matrix(n: usize, bandwidth: Option<usize>) -> Result<StepSolver, LinearSolveError> {
+    StepSolver::for_pattern(n, bandwidth.map_or(Pattern::General, |b| Pattern::banded(n, b)))
+}
+
+/// A zeroed buffer of `len` numbers, or `TooLarge` instead of an abort.
+fn zeroed(len: Option<usize>, n: usize) -> Result<Vec<f64>, LinearSolveError> {
+    let too_large = LinearSolveError::TooLarge { n, per_column: len.unwrap_or(usize::MAX) / n.max(1) };
+    let len = len.ok_or(too_large)?;
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| too_large)?;
+    v.resize(len, 0.0);
+    Ok(v)
+}
+
+/// Assembles `(i, j) ↦ entry` from `band` (row `i`'s `2b + 1` entries around
+/// the diagonal, or the whole row when `bandwidth` is `None`) into `m`, then
+/// factors it, refusing a singular or badly conditioned matrix.
+fn assemble_and_factor(
+    m: &mut StepSolver,
+    n: usize,
+    bandwidth: Option<usize>,
+    band: &[f64],
+    min_rcond: f64,
+) -> Result<(), Breakdown> {
+    let width = bandwidth.map_or(n, |b| 2 * b + 1);
+    m.clear();
+    for i in 0..n {
+        let row = &band[i * width..(i + 1) * width];
+        match bandwidth {
+            Some(b) => {
+                for (c, &x) in row.iter().enumerate() {
+                    // Column i + c − b, skipping slots outside the matrix.
+                    if let Some(j) = (i + c).checked_sub(b).filter(|&j| j < n) {
+                        m.add(i, j, x).map_err(breakdown)?;
+                    }
+                }
+            }
+            None => {
+                for (j, &x) in row.iter().enumerate() {
+                    m.add(i, j, x).map_err(breakdown)?;
+                }
+            }
+        }
+    }
+    m.factor(min_rcond).map_err(breakdown)?;
+    Ok(())
+}
+
+/// A linear-algebra failure as a Newton breakdown.
+pub(crate) fn breakdown(e: LinearSolveError) -> Breakdown {
+    match e {
+        LinearSolveError::Singular { rcond, .. } => Breakdown::Singular(rcond),
+        LinearSolveError::NonFinite { quantity } => Breakdown::NonFinite(quantity),
+        _ => Breakdown::Rejected("the step matrix could not be assembled (internal error: please report)"),
+    }
+}
+
+/// A tape failure as a Newton breakdown (none is expected: the runtime
+/// never nests recordings, and generated code keeps no `Var`).
+fn tape_breakdown(_: TapeError) -> Breakdown {
+    Breakdown::Rejected(
+        "the derivative tape failed (a recording inside `lagrangian`, or a value kept from another evaluation)",
+    )
+}
+
+/// Why a step whose tape failed after Newton is refused.
+const TAPE_FAILED: &str = "the derivative tape failed";
+
+/// The seeds of the second-order sweep on the inputs `columns`.
+fn seeds(columns: core::ops::Range<usize>, bandwidth: Option<usize>) -> Seeds<'static> {
+    match bandwidth {
+        Some(b) => Seeds::banded(columns, b),
+        None => Seeds::dense(columns),
+    }
+}
+
+/// The node a step starts from: `(k, t_k, q_k, p_k)` and the Kahan
+/// compensations of `q_k` and `p_k`.
+pub(crate) struct Node<'a> {
+    pub(crate) step: u64,
+    pub(crate) t: f64,
+    pub(crate) q: &'a [f64],
+    pub(crate) p: &'a [f64],
+    pub(crate) q_carry: &'a [f64],
+    pub(crate) p_carry: &'a [f64],
+}
+
+/// What a step knows of the motion so far: the predicted increment, and the
+/// last increment scaled to this step's size (`None` at the first step).
+pub(crate) struct Guess<'a> {
+    pub(crate) predictor: &'a [f64],
+    pub(crate) last: Option<&'a [f64]>,
+}
+
+impl Guess<'_> {
+    /// Refuses an increment `dq` from `q` that is implausibly large against
+    /// the predicted and the last one (see [`implausible_growth`]).
+    fn check(&self, dq: &[f64], q: &[f64], iterations: usize) -> Result<(), NewtonFailure> {
+        match self.last {
+            Some(last) if implausible_growth(dq, self.predictor, last, q) => {
+                Err(NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A step that converged and whose published values are finite; nothing of
+/// the caller's state has changed yet.
+pub(crate) struct Taken {
+    pub(crate) dq: Vec<f64>,
+    pub(crate) q1: Vec<f64>,
+    pub(crate) q_carry: Vec<f64>,
+    pub(crate) p1: Vec<f64>,
+    pub(crate) p_carry: Vec<f64>,
+    pub(crate) report: NewtonReport,
+}
+
+/// The heap-side work of reverse-mode steps: the tape and the buffers of its
+/// sweeps (scratch, rebuilt when cloned), and what persists between steps.
+#[derive(Debug)]
+pub(crate) struct SparseWork {
+    n: usize,
+    bandwidth: Option<usize>,
+    tape: Tape,
+    inputs: Vec<f64>,
+    gradient: Vec<f64>,
+    /// `H·S`, inputs × directions.
+    products: Vec<f64>,
+    /// The blocks `∂²A/∂q_k∂Δq` and `∂²A/∂Δq²` in band (or dense row) storage.
+    mixed: Vec<f64>,
+    end: Vec<f64>,
+    jacobian: StepSolver,
+    /// `E_{k+1} = −∂A/∂t_{k+1}` of the last step, when it was computed.
+    pub(crate) energy: Option<f64>,
+    /// Explicit path: the factored constant mass matrix.
+    mass: Option<Assembled>,
+    /// Explicit path: `(k, ∂L/∂q(t_k, q_k, 0))`.
+    node_force: Option<(u64, Vec<f64>)>,
+}
+
+impl Clone for SparseWork {
+    fn clone(&self) -> Self {
+        Self {
+            n: self.n,
+            bandwidth: self.bandwidth,
+            tape: Tape::new(),
+            inputs: self.inputs.clone(),
+            gradient: self.gradient.clone(),
+            products: self.products.clone(),
+            mixed: self.mixed.clone(),
+            end: self.end.clone(),
+            jacobian: self.jacobian.clone(),
+            energy: self.energy,
+            mass: self.mass.clone(),
+            node_force: self.node_force.clone(),
+        }
+    }
+}
+
+impl SparseWork {
+    /// Work for the steps of a system with `n` coordinates and the given
+    /// coupling: the action's inputs are `(q_k, Δq, h)`, the seeds sit on
+    /// `Δq`. A size whose buffers cannot be allocated is an error, not an
+    /// abort.
+    pub(crate) fn new(n: usize, coupling: Coupling) -> Result<Self, LinearSolveError> {
+        let bandwidth = step_bandwidth(coupling, n);
+        let width = bandwidth.map_or(n, |b| 2 * b + 1);
+        let inputs = n.checked_mul(2).and_then(|x| x.checked_add(1));
+        let directions = seeds(n..2 * n, bandwidth).directions();
+        Ok(Self {
+            n,
+            bandwidth,
+            tape: Tape::new(),
+            inputs: zeroed(inputs, n)?,
+            gradient: zeroed(inputs, n)?,
+            products: zeroed(inputs.and_then(|i| i.checked_mul(directions)), n)?,
+            mixed: zeroed(n.checked_mul(width), n)?,
+            end: zeroed(n.checked_mul(width), n)?,
+            jacobian: step_matrix(n, bandwidth)?,
+            energy: None,
+            mass: None,
+            node_force: None,
+        })
+    }
+
+    /// The cached node force now belongs to node `step` (a composed step's
+    /// last sub-node is its end node).
+    pub(crate) fn rekey_node_force(&mut self, step: u64) {
+        if let Some((k, _)) = self.node_force.as_mut() {
+            *k = step;
+        }
+    }
+
+    /// Drops the cached node force and energy (after a failed composed step).
+    pub(crate) fn forget_node_force(&mut self) {
+        self.node_force = None;
+        self.energy = None;
+    }
+
+    /// Records the action `A(q_k, Δq, h)` at `t_k = t0` on the tape.
+    fn record_action<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        q0: &[f64],
+        dq: &[f64],
+    ) -> Result<f64, TapeError> {
+        let n = self.n;
+        self.inputs[..n].copy_from_slice(q0);
+        self.inputs[n..2 * n].copy_from_slice(dq);
+        self.inputs[2 * n] = h;
+        self.tape.record(&self.inputs, |x: &[Var]| model.action(Var::constant(t0), x[2 * n], &x[..n], &x[n..2 * n]))
+    }
+
+    /// One implicit step of size `h` from `node`, ending at time `t1`:
+    /// Newton on the DEL with banded or dense solves, then the momentum
+    /// change and the step's discrete energy (returned with the step) from
+    /// one more reverse sweep.
+    pub(crate) fn newton_step<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        h: f64,
+        t1: f64,
+        guess: &Guess<'_>,
+        options: &NewtonOptions,
+    ) -> Result<(Taken, f64), NewtonFailure> {
+        let (dq, report) = self.solve(model, node, h, guess, options)?;
+        // The momentum change at fixed increment and the step's energy.
+        let swept =
+            self.record_action(model, node.t, h, node.q, &dq).and_then(|_| self.tape.gradient(&mut self.gradient));
+        if swept.is_err() {
+            return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
+        }
+        let n = self.n;
+        let energy = -self.gradient[2 * n];
+        let taken = finish(node, t1, dq, &self.gradient[..n], report)?;
+        Ok((taken, energy))
+    }
+
+    /// Newton on `r(Δq) = p_k + ∂A/∂q_k = 0` with banded or dense solves.
+    fn solve<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        h: f64,
+        guess: &Guess<'_>,
+        options: &NewtonOptions,
+    ) -> Result<(Vec<f64>, NewtonReport), NewtonFailure> {
+        let n = self.n;
+        let (t0, q0, p0, pc) = (node.t, node.q, node.p, node.p_carry);
+        let bandwidth = self.bandwidth;
+        let seeds = seeds(n..2 * n, bandwidth);
+        let min_rcond = options.min_rcond;
+        // The condition estimate (a few solves, 1.5–3.6 times a banded
+        // factor+solve) on the first iteration of the step only: the Jacobian
+        // barely changes within a step; later iterations still refuse a zero
+        // or non-finite pivot.
+        let mut first = true;
+        let linearize = |x: &Vec<f64>| -> Result<Linearization<Vec<f64>>, Breakdown> {
+            self.record_action(model, t0, h, q0, x).map_err(tape_breakdown)?;
+            self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products).map_err(tape_breakdown)?;
+            let g = &self.gradient;
+            let mut r = vec![0.0; n];
+            let mut scale = max_abs(p0);
+            for i in 0..n {
+                let d_q0 = g[i] - g[n + i];
+                r[i] = (p0[i] + d_q0) + pc[i];
+                scale = scale.max(d_q0.abs());
+            }
+            if !r.iter().all(|x| x.is_finite()) {
+                return Err(Breakdown::NonFinite("residual"));
+            }
+            // J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq², entry by entry of the pattern.
+            seeds.recover(&self.products, 0..n, &mut self.mixed).map_err(tape_breakdown)?;
+            seeds.recover(&self.products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
+            for (a, b) in self.mixed.iter_mut().zip(&self.end) {
+                *a -= b;
+            }
+            let rcond_floor = if first { min_rcond } else { 0.0 };
+            first = false;
+            assemble_and_factor(&mut self.jacobian, n, bandwidth, &self.mixed, rcond_floor)?;
+            let residual_norm = max_abs(&r);
+            let mut correction = r;
+            self.jacobian.solve(&mut correction).map_err(breakdown)?;
+            for x in correction.iter_mut() {
+                *x = -*x;
+            }
+            Ok(Linearization { correction, residual_norm, residual_ratio: f64::INFINITY }.cancelling(scale))
+        };
+        let (dq, report) = newton::solve(guess.predictor.to_vec(), options, linearize)?;
+        guess.check(&dq, q0, report.iterations)?;
+        Ok((dq, report))
+    }
+
+    /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
+    /// separable system with constant mass: `M` factored once (banded when
+    /// proven), `∂L/∂q` from one reverse sweep per step, reused at the next
+    /// node. Clears [`energy`](Self::energy) on success (a Verlet step's
+    /// discrete energy is computed on request); keeps the node force of
+    /// `node` on failure.
+    pub(crate) fn verlet_step<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        h: f64,
+        t1: f64,
+        guess: &Guess<'_>,
+        min_rcond: f64,
+    ) -> Result<Taken, NewtonFailure> {
+        let n = self.n;
+        let tape_failed = NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED };
+        if self.mass.is_none() {
+            let zero = zeroed(Some(n), n).map_err(|e| breakdown(e).at(0))?;
+            let (_, _, mut mass) =
+                velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
+                    .map_err(|b| b.at(0))?;
+            mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
+            self.mass = Some(mass);
+        }
+        let f0 = match self.node_force.take() {
+            Some((k, f)) if k == node.step => f,
+            _ => {
+                let mut f = vec![0.0; n];
+                potential_force(model, &mut self.tape, node.t, node.q, &mut f).map_err(|_| tape_failed)?;
+                f
+            }
+        };
+        match self.verlet_from(model, node, h, t1, guess, &f0) {
+            Ok((taken, f1)) => {
+                self.node_force = Some((node.step + 1, f1));
+                self.energy = None;
+                Ok(taken)
+            }
+            Err(failure) => {
+                self.node_force = Some((node.step, f0));
+                Err(failure)
+            }
+        }
+    }
+
+    /// The Verlet step given the force `f0` at the node; returns the force
+    /// at the new node too.
+    fn verlet_from<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        h: f64,
+        t1: f64,
+        guess: &Guess<'_>,
+        f0: &[f64],
+    ) -> Result<(Taken, Vec<f64>), NewtonFailure> {
+        let n = self.n;
+        let half = 0.5 * h;
+        let mut v: Vec<f64> = (0..n).map(|i| (node.p[i] + half * f0[i]) + node.p_carry[i]).collect();
+        if let Some(mass) = &self.mass {
+            mass.solve(&mut v).map_err(|e| breakdown(e).at(0))?;
+        }
+        let dq: Vec<f64> = v.iter().map(|x| x * h).collect();
+        guess.check(&dq, node.q, 0)?;
+        let (mut q1, mut carry) = (vec![0.0; n], vec![0.0; n]);
+        kahan_into(node.q, node.q_carry, &dq, &mut q1, &mut carry);
+        let mut f1 = vec![0.0; n];
+        if potential_force(model, &mut self.tape, t1, &q1, &mut f1).is_err() {
+            return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
+        }
+        let dp: Vec<f64> = (0..n).map(|i| half * (f0[i] + f1[i])).collect();
+        let report = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
+        Ok((finish(node, t1, dq, &dp, report)?, f1))
+    }
+}
+
+/// The new node `q_{k+1} = q_k + Δq`, `p_{k+1} = p_k + Δp` as Kahan sums,
+/// refused when a published value is not finite.
+fn finish(node: &Node<'_>, t1: f64, dq: Vec<f64>, dp: &[f64], report: NewtonReport) -> Result<Taken, NewtonFailure> {
+    let n = dq.len();
+    let (mut q1, mut q_carry, mut p1, mut p_carry) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    kahan_into(node.q, node.q_carry, &dq, &mut q1, &mut q_carry);
+    kahan_into(node.p, node.p_carry, dp, &mut p1, &mut p_carry);
+    if let Some(quantity) = super::non_finite(t1, &q1, &p1) {
+        return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity });
+    }
+    Ok(Taken { dq, q1, q_carry, p1, p_carry, report })
+}
+
+/// Records the relative change `|after − before| / |before|` of the discrete
+/// energy across node `t1` in `stats` when it is the largest so far (the
+/// watch of a system declared discontinuous).
+pub(crate) fn watch_energy_jump(stats: &mut Stats, before: f64, after: f64, t1: f64) {
+    let jump = (after - before).abs() / before.abs().max(f64::MIN_POSITIVE);
+    if jump.is_finite() && jump > stats.largest_energy_jump {
+        stats.largest_energy_jump = jump;
+        stats.largest_energy_jump_at = t1;
+    }
+}
+
+/// The discrete energy `−∂A/∂t_{k+1}` of the step `(t0, h, q0, dq)`, from
+/// one reverse sweep (NaN if the tape fails, which the runtime's use cannot
+/// provoke).
+pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64], dq: &[f64]) -> f64 {
+    let n = q0.len();
+    let mut tape = Tape::new();
+    let mut inputs = Vec::with_capacity(2 * n + 1);
+    inputs.extend_from_slice(q0);
+    inputs.extend_from_slice(dq);
+    inputs.push(h);
+    let recorded = tape.record(&inputs, |x: &[Var]| model.action(Var::constant(t0), x[2 * n], &x[..n], &x[n..2 * n]));
+    let mut gradient = vec![0.0; 2 * n + 1];
+    match recorded.and_then(|_| tape.gradient(&mut gradient)) {
+        Ok(()) => -gradient[2 * n],
+        Err(_) => f64::NAN,
+    }
+}
+
+/// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from one reverse
+/// sweep with the inputs `q`.
+fn potential_force<Mo: TapeModel>(
+    model: &Mo,
+    tape: &mut Tape,
+    t: f64,
+    q: &[f64],
+    out: &mut [f64],
+) -> Result<(), TapeError> {
+    let zero = vec![Var::constant(0.0); q.len()];
+    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero))?;
+    tape.gradient(out)
+}
+
+/// `L`, `∂L/∂v` and `∂²L/∂v²` (assembled, not factored; banded with the
+/// given bandwidth, or dense) at `(t, q, v)`, from one second-order sweep
+/// with the inputs `v`.
+fn velocity_derivatives<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    bandwidth: Option<usize>,
+) -> Result<(f64, Vec<f64>, Assembled), Breakdown> {
+    let n = q.len();
+    let seeds = seeds(0..n, bandwidth);
+    let mut tape = Tape::new();
+    let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+    let l = tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x)).map_err(tape_breakdown)?;
+    let width = bandwidth.map_or(n, |b| 2 * b + 1);
+    let mut gradient = zeroed(Some(n), n).map_err(breakdown)?;
+    let mut products = zeroed(n.checked_mul(seeds.directions()), n).map_err(breakdown)?;
+    let mut band = zeroed(n.checked_mul(width), n).map_err(breakdown)?;
+    tape.hessian_product(&seeds, &mut gradient, &mut products).map_err(tape_breakdown)?;
+    seeds.recover(&products, 0..n, &mut band).map_err(tape_breakdown)?;
+    let matrix = step_matrix(n, bandwidth).map_err(breakdown)?;
+    Ok((l, gradient, Assembled { n, matrix, band, bandwidth }))
+}
+
+/// A Hessian block read from the tape, ready to be factored.
+#[derive(Clone, Debug)]
+struct Assembled {
+    n: usize,
+    matrix: StepSolver,
+    band: Vec<f64>,
+    bandwidth: Option<usize>,
+}
+
+impl Assembled {
+    /// Assembles and factors the block.
+    fn factor_in_place(&mut self, min_rcond: f64) -> Result<(), Breakdown> {
+        assemble_and_factor(&mut self.matrix, self.n, self.bandwidth, &self.band, min_rcond)
+    }
+
+    fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
+        self.matrix.solve(b)
+    }
+}
+
+/// The momentum `p = ∂L/∂v` and energy `E = v·p − L` at `(t, q, v)`, with a
+/// check that `∂²L/∂v²` is regular there (its banded or dense LU). `Err`
+/// says why the data cannot start an integration.
+pub(crate) fn legendre<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+) -> Result<(Vec<f64>, f64), &'static str> {
+    let n = q.len();
+    let (l, p, mut hessian) = velocity_derivatives(model, t, q, v, mass_bandwidth(model.coupling(), n))
+        .map_err(|_| "the lagrangian or its derivatives could not be evaluated at the initial data")?;
+    if !l.is_finite() || !all_finite(&p) {
+        return Err("the lagrangian or its momentum is not finite at the initial data");
+    }
+    if hessian.factor_in_place(0.0).is_err() {
+        return Err("∂²L/∂v² is singular at the initial data: the legendre transform is not regular");
+    }
+    let energy = (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l;
+    if !energy.is_finite() {
+        return Err("the energy is not finite at the initial data");
+    }
+    Ok((p, energy))
+}
+
+/// The energy `E = v·∂L/∂v − L` at `(t, q, v)`, from one reverse sweep (NaN
+/// if the tape fails).
+pub(crate) fn energy<Mo: TapeModel>(model: &Mo, t: f64, q: &[f64], v: &[f64]) -> f64 {
+    let n = q.len();
+    let mut tape = Tape::new();
+    let mut p = vec![0.0; n];
+    let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+    let swept = tape
+        .record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x))
+        .and_then(|l| tape.gradient(&mut p).map(|_| l));
+    match swept {
+        Ok(l) => (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l,
+        Err(_) => f64::NAN,
+    }
+}
+
+/// The velocity whose momentum `∂L/∂v(t, q, v)` is `p`, by Newton's method
+/// from `guess` with banded or dense solves (the inverse Legendre
+/// transform). `Err` carries `(iterations, residual norm)`.
+pub(crate) fn velocity<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    p: &[f64],
+    guess: &[f64],
+) -> Result<Vec<f64>, (usize, f64)> {
+    let n = q.len();
+    let options = NewtonOptions::default();
+    let bandwidth = mass_bandwidth(model.coupling(), n);
+    let linearize = |v: &Vec<f64>| -> Result<Linearization<Vec<f64>>, Breakdown> {
+        let (_, m, mut hessian) = velocity_derivatives(model, t, q, v, bandwidth)?;
+        let mut r: Vec<f64> = (0..n).map(|i| m[i] - p[i]).collect();
+        if !r.iter().all(|x| x.is_finite()) {
+            return Err(Breakdown::NonFinite("residual"));
+        }
+        let scale = max_abs(p).max(max_abs(&m));
+        hessian.factor_in_place(options.min_rcond)?;
+        let residual_norm = max_abs(&r);
+        hessian.solve(&mut r).map_err(breakdown)?;
+        r.iter_mut().for_each(|x| *x = -*x);
+        Ok(Linearization { correction: r, residual_norm, residual_ratio: f64::INFINITY }.cancelling(scale))
+    };
+    match newton::solve(guess.to_vec(), &options, linearize) {
+        Ok((v, _)) => Ok(v),
+        Err(NewtonFailure::NotConverged(r)) => Err((r.iterations, r.residual_norm)),
+        Err(f) => Err((f.iterations(), f64::INFINITY)),
+    }
+}
+
+/// The heap vector Newton iterates on in reverse mode.
+impl Unknown for Vec<f64> {
+    #[inline]
+    fn update(&mut self, dx: &Self) {
+        for (x, d) in self.iter_mut().zip(dx) {
+            *x += d;
+        }
+    }
+
+    #[inline]
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        max_abs(dx) / (rtol * max_abs(self) + atol)
+    }
+}
