@@ -71,7 +71,7 @@ fn run(sensor: Sensor, h: f64, t_end: f64) -> Result<Run, Box<dyn Error>> {
     let mut out =
         Run { x: vec![(0.0, 0.0)], current: vec![(0.0, 0.0)], first_integral: 0.0, balance: 0.0, energy_scale: 0.0 };
     // I_k = J_k + R q_k − E t_k with the charge summed from the increments,
-    // free of the rounding of q_k itself (see tests/forces.rs).
+    // free of the rounding of q_k itself (see tests/verification/forces.rs).
     let (mut flowed, mut compensation) = (0.0f64, 0.0f64);
     let i0 = sim.momentum_map(&charge);
     let mut failure = None;

@@ -16,9 +16,8 @@ use lagrangian::{Galerkin, GalerkinIntegrator};
 
 #[path = "../../tests/common/mod.rs"]
 mod common;
-#[path = "../../tests/galerkin_reference/mod.rs"]
-mod reference;
 
+use common::galerkin_reference as reference;
 use common::{PENDULUM as P, Pendulum};
 
 type V2 = nalgebra034::Vector2<f64>;

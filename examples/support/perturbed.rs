@@ -1,6 +1,6 @@
 //! The perturbed pendulum of Luo, Guo, Li & Wu §V and the measurements made on it;
 //! shared by `examples/perturbed_pendulum.rs` (which writes the CSV and the
-//! plots) and `tests/perturbed_pendulum.rs` (which asserts on them).
+//! plots) and `tests/verification/perturbed_pendulum.rs` (which asserts on them).
 //!
 //! `H = l²/2 + (1 − cos θ)(1 − 0.1 sin 0.02t)`, i.e.
 //! `L = ½ θ̇² − (1 − cos θ)(1 − 0.1 sin 0.02t)`, from `l0 = θ0 = 0.5`,

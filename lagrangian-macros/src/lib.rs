@@ -92,7 +92,7 @@ use proc_macro::TokenStream;
 /// results of 64 operands each: the same operations in the same order, so
 /// the same result bit for bit. rustc itself overflows its default stack on
 /// a flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
-/// products compile (`tests/long_expressions.rs`). Nesting — parentheses,
+/// products compile (`tests/behaviour/long_expressions.rs`). Nesting — parentheses,
 /// blocks, `else if` — is not flattened: syn's parser and every later stage
 /// recurse on it. syn's parser alone overflows rustc's default stack between
 /// 500 and 1000 nested parentheses (measured with rustc 1.95), so expressions

@@ -14,7 +14,7 @@
 //! is accurate to `O(h^{min(p, r)})` over a run, with `r` the interpolant's
 //! order above. So the cubic suits the second-order one-point rules, and a
 //! Galerkin method of order `2s ≥ 6` needs the quintic to keep its accuracy
-//! between nodes (`tests/dense_output.rs` fits these orders). The velocity
+//! between nodes (`tests/verification/dense_output.rs` fits these orders). The velocity
 //! at a node is the one whose momentum is the integrator's `p_k` (the inverse
 //! Legendre transform), so both interpolants are `C¹` across nodes; the
 //! Galerkin polynomial is only continuous (its slope at the nodes is not the

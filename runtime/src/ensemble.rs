@@ -5,7 +5,7 @@
 //! Each member is the user's closure `member(index, &input)`, which builds
 //! its own integrator and returns its result; members share nothing, so a
 //! parallel run returns exactly, bit for bit, what [`run_serial`] returns
-//! (`tests/ensemble.rs` checks 1000 pendulum runs). A member that fails (an
+//! (`tests/behaviour/ensemble.rs` checks 1000 pendulum runs). A member that fails (an
 //! `Err`, or a panic, which is caught) is reported with its index while the
 //! others finish.
 //!

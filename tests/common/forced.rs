@@ -1,5 +1,5 @@
 //! Systems with forces and dissipation (docs/theory.md §6) and with symmetries (§7),
-//! shared by `tests/forces.rs` and `tests/noether.rs`.
+//! shared by `tests/verification/forces.rs` and `tests/verification/noether.rs`.
 
 use lagrangian::prelude::*;
 

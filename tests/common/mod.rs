@@ -4,6 +4,7 @@
 use lagrangian::prelude::*;
 
 pub mod forced;
+pub mod galerkin_reference;
 
 /// `L = ½ m l² θ̇² + m g l cos θ`.
 #[derive(Debug)]

@@ -24,7 +24,7 @@
 //! with nodes, weights and basis in double-double, and the
 //! [`Integrator`](crate::Integrator) built on it runs the whole step (Newton
 //! block, state, Kahan sums) in that type. This is how orders up to 16 are
-//! verified (`tests/galerkin_order_extended.rs`). The readouts that solve in
+//! verified (`tests/verification/galerkin_order_extended.rs`). The readouts that solve in
 //! `f64` (`velocity`, `energy`, `last_tangent_map`) exist for `T = f64`
 //! only. [`GalerkinIntegrator`] is a name for the `Integrator` with a
 //! Galerkin rule, not another type.

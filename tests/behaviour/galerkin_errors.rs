@@ -1,6 +1,6 @@
 //! Bad input to the Galerkin integrator: typed errors, state kept, no panic.
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::*;
 use lagrangian::prelude::*;

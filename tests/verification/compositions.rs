@@ -4,7 +4,7 @@
 //! composed map at round-off, explicit sub-steps (no Newton) on a separable
 //! system with constant mass, and Newton sub-steps on the double pendulum
 //! (position-dependent mass) at the same order.
-mod common;
+use crate::common;
 
 use common::{DOUBLE_PENDULUM, DoublePendulum, fitted_order};
 use lagrangian::prelude::*;

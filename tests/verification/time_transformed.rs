@@ -6,8 +6,8 @@
 //! same mean size printed for comparison); time-dependent forces; bad input.
 //!
 //! The default suite runs 10 orbits; the 1000-orbit runs are ignored:
-//! `cargo test --release --test time_transformed -- --ignored --nocapture`.
-mod common;
+//! `cargo test --release --test verification time_transformed:: -- --ignored --nocapture`.
+use crate::common;
 
 use lagrangian::prelude::*;
 use lagrangian::time_transform::SStepper;

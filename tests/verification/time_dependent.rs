@@ -2,7 +2,7 @@
 //! the discrete energy balance under variable steps, the order of the
 //! discrete energy under fixed steps, and the order of variable steps.
 
-mod common;
+use crate::common;
 
 use common::{SlowOscillator, fitted_order};
 use lagrangian::derivatives::action_gradient;

@@ -2,7 +2,7 @@
 //! (discrete Lagrange–d'Alembert through the basis). Order 2s against the
 //! exact damped oscillator and driven RLC circuit, and the discrete Noether
 //! balance `J_k − J_{k−1} = Σ_m F^m·ξ(Q_m)` at round-off.
-mod common;
+use crate::common;
 
 use common::forced::*;
 use common::*;

@@ -1,9 +1,9 @@
 //! The capability matrix of the runtime: every discrete Lagrangian × step
 //! policy × number type either integrates with a checked property or is
-//! refused with a typed error. `cargo test --test capability_matrix --
+//! refused with a typed error. `cargo test --test verification capability_matrix:: --
 //! --nocapture` prints it. A change of capability (a cell that starts or
 //! stops working) fails this test until the expectation here is updated.
-mod common;
+use crate::common;
 
 use common::forced::DampedOscillator;
 use lagrangian::prelude::*;

@@ -10,8 +10,8 @@
 //!   derivatives of the action formula itself.
 //! * Equispaced and Gauss–Lobatto control nodes give the same map; Gauss–Lobatto
 //!   quadrature with `s + 1` points gives order `2s` too.
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::*;
 use galerkin_reference::pendulum_angle;

@@ -2,7 +2,7 @@
 //! forced integrators against analytic solutions, the discrete energy
 //! balance, Fu, Dai & Tang's electromechanical sensor and its first integral, and
 //! what bad forces do.
-mod common;
+use crate::common;
 
 use common::forced::*;
 use common::*;
@@ -203,7 +203,7 @@ fn paper_002_first_integral_holds_along_the_discrete_solution() {
     // (25) with the opposite sign, E_d = −E. The x-terms of (27),
     // −m Δx − k x + m g, are the x-part of the DEL (25), not a conserved
     // quantity: the spring and gravity break the translation of x (see
-    // `tests/noether.rs`, where that shows up as the symmetry defect).
+    // `tests/verification/noether.rs`, where that shows up as the symmetry defect).
     // Asserted: |I_k − I_0| ≤ 1e-13 · max(|p_q|, r|q_k|, E t_k) at every step.
     assert_eq!(<Sensor as Lagrangian<2>>::CYCLIC, [false, true]);
     let n = 20_000;
@@ -322,7 +322,7 @@ fn forced_newton_jacobian_matches_finite_differences() {
 #[test]
 fn galerkin_energy_preserving_steps_refuse_forced_systems() {
     // One-point rules in f64 take energy-balance steps instead
-    // (`tests/forced_variable_steps.rs`); Galerkin rules do not have them.
+    // (`tests/verification/forced_variable_steps.rs`); Galerkin rules do not have them.
     let result = Integrator::new(damped(), Galerkin::<2, 2>::gauss(), 0.01)
         .energy_preserving(StepBounds::around(0.01))
         .start(0.0, [1.0], [0.0]);

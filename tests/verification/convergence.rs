@@ -1,6 +1,6 @@
 //! Verification: fitted orders of convergence against analytic and
 //! high-accuracy references (midpoint and trapezoid: 2; α-β with α ∈ {0, 1}: 1).
-mod common;
+use crate::common;
 
 use common::*;
 use lagrangian::{AlphaBeta, DiscreteLagrangian, Integrator, Lagrangian, Midpoint, Trapezoid};

@@ -13,8 +13,8 @@
 //! near 1e-8, so the horizon is short (`T = 1e-5`, 128 … 1024 steps from
 //! rest, where the global error grows like `h² T²`): the smallest error
 //! stays about 1e3 above the round-off floor of these runs (about 1e-29).
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::{PENDULUM, Pendulum, fitted_order};
 use galerkin_reference::pendulum_angle;

@@ -1,8 +1,8 @@
 //! Verification: long-time structure of the Galerkin integrators (s = 2, 4):
 //! symplecticity of the step map to round-off, bounded energy error without
 //! drift over 1e5 steps, and the Kepler angular momentum.
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::*;
 use galerkin_reference::kepler_start;

@@ -2,7 +2,7 @@
 //! times (a quarter period and every half period after it, the period from
 //! the arithmetic–geometric mean), terminal events, landing, bad input.
 
-mod galerkin_reference;
+use crate::common::galerkin_reference;
 
 use galerkin_reference::pendulum_period;
 use lagrangian::prelude::*;

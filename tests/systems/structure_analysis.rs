@@ -18,7 +18,7 @@
 //! Where the right answer is known by hand it is asserted too, so that an
 //! analysis answering "general" everywhere would fail.
 //!
-//! `cargo test --test structure_analysis -- --nocapture` prints what the
+//! `cargo test --test systems structure_analysis:: -- --nocapture` prints what the
 //! analysis found for each system.
 #![allow(missing_docs)]
 

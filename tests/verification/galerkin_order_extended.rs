@@ -4,7 +4,7 @@
 //! run in double-double arithmetic ([`DoubleDouble`], about 32 digits).
 //!
 //! How the order is made visible: in `f64` it cannot be, for `s ≥ 5` on these
-//! problems (`tests/galerkin_order.rs` explains why, and fits `s ≤ 4` there).
+//! problems (`tests/verification/galerkin_order.rs` explains why, and fits `s ≤ 4` there).
 //! The error of order `2s` weighs the harmonic `n` of the solution like
 //! `n^{2s+1}`, so its asymptotic regime `C h^{2s}` starts only at step sizes
 //! where the whole error is far below `f64` round-off (1e-16 per step). Here
@@ -20,8 +20,8 @@
 //! Each fit is five step counts growing by `2^{1/4}` over a fixed span, so the
 //! step sizes and the final time are exact multiples and the comparison is at
 //! the same time for every run.
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::{KeplerPolar, PENDULUM, Pendulum, fitted_order};
 use galerkin_reference::{kepler_polar, kepler_start, pendulum_angle};

@@ -21,10 +21,10 @@
 //! | Galerkin s = 3 | quintic Hermite | 7 | 6 | 6 |
 //!
 //! The interpolants alone (fed the exact `q, v, a` at both ends) are checked
-//! too: orders 4 and 6. `cargo test --test dense_output -- --nocapture`
+//! too: orders 4 and 6. `cargo test --test verification dense_output:: -- --nocapture`
 //! prints the errors and fits.
 
-mod galerkin_reference;
+use crate::common::galerkin_reference;
 
 use galerkin_reference::pendulum_angle;
 use lagrangian::dense::{DenseStep, Hermite, Node};

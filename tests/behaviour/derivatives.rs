@@ -7,7 +7,7 @@
 //! ∂²A/∂q_k∂q_{k+1} = (h/4) L_qq + ½ (L_{q_i v_j} − L_{q_j v_i}) − (1/h) L_vv
 //! L_d = A/h:  D2 = ∂A/∂q_k / h,  D4 = ∂A/∂q_{k+1} / h,  D1 = L_v·v̂/h,  D3 = −L_v·v̂/h   (autonomous L)
 //! ```
-mod common;
+use crate::common;
 
 use common::*;
 use lagrangian::prelude::*;

@@ -1,7 +1,7 @@
 //! Luo, Guo, Li & Wu §V, on the run `examples/perturbed_pendulum.rs` records: the
 //! energy-preserving steps follow the pendulum and the slow perturbation.
 
-#[path = "../examples/support/perturbed.rs"]
+#[path = "../../examples/support/perturbed.rs"]
 mod perturbed;
 
 use perturbed::PERTURBATION;

@@ -1,6 +1,6 @@
 //! Bad input: every failure is a typed error, nothing panics, and a failed
 //! step leaves the integrator as it was.
-mod common;
+use crate::common;
 
 use common::*;
 use lagrangian::prelude::*;

@@ -2,7 +2,7 @@
 //! Lagrangians (the step size solved with the nodes from the discrete energy
 //! equation). Energy at round-off over 1e5 steps, order 2s of q at a fixed
 //! time, bad settings typed.
-mod common;
+use crate::common;
 
 use common::*;
 use lagrangian::prelude::*;

@@ -2,7 +2,7 @@
 //! translations, rotations and user generators are conserved to round-off
 //! without forces, and balanced by the forcing impulse at every step with
 //! them.
-mod common;
+use crate::common;
 
 use common::forced::*;
 use lagrangian::noether::{self, Generator};

@@ -5,7 +5,7 @@
 //!
 //! The full statement, order `2s ± 0.15` for `s = 1 … 8` on the pendulum at
 //! 1 rad and on Kepler at e = 0.5, is verified in double-double arithmetic in
-//! `tests/galerkin_order_extended.rs`. This file checks what `f64` itself
+//! `tests/verification/galerkin_order_extended.rs`. This file checks what `f64` itself
 //! can show, with the same code path users run:
 //!
 //! * The integrator sums `q_{k+1} = q_k + D_s` and `p_{k+1} = p_k + Δp` with
@@ -28,8 +28,8 @@
 //!   of `e^z`) has a local slope within 0.1 of `2s`, and the final time is a
 //!   zero crossing of `θ`, where a phase error shows in full.
 //! * `s = 7, 8` in `f64`: within 0.5 of `2s` only (13.67 and 16.16).
-mod common;
-mod galerkin_reference;
+use crate::common;
+use crate::common::galerkin_reference;
 
 use common::{KeplerPolar, PENDULUM, Pendulum, fitted_order};
 use galerkin_reference::{kepler_polar, kepler_start, pendulum_angle, pendulum_period};
@@ -132,7 +132,7 @@ fn high_degrees_reach_order_2s_on_the_pendulum() {
 /// a clean power of `h`. Measured over windows of `ωh` and amplitudes:
 /// s = 7: 13.40 … 13.80; s = 8: 15.20 … 16.16 (θ0 = 0.01 … 0.1, 1e5 … 2e5
 /// radians). Asserted here: within 0.5 of `2s` on one fixed configuration
-/// each; ±0.15 is shown in double-double (`tests/galerkin_order_extended.rs`).
+/// each; ±0.15 is shown in double-double (`tests/verification/galerkin_order_extended.rs`).
 #[test]
 fn degrees_seven_and_eight_show_orders_14_and_16_on_the_pendulum() {
     for (s, (fitted, errors)) in

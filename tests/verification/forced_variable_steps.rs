@@ -9,7 +9,7 @@
 //! with the DEL for `(q_{k+1}, h_k)`, so `EnergyBalance::variational_residual`
 //! is round-off at every node; these tests check that, and that the steps
 //! still converge at the method's order.
-mod common;
+use crate::common;
 
 use common::fitted_order;
 use common::forced::{DampedOscillator, SENSOR_VARIABLE};

@@ -1,6 +1,6 @@
 //! Verification: long-time structure. Bounded energy error without drift,
 //! exact conservation of a cyclic momentum, symplecticity of the step map.
-mod common;
+use crate::common;
 
 use common::*;
 use lagrangian::{DiscreteLagrangian, Integrator, Lagrangian, Midpoint, Trapezoid};

@@ -1,0 +1,20 @@
+//! Behaviour tests through the facade: errors, workflow (solutions, events, dense output, ensembles), derivatives and the macro's rewrite.
+//!
+//! One test binary for these files (each file is a module): one link and one set
+//! of shared instantiations instead of one per file, which shortens a cold
+//! `cargo test --workspace`. Run one file with `cargo test --test behaviour <file>::`.
+
+// `pub` items of the test modules are reachable only inside this test crate.
+#![allow(unreachable_pub)]
+
+#[path = "../common/mod.rs"]
+mod common;
+mod derivatives;
+mod ensemble;
+mod errors;
+mod events;
+mod galerkin_errors;
+mod guidance;
+mod long_expressions;
+mod macro_rewrite;
+mod solution;
