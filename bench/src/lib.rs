@@ -8,6 +8,7 @@
 //! [`cli`] for the options and [`report`] for the JSON schema.
 
 pub mod calibrate;
+pub mod clock;
 pub mod compositions;
 pub mod exact;
 pub mod handwritten;

@@ -1,7 +1,5 @@
 //! The methods of the report and how each one is run on a [`Model`].
 
-use std::time::Instant;
-
 use lagrangian::prelude::*;
 use lagrangian::{Composition as Generated, GalerkinIntegrator, StepBounds};
 use serde::{Deserialize, Serialize};
@@ -294,7 +292,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
             }
         }
     };
-    let start = Instant::now();
+    let start = crate::clock::Clock::start();
     let mut out = match (method, setting) {
         (Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6, Setting::Tolerance(tol)) => {
             crate::peers::run::<M, N, D>(model, (q0, v0), method, tol, t_end, samples)
@@ -367,7 +365,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
-    out.seconds = start.elapsed().as_secs_f64();
+    out.seconds = start.seconds();
     if samples > 0 {
         out.energy.append(&mut energy);
         out.momentum.append(&mut momentum);

@@ -1,8 +1,6 @@
 //! [`Problem`]: a [`Model`] behind a trait object, so the report can loop
 //! over problems of different dimensions; and the reference solutions.
 
-use std::time::Instant;
-
 use lagrangian::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -134,7 +132,7 @@ where
         Ok(galerkin_dd(&self.0, t_end, n)?.iter().map(|x| x.to_f64()).collect())
     }
     fn reference(&self, t_end: f64, tolerance: f64) -> Result<Reference, String> {
-        let start = Instant::now();
+        let start = crate::clock::Clock::start();
         let (q, kind, check, agreement, scale) = match (self.0.exact(Dd::from(t_end)), self.0.exact(t_end)) {
             (Some(q), Some(f)) => {
                 // The same closed form in f64: catches a formula that did not converge.
@@ -163,7 +161,7 @@ where
                 M::ID
             ));
         }
-        Ok(Reference { q, kind: kind.to_string(), check, agreement, accepted, seconds: start.elapsed().as_secs_f64() })
+        Ok(Reference { q, kind: kind.to_string(), check, agreement, accepted, seconds: start.seconds() })
     }
 }
 

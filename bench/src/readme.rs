@@ -67,14 +67,14 @@ pub fn named(name: &str, report: &Report) -> Option<String> {
             format!("{}: step costs not measured.\n", origin(report))
         }
         "step-cost" => format!(
-            "{}; h = 0.01, best of {} runs of {} steps, wall clock.\n\n{}",
+            "{}; h = 0.01, best of {} runs of {} steps, CPU time of the running thread.\n\n{}",
             origin(report),
             report.step_costs[0].repeats,
             report.step_costs[0].steps,
             step_cost_table(report)
         ),
         "galerkin-step-cost" => format!(
-            "{}; pendulum from 1 rad, h = 0.1, best of {} runs, wall clock.\n\n{}",
+            "{}; pendulum from 1 rad, h = 0.1, best of {} runs, CPU time of the running thread.\n\n{}",
             origin(report),
             report.step_costs.last().map_or(0, |c| c.repeats),
             galerkin_cost_table(report)

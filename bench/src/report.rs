@@ -1,15 +1,16 @@
 //! The report's data: one JSON file, `report.json`, with this schema
-//! (`schema_version` 3; fields are never renamed or removed within a version,
+//! (`schema_version` 4; fields are never renamed or removed within a version,
 //! and the deserialising structs below refuse unknown fields, so a file that
 //! parses into [`Report`] matches the schema). Version 2 added `machine`'s
 //! load averages, `problems[].twins` and `step_costs` (absent in a version 1
 //! file, read as empty); version 3 the angular-momentum errors of the long
 //! runs (`energy[].momentum_*`) and `stress.long_runs` (absent before: read as
-//! empty).
+//! empty); version 4 measures every `seconds` as CPU time of the thread that
+//! ran the integrator (wall-clock before; no field changed).
 //!
 //! ```text
 //! Report
-//!   schema_version: 3
+//!   schema_version: 4
 //!   suite: "tiny" | "quick" | "default" | "full"
 //!   crate_version, machine { cores, os, arch, load_start | null, load_end | null }
 //!                                        1-minute load averages when the suite started and ended
@@ -41,7 +42,7 @@
 //!                                        10⁷ steps (10⁵ in --quick) at the calibrated step
 //! ```
 //!
-//! `seconds` are wall-clock times of one thread; `calibrated.seconds` is the
+//! `seconds` are CPU times of the thread that ran the integrator ([`crate::clock`]); `calibrated.seconds` is the
 //! minimum over `repeats` runs of the selected setting, the sweeps' times are
 //! single runs.
 
@@ -52,7 +53,7 @@ use crate::methods::{Family, Setting};
 use crate::problem::Reference;
 
 /// The version of the schema described in the module docs.
-pub const SCHEMA_VERSION: u32 = 3;
+pub const SCHEMA_VERSION: u32 = 4;
 
 /// The whole report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -290,7 +291,7 @@ pub struct LongRun {
     pub steps: u64,
     /// Final time.
     pub t_end: f64,
-    /// Wall-clock seconds (including 1000 samples of the invariants).
+    /// CPU seconds of the run's thread (including 1000 samples of the invariants).
     pub seconds: f64,
     /// `max |E − E0|/|E0|` over the samples.
     pub energy_max_abs: Option<f64>,

@@ -4,7 +4,6 @@
 //! The README's ns/step table is generated from these numbers.
 
 use std::hint::black_box;
-use std::time::Instant;
 
 use lagrangian::GalerkinIntegrator;
 use lagrangian::prelude::*;
@@ -38,9 +37,9 @@ fn time(
     let mut best = f64::INFINITY;
     let mut newton = None;
     for _ in 0..repeats {
-        let start = Instant::now();
+        let start = crate::clock::Clock::start();
         newton = run()?;
-        best = best.min(start.elapsed().as_secs_f64());
+        best = best.min(start.seconds());
     }
     Some(StepCost {
         system: system.into(),
@@ -60,6 +59,24 @@ fn generated<S: Lagrangian<N> + Clone, M: F64Readouts + Clone, const N: usize>(
     steps: usize,
 ) -> Option<Option<f64>> {
     let mut sim = Integrator::new(system.clone(), method, H).start(0.0, q0, v0).ok()?;
+    sim.run(steps, |s| {
+        black_box(&s.state().q);
+    })
+    .ok()?;
+    let s = sim.stats();
+    Some(Some(s.newton_iterations as f64 / s.steps.max(1) as f64))
+}
+
+/// The generated energy-preserving midpoint step (`StepBounds::around(H)`).
+fn energy_preserving<S: Lagrangian<N> + Clone, const N: usize>(
+    system: &S,
+    (q0, v0): ([f64; N], [f64; N]),
+    steps: usize,
+) -> Option<Option<f64>> {
+    let mut sim = Integrator::new(system.clone(), Midpoint, H)
+        .energy_preserving(StepBounds::around(H))
+        .start(0.0, q0, v0)
+        .ok()?;
     sim.run(steps, |s| {
         black_box(&s.state().q);
     })
@@ -95,6 +112,7 @@ pub fn measure(suite: Suite) -> Vec<StepCost> {
     let name = "pendulum";
     out.extend(time(name, "generated midpoint", size, || generated(&pendulum, Midpoint, start, steps)));
     out.extend(time(name, "generated trapezoid", size, || generated(&pendulum, Trapezoid, start, steps)));
+    out.extend(time(name, "generated energy-preserving midpoint", size, || energy_preserving(&pendulum, start, steps)));
     out.extend(time(name, "hand-written midpoint", size, || {
         let mut s = PendulumMidpoint::new(params, H, 1.0, 0.0);
         for _ in 0..steps {
@@ -136,6 +154,12 @@ pub fn measure(suite: Suite) -> Vec<StepCost> {
             Some(None)
         }));
     }
+    // From (1, −0.5) the energy equation loses its root within 40 steps; from
+    // rest at (0.5, 0.3) it keeps it.
+    let name = "double pendulum from rest at (0.5, 0.3)";
+    let rest = ([0.5, 0.3], [0.0, 0.0]);
+    out.extend(time(name, "generated midpoint", size, || generated(&dp, Midpoint, rest, steps)));
+    out.extend(time(name, "generated energy-preserving midpoint", size, || energy_preserving(&dp, rest, steps)));
     // Galerkin s = 1…8 on the pendulum at h = 0.1, a tenth of the steps (they cost up to 20 times more).
     let size = (steps / 10, size.1);
     macro_rules! degrees {
