@@ -16,7 +16,7 @@ pub struct Point {
     pub setting: Setting,
     /// `max_i |q_i(T) − q_i^ref(T)|`; `None` when the run failed.
     pub error: Option<f64>,
-    /// Wall-clock seconds of the run (one run).
+    /// CPU seconds of the run (one run).
     pub seconds: f64,
     /// Steps taken.
     pub steps: u64,

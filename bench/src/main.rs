@@ -22,6 +22,11 @@ OPTIONS:
     --problem ID[,ID..]      only these problems (repeatable)
     --method NAME[,NAME..]   only these methods (repeatable)
     --out DIR                output directory (default target/report)
+    --scale X                multiply every problem's horizon by X (e.g. `--problem pendulum --scale 20`:
+                             1000 periods; `--problem kepler-0.9 --scale 100`: 1000 orbits)
+    --targets E[,E..]        target errors in place of the suite's
+    --calibration-only       only the work–precision calibration (no long energy runs, stress section
+                             or step costs)
     --reference-tolerance X  relative agreement a reference must reach (default 1e-14)
     --no-progress            no progress bars
     --list                   list problems and methods
@@ -30,8 +35,10 @@ OPTIONS:
 readme: rewrites the README's generated performance tables from a report's
 JSON (default target/report/report.json and README.md): each section between
 `<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
-headline, step-cost, galerkin-step-cost, compositions, time-transformed (--section: only
-these).
+headline, step-cost, galerkin-step-cost, compositions, time-transformed (from a report
+of the suite's own horizons), calibrated-ID (every method's calibrated run on problem
+ID) or calibrated-ID-xK (the same from a report run with `--scale K`) (--section: only
+these). A section the report cannot supply is left as it is.
 ";
 
 fn main() -> ExitCode {
@@ -69,6 +76,9 @@ fn run(args: Vec<String>) -> Result<(), String> {
     let mut from = PathBuf::from("target/report/report.json");
     let mut readme_path = PathBuf::from("README.md");
     let mut sections: Vec<String> = Vec::new();
+    let mut horizon_scale = 1.0;
+    let mut targets: Option<Vec<f64>> = None;
+    let mut calibration_only = false;
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "readme" => readme_mode = true,
@@ -79,6 +89,30 @@ fn run(args: Vec<String>) -> Result<(), String> {
             "--full" => suite = Suite::Full,
             "--tiny" => suite = Suite::Tiny,
             "--no-progress" => progress = false,
+            "--calibration-only" => calibration_only = true,
+            "--scale" => {
+                let v = args.next().ok_or("`--scale` needs a number")?;
+                horizon_scale = v
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite() && *x > 0.0)
+                    .ok_or_else(|| format!("`--scale`: `{v}` is not a positive number"))?;
+            }
+            "--targets" => {
+                let mut list = Vec::new();
+                for v in values(&mut args, "--targets")? {
+                    let x = v
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite() && *x > 0.0)
+                        .ok_or_else(|| format!("`--targets`: `{v}` is not a positive number"))?;
+                    list.push(x);
+                }
+                if list.is_empty() {
+                    return Err("`--targets` needs at least one error".into());
+                }
+                targets = Some(list);
+            }
             "--out" => out = PathBuf::from(args.next().ok_or("`--out` needs a directory")?),
             "--reference-tolerance" => {
                 let v = args.next().ok_or("`--reference-tolerance` needs a number")?;
@@ -119,7 +153,8 @@ fn run(args: Vec<String>) -> Result<(), String> {
     if readme_mode {
         return readme::update(&from, &readme_path, &sections);
     }
-    let config = Config { suite, problems, methods, reference_tolerance, progress };
+    let config =
+        Config { suite, problems, methods, reference_tolerance, progress, horizon_scale, targets, calibration_only };
     let report = suite::run(&config)?;
     output::write(&report, &out)?;
     println!("report written to {}", out.display());

@@ -344,6 +344,46 @@ pub fn time_transformed_table(report: &Report) -> String {
     s
 }
 
+/// Every method's calibrated run on problem `p`, per target, fastest first;
+/// the methods that did not reach a target in one line after.
+pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
+    let mut s = String::from(
+        "| target | method | setting | steps | worst error of 3 | time | Newton it./step |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    let steps_of = |c: &Calibrated| {
+        let sweep = p.sweeps.iter().find(|w| w.method == c.method)?;
+        sweep.points.iter().find(|pt| Some(&pt.setting) == c.setting.as_ref()).map(|pt| pt.steps)
+    };
+    for &target in &report.targets {
+        let mut met: Vec<&Calibrated> =
+            p.calibrated.iter().filter(|c| c.target == target && c.setting.is_some() && c.seconds.is_some()).collect();
+        met.sort_by(|a, b| a.seconds.unwrap_or(f64::INFINITY).total_cmp(&b.seconds.unwrap_or(f64::INFINITY)));
+        for c in met {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                e(target),
+                c.method,
+                c.setting.as_ref().map_or("—".into(), setting),
+                steps_of(c).map_or("—".into(), |n| n.to_string()),
+                c.worst_of_three.map_or("—".into(), e),
+                c.seconds.map_or("—".into(), ms),
+                c.newton_per_step.map_or("—".into(), |x| format!("{x:.2}"))
+            );
+        }
+        let missed: Vec<&str> = p
+            .calibrated
+            .iter()
+            .filter(|c| c.target == target && (c.setting.is_none() || c.seconds.is_none()))
+            .map(|c| c.method.as_str())
+            .collect();
+        if !missed.is_empty() {
+            let _ = writeln!(s, "| {} | not reached: {} | | | | | |", e(target), missed.join(", "));
+        }
+    }
+    s
+}
+
 /// The step-cost table: ns per step at `h` = 0.01, per system, with the
 /// generated / hand-written ratio of the midpoint rule.
 pub fn step_cost_table(report: &Report) -> String {

@@ -6,7 +6,9 @@
 use std::fs;
 use std::path::Path;
 
-use crate::output::{galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table};
+use crate::output::{
+    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table,
+};
 use crate::report::{Report, SCHEMA_VERSION};
 
 /// The line that opens the generated headline.
@@ -15,7 +17,8 @@ pub const BEGIN: &str =
 /// The line that closes it.
 pub const END: &str = "<!-- bench:headline:end -->";
 
-/// The generated sections: `(name, what it holds)`.
+/// The generated sections: `(name, what it holds)`; besides these,
+/// `calibrated-ID` and `calibrated-ID-xK` (see [`named`]).
 pub const SECTIONS: [(&str, &str); 5] = [
     ("headline", "best project method, peer crate and hand-written composition per problem and target"),
     ("step-cost", "ns per step, generated against hand-written"),
@@ -48,8 +51,44 @@ pub fn section(report: &Report) -> String {
     named("headline", report).unwrap_or_default()
 }
 
-/// The generated text of section `name`, markers included; `None` for an unknown name.
+/// `calibrated-ID` or `calibrated-ID-xK`: the problem id and the horizon
+/// scale the section needs.
+fn calibrated_name(name: &str) -> Option<(&str, f64)> {
+    let rest = name.strip_prefix("calibrated-")?;
+    if let Some((id, k)) = rest.rsplit_once("-x") {
+        if let Ok(k) = k.parse::<f64>() {
+            return Some((id, k));
+        }
+    }
+    Some((rest, 1.0))
+}
+
+/// The generated text of section `name`, markers included; `None` for an
+/// unknown name or a section this report cannot supply: the suite-wide
+/// sections need a report of the suite's own horizons (`--scale` 1, not
+/// `--calibration-only`) and step costs, `calibrated-ID-xK` a report of
+/// problem ID run with `--scale K`.
 pub fn named(name: &str, report: &Report) -> Option<String> {
+    if let Some((id, scale)) = calibrated_name(name) {
+        let p = report.problems.iter().find(|p| p.id == id)?;
+        if report.horizon_scale != scale {
+            return None;
+        }
+        let body = format!(
+            "{}; {}{}, horizon T = {:.6}; every method calibrated to each target (the coarsest setting for which it and \
+             the next two finer ones meet it), fastest first; time of one run at that setting.\n\n{}",
+            origin(report),
+            p.title,
+            if scale == 1.0 { String::new() } else { format!(" run at {scale}× that horizon") },
+            p.horizon,
+            calibrated_table(report, p)
+        );
+        return Some(format!("{}\n{body}{}", begin(name), end(name)));
+    }
+    let whole_suite = report.horizon_scale == 1.0 && !report.calibration_only;
+    if !whole_suite {
+        return None;
+    }
     let body = match name {
         "headline" => {
             let targets: Vec<f64> = match (report.targets.first(), report.targets.last()) {
@@ -63,9 +102,7 @@ pub fn named(name: &str, report: &Report) -> Option<String> {
                 headline(report, &targets)
             )
         }
-        "step-cost" | "galerkin-step-cost" if report.step_costs.is_empty() => {
-            format!("{}: step costs not measured.\n", origin(report))
-        }
+        "step-cost" | "galerkin-step-cost" if report.step_costs.is_empty() => return None,
         "step-cost" => format!(
             "{}; h = 0.01, best of {} runs of {} steps, CPU time of the running thread.\n\n{}",
             origin(report),
@@ -96,22 +133,62 @@ pub fn named(name: &str, report: &Report) -> Option<String> {
     Some(format!("{}\n{body}{}", begin(name), end(name)))
 }
 
+/// The names of the marked sections of `text`, in order.
+pub fn marked(text: &str) -> Vec<String> {
+    text.match_indices("<!-- bench:")
+        .filter_map(|(i, _)| {
+            let rest = &text[i + "<!-- bench:".len()..];
+            let (name, tail) = rest.split_once(':')?;
+            tail.starts_with("begin").then(|| name.to_string())
+        })
+        .collect()
+}
+
+fn known(name: &str) -> bool {
+    SECTIONS.iter().any(|(s, _)| *s == name) || calibrated_name(name).is_some()
+}
+
 /// Reads the report at `json` and replaces the marked sections of `readme`
-/// named in `only` (every section when empty); fails when none is there.
+/// named in `only` (every marked section when empty) that the report can
+/// supply, leaving the others as they are (and saying so on stderr); fails
+/// when a section named in `only` is unknown or cannot be supplied, or when
+/// nothing was replaced.
 pub fn update(json: &Path, readme: &Path, only: &[String]) -> Result<(), String> {
-    if let Some(unknown) = only.iter().find(|n| !SECTIONS.iter().any(|(s, _)| s == n)) {
+    if let Some(unknown) = only.iter().find(|n| !known(n)) {
         let known: Vec<&str> = SECTIONS.iter().map(|(s, _)| *s).collect();
-        return Err(format!("unknown README section `{unknown}` (known: {})", known.join(", ")));
+        return Err(format!(
+            "unknown README section `{unknown}` (known: {}, calibrated-ID, calibrated-ID-xK)",
+            known.join(", ")
+        ));
     }
     let text = fs::read_to_string(json).map_err(|e| format!("cannot read {}: {e}", json.display()))?;
     let report: Report = serde_json::from_str(&text)
         .map_err(|e| format!("{} is not a report (schema {SCHEMA_VERSION}): {e}", json.display()))?;
     let mut new = fs::read_to_string(readme).map_err(|e| format!("cannot read {}: {e}", readme.display()))?;
+    let names: Vec<String> = if only.is_empty() { marked(&new) } else { only.to_vec() };
     let mut found = 0;
-    for (name, _) in SECTIONS.iter().filter(|(n, _)| only.is_empty() || only.iter().any(|o| o == n)) {
-        if let Some(replaced) = named(name, &report).and_then(|s| replace_named(&new, name, &s)) {
-            new = replaced;
-            found += 1;
+    for name in &names {
+        match named(name, &report) {
+            Some(section) => match replace_named(&new, name, &section) {
+                Some(replaced) => {
+                    new = replaced;
+                    found += 1;
+                }
+                None if !only.is_empty() => {
+                    return Err(format!("{} has no `bench:{name}` section", readme.display()));
+                }
+                None => {}
+            },
+            None if !only.is_empty() => {
+                return Err(format!(
+                    "{} cannot supply section `{name}` (suite `{}`, horizon scale {}{})",
+                    json.display(),
+                    report.suite,
+                    report.horizon_scale,
+                    if report.calibration_only { ", calibration only" } else { "" }
+                ));
+            }
+            None => eprintln!("left as it is: `{name}` (not in this report)"),
         }
     }
     if found == 0 {

@@ -13,6 +13,7 @@
 //!   schema_version: 4
 //!   suite: "tiny" | "quick" | "default" | "full"
 //!   crate_version, machine { cores, os, arch, load_start | null, load_end | null }
+//!   horizon_scale, calibration_only       --scale (default 1), --calibration-only (default false)
 //!                                        1-minute load averages when the suite started and ended
 //!   targets: [f64]                       target errors, max_i |q_i(T) − q_i^ref(T)|
 //!   problems: [ProblemReport]
@@ -69,6 +70,14 @@ pub struct Report {
     pub machine: Machine,
     /// Target errors.
     pub targets: Vec<f64>,
+    /// Multiplies every problem's horizon beyond the suite's own (`--scale`;
+    /// 1 unless asked).
+    #[serde(default = "one")]
+    pub horizon_scale: f64,
+    /// Only the work–precision calibration ran (`--calibration-only`): no long
+    /// energy runs, stress section or step costs.
+    #[serde(default)]
+    pub calibration_only: bool,
     /// One entry per problem.
     pub problems: Vec<ProblemReport>,
     /// The stress section.
@@ -76,6 +85,10 @@ pub struct Report {
     /// Cost of one step at a fixed step size, generated against hand-written.
     #[serde(default)]
     pub step_costs: Vec<StepCost>,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// ns per step of one method on one system.
@@ -92,7 +105,7 @@ pub struct StepCost {
     pub steps: u64,
     /// Timed runs.
     pub repeats: u32,
-    /// Wall-clock ns per step, best of the runs.
+    /// CPU ns per step, best of the runs.
     pub ns_per_step: f64,
     /// Newton iterations per step (generated methods).
     pub newton_per_step: Option<f64>,

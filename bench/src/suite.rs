@@ -116,6 +116,13 @@ pub struct Config {
     pub reference_tolerance: f64,
     /// Show progress bars.
     pub progress: bool,
+    /// Multiplies every problem's horizon (on top of the suite's scale).
+    pub horizon_scale: f64,
+    /// Target errors in place of the suite's.
+    pub targets: Option<Vec<f64>>,
+    /// Only the work–precision calibration: no long energy runs, stress
+    /// section or step costs (for long horizons, `--scale`).
+    pub calibration_only: bool,
 }
 
 /// The ids of every problem of the work–precision suite.
@@ -165,10 +172,11 @@ pub fn run(config: &Config) -> Result<Report, String> {
     let suite = config.suite;
     let load_start = load_average();
     let log = Log::new(config);
-    let targets = suite.targets();
+    let targets = config.targets.clone().unwrap_or_else(|| suite.targets());
+    let scale = suite.scale() * config.horizon_scale;
     let smallest = targets.iter().copied().fold(f64::INFINITY, f64::min);
     let methods = config.methods.clone().unwrap_or_else(Method::all);
-    let problems: Vec<Box<dyn Problem>> = problem::all(suite.scale())
+    let problems: Vec<Box<dyn Problem>> = problem::all(scale)
         .into_iter()
         .filter(|p| config.problems.as_ref().is_none_or(|ids| ids.iter().any(|id| id == p.id())))
         .collect();
@@ -204,7 +212,11 @@ pub fn run(config: &Config) -> Result<Report, String> {
         let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
         b.set_message("long energy runs");
         log.line(format_args!("{}: long energy runs", p.id()));
-        let energy = long_energy(&**p, &applicable, &calibrated, targets[0], t_end * suite.long_factor());
+        let energy = if config.calibration_only {
+            Vec::new()
+        } else {
+            long_energy(&**p, &applicable, &calibrated, targets[0], t_end * suite.long_factor())
+        };
         b.finish_with_message("done");
         reports.push(ProblemReport {
             id: p.id().to_string(),
@@ -220,12 +232,16 @@ pub fn run(config: &Config) -> Result<Report, String> {
         });
     }
     let references: Vec<&[f64]> = reports.iter().map(|r| r.reference.q.as_slice()).collect();
-    log.line("stress");
-    let mut stress = stress(config, &methods, &problems, &references);
-    log.line("long runs");
-    stress.long_runs = long_runs(config, &methods, &problems, &reports);
-    log.line("step costs");
-    let step_costs = crate::step_cost::measure(suite);
+    let (stress, step_costs) = if config.calibration_only {
+        (Stress::default(), Vec::new())
+    } else {
+        log.line("stress");
+        let mut stress = stress(config, &methods, &problems, &references);
+        log.line("long runs");
+        stress.long_runs = long_runs(config, &methods, &problems, &reports);
+        log.line("step costs");
+        (stress, crate::step_cost::measure(suite))
+    };
     log.line("done");
     Ok(Report {
         schema_version: SCHEMA_VERSION,
@@ -239,6 +255,8 @@ pub fn run(config: &Config) -> Result<Report, String> {
             load_end: load_average(),
         },
         targets,
+        horizon_scale: config.horizon_scale,
+        calibration_only: config.calibration_only,
         problems: reports,
         stress,
         step_costs,

@@ -217,3 +217,57 @@ fn a_sweep_that_fails_at_every_setting_gives_up_after_three_octaves() {
     assert!(points.iter().all(|pt| pt.failure.is_some()), "{points:?}");
     assert_eq!(points.len(), window, "{points:?}");
 }
+
+/// `--scale` and `--calibration-only`: the horizon grows by the factor, only
+/// the calibration runs, and `readme` rewrites the matching
+/// `calibrated-ID-xK` section while leaving the suite-wide ones alone (and
+/// refusing them when asked by name).
+#[test]
+fn a_scaled_calibration_fills_only_its_own_readme_section() {
+    let dir = scratch("scaled");
+    let out = dir.join("report");
+    let run = |scale: &str, out: &Path| {
+        let status = bin()
+            .args(["--tiny", "--no-progress", "--problem", "pendulum", "--targets", "1e-3", "--scale", scale])
+            .args(["--calibration-only", "--out"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+        let report: Report = serde_json::from_slice(&read(&out.join("report.json"))).unwrap();
+        report
+    };
+    let scaled = run("3", &out);
+    let plain = run("1", &dir.join("plain"));
+    assert_eq!(scaled.horizon_scale, 3.0);
+    assert!(scaled.calibration_only);
+    assert_eq!(scaled.targets, [1e-3]);
+    let ratio = scaled.problems[0].horizon / plain.problems[0].horizon;
+    // The pendulum's horizon is (50 s + ¼) periods: not exactly proportional to s.
+    assert!((ratio - (150.0 * 0.02 + 0.25) / (50.0 * 0.02 + 0.25)).abs() < 1e-12, "{ratio}");
+    assert!(scaled.stress.long_runs.is_empty() && scaled.step_costs.is_empty());
+    assert!(scaled.problems[0].energy.is_empty());
+
+    let readme = dir.join("README.md");
+    let text = "intro\n<!-- bench:calibrated-pendulum-x3:begin -->\nold\n<!-- bench:calibrated-pendulum-x3:end -->\n\
+                <!-- bench:headline:begin -->\nkept\n<!-- bench:headline:end -->\n";
+    std::fs::write(&readme, text).unwrap();
+    let update = |section: Option<&str>| {
+        let mut c = bin();
+        c.arg("readme").arg("--from").arg(out.join("report.json")).arg("--readme").arg(&readme);
+        if let Some(s) = section {
+            c.args(["--section", s]);
+        }
+        c.output().unwrap()
+    };
+    assert!(update(None).status.success());
+    let new = std::fs::read_to_string(&readme).unwrap();
+    assert!(new.contains("kept") && !new.contains("old"), "{new}");
+    assert!(new.contains("run at 3× that horizon") && new.contains("| 1.0e-3 | "), "{new}");
+    // Asked by name, a section the report cannot supply is an error, and nothing is written.
+    let refused = update(Some("headline"));
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("cannot supply section `headline`"));
+    assert_eq!(std::fs::read_to_string(&readme).unwrap(), new);
+    assert!(!update(Some("calibrated-pendulum-x2")).status.success());
+}
