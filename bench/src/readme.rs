@@ -55,12 +55,10 @@ pub fn section(report: &Report) -> String {
 /// scale the section needs.
 fn calibrated_name(name: &str) -> Option<(&str, f64)> {
     let rest = name.strip_prefix("calibrated-")?;
-    if let Some((id, k)) = rest.rsplit_once("-x") {
-        if let Ok(k) = k.parse::<f64>() {
-            return Some((id, k));
-        }
+    match rest.rsplit_once("-x").map(|(id, k)| (id, k.parse::<f64>())) {
+        Some((id, Ok(k))) => Some((id, k)),
+        _ => Some((rest, 1.0)),
     }
-    Some((rest, 1.0))
 }
 
 /// The generated text of section `name`, markers included; `None` for an
