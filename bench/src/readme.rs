@@ -163,7 +163,8 @@ pub fn update(json: &Path, readme: &Path, only: &[String]) -> Result<(), String>
     let report: Report = serde_json::from_str(&text)
         .map_err(|e| format!("{} is not a report (schema {SCHEMA_VERSION}): {e}", json.display()))?;
     let mut new = fs::read_to_string(readme).map_err(|e| format!("cannot read {}: {e}", readme.display()))?;
-    let names: Vec<String> = if only.is_empty() { marked(&new) } else { only.to_vec() };
+    let names: Vec<String> =
+        if only.is_empty() { marked(&new).into_iter().filter(|n| known(n)).collect() } else { only.to_vec() };
     let mut found = 0;
     for name in &names {
         match named(name, &report) {
