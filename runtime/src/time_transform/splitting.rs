@@ -18,7 +18,7 @@
 //! kick  (B):  p −= σ f'(c − V) ∇_q V,          p_t −= σ f'(c − V) ∂_t V
 //! ```
 //!
-//! Their leapfrog (kick–drift–kick or drift–kick–drift, [`LeapfrogForm`]) is
+//! Their leapfrog (drift–kick–drift or kick–drift–kick, [`LeapfrogForm`]) is
 //! symplectic in the extended phase space, time-reversible, explicit, and of
 //! order 2 in `σ`; the symmetric compositions of [`Composition`] raise it to
 //! orders 4, 6 and 8. With `f = ln` ([`TimeFunction::Logarithmic`], Preto &
@@ -26,7 +26,7 @@
 //! separable Hamiltonian systems*, Astron. J. 118, 1999; Mikkola & Tanikawa,
 //! *Algorithmic regularization of the few-body problem*, MNRAS 310, 1999) the
 //! density is `g = 1/(c − V)`; for Kepler with `c = 0` it is `g = r`, and the
-//! leapfrog keeps the positions on the exact Kepler ellipse with only an
+//! drift–kick–drift leapfrog keeps the positions on the exact Kepler ellipse with only an
 //! error along the track. [`TimeFunction::Power`] takes `f'(x) = x^{−α}`,
 //! `g = (c − V)^{−α}` (`α = 3/2`, `c = 0` gives `r^{3/2}` on Kepler).
 
@@ -82,12 +82,18 @@ impl TimeFunction {
 /// The order of the sub-flows in one leapfrog: both are symmetric,
 /// symplectic and of order 2, with one gradient of `V` per stage (the
 /// half-kicks of consecutive stages and steps merge, as do the half-drifts).
+///
+/// Drift–kick–drift is the default: with `f = ln` on Kepler its nodes lie on
+/// the exact ellipse of the initial data (Preto & Tremaine's property; the
+/// kick–drift–kick nodes only stay `O(σ²)` close), and on Kepler e = 0.9 over
+/// 1000 orbits it reached a final position error of 1e-6 and 1e-9 with
+/// 1.1–4× fewer steps than kick–drift–kick (bench/benches/time_transformed.rs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum LeapfrogForm {
     /// Kick `σ/2`, drift `σ`, kick `σ/2`.
-    #[default]
     KickDriftKick,
     /// Drift `σ/2`, kick `σ`, drift `σ/2`.
+    #[default]
     DriftKickDrift,
 }
 
@@ -229,7 +235,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
         self
     }
 
-    /// Kick–drift–kick (default) or drift–kick–drift.
+    /// Drift–kick–drift (default) or kick–drift–kick.
     pub fn form(mut self, form: LeapfrogForm) -> Self {
         self.form = form;
         self
