@@ -195,7 +195,9 @@ fn main() -> Result<(), Box<dyn Error>> {
     for (i, j, pair, third) in end_state(&end) {
         println!(
             "  masses {} and {}: pair energy {pair:+.4}, mass {} against them {third:+.4}",
-            MASSES[i], MASSES[j], MASSES[3 - i - j]
+            MASSES[i],
+            MASSES[j],
+            MASSES[3 - i - j]
         );
     }
     println!("fixed steps, same order (Kahan–Li 8 of Störmer–Verlet):");

@@ -154,11 +154,13 @@ pub use lagrangian_runtime::*;
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
-    pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction};
     pub use lagrangian_runtime::{
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, DynLagrangian, EnergyFallback, Error, F64Readouts,
         Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Symmetry,
         Trapezoid,
+    };
+    pub use lagrangian_runtime::{
+        Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynState};

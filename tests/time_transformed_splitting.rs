@@ -68,12 +68,7 @@ const METHODS: [(&str, Option<Composition>, u32); 4] = [
     ("kahan-li-8", Some(Composition::KAHAN_LI8), 8),
 ];
 
-fn kepler(
-    e: f64,
-    f: TimeFunction,
-    composition: Option<Composition>,
-    sigma: f64,
-) -> ExplicitAdaptive<Kepler, f64, 2> {
+fn kepler(e: f64, f: TimeFunction, composition: Option<Composition>, sigma: f64) -> ExplicitAdaptive<Kepler, f64, 2> {
     let (q0, v0) = kepler_start(e);
     let mut b = ExplicitTimeTransformed::new(Kepler, f, sigma);
     if let Some(c) = composition {
@@ -198,11 +193,14 @@ fn trend(m: &[f64]) -> f64 {
     common::linear_fit(&k, m).1.abs() * m.len() as f64 / mean
 }
 
+/// `(e, f, composition, σ, position tolerance, energy tolerance)`.
+type Case = (f64, TimeFunction, Option<Composition>, f64, f64, f64);
+
 /// Runs with the settings the benchmark picks near 1e-6 … 1e-9 (Kahan–Li 8
 /// and Yoshida 6 with `g = r^{3/2}`) and the leapfrogs; tolerances about
 /// three times the errors measured, so a change of order or error constant
 /// fails.
-fn invariants(orbits: usize, cases: &[(f64, TimeFunction, Option<Composition>, f64, f64, f64)]) {
+fn invariants(orbits: usize, cases: &[Case]) {
     for &(e, f, comp, sigma, pos, en) in cases {
         let run = measure(kepler(e, f, comp, sigma), e, orbits);
         let label = comp.map_or("leapfrog".to_string(), |c| format!("order {}", c.order()));
@@ -348,7 +346,8 @@ fn symplectic_in_the_extended_phase_space() {
                     sim.run_until(0.4 * k as f64, |_| {}).unwrap();
                 }
                 let x = sim.extended_point();
-                let flat = |x: &lagrangian::time_transform::ExtendedPoint<Dd, 2>| [x.q[0], x.q[1], x.t, x.p[0], x.p[1], x.p_t];
+                let flat =
+                    |x: &lagrangian::time_transform::ExtendedPoint<Dd, 2>| [x.q[0], x.q[1], x.t, x.p[0], x.p[1], x.p_t];
                 let x0 = flat(&x);
                 let delta = Dd::from(1e-10);
                 let mut jac = [[Dd::from(0.0); 6]; 6];
@@ -356,7 +355,12 @@ fn symplectic_in_the_extended_phase_space() {
                     let image = |sign: f64| {
                         let mut y = x0;
                         y[j] += delta * sign;
-                        let point = lagrangian::time_transform::ExtendedPoint { q: [y[0], y[1]], t: y[2], p: [y[3], y[4]], p_t: y[5] };
+                        let point = lagrangian::time_transform::ExtendedPoint {
+                            q: [y[0], y[1]],
+                            t: y[2],
+                            p: [y[3], y[4]],
+                            p_t: y[5],
+                        };
                         flat(&sim.map(point).unwrap())
                     };
                     let (plus, minus) = (image(1.0), image(-1.0));
@@ -371,7 +375,13 @@ fn symplectic_in_the_extended_phase_space() {
                         for i in 0..3 {
                             s += jac[i][a] * jac[i + 3][b] - jac[i + 3][a] * jac[i][b];
                         }
-                        let omega = if b == a + 3 { 1.0 } else if a == b + 3 { -1.0 } else { 0.0 };
+                        let omega = if b == a + 3 {
+                            1.0
+                        } else if a == b + 3 {
+                            -1.0
+                        } else {
+                            0.0
+                        };
                         worst = worst.max((s - Dd::from(omega)).to_f64().abs());
                     }
                 }

@@ -100,7 +100,11 @@ where
 }
 
 /// One run of the explicit time-transformed splitting.
-fn split_run(build: &dyn Fn(f64) -> Result<ExplicitAdaptive<KeplerSys, f64, 2>, String>, sigma: f64, watch: bool) -> Outcome {
+fn split_run(
+    build: &dyn Fn(f64) -> Result<ExplicitAdaptive<KeplerSys, f64, 2>, String>,
+    sigma: f64,
+    watch: bool,
+) -> Outcome {
     let start = Instant::now();
     let mut sim = match build(sigma) {
         Ok(sim) => sim,

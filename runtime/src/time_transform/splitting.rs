@@ -284,9 +284,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
             });
         }
         if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-            return Err(SplittingError::NotSeparable {
-                reason: "the splitting does not take forces or dissipation",
-            });
+            return Err(SplittingError::NotSeparable { reason: "the splitting does not take forces or dissipation" });
         }
         if !(self.sigma.is_finite() && self.sigma > 0.0) {
             return Err(SplittingError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
@@ -470,7 +468,8 @@ fn invert<T: Real, const N: usize>(a: [[T; N]; N]) -> Option<[[T; N]; N]> {
     }
     for col in 0..N {
         let pivot = (col..N).max_by(|&i, &j| a[i][col].re().abs().total_cmp(&a[j][col].re().abs()))?;
-        if !(a[pivot][col].re().abs() > 1e-13 * scale) {
+        let size = a[pivot][col].re().abs();
+        if size.is_nan() || size <= 1e-13 * scale {
             return None;
         }
         a.swap(col, pivot);
@@ -756,12 +755,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
 
     /// The drift by `h`: `q += h f'(T + p_t + c) M⁻¹p`, `t += h f'(T + p_t + c)`.
     #[inline(always)]
-    fn drift(
-        &self,
-        phase: &mut Phase<T, N>,
-        cached: &mut Option<Gradient<T, N>>,
-        h: T,
-    ) -> Result<(), (Argument, T)> {
+    fn drift(&self, phase: &mut Phase<T, N>, cached: &mut Option<Gradient<T, N>>, h: T) -> Result<(), (Argument, T)> {
         let (kinetic, u) = kinetic_energy(&self.inverse_mass, &phase.p);
         let x = kinetic + phase.p_t + self.shift;
         if !(x.is_finite() && x.re() > 0.0) {
