@@ -199,6 +199,15 @@ static LEAPFROG: [f64; 1] = [1.0];
 /// state: `ExplicitTimeTransformed::new(system, f, σ)`, optionally
 /// `.composition(…)`, `.form(…)`, `.shift(c)`, `.min_time_step(dt)`, then
 /// [`start`](Self::start).
+///
+/// The method splits `Γ = f(T(p) + p_t + c) − f(c − V(t, q))` on the
+/// extended phase space into the exactly solved drift
+/// `q += σ f'(T + p_t + c) M⁻¹p, t += σ f'(T + p_t + c)` and kick
+/// `p −= σ f'(c − V) ∇V, p_t −= σ f'(c − V) ∂_t V` (Preto & Tremaine, *A
+/// class of symplectic integrators with adaptive time step for separable
+/// Hamiltonian systems*, 1999; Mikkola & Tanikawa, *Algorithmic
+/// regularization of the few-body problem*, 1999): order 2 in `σ` as a
+/// leapfrog, 4, 6 or 8 composed (Yoshida 1990; Kahan & Li 1997).
 #[derive(Clone, Debug)]
 pub struct ExplicitTimeTransformed<Sys, const N: usize> {
     system: Sys,
@@ -387,9 +396,11 @@ struct Gradient<T, const N: usize> {
     dt: T,
 }
 
-/// The explicit time-transformed integrator (see the [module](self)):
-/// uniform steps `σ` in `s`, adaptive steps in physical time, in the real
-/// type `T`.
+/// The explicit time-transformed integrator: uniform steps `σ` in `s` of
+/// the splitting of `Γ = f(T + p_t + c) − f(c − V)` (see
+/// [`ExplicitTimeTransformed`]), so adaptive steps `dt ≈ σ f'(c − V)` in
+/// physical time, symplectic in `(q, t, p, p_t)`, of order 2 (leapfrog) or
+/// that of the composition; state in the real type `T`.
 ///
 /// ```
 /// use lagrangian_runtime::time_transform::{ExplicitTimeTransformed, TimeFunction};
