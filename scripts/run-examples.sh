@@ -2,7 +2,7 @@
 # Runs every example in release mode; each prints its energy and momentum errors.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-for example in harmonic_oscillator pendulum double_pendulum kepler perturbed_pendulum slow_oscillator kepler_adaptive fpu_chain n_link_pendulum; do
+for example in harmonic_oscillator pendulum double_pendulum kepler perturbed_pendulum slow_oscillator kepler_adaptive pythagorean fpu_chain n_link_pendulum; do
     echo "== $example"
     cargo run --quiet --release --example "$example"
 done

@@ -29,3 +29,4 @@ mod perturbed_pendulum;
 mod structure;
 mod time_dependent;
 mod time_transformed;
+mod time_transformed_splitting;

@@ -27,6 +27,19 @@
 //! and the energy in physical time, lands on requested times, and refuses a
 //! step density that is not positive and finite, or steps that stop
 //! advancing time, with typed errors that keep the state.
+//!
+//! For separable systems `½ vᵀMv − V(t, q)` with constant `M`,
+//! [`ExplicitTimeTransformed`] is an explicit alternative: a splitting of the
+//! time-transformed Hamiltonian `f(T + p_t + c) − f(c − V)` (the logarithmic
+//! Hamiltonian method and its power-law relatives, with compositions up to
+//! order 8), symplectic in the same extended phase space and without Newton.
+
+mod splitting;
+
+pub use splitting::{
+    Argument, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingError, SplittingStats,
+    TimeFunction,
+};
 
 use core::cell::Cell;
 use core::marker::PhantomData;

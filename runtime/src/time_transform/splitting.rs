@@ -1,0 +1,889 @@
+//! Explicit, symplectic, time-transformed splitting for separable systems
+//! `L = ½ vᵀMv − V(t, q)` with a constant mass matrix `M` (the logarithmic
+//! Hamiltonian method and its power-law relatives).
+//!
+//! With `H = T(p) + V(t, q)`, `T(p) = ½ pᵀM⁻¹p`, on the extended phase space
+//! `(q, t; p, p_t)` with `p_t(0) = −H(0)`, the Hamiltonian in the new time `s`
+//!
+//! ```text
+//! Γ(q, t, p, p_t) = f(T(p) + p_t + c) − f(c − V(t, q)),     f increasing, c a constant shift
+//! ```
+//!
+//! has, on its zero level `p_t = −H`, the physical flow with
+//! `dt/ds = f'(c − V)` (both arguments equal `c − V` there). `Γ = A(p, p_t) + B(q, t)`
+//! splits into two flows solved exactly:
+//!
+//! ```text
+//! drift (A):  q += σ f'(T + p_t + c) M⁻¹p,     t += σ f'(T + p_t + c)
+//! kick  (B):  p −= σ f'(c − V) ∇_q V,          p_t −= σ f'(c − V) ∂_t V
+//! ```
+//!
+//! Their leapfrog (drift–kick–drift or kick–drift–kick, [`LeapfrogForm`]) is
+//! symplectic in the extended phase space, time-reversible, explicit, and of
+//! order 2 in `σ`; the symmetric compositions of [`Composition`] raise it to
+//! orders 4, 6 and 8. With `f = ln` ([`TimeFunction::Logarithmic`], Preto &
+//! Tremaine, *A class of symplectic integrators with adaptive time step for
+//! separable Hamiltonian systems*, Astron. J. 118, 1999; Mikkola & Tanikawa,
+//! *Algorithmic regularization of the few-body problem*, MNRAS 310, 1999) the
+//! density is `g = 1/(c − V)`; for Kepler with `c = 0` it is `g = r`, and the
+//! drift–kick–drift leapfrog keeps the positions on the exact Kepler ellipse with only an
+//! error along the track. [`TimeFunction::Power`] takes `f'(x) = x^{−α}`,
+//! `g = (c − V)^{−α}` (`α = 3/2`, `c = 0` gives `r^{3/2}` on Kepler).
+
+use crate::hyperdual::{DualArray, Timed};
+use crate::integrator::Composition;
+use crate::real::{Real, all_finite};
+use crate::state::State;
+use crate::system::Lagrangian;
+use num_dual::HyperDual;
+
+/// The function `f` of the time-transformed Hamiltonian
+/// `Γ = f(T + p_t + c) − f(c − V)`: only its derivative `f'` enters the flows,
+/// and `dt/ds = f'(c − V)` is the step density.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TimeFunction {
+    /// `f = ln`, `f'(x) = 1/x`: the logarithmic Hamiltonian of Preto &
+    /// Tremaine (1999) and Mikkola & Tanikawa (1999); `g = 1/(c − V)`
+    /// (`r` on Kepler with `c = 0`).
+    Logarithmic,
+    /// `f'(x) = x^{−α}` with `α > 0`: `g = (c − V)^{−α}` (`r^α` on Kepler
+    /// with `c = 0`); `α = 1` is [`Logarithmic`](TimeFunction::Logarithmic).
+    Power(f64),
+}
+
+impl TimeFunction {
+    /// The exponent `α` of `f'(x) = x^{−α}`.
+    pub fn exponent(self) -> f64 {
+        match self {
+            TimeFunction::Logarithmic => 1.0,
+            TimeFunction::Power(alpha) => alpha,
+        }
+    }
+
+    /// `f'(x) = x^{−α}` on `x > 0`, with the common exponents computed
+    /// without `powf` (which dominates a step's cost otherwise).
+    #[inline(always)]
+    fn derivative<T: Real>(self, x: T) -> T {
+        let alpha = self.exponent();
+        if alpha == 1.0 {
+            x.recip()
+        } else if alpha == 1.5 {
+            (x * x.sqrt()).recip()
+        } else if alpha == 2.0 {
+            (x * x).recip()
+        } else if alpha == 0.5 {
+            x.sqrt().recip()
+        } else {
+            x.powf(-alpha)
+        }
+    }
+}
+
+/// The order of the sub-flows in one leapfrog: both are symmetric,
+/// symplectic and of order 2, with one gradient of `V` per stage (the
+/// half-kicks of consecutive stages and steps merge, as do the half-drifts).
+///
+/// Drift–kick–drift is the default: with `f = ln` on Kepler its nodes lie on
+/// the exact ellipse of the initial data (Preto & Tremaine's property; the
+/// kick–drift–kick nodes only stay `O(σ²)` close), and on Kepler e = 0.9 over
+/// 1000 orbits it reached a final position error of 1e-6 and 1e-9 with
+/// 1.1–4× fewer steps than kick–drift–kick (bench/benches/time_transformed.rs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum LeapfrogForm {
+    /// Kick `σ/2`, drift `σ`, kick `σ/2`.
+    KickDriftKick,
+    /// Drift `σ/2`, kick `σ`, drift `σ/2`.
+    #[default]
+    DriftKickDrift,
+}
+
+/// A point of the extended phase space `(q, t; p, p_t)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExtendedPoint<T, const N: usize> {
+    /// Physical time `t`.
+    pub t: T,
+    /// Positions `q`.
+    pub q: [T; N],
+    /// Momenta `p = Mv`.
+    pub p: [T; N],
+    /// The momentum of time, `p_t = −H` on the exact flow.
+    pub p_t: T,
+}
+
+/// Which argument of `f'` failed the positivity check.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Argument {
+    /// `T(p) + p_t + c`, in a drift.
+    Kinetic,
+    /// `c − V(t, q)`, in a kick.
+    Potential,
+}
+
+/// What went wrong in an explicit time-transformed integration; the
+/// integrator keeps the state it had before the failed call.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SplittingError<const N: usize> {
+    /// The system is not of the form the splitting needs.
+    #[error("not separable: {reason}")]
+    NotSeparable {
+        /// The requirement that is not met.
+        reason: &'static str,
+    },
+    /// An argument of `f'` was not finite and positive inside a step: the
+    /// shift `c` is too small for the energy reached (a time-dependent `V`
+    /// can raise it), or the state is not finite.
+    #[error("the argument {which:?} of f' is {value}, not finite and positive (step from t = {})", .state.t)]
+    InvalidArgument {
+        /// The physical state the integrator holds.
+        state: State<N>,
+        /// Which argument.
+        which: Argument,
+        /// Its value.
+        value: f64,
+    },
+    /// The state after a step is not finite.
+    #[error("the step from t = {} produced a non-finite state", .state.t)]
+    NonFinite {
+        /// The physical state the integrator holds.
+        state: State<N>,
+    },
+    /// A step advanced time by less than the floor (or not at all).
+    #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
+    TimeStepCollapsed {
+        /// The physical state the integrator holds.
+        state: State<N>,
+        /// The time the refused step advanced.
+        dt: f64,
+        /// The smallest time step allowed.
+        floor: f64,
+    },
+    /// A target time behind the current one, or not finite.
+    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
+    InvalidTarget {
+        /// The rejected target.
+        target: f64,
+        /// The physical state the integrator holds.
+        state: State<N>,
+    },
+    /// The search for the partial step that ends on the target did not converge.
+    #[error("no step in s found that lands on t = {target}: the closest reached {reached}")]
+    Landing {
+        /// The target.
+        target: f64,
+        /// The closest time reached.
+        reached: f64,
+    },
+    /// A setting that cannot work.
+    #[error("invalid setting: {reason}")]
+    InvalidSetting {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// Initial data that cannot start an integration.
+    #[error("invalid initial data: {reason}")]
+    InvalidInitialData {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+/// A computed step: the end point, the gradient there (if computed) and
+/// the number of gradient evaluations it took.
+type Stepped<T, const N: usize> = (Phase<T, N>, Option<Gradient<T, N>>, u64);
+
+/// The one-stage weight list of the plain leapfrog.
+static LEAPFROG: [f64; 1] = [1.0];
+
+/// Configuration of an [`ExplicitAdaptive`] integrator before its initial
+/// state: `ExplicitTimeTransformed::new(system, f, σ)`, optionally
+/// `.composition(…)`, `.form(…)`, `.shift(c)`, `.min_time_step(dt)`, then
+/// [`start`](Self::start).
+///
+/// The method splits `Γ = f(T(p) + p_t + c) − f(c − V(t, q))` on the
+/// extended phase space into the exactly solved drift
+/// `q += σ f'(T + p_t + c) M⁻¹p, t += σ f'(T + p_t + c)` and kick
+/// `p −= σ f'(c − V) ∇V, p_t −= σ f'(c − V) ∂_t V` (Preto & Tremaine, *A
+/// class of symplectic integrators with adaptive time step for separable
+/// Hamiltonian systems*, 1999; Mikkola & Tanikawa, *Algorithmic
+/// regularization of the few-body problem*, 1999): order 2 in `σ` as a
+/// leapfrog, 4, 6 or 8 composed (Yoshida 1990; Kahan & Li 1997).
+#[derive(Clone, Debug)]
+pub struct ExplicitTimeTransformed<Sys, const N: usize> {
+    system: Sys,
+    function: TimeFunction,
+    sigma: f64,
+    weights: &'static [f64],
+    order: u32,
+    form: LeapfrogForm,
+    shift: Option<f64>,
+    min_time_step: Option<f64>,
+}
+
+impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
+    /// The leapfrog (order 2 in `σ`) with time function `function` and step
+    /// `sigma` in `s`.
+    pub fn new(system: Sys, function: TimeFunction, sigma: f64) -> Self {
+        Self {
+            system,
+            function,
+            sigma,
+            weights: &LEAPFROG,
+            order: 2,
+            form: LeapfrogForm::default(),
+            shift: None,
+            min_time_step: None,
+        }
+    }
+
+    /// A symmetric composition of the leapfrog (Yoshida 4 and 6, Kahan–Li
+    /// 8): the step is `Φ_{γ_m σ} ∘ … ∘ Φ_{γ_1 σ}`, of the composition's order.
+    pub fn composition(mut self, composition: Composition) -> Self {
+        self.weights = composition.weights();
+        self.order = composition.order();
+        self
+    }
+
+    /// Drift–kick–drift (default) or kick–drift–kick.
+    pub fn form(mut self, form: LeapfrogForm) -> Self {
+        self.form = form;
+        self
+    }
+
+    /// The shift `c` of `Γ = f(T + p_t + c) − f(c − V)`. On the energy shell
+    /// both arguments equal `c − V = c − E + T`, so any `c > E` keeps them
+    /// positive along the exact flow. Default: `c = 0` when `E < 0` and
+    /// `V < 0` at the start (for gravitating bodies the classical choice:
+    /// `g = 1/(−V)`), else `c = E + max(T, |V|, |E|)` (`E + 1` if all are 0).
+    pub fn shift(mut self, c: f64) -> Self {
+        self.shift = Some(c);
+        self
+    }
+
+    /// The smallest physical time a step may advance; a step that advances
+    /// less is refused with [`SplittingError::TimeStepCollapsed`]. Default:
+    /// `10⁻⁸ σ g(t0, q0)`.
+    pub fn min_time_step(mut self, dt: f64) -> Self {
+        self.min_time_step = Some(dt);
+        self
+    }
+
+    /// Starts at `(t0, q0, v0)` (physical time and velocity) with
+    /// `p = M v0` and `p_t = −H(t0, q0, p)`, so that `Γ = 0`. The real type
+    /// `T` (`f64` or [`DoubleDouble`](crate::DoubleDouble)) is that of the
+    /// initial data.
+    ///
+    /// Refuses, with [`SplittingError::NotSeparable`], a system the macro
+    /// has not proven `½ vᵀMv − V(t, q)` with constant `M`
+    /// ([`Separability::ConstantMass`](crate::Separability::ConstantMass)),
+    /// one with forces or dissipation, and a singular `M`; with
+    /// [`SplittingError::InvalidSetting`] a step, exponent, shift or floor
+    /// that cannot work; with [`SplittingError::InvalidArgument`] a shift
+    /// that makes `c − V(t0, q0)` or `T + p_t + c` not positive.
+    pub fn start<T: Real>(
+        self,
+        t0: T,
+        q0: [T; N],
+        v0: [T; N],
+    ) -> Result<ExplicitAdaptive<Sys, T, N>, SplittingError<N>> {
+        if !Sys::SEPARABILITY.has_constant_mass() {
+            return Err(SplittingError::NotSeparable {
+                reason: "the splitting needs `L = ½ vᵀMv − V(t, q)` with a constant mass matrix `M` \
+                         (`Separability::ConstantMass`, proven by `#[lagrangian]`)",
+            });
+        }
+        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+            return Err(SplittingError::NotSeparable { reason: "the splitting does not take forces or dissipation" });
+        }
+        if !(self.sigma.is_finite() && self.sigma > 0.0) {
+            return Err(SplittingError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
+        }
+        let alpha = self.function.exponent();
+        if !(alpha.is_finite() && alpha > 0.0) {
+            return Err(SplittingError::InvalidSetting { reason: "the exponent α must be finite and positive" });
+        }
+        if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
+            return Err(SplittingError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        let mass = mass_matrix(&self.system, t0, q0);
+        let inverse_mass = invert(mass).ok_or(SplittingError::NotSeparable {
+            reason: "the mass matrix `M = ∂²L/∂v²` is singular or not finite",
+        })?;
+        let mut p = [T::zero(); N];
+        for i in 0..N {
+            for j in 0..N {
+                p[i] += mass[i][j] * v0[j];
+            }
+        }
+        let kinetic = kinetic_energy(&inverse_mass, &p).0;
+        let v = potential(&self.system, t0, q0);
+        let energy = kinetic + v;
+        let shift = match self.shift {
+            Some(c) if c.is_finite() => T::from(c),
+            Some(_) => return Err(SplittingError::InvalidSetting { reason: "the shift `c` must be finite" }),
+            None if energy.re() < 0.0 && v.re() < 0.0 => T::zero(),
+            None => {
+                let scale = kinetic.re().max(v.re().abs()).max(energy.re().abs());
+                energy + T::from(if scale > 0.0 { scale } else { 1.0 })
+            }
+        };
+        let phase = Phase { t: t0, t_carry: T::zero(), q: q0, p, p_t: -energy };
+        let state = phase.physical(0);
+        let x = shift - v;
+        if !(x.is_finite() && x.re() > 0.0) {
+            return Err(SplittingError::InvalidArgument { state, which: Argument::Potential, value: x.re() });
+        }
+        let g0 = self.function.derivative(x);
+        let floor = self.min_time_step.unwrap_or(1e-8 * self.sigma * g0.re());
+        if !(floor.is_finite() && floor > 0.0) {
+            return Err(SplittingError::InvalidSetting {
+                reason: "the smallest time step must be finite and positive",
+            });
+        }
+        Ok(ExplicitAdaptive {
+            system: self.system,
+            function: self.function,
+            sigma: T::from(self.sigma),
+            weights: self.weights,
+            order: self.order,
+            form: self.form,
+            shift,
+            inverse_mass,
+            phase,
+            step: 0,
+            cached: None,
+            stats: SplittingStats::default(),
+            floor,
+            landed: None,
+            last_dt: None,
+        })
+    }
+}
+
+/// Work counters of an [`ExplicitAdaptive`] run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SplittingStats {
+    /// Steps in `s` taken (a landing step counts once).
+    pub steps: u64,
+    /// Evaluations of `V` with its gradient (one per stage and step).
+    pub gradient_evaluations: u64,
+    /// Trial steps of the landing searches of `run_until` (not in `steps`).
+    pub landing_trials: u64,
+}
+
+/// The mutable part: the extended point, with a compensation for `t` (the
+/// one coordinate that grows over a long run).
+#[derive(Clone, Copy, Debug)]
+struct Phase<T, const N: usize> {
+    t: T,
+    t_carry: T,
+    q: [T; N],
+    p: [T; N],
+    p_t: T,
+}
+
+impl<T: Real, const N: usize> Phase<T, N> {
+    fn physical(&self, step: u64) -> State<N> {
+        State { step, t: self.t.re(), q: self.q.map(|x| x.re()), p: self.p.map(|x| x.re()) }
+    }
+}
+
+/// `V`, `∇V` and `∂_t V` at a node.
+#[derive(Clone, Copy, Debug)]
+struct Gradient<T, const N: usize> {
+    v: T,
+    dv: [T; N],
+    dt: T,
+}
+
+/// The explicit time-transformed integrator: uniform steps `σ` in `s` of
+/// the splitting of `Γ = f(T + p_t + c) − f(c − V)` (see
+/// [`ExplicitTimeTransformed`]), so adaptive steps `dt ≈ σ f'(c − V)` in
+/// physical time, symplectic in `(q, t, p, p_t)`, of order 2 (leapfrog) or
+/// that of the composition; state in the real type `T`.
+///
+/// ```
+/// use lagrangian_runtime::time_transform::{ExplicitTimeTransformed, TimeFunction};
+/// use lagrangian_runtime::{Composition, Lagrangian, Scalar, Separability};
+///
+/// /// Kepler in the plane, μ = 1 (as `#[lagrangian]` would declare it).
+/// struct Kepler;
+/// impl Lagrangian<2> for Kepler {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 2] = [false; 2];
+///     const SEPARABILITY: Separability = Separability::ConstantMass;
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+///         (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+///     }
+/// }
+///
+/// let e = 0.9;
+/// let mut sim = ExplicitTimeTransformed::new(Kepler, TimeFunction::Logarithmic, 0.05)
+///     .composition(Composition::YOSHIDA6)
+///     .start(0.0, [1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])?;
+/// let e0 = sim.energy();
+/// sim.run_until(2.0 * std::f64::consts::PI, |_| {})?; // one orbit
+/// assert_eq!(sim.state().t, 2.0 * std::f64::consts::PI);
+/// assert!((sim.state().q[0] - (1.0 - e)).abs() < 1e-6);
+/// assert!(((sim.energy() - e0) / e0).abs() < 1e-8);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct ExplicitAdaptive<Sys, T, const N: usize> {
+    system: Sys,
+    function: TimeFunction,
+    sigma: T,
+    weights: &'static [f64],
+    order: u32,
+    form: LeapfrogForm,
+    shift: T,
+    inverse_mass: [[T; N]; N],
+    phase: Phase<T, N>,
+    step: u64,
+    /// The gradient at the current node (the next step's first kick).
+    cached: Option<Gradient<T, N>>,
+    stats: SplittingStats,
+    floor: f64,
+    /// `(step, t_end)` after landing on `t_end`.
+    landed: Option<(u64, f64)>,
+    last_dt: Option<f64>,
+}
+
+/// `M = ∂²L/∂v²` at `(t0, q0, 0)`: constant for the systems accepted.
+fn mass_matrix<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> [[T; N]; N] {
+    let mut m = [[T::zero(); N]; N];
+    let qh = q.map(HyperDual::from_re);
+    for i in 0..N {
+        for j in i..N {
+            let mut v = [HyperDual::from_re(T::zero()); N];
+            v[i].eps1 = T::one();
+            v[j].eps2 = T::one();
+            let h = system.lagrangian(HyperDual::from_re(t), qh, v).eps1eps2;
+            m[i][j] = h;
+            m[j][i] = h;
+        }
+    }
+    m
+}
+
+/// Gauss–Jordan with partial pivoting; `None` when singular or not finite.
+fn invert<T: Real, const N: usize>(a: [[T; N]; N]) -> Option<[[T; N]; N]> {
+    let mut a = a;
+    let mut inv = [[T::zero(); N]; N];
+    for (i, row) in inv.iter_mut().enumerate() {
+        row[i] = T::one();
+    }
+    let scale = a.iter().flatten().fold(0.0f64, |m, x| m.max(x.re().abs()));
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    for col in 0..N {
+        let pivot = (col..N).max_by(|&i, &j| a[i][col].re().abs().total_cmp(&a[j][col].re().abs()))?;
+        let size = a[pivot][col].re().abs();
+        if size.is_nan() || size <= 1e-13 * scale {
+            return None;
+        }
+        a.swap(col, pivot);
+        inv.swap(col, pivot);
+        let d = a[col][col].recip();
+        for j in 0..N {
+            a[col][j] *= d;
+            inv[col][j] *= d;
+        }
+        for i in 0..N {
+            if i != col {
+                let f = a[i][col];
+                for j in 0..N {
+                    let (aj, ij) = (a[col][j], inv[col][j]);
+                    a[i][j] -= f * aj;
+                    inv[i][j] -= f * ij;
+                }
+            }
+        }
+    }
+    inv.iter().flatten().all(|x| x.is_finite()).then_some(inv)
+}
+
+/// `(T(p), M⁻¹p)`.
+#[inline(always)]
+fn kinetic_energy<T: Real, const N: usize>(inverse_mass: &[[T; N]; N], p: &[T; N]) -> (T, [T; N]) {
+    let mut u = [T::zero(); N];
+    let mut k = T::zero();
+    for i in 0..N {
+        for j in 0..N {
+            u[i] += inverse_mass[i][j] * p[j];
+        }
+        k += p[i] * u[i];
+    }
+    (k * 0.5, u)
+}
+
+/// `V(t, q) = −L(t, q, 0)`.
+fn potential<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> T {
+    -system.lagrangian(t, q, [T::zero(); N])
+}
+
+/// `V`, `∇V` and (for a time-dependent `L`) `∂_t V`, from one evaluation
+/// on array duals.
+#[inline(always)]
+fn gradient<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> Gradient<T, N> {
+    if S::AUTONOMOUS {
+        let qd: [DualArray<[T; N], T>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+        let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(T::zero()); N]);
+        Gradient { v: -l.re, dv: l.eps.map(|x| -x), dt: T::zero() }
+    } else {
+        let qd: [DualArray<Timed<T, N>, T>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+        let td = DualArray::variable(t, N);
+        let l = system.lagrangian(td, qd, [DualArray::from_re(T::zero()); N]);
+        Gradient { v: -l.re, dv: l.eps.q.map(|x| -x), dt: -l.eps.t }
+    }
+}
+
+impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
+    /// The physical state in `f64`; `step` counts steps in `s`, and `t` is
+    /// exactly the target after [`run_until`](Self::run_until).
+    pub fn state(&self) -> State<N> {
+        let mut s = self.phase.physical(self.step);
+        if let Some((step, t)) = self.landed
+            && step == self.step
+        {
+            s.t = t;
+        }
+        s
+    }
+
+    /// The physical state in the integrator's real type.
+    pub fn state_real(&self) -> State<N, T> {
+        State { step: self.step, t: self.phase.t, q: self.phase.q, p: self.phase.p }
+    }
+
+    /// The point of the extended phase space `(q, t; p, p_t)`.
+    pub fn extended_point(&self) -> ExtendedPoint<T, N> {
+        ExtendedPoint { t: self.phase.t, q: self.phase.q, p: self.phase.p, p_t: self.phase.p_t }
+    }
+
+    /// The physical system.
+    pub fn system(&self) -> &Sys {
+        &self.system
+    }
+
+    /// The time function `f`.
+    pub fn time_function(&self) -> TimeFunction {
+        self.function
+    }
+
+    /// The shift `c`.
+    pub fn shift(&self) -> T {
+        self.shift
+    }
+
+    /// The order in `σ` of one step (2 for the leapfrog, else the composition's).
+    pub fn order(&self) -> u32 {
+        self.order
+    }
+
+    /// The step `σ` in `s`.
+    pub fn step_size(&self) -> f64 {
+        self.sigma.re()
+    }
+
+    /// Sets the step in `s` for the following steps; refused unless finite
+    /// and positive.
+    pub fn set_step_size(&mut self, sigma: f64) -> Result<(), SplittingError<N>> {
+        if !(sigma.is_finite() && sigma > 0.0) {
+            return Err(SplittingError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
+        }
+        self.sigma = T::from(sigma);
+        Ok(())
+    }
+
+    /// Work counters.
+    pub fn stats(&self) -> SplittingStats {
+        self.stats
+    }
+
+    /// The physical time the last step advanced, `None` before the first.
+    pub fn last_time_step(&self) -> Option<f64> {
+        self.last_dt
+    }
+
+    /// The smallest time step allowed.
+    pub fn min_time_step(&self) -> f64 {
+        self.floor
+    }
+
+    /// `p_t`, the momentum of time: `−H` on the exact flow, constant for an
+    /// autonomous `L` (to round-off: no kick changes it).
+    pub fn time_momentum(&self) -> f64 {
+        self.phase.p_t.re()
+    }
+
+    /// The energy `H = ½ pᵀM⁻¹p + V(t, q)`.
+    pub fn energy(&self) -> f64 {
+        self.energy_real().re()
+    }
+
+    /// The energy in the integrator's real type.
+    pub fn energy_real(&self) -> T {
+        let ph = &self.phase;
+        kinetic_energy(&self.inverse_mass, &ph.p).0 + potential(&self.system, ph.t, ph.q)
+    }
+
+    /// The step density `dt/ds = f'(c − V(t, q))` at the current state.
+    pub fn density(&self) -> f64 {
+        let x = self.shift - potential(&self.system, self.phase.t, self.phase.q);
+        self.function.derivative(x).re()
+    }
+
+    /// The extended Hamiltonian `Γ`, zero on the exact flow; for
+    /// `f = ln` it is `ln((T + p_t + c)/(c − V))`, otherwise
+    /// `((T + p_t + c)^{1−α} − (c − V)^{1−α})/(1 − α)`.
+    pub fn extended_hamiltonian(&self) -> f64 {
+        let ph = &self.phase;
+        let a = kinetic_energy(&self.inverse_mass, &ph.p).0 + ph.p_t + self.shift;
+        let b = self.shift - potential(&self.system, ph.t, ph.q);
+        let alpha = self.function.exponent();
+        if alpha == 1.0 {
+            (a / b).ln().re()
+        } else {
+            let e = 1.0 - alpha;
+            ((a.powf(e) - b.powf(e)) / e).re()
+        }
+    }
+
+    /// One step of `σ` in `s`. Refused, with the state kept, where an
+    /// argument of `f'` is not finite and positive, where the end state is
+    /// not finite, and where the step advances time by less than
+    /// [`min_time_step`](Self::min_time_step).
+    pub fn step(&mut self) -> Result<State<N>, SplittingError<N>> {
+        let (phase, cached, evaluations) = self.advance(self.phase, self.cached, self.sigma)?;
+        self.stats.gradient_evaluations += evaluations;
+        self.commit(phase, cached)?;
+        Ok(self.state())
+    }
+
+    /// One step of `σ` from an arbitrary extended point, without touching
+    /// the integrator: the map `(q, t, p, p_t) ↦ (q', t', p', p_t')` itself
+    /// (its Jacobian is symplectic). Errors as in [`step`](Self::step),
+    /// except the floor on the time step.
+    pub fn map(&self, point: ExtendedPoint<T, N>) -> Result<ExtendedPoint<T, N>, SplittingError<N>> {
+        let phase = Phase { t: point.t, t_carry: T::zero(), q: point.q, p: point.p, p_t: point.p_t };
+        let (end, ..) = self.advance(phase, None, self.sigma)?;
+        Ok(ExtendedPoint { t: end.t, q: end.q, p: end.p, p_t: end.p_t })
+    }
+
+    /// Accepts a computed step: checks the time it advanced and updates the
+    /// readouts.
+    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>) -> Result<(), SplittingError<N>> {
+        let dt = ((phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry)).re();
+        if dt.is_nan() || dt < self.floor {
+            return Err(SplittingError::TimeStepCollapsed { state: self.state(), dt, floor: self.floor });
+        }
+        self.phase = phase;
+        self.cached = cached;
+        self.step += 1;
+        self.stats.steps += 1;
+        self.landed = None;
+        self.last_dt = Some(dt);
+        Ok(())
+    }
+
+    /// The composed step of size `h` from `phase`; changes nothing but the
+    /// counters. Returns the end point and the gradient there, if computed.
+    #[inline]
+    fn advance(
+        &self,
+        mut phase: Phase<T, N>,
+        mut cached: Option<Gradient<T, N>>,
+        h: T,
+    ) -> Result<Stepped<T, N>, SplittingError<N>> {
+        let start = phase;
+        let fail = |which, value: T| SplittingError::InvalidArgument {
+            state: start.physical(self.step),
+            which,
+            value: value.re(),
+        };
+        let w = self.weights;
+        let m = w.len();
+        let mut evaluations = 0u64;
+        // The half-flows of consecutive stages merge: for KDK the kicks are
+        // w_1/2, (w_1 + w_2)/2, …, w_m/2 around the drifts w_i.
+        let half = |i: usize| if i + 1 < m { 0.5 * (w[i] + w[i + 1]) } else { 0.5 * w[i] };
+        let err = |(a, v)| fail(a, v);
+        match self.form {
+            LeapfrogForm::KickDriftKick => {
+                self.kick(&mut phase, &mut cached, h * (0.5 * w[0]), &mut evaluations).map_err(err)?;
+                for i in 0..m {
+                    self.drift(&mut phase, &mut cached, h * w[i]).map_err(err)?;
+                    self.kick(&mut phase, &mut cached, h * half(i), &mut evaluations).map_err(err)?;
+                }
+            }
+            LeapfrogForm::DriftKickDrift => {
+                self.drift(&mut phase, &mut cached, h * (0.5 * w[0])).map_err(err)?;
+                for i in 0..m {
+                    self.kick(&mut phase, &mut cached, h * w[i], &mut evaluations).map_err(err)?;
+                    self.drift(&mut phase, &mut cached, h * half(i)).map_err(err)?;
+                }
+            }
+        }
+        if !phase.t.is_finite() || !all_finite(&phase.q) || !all_finite(&phase.p) || !phase.p_t.is_finite() {
+            return Err(SplittingError::NonFinite { state: start.physical(self.step) });
+        }
+        Ok((phase, cached, evaluations))
+    }
+
+    /// The kick by `h`: `p −= h f'(c − V) ∇V`, `p_t −= h f'(c − V) ∂_t V`.
+    #[inline(always)]
+    fn kick(
+        &self,
+        phase: &mut Phase<T, N>,
+        cached: &mut Option<Gradient<T, N>>,
+        h: T,
+        evaluations: &mut u64,
+    ) -> Result<(), (Argument, T)> {
+        let g = match *cached {
+            Some(g) => g,
+            None => {
+                *evaluations += 1;
+                let g = gradient(&self.system, phase.t, phase.q);
+                *cached = Some(g);
+                g
+            }
+        };
+        let x = self.shift - g.v;
+        if !(x.is_finite() && x.re() > 0.0) {
+            return Err((Argument::Potential, x));
+        }
+        let k = h * self.function.derivative(x);
+        for i in 0..N {
+            phase.p[i] -= k * g.dv[i];
+        }
+        if !Sys::AUTONOMOUS {
+            phase.p_t -= k * g.dt;
+        }
+        Ok(())
+    }
+
+    /// The drift by `h`: `q += h f'(T + p_t + c) M⁻¹p`, `t += h f'(T + p_t + c)`.
+    #[inline(always)]
+    fn drift(&self, phase: &mut Phase<T, N>, cached: &mut Option<Gradient<T, N>>, h: T) -> Result<(), (Argument, T)> {
+        let (kinetic, u) = kinetic_energy(&self.inverse_mass, &phase.p);
+        let x = kinetic + phase.p_t + self.shift;
+        if !(x.is_finite() && x.re() > 0.0) {
+            return Err((Argument::Kinetic, x));
+        }
+        let k = h * self.function.derivative(x);
+        for i in 0..N {
+            phase.q[i] += k * u[i];
+        }
+        // Compensated sum: t grows over a long run while its steps stay small.
+        let y = k - phase.t_carry;
+        let t = phase.t + y;
+        phase.t_carry = (t - phase.t) - y;
+        phase.t = t;
+        *cached = None;
+        Ok(())
+    }
+
+    /// Takes `n` steps in `s`, calling `observe` after each.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), SplittingError<N>> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps until the physical time `t_end` and stops there: the step that
+    /// would pass it is replaced by a partial step in `s` whose size is
+    /// solved (Illinois regula falsi on `(0, σ)`) so that it ends on `t_end`
+    /// to within a few units of `T`'s precision; the state then reports
+    /// `t = t_end` exactly. `σ` is unchanged afterwards. A target equal to
+    /// the current time is a no-op.
+    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), SplittingError<N>> {
+        let now = self.state();
+        if !t_end.is_finite() || t_end < now.t {
+            return Err(SplittingError::InvalidTarget { target: t_end, state: now });
+        }
+        let target = T::from(t_end);
+        loop {
+            if self.state().t >= t_end {
+                return Ok(());
+            }
+            let (phase, cached, evaluations) = self.advance(self.phase, self.cached, self.sigma)?;
+            self.stats.gradient_evaluations += evaluations;
+            if (phase.t - target).re() <= 0.0 {
+                self.commit(phase, cached)?;
+                observe(self);
+                continue;
+            }
+            self.land(target, phase.t)?;
+            observe(self);
+            return Ok(());
+        }
+    }
+
+    /// The partial step that ends on `target`, given that the full step
+    /// ends at `t_over > target`.
+    fn land(&mut self, target: T, t_over: T) -> Result<(), SplittingError<N>> {
+        let t0 = self.phase.t;
+        let scale = target.re().abs().max(t0.re().abs()).max(f64::MIN_POSITIVE);
+        let tol = 4.0 * T::EPSILON * scale;
+        if (target - t0).re() <= tol {
+            self.landed = Some((self.step, target.re()));
+            return Ok(());
+        }
+        let (mut lo, mut f_lo) = (T::zero(), t0 - target);
+        let (mut hi, mut f_hi) = (self.sigma, t_over - target);
+        let mut side = 0i8;
+        let mut best: Option<(T, Phase<T, N>, Option<Gradient<T, N>>)> = None;
+        for _ in 0..100 {
+            let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
+            if !(s.re() > lo.re() && s.re() < hi.re()) {
+                s = (lo + hi) * 0.5;
+            }
+            self.stats.landing_trials += 1;
+            let Ok((trial, cached, evaluations)) = self.advance(self.phase, self.cached, s) else {
+                hi = s;
+                continue;
+            };
+            self.stats.gradient_evaluations += evaluations;
+            let f = trial.t - target;
+            if best.as_ref().is_none_or(|(b, ..)| f.re().abs() < b.re().abs()) {
+                best = Some((f, trial, cached));
+            }
+            if f.re().abs() <= tol {
+                break;
+            }
+            if f.re() > 0.0 {
+                (hi, f_hi) = (s, f);
+                if side == 1 {
+                    f_lo *= 0.5;
+                }
+                side = 1;
+            } else {
+                (lo, f_lo) = (s, f);
+                if side == -1 {
+                    f_hi *= 0.5;
+                }
+                side = -1;
+            }
+        }
+        match best {
+            Some((f, trial, cached)) if f.re().abs() <= 64.0 * tol => {
+                let floor = self.floor;
+                // A landing step may be arbitrarily short: no floor.
+                self.floor = 0.0;
+                let committed = self.commit(trial, cached);
+                self.floor = floor;
+                committed?;
+                self.landed = Some((self.step, target.re()));
+                Ok(())
+            }
+            best => Err(SplittingError::Landing {
+                target: target.re(),
+                reached: best.map_or(t0.re(), |(f, ..)| (target + f).re()),
+            }),
+        }
+    }
+}
