@@ -294,7 +294,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             (None, None) => unreachable!("the inverse mass is set above"),
         };
         if let Some(last) = &self.memory.previous
-            && !last_rules_out_growth(&dq, &last.dq, h / last.h)
+            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
             && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
         {
             let reason = IMPLAUSIBLE_GROWTH;
@@ -373,7 +373,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Ok((dq, report)) => {
                 let dq: [f64; N] = dq.into();
                 if let Some(last) = &self.memory.previous
-                    && !last_rules_out_growth(&dq, &last.dq, h / last.h)
+                    && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
                     && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
                 {
                     let reason = IMPLAUSIBLE_GROWTH;
@@ -452,11 +452,12 @@ fn max_abs_array<const N: usize>(x: &[f64; N]) -> f64 {
     m
 }
 
-/// `true` when the last increment `last_dq`, scaled by `ratio = h/h_last > 0`,
+/// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
+/// (sub-steps of a composition can be negative),
 /// already shows that the increment `dq` is no implausible growth: then
 /// [`implausible_growth`] is `false` whatever the prediction (its scale is at
 /// least the scaled last increment, and rounding is monotone, so
-/// `max|x·r| = max|x|·r` exactly), and the common case skips the predictor.
+/// `max|x·r| = max|x|·|r|` exactly), and the common case skips the predictor.
 #[inline(always)]
 fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
     max_abs_array(dq) <= 1e6 * (max_abs_array(last_dq) * ratio)
