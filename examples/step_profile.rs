@@ -215,22 +215,22 @@ fn main() {
             hand_verlet(f, Composition::KAHAN_LI8.weights(), H, [a.sqrt()], [0.0], n)
         }
         ("pendulum", "galerkin6") => {
-            let mut sim =
-                GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [1.0], [0.0]);
-            let sim = sim.as_mut().unwrap();
-            (0..n).for_each(|_| {
-                black_box(sim.step().unwrap());
-            });
-            sim.state().q.to_vec()
+            run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
         }
+        ("pendulum", "galerkin6-tight") => run(
+            GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-17, ..Default::default() })
+                .start(0.0, [1.0], [0.0]),
+            n,
+        ),
+        ("kepler", "galerkin6-tight") => run(
+            GalerkinIntegrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-17, ..Default::default() })
+                .start(0.0, KEPLER_Q0, KEPLER_V0),
+            n,
+        ),
         ("kepler", "galerkin6") => {
-            let mut sim =
-                GalerkinIntegrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, KEPLER_Q0, KEPLER_V0);
-            let sim = sim.as_mut().unwrap();
-            (0..n).for_each(|_| {
-                black_box(sim.step().unwrap());
-            });
-            sim.state().q.to_vec()
+            run(GalerkinIntegrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, KEPLER_Q0, KEPLER_V0), n)
         }
         ("kepler", "trapezoid") => run(Integrator::new(Kepler, Trapezoid, H).start(0.0, KEPLER_Q0, KEPLER_V0), n),
         ("kepler", "verlet") => hand_verlet(kepler_force, &[1.0], H, KEPLER_Q0, KEPLER_V0, n),
