@@ -14,7 +14,8 @@
 //! Further cases: `kepler`, `henon-heiles` and `fpu` (the bench's FPU-β chain, N = 16) with `trapezoid`
 //! (explicit Störmer–Verlet) or `verlet`; `pendulum kahan-li8` and `pendulum hand-kahan-li8`
 //! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
-//! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1).
+//! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
+//! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -216,6 +217,12 @@ fn main() {
         }
         ("pendulum", "galerkin6") => {
             run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
+        }
+        ("pendulum", "galerkin8") => {
+            run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<8, 8>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
+        }
+        ("kepler", "galerkin4") => {
+            run(GalerkinIntegrator::new(Kepler, Galerkin::<4, 4>::gauss(), 0.1).start(0.0, KEPLER_Q0, KEPLER_V0), n)
         }
         ("pendulum", "galerkin6-tight") => run(
             GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1)
