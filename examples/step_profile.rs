@@ -10,7 +10,12 @@
 //! `variable` (energy-preserving midpoint, from the start of the bench's
 //! variable-step group), `damped` (double pendulum with joint friction, a
 //! forced step), `energy` (a midpoint step and `Integrator::energy` after it), `hand` (the hand-written midpoint of the bench) or
-//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else); `verlet` (the bench's hand-written Störmer–Verlet, pendulum only).
+//! `derivatives` (one `step_derivatives` evaluation per "step", nothing else); `verlet` (a hand-written Störmer–Verlet).
+//! Further cases: `kepler`, `henon-heiles` and `fpu` (the bench's FPU-β chain, N = 16) with `trapezoid`
+//! (explicit Störmer–Verlet) or `verlet`; `pendulum kahan-li8` and `pendulum hand-kahan-li8`
+//! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
+//! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
+//! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -23,7 +28,7 @@ mod handwritten;
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 use handwritten::*;
 use lagrangian::derivatives::step_derivatives;
-use lagrangian::{Integrator, Midpoint, Segment, StepBounds, Trapezoid};
+use lagrangian::{Composition, Galerkin, GalerkinIntegrator, Integrator, Midpoint, Segment, StepBounds, Trapezoid};
 use std::hint::black_box;
 
 const H: f64 = 0.01;
@@ -47,6 +52,106 @@ impl DampedDoublePendulum {
     fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
         0.5 * self.c * (v[0] * v[0] + (v[1] - v[0]) * (v[1] - v[0]))
     }
+}
+
+/// `L = ½|q̇|² + 1/|q|` (the bench's Kepler problem).
+struct Kepler;
+
+#[lagrangian::lagrangian]
+impl Kepler {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+}
+
+/// `L = ½|q̇|² − ½(x² + y²) − x²y + y³/3` (the bench's Hénon–Heiles).
+struct HenonHeiles;
+
+#[lagrangian::lagrangian]
+impl HenonHeiles {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let (x, y) = (q[0], q[1]);
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - 0.5 * (x * x + y * y) - x * x * y + y * y * y / 3.0
+    }
+}
+
+const FPU_N: usize = 16;
+
+/// The bench's FPU-β chain between fixed walls (β = 1).
+struct Fpu;
+
+#[lagrangian::lagrangian]
+impl Fpu {
+    fn lagrangian(&self, q: [f64; FPU_N], v: [f64; FPU_N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..FPU_N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let (a, b) = (q[0], q[FPU_N - 1]);
+        let mut potential = 0.5 * (a * a + b * b) + 0.25 * (a * a * a * a + b * b * b * b);
+        for i in 0..FPU_N - 1 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d * d * d * d;
+        }
+        kinetic - potential
+    }
+}
+
+/// Velocity Verlet with unit mass and force `f`, `n` steps of size `h`.
+fn hand_verlet<const N: usize>(
+    f: impl Fn(&[f64; N]) -> [f64; N],
+    weights: &[f64],
+    h: f64,
+    mut q: [f64; N],
+    mut p: [f64; N],
+    n: usize,
+) -> Vec<f64> {
+    let mut force = f(&q);
+    for _ in 0..n {
+        for w in weights {
+            let hh = w * h;
+            for i in 0..N {
+                p[i] += 0.5 * hh * force[i];
+                q[i] += hh * p[i];
+            }
+            force = f(&q);
+            for i in 0..N {
+                p[i] += 0.5 * hh * force[i];
+            }
+        }
+        black_box(&q);
+    }
+    q.to_vec()
+}
+
+fn kepler_force(q: &[f64; 2]) -> [f64; 2] {
+    let r2 = q[0] * q[0] + q[1] * q[1];
+    let k = -1.0 / (r2 * r2.sqrt());
+    [k * q[0], k * q[1]]
+}
+
+fn henon_heiles_force(q: &[f64; 2]) -> [f64; 2] {
+    let (x, y) = (q[0], q[1]);
+    [-x - 2.0 * x * y, -y - x * x + y * y]
+}
+
+fn fpu_force(q: &[f64; FPU_N]) -> [f64; FPU_N] {
+    let tension = |d: f64| d + d * d * d;
+    let at = |i: isize| if i < 0 || i >= FPU_N as isize { 0.0 } else { q[i as usize] };
+    core::array::from_fn(|i| {
+        let i = i as isize;
+        tension(at(i + 1) - at(i)) - tension(at(i) - at(i - 1))
+    })
+}
+
+/// Kepler e = 0.5 from pericentre (a = 1).
+const KEPLER_Q0: [f64; 2] = [0.5, 0.0];
+const KEPLER_V0: [f64; 2] = [0.0, 1.7320508075688772];
+const HH_Q0: [f64; 2] = [0.0, 0.1];
+const HH_V0: [f64; 2] = [0.4, 0.0];
+
+fn fpu_q0() -> [f64; FPU_N] {
+    core::array::from_fn(|i| 2.0 * (std::f64::consts::PI * (i + 1) as f64 / (FPU_N + 1) as f64).sin())
 }
 
 fn main() {
@@ -101,6 +206,53 @@ fn main() {
             ),
             n,
         ),
+        ("pendulum", "kahan-li8") => {
+            run(Integrator::new(Pendulum { ..P }, Composition::KAHAN_LI8, H).start(0.0, [1.0], [0.0]), n)
+        }
+        ("pendulum", "hand-kahan-li8") => {
+            let (a, d) = (P.m * P.l * P.l, P.m * P.g * P.l);
+            // Unit mass in the coordinate `√a θ`.
+            let f = |q: &[f64; 1]| [-(d / a.sqrt()) * (q[0] / a.sqrt()).sin()];
+            hand_verlet(f, Composition::KAHAN_LI8.weights(), H, [a.sqrt()], [0.0], n)
+        }
+        ("pendulum", "galerkin6") => {
+            run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
+        }
+        ("pendulum", "galerkin8") => {
+            run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<8, 8>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
+        }
+        ("kepler", "galerkin4") => {
+            run(GalerkinIntegrator::new(Kepler, Galerkin::<4, 4>::gauss(), 0.1).start(0.0, KEPLER_Q0, KEPLER_V0), n)
+        }
+        ("pendulum", "galerkin6-tight") => run(
+            GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-17, ..Default::default() })
+                .start(0.0, [1.0], [0.0]),
+            n,
+        ),
+        ("kepler", "galerkin6-tight") => run(
+            GalerkinIntegrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-17, ..Default::default() })
+                .start(0.0, KEPLER_Q0, KEPLER_V0),
+            n,
+        ),
+        ("kepler", "galerkin6") => {
+            run(GalerkinIntegrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, KEPLER_Q0, KEPLER_V0), n)
+        }
+        ("kepler", "trapezoid") => run(Integrator::new(Kepler, Trapezoid, H).start(0.0, KEPLER_Q0, KEPLER_V0), n),
+        ("kepler", "verlet") => hand_verlet(kepler_force, &[1.0], H, KEPLER_Q0, KEPLER_V0, n),
+        ("henon-heiles", "trapezoid") => run(Integrator::new(HenonHeiles, Trapezoid, H).start(0.0, HH_Q0, HH_V0), n),
+        ("henon-heiles", "verlet") => hand_verlet(henon_heiles_force, &[1.0], H, HH_Q0, HH_V0, n),
+        ("fpu", "trapezoid") => run(Integrator::new(Fpu, Trapezoid, H).start(0.0, fpu_q0(), [0.0; FPU_N]), n),
+        ("fpu", "trapezoid-reverse") => run(
+            Integrator::new(Fpu, Trapezoid, H).derivatives(lagrangian::Derivatives::Reverse).start(
+                0.0,
+                fpu_q0(),
+                [0.0; FPU_N],
+            ),
+            n,
+        ),
+        ("fpu", "verlet") => hand_verlet(fpu_force, &[1.0], H, fpu_q0(), [0.0; FPU_N], n),
         (_, "derivatives") => {
             // The derivative evaluation alone: one `step_derivatives` (residual
             // part, momentum, Jacobian) per "step", at nearby segments (every input
@@ -143,7 +295,7 @@ fn main() {
     println!("{ns:.1} ns/step, q = {:?}", black_box(q));
 }
 
-fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::DiscreteLagrangian, const N: usize>(
+fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(
     sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error<N>>,
     n: usize,
 ) -> Vec<f64> {

@@ -160,6 +160,25 @@ fn step_cost(c: &mut Criterion) {
     }
     degree!(1 2 3 4 5 6 7 8);
     g.finish();
+    // N = 2, where a step of the size of the last one starts from the last
+    // step's factored Newton block (from sN = 8).
+    let mut g = c.benchmark_group("galerkin step (kepler e = 0.5, h = 0.1)");
+    macro_rules! kepler_degree {
+        ($($s:literal)*) => {$(
+            let mut sim = GalerkinIntegrator::new(lagrangian_bench::problems::KeplerSys, Galerkin::<$s, $s>::gauss(), 0.1)
+                .start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()])
+                .unwrap();
+            sim.run(1000, |_| {}).unwrap();
+            println!(
+                "kepler s = {}: {:.2} Newton iterations per step",
+                $s,
+                sim.stats().newton_iterations as f64 / sim.stats().steps as f64
+            );
+            g.bench_function(BenchmarkId::from_parameter($s), |b| b.iter(|| black_box(sim.step().unwrap().q)));
+        )*};
+    }
+    kepler_degree!(2 4 6);
+    g.finish();
 }
 
 fn thousand_periods(c: &mut Criterion) {

@@ -9,7 +9,9 @@ use lagrangian_bench::handwritten;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use handwritten::*;
-use lagrangian::{Integrator, Midpoint, StepBounds, Trapezoid};
+use lagrangian::{Composition, Integrator, Midpoint, StepBounds, Trapezoid};
+use lagrangian_bench::compositions::{Composition as HandComposition, Stepper};
+use lagrangian_bench::problems::{HenonHeilesSys, KeplerSys};
 use std::hint::black_box;
 
 // The systems of the tests, so the bench measures what the tests verify.
@@ -117,11 +119,57 @@ fn variable_steps(c: &mut Criterion) {
     g.finish();
 }
 
+/// The explicit path: `Trapezoid` on separable constant-mass systems
+/// (Störmer–Verlet, no Newton) and Kahan–Li's order-8 composition of it,
+/// against hand-written Störmer–Verlet and the bench's hand-written
+/// composition of the same scheme.
+fn explicit(c: &mut Criterion) {
+    let mut g = c.benchmark_group("explicit");
+    let (kq, kv) = ([0.5, 0.0], [0.0, 3f64.sqrt()]);
+    let kepler = |q: &[f64; 2]| {
+        let r2 = q[0] * q[0] + q[1] * q[1];
+        let k = -1.0 / (r2 * r2.sqrt());
+        [k * q[0], k * q[1]]
+    };
+    let mut sim = Integrator::new(KeplerSys, Trapezoid, H).start(0.0, kq, kv).unwrap();
+    g.bench_function("kepler generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut hand = Stepper::new(HandComposition::Verlet, [1.0; 2], &kepler, H, kq, kv);
+    g.bench_function("kepler hand-written verlet", |b| {
+        b.iter(|| {
+            hand.step(&kepler);
+            black_box(hand.q)
+        })
+    });
+    let (hq, hv) = ([0.0, 0.1], [0.4, 0.0]);
+    let henon_heiles = |q: &[f64; 2]| [-q[0] - 2.0 * q[0] * q[1], -q[1] - q[0] * q[0] + q[1] * q[1]];
+    let mut sim = Integrator::new(HenonHeilesSys, Trapezoid, H).start(0.0, hq, hv).unwrap();
+    g.bench_function("henon-heiles generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut hand = Stepper::new(HandComposition::Verlet, [1.0; 2], &henon_heiles, H, hq, hv);
+    g.bench_function("henon-heiles hand-written verlet", |b| {
+        b.iter(|| {
+            hand.step(&henon_heiles);
+            black_box(hand.q)
+        })
+    });
+    let params = pendulum_params();
+    let pendulum = |q: &[f64; 1]| [-params.d * q[0].sin()];
+    let mut sim = Integrator::new(Pendulum { ..P }, Composition::KAHAN_LI8, H).start(0.0, [1.0], [0.0]).unwrap();
+    g.bench_function("pendulum generated kahan-li8", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut hand = Stepper::new(HandComposition::KahanLi8, [1.0 / params.a], &pendulum, H, [1.0], [0.0]);
+    g.bench_function("pendulum hand-written kahan-li8", |b| {
+        b.iter(|| {
+            hand.step(&pendulum);
+            black_box(hand.q)
+        })
+    });
+    g.finish();
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default()
         .warm_up_time(std::time::Duration::from_millis(500))
         .measurement_time(std::time::Duration::from_secs(3));
-    targets = pendulum, double_pendulum, variable_steps
+    targets = pendulum, double_pendulum, variable_steps, explicit
 }
 criterion_main!(benches);

@@ -20,7 +20,7 @@ pub(crate) type BlockVector<const N: usize, const S: usize, T = f64> = [[T; N]; 
 pub(crate) type BlockMatrix<const N: usize, const S: usize, T = f64> = [[[[T; N]; S]; N]; S];
 
 /// The factors `PA = LU` (unit lower `L` below the diagonal, `U` on and above).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
     lu: BlockMatrix<N, S, T>,
     perm: [[usize; N]; S],

@@ -36,6 +36,9 @@ pub struct OnePointMemory<const N: usize> {
     /// On the heap: at the sizes reverse mode serves, an inline `N × N`
     /// matrix would not fit on a thread's stack.
     pub(crate) inverse_mass: Option<Box<SMatrix<f64, N, N>>>,
+    /// Explicit steps: the diagonal of `M⁻¹` when `M⁻¹` is diagonal (a
+    /// product with `N` entries instead of `N²`), once computed.
+    pub(crate) inverse_mass_diagonal: Option<[f64; N]>,
     /// Explicit steps: `(k, f(t_k, q_k))`, the force `∂L/∂q(t, q, 0)` at
     /// node `k` (valid while the state is at node `k`).
     pub(crate) node_force: Option<(u64, [f64; N])>,
@@ -54,7 +57,14 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn memory<const N: usize>(&self) -> OnePointMemory<N> {
-        OnePointMemory { previous: None, earlier: None, inverse_mass: None, node_force: None, sparse: None }
+        OnePointMemory {
+            previous: None,
+            earlier: None,
+            inverse_mass: None,
+            inverse_mass_diagonal: None,
+            node_force: None,
+            sparse: None,
+        }
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(
@@ -260,21 +270,31 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
-        let inverse_mass = match &self.memory.inverse_mass {
-            Some(m) => **m,
-            None => match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
-                Some(m) => m,
+        if self.memory.inverse_mass.is_none() {
+            match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
+                Some(m) => {
+                    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+                    self.memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
+                    self.memory.inverse_mass = Some(Box::new(m));
+                }
                 None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
-            },
-        };
+            }
+        }
         let f0 = match self.memory.node_force {
             Some((k, f)) if k == step => f,
             _ => self.potential_force(t0, q0),
         };
         let half = 0.5 * h;
-        let mv = SVector::<f64, N>::from_fn(|i, _| (p0[i] + half * f0[i]) + self.p_carry[i]);
-        let dq: [f64; N] = (inverse_mass * mv * h).into();
+        let mv: [f64; N] = core::array::from_fn(|i| (p0[i] + half * f0[i]) + self.p_carry[i]);
+        // A diagonal `M⁻¹` skips the products with its zeros, which add
+        // exact zeros (only the sign of a zero increment can differ).
+        let dq: [f64; N] = match (&self.memory.inverse_mass_diagonal, &self.memory.inverse_mass) {
+            (Some(d), _) => core::array::from_fn(|i| (d[i] * mv[i]) * h),
+            (None, Some(m)) => (**m * SVector::from(mv) * h).into(),
+            (None, None) => unreachable!("the inverse mass is set above"),
+        };
         if let Some(last) = &self.memory.previous
+            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
             && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
         {
             let reason = IMPLAUSIBLE_GROWTH;
@@ -293,9 +313,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         self.p_carry = p_carry;
         if S::DISCONTINUOUS {
             self.watch_energy(&seg, t1);
-        }
-        if self.memory.inverse_mass.is_none() {
-            self.memory.inverse_mass = Some(Box::new(inverse_mass));
         }
         self.memory.node_force = Some((step + 1, f1));
         self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
@@ -356,6 +373,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Ok((dq, report)) => {
                 let dq: [f64; N] = dq.into();
                 if let Some(last) = &self.memory.previous
+                    && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
                     && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
                 {
                     let reason = IMPLAUSIBLE_GROWTH;
@@ -422,4 +440,25 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };
         Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
     }
+}
+
+/// `max_i |x_i|` exactly as [`max_abs`] computes it (NaN entries ignored), on an array.
+#[inline(always)]
+fn max_abs_array<const N: usize>(x: &[f64; N]) -> f64 {
+    let mut m = 0.0f64;
+    for v in x {
+        m = m.max(v.abs());
+    }
+    m
+}
+
+/// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
+/// (sub-steps of a composition can be negative),
+/// already shows that the increment `dq` is no implausible growth: then
+/// [`implausible_growth`] is `false` whatever the prediction (its scale is at
+/// least the scaled last increment, and rounding is monotone, so
+/// `max|x·r| = max|x|·|r|` exactly), and the common case skips the predictor.
+#[inline(always)]
+fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
+    max_abs_array(dq) <= 1e6 * (max_abs_array(last_dq) * ratio)
 }
