@@ -23,6 +23,12 @@ CASES=(
   "double pendulum|variable"
   "double pendulum|energy"
   "double pendulum|damped"
+  "pendulum|kahan-li8" "pendulum|hand-kahan-li8"
+  "kepler|trapezoid" "kepler|verlet"
+  "henon-heiles|trapezoid" "henon-heiles|verlet"
+  "fpu|trapezoid" "fpu|trapezoid-reverse" "fpu|verlet"
+  "pendulum|galerkin6" "pendulum|galerkin8"
+  "kepler|galerkin4" "kepler|galerkin6"
 )
 
 command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
