@@ -228,6 +228,19 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
         self.penalty
     }
 
+    /// The transformed system with the constant `c` of the `t'` term set,
+    /// for integrating it with an integrator of your own — for instance a
+    /// [`GalerkinIntegrator`] in double-double, which the `f64` driver
+    /// [`Adaptive`] does not offer. Start it at `x = (q0, t0)` with
+    /// `x' = (g0 v0, g0)`, `g0 = g(t0, q0)`; `t` is then its last coordinate.
+    /// `None` unless `c` is finite and positive.
+    pub fn with_penalty(mut self, c: f64) -> Option<Self> {
+        (c.is_finite() && c > 0.0).then(|| {
+            self.penalty = c;
+            self
+        })
+    }
+
     /// `g(t, q)` in `f64`.
     pub fn density(&self, t: f64, q: &[f64; N]) -> f64 {
         self.density.density(&*self.system, t, q)
