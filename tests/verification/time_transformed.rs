@@ -26,7 +26,7 @@ impl Kepler {
 }
 
 /// `E − e sin E = m` by Newton safeguarded with bisection on `[m − e, m + e]`.
-fn eccentric_anomaly(e: f64, m: f64) -> f64 {
+pub fn eccentric_anomaly(e: f64, m: f64) -> f64 {
     let (mut lo, mut hi) = (m - e, m + e);
     let mut ea = m + e * m.sin();
     for _ in 0..100 {
@@ -50,12 +50,12 @@ fn eccentric_anomaly(e: f64, m: f64) -> f64 {
 }
 
 /// Position on the orbit with a = 1, pericentre on +x at t = 0.
-fn kepler_position(e: f64, t: f64) -> [f64; 2] {
+pub fn kepler_position(e: f64, t: f64) -> [f64; 2] {
     let ea = eccentric_anomaly(e, t);
     [ea.cos() - e, (1.0 - e * e).sqrt() * ea.sin()]
 }
 
-fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
+pub fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
     ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])
 }
 
@@ -83,7 +83,7 @@ struct Run {
     time_momentum: f64,
 }
 
-fn angular(s: &State<2>) -> f64 {
+pub fn angular(s: &State<2>) -> f64 {
     s.q[0] * s.p[1] - s.q[1] * s.p[0]
 }
 

@@ -9,56 +9,12 @@
 //! The 200-orbit drift checks are ignored:
 //! `cargo test --release --test verification time_transformed_splitting:: -- --ignored --nocapture`.
 use crate::common;
+// The Kepler system and its exact orbit are those of the implicit path's tests.
+use crate::time_transformed::{Kepler, angular, kepler_position, kepler_start};
 
 use common::SlowOscillator;
 use lagrangian::prelude::*;
 use std::f64::consts::PI;
-
-/// Planar Kepler, μ = 1, Cartesian.
-#[derive(Debug, Clone, Copy)]
-pub struct Kepler;
-
-#[lagrangian]
-impl Kepler {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
-
-/// `E − e sin E = m` by Newton safeguarded with bisection on `[m − e, m + e]`
-/// (the helper of tests/verification/time_transformed.rs).
-fn eccentric_anomaly(e: f64, m: f64) -> f64 {
-    let (mut lo, mut hi) = (m - e, m + e);
-    let mut ea = m + e * m.sin();
-    for _ in 0..100 {
-        let f = ea - e * ea.sin() - m;
-        if f > 0.0 {
-            hi = ea;
-        } else {
-            lo = ea;
-        }
-        let mut next = ea - f / (1.0 - e * ea.cos());
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        let d = (next - ea).abs();
-        ea = next;
-        if d <= f64::EPSILON * ea.abs().max(1.0) {
-            break;
-        }
-    }
-    ea
-}
-
-/// Position on the orbit with a = 1, pericentre on +x at t = 0.
-fn kepler_position(e: f64, t: f64) -> [f64; 2] {
-    let ea = eccentric_anomaly(e, t);
-    [ea.cos() - e, (1.0 - e * e).sqrt() * ea.sin()]
-}
-
-fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
-    ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])
-}
 
 /// The methods: (label, composition or the leapfrog, order).
 const METHODS: [(&str, Option<Composition>, u32); 4] = [
@@ -75,10 +31,6 @@ fn kepler(e: f64, f: TimeFunction, composition: Option<Composition>, sigma: f64)
         b = b.composition(c);
     }
     b.start(0.0, q0, v0).unwrap()
-}
-
-fn angular(s: &State<2>) -> f64 {
-    s.q[0] * s.p[1] - s.q[1] * s.p[0]
 }
 
 /// `|q(T) − q_exact(T)|` after `orbits` orbits.
