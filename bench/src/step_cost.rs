@@ -52,13 +52,11 @@ fn time(
     })
 }
 
-fn generated<S: Lagrangian<N> + Clone, M: F64Readouts + Clone, const N: usize>(
-    system: &S,
-    method: M,
-    (q0, v0): ([f64; N], [f64; N]),
+/// Runs `steps` steps of `sim`; the Newton iterations per step.
+fn newton_per_step<S: Lagrangian<N>, M: F64Readouts + Clone, const N: usize>(
+    mut sim: Integrator<S, M, N>,
     steps: usize,
 ) -> Option<Option<f64>> {
-    let mut sim = Integrator::new(system.clone(), method, H).start(0.0, q0, v0).ok()?;
     sim.run(steps, |s| {
         black_box(&s.state().q);
     })
@@ -67,22 +65,26 @@ fn generated<S: Lagrangian<N> + Clone, M: F64Readouts + Clone, const N: usize>(
     Some(Some(s.newton_iterations as f64 / s.steps.max(1) as f64))
 }
 
+fn generated<S: Lagrangian<N> + Clone, M: F64Readouts + Clone, const N: usize>(
+    system: &S,
+    method: M,
+    (q0, v0): ([f64; N], [f64; N]),
+    steps: usize,
+) -> Option<Option<f64>> {
+    newton_per_step(Integrator::new(system.clone(), method, H).start(0.0, q0, v0).ok()?, steps)
+}
+
 /// The generated energy-preserving midpoint step (`StepBounds::around(H)`).
 fn energy_preserving<S: Lagrangian<N> + Clone, const N: usize>(
     system: &S,
     (q0, v0): ([f64; N], [f64; N]),
     steps: usize,
 ) -> Option<Option<f64>> {
-    let mut sim = Integrator::new(system.clone(), Midpoint, H)
+    let sim = Integrator::new(system.clone(), Midpoint, H)
         .energy_preserving(StepBounds::around(H))
         .start(0.0, q0, v0)
         .ok()?;
-    sim.run(steps, |s| {
-        black_box(&s.state().q);
-    })
-    .ok()?;
-    let s = sim.stats();
-    Some(Some(s.newton_iterations as f64 / s.steps.max(1) as f64))
+    newton_per_step(sim, steps)
 }
 
 /// The step size of the Galerkin measurements (the pendulum, as in the
