@@ -7,6 +7,7 @@
 // `pub` items of the test modules are reachable only inside this test crate.
 #![allow(unreachable_pub)]
 
+mod accepted_forms;
 #[path = "../common/mod.rs"]
 mod common;
 mod derivatives;

@@ -1430,14 +1430,20 @@ mod tests {
 
     #[test]
     fn long_sums_stay_cheap_and_sound() {
-        // More dependencies than `MAX_DEPS`: indices are forgotten.
-        let terms = (0..300).map(|i| quote::quote!(+ q[#i]));
-        let body: syn::Block = syn::parse2(quote::quote!({ (0.0 #(#terms)*).sin() })).unwrap();
-        let s = lagrangian(body);
-        assert_eq!(s.coupling.q_q, G);
-        let terms = (0..300).map(|i| quote::quote!(+ q[#i] * q[#i]));
-        let body: syn::Block = syn::parse2(quote::quote!({ 0.0 #(#terms)* })).unwrap();
-        assert_eq!(lagrangian(body).coupling.q_q, W0);
+        // A 300-term sum nests 300 deep. The macro runs on rustc's thread
+        // (8 MiB of stack); the test harness gives 2 MiB, too little for
+        // the unoptimised build, so the test takes rustc's.
+        let run = || {
+            // More dependencies than `MAX_DEPS`: indices are forgotten.
+            let terms = (0..300).map(|i| quote::quote!(+ q[#i]));
+            let body: syn::Block = syn::parse2(quote::quote!({ (0.0 #(#terms)*).sin() })).unwrap();
+            let s = lagrangian(body);
+            assert_eq!(s.coupling.q_q, G);
+            let terms = (0..300).map(|i| quote::quote!(+ q[#i] * q[#i]));
+            let body: syn::Block = syn::parse2(quote::quote!({ 0.0 #(#terms)* })).unwrap();
+            assert_eq!(lagrangian(body).coupling.q_q, W0);
+        };
+        std::thread::Builder::new().stack_size(8 << 20).spawn(run).unwrap().join().unwrap();
     }
 
     /// The structure of a run-time-sized `L = body` (slices, `fn dimension`).
