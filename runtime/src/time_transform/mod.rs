@@ -616,7 +616,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
             None if scale.is_finite() && scale > 0.0 => 1.0 / scale,
             None => 1.0,
         };
-        let floor = self.min_time_step.unwrap_or(self.sigma * g0 * 1e-8);
+        let floor = self.min_time_step.unwrap_or(T::from(1e-8) * self.sigma * g0);
         if !(floor.is_finite() && floor.to_f64() > 0.0) {
             return Err(TimeTransformError::InvalidSetting {
                 reason: "the smallest time step must be finite and positive",
