@@ -727,6 +727,7 @@ pub enum TimeTransformError<const N: usize, const M: usize, T: Real = f64> {
 /// ```
 /// # use lagrangian_runtime::time_transform::{RadiusPower, TimeTransformed};
 /// # use lagrangian_runtime::{DoubleDouble, Galerkin, Lagrangian, Scalar};
+/// # use lagrangian_runtime::num_dual::DualNum;
 /// # struct Kepler;
 /// # impl Lagrangian<2> for Kepler {
 /// #     const AUTONOMOUS: bool = true;
