@@ -660,3 +660,74 @@ fn double_double_driver_energy_is_bounded_and_landings_exact() {
 fn angular_dd(s: &State<2, DoubleDouble>) -> DoubleDouble {
     s.q[0] * s.p[1] - s.q[1] * s.p[0]
 }
+
+/// Kepler with its monitor in the `#[lagrangian]` block.
+#[derive(Debug, Clone, Copy)]
+pub struct KeplerWithDensity;
+
+#[lagrangian]
+impl KeplerWithDensity {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+
+    fn step_density(&self, q: [f64; 2]) -> f64 {
+        (q[0] * q[0] + q[1] * q[1]).powf(0.75)
+    }
+}
+
+/// A time-dependent monitor written in the block: `g = 1/(1 + ½ sin 3t)`.
+#[derive(Debug, Clone, Copy)]
+pub struct OscillatorWithDensity;
+
+#[lagrangian]
+impl OscillatorWithDensity {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+    }
+
+    fn step_density(&self, t: f64, _q: [f64; 1]) -> f64 {
+        1.0 / (1.0 + 0.5 * (3.0 * t).sin())
+    }
+}
+
+/// `step_density` in the block gives the steps of the runtime's monitor with
+/// the same formula: `r^{3/2}` against `RadiusPower([0, 1], 1.5)` (midpoint
+/// and Galerkin s = 2, 300 steps on Kepler e = 0.9), and the time-dependent
+/// `Breathing` on the oscillator. Compared bit for bit where the formulas
+/// round the same way.
+#[test]
+fn step_density_in_the_block_equals_the_runtime_monitor() {
+    assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT);
+    assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT);
+    let (q0, v0) = kepler_start(0.9);
+    let mut own = TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut lib = TimeTransformed::new(Kepler, r32()).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut own2 = TimeTransformed::with_own_density(KeplerWithDensity)
+        .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
+        .start::<3>(0.0, q0, v0)
+        .unwrap();
+    let mut lib2 = galerkin::<2>(0.9, 0.1);
+    let (mut worst, mut worst2) = (0.0f64, 0.0f64);
+    for _ in 0..300 {
+        let (a, b) = (own.step().unwrap(), lib.step().unwrap());
+        let (c, d) = (own2.step().unwrap(), lib2.step().unwrap());
+        for i in 0..2 {
+            worst = worst.max((a.q[i] - b.q[i]).abs()).max((a.p[i] - b.p[i]).abs());
+            worst2 = worst2.max((c.q[i] - d.q[i]).abs()).max((c.p[i] - d.p[i]).abs());
+        }
+        worst = worst.max((a.t - b.t).abs());
+        worst2 = worst2.max((c.t - d.t).abs());
+    }
+    println!("step_density against RadiusPower over 300 steps: midpoint {worst:e}, galerkin 2 {worst2:e}");
+    // `(x² + y²)^0.75` and RadiusPower's `(x² + y²)^(0.5 · 1.5)` are the same operations.
+    assert_eq!((worst, worst2), (0.0, 0.0));
+    let mut own =
+        TimeTransformed::with_own_density(OscillatorWithDensity).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut lib = TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    own.run_until(3.0, |_| {}).unwrap();
+    lib.run_until(3.0, |_| {}).unwrap();
+    let (a, b) = (own.state(), lib.state());
+    println!("time-dependent step_density: {a:?} against {b:?}");
+    assert!((a.q[0] - b.q[0]).abs() <= 1e-14 && (a.p[0] - b.p[0]).abs() <= 1e-14 && a.step == b.step, "{a:?} {b:?}");
+}

@@ -288,6 +288,44 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
     }
 }
 
+impl<Sys: Lagrangian<N> + StepDensity<N>, const N: usize> TimeTransformed<Sys, Sys, N> {
+    /// The transformed system of a system that is its own step density: one
+    /// with `fn step_density(&self, [t: f64,] q: [f64; N]) -> f64` in its
+    /// `#[lagrangian]` block (the macro implements [`StepDensity<N>`] for it
+    /// from that method, rewritten for dual numbers like `lagrangian`). One
+    /// value serves both roles; no copy of the system is made.
+    ///
+    /// ```
+    /// use lagrangian::prelude::*;
+    ///
+    /// #[derive(Debug)]
+    /// struct Kepler;
+    ///
+    /// #[lagrangian]
+    /// impl Kepler {
+    ///     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+    ///         0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    ///     }
+    ///     /// `dt/ds = r^{3/2}`.
+    ///     fn step_density(&self, q: [f64; 2]) -> f64 {
+    ///         (q[0] * q[0] + q[1] * q[1]).powf(0.75)
+    ///     }
+    /// }
+    ///
+    /// let mut sim = TimeTransformed::with_own_density(Kepler)
+    ///     .rule(Midpoint, 0.02)
+    ///     .start::<3>(0.0, [0.1, 0.0], [0.0, 19f64.sqrt()])?;
+    /// sim.run_until(1.0, |_| {})?;
+    /// assert_eq!(sim.state().t, 1.0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn with_own_density(system: Sys) -> Self {
+        let shared = Arc::new(system);
+        TimeTransformed { system: Arc::clone(&shared), density: shared, penalty: 0.0, invalid: Cell::new(None) }
+    }
+
+}
+
 /// `CYCLIC` of the transformed system: no position is claimed cyclic (`g`
 /// may depend on any), `t` is when neither `L` nor `g` depends on it.
 const fn extended_cyclic<const M: usize>(time_cyclic: bool) -> [bool; M] {
