@@ -287,7 +287,8 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
             (params, _) => return wrong_arity(cx, method, params.len(), signature),
         }
     } else {
-        // `g(t, q)`: two parameters are `(t, q)` when the first is `f64`.
+        // `g(t, q)`: two parameters are `(t, q)` unless the first is an
+        // array (then they are `(q, v)`, and `v` is the mistake).
         let velocity = |v: &Param<'_>| {
             let (pat, ty) = (v.pat, v.ty);
             cx.error_spanned_by(
@@ -300,7 +301,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         };
         match method.params.as_slice() {
             [q] => (None, q, None),
-            [t, q] if matches!(t.shape, Shape::F64) => (Some(t), q, None),
+            [t, q] if !matches!(t.shape, Shape::Array { .. }) => (Some(t), q, None),
             [q, v] => {
                 velocity(v);
                 (None, q, None)

@@ -8,8 +8,8 @@ impl Driven {
         0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
     }
 
-    fn step_density(&self, t: f32, q: [f64; 1], extra: f64) -> f64 {
-        1.0 + q[0] * q[0] + extra
+    fn step_density(&self, t: f32, q: [f64; 1]) -> f64 {
+        1.0 + q[0] * q[0]
     }
 }
 
