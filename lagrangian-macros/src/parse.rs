@@ -36,7 +36,9 @@ impl MethodKind {
 
     /// The kind of a method called `ident`, if it is one the macro recognises.
     pub(crate) fn from_ident(ident: &Ident) -> Option<Self> {
-        [Self::Lagrangian, Self::Dissipation, Self::Force, Self::StepDensity].into_iter().find(|kind| ident == kind.name())
+        [Self::Lagrangian, Self::Dissipation, Self::Force, Self::StepDensity]
+            .into_iter()
+            .find(|kind| ident == kind.name())
     }
 
     /// Whether the method may take a leading `t: f64`; the trait's

@@ -701,7 +701,8 @@ fn step_density_in_the_block_equals_the_runtime_monitor() {
     assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT);
     assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT);
     let (q0, v0) = kepler_start(0.9);
-    let mut own = TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut own =
+        TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
     let mut lib = TimeTransformed::new(Kepler, r32()).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
     let mut own2 = TimeTransformed::with_own_density(KeplerWithDensity)
         .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
@@ -722,12 +723,41 @@ fn step_density_in_the_block_equals_the_runtime_monitor() {
     println!("step_density against RadiusPower over 300 steps: midpoint {worst:e}, galerkin 2 {worst2:e}");
     // `(x² + y²)^0.75` and RadiusPower's `(x² + y²)^(0.5 · 1.5)` are the same operations.
     assert_eq!((worst, worst2), (0.0, 0.0));
-    let mut own =
-        TimeTransformed::with_own_density(OscillatorWithDensity).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
-    let mut lib = TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut own = TimeTransformed::with_own_density(OscillatorWithDensity)
+        .rule(Midpoint, 0.1)
+        .start::<2>(0.0, [1.0], [0.0])
+        .unwrap();
+    let mut lib =
+        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
     own.run_until(3.0, |_| {}).unwrap();
     lib.run_until(3.0, |_| {}).unwrap();
     let (a, b) = (own.state(), lib.state());
     println!("time-dependent step_density: {a:?} against {b:?}");
     assert!((a.q[0] - b.q[0]).abs() <= 1e-14 && (a.p[0] - b.p[0]).abs() <= 1e-14 && a.step == b.step, "{a:?} {b:?}");
+}
+
+/// Bad monitors through the double-double driver: typed errors, state kept,
+/// no hang (as in `f64` above).
+#[test]
+fn double_double_driver_refuses_bad_monitors_with_the_state_kept() {
+    type Dd = DoubleDouble;
+    let d = Dd::from;
+    let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, d(0.1)).start::<2>(d(0.0), [d(-0.5)], [d(0.0)]);
+    assert!(matches!(err, Err(TimeTransformError::InvalidDensity { value, .. }) if value == -0.5), "{err:?}");
+    let mut sim = TimeTransformed::new(Oscillator, NanAfterHalf)
+        .rule(Midpoint, d(0.07))
+        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
+        .unwrap();
+    let err = sim.run_until(d(1.0), |_| {}).unwrap_err();
+    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    assert!(value.is_nan() && state == sim.state() && state.t.to_f64() <= 0.5 && state.t.to_f64() > 0.4, "{state:?}");
+    let mut sim = TimeTransformed::new(Oscillator, Collapsing)
+        .rule(Midpoint, d(0.1))
+        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
+        .unwrap();
+    let err = sim.run_until(d(2.0), |_| {}).unwrap_err();
+    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    assert!(dt < floor && state == sim.state() && state.t.to_f64() < 1.0, "{dt} {floor} {state:?}");
+    let e = sim.run_until(d(f64::NAN), |_| {}).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
 }

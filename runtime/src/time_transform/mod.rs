@@ -48,9 +48,9 @@ use std::sync::Arc;
 use num_dual::HyperDual;
 
 use crate::discrete::DiscreteLagrangian;
+use crate::double_double::DoubleDouble;
 use crate::error::Error;
 use crate::galerkin::{Galerkin, GalerkinIntegrator};
-use crate::double_double::DoubleDouble;
 use crate::integrator::{F64Readouts, Integrator, Method, Stats};
 use crate::mechanics::{DiscreteMechanics, LegendreFailure};
 use crate::newton::NewtonOptions;
@@ -323,7 +323,6 @@ impl<Sys: Lagrangian<N> + StepDensity<N>, const N: usize> TimeTransformed<Sys, S
         let shared = Arc::new(system);
         TimeTransformed { system: Arc::clone(&shared), density: shared, penalty: 0.0, invalid: Cell::new(None) }
     }
-
 }
 
 /// `CYCLIC` of the transformed system: no position is claimed cyclic (`g`
