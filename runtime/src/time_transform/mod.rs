@@ -22,11 +22,15 @@
 //! of every symmetry that `L` and `g` share. Time-dependent `L` and forces
 //! (Lagrange–d'Alembert in `s`: `t' F` on `q` and `−F·q'` on `t`) work too.
 //!
-//! [`Adaptive`] drives any integrator of the adapter ([`Integrator`] for the
-//! one-point rules, [`GalerkinIntegrator`] in `f64`), reports `t`, `q`, `p`
+//! [`Adaptive`] drives any integrator of the adapter ([`Integrator`] with a
+//! one-point or Galerkin rule, in `f64` or
+//! [`DoubleDouble`](crate::DoubleDouble): the type of the step `σ` sets
+//! the run's), reports `t`, `q`, `p`
 //! and the energy in physical time, lands on requested times, and refuses a
 //! step density that is not positive and finite, or steps that stop
-//! advancing time, with typed errors that keep the state.
+//! advancing time, with typed errors that keep the state. The monitor can
+//! be a type of this module or the system's own `fn step_density` in its
+//! `#[lagrangian]` block ([`TimeTransformed::with_own_density`]).
 //!
 //! For separable systems `½ vᵀMv − V(t, q)` with constant `M`,
 //! [`ExplicitTimeTransformed`] is an explicit alternative: a splitting of the
@@ -230,9 +234,8 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
     }
 
     /// The transformed system with the constant `c` of the `t'` term set,
-    /// for integrating it with an integrator of your own — for instance a
-    /// [`GalerkinIntegrator`] in double-double, which the `f64` driver
-    /// [`Adaptive`] does not offer. Start it at `x = (q0, t0)` with
+    /// for integrating it with an integrator of your own (the driver
+    /// [`Adaptive`] sets it in [`start`](TimeTransformedBuilder::start)). Start it at `x = (q0, t0)` with
     /// `x' = (g0 v0, g0)`, `g0 = g(t0, q0)`; `t` is then its last coordinate.
     /// `None` unless `c` is finite and positive.
     pub fn with_penalty(mut self, c: f64) -> Option<Self> {
