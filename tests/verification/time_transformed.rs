@@ -698,8 +698,8 @@ impl OscillatorWithDensity {
 /// round the same way.
 #[test]
 fn step_density_in_the_block_equals_the_runtime_monitor() {
-    assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT);
-    assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT);
+    const { assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT) };
+    const { assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT) };
     let (q0, v0) = kepler_start(0.9);
     let mut own =
         TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();

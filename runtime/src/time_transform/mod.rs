@@ -1036,7 +1036,8 @@ where
             return Err(TimeTransformError::InvalidDensity { state: start, value: g1.to_f64() });
         }
         // NaN fails too.
-        if !((dt - self.floor).to_f64() >= 0.0) {
+        let margin = (dt - self.floor).to_f64();
+        if margin.is_nan() || margin < 0.0 {
             self.inner = before;
             let floor = self.floor.to_f64();
             return Err(TimeTransformError::TimeStepCollapsed { state: start, dt: dt.to_f64(), floor });
@@ -1133,13 +1134,13 @@ where
             if f.to_f64() > 0.0 {
                 (hi, f_hi) = (s, f);
                 if side == 1 {
-                    f_lo = f_lo * 0.5;
+                    f_lo *= 0.5;
                 }
                 side = 1;
             } else {
                 (lo, f_lo) = (s, f);
                 if side == -1 {
-                    f_hi = f_hi * 0.5;
+                    f_hi *= 0.5;
                 }
                 side = -1;
             }
