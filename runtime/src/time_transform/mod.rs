@@ -296,9 +296,11 @@ impl<Sys: Lagrangian<N> + StepDensity<N>, const N: usize> TimeTransformed<Sys, S
     /// with `fn step_density(&self, [t: f64,] q: [f64; N]) -> f64` in its
     /// `#[lagrangian]` block (the macro implements [`StepDensity<N>`] for it
     /// from that method, rewritten for dual numbers like `lagrangian`). One
-    /// value serves both roles; no copy of the system is made.
+    /// value serves both roles; no copy of the system is made. (The example
+    /// needs the facade crate's macro; the facade's test
+    /// `step_density_in_the_block_equals_the_runtime_monitor` runs it.)
     ///
-    /// ```
+    /// ```ignore
     /// use lagrangian::prelude::*;
     ///
     /// #[derive(Debug)]
