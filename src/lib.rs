@@ -170,7 +170,7 @@ pub mod prelude {
 #[doc(hidden)]
 pub mod __private {
     pub use lagrangian_runtime::{
-        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, Symmetry,
+        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, StepDensity, Symmetry,
     };
 }
 

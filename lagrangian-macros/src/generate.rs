@@ -38,6 +38,18 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
         .chain(&system.dissipation)
         .chain(&system.force)
         .map(|function| method(function, Some(&n)));
+    let step_density = system.step_density.as_ref().map(|function| {
+        let density = density_method(function, &n);
+        let time_dependent = function.time.is_some();
+        quote! {
+            #cfgs
+            #[allow(warnings, clippy::all, clippy::pedantic, clippy::nursery, clippy::restriction)]
+            impl #impl_generics ::lagrangian::__private::StepDensity<#n> for #self_ty #where_clause {
+                const TIME_DEPENDENT: bool = #time_dependent;
+                #density
+            }
+        }
+    });
     quote! {
         #user_impl
 
@@ -56,6 +68,8 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             #structure
             #(#methods)*
         }
+
+        #step_density
     }
 }
 
@@ -296,6 +310,36 @@ fn method(function: &Function, n: Option<&TokenStream>) -> TokenStream {
     quote! {
         #[inline(always)]
         fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
+    }
+}
+
+/// `StepDensity::density` from the user's `fn step_density(&self, [t,] q)`:
+/// the body printed generic over `D`, with `q` taken from the reference the
+/// trait passes. `self` is the monitor, which is the system itself
+/// (`TimeTransformed::with_own_density` shares one value for both roles).
+fn density_method(function: &Function, n: &TokenStream) -> TokenStream {
+    let d = scalar_type();
+    let binder = |binder: &Binder| match binder {
+        Some(ident) => ident.to_token_stream(),
+        None => quote!(_),
+    };
+    let q = binder(&function.q);
+    let t = function.time.as_ref().map_or_else(|| quote!(_), binder);
+    let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
+    let body = printer.block(&function.body, Some(function.return_class()));
+    let self_token = syn::Token![self](function.self_span);
+    let system = Ident::new("__LagrangianSystem", Span::call_site());
+    let q_ref = Ident::new("__lagrangian_q", Span::call_site());
+    quote! {
+        #[inline(always)]
+        fn density<#system, #d>(&#self_token, _: &#system, #t: #d, #q_ref: &[#d; #n]) -> #d
+        where
+            #system: ::lagrangian::__private::Lagrangian<#n> + ?::core::marker::Sized,
+            #d: ::lagrangian::__private::Scalar,
+        {
+            let #q: [#d; #n] = *#q_ref;
+            #body
+        }
     }
 }
 

@@ -21,12 +21,17 @@ pub(crate) struct System {
     pub(crate) dissipation: Option<Function>,
     /// The applied forces, if given.
     pub(crate) force: Option<Function>,
+    /// The step density `g(t, q)` of the time-transformed integrators, if given.
+    pub(crate) step_density: Option<Function>,
 }
 
 impl System {
     /// The methods present, Lagrangian first.
     pub(crate) fn functions_mut(&mut self) -> impl Iterator<Item = &mut Function> {
-        std::iter::once(&mut self.lagrangian).chain(self.dissipation.as_mut()).chain(self.force.as_mut())
+        std::iter::once(&mut self.lagrangian)
+            .chain(self.dissipation.as_mut())
+            .chain(self.force.as_mut())
+            .chain(self.step_density.as_mut())
     }
 }
 
@@ -44,7 +49,7 @@ pub(crate) struct Function {
     pub(crate) time: Option<Binder>,
     /// The position parameter.
     pub(crate) q: Binder,
-    /// The velocity parameter.
+    /// The velocity parameter (`None` also for `step_density`, which has none).
     pub(crate) v: Binder,
     /// The body.
     pub(crate) body: Block,

@@ -18,6 +18,9 @@ pub(crate) enum MethodKind {
     Dissipation,
     /// `fn force(&self, [t,] q, v) -> [f64; N]`, optional.
     Force,
+    /// `fn step_density(&self, [t,] q) -> f64`, optional: the monitor
+    /// `g(t, q)` of the time-transformed integrators.
+    StepDensity,
 }
 
 impl MethodKind {
@@ -27,18 +30,26 @@ impl MethodKind {
             Self::Lagrangian => "lagrangian",
             Self::Dissipation => "dissipation",
             Self::Force => "force",
+            Self::StepDensity => "step_density",
         }
     }
 
     /// The kind of a method called `ident`, if it is one the macro recognises.
     pub(crate) fn from_ident(ident: &Ident) -> Option<Self> {
-        [Self::Lagrangian, Self::Dissipation, Self::Force].into_iter().find(|kind| ident == kind.name())
+        [Self::Lagrangian, Self::Dissipation, Self::Force, Self::StepDensity]
+            .into_iter()
+            .find(|kind| ident == kind.name())
     }
 
     /// Whether the method may take a leading `t: f64`; the trait's
     /// `dissipation` has no time argument.
     pub(crate) fn takes_time(self) -> bool {
         self != Self::Dissipation
+    }
+
+    /// Whether the method takes the velocity; a step density is `g(t, q)`.
+    pub(crate) fn takes_velocity(self) -> bool {
+        self != Self::StepDensity
     }
 
     /// Whether the method returns one value per coordinate (`[f64; N]`)
@@ -58,6 +69,8 @@ pub(crate) struct Input<'a> {
     pub(crate) dissipation: Option<Method<'a>>,
     /// `fn force`, if present.
     pub(crate) force: Option<Method<'a>>,
+    /// `fn step_density`, if present.
+    pub(crate) step_density: Option<Method<'a>>,
     /// `fn dimension`, if present: the size of a run-time-sized system,
     /// whose `lagrangian` takes slices. Not rewritten, so not a
     /// [`MethodKind`]; ignored when the Lagrangian takes arrays.
@@ -68,7 +81,8 @@ impl<'a> Input<'a> {
     /// Picks the recognised methods out of `item`. When a name appears twice
     /// the first one is kept: rustc reports the duplicate definition itself.
     pub(crate) fn from_syn(item: &'a ItemImpl) -> Self {
-        let mut input = Input { item, lagrangian: None, dissipation: None, force: None, dimension: None };
+        let mut input =
+            Input { item, lagrangian: None, dissipation: None, force: None, step_density: None, dimension: None };
         for func in item.items.iter().filter_map(|item| match item {
             ImplItem::Fn(func) => Some(func),
             _ => None,
@@ -83,6 +97,7 @@ impl<'a> Input<'a> {
                 MethodKind::Lagrangian => &mut input.lagrangian,
                 MethodKind::Dissipation => &mut input.dissipation,
                 MethodKind::Force => &mut input.force,
+                MethodKind::StepDensity => &mut input.step_density,
             };
             if slot.is_none() {
                 *slot = Some(Method::from_syn(kind, func));

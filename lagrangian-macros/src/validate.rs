@@ -69,6 +69,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
     };
     let dissipation = optional(&input.dissipation);
     let force = optional(&input.force);
+    let step_density = optional(&input.step_density);
     if dynamic {
         check_dimension(cx, input.dimension, lagrangian, &item.self_ty);
     }
@@ -79,6 +80,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         // Absent is fine; present but not lowered is not.
         dissipation: dissipation.map_or(Some(None), |f| f.map(Some))?,
         force: force.map_or(Some(None), |f| f.map(Some))?,
+        step_density: step_density.map_or(Some(None), |f| f.map(Some))?,
     })
 }
 
@@ -266,33 +268,49 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         Some(_) => {}
     }
 
-    let (time, q, v) = match (method.params.as_slice(), method.kind.takes_time()) {
-        ([q, v], _) => (None, q, v),
-        ([t, q, v], true) => (Some(t), q, v),
-        // A time argument where none is taken: say so at that argument.
-        ([t, q, v], false) if matches!(t.shape, Shape::F64) => {
-            let (pat, ty) = (t.pat, t.ty);
-            cx.error_spanned_by(
-                quote::quote!(#pat #ty),
-                format!(
-                    "`{name}` takes no time argument: a rayleigh function is `R(q, v)`; \
-                     put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`"
-                ),
-            );
-            (None, q, v)
+    let (time, q, v) = if method.kind.takes_velocity() {
+        match (method.params.as_slice(), method.kind.takes_time()) {
+            ([q, v], _) => (None, q, Some(v)),
+            ([t, q, v], true) => (Some(t), q, Some(v)),
+            // A time argument where none is taken: say so at that argument.
+            ([t, q, v], false) if matches!(t.shape, Shape::F64) => {
+                let (pat, ty) = (t.pat, t.ty);
+                cx.error_spanned_by(
+                    quote::quote!(#pat #ty),
+                    format!(
+                        "`{name}` takes no time argument: a rayleigh function is `R(q, v)`; \
+                         put time-dependent forces in `fn force(&self, t: f64, q, v) -> [f64; N]`"
+                    ),
+                );
+                (None, q, Some(v))
+            }
+            (params, _) => return wrong_arity(cx, method, params.len(), signature),
         }
-        (params, _) => {
-            cx.error_at(
-                sig.paren_token.span.join(),
+    } else {
+        // `g(t, q)`: two parameters are `(t, q)` unless the first is an
+        // array (then they are `(q, v)`, and `v` is the mistake).
+        let velocity = |v: &Param<'_>| {
+            let (pat, ty) = (v.pat, v.ty);
+            cx.error_spanned_by(
+                quote::quote!(#pat: #ty),
                 format!(
-                    "`{name}` takes {}, found {} parameter{} besides `&self`",
-                    expected_params(method.kind),
-                    params.len(),
-                    if params.len() == 1 { "" } else { "s" },
+                    "`{name}` takes no velocity: a step density is `g(t, q)`, \
+                     write `fn {name}(&self, [t: f64,] q: [f64; N]) -> f64`"
                 ),
             );
-            signature.returns = check_return(cx, method, None);
-            return signature;
+        };
+        match method.params.as_slice() {
+            [q] => (None, q, None),
+            [t, q] if !matches!(t.shape, Shape::Array { .. }) => (Some(t), q, None),
+            [q, v] => {
+                velocity(v);
+                (None, q, None)
+            }
+            [t, q, v] => {
+                velocity(v);
+                (Some(t), q, None)
+            }
+            params => return wrong_arity(cx, method, params.len(), signature),
         }
     };
 
@@ -303,16 +321,20 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         }
     }
     signature.q = binder(cx, q);
-    signature.v = binder(cx, v);
+    signature.v = v.and_then(|v| binder(cx, v));
 
     let q_name = display(&signature.q, "q");
     let v_name = display(&signature.v, "v");
     // Only the Lagrangian chooses between arrays and slices; the optional
     // methods follow it (and exist for arrays only).
     let slices = method.kind == MethodKind::Lagrangian;
-    let (q_form, v_form) = (form(q, slices), form(v, slices));
+    let q_form = form(q, slices);
+    // Without a velocity, `q` alone decides.
+    let v_form = v.map_or(q_form, |v| form(v, slices));
     report_form(cx, q, &q_name, name, q_form, v_form, slices);
-    report_form(cx, v, &v_name, name, v_form, q_form, slices);
+    if let Some(v) = v {
+        report_form(cx, v, &v_name, name, v_form, q_form, slices);
+    }
     signature.n = match (q_form, v_form) {
         (Form::Array(len), _) | (Form::Bad, Form::Array(len)) => Some(Dim::Fixed(len.clone())),
         (Form::Slice, _) | (Form::Bad, Form::Slice) => Some(Dim::Dynamic),
@@ -337,7 +359,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
                     _ => ("&[f64]".to_owned(), format!("[f64; {len}]")),
                 };
                 cx.error_spanned_by(
-                    v.ty,
+                    v.map_or(q.ty, |v| v.ty),
                     format!(
                         "`{q_name}` and `{v_name}` must both be arrays `[f64; N]` or both slices `&[f64]`: \
                          `{q_name}` is `{q_ty}` but `{v_name}` is `{v_ty}`"
@@ -348,7 +370,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         },
         // The optional methods: both must match the Lagrangian.
         Some(expected) => {
-            for len in [q_len, v_len].into_iter().flatten() {
+            for len in [q_len, v.and(v_len)].into_iter().flatten() {
                 if !len.same_as(expected) {
                     cx.error_spanned_by(
                         len,
@@ -421,8 +443,25 @@ fn report_form(cx: &Ctxt, param: &Param<'_>, role: &str, name: &str, this: Form<
 }
 
 /// The accepted parameter lists, for messages.
+/// Reports a parameter list of the wrong length; the signature stays unread.
+fn wrong_arity(cx: &Ctxt, method: &Method<'_>, found: usize, mut signature: Signature) -> Signature {
+    cx.error_at(
+        method.func.sig.paren_token.span.join(),
+        format!(
+            "`{}` takes {}, found {found} parameter{} besides `&self`",
+            method.kind.name(),
+            expected_params(method.kind),
+            if found == 1 { "" } else { "s" },
+        ),
+    );
+    signature.returns = check_return(cx, method, None);
+    signature
+}
+
 fn expected_params(kind: MethodKind) -> &'static str {
-    if kind == MethodKind::Lagrangian {
+    if !kind.takes_velocity() {
+        "`(&self, q: [f64; N])` or `(&self, t: f64, q: [f64; N])`"
+    } else if kind == MethodKind::Lagrangian {
         "`(&self, q: [f64; N], v: [f64; N])` or `(&self, t: f64, q: [f64; N], v: [f64; N])`, \
          or the same with slices `q: &[f64], v: &[f64]`"
     } else if kind.takes_time() {

@@ -25,24 +25,25 @@ impl Kepler {
     }
 }
 
-/// `E − e sin E = m` by Newton safeguarded with bisection on `[m − e, m + e]`.
-pub fn eccentric_anomaly(e: f64, m: f64) -> f64 {
+/// `E − e sin E = m` by Newton safeguarded with bisection on `[m − e, m + e]`,
+/// in any real type (`f64`, or double-double for the extended-precision runs).
+pub fn eccentric_anomaly<T: Real>(e: T, m: T) -> T {
     let (mut lo, mut hi) = (m - e, m + e);
     let mut ea = m + e * m.sin();
     for _ in 0..100 {
         let f = ea - e * ea.sin() - m;
-        if f > 0.0 {
+        if f.to_f64() > 0.0 {
             hi = ea;
         } else {
             lo = ea;
         }
-        let mut next = ea - f / (1.0 - e * ea.cos());
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
+        let mut next = ea - f / (T::one() - e * ea.cos());
+        if !((next - lo).to_f64() > 0.0 && (hi - next).to_f64() > 0.0) {
+            next = (lo + hi) * 0.5;
         }
-        let d = (next - ea).abs();
+        let d = (next - ea).abs().to_f64();
         ea = next;
-        if d <= f64::EPSILON * ea.abs().max(1.0) {
+        if d <= T::EPSILON * ea.abs().to_f64().max(1.0) {
             break;
         }
     }
@@ -50,9 +51,9 @@ pub fn eccentric_anomaly(e: f64, m: f64) -> f64 {
 }
 
 /// Position on the orbit with a = 1, pericentre on +x at t = 0.
-pub fn kepler_position(e: f64, t: f64) -> [f64; 2] {
+pub fn kepler_position<T: Real>(e: T, t: T) -> [T; 2] {
     let ea = eccentric_anomaly(e, t);
-    [ea.cos() - e, (1.0 - e * e).sqrt() * ea.sin()]
+    [ea.cos() - e, (T::one() - e * e).sqrt() * ea.sin()]
 }
 
 pub fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
@@ -518,30 +519,31 @@ fn time_dependent_forces_keep_the_order() {
     assert!((pg - 4.0).abs() < 0.15, "{g2:?}");
 }
 
-/// The transformed system in double-double: a `GalerkinIntegrator` over
-/// `DoubleDouble` integrates it (the `f64` driver `Adaptive` is not needed),
-/// with order 2s = 8 in σ down to errors far below the `f64` floor. Kepler
-/// e = 0.5 from pericentre, `g = r^{3/2}`, over s ∈ [0, 4]; errors of
-/// `x = (q, t)` against a run with 1024 steps.
+/// The transformed system in double-double through the driver: Galerkin
+/// s = 4 in `s` with order 2s = 8 in σ down to errors far below the `f64`
+/// floor. Kepler e = 0.5 from pericentre, `g = r^{3/2}`, `c = 1`, over
+/// s ∈ [0, 4]; errors of `x = (q, t)` against a run with 1024 steps.
 #[test]
 fn double_double_galerkin_in_s_has_order_eight() {
-    use lagrangian::{DoubleDouble as Dd, Galerkin, GalerkinIntegrator, NewtonOptions};
+    use lagrangian::NewtonOptions;
+    type Dd = DoubleDouble;
     let e = 0.5;
     let (q0, v0) = kepler_start(e);
-    let tt = TimeTransformed::new(Kepler, r32()).with_penalty(1.0).expect("a positive penalty");
+    // The transformed system with its constant, for an integrator of one's own.
+    assert!(TimeTransformed::new(Kepler, r32()).with_penalty(1.0).is_some());
     assert!(TimeTransformed::new(Kepler, r32()).with_penalty(0.0).is_none());
-    let g0 = tt.density(0.0, &q0);
-    let x0 = [Dd::from(q0[0]), Dd::from(q0[1]), Dd::from(0.0)];
-    let w0 = [Dd::from(g0 * v0[0]), Dd::from(g0 * v0[1]), Dd::from(g0)];
     let span = Dd::from(4.0);
     let run = |n: usize| -> [Dd; 3] {
         let newton = NewtonOptions { rtol: 1e-30, ..NewtonOptions::default() };
-        let mut sim = GalerkinIntegrator::new(tt.clone(), Galerkin::<4, 4, Dd>::gauss(), span / n as f64)
+        let mut sim = TimeTransformed::new(Kepler, r32())
+            .galerkin(Galerkin::<4, 4, Dd>::gauss(), span / n as f64)
+            .penalty(1.0)
             .newton(newton)
-            .start(Dd::from(0.0), x0, w0)
+            .start::<3>(Dd::from(0.0), q0.map(Dd::from), v0.map(Dd::from))
             .expect("the transformed system starts in double-double");
         sim.run(n, |_| {}).expect("the steps converge");
-        sim.state().q
+        assert!((sim.extended_state().t - span).abs().to_f64() < 1e-30, "s after n steps of span/n");
+        sim.extended_state().q
     };
     let reference = run(1024);
     let points: Vec<(f64, f64)> = [64usize, 91, 128, 181, 256]
@@ -559,4 +561,203 @@ fn double_double_galerkin_in_s_has_order_eight() {
     assert!(points.last().unwrap().1 < 1e-17, "{points:?}");
     // Physical time advanced and the orbit stayed bound.
     assert!(reference[2].to_f64() > 0.0 && reference[0].to_f64().hypot(reference[1].to_f64()) < 1.5 / (1.0 - e));
+}
+
+/// Kepler e = 0.9 from pericentre in double-double.
+fn kepler_start_dd(e: DoubleDouble) -> ([DoubleDouble; 2], [DoubleDouble; 2]) {
+    use lagrangian::num_dual::DualNum;
+    let one = DoubleDouble::from(1.0);
+    ([one - e, DoubleDouble::from(0.0)], [DoubleDouble::from(0.0), ((one + e) / (one - e)).sqrt()])
+}
+
+/// The driver in double-double: Kepler e = 0.9 from pericentre to t = 1,
+/// `g = r^{3/2}`, midpoint and Galerkin s = 2 in `s`, landing on `t = 1`
+/// with `run_until`; position errors against Kepler's equation solved in
+/// double-double. Order 2 and 4, and Galerkin s = 2 down to errors that
+/// `f64` cannot represent.
+#[test]
+fn double_double_driver_keeps_the_orders_below_the_f64_floor() {
+    type Dd = DoubleDouble;
+    let e = Dd::from(0.9);
+    let (q0, v0) = kepler_start_dd(e);
+    let t_end = Dd::from(1.0);
+    let exact = kepler_position(e, t_end);
+    let error = |s: State<2, Dd>| {
+        assert_eq!(s.t, t_end, "run_until lands exactly");
+        (0..2).map(|i| (s.q[i] - exact[i]).abs().to_f64()).fold(0.0, f64::max)
+    };
+    let tt = || TimeTransformed::new(Kepler, r32());
+    let mid = |sigma: f64| {
+        let mut sim = tt().rule(Midpoint, Dd::from(sigma)).start::<3>(Dd::from(0.0), q0, v0).unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (sigma, error(sim.state()))
+    };
+    let g2 = |sigma: f64| {
+        let mut sim =
+            tt().galerkin(Galerkin::<2, 2, Dd>::gauss(), Dd::from(sigma)).start::<3>(Dd::from(0.0), q0, v0).unwrap();
+        sim.run_until(t_end, |_| {}).unwrap();
+        (sigma, error(sim.state()))
+    };
+    let mid: Vec<_> = [0.01, 0.005, 0.0025].map(mid).to_vec();
+    let g2: Vec<_> = [1e-3, 5e-4, 2.5e-4].map(g2).to_vec();
+    let (pm, pg) = (fitted_order(&mid), fitted_order(&g2));
+    println!("double-double driver, e = 0.9, t = 1: midpoint {mid:?} order {pm:.4}; galerkin 2 {g2:?} order {pg:.4}");
+    assert!((pm - 2.0).abs() < 0.15, "{mid:?}");
+    assert!((pg - 4.0).abs() < 0.15, "{g2:?}");
+    // Measured 3.3e-14 at σ = 2.5e-3 and order 4.000 above: 3.3e-18 here.
+    assert!(g2.last().unwrap().1 < 1e-17, "{g2:?}");
+}
+
+/// The double-double driver over 4 orbits of Kepler e = 0.9 (Galerkin s = 2,
+/// σ = 0.02), landing on every orbit: `t` exact at each, the energy error
+/// bounded without a trend, `p_t` and the angular momentum far below `f64`
+/// round-off (its default Newton tolerance is two units of double-double).
+#[test]
+fn double_double_driver_energy_is_bounded_and_landings_exact() {
+    use lagrangian::num_dual::DualNum;
+    type Dd = DoubleDouble;
+    let e = Dd::from(0.9);
+    let (q0, v0) = kepler_start_dd(e);
+    let mut sim = TimeTransformed::new(Kepler, r32())
+        .galerkin(Galerkin::<2, 2, Dd>::gauss(), Dd::from(0.02))
+        .start::<3>(Dd::from(0.0), q0, v0)
+        .unwrap();
+    let e0 = sim.energy().unwrap();
+    let (pt0, j0) = (sim.time_momentum(), angular_dd(&sim.state()));
+    let two_pi = Dd::from(1.0).atan() * 8.0;
+    let orbits = 4;
+    let mut maxima = vec![0.0f64; orbits];
+    let (mut jmax, mut ptmax) = (0.0f64, 0.0f64);
+    for (k, max) in maxima.iter_mut().enumerate() {
+        let target = two_pi * (k + 1) as f64;
+        sim.run_until(target, |s| {
+            *max = max.max(((s.energy().unwrap() - e0) / e0).abs().to_f64());
+            jmax = jmax.max(((angular_dd(&s.state()) - j0) / j0).abs().to_f64());
+            ptmax = ptmax.max(((s.time_momentum() - pt0) / pt0).abs().to_f64());
+        })
+        .unwrap();
+        assert_eq!(sim.state().t, target);
+        assert!(sim.last_time_step().unwrap().to_f64() > 0.0 && sim.min_time_step().to_f64() > 0.0);
+    }
+    let x = kepler_position(e, two_pi * orbits as f64);
+    let q = sim.state().q;
+    let position = (q[0] - x[0]).to_f64().hypot((q[1] - x[1]).to_f64());
+    println!(
+        "double-double driver, galerkin 2, σ = 0.02, {orbits} orbits: {} steps, per-orbit energy maxima {:?}, trend {:.4}, J {jmax:.1e}, p_t {ptmax:.1e}, position {position:.2e}",
+        sim.stats().steps,
+        maxima.iter().map(|m| format!("{m:.3e}")).collect::<Vec<_>>(),
+        trend(&maxima)
+    );
+    assert!(trend(&maxima) < 0.2, "{maxima:?}");
+    // Orbit 4 repeats orbit 1 (a drift of 1e-16 per step, the f64 default
+    // tolerance, would not show here; round-off of double-double cannot).
+    assert!((maxima[3] / maxima[0] - 1.0).abs() < 0.05, "{maxima:?}");
+    assert!(jmax < 1e-25 && ptmax < 1e-25, "J {jmax:e}, p_t {ptmax:e}");
+    // The f64 run at 5σ over 10 orbits ends 2.4e-5 away (order 4 in σ).
+    assert!(position < 1e-5, "{position:e}");
+}
+
+fn angular_dd(s: &State<2, DoubleDouble>) -> DoubleDouble {
+    s.q[0] * s.p[1] - s.q[1] * s.p[0]
+}
+
+/// Kepler with its monitor in the `#[lagrangian]` block.
+#[derive(Debug, Clone, Copy)]
+pub struct KeplerWithDensity;
+
+#[lagrangian]
+impl KeplerWithDensity {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+
+    fn step_density(&self, q: [f64; 2]) -> f64 {
+        (q[0] * q[0] + q[1] * q[1]).powf(0.75)
+    }
+}
+
+/// A time-dependent monitor written in the block: `g = 1/(1 + ½ sin 3t)`.
+#[derive(Debug, Clone, Copy)]
+pub struct OscillatorWithDensity;
+
+#[lagrangian]
+impl OscillatorWithDensity {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+    }
+
+    fn step_density(&self, t: f64, _q: [f64; 1]) -> f64 {
+        1.0 / (1.0 + 0.5 * (3.0 * t).sin())
+    }
+}
+
+/// `step_density` in the block gives the steps of the runtime's monitor with
+/// the same formula: `r^{3/2}` against `RadiusPower([0, 1], 1.5)` (midpoint
+/// and Galerkin s = 2, 300 steps on Kepler e = 0.9), and the time-dependent
+/// `Breathing` on the oscillator. Compared bit for bit where the formulas
+/// round the same way.
+#[test]
+fn step_density_in_the_block_equals_the_runtime_monitor() {
+    const { assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT) };
+    const { assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT) };
+    let (q0, v0) = kepler_start(0.9);
+    let mut own =
+        TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut lib = TimeTransformed::new(Kepler, r32()).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut own2 = TimeTransformed::with_own_density(KeplerWithDensity)
+        .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
+        .start::<3>(0.0, q0, v0)
+        .unwrap();
+    let mut lib2 = galerkin::<2>(0.9, 0.1);
+    let (mut worst, mut worst2) = (0.0f64, 0.0f64);
+    for _ in 0..300 {
+        let (a, b) = (own.step().unwrap(), lib.step().unwrap());
+        let (c, d) = (own2.step().unwrap(), lib2.step().unwrap());
+        for i in 0..2 {
+            worst = worst.max((a.q[i] - b.q[i]).abs()).max((a.p[i] - b.p[i]).abs());
+            worst2 = worst2.max((c.q[i] - d.q[i]).abs()).max((c.p[i] - d.p[i]).abs());
+        }
+        worst = worst.max((a.t - b.t).abs());
+        worst2 = worst2.max((c.t - d.t).abs());
+    }
+    println!("step_density against RadiusPower over 300 steps: midpoint {worst:e}, galerkin 2 {worst2:e}");
+    // `(x² + y²)^0.75` and RadiusPower's `(x² + y²)^(0.5 · 1.5)` are the same operations.
+    assert_eq!((worst, worst2), (0.0, 0.0));
+    let mut own = TimeTransformed::with_own_density(OscillatorWithDensity)
+        .rule(Midpoint, 0.1)
+        .start::<2>(0.0, [1.0], [0.0])
+        .unwrap();
+    let mut lib =
+        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    own.run_until(3.0, |_| {}).unwrap();
+    lib.run_until(3.0, |_| {}).unwrap();
+    let (a, b) = (own.state(), lib.state());
+    println!("time-dependent step_density: {a:?} against {b:?}");
+    assert!((a.q[0] - b.q[0]).abs() <= 1e-14 && (a.p[0] - b.p[0]).abs() <= 1e-14 && a.step == b.step, "{a:?} {b:?}");
+}
+
+/// Bad monitors through the double-double driver: typed errors, state kept,
+/// no hang (as in `f64` above).
+#[test]
+fn double_double_driver_refuses_bad_monitors_with_the_state_kept() {
+    type Dd = DoubleDouble;
+    let d = Dd::from;
+    let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, d(0.1)).start::<2>(d(0.0), [d(-0.5)], [d(0.0)]);
+    assert!(matches!(err, Err(TimeTransformError::InvalidDensity { value, .. }) if value == -0.5), "{err:?}");
+    let mut sim = TimeTransformed::new(Oscillator, NanAfterHalf)
+        .rule(Midpoint, d(0.07))
+        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
+        .unwrap();
+    let err = sim.run_until(d(1.0), |_| {}).unwrap_err();
+    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    assert!(value.is_nan() && state == sim.state() && state.t.to_f64() <= 0.5 && state.t.to_f64() > 0.4, "{state:?}");
+    let mut sim = TimeTransformed::new(Oscillator, Collapsing)
+        .rule(Midpoint, d(0.1))
+        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
+        .unwrap();
+    let err = sim.run_until(d(2.0), |_| {}).unwrap_err();
+    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    assert!(dt < floor && state == sim.state() && state.t.to_f64() < 1.0, "{dt} {floor} {state:?}");
+    let e = sim.run_until(d(f64::NAN), |_| {}).unwrap_err();
+    assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
 }

@@ -22,11 +22,15 @@
 //! of every symmetry that `L` and `g` share. Time-dependent `L` and forces
 //! (Lagrange–d'Alembert in `s`: `t' F` on `q` and `−F·q'` on `t`) work too.
 //!
-//! [`Adaptive`] drives any integrator of the adapter ([`Integrator`] for the
-//! one-point rules, [`GalerkinIntegrator`] in `f64`), reports `t`, `q`, `p`
+//! [`Adaptive`] drives any integrator of the adapter ([`Integrator`] with a
+//! one-point or Galerkin rule, in `f64` or
+//! [`DoubleDouble`](crate::DoubleDouble): the type of the step `σ` sets
+//! the run's), reports `t`, `q`, `p`
 //! and the energy in physical time, lands on requested times, and refuses a
 //! step density that is not positive and finite, or steps that stop
-//! advancing time, with typed errors that keep the state.
+//! advancing time, with typed errors that keep the state. The monitor can
+//! be a type of this module or the system's own `fn step_density` in its
+//! `#[lagrangian]` block ([`TimeTransformed::with_own_density`]).
 //!
 //! For separable systems `½ vᵀMv − V(t, q)` with constant `M`,
 //! [`ExplicitTimeTransformed`] is an explicit alternative: a splitting of the
@@ -48,12 +52,13 @@ use std::sync::Arc;
 use num_dual::HyperDual;
 
 use crate::discrete::DiscreteLagrangian;
+use crate::double_double::DoubleDouble;
 use crate::error::Error;
 use crate::galerkin::{Galerkin, GalerkinIntegrator};
-use crate::integrator::{F64Readouts, Integrator, Stats};
-use crate::mechanics::DiscreteMechanics;
+use crate::integrator::{F64Readouts, Integrator, Method, Stats};
+use crate::mechanics::{DiscreteMechanics, LegendreFailure};
 use crate::newton::NewtonOptions;
-use crate::real::all_finite;
+use crate::real::{Real, all_finite};
 use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, Scalar, generalized_force};
@@ -229,9 +234,8 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
     }
 
     /// The transformed system with the constant `c` of the `t'` term set,
-    /// for integrating it with an integrator of your own — for instance a
-    /// [`GalerkinIntegrator`] in double-double, which the `f64` driver
-    /// [`Adaptive`] does not offer. Start it at `x = (q0, t0)` with
+    /// for integrating it with an integrator of your own (the driver
+    /// [`Adaptive`] sets it in [`start`](TimeTransformedBuilder::start)). Start it at `x = (q0, t0)` with
     /// `x' = (g0 v0, g0)`, `g0 = g(t0, q0)`; `t` is then its last coordinate.
     /// `None` unless `c` is finite and positive.
     pub fn with_penalty(mut self, c: f64) -> Option<Self> {
@@ -241,28 +245,34 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
         })
     }
 
-    /// `g(t, q)` in `f64`.
-    pub fn density(&self, t: f64, q: &[f64; N]) -> f64 {
+    /// `g(t, q)` on any scalar: `f64`, [`DoubleDouble`](crate::DoubleDouble)
+    /// or a dual number.
+    pub fn density<D: Scalar>(&self, t: D, q: &[D; N]) -> D {
         self.density.density(&*self.system, t, q)
     }
 
     /// Configures an adaptive integrator with a one-point discrete
     /// Lagrangian (midpoint, trapezoid, α-β) and the step `sigma` in `s`.
-    pub fn rule<Mth: DiscreteLagrangian>(
+    /// The type of `sigma` is the real type of the run, as for
+    /// [`Integrator::new`]: `f64`, or [`DoubleDouble`](crate::DoubleDouble)
+    /// (`.rule(Midpoint, DoubleDouble::from(0.01))`), in which the one-point
+    /// rule runs as the Galerkin rule of degree 1 with its quadrature.
+    pub fn rule<Mth: DiscreteLagrangian, T: Real>(
         self,
         method: Mth,
-        sigma: f64,
-    ) -> TimeTransformedBuilder<Sys, G, Rule<Mth>, N> {
+        sigma: T,
+    ) -> TimeTransformedBuilder<Sys, G, Rule<Mth>, N, T> {
         TimeTransformedBuilder::new(self, Rule(method), sigma)
     }
 
     /// Configures an adaptive integrator with a Galerkin discrete Lagrangian
-    /// (order `2s` in `s` with Gauss quadrature) and the step `sigma` in `s`.
-    pub fn galerkin<const S: usize, const R: usize>(
+    /// (order `2s` in `s` with Gauss quadrature) and the step `sigma` in `s`,
+    /// in the rule's real type `T`.
+    pub fn galerkin<const S: usize, const R: usize, T: Real>(
         self,
-        method: Galerkin<S, R>,
-        sigma: f64,
-    ) -> TimeTransformedBuilder<Sys, G, Galerkin<S, R>, N> {
+        method: Galerkin<S, R, T>,
+        sigma: T,
+    ) -> TimeTransformedBuilder<Sys, G, Galerkin<S, R, T>, N, T> {
         TimeTransformedBuilder::new(self, method, sigma)
     }
 
@@ -278,6 +288,45 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, const N: usize> TimeTransformed<Sys,
             self.invalid.set(Some(re));
             D::from(f64::NAN)
         }
+    }
+}
+
+impl<Sys: Lagrangian<N> + StepDensity<N>, const N: usize> TimeTransformed<Sys, Sys, N> {
+    /// The transformed system of a system that is its own step density: one
+    /// with `fn step_density(&self, [t: f64,] q: [f64; N]) -> f64` in its
+    /// `#[lagrangian]` block (the macro implements [`StepDensity<N>`] for it
+    /// from that method, rewritten for dual numbers like `lagrangian`). One
+    /// value serves both roles; no copy of the system is made. (The example
+    /// needs the facade crate's macro; the facade's test
+    /// `step_density_in_the_block_equals_the_runtime_monitor` runs it.)
+    ///
+    /// ```ignore
+    /// use lagrangian::prelude::*;
+    ///
+    /// #[derive(Debug)]
+    /// struct Kepler;
+    ///
+    /// #[lagrangian]
+    /// impl Kepler {
+    ///     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+    ///         0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    ///     }
+    ///     /// `dt/ds = r^{3/2}`.
+    ///     fn step_density(&self, q: [f64; 2]) -> f64 {
+    ///         (q[0] * q[0] + q[1] * q[1]).powf(0.75)
+    ///     }
+    /// }
+    ///
+    /// let mut sim = TimeTransformed::with_own_density(Kepler)
+    ///     .rule(Midpoint, 0.02)
+    ///     .start::<3>(0.0, [0.1, 0.0], [0.0, 19f64.sqrt()])?;
+    /// sim.run_until(1.0, |_| {})?;
+    /// assert_eq!(sim.state().t, 1.0);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn with_own_density(system: Sys) -> Self {
+        let shared = Arc::new(system);
+        TimeTransformed { system: Arc::clone(&shared), density: shared, penalty: 0.0, invalid: Cell::new(None) }
     }
 }
 
@@ -346,23 +395,25 @@ fn split<D: Scalar, const N: usize, const M: usize>(x: &[D; M]) -> (D, [D; N]) {
 }
 
 /// An integrator in `s` of a [`TimeTransformed`] system, as [`Adaptive`]
-/// drives it: the [`Integrator`] with any method, in `f64`.
-pub trait SStepper<const M: usize>: Clone {
+/// drives it: the [`Integrator`] with any method, in the real type `T`
+/// (`f64` or [`DoubleDouble`](crate::DoubleDouble)).
+pub trait SStepper<const M: usize, T: Real = f64>: Clone {
     /// The transformed system.
     type System;
     /// The system being integrated.
     fn transformed(&self) -> &Self::System;
     /// The state in `s`: `x = (q, t)`, momenta `(p, p_t)`.
-    fn extended_state(&self) -> State<M>;
+    fn extended_state(&self) -> State<M, T>;
     /// The step in `s`.
-    fn s_step_size(&self) -> f64;
+    fn s_step_size(&self) -> T;
     /// Sets the step in `s`.
-    fn set_s_step_size(&mut self, sigma: f64) -> Result<(), Error<M>>;
+    fn set_s_step_size(&mut self, sigma: T) -> Result<(), Error<M, T>>;
     /// One step in `s`; on failure nothing changes.
-    fn s_step(&mut self) -> Result<(), Error<M>>;
+    fn s_step(&mut self) -> Result<(), Error<M, T>>;
     /// Work counters of the integrator in `s`.
     fn s_stats(&self) -> Stats;
-    /// The tangent map of the last step in `(q, t, p, p_t)`.
+    /// The tangent map of the last step in `(q, t, p, p_t)`; `None` in a
+    /// real type other than `f64` (the runtime computes tangent maps in `f64`).
     fn s_tangent_map(&self) -> Option<TangentMap<M>>;
 }
 
@@ -396,59 +447,96 @@ where
     }
 }
 
+impl<Sys, G, Mth, const N: usize, const M: usize> SStepper<M, DoubleDouble>
+    for Integrator<TimeTransformed<Sys, G, N>, Mth, M, DoubleDouble>
+where
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+    Mth: Method<DoubleDouble>,
+{
+    type System = TimeTransformed<Sys, G, N>;
+    fn transformed(&self) -> &Self::System {
+        self.system()
+    }
+    fn extended_state(&self) -> State<M, DoubleDouble> {
+        *self.state()
+    }
+    fn s_step_size(&self) -> DoubleDouble {
+        self.step_size()
+    }
+    fn set_s_step_size(&mut self, sigma: DoubleDouble) -> Result<(), Error<M, DoubleDouble>> {
+        self.set_step_size(sigma)
+    }
+    fn s_step(&mut self) -> Result<(), Error<M, DoubleDouble>> {
+        self.step().map(|_| ())
+    }
+    fn s_stats(&self) -> Stats {
+        *self.stats()
+    }
+    fn s_tangent_map(&self) -> Option<TangentMap<M>> {
+        None
+    }
+}
+
 /// A one-point discrete Lagrangian (midpoint, trapezoid, α-β) as the method in `s`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rule<Mth>(pub Mth);
 
-/// How a method in `s` starts its integrator on the transformed system.
-pub trait SMethod<Sys, G, const N: usize, const M: usize> {
+/// How a method in `s` starts its integrator on the transformed system, in
+/// the real type `T`.
+pub trait SMethod<Sys, G, const N: usize, const M: usize, T: Real = f64> {
     /// The integrator in `s`.
-    type Stepper: SStepper<M, System = TimeTransformed<Sys, G, N>>;
+    type Stepper: SStepper<M, T, System = TimeTransformed<Sys, G, N>>;
     /// Starts it at `s = 0` from `(x0, x0')`.
     fn start_s(
         self,
         system: TimeTransformed<Sys, G, N>,
-        sigma: f64,
+        sigma: T,
         newton: NewtonOptions,
-        x0: [f64; M],
-        w0: [f64; M],
-    ) -> Result<Self::Stepper, Error<M>>;
+        x0: [T; M],
+        w0: [T; M],
+    ) -> Result<Self::Stepper, Error<M, T>>;
 }
 
-impl<Sys, G, Mth, const N: usize, const M: usize> SMethod<Sys, G, N, M> for Rule<Mth>
+impl<Sys, G, Mth, T, const N: usize, const M: usize> SMethod<Sys, G, N, M, T> for Rule<Mth>
 where
     Sys: Lagrangian<N>,
     G: StepDensity<N>,
-    Mth: DiscreteLagrangian,
+    Mth: DiscreteLagrangian + Method<T>,
+    T: Real,
+    Integrator<TimeTransformed<Sys, G, N>, Mth, M, T>: SStepper<M, T, System = TimeTransformed<Sys, G, N>>,
 {
-    type Stepper = Integrator<TimeTransformed<Sys, G, N>, Mth, M>;
+    type Stepper = Integrator<TimeTransformed<Sys, G, N>, Mth, M, T>;
     fn start_s(
         self,
         system: TimeTransformed<Sys, G, N>,
-        sigma: f64,
+        sigma: T,
         newton: NewtonOptions,
-        x0: [f64; M],
-        w0: [f64; M],
-    ) -> Result<Self::Stepper, Error<M>> {
-        Integrator::new(system, self.0, sigma).newton(newton).start(0.0, x0, w0)
+        x0: [T; M],
+        w0: [T; M],
+    ) -> Result<Self::Stepper, Error<M, T>> {
+        Integrator::new(system, self.0, sigma).newton(newton).start(T::zero(), x0, w0)
     }
 }
 
-impl<Sys, G, const N: usize, const M: usize, const S: usize, const R: usize> SMethod<Sys, G, N, M> for Galerkin<S, R>
+impl<Sys, G, T, const N: usize, const M: usize, const S: usize, const R: usize> SMethod<Sys, G, N, M, T>
+    for Galerkin<S, R, T>
 where
     Sys: Lagrangian<N>,
     G: StepDensity<N>,
+    T: Real,
+    GalerkinIntegrator<TimeTransformed<Sys, G, N>, M, S, R, T>: SStepper<M, T, System = TimeTransformed<Sys, G, N>>,
 {
-    type Stepper = GalerkinIntegrator<TimeTransformed<Sys, G, N>, M, S, R>;
+    type Stepper = GalerkinIntegrator<TimeTransformed<Sys, G, N>, M, S, R, T>;
     fn start_s(
         self,
         system: TimeTransformed<Sys, G, N>,
-        sigma: f64,
+        sigma: T,
         newton: NewtonOptions,
-        x0: [f64; M],
-        w0: [f64; M],
-    ) -> Result<Self::Stepper, Error<M>> {
-        GalerkinIntegrator::new(system, self, sigma).newton(newton).start(0.0, x0, w0)
+        x0: [T; M],
+        w0: [T; M],
+    ) -> Result<Self::Stepper, Error<M, T>> {
+        GalerkinIntegrator::new(system, self, sigma).newton(newton).start(T::zero(), x0, w0)
     }
 }
 
@@ -467,25 +555,39 @@ where
 /// tight tolerance does not make steps fail.
 pub const DEFAULT_RTOL: f64 = 2e-16;
 
-/// Configuration of an [`Adaptive`] integrator before its initial state.
-#[derive(Clone, Debug)]
-pub struct TimeTransformedBuilder<Sys, G, K, const N: usize> {
-    system: TimeTransformed<Sys, G, N>,
-    method: K,
-    sigma: f64,
-    newton: NewtonOptions,
-    penalty: Option<f64>,
-    min_time_step: Option<f64>,
+/// The default relative Newton tolerance in a real type `T`: [`DEFAULT_RTOL`]
+/// in `f64`, about two units of `T`'s precision in a wider type.
+fn default_rtol<T: Real>() -> f64 {
+    if T::EPSILON < f64::EPSILON { 2.0 * T::EPSILON } else { DEFAULT_RTOL }
 }
 
-impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBuilder<Sys, G, K, N> {
-    fn new(system: TimeTransformed<Sys, G, N>, method: K, sigma: f64) -> Self {
-        let newton = NewtonOptions { rtol: DEFAULT_RTOL, ..NewtonOptions::default() };
+/// `true` for a real type wider than `f64`, whose readouts refine the `f64`
+/// inverse Legendre transform in that type.
+fn wider_than_f64<T: Real>() -> bool {
+    T::EPSILON < f64::EPSILON
+}
+
+/// Configuration of an [`Adaptive`] integrator before its initial state;
+/// `T` is the real type of the run (that of the step `σ`).
+#[derive(Clone, Debug)]
+pub struct TimeTransformedBuilder<Sys, G, K, const N: usize, T = f64> {
+    system: TimeTransformed<Sys, G, N>,
+    method: K,
+    sigma: T,
+    newton: NewtonOptions,
+    penalty: Option<f64>,
+    min_time_step: Option<T>,
+}
+
+impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTransformedBuilder<Sys, G, K, N, T> {
+    fn new(system: TimeTransformed<Sys, G, N>, method: K, sigma: T) -> Self {
+        let newton = NewtonOptions { rtol: default_rtol::<T>(), ..NewtonOptions::default() };
         Self { system, method, sigma, newton, penalty: None, min_time_step: None }
     }
 
     /// Replaces the Newton settings of the steps in `s` (default: the
-    /// runtime's, with `rtol = 2e-16`, see [`DEFAULT_RTOL`]).
+    /// runtime's, with `rtol = 2e-16` in `f64` (see [`DEFAULT_RTOL`]) and
+    /// two units of the type's precision in a wider type).
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
         self
@@ -494,7 +596,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBu
     /// The constant `c > 0` of the `(t' − g)²/(2cg)` term (units 1/energy).
     /// The trajectories do not depend on it; it sets how the discrete `t'`
     /// trades against the energy. Default: `1/(|p·v| + |L| + |E|)` at the
-    /// initial data (1 if that is 0).
+    /// initial data (1 if that is 0), computed in `f64` in every real type.
     pub fn penalty(mut self, c: f64) -> Self {
         self.penalty = Some(c);
         self
@@ -503,7 +605,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBu
     /// The smallest physical time a step in `s` may advance; a step that
     /// advances less is refused with [`TimeTransformError::TimeStepCollapsed`].
     /// Default: `10⁻⁸ σ g(t0, q0)`, the first step's size times `10⁻⁸`.
-    pub fn min_time_step(mut self, dt: f64) -> Self {
+    pub fn min_time_step(mut self, dt: T) -> Self {
         self.min_time_step = Some(dt);
         self
     }
@@ -518,30 +620,34 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBu
     /// evaluated, [`TimeTransformError::InvalidDensity`] where `g(t0, q0)` is
     /// not finite and positive, and with the integrator's own errors
     /// ([`TimeTransformError::Step`]) for invalid initial data.
+    #[allow(clippy::type_complexity)]
     pub fn start<const M: usize>(
         self,
-        t0: f64,
-        q0: [f64; N],
-        v0: [f64; N],
-    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M>, TimeTransformError<N, M>>
+        t0: T,
+        q0: [T; N],
+        v0: [T; N],
+    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, TimeTransformError<N, M, T>>
     where
-        K: SMethod<Sys, G, N, M>,
+        K: SMethod<Sys, G, N, M, T>,
     {
         const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
         self.system.density.check().map_err(|reason| TimeTransformError::InvalidSetting { reason })?;
-        if !(self.sigma.is_finite() && self.sigma > 0.0) {
+        let sigma = self.sigma.to_f64();
+        if !(self.sigma.is_finite() && sigma > 0.0) {
             return Err(TimeTransformError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
             return Err(TimeTransformError::Step(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" }));
         }
-        let state = State { step: 0, t: t0, q: q0, p: [f64::NAN; N] };
+        let state = State { step: 0, t: t0, q: q0, p: [T::from(f64::NAN); N] };
         let g0 = self.system.density(t0, &q0);
-        if !(g0.is_finite() && g0 > 0.0) {
-            return Err(TimeTransformError::InvalidDensity { state, value: g0 });
+        if !(g0.is_finite() && g0.to_f64() > 0.0) {
+            return Err(TimeTransformError::InvalidDensity { state, value: g0.to_f64() });
         }
+        // The constant c is part of the method, not of the state: f64 in every type.
         let sys = &*self.system.system;
-        let (l0, e0) = (sys.lagrangian_value(t0, q0, v0), sys.energy(t0, q0, v0));
+        let (t0f, q0f, v0f) = (t0.to_f64(), q0.map(|x| x.to_f64()), v0.map(|x| x.to_f64()));
+        let (l0, e0) = (sys.lagrangian_value(t0f, q0f, v0f), sys.energy(t0f, q0f, v0f));
         let pv = e0 + l0;
         let scale = pv.abs() + l0.abs() + e0.abs();
         let penalty = match self.penalty {
@@ -552,16 +658,16 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBu
             None if scale.is_finite() && scale > 0.0 => 1.0 / scale,
             None => 1.0,
         };
-        let floor = self.min_time_step.unwrap_or(1e-8 * self.sigma * g0);
-        if !(floor.is_finite() && floor > 0.0) {
+        let floor = self.min_time_step.unwrap_or(T::from(1e-8) * self.sigma * g0);
+        if !(floor.is_finite() && floor.to_f64() > 0.0) {
             return Err(TimeTransformError::InvalidSetting {
                 reason: "the smallest time step must be finite and positive",
             });
         }
         let mut system = self.system;
         system.penalty = penalty;
-        let mut x0 = [0.0; M];
-        let mut w0 = [0.0; M];
+        let mut x0 = [T::zero(); M];
+        let mut w0 = [T::zero(); M];
         for i in 0..N {
             x0[i] = q0[i];
             w0[i] = g0 * v0[i];
@@ -574,18 +680,19 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize> TimeTransformedBu
 }
 
 /// What went wrong in a time-transformed integration. The integrator is left
-/// as it was before the failed call.
+/// as it was before the failed call. `T` is the real type of the run; the
+/// diagnostic numbers (values of `g`, time steps, targets) are `f64`.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum TimeTransformError<const N: usize, const M: usize> {
+pub enum TimeTransformError<const N: usize, const M: usize, T: Real = f64> {
     /// The integrator in `s` failed (its state is in `x = (q, t)`).
     #[error("the step in s failed: {0}")]
-    Step(Error<M>),
+    Step(Error<M, T>),
     /// `g` is not finite and positive at the state or inside the step from it.
     #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
     InvalidDensity {
         /// The physical state the integrator holds.
-        state: State<N>,
+        state: State<N, T>,
         /// The offending value of `g`.
         value: f64,
     },
@@ -594,7 +701,7 @@ pub enum TimeTransformError<const N: usize, const M: usize> {
     #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
     TimeStepCollapsed {
         /// The physical state the integrator holds.
-        state: State<N>,
+        state: State<N, T>,
         /// The time the refused step advanced.
         dt: f64,
         /// The smallest time step allowed.
@@ -606,7 +713,7 @@ pub enum TimeTransformError<const N: usize, const M: usize> {
         /// The rejected target.
         target: f64,
         /// The physical state the integrator holds.
-        state: State<N>,
+        state: State<N, T>,
     },
     /// The search for the step in `s` that ends on the target time did not converge.
     #[error("no step in s found that lands on t = {target}: the closest reached {reached}")]
@@ -626,7 +733,9 @@ pub enum TimeTransformError<const N: usize, const M: usize> {
 
 /// An adaptive integrator in physical time built from a fixed-step
 /// integrator `I` in `s` of the [`TimeTransformed`] system (see the
-/// [module](self)); `N` physical degrees of freedom, `M = N + 1`.
+/// [module](self)); `N` physical degrees of freedom, `M = N + 1`, real type
+/// `T` (`f64`, or [`DoubleDouble`](crate::DoubleDouble) when the step `σ`
+/// is one).
 ///
 /// ```
 /// use lagrangian_runtime::time_transform::{RadiusPower, TimeTransformed};
@@ -654,43 +763,165 @@ pub enum TimeTransformError<const N: usize, const M: usize> {
 /// assert!(((sim.energy()? - e0) / e0).abs() < 1e-3);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+///
+/// The same in double-double: the step's type sets the run's.
+///
+/// ```
+/// # use lagrangian_runtime::time_transform::{RadiusPower, TimeTransformed};
+/// # use lagrangian_runtime::{DoubleDouble, Galerkin, Lagrangian, Scalar};
+/// # use lagrangian_runtime::num_dual::DualNum;
+/// # struct Kepler;
+/// # impl Lagrangian<2> for Kepler {
+/// #     const AUTONOMOUS: bool = true;
+/// #     const CYCLIC: [bool; 2] = [false; 2];
+/// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+/// #         (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+/// #     }
+/// # }
+/// type Dd = DoubleDouble;
+/// let e = Dd::from(0.5);
+/// let (q0, v0) = ([Dd::from(1.0) - e, Dd::from(0.0)], [Dd::from(0.0), ((Dd::from(1.0) + e) / (Dd::from(1.0) - e)).sqrt()]);
+/// let mut sim = TimeTransformed::new(Kepler, RadiusPower::new([0, 1], 1.5).unwrap())
+///     .galerkin(Galerkin::<4, 4, Dd>::gauss(), Dd::from(0.1))
+///     .start::<3>(Dd::from(0.0), q0, v0)?;
+/// let e0 = sim.energy()?;
+/// sim.run_until(Dd::from(1.0), |_| {})?;
+/// assert_eq!(sim.state().t, Dd::from(1.0));
+/// assert!(((sim.energy()? - e0) / e0).abs().to_f64() < 1e-9);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug)]
-pub struct Adaptive<I, Sys, G, const N: usize, const M: usize> {
+pub struct Adaptive<I, Sys, G, const N: usize, const M: usize, T = f64> {
     inner: I,
     marker: PhantomData<fn() -> (Sys, G)>,
-    floor: f64,
+    floor: T,
     /// `(step, t_end)` after landing on `t_end`: the published time is
     /// `t_end` exactly while the integrator stays at that node.
-    landed: Option<(u64, f64)>,
-    v_guess: [f64; N],
-    last_dt: Option<f64>,
+    landed: Option<(u64, T)>,
+    v_guess: [T; N],
+    last_dt: Option<T>,
 }
 
-impl<I: Clone, Sys, G, const N: usize, const M: usize> Clone for Adaptive<I, Sys, G, N, M> {
+impl<I: Clone, Sys, G, const N: usize, const M: usize, T: Copy> Clone for Adaptive<I, Sys, G, N, M, T> {
     fn clone(&self) -> Self {
         Self { inner: self.inner.clone(), marker: PhantomData, ..*self }
     }
 }
 
 /// The physical state in an extended one.
-fn physical<const N: usize, const M: usize>(x: &State<M>) -> State<N> {
-    let mut q = [0.0; N];
-    let mut p = [0.0; N];
+fn physical<T: Real, const N: usize, const M: usize>(x: &State<M, T>) -> State<N, T> {
+    let mut q = [T::zero(); N];
+    let mut p = [T::zero(); N];
     q.copy_from_slice(&x.q[..N]);
     p.copy_from_slice(&x.p[..N]);
     State { step: x.step, t: x.q[N], q, p }
 }
 
-impl<I, Sys, G, const N: usize, const M: usize> Adaptive<I, Sys, G, N, M>
+/// `a > b` for reals, decided on the difference (exact for `f64`, and not
+/// blind below an `f64` ulp in a wider type).
+#[inline]
+fn above<T: Real>(a: T, b: T) -> bool {
+    (a - b).to_f64() > 0.0
+}
+
+/// The velocity `v` with `∂L/∂v(t, q, v) = p`: the runtime's inverse
+/// Legendre transform in `f64`, then, in a wider type, Newton steps in `T`
+/// from that solution (quadratic convergence: two or three suffice).
+fn velocity_in<Sys, T, const N: usize>(
+    system: &Sys,
+    (t, q, p): (T, [T; N], [T; N]),
+    guess: [T; N],
+) -> Result<[T; N], LegendreFailure>
 where
-    I: SStepper<M, System = TimeTransformed<Sys, G, N>>,
+    Sys: Lagrangian<N>,
+    T: Real,
+{
+    let f = |x: [T; N]| x.map(|y| y.to_f64());
+    let v = system.velocity(t.to_f64(), f(q), f(p), f(guess))?;
+    let mut v = v.map(T::from);
+    if !wider_than_f64::<T>() {
+        return Ok(v);
+    }
+    let tol = 4.0 * T::EPSILON;
+    for iterations in 1..=8 {
+        let (momentum, hessian) = momentum_and_hessian(system, t, q, v);
+        let residual: [T; N] = core::array::from_fn(|i| momentum[i] - p[i]);
+        // As in `f64`: a singular Hessian or a value that is not finite has no residual to report.
+        let failure = LegendreFailure { iterations, residual_norm: f64::INFINITY };
+        let inverse = splitting::invert(hessian).ok_or(failure)?;
+        let mut size = 0.0f64;
+        let mut scale = 0.0f64;
+        for i in 0..N {
+            let mut d = T::zero();
+            for k in 0..N {
+                d += inverse[i][k] * residual[k];
+            }
+            v[i] -= d;
+            size = size.max(d.to_f64().abs());
+            scale = scale.max(v[i].to_f64().abs());
+        }
+        if !all_finite(&v) {
+            return Err(failure);
+        }
+        if size <= tol * scale.max(1.0) {
+            return Ok(v);
+        }
+    }
+    let (momentum, _) = momentum_and_hessian(system, t, q, v);
+    let residual_norm = (0..N).fold(0.0f64, |m, i| m.max((momentum[i] - p[i]).to_f64().abs()));
+    Err(LegendreFailure { iterations: 8, residual_norm })
+}
+
+/// `∂L/∂v` and `∂²L/∂v²` in `T` by scalar hyper-duals (a readout, not a
+/// step: `N(N+1)/2` evaluations are cheap enough).
+fn momentum_and_hessian<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [[T; N]; N])
+where
+    Sys: Lagrangian<N>,
+    T: Real,
+{
+    let mut momentum = [T::zero(); N];
+    let mut hessian = [[T::zero(); N]; N];
+    let qh = q.map(HyperDual::from_re);
+    for i in 0..N {
+        for j in i..N {
+            let mut vh = v.map(HyperDual::from_re);
+            vh[i].eps1 = T::one();
+            vh[j].eps2 = T::one();
+            let l = system.lagrangian(HyperDual::from_re(t), qh, vh);
+            if i == j {
+                momentum[i] = l.eps1;
+            }
+            hessian[i][j] = l.eps1eps2;
+            hessian[j][i] = l.eps1eps2;
+        }
+    }
+    (momentum, hessian)
+}
+
+/// `E_L = v·∂L/∂v − L` in `T` (the runtime's `f64` energy in `f64`).
+fn energy_in<Sys: Lagrangian<N>, T: Real, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> T {
+    if !wider_than_f64::<T>() {
+        return T::from(system.energy(t.to_f64(), q.map(|x| x.to_f64()), v.map(|x| x.to_f64())));
+    }
+    let (momentum, _) = momentum_and_hessian(system, t, q, v);
+    let mut e = -system.lagrangian(t, q, v);
+    for i in 0..N {
+        e += v[i] * momentum[i];
+    }
+    e
+}
+
+impl<I, Sys, G, T, const N: usize, const M: usize> Adaptive<I, Sys, G, N, M, T>
+where
+    I: SStepper<M, T, System = TimeTransformed<Sys, G, N>>,
     Sys: Lagrangian<N>,
     G: StepDensity<N>,
+    T: Real,
 {
     /// The physical state `(k, t_k, q_k, p_k)`; `k` counts steps in `s`.
-    pub fn state(&self) -> State<N> {
+    pub fn state(&self) -> State<N, T> {
         let x = self.inner.extended_state();
-        let mut s = physical::<N, M>(&x);
+        let mut s = physical::<T, N, M>(&x);
         if let Some((step, t)) = self.landed
             && step == x.step
         {
@@ -700,13 +931,13 @@ where
     }
 
     /// The state in `s`: `s_k = k σ` as time, `x = (q, t)`, momenta `(p, p_t)`.
-    pub fn extended_state(&self) -> State<M> {
+    pub fn extended_state(&self) -> State<M, T> {
         self.inner.extended_state()
     }
 
     /// `p_t = −E + u`, the momentum of time: conserved to round-off for an
     /// autonomous `L` without forces and a `g` without `t`.
-    pub fn time_momentum(&self) -> f64 {
+    pub fn time_momentum(&self) -> T {
         self.inner.extended_state().p[N]
     }
 
@@ -721,7 +952,7 @@ where
     }
 
     /// The step `σ` in `s`.
-    pub fn step_size(&self) -> f64 {
+    pub fn step_size(&self) -> T {
         self.inner.s_step_size()
     }
 
@@ -731,31 +962,33 @@ where
     }
 
     /// The physical time the last step advanced, `None` before the first.
-    pub fn last_time_step(&self) -> Option<f64> {
+    pub fn last_time_step(&self) -> Option<T> {
         self.last_dt
     }
 
     /// The smallest time step allowed.
-    pub fn min_time_step(&self) -> f64 {
+    pub fn min_time_step(&self) -> T {
         self.floor
     }
 
     /// `g` at the current state.
-    pub fn density(&self) -> f64 {
+    pub fn density(&self) -> T {
         let s = self.state();
         self.inner.transformed().density(s.t, &s.q)
     }
 
     /// The tangent map of the last step in the extended phase space
-    /// `(q, t, p, p_t)`: symplectic; `None` before the first step and with forces.
+    /// `(q, t, p, p_t)`: symplectic; `None` before the first step, with
+    /// forces, and in a real type other than `f64`.
     pub fn last_tangent_map(&self) -> Option<TangentMap<M>> {
         self.inner.s_tangent_map()
     }
 
-    /// The physical velocity `v` with `∂L/∂v(t, q, v) = p`.
-    pub fn velocity(&self) -> Result<[f64; N], TimeTransformError<N, M>> {
+    /// The physical velocity `v` with `∂L/∂v(t, q, v) = p`: Newton in `f64`,
+    /// refined in `T` when `T` is wider.
+    pub fn velocity(&self) -> Result<[T; N], TimeTransformError<N, M, T>> {
         let s = self.state();
-        self.system().velocity(s.t, s.q, s.p, self.v_guess).map_err(|f| {
+        velocity_in(self.system(), (s.t, s.q, s.p), self.v_guess).map_err(|f| {
             TimeTransformError::Step(Error::InverseLegendre {
                 state: self.inner.extended_state(),
                 iterations: f.iterations,
@@ -764,27 +997,27 @@ where
         })
     }
 
-    /// The physical energy `E_L(t, q, v)` at the current state.
-    pub fn energy(&self) -> Result<f64, TimeTransformError<N, M>> {
+    /// The physical energy `E_L(t, q, v)` at the current state, in `T`.
+    pub fn energy(&self) -> Result<T, TimeTransformError<N, M, T>> {
         let v = self.velocity()?;
         let s = self.state();
-        Ok(self.system().energy(s.t, s.q, v))
+        Ok(energy_in(self.system(), s.t, s.q, v))
     }
 
     /// Sets the step in `s` for the following steps.
-    pub fn set_step_size(&mut self, sigma: f64) -> Result<(), TimeTransformError<N, M>> {
+    pub fn set_step_size(&mut self, sigma: T) -> Result<(), TimeTransformError<N, M, T>> {
         self.inner.set_s_step_size(sigma).map_err(TimeTransformError::Step)
     }
 
     /// One step of `σ` in `s`. Refused, with the state kept, where `g` is
     /// not finite and positive inside the step or at its end, and where the
     /// step advances time by less than [`min_time_step`](Self::min_time_step).
-    pub fn step(&mut self) -> Result<State<N>, TimeTransformError<N, M>> {
+    pub fn step(&mut self) -> Result<State<N, T>, TimeTransformError<N, M, T>> {
         let before = self.inner.clone();
         self.try_step(before)
     }
 
-    fn try_step(&mut self, before: I) -> Result<State<N>, TimeTransformError<N, M>> {
+    fn try_step(&mut self, before: I) -> Result<State<N, T>, TimeTransformError<N, M, T>> {
         let start = self.state();
         self.inner.transformed().invalid.set(None);
         if let Err(e) = self.inner.s_step() {
@@ -797,27 +1030,29 @@ where
             });
         }
         let x = self.inner.extended_state();
-        let end = physical::<N, M>(&x);
+        let end = physical::<T, N, M>(&x);
         let g1 = self.inner.transformed().density(end.t, &end.q);
         let dt = end.t - self.inner_time(&before);
-        if !(g1.is_finite() && g1 > 0.0) {
+        if !(g1.is_finite() && g1.to_f64() > 0.0) {
             self.inner = before;
-            return Err(TimeTransformError::InvalidDensity { state: start, value: g1 });
+            return Err(TimeTransformError::InvalidDensity { state: start, value: g1.to_f64() });
         }
         // NaN fails too.
-        if dt.is_nan() || dt < self.floor {
+        let margin = (dt - self.floor).to_f64();
+        if margin.is_nan() || margin < 0.0 {
             self.inner = before;
-            return Err(TimeTransformError::TimeStepCollapsed { state: start, dt, floor: self.floor });
+            let floor = self.floor.to_f64();
+            return Err(TimeTransformError::TimeStepCollapsed { state: start, dt: dt.to_f64(), floor });
         }
         self.after_step(&start, &end, dt);
         Ok(self.state())
     }
 
-    fn inner_time(&self, i: &I) -> f64 {
+    fn inner_time(&self, i: &I) -> T {
         i.extended_state().q[N]
     }
 
-    fn after_step(&mut self, start: &State<N>, end: &State<N>, dt: f64) {
+    fn after_step(&mut self, start: &State<N, T>, end: &State<N, T>, dt: T) {
         self.landed = None;
         self.last_dt = Some(dt);
         for i in 0..N {
@@ -826,7 +1061,7 @@ where
     }
 
     /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M, T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -837,24 +1072,24 @@ where
     /// Steps until the physical time `t_end` and stops there: the step that
     /// would pass it is replaced by a partial step in `s` whose size is
     /// solved (secant on the bracket `(0, σ)`) so that it ends on `t_end`
-    /// to within a few ulps, and the state then reports `t = t_end` exactly
-    /// (the coordinate `t` of the state in `s` keeps that last ulp). The step
-    /// `σ` is unchanged afterwards. A target equal to the current time is a
-    /// no-op.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M>> {
+    /// to within a few units of `T`'s precision, and the state then reports
+    /// `t = t_end` exactly (the coordinate `t` of the state in `s` keeps that
+    /// last unit). The step `σ` is unchanged afterwards. A target equal to
+    /// the current time is a no-op.
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M, T>> {
         let now = self.state();
-        if !t_end.is_finite() || t_end < now.t {
-            return Err(TimeTransformError::InvalidTarget { target: t_end, state: now });
+        if !t_end.is_finite() || above(now.t, t_end) {
+            return Err(TimeTransformError::InvalidTarget { target: t_end.to_f64(), state: now });
         }
         loop {
             let start = self.state();
-            if start.t >= t_end {
+            if !above(t_end, start.t) {
                 return Ok(());
             }
             let before = self.inner.clone();
             self.try_step(before.clone())?;
             let t = self.inner_time(&self.inner);
-            if t <= t_end {
+            if !above(t, t_end) {
                 observe(self);
                 continue;
             }
@@ -867,23 +1102,23 @@ where
 
     /// The partial step in `s` from the current state that ends on `t_end`,
     /// given that the full step ends at `t_over > t_end`.
-    fn land(&mut self, t_end: f64, t_over: f64, start: &State<N>) -> Result<(), TimeTransformError<N, M>> {
+    fn land(&mut self, t_end: T, t_over: T, start: &State<N, T>) -> Result<(), TimeTransformError<N, M, T>> {
         let sigma = self.inner.s_step_size();
         let t0 = self.inner_time(&self.inner);
-        let tol = 4.0 * f64::EPSILON * t_end.abs().max(t0.abs()).max(f64::MIN_POSITIVE);
-        if t_end - t0 <= tol {
+        let tol = 4.0 * T::EPSILON * t_end.to_f64().abs().max(t0.to_f64().abs()).max(f64::MIN_POSITIVE);
+        if (t_end - t0).to_f64() <= tol {
             self.landed = Some((self.inner.extended_state().step, t_end));
             return Ok(());
         }
         // Illinois-modified regula falsi on f(σ') = t(σ') − t_end over (0, σ).
-        let (mut lo, mut f_lo) = (0.0, t0 - t_end);
+        let (mut lo, mut f_lo) = (T::zero(), t0 - t_end);
         let (mut hi, mut f_hi) = (sigma, t_over - t_end);
         let mut side = 0i8;
-        let mut best: Option<(f64, I)> = None;
+        let mut best: Option<(T, I)> = None;
         for _ in 0..60 {
             let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
-            if !(s > lo && s < hi) {
-                s = 0.5 * (lo + hi);
+            if !(above(s, lo) && above(hi, s)) {
+                s = (lo + hi) * 0.5;
             }
             let mut trial = self.inner.clone();
             if trial.set_s_step_size(s).is_err() || trial.s_step().is_err() {
@@ -892,13 +1127,13 @@ where
                 continue;
             }
             let f = self.inner_time(&trial) - t_end;
-            if best.as_ref().is_none_or(|(b, _)| f.abs() < b.abs()) {
+            if best.as_ref().is_none_or(|(b, _)| f.to_f64().abs() < b.to_f64().abs()) {
                 best = Some((f, trial.clone()));
             }
-            if f.abs() <= tol {
+            if f.to_f64().abs() <= tol {
                 break;
             }
-            if f > 0.0 {
+            if f.to_f64() > 0.0 {
                 (hi, f_hi) = (s, f);
                 if side == 1 {
                     f_lo *= 0.5;
@@ -913,15 +1148,18 @@ where
             }
         }
         match best {
-            Some((f, mut trial)) if f.abs() <= 64.0 * tol => {
+            Some((f, mut trial)) if f.to_f64().abs() <= 64.0 * tol => {
                 let _ = trial.set_s_step_size(sigma);
-                let end = physical::<N, M>(&trial.extended_state());
+                let end = physical::<T, N, M>(&trial.extended_state());
                 self.inner = trial;
                 self.after_step(start, &end, end.t - t0);
                 self.landed = Some((end.step, t_end));
                 Ok(())
             }
-            best => Err(TimeTransformError::Landing { target: t_end, reached: best.map_or(t0, |(f, _)| t_end + f) }),
+            best => Err(TimeTransformError::Landing {
+                target: t_end.to_f64(),
+                reached: best.map_or(t0.to_f64(), |(f, _)| (t_end + f).to_f64()),
+            }),
         }
     }
 }

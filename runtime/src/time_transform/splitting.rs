@@ -467,7 +467,7 @@ fn mass_matrix<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [
 }
 
 /// Gauss–Jordan with partial pivoting; `None` when singular or not finite.
-fn invert<T: Real, const N: usize>(a: [[T; N]; N]) -> Option<[[T; N]; N]> {
+pub(super) fn invert<T: Real, const N: usize>(a: [[T; N]; N]) -> Option<[[T; N]; N]> {
     let mut a = a;
     let mut inv = [[T::zero(); N]; N];
     for (i, row) in inv.iter_mut().enumerate() {
