@@ -9,7 +9,7 @@ impl Driven {
     }
 
     fn step_density(&self, t: f32, q: [f64; 1]) -> f64 {
-        1.0 + q[0] * q[0]
+        1.0 + q[0] * q[0] + t as f64
     }
 }
 
