@@ -140,6 +140,22 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Dim>, errors: Option<&Errors>
             };
         };
         let n = n.generic_arg();
+        // A block with `fn step_density` is used as a monitor too.
+        let has_density = item.items.iter().any(|i| matches!(i, ImplItem::Fn(f) if f.sig.ident == "step_density"));
+        let density_stub = has_density.then(|| {
+            quote! {
+                #cfgs
+                impl #impl_generics ::lagrangian::__private::StepDensity<#n> for #self_ty #where_clause {
+                    fn density<S, #d>(&self, _: &S, _: #d, _: &[#d; #n]) -> #d
+                    where
+                        S: ::lagrangian::__private::Lagrangian<#n> + ?::core::marker::Sized,
+                        #d: ::lagrangian::__private::Scalar,
+                    {
+                        ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
+                    }
+                }
+            }
+        });
         quote! {
             #cfgs
             impl #impl_generics ::lagrangian::__private::Lagrangian<#n> for #self_ty #where_clause {
@@ -151,6 +167,7 @@ pub(crate) fn fallback(item: &ItemImpl, n: Option<&Dim>, errors: Option<&Errors>
                     ::core::unreachable!("`#[lagrangian]` generated no implementation: its impl block does not compile")
                 }
             }
+            #density_stub
         }
     });
     quote!(#block_errors #user_impl #stub)
@@ -938,6 +955,19 @@ mod tests {
         assert!(out.contains("Lagrangian < 3 > for P"), "{out}");
         assert!(out.contains("unreachable !"), "{out}");
         assert!(!fallback(&item, None, None).to_string().contains("Lagrangian"));
+        assert!(!out.contains("StepDensity"), "{out}");
+    }
+
+    #[test]
+    fn fallback_of_a_block_with_a_monitor_stubs_the_monitor_too() {
+        let item: ItemImpl = parse_quote!(impl P {
+            fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 { q[0] }
+            fn step_density(&self, q: [f64; 2], v: [f64; 2]) -> f64 { 1.0 }
+        });
+        let n = crate::validate::arity(&Input::from_syn(&item));
+        let out = fallback(&item, n.as_ref(), None).to_string();
+        assert!(out.contains("Lagrangian < 2 > for P"), "{out}");
+        assert!(out.contains("StepDensity < 2 > for P"), "{out}");
     }
 
     #[test]
