@@ -5,7 +5,7 @@ use lagrangian::{Composition as Generated, GalerkinIntegrator, StepBounds};
 use serde::{Deserialize, Serialize};
 
 use crate::compositions::{Composition, Stepper};
-use crate::problems::Model;
+use crate::problems::{Model, Transformed};
 
 /// Every method of the report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -368,13 +368,13 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
             variational(model, (q0, v0), Generated::KAHAN_LI8, n, t_end, false, samples, &mut record)
         }
         (Method::TimeTransformed(s), Setting::Sigma(sigma)) => model
-            .time_transformed(s, false, sigma, t_end, &mut record)
+            .time_transformed(Transformed::Galerkin(s), sigma, t_end, &mut record)
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
         (Method::TimeTransformedAuto(s), Setting::Sigma(sigma)) => model
-            .time_transformed(s, true, sigma, t_end, &mut record)
+            .time_transformed(Transformed::GalerkinAuto(s), sigma, t_end, &mut record)
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
         (Method::TimeTransformedSplit, Setting::Sigma(sigma)) => model
-            .time_transformed(0, false, sigma, t_end, &mut record)
+            .time_transformed(Transformed::Splitting, sigma, t_end, &mut record)
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };

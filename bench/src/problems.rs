@@ -64,20 +64,17 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     }
     /// Whether [`Model::time_transformed`] runs.
     const TIME_TRANSFORM: bool = false;
-    /// One run of a time-transformed Galerkin method of degree `s` with step
-    /// `sigma` in the new time to `t_end`, with the problem's own step density
-    /// or (`automatic`) the `Curvature` monitor; `record(t, q, v)` after each
-    /// step. `s = 0` selects the explicit splitting (logarithmic Hamiltonian,
-    /// Kahan–Li 8) instead. `None` for problems without a step density.
+    /// One run of a time-transformed method with step `sigma` in the new
+    /// time to `t_end`; `record(t, q, v)` after each step. `None` for
+    /// problems without a step density.
     fn time_transformed(
         &self,
-        s: u8,
-        automatic: bool,
+        method: Transformed,
         sigma: f64,
         t_end: f64,
         record: &mut Observer<'_, N>,
     ) -> Option<Run> {
-        let _ = (s, automatic, sigma, t_end, record);
+        let _ = (method, sigma, t_end, record);
         None
     }
     /// The exact `q(t)` in any precision, when known in closed form.
@@ -234,8 +231,7 @@ macro_rules! kepler_ids {
             const TIME_TRANSFORM: bool = true;
             fn time_transformed(
                 &self,
-                s: u8,
-                automatic: bool,
+                method: Transformed,
                 sigma: f64,
                 t_end: f64,
                 record: &mut Observer<'_, 2>,
@@ -244,13 +240,16 @@ macro_rules! kepler_ids {
                 // `dt/ds = r^{3/2}`: equal steps in the mean anomaly, the classic choice.
                 let r32 = RadiusPower::new([0, 1], 1.5)?;
                 let auto = Curvature::new(1e-3)?;
-                Some(match (s, automatic) {
-                    (4, false) => kepler_tt::<_, 4>(r32, start, sigma, t_end, record),
-                    (6, false) => kepler_tt::<_, 6>(r32, start, sigma, t_end, record),
-                    (4, true) => kepler_tt::<_, 4>(auto, start, sigma, t_end, record),
-                    (6, true) => kepler_tt::<_, 6>(auto, start, sigma, t_end, record),
-                    (0, false) => kepler_split(start, sigma, t_end, record),
-                    _ => Run { failure: Some(format!("no time-transformed Galerkin s = {s} in the report")), ..Run::default() },
+                Some(match method {
+                    Transformed::Galerkin(4) => kepler_tt::<_, 4>(r32, start, sigma, t_end, record),
+                    Transformed::Galerkin(6) => kepler_tt::<_, 6>(r32, start, sigma, t_end, record),
+                    Transformed::GalerkinAuto(4) => kepler_tt::<_, 4>(auto, start, sigma, t_end, record),
+                    Transformed::GalerkinAuto(6) => kepler_tt::<_, 6>(auto, start, sigma, t_end, record),
+                    Transformed::Splitting => kepler_split(start, sigma, t_end, record),
+                    Transformed::Galerkin(s) | Transformed::GalerkinAuto(s) => Run {
+                        failure: Some(format!("no time-transformed Galerkin s = {s} in the report")),
+                        ..Run::default()
+                    },
                 })
             }
             fn reference_steps(&self, t_end: f64) -> usize {
@@ -258,6 +257,19 @@ macro_rules! kepler_ids {
             }
         }
     )*};
+}
+
+/// Which time-transformed method [`Model::time_transformed`] runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transformed {
+    /// Galerkin of degree `s` (order `2s`) in the new time, with the
+    /// problem's own step density.
+    Galerkin(u8),
+    /// As [`Transformed::Galerkin`] with the automatic `Curvature` monitor.
+    GalerkinAuto(u8),
+    /// The explicit splitting: logarithmic Hamiltonian, Kahan–Li 8
+    /// composition of the drift–kick–drift leapfrog.
+    Splitting,
 }
 
 /// A time-transformed Galerkin run of Kepler's problem (see [`Model::time_transformed`]).
