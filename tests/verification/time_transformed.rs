@@ -123,18 +123,13 @@ where
     }
 }
 
-/// `|b| K / mean(m)` of the least-squares line `m_k ≈ a + b k`, `k = 1 … K`.
-fn trend(m: &[f64]) -> f64 {
-    let n = m.len() as f64;
-    let kbar = (n + 1.0) / 2.0;
-    let mbar = m.iter().sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (i, &y) in m.iter().enumerate() {
-        let dk = i as f64 + 1.0 - kbar;
-        sxy += dk * (y - mbar);
-        sxx += dk * dk;
-    }
-    (sxy / sxx).abs() * n / mbar
+/// `|b| K / mean(m)` of the least-squares line `m_k ≈ a + b k`, `k = 1 … K`:
+/// the change of the per-orbit maxima over the run, relative to their mean
+/// (a drift from zero gives 2).
+pub fn trend(m: &[f64]) -> f64 {
+    let k: Vec<f64> = (1..=m.len()).map(|k| k as f64).collect();
+    let mean = m.iter().sum::<f64>() / m.len() as f64;
+    common::linear_fit(&k, m).1.abs() * m.len() as f64 / mean
 }
 
 /// The same `orbits` with fixed steps of the mean size `T/steps`: position
@@ -257,14 +252,9 @@ fn kepler_thousand_orbits() {
 }
 
 /// The slope of `log err` against `log σ` by least squares.
-fn fitted_order(points: &[(f64, f64)]) -> f64 {
-    let n = points.len() as f64;
-    let xs: Vec<f64> = points.iter().map(|p| p.0.ln()).collect();
-    let ys: Vec<f64> = points.iter().map(|p| p.1.ln()).collect();
-    let (xb, yb) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - xb) * (y - yb)).sum();
-    let sxx: f64 = xs.iter().map(|x| (x - xb) * (x - xb)).sum();
-    sxy / sxx
+pub fn fitted_order(points: &[(f64, f64)]) -> f64 {
+    let (h, err): (Vec<f64>, Vec<f64>) = points.iter().copied().unzip();
+    common::fitted_order(&h, &err)
 }
 
 fn position_error<I: SStepper<3, System = Tt>>(mut sim: Adaptive<I, Kepler, RadiusPower<2>, 2, 3>, e: f64) -> f64 {

@@ -10,7 +10,7 @@
 //! `cargo test --release --test verification time_transformed_splitting:: -- --ignored --nocapture`.
 use crate::common;
 // The Kepler system and its exact orbit are those of the implicit path's tests.
-use crate::time_transformed::{Kepler, angular, kepler_position, kepler_start};
+use crate::time_transformed::{Kepler, angular, fitted_order, kepler_position, kepler_start, trend};
 
 use common::SlowOscillator;
 use lagrangian::prelude::*;
@@ -40,12 +40,6 @@ fn position_error(mut sim: ExplicitAdaptive<Kepler, f64, 2>, e: f64, orbits: f64
     assert_eq!(sim.state().t, t);
     let x = kepler_position(e, t);
     (sim.state().q[0] - x[0]).hypot(sim.state().q[1] - x[1])
-}
-
-/// The slope of `log err` against `log σ` by least squares.
-fn fitted_order(points: &[(f64, f64)]) -> f64 {
-    let (h, err): (Vec<f64>, Vec<f64>) = points.iter().copied().unzip();
-    common::fitted_order(&h, &err)
 }
 
 /// `σ0` of the order fits (the σ are `σ0 · {1, 0.8, 0.65, 0.5}`): ranges
@@ -137,12 +131,6 @@ fn measure(mut sim: ExplicitAdaptive<Kepler, f64, 2>, e: f64, orbits: usize) -> 
         angular_momentum: jmax,
         time_momentum: ptmax,
     }
-}
-
-fn trend(m: &[f64]) -> f64 {
-    let k: Vec<f64> = (1..=m.len()).map(|k| k as f64).collect();
-    let mean = m.iter().sum::<f64>() / m.len() as f64;
-    common::linear_fit(&k, m).1.abs() * m.len() as f64 / mean
 }
 
 /// `(e, f, composition, σ, position tolerance, energy tolerance)`.
