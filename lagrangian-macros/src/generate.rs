@@ -38,6 +38,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
         .chain(&system.dissipation)
         .chain(&system.force)
         .map(|function| method(function, Some(&n)));
+    let gradient = crate::adjoint::method(&system.lagrangian, Some(&n));
     quote! {
         #user_impl
 
@@ -55,6 +56,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             #symmetries
             #structure
             #(#methods)*
+            #gradient
         }
     }
 }
@@ -76,6 +78,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
     let (separability, coupling) = (&structure.separability, &structure.coupling);
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
     let lagrangian = method(&system.lagrangian, None);
+    let gradient = crate::adjoint::method(&system.lagrangian, None);
     quote! {
         #user_impl
 
@@ -94,6 +97,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
                 Self::dimension(self)
             }
             #lagrangian
+            #gradient
         }
     }
 }

@@ -107,6 +107,27 @@ pub trait Lagrangian<const N: usize> {
         let _ = (t, q, v);
         [D::zero(); N]
     }
+
+    /// `true` when [`gradient_q`](Self::gradient_q) is plain `f64` code
+    /// written for this system: `#[lagrangian]` sets it when it could
+    /// transform the body into reverse-mode (adjoint) code, whose cost is a
+    /// small multiple of one evaluation of `L` instead of `N` derivative
+    /// components carried through every operation.
+    const HAS_GRADIENT: bool = false;
+
+    /// `∂L/∂q(t, q, v)`, written into `out`: what the explicit
+    /// Störmer–Verlet path needs per step (`−∇V` for a separable `L`).
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) once on
+    /// array dual numbers seeded on `q`; `#[lagrangian]` overrides it with
+    /// generated adjoint code where it can ([`HAS_GRADIENT`](Self::HAS_GRADIENT)).
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
+        use crate::hyperdual::DualArray;
+        let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+        let l = self.lagrangian(DualArray::from_re(t), qd, v.map(DualArray::from_re));
+        *out = l.eps;
+    }
 }
 
 /// A borrowed system is the same system (the integrator borrows it to run a
@@ -135,6 +156,13 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn force<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> [D; N] {
         (**self).force(t, q, v)
+    }
+
+    const HAS_GRADIENT: bool = S::HAS_GRADIENT;
+
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
+        (**self).gradient_q(t, q, v, out);
     }
 }
 
@@ -178,6 +206,28 @@ pub trait DynLagrangian {
 
     /// The Lagrangian `L(t, q, v)` with `q.len() == v.len() == self.dimension()`.
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
+
+    /// `true` when [`gradient_q`](Self::gradient_q) is generated adjoint
+    /// code (see [`Lagrangian::HAS_GRADIENT`]).
+    const HAS_GRADIENT: bool = false;
+
+    /// `∂L/∂q(t, q, v)` written into `out`, all four of length
+    /// `self.dimension()`.
+    ///
+    /// The default records `L` on a reverse-mode tape; the runtime calls
+    /// this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is set and uses
+    /// its own tape otherwise. If the tape cannot record `L` (a length that
+    /// does not match), `out` is filled with NaN, which the integrators
+    /// report as a non-finite step.
+    fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        use crate::tape::{Tape, Var};
+        let vc: Vec<Var> = v.iter().map(|&x| Var::constant(x)).collect();
+        let mut tape = Tape::new();
+        let recorded = tape.record(q, |x: &[Var]| self.lagrangian(Var::constant(t), x, &vc));
+        if recorded.and_then(|_| tape.gradient(out)).is_err() {
+            out.fill(f64::NAN);
+        }
+    }
 }
 
 /// A borrowed run-time-sized system is the same system.
@@ -195,6 +245,13 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         (**self).lagrangian(t, q, v)
+    }
+
+    const HAS_GRADIENT: bool = S::HAS_GRADIENT;
+
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        (**self).gradient_q(t, q, v, out);
     }
 }
 
