@@ -67,10 +67,17 @@ fn name(s: &str) -> proc_macro2::Ident {
 /// The state of one transformation.
 struct Adjoint<'a> {
     function: &'a Function,
-    /// Whether each local depends on `q` (conservatively).
-    depends: Vec<bool>,
-    /// The accumulators: mutable active locals declared outside every loop.
+    /// Whether each version of a local depends on `q` (conservatively).
+    depends: HashMap<(usize, usize), bool>,
+    /// The accumulators: mutable active locals declared outside every loop,
+    /// only ever changed by `+=` and `-=`.
     accumulator: Vec<bool>,
+    /// The scratch variables: mutable active locals only ever changed by
+    /// `=`. Each assignment is a new version, a `let` of its own.
+    scratch: Vec<bool>,
+    /// The version each read of a scratch variable sees, and the version each
+    /// assignment creates, by node address.
+    versions: HashMap<*const Expr, usize>,
     /// Accumulators whose value the reverse sweep reads.
     needed: Vec<bool>,
     /// The temporary of each active node, by address (stable: the IR is not
@@ -85,8 +92,10 @@ impl<'a> Adjoint<'a> {
         let n = function.locals.len();
         Adjoint {
             function,
-            depends: vec![false; n],
+            depends: HashMap::new(),
             accumulator: vec![false; n],
+            scratch: vec![false; n],
+            versions: HashMap::new(),
             needed: vec![false; n],
             temps: HashMap::new(),
             next_adjoint: 0,
@@ -100,14 +109,30 @@ impl<'a> Adjoint<'a> {
             }
             _ => return None,
         };
-        // Which locals are accumulators, and that the statements are of the
-        // subset (expressions are checked while they are printed).
+        // Which locals are accumulators or scratch variables, and that the
+        // statements are of the subset (expressions are checked while they
+        // are printed).
+        let (mut plain, mut accumulated) = (vec![false; self.accumulator.len()], vec![false; self.accumulator.len()]);
+        block.visit(&mut |e: &Expr| {
+            if let ExprKind::Assign { place, op, .. } = &e.kind
+                && let ExprKind::Local(id, _) = place.kind
+            {
+                match op {
+                    None => plain[id.0] = true,
+                    Some(_) => accumulated[id.0] = true,
+                }
+            }
+            true
+        });
         for stmt in stmts {
-            self.check_stmt(stmt, true)?;
+            self.check_stmt(stmt, true, &plain, &accumulated)?;
         }
         if self.reads_accumulator_in_loop(stmts) {
             return None;
         }
+        let mut current = HashMap::new();
+        self.resolve(stmts, &mut Vec::new(), &mut current, &mut HashMap::new())?;
+        self.resolve_expr(tail, &[], &current)?;
         // Dependence on `q`, to a fixed point: an accumulator may be read
         // before a later accumulation makes it depend on `q`.
         loop {
@@ -149,8 +174,9 @@ impl<'a> Adjoint<'a> {
         })
     }
 
-    /// Checks that `stmt` is of the subset; marks accumulators.
-    fn check_stmt(&mut self, stmt: &Stmt, top: bool) -> Option<()> {
+    /// Checks that `stmt` is of the subset; marks accumulators and scratch
+    /// variables (`plain`, `accumulated`: how each local is ever assigned).
+    fn check_stmt(&mut self, stmt: &Stmt, top: bool, plain: &[bool], accumulated: &[bool]) -> Option<()> {
         match stmt {
             Stmt::Let { bindings, inits, .. } => {
                 if bindings.len() != inits.len() {
@@ -163,28 +189,138 @@ impl<'a> Adjoint<'a> {
                         return None;
                     }
                     if binding.mutable {
-                        // Only active scalars outside loops may be mutated
-                        // (by accumulation).
-                        if !top || !class.is_active() {
-                            return None;
+                        // Only active scalars may be mutated, by
+                        // accumulation outside loops, or by assignment.
+                        match (plain[local.0], accumulated[local.0]) {
+                            _ if !class.is_active() => return None,
+                            (true, true) => return None,
+                            (false, true) if !top => return None,
+                            (false, true) => self.accumulator[local.0] = true,
+                            (true, false) => self.scratch[local.0] = true,
+                            (false, false) => {}
                         }
-                        self.accumulator[local.0] = true;
                     }
                 }
                 Some(())
             }
             Stmt::Item(_) => top.then_some(()),
             Stmt::Expr { expr, .. } => match &expr.kind {
-                ExprKind::For { body, .. } => body.stmts.iter().try_for_each(|stmt| self.check_stmt(stmt, false)),
+                ExprKind::For { body, .. } => {
+                    body.stmts.iter().try_for_each(|stmt| self.check_stmt(stmt, false, plain, accumulated))
+                }
                 ExprKind::Assign { place, op: Some(BinOp::AddAssign(_) | BinOp::SubAssign(_)), .. } => {
                     match place.kind {
                         ExprKind::Local(id, _) if self.accumulator[id.0] => Some(()),
                         _ => None,
                     }
                 }
+                ExprKind::Assign { place, op: None, .. } => match place.kind {
+                    ExprKind::Local(id, _) if self.scratch[id.0] => Some(()),
+                    _ => None,
+                },
                 _ => None,
             },
         }
+    }
+
+    /// Gives every read of a scratch variable the version it sees, and every
+    /// assignment its new version. `None` when a read may see a value from
+    /// an earlier iteration of a loop (`left = q[i]` read at the next
+    /// iteration), or one assigned inside a loop that has ended.
+    /// `current`: the visible version of each scratch variable and the loop
+    /// depth of its definition (`None`: invalid); `next`: the next version.
+    fn resolve(
+        &mut self,
+        stmts: &[Stmt],
+        loops: &mut Vec<Vec<bool>>,
+        current: &mut HashMap<usize, Option<(usize, usize)>>,
+        next: &mut HashMap<usize, usize>,
+    ) -> Option<()> {
+        for stmt in stmts {
+            match stmt {
+                Stmt::Let { bindings, inits, .. } => {
+                    for (binding, init) in bindings.iter().zip(inits) {
+                        self.resolve_expr(init, loops, current)?;
+                        if let Some(local) = binding.local
+                            && self.scratch[local.0]
+                        {
+                            current.insert(local.0, Some((0, loops.len())));
+                            next.insert(local.0, 1);
+                        }
+                    }
+                }
+                Stmt::Expr { expr, .. } => match &expr.kind {
+                    ExprKind::For { body, .. } => {
+                        // The scratch variables the loop assigns, anywhere in it.
+                        let mut assigned = vec![false; self.scratch.len()];
+                        body.visit(&mut |e: &Expr| {
+                            if let ExprKind::Assign { place, op: None, .. } = &e.kind
+                                && let ExprKind::Local(id, _) = place.kind
+                            {
+                                assigned[id.0] = true;
+                            }
+                            true
+                        });
+                        loops.push(assigned);
+                        self.resolve(&body.stmts, loops, current, next)?;
+                        let assigned = loops.pop()?;
+                        for (local, _) in assigned.iter().enumerate().filter(|(_, a)| **a) {
+                            current.insert(local, None);
+                        }
+                    }
+                    ExprKind::Assign { place, op, value } => {
+                        self.resolve_expr(value, loops, current)?;
+                        let ExprKind::Local(id, _) = place.kind else { return None };
+                        if op.is_none() {
+                            let version = next.get(&id.0).copied()?;
+                            next.insert(id.0, version + 1);
+                            current.insert(id.0, Some((version, loops.len())));
+                            self.versions.insert(std::ptr::from_ref(expr), version);
+                        }
+                    }
+                    _ => return None,
+                },
+                Stmt::Item(_) => {}
+            }
+        }
+        Some(())
+    }
+
+    /// Resolves the reads of scratch variables in `expr` (see `resolve`).
+    fn resolve_expr(
+        &mut self,
+        expr: &Expr,
+        loops: &[Vec<bool>],
+        current: &HashMap<usize, Option<(usize, usize)>>,
+    ) -> Option<()> {
+        let mut ok = true;
+        let mut found = Vec::new();
+        expr.visit(&mut |e: &Expr| {
+            if let ExprKind::Local(id, _) = e.kind
+                && self.scratch[id.0]
+            {
+                match current.get(&id.0).copied().flatten() {
+                    // No loop entered since the definition assigns it.
+                    Some((version, depth)) if loops[depth..].iter().all(|assigned| !assigned[id.0]) => {
+                        found.push((std::ptr::from_ref(e), version));
+                    }
+                    _ => ok = false,
+                }
+            }
+            true
+        });
+        self.versions.extend(found);
+        ok.then_some(())
+    }
+
+    /// The version of a local a read or an assignment refers to (0 but for
+    /// scratch variables).
+    fn version(&self, expr: &Expr) -> usize {
+        self.versions.get(&std::ptr::from_ref(expr)).copied().unwrap_or(0)
+    }
+
+    fn local_depends(&self, id: LocalId, version: usize) -> bool {
+        self.depends.get(&(id.0, version)).copied().unwrap_or(false)
     }
 
     /// Whether a loop body reads an accumulator (its iterations would not be
@@ -221,7 +357,7 @@ impl<'a> Adjoint<'a> {
                     for (binding, init) in bindings.iter().zip(inits) {
                         if let Some(local) = binding.local {
                             let depends = self.depends_on_q(init);
-                            self.depends[local.0] |= depends;
+                            *self.depends.entry((local.0, 0)).or_default() |= depends;
                         }
                     }
                 }
@@ -230,7 +366,7 @@ impl<'a> Adjoint<'a> {
                     ExprKind::Assign { place, value, .. } => {
                         if let ExprKind::Local(id, _) = place.kind {
                             let depends = self.depends_on_q(value);
-                            self.depends[id.0] |= depends;
+                            *self.depends.entry((id.0, self.version(expr))).or_default() |= depends;
                         }
                     }
                     _ => {}
@@ -249,7 +385,7 @@ impl<'a> Adjoint<'a> {
         expr.visit(&mut |e: &Expr| {
             match &e.kind {
                 ExprKind::Param(ParamRef::Q, _) => depends = true,
-                ExprKind::Local(id, _) => depends |= self.depends[id.0],
+                ExprKind::Local(id, _) => depends |= self.local_depends(*id, self.version(e)),
                 _ => {}
             }
             !depends
@@ -262,10 +398,20 @@ impl<'a> Adjoint<'a> {
     fn declare_adjoints(&self, stmts: &[Stmt]) -> TokenStream {
         let mut out = TokenStream::new();
         for stmt in stmts {
-            let Stmt::Let { bindings, .. } = stmt else { continue };
-            for local in bindings.iter().filter_map(|binding| binding.local) {
-                if self.function.locals[local.0].class.is_active() && self.depends[local.0] {
-                    let adjoint = adjoint_name(local);
+            let defined: Vec<(LocalId, usize)> = match stmt {
+                Stmt::Let { bindings, .. } => bindings.iter().filter_map(|binding| binding.local).map(|l| (l, 0)).collect(),
+                Stmt::Expr { expr, .. } => match &expr.kind {
+                    ExprKind::Assign { place, op: None, .. } => match place.kind {
+                        ExprKind::Local(id, _) => vec![(id, self.version(expr))],
+                        _ => continue,
+                    },
+                    _ => continue,
+                },
+                Stmt::Item(_) => continue,
+            };
+            for (local, version) in defined {
+                if self.function.locals[local.0].class.is_active() && self.local_depends(local, version) {
+                    let adjoint = adjoint_name(local, version);
                     out.extend(quote!(let mut #adjoint = 0.0f64;));
                 }
             }
@@ -302,11 +448,15 @@ impl<'a> Adjoint<'a> {
                     out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
                     Some(())
                 }
-                ExprKind::Assign { place, op: Some(op), value } => {
+                ExprKind::Assign { place, op, value } => {
                     let ExprKind::Local(id, _) = place.kind else { return None };
                     let value = self.forward(value, out)?;
-                    let local = local_name(id);
-                    out.push(quote!(#local #op #value;));
+                    let local = local_name(id, self.version(expr));
+                    match op {
+                        Some(op) => out.push(quote!(#local #op #value;)),
+                        // A new version of a scratch variable.
+                        None => out.push(quote!(let #local: f64 = #value;)),
+                    }
                     Some(())
                 }
                 _ => None,
@@ -327,8 +477,9 @@ impl<'a> Adjoint<'a> {
             // `_`: nothing is bound; a constant is still checked to print.
             return if init.class.is_active() { self.forward(init, out).map(drop) } else { Some(()) };
         };
-        let name = local_name(local);
-        let mutability = binding.mutable.then(|| quote!(mut));
+        let name = local_name(local, 0);
+        // Scratch variables get a new name at each assignment instead.
+        let mutability = self.accumulator[local.0].then(|| quote!(mut));
         if self.function.locals[local.0].class.is_active() {
             let value = self.forward(init, out)?;
             out.push(quote!(let #mutability #name: f64 = #value;));
@@ -360,8 +511,8 @@ impl<'a> Adjoint<'a> {
             Stmt::Let { bindings, inits, .. } => {
                 for (binding, init) in bindings.iter().zip(inits).rev() {
                     let Some(local) = binding.local else { continue };
-                    if self.depends[local.0] && self.depends_on_q(init) {
-                        self.reverse(init, adjoint_name(local).into_token_stream(), out)?;
+                    if self.local_depends(local, 0) && self.depends_on_q(init) {
+                        self.reverse(init, adjoint_name(local, 0).into_token_stream(), out)?;
                     }
                 }
                 Some(())
@@ -377,6 +528,7 @@ impl<'a> Adjoint<'a> {
                         match stmt {
                             Stmt::Let { .. } => self.forward_stmt(stmt, false, &mut inner)?,
                             Stmt::Expr { expr, .. } => match &expr.kind {
+                                ExprKind::Assign { op: None, .. } => self.forward_stmt(stmt, false, &mut inner)?,
                                 ExprKind::Assign { value, .. } => drop(self.forward(value, &mut inner)?),
                                 ExprKind::For { .. } => {}
                                 _ => return None,
@@ -393,12 +545,20 @@ impl<'a> Adjoint<'a> {
                     out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
                     Some(())
                 }
+                ExprKind::Assign { place, op: None, value } => {
+                    let ExprKind::Local(id, _) = place.kind else { return None };
+                    let version = self.version(expr);
+                    if self.local_depends(id, version) && self.depends_on_q(value) {
+                        self.reverse(value, adjoint_name(id, version).into_token_stream(), out)?;
+                    }
+                    Some(())
+                }
                 ExprKind::Assign { place, op: Some(op), value } => {
                     let ExprKind::Local(id, _) = place.kind else { return None };
                     if !self.depends_on_q(value) {
                         return Some(());
                     }
-                    let adjoint = adjoint_name(id);
+                    let adjoint = adjoint_name(id, 0);
                     let g = match op {
                         BinOp::AddAssign(_) => adjoint.into_token_stream(),
                         BinOp::SubAssign(_) => self.bind(quote!(-#adjoint), out),
@@ -463,7 +623,7 @@ impl<'a> Adjoint<'a> {
                 let index = self.constant(index)?;
                 quote!(#param[#index])
             }
-            ExprKind::Local(id, _) => local_name(*id).into_token_stream(),
+            ExprKind::Local(id, _) => local_name(*id, self.version(expr)).into_token_stream(),
             ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
                 let inner = self.forward(inner, out)?;
                 quote!(-#inner)
@@ -532,7 +692,7 @@ impl<'a> Adjoint<'a> {
                 Some(())
             }
             ExprKind::Local(id, _) => {
-                let adjoint = adjoint_name(*id);
+                let adjoint = adjoint_name(*id, self.version(expr));
                 out.push(quote!(#adjoint += #g;));
                 Some(())
             }
@@ -622,7 +782,7 @@ impl<'a> Adjoint<'a> {
             ExprKind::Param(ParamRef::Q, _) => name("q").into_token_stream(),
             ExprKind::Param(ParamRef::V, _) => name("v").into_token_stream(),
             ExprKind::Param(ParamRef::Time, _) => return None,
-            ExprKind::Local(id, _) => local_name(*id).into_token_stream(),
+            ExprKind::Local(id, _) => local_name(*id, 0).into_token_stream(),
             ExprKind::Field { base, member } => {
                 let base = self.constant(base)?;
                 quote!(#base.#member)
@@ -803,17 +963,19 @@ impl Rule {
     }
 }
 
-fn local_name(id: LocalId) -> proc_macro2::Ident {
-    format_ident!("__l{}", id.0)
+/// The name of one version of a local in the generated code.
+fn local_name(id: LocalId, version: usize) -> proc_macro2::Ident {
+    format_ident!("__l{}_{}", id.0, version)
 }
 
-fn adjoint_name(id: LocalId) -> proc_macro2::Ident {
-    format_ident!("__a{}", id.0)
+/// The name of the adjoint of one version of a local.
+fn adjoint_name(id: LocalId, version: usize) -> proc_macro2::Ident {
+    format_ident!("__a{}_{}", id.0, version)
 }
 
 fn loop_var(id: Option<LocalId>) -> TokenStream {
     match id {
-        Some(id) => local_name(id).into_token_stream(),
+        Some(id) => local_name(id, 0).into_token_stream(),
         None => quote!(_),
     }
 }
@@ -852,7 +1014,7 @@ mod tests {
         }
         // The velocity term does not depend on `q`: its value is computed
         // (it is part of `L`), but no adjoint goes through it.
-        let reverse = &out[out.find("let mut __a0").unwrap()..];
+        let reverse = &out[out.find("let mut __a0_0").unwrap()..];
         assert!(!reverse.contains(". m"), "{out}");
         assert!(out.contains("f64 :: sqrt"), "{out}");
         assert!(out.contains("- f64 :: sin"), "{out}");
@@ -885,7 +1047,7 @@ mod tests {
         let out = gradient(&chain).unwrap();
         // Only the potential's loop, once, in the reverse sweep.
         assert_eq!(out.matches("for ").count(), 2, "{out}"); // zeroing `out` and the reverse loop
-        assert!(out.contains("__out [((__l2) + (1))] +="), "{out}");
+        assert!(out.contains("__out [((__l2_0) + (1))] +="), "{out}");
         assert!(out.contains("f64 :: powi"), "{out}");
     }
 
@@ -921,10 +1083,12 @@ mod tests {
 
     #[test]
     fn outside_the_subset_there_is_no_gradient() {
-        let refused: [syn::Block; 9] = [
+        let refused: [syn::Block; 10] = [
             parse_quote!({ if self.on { q[0] } else { 0.0 } }),
             parse_quote!({ let mut s = q[0]; s *= q[1]; s }),
-            parse_quote!({ let mut s = q[0]; s = s * q[1]; s }),
+            // A value carried into the next iteration, or out of the loop.
+            parse_quote!({ let mut s = 0.0; let mut left = 0.0; for i in 0..3 { s += q[i] * left; left = q[i]; } s }),
+            parse_quote!({ let mut d = 0.0; for i in 0..3 { d = q[i]; } d * d }),
             // An accumulator read inside a loop: iterations depend on each other.
             parse_quote!({ let mut s = 1.0; for i in 0..3 { s += s * q[i]; } s }),
             // An active exponent.
@@ -941,6 +1105,26 @@ mod tests {
             let text = body.to_token_stream().to_string();
             assert_eq!(lagrangian(body), None, "{text}");
         }
+    }
+
+    #[test]
+    fn scratch_variables_assigned_before_they_are_read_get_one_name_per_assignment() {
+        let out = lagrangian(parse_quote!({
+            let mut d = q[0];
+            let mut e = d * d;
+            for i in 0..2 {
+                d = q[i + 1] - q[i];
+                e += d.powi(4);
+            }
+            d = q[2];
+            e + d * d
+        }))
+        .unwrap();
+        for version in ["let __l0_0 : f64", "let __l0_1 : f64", "let __l0_2 : f64"] {
+            assert!(out.contains(version), "{version}: {out}");
+        }
+        // Nothing reads `e`'s value: no forward loop.
+        assert_eq!(out.matches("for ").count(), 2, "{out}");
     }
 
     #[test]
