@@ -399,7 +399,9 @@ impl<'a> Adjoint<'a> {
         let mut out = TokenStream::new();
         for stmt in stmts {
             let defined: Vec<(LocalId, usize)> = match stmt {
-                Stmt::Let { bindings, .. } => bindings.iter().filter_map(|binding| binding.local).map(|l| (l, 0)).collect(),
+                Stmt::Let { bindings, .. } => {
+                    bindings.iter().filter_map(|binding| binding.local).map(|l| (l, 0)).collect()
+                }
                 Stmt::Expr { expr, .. } => match &expr.kind {
                     ExprKind::Assign { place, op: None, .. } => match place.kind {
                         ExprKind::Local(id, _) => vec![(id, self.version(expr))],
@@ -941,7 +943,10 @@ impl Rule {
             Rule::Powi => {
                 let n = &args[0];
                 // `0 · x⁻¹` would be NaN at `x = 0`.
-                vec![Some(quote!(match #n { 0 => 0.0f64, 1 => 1.0f64, n => f64::from(n) * f64::powi(#x, n - 1) })), None]
+                vec![
+                    Some(quote!(match #n { 0 => 0.0f64, 1 => 1.0f64, n => f64::from(n) * f64::powi(#x, n - 1) })),
+                    None,
+                ]
             }
             Rule::Powf => {
                 let c = &args[0];
@@ -1085,21 +1090,63 @@ mod tests {
     fn outside_the_subset_there_is_no_gradient() {
         let refused: [syn::Block; 10] = [
             parse_quote!({ if self.on { q[0] } else { 0.0 } }),
-            parse_quote!({ let mut s = q[0]; s *= q[1]; s }),
+            parse_quote!({
+                let mut s = q[0];
+                s *= q[1];
+                s
+            }),
             // A value carried into the next iteration, or out of the loop.
-            parse_quote!({ let mut s = 0.0; let mut left = 0.0; for i in 0..3 { s += q[i] * left; left = q[i]; } s }),
-            parse_quote!({ let mut d = 0.0; for i in 0..3 { d = q[i]; } d * d }),
+            parse_quote!({
+                let mut s = 0.0;
+                let mut left = 0.0;
+                for i in 0..3 {
+                    s += q[i] * left;
+                    left = q[i];
+                }
+                s
+            }),
+            parse_quote!({
+                let mut d = 0.0;
+                for i in 0..3 {
+                    d = q[i];
+                }
+                d * d
+            }),
             // An accumulator read inside a loop: iterations depend on each other.
-            parse_quote!({ let mut s = 1.0; for i in 0..3 { s += s * q[i]; } s }),
+            parse_quote!({
+                let mut s = 1.0;
+                for i in 0..3 {
+                    s += s * q[i];
+                }
+                s
+            }),
             // An active exponent.
             parse_quote!({ self.b.powf(q[0]) }),
             // A mutable local inside a loop.
-            parse_quote!({ let mut s = 0.0; for i in 0..3 { let mut x = q[i]; x += 1.0; s += x; } s }),
+            parse_quote!({
+                let mut s = 0.0;
+                for i in 0..3 {
+                    let mut x = q[i];
+                    x += 1.0;
+                    s += x;
+                }
+                s
+            }),
             // Active arrays.
-            parse_quote!({ let x = [q[0], q[1]]; x[0] * x[1] }),
+            parse_quote!({
+                let x = [q[0], q[1]];
+                x[0] * x[1]
+            }),
             // A block and a `return`.
-            parse_quote!({ { let a = q[0]; a * a } }),
-            parse_quote!({ return q[0]; }),
+            parse_quote!({
+                {
+                    let a = q[0];
+                    a * a
+                }
+            }),
+            parse_quote!({
+                return q[0];
+            }),
         ];
         for body in refused {
             let text = body.to_token_stream().to_string();

@@ -103,7 +103,9 @@ impl Zoo {
             }
         }
         l + (q[0] * 0.1).asin() + (q[1] * 0.1).acos() + (q[2] * 0.1).atanh() + (2.0 + q[0] * q[0]).acosh()
-            - (1.0 + q[1] * q[1]).log2() * (1.0 + q[2] * q[2]).log10() + q[0].exp2() - (q[1] * 0.2).ln_1p()
+            - (1.0 + q[1] * q[1]).log2() * (1.0 + q[2] * q[2]).log10()
+            + q[0].exp2()
+            - (q[1] * 0.2).ln_1p()
     }
 }
 
@@ -187,7 +189,8 @@ impl Rng {
 /// independent evaluation of the same body.
 fn dual_gradient<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], v: &[f64; N]) -> [f64; N] {
     core::array::from_fn(|i| {
-        let qd: [Dual64; N] = core::array::from_fn(|j| if i == j { Dual64::new(q[j], 1.0) } else { Dual64::from(q[j]) });
+        let qd: [Dual64; N] =
+            core::array::from_fn(|j| if i == j { Dual64::new(q[j], 1.0) } else { Dual64::from(q[j]) });
         system.lagrangian(Dual64::from(t), qd, v.map(Dual64::from)).eps
     })
 }
@@ -308,12 +311,7 @@ impl<S: Lagrangian<N>, const N: usize> Lagrangian<N> for DualOnly<S> {
 
 /// Largest difference of `q` and `p` over `n` explicit trapezoid steps with
 /// the generated and with the dual gradient.
-fn compare<S: Lagrangian<N>, const N: usize>(
-    system: impl Fn() -> S,
-    q0: [f64; N],
-    h: f64,
-    n: usize,
-) -> f64 {
+fn compare<S: Lagrangian<N>, const N: usize>(system: impl Fn() -> S, q0: [f64; N], h: f64, n: usize) -> f64 {
     assert!(S::HAS_GRADIENT && S::SEPARABILITY == Separability::ConstantMass);
     let mut generated = Integrator::new(system(), Trapezoid, h).start(0.0, q0, [0.0; N]).unwrap();
     let mut dual = Integrator::new(DualOnly(system()), Trapezoid, h).start(0.0, q0, [0.0; N]).unwrap();
