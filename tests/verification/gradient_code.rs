@@ -251,18 +251,29 @@ fn generated_gradients_agree_with_dual_numbers_at_random_states() {
     }
 }
 
+/// `HAS_GRADIENT` of a const-size system.
+fn has_gradient<S: Lagrangian<N>, const N: usize>() -> bool {
+    S::HAS_GRADIENT
+}
+
 #[test]
 fn the_macro_says_which_systems_got_gradient_code() {
-    assert!(<common::Pendulum as Lagrangian<1>>::HAS_GRADIENT);
-    assert!(<Fpu<16> as Lagrangian<16>>::HAS_GRADIENT);
-    assert!(<CoupledPendula<4> as Lagrangian<4>>::HAS_GRADIENT);
-    assert!(<Zoo as Lagrangian<3>>::HAS_GRADIENT);
-    assert!(<DynChain as DynLagrangian>::HAS_GRADIENT);
-    // A borrowed system forwards it.
-    assert!(<&Kepler as Lagrangian<2>>::HAS_GRADIENT);
-    // Outside the subset: no gradient code, the dual path stays.
-    assert!(!<CarriedChain<4> as Lagrangian<4>>::HAS_GRADIENT);
-    assert!(!<Switched as Lagrangian<1>>::HAS_GRADIENT);
+    let systems = [
+        ("pendulum", has_gradient::<common::Pendulum, 1>(), true),
+        ("FPU-β", has_gradient::<Fpu<16>, 16>(), true),
+        ("coupled pendula", has_gradient::<CoupledPendula<4>, 4>(), true),
+        ("method zoo", has_gradient::<Zoo, 3>(), true),
+        ("run-time-sized chain", <DynChain as DynLagrangian>::HAS_GRADIENT, true),
+        // A borrowed system forwards it.
+        ("&Kepler", has_gradient::<&Kepler, 2>(), true),
+        // Outside the subset: no gradient code, the dual path stays.
+        ("value carried across iterations", has_gradient::<CarriedChain<4>, 4>(), false),
+        ("branch", has_gradient::<Switched, 1>(), false),
+    ];
+    for (name, got, expected) in systems {
+        println!("{name}: gradient code {got}");
+        assert_eq!(got, expected, "{name}");
+    }
     // The default `gradient_q` is the dual path itself.
     let (q, v) = ([0.3, -0.2, 0.9, 0.1], [0.5, 0.1, -0.4, 0.2]);
     let mut out = [0.0; 4];
