@@ -118,15 +118,19 @@ pub trait Lagrangian<const N: usize> {
     /// `∂L/∂q(t, q, v)`, written into `out`: what the explicit
     /// Störmer–Verlet path needs per step (`−∇V` for a separable `L`).
     ///
-    /// The default evaluates [`lagrangian`](Self::lagrangian) once on
-    /// array dual numbers seeded on `q`; `#[lagrangian]` overrides it with
-    /// generated adjoint code where it can ([`HAS_GRADIENT`](Self::HAS_GRADIENT)).
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on a dual
+    /// number seeded on each `q[i]` in turn (`N` evaluations; the runtime's
+    /// explicit path evaluates the body once on array duals instead when
+    /// [`HAS_GRADIENT`](Self::HAS_GRADIENT) is false). `#[lagrangian]`
+    /// overrides it with generated adjoint code where it can.
     #[inline(always)]
     fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
-        use crate::hyperdual::DualArray;
-        let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
-        let l = self.lagrangian(DualArray::from_re(t), qd, v.map(DualArray::from_re));
-        *out = l.eps;
+        let (t, v) = (Dual::from_re(t), v.map(Dual::from_re));
+        for i in 0..N {
+            let mut qd = q.map(Dual::from_re);
+            qd[i].eps = 1.0;
+            out[i] = self.lagrangian(t, qd, v).eps;
+        }
     }
 }
 
@@ -214,18 +218,18 @@ pub trait DynLagrangian {
     /// `∂L/∂q(t, q, v)` written into `out`, all four of length
     /// `self.dimension()`.
     ///
-    /// The default records `L` on a reverse-mode tape; the runtime calls
-    /// this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is set and uses
-    /// its own tape otherwise. If the tape cannot record `L` (a length that
-    /// does not match), `out` is filled with NaN, which the integrators
-    /// report as a non-finite step.
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on a dual
+    /// number seeded on each `q[i]` in turn (`n` evaluations of `L`); the
+    /// runtime calls this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is
+    /// set and records `L` on its tape otherwise.
     fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        use crate::tape::{Tape, Var};
-        let vc: Vec<Var> = v.iter().map(|&x| Var::constant(x)).collect();
-        let mut tape = Tape::new();
-        let recorded = tape.record(q, |x: &[Var]| self.lagrangian(Var::constant(t), x, &vc));
-        if recorded.and_then(|_| tape.gradient(out)).is_err() {
-            out.fill(f64::NAN);
+        let t = Dual::from_re(t);
+        let v: Vec<Dual<f64>> = v.iter().map(|&x| Dual::from_re(x)).collect();
+        let mut qd: Vec<Dual<f64>> = q.iter().map(|&x| Dual::from_re(x)).collect();
+        for (i, out) in out.iter_mut().enumerate().take(q.len()) {
+            qd[i].eps = 1.0;
+            *out = self.lagrangian(t, &qd, &v).eps;
+            qd[i].eps = 0.0;
         }
     }
 }

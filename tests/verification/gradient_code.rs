@@ -274,7 +274,7 @@ fn the_macro_says_which_systems_got_gradient_code() {
         println!("{name}: gradient code {got}");
         assert_eq!(got, expected, "{name}");
     }
-    // The default `gradient_q` is the dual path itself.
+    // The default `gradient_q` evaluates dual numbers, one direction at a time.
     let (q, v) = ([0.3, -0.2, 0.9, 0.1], [0.5, 0.1, -0.4, 0.2]);
     let mut out = [0.0; 4];
     CarriedChain::<4>.gradient_q(0.0, &q, &v, &mut out);

@@ -250,12 +250,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the
     /// adjoint code `#[lagrangian]` wrote out where it could
     /// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
-    /// evaluation (the trait's default).
+    /// evaluation.
     #[inline(always)]
     fn potential_force(&self, t: f64, q: [f64; N]) -> [f64; N] {
-        let mut f = [0.0; N];
-        self.system.gradient_q(t, &q, &[0.0; N], &mut f);
-        f
+        use crate::hyperdual::DualArray;
+        if S::HAS_GRADIENT {
+            let mut f = [0.0; N];
+            self.system.gradient_q(t, &q, &[0.0; N], &mut f);
+            return f;
+        }
+        let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+        let l = self.system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
+        l.eps
     }
 
     /// One step of the trapezoid rule on `L = ½ vᵀMv − V(t, q)` with constant
