@@ -26,7 +26,6 @@ use std::time::{Duration, Instant};
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
-use lagrangian::{Coupling, Pattern, Separability};
 
 struct Fpu<const N: usize>;
 
@@ -166,37 +165,37 @@ fn scaling(c: &mut Criterion) {
     );
 }
 
-/// The same chain, sized at run time.
+/// The same chain, sized at run time, through `#[lagrangian]` over slices
+/// (the macro writes out its gradient for the explicit path).
 struct DynFpu(usize);
 
-impl DynLagrangian for DynFpu {
-    const AUTONOMOUS: bool = true;
-    const SEPARABILITY: Separability = Separability::ConstantMass;
-    const COUPLING: Coupling =
-        Coupling { q_q: Pattern::Banded { bandwidth: 1 }, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
-
+#[lagrangian]
+impl DynFpu {
     fn dimension(&self) -> usize {
         self.0
     }
 
-    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
         let n = q.len();
-        let spring = |d: D| d * d * 0.5 + d.powi(4) * (0.25 * BETA);
-        let mut kinetic = D::zero();
-        for x in v {
-            kinetic += *x * *x * 0.5;
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
         }
-        let mut potential = spring(q[0]) + spring(q[n - 1]);
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * BETA * d.powi(4);
         for i in 0..n - 1 {
-            potential += spring(q[i + 1] - q[i]);
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
         }
+        d = q[n - 1];
+        potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
         kinetic - potential
     }
 }
 
-/// `(trapezoid, midpoint)` seconds per step of the run-time-sized chain of
-/// `n` masses, `steps` steps per timed run.
-fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64, f64) {
+/// `(trapezoid, midpoint, hand-written Verlet)` seconds per step of the
+/// run-time-sized chain of `n` masses, `steps` steps per timed run.
+fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64, f64, f64) {
     let k = n.div_ceil(10);
     let a = 0.3 * (n + 1) as f64 / (k as f64 * std::f64::consts::PI);
     let q0: Vec<f64> =
@@ -204,6 +203,13 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
     let v0 = vec![0.0; n];
     let mut explicit = DynIntegrator::new(DynFpu(n), Trapezoid, H).start(0.0, &q0, &v0).unwrap();
     let mut implicit = DynIntegrator::new(DynFpu(n), Midpoint, H).start(0.0, &q0, &v0).unwrap();
+    let mut verlet = Verlet::new(&q0);
+    let mut hand = move || {
+        for _ in 0..steps {
+            verlet.step(H);
+        }
+        black_box(verlet.q[0]);
+    };
     let mut trapezoid = move || {
         explicit.run(steps, |_| {}).unwrap();
         black_box(explicit.state().q[0]);
@@ -216,6 +222,7 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
     g.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
     g.bench_function("trapezoid (explicit)", |b| b.iter(&mut trapezoid));
     g.bench_function("midpoint (banded Newton)", |b| b.iter(&mut midpoint));
+    g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
     g.finish();
     let per_step = |repeats: usize, run: &mut dyn FnMut()| {
         (0..repeats)
@@ -226,7 +233,7 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
             })
             .fold(f64::INFINITY, f64::min)
     };
-    (per_step(repeats, &mut trapezoid), per_step(repeats, &mut midpoint))
+    (per_step(repeats, &mut trapezoid), per_step(repeats, &mut midpoint), per_step(5 * repeats, &mut hand))
 }
 
 /// `VmHWM` of this process from `/proc/self/status`, if readable.
@@ -238,14 +245,14 @@ fn peak_memory() -> Option<String> {
 fn dyn_scaling(c: &mut Criterion) {
     // (N, steps per timed run, repeats)
     let sizes = [(100, 20, 20), (1_000, 20, 10), (10_000, 10, 5), (100_000, 2, 3)];
-    let rows: Vec<(f64, f64)> = sizes.iter().map(|&(n, steps, repeats)| dyn_costs(c, n, steps, repeats)).collect();
+    let rows: Vec<(f64, f64, f64)> = sizes.iter().map(|&(n, steps, repeats)| dyn_costs(c, n, steps, repeats)).collect();
     println!("\nrun-time-sized FPU-β chain (DynIntegrator), µs per step (best of repeated runs):");
-    println!("{:>7} {:>12} {:>12}", "N", "trapezoid", "midpoint");
-    for (&(n, _, _), (t, m)) in sizes.iter().zip(&rows) {
-        println!("{n:>7} {:>12.2} {:>12.2}", t * 1e6, m * 1e6);
+    println!("{:>7} {:>12} {:>12} {:>12} {:>10}", "N", "trapezoid", "midpoint", "hand Verlet", "trap/hand");
+    for (&(n, _, _), (t, m, h)) in sizes.iter().zip(&rows) {
+        println!("{n:>7} {:>12.2} {:>12.2} {:>12.3} {:>10.2}", t * 1e6, m * 1e6, h * 1e6, t / h);
     }
     let n: Vec<f64> = sizes.iter().map(|s| s.0 as f64).collect();
-    let (t, m): (Vec<f64>, Vec<f64>) = rows.into_iter().unzip();
+    let (t, m): (Vec<f64>, Vec<f64>) = rows.into_iter().map(|(t, m, _)| (t, m)).unzip();
     println!(
         "fitted cost exponent in N (100 … 100 000): trapezoid {:.2}, midpoint {:.2}",
         slope(&n, &t),

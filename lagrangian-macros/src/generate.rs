@@ -38,6 +38,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
         .chain(&system.dissipation)
         .chain(&system.force)
         .map(|function| method(function, Some(&n)));
+    let gradient = crate::adjoint::method(&system.lagrangian, Some(&n));
     let step_density = system.step_density.as_ref().map(|function| {
         let density = density_method(function, &n);
         let time_dependent = function.time.is_some();
@@ -67,6 +68,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             #symmetries
             #structure
             #(#methods)*
+            #gradient
         }
 
         #step_density
@@ -90,6 +92,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
     let (separability, coupling) = (&structure.separability, &structure.coupling);
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
     let lagrangian = method(&system.lagrangian, None);
+    let gradient = crate::adjoint::method(&system.lagrangian, None);
     quote! {
         #user_impl
 
@@ -108,6 +111,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
                 Self::dimension(self)
             }
             #lagrangian
+            #gradient
         }
     }
 }
@@ -749,7 +753,13 @@ mod tests {
         let mut system = crate::validate::validate(&cx, &Input::from_syn(item)).unwrap();
         let analysis = crate::analyse::analyse(&cx, &mut system);
         cx.check().unwrap();
-        expand(item, &system, &analysis, &Args::default()).to_string()
+        let out = expand(item, &system, &analysis, &Args::default()).to_string();
+        // The generated gradient, the impl's last item, has its own tests
+        // (`adjoint.rs`); the expectations here end with `lagrangian`.
+        match out.find("const HAS_GRADIENT") {
+            Some(i) => format!("{}}}", &out[..i]),
+            None => out,
+        }
     }
 
     /// The generated `lagrangian` body for a one-coordinate Lagrangian.

@@ -14,6 +14,7 @@
 //! turn; errors accumulate in a `ctxt::Ctxt` so that all of them are
 //! reported at once.
 
+mod adjoint;
 mod analyse;
 mod attr;
 mod chains;

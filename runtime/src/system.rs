@@ -107,6 +107,31 @@ pub trait Lagrangian<const N: usize> {
         let _ = (t, q, v);
         [D::zero(); N]
     }
+
+    /// `true` when [`gradient_q`](Self::gradient_q) is plain `f64` code
+    /// written for this system: `#[lagrangian]` sets it when it could
+    /// transform the body into reverse-mode (adjoint) code, whose cost is a
+    /// small multiple of one evaluation of `L` instead of `N` derivative
+    /// components carried through every operation.
+    const HAS_GRADIENT: bool = false;
+
+    /// `∂L/∂q(t, q, v)`, written into `out`: what the explicit
+    /// Störmer–Verlet path needs per step (`−∇V` for a separable `L`).
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on a dual
+    /// number seeded on each `q[i]` in turn (`N` evaluations; the runtime's
+    /// explicit path evaluates the body once on array duals instead when
+    /// [`HAS_GRADIENT`](Self::HAS_GRADIENT) is false). `#[lagrangian]`
+    /// overrides it with generated adjoint code where it can.
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
+        let (t, v) = (Dual::from_re(t), v.map(Dual::from_re));
+        for i in 0..N {
+            let mut qd = q.map(Dual::from_re);
+            qd[i].eps = 1.0;
+            out[i] = self.lagrangian(t, qd, v).eps;
+        }
+    }
 }
 
 /// A borrowed system is the same system (the integrator borrows it to run a
@@ -135,6 +160,13 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn force<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> [D; N] {
         (**self).force(t, q, v)
+    }
+
+    const HAS_GRADIENT: bool = S::HAS_GRADIENT;
+
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
+        (**self).gradient_q(t, q, v, out);
     }
 }
 
@@ -178,6 +210,28 @@ pub trait DynLagrangian {
 
     /// The Lagrangian `L(t, q, v)` with `q.len() == v.len() == self.dimension()`.
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
+
+    /// `true` when [`gradient_q`](Self::gradient_q) is generated adjoint
+    /// code (see [`Lagrangian::HAS_GRADIENT`]).
+    const HAS_GRADIENT: bool = false;
+
+    /// `∂L/∂q(t, q, v)` written into `out`, all four of length
+    /// `self.dimension()`.
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on a dual
+    /// number seeded on each `q[i]` in turn (`n` evaluations of `L`); the
+    /// runtime calls this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is
+    /// set and records `L` on its tape otherwise.
+    fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let t = Dual::from_re(t);
+        let v: Vec<Dual<f64>> = v.iter().map(|&x| Dual::from_re(x)).collect();
+        let mut qd: Vec<Dual<f64>> = q.iter().map(|&x| Dual::from_re(x)).collect();
+        for (i, out) in out.iter_mut().enumerate().take(q.len()) {
+            qd[i].eps = 1.0;
+            *out = self.lagrangian(t, &qd, &v).eps;
+            qd[i].eps = 0.0;
+        }
+    }
 }
 
 /// A borrowed run-time-sized system is the same system.
@@ -195,6 +249,13 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         (**self).lagrangian(t, q, v)
+    }
+
+    const HAS_GRADIENT: bool = S::HAS_GRADIENT;
+
+    #[inline(always)]
+    fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        (**self).gradient_q(t, q, v, out);
     }
 }
 

@@ -24,6 +24,7 @@ mod galerkin_order;
 mod galerkin_order_extended;
 mod galerkin_paper;
 mod galerkin_structure;
+mod gradient_code;
 mod noether;
 mod perturbed_pendulum;
 mod structure;

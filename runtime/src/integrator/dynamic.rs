@@ -226,6 +226,13 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
             (self.at(c1, t0, h, q0, dq, &v) + self.at(c2, t0, h, q0, dq, &v)) * (h * 0.5)
         }
     }
+
+    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+        if S::HAS_GRADIENT {
+            self.system.gradient_q(t, q, &vec![0.0; q.len()], out);
+        }
+        S::HAS_GRADIENT
+    }
 }
 
 /// Configuration of a [`DynIntegrator`] before it is given its initial

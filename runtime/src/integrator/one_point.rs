@@ -247,11 +247,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     const EXPLICIT: bool =
         M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass() && !S::HAS_FORCE && !S::HAS_DISSIPATION;
 
-    /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, from one
-    /// first-order array-dual evaluation.
+    /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the
+    /// adjoint code `#[lagrangian]` wrote out where it could
+    /// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
+    /// evaluation.
     #[inline(always)]
     fn potential_force(&self, t: f64, q: [f64; N]) -> [f64; N] {
         use crate::hyperdual::DualArray;
+        if S::HAS_GRADIENT {
+            let mut f = [0.0; N];
+            self.system.gradient_q(t, &q, &[0.0; N], &mut f);
+            return f;
+        }
         let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
         let l = self.system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
         l.eps

@@ -145,6 +145,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         let (q0, dq): ([Var; N], [Var; N]) = (core::array::from_fn(|i| q0[i]), core::array::from_fn(|i| dq[i]));
         self.method.action(self.system, t0, h, q0, dq)
     }
+
+    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+        let (Ok(q), Ok(out)) = (<&[f64; N]>::try_from(q), <&mut [f64; N]>::try_from(out)) else { return false };
+        if S::HAS_GRADIENT {
+            self.system.gradient_q(t, q, &[0.0; N], out);
+        }
+        S::HAS_GRADIENT
+    }
 }
 
 /// A slice of length `N` as an array.

@@ -36,6 +36,13 @@ pub(crate) trait TapeModel {
     fn lagrangian(&self, t: Var, q: &[Var], v: &[Var]) -> Var;
     /// The step action `A(t0, h, q0, dq)` of the discrete Lagrangian.
     fn action(&self, t0: Var, h: Var, q0: &[Var], dq: &[Var]) -> Var;
+    /// `∂L/∂q(t, q, 0)` into `out` from the system's generated adjoint code,
+    /// returning `true`; `false` (nothing written) when it has none and the
+    /// tape must be used.
+    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+        let _ = (t, q, out);
+        false
+    }
 }
 
 /// The bandwidth of the step Jacobian `∂²A/∂q_k∂q_{k+1}` (and of `∂²L/∂v²`),
@@ -482,6 +489,9 @@ fn potential_force<Mo: TapeModel>(
     q: &[f64],
     out: &mut [f64],
 ) -> Result<(), TapeError> {
+    if model.gradient_q(t, q, out) {
+        return Ok(());
+    }
     let zero = vec![Var::constant(0.0); q.len()];
     tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero))?;
     tape.gradient(out)

@@ -1,0 +1,1201 @@
+//! The gradient `∂L/∂q` written out in plain `f64`: a reverse-mode (adjoint)
+//! source transformation of the analysed body of `fn lagrangian`.
+//!
+//! The explicit Störmer–Verlet path of the runtime needs only `∂L/∂q` per
+//! step. Evaluated on an array dual number, every operation of the body
+//! carries `N` derivative components (`O(N²)` for a body of `O(N)`
+//! operations); the adjoint code here costs a small multiple of one plain
+//! evaluation, as reverse mode does, without a tape.
+//!
+//! The code is a forward sweep that binds every active intermediate to a
+//! temporary, then a reverse sweep that propagates adjoints from the value of
+//! `L` down to the leaves `q[i]`. Expression trees need no accumulation (each
+//! node has one parent); locals and `q[i]` accumulate. Loops are handled
+//! without a tape by what the accepted subset guarantees: a loop body only
+//! binds its own immutable locals and adds to accumulators declared outside
+//! every loop (`s += e`, `s -= e`), which it never reads. Its iterations
+//! are then independent, and the adjoint of an accumulator is the same at
+//! every iteration (the update is linear), so the reverse sweep is one more
+//! loop over the same range that recomputes the body's intermediates and
+//! propagates their adjoints. The forward loop is kept only when the
+//! reverse sweep reads the value of one of its accumulators (`s * s`), not
+//! when the Lagrangian only returns it.
+//!
+//! Anything outside the subset — `if`, blocks, `return`, arrays of active
+//! values, assignments other than accumulation, an accumulator read inside a
+//! loop, an active `powf` exponent — yields no gradient code, and the
+//! runtime keeps its dual-number path. Nothing is ever approximated.
+
+use crate::ir::{Block, Expr, ExprKind, Function, LetBinding, LocalId, Math, ParamRef, Stmt};
+use proc_macro2::{Span, TokenStream};
+use quote::{ToTokens, format_ident, quote};
+use std::collections::HashMap;
+use syn::{BinOp, Type, UnOp};
+
+/// The statements of `gradient_q(&self, __t, __q, __v, __out)`: they write
+/// `∂L/∂q(t, q, v)` into `__out`. `None` when the body is outside the
+/// subset this stage differentiates.
+pub(crate) fn gradient_q(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.function_body(&function.body)
+}
+
+/// `const HAS_GRADIENT` and `fn gradient_q` for the trait impl, or nothing
+/// when the body is outside the subset. `n` is `None` for a run-time-sized
+/// system (slices).
+pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<TokenStream> {
+    let body = gradient_q(function)?;
+    let [t, q, v, out] = [name("t"), name("q"), name("v"), name("out")];
+    let (state, gradient) = match n {
+        Some(n) => (quote!(&[f64; #n]), quote!(&mut [f64; #n])),
+        None => (quote!(&[f64]), quote!(&mut [f64])),
+    };
+    let self_token = syn::Token![self](function.self_span);
+    Some(quote! {
+        const HAS_GRADIENT: bool = true;
+        #[inline]
+        fn gradient_q(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient) {
+            #body
+        }
+    })
+}
+
+fn name(s: &str) -> proc_macro2::Ident {
+    format_ident!("__{}", s, span = Span::call_site())
+}
+
+/// The state of one transformation.
+struct Adjoint<'a> {
+    function: &'a Function,
+    /// Whether each version of a local depends on `q` (conservatively).
+    depends: HashMap<(usize, usize), bool>,
+    /// The accumulators: mutable active locals declared outside every loop,
+    /// only ever changed by `+=` and `-=`.
+    accumulator: Vec<bool>,
+    /// The scratch variables: mutable active locals only ever changed by
+    /// `=`. Each assignment is a new version, a `let` of its own.
+    scratch: Vec<bool>,
+    /// The version each read of a scratch variable sees, and the version each
+    /// assignment creates, by node address.
+    versions: HashMap<*const Expr, usize>,
+    /// Accumulators whose value the reverse sweep reads.
+    needed: Vec<bool>,
+    /// The temporary of each active node, by address (stable: the IR is not
+    /// moved while this runs).
+    temps: HashMap<*const Expr, usize>,
+    /// The next adjoint temporary.
+    next_adjoint: usize,
+}
+
+impl<'a> Adjoint<'a> {
+    fn new(function: &'a Function) -> Self {
+        let n = function.locals.len();
+        Adjoint {
+            function,
+            depends: HashMap::new(),
+            accumulator: vec![false; n],
+            scratch: vec![false; n],
+            versions: HashMap::new(),
+            needed: vec![false; n],
+            temps: HashMap::new(),
+            next_adjoint: 0,
+        }
+    }
+
+    fn function_body(&mut self, block: &Block) -> Option<TokenStream> {
+        let (stmts, tail) = match block.stmts.split_last() {
+            Some((Stmt::Expr { expr, semi: false }, rest)) if !matches!(expr.kind, ExprKind::For { .. }) => {
+                (rest, expr)
+            }
+            _ => return None,
+        };
+        // Which locals are accumulators or scratch variables, and that the
+        // statements are of the subset (expressions are checked while they
+        // are printed).
+        let (mut plain, mut accumulated) = (vec![false; self.accumulator.len()], vec![false; self.accumulator.len()]);
+        block.visit(&mut |e: &Expr| {
+            if let ExprKind::Assign { place, op, .. } = &e.kind
+                && let ExprKind::Local(id, _) = place.kind
+            {
+                match op {
+                    None => plain[id.0] = true,
+                    Some(_) => accumulated[id.0] = true,
+                }
+            }
+            true
+        });
+        for stmt in stmts {
+            self.check_stmt(stmt, true, &plain, &accumulated)?;
+        }
+        if self.reads_accumulator_in_loop(stmts) {
+            return None;
+        }
+        let mut current = HashMap::new();
+        self.resolve(stmts, &mut Vec::new(), &mut current, &mut HashMap::new())?;
+        self.resolve_expr(tail, &[], &current)?;
+        // Dependence on `q`, to a fixed point: an accumulator may be read
+        // before a later accumulation makes it depend on `q`.
+        loop {
+            let before = self.depends.clone();
+            self.dependence(stmts);
+            if before == self.depends {
+                break;
+            }
+        }
+
+        // The reverse sweep first, so that it says which accumulators the
+        // forward sweep must compute.
+        let mut reverse = Vec::new();
+        reverse.push(self.declare_adjoints(stmts));
+        if tail.class.is_active() && self.depends_on_q(tail) {
+            self.reverse(tail, quote!(1.0f64), &mut reverse)?;
+        }
+        for stmt in stmts.iter().rev() {
+            self.reverse_stmt(stmt, &mut reverse)?;
+        }
+
+        let mut forward = Vec::new();
+        let mut items = Vec::new();
+        for stmt in stmts {
+            match stmt {
+                Stmt::Item(item) => items.push(item.to_token_stream()),
+                _ => self.forward_stmt(stmt, true, &mut forward)?,
+            }
+        }
+        self.forward(tail, &mut forward)?;
+        let out = name("out");
+        Some(quote! {
+            #(#items)*
+            for __x in #out.iter_mut() {
+                *__x = 0.0f64;
+            }
+            #(#forward)*
+            #(#reverse)*
+        })
+    }
+
+    /// Checks that `stmt` is of the subset; marks accumulators and scratch
+    /// variables (`plain`, `accumulated`: how each local is ever assigned).
+    fn check_stmt(&mut self, stmt: &Stmt, top: bool, plain: &[bool], accumulated: &[bool]) -> Option<()> {
+        match stmt {
+            Stmt::Let { bindings, inits, .. } => {
+                if bindings.len() != inits.len() {
+                    return None;
+                }
+                for binding in bindings {
+                    let Some(local) = binding.local else { continue };
+                    let class = self.function.locals[local.0].class;
+                    if class.is_array() && class.is_active() {
+                        return None;
+                    }
+                    if binding.mutable {
+                        // Only active scalars may be mutated, by
+                        // accumulation outside loops, or by assignment.
+                        match (plain[local.0], accumulated[local.0]) {
+                            _ if !class.is_active() => return None,
+                            (true, true) => return None,
+                            (false, true) if !top => return None,
+                            (false, true) => self.accumulator[local.0] = true,
+                            (true, false) => self.scratch[local.0] = true,
+                            (false, false) => {}
+                        }
+                    }
+                }
+                Some(())
+            }
+            Stmt::Item(_) => top.then_some(()),
+            Stmt::Expr { expr, .. } => match &expr.kind {
+                ExprKind::For { body, .. } => {
+                    body.stmts.iter().try_for_each(|stmt| self.check_stmt(stmt, false, plain, accumulated))
+                }
+                ExprKind::Assign { place, op: Some(BinOp::AddAssign(_) | BinOp::SubAssign(_)), .. } => {
+                    match place.kind {
+                        ExprKind::Local(id, _) if self.accumulator[id.0] => Some(()),
+                        _ => None,
+                    }
+                }
+                ExprKind::Assign { place, op: None, .. } => match place.kind {
+                    ExprKind::Local(id, _) if self.scratch[id.0] => Some(()),
+                    _ => None,
+                },
+                _ => None,
+            },
+        }
+    }
+
+    /// Gives every read of a scratch variable the version it sees, and every
+    /// assignment its new version. `None` when a read may see a value from
+    /// an earlier iteration of a loop (`left = q[i]` read at the next
+    /// iteration), or one assigned inside a loop that has ended.
+    /// `current`: the visible version of each scratch variable and the loop
+    /// depth of its definition (`None`: invalid); `next`: the next version.
+    fn resolve(
+        &mut self,
+        stmts: &[Stmt],
+        loops: &mut Vec<Vec<bool>>,
+        current: &mut HashMap<usize, Option<(usize, usize)>>,
+        next: &mut HashMap<usize, usize>,
+    ) -> Option<()> {
+        for stmt in stmts {
+            match stmt {
+                Stmt::Let { bindings, inits, .. } => {
+                    for (binding, init) in bindings.iter().zip(inits) {
+                        self.resolve_expr(init, loops, current)?;
+                        if let Some(local) = binding.local
+                            && self.scratch[local.0]
+                        {
+                            current.insert(local.0, Some((0, loops.len())));
+                            next.insert(local.0, 1);
+                        }
+                    }
+                }
+                Stmt::Expr { expr, .. } => match &expr.kind {
+                    ExprKind::For { body, .. } => {
+                        // The scratch variables the loop assigns, anywhere in it.
+                        let mut assigned = vec![false; self.scratch.len()];
+                        body.visit(&mut |e: &Expr| {
+                            if let ExprKind::Assign { place, op: None, .. } = &e.kind
+                                && let ExprKind::Local(id, _) = place.kind
+                            {
+                                assigned[id.0] = true;
+                            }
+                            true
+                        });
+                        loops.push(assigned);
+                        self.resolve(&body.stmts, loops, current, next)?;
+                        let assigned = loops.pop()?;
+                        for (local, _) in assigned.iter().enumerate().filter(|(_, a)| **a) {
+                            current.insert(local, None);
+                        }
+                    }
+                    ExprKind::Assign { place, op, value } => {
+                        self.resolve_expr(value, loops, current)?;
+                        let ExprKind::Local(id, _) = place.kind else { return None };
+                        if op.is_none() {
+                            let version = next.get(&id.0).copied()?;
+                            next.insert(id.0, version + 1);
+                            current.insert(id.0, Some((version, loops.len())));
+                            self.versions.insert(std::ptr::from_ref(expr), version);
+                        }
+                    }
+                    _ => return None,
+                },
+                Stmt::Item(_) => {}
+            }
+        }
+        Some(())
+    }
+
+    /// Resolves the reads of scratch variables in `expr` (see `resolve`).
+    fn resolve_expr(
+        &mut self,
+        expr: &Expr,
+        loops: &[Vec<bool>],
+        current: &HashMap<usize, Option<(usize, usize)>>,
+    ) -> Option<()> {
+        let mut ok = true;
+        let mut found = Vec::new();
+        expr.visit(&mut |e: &Expr| {
+            if let ExprKind::Local(id, _) = e.kind
+                && self.scratch[id.0]
+            {
+                match current.get(&id.0).copied().flatten() {
+                    // No loop entered since the definition assigns it.
+                    Some((version, depth)) if loops[depth..].iter().all(|assigned| !assigned[id.0]) => {
+                        found.push((std::ptr::from_ref(e), version));
+                    }
+                    _ => ok = false,
+                }
+            }
+            true
+        });
+        self.versions.extend(found);
+        ok.then_some(())
+    }
+
+    /// The version of a local a read or an assignment refers to (0 but for
+    /// scratch variables).
+    fn version(&self, expr: &Expr) -> usize {
+        self.versions.get(&std::ptr::from_ref(expr)).copied().unwrap_or(0)
+    }
+
+    fn local_depends(&self, id: LocalId, version: usize) -> bool {
+        self.depends.get(&(id.0, version)).copied().unwrap_or(false)
+    }
+
+    /// Whether a loop body reads an accumulator (its iterations would not be
+    /// independent).
+    fn reads_accumulator_in_loop(&self, stmts: &[Stmt]) -> bool {
+        let mut found = false;
+        for stmt in stmts {
+            let Stmt::Expr { expr, .. } = stmt else { continue };
+            let ExprKind::For { body, .. } = &expr.kind else { continue };
+            body.visit(&mut |e: &Expr| {
+                match &e.kind {
+                    // The place of an accumulation is written, not read.
+                    ExprKind::Assign { value, .. } => {
+                        value.visit(&mut |e: &Expr| {
+                            found |= matches!(e.kind, ExprKind::Local(id, _) if self.accumulator[id.0]);
+                            true
+                        });
+                        return false;
+                    }
+                    ExprKind::Local(id, _) if self.accumulator[id.0] => found = true,
+                    _ => {}
+                }
+                true
+            });
+        }
+        found
+    }
+
+    /// One pass of the dependence analysis over `stmts`.
+    fn dependence(&mut self, stmts: &[Stmt]) {
+        for stmt in stmts {
+            match stmt {
+                Stmt::Let { bindings, inits, .. } => {
+                    for (binding, init) in bindings.iter().zip(inits) {
+                        if let Some(local) = binding.local {
+                            let depends = self.depends_on_q(init);
+                            *self.depends.entry((local.0, 0)).or_default() |= depends;
+                        }
+                    }
+                }
+                Stmt::Expr { expr, .. } => match &expr.kind {
+                    ExprKind::For { body, .. } => self.dependence(&body.stmts),
+                    ExprKind::Assign { place, value, .. } => {
+                        if let ExprKind::Local(id, _) = place.kind {
+                            let depends = self.depends_on_q(value);
+                            *self.depends.entry((id.0, self.version(expr))).or_default() |= depends;
+                        }
+                    }
+                    _ => {}
+                },
+                Stmt::Item(_) => {}
+            }
+        }
+    }
+
+    /// Whether `expr` may depend on `q`.
+    fn depends_on_q(&self, expr: &Expr) -> bool {
+        if !expr.class.is_active() {
+            return false;
+        }
+        let mut depends = false;
+        expr.visit(&mut |e: &Expr| {
+            match &e.kind {
+                ExprKind::Param(ParamRef::Q, _) => depends = true,
+                ExprKind::Local(id, _) => depends |= self.local_depends(*id, self.version(e)),
+                _ => {}
+            }
+            !depends
+        });
+        depends
+    }
+
+    /// `let mut __a{id} = 0.0;` for the active locals `stmts` declare that
+    /// depend on `q`.
+    fn declare_adjoints(&self, stmts: &[Stmt]) -> TokenStream {
+        let mut out = TokenStream::new();
+        for stmt in stmts {
+            let defined: Vec<(LocalId, usize)> = match stmt {
+                Stmt::Let { bindings, .. } => {
+                    bindings.iter().filter_map(|binding| binding.local).map(|l| (l, 0)).collect()
+                }
+                Stmt::Expr { expr, .. } => match &expr.kind {
+                    ExprKind::Assign { place, op: None, .. } => match place.kind {
+                        ExprKind::Local(id, _) => vec![(id, self.version(expr))],
+                        _ => continue,
+                    },
+                    _ => continue,
+                },
+                Stmt::Item(_) => continue,
+            };
+            for (local, version) in defined {
+                if self.function.locals[local.0].class.is_active() && self.local_depends(local, version) {
+                    let adjoint = adjoint_name(local, version);
+                    out.extend(quote!(let mut #adjoint = 0.0f64;));
+                }
+            }
+        }
+        out
+    }
+
+    /// The forward code of one statement. `top`: outside every loop (loops
+    /// there are run only when an accumulator they add to is needed).
+    fn forward_stmt(&mut self, stmt: &Stmt, top: bool, out: &mut Vec<TokenStream>) -> Option<()> {
+        match stmt {
+            Stmt::Let { bindings, tuple, ty, inits, .. } => {
+                for (i, (binding, init)) in bindings.iter().zip(inits).enumerate() {
+                    let ty = match (ty.as_deref(), tuple) {
+                        (Some(Type::Tuple(types)), true) => types.elems.iter().nth(i),
+                        (Some(ty), false) => Some(ty),
+                        _ => None,
+                    };
+                    self.forward_let(*binding, ty, init, out)?;
+                }
+                Some(())
+            }
+            Stmt::Expr { expr, .. } => match &expr.kind {
+                ExprKind::For { var, start, limits, end, body } => {
+                    if top && !self.adds_to_needed(body) {
+                        return Some(());
+                    }
+                    let mut inner = Vec::new();
+                    for stmt in &body.stmts {
+                        self.forward_stmt(stmt, false, &mut inner)?;
+                    }
+                    let var = loop_var(var.as_ref().map(|(id, _)| *id));
+                    let (start, end) = (self.constant(start)?, self.constant(end)?);
+                    out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
+                    Some(())
+                }
+                ExprKind::Assign { place, op, value } => {
+                    let ExprKind::Local(id, _) = place.kind else { return None };
+                    let value = self.forward(value, out)?;
+                    let local = local_name(id, self.version(expr));
+                    match op {
+                        Some(op) => out.push(quote!(#local #op #value;)),
+                        // A new version of a scratch variable.
+                        None => out.push(quote!(let #local: f64 = #value;)),
+                    }
+                    Some(())
+                }
+                _ => None,
+            },
+            Stmt::Item(_) => None,
+        }
+    }
+
+    /// `let` of one binding: the value of `init` under the local's name.
+    fn forward_let(
+        &mut self,
+        binding: LetBinding,
+        ty: Option<&Type>,
+        init: &Expr,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<()> {
+        let Some(local) = binding.local else {
+            // `_`: nothing is bound; a constant is still checked to print.
+            return if init.class.is_active() { self.forward(init, out).map(drop) } else { Some(()) };
+        };
+        let name = local_name(local, 0);
+        // Scratch variables get a new name at each assignment instead.
+        let mutability = self.accumulator[local.0].then(|| quote!(mut));
+        if self.function.locals[local.0].class.is_active() {
+            let value = self.forward(init, out)?;
+            out.push(quote!(let #mutability #name: f64 = #value;));
+        } else {
+            let value = self.constant(init)?;
+            let ty = ty.map(|ty| quote!(: #ty));
+            out.push(quote!(let #mutability #name #ty = #value;));
+        }
+        Some(())
+    }
+
+    /// Whether a loop body adds to an accumulator the reverse sweep reads.
+    fn adds_to_needed(&self, body: &Block) -> bool {
+        let mut found = false;
+        body.visit(&mut |e: &Expr| {
+            if let ExprKind::Assign { place, .. } = &e.kind
+                && let ExprKind::Local(id, _) = place.kind
+            {
+                found |= self.needed[id.0];
+            }
+            true
+        });
+        found
+    }
+
+    /// The reverse code of one statement.
+    fn reverse_stmt(&mut self, stmt: &Stmt, out: &mut Vec<TokenStream>) -> Option<()> {
+        match stmt {
+            Stmt::Let { bindings, inits, .. } => {
+                for (binding, init) in bindings.iter().zip(inits).rev() {
+                    let Some(local) = binding.local else { continue };
+                    if self.local_depends(local, 0) && self.depends_on_q(init) {
+                        self.reverse(init, adjoint_name(local, 0).into_token_stream(), out)?;
+                    }
+                }
+                Some(())
+            }
+            Stmt::Expr { expr, .. } => match &expr.kind {
+                ExprKind::For { var, start, limits, end, body } => {
+                    if !self.loop_depends_on_q(body) {
+                        return Some(());
+                    }
+                    // Recompute the body's intermediates, then propagate.
+                    let mut inner = Vec::new();
+                    for stmt in &body.stmts {
+                        match stmt {
+                            Stmt::Let { .. } => self.forward_stmt(stmt, false, &mut inner)?,
+                            Stmt::Expr { expr, .. } => match &expr.kind {
+                                ExprKind::Assign { op: None, .. } => self.forward_stmt(stmt, false, &mut inner)?,
+                                ExprKind::Assign { value, .. } => drop(self.forward(value, &mut inner)?),
+                                ExprKind::For { .. } => {}
+                                _ => return None,
+                            },
+                            Stmt::Item(_) => return None,
+                        }
+                    }
+                    inner.push(self.declare_adjoints(&body.stmts));
+                    for stmt in body.stmts.iter().rev() {
+                        self.reverse_stmt(stmt, &mut inner)?;
+                    }
+                    let var = loop_var(var.as_ref().map(|(id, _)| *id));
+                    let (start, end) = (self.constant(start)?, self.constant(end)?);
+                    out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
+                    Some(())
+                }
+                ExprKind::Assign { place, op: None, value } => {
+                    let ExprKind::Local(id, _) = place.kind else { return None };
+                    let version = self.version(expr);
+                    if self.local_depends(id, version) && self.depends_on_q(value) {
+                        self.reverse(value, adjoint_name(id, version).into_token_stream(), out)?;
+                    }
+                    Some(())
+                }
+                ExprKind::Assign { place, op: Some(op), value } => {
+                    let ExprKind::Local(id, _) = place.kind else { return None };
+                    if !self.depends_on_q(value) {
+                        return Some(());
+                    }
+                    let adjoint = adjoint_name(id, 0);
+                    let g = match op {
+                        BinOp::AddAssign(_) => adjoint.into_token_stream(),
+                        BinOp::SubAssign(_) => self.bind(quote!(-#adjoint), out),
+                        _ => return None,
+                    };
+                    self.reverse(value, g, out)
+                }
+                _ => None,
+            },
+            Stmt::Item(_) => Some(()),
+        }
+    }
+
+    /// Whether anything a loop body adds or binds depends on `q`.
+    fn loop_depends_on_q(&self, body: &Block) -> bool {
+        body.stmts.iter().any(|stmt| match stmt {
+            Stmt::Let { inits, .. } => inits.iter().any(|init| self.depends_on_q(init)),
+            Stmt::Expr { expr, .. } => match &expr.kind {
+                ExprKind::For { body, .. } => self.loop_depends_on_q(body),
+                ExprKind::Assign { value, .. } => self.depends_on_q(value),
+                _ => false,
+            },
+            Stmt::Item(_) => false,
+        })
+    }
+
+    /// `let __g{k} = value;`, returning `__g{k}`.
+    fn bind(&mut self, value: TokenStream, out: &mut Vec<TokenStream>) -> TokenStream {
+        let g = format_ident!("__g{}", self.next_adjoint);
+        self.next_adjoint += 1;
+        out.push(quote!(let #g: f64 = #value;));
+        g.into_token_stream()
+    }
+
+    /// The temporary of an active node.
+    fn temp(&mut self, expr: &Expr) -> proc_macro2::Ident {
+        let next = self.temps.len();
+        let k = *self.temps.entry(std::ptr::from_ref(expr)).or_insert(next);
+        format_ident!("__t{}", k)
+    }
+
+    /// Emits the forward code of `expr` into `out`; returns its value: a
+    /// temporary when active, the constant expression otherwise.
+    fn forward(&mut self, expr: &Expr, out: &mut Vec<TokenStream>) -> Option<TokenStream> {
+        if !expr.class.is_active() {
+            return self.constant(expr);
+        }
+        let value = match &expr.kind {
+            ExprKind::Paren(inner) => return self.forward(inner, out),
+            ExprKind::Cast { expr: inner, .. } if inner.class.is_active() => {
+                // An active value is only ever cast to `f64` here: a cast to
+                // an integer is constant.
+                return self.forward(inner, out);
+            }
+            ExprKind::Param(ParamRef::Time, _) => return Some(name("t").into_token_stream()),
+            ExprKind::Index { base, index, .. } => {
+                let param = match base.kind {
+                    ExprKind::Param(ParamRef::Q, _) => name("q"),
+                    ExprKind::Param(ParamRef::V, _) => name("v"),
+                    _ => return None,
+                };
+                let index = self.constant(index)?;
+                quote!(#param[#index])
+            }
+            ExprKind::Local(id, _) => local_name(*id, self.version(expr)).into_token_stream(),
+            ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
+                let inner = self.forward(inner, out)?;
+                quote!(-#inner)
+            }
+            ExprKind::Binary { lhs, op, rhs } => {
+                if !matches!(op, BinOp::Add(_) | BinOp::Sub(_) | BinOp::Mul(_) | BinOp::Div(_)) {
+                    return None;
+                }
+                let (lhs, rhs) = (self.forward(lhs, out)?, self.forward(rhs, out)?);
+                quote!(#lhs #op #rhs)
+            }
+            ExprKind::MethodCall { receiver, method, math, args, .. } => {
+                let receiver_value = self.forward(receiver, out)?;
+                let mut values = Vec::with_capacity(args.len());
+                for arg in args {
+                    values.push(self.forward(arg, out)?);
+                }
+                Rule::of(&method.to_string(), *math, args)?;
+                let method = format_ident!("{}", method.to_string());
+                quote!(f64::#method(#receiver_value #(, #values)*))
+            }
+            _ => return None,
+        };
+        let temp = self.temp(expr);
+        out.push(quote!(let #temp: f64 = #value;));
+        Some(temp.into_token_stream())
+    }
+
+    /// The value of an active node forward code has bound, for a partial
+    /// derivative; marks the accumulators it reads as needed.
+    fn value(&mut self, expr: &Expr) -> Option<TokenStream> {
+        if !expr.class.is_active() {
+            return self.constant(expr);
+        }
+        expr.visit(&mut |e: &Expr| {
+            if let ExprKind::Local(id, _) = e.kind
+                && self.accumulator[id.0]
+            {
+                self.needed[id.0] = true;
+            }
+            true
+        });
+        Some(match &expr.kind {
+            ExprKind::Paren(inner) => return self.value(inner),
+            ExprKind::Cast { expr: inner, .. } if inner.class.is_active() => return self.value(inner),
+            ExprKind::Param(ParamRef::Time, _) => name("t").into_token_stream(),
+            _ => self.temp(expr).into_token_stream(),
+        })
+    }
+
+    /// Emits code adding `g · ∂expr/∂(leaf)` to the adjoint of every leaf of
+    /// `expr` that depends on `q`; `g` is a name or a literal.
+    fn reverse(&mut self, expr: &Expr, g: TokenStream, out: &mut Vec<TokenStream>) -> Option<()> {
+        if !self.depends_on_q(expr) {
+            return Some(());
+        }
+        match &expr.kind {
+            ExprKind::Paren(inner) => self.reverse(inner, g, out),
+            ExprKind::Cast { expr: inner, .. } => self.reverse(inner, g, out),
+            ExprKind::Index { base, index, .. } => {
+                if !matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) {
+                    return Some(());
+                }
+                let (dq, index) = (name("out"), self.constant(index)?);
+                out.push(quote!(#dq[#index] += #g;));
+                Some(())
+            }
+            ExprKind::Local(id, _) => {
+                let adjoint = adjoint_name(*id, self.version(expr));
+                out.push(quote!(#adjoint += #g;));
+                Some(())
+            }
+            ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
+                let g = self.bind(quote!(-#g), out);
+                self.reverse(inner, g, out)
+            }
+            ExprKind::Binary { lhs, op, rhs } => {
+                let (a, b) = (self.depends_on_q(lhs), self.depends_on_q(rhs));
+                match op {
+                    BinOp::Add(_) => {
+                        self.reverse(lhs, g.clone(), out)?;
+                        self.reverse(rhs, g, out)
+                    }
+                    BinOp::Sub(_) => {
+                        self.reverse(lhs, g.clone(), out)?;
+                        if b {
+                            let g = self.bind(quote!(-#g), out);
+                            self.reverse(rhs, g, out)?;
+                        }
+                        Some(())
+                    }
+                    BinOp::Mul(_) => {
+                        if a {
+                            let y = self.value(rhs)?;
+                            let g = self.bind(quote!(#g * #y), out);
+                            self.reverse(lhs, g, out)?;
+                        }
+                        if b {
+                            let x = self.value(lhs)?;
+                            let g = self.bind(quote!(#g * #x), out);
+                            self.reverse(rhs, g, out)?;
+                        }
+                        Some(())
+                    }
+                    BinOp::Div(_) => {
+                        let y = self.value(rhs)?;
+                        if a {
+                            let g = self.bind(quote!(#g / #y), out);
+                            self.reverse(lhs, g, out)?;
+                        }
+                        if b {
+                            let quotient = self.value(expr)?;
+                            let g = self.bind(quote!(-(#g * #quotient) / #y), out);
+                            self.reverse(rhs, g, out)?;
+                        }
+                        Some(())
+                    }
+                    _ => None,
+                }
+            }
+            ExprKind::MethodCall { receiver, method, math, args, .. } => {
+                let rule = Rule::of(&method.to_string(), *math, args)?;
+                let x = self.value(receiver)?;
+                let y = self.value(expr)?;
+                let mut operands = Vec::with_capacity(args.len());
+                for arg in args {
+                    operands.push(self.value(arg)?);
+                }
+                let partials = rule.partials(&x, &y, &operands);
+                let operands = std::iter::once(&**receiver).chain(args);
+                for (operand, partial) in operands.zip(partials) {
+                    if let Some(partial) = partial
+                        && self.depends_on_q(operand)
+                    {
+                        let g = self.bind(quote!(#g * (#partial)), out);
+                        self.reverse(operand, g, out)?;
+                    }
+                }
+                Some(())
+            }
+            _ => None,
+        }
+    }
+
+    /// A constant (or integer) expression, printed as the user wrote it in
+    /// `f64`, in parentheses; locals by their generated names.
+    fn constant(&self, expr: &Expr) -> Option<TokenStream> {
+        if expr.class.is_active() {
+            return None;
+        }
+        let (q, v) = (name("q"), name("v"));
+        let printed = match &expr.kind {
+            ExprKind::Lit(lit) => lit.to_token_stream(),
+            ExprKind::Path(path) => path.to_token_stream(),
+            ExprKind::SelfValue(token) => token.to_token_stream(),
+            ExprKind::Param(ParamRef::Q, _) => name("q").into_token_stream(),
+            ExprKind::Param(ParamRef::V, _) => name("v").into_token_stream(),
+            ExprKind::Param(ParamRef::Time, _) => return None,
+            ExprKind::Local(id, _) => local_name(*id, 0).into_token_stream(),
+            ExprKind::Field { base, member } => {
+                let base = self.constant(base)?;
+                quote!(#base.#member)
+            }
+            ExprKind::Index { base, index, .. } => {
+                let (base, index) = (self.constant(base)?, self.constant(index)?);
+                quote!(#base[#index])
+            }
+            ExprKind::Unary { op, expr } => {
+                let expr = self.constant(expr)?;
+                quote!(#op #expr)
+            }
+            ExprKind::Binary { lhs, op, rhs } => {
+                let (lhs, rhs) = (self.constant(lhs)?, self.constant(rhs)?);
+                quote!(#lhs #op #rhs)
+            }
+            ExprKind::Cast { expr, ty } => {
+                let expr = self.constant(expr)?;
+                quote!(#expr as #ty)
+            }
+            ExprKind::Paren(inner) => return self.constant(inner),
+            // `q.len()`: the receiver is an (active) array, the length is not.
+            ExprKind::MethodCall { receiver, math: Math::Len, .. } => match receiver.kind {
+                ExprKind::Param(ParamRef::Q, _) => quote!(#q.len()),
+                ExprKind::Param(ParamRef::V, _) => quote!(#v.len()),
+                _ => return None,
+            },
+            ExprKind::MethodCall { receiver, method, args, path, .. } => {
+                let receiver = self.constant(receiver)?;
+                let args = args.iter().map(|arg| self.constant(arg)).collect::<Option<Vec<_>>>()?;
+                match path {
+                    Some(path) => quote!(#path(#receiver #(, #args)*)),
+                    None => quote!(#receiver.#method(#(#args),*)),
+                }
+            }
+            _ => return None,
+        };
+        Some(quote!((#printed)))
+    }
+}
+
+/// The derivative rule of a supported method.
+#[derive(Clone, Copy)]
+enum Rule {
+    /// `f(x)` with `f'` a function of `x` and `y = f(x)`.
+    Unary(Unary),
+    /// `x.powi(n)`, `x.powf(c)`, `x.log(b)` with a constant second operand.
+    Powi,
+    Powf,
+    Log,
+    /// `y.atan2(x)`.
+    Atan2,
+    /// `x.mul_add(a, b)`.
+    MulAdd,
+}
+
+#[derive(Clone, Copy)]
+enum Unary {
+    Sin,
+    Cos,
+    Tan,
+    Asin,
+    Acos,
+    Atan,
+    Sinh,
+    Cosh,
+    Tanh,
+    Asinh,
+    Acosh,
+    Atanh,
+    Exp,
+    Exp2,
+    ExpM1,
+    Ln,
+    Ln1p,
+    Log2,
+    Log10,
+    Sqrt,
+    Cbrt,
+    Abs,
+    Recip,
+}
+
+impl Rule {
+    /// The rule for `receiver.method(args)`, or `None` when this stage does
+    /// not differentiate it (an active exponent, `signum`).
+    fn of(method: &str, math: Math, args: &[Expr]) -> Option<Rule> {
+        let constant_args = args.iter().all(|arg| !arg.class.is_active());
+        Some(match (math, method) {
+            (Math::Powi, _) if constant_args => Rule::Powi,
+            (Math::Powf, _) if constant_args => Rule::Powf,
+            (Math::Log, _) if constant_args => Rule::Log,
+            (Math::Uniform, "atan2") => Rule::Atan2,
+            (Math::Uniform, "mul_add") => Rule::MulAdd,
+            (Math::Plain, name) => Rule::Unary(match name {
+                "sin" => Unary::Sin,
+                "cos" => Unary::Cos,
+                "tan" => Unary::Tan,
+                "asin" => Unary::Asin,
+                "acos" => Unary::Acos,
+                "atan" => Unary::Atan,
+                "sinh" => Unary::Sinh,
+                "cosh" => Unary::Cosh,
+                "tanh" => Unary::Tanh,
+                "asinh" => Unary::Asinh,
+                "acosh" => Unary::Acosh,
+                "atanh" => Unary::Atanh,
+                "exp" => Unary::Exp,
+                "exp2" => Unary::Exp2,
+                "exp_m1" => Unary::ExpM1,
+                "ln" => Unary::Ln,
+                "ln_1p" => Unary::Ln1p,
+                "log2" => Unary::Log2,
+                "log10" => Unary::Log10,
+                "sqrt" => Unary::Sqrt,
+                "cbrt" => Unary::Cbrt,
+                "abs" => Unary::Abs,
+                "recip" => Unary::Recip,
+                _ => return None,
+            }),
+            _ => return None,
+        })
+    }
+
+    /// The partial derivatives of `y = x.method(args)` with respect to `x`
+    /// and each argument (`None`: a constant operand).
+    fn partials(self, x: &TokenStream, y: &TokenStream, args: &[TokenStream]) -> Vec<Option<TokenStream>> {
+        let unary = |d: TokenStream| vec![Some(d)];
+        match self {
+            Rule::Unary(f) => unary(match f {
+                Unary::Sin => quote!(f64::cos(#x)),
+                Unary::Cos => quote!(-f64::sin(#x)),
+                Unary::Tan => quote!(1.0f64 + #y * #y),
+                Unary::Asin => quote!(1.0f64 / f64::sqrt(1.0f64 - #x * #x)),
+                Unary::Acos => quote!(-1.0f64 / f64::sqrt(1.0f64 - #x * #x)),
+                Unary::Atan => quote!(1.0f64 / (1.0f64 + #x * #x)),
+                Unary::Sinh => quote!(f64::cosh(#x)),
+                Unary::Cosh => quote!(f64::sinh(#x)),
+                Unary::Tanh => quote!(1.0f64 - #y * #y),
+                Unary::Asinh => quote!(1.0f64 / f64::sqrt(#x * #x + 1.0f64)),
+                Unary::Acosh => quote!(1.0f64 / f64::sqrt(#x * #x - 1.0f64)),
+                Unary::Atanh => quote!(1.0f64 / (1.0f64 - #x * #x)),
+                Unary::Exp => quote!(#y),
+                Unary::Exp2 => quote!(#y * ::core::f64::consts::LN_2),
+                Unary::ExpM1 => quote!(#y + 1.0f64),
+                Unary::Ln => quote!(1.0f64 / #x),
+                Unary::Ln1p => quote!(1.0f64 / (1.0f64 + #x)),
+                Unary::Log2 => quote!(1.0f64 / (#x * ::core::f64::consts::LN_2)),
+                Unary::Log10 => quote!(1.0f64 / (#x * ::core::f64::consts::LN_10)),
+                Unary::Sqrt => quote!(0.5f64 / #y),
+                Unary::Cbrt => quote!(1.0f64 / (3.0f64 * #y * #y)),
+                // num-dual's `abs` takes the sign of the value, `+1` at zero.
+                Unary::Abs => quote!(f64::signum(#x)),
+                Unary::Recip => quote!(-(#y * #y)),
+            }),
+            Rule::Powi => {
+                let n = &args[0];
+                // `0 · x⁻¹` would be NaN at `x = 0`.
+                vec![
+                    Some(quote!(match #n { 0 => 0.0f64, 1 => 1.0f64, n => f64::from(n) * f64::powi(#x, n - 1) })),
+                    None,
+                ]
+            }
+            Rule::Powf => {
+                let c = &args[0];
+                vec![Some(quote!(if #c == 0.0f64 { 0.0f64 } else { #c * f64::powf(#x, #c - 1.0f64) })), None]
+            }
+            Rule::Log => {
+                let base = &args[0];
+                vec![Some(quote!(1.0f64 / (#x * f64::ln(#base)))), None]
+            }
+            Rule::Atan2 => {
+                // `y = x.atan2(r)` is the angle of the point `(r, x)`.
+                let r = &args[0];
+                vec![Some(quote!(#r / (#x * #x + #r * #r))), Some(quote!(-#x / (#x * #x + #r * #r)))]
+            }
+            Rule::MulAdd => {
+                vec![Some(args[0].clone()), Some(x.clone()), Some(quote!(1.0f64))]
+            }
+        }
+    }
+}
+
+/// The name of one version of a local in the generated code.
+fn local_name(id: LocalId, version: usize) -> proc_macro2::Ident {
+    format_ident!("__l{}_{}", id.0, version)
+}
+
+/// The name of the adjoint of one version of a local.
+fn adjoint_name(id: LocalId, version: usize) -> proc_macro2::Ident {
+    format_ident!("__a{}_{}", id.0, version)
+}
+
+fn loop_var(id: Option<LocalId>) -> TokenStream {
+    match id {
+        Some(id) => local_name(id, 0).into_token_stream(),
+        None => quote!(_),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ctxt::Ctxt;
+    use crate::parse::Input;
+    use syn::{ItemImpl, parse_quote};
+
+    /// The generated `gradient_q` body for `item`'s Lagrangian, as a string.
+    fn gradient(item: &ItemImpl) -> Option<String> {
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(item)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        gradient_q(&system.lagrangian).map(|body| body.to_string())
+    }
+
+    fn lagrangian(body: syn::Block) -> Option<String> {
+        gradient(&parse_quote! {
+            impl P { fn lagrangian(&self, t: f64, q: [f64; 3], v: [f64; 3]) -> f64 #body }
+        })
+    }
+
+    #[test]
+    fn straight_line_code_propagates_to_every_coordinate_it_reads() {
+        let out = lagrangian(parse_quote!({
+            let r = (q[0] * q[0] + q[1] * q[1]).sqrt();
+            0.5 * self.m * v[0] * v[0] + self.k / r - t * q[2].cos()
+        }))
+        .unwrap();
+        for write in ["__out [(0)] +=", "__out [(1)] +=", "__out [(2)] +="] {
+            assert!(out.contains(write), "{write}: {out}");
+        }
+        // The velocity term does not depend on `q`: its value is computed
+        // (it is part of `L`), but no adjoint goes through it.
+        let reverse = &out[out.find("let mut __a0_0").unwrap()..];
+        assert!(!reverse.contains(". m"), "{out}");
+        assert!(out.contains("f64 :: sqrt"), "{out}");
+        assert!(out.contains("- f64 :: sin"), "{out}");
+    }
+
+    #[test]
+    fn a_lagrangian_of_velocities_only_has_a_zero_gradient() {
+        let out = lagrangian(parse_quote!({ 0.5 * v[0] * v[0] })).unwrap();
+        assert!(!out.contains("__out [(0)] +="), "{out}");
+        assert!(out.contains("* __x = 0.0f64"), "{out}");
+    }
+
+    #[test]
+    fn loops_get_a_reverse_loop_and_no_forward_loop_when_only_the_sum_is_returned() {
+        let chain: ItemImpl = parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 0..N {
+                        l += 0.5 * v[i] * v[i];
+                    }
+                    for i in 0..N - 1 {
+                        let d = q[i + 1] - q[i];
+                        l -= 0.5 * d * d + self.beta / 4.0 * d.powi(4);
+                    }
+                    l
+                }
+            }
+        };
+        let out = gradient(&chain).unwrap();
+        // Only the potential's loop, once, in the reverse sweep.
+        assert_eq!(out.matches("for ").count(), 2, "{out}"); // zeroing `out` and the reverse loop
+        assert!(out.contains("__out [((__l2_0) + (1))] +="), "{out}");
+        assert!(out.contains("f64 :: powi"), "{out}");
+    }
+
+    #[test]
+    fn a_sum_read_nonlinearly_keeps_its_forward_loop() {
+        let out = lagrangian(parse_quote!({
+            let mut s = 0.0;
+            for i in 0..3 {
+                s += q[i] * q[i];
+            }
+            s.sqrt()
+        }))
+        .unwrap();
+        assert_eq!(out.matches("for ").count(), 3, "{out}");
+    }
+
+    #[test]
+    fn nested_loops_and_loop_locals() {
+        let out = lagrangian(parse_quote!({
+            let mut e = 0.0;
+            for i in 0..3 {
+                let x = q[i];
+                for j in 0..i {
+                    let d = x - q[j];
+                    e -= 1.0 / d.abs();
+                }
+            }
+            e
+        }))
+        .unwrap();
+        assert_eq!(out.matches("for ").count(), 3, "{out}");
+    }
+
+    #[test]
+    fn outside_the_subset_there_is_no_gradient() {
+        let refused: [syn::Block; 10] = [
+            parse_quote!({ if self.on { q[0] } else { 0.0 } }),
+            parse_quote!({
+                let mut s = q[0];
+                s *= q[1];
+                s
+            }),
+            // A value carried into the next iteration, or out of the loop.
+            parse_quote!({
+                let mut s = 0.0;
+                let mut left = 0.0;
+                for i in 0..3 {
+                    s += q[i] * left;
+                    left = q[i];
+                }
+                s
+            }),
+            parse_quote!({
+                let mut d = 0.0;
+                for i in 0..3 {
+                    d = q[i];
+                }
+                d * d
+            }),
+            // An accumulator read inside a loop: iterations depend on each other.
+            parse_quote!({
+                let mut s = 1.0;
+                for i in 0..3 {
+                    s += s * q[i];
+                }
+                s
+            }),
+            // An active exponent.
+            parse_quote!({ self.b.powf(q[0]) }),
+            // A mutable local inside a loop.
+            parse_quote!({
+                let mut s = 0.0;
+                for i in 0..3 {
+                    let mut x = q[i];
+                    x += 1.0;
+                    s += x;
+                }
+                s
+            }),
+            // Active arrays.
+            parse_quote!({
+                let x = [q[0], q[1]];
+                x[0] * x[1]
+            }),
+            // A block and a `return`.
+            parse_quote!({
+                {
+                    let a = q[0];
+                    a * a
+                }
+            }),
+            parse_quote!({
+                return q[0];
+            }),
+        ];
+        for body in refused {
+            let text = body.to_token_stream().to_string();
+            assert_eq!(lagrangian(body), None, "{text}");
+        }
+    }
+
+    #[test]
+    fn scratch_variables_assigned_before_they_are_read_get_one_name_per_assignment() {
+        let out = lagrangian(parse_quote!({
+            let mut d = q[0];
+            let mut e = d * d;
+            for i in 0..2 {
+                d = q[i + 1] - q[i];
+                e += d.powi(4);
+            }
+            d = q[2];
+            e + d * d
+        }))
+        .unwrap();
+        for version in ["let __l0_0 : f64", "let __l0_1 : f64", "let __l0_2 : f64"] {
+            assert!(out.contains(version), "{version}: {out}");
+        }
+        // Nothing reads `e`'s value: no forward loop.
+        assert_eq!(out.matches("for ").count(), 2, "{out}");
+    }
+
+    #[test]
+    fn signum_is_not_differentiated_and_powf_with_a_constant_exponent_is() {
+        assert_eq!(lagrangian(parse_quote!({ q[0].signum() * q[1] })), None);
+        let out = lagrangian(parse_quote!({ q[0].powf(self.p) + q[1].log(10.0) + q[2].mul_add(t, q[1]) })).unwrap();
+        assert!(out.contains("f64 :: powf"), "{out}");
+    }
+
+    #[test]
+    fn slices_are_supported_with_the_same_code() {
+        let out = gradient(&parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 1..q.len() {
+                        l += 0.5 * v[i] * v[i] - (q[i] - q[i - 1]).powi(2);
+                    }
+                    l
+                }
+            }
+        })
+        .unwrap();
+        assert!(out.contains("(__q . len ())"), "{out}");
+    }
+}
