@@ -281,7 +281,7 @@ where
             solved = attempt(guess, simplify, false, &mut work);
         }
         // The block the converged simplified iteration used, for the next step.
-        let jacobian = (Self::KEEPS_JACOBIAN && work.simplified && work.valid).then(|| (h, work.lu));
+        let jacobian = if Self::KEEPS_JACOBIAN && work.simplified && work.valid { Some((h, work.lu)) } else { None };
         // Every attempt counts in the iterations reported.
         let solved = match solved {
             Ok((x, mut report)) => {
