@@ -39,7 +39,7 @@
 use super::Galerkin;
 use super::linalg::BlockVector;
 use super::method::PointDerivatives;
-use super::stepper::{Nodes, linearize};
+use super::stepper::{Nodes, Work, linearize};
 use crate::error::Error;
 use crate::integrator::{Clock, Integrator};
 use crate::integrator::{EnergyFallback, StepBounds};
@@ -100,15 +100,21 @@ where
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let (e, pc) = (self.carry, self.p_carry);
         let (system, g) = (&self.system, &self.method);
-        let mut factored = None;
         let min_rcond = self.newton.min_rcond;
+        let mut work = Work::new(None);
+        let mut factored = false;
         let fixed = |x: &Nodes<N, S, T>| {
-            let (lin, lu) = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, None)?;
-            factored = Some(lu);
+            // Full Newton, the condition estimated at every iteration.
+            work.start(false, false);
+            let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, &mut work)?;
+            factored = true;
             Ok(lin)
         };
         let (x, report) = newton::solve(Nodes(d), &self.newton, fixed)?;
-        let lu = factored.ok_or(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "jacobian" })?;
+        if !factored {
+            return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "jacobian" });
+        }
+        let lu = work.lu;
         let d = x.0;
         let zero = T::zero();
         let mut border: BlockVector<N, S, T> = [[zero; N]; S];

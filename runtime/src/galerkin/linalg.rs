@@ -39,10 +39,35 @@ pub(crate) enum LuFailure {
 
 impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     /// Factors `a`.
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn factor(a: &BlockMatrix<N, S, T>) -> Result<Self, LuFailure> {
+        let mut out = Self::zeroed();
+        *out.matrix_mut() = *a;
+        out.factor_in_place()?;
+        Ok(out)
+    }
+
+    /// Storage for a matrix to be factored in place, all zero.
+    #[inline]
+    pub(crate) fn zeroed() -> Self {
         let zero = T::zero();
-        let mut out = Self { lu: *a, perm: [[0; N]; S], norm1: zero };
+        Self { lu: [[[[zero; N]; S]; N]; S], perm: [[0; N]; S], norm1: zero }
+    }
+
+    /// The matrix [`factor_in_place`](Self::factor_in_place) factors: the
+    /// Newton block is assembled here, so that it is never copied.
+    #[inline]
+    pub(crate) fn matrix_mut(&mut self) -> &mut BlockMatrix<N, S, T> {
+        &mut self.lu
+    }
+
+    /// Factors the matrix held in [`matrix_mut`](Self::matrix_mut),
+    /// overwriting it with its factors. On failure the storage holds no
+    /// usable factorisation.
+    #[inline]
+    pub(crate) fn factor_in_place(&mut self) -> Result<(), LuFailure> {
+        let zero = T::zero();
+        let out = self;
         let n = S * N;
         let perm = out.perm.as_flattened_mut();
         for (i, p) in perm.iter_mut().enumerate() {
@@ -88,7 +113,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
                 }
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     /// `x` with `A x = b`.

@@ -34,8 +34,6 @@
 //! Energy-preserving variable steps are in `energy.rs` (the step size as one
 //! more unknown of the step).
 
-use core::cell::Cell;
-
 use crate::error::Error;
 use crate::integrator::{
     F64Readouts, IMPLAUSIBLE_GROWTH, Integrator, IntegratorBuilder, Method, StepBounds, StepPolicy, implausible_growth,
@@ -223,24 +221,21 @@ where
         // steps then cost no Hessian, no assembly and no LU at all. The
         // condition estimate is made on the first factorisation of each solve.
         let cached = match &self.memory {
-            Some(LastStep { jacobian: Some((h_lu, lu)), .. }) if *h_lu == h && Self::KEEPS_JACOBIAN => Some(*lu),
+            Some(LastStep { jacobian: Some((h_lu, lu)), .. }) if *h_lu == h && Self::KEEPS_JACOBIAN => Some(lu),
             _ => None,
         };
-        let first = Cell::new(true);
-        let frozen: Cell<Option<Lu<N, S, T>>> = Cell::new(None);
-        let simplified = Cell::new(true);
-        let last_correction: Cell<Option<f64>> = Cell::new(None);
-        let linearize = |x: &Nodes<N, S, T>| {
-            let reuse = if simplified.get() { frozen.take() } else { None };
-            let check = if reuse.is_none() && first.replace(false) { min_rcond } else { 0.0 };
-            let (lin, lu) = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, check, reuse.as_ref())?;
-            if simplified.get() {
-                frozen.set(Some(lu));
+        let cached_lu = cached.is_some();
+        // One factorisation in place for all attempts of the step: the block
+        // (1.2 kB at sN = 12) is never moved through the iteration.
+        let mut work = Work::new(cached.copied());
+        let linearize = |x: &Nodes<N, S, T>, work: &mut Work<N, S, T>| {
+            let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, work)?;
+            if work.simplified {
                 // A frozen Jacobian that contracts slowly (a large step, a poor
                 // guess) is refreshed at the next iterate.
                 let size = max_abs(lin.correction.0.as_flattened());
-                if last_correction.replace(Some(size)).is_some_and(|last| size > 0.05 * last) {
-                    frozen.set(None);
+                if work.last_correction.replace(size).is_some_and(|last| size > 0.05 * last) {
+                    work.valid = false;
                 }
             }
             Ok(lin)
@@ -252,26 +247,23 @@ where
         // It is held to a tolerance 100 times tighter, which costs about one
         // more gradient iteration and leaves the error at round-off.
         let kept_options = NewtonOptions { rtol: self.newton.rtol * 1e-2, ..self.newton };
-        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, start: Option<Lu<N, S, T>>| {
-            let options = if start.is_some() { &kept_options } else { &self.newton };
-            first.set(true);
-            frozen.set(start);
-            last_correction.set(None);
-            simplified.set(simplify);
-            newton::solve(Nodes(guess), options, &linearize)
+        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<N, S, T>| {
+            let options = if kept { &kept_options } else { &self.newton };
+            work.start(simplify, kept);
+            newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>| linearize(x, work))
         };
         let predicted = self.predict_nodes(h);
         let mut spent = 0;
         // (Degree 1 has a single block: full Newton is cheaper there, measured
         // 148 against 222 ns per pendulum step.)
-        let mut solved = attempt(predicted, S >= 2, cached);
+        let mut solved = attempt(predicted, S >= 2, cached_lu, &mut work);
         // A kept Jacobian that did not converge: the usual ladder, from a
         // simplified iteration with this step's own Jacobian.
-        if cached.is_some() && solved.is_err() {
+        if cached_lu && solved.is_err() {
             if let Err(failure) = &solved {
                 spent += failure.iterations();
             }
-            solved = attempt(predicted, true, None);
+            solved = attempt(predicted, true, false, &mut work);
         }
         for (guess, simplify) in [(None, false), (Some(()), false)] {
             let Err(failure) = &solved else { break };
@@ -286,10 +278,10 @@ where
                     g.control.map(|tau| v.map(|v| v * tau * h))
                 }
             };
-            solved = attempt(guess, simplify, None);
+            solved = attempt(guess, simplify, false, &mut work);
         }
         // The block the converged simplified iteration used, for the next step.
-        let jacobian = if Self::KEEPS_JACOBIAN && simplified.get() { frozen.take().map(|lu| (h, lu)) } else { None };
+        let jacobian = if Self::KEEPS_JACOBIAN && work.simplified && work.valid { Some((h, work.lu)) } else { None };
         // Every attempt counts in the iterations reported.
         let solved = match solved {
             Ok((x, mut report)) => {
@@ -673,8 +665,8 @@ pub(super) fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     (p0, pc): (&[T; N], &[T; N]),
     d: &BlockVector<N, S, T>,
     min_rcond: f64,
-    frozen: Option<&Lu<N, S, T>>,
-) -> Result<(Linearization<Nodes<N, S, T>>, Lu<N, S, T>), Breakdown>
+    work: &mut Work<N, S, T>,
+) -> Result<Linearization<Nodes<N, S, T>>, Breakdown>
 where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
@@ -685,7 +677,14 @@ where
     // Size of the terms that cancel in each block row.
     let mut scale = [0.0; S];
     scale[0] = max_abs(p0);
-    let mut jac: BlockMatrix<N, S, T> = [[[[zero; N]; S]; N]; S];
+    // The Jacobian only where the iteration needs a new one; assembled in
+    // place into the factorisation's storage.
+    let frozen = work.simplified && work.valid;
+    let check = core::mem::replace(&mut work.check, false) && !frozen;
+    let jac: &mut BlockMatrix<N, S, T> = work.lu.matrix_mut();
+    if !frozen {
+        *jac = [[[[zero; N]; S]; N]; S];
+    }
     let mut direct = [zero; N];
     let mut grad: BlockVector<N, S, T> = [[zero; N]; S];
     // Discrete forces on the nodes Q_0 … Q_{s−1} (the last node's, F^s, only
@@ -696,11 +695,11 @@ where
         let (t, q, v) = g.point(t0, h, base, d, j);
         // The Hessian only when the Jacobian is to be assembled.
         let (lq, lv, pd) = match frozen {
-            Some(_) => {
+            true => {
                 let (lq, lv) = gradient_at(system, t, q, v);
                 (lq, lv, None)
             }
-            None => {
+            false => {
                 let pd = PointDerivatives::at(system, t, q, v);
                 (pd.q, pd.v, Some(pd))
             }
@@ -711,8 +710,8 @@ where
         // h b_j ℓ_m(c_j) F_j on node m (Fu, Dai & Tang's discrete forces, through
         // the basis); with the Jacobian, their derivatives in the unknowns.
         let force = forced.then(|| match frozen {
-            Some(_) => (generalized_force(system, t, q, v), None),
-            None => {
+            true => (generalized_force(system, t, q, v), None),
+            false => {
                 let (f, dq, dv) = force_derivatives(system, t, q, v);
                 (f, Some((dq, dv)))
             }
@@ -803,26 +802,64 @@ where
     if !all_finite(r.as_flattened()) {
         return Err(Breakdown::NonFinite("residual"));
     }
-    let lu = match frozen {
-        Some(lu) => *lu,
-        None => Lu::factor(&jac).map_err(|f| match f {
+    if !frozen {
+        work.valid = false;
+        work.lu.factor_in_place().map_err(|f| match f {
             LuFailure::Singular => Breakdown::Singular(0.0),
             LuFailure::NonFinite => Breakdown::NonFinite("jacobian"),
-        })?,
-    };
-    if min_rcond > 0.0 {
-        let rc = lu.rcond();
+        })?;
+        work.valid = true;
+    }
+    if check && min_rcond > 0.0 {
+        let rc = work.lu.rcond();
         if rc.is_nan() || rc < min_rcond {
             return Err(Breakdown::Singular(rc));
         }
     }
-    let x = lu.solve(&r);
+    let x = work.lu.solve(&r);
     let correction = Nodes(x.map(|b| b.map(|v| -v)));
     let mut residual_ratio: f64 = 0.0;
     for rho in 0..S {
         residual_ratio = residual_ratio.max(max_abs(&r[rho]) / scale[rho]);
     }
-    Ok((Linearization { correction, residual_norm: max_abs(r.as_flattened()), residual_ratio }, lu))
+    Ok(Linearization { correction, residual_norm: max_abs(r.as_flattened()), residual_ratio })
+}
+
+/// The state of the Newton iteration of one step across its attempts: the
+/// factored block, held in place, and whether the simplified iteration may
+/// keep using it.
+pub(super) struct Work<const N: usize, const S: usize, T> {
+    /// The factored Newton block (or storage for the next one).
+    pub(super) lu: Lu<N, S, T>,
+    /// `lu` holds a factorisation the simplified iteration may use.
+    pub(super) valid: bool,
+    /// Simplified Newton (the Jacobian kept while it contracts) rather than full.
+    pub(super) simplified: bool,
+    /// The condition estimate is due at the next linearisation, if it factors.
+    pub(super) check: bool,
+    /// Size of the last correction of the simplified iteration.
+    pub(super) last_correction: Option<f64>,
+}
+
+impl<const N: usize, const S: usize, T: Real> Work<N, S, T> {
+    /// Starting from a kept factorisation, or from none.
+    #[inline]
+    pub(super) fn new(kept: Option<Lu<N, S, T>>) -> Self {
+        let valid = kept.is_some();
+        let lu = kept.unwrap_or_else(Lu::zeroed);
+        Self { lu, valid, simplified: true, check: true, last_correction: None }
+    }
+
+    /// Prepares a new solve: simplified or full Newton, from the factorisation
+    /// in `lu` (`kept`) or from a new one. The condition estimate is made on
+    /// the first linearisation of each solve, if that one factors.
+    #[inline]
+    pub(super) fn start(&mut self, simplified: bool, kept: bool) {
+        self.simplified = simplified;
+        self.valid = kept;
+        self.check = true;
+        self.last_correction = None;
+    }
 }
 
 /// The failure with `spent` earlier iterations added to its count.
