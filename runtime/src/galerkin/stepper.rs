@@ -165,9 +165,12 @@ where
     /// `step_nodes`): from a block of 8 unknowns. Below, assembling and
     /// factoring the block costs less than the extra iterations a kept one
     /// needs (callgrind, instructions per step at h = 0.1, fresh against
-    /// kept: pendulum s = 6, `sN = 6`, 11 541 against 12 145; pendulum s = 8,
+    /// kept, measured when the block was still copied through the memory:
+    /// pendulum s = 6, `sN = 6`, 11 541 against 12 145; pendulum s = 8,
     /// `sN = 8`, 18 192 against 16 047; Kepler e = 0.5 s = 4, `sN = 8`,
-    /// 13 005 against 12 631; s = 6, `sN = 12`, 27 164 against 19 583).
+    /// 13 005 against 12 631; s = 6, `sN = 12`, 27 164 against 19 583. With
+    /// the block factored in place the kept cases are 14 139, 10 474 and
+    /// 16 520; the threshold was not re-measured).
     const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 8;
 
     /// The first guess for the increments of a step of size `h`.
