@@ -10,7 +10,7 @@
 //! here from the rule's quadrature points
 //! ([`DiscreteLagrangian::galerkin_points`]), over slices.
 
-use super::tape_step::{self, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats};
 use crate::discrete::DiscreteLagrangian;
 use crate::newton::{NewtonFailure, NewtonOptions};
@@ -191,6 +191,9 @@ impl DynError {
 struct Sliced<'a, S> {
     system: &'a S,
     points: [f64; 2],
+    /// The zero velocity of `∂L/∂q(t, q, 0)`, kept by the integrator (empty
+    /// before it exists).
+    zero: &'a [f64],
 }
 
 impl<S: DynLagrangian> Sliced<'_, S> {
@@ -229,7 +232,11 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
 
     fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
         if S::HAS_GRADIENT {
-            self.system.gradient_q(t, q, &vec![0.0; q.len()], out);
+            if self.zero.len() == q.len() {
+                self.system.gradient_q(t, q, self.zero, out);
+            } else {
+                self.system.gradient_q(t, q, &vec![0.0; q.len()], out);
+            }
         }
         S::HAS_GRADIENT
     }
@@ -283,7 +290,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
         if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
             return Err(DynError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
-        let model = Sliced { system: &self.system, points };
+        let model = Sliced { system: &self.system, points, zero: &[] };
         let (p0, energy) =
             tape_step::legendre(&model, t0, q0, v0).map_err(|reason| DynError::InvalidInitialData { reason })?;
         let work = SparseWork::new(n, S::COUPLING).map_err(|_| DynError::Unsupported {
@@ -298,6 +305,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
             state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
             carry: vec![0.0; n],
             p_carry: vec![0.0; n],
+            zero: vec![0.0; n],
             energy,
             v0: v0.to_vec(),
             previous: None,
@@ -373,6 +381,8 @@ pub struct DynIntegrator<S, M> {
     carry: Vec<f64>,
     /// Kahan compensation of the momentum: it is `state.p + p_carry`.
     p_carry: Vec<f64>,
+    /// Zeros: the velocity of `∂L/∂q(t, q, 0)` on the explicit path.
+    zero: Vec<f64>,
     /// The energy of the initial data.
     energy: f64,
     v0: Vec<f64>,
@@ -493,20 +503,23 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
 
     /// One step of size `h` whose end node is stamped with time `t1`.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
-        let n = self.state.q.len();
-        let mut predictor = vec![0.0; n];
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        super::predict_into(h, last, earlier, &self.v0, &mut predictor);
-        let scaled: Option<Vec<f64>> =
-            self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
-        let model = Sliced { system: &self.system, points: self.points };
+        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
-        let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
         let outcome = if Self::EXPLICIT {
-            self.work.verlet_step(&model, &node, h, t1, &guess, self.newton.min_rcond).map(|taken| (taken, None))
+            // The predictor only when the growth check needs it.
+            let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
+            let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+            let growth = Growth { last, predict: &predict };
+            self.work.verlet_step(&model, &node, h, t1, &growth, self.newton.min_rcond).map(|taken| (taken, None))
         } else {
+            let mut predictor = vec![0.0; q.len()];
+            super::predict_into(h, last, earlier, &self.v0, &mut predictor);
+            let scaled: Option<Vec<f64>> =
+                self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
+            let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
             self.work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
         };
         let (taken, energy) = match outcome {
@@ -526,14 +539,26 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         Ok(())
     }
 
-    /// Replaces the state by the step `taken` from the current node.
+    /// Replaces the state by the step `taken` from the current node; the
+    /// buffers it frees go back to the work for the next step.
     fn commit(&mut self, taken: Taken, h: f64, t1: f64) {
         let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
         let q0 = core::mem::replace(&mut self.state.q, q1);
-        self.state.p = p1;
-        self.carry = q_carry;
-        self.p_carry = p_carry;
-        self.earlier = self.previous.take().map(|last| (last.h, last.dq));
+        let freed = [
+            core::mem::replace(&mut self.state.p, p1),
+            core::mem::replace(&mut self.carry, q_carry),
+            core::mem::replace(&mut self.p_carry, p_carry),
+        ];
+        for buffer in freed {
+            self.work.recycle(buffer);
+        }
+        if let Some((_, dq)) = self.earlier.take() {
+            self.work.recycle(dq);
+        }
+        self.earlier = self.previous.take().map(|last| {
+            self.work.recycle(last.q0);
+            (last.h, last.dq)
+        });
         self.previous = Some(DynSegment { t0: self.state.t, h, q0, dq });
         self.state.t = t1;
         self.state.step += 1;
@@ -550,7 +575,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         match self.work.energy {
             Some(e) => e,
             None => {
-                let model = Sliced { system: &self.system, points: self.points };
+                let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
                 tape_step::step_energy(&model, seg.t0, seg.h, &seg.q0, &seg.dq)
             }
         }
@@ -563,7 +588,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
             Some(last) => last.dq.iter().map(|x| x / last.h).collect(),
             None => self.v0.clone(),
         };
-        let model = Sliced { system: &self.system, points: self.points };
+        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
         let DynState { t, q, p, .. } = &self.state;
         tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| DynError::InverseLegendre {
             state: self.state.clone(),
@@ -575,7 +600,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
     pub fn energy(&self) -> Result<f64, DynError> {
         let v = self.velocity()?;
-        let model = Sliced { system: &self.system, points: self.points };
+        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
         Ok(tape_step::energy(&model, self.state.t, &self.state.q, &v))
     }
 }
