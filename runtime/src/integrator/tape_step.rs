@@ -805,3 +805,48 @@ impl Unknown for Vec<f64> {
         max_abs(dx) / (rtol * max_abs(self) + atol)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The growth check's early bound never changes the verdict of the full
+    /// `implausible_growth`: increments around the threshold, positions from
+    /// zero up, with and without a last increment.
+    #[test]
+    fn the_growth_bound_agrees_with_the_full_check() {
+        let n = 5;
+        let mut work = SparseWork::new(n, Coupling::GENERAL).unwrap();
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut rejected, mut passed) = (0, 0);
+        for case in 0..4000 {
+            let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
+            let q: Vec<f64> = (0..n).map(|_| scale * next()).collect();
+            let last: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let predicted: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let size = 10f64.powf(6.0 * next() + (case % 3) as f64 - 1.0);
+            let dq: Vec<f64> = (0..n).map(|_| size * next()).collect();
+            let factor = 1.0 + next();
+            let scaled: Vec<f64> = last.iter().map(|x| x * factor).collect();
+            let predict = |out: &mut [f64]| out.copy_from_slice(&predicted);
+            let growth = Growth { last: Some((&last, factor)), predict: &predict };
+            let fast = work.growth_check(&growth, &dq, &q, max_abs(&dq), max_abs(&q)).is_err();
+            assert_eq!(fast, implausible_growth(&dq, &predicted, &scaled, &q), "case {case}");
+            if fast {
+                rejected += 1
+            } else {
+                passed += 1
+            }
+            let first = Growth { last: None, predict: &predict };
+            assert!(work.growth_check(&first, &dq, &q, max_abs(&dq), max_abs(&q)).is_ok());
+        }
+        // Both verdicts occur, so the comparison tested something.
+        assert!(rejected > 100 && passed > 100, "{rejected} rejected, {passed} passed");
+    }
+}
