@@ -191,9 +191,6 @@ impl DynError {
 struct Sliced<'a, S> {
     system: &'a S,
     points: [f64; 2],
-    /// The zero velocity of `∂L/∂q(t, q, 0)`, kept by the integrator (empty
-    /// before it exists).
-    zero: &'a [f64],
 }
 
 impl<S: DynLagrangian> Sliced<'_, S> {
@@ -230,13 +227,9 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
         }
     }
 
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
         if S::HAS_GRADIENT {
-            if self.zero.len() == q.len() {
-                self.system.gradient_q(t, q, self.zero, out);
-            } else {
-                self.system.gradient_q(t, q, &vec![0.0; q.len()], out);
-            }
+            self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
     }
@@ -290,7 +283,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
         if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
             return Err(DynError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
-        let model = Sliced { system: &self.system, points, zero: &[] };
+        let model = Sliced { system: &self.system, points };
         let (p0, energy) =
             tape_step::legendre(&model, t0, q0, v0).map_err(|reason| DynError::InvalidInitialData { reason })?;
         let work = SparseWork::new(n, S::COUPLING).map_err(|_| DynError::Unsupported {
@@ -305,7 +298,6 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
             state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
             carry: vec![0.0; n],
             p_carry: vec![0.0; n],
-            zero: vec![0.0; n],
             energy,
             v0: v0.to_vec(),
             previous: None,
@@ -381,8 +373,6 @@ pub struct DynIntegrator<S, M> {
     carry: Vec<f64>,
     /// Kahan compensation of the momentum: it is `state.p + p_carry`.
     p_carry: Vec<f64>,
-    /// Zeros: the velocity of `∂L/∂q(t, q, 0)` on the explicit path.
-    zero: Vec<f64>,
     /// The energy of the initial data.
     energy: f64,
     v0: Vec<f64>,
@@ -505,7 +495,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
+        let model = Sliced { system: &self.system, points: self.points };
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
         let outcome = if Self::EXPLICIT {
@@ -575,7 +565,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         match self.work.energy {
             Some(e) => e,
             None => {
-                let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
+                let model = Sliced { system: &self.system, points: self.points };
                 tape_step::step_energy(&model, seg.t0, seg.h, &seg.q0, &seg.dq)
             }
         }
@@ -588,7 +578,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
             Some(last) => last.dq.iter().map(|x| x / last.h).collect(),
             None => self.v0.clone(),
         };
-        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
+        let model = Sliced { system: &self.system, points: self.points };
         let DynState { t, q, p, .. } = &self.state;
         tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| DynError::InverseLegendre {
             state: self.state.clone(),
@@ -600,7 +590,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
     pub fn energy(&self) -> Result<f64, DynError> {
         let v = self.velocity()?;
-        let model = Sliced { system: &self.system, points: self.points, zero: &self.zero };
+        let model = Sliced { system: &self.system, points: self.points };
         Ok(tape_step::energy(&model, self.state.t, &self.state.q, &v))
     }
 }

@@ -146,10 +146,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         self.method.action(self.system, t0, h, q0, dq)
     }
 
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
-        let (Ok(q), Ok(out)) = (<&[f64; N]>::try_from(q), <&mut [f64; N]>::try_from(out)) else { return false };
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
+        let (Ok(q), Ok(zero), Ok(out)) =
+            (<&[f64; N]>::try_from(q), <&[f64; N]>::try_from(zero), <&mut [f64; N]>::try_from(out))
+        else {
+            return false;
+        };
         if S::HAS_GRADIENT {
-            self.system.gradient_q(t, q, &[0.0; N], out);
+            self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
     }

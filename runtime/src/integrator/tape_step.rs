@@ -38,9 +38,10 @@ pub(crate) trait TapeModel {
     fn action(&self, t0: Var, h: Var, q0: &[Var], dq: &[Var]) -> Var;
     /// `∂L/∂q(t, q, 0)` into `out` from the system's generated adjoint code,
     /// returning `true`; `false` (nothing written) when it has none and the
-    /// tape must be used.
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
-        let _ = (t, q, out);
+    /// tape must be used. `zero` is `n` zeros, the velocity, kept by the
+    /// caller so that no call allocates or clears one.
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
+        let _ = (t, q, zero, out);
         false
     }
 }
@@ -212,8 +213,9 @@ pub(crate) struct SparseWork {
     mass: Option<Mass>,
     /// Explicit path: `(k, ∂L/∂q(t_k, q_k, 0))`.
     node_force: Option<(u64, Vec<f64>)>,
-    /// Explicit path: the zero velocity of `∂L/∂q(t, q, 0)` on the tape.
-    zero: Vec<Var>,
+    /// Explicit path: the zero velocity of `∂L/∂q(t, q, 0)`, for the
+    /// generated gradient and on the tape.
+    zero: (Vec<f64>, Vec<Var>),
     /// Length-`n` buffers handed out for [`Taken`] and forces and given back
     /// by the integrators after a commit, so that steps do not allocate.
     spare: Vec<Vec<f64>>,
@@ -266,7 +268,7 @@ impl SparseWork {
             energy: None,
             mass: None,
             node_force: None,
-            zero: vec![Var::constant(0.0); n],
+            zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
             spare: Vec::new(),
         })
     }
@@ -660,15 +662,15 @@ pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64]
 fn potential_force<Mo: TapeModel>(
     model: &Mo,
     tape: &mut Tape,
-    zero: &[Var],
+    zero: &(Vec<f64>, Vec<Var>),
     t: f64,
     q: &[f64],
     out: &mut [f64],
 ) -> Result<(), TapeError> {
-    if model.gradient_q(t, q, out) {
+    if model.gradient_q(t, q, &zero.0, out) {
         return Ok(());
     }
-    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, zero))?;
+    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero.1))?;
     tape.gradient(out)
 }
 
