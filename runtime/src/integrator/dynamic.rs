@@ -10,7 +10,7 @@
 //! here from the rule's quadrature points
 //! ([`DiscreteLagrangian::galerkin_points`]), over slices.
 
-use super::tape_step::{self, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats};
 use crate::discrete::DiscreteLagrangian;
 use crate::newton::{NewtonFailure, NewtonOptions};
@@ -227,9 +227,9 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
         }
     }
 
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
         if S::HAS_GRADIENT {
-            self.system.gradient_q(t, q, &vec![0.0; q.len()], out);
+            self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
     }
@@ -493,20 +493,23 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
 
     /// One step of size `h` whose end node is stamped with time `t1`.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
-        let n = self.state.q.len();
-        let mut predictor = vec![0.0; n];
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        super::predict_into(h, last, earlier, &self.v0, &mut predictor);
-        let scaled: Option<Vec<f64>> =
-            self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
         let model = Sliced { system: &self.system, points: self.points };
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
-        let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
         let outcome = if Self::EXPLICIT {
-            self.work.verlet_step(&model, &node, h, t1, &guess, self.newton.min_rcond).map(|taken| (taken, None))
+            // The predictor only when the growth check needs it.
+            let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
+            let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+            let growth = Growth { last, predict: &predict };
+            self.work.verlet_step(&model, &node, h, t1, &growth, self.newton.min_rcond).map(|taken| (taken, None))
         } else {
+            let mut predictor = vec![0.0; q.len()];
+            super::predict_into(h, last, earlier, &self.v0, &mut predictor);
+            let scaled: Option<Vec<f64>> =
+                self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
+            let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
             self.work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
         };
         let (taken, energy) = match outcome {
@@ -526,14 +529,26 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         Ok(())
     }
 
-    /// Replaces the state by the step `taken` from the current node.
+    /// Replaces the state by the step `taken` from the current node; the
+    /// buffers it frees go back to the work for the next step.
     fn commit(&mut self, taken: Taken, h: f64, t1: f64) {
         let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
         let q0 = core::mem::replace(&mut self.state.q, q1);
-        self.state.p = p1;
-        self.carry = q_carry;
-        self.p_carry = p_carry;
-        self.earlier = self.previous.take().map(|last| (last.h, last.dq));
+        let freed = [
+            core::mem::replace(&mut self.state.p, p1),
+            core::mem::replace(&mut self.carry, q_carry),
+            core::mem::replace(&mut self.p_carry, p_carry),
+        ];
+        for buffer in freed {
+            self.work.recycle(buffer);
+        }
+        if let Some((_, dq)) = self.earlier.take() {
+            self.work.recycle(dq);
+        }
+        self.earlier = self.previous.take().map(|last| {
+            self.work.recycle(last.q0);
+            (last.h, last.dq)
+        });
         self.previous = Some(DynSegment { t0: self.state.t, h, q0, dq });
         self.state.t = t1;
         self.state.step += 1;

@@ -19,7 +19,7 @@
 //! energy-preserving steps, Galerkin rules, double-double. The tangent map
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
-use super::tape_step::{self, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Integrator, StepPolicy};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
@@ -146,10 +146,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         self.method.action(self.system, t0, h, q0, dq)
     }
 
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
-        let (Ok(q), Ok(out)) = (<&[f64; N]>::try_from(q), <&mut [f64; N]>::try_from(out)) else { return false };
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
+        let (Ok(q), Ok(zero), Ok(out)) =
+            (<&[f64; N]>::try_from(q), <&[f64; N]>::try_from(zero), <&mut [f64; N]>::try_from(out))
+        else {
+            return false;
+        };
         if S::HAS_GRADIENT {
-            self.system.gradient_q(t, q, &[0.0; N], out);
+            self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
     }
@@ -187,15 +191,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     fn sparse_advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
-        let State { step, t, q, p } = self.state;
-        let predictor = self.predict(h);
-        let last = self.memory.previous.map(|last| last.dq.map(|x| x * (h / last.h)));
         let model = Fixed { system: &self.system, method: &self.method };
-        let node = Node { step, t, q: &q, p: &p, q_carry: &self.carry, p_carry: &self.p_carry };
-        let guess = Guess { predictor: &predictor, last: last.as_ref().map(|x| &x[..]) };
+        let State { step, t, ref q, ref p } = self.state;
+        let node = Node { step, t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
         let outcome = if explicit {
-            work.verlet_step(&model, &node, h, t1, &guess, self.newton.min_rcond).map(|taken| (taken, None))
+            // The predictor only when the growth check needs it.
+            let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));
+            let last = self.memory.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+            let growth = Growth { last, predict: &predict };
+            work.verlet_step(&model, &node, h, t1, &growth, self.newton.min_rcond).map(|taken| (taken, None))
         } else {
+            let predictor = self.predict(h);
+            let last = self.memory.previous.map(|last| last.dq.map(|x| x * (h / last.h)));
+            let guess = Guess { predictor: &predictor, last: last.as_ref().map(|x| &x[..]) };
             work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
         };
         let (taken, energy) = outcome.map_err(|failure| self.fail(h, failure))?;
@@ -205,22 +213,42 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if !explicit {
             work.energy = energy;
         }
-        self.commit(taken, h, t1);
+        self.commit(&taken, h, t1);
+        work.recycle_taken(taken);
         Ok(())
     }
 
-    /// Replaces the state by the step `taken` from the current node.
-    fn commit(&mut self, taken: Taken, h: f64, t1: f64) {
-        let State { step, t: t0, q: q0, .. } = self.state;
+    /// Replaces the state by the step `taken` from the current node, in
+    /// place (the arrays are copied into, not moved).
+    fn commit(&mut self, taken: &Taken, h: f64, t1: f64) {
         let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
-        self.carry = array(&q_carry);
-        self.p_carry = array(&p_carry);
-        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
-        self.memory.previous = Some(Segment { t0, h, q0, dq: array(&dq) });
-        self.state = State { step: step + 1, t: t1, q: array(&q1), p: array(&p1) };
+        let memory = &mut self.memory;
+        match (&memory.previous, &mut memory.earlier) {
+            (Some(last), Some((h_earlier, dq_earlier))) => {
+                *h_earlier = last.h;
+                dq_earlier.copy_from_slice(&last.dq);
+            }
+            (Some(last), earlier) => *earlier = Some((last.h, last.dq)),
+            (None, earlier) => *earlier = None,
+        }
+        match &mut memory.previous {
+            Some(last) => {
+                last.t0 = self.state.t;
+                last.h = h;
+                last.q0.copy_from_slice(&self.state.q);
+                last.dq.copy_from_slice(dq);
+            }
+            None => memory.previous = Some(Segment { t0: self.state.t, h, q0: self.state.q, dq: array(dq) }),
+        }
+        self.carry.copy_from_slice(q_carry);
+        self.p_carry.copy_from_slice(p_carry);
+        self.state.q.copy_from_slice(q1);
+        self.state.p.copy_from_slice(p1);
+        self.state.step += 1;
+        self.state.t = t1;
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
-        self.stats.last = report;
+        self.stats.last = *report;
     }
 
     /// The discrete energy `−∂A/∂t_{k+1}` of the last step in reverse mode

@@ -38,9 +38,10 @@ pub(crate) trait TapeModel {
     fn action(&self, t0: Var, h: Var, q0: &[Var], dq: &[Var]) -> Var;
     /// `∂L/∂q(t, q, 0)` into `out` from the system's generated adjoint code,
     /// returning `true`; `false` (nothing written) when it has none and the
-    /// tape must be used.
-    fn gradient_q(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
-        let _ = (t, q, out);
+    /// tape must be used. `zero` is `n` zeros, the velocity, kept by the
+    /// caller so that no call allocates or clears one.
+    fn gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> bool {
+        let _ = (t, q, zero, out);
         false
     }
 }
@@ -171,6 +172,15 @@ impl Guess<'_> {
     }
 }
 
+/// What the explicit step's growth check needs: the last increment and the
+/// factor `h / h_last` that scales it to this step (`None` at the first
+/// step), and the predictor, written out only when the cheap bound cannot
+/// decide (see `SparseWork::growth_check`).
+pub(crate) struct Growth<'a> {
+    pub(crate) last: Option<(&'a [f64], f64)>,
+    pub(crate) predict: &'a dyn Fn(&mut [f64]),
+}
+
 /// A step that converged and whose published values are finite; nothing of
 /// the caller's state has changed yet.
 pub(crate) struct Taken {
@@ -200,10 +210,19 @@ pub(crate) struct SparseWork {
     /// `E_{k+1} = −∂A/∂t_{k+1}` of the last step, when it was computed.
     pub(crate) energy: Option<f64>,
     /// Explicit path: the factored constant mass matrix.
-    mass: Option<Assembled>,
+    mass: Option<Mass>,
     /// Explicit path: `(k, ∂L/∂q(t_k, q_k, 0))`.
     node_force: Option<(u64, Vec<f64>)>,
+    /// Explicit path: the zero velocity of `∂L/∂q(t, q, 0)`, for the
+    /// generated gradient and on the tape.
+    zero: (Vec<f64>, Vec<Var>),
+    /// Length-`n` buffers handed out for [`Taken`] and forces and given back
+    /// by the integrators after a commit, so that steps do not allocate.
+    spare: Vec<Vec<f64>>,
 }
+
+/// How many spare buffers [`SparseWork`] keeps: a step takes at most eight.
+const SPARE_BUFFERS: usize = 10;
 
 impl Clone for SparseWork {
     fn clone(&self) -> Self {
@@ -220,6 +239,8 @@ impl Clone for SparseWork {
             energy: self.energy,
             mass: self.mass.clone(),
             node_force: self.node_force.clone(),
+            zero: self.zero.clone(),
+            spare: Vec::new(),
         }
     }
 }
@@ -247,7 +268,31 @@ impl SparseWork {
             energy: None,
             mass: None,
             node_force: None,
+            zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
+            spare: Vec::new(),
         })
+    }
+
+    /// A length-`n` buffer of unspecified contents (a spare one if any).
+    fn buffer(&mut self) -> Vec<f64> {
+        self.spare.pop().unwrap_or_else(|| vec![0.0; self.n])
+    }
+
+    /// Gives a buffer back for later steps (dropped unless it has length `n`
+    /// and there is room).
+    pub(crate) fn recycle(&mut self, buffer: Vec<f64>) {
+        if buffer.len() == self.n && self.spare.len() < SPARE_BUFFERS {
+            self.spare.push(buffer);
+        }
+    }
+
+    /// Gives the buffers of a step back (a step the caller did not commit,
+    /// or one whose values it copied).
+    pub(crate) fn recycle_taken(&mut self, taken: Taken) {
+        let Taken { dq, q1, q_carry, p1, p_carry, .. } = taken;
+        for buffer in [dq, q1, q_carry, p1, p_carry] {
+            self.recycle(buffer);
+        }
     }
 
     /// The cached node force now belongs to node `step` (a composed step's
@@ -302,7 +347,13 @@ impl SparseWork {
         }
         let n = self.n;
         let energy = -self.gradient[2 * n];
-        let taken = finish(node, t1, dq, &self.gradient[..n], report)?;
+        let mut taken = self.taken(dq, report);
+        kahan_into(node.q, node.q_carry, &taken.dq, &mut taken.q1, &mut taken.q_carry);
+        kahan_into(node.p, node.p_carry, &self.gradient[..n], &mut taken.p1, &mut taken.p_carry);
+        if let Some(quantity) = super::non_finite(t1, &taken.q1, &taken.p1) {
+            self.recycle_taken(taken);
+            return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity });
+        }
         Ok((taken, energy))
     }
 
@@ -361,19 +412,25 @@ impl SparseWork {
         Ok((dq, report))
     }
 
+    /// A [`Taken`] around the increment `dq`, its other buffers spare ones.
+    fn taken(&mut self, dq: Vec<f64>, report: NewtonReport) -> Taken {
+        let (q1, q_carry, p1, p_carry) = (self.buffer(), self.buffer(), self.buffer(), self.buffer());
+        Taken { dq, q1, q_carry, p1, p_carry, report }
+    }
+
     /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
     /// separable system with constant mass: `M` factored once (banded when
-    /// proven), `∂L/∂q` from one reverse sweep per step, reused at the next
-    /// node. Clears [`energy`](Self::energy) on success (a Verlet step's
-    /// discrete energy is computed on request); keeps the node force of
-    /// `node` on failure.
+    /// proven, a division when diagonal), `∂L/∂q` from the system's adjoint
+    /// code or one reverse sweep per step, reused at the next node. Clears
+    /// [`energy`](Self::energy) on success (a Verlet step's discrete energy is
+    /// computed on request); keeps the node force of `node` on failure.
     pub(crate) fn verlet_step<Mo: TapeModel>(
         &mut self,
         model: &Mo,
         node: &Node<'_>,
         h: f64,
         t1: f64,
-        guess: &Guess<'_>,
+        growth: &Growth<'_>,
         min_rcond: f64,
     ) -> Result<Taken, NewtonFailure> {
         let n = self.n;
@@ -384,71 +441,191 @@ impl SparseWork {
                 velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
                     .map_err(|b| b.at(0))?;
             mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
-            self.mass = Some(mass);
+            self.mass = Some(Mass::new(mass));
         }
         let f0 = match self.node_force.take() {
             Some((k, f)) if k == node.step => f,
-            _ => {
-                let mut f = vec![0.0; n];
-                potential_force(model, &mut self.tape, node.t, node.q, &mut f).map_err(|_| tape_failed)?;
+            stale => {
+                let mut f = match stale {
+                    Some((_, f)) => f,
+                    None => self.buffer(),
+                };
+                potential_force(model, &mut self.tape, &self.zero, node.t, node.q, &mut f).map_err(|_| tape_failed)?;
                 f
             }
         };
-        match self.verlet_from(model, node, h, t1, guess, &f0) {
-            Ok((taken, f1)) => {
+        let dq = self.buffer();
+        let mut taken = self.taken(dq, NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 });
+        let mut f1 = self.buffer();
+        match self.verlet_into(model, node, h, t1, growth, &f0, &mut taken, &mut f1) {
+            Ok(()) => {
                 self.node_force = Some((node.step + 1, f1));
+                self.recycle(f0);
                 self.energy = None;
                 Ok(taken)
             }
             Err(failure) => {
                 self.node_force = Some((node.step, f0));
+                self.recycle(f1);
+                self.recycle_taken(taken);
                 Err(failure)
             }
         }
     }
 
-    /// The Verlet step given the force `f0` at the node; returns the force
-    /// at the new node too.
-    fn verlet_from<Mo: TapeModel>(
+    /// The Verlet step given the force `f0` at the node, into `out`, and the
+    /// force at the new node into `f1`: the half kick, the mass solve and
+    /// the drift in one pass when `M` is diagonal, the other half kick in
+    /// one more, each with its Kahan sum and its finiteness and size checks.
+    #[allow(clippy::too_many_arguments)]
+    fn verlet_into<Mo: TapeModel>(
         &mut self,
         model: &Mo,
         node: &Node<'_>,
         h: f64,
         t1: f64,
-        guess: &Guess<'_>,
+        growth: &Growth<'_>,
         f0: &[f64],
-    ) -> Result<(Taken, Vec<f64>), NewtonFailure> {
+        out: &mut Taken,
+        f1: &mut [f64],
+    ) -> Result<(), NewtonFailure> {
         let n = self.n;
         let half = 0.5 * h;
-        let mut v: Vec<f64> = (0..n).map(|i| (node.p[i] + half * f0[i]) + node.p_carry[i]).collect();
-        if let Some(mass) = &self.mass {
-            mass.solve(&mut v).map_err(|e| breakdown(e).at(0))?;
+        let (q0, qc0, p0, pc0, f0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n], &f0[..n]);
+        let (dq, q1, qc1) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.q_carry[..n]);
+        // max |Δq|, max |q_k| (for the growth check) and whether q_{k+1} is
+        // finite, gathered by the drift.
+        let (mut dq_max, mut q_max, mut q_finite) = (0.0_f64, 0.0_f64, true);
+        match self.mass.as_ref().and_then(|m| m.diagonal.as_deref()) {
+            Some(d) => {
+                let d = &d[..n];
+                // What the banded solve's checks would refuse, as it would.
+                let (mut rhs_finite, mut v_finite) = (true, true);
+                for i in 0..n {
+                    let rhs = (p0[i] + half * f0[i]) + pc0[i];
+                    let v = rhs / d[i];
+                    rhs_finite &= rhs.is_finite();
+                    v_finite &= v.is_finite();
+                    let x = v * h;
+                    dq[i] = x;
+                    let (sum, carry) = kahan(q0[i], qc0[i], x);
+                    q1[i] = sum;
+                    qc1[i] = carry;
+                    q_finite &= sum.is_finite();
+                    dq_max = dq_max.max(x.abs());
+                    q_max = q_max.max(q0[i].abs());
+                }
+                if !rhs_finite {
+                    return Err(breakdown(LinearSolveError::NonFinite { quantity: "right-hand side" }).at(0));
+                }
+                if !v_finite {
+                    return Err(breakdown(LinearSolveError::NonFinite { quantity: "solution" }).at(0));
+                }
+            }
+            None => {
+                for i in 0..n {
+                    dq[i] = (p0[i] + half * f0[i]) + pc0[i];
+                }
+                if let Some(mass) = &self.mass {
+                    mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
+                }
+                for i in 0..n {
+                    let x = dq[i] * h;
+                    dq[i] = x;
+                    let (sum, carry) = kahan(q0[i], qc0[i], x);
+                    q1[i] = sum;
+                    qc1[i] = carry;
+                    q_finite &= sum.is_finite();
+                    dq_max = dq_max.max(x.abs());
+                    q_max = q_max.max(q0[i].abs());
+                }
+            }
         }
-        let dq: Vec<f64> = v.iter().map(|x| x * h).collect();
-        guess.check(&dq, node.q, 0)?;
-        let (mut q1, mut carry) = (vec![0.0; n], vec![0.0; n]);
-        kahan_into(node.q, node.q_carry, &dq, &mut q1, &mut carry);
-        let mut f1 = vec![0.0; n];
-        if potential_force(model, &mut self.tape, t1, &q1, &mut f1).is_err() {
+        self.growth_check(growth, &out.dq, node.q, dq_max, q_max)?;
+        if potential_force(model, &mut self.tape, &self.zero, t1, &out.q1, f1).is_err() {
             return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
         }
-        let dp: Vec<f64> = (0..n).map(|i| half * (f0[i] + f1[i])).collect();
-        let report = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
-        Ok((finish(node, t1, dq, &dp, report)?, f1))
+        let (f1, p1, pc1) = (&f1[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
+        let mut p_finite = true;
+        for i in 0..n {
+            let (sum, carry) = kahan(p0[i], pc0[i], half * (f0[i] + f1[i]));
+            p1[i] = sum;
+            pc1[i] = carry;
+            p_finite &= sum.is_finite();
+        }
+        // The order of `non_finite`.
+        let quantity = if !q_finite {
+            Some("position")
+        } else if !p_finite {
+            Some("momentum")
+        } else if !t1.is_finite() {
+            Some("time")
+        } else {
+            None
+        };
+        match quantity {
+            Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
+            None => Ok(()),
+        }
+    }
+
+    /// [`implausible_growth`] of the increment `dq` from `q`, whose largest
+    /// magnitudes are `dq_max` and `q_max`. Rounding is monotone, so the
+    /// check's threshold `1e6·max(scale, 1e-6·max|q|)` is at least
+    /// `1e6·(1e-6·max|q|)` as computed: an increment below that bound (every
+    /// step of motion away from the origin) passes without the predictor or
+    /// the scaled last increment, and the verdict is the same as the full
+    /// check's.
+    fn growth_check(
+        &mut self,
+        growth: &Growth<'_>,
+        dq: &[f64],
+        q: &[f64],
+        dq_max: f64,
+        q_max: f64,
+    ) -> Result<(), NewtonFailure> {
+        let Some((last, factor)) = growth.last else { return Ok(()) };
+        if dq_max <= 1e6 * (1e-6 * q_max) {
+            return Ok(());
+        }
+        let (mut predicted, mut scaled) = (self.buffer(), self.buffer());
+        (growth.predict)(&mut predicted);
+        for (s, x) in scaled.iter_mut().zip(last) {
+            *s = x * factor;
+        }
+        let implausible = implausible_growth(dq, &predicted, &scaled, q);
+        self.recycle(predicted);
+        self.recycle(scaled);
+        if implausible { Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH }) } else { Ok(()) }
     }
 }
 
-/// The new node `q_{k+1} = q_k + Δq`, `p_{k+1} = p_k + Δp` as Kahan sums,
-/// refused when a published value is not finite.
-fn finish(node: &Node<'_>, t1: f64, dq: Vec<f64>, dp: &[f64], report: NewtonReport) -> Result<Taken, NewtonFailure> {
-    let n = dq.len();
-    let (mut q1, mut q_carry, mut p1, mut p_carry) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    kahan_into(node.q, node.q_carry, &dq, &mut q1, &mut q_carry);
-    kahan_into(node.p, node.p_carry, dp, &mut p1, &mut p_carry);
-    if let Some(quantity) = super::non_finite(t1, &q1, &p1) {
-        return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity });
+/// The Kahan sum `a + b` with the compensation `c` of `a`: `(sum, carry)`,
+/// the operations of [`kahan_into`].
+#[inline(always)]
+fn kahan(a: f64, c: f64, b: f64) -> (f64, f64) {
+    let u = c + b;
+    let sum = a + u;
+    (sum, u - (sum - a))
+}
+
+/// The factored constant mass matrix of the explicit path, and its diagonal
+/// when it is a banded matrix of bandwidth 0: the banded solve is then one
+/// division per entry, done in the step's own loop.
+#[derive(Clone, Debug)]
+struct Mass {
+    assembled: Assembled,
+    diagonal: Option<Vec<f64>>,
+}
+
+impl Mass {
+    fn new(assembled: Assembled) -> Self {
+        let diagonal = match (&assembled.matrix, assembled.bandwidth) {
+            (StepSolver::Banded(_), Some(0)) => Some(assembled.band.clone()),
+            _ => None,
+        };
+        Self { assembled, diagonal }
     }
-    Ok(Taken { dq, q1, q_carry, p1, p_carry, report })
 }
 
 /// Records the relative change `|after − before| / |before|` of the discrete
@@ -485,15 +662,15 @@ pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64]
 fn potential_force<Mo: TapeModel>(
     model: &Mo,
     tape: &mut Tape,
+    zero: &(Vec<f64>, Vec<Var>),
     t: f64,
     q: &[f64],
     out: &mut [f64],
 ) -> Result<(), TapeError> {
-    if model.gradient_q(t, q, out) {
+    if model.gradient_q(t, q, &zero.0, out) {
         return Ok(());
     }
-    let zero = vec![Var::constant(0.0); q.len()];
-    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero))?;
+    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero.1))?;
     tape.gradient(out)
 }
 
@@ -628,5 +805,50 @@ impl Unknown for Vec<f64> {
     #[inline]
     fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
         max_abs(dx) / (rtol * max_abs(self) + atol)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The growth check's early bound never changes the verdict of the full
+    /// `implausible_growth`: increments around the threshold, positions from
+    /// zero up, with and without a last increment.
+    #[test]
+    fn the_growth_bound_agrees_with_the_full_check() {
+        let n = 5;
+        let mut work = SparseWork::new(n, Coupling::GENERAL).unwrap();
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut rejected, mut passed) = (0, 0);
+        for case in 0..4000 {
+            let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
+            let q: Vec<f64> = (0..n).map(|_| scale * next()).collect();
+            let last: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let predicted: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let size = 10f64.powf(6.0 * next() + (case % 3) as f64 - 1.0);
+            let dq: Vec<f64> = (0..n).map(|_| size * next()).collect();
+            let factor = 1.0 + next();
+            let scaled: Vec<f64> = last.iter().map(|x| x * factor).collect();
+            let predict = |out: &mut [f64]| out.copy_from_slice(&predicted);
+            let growth = Growth { last: Some((&last, factor)), predict: &predict };
+            let fast = work.growth_check(&growth, &dq, &q, max_abs(&dq), max_abs(&q)).is_err();
+            assert_eq!(fast, implausible_growth(&dq, &predicted, &scaled, &q), "case {case}");
+            if fast {
+                rejected += 1
+            } else {
+                passed += 1
+            }
+            let first = Growth { last: None, predict: &predict };
+            assert!(work.growth_check(&first, &dq, &q, max_abs(&dq), max_abs(&q)).is_ok());
+        }
+        // Both verdicts occur, so the comparison tested something.
+        assert!(rejected > 100 && passed > 100, "{rejected} rejected, {passed} passed");
     }
 }
