@@ -449,16 +449,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 }
 
-/// `max_i |x_i|` exactly as [`max_abs`] computes it (NaN entries ignored), on an array.
-#[inline(always)]
-fn max_abs_array<const N: usize>(x: &[f64; N]) -> f64 {
-    let mut m = 0.0f64;
-    for v in x {
-        m = m.max(v.abs());
-    }
-    m
-}
-
 /// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
 /// (sub-steps of a composition can be negative),
 /// already shows that the increment `dq` is no implausible growth: then
@@ -467,5 +457,5 @@ fn max_abs_array<const N: usize>(x: &[f64; N]) -> f64 {
 /// `max|x·r| = max|x|·|r|` exactly), and the common case skips the predictor.
 #[inline(always)]
 fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
-    max_abs_array(dq) <= 1e6 * (max_abs_array(last_dq) * ratio)
+    max_abs(dq) <= 1e6 * (max_abs(last_dq) * ratio)
 }
