@@ -87,6 +87,10 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     pub(crate) col: [[T; S]; R],
     /// `ℓ_1' … ℓ_s'` at `c_j`.
     pub(crate) col_d: [[T; S]; R],
+    /// `max_j |ℓ_m(c_j)|`, `m = 1 … s` (sizes the round-off of a residual row).
+    pub(crate) col_max: [f64; S],
+    /// `max_j |ℓ_m'(c_j)|`, `m = 1 … s`.
+    pub(crate) col_d_max: [f64; S],
     /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
     /// increments of one step to the next (same step size).
     pub(crate) extrapolate: [[T; S]; S],
@@ -109,6 +113,8 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             row_d: [[T::zero(); S]; R],
             col: [[T::zero(); S]; R],
             col_d: [[T::zero(); S]; R],
+            col_max: [0.0; S],
+            col_d_max: [0.0; S],
             extrapolate: [[T::zero(); S]; S],
             end_d: [T::zero(); S],
         };
@@ -136,6 +142,10 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
         }
         for m in 0..S {
             g.end_d[m] = lagrange_derivative(&x, m + 1, T::one());
+            for j in 0..R {
+                g.col_max[m] = g.col_max[m].max(g.col[j][m].abs().to_f64());
+                g.col_d_max[m] = g.col_d_max[m].max(g.col_d[j][m].abs().to_f64());
+            }
         }
         for m in 0..S {
             for n in 0..S {

@@ -178,9 +178,17 @@ where
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
         match &self.memory {
-            Some(last) if last.h == h => core::array::from_fn(|m| {
-                core::array::from_fn(|i| (0..S).map(|n| g.extrapolate[m][n] * last.d[n][i]).sum())
-            }),
+            Some(last) if last.h == h => {
+                let mut out = [[T::zero(); N]; S];
+                for (row, weights) in out.iter_mut().zip(&g.extrapolate) {
+                    for (&w, dn) in weights.iter().zip(&last.d) {
+                        for (x, &y) in row.iter_mut().zip(dn) {
+                            *x += w * y;
+                        }
+                    }
+                }
+                out
+            }
             Some(last) => {
                 // Extrapolate the last polynomial, in its own variable τ ∈ [0, 1],
                 // to the control nodes of the new step, 1 + τ_m h/h_last.
@@ -231,6 +239,11 @@ where
         // One factorisation in place for all attempts of the step: the block
         // (1.2 kB at sN = 12) is never moved through the iteration.
         let mut work = Work::new(cached.copied());
+        if cached_lu {
+            // Kept for a second step: from here on it serves several solves
+            // per step, each cheaper as a product with the inverse.
+            work.lu.invert_in_place();
+        }
         let linearize = |x: &Nodes<N, S, T>, work: &mut Work<N, S, T>| {
             let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, work)?;
             if work.simplified {
@@ -694,6 +707,10 @@ where
     // enters p_{k+1}).
     let mut fnode: BlockVector<N, S, T> = [[zero; N]; S];
     let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+    // `w_j ∂L/∂q` and `w_j ∂L/∂v / h` at each point, and their largest sizes.
+    let mut wq: [[T; N]; R] = [[zero; N]; R];
+    let mut wv: [[T; N]; R] = [[zero; N]; R];
+    let mut term_max = [(0.0f64, 0.0f64); R];
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
         // The Hessian only when the Jacobian is to be assembled.
@@ -743,27 +760,24 @@ where
                 }
             }
         }
-        // The weight w = b h is rounded once and shared by every row, and the
-        // coefficients of the basis are not premultiplied: all rows are then
-        // derivatives of the same action Σ w_j L, whatever the rounding.
+        // The weight w = b h is rounded once and shared by every row: all rows
+        // are then derivatives of the same action Σ w_j L, whatever the
+        // rounding. The point's terms w ∂L/∂q and w ∂L/∂v / h are kept and
+        // contracted with the basis after the loop (one small matrix product
+        // instead of a product per node and coordinate at every point).
         let w = b * h;
-        let lv_h: [T; N] = core::array::from_fn(|i| lv[i] / h);
-        // ∂A/∂q_k at fixed increments.
+        let (mut a_max, mut b_max) = (0.0f64, 0.0f64);
         for i in 0..N {
-            let x = w * lq[i];
+            let (x, y) = (w * lq[i], w * (lv[i] / h));
+            wq[j][i] = x;
+            wv[j][i] = y;
+            // ∂A/∂q_k at fixed increments.
             direct[i] += x;
-            scale[0] = f64::max(scale[0], x.to_f64().abs());
+            a_max = a_max.max(x.abs().to_f64());
+            b_max = b_max.max(y.abs().to_f64());
         }
-        // ∂A/∂D_m for the nodes m = 1 … s.
-        for m in 0..S {
-            let (c, cd) = (col[m], col_d[m]);
-            for i in 0..N {
-                let (x, y) = (w * (c * lq[i]), w * (cd * lv_h[i]));
-                grad[m][i] += x + y;
-                let k = if m + 1 < S { m + 1 } else { 0 };
-                scale[k] = f64::max(scale[k], (x.abs() + y.abs()).to_f64());
-            }
-        }
+        scale[0] = scale[0].max(a_max);
+        term_max[j] = (a_max, b_max);
         let Some(pd) = pd else { continue };
         for n in 0..S {
             // The column block n of this point's contribution, before the row basis.
@@ -785,6 +799,21 @@ where
                 }
             }
         }
+    }
+    // ∂A/∂D_m = Σ_j ℓ_m(c_j) w_j ∂L/∂q + ℓ_m'(c_j) w_j ∂L/∂v / h for the
+    // nodes m = 1 … s. The terms only size the round-off of the residual, so
+    // the largest is bounded by the largest basis value and the largest
+    // point term rather than found.
+    let (a_max, b_max) = term_max.iter().fold((0.0f64, 0.0f64), |(a, b), &(x, y)| (a.max(x), b.max(y)));
+    for m in 0..S {
+        for j in 0..R {
+            let (c, cd) = (g.col[j][m], g.col_d[j][m]);
+            for i in 0..N {
+                grad[m][i] += c * wq[j][i] + cd * wv[j][i];
+            }
+        }
+        let k = if m + 1 < S { m + 1 } else { 0 };
+        scale[k] = scale[k].max(g.col_max[m] * a_max + g.col_d_max[m] * b_max);
     }
     // Rows: p_k + ∂A/∂Q_0 = p_k + ∂A/∂q_k|_D − Σ_m ∂A/∂D_m, then ∂A/∂D_m for
     // the interior nodes. Formed this way, the q_k row is the derivative of
