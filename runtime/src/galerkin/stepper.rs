@@ -231,20 +231,25 @@ where
         // assembles and factors its own where that one contracts slowly: most
         // steps then cost no Hessian, no assembly and no LU at all. The
         // condition estimate is made on the first factorisation of each solve.
+        if let Some(LastStep { jacobian: Some((h_lu, lu)), .. }) = &mut self.memory
+            && *h_lu == h
+            && Self::KEEPS_JACOBIAN
+        {
+            // Kept for a second step: from here on it serves several solves
+            // per step, each cheaper as a product with the inverse. (Inverting
+            // changes no result a failed step could leave behind: a run
+            // without that step inverts the same factors at the same point.)
+            lu.invert_in_place();
+        }
         let cached = match &self.memory {
             Some(LastStep { jacobian: Some((h_lu, lu)), .. }) if *h_lu == h && Self::KEEPS_JACOBIAN => Some(lu),
             _ => None,
         };
         let cached_lu = cached.is_some();
-        // One factorisation in place for all attempts of the step: the block
-        // (1.2 kB at sN = 12) is never moved through the iteration.
-        let mut work = Work::new(cached.copied());
-        if cached_lu {
-            // Kept for a second step: from here on it serves several solves
-            // per step, each cheaper as a product with the inverse.
-            work.lu.invert_in_place();
-        }
-        let linearize = |x: &Nodes<N, S, T>, work: &mut Work<N, S, T>| {
+        // One factorisation in place for all attempts of the step, the kept
+        // one borrowed: the block (1.2 kB at sN = 12) is never copied.
+        let mut work = Work::new(cached);
+        let linearize = |x: &Nodes<N, S, T>, work: &mut Work<'_, N, S, T>| {
             let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, work)?;
             if work.simplified {
                 // A frozen Jacobian that contracts slowly (a large step, a poor
@@ -263,7 +268,7 @@ where
         // It is held to a tolerance 100 times tighter, which costs about one
         // more gradient iteration and leaves the error at round-off.
         let kept_options = NewtonOptions { rtol: self.newton.rtol * 1e-2, ..self.newton };
-        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<N, S, T>| {
+        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<'_, N, S, T>| {
             let options = if kept { &kept_options } else { &self.newton };
             work.start(simplify, kept);
             newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>| linearize(x, work))
@@ -297,7 +302,11 @@ where
             solved = attempt(guess, simplify, false, &mut work);
         }
         // The block the converged simplified iteration used, for the next step.
-        let jacobian = if Self::KEEPS_JACOBIAN && work.simplified && work.valid { Some((h, work.lu)) } else { None };
+        let jacobian = match (Self::KEEPS_JACOBIAN && work.simplified && work.valid, work.uses_kept) {
+            (true, true) => KeptBlock::Same,
+            (true, false) => KeptBlock::New(h, work.lu),
+            (false, _) => KeptBlock::Drop,
+        };
         // Every attempt counts in the iterations reported.
         let solved = match solved {
             Ok((x, mut report)) => {
@@ -332,7 +341,7 @@ where
         t1: T,
         d: BlockVector<N, S, T>,
         report: NewtonReport,
-        jacobian: Option<(T, Lu<N, S, T>)>,
+        jacobian: KeptBlock<N, S, T>,
     ) -> Result<(), Error<N, T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
@@ -388,7 +397,19 @@ where
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
-        self.memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian });
+        match (&mut self.memory, jacobian) {
+            // The kept block stays where it is.
+            (Some(last), KeptBlock::Same) => {
+                (last.t0, last.h, last.q0, last.carry, last.d) = (t0, h, q0, e, d);
+            }
+            (memory, jacobian) => {
+                let jacobian = match jacobian {
+                    KeptBlock::New(h, lu) => Some((h, lu)),
+                    _ => None,
+                };
+                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian });
+            }
+        }
         self.carry = carry;
         self.p_carry = p_carry;
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
@@ -681,7 +702,7 @@ pub(super) fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     (p0, pc): (&[T; N], &[T; N]),
     d: &BlockVector<N, S, T>,
     min_rcond: f64,
-    work: &mut Work<N, S, T>,
+    work: &mut Work<'_, N, S, T>,
 ) -> Result<Linearization<Nodes<N, S, T>>, Breakdown>
 where
     Sys: Lagrangian<N> + ?Sized,
@@ -697,6 +718,10 @@ where
     // place into the factorisation's storage.
     let frozen = work.simplified && work.valid;
     let check = core::mem::replace(&mut work.check, false) && !frozen;
+    if !frozen {
+        // A new block, in the step's own storage (a kept one stays as it is).
+        work.uses_kept = false;
+    }
     let jac: &mut BlockMatrix<N, S, T> = work.lu.matrix_mut();
     if !frozen {
         *jac = [[[[zero; N]; S]; N]; S];
@@ -848,7 +873,7 @@ where
             return Err(Breakdown::Singular(rc));
         }
     }
-    let x = work.lu.solve(&r);
+    let x = work.active().solve(&r);
     let correction = Nodes(x.map(|b| b.map(|v| -v)));
     let mut residual_ratio: f64 = 0.0;
     for rho in 0..S {
@@ -860,10 +885,15 @@ where
 /// The state of the Newton iteration of one step across its attempts: the
 /// factored block, held in place, and whether the simplified iteration may
 /// keep using it.
-pub(super) struct Work<const N: usize, const S: usize, T> {
-    /// The factored Newton block (or storage for the next one).
+pub(super) struct Work<'a, const N: usize, const S: usize, T> {
+    /// The factored block of an earlier step, borrowed from the memory (not
+    /// copied: 1.2 kB at sN = 12).
+    kept: Option<&'a Lu<N, S, T>>,
+    /// The iteration uses `kept`, not `lu`.
+    pub(super) uses_kept: bool,
+    /// The step's own factored Newton block (or storage for the next one).
     pub(super) lu: Lu<N, S, T>,
-    /// `lu` holds a factorisation the simplified iteration may use.
+    /// The block in use holds a factorisation the simplified iteration may use.
     pub(super) valid: bool,
     /// Simplified Newton (the Jacobian kept while it contracts) rather than full.
     pub(super) simplified: bool,
@@ -873,25 +903,44 @@ pub(super) struct Work<const N: usize, const S: usize, T> {
     pub(super) last_correction: Option<f64>,
 }
 
-impl<const N: usize, const S: usize, T: Real> Work<N, S, T> {
+impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
     /// Starting from a kept factorisation, or from none.
     #[inline]
-    pub(super) fn new(kept: Option<Lu<N, S, T>>) -> Self {
+    pub(super) fn new(kept: Option<&'a Lu<N, S, T>>) -> Self {
         let valid = kept.is_some();
-        let lu = kept.unwrap_or_else(Lu::zeroed);
-        Self { lu, valid, simplified: true, check: true, last_correction: None }
+        Self { kept, uses_kept: valid, lu: Lu::zeroed(), valid, simplified: true, check: true, last_correction: None }
     }
 
-    /// Prepares a new solve: simplified or full Newton, from the factorisation
-    /// in `lu` (`kept`) or from a new one. The condition estimate is made on
-    /// the first linearisation of each solve, if that one factors.
+    /// Prepares a new solve: simplified or full Newton, from the kept
+    /// factorisation (`kept`) or from a new one. The condition estimate is
+    /// made on the first linearisation of each solve, if that one factors.
     #[inline]
     pub(super) fn start(&mut self, simplified: bool, kept: bool) {
         self.simplified = simplified;
-        self.valid = kept;
+        self.uses_kept = kept && self.kept.is_some();
+        self.valid = self.uses_kept;
         self.check = true;
         self.last_correction = None;
     }
+
+    /// The factorisation the iteration solves with.
+    #[inline]
+    pub(super) fn active(&self) -> &Lu<N, S, T> {
+        match (self.uses_kept, self.kept) {
+            (true, Some(kept)) => kept,
+            _ => &self.lu,
+        }
+    }
+}
+
+/// What the memory keeps of the block a step converged with.
+pub(super) enum KeptBlock<const N: usize, const S: usize, T> {
+    /// The one it already holds (the step used it throughout).
+    Same,
+    /// A new one, factored for steps of this size.
+    New(T, Lu<N, S, T>),
+    /// None.
+    Drop,
 }
 
 /// The failure with `spent` earlier iterations added to its count.
