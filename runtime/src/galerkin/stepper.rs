@@ -162,16 +162,16 @@ where
     }
 
     /// Whether a step starts from the last step's Jacobian (see
-    /// `step_nodes`): from a block of 8 unknowns. Below, assembling and
+    /// `step_nodes`): from a block of 6 unknowns. Below, assembling and
     /// factoring the block costs less than the extra iterations a kept one
     /// needs (callgrind, instructions per step at h = 0.1, fresh against
-    /// kept, measured when the block was still copied through the memory:
-    /// pendulum s = 6, `sN = 6`, 11 541 against 12 145; pendulum s = 8,
-    /// `sN = 8`, 18 192 against 16 047; Kepler e = 0.5 s = 4, `sN = 8`,
-    /// 13 005 against 12 631; s = 6, `sN = 12`, 27 164 against 19 583. With
-    /// the block factored in place the kept cases are 14 139, 10 474 and
-    /// 16 520; the threshold was not re-measured).
-    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 8;
+    /// kept, with the kept block inverted once and borrowed in place:
+    /// pendulum s = 6, `sN = 6`, 10 443 against 8 217 at 3.75 instead of 2
+    /// iterations per step; pendulum s = 8 11 239 and Kepler e = 0.5 s = 6
+    /// 9 559 kept. Below `sN = 6` not re-measured since the block was
+    /// copied through the memory, when even `sN = 6` lost: 11 541 against
+    /// 12 145).
+    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 6;
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
