@@ -40,6 +40,16 @@ pub(crate) fn gradient_q(function: &Function) -> Option<TokenStream> {
     adjoint.function_body(&function.body)
 }
 
+/// The statements of `gradient_qv(&self, __t, __q, __v, __out, __out_v)`:
+/// `∂L/∂q` into `__out` and `∂L/∂v` into `__out_v`, by the same
+/// transformation with the velocities as leaves too. `None` outside the
+/// subset.
+pub(crate) fn gradient_qv(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.with_v = true;
+    adjoint.function_body(&function.body)
+}
+
 /// `const HAS_GRADIENT` and `fn gradient_q` for the trait impl, or nothing
 /// when the body is outside the subset. `n` is `None` for a run-time-sized
 /// system (slices).
@@ -51,12 +61,25 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
         None => (quote!(&[f64]), quote!(&mut [f64])),
     };
     let self_token = syn::Token![self](function.self_span);
+    // Both derivatives, for the implicit steps' residuals: size-known
+    // systems only (the slice trait has no such method).
+    let both = n.and_then(|_| gradient_qv(function)).map(|body| {
+        let out_v = name("out_v");
+        quote! {
+            const HAS_GRADIENT_QV: bool = true;
+            #[inline]
+            fn gradient_qv(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient, #out_v: #gradient) {
+                #body
+            }
+        }
+    });
     Some(quote! {
         const HAS_GRADIENT: bool = true;
         #[inline]
         fn gradient_q(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient) {
             #body
         }
+        #both
     })
 }
 
@@ -85,6 +108,8 @@ struct Adjoint<'a> {
     temps: HashMap<*const Expr, usize>,
     /// The next adjoint temporary.
     next_adjoint: usize,
+    /// Differentiate in `v` too (`gradient_qv`), not only in `q`.
+    with_v: bool,
 }
 
 impl<'a> Adjoint<'a> {
@@ -99,6 +124,7 @@ impl<'a> Adjoint<'a> {
             needed: vec![false; n],
             temps: HashMap::new(),
             next_adjoint: 0,
+            with_v: false,
         }
     }
 
@@ -164,11 +190,18 @@ impl<'a> Adjoint<'a> {
         }
         self.forward(tail, &mut forward)?;
         let out = name("out");
+        let clear_v = self.with_v.then(|| {
+            let out_v = name("out_v");
+            quote!(for __x in #out_v.iter_mut() {
+                *__x = 0.0f64;
+            })
+        });
         Some(quote! {
             #(#items)*
             for __x in #out.iter_mut() {
                 *__x = 0.0f64;
             }
+            #clear_v
             #(#forward)*
             #(#reverse)*
         })
@@ -385,6 +418,7 @@ impl<'a> Adjoint<'a> {
         expr.visit(&mut |e: &Expr| {
             match &e.kind {
                 ExprKind::Param(ParamRef::Q, _) => depends = true,
+                ExprKind::Param(ParamRef::V, _) => depends |= self.with_v,
                 ExprKind::Local(id, _) => depends |= self.local_depends(*id, self.version(e)),
                 _ => {}
             }
@@ -686,11 +720,13 @@ impl<'a> Adjoint<'a> {
             ExprKind::Paren(inner) => self.reverse(inner, g, out),
             ExprKind::Cast { expr: inner, .. } => self.reverse(inner, g, out),
             ExprKind::Index { base, index, .. } => {
-                if !matches!(base.kind, ExprKind::Param(ParamRef::Q, _)) {
-                    return Some(());
-                }
-                let (dq, index) = (name("out"), self.constant(index)?);
-                out.push(quote!(#dq[#index] += #g;));
+                let adjoint = match base.kind {
+                    ExprKind::Param(ParamRef::Q, _) => name("out"),
+                    ExprKind::Param(ParamRef::V, _) if self.with_v => name("out_v"),
+                    _ => return Some(()),
+                };
+                let index = self.constant(index)?;
+                out.push(quote!(#adjoint[#index] += #g;));
                 Some(())
             }
             ExprKind::Local(id, _) => {
@@ -1023,6 +1059,32 @@ mod tests {
         assert!(!reverse.contains(". m"), "{out}");
         assert!(out.contains("f64 :: sqrt"), "{out}");
         assert!(out.contains("- f64 :: sin"), "{out}");
+    }
+
+    #[test]
+    fn the_gradient_in_q_and_v_propagates_to_the_velocities_too() {
+        let item: ItemImpl = parse_quote! {
+            impl P {
+                fn lagrangian(&self, q: [f64; 3], v: [f64; 3]) -> f64 {
+                    let r = (q[0] * q[0] + q[1] * q[1]).sqrt();
+                    0.5 * self.m * v[0] * v[0] + q[2] * v[1] + self.k / r
+                }
+            }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let out = gradient_qv(&system.lagrangian).unwrap().to_string();
+        for write in ["__out [(0)] +=", "__out [(1)] +=", "__out [(2)] +=", "__out_v [(0)] +=", "__out_v [(1)] +="] {
+            assert!(out.contains(write), "{write}: {out}");
+        }
+        // `v[2]` is not read: its derivative stays the zero written first.
+        assert!(!out.contains("__out_v [(2)] +="), "{out}");
+        assert!(out.contains("for __x in __out_v . iter_mut ()"), "{out}");
+        // The q-only transformation writes no velocity adjoint.
+        let q_only = gradient_q(&system.lagrangian).unwrap().to_string();
+        assert!(!q_only.contains("__out_v"), "{q_only}");
     }
 
     #[test]

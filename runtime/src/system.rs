@@ -132,6 +132,30 @@ pub trait Lagrangian<const N: usize> {
             out[i] = self.lagrangian(t, qd, v).eps;
         }
     }
+
+    /// `true` when [`gradient_qv`](Self::gradient_qv) is plain `f64` code
+    /// written for this system (set by `#[lagrangian]` with
+    /// [`HAS_GRADIENT`](Self::HAS_GRADIENT), for systems of known size).
+    const HAS_GRADIENT_QV: bool = false;
+
+    /// `∂L/∂q` into `out_q` and `∂L/∂v` into `out_v`, at `(t, q, v)`: what
+    /// the residual of an implicit step needs at each quadrature point.
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on a dual
+    /// number seeded on each coordinate in turn (`2N` evaluations; the
+    /// runtime evaluates the body once on array duals instead when
+    /// [`HAS_GRADIENT_QV`](Self::HAS_GRADIENT_QV) is false). `#[lagrangian]`
+    /// overrides it with generated adjoint code where it can.
+    #[inline(always)]
+    fn gradient_qv(&self, t: f64, q: &[f64; N], v: &[f64; N], out_q: &mut [f64; N], out_v: &mut [f64; N]) {
+        self.gradient_q(t, q, v, out_q);
+        let (t, q) = (Dual::from_re(t), q.map(Dual::from_re));
+        for i in 0..N {
+            let mut vd = v.map(Dual::from_re);
+            vd[i].eps = 1.0;
+            out_v[i] = self.lagrangian(t, q, vd).eps;
+        }
+    }
 }
 
 /// A borrowed system is the same system (the integrator borrows it to run a
@@ -167,6 +191,13 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
         (**self).gradient_q(t, q, v, out);
+    }
+
+    const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;
+
+    #[inline(always)]
+    fn gradient_qv(&self, t: f64, q: &[f64; N], v: &[f64; N], out_q: &mut [f64; N], out_v: &mut [f64; N]) {
+        (**self).gradient_qv(t, q, v, out_q, out_v);
     }
 }
 

@@ -1,5 +1,6 @@
 //! The gradient `∂L/∂q` that `#[lagrangian]` writes out as reverse-mode
-//! `f64` code (`Lagrangian::gradient_q`, `HAS_GRADIENT`), checked against
+//! `f64` code (`Lagrangian::gradient_q`, `HAS_GRADIENT`; with `∂L/∂v`,
+//! `gradient_qv`, `HAS_GRADIENT_QV`), checked against
 //! the forward-mode dual-number gradient of the same body at random states,
 //! on the examples' systems, chains written with `for` loops (also over
 //! slices), systems with `self` fields, `powi`, `powf` and most supported
@@ -195,11 +196,46 @@ fn dual_gradient<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64;
     })
 }
 
+/// `∂L/∂v` from forward-mode dual numbers, one direction at a time.
+fn dual_velocity_gradient<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    t: f64,
+    q: &[f64; N],
+    v: &[f64; N],
+) -> [f64; N] {
+    core::array::from_fn(|i| {
+        let vd: [Dual64; N] =
+            core::array::from_fn(|j| if i == j { Dual64::new(v[j], 1.0) } else { Dual64::from(v[j]) });
+        system.lagrangian(Dual64::from(t), q.map(Dual64::from), vd).eps
+    })
+}
+
+/// The largest relative difference of `gradient_qv`'s two halves from the
+/// dual gradients in `q` and in `v`, each against its own largest component
+/// (a zero `∂L/∂v` must come out exactly zero).
+fn qv_difference<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], v: &[f64; N]) -> f64 {
+    let (mut gq, mut gv) = ([f64::NAN; N], [f64::NAN; N]);
+    system.gradient_qv(t, q, v, &mut gq, &mut gv);
+    let mut worst = 0.0f64;
+    for (generated, dual) in [(gq, dual_gradient(system, t, q, v)), (gv, dual_velocity_gradient(system, t, q, v))] {
+        let scale = dual.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for i in 0..N {
+            let difference = (generated[i] - dual[i]).abs();
+            let difference = if scale > 0.0 { difference / scale } else { difference };
+            assert!(difference.is_finite(), "component {i}: {} against {}", generated[i], dual[i]);
+            worst = worst.max(difference);
+        }
+    }
+    worst
+}
+
 /// The largest relative difference, over `samples` random states in
 /// `[lo, hi]ⁿ`, between the generated and the dual gradient, measured
-/// against the largest component of the dual one.
+/// against the largest component of the dual one; `gradient_qv` (both
+/// halves) checked at the same states.
 fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
     assert!(S::HAS_GRADIENT, "no gradient code was generated");
+    assert!(S::HAS_GRADIENT_QV, "no gradient code in (q, v) was generated");
     let mut rng = Rng(0x5eed ^ N as u64);
     let mut worst = 0.0f64;
     for _ in 0..samples {
@@ -216,6 +252,7 @@ fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f
             assert!(difference.is_finite(), "component {i}: {} against {}", generated[i], dual[i]);
             worst = worst.max(difference);
         }
+        worst = worst.max(qv_difference(system, t, &q, &v));
     }
     worst
 }
@@ -251,8 +288,10 @@ fn generated_gradients_agree_with_dual_numbers_at_random_states() {
     }
 }
 
-/// `HAS_GRADIENT` of a const-size system.
+/// `HAS_GRADIENT` of a const-size system (and `HAS_GRADIENT_QV`, which
+/// the macro sets with it for a system of known size).
 fn has_gradient<S: Lagrangian<N>, const N: usize>() -> bool {
+    assert_eq!(S::HAS_GRADIENT, S::HAS_GRADIENT_QV);
     S::HAS_GRADIENT
 }
 
@@ -279,6 +318,11 @@ fn the_macro_says_which_systems_got_gradient_code() {
     let mut out = [0.0; 4];
     CarriedChain::<4>.gradient_q(0.0, &q, &v, &mut out);
     assert_eq!(out, dual_gradient(&CarriedChain::<4>, 0.0, &q, &v));
+    // So does the default `gradient_qv`.
+    let mut out_v = [0.0; 4];
+    CarriedChain::<4>.gradient_qv(0.0, &q, &v, &mut out, &mut out_v);
+    assert_eq!(out, dual_gradient(&CarriedChain::<4>, 0.0, &q, &v));
+    assert_eq!(out_v, dual_velocity_gradient(&CarriedChain::<4>, 0.0, &q, &v));
 }
 
 #[test]

@@ -39,7 +39,7 @@
 use super::Galerkin;
 use super::linalg::BlockVector;
 use super::method::PointDerivatives;
-use super::stepper::{Nodes, Work, linearize};
+use super::stepper::{KeptBlock, Nodes, Work, linearize};
 use crate::error::Error;
 use crate::integrator::{Clock, Integrator};
 use crate::integrator::{EnergyFallback, StepBounds};
@@ -260,7 +260,7 @@ where
         let t1 = t0 + y;
         let time_error = (t1 - t0) - y;
         let report = NewtonReport { iterations: spent, residual_norm: mismatch, correction_norm: 0.0 };
-        self.commit(h, t1, d, report, None)?;
+        self.commit(h, t1, d, report, KeptBlock::Drop)?;
         self.time_error = time_error;
         self.h = h;
         if fallback {

@@ -26,6 +26,8 @@ pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
     perm: [[usize; N]; S],
     /// `‖A‖₁`.
     norm1: T,
+    /// `lu` holds `A⁻ᵀ` instead of the factors (see [`Lu::invert_in_place`]).
+    inverted: bool,
 }
 
 /// Why a factorisation failed.
@@ -51,7 +53,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     #[inline]
     pub(crate) fn zeroed() -> Self {
         let zero = T::zero();
-        Self { lu: [[[[zero; N]; S]; N]; S], perm: [[0; N]; S], norm1: zero }
+        Self { lu: [[[[zero; N]; S]; N]; S], perm: [[0; N]; S], norm1: zero, inverted: false }
     }
 
     /// The matrix [`factor_in_place`](Self::factor_in_place) factors: the
@@ -68,6 +70,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     pub(crate) fn factor_in_place(&mut self) -> Result<(), LuFailure> {
         let zero = T::zero();
         let out = self;
+        out.inverted = false;
         let n = S * N;
         let perm = out.perm.as_flattened_mut();
         for (i, p) in perm.iter_mut().enumerate() {
@@ -116,9 +119,51 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
         Ok(())
     }
 
-    /// `x` with `A x = b`.
+    /// `x` with `A x = b`: one matrix–vector product once the factors are
+    /// inverted, forward and back substitution before.
     #[inline]
     pub(crate) fn solve(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
+        if self.inverted {
+            // Column by column (the inverse is stored transposed): the rows of
+            // x are independent sums, which vectorise.
+            let mut x = [[T::zero(); N]; S];
+            let xf = x.as_flattened_mut();
+            for (column, &y) in self.lu.as_flattened().iter().zip(b.as_flattened()) {
+                for (xi, &a) in xf.iter_mut().zip(column.as_flattened()) {
+                    *xi += a * y;
+                }
+            }
+            return x;
+        }
+        self.substitute(b)
+    }
+
+    /// Replaces the factors by `A⁻¹` (`sN` solves, `(sN)³` operations), so
+    /// that every later [`solve`](Self::solve) is one matrix–vector product:
+    /// worth it for a block the simplified Newton iteration keeps for many
+    /// solves (at `sN = 12` a substitution costs about three times the
+    /// product, whose rows are independent). The condition estimate needs
+    /// the factors: take it before.
+    pub(crate) fn invert_in_place(&mut self) {
+        if self.inverted {
+            return;
+        }
+        let n = S * N;
+        let mut inverse = [[[[T::zero(); N]; S]; N]; S];
+        for k in 0..n {
+            let mut e = [[T::zero(); N]; S];
+            e.as_flattened_mut()[k] = T::one();
+            // Stored transposed: row k of the storage is column k of A⁻¹.
+            inverse.as_flattened_mut()[k] = self.substitute(&e);
+        }
+        self.lu = inverse;
+        self.inverted = true;
+    }
+
+    /// `x` with `A x = b` from the factors.
+    #[inline(always)]
+    fn substitute(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
+        debug_assert!(!self.inverted);
         let n = S * N;
         let rows = self.lu.as_flattened();
         let perm = self.perm.as_flattened();
@@ -146,6 +191,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
 
     /// `z` with `Aᵀ z = b` (`Aᵀ = Uᵀ Lᵀ P`).
     fn solve_transposed(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
+        debug_assert!(!self.inverted);
         let n = S * N;
         let rows = self.lu.as_flattened();
         let perm = self.perm.as_flattened();
@@ -182,7 +228,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
         let mut x = [[T::from(1.0 / n as f64); N]; S];
         let mut est = zero;
         for round in 0..5 {
-            let y = self.solve(&x);
+            let y = self.substitute(&x);
             let norm: T = y.as_flattened().iter().map(|v| v.abs()).sum();
             if round > 0 && norm <= est {
                 break;

@@ -87,6 +87,10 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     pub(crate) col: [[T; S]; R],
     /// `ℓ_1' … ℓ_s'` at `c_j`.
     pub(crate) col_d: [[T; S]; R],
+    /// `max_j |ℓ_m(c_j)|`, `m = 1 … s` (sizes the round-off of a residual row).
+    pub(crate) col_max: [f64; S],
+    /// `max_j |ℓ_m'(c_j)|`, `m = 1 … s`.
+    pub(crate) col_d_max: [f64; S],
     /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
     /// increments of one step to the next (same step size).
     pub(crate) extrapolate: [[T; S]; S],
@@ -109,6 +113,8 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             row_d: [[T::zero(); S]; R],
             col: [[T::zero(); S]; R],
             col_d: [[T::zero(); S]; R],
+            col_max: [0.0; S],
+            col_d_max: [0.0; S],
             extrapolate: [[T::zero(); S]; S],
             end_d: [T::zero(); S],
         };
@@ -136,6 +142,10 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
         }
         for m in 0..S {
             g.end_d[m] = lagrange_derivative(&x, m + 1, T::one());
+            for j in 0..R {
+                g.col_max[m] = g.col_max[m].max(g.col[j][m].abs().to_f64());
+                g.col_d_max[m] = g.col_d_max[m].max(g.col_d[j][m].abs().to_f64());
+            }
         }
         for m in 0..S {
             for n in 0..S {
@@ -376,6 +386,16 @@ where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
 {
+    // In `f64`, the adjoint code `#[lagrangian]` wrote costs a small multiple
+    // of one evaluation where the array dual carries 2N derivative parts
+    // through every operation. (The test on EPSILON is a constant: only
+    // `f64` has f64's.)
+    if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
+        let (mut lq, mut lv) = ([0.0; N], [0.0; N]);
+        let (qf, vf) = (q.map(|x| x.to_f64()), v.map(|x| x.to_f64()));
+        system.gradient_qv(t.to_f64(), &qf, &vf, &mut lq, &mut lv);
+        return (system.lagrangian(t, q, v), lq.map(T::from), lv.map(T::from));
+    }
     let qd = core::array::from_fn(|i| DualArray::<Seeds<N, T>, T>::variable(q[i], i));
     let vd = core::array::from_fn(|i| DualArray::variable(v[i], N + i));
     let l = system.lagrangian(DualArray::from_re(t), qd, vd);

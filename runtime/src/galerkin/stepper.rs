@@ -162,25 +162,33 @@ where
     }
 
     /// Whether a step starts from the last step's Jacobian (see
-    /// `step_nodes`): from a block of 8 unknowns. Below, assembling and
+    /// `step_nodes`): from a block of 6 unknowns. Below, assembling and
     /// factoring the block costs less than the extra iterations a kept one
     /// needs (callgrind, instructions per step at h = 0.1, fresh against
-    /// kept, measured when the block was still copied through the memory:
-    /// pendulum s = 6, `sN = 6`, 11 541 against 12 145; pendulum s = 8,
-    /// `sN = 8`, 18 192 against 16 047; Kepler e = 0.5 s = 4, `sN = 8`,
-    /// 13 005 against 12 631; s = 6, `sN = 12`, 27 164 against 19 583. With
-    /// the block factored in place the kept cases are 14 139, 10 474 and
-    /// 16 520; the threshold was not re-measured).
-    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 8;
+    /// kept, with the kept block inverted once and borrowed in place:
+    /// pendulum s = 6, `sN = 6`, 10 443 against 8 217 at 3.75 instead of 2
+    /// iterations per step; pendulum s = 8 11 239 and Kepler e = 0.5 s = 6
+    /// 9 559 kept. Below `sN = 6` not re-measured since the block was
+    /// copied through the memory, when even `sN = 6` lost: 11 541 against
+    /// 12 145).
+    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 6;
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
         match &self.memory {
-            Some(last) if last.h == h => core::array::from_fn(|m| {
-                core::array::from_fn(|i| (0..S).map(|n| g.extrapolate[m][n] * last.d[n][i]).sum())
-            }),
+            Some(last) if last.h == h => {
+                let mut out = [[T::zero(); N]; S];
+                for (row, weights) in out.iter_mut().zip(&g.extrapolate) {
+                    for (&w, dn) in weights.iter().zip(&last.d) {
+                        for (x, &y) in row.iter_mut().zip(dn) {
+                            *x += w * y;
+                        }
+                    }
+                }
+                out
+            }
             Some(last) => {
                 // Extrapolate the last polynomial, in its own variable τ ∈ [0, 1],
                 // to the control nodes of the new step, 1 + τ_m h/h_last.
@@ -223,15 +231,25 @@ where
         // assembles and factors its own where that one contracts slowly: most
         // steps then cost no Hessian, no assembly and no LU at all. The
         // condition estimate is made on the first factorisation of each solve.
+        if let Some(LastStep { jacobian: Some((h_lu, lu)), .. }) = &mut self.memory
+            && *h_lu == h
+            && Self::KEEPS_JACOBIAN
+        {
+            // Kept for a second step: from here on it serves several solves
+            // per step, each cheaper as a product with the inverse. (Inverting
+            // changes no result a failed step could leave behind: a run
+            // without that step inverts the same factors at the same point.)
+            lu.invert_in_place();
+        }
         let cached = match &self.memory {
             Some(LastStep { jacobian: Some((h_lu, lu)), .. }) if *h_lu == h && Self::KEEPS_JACOBIAN => Some(lu),
             _ => None,
         };
         let cached_lu = cached.is_some();
-        // One factorisation in place for all attempts of the step: the block
-        // (1.2 kB at sN = 12) is never moved through the iteration.
-        let mut work = Work::new(cached.copied());
-        let linearize = |x: &Nodes<N, S, T>, work: &mut Work<N, S, T>| {
+        // One factorisation in place for all attempts of the step, the kept
+        // one borrowed: the block (1.2 kB at sN = 12) is never copied.
+        let mut work = Work::new(cached);
+        let linearize = |x: &Nodes<N, S, T>, work: &mut Work<'_, N, S, T>| {
             let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, work)?;
             if work.simplified {
                 // A frozen Jacobian that contracts slowly (a large step, a poor
@@ -250,7 +268,7 @@ where
         // It is held to a tolerance 100 times tighter, which costs about one
         // more gradient iteration and leaves the error at round-off.
         let kept_options = NewtonOptions { rtol: self.newton.rtol * 1e-2, ..self.newton };
-        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<N, S, T>| {
+        let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<'_, N, S, T>| {
             let options = if kept { &kept_options } else { &self.newton };
             work.start(simplify, kept);
             newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>| linearize(x, work))
@@ -284,7 +302,11 @@ where
             solved = attempt(guess, simplify, false, &mut work);
         }
         // The block the converged simplified iteration used, for the next step.
-        let jacobian = if Self::KEEPS_JACOBIAN && work.simplified && work.valid { Some((h, work.lu)) } else { None };
+        let jacobian = match (Self::KEEPS_JACOBIAN && work.simplified && work.valid, work.uses_kept) {
+            (true, true) => KeptBlock::Same,
+            (true, false) => KeptBlock::New(h, work.lu),
+            (false, _) => KeptBlock::Drop,
+        };
         // Every attempt counts in the iterations reported.
         let solved = match solved {
             Ok((x, mut report)) => {
@@ -319,7 +341,7 @@ where
         t1: T,
         d: BlockVector<N, S, T>,
         report: NewtonReport,
-        jacobian: Option<(T, Lu<N, S, T>)>,
+        jacobian: KeptBlock<N, S, T>,
     ) -> Result<(), Error<N, T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
@@ -375,7 +397,19 @@ where
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
-        self.memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian });
+        match (&mut self.memory, jacobian) {
+            // The kept block stays where it is.
+            (Some(last), KeptBlock::Same) => {
+                (last.t0, last.h, last.q0, last.carry, last.d) = (t0, h, q0, e, d);
+            }
+            (memory, jacobian) => {
+                let jacobian = match jacobian {
+                    KeptBlock::New(h, lu) => Some((h, lu)),
+                    _ => None,
+                };
+                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian });
+            }
+        }
         self.carry = carry;
         self.p_carry = p_carry;
         self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
@@ -668,7 +702,7 @@ pub(super) fn linearize<Sys, T, const N: usize, const S: usize, const R: usize>(
     (p0, pc): (&[T; N], &[T; N]),
     d: &BlockVector<N, S, T>,
     min_rcond: f64,
-    work: &mut Work<N, S, T>,
+    work: &mut Work<'_, N, S, T>,
 ) -> Result<Linearization<Nodes<N, S, T>>, Breakdown>
 where
     Sys: Lagrangian<N> + ?Sized,
@@ -684,6 +718,10 @@ where
     // place into the factorisation's storage.
     let frozen = work.simplified && work.valid;
     let check = core::mem::replace(&mut work.check, false) && !frozen;
+    if !frozen {
+        // A new block, in the step's own storage (a kept one stays as it is).
+        work.uses_kept = false;
+    }
     let jac: &mut BlockMatrix<N, S, T> = work.lu.matrix_mut();
     if !frozen {
         *jac = [[[[zero; N]; S]; N]; S];
@@ -694,6 +732,10 @@ where
     // enters p_{k+1}).
     let mut fnode: BlockVector<N, S, T> = [[zero; N]; S];
     let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+    // `w_j ∂L/∂q` and `w_j ∂L/∂v / h` at each point, and their largest sizes.
+    let mut wq: [[T; N]; R] = [[zero; N]; R];
+    let mut wv: [[T; N]; R] = [[zero; N]; R];
+    let mut term_max = [(0.0f64, 0.0f64); R];
     for j in 0..R {
         let (t, q, v) = g.point(t0, h, base, d, j);
         // The Hessian only when the Jacobian is to be assembled.
@@ -743,27 +785,24 @@ where
                 }
             }
         }
-        // The weight w = b h is rounded once and shared by every row, and the
-        // coefficients of the basis are not premultiplied: all rows are then
-        // derivatives of the same action Σ w_j L, whatever the rounding.
+        // The weight w = b h is rounded once and shared by every row: all rows
+        // are then derivatives of the same action Σ w_j L, whatever the
+        // rounding. The point's terms w ∂L/∂q and w ∂L/∂v / h are kept and
+        // contracted with the basis after the loop (one small matrix product
+        // instead of a product per node and coordinate at every point).
         let w = b * h;
-        let lv_h: [T; N] = core::array::from_fn(|i| lv[i] / h);
-        // ∂A/∂q_k at fixed increments.
+        let (mut a_max, mut b_max) = (0.0f64, 0.0f64);
         for i in 0..N {
-            let x = w * lq[i];
+            let (x, y) = (w * lq[i], w * (lv[i] / h));
+            wq[j][i] = x;
+            wv[j][i] = y;
+            // ∂A/∂q_k at fixed increments.
             direct[i] += x;
-            scale[0] = f64::max(scale[0], x.to_f64().abs());
+            a_max = a_max.max(x.abs().to_f64());
+            b_max = b_max.max(y.abs().to_f64());
         }
-        // ∂A/∂D_m for the nodes m = 1 … s.
-        for m in 0..S {
-            let (c, cd) = (col[m], col_d[m]);
-            for i in 0..N {
-                let (x, y) = (w * (c * lq[i]), w * (cd * lv_h[i]));
-                grad[m][i] += x + y;
-                let k = if m + 1 < S { m + 1 } else { 0 };
-                scale[k] = f64::max(scale[k], (x.abs() + y.abs()).to_f64());
-            }
-        }
+        scale[0] = scale[0].max(a_max);
+        term_max[j] = (a_max, b_max);
         let Some(pd) = pd else { continue };
         for n in 0..S {
             // The column block n of this point's contribution, before the row basis.
@@ -785,6 +824,21 @@ where
                 }
             }
         }
+    }
+    // ∂A/∂D_m = Σ_j ℓ_m(c_j) w_j ∂L/∂q + ℓ_m'(c_j) w_j ∂L/∂v / h for the
+    // nodes m = 1 … s. The terms only size the round-off of the residual, so
+    // the largest is bounded by the largest basis value and the largest
+    // point term rather than found.
+    let (a_max, b_max) = term_max.iter().fold((0.0f64, 0.0f64), |(a, b), &(x, y)| (a.max(x), b.max(y)));
+    for m in 0..S {
+        for j in 0..R {
+            let (c, cd) = (g.col[j][m], g.col_d[j][m]);
+            for i in 0..N {
+                grad[m][i] += c * wq[j][i] + cd * wv[j][i];
+            }
+        }
+        let k = if m + 1 < S { m + 1 } else { 0 };
+        scale[k] = scale[k].max(g.col_max[m] * a_max + g.col_d_max[m] * b_max);
     }
     // Rows: p_k + ∂A/∂Q_0 = p_k + ∂A/∂q_k|_D − Σ_m ∂A/∂D_m, then ∂A/∂D_m for
     // the interior nodes. Formed this way, the q_k row is the derivative of
@@ -819,7 +873,7 @@ where
             return Err(Breakdown::Singular(rc));
         }
     }
-    let x = work.lu.solve(&r);
+    let x = work.active().solve(&r);
     let correction = Nodes(x.map(|b| b.map(|v| -v)));
     let mut residual_ratio: f64 = 0.0;
     for rho in 0..S {
@@ -831,10 +885,15 @@ where
 /// The state of the Newton iteration of one step across its attempts: the
 /// factored block, held in place, and whether the simplified iteration may
 /// keep using it.
-pub(super) struct Work<const N: usize, const S: usize, T> {
-    /// The factored Newton block (or storage for the next one).
+pub(super) struct Work<'a, const N: usize, const S: usize, T> {
+    /// The factored block of an earlier step, borrowed from the memory (not
+    /// copied: 1.2 kB at sN = 12).
+    kept: Option<&'a Lu<N, S, T>>,
+    /// The iteration uses `kept`, not `lu`.
+    pub(super) uses_kept: bool,
+    /// The step's own factored Newton block (or storage for the next one).
     pub(super) lu: Lu<N, S, T>,
-    /// `lu` holds a factorisation the simplified iteration may use.
+    /// The block in use holds a factorisation the simplified iteration may use.
     pub(super) valid: bool,
     /// Simplified Newton (the Jacobian kept while it contracts) rather than full.
     pub(super) simplified: bool,
@@ -844,25 +903,44 @@ pub(super) struct Work<const N: usize, const S: usize, T> {
     pub(super) last_correction: Option<f64>,
 }
 
-impl<const N: usize, const S: usize, T: Real> Work<N, S, T> {
+impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
     /// Starting from a kept factorisation, or from none.
     #[inline]
-    pub(super) fn new(kept: Option<Lu<N, S, T>>) -> Self {
+    pub(super) fn new(kept: Option<&'a Lu<N, S, T>>) -> Self {
         let valid = kept.is_some();
-        let lu = kept.unwrap_or_else(Lu::zeroed);
-        Self { lu, valid, simplified: true, check: true, last_correction: None }
+        Self { kept, uses_kept: valid, lu: Lu::zeroed(), valid, simplified: true, check: true, last_correction: None }
     }
 
-    /// Prepares a new solve: simplified or full Newton, from the factorisation
-    /// in `lu` (`kept`) or from a new one. The condition estimate is made on
-    /// the first linearisation of each solve, if that one factors.
+    /// Prepares a new solve: simplified or full Newton, from the kept
+    /// factorisation (`kept`) or from a new one. The condition estimate is
+    /// made on the first linearisation of each solve, if that one factors.
     #[inline]
     pub(super) fn start(&mut self, simplified: bool, kept: bool) {
         self.simplified = simplified;
-        self.valid = kept;
+        self.uses_kept = kept && self.kept.is_some();
+        self.valid = self.uses_kept;
         self.check = true;
         self.last_correction = None;
     }
+
+    /// The factorisation the iteration solves with.
+    #[inline]
+    pub(super) fn active(&self) -> &Lu<N, S, T> {
+        match (self.uses_kept, self.kept) {
+            (true, Some(kept)) => kept,
+            _ => &self.lu,
+        }
+    }
+}
+
+/// What the memory keeps of the block a step converged with.
+pub(super) enum KeptBlock<const N: usize, const S: usize, T> {
+    /// The one it already holds (the step used it throughout).
+    Same,
+    /// A new one, factored for steps of this size.
+    New(T, Lu<N, S, T>),
+    /// None.
+    Drop,
 }
 
 /// The failure with `spent` earlier iterations added to its count.
