@@ -350,8 +350,7 @@ impl F64Readouts for Composition {
             return None;
         }
         let weights = it.method.weights;
-        let mut product =
-            symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substep(0, weights))?.matrix();
+        let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substep(0, weights))?.matrix();
         for i in 1..m {
             let seg = it.memory.substep(i, weights);
             product = symplectic::tangent_map(&it.system, &Trapezoid, &seg)?.matrix() * product;
@@ -403,7 +402,13 @@ fn fused_step<S: Lagrangian<N>, const N: usize>(
         Ok(taken) => taken,
         Err(failure) => return Err(it.fail(h, failure)),
     };
-    commit_explicit(&mut it.memory.inner, (&mut it.state, &mut it.carry, &mut it.p_carry, &mut it.stats), h, t1, &taken);
+    commit_explicit(
+        &mut it.memory.inner,
+        (&mut it.state, &mut it.carry, &mut it.p_carry, &mut it.stats),
+        h,
+        t1,
+        &taken,
+    );
     it.memory.fused_last = spare;
     it.memory.stages = weights.len();
     it.memory.last_h = Some(h);

@@ -504,7 +504,9 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
         (Some(d), _) => {
             substeps(system, &start, f, weights, increments, |mv, hi| core::array::from_fn(|j| (d[j] * mv[j]) * hi))
         }
-        (None, Some(m)) => substeps(system, &start, f, weights, increments, |mv, hi| (**m * SVector::from(*mv) * hi).into()),
+        (None, Some(m)) => {
+            substeps(system, &start, f, weights, increments, |mv, hi| (**m * SVector::from(*mv) * hi).into())
+        }
         (None, None) => unreachable!("the inverse mass is set above"),
     };
     if let Some(last) = &memory.previous
