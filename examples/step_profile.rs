@@ -15,7 +15,8 @@
 //! (explicit Störmer–Verlet) or `verlet`; `pendulum kahan-li8` and `pendulum hand-kahan-li8`
 //! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
-//! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others).
+//! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
+//! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -95,6 +96,51 @@ impl Fpu {
         }
         kinetic - potential
     }
+}
+
+const CHAIN_N: usize = 1000;
+
+/// The chain of `bench/benches/chain_scaling.rs` (β = 1, fixed ends), generic
+/// in its size: at `N = 1000` it steps in reverse mode.
+struct Chain<const N: usize>;
+
+#[lagrangian::lagrangian]
+impl<const N: usize> Chain<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * d.powi(4);
+        for i in 0..N - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d.powi(4);
+        }
+        d = q[N - 1];
+        potential += 0.5 * d * d + 0.25 * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// The chain's start of `chain_scaling.rs`: mode `N/10`, spring strains 0.3.
+fn chain_q0<const N: usize>() -> [f64; N] {
+    let k = N.div_ceil(10);
+    let a = 0.3 * (N + 1) as f64 / (k as f64 * std::f64::consts::PI);
+    core::array::from_fn(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (N + 1) as f64).sin())
+}
+
+/// The chain's force `−∇V` by hand (fixed ends), as in `chain_scaling.rs`.
+fn chain_force<const N: usize>(q: &[f64; N]) -> [f64; N] {
+    let spring = |d: f64| d + d * d * d;
+    let mut f = [0.0; N];
+    let mut left = spring(q[0]);
+    for i in 0..N {
+        let right = spring(if i + 1 < N { q[i + 1] - q[i] } else { -q[i] });
+        f[i] = right - left;
+        left = right;
+    }
+    f
 }
 
 /// Velocity Verlet with unit mass and force `f`, `n` steps of size `h`.
@@ -253,6 +299,10 @@ fn main() {
             n,
         ),
         ("fpu", "verlet") => hand_verlet(fpu_force, &[1.0], H, fpu_q0(), [0.0; FPU_N], n),
+        ("chain1000", "trapezoid") => {
+            run(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
+        }
+        ("chain1000", "verlet") => hand_verlet(chain_force, &[1.0], 0.05, chain_q0(), [0.0; CHAIN_N], n),
         (_, "derivatives") => {
             // The derivative evaluation alone: one `step_derivatives` (residual
             // part, momentum, Jacobian) per "step", at nearby segments (every input

@@ -18,6 +18,7 @@ mod double_double_one_point;
 mod explicit_verlet;
 mod forced_variable_steps;
 mod forces;
+mod fused_compositions;
 mod galerkin_energy_steps;
 mod galerkin_forces;
 mod galerkin_order;

@@ -28,9 +28,10 @@
 //! consistently, at order 2 in the forces' quadrature.
 
 use super::method::{F64Readouts, Method, sealed};
+use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
 use crate::derivatives::{self, Segment};
-use crate::discrete::Trapezoid;
+use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::error::Error;
 use crate::mechanics::DiscreteMechanics;
 use crate::state::State;
@@ -103,12 +104,58 @@ impl Composition {
 /// sub-steps of the last composed step.
 #[derive(Clone, Debug)]
 pub struct CompositionMemory<const N: usize> {
+    /// Sub-stepped compositions: the last sub-step's memory. Fused explicit
+    /// ones: the composed step as one segment `(t_k, h, q_k, Δq)` (the growth
+    /// check and the predictor see whole steps), the mass matrix and the
+    /// node force.
     pub(crate) inner: OnePointMemory<N>,
-    /// The sub-steps of the last step (the first `stages` entries).
+    /// The sub-steps of the last step (the first `stages` entries), when
+    /// they were taken one by one.
     pub(crate) substeps: [Segment<N>; MAX_STAGES],
     pub(crate) stages: usize,
     /// The size of the last composed step.
     pub(crate) last_h: Option<f64>,
+    /// Fused explicit steps (see [`explicit_step`]): what rebuilds the last
+    /// step's sub-steps, twice, so that a step writes into the spare one and
+    /// a failed step leaves the last one intact; `None` until the first
+    /// fused step.
+    pub(crate) fused: Option<Box<[FusedSubsteps<N>; 2]>>,
+    /// Which entry of `fused` holds the last step.
+    pub(crate) fused_last: usize,
+}
+
+/// The sub-steps of a fused explicit step: with the composed step's start
+/// `(t_k, q_k)` (kept in `inner.previous`) they rebuild every sub-step's
+/// segment exactly as the step computed it.
+#[derive(Clone, Debug)]
+pub(crate) struct FusedSubsteps<const N: usize> {
+    /// The position's Kahan compensation at the start of the step.
+    carry: [f64; N],
+    /// Each sub-step's increment `δq_i`.
+    increments: [[f64; N]; MAX_STAGES],
+}
+
+impl<const N: usize> CompositionMemory<N> {
+    /// Sub-step `i` of the last composed step, made with `weights`.
+    fn substep(&self, i: usize, weights: &[f64]) -> Segment<N> {
+        let (Some(fused), Some(start), Some(h)) = (&self.fused, &self.inner.previous, self.last_h) else {
+            return self.substeps[i];
+        };
+        let FusedSubsteps { carry, increments } = &fused[self.fused_last];
+        // The sub-node positions `q_k + (c_q + Δq)` and times of `explicit_step`.
+        let (mut dq, mut elapsed) = ([0.0; N], 0.0);
+        for (step_dq, gamma) in increments[..i].iter().zip(weights) {
+            for j in 0..N {
+                dq[j] += step_dq[j];
+            }
+            elapsed += gamma;
+        }
+        let (t0, q0) = match i {
+            0 => (start.t0, start.q0),
+            _ => (start.t0 + elapsed * h, core::array::from_fn(|j| start.q0[j] + (carry[j] + dq[j]))),
+        };
+        Segment { t0, h: weights[i] * h, q0, dq: increments[i] }
+    }
 }
 
 impl sealed::Sealed for Composition {}
@@ -127,6 +174,8 @@ impl Method<f64> for Composition {
             substeps: [empty; MAX_STAGES],
             stages: 0,
             last_h: None,
+            fused: None,
+            fused_last: 0,
         }
     }
 
@@ -173,6 +222,16 @@ impl Method<f64> for Composition {
         h: f64,
         t1: f64,
     ) -> Result<(), Error<N>> {
+        // Explicit sub-steps in forward mode are fused (the energy watch of a
+        // discontinuous system needs every sub-step's energy: sub-stepped).
+        let fused = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS
+            && S::SEPARABILITY.has_constant_mass()
+            && !S::HAS_FORCE
+            && !S::HAS_DISSIPATION
+            && !S::DISCONTINUOUS;
+        if fused && !super::sparse::too_large_for_forward(N) && !it.derivatives.reverse::<N>() {
+            return fused_step(it, h, t1);
+        }
         let before = it.state;
         let saved = (it.memory.inner.previous, it.memory.inner.earlier, it.memory.inner.node_force);
         let mut sub = Integrator {
@@ -229,7 +288,10 @@ impl Method<f64> for Composition {
         it.carry = carry;
         it.p_carry = p_carry;
         it.watched_energy = watched_energy;
-        it.memory = CompositionMemory { inner: memory, substeps, stages, last_h: Some(h) };
+        it.memory.inner = memory;
+        it.memory.substeps = substeps;
+        it.memory.stages = stages;
+        it.memory.last_h = Some(h);
         it.stats.steps += 1;
         it.stats.newton_iterations = stats.newton_iterations;
         it.stats.last = stats.last;
@@ -261,7 +323,10 @@ impl Method<f64> for Composition {
         }
         match it.memory.stages {
             0 => it.system.energy(it.state.t, it.state.q, it.v0),
-            m => -derivatives::end_time_derivative(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
+            m => {
+                let last = it.memory.substep(m - 1, it.method.weights);
+                -derivatives::end_time_derivative(&it.system, &Trapezoid, &last)
+            }
         }
     }
 }
@@ -271,7 +336,7 @@ impl F64Readouts for Composition {
         match it.memory.stages {
             0 => it.v0,
             m => {
-                let last = &it.memory.substeps[m - 1];
+                let last = it.memory.substep(m - 1, it.method.weights);
                 last.dq.map(|x| x / last.h)
             }
         }
@@ -284,9 +349,11 @@ impl F64Readouts for Composition {
         if const { super::sparse::too_large_for_forward(N) } || m == 0 || it.derivatives.reverse::<N>() {
             return None;
         }
-        let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substeps[0])?.matrix();
-        for seg in &it.memory.substeps[1..m] {
-            product = symplectic::tangent_map(&it.system, &Trapezoid, seg)?.matrix() * product;
+        let weights = it.method.weights;
+        let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substep(0, weights))?.matrix();
+        for i in 1..m {
+            let seg = it.memory.substep(i, weights);
+            product = symplectic::tangent_map(&it.system, &Trapezoid, &seg)?.matrix() * product;
         }
         let block = |r: usize, c: usize| nalgebra::SMatrix::<f64, N, N>::from_fn(|a, b| product[(r + a, c + b)]);
         Some(TangentMap { dq_dq: block(0, 0), dq_dp: block(0, N), dp_dq: block(N, 0), dp_dp: block(N, N) })
@@ -303,10 +370,47 @@ impl F64Readouts for Composition {
             return (m > 0).then_some(0.0);
         }
         (m > 0).then(|| {
-            it.memory.substeps[..m]
-                .iter()
-                .map(|seg| crate::noether::forcing_impulse(&it.system, &Trapezoid, seg, symmetry))
+            (0..m)
+                .map(|i| {
+                    let seg = it.memory.substep(i, it.method.weights);
+                    crate::noether::forcing_impulse(&it.system, &Trapezoid, &seg, symmetry)
+                })
                 .sum()
         })
     }
+}
+
+/// A composed step on a system whose trapezoid sub-steps are explicit, in
+/// forward mode: the sub-steps fused into one step on local arrays
+/// ([`explicit_step`]), checked and committed once, their increments kept to
+/// rebuild them for the readouts. A failed step changes nothing observable.
+fn fused_step<S: Lagrangian<N>, const N: usize>(
+    it: &mut Integrator<S, Composition, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    let weights = it.method.weights;
+    let spare = 1 - it.memory.fused_last;
+    let fused = it.memory.fused.get_or_insert_with(|| {
+        let empty = FusedSubsteps { carry: [0.0; N], increments: [[0.0; N]; MAX_STAGES] };
+        Box::new([empty.clone(), empty])
+    });
+    let into = &mut fused[spare];
+    into.carry = it.carry;
+    let node = ExplicitNode { state: &it.state, carry: &it.carry, p_carry: &it.p_carry, v0: &it.v0 };
+    let taken = match explicit_step(&it.system, &mut it.memory.inner, node, h, t1, weights, &mut into.increments) {
+        Ok(taken) => taken,
+        Err(failure) => return Err(it.fail(h, failure)),
+    };
+    commit_explicit(
+        &mut it.memory.inner,
+        (&mut it.state, &mut it.carry, &mut it.p_carry, &mut it.stats),
+        h,
+        t1,
+        &taken,
+    );
+    it.memory.fused_last = spare;
+    it.memory.stages = weights.len();
+    it.memory.last_h = Some(h);
+    Ok(())
 }

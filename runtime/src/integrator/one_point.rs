@@ -12,7 +12,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::method::{F64Readouts, Method, sealed};
-use super::{IMPLAUSIBLE_GROWTH, Integrator, StepBounds, StepPolicy, implausible_growth, kahan, non_finite};
+use super::{IMPLAUSIBLE_GROWTH, Integrator, Stats, StepBounds, StepPolicy, implausible_growth, kahan, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -247,23 +247,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     const EXPLICIT: bool =
         M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass() && !S::HAS_FORCE && !S::HAS_DISSIPATION;
 
-    /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the
-    /// adjoint code `#[lagrangian]` wrote out where it could
-    /// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
-    /// evaluation.
-    #[inline(always)]
-    fn potential_force(&self, t: f64, q: [f64; N]) -> [f64; N] {
-        use crate::hyperdual::DualArray;
-        if S::HAS_GRADIENT {
-            let mut f = [0.0; N];
-            self.system.gradient_q(t, &q, &[0.0; N], &mut f);
-            return f;
-        }
-        let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
-        let l = self.system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
-        l.eps
-    }
-
     /// One step of the trapezoid rule on `L = ½ vᵀMv − V(t, q)` with constant
     /// `M`, where its DEL is explicit (Störmer–Verlet, velocity form):
     ///
@@ -273,60 +256,25 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     ///
     /// No Newton iteration (`Stats` counts none); the same Kahan sums, checks
     /// and failure semantics as the Newton path, whose trajectories it
-    /// reproduces to round-off.
+    /// reproduces to round-off. The one-stage case of [`explicit_step`].
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
-        if self.memory.inverse_mass.is_none() {
-            match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
-                Some(m) => {
-                    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-                    self.memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
-                    self.memory.inverse_mass = Some(Box::new(m));
-                }
-                None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
-            }
-        }
-        let f0 = match self.memory.node_force {
-            Some((k, f)) if k == step => f,
-            _ => self.potential_force(t0, q0),
+        let node = ExplicitNode { state: &self.state, carry: &self.carry, p_carry: &self.p_carry, v0: &self.v0 };
+        let taken = match explicit_step(&self.system, &mut self.memory, node, h, t1, &[1.0], &mut [[0.0; N]]) {
+            Ok(taken) => taken,
+            Err(failure) => return Err(self.fail(h, failure)),
         };
-        let half = 0.5 * h;
-        let mv: [f64; N] = core::array::from_fn(|i| (p0[i] + half * f0[i]) + self.p_carry[i]);
-        // A diagonal `M⁻¹` skips the products with its zeros, which add
-        // exact zeros (only the sign of a zero increment can differ).
-        let dq: [f64; N] = match (&self.memory.inverse_mass_diagonal, &self.memory.inverse_mass) {
-            (Some(d), _) => core::array::from_fn(|i| (d[i] * mv[i]) * h),
-            (None, Some(m)) => (**m * SVector::from(mv) * h).into(),
-            (None, None) => unreachable!("the inverse mass is set above"),
-        };
-        if let Some(last) = &self.memory.previous
-            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
-            && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
-        {
-            let reason = IMPLAUSIBLE_GROWTH;
-            return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
-        }
-        let (q1, carry) = kahan(&q0, &self.carry, &dq);
-        let f1 = self.potential_force(t1, q1);
-        let dp: [f64; N] = core::array::from_fn(|i| half * (f0[i] + f1[i]));
-        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
-        if let Some(quantity) = non_finite(t1, &q1, &p1) {
-            self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
-        }
-        let seg = Segment { t0, h, q0, dq };
-        self.carry = carry;
-        self.p_carry = p_carry;
         if S::DISCONTINUOUS {
+            let seg = Segment { t0: self.state.t, h, q0: self.state.q, dq: taken.dq };
             self.watch_energy(&seg, t1);
         }
-        self.memory.node_force = Some((step + 1, f1));
-        self.memory.earlier = self.memory.previous.map(|last| (last.h, last.dq));
-        self.memory.previous = Some(seg);
-        self.state = State { step: step + 1, t: t1, q: q1, p: p1 };
-        self.stats.steps += 1;
-        self.stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
+        commit_explicit(
+            &mut self.memory,
+            (&mut self.state, &mut self.carry, &mut self.p_carry, &mut self.stats),
+            h,
+            t1,
+            &taken,
+        );
         Ok(())
     }
 
@@ -458,4 +406,217 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 #[inline(always)]
 fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
     max_abs(dq) <= 1e6 * (max_abs(last_dq) * ratio)
+}
+
+/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the adjoint
+/// code `#[lagrangian]` wrote out where it could
+/// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
+/// evaluation.
+#[inline(always)]
+fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> [f64; N] {
+    use crate::hyperdual::DualArray;
+    if S::HAS_GRADIENT {
+        let mut f = [0.0; N];
+        system.gradient_q(t, q, &[0.0; N], &mut f);
+        return f;
+    }
+    let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
+    let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
+    l.eps
+}
+
+/// The node an explicit step starts from, borrowed from the integrator.
+pub(super) struct ExplicitNode<'a, const N: usize> {
+    pub(super) state: &'a State<N>,
+    /// The Kahan compensations of `q` and `p`.
+    pub(super) carry: &'a [f64; N],
+    pub(super) p_carry: &'a [f64; N],
+    /// The initial velocity (the predictor's guess before two steps).
+    pub(super) v0: &'a [f64; N],
+}
+
+/// An explicit step that passed every check; nothing is committed yet.
+pub(super) struct ExplicitStep<const N: usize> {
+    /// The step's total increment `q_{k+1} − q_k` (before the compensation).
+    pub(super) dq: [f64; N],
+    pub(super) q1: [f64; N],
+    pub(super) carry: [f64; N],
+    pub(super) p1: [f64; N],
+    pub(super) p_carry: [f64; N],
+    /// The force at the new node, for the next step.
+    pub(super) f1: [f64; N],
+}
+
+/// A composition of Störmer–Verlet sub-steps of sizes `γ_i h` (`weights`;
+/// `[1.0]` is one trapezoid step) on `L = ½ vᵀMv − V(t, q)` with constant
+/// `M`, run on local arrays and checked once:
+///
+/// ```text
+/// Δp ← Δp + (h_{i−1} + h_i)/2 · f_i      (the closing kick of sub-step i − 1 and the opening one of i share the node)
+/// δq_i = h_i M⁻¹ (p_k + Δp),   Δq ← Δq + δq_i,   f_{i+1} = f(t_{i+1}, q_k + Δq)
+/// ```
+///
+/// with `Δp ← Δp + h_m/2 · f_{m+1}` at the end, then `q_{k+1} = q_k + Δq`
+/// and `p_{k+1} = p_k + Δp` as Kahan sums with the state's compensations.
+/// Every sub-node position is `q_k + (c_q + Δq)`, the operations of that
+/// Kahan sum, so the last one is `q_{k+1}` bit for bit (its force is the next
+/// step's `f_k`), and the momentum in each drift is `p_k + (c_p + Δp)`. The
+/// partial sums `Δq`, `Δp` round relative to the step's increment, not to
+/// `q` and `p`, and the state is summed once per composed step, so the
+/// round-off of the nodes does not grow with the number of sub-steps.
+///
+/// `increments[i]` receives `δq_i` (it needs `weights.len()` entries). The growth check
+/// compares `Δq` with the last step's total increment, the finiteness
+/// check runs on `q_{k+1}`, `p_{k+1}` and `t1`. Changes only the caches of
+/// `memory` (the inverse mass matrix; the node force stays valid for node
+/// `k`).
+#[inline(always)]
+pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    memory: &mut OnePointMemory<N>,
+    node: ExplicitNode<'_, N>,
+    h: f64,
+    t1: f64,
+    weights: &[f64],
+    increments: &mut [[f64; N]],
+) -> Result<ExplicitStep<N>, NewtonFailure> {
+    let State { step, t: t0, q: ref q0, p: ref p0 } = *node.state;
+    let (qc, pc) = (node.carry, node.p_carry);
+    if memory.inverse_mass.is_none() {
+        match system.velocity_hessian(t0, *q0, [0.0; N]).try_inverse() {
+            Some(m) => {
+                let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+                memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
+                memory.inverse_mass = Some(Box::new(m));
+            }
+            None => return Err(NewtonFailure::Singular { iterations: 0, rcond: 0.0 }),
+        }
+    }
+    let f = match memory.node_force {
+        Some((k, f)) if k == step => f,
+        _ => potential_force(system, t0, q0),
+    };
+    let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
+    // The mass matrix is chosen once per step, not per sub-step.
+    let (dq, mut dp, q, f, closing) = match (&memory.inverse_mass_diagonal, &memory.inverse_mass) {
+        // A diagonal `M⁻¹` skips the products with its zeros, which add
+        // exact zeros (only the sign of a zero increment can differ).
+        (Some(d), _) => {
+            substeps(system, &start, f, weights, increments, |mv, hi| core::array::from_fn(|j| (d[j] * mv[j]) * hi))
+        }
+        (None, Some(m)) => {
+            substeps(system, &start, f, weights, increments, |mv, hi| (**m * SVector::from(*mv) * hi).into())
+        }
+        (None, None) => unreachable!("the inverse mass is set above"),
+    };
+    if let Some(last) = &memory.previous
+        && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
+    {
+        let mut predicted = [0.0; N];
+        let earlier = memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        super::predict_into(h, Some((last.h, &last.dq[..])), earlier, node.v0, &mut predicted);
+        if implausible_growth(&dq, &predicted, &last.dq.map(|x| x * (h / last.h)), q0) {
+            return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
+        }
+    }
+    let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
+    let (mut q_finite, mut p_finite) = (true, true);
+    for j in 0..N {
+        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
+        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
+        q_finite &= q[j].is_finite();
+        dp[j] += closing * f[j];
+        let u = pc[j] + dp[j];
+        p1[j] = p0[j] + u;
+        p_carry[j] = u - (p1[j] - p0[j]);
+        p_finite &= p1[j].is_finite();
+    }
+    // The order of `non_finite`.
+    let quantity = if !q_finite {
+        Some("position")
+    } else if !p_finite {
+        Some("momentum")
+    } else if !t1.is_finite() {
+        Some("time")
+    } else {
+        None
+    };
+    if let Some(quantity) = quantity {
+        return Err(NewtonFailure::NonFinite { iterations: 0, quantity });
+    }
+    Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry, f1: f })
+}
+
+/// Replaces the state `(state, carry, p_carry)` by the checked explicit step
+/// `taken` of size `h` ending at `t1`, and updates the memory (the last two
+/// steps, the node force) and the counters (no Newton iteration).
+#[inline(always)]
+pub(super) fn commit_explicit<const N: usize>(
+    memory: &mut OnePointMemory<N>,
+    (state, carry, p_carry, stats): (&mut State<N>, &mut [f64; N], &mut [f64; N], &mut Stats),
+    h: f64,
+    t1: f64,
+    taken: &ExplicitStep<N>,
+) {
+    let step = state.step + 1;
+    memory.node_force = Some((step, taken.f1));
+    memory.earlier = memory.previous.as_ref().map(|last| (last.h, last.dq));
+    memory.previous = Some(Segment { t0: state.t, h, q0: state.q, dq: taken.dq });
+    *state = State { step, t: t1, q: taken.q1, p: taken.p1 };
+    *carry = taken.carry;
+    *p_carry = taken.p_carry;
+    stats.steps += 1;
+    stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
+}
+
+/// What the sub-steps of [`explicit_step`] start from.
+struct SubstepStart<'a, const N: usize> {
+    q0: &'a [f64; N],
+    p0: &'a [f64; N],
+    qc: &'a [f64; N],
+    pc: &'a [f64; N],
+    t0: f64,
+    t1: f64,
+    h: f64,
+}
+
+/// The sub-steps of [`explicit_step`] from the force `f` at the start, with
+/// `drift(p, h_i) = h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, f_{k+1}, h_m/2)`, `Δp`
+/// still without its closing kick `h_m/2 · f_{k+1}`.
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn substeps<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    start: &SubstepStart<'_, N>,
+    mut f: [f64; N],
+    weights: &[f64],
+    increments: &mut [[f64; N]],
+    drift: impl Fn(&[f64; N], f64) -> [f64; N],
+) -> ([f64; N], [f64; N], [f64; N], [f64; N], f64) {
+    let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
+    let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
+    // Half the last sub-step: its closing kick joins the next opening one.
+    let mut half = 0.0;
+    let mut elapsed = 0.0;
+    let last = weights.len().saturating_sub(1);
+    debug_assert!(increments.len() >= weights.len());
+    for (i, (&gamma, slot)) in weights.iter().zip(increments.iter_mut()).enumerate() {
+        let hi = gamma * h;
+        let kick = half + 0.5 * hi;
+        let mut mv = [0.0; N];
+        for j in 0..N {
+            dp[j] += kick * f[j];
+            mv[j] = p0[j] + (pc[j] + dp[j]);
+        }
+        *slot = drift(&mv, hi);
+        for j in 0..N {
+            dq[j] += slot[j];
+            q[j] = q0[j] + (qc[j] + dq[j]);
+        }
+        elapsed += gamma;
+        let ti = if i == last { t1 } else { t0 + elapsed * h };
+        f = potential_force(system, ti, &q);
+        half = 0.5 * hi;
+    }
+    (dq, dp, q, f, half)
 }
