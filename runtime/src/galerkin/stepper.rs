@@ -162,16 +162,17 @@ where
     }
 
     /// Whether a step starts from the last step's Jacobian (see
-    /// `step_nodes`): from a block of 6 unknowns. Below, assembling and
+    /// `step_nodes`): from a block of 4 unknowns. Below, assembling and
     /// factoring the block costs less than the extra iterations a kept one
-    /// needs (callgrind, instructions per step at h = 0.1, fresh against
-    /// kept, with the kept block inverted once and borrowed in place:
-    /// pendulum s = 6, `sN = 6`, 10 443 against 8 217 at 3.75 instead of 2
-    /// iterations per step; pendulum s = 8 11 239 and Kepler e = 0.5 s = 6
-    /// 9 559 kept. Below `sN = 6` not re-measured since the block was
-    /// copied through the memory, when even `sN = 6` lost: 11 541 against
-    /// 12 145).
-    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 6;
+    /// needs. Measured with the kept block inverted once and borrowed in
+    /// place (`--bench galerkin`, h = 0.1, fresh against kept, two runs
+    /// each): pendulum s = 4 0.71/0.64 against 0.49/0.55 µs per step (2.0
+    /// against 4.4 iterations), s = 5 0.85/0.86 against 0.58/0.57, s = 6
+    /// 10 443 against 8 217 instructions; Kepler e = 0.5 s = 2 0.51/0.49
+    /// against 0.43/0.45 µs (2.3 against 6.1 iterations). Earlier, with the
+    /// block copied through the memory, even `sN = 6` lost (11 541 against
+    /// 12 145 instructions).
+    const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 4;
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
