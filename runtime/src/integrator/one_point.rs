@@ -256,18 +256,57 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     ///
     /// No Newton iteration (`Stats` counts none); the same Kahan sums, checks
     /// and failure semantics as the Newton path, whose trajectories it
-    /// reproduces to round-off. The one-stage case of [`explicit_step`].
+    /// reproduces to round-off. The one-stage case of [`explicit_step`],
+    /// written out.
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
-        let node = ExplicitNode { state: &self.state, carry: &self.carry, p_carry: &self.p_carry, v0: &self.v0 };
-        let taken = match explicit_step(&self.system, &mut self.memory, node, h, t1, &[1.0], &mut [[0.0; N]]) {
-            Ok(taken) => taken,
-            Err(failure) => return Err(self.fail(h, failure)),
+        // One stage written out rather than run through `explicit_step`'s
+        // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
+        // (`--bench step -- explicit`, one run each, load ≈ 3.5).
+        let State { step, t: t0, q: q0, p: p0 } = self.state;
+        if self.memory.inverse_mass.is_none() {
+            match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
+                Some(m) => {
+                    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+                    self.memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
+                    self.memory.inverse_mass = Some(Box::new(m));
+                }
+                None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
+            }
+        }
+        let f0 = match self.memory.node_force {
+            Some((k, f)) if k == step => f,
+            _ => potential_force(&self.system, t0, &q0),
         };
+        let half = 0.5 * h;
+        let mv: [f64; N] = core::array::from_fn(|i| (p0[i] + half * f0[i]) + self.p_carry[i]);
+        // A diagonal `M⁻¹` skips the products with its zeros, which add
+        // exact zeros (only the sign of a zero increment can differ).
+        let dq: [f64; N] = match (&self.memory.inverse_mass_diagonal, &self.memory.inverse_mass) {
+            (Some(d), _) => core::array::from_fn(|i| (d[i] * mv[i]) * h),
+            (None, Some(m)) => (**m * SVector::from(mv) * h).into(),
+            (None, None) => unreachable!("the inverse mass is set above"),
+        };
+        if let Some(last) = &self.memory.previous
+            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
+            && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
+        {
+            let reason = IMPLAUSIBLE_GROWTH;
+            return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+        }
+        let (q1, carry) = kahan(&q0, &self.carry, &dq);
+        let f1 = potential_force(&self.system, t1, &q1);
+        let dp: [f64; N] = core::array::from_fn(|i| half * (f0[i] + f1[i]));
+        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
+        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+            self.stats.failed_steps += 1;
+            return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
+        }
+        let seg = Segment { t0, h, q0, dq };
         if S::DISCONTINUOUS {
-            let seg = Segment { t0: self.state.t, h, q0: self.state.q, dq: taken.dq };
             self.watch_energy(&seg, t1);
         }
+        let taken = ExplicitStep { dq, q1, carry, p1, p_carry, f1 };
         commit_explicit(
             &mut self.memory,
             (&mut self.state, &mut self.carry, &mut self.p_carry, &mut self.stats),
