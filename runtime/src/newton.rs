@@ -193,12 +193,13 @@ fn rcond<const N: usize>(j: &SMatrix<f64, N, N>, inv: &SMatrix<f64, N, N>) -> f6
     1.0 / (norm1(j) * norm1(inv))
 }
 
-/// Checks a residual and its Jacobian and inverts the Jacobian.
-#[inline]
+/// Checks a residual and its Jacobian and inverts the Jacobian; with
+/// `min_rcond`, also estimates its condition.
+#[inline(always)]
 fn checked_inverse<const N: usize>(
     r: &SVector<f64, N>,
     j: &SMatrix<f64, N, N>,
-    min_rcond: f64,
+    min_rcond: Option<f64>,
 ) -> Result<SMatrix<f64, N, N>, Breakdown> {
     if !r.iter().all(|v| v.is_finite()) {
         return Err(Breakdown::NonFinite("residual"));
@@ -207,9 +208,11 @@ fn checked_inverse<const N: usize>(
         return Err(Breakdown::NonFinite("jacobian"));
     }
     let inv = j.try_inverse().ok_or(Breakdown::Singular(0.0))?;
-    let rc = rcond(j, &inv);
-    if rc.is_nan() || rc < min_rcond {
-        return Err(Breakdown::Singular(rc));
+    if let Some(min_rcond) = min_rcond {
+        let rc = rcond(j, &inv);
+        if rc.is_nan() || rc < min_rcond {
+            return Err(Breakdown::Singular(rc));
+        }
     }
     Ok(inv)
 }
@@ -221,7 +224,22 @@ pub(crate) fn square_correction<const N: usize>(
     j: SMatrix<f64, N, N>,
     min_rcond: f64,
 ) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
-    let inv = checked_inverse(&r, &j, min_rcond)?;
+    let inv = checked_inverse(&r, &j, Some(min_rcond))?;
+    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
+}
+
+/// [`square_correction`] without the condition estimate, for the later
+/// iterations of a solve whose first Jacobian passed it (the fixed-step DEL:
+/// there the iterates differ by the predictor's `O(h³)` error and less, and
+/// the Jacobian with them). A Jacobian that has become exactly singular or
+/// non-finite is still a failure; the estimate (two 1-norms and a division)
+/// was a fifth of the bookkeeping of a pendulum iteration.
+#[inline]
+pub(crate) fn square_correction_unestimated<const N: usize>(
+    r: SVector<f64, N>,
+    j: SMatrix<f64, N, N>,
+) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
+    let inv = checked_inverse(&r, &j, None)?;
     Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
 }
 
@@ -241,7 +259,7 @@ pub(crate) fn bordered_correction<const N: usize>(
     if !r_t.is_finite() || !b.iter().chain(c.iter()).all(|v| v.is_finite()) || !d.is_finite() {
         return Err(Breakdown::NonFinite("energy equation"));
     }
-    let inv = checked_inverse(&r, &a, min_rcond)?;
+    let inv = checked_inverse(&r, &a, Some(min_rcond))?;
     let ainv_b = inv * b;
     let ainv_r = inv * r;
     let s = d - c.dot(&ainv_b);
