@@ -418,6 +418,17 @@ where
     (a.eps.q, a.eps.t)
 }
 
+/// `∂A/∂q_k` alone (one [`DualArray`] evaluation): the part of the DEL
+/// residual `p_k + ∂A/∂q_k` that depends on the step.
+#[inline]
+pub fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    dual_array_position_action(system, method, seg, Var::Q0).eps
+}
+
 /// `∂A/∂q_{k+1}`, the momentum at the end of a segment (one [`DualArray`] evaluation).
 #[inline]
 pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]

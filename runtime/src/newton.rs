@@ -228,6 +228,30 @@ pub(crate) fn square_correction<const N: usize>(
     Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
 }
 
+/// The correction `−J⁻¹ R` with the inverse of a Jacobian from an earlier
+/// iterate (simplified Newton): only the residual is checked.
+#[inline]
+pub(crate) fn frozen_correction<const N: usize>(
+    r: SVector<f64, N>,
+    inv: &SMatrix<f64, N, N>,
+) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
+    if !r.iter().all(|v| v.is_finite()) {
+        return Err(Breakdown::NonFinite("residual"));
+    }
+    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
+}
+
+/// The checked inverse of a Jacobian and the correction `−J⁻¹ R`.
+#[inline]
+pub(crate) fn inverse_and_correction<const N: usize>(
+    r: SVector<f64, N>,
+    j: SMatrix<f64, N, N>,
+    min_rcond: f64,
+) -> Result<(SMatrix<f64, N, N>, Linearization<SVector<f64, N>>), Breakdown> {
+    let inv = checked_inverse(&r, &j, Some(min_rcond))?;
+    Ok((inv, Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY }))
+}
+
 /// [`square_correction`] without the condition estimate, for the later
 /// iterations of a solve whose first Jacobian passed it (the fixed-step DEL:
 /// there the iterates differ by the predictor's `O(h³)` error and less, and
