@@ -16,6 +16,10 @@
 //! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others).
+//! `trace-midpoint`, `trace-trapezoid`, `trace-alpha-beta` (α = 0.3; `pendulum` or `double pendulum`)
+//! print the positions of every node as bit patterns, to compare the trajectories of two builds;
+//! `trace-midpoint-nudged` starts midpoint from `q0[0]` one ulp up (what round-off alone does),
+//! `trace-midpoint-tight` runs it with Newton's `rtol` at 1e-16.
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -289,10 +293,69 @@ fn main() {
             ),
             n,
         ),
+        (_, m) if m.starts_with("trace-") => {
+            // Every node's positions, one line each as the bits of the f64s,
+            // to compare the trajectories of two builds exactly.
+            let rule = &m["trace-".len()..];
+            let lines = if case == "pendulum" {
+                trace(Pendulum { ..P }, rule, [1.0], [0.0], n)
+            } else {
+                trace(DoublePendulum { ..DP }, rule, [1.0, -0.5], [0.0, 0.5], n)
+            };
+            println!("{lines}");
+            vec![]
+        }
         _ => panic!("unknown case {case:?} {method:?}"),
     };
     let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
     println!("{ns:.1} ns/step, q = {:?}", black_box(q));
+}
+
+/// `n` steps of `rule` (`midpoint`, `trapezoid` or `alpha-beta`, α = 0.3),
+/// the positions of every node as hexadecimal bit patterns.
+fn trace<S: lagrangian::Lagrangian<N>, const N: usize>(
+    system: S,
+    rule: &str,
+    q0: [f64; N],
+    v0: [f64; N],
+    n: usize,
+) -> String {
+    fn lines<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(
+        mut sim: lagrangian::Integrator<S, M, N>,
+        n: usize,
+    ) -> String {
+        let mut out = String::new();
+        for _ in 0..n {
+            sim.step().unwrap();
+            let bits: Vec<String> = sim.state().q.iter().map(|x| format!("{:016x}", x.to_bits())).collect();
+            out += &bits.join(" ");
+            out.push('\n');
+        }
+        out
+    }
+    match rule {
+        "midpoint" => lines(Integrator::new(system, Midpoint, H).start(0.0, q0, v0).unwrap(), n),
+        // Newton's `rtol` at 1e-16: how far a change within the default tolerance carries it.
+        "midpoint-tight" => lines(
+            Integrator::new(system, Midpoint, H)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-16, ..Default::default() })
+                .start(0.0, q0, v0)
+                .unwrap(),
+            n,
+        ),
+        // The first coordinate one ulp up: how far round-off alone carries the trajectory.
+        "midpoint-nudged" => {
+            let mut q0 = q0;
+            q0[0] = f64::from_bits(q0[0].to_bits() + 1);
+            lines(Integrator::new(system, Midpoint, H).start(0.0, q0, v0).unwrap(), n)
+        }
+        "trapezoid" => lines(Integrator::new(system, Trapezoid, H).start(0.0, q0, v0).unwrap(), n),
+        "alpha-beta" => {
+            let rule = lagrangian::AlphaBeta::new(0.3).unwrap();
+            lines(Integrator::new(system, rule, H).start(0.0, q0, v0).unwrap(), n)
+        }
+        _ => panic!("unknown rule {rule:?}"),
+    }
 }
 
 fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(

@@ -3,9 +3,10 @@
 //! An evaluation of `A` on a hyper-dual number with the first infinitesimals
 //! seeded on coordinates `a_i` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second
 //! on coordinates `b_j` yields `A`, `∂A/∂a_i`, `∂A/∂b_j` and `∂²A/∂a_i∂b_j` at
-//! once. Each Newton iteration of a fixed step is one evaluation on
-//! [`HyperDualArray<[f64; N], [f64; N]>`](HyperDualArray) (`ε1` on `q_k`, `ε2`
-//! on `q_{k+1}`), of a variable step one evaluation on
+//! once. A Newton iteration of a fixed step that needs the Jacobian is one
+//! evaluation on [`HyperDualArray<[f64; N], [f64; N]>`](HyperDualArray) (`ε1`
+//! on `q_k`, `ε2` on `q_{k+1}`), one that reuses it a first-order evaluation
+//! ([`start_gradient`]); an iteration of a variable step is one evaluation on
 //! `HyperDualArray<Timed<f64, N>, Timed<f64, N>>` (the times as an extra slot
 //! on each side); the end momentum (and energy) is one evaluation on a
 //! first-order [`DualArray`].

@@ -2,10 +2,13 @@
 //! [`DiscreteLagrangian`]) as [`Method`]s.
 //!
 //! In `f64` they take the direct path: the step's only unknown is the
-//! increment `dq = q_{k+1} − q_k`, and each Newton iteration is one
-//! hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
-//! residual `p_k + ∂A/∂q_k`, the Jacobian `∂²A/∂q_k∂q_{k+1}` and, after
-//! convergence, the momentum change. In any other [`Real`](crate::Real)
+//! increment `dq = q_{k+1} − q_k`. The first Newton iteration of a step is
+//! one hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
+//! residual `p_k + ∂A/∂q_k` and the Jacobian `∂²A/∂q_k∂q_{k+1}`, whose
+//! inverse (with its condition checked) serves the following iterations,
+//! each a first-order sweep for the residual alone (simplified Newton; the
+//! Jacobian is evaluated again where the residual stops falling fast). After
+//! convergence one more first-order sweep gives the momentum change. In any other [`Real`](crate::Real)
 //! they run as the Galerkin rule of degree 1 whose quadrature is their own
 //! point(s) (`galerkin/one_point.rs`), which is the same discrete Lagrangian.
 
