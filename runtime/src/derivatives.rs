@@ -407,19 +407,6 @@ where
     }
 }
 
-/// `(∂A/∂q_k, ∂A/∂t_k)` (one first-order [`DualArray`] evaluation): the
-/// residual parts of the variable-step map, for Newton iterations that reuse
-/// a Jacobian.
-#[inline]
-pub fn extended_start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ([f64; N], f64)
-where
-    S: Lagrangian<N> + ?Sized,
-    M: DiscreteLagrangian,
-{
-    let a: DualArray<Timed<f64, N>> = dual_array_action(system, method, seg, start_var::<N>);
-    (a.eps.q, a.eps.t)
-}
-
 /// `(∂A/∂q_{k+1}, ∂A/∂t_{k+1})`: the momentum and minus the energy at the
 /// end of a segment (one [`DualArray`] evaluation).
 #[inline]

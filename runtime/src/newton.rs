@@ -254,34 +254,11 @@ pub(crate) fn inverse_and_correction<const N: usize>(
     Ok((inv, Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY }))
 }
 
-/// What the bordered elimination keeps of one linearisation, to correct
-/// later iterates with the same Jacobian ([`frozen_bordered_correction`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct BorderedFactors<const N: usize> {
-    inv: SMatrix<f64, N, N>,
-    ainv_b: SVector<f64, N>,
-    c: SVector<f64, N>,
-    s: f64,
-}
-
-impl<const N: usize> BorderedFactors<N> {
-    /// The correction for the residuals `(r, r_t)`.
-    #[inline(always)]
-    fn correction(&self, r: &SVector<f64, N>, r_t: f64) -> Extended<N> {
-        let ainv_r = self.inv * r;
-        let dt = (self.c.dot(&ainv_r) - r_t) / self.s;
-        let dq = -(ainv_r + self.ainv_b * dt);
-        Extended { q: dq, t: dt }
-    }
-}
-
 /// The correction of the bordered system
 /// `[[A, b], [cᵀ, d]] (Δq, Δt) = −(r, r_t)` by block elimination (Schur
-/// complement `s = d − cᵀA⁻¹b`), keeping static `N × N` sizes, and the
-/// factors that give it.
+/// complement `s = d − cᵀA⁻¹b`), keeping static `N × N` sizes.
 #[allow(clippy::too_many_arguments)]
-#[inline]
-pub(crate) fn bordered_factors<const N: usize>(
+pub(crate) fn bordered_correction<const N: usize>(
     r: SVector<f64, N>,
     r_t: f64,
     a: SMatrix<f64, N, N>,
@@ -289,12 +266,13 @@ pub(crate) fn bordered_factors<const N: usize>(
     c: SVector<f64, N>,
     d: f64,
     min_rcond: f64,
-) -> Result<(BorderedFactors<N>, Linearization<Extended<N>>), Breakdown> {
+) -> Result<Linearization<Extended<N>>, Breakdown> {
     if !r_t.is_finite() || !b.iter().chain(c.iter()).all(|v| v.is_finite()) || !d.is_finite() {
         return Err(Breakdown::NonFinite("energy equation"));
     }
     let inv = checked_inverse(&r, &a, Some(min_rcond))?;
     let ainv_b = inv * b;
+    let ainv_r = inv * r;
     let s = d - c.dot(&ainv_b);
     // Relative size of the Schur complement: near zero where the energy
     // equation loses its root in h (docs/theory.md §9).
@@ -303,31 +281,10 @@ pub(crate) fn bordered_factors<const N: usize>(
     if rc.is_nan() || rc < min_rcond {
         return Err(Breakdown::Singular(rc));
     }
-    let factors = BorderedFactors { inv, ainv_b, c, s };
-    let lin = Linearization {
-        correction: factors.correction(&r, r_t),
-        residual_norm: r.amax().max(r_t.abs()),
-        residual_ratio: f64::INFINITY,
-    };
-    Ok((factors, lin))
-}
-
-/// The bordered correction with the factors of an earlier iterate
-/// (simplified Newton): only the residuals are checked.
-#[inline]
-pub(crate) fn frozen_bordered_correction<const N: usize>(
-    r: SVector<f64, N>,
-    r_t: f64,
-    factors: &BorderedFactors<N>,
-) -> Result<Linearization<Extended<N>>, Breakdown> {
-    if !r.iter().all(|v| v.is_finite()) {
-        return Err(Breakdown::NonFinite("residual"));
-    }
-    if !r_t.is_finite() {
-        return Err(Breakdown::NonFinite("energy equation"));
-    }
+    let dt = (c.dot(&ainv_r) - r_t) / s;
+    let dq = -(ainv_r + ainv_b * dt);
     Ok(Linearization {
-        correction: factors.correction(&r, r_t),
+        correction: Extended { q: dq, t: dt },
         residual_norm: r.amax().max(r_t.abs()),
         residual_ratio: f64::INFINITY,
     })
@@ -439,7 +396,7 @@ mod tests {
         let (r, r_t) = (SVector::<f64, 2>::new(1.0, -2.0), 0.75);
         let full = SMatrix::<f64, 3, 3>::new(4.0, 1.0, 0.5, -2.0, 3.0, -1.0, 2.0, 0.25, 1.5);
         let want = -(full.try_inverse().unwrap() * SVector::<f64, 3>::new(1.0, -2.0, 0.75));
-        let got = bordered_factors(r, r_t, a, b, c, d, 1e-13).unwrap().1.correction;
+        let got = bordered_correction(r, r_t, a, b, c, d, 1e-13).unwrap().correction;
         assert!((got.q[0] - want[0]).abs() < 1e-14 && (got.q[1] - want[1]).abs() < 1e-14);
         assert!((got.t - want[2]).abs() < 1e-14);
     }

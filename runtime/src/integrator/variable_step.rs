@@ -165,32 +165,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         };
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
-        // Simplified Newton as for fixed steps (`solve_del`): the factors of
-        // the last full linearisation serve the following iterations, which
-        // need only the first derivatives `(∂A/∂q_k, ∂A/∂t_k)`, until a
-        // residual is not below 1e-2 of the one before. Forced systems
-        // linearise every iteration (their forcing terms come together).
-        let mut frozen: Option<newton::BorderedFactors<N>> = None;
-        let mut last_norm = f64::INFINITY;
         let linearize = |x: &Extended<N>| {
             if x.t.is_nan() || x.t <= 0.0 {
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
             }
             let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
-            if let Some(factors) = &frozen {
-                let (d_q0, d_t0) = derivatives::extended_start_gradient(system, method, &seg);
-                let r = SVector::<f64, N>::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]);
-                let r_t = d_t0 - e0;
-                let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d_q0));
-                let ratio_t = r_t.abs() / e0.abs().max(d_t0.abs());
-                let mut lin = newton::frozen_bordered_correction(r, r_t, factors)?;
-                if lin.residual_norm > 1e-2 * last_norm {
-                    frozen = None;
-                }
-                last_norm = lin.residual_norm;
-                lin.residual_ratio = ratio_q.max(ratio_t);
-                return Ok(lin);
-            }
             let mut d = derivatives::extended_step_derivatives(system, method, &seg);
             if forcing::is_forced::<S, N>() {
                 // Lagrange–d'Alembert with time as a variable: F_k^− joins the
@@ -209,12 +188,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             let r_t = d.d_t0 - e0;
             let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
             let ratio_t = r_t.abs() / e0.abs().max(d.d_t0.abs());
-            let (factors, mut lin) =
-                newton::bordered_factors(r, r_t, d.d2_q0_q1, d.d2_q0_t1, d.d2_t0_q1, d.d2_t0_t1, min_rcond)?;
-            if !forcing::is_forced::<S, N>() {
-                frozen = Some(factors);
-            }
-            last_norm = lin.residual_norm;
+            let mut lin =
+                newton::bordered_correction(r, r_t, d.d2_q0_q1, d.d2_q0_t1, d.d2_t0_q1, d.d2_t0_t1, min_rcond)?;
             lin.residual_ratio = ratio_q.max(ratio_t);
             Ok(lin)
         };
