@@ -3,10 +3,9 @@
 //! An evaluation of `A` on a hyper-dual number with the first infinitesimals
 //! seeded on coordinates `a_i` of `(t_k, q_k, t_{k+1}, q_{k+1})` and the second
 //! on coordinates `b_j` yields `A`, `∂A/∂a_i`, `∂A/∂b_j` and `∂²A/∂a_i∂b_j` at
-//! once. A Newton iteration of a fixed step that needs the Jacobian is one
-//! evaluation on [`HyperDualArray<[f64; N], [f64; N]>`](HyperDualArray) (`ε1`
-//! on `q_k`, `ε2` on `q_{k+1}`), one that reuses it a first-order evaluation
-//! ([`start_gradient`]); an iteration of a variable step is one evaluation on
+//! once. Each Newton iteration of a fixed step is one evaluation on
+//! [`HyperDualArray<[f64; N], [f64; N]>`](HyperDualArray) (`ε1` on `q_k`, `ε2`
+//! on `q_{k+1}`), of a variable step one evaluation on
 //! `HyperDualArray<Timed<f64, N>, Timed<f64, N>>` (the times as an extra slot
 //! on each side); the end momentum (and energy) is one evaluation on a
 //! first-order [`DualArray`].
@@ -417,17 +416,6 @@ where
 {
     let a: DualArray<Timed<f64, N>> = dual_array_action(system, method, seg, end_var::<N>);
     (a.eps.q, a.eps.t)
-}
-
-/// `∂A/∂q_k` alone (one [`DualArray`] evaluation): the part of the DEL
-/// residual `p_k + ∂A/∂q_k` that depends on the step.
-#[inline]
-pub fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
-where
-    S: Lagrangian<N> + ?Sized,
-    M: DiscreteLagrangian,
-{
-    dual_array_position_action(system, method, seg, Var::Q0).eps
 }
 
 /// `∂A/∂q_{k+1}`, the momentum at the end of a segment (one [`DualArray`] evaluation).

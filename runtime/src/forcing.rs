@@ -176,23 +176,6 @@ where
     d
 }
 
-/// `∂A/∂q_k + F_k^−`: what the step adds to `p_k` in the forced DEL residual.
-#[inline]
-pub fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
-where
-    S: Lagrangian<N> + ?Sized,
-    M: DiscreteLagrangian,
-{
-    let mut g = derivatives::start_gradient(system, method, seg);
-    if is_forced::<S, N>() {
-        let f = discrete_forces(system, method, seg);
-        for i in 0..N {
-            g[i] += f.minus[i];
-        }
-    }
-    g
-}
-
 /// The momentum at the end of a segment, `p_{k+1} = ∂A/∂q_{k+1} + F_k^+`.
 #[inline]
 pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]

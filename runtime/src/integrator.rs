@@ -45,8 +45,7 @@ pub use variable_step::{EnergyFallback, StepBounds};
 pub struct Stats {
     /// Steps taken successfully.
     pub steps: u64,
-    /// Newton iterations (residual evaluations, each with the Jacobian or
-    /// reusing an earlier one) over all successful steps.
+    /// Newton iterations (residual-and-Jacobian evaluations) over all successful steps.
     pub newton_iterations: u64,
     /// Steps that failed and were not applied.
     pub failed_steps: u64,

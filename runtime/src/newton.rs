@@ -1,10 +1,8 @@
 //! Newton's method on a statically sized system, with named failures.
 //!
-//! Each iteration evaluates the residual, applies the full correction of a
-//! checked inverse Jacobian (its finiteness, singularity and condition) and
-//! measures it; the caller's linearisation decides whether the Jacobian is
-//! evaluated afresh (the fixed-step DEL reuses the first one of a step while
-//! the residual falls fast: [`frozen_correction`]). Convergence is
+//! Each iteration evaluates the residual and its Jacobian once (for the
+//! one-step map, one hyper-dual sweep of the action), factors the Jacobian,
+//! checks its conditioning and applies the full correction. Convergence is
 //! declared on the size of the correction, using the contraction estimate
 //! `θ = ‖Δ_n‖ / ‖Δ_{n−1}‖` (Hairer & Wanner, *Solving ODEs II*, §IV.8) to stop
 //! one iteration early when the remaining error `θ/(1−θ)·‖Δ_n‖` is already
@@ -66,7 +64,7 @@ impl NewtonOptions {
 /// How a Newton solve ended when it converged.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NewtonReport {
-    /// Number of iterations (residual evaluations, with or without a new Jacobian).
+    /// Number of residual-and-Jacobian evaluations.
     pub iterations: usize,
     /// `‖R‖∞` at the last evaluated iterate (before the last correction).
     pub residual_norm: f64,
@@ -230,28 +228,19 @@ pub(crate) fn square_correction<const N: usize>(
     Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
 }
 
-/// The correction `−J⁻¹ R` with the inverse of a Jacobian from an earlier
-/// iterate (simplified Newton): only the residual is checked.
+/// [`square_correction`] without the condition estimate, for the later
+/// iterations of a solve whose first Jacobian passed it (the fixed-step DEL:
+/// there the iterates differ by the predictor's `O(h³)` error and less, and
+/// the Jacobian with them). A Jacobian that has become exactly singular or
+/// non-finite is still a failure; the estimate (two 1-norms and a division)
+/// was a fifth of the bookkeeping of a pendulum iteration.
 #[inline]
-pub(crate) fn frozen_correction<const N: usize>(
-    r: SVector<f64, N>,
-    inv: &SMatrix<f64, N, N>,
-) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
-    if !r.iter().all(|v| v.is_finite()) {
-        return Err(Breakdown::NonFinite("residual"));
-    }
-    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
-}
-
-/// The checked inverse of a Jacobian and the correction `−J⁻¹ R`.
-#[inline]
-pub(crate) fn inverse_and_correction<const N: usize>(
+pub(crate) fn square_correction_unestimated<const N: usize>(
     r: SVector<f64, N>,
     j: SMatrix<f64, N, N>,
-    min_rcond: f64,
-) -> Result<(SMatrix<f64, N, N>, Linearization<SVector<f64, N>>), Breakdown> {
-    let inv = checked_inverse(&r, &j, Some(min_rcond))?;
-    Ok((inv, Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY }))
+) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
+    let inv = checked_inverse(&r, &j, None)?;
+    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
 }
 
 /// The correction of the bordered system

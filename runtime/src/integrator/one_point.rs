@@ -2,13 +2,10 @@
 //! [`DiscreteLagrangian`]) as [`Method`]s.
 //!
 //! In `f64` they take the direct path: the step's only unknown is the
-//! increment `dq = q_{k+1} − q_k`. The first Newton iteration of a step is
-//! one hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
-//! residual `p_k + ∂A/∂q_k` and the Jacobian `∂²A/∂q_k∂q_{k+1}`, whose
-//! inverse (with its condition checked) serves the following iterations,
-//! each a first-order sweep for the residual alone (simplified Newton; the
-//! Jacobian is evaluated again where the residual stops falling fast). After
-//! convergence one more first-order sweep gives the momentum change. In any other [`Real`](crate::Real)
+//! increment `dq = q_{k+1} − q_k`, and each Newton iteration is one
+//! hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
+//! residual `p_k + ∂A/∂q_k`, the Jacobian `∂²A/∂q_k∂q_{k+1}` and, after
+//! convergence, the momentum change. In any other [`Real`](crate::Real)
 //! they run as the Galerkin rule of degree 1 whose quadrature is their own
 //! point(s) (`galerkin/one_point.rs`), which is the same discrete Lagrangian.
 
@@ -371,42 +368,23 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
         let p_scale = max_abs(&p0);
-        // Simplified Newton: the inverse Jacobian of the last full
-        // linearisation serves the following iterations, which then need only
-        // `∂A/∂q_k` (a first-order evaluation instead of a hyper-dual one).
-        // From the predictor, whose error is `O(h³)`, the iteration still
-        // contracts by a factor of order that error; where a residual was
-        // not at most half the one before, the next iteration evaluates the
-        // Jacobian afresh.
-        let mut frozen: Option<SMatrix<f64, N, N>> = None;
-        let mut last_norm = f64::INFINITY;
+        // The condition estimate on the first iteration only (see
+        // `newton::square_correction_unestimated`).
+        let mut first = true;
         let eval = |x: &SVector<f64, N>| {
             let seg = Segment { t0, h, q0, dq: (*x).into() };
-            match frozen {
-                Some(inverse) => {
-                    let g = forcing::start_gradient(system, method, &seg);
-                    // The momentum carries its compensation: p_k is p0 + pc.
-                    let r = SVector::from_fn(|i, _| (p0[i] + g[i]) + pc[i]);
-                    let scale = p_scale.max(max_abs(&g));
-                    let step = newton::frozen_correction(r, &inverse)?;
-                    if step.residual_norm > 1e-2 * last_norm {
-                        frozen = None;
-                    }
-                    last_norm = step.residual_norm;
-                    Ok(step.cancelling(scale))
-                }
-                None => {
-                    // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
-                    let d =
-                        forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
-                    let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
-                    let scale = p_scale.max(max_abs(&d.d_q0));
-                    let (inverse, step) = newton::inverse_and_correction(r, d.d2_q0_q1, min_rcond)?;
-                    frozen = Some(inverse);
-                    last_norm = step.residual_norm;
-                    Ok(step.cancelling(scale))
-                }
-            }
+            // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
+            let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+            // The momentum carries its compensation: p_k is p0 + pc.
+            let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
+            let scale = p_scale.max(max_abs(&d.d_q0));
+            let step = if first {
+                first = false;
+                newton::square_correction(r, d.d2_q0_q1, min_rcond)?
+            } else {
+                newton::square_correction_unestimated(r, d.d2_q0_q1)?
+            };
+            Ok(step.cancelling(scale))
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {
