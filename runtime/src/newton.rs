@@ -2,7 +2,9 @@
 //!
 //! Each iteration evaluates the residual and its Jacobian once (for the
 //! one-step map, one hyper-dual sweep of the action), factors the Jacobian,
-//! checks its conditioning and applies the full correction. Convergence is
+//! checks its conditioning (the fixed-step DEL at the first iteration of a
+//! step only: [`square_correction_unestimated`]) and applies the full
+//! correction. Convergence is
 //! declared on the size of the correction, using the contraction estimate
 //! `θ = ‖Δ_n‖ / ‖Δ_{n−1}‖` (Hairer & Wanner, *Solving ODEs II*, §IV.8) to stop
 //! one iteration early when the remaining error `θ/(1−θ)·‖Δ_n‖` is already
@@ -232,8 +234,11 @@ pub(crate) fn square_correction<const N: usize>(
 /// iterations of a solve whose first Jacobian passed it (the fixed-step DEL:
 /// there the iterates differ by the predictor's `O(h³)` error and less, and
 /// the Jacobian with them). A Jacobian that has become exactly singular or
-/// non-finite is still a failure; the estimate (two 1-norms and a division)
-/// was a fifth of the bookkeeping of a pendulum iteration.
+/// non-finite is still a failure, but one that has only become
+/// ill-conditioned is not caught here (it shows as corrections that do not
+/// converge). Skipping the estimate (two 1-norms and a division) saved 23 of
+/// 784 instructions of a pendulum midpoint step and 86 of 2785 of a
+/// double-pendulum one (callgrind, `examples/step_profile.rs`).
 #[inline]
 pub(crate) fn square_correction_unestimated<const N: usize>(
     r: SVector<f64, N>,
