@@ -17,6 +17,10 @@
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
+//! `trace-midpoint`, `trace-trapezoid`, `trace-alpha-beta` (α = 0.3; `pendulum` or `double pendulum`)
+//! print the positions of every node as bit patterns, to compare the trajectories of two builds;
+//! `trace-midpoint-nudged` starts midpoint from `q0[0]` one ulp up (what round-off alone does),
+//! `trace-midpoint-tight` runs it with Newton's `rtol` at 1e-16.
 //! It prints the wall-clock ns per step; `/usr/bin/time -f %U` gives CPU time,
 //! which is steadier on a shared machine.
 #![allow(missing_docs)]
@@ -52,6 +56,42 @@ impl DampedDoublePendulum {
 
     fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
         0.5 * self.c * (v[0] * v[0] + (v[1] - v[0]) * (v[1] - v[0]))
+    }
+}
+
+/// The pendulum of the tests (`tests/common`, the same expression, so the
+/// same numbers) as a type of its own: the trace cases then do not share,
+/// and so do not change the inlining of, the profiled pendulum step.
+struct TracePendulum {
+    m: f64,
+    l: f64,
+    g: f64,
+}
+
+#[lagrangian::lagrangian]
+impl TracePendulum {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * self.m * self.l * self.l * v[0] * v[0] + self.m * self.g * self.l * q[0].cos()
+    }
+}
+
+/// The double pendulum of the tests, as a type of its own (see [`TracePendulum`]).
+struct TraceDoublePendulum {
+    m1: f64,
+    m2: f64,
+    l1: f64,
+    l2: f64,
+    g: f64,
+}
+
+#[lagrangian::lagrangian]
+impl TraceDoublePendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let kinetic = 0.5 * (self.m1 + self.m2) * self.l1 * self.l1 * v[0] * v[0]
+            + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
+            + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        let potential = -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos() - self.m2 * self.g * self.l2 * q[1].cos();
+        kinetic - potential
     }
 }
 
@@ -339,10 +379,70 @@ fn main() {
             ),
             n,
         ),
+        (_, m) if m.starts_with("trace-") => {
+            // Every node's positions, one line each as the bits of the f64s,
+            // to compare the trajectories of two builds exactly.
+            let rule = &m["trace-".len()..];
+            let lines = if case == "pendulum" {
+                trace(TracePendulum { m: P.m, l: P.l, g: P.g }, rule, [1.0], [0.0], n)
+            } else {
+                let system = TraceDoublePendulum { m1: DP.m1, m2: DP.m2, l1: DP.l1, l2: DP.l2, g: DP.g };
+                trace(system, rule, [1.0, -0.5], [0.0, 0.5], n)
+            };
+            println!("{lines}");
+            vec![]
+        }
         _ => panic!("unknown case {case:?} {method:?}"),
     };
     let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
     println!("{ns:.1} ns/step, q = {:?}", black_box(q));
+}
+
+/// `n` steps of `rule` (`midpoint`, `trapezoid` or `alpha-beta`, α = 0.3),
+/// the positions of every node as hexadecimal bit patterns.
+fn trace<S: lagrangian::Lagrangian<N>, const N: usize>(
+    system: S,
+    rule: &str,
+    q0: [f64; N],
+    v0: [f64; N],
+    n: usize,
+) -> String {
+    fn lines<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(
+        mut sim: lagrangian::Integrator<S, M, N>,
+        n: usize,
+    ) -> String {
+        let mut out = String::new();
+        for _ in 0..n {
+            sim.step().unwrap();
+            let bits: Vec<String> = sim.state().q.iter().map(|x| format!("{:016x}", x.to_bits())).collect();
+            out += &bits.join(" ");
+            out.push('\n');
+        }
+        out
+    }
+    match rule {
+        "midpoint" => lines(Integrator::new(system, Midpoint, H).start(0.0, q0, v0).unwrap(), n),
+        // Newton's `rtol` at 1e-16: how far a change within the default tolerance carries it.
+        "midpoint-tight" => lines(
+            Integrator::new(system, Midpoint, H)
+                .newton(lagrangian::NewtonOptions { rtol: 1e-16, ..Default::default() })
+                .start(0.0, q0, v0)
+                .unwrap(),
+            n,
+        ),
+        // The first coordinate one ulp up: how far round-off alone carries the trajectory.
+        "midpoint-nudged" => {
+            let mut q0 = q0;
+            q0[0] = f64::from_bits(q0[0].to_bits() + 1);
+            lines(Integrator::new(system, Midpoint, H).start(0.0, q0, v0).unwrap(), n)
+        }
+        "trapezoid" => lines(Integrator::new(system, Trapezoid, H).start(0.0, q0, v0).unwrap(), n),
+        "alpha-beta" => {
+            let rule = lagrangian::AlphaBeta::new(0.3).unwrap();
+            lines(Integrator::new(system, rule, H).start(0.0, q0, v0).unwrap(), n)
+        }
+        _ => panic!("unknown rule {rule:?}"),
+    }
 }
 
 fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(

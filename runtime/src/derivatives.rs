@@ -202,6 +202,76 @@ where
     method.action(system, t0, h, q0, dq)
 }
 
+/// `A` on a [`HyperDualArray`] with `ε1_i` seeded on `a(i)` and `ε2_j` on
+/// `b(j)`, where neither seeds a time: `t_k` and `h` enter as plain numbers
+/// ([`DiscreteLagrangian::fixed_step_action`]).
+#[inline(always)]
+fn hyper_array_position_action<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+    b: impl Fn(usize) -> Var,
+) -> StepDual<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let (mut q0, mut dq) = constant_positions::<StepDual<N>, N>(seg);
+    for i in 0..N {
+        seed_position(&mut q0, &mut dq, a(i), |y, s| y.eps1[i] += s);
+    }
+    for j in 0..N {
+        seed_position(&mut q0, &mut dq, b(j), |y, s| y.eps2[j] += s);
+    }
+    method.fixed_step_action(system, seg.t0, seg.h, q0, dq)
+}
+
+/// `A` on a [`DualArray`] with `ε_i` seeded on the position variable
+/// `a(i)`, `t_k` and `h` as plain numbers.
+#[inline(always)]
+fn dual_array_position_action<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+) -> DualArray<[f64; N]>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let (mut q0, mut dq) = constant_positions::<DualArray<[f64; N]>, N>(seg);
+    for i in 0..N {
+        seed_position(&mut q0, &mut dq, a(i), |y, s| y.eps[i] += s);
+    }
+    method.fixed_step_action(system, seg.t0, seg.h, q0, dq)
+}
+
+/// The positions of a segment as constants of a dual type.
+#[inline(always)]
+fn constant_positions<T: Scalar, const N: usize>(seg: &Segment<N>) -> ([T; N], [T; N]) {
+    let (mut q0, mut dq) = ([T::zero(); N], [T::zero(); N]);
+    for i in 0..N {
+        q0[i] = T::from(seg.q0[i]);
+        dq[i] = T::from(seg.dq[i]);
+    }
+    (q0, dq)
+}
+
+/// [`seed`] for a position variable (`Q0`, `Q1` or `Translate`).
+#[inline(always)]
+fn seed_position<T, const N: usize>(q0: &mut [T; N], dq: &mut [T; N], v: Var, set: impl Fn(&mut T, f64)) {
+    match v {
+        Var::Q0(i) => {
+            set(&mut q0[i], 1.0);
+            set(&mut dq[i], -1.0);
+        }
+        Var::Q1(i) => set(&mut dq[i], 1.0),
+        Var::Translate(i) => set(&mut q0[i], 1.0),
+        Var::T0 | Var::T1 | Var::Delay => unreachable!("a time variable has no position seed"),
+    }
+}
+
 /// A segment on [`DualArray`]s with `ε_i` seeded on `a(i)`.
 #[inline(always)]
 pub(crate) fn lift_dual_array<E: Vector, const N: usize>(
@@ -289,7 +359,7 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let a: StepDual<N> = hyper_array_action(system, method, seg, Var::Q0, Var::Q1);
+    let a = hyper_array_position_action(system, method, seg, Var::Q0, Var::Q1);
     StepDerivatives { action: a.re, d_q0: a.eps1, d_q1: a.eps2, d2_q0_q1: SMatrix::from_fn(|i, j| a.eps1eps2[i][j]) }
 }
 
@@ -355,8 +425,7 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let a: DualArray<[f64; N]> = dual_array_action(system, method, seg, Var::Q1);
-    a.eps
+    dual_array_position_action(system, method, seg, Var::Q1).eps
 }
 
 /// `∂A/∂q_k + ∂A/∂q_{k+1}`, the derivative of `A` under a translation of
@@ -369,8 +438,7 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    let a: DualArray<[f64; N]> = dual_array_action(system, method, seg, Var::Translate);
-    a.eps
+    dual_array_position_action(system, method, seg, Var::Translate).eps
 }
 
 /// `∂A/∂t_k + ∂A/∂t_{k+1}`, the derivative of `A` under a shift of both
@@ -419,7 +487,7 @@ where
     M: DiscreteLagrangian,
 {
     let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
-        let x: StepDual<N> = hyper_array_action(system, method, seg, a, b);
+        let x = hyper_array_position_action(system, method, seg, a, b);
         SMatrix::<f64, N, N>::from_fn(|i, j| x.eps1eps2[i][j])
     };
     (block(Var::Q0, Var::Q0), block(Var::Q0, Var::Q1), block(Var::Q1, Var::Q1))

@@ -8,7 +8,7 @@
 //! `α ≠ ½`, order 2 at `α = ½` (where it is [`Midpoint`](super::Midpoint)).
 //! `α = 1` and `α = 0` are the two symplectic Euler methods.
 
-use super::{DiscreteLagrangian, array, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity, secant_velocity_fixed};
 use crate::system::{Lagrangian, Scalar};
 
 /// The α-β discrete Lagrangian `A = h L(t_k + βh, α q_k + β q_{k+1}, v̂)`, `β = 1 − α`.
@@ -67,6 +67,18 @@ impl DiscreteLagrangian for AlphaBeta {
         // α q_k + β q_{k+1} = q_k + β dq
         let q = array(|i| q0[i] + dq[i] * beta);
         system.lagrangian(t0 + h * beta, q, v) * h
+    }
+
+    #[inline(always)]
+    fn fixed_step_action<S, D, const N: usize>(&self, system: &S, t0: f64, h: f64, q0: [D; N], dq: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let beta = 1.0 - self.alpha;
+        let v = secant_velocity_fixed(&dq, h);
+        let q = array(|i| q0[i] + dq[i] * beta);
+        system.lagrangian(D::from(t0 + h * beta), q, v) * h
     }
 
     /// The same one-point rule for the forces: `F` at `(t_k + βh, α q_k + β q_{k+1}, v̂)`

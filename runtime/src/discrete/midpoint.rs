@@ -11,7 +11,7 @@
 //! Forces use the trait's default, the same midpoint rule:
 //! `F_k^− = F_k^+ = (h/2) F(t_k + h/2, (q_k + q_{k+1})/2, v̂)` (docs/theory.md §6).
 
-use super::{DiscreteLagrangian, array, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity, secant_velocity_fixed};
 use crate::system::{Lagrangian, Scalar};
 
 /// The midpoint rule: `A = h L(t_k + h/2, (q_k+q_{k+1})/2, (q_{k+1}−q_k)/h)`. Order 2.
@@ -40,5 +40,16 @@ impl DiscreteLagrangian for Midpoint {
         let v = secant_velocity(&dq, h);
         let q_mid = array(|i| q0[i] + dq[i] * 0.5);
         system.lagrangian(t0 + h * 0.5, q_mid, v) * h
+    }
+
+    #[inline(always)]
+    fn fixed_step_action<S, D, const N: usize>(&self, system: &S, t0: f64, h: f64, q0: [D; N], dq: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let v = secant_velocity_fixed(&dq, h);
+        let q_mid = array(|i| q0[i] + dq[i] * 0.5);
+        system.lagrangian(D::from(t0 + h * 0.5), q_mid, v) * h
     }
 }

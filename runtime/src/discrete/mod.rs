@@ -38,6 +38,25 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
         S: Lagrangian<N> + ?Sized,
         D: Scalar;
 
+    /// [`action`](Self::action) of a step whose times and size are fixed
+    /// numbers, so that only the positions carry derivatives: what the
+    /// fixed-step Newton iteration and the momentum update evaluate.
+    ///
+    /// The default lifts `t0` and `h` to constants of `D` and calls
+    /// `action`. The rules of this crate override it with `h` and the times
+    /// as plain `f64`: a dual constant costs the full product rule in every
+    /// operation it enters (`dq/h`, `L·h`) and only adds zero derivative
+    /// parts, so the override gives the same numbers (up to the sign of a
+    /// zero derivative) for less work.
+    #[inline(always)]
+    fn fixed_step_action<S, D, const N: usize>(&self, system: &S, t0: f64, h: f64, q0: [D; N], dq: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        self.action(system, D::from(t0), D::from(h), q0, dq)
+    }
+
     /// The constant `κ` of the leading energy error of one step,
     /// `Ê(h) − H ≈ a₂ h²` with `a₂ = [(1 − 12κ) vᵀL_qq v − aᵀL_vv a] / 8`
     /// (`a` the acceleration), for the second-order one-point rules: 0 for
@@ -95,6 +114,13 @@ pub trait DiscreteLagrangian: Copy + core::fmt::Debug {
 /// `dq / h`, the constant velocity of the linear interpolant.
 #[inline(always)]
 pub(crate) fn secant_velocity<D: Scalar, const N: usize>(dq: &[D; N], h: D) -> [D; N] {
+    let inv_h = h.recip();
+    array(|i| dq[i] * inv_h)
+}
+
+/// [`secant_velocity`] for a step size that carries no derivative.
+#[inline(always)]
+pub(crate) fn secant_velocity_fixed<D: Scalar, const N: usize>(dq: &[D; N], h: f64) -> [D; N] {
     let inv_h = h.recip();
     array(|i| dq[i] * inv_h)
 }

@@ -9,7 +9,7 @@
 //! Störmer–Verlet method and its update is explicit (Newton converges in one
 //! iteration).
 
-use super::{DiscreteLagrangian, array, secant_velocity};
+use super::{DiscreteLagrangian, array, secant_velocity, secant_velocity_fixed};
 use crate::system::generalized_force;
 use crate::system::{Lagrangian, Scalar};
 
@@ -45,6 +45,17 @@ impl DiscreteLagrangian for Trapezoid {
         let v = secant_velocity(&dq, h);
         let q1 = array(|i| q0[i] + dq[i]);
         (system.lagrangian(t0, q0, v) + system.lagrangian(t0 + h, q1, v)) * (h * 0.5)
+    }
+
+    #[inline(always)]
+    fn fixed_step_action<S, D, const N: usize>(&self, system: &S, t0: f64, h: f64, q0: [D; N], dq: [D; N]) -> D
+    where
+        S: Lagrangian<N> + ?Sized,
+        D: Scalar,
+    {
+        let v = secant_velocity_fixed(&dq, h);
+        let q1 = array(|i| q0[i] + dq[i]);
+        (system.lagrangian(D::from(t0), q0, v) + system.lagrangian(D::from(t0 + h), q1, v)) * (h * 0.5)
     }
 
     /// The trapezoidal rule for the forces too: `F_k^− = (h/2) F(t_k, q_k, v̂)`,

@@ -354,14 +354,24 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let predictor = self.predict(h);
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
+        let p_scale = max_abs(&p0);
+        // The condition estimate on the first iteration only (see
+        // `newton::square_correction_unestimated`).
+        let mut first = true;
         let eval = |x: &SVector<f64, N>| {
             let seg = Segment { t0, h, q0, dq: (*x).into() };
             // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
             let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
             // The momentum carries its compensation: p_k is p0 + pc.
             let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
-            let scale = max_abs(&p0).max(max_abs(&d.d_q0));
-            Ok(newton::square_correction(r, d.d2_q0_q1, min_rcond)?.cancelling(scale))
+            let scale = p_scale.max(max_abs(&d.d_q0));
+            let step = if first {
+                first = false;
+                newton::square_correction(r, d.d2_q0_q1, min_rcond)?
+            } else {
+                newton::square_correction_unestimated(r, d.d2_q0_q1)?
+            };
+            Ok(step.cancelling(scale))
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {
