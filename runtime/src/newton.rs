@@ -32,7 +32,12 @@ pub struct NewtonOptions {
     /// Absolute tolerance, for increments that are zero (a system at rest).
     pub atol: f64,
     /// A Jacobian whose reciprocal condition number in the 1-norm falls below
-    /// this is reported as singular instead of being inverted.
+    /// this is reported as singular instead of being inverted. The estimate
+    /// is made where a step's Jacobian is first factored (the first Newton
+    /// iteration of a fixed step, every iteration of an energy-preserving
+    /// one, the first factorisation of each Galerkin solve); later iterations of
+    /// a fixed step check only for exact singularity, so a Jacobian that
+    /// turns ill-conditioned there ends as `NotConverged`.
     pub min_rcond: f64,
 }
 
