@@ -275,11 +275,17 @@ pub(crate) const IMPLAUSIBLE_GROWTH: &str = "the solution's increment is over 1e
 
 /// Which of the values a step publishes is not finite, if any.
 pub(crate) fn non_finite<T: crate::real::Real>(t: T, q: &[T], p: &[T]) -> Option<&'static str> {
-    if !all_finite(q) {
+    first_non_finite(all_finite(q), all_finite(p), t.is_finite())
+}
+
+/// [`non_finite`] from finiteness a loop has already found.
+#[inline]
+pub(crate) fn first_non_finite(q_finite: bool, p_finite: bool, t_finite: bool) -> Option<&'static str> {
+    if !q_finite {
         Some("position")
-    } else if !all_finite(p) {
+    } else if !p_finite {
         Some("momentum")
-    } else if !t.is_finite() {
+    } else if !t_finite {
         Some("time")
     } else {
         None

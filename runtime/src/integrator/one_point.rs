@@ -580,16 +580,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
         p_carry[j] = u - (p1[j] - p0[j]);
         p_finite &= p1[j].is_finite();
     }
-    // The order of `non_finite`.
-    let quantity = if !q_finite {
-        Some("position")
-    } else if !p_finite {
-        Some("momentum")
-    } else if !t1.is_finite() {
-        Some("time")
-    } else {
-        None
-    };
+    let quantity = super::first_non_finite(q_finite, p_finite, t1.is_finite());
     if let Some(quantity) = quantity {
         return Err(NewtonFailure::NonFinite { iterations: 0, quantity });
     }

@@ -553,16 +553,7 @@ impl SparseWork {
             pc1[i] = carry;
             p_finite &= sum.is_finite();
         }
-        // The order of `non_finite`.
-        let quantity = if !q_finite {
-            Some("position")
-        } else if !p_finite {
-            Some("momentum")
-        } else if !t1.is_finite() {
-            Some("time")
-        } else {
-            None
-        };
+        let quantity = super::first_non_finite(q_finite, p_finite, t1.is_finite());
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok(()),
