@@ -150,13 +150,8 @@ fn seed<T, const N: usize>(x: &mut DualSegment<T, N>, v: Var, set: impl Fn(&mut 
             set(h, -1.0);
         }
         Var::T1 => set(h, 1.0),
-        Var::Q0(i) => {
-            set(&mut q0[i], 1.0);
-            set(&mut dq[i], -1.0);
-        }
-        Var::Q1(i) => set(&mut dq[i], 1.0),
-        Var::Translate(i) => set(&mut q0[i], 1.0),
         Var::Delay => set(t0, 1.0),
+        Var::Q0(_) | Var::Q1(_) | Var::Translate(_) => seed_position(q0, dq, v, set),
     }
 }
 

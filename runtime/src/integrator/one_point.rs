@@ -264,15 +264,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
         // (`--bench step -- explicit`, one run each, load ≈ 3.5).
         let State { step, t: t0, q: q0, p: p0 } = self.state;
-        if self.memory.inverse_mass.is_none() {
-            match self.system.velocity_hessian(t0, q0, [0.0; N]).try_inverse() {
-                Some(m) => {
-                    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-                    self.memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
-                    self.memory.inverse_mass = Some(Box::new(m));
-                }
-                None => return Err(self.fail(h, NewtonFailure::Singular { iterations: 0, rcond: 0.0 })),
-            }
+        if let Err(failure) = inverse_mass_once(&self.system, &mut self.memory, t0, &q0) {
+            return Err(self.fail(h, failure));
         }
         let f0 = match self.memory.node_force {
             Some((k, f)) if k == step => f,
@@ -474,6 +467,29 @@ fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f6
     l.eps
 }
 
+/// `M⁻¹` of a constant-mass system into `memory`, computed at the first
+/// explicit step (and its diagonal, when it is one); a singular `M` is a
+/// typed failure.
+#[inline]
+fn inverse_mass_once<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    memory: &mut OnePointMemory<N>,
+    t0: f64,
+    q0: &[f64; N],
+) -> Result<(), NewtonFailure> {
+    if memory.inverse_mass.is_some() {
+        return Ok(());
+    }
+    let m = system
+        .velocity_hessian(t0, *q0, [0.0; N])
+        .try_inverse()
+        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
+    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+    memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
+    memory.inverse_mass = Some(Box::new(m));
+    Ok(())
+}
+
 /// The node an explicit step starts from, borrowed from the integrator.
 pub(super) struct ExplicitNode<'a, const N: usize> {
     pub(super) state: &'a State<N>,
@@ -531,16 +547,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
 ) -> Result<ExplicitStep<N>, NewtonFailure> {
     let State { step, t: t0, q: ref q0, p: ref p0 } = *node.state;
     let (qc, pc) = (node.carry, node.p_carry);
-    if memory.inverse_mass.is_none() {
-        match system.velocity_hessian(t0, *q0, [0.0; N]).try_inverse() {
-            Some(m) => {
-                let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-                memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
-                memory.inverse_mass = Some(Box::new(m));
-            }
-            None => return Err(NewtonFailure::Singular { iterations: 0, rcond: 0.0 }),
-        }
-    }
+    inverse_mass_once(system, memory, t0, q0)?;
     let f = match memory.node_force {
         Some((k, f)) if k == step => f,
         _ => potential_force(system, t0, q0),
