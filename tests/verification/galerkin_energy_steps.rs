@@ -9,6 +9,7 @@ use lagrangian::prelude::*;
 use lagrangian::{EnergyFallback, Error, StepBounds};
 
 /// `L = ½ v² + g cos q`, g = 9.81.
+#[derive(Clone)]
 pub struct Pendulum;
 
 #[lagrangian]
@@ -19,6 +20,7 @@ impl Pendulum {
 }
 
 /// Polar Kepler (μ = 1): `L = ½(ṙ² + r²φ̇²) + 1/r`.
+#[derive(Clone)]
 pub struct Kepler;
 
 #[lagrangian]
@@ -66,45 +68,120 @@ fn galerkin_energy_steps_conserve_the_discrete_energy_over_1e5_steps() {
     }
 }
 
+/// `a_{2s}` of the step energy `Ê_z(h) = H(z) + a_{2s} h^{2s} + a_{2s+1} h^{2s+1} + …`
+/// at the state `(q, v)`, from fixed steps of size `η` and `η/2`
+/// (`2^{2s+1} e(η/2) − e(η) = a_{2s} η^{2s}` removes `a_{2s+1}`).
+fn leading_coefficient<Sys, const S: usize, const N: usize>(system: &Sys, q: [f64; N], v: [f64; N], eta: f64) -> f64
+where
+    Sys: Lagrangian<N> + Clone,
+{
+    let error = |h: f64| {
+        let mut sim = GalerkinIntegrator::new(system.clone(), Galerkin::<S, S>::gauss(), h).start(0.0, q, v).unwrap();
+        let energy = sim.energy().unwrap();
+        sim.step().unwrap();
+        sim.discrete_energy() - energy
+    };
+    let m = 2 * S as i32;
+    (2f64.powi(m + 1) * error(eta / 2.0) - error(eta)) / eta.powi(m)
+}
+
+/// The times in `(0, t_end)` where `a_{2s}` changes sign along the orbit
+/// from `(q0, v0)`, followed by fine fixed steps (Galerkin s = 4, h = 1e-3).
+fn sign_changes<Sys, const S: usize, const N: usize>(
+    system: &Sys,
+    q0: [f64; N],
+    v0: [f64; N],
+    eta: f64,
+    t_end: f64,
+) -> Vec<f64>
+where
+    Sys: Lagrangian<N> + Clone,
+{
+    let mut orbit =
+        GalerkinIntegrator::new(system.clone(), Galerkin::<4, 4>::gauss(), 1e-3).start(0.0, q0, v0).unwrap();
+    let mut changes = Vec::new();
+    let mut last = leading_coefficient::<_, S, N>(system, q0, v0, eta);
+    while orbit.state().t < t_end {
+        orbit.step().unwrap();
+        let a = leading_coefficient::<_, S, N>(system, orbit.state().q, orbit.velocity().unwrap(), eta);
+        if a.signum() != last.signum() {
+            changes.push(orbit.state().t - 0.5e-3);
+        }
+        last = a;
+    }
+    changes
+}
+
+/// Runs energy-preserving steps until the first failure; the state must be
+/// the one before the failed step.
+fn until_failure<Sys: Lagrangian<N>, const N: usize, const S: usize>(
+    sim: &mut GalerkinIntegrator<Sys, N, S, S>,
+) -> Error<N> {
+    for _ in 0..100_000 {
+        let before = *sim.state();
+        if let Err(e) = sim.step() {
+            assert_eq!(*sim.state(), before);
+            return e;
+        }
+    }
+    panic!("no failure")
+}
+
 /// Where the energy equation loses its root, the step is refused with a
-/// typed error and the state kept. Measured (h0 = 0.05): Kepler e = 0.5 with
-/// s = 2 runs to aphelion (t ≈ 2.2, steps growing sevenfold) and stops there;
-/// s = 3 loses the root within a fraction of a swing of the pendulum, for
-/// every h0 tried (0.01 … 0.1): its energy error is O(h⁷) with a leading
-/// coefficient that changes sign along the orbit, and with the step ratio
-/// bounded by 2 no admissible step conserves the energy there (see the
-/// theory notes on energy steps).
+/// typed error, the state kept, and the error says why: the leading
+/// coefficient `a_{2s}` of the step energy changes sign along the orbit, and
+/// near such a point the energy equation has no admissible root (the local
+/// model of the theory notes on energy steps, section 3). Measured: on the
+/// pendulum from 1 rad, `a_6` (s = 3) changes sign at t = 0.199 and 0.347,
+/// and the runs stop at t = 0.194 (h0 = 0.02), 0.224 (0.05), 0.215 (0.1);
+/// on Kepler e = 0.5 from perihelion, `a_4` (s = 2) changes sign at
+/// t = 2.068 (r = 1.370) and the run stops at t = 2.195 with steps of 0.37.
+/// Each stop is within about half a step of a sign change, and its root
+/// test `x` lies in the band without a root (−1.74 … 1.02 for s = 3,
+/// −2.06 … 1.10 for s = 2).
 #[test]
-fn galerkin_energy_steps_stop_typed_where_the_root_is_lost() {
+fn galerkin_energy_steps_stop_where_the_leading_energy_coefficient_changes_sign() {
+    let stop = |err: &Error<1>| match err {
+        Error::NoEnergyStep { root_test, .. } => *root_test,
+        other => panic!("{other}"),
+    };
+    let changes = sign_changes::<_, 3, 1>(&Pendulum, [1.0], [0.0], 0.1, 0.55);
+    println!("pendulum, s = 3: a_6 changes sign at t = {changes:.3?}");
+    assert_eq!(changes.len(), 2, "{changes:?}");
+    for h0 in [0.02, 0.05, 0.1] {
+        let mut sim = GalerkinIntegrator::new(Pendulum, Galerkin::<3, 3>::gauss(), h0)
+            .energy_preserving(StepBounds::around(h0))
+            .start(0.0, [1.0], [0.0])
+            .unwrap();
+        let err = until_failure(&mut sim);
+        let (t, h) = (sim.state().t, sim.last_step_size().unwrap());
+        let distance = changes.iter().map(|c| (t - c).abs()).fold(f64::INFINITY, f64::min);
+        println!(
+            "  h0 = {h0}: stops at t = {t:.4} (last step {h:.4}, {:.2} steps from a sign change): {err}",
+            distance / h
+        );
+        assert!(distance <= h, "t = {t}, h = {h}");
+        let (x, low, high) = stop(&err).expect("a root test");
+        assert!(low < x && x < high, "{x} not in ({low}, {high})");
+    }
+
     let e: f64 = 0.5;
     let r0 = 1.0 - e;
     let (qk, vk) = ([r0, 0.0], [0.0, (1.0 - e * e).sqrt() / (r0 * r0)]);
+    let changes = sign_changes::<_, 2, 2>(&Kepler, qk, vk, 0.02, 2.5);
+    println!("Kepler e = 0.5, s = 2: a_4 changes sign at t = {changes:.3?}");
+    assert_eq!(changes.len(), 1, "{changes:?}");
     let mut kepler = GalerkinIntegrator::new(Kepler, Galerkin::<2, 2>::gauss(), 0.05)
         .energy_preserving(StepBounds::around(0.05))
         .start(0.0, qk, vk)
         .unwrap();
-    let mut pendulum = GalerkinIntegrator::new(Pendulum, Galerkin::<3, 3>::gauss(), 0.05)
-        .energy_preserving(StepBounds::around(0.05))
-        .start(0.0, [1.0], [0.0])
-        .unwrap();
-    fn until_failure<Sys: Lagrangian<N>, const N: usize, const S: usize>(
-        sim: &mut GalerkinIntegrator<Sys, N, S, S>,
-    ) -> Error<N> {
-        for _ in 0..100_000 {
-            let before = *sim.state();
-            if let Err(e) = sim.step() {
-                assert_eq!(*sim.state(), before);
-                return e;
-            }
-        }
-        panic!("no failure")
-    }
     let err = until_failure(&mut kepler);
-    println!("Kepler e = 0.5, s = 2: stops at t = {:.3}, r = {:.3}: {err}", kepler.state().t, kepler.state().q[0]);
-    assert!(matches!(err, Error::NoEnergyStep { .. }), "{err}");
-    let err = until_failure(&mut pendulum);
-    println!("pendulum, s = 3: stops at t = {:.3}: {err}", pendulum.state().t);
-    assert!(matches!(err, Error::NoEnergyStep { .. }), "{err}");
+    let (t, h) = (kepler.state().t, kepler.last_step_size().unwrap());
+    println!("  stops at t = {t:.3}, r = {:.3}, last step {h:.3}: {err}", kepler.state().q[0]);
+    assert!((t - changes[0]).abs() <= h, "t = {t}, h = {h}");
+    let Error::NoEnergyStep { root_test, .. } = err else { panic!("{err}") };
+    let (x, low, high) = root_test.expect("a root test");
+    assert!(low < x && x < high, "{x} not in ({low}, {high})");
 }
 
 /// `q(T)` of the energy-preserving Galerkin run landing on `T`.

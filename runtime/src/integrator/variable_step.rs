@@ -435,9 +435,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let p_behind = derivatives::step_derivatives(&self.system, &self.method, &last).d_q0.map(|x| -x);
         let a2_behind = self.energy_coefficient(kappa, last.t0, last.q0, p_behind, guess)?;
         let x = 3.0 * a2_here / (a2_here - a2_behind);
-        let r = bounds.max_ratio;
-        let high = (r * r - r + 1.0) / (r * (r - 1.0));
-        let low = if r >= 2.0 { -3.0 } else { -(r * r - r + 1.0) / (r - 1.0) };
+        let (low, high) = crate::galerkin::root_band(1, bounds.max_ratio);
         x.is_finite().then_some((x, low, high))
     }
 
