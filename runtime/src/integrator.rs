@@ -38,6 +38,7 @@ pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
 pub use sparse::Derivatives;
+pub(crate) use variable_step::root_band;
 pub use variable_step::{EnergyFallback, StepBounds};
 
 /// Counters of the work an integrator has done.

@@ -314,7 +314,7 @@ where
         let b = g1 / (2.0 * eta.powi(m + 1));
         let a = (g2 - b * eta.powi(m + 1) * (1.0 + 0.5f64.powi(m + 1))) / (eta.powi(m) * (0.5f64.powi(m) - 1.0));
         let x = a / (b * eta);
-        let (low, high) = root_band(m / 2, bounds.max_ratio);
+        let (low, high) = crate::integrator::root_band(m / 2, bounds.max_ratio);
         x.is_finite().then_some((x, low, high))
     }
 
@@ -396,52 +396,6 @@ where
         if let Some((t0, h, q0, carry, d)) = self.last_step_parts() {
             self.energy = step_energy(&self.system, &self.method, t0, h, (&q0, &carry), &d);
             self.time_error = T::zero();
-        }
-    }
-}
-
-/// The band `(low, high)` of the condition's value `x` without an admissible
-/// root, for a symmetric method of order `2s` and the step ratio bound `r`
-/// (docs/energy-steps.md (3.2)): the local model
-/// `x (ρ^{2s} − 1) + ρ^{2s+1} + 1 = 0` has a root `ρ ∈ [1/r, r]` iff
-/// `x ≥ f(1/r)` or `x ≤ max_{1 < ρ ≤ r} f(ρ)`, with
-/// `f(ρ) = −(ρ^{2s+1} + 1)/(ρ^{2s} − 1)`, whose maximum on `ρ > 1` is at the
-/// root `ρ*` of `ρ^{2s+1} − (2s+1)ρ − 2s` (`s = 1`: `ρ* = 2`, `f = −3`).
-pub(crate) fn root_band(s: i32, r: f64) -> (f64, f64) {
-    let f = |rho: f64| -(rho.powi(2 * s + 1) + 1.0) / (rho.powi(2 * s) - 1.0);
-    let high = f(1.0 / r);
-    // ρ* ∈ (1, 2]: the polynomial is −4s at 1 and positive at 2.
-    let (mut lo, mut hi) = (1.0f64, 2.0f64);
-    for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if mid.powi(2 * s + 1) - f64::from(2 * s + 1) * mid - f64::from(2 * s) < 0.0 {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let low = f(r.min(hi));
-    (low, high)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::root_band;
-
-    #[test]
-    fn the_root_band_reproduces_the_thresholds_of_the_local_model() {
-        // s = 1 closed form (3.3): r = 2 gives (−3, 3/2); r = 1.5 gives
-        // (−(r² − r + 1)/(r − 1), (r² − r + 1)/(r(r − 1))).
-        let (low, high) = root_band(1, 2.0);
-        assert!((low + 3.0).abs() < 1e-12 && (high - 1.5).abs() < 1e-12, "{low} {high}");
-        let r = 1.5;
-        let (low, high) = root_band(1, r);
-        assert!((low + (r * r - r + 1.0) / (r - 1.0)).abs() < 1e-12, "{low}");
-        assert!((high - (r * r - r + 1.0) / (r * (r - 1.0))).abs() < 1e-12, "{high}");
-        // The table's x*_s for a ratio bound above ρ*.
-        for (s, x_star) in [(2, -2.0633), (3, -1.7404), (4, -1.5744), (8, -1.3140)] {
-            let (low, _) = root_band(s, 4.0);
-            assert!((low - x_star).abs() < 1e-4, "s = {s}: {low}");
         }
     }
 }

@@ -45,7 +45,6 @@ mod quadrature;
 mod stepper;
 
 pub use basis::NodeFamily;
-pub(crate) use energy::root_band;
 pub use method::Galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, tangent_map};

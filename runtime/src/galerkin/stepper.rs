@@ -251,12 +251,15 @@ where
         // one borrowed: the block (1.2 kB at sN = 12) is never copied.
         let mut work = Work::new(cached);
         let linearize = |x: &Nodes<N, S, T>, work: &mut Work<'_, N, S, T>| {
+            // Whether this iteration assembles a new Jacobian.
+            let fresh = !(work.simplified && work.valid);
             let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, work)?;
             if work.simplified {
                 // A frozen Jacobian that contracts slowly (a large step, a poor
-                // guess) is refreshed at the next iterate.
+                // guess) is refreshed at the next iterate. A fresh one's first
+                // correction is not judged against the stale one's before it.
                 let size = max_abs(lin.correction.0.as_flattened());
-                if work.last_correction.replace(size).is_some_and(|last| size > 0.05 * last) {
+                if work.last_correction.replace(size).is_some_and(|last| !fresh && size > 0.05 * last) {
                     work.valid = false;
                 }
             }
