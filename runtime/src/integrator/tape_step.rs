@@ -426,7 +426,9 @@ impl SparseWork {
             let mut r = correction.borrow_mut();
             // `r` first holds `∂A/∂q_k|_{q_{k+1}}`, then the residual.
             match points {
-                Some(points) => self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed),
+                Some(points) => {
+                    self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
+                }
                 None => self.tape_linearize(model, node.t, h, q0, &x, &mut r)?,
             }
             let mut scale = max_abs(p0);
