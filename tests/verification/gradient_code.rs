@@ -496,7 +496,7 @@ fn the_generic_gradient_gives_hessian_vector_products_on_dual_numbers() {
 fn the_generic_gradient_of_a_run_time_sized_chain_gives_hessian_vector_products() {
     let n = 40;
     let chain = DynChain { n, beta: 0.8 };
-    assert!(<DynChain as DynLagrangian>::HAS_GRADIENT_QV);
+    const { assert!(<DynChain as DynLagrangian>::HAS_GRADIENT_QV) };
     let mut rng = Rng(11);
     let mut worst = 0.0f64;
     for _ in 0..10 {
@@ -546,7 +546,7 @@ fn the_generic_gradient_of_a_run_time_sized_chain_gives_hessian_vector_products(
 #[test]
 fn the_default_generic_gradient_is_correct_too() {
     let (q, v) = ([0.3, -0.2, 0.9, 0.1], [0.5, 0.1, -0.4, 0.2]);
-    assert!(!<CarriedChain<4> as Lagrangian<4>>::HAS_GRADIENT_QV);
+    const { assert!(!<CarriedChain<4> as Lagrangian<4>>::HAS_GRADIENT_QV) };
     let qd: [Dual64; 4] = core::array::from_fn(|i| Dual64::new(q[i], 0.1 * i as f64 - 0.2));
     let vd: [Dual64; 4] = core::array::from_fn(|i| Dual64::new(v[i], 0.3 - 0.05 * i as f64));
     let (mut hq, mut hv) = ([Dual64::from(0.0); 4], [Dual64::from(0.0); 4]);
