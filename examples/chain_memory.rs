@@ -1,14 +1,49 @@
 //! Peak memory of a run-time-sized FPU-β chain: `N` masses (default
 //! 100 000, or the first argument), 3 midpoint steps (banded Newton) and 10
 //! explicit trapezoid steps through `DynIntegrator`, printing the energy
-//! error and the process's peak resident memory (`VmHWM`, Linux) after each
-//! stage.
+//! error, the time per step and the process's peak resident memory
+//! (`VmHWM`, Linux) after each stage.
 //!
-//! `cargo run --release --example chain_memory [N]`
+//! The chain is written through `#[lagrangian]` over slices, so the macro
+//! writes its gradient code and Newton steps take their derivatives from it
+//! on dual numbers; with `tape` as the second argument the same chain is
+//! written by hand (no gradient code), and every derivative comes from the
+//! tape.
+//!
+//! `cargo run --release --example chain_memory [N] [tape]`
+use std::time::Instant;
+
 use lagrangian::prelude::*;
 use lagrangian::{Coupling, Pattern, Separability};
 
-/// An FPU-β chain (β = 1) with fixed ends, unit masses and springs.
+/// The FPU-β chain (β = 1) through the macro.
+struct Generated(usize);
+
+#[lagrangian]
+impl Generated {
+    fn dimension(&self) -> usize {
+        self.0
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * d.powi(4);
+        for i in 0..n - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d.powi(4);
+        }
+        d = q[n - 1];
+        potential += 0.5 * d * d + 0.25 * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// An FPU-β chain (β = 1) with fixed ends, unit masses and springs, by hand.
 struct Fpu(usize);
 
 impl DynLagrangian for Fpu {
@@ -49,25 +84,39 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(arg) => arg.parse()?,
         None => 100_000,
     };
+    match std::env::args().nth(2).as_deref() {
+        None | Some("generated") => run(n, Generated),
+        Some("tape") => run(n, Fpu),
+        Some(other) => Err(format!("unknown system `{other}`: `generated` or `tape`").into()),
+    }
+}
+
+/// The stages on the chain `system(n)`.
+fn run<S: DynLagrangian>(n: usize, system: fn(usize) -> S) -> Result<(), Box<dyn std::error::Error>> {
+    let which = if S::HAS_GRADIENT_QV { "generated gradient code" } else { "tape" };
     // Mode N/10 with spring strains of 0.3.
     let k = n.div_ceil(10);
     let a = 0.3 * (n + 1) as f64 / (k as f64 * std::f64::consts::PI);
     let q0: Vec<f64> =
         (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (n + 1) as f64).sin()).collect();
     let v0 = vec![0.0; n];
-    println!("FPU-β chain, N = {n}; peak memory after the initial data: {}", peak_memory());
-    let mut midpoint = DynIntegrator::new(Fpu(n), Midpoint, 0.05).start(0.0, &q0, &v0)?;
+    println!("FPU-β chain, N = {n} ({which}); peak memory after the initial data: {}", peak_memory());
+    let mut midpoint = DynIntegrator::new(system(n), Midpoint, 0.05).start(0.0, &q0, &v0)?;
+    println!("after `start` (Legendre map): peak memory {}", peak_memory());
     let e0 = midpoint.energy()?;
+    let clock = Instant::now();
     midpoint.run(3, |_| {})?;
+    let per_step = clock.elapsed().as_secs_f64() / 3.0;
     let e = midpoint.energy()?;
     println!(
-        "3 midpoint steps: relative energy error {:.2e}, {} Newton iterations; peak memory {}",
+        "3 midpoint steps: relative energy error {:.2e}, {} Newton iterations, {:.1} ms per step; peak memory {}",
         (e - e0).abs() / e0,
         midpoint.stats().newton_iterations,
+        per_step * 1e3,
         peak_memory()
     );
     drop(midpoint);
-    let mut trapezoid = DynIntegrator::new(Fpu(n), Trapezoid, 0.05).start(0.0, &q0, &v0)?;
+    let mut trapezoid = DynIntegrator::new(system(n), Trapezoid, 0.05).start(0.0, &q0, &v0)?;
     trapezoid.run(10, |_| {})?;
     let e = trapezoid.energy()?;
     println!(

@@ -50,25 +50,59 @@ pub(crate) fn gradient_qv(function: &Function) -> Option<TokenStream> {
     adjoint.function_body(&function.body)
 }
 
-/// `const HAS_GRADIENT` and `fn gradient_q` for the trait impl, or nothing
-/// when the body is outside the subset. `n` is `None` for a run-time-sized
-/// system (slices).
+/// The statements of `gradient_qv_scalar<__D>(&self, __t, __q, __v,
+/// __out, __out_v)`: the transformation of [`gradient_qv`] printed generic
+/// over the scalar `__D` (`f64`, a dual number), on slices. Constants stay
+/// `f64`; where an `f64` would meet a `__D` on the wrong side of an
+/// operator it becomes `__D::from(c)`, and `f64::sin(x)` becomes
+/// `x.sin()`. At `__D = f64` it performs the same IEEE operations as the
+/// `f64` code (operands of `+` and `*` may swap sides, which is exact).
+/// `None` outside the subset.
+pub(crate) fn gradient_qv_generic(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.with_v = true;
+    adjoint.generic = true;
+    adjoint.function_body(&function.body)
+}
+
+/// `const HAS_GRADIENT` and `fn gradient_q` for the trait impl, with
+/// `HAS_GRADIENT_QV` and `gradient_qv_scalar` (generic over the scalar), and
+/// `gradient_qv` in `f64` for a system of known size; nothing when the body
+/// is outside the subset. `n` is `None` for a run-time-sized system
+/// (slices).
 pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<TokenStream> {
     let body = gradient_q(function)?;
-    let [t, q, v, out] = [name("t"), name("q"), name("v"), name("out")];
+    let [t, q, v, out, out_v] = [name("t"), name("q"), name("v"), name("out"), name("out_v")];
     let (state, gradient) = match n {
         Some(n) => (quote!(&[f64; #n]), quote!(&mut [f64; #n])),
         None => (quote!(&[f64]), quote!(&mut [f64])),
     };
     let self_token = syn::Token![self](function.self_span);
-    // Both derivatives, for the implicit steps' residuals: size-known
-    // systems only (the slice trait has no such method).
+    // Both derivatives in `f64`, for the implicit steps' residuals:
+    // size-known systems (the slice trait has only the generic method).
     let both = n.and_then(|_| gradient_qv(function)).map(|body| {
-        let out_v = name("out_v");
+        quote! {
+            #[inline]
+            fn gradient_qv(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient, #out_v: #gradient) {
+                #body
+            }
+        }
+    });
+    // Both derivatives on any scalar: on dual numbers, the Hessian-vector
+    // products of the implicit steps' Jacobians (forward over reverse).
+    let generic = gradient_qv_generic(function).map(|body| {
+        let d = scalar();
         quote! {
             const HAS_GRADIENT_QV: bool = true;
             #[inline]
-            fn gradient_qv(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient, #out_v: #gradient) {
+            fn gradient_qv_scalar<#d: ::lagrangian::__private::Scalar>(
+                &#self_token,
+                #t: #d,
+                #q: &[#d],
+                #v: &[#d],
+                #out: &mut [#d],
+                #out_v: &mut [#d],
+            ) {
                 #body
             }
         }
@@ -80,7 +114,14 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
             #body
         }
         #both
+        #generic
     })
+}
+
+/// The scalar type parameter of the generic gradient (the name the user's
+/// methods are printed with too).
+fn scalar() -> proc_macro2::Ident {
+    format_ident!("__D", span = Span::call_site())
 }
 
 fn name(s: &str) -> proc_macro2::Ident {
@@ -110,6 +151,8 @@ struct Adjoint<'a> {
     next_adjoint: usize,
     /// Differentiate in `v` too (`gradient_qv`), not only in `q`.
     with_v: bool,
+    /// Print generic over the scalar `__D` instead of in `f64`.
+    generic: bool,
 }
 
 impl<'a> Adjoint<'a> {
@@ -125,7 +168,28 @@ impl<'a> Adjoint<'a> {
             temps: HashMap::new(),
             next_adjoint: 0,
             with_v: false,
+            generic: false,
         }
+    }
+
+    /// The type of active values: `f64`, or the generic scalar.
+    fn ty(&self) -> TokenStream {
+        if self.generic { scalar().into_token_stream() } else { quote!(f64) }
+    }
+
+    /// An `f64` constant `c` as an active value: `c`, or `__D::from(c)`.
+    fn active(&self, c: TokenStream) -> TokenStream {
+        if self.generic {
+            let d = scalar();
+            quote!(#d::from(#c))
+        } else {
+            c
+        }
+    }
+
+    /// Zero as an active value.
+    fn zero(&self) -> TokenStream {
+        self.active(quote!(0.0f64))
     }
 
     fn function_body(&mut self, block: &Block) -> Option<TokenStream> {
@@ -174,7 +238,8 @@ impl<'a> Adjoint<'a> {
         let mut reverse = Vec::new();
         reverse.push(self.declare_adjoints(stmts));
         if tail.class.is_active() && self.depends_on_q(tail) {
-            self.reverse(tail, quote!(1.0f64), &mut reverse)?;
+            let seed = self.active(quote!(1.0f64));
+            self.reverse(tail, seed, &mut reverse)?;
         }
         for stmt in stmts.iter().rev() {
             self.reverse_stmt(stmt, &mut reverse)?;
@@ -190,16 +255,17 @@ impl<'a> Adjoint<'a> {
         }
         self.forward(tail, &mut forward)?;
         let out = name("out");
+        let zero = self.zero();
         let clear_v = self.with_v.then(|| {
             let out_v = name("out_v");
             quote!(for __x in #out_v.iter_mut() {
-                *__x = 0.0f64;
+                *__x = #zero;
             })
         });
         Some(quote! {
             #(#items)*
             for __x in #out.iter_mut() {
-                *__x = 0.0f64;
+                *__x = #zero;
             }
             #clear_v
             #(#forward)*
@@ -448,7 +514,8 @@ impl<'a> Adjoint<'a> {
             for (local, version) in defined {
                 if self.function.locals[local.0].class.is_active() && self.local_depends(local, version) {
                     let adjoint = adjoint_name(local, version);
-                    out.extend(quote!(let mut #adjoint = 0.0f64;));
+                    let zero = self.zero();
+                    out.extend(quote!(let mut #adjoint = #zero;));
                 }
             }
         }
@@ -486,12 +553,17 @@ impl<'a> Adjoint<'a> {
                 }
                 ExprKind::Assign { place, op, value } => {
                     let ExprKind::Local(id, _) = place.kind else { return None };
-                    let value = self.forward(value, out)?;
                     let local = local_name(id, self.version(expr));
                     match op {
-                        Some(op) => out.push(quote!(#local #op #value;)),
+                        Some(op) => {
+                            let value = self.forward(value, out)?;
+                            out.push(quote!(#local #op #value;));
+                        }
                         // A new version of a scratch variable.
-                        None => out.push(quote!(let #local: f64 = #value;)),
+                        None => {
+                            let (value, ty) = (self.forward_active(value, out)?, self.ty());
+                            out.push(quote!(let #local: #ty = #value;));
+                        }
                     }
                     Some(())
                 }
@@ -517,8 +589,8 @@ impl<'a> Adjoint<'a> {
         // Scratch variables get a new name at each assignment instead.
         let mutability = self.accumulator[local.0].then(|| quote!(mut));
         if self.function.locals[local.0].class.is_active() {
-            let value = self.forward(init, out)?;
-            out.push(quote!(let #mutability #name: f64 = #value;));
+            let (value, ty) = (self.forward_active(init, out)?, self.ty());
+            out.push(quote!(let #mutability #name: #ty = #value;));
         } else {
             let value = self.constant(init)?;
             let ty = ty.map(|ty| quote!(: #ty));
@@ -625,7 +697,8 @@ impl<'a> Adjoint<'a> {
     fn bind(&mut self, value: TokenStream, out: &mut Vec<TokenStream>) -> TokenStream {
         let g = format_ident!("__g{}", self.next_adjoint);
         self.next_adjoint += 1;
-        out.push(quote!(let #g: f64 = #value;));
+        let ty = self.ty();
+        out.push(quote!(let #g: #ty = #value;));
         g.into_token_stream()
     }
 
@@ -664,12 +737,22 @@ impl<'a> Adjoint<'a> {
                 let inner = self.forward(inner, out)?;
                 quote!(-#inner)
             }
-            ExprKind::Binary { lhs, op, rhs } => {
+            ExprKind::Binary { lhs: lhs_expr, op, rhs: rhs_expr } => {
                 if !matches!(op, BinOp::Add(_) | BinOp::Sub(_) | BinOp::Mul(_) | BinOp::Div(_)) {
                     return None;
                 }
-                let (lhs, rhs) = (self.forward(lhs, out)?, self.forward(rhs, out)?);
-                quote!(#lhs #op #rhs)
+                let (lhs, rhs) = (self.forward(lhs_expr, out)?, self.forward(rhs_expr, out)?);
+                match op {
+                    // `D` has `D op f64` but not `f64 op D`: `c + x` → `x + c`
+                    // (exact: IEEE `+` and `*` commute), `c - x` →
+                    // `D::from(c) - x`.
+                    _ if !self.generic || lhs_expr.class.is_active() => quote!(#lhs #op #rhs),
+                    BinOp::Add(_) | BinOp::Mul(_) => quote!(#rhs #op #lhs),
+                    _ => {
+                        let lhs = self.active(lhs);
+                        quote!(#lhs #op #rhs)
+                    }
+                }
             }
             ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let receiver_value = self.forward(receiver, out)?;
@@ -677,15 +760,38 @@ impl<'a> Adjoint<'a> {
                 for arg in args {
                     values.push(self.forward(arg, out)?);
                 }
-                Rule::of(&method.to_string(), *math, args)?;
+                let rule = Rule::of(&method.to_string(), *math, args)?;
                 let method = format_ident!("{}", method.to_string());
-                quote!(f64::#method(#receiver_value #(, #values)*))
+                if self.generic {
+                    // `atan2` and `mul_add` take active operands throughout.
+                    let uniform = matches!(rule, Rule::Atan2 | Rule::MulAdd);
+                    let receiver_value = self.active_if(!receiver.class.is_active(), receiver_value);
+                    let values: Vec<TokenStream> = (args.iter().zip(values))
+                        .map(|(arg, value)| self.active_if(uniform && !arg.class.is_active(), value))
+                        .collect();
+                    quote!(#receiver_value.#method(#(#values),*))
+                } else {
+                    quote!(f64::#method(#receiver_value #(, #values)*))
+                }
             }
             _ => return None,
         };
         let temp = self.temp(expr);
-        out.push(quote!(let #temp: f64 = #value;));
+        let ty = self.ty();
+        out.push(quote!(let #temp: #ty = #value;));
         Some(temp.into_token_stream())
+    }
+
+    /// [`forward`](Self::forward) of a value bound to an active local: a
+    /// constant becomes an active value.
+    fn forward_active(&mut self, expr: &Expr, out: &mut Vec<TokenStream>) -> Option<TokenStream> {
+        let value = self.forward(expr, out)?;
+        Some(self.active_if(!expr.class.is_active(), value))
+    }
+
+    /// `value` as an active value when `constant` (generic code only).
+    fn active_if(&self, constant: bool, value: TokenStream) -> TokenStream {
+        if constant { self.active(value) } else { value }
     }
 
     /// The value of an active node forward code has bound, for a partial
@@ -784,13 +890,22 @@ impl<'a> Adjoint<'a> {
             }
             ExprKind::MethodCall { receiver, method, math, args, .. } => {
                 let rule = Rule::of(&method.to_string(), *math, args)?;
+                // Generic code: the operands of `atan2` and `mul_add` as
+                // active values, as the forward code passed them.
+                let uniform = self.generic && matches!(rule, Rule::Atan2 | Rule::MulAdd);
                 let x = self.value(receiver)?;
+                let x = self.active_if(uniform && !receiver.class.is_active(), x);
                 let y = self.value(expr)?;
                 let mut operands = Vec::with_capacity(args.len());
                 for arg in args {
-                    operands.push(self.value(arg)?);
+                    let value = self.value(arg)?;
+                    operands.push(self.active_if(uniform && !arg.class.is_active(), value));
                 }
-                let partials = rule.partials(&x, &y, &operands);
+                let partials = if self.generic {
+                    rule.generic_partials(&x, &y, &operands)
+                } else {
+                    rule.partials(&x, &y, &operands)
+                };
                 let operands = std::iter::once(&**receiver).chain(args);
                 for (operand, partial) in operands.zip(partials) {
                     if let Some(partial) = partial
@@ -999,6 +1114,68 @@ impl Rule {
             }
             Rule::MulAdd => {
                 vec![Some(args[0].clone()), Some(x.clone()), Some(quote!(1.0f64))]
+            }
+        }
+    }
+
+    /// [`partials`](Self::partials) generic over the scalar `__D`: the same
+    /// IEEE operations at `__D = f64` (`1 + y²` written `y² + 1`, which is
+    /// exact), methods called on the value, `f64` constants made active
+    /// where they would stand left of an active operand. `x` and the
+    /// arguments of `atan2` and `mul_add` are active values.
+    fn generic_partials(self, x: &TokenStream, y: &TokenStream, args: &[TokenStream]) -> Vec<Option<TokenStream>> {
+        let d = scalar();
+        let one = quote!(#d::from(1.0f64));
+        let unary = |d: TokenStream| vec![Some(d)];
+        match self {
+            Rule::Unary(f) => unary(match f {
+                Unary::Sin => quote!(#x.cos()),
+                Unary::Cos => quote!(-#x.sin()),
+                Unary::Tan => quote!(#y * #y + 1.0f64),
+                Unary::Asin => quote!(#one / (#one - #x * #x).sqrt()),
+                Unary::Acos => quote!(-#one / (#one - #x * #x).sqrt()),
+                Unary::Atan => quote!(#one / (#x * #x + 1.0f64)),
+                Unary::Sinh => quote!(#x.cosh()),
+                Unary::Cosh => quote!(#x.sinh()),
+                Unary::Tanh => quote!(#one - #y * #y),
+                Unary::Asinh => quote!(#one / (#x * #x + 1.0f64).sqrt()),
+                Unary::Acosh => quote!(#one / (#x * #x - 1.0f64).sqrt()),
+                Unary::Atanh => quote!(#one / (#one - #x * #x)),
+                Unary::Exp => quote!(#y),
+                Unary::Exp2 => quote!(#y * ::core::f64::consts::LN_2),
+                Unary::ExpM1 => quote!(#y + 1.0f64),
+                Unary::Ln => quote!(#one / #x),
+                Unary::Ln1p => quote!(#one / (#x + 1.0f64)),
+                Unary::Log2 => quote!(#one / (#x * ::core::f64::consts::LN_2)),
+                Unary::Log10 => quote!(#one / (#x * ::core::f64::consts::LN_10)),
+                Unary::Sqrt => quote!(#d::from(0.5f64) / #y),
+                Unary::Cbrt => quote!(#one / (#d::from(3.0f64) * #y * #y)),
+                // The sign of the value, a constant: `abs` is linear away
+                // from zero (num-dual's `abs` takes `+1` at zero too).
+                Unary::Abs => quote!(#d::from(f64::signum(#x.re()))),
+                Unary::Recip => quote!(-(#y * #y)),
+            }),
+            Rule::Powi => {
+                let n = &args[0];
+                vec![
+                    Some(quote!(match #n { 0 => #d::from(0.0f64), 1 => #one, n => #x.powi(n - 1) * f64::from(n) })),
+                    None,
+                ]
+            }
+            Rule::Powf => {
+                let c = &args[0];
+                vec![Some(quote!(if #c == 0.0f64 { #d::from(0.0f64) } else { #x.powf(#c - 1.0f64) * #c })), None]
+            }
+            Rule::Log => {
+                let base = &args[0];
+                vec![Some(quote!(#one / (#x * f64::ln(#base)))), None]
+            }
+            Rule::Atan2 => {
+                let r = &args[0];
+                vec![Some(quote!(#r / (#x * #x + #r * #r))), Some(quote!(-#x / (#x * #x + #r * #r)))]
+            }
+            Rule::MulAdd => {
+                vec![Some(args[0].clone()), Some(x.clone()), Some(one)]
             }
         }
     }
@@ -1241,6 +1418,72 @@ mod tests {
         assert_eq!(lagrangian(parse_quote!({ q[0].signum() * q[1] })), None);
         let out = lagrangian(parse_quote!({ q[0].powf(self.p) + q[1].log(10.0) + q[2].mul_add(t, q[1]) })).unwrap();
         assert!(out.contains("f64 :: powf"), "{out}");
+    }
+
+    /// The generic `gradient_qv_scalar` body for a three-coordinate `L`.
+    fn generic(body: syn::Block) -> Option<String> {
+        let item: ItemImpl = parse_quote! {
+            impl P { fn lagrangian(&self, t: f64, q: [f64; 3], v: [f64; 3]) -> f64 #body }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        gradient_qv_generic(&system.lagrangian).map(|body| body.to_string())
+    }
+
+    #[test]
+    fn the_generic_gradient_is_printed_over_the_scalar_with_constants_in_f64() {
+        let out = generic(parse_quote!({
+            let mut l = 0.0;
+            l += 2.0 - q[0].cos() + 3.0 * q[1] + self.k / q[2] + q[0].abs() - 0.5 * v[0] * v[0];
+            l + t * q[1].sqrt() + q[2].powi(3)
+        }))
+        .unwrap();
+        // Active values are `__D`, no `f64` function is called on them.
+        for piece in [
+            "let mut __l0_0 : __D = __D :: from ((0.0))",
+            ". cos ()",
+            ". sqrt ()",
+            ". powi (n - 1) * f64 :: from (n)",
+            "__D :: from (f64 :: signum (",
+            "* __x = __D :: from (0.0f64)",
+            "__out_v [(0)] +=",
+        ] {
+            assert!(out.contains(piece), "{piece}: {out}");
+        }
+        for absent in [": f64 =", "f64 :: cos", "f64 :: sin", "f64 :: sqrt", "f64 :: powi"] {
+            assert!(!out.contains(absent), "{absent}: {out}");
+        }
+        // `c - x` keeps its order with `c` made active; `c * x` and `c / x`
+        // become `x * c` (exact) and `D::from(c) / x`.
+        assert!(out.contains("__D :: from ((2.0)) - __t"), "{out}");
+        assert!(out.contains("* (3.0)"), "{out}");
+        assert!(out.contains("__D :: from (((self) . k)) / __t"), "{out}");
+        // The reverse sweep starts from an active one.
+        assert!(out.contains("__D :: from (1.0f64)"), "{out}");
+    }
+
+    #[test]
+    fn the_generic_gradient_makes_the_operands_of_atan2_and_mul_add_active() {
+        let out = generic(parse_quote!({ self.y.atan2(q[0]) + q[1].mul_add(2.0, t) })).unwrap();
+        assert!(out.contains("__D :: from (((self) . y)) . atan2 (__t"), "{out}");
+        assert!(out.contains(". mul_add (__D :: from ((2.0)) , __t)"), "{out}");
+        // The partial in the constant receiver's operand is active too.
+        assert!(out.contains("- __D :: from (((self) . y)) /"), "{out}");
+    }
+
+    #[test]
+    fn the_generic_and_the_f64_transformations_cover_the_same_bodies() {
+        let bodies: [syn::Block; 3] = [
+            parse_quote!({ if self.on { q[0] } else { 0.0 } }),
+            parse_quote!({ self.b.powf(q[0]) }),
+            parse_quote!({ q[0].sin() * v[1] }),
+        ];
+        for body in bodies {
+            let text = body.to_token_stream().to_string();
+            assert_eq!(lagrangian(body.clone()).is_some(), generic(body).is_some(), "{text}");
+        }
     }
 
     #[test]

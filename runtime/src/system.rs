@@ -134,8 +134,9 @@ pub trait Lagrangian<const N: usize> {
     }
 
     /// `true` when [`gradient_qv`](Self::gradient_qv) is plain `f64` code
-    /// written for this system (set by `#[lagrangian]` with
-    /// [`HAS_GRADIENT`](Self::HAS_GRADIENT), for systems of known size).
+    /// and [`gradient_qv_scalar`](Self::gradient_qv_scalar) the same code
+    /// generic over the scalar, written for this system (set by
+    /// `#[lagrangian]` with [`HAS_GRADIENT`](Self::HAS_GRADIENT)).
     const HAS_GRADIENT_QV: bool = false;
 
     /// `∂L/∂q` into `out_q` and `∂L/∂v` into `out_v`, at `(t, q, v)`: what
@@ -154,6 +155,38 @@ pub trait Lagrangian<const N: usize> {
             let mut vd = v.map(Dual::from_re);
             vd[i].eps = 1.0;
             out_v[i] = self.lagrangian(t, q, vd).eps;
+        }
+    }
+
+    /// `∂L/∂q` into `out_q` and `∂L/∂v` into `out_v` at `(t, q, v)` on any
+    /// [`Scalar`]; all four slices have `N` entries.
+    ///
+    /// On dual numbers this is forward over reverse: with `q` and `v`
+    /// carrying a direction `(δq, δv)`, the derivative parts of the outputs
+    /// are the Hessian-vector product `∇²L·(δq, δv)` (in `q` and `v`), what
+    /// the Newton matrix of an implicit step is assembled from, one colour
+    /// class of columns at a time. `#[lagrangian]` writes it as the same
+    /// adjoint code as [`gradient_qv`](Self::gradient_qv), generic over the
+    /// scalar, and sets [`HAS_GRADIENT_QV`](Self::HAS_GRADIENT_QV).
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on dual
+    /// numbers over `D`, seeded on each coordinate in turn (`2N`
+    /// evaluations): correct, but the runtime uses this method only when
+    /// `HAS_GRADIENT_QV` is set. Slices shorter than `N` panic (indexing).
+    #[inline]
+    fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        let t = Dual::from_re(t);
+        let qd: [Dual<D>; N] = core::array::from_fn(|i| Dual::from_re(q[i]));
+        let vd: [Dual<D>; N] = core::array::from_fn(|i| Dual::from_re(v[i]));
+        for i in 0..N {
+            let mut x = qd;
+            x[i].eps = D::one();
+            out_q[i] = self.lagrangian(t, x, vd).eps;
+        }
+        for i in 0..N {
+            let mut x = vd;
+            x[i].eps = D::one();
+            out_v[i] = self.lagrangian(t, qd, x).eps;
         }
     }
 }
@@ -198,6 +231,11 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn gradient_qv(&self, t: f64, q: &[f64; N], v: &[f64; N], out_q: &mut [f64; N], out_v: &mut [f64; N]) {
         (**self).gradient_qv(t, q, v, out_q, out_v);
+    }
+
+    #[inline(always)]
+    fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        (**self).gradient_qv_scalar(t, q, v, out_q, out_v);
     }
 }
 
@@ -263,6 +301,36 @@ pub trait DynLagrangian {
             qd[i].eps = 0.0;
         }
     }
+
+    /// `true` when [`gradient_qv_scalar`](Self::gradient_qv_scalar) is
+    /// generated adjoint code (see [`Lagrangian::HAS_GRADIENT_QV`]).
+    const HAS_GRADIENT_QV: bool = false;
+
+    /// `∂L/∂q` into `out_q` and `∂L/∂v` into `out_v` at `(t, q, v)` on any
+    /// [`Scalar`], all five slices of length `self.dimension()`; on dual
+    /// numbers, Hessian-vector products (see
+    /// [`Lagrangian::gradient_qv_scalar`]).
+    ///
+    /// The default evaluates [`lagrangian`](Self::lagrangian) on dual
+    /// numbers over `D` seeded on each coordinate in turn (`2n` evaluations,
+    /// allocating); the runtime calls this only when
+    /// [`HAS_GRADIENT_QV`](Self::HAS_GRADIENT_QV) is set. Outputs shorter
+    /// than the inputs receive only their first entries.
+    fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        let t = Dual::from_re(t);
+        let mut qd: Vec<Dual<D>> = q.iter().map(|&x| Dual::from_re(x)).collect();
+        let mut vd: Vec<Dual<D>> = v.iter().map(|&x| Dual::from_re(x)).collect();
+        for (i, out) in out_q.iter_mut().enumerate().take(qd.len()) {
+            qd[i].eps = D::one();
+            *out = self.lagrangian(t, &qd, &vd).eps;
+            qd[i].eps = D::zero();
+        }
+        for (i, out) in out_v.iter_mut().enumerate().take(vd.len()) {
+            vd[i].eps = D::one();
+            *out = self.lagrangian(t, &qd, &vd).eps;
+            vd[i].eps = D::zero();
+        }
+    }
 }
 
 /// A borrowed run-time-sized system is the same system.
@@ -287,6 +355,13 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
         (**self).gradient_q(t, q, v, out);
+    }
+
+    const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;
+
+    #[inline(always)]
+    fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        (**self).gradient_qv_scalar(t, q, v, out_q, out_v);
     }
 }
 

@@ -12,7 +12,11 @@
 //! - The energy error of a chain of 1 000 oscillates without drift.
 //! - A 256-link pendulum (dense) runs.
 //! - What reverse mode does not do yet is refused with a typed error.
+//! - Newton steps from the generated gradient code on dual numbers (forward
+//!   over reverse) give the tape path's steps to round-off with the same
+//!   Newton iterations (FPU-β chain, coupled pendula; N = 16 and 64).
 use lagrangian::prelude::*;
+use lagrangian::structure::{Coupling, Separability};
 use lagrangian::{Derivatives, Error};
 
 /// An FPU-β chain with fixed ends, unit masses and springs.
@@ -270,5 +274,88 @@ fn what_reverse_mode_does_not_do_is_refused() {
     match Integrator::new(MasslessEnd::<64>, Midpoint, 0.05).start(0.0, q0, [0.0; 64]) {
         Err(Error::InvalidInitialData { reason }) => assert!(reason.contains("singular"), "{reason}"),
         other => panic!("{:?}", other.map(|_| ())),
+    }
+}
+
+/// A system with its generated gradient code hidden: reverse mode records
+/// its `L` on the tape, with the same structure constants.
+struct TapeOnly<S>(S);
+
+impl<S: Lagrangian<N>, const N: usize> Lagrangian<N> for TapeOnly<S> {
+    const AUTONOMOUS: bool = S::AUTONOMOUS;
+    const CYCLIC: [bool; N] = S::CYCLIC;
+    const SEPARABILITY: Separability = S::SEPARABILITY;
+    const COUPLING: Coupling = S::COUPLING;
+
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
+        self.0.lagrangian(t, q, v)
+    }
+}
+
+/// Largest difference of `q` and `p` (relative to the largest `|q|`, `|p|`)
+/// between the reverse-mode Newton steps from the gradient code and from
+/// the tape over `n` steps, the largest difference of Newton iterations in
+/// one step, and the iterations of the new path.
+fn gradient_code_difference<S: Lagrangian<N>, M: Method<f64> + Copy, const N: usize>(
+    system: impl Fn() -> S,
+    method: M,
+    h: f64,
+    q0: [f64; N],
+    n: usize,
+) -> (f64, u64, u64) {
+    assert!(S::HAS_GRADIENT_QV);
+    let mut new =
+        Integrator::new(system(), method, h).derivatives(Derivatives::Reverse).start(0.0, q0, [0.0; N]).unwrap();
+    let mut tape = Integrator::new(TapeOnly(system()), method, h)
+        .derivatives(Derivatives::Reverse)
+        .start(0.0, q0, [0.0; N])
+        .unwrap();
+    let (mut worst, mut iterations) = (0.0f64, 0u64);
+    for _ in 0..n {
+        let before = (new.stats().newton_iterations, tape.stats().newton_iterations);
+        new.step().unwrap();
+        tape.step().unwrap();
+        let (a, b) = (new.state(), tape.state());
+        let scale = b.q.iter().chain(b.p.iter()).fold(1e-300f64, |m, x| m.max(x.abs()));
+        for i in 0..N {
+            worst = worst.max((a.q[i] - b.q[i]).abs() / scale).max((a.p[i] - b.p[i]).abs() / scale);
+        }
+        let steps = (new.stats().newton_iterations - before.0, tape.stats().newton_iterations - before.1);
+        iterations = iterations.max(steps.0.abs_diff(steps.1));
+    }
+    (worst, iterations, new.stats().newton_iterations)
+}
+
+#[test]
+fn newton_steps_from_the_gradient_code_give_the_tapes_steps() {
+    let fpu16 = || Fpu::<16> { beta: 1.0 };
+    let fpu64 = || Fpu::<64> { beta: 1.0 };
+    let pendula16 = || CoupledPendula::<16> { c: 0.3, k: 0.5 };
+    let pendula64 = || CoupledPendula::<64> { c: 0.3, k: 0.5 };
+    let euler = lagrangian::AlphaBeta::new(0.3).unwrap();
+    let cases = [
+        ("FPU-β N = 16, midpoint", gradient_code_difference(fpu16, Midpoint, 0.05, chain_start(0.5), 200)),
+        ("FPU-β N = 64, midpoint", gradient_code_difference(fpu64, Midpoint, 0.05, chain_start(0.5), 200)),
+        ("FPU-β N = 16, α-β", gradient_code_difference(fpu16, euler, 0.05, chain_start(0.5), 200)),
+        (
+            "coupled pendula N = 16, midpoint",
+            gradient_code_difference(pendula16, Midpoint, 0.02, chain_start(0.8), 200),
+        ),
+        (
+            "coupled pendula N = 16, trapezoid",
+            gradient_code_difference(pendula16, Trapezoid, 0.02, chain_start(0.8), 200),
+        ),
+        (
+            "coupled pendula N = 64, midpoint",
+            gradient_code_difference(pendula64, Midpoint, 0.02, chain_start(0.8), 200),
+        ),
+        ("coupled pendula N = 64, α-β", gradient_code_difference(pendula64, euler, 0.02, chain_start(0.8), 200)),
+    ];
+    for (name, (d, i, total)) in &cases {
+        println!("{name}: {d:.1e}, Newton iterations ±{i} per step ({total} in all)");
+    }
+    for (name, (d, i, total)) in cases {
+        assert!(d <= 1e-13, "{name}: {d:e}");
+        assert!(i <= 1 && total >= 200, "{name}: iterations ±{i}, {total}");
     }
 }

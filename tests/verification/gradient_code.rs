@@ -5,9 +5,12 @@
 //! on the examples' systems, chains written with `for` loops (also over
 //! slices), systems with `self` fields, `powi`, `powf` and most supported
 //! methods; which systems get gradient code (and which must not); and the
-//! explicit Störmer–Verlet path with and without it.
+//! explicit Störmer–Verlet path with and without it. The same code generic
+//! over the scalar (`gradient_qv_scalar`): bit for bit the `f64` code at
+//! `f64`, and on `Dual64` the Hessian-vector products of hyper-dual
+//! evaluations of `L`.
 use crate::common::{self, CHARGED, DOUBLE_PENDULUM, PENDULUM};
-use lagrangian::num_dual::Dual64;
+use lagrangian::num_dual::{Dual64, HyperDual64};
 use lagrangian::prelude::*;
 use lagrangian::structure::{Coupling, ForceCoupling, Separability};
 
@@ -394,4 +397,165 @@ fn explicit_trajectories_with_and_without_gradient_code_agree_to_round_off() {
     println!("1e4 explicit steps, generated against dual gradient: pendulum {pendulum:.1e}, FPU-β N = 16 {fpu:.1e}");
     assert!(pendulum < 1e-13, "pendulum: {pendulum:e}");
     assert!(fpu < 1e-13, "FPU-β: {fpu:e}");
+}
+
+/// `∇²L·(δq, δv)` in its `q` and `v` halves from hyper-dual numbers: `ε₁`
+/// on one coordinate, `ε₂` along the direction, `N` evaluations per half.
+fn hyperdual_products<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    t: f64,
+    (q, v): (&[f64; N], &[f64; N]),
+    (dq, dv): (&[f64; N], &[f64; N]),
+) -> ([f64; N], [f64; N]) {
+    let seeded = |x: &[f64; N], d: &[f64; N], one: Option<usize>| -> [HyperDual64; N] {
+        core::array::from_fn(|j| HyperDual64::new(x[j], if one == Some(j) { 1.0 } else { 0.0 }, d[j], 0.0))
+    };
+    let t = HyperDual64::from(t);
+    let in_q = core::array::from_fn(|i| system.lagrangian(t, seeded(q, dq, Some(i)), seeded(v, dv, None)).eps1eps2);
+    let in_v = core::array::from_fn(|i| system.lagrangian(t, seeded(q, dq, None), seeded(v, dv, Some(i))).eps1eps2);
+    (in_q, in_v)
+}
+
+/// Over `samples` random states and directions: `gradient_qv_scalar` at
+/// `f64` must equal `gradient_qv` bit for bit; at `Dual64` its real parts
+/// must be the gradient and its derivative parts the Hessian-vector
+/// products. Returns the largest relative difference of the products from
+/// the hyper-dual ones (each half against its own largest component).
+fn scalar_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
+    assert!(S::HAS_GRADIENT_QV, "no generic gradient code was generated");
+    let mut rng = Rng(0xd0a1 ^ N as u64);
+    let mut worst = 0.0f64;
+    for _ in 0..samples {
+        let t = rng.uniform(-3.0, 3.0);
+        let q: [f64; N] = core::array::from_fn(|_| rng.uniform(lo, hi));
+        let v: [f64; N] = core::array::from_fn(|_| rng.uniform(-2.0, 2.0));
+        let dq: [f64; N] = core::array::from_fn(|_| rng.uniform(-1.0, 1.0));
+        let dv: [f64; N] = core::array::from_fn(|_| rng.uniform(-1.0, 1.0));
+        let (mut gq, mut gv) = ([f64::NAN; N], [f64::NAN; N]);
+        system.gradient_qv(t, &q, &v, &mut gq, &mut gv);
+        let (mut sq, mut sv) = ([f64::NAN; N], [f64::NAN; N]);
+        system.gradient_qv_scalar(t, &q, &v, &mut sq, &mut sv);
+        for i in 0..N {
+            assert_eq!(sq[i].to_bits(), gq[i].to_bits(), "∂L/∂q[{i}] at f64: {} against {}", sq[i], gq[i]);
+            assert_eq!(sv[i].to_bits(), gv[i].to_bits(), "∂L/∂v[{i}] at f64: {} against {}", sv[i], gv[i]);
+        }
+        let qd: [Dual64; N] = core::array::from_fn(|i| Dual64::new(q[i], dq[i]));
+        let vd: [Dual64; N] = core::array::from_fn(|i| Dual64::new(v[i], dv[i]));
+        let (mut hq, mut hv) = ([Dual64::from(f64::NAN); N], [Dual64::from(f64::NAN); N]);
+        system.gradient_qv_scalar(Dual64::from(t), &qd, &vd, &mut hq, &mut hv);
+        let (rq, rv) = hyperdual_products(system, t, (&q, &v), (&dq, &dv));
+        for (dual, gradient, reference) in [(&hq, &gq, &rq), (&hv, &gv, &rv)] {
+            let scale = |x: &mut dyn Iterator<Item = f64>| x.fold(0.0f64, |m, x| m.max(x.abs()));
+            let (g_scale, h_scale) = (scale(&mut gradient.iter().copied()), scale(&mut reference.iter().copied()));
+            for i in 0..N {
+                let re = (dual[i].re - gradient[i]).abs();
+                assert!(
+                    re <= 1e-14 * g_scale.max(f64::MIN_POSITIVE),
+                    "real part {i}: {} against {}",
+                    dual[i].re,
+                    gradient[i]
+                );
+                let difference = (dual[i].eps - reference[i]).abs();
+                let difference = if h_scale > 0.0 { difference / h_scale } else { difference };
+                assert!(difference.is_finite(), "product {i}: {} against {}", dual[i].eps, reference[i]);
+                worst = worst.max(difference);
+            }
+        }
+    }
+    worst
+}
+
+#[test]
+fn the_generic_gradient_gives_hessian_vector_products_on_dual_numbers() {
+    let cases: Vec<(&str, f64)> = vec![
+        ("pendulum", scalar_difference(&PENDULUM, -3.0, 3.0, 100)),
+        ("double pendulum", scalar_difference(&DOUBLE_PENDULUM, -3.0, 3.0, 100)),
+        ("oscillator", scalar_difference(&common::Oscillator { m: 1.5, k: 2.5 }, -3.0, 3.0, 100)),
+        ("Kepler (polar)", scalar_difference(&common::KeplerPolar { mu: 1.3 }, 0.5, 3.0, 100)),
+        ("Kepler (Cartesian)", scalar_difference(&Kepler { mu: 1.3 }, 0.2, 3.0, 100)),
+        ("Hénon–Heiles", scalar_difference(&HenonHeiles, -1.0, 1.0, 100)),
+        ("charged particle", scalar_difference(&CHARGED, -2.0, 2.0, 100)),
+        ("slow oscillator (t)", scalar_difference(&common::SlowOscillator { eps: 0.1 }, -3.0, 3.0, 100)),
+        ("FPU-β N = 16", scalar_difference(&Fpu::<16> { beta: 1.0 }, -1.0, 1.0, 30)),
+        ("FPU-β N = 2", scalar_difference(&Fpu::<2> { beta: 0.7 }, -1.0, 1.0, 30)),
+        (
+            "coupled pendula N = 12",
+            scalar_difference(&CoupledPendula::<12> { m: 1.1, g: 9.81, l: 0.7, k: 3.0 }, -2.0, 2.0, 30),
+        ),
+        ("method zoo", scalar_difference(&Zoo { a: 0.7, p: 1.7, w: [0.3, -1.2, 0.8] }, -1.0, 1.0, 200)),
+    ];
+    for (name, worst) in &cases {
+        println!("{name}: Hessian-vector products, largest relative difference {worst:.1e}");
+    }
+    for (name, worst) in cases {
+        assert!(worst <= TOLERANCE, "{name}: dual and hyper-dual products differ by {worst:e}");
+    }
+}
+
+#[test]
+fn the_generic_gradient_of_a_run_time_sized_chain_gives_hessian_vector_products() {
+    let n = 40;
+    let chain = DynChain { n, beta: 0.8 };
+    const { assert!(<DynChain as DynLagrangian>::HAS_GRADIENT_QV) };
+    let mut rng = Rng(11);
+    let mut worst = 0.0f64;
+    for _ in 0..10 {
+        let draw = |rng: &mut Rng| -> Vec<f64> { (0..n).map(|_| rng.uniform(-1.0, 1.0)).collect() };
+        let (q, v, dq, dv) = (draw(&mut rng), draw(&mut rng), draw(&mut rng), draw(&mut rng));
+        // At `f64`: the `f64` gradient in `q`, to round-off (the two
+        // transformations may accumulate in different orders).
+        let (mut sq, mut sv) = (vec![f64::NAN; n], vec![f64::NAN; n]);
+        chain.gradient_qv_scalar(0.0, &q, &v, &mut sq, &mut sv);
+        let mut gq = vec![f64::NAN; n];
+        chain.gradient_q(0.0, &q, &v, &mut gq);
+        let g_scale = gq.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for i in 0..n {
+            assert!((sq[i] - gq[i]).abs() <= 1e-14 * g_scale, "∂L/∂q[{i}]: {} against {}", sq[i], gq[i]);
+            assert_eq!(sv[i], v[i], "∂L/∂v[{i}] of ½v²");
+        }
+        let qd: Vec<Dual64> = (0..n).map(|i| Dual64::new(q[i], dq[i])).collect();
+        let vd: Vec<Dual64> = (0..n).map(|i| Dual64::new(v[i], dv[i])).collect();
+        let (mut hq, mut hv) = (vec![Dual64::from(f64::NAN); n], vec![Dual64::from(f64::NAN); n]);
+        chain.gradient_qv_scalar(Dual64::from(0.0), &qd, &vd, &mut hq, &mut hv);
+        let seeded = |x: &[f64], d: &[f64], one: Option<usize>| -> Vec<HyperDual64> {
+            (0..n).map(|j| HyperDual64::new(x[j], if one == Some(j) { 1.0 } else { 0.0 }, d[j], 0.0)).collect()
+        };
+        let t = HyperDual64::from(0.0);
+        let rq: Vec<f64> = (0..n)
+            .map(|i| DynLagrangian::lagrangian(&chain, t, &seeded(&q, &dq, Some(i)), &seeded(&v, &dv, None)).eps1eps2)
+            .collect();
+        let rv: Vec<f64> = (0..n)
+            .map(|i| DynLagrangian::lagrangian(&chain, t, &seeded(&q, &dq, None), &seeded(&v, &dv, Some(i))).eps1eps2)
+            .collect();
+        for (dual, reference) in [(&hq, &rq), (&hv, &rv)] {
+            let scale = reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            for i in 0..n {
+                worst = worst.max((dual[i].eps - reference[i]).abs() / scale);
+            }
+        }
+        // `∂²(½v²)/∂v² · δv = δv` exactly.
+        assert!((0..n).all(|i| hv[i].eps == dv[i]));
+    }
+    println!("run-time-sized FPU-β N = 40: Hessian-vector products, largest relative difference {worst:.1e}");
+    assert!(worst <= TOLERANCE, "dual and hyper-dual products differ by {worst:e}");
+}
+
+/// The default `gradient_qv_scalar` (dual numbers over the scalar) of a
+/// system without gradient code agrees with the generated one of the same
+/// body written inside the subset.
+#[test]
+fn the_default_generic_gradient_is_correct_too() {
+    let (q, v) = ([0.3, -0.2, 0.9, 0.1], [0.5, 0.1, -0.4, 0.2]);
+    const { assert!(!<CarriedChain<4> as Lagrangian<4>>::HAS_GRADIENT_QV) };
+    let qd: [Dual64; 4] = core::array::from_fn(|i| Dual64::new(q[i], 0.1 * i as f64 - 0.2));
+    let vd: [Dual64; 4] = core::array::from_fn(|i| Dual64::new(v[i], 0.3 - 0.05 * i as f64));
+    let (mut hq, mut hv) = ([Dual64::from(0.0); 4], [Dual64::from(0.0); 4]);
+    CarriedChain::<4>.gradient_qv_scalar(Dual64::from(0.0), &qd, &vd, &mut hq, &mut hv);
+    let dq: [f64; 4] = core::array::from_fn(|i| qd[i].eps);
+    let dv: [f64; 4] = core::array::from_fn(|i| vd[i].eps);
+    let (rq, rv) = hyperdual_products(&CarriedChain::<4>, 0.0, (&q, &v), (&dq, &dv));
+    for i in 0..4 {
+        assert!((hq[i].eps - rq[i]).abs() <= 1e-14, "{i}: {} against {}", hq[i].eps, rq[i]);
+        assert!((hv[i].eps - rv[i]).abs() <= 1e-14, "{i}: {} against {}", hv[i].eps, rv[i]);
+    }
 }

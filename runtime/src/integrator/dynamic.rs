@@ -16,7 +16,7 @@ use crate::discrete::DiscreteLagrangian;
 use crate::newton::{NewtonFailure, NewtonOptions};
 use crate::real::all_finite;
 use crate::structure::Coupling;
-use crate::system::DynLagrangian;
+use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
 use num_dual::DualNum;
 
@@ -232,6 +232,26 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
             self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
+    }
+
+    fn autonomous(&self) -> bool {
+        S::AUTONOMOUS
+    }
+
+    fn points(&self) -> Option<[f64; 2]> {
+        Some(self.points)
+    }
+
+    fn has_gradient_qv(&self) -> bool {
+        S::HAS_GRADIENT_QV
+    }
+
+    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        self.system.gradient_qv_scalar(t, q, v, out_q, out_v);
+    }
+
+    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+        self.system.lagrangian(t, q, v)
     }
 }
 

@@ -27,7 +27,7 @@ use crate::error::Error;
 use crate::newton::NewtonFailure;
 use crate::state::State;
 use crate::structure::Coupling;
-use crate::system::Lagrangian;
+use crate::system::{Lagrangian, Scalar};
 use crate::tape::Var;
 
 /// How an integrator takes the derivatives of a step and solves its Newton
@@ -156,6 +156,27 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
             self.system.gradient_q(t, q, zero, out);
         }
         S::HAS_GRADIENT
+    }
+
+    fn autonomous(&self) -> bool {
+        S::AUTONOMOUS
+    }
+
+    fn points(&self) -> Option<[f64; 2]> {
+        self.method.galerkin_points().map(|(points, _)| points)
+    }
+
+    fn has_gradient_qv(&self) -> bool {
+        S::HAS_GRADIENT_QV
+    }
+
+    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        self.system.gradient_qv_scalar(t, q, v, out_q, out_v);
+    }
+
+    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+        let (q, v): ([D; N], [D; N]) = (core::array::from_fn(|i| q[i]), core::array::from_fn(|i| v[i]));
+        self.system.lagrangian(t, q, v)
     }
 }
 

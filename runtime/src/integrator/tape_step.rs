@@ -20,11 +20,16 @@
 //! predictor input, Newton convergence rule, plausibility check, Kahan sums
 //! and failure values.
 
+use core::cell::RefCell;
+
+use num_dual::Dual64;
+
 use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{all_finite, max_abs};
 use crate::structure::{Coupling, Pattern};
+use crate::system::Scalar;
 use crate::tape::{Seeds, Tape, TapeError, Var};
 
 /// What the reverse-mode step functions need of a system and its discrete
@@ -44,6 +49,22 @@ pub(crate) trait TapeModel {
         let _ = (t, q, zero, out);
         false
     }
+    /// `true` when `L` does not depend explicitly on time.
+    fn autonomous(&self) -> bool;
+    /// The rule's quadrature points `[c_1, c_2]`:
+    /// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)`, one evaluation
+    /// of weight `h` when they coincide. `None` for a rule of another form.
+    fn points(&self) -> Option<[f64; 2]>;
+    /// `true` when [`gradient_qv`](Self::gradient_qv) is the system's
+    /// generated adjoint code, generic over the scalar: Newton steps then
+    /// take their derivatives from it instead of the tape.
+    fn has_gradient_qv(&self) -> bool;
+    /// `∂L/∂q` and `∂L/∂v` at `(t, q, v)` on any scalar (on `Dual64`, the
+    /// Hessian-vector products along the seeded direction). Called only when
+    /// [`has_gradient_qv`](Self::has_gradient_qv).
+    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]);
+    /// `L(t, q, v)` on any scalar.
+    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
 }
 
 /// The bandwidth of the step Jacobian `∂²A/∂q_k∂q_{k+1}` (and of `∂²L/∂v²`),
@@ -219,6 +240,9 @@ pub(crate) struct SparseWork {
     /// Length-`n` buffers handed out for [`Taken`] and forces and given back
     /// by the integrators after a commit, so that steps do not allocate.
     spare: Vec<Vec<f64>>,
+    /// The buffers of Newton steps from the generated gradient code (empty
+    /// until the first such step).
+    directional: Directional,
 }
 
 /// How many spare buffers [`SparseWork`] keeps: a step takes at most eight.
@@ -241,6 +265,7 @@ impl Clone for SparseWork {
             node_force: self.node_force.clone(),
             zero: self.zero.clone(),
             spare: Vec::new(),
+            directional: Directional::default(),
         }
     }
 }
@@ -270,6 +295,7 @@ impl SparseWork {
             node_force: None,
             zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
             spare: Vec::new(),
+            directional: Directional::default(),
         })
     }
 
@@ -339,14 +365,23 @@ impl SparseWork {
         options: &NewtonOptions,
     ) -> Result<(Taken, f64), NewtonFailure> {
         let (dq, report) = self.solve(model, node, h, guess, options)?;
-        // The momentum change at fixed increment and the step's energy.
-        let swept =
-            self.record_action(model, node.t, h, node.q, &dq).and_then(|_| self.tape.gradient(&mut self.gradient));
-        if swept.is_err() {
-            return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
-        }
         let n = self.n;
-        let energy = -self.gradient[2 * n];
+        // The momentum change at fixed increment and the step's energy.
+        let energy = match directional_points(model) {
+            Some(points) => {
+                self.directional.momentum_and_energy(model, node.t, h, points, node.q, &dq, &mut self.gradient[..n])
+            }
+            None => {
+                let swept = self
+                    .record_action(model, node.t, h, node.q, &dq)
+                    .and_then(|_| self.tape.gradient(&mut self.gradient));
+                if swept.is_err() {
+                    self.recycle(dq);
+                    return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
+                }
+                -self.gradient[2 * n]
+            }
+        };
         let mut taken = self.taken(dq, report);
         kahan_into(node.q, node.q_carry, &taken.dq, &mut taken.q1, &mut taken.q_carry);
         kahan_into(node.p, node.p_carry, &self.gradient[..n], &mut taken.p1, &mut taken.p_carry);
@@ -357,7 +392,11 @@ impl SparseWork {
         Ok((taken, energy))
     }
 
-    /// Newton on `r(Δq) = p_k + ∂A/∂q_k = 0` with banded or dense solves.
+    /// Newton on `r(Δq) = p_k + ∂A/∂q_k = 0` with banded or dense solves:
+    /// the residual and the Jacobian from the generated gradient code on
+    /// dual numbers (forward over reverse) when the system has it and the
+    /// rule has quadrature points, from the tape otherwise. No iteration
+    /// allocates: the iterate and the correction are the work's buffers.
     fn solve<Mo: TapeModel>(
         &mut self,
         model: &Mo,
@@ -367,49 +406,91 @@ impl SparseWork {
         options: &NewtonOptions,
     ) -> Result<(Vec<f64>, NewtonReport), NewtonFailure> {
         let n = self.n;
-        let (t0, q0, p0, pc) = (node.t, node.q, node.p, node.p_carry);
+        let (q0, p0, pc) = (node.q, node.p, node.p_carry);
         let bandwidth = self.bandwidth;
-        let seeds = seeds(n..2 * n, bandwidth);
         let min_rcond = options.min_rcond;
+        let points = directional_points(model);
+        if points.is_some() {
+            self.directional.allocate(n).map_err(|e| breakdown(e).at(0))?;
+        }
+        let mut x = self.buffer();
+        x.copy_from_slice(&guess.predictor[..n]);
+        let (x, correction) = (RefCell::new(x), RefCell::new(self.buffer()));
         // The condition estimate (a few solves, 1.5–3.6 times a banded
         // factor+solve) on the first iteration of the step only: the Jacobian
         // barely changes within a step; later iterations still refuse a zero
         // or non-finite pivot.
         let mut first = true;
-        let linearize = |x: &Vec<f64>| -> Result<Linearization<Vec<f64>>, Breakdown> {
-            self.record_action(model, t0, h, q0, x).map_err(tape_breakdown)?;
-            self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products).map_err(tape_breakdown)?;
-            let g = &self.gradient;
-            let mut r = vec![0.0; n];
+        let linearize = |iterate: &Slot<'_>| -> Result<Linearization<Slot<'_>>, Breakdown> {
+            let x = iterate.0.borrow();
+            let mut r = correction.borrow_mut();
+            // `r` first holds `∂A/∂q_k|_{q_{k+1}}`, then the residual.
+            match points {
+                Some(points) => {
+                    self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
+                }
+                None => self.tape_linearize(model, node.t, h, q0, &x, &mut r)?,
+            }
             let mut scale = max_abs(p0);
             for i in 0..n {
-                let d_q0 = g[i] - g[n + i];
+                let d_q0 = r[i];
                 r[i] = (p0[i] + d_q0) + pc[i];
                 scale = scale.max(d_q0.abs());
             }
             if !r.iter().all(|x| x.is_finite()) {
                 return Err(Breakdown::NonFinite("residual"));
             }
-            // J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq², entry by entry of the pattern.
-            seeds.recover(&self.products, 0..n, &mut self.mixed).map_err(tape_breakdown)?;
-            seeds.recover(&self.products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
-            for (a, b) in self.mixed.iter_mut().zip(&self.end) {
-                *a -= b;
-            }
             let rcond_floor = if first { min_rcond } else { 0.0 };
             first = false;
             assemble_and_factor(&mut self.jacobian, n, bandwidth, &self.mixed, rcond_floor)?;
             let residual_norm = max_abs(&r);
-            let mut correction = r;
-            self.jacobian.solve(&mut correction).map_err(breakdown)?;
-            for x in correction.iter_mut() {
+            self.jacobian.solve(&mut r).map_err(breakdown)?;
+            for x in r.iter_mut() {
                 *x = -*x;
             }
-            Ok(Linearization { correction, residual_norm, residual_ratio: f64::INFINITY }.cancelling(scale))
+            Ok(Linearization { correction: Slot(&correction), residual_norm, residual_ratio: f64::INFINITY }
+                .cancelling(scale))
         };
-        let (dq, report) = newton::solve(guess.predictor.to_vec(), options, linearize)?;
-        guess.check(&dq, q0, report.iterations)?;
-        Ok((dq, report))
+        let solved = newton::solve(Slot(&x), options, linearize).map(|(_, report)| report);
+        self.recycle(correction.into_inner());
+        let dq = x.into_inner();
+        let checked = solved.and_then(|report| guess.check(&dq, q0, report.iterations).map(|()| report));
+        match checked {
+            Ok(report) => Ok((dq, report)),
+            Err(failure) => {
+                self.recycle(dq);
+                Err(failure)
+            }
+        }
+    }
+
+    /// The tape's linearisation at the increment `dq`: `∂A/∂q_k|_{q_{k+1}} =
+    /// g_{q_k} − g_{Δq}` into `d_q0` and `J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq²` into
+    /// `mixed`, from one recording and one compressed second-order sweep.
+    fn tape_linearize<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        q0: &[f64],
+        dq: &[f64],
+        d_q0: &mut [f64],
+    ) -> Result<(), Breakdown> {
+        let n = self.n;
+        let seeds = seeds(n..2 * n, self.bandwidth);
+        self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
+        self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products).map_err(tape_breakdown)?;
+        let g = &self.gradient;
+        for i in 0..n {
+            d_q0[i] = g[i] - g[n + i];
+        }
+        // J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq², entry by entry of the pattern.
+        seeds.recover(&self.products, 0..n, &mut self.mixed).map_err(tape_breakdown)?;
+        seeds.recover(&self.products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
+        for (a, b) in self.mixed.iter_mut().zip(&self.end) {
+            *a -= b;
+        }
+        Ok(())
     }
 
     /// A [`Taken`] around the increment `dq`, its other buffers spare ones.
@@ -588,6 +669,259 @@ impl SparseWork {
         self.recycle(predicted);
         self.recycle(scaled);
         if implausible { Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH }) } else { Ok(()) }
+    }
+}
+
+/// The quadrature points of the forward-over-reverse Newton path, when
+/// the model takes it: generated gradient code and a rule of the form
+/// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)`.
+fn directional_points<Mo: TapeModel>(model: &Mo) -> Option<[f64; 2]> {
+    if model.has_gradient_qv() { model.points() } else { None }
+}
+
+/// The points that are evaluated (one when both coincide) and their weight.
+fn distinct(points: [f64; 2]) -> (&'static [usize], f64) {
+    if points[0] == points[1] { (&[0], 1.0) } else { (&[0, 1], 0.5) }
+}
+
+/// `t_k + c h`, formed as the rules' actions form it.
+#[inline]
+fn point_time(c: f64, t0: f64, h: f64) -> f64 {
+    if c == 0.0 {
+        t0
+    } else if c == 1.0 {
+        t0 + h
+    } else {
+        t0 + h * c
+    }
+}
+
+/// `q_k + c Δq`, formed as the rules' actions form it.
+#[inline]
+fn point_position(c: f64, q0: f64, dq: f64) -> f64 {
+    if c == 0.0 {
+        q0
+    } else if c == 1.0 {
+        q0 + dq
+    } else {
+        q0 + dq * c
+    }
+}
+
+/// A vector of `len` copies of `value`, or `TooLarge` instead of an abort.
+fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>, LinearSolveError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| LinearSolveError::TooLarge { n: len, per_column: 1 })?;
+    v.resize(len, value);
+    Ok(v)
+}
+
+/// The buffers of Newton steps from the system's generated gradient code
+/// (forward over reverse): the point and the velocity seeded on dual
+/// numbers and their gradients, and the `f64` values of the rule's points.
+///
+/// With `A = w h Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq·h⁻¹)` (`w = 1` for one
+/// point, `½` for two), the residual's part
+/// `∂A/∂q_k|_{q_{k+1}} = Σ_j w [h (1 − c_j) L_q − h h⁻¹ L_v]` needs the
+/// gradient of `L` at the points, and a column class `s` of the Jacobian
+/// `J = ∂(∂A/∂q_k|_{q_{k+1}})/∂Δq` is the derivative of the same sum along
+/// `s`: the gradient code on `Dual64` with `q` seeded by `c_j s` and `v` by
+/// `h⁻¹ s`. Columns `j ≡ k (mod 2b + 1)` of a matrix of bandwidth `b` never
+/// share a row's band, so `2b + 1` classes give all of it (Curtis, Powell and
+/// Reid); `n` classes without a proven band.
+#[derive(Clone, Debug, Default)]
+struct Directional {
+    q: Vec<Dual64>,
+    v: Vec<Dual64>,
+    gq: Vec<Dual64>,
+    gv: Vec<Dual64>,
+    /// `q_k + c_j Δq` of both points, one after the other.
+    at: Vec<f64>,
+    /// `Δq·h⁻¹`.
+    velocity: Vec<f64>,
+    /// `J·s` of one class.
+    column: Vec<f64>,
+    /// `∂L/∂q`, `∂L/∂v` in `f64` after convergence.
+    fq: Vec<f64>,
+    fv: Vec<f64>,
+}
+
+impl Directional {
+    /// Sizes the buffers for `n` coordinates (once).
+    fn allocate(&mut self, n: usize) -> Result<(), LinearSolveError> {
+        if self.velocity.len() == n {
+            return Ok(());
+        }
+        let zero = Dual64::from(0.0);
+        let two_n = n.checked_mul(2).ok_or(LinearSolveError::TooLarge { n, per_column: 2 })?;
+        *self = Self {
+            q: filled(n, zero)?,
+            v: filled(n, zero)?,
+            gq: filled(n, zero)?,
+            gv: filled(n, zero)?,
+            at: filled(two_n, 0.0)?,
+            velocity: filled(n, 0.0)?,
+            column: filled(n, 0.0)?,
+            fq: filled(n, 0.0)?,
+            fv: filled(n, 0.0)?,
+        };
+        Ok(())
+    }
+
+    /// The velocity `Δq·h⁻¹` and the points `q_k + c_j Δq`.
+    fn points(&mut self, points: [f64; 2], q0: &[f64], dq: &[f64], inv_h: f64) {
+        let n = q0.len();
+        for (v, &d) in self.velocity.iter_mut().zip(dq) {
+            *v = d * inv_h;
+        }
+        for &j in distinct(points).0 {
+            let c = points[j];
+            for (i, x) in self.at[j * n..(j + 1) * n].iter_mut().enumerate() {
+                *x = point_position(c, q0[i], dq[i]);
+            }
+        }
+    }
+
+    /// `∂A/∂q_k|_{q_{k+1}}` at the increment `dq` into `d_q0`, and the
+    /// Jacobian `J` into `band` (row `i`'s `2b + 1` entries around the
+    /// diagonal, or whole rows without a band).
+    #[allow(clippy::too_many_arguments)]
+    fn linearize<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        points: [f64; 2],
+        q0: &[f64],
+        dq: &[f64],
+        bandwidth: Option<usize>,
+        d_q0: &mut [f64],
+        band: &mut [f64],
+    ) {
+        let n = q0.len();
+        let inv_h = h.recip();
+        self.points(points, q0, dq, inv_h);
+        let (evaluated, w) = distinct(points);
+        // The weight of `L_v`: `w h · h⁻¹`, the derivative of the action as
+        // computed (`v = Δq·h⁻¹`).
+        let b_v = w * (h * inv_h);
+        let classes = bandwidth.map_or(n, |b| 2 * b + 1);
+        d_q0.fill(0.0);
+        for k in 0..classes {
+            self.column.fill(0.0);
+            for &j in evaluated {
+                let c = points[j];
+                let a_q = w * (h * (1.0 - c));
+                let at = &self.at[j * n..(j + 1) * n];
+                // Seed the class: columns `i ≡ k (mod classes)`.
+                let mut residue = 0;
+                for i in 0..n {
+                    let on = residue == k;
+                    self.q[i] = Dual64::new(at[i], if on { c } else { 0.0 });
+                    self.v[i] = Dual64::new(self.velocity[i], if on { inv_h } else { 0.0 });
+                    residue += 1;
+                    if residue == classes {
+                        residue = 0;
+                    }
+                }
+                model.gradient_qv(Dual64::from(point_time(c, t0, h)), &self.q, &self.v, &mut self.gq, &mut self.gv);
+                for i in 0..n {
+                    self.column[i] += a_q * self.gq[i].eps - b_v * self.gv[i].eps;
+                }
+                if k == 0 {
+                    for i in 0..n {
+                        d_q0[i] += a_q * self.gq[i].re - b_v * self.gv[i].re;
+                    }
+                }
+            }
+            // Row `i`'s entry in the class sits in the one slot of its band
+            // whose column `i + slot − b` is `≡ k`.
+            match bandwidth {
+                Some(b) => {
+                    let width = classes;
+                    let mut residue = 0;
+                    for i in 0..n {
+                        let slot = (k + b + width - residue) % width;
+                        band[i * width + slot] = self.column[i];
+                        residue += 1;
+                        if residue == width {
+                            residue = 0;
+                        }
+                    }
+                }
+                None => {
+                    for i in 0..n {
+                        band[i * n + k] = self.column[i];
+                    }
+                }
+            }
+        }
+    }
+
+    /// After convergence: `∂A/∂q_k` at fixed increment (the momentum change)
+    /// into `g_q0`, and the step's discrete energy `−∂A/∂h`, from the `f64`
+    /// gradient code and `L` (with `∂L/∂t` on a dual number when `L`
+    /// depends on time) at the points.
+    #[allow(clippy::too_many_arguments)]
+    fn momentum_and_energy<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        points: [f64; 2],
+        q0: &[f64],
+        dq: &[f64],
+        g_q0: &mut [f64],
+    ) -> f64 {
+        let n = q0.len();
+        let inv_h = h.recip();
+        self.points(points, q0, dq, inv_h);
+        let (evaluated, w) = distinct(points);
+        g_q0.fill(0.0);
+        // ∂A/∂h = Σ_j w [L + c_j h ∂L/∂t − L_v·Δq·h⁻¹].
+        let mut g_h = 0.0;
+        for &j in evaluated {
+            let c = points[j];
+            let t = point_time(c, t0, h);
+            let at = &self.at[j * n..(j + 1) * n];
+            model.gradient_qv(t, at, &self.velocity, &mut self.fq, &mut self.fv);
+            let wh = w * h;
+            for (g, &f) in g_q0.iter_mut().zip(&self.fq) {
+                *g += wh * f;
+            }
+            let (l, l_t) = if model.autonomous() {
+                (model.lagrangian_scalar(t, at, &self.velocity), 0.0)
+            } else {
+                for i in 0..n {
+                    self.q[i] = Dual64::from(at[i]);
+                    self.v[i] = Dual64::from(self.velocity[i]);
+                }
+                let l = model.lagrangian_scalar(Dual64::new(t, 1.0), &self.q, &self.v);
+                (l.re, l.eps)
+            };
+            let power: f64 = self.fv.iter().zip(&self.velocity).map(|(p, v)| p * v).sum();
+            g_h += w * (l + c * h * l_t - power);
+        }
+        -g_h
+    }
+}
+
+/// Newton's unknown (and correction) on the heap without an allocation per
+/// iteration: a buffer of the step, borrowed for the solve.
+struct Slot<'a>(&'a RefCell<Vec<f64>>);
+
+impl Unknown for Slot<'_> {
+    #[inline]
+    fn update(&mut self, dx: &Self) {
+        let dx = dx.0.borrow();
+        for (x, d) in self.0.borrow_mut().iter_mut().zip(dx.iter()) {
+            *x += d;
+        }
+    }
+
+    #[inline]
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        max_abs(&dx.0.borrow()) / (rtol * max_abs(&self.0.borrow()) + atol)
     }
 }
 
