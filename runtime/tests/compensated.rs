@@ -47,11 +47,15 @@ fn a_moving_centre_of_mass_does_not_bias_the_energy() {
         "1e6 energy-preserving steps, total momentum 0.7: energy error {worst:.2e} of the kinetic energy, {iterations:.2} newton iterations/step"
     );
     assert!(worst <= 5e-13, "{worst:e}");
+    // Round-off floors in the convergence test keep the solver from chasing
+    // the noise of large coordinates (measured 3.30; 14.4 without them).
+    assert!(iterations <= 5.0, "{iterations}");
 }
 
 /// Large coordinates: the energy stays at the noise of evaluating `L` there
-/// (the Newton iterations do rise: the energy equation cannot be solved below
-/// that noise, and the solver needs iterations to see that it has stalled).
+/// (the Newton iterations rise a little: the energy equation cannot be solved
+/// below that noise, and the solver needs iterations to see that it has
+/// stalled).
 #[test]
 fn large_coordinates_keep_the_energy_at_evaluation_noise() {
     let (near, it_near) = drift(10_000, 0.0, 0.05);
@@ -62,4 +66,7 @@ fn large_coordinates_keep_the_energy_at_evaluation_noise() {
     assert!(near <= 2e-13, "{near:e}");
     // ulp(1000) = 1.1e-13 per evaluation.
     assert!(far <= 2e-12, "{far:e}");
+    // Measured 3.19 and 6.40 Newton iterations per step (4.71 and 18.1
+    // before the convergence test had round-off floors).
+    assert!(it_near <= 4.0 && it_far <= 8.0, "{it_near} {it_far}");
 }
