@@ -67,6 +67,43 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     /// of the same size starts from it instead of assembling and factoring
     /// its own (see `step_nodes`).
     pub(crate) jacobian: Option<(T, Lu<N, S, T>)>,
+    /// When to offer the kept block again after it contracted too slowly.
+    pub(crate) kept_policy: KeptPolicy,
+}
+
+/// Back-off for the kept Newton block: where a block one step old contracts
+/// too slowly to be kept through a step (large steps, fast dynamics), trying
+/// it first wastes iterations before the refresh, step after step. After a
+/// refresh the next `skip` steps assemble their own block from the start;
+/// each further refresh doubles the pause (1, 3, 7, 15 steps), and a step
+/// that keeps the block throughout resets it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct KeptPolicy {
+    /// Steps still to take without offering the kept block.
+    skip: u8,
+    /// The pause after the next refresh.
+    backoff: u8,
+}
+
+impl KeptPolicy {
+    /// Whether this step may start from the kept block.
+    fn offers(self) -> bool {
+        self.skip == 0
+    }
+
+    /// The policy after a step: `offered` whether the kept block was offered,
+    /// `kept` whether it served the whole step.
+    fn after(self, offered: bool, skipped: bool, kept: bool) -> Self {
+        match (offered, skipped) {
+            (true, _) if kept => Self::default(),
+            (true, _) => {
+                let backoff = (2 * self.backoff + 1).min(15);
+                Self { skip: backoff, backoff }
+            }
+            (false, true) => Self { skip: self.skip - 1, ..self },
+            (false, false) => self,
+        }
+    }
 }
 
 /// What a Galerkin rule keeps between steps: the last step, `None` before the first.
@@ -232,10 +269,11 @@ where
         // assembles and factors its own where that one contracts slowly: most
         // steps then cost no Hessian, no assembly and no LU at all. The
         // condition estimate is made on the first factorisation of each solve.
-        if let Some(LastStep { jacobian: Some((h_lu, lu)), .. }) = &mut self.memory
-            && *h_lu == h
-            && Self::KEEPS_JACOBIAN
-        {
+        let policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.kept_policy);
+        let has_kept = Self::KEEPS_JACOBIAN
+            && matches!(&self.memory, Some(LastStep { jacobian: Some((h_lu, _)), .. }) if *h_lu == h);
+        let offered = has_kept && policy.offers();
+        if offered && let Some(LastStep { jacobian: Some((_, lu)), .. }) = &mut self.memory {
             // Kept for a second step: from here on it serves several solves
             // per step, each cheaper as a product with the inverse. (Inverting
             // changes no result a failed step could leave behind: a run
@@ -243,7 +281,7 @@ where
             lu.invert_in_place();
         }
         let cached = match &self.memory {
-            Some(LastStep { jacobian: Some((h_lu, lu)), .. }) if *h_lu == h && Self::KEEPS_JACOBIAN => Some(lu),
+            Some(LastStep { jacobian: Some((_, lu)), .. }) if offered => Some(lu),
             _ => None,
         };
         let cached_lu = cached.is_some();
@@ -332,7 +370,12 @@ where
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
             }
         }
-        self.commit(h, t1, d, report, jacobian)
+        let kept = matches!(jacobian, KeptBlock::Same);
+        self.commit(h, t1, d, report, jacobian)?;
+        if let Some(last) = &mut self.memory {
+            last.kept_policy = policy.after(offered, has_kept && !offered, kept);
+        }
+        Ok(())
     }
 
     /// Applies a step of size `h` (end time `t1`) whose block system is
@@ -411,7 +454,7 @@ where
                     KeptBlock::New(h, lu) => Some((h, lu)),
                     _ => None,
                 };
-                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian });
+                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian, kept_policy: KeptPolicy::default() });
             }
         }
         self.carry = carry;
@@ -1008,6 +1051,28 @@ where
 mod tests {
     use super::*;
     use crate::system::Scalar;
+
+    #[test]
+    fn the_kept_block_pauses_after_each_refresh_for_twice_as_long() {
+        // Refreshed (offered, not kept) four times in a row: pauses 1, 3, 7, 15, 15.
+        let mut policy = KeptPolicy::default();
+        let mut pauses = Vec::new();
+        for _ in 0..5 {
+            assert!(policy.offers());
+            policy = policy.after(true, false, false);
+            pauses.push(policy.skip);
+            for _ in 0..policy.skip {
+                assert!(!policy.offers());
+                policy = policy.after(false, true, false);
+            }
+        }
+        assert_eq!(pauses, [1, 3, 7, 15, 15]);
+        // A step that keeps the block throughout resets the pause.
+        assert_eq!(policy.after(true, false, true), KeptPolicy::default());
+        // Steps without a kept block to offer (a new step size) leave it alone.
+        let paused = KeptPolicy { skip: 2, backoff: 3 };
+        assert_eq!(paused.after(false, false, false), paused);
+    }
 
     /// `L = ½|v|² + 1/|q|`.
     struct Kepler;
