@@ -31,17 +31,9 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
     pub(crate) earlier: Option<(f64, [f64; N])>,
-    /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix,
-    /// once computed.
-    /// On the heap: at the sizes reverse mode serves, an inline `N × N`
-    /// matrix would not fit on a thread's stack.
-    pub(crate) inverse_mass: Option<Box<SMatrix<f64, N, N>>>,
-    /// Explicit steps: the diagonal of `M⁻¹` when `M⁻¹` is diagonal (a
-    /// product with `N` entries instead of `N²`), once computed.
-    pub(crate) inverse_mass_diagonal: Option<[f64; N]>,
-    /// Explicit steps: `(k, f(t_k, q_k))`, the force `∂L/∂q(t, q, 0)` at
-    /// node `k` (valid while the state is at node `k`).
-    pub(crate) node_force: Option<(u64, [f64; N])>,
+    /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix
+    /// and the force at the current node, made at the first explicit step.
+    pub(crate) explicit: Option<Box<ExplicitCache<N>>>,
     /// Reverse-mode steps: the tape, its buffers and the factored matrices
     /// (see [`Derivatives`](crate::Derivatives)); `None` in forward mode.
     pub(crate) sparse: Option<Box<super::tape_step::SparseWork>>,
@@ -60,9 +52,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         OnePointMemory {
             previous: None,
             earlier: None,
-            inverse_mass: None,
-            inverse_mass_diagonal: None,
-            node_force: None,
+            explicit: None,
             sparse: None,
         }
     }
@@ -257,49 +247,78 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// No Newton iteration (`Stats` counts none); the same Kahan sums, checks
     /// and failure semantics as the Newton path, whose trajectories it
     /// reproduces to round-off. The one-stage case of [`explicit_step`],
-    /// written out.
+    /// written out: one pass over the coordinates for the kick, drift and
+    /// position sum, one for the force and one for the momentum sum; the
+    /// state is written once, after the checks.
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
         // One stage written out rather than run through `explicit_step`'s
         // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
         // (`--bench step -- explicit`, one run each, load ≈ 3.5).
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
-        if let Err(failure) = inverse_mass_once(&self.system, &mut self.memory, t0, &q0) {
-            return Err(self.fail(h, failure));
-        }
-        let f0 = match self.memory.node_force {
-            Some((k, f)) if k == step => f,
-            _ => potential_force(&self.system, t0, &q0),
+        let (step, t0) = (self.state.step, self.state.t);
+        let cache = match explicit_cache(&self.system, &mut self.memory.explicit, t0, &self.state.q) {
+            Ok(cache) => cache,
+            Err(failure) => return Err(self.fail(h, failure)),
         };
+        let slot = cache.node_force(&self.system, step, t0, &self.state.q);
+        let (q0, p0, qc0, pc0) = (&self.state.q, &self.state.p, &self.carry, &self.p_carry);
         let half = 0.5 * h;
-        let mv: [f64; N] = core::array::from_fn(|i| (p0[i] + half * f0[i]) + self.p_carry[i]);
+        let f0 = &cache.forces[slot];
+        let (mut dq, mut q1, mut qc1) = ([0.0; N], [0.0; N], [0.0; N]);
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
-        let dq: [f64; N] = match (&self.memory.inverse_mass_diagonal, &self.memory.inverse_mass) {
-            (Some(d), _) => core::array::from_fn(|i| (d[i] * mv[i]) * h),
-            (None, Some(m)) => (**m * SVector::from(mv) * h).into(),
-            (None, None) => unreachable!("the inverse mass is set above"),
-        };
-        if let Some(last) = &self.memory.previous
-            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
-            && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
-        {
-            let reason = IMPLAUSIBLE_GROWTH;
-            return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+        match &cache.diagonal {
+            Some(d) => {
+                for j in 0..N {
+                    dq[j] = (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h;
+                }
+            }
+            None => {
+                let mut mv = [0.0; N];
+                for j in 0..N {
+                    mv[j] = (p0[j] + half * f0[j]) + pc0[j];
+                }
+                dq = (&cache.inverse_mass * SVector::from(mv) * h).into();
+            }
         }
-        let (q1, carry) = kahan(&q0, &self.carry, &dq);
-        let f1 = potential_force(&self.system, t1, &q1);
-        let dp: [f64; N] = core::array::from_fn(|i| half * (f0[i] + f1[i]));
-        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
-        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+        let mut dq_max = 0.0;
+        let mut bad = 0;
+        for j in 0..N {
+            let u = qc0[j] + dq[j];
+            q1[j] = q0[j] + u;
+            qc1[j] = u - (q1[j] - q0[j]);
+            dq_max = max_abs_step(dq_max, dq[j]);
+            bad |= non_finite_bit(q1[j]);
+        }
+        if let Some(last) = &self.memory.previous
+            && !growth_ruled_out(dq_max, &last.dq, (h / last.h).abs())
+        {
+            let mut predicted = [0.0; N];
+            let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+            super::predict_into(h, Some((last.h, &last.dq[..])), earlier, &self.v0, &mut predicted);
+            if implausible_growth(&dq, &predicted, &last.dq.map(|x| x * (h / last.h)), q0) {
+                let reason = IMPLAUSIBLE_GROWTH;
+                return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+            }
+        }
+        let (f0, f1) = cache.forces_at(slot);
+        potential_force(&self.system, t1, &q1, f1);
+        let (mut p1, mut pc1) = ([0.0; N], [0.0; N]);
+        for j in 0..N {
+            let u = pc0[j] + half * (f0[j] + f1[j]);
+            p1[j] = p0[j] + u;
+            pc1[j] = u - (p1[j] - p0[j]);
+            bad |= non_finite_bit(p1[j]);
+        }
+        if is_non_finite(bad | non_finite_bit(t1)) {
+            let quantity = non_finite(t1, &q1, &p1).unwrap_or("position");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
         }
-        let seg = Segment { t0, h, q0, dq };
         if S::DISCONTINUOUS {
-            self.watch_energy(&seg, t1);
+            self.watch_energy(&Segment { t0, h, q0: *q0, dq }, t1);
         }
-        let taken = ExplicitStep { dq, q1, carry, p1, p_carry, f1 };
+        let taken = ExplicitStep { dq, q1, carry: qc1, p1, p_carry: pc1 };
         commit_explicit(
             &mut self.memory,
             (&mut self.state, &mut self.carry, &mut self.p_carry, &mut self.stats),
@@ -447,47 +466,141 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 /// `max|x·r| = max|x|·|r|` exactly), and the common case skips the predictor.
 #[inline(always)]
 fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
-    max_abs(dq) <= 1e6 * (max_abs(last_dq) * ratio)
+    growth_ruled_out(max_abs(dq), last_dq, ratio)
 }
 
-/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the adjoint
-/// code `#[lagrangian]` wrote out where it could
-/// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
-/// evaluation.
+/// [`last_rules_out_growth`] from `dq_max = max|dq|`, gathered by the step's
+/// own loop.
 #[inline(always)]
-fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> [f64; N] {
+pub(super) fn growth_ruled_out(dq_max: f64, last_dq: &[f64], ratio: f64) -> bool {
+    dq_max <= 1e6 * (fold_max_abs(last_dq) * ratio)
+}
+
+/// `max(m, |x|)` as `f64::max` takes it, NaN ignored (`m` is never NaN):
+/// one `maxsd`, where `f64::max` also tests for NaN.
+#[inline(always)]
+pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
+    let a = x.abs();
+    if a > m { a } else { m }
+}
+
+/// `max|x|` by [`max_abs_step`]: the value `real::max_abs` returns.
+#[inline(always)]
+pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0, |m, &v| max_abs_step(m, v))
+}
+
+/// Bit 63 set exactly when `x` is not finite (its exponent field is all
+/// ones, and adding one at the field's lowest bit carries out of it); OR-ed
+/// over a step's values, with no branch per value.
+#[inline(always)]
+pub(super) fn non_finite_bit(x: f64) -> u64 {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    (x.to_bits() & EXPONENT).wrapping_add(1 << 52)
+}
+
+/// Whether an OR of [`non_finite_bit`]s saw a value that is not finite.
+#[inline(always)]
+pub(super) fn is_non_finite(bits: u64) -> bool {
+    bits >> 63 != 0
+}
+
+/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`:
+/// the adjoint code `#[lagrangian]` wrote out where it could
+/// ([`Lagrangian::HAS_GRADIENT`]; it clears `out` itself), else one
+/// first-order array-dual evaluation.
+#[inline(always)]
+fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], out: &mut [f64; N]) {
     use crate::hyperdual::DualArray;
     if S::HAS_GRADIENT {
-        let mut f = [0.0; N];
-        system.gradient_q(t, q, &[0.0; N], &mut f);
-        return f;
+        system.gradient_q(t, q, const { &[0.0; N] }, out);
+        return;
     }
     let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
-    let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
-    l.eps
+    *out = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]).eps;
 }
 
-/// `M⁻¹` of a constant-mass system into `memory`, computed at the first
-/// explicit step (and its diagonal, when it is one); a singular `M` is a
-/// typed failure.
+/// What the explicit steps keep for the whole run, on the heap (at the sizes
+/// reverse mode serves an inline `N × N` matrix would not fit on a thread's
+/// stack): `M⁻¹` of the constant mass matrix, and the force at the current
+/// node, computed by the step that reached it.
+#[derive(Clone, Debug)]
+pub(crate) struct ExplicitCache<const N: usize> {
+    pub(crate) inverse_mass: SMatrix<f64, N, N>,
+    /// The diagonal of `M⁻¹` when `M⁻¹` is diagonal (a product with `N`
+    /// entries instead of `N²`).
+    pub(crate) diagonal: Option<[f64; N]>,
+    /// Two force buffers: a step writes the force at its end node into the
+    /// one its start node's force is not in, so a failed step leaves that
+    /// force intact and a successful one moves nothing.
+    forces: [[f64; N]; 2],
+    /// Which buffer holds `f(t_k, q_k)`.
+    slot: usize,
+    /// The node `k` whose force `forces[slot]` is, if any.
+    pub(crate) node: Option<u64>,
+}
+
+impl<const N: usize> ExplicitCache<N> {
+    /// The buffer holding `f(t_k, q_k)` at node `step`, computed if it is not
+    /// there yet.
+    #[inline(always)]
+    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) -> usize {
+        if self.node != Some(step) {
+            potential_force(system, t, q, &mut self.forces[self.slot]);
+            self.node = Some(step);
+        }
+        self.slot
+    }
+
+    /// The force buffer `slot` and the other one, for the step's end force.
+    #[inline(always)]
+    fn forces_at(&mut self, slot: usize) -> (&[f64; N], &mut [f64; N]) {
+        split_forces(&mut self.forces, slot)
+    }
+
+    /// The end node's force, written by the step that reached node `step`,
+    /// is now the node force.
+    #[inline(always)]
+    fn advance(&mut self, step: u64) {
+        self.slot = 1 - self.slot;
+        self.node = Some(step);
+    }
+}
+
+/// The force buffer `slot` of `forces`, and the other one.
+#[inline(always)]
+fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], slot: usize) -> (&[f64; N], &mut [f64; N]) {
+    let [a, b] = forces;
+    if slot == 0 { (a, b) } else { (b, a) }
+}
+
+/// The explicit steps' cache of a constant-mass system, made at the first
+/// explicit step: `M⁻¹` (and its diagonal, when it is one); a singular `M`
+/// is a typed failure.
 #[inline]
-fn inverse_mass_once<S: Lagrangian<N>, const N: usize>(
+fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
     system: &S,
-    memory: &mut OnePointMemory<N>,
+    cache: &'a mut Option<Box<ExplicitCache<N>>>,
     t0: f64,
     q0: &[f64; N],
-) -> Result<(), NewtonFailure> {
-    if memory.inverse_mass.is_some() {
-        return Ok(());
+) -> Result<&'a mut ExplicitCache<N>, NewtonFailure> {
+    match cache {
+        Some(cache) => Ok(cache),
+        empty @ None => {
+            let m = system
+                .velocity_hessian(t0, *q0, [0.0; N])
+                .try_inverse()
+                .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
+            let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+            Ok(empty.insert(Box::new(ExplicitCache {
+                inverse_mass: m,
+                diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
+                forces: [[0.0; N]; 2],
+                slot: 0,
+                node: None,
+            })))
+        }
     }
-    let m = system
-        .velocity_hessian(t0, *q0, [0.0; N])
-        .try_inverse()
-        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
-    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-    memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
-    memory.inverse_mass = Some(Box::new(m));
-    Ok(())
 }
 
 /// The node an explicit step starts from, borrowed from the integrator.
@@ -500,7 +613,8 @@ pub(super) struct ExplicitNode<'a, const N: usize> {
     pub(super) v0: &'a [f64; N],
 }
 
-/// An explicit step that passed every check; nothing is committed yet.
+/// An explicit step that passed every check; nothing is committed yet (the
+/// force at its end node waits in the cache's spare buffer).
 pub(super) struct ExplicitStep<const N: usize> {
     /// The step's total increment `q_{k+1} − q_k` (before the compensation).
     pub(super) dq: [f64; N],
@@ -508,8 +622,6 @@ pub(super) struct ExplicitStep<const N: usize> {
     pub(super) carry: [f64; N],
     pub(super) p1: [f64; N],
     pub(super) p_carry: [f64; N],
-    /// The force at the new node, for the next step.
-    pub(super) f1: [f64; N],
 }
 
 /// A composition of Störmer–Verlet sub-steps of sizes `γ_i h` (`weights`;
@@ -534,7 +646,7 @@ pub(super) struct ExplicitStep<const N: usize> {
 /// compares `Δq` with the last step's total increment, the finiteness
 /// check runs on `q_{k+1}`, `p_{k+1}` and `t1`. Changes only the caches of
 /// `memory` (the inverse mass matrix; the node force stays valid for node
-/// `k`).
+/// `k`, the sub-node forces go to the spare buffer).
 #[inline(always)]
 pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     system: &S,
@@ -547,26 +659,41 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
 ) -> Result<ExplicitStep<N>, NewtonFailure> {
     let State { step, t: t0, q: ref q0, p: ref p0 } = *node.state;
     let (qc, pc) = (node.carry, node.p_carry);
-    inverse_mass_once(system, memory, t0, q0)?;
-    let f = match memory.node_force {
-        Some((k, f)) if k == step => f,
-        _ => potential_force(system, t0, q0),
-    };
+    let cache = explicit_cache(system, &mut memory.explicit, t0, q0)?;
+    let slot = cache.node_force(system, step, t0, q0);
+    let ExplicitCache { inverse_mass, diagonal, forces, .. } = cache;
+    let (f0, f) = split_forces(forces, slot);
     let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
     // The mass matrix is chosen once per step, not per sub-step.
-    let (dq, mut dp, q, f, closing) = match (&memory.inverse_mass_diagonal, &memory.inverse_mass) {
+    let (dq, mut dp, q, closing) = match diagonal {
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
-        (Some(d), _) => {
-            substeps(system, &start, f, weights, increments, |mv, hi| core::array::from_fn(|j| (d[j] * mv[j]) * hi))
-        }
-        (None, Some(m)) => {
-            substeps(system, &start, f, weights, increments, |mv, hi| (**m * SVector::from(*mv) * hi).into())
-        }
-        (None, None) => unreachable!("the inverse mass is set above"),
+        Some(d) => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+            for j in 0..N {
+                out[j] = (d[j] * mv[j]) * hi;
+            }
+        }),
+        None => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+            *out = (&*inverse_mass * SVector::from(*mv) * hi).into();
+        }),
     };
+    // The closing kick's force: `f_{k+1}`, or `f_k` after no sub-step.
+    let f: &[f64; N] = if weights.is_empty() { f0 } else { f };
+    let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
+    let (mut dq_max, mut q_bad, mut p_bad) = (0.0, 0, 0);
+    for j in 0..N {
+        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
+        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
+        dq_max = max_abs_step(dq_max, dq[j]);
+        q_bad |= non_finite_bit(q[j]);
+        dp[j] += closing * f[j];
+        let u = pc[j] + dp[j];
+        p1[j] = p0[j] + u;
+        p_carry[j] = u - (p1[j] - p0[j]);
+        p_bad |= non_finite_bit(p1[j]);
+    }
     if let Some(last) = &memory.previous
-        && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
+        && !growth_ruled_out(dq_max, &last.dq, (h / last.h).abs())
     {
         let mut predicted = [0.0; N];
         let earlier = memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -575,28 +702,16 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
-    let (mut q_finite, mut p_finite) = (true, true);
-    for j in 0..N {
-        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
-        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
-        q_finite &= q[j].is_finite();
-        dp[j] += closing * f[j];
-        let u = pc[j] + dp[j];
-        p1[j] = p0[j] + u;
-        p_carry[j] = u - (p1[j] - p0[j]);
-        p_finite &= p1[j].is_finite();
+    if is_non_finite(q_bad | p_bad | non_finite_bit(t1)) {
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("position") });
     }
-    let quantity = super::first_non_finite(q_finite, p_finite, t1.is_finite());
-    if let Some(quantity) = quantity {
-        return Err(NewtonFailure::NonFinite { iterations: 0, quantity });
-    }
-    Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry, f1: f })
+    Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry })
 }
 
 /// Replaces the state `(state, carry, p_carry)` by the checked explicit step
-/// `taken` of size `h` ending at `t1`, and updates the memory (the last two
-/// steps, the node force) and the counters (no Newton iteration).
+/// `taken` of size `h` ending at `t1`, in place, and updates the memory (the
+/// last two steps, the node force) and the counters (no Newton iteration).
 #[inline(always)]
 pub(super) fn commit_explicit<const N: usize>(
     memory: &mut OnePointMemory<N>,
@@ -606,10 +721,30 @@ pub(super) fn commit_explicit<const N: usize>(
     taken: &ExplicitStep<N>,
 ) {
     let step = state.step + 1;
-    memory.node_force = Some((step, taken.f1));
-    memory.earlier = memory.previous.as_ref().map(|last| (last.h, last.dq));
-    memory.previous = Some(Segment { t0: state.t, h, q0: state.q, dq: taken.dq });
-    *state = State { step, t: t1, q: taken.q1, p: taken.p1 };
+    if let Some(cache) = memory.explicit.as_deref_mut() {
+        cache.advance(step);
+    }
+    match (&memory.previous, &mut memory.earlier) {
+        (Some(last), Some((h_earlier, dq_earlier))) => {
+            *h_earlier = last.h;
+            *dq_earlier = last.dq;
+        }
+        (Some(last), earlier) => *earlier = Some((last.h, last.dq)),
+        (None, earlier) => *earlier = None,
+    }
+    match &mut memory.previous {
+        Some(last) => {
+            last.t0 = state.t;
+            last.h = h;
+            last.q0 = state.q;
+            last.dq = taken.dq;
+        }
+        None => memory.previous = Some(Segment { t0: state.t, h, q0: state.q, dq: taken.dq }),
+    }
+    state.step = step;
+    state.t = t1;
+    state.q = taken.q1;
+    state.p = taken.p1;
     *carry = taken.carry;
     *p_carry = taken.p_carry;
     stats.steps += 1;
@@ -627,19 +762,19 @@ struct SubstepStart<'a, const N: usize> {
     h: f64,
 }
 
-/// The sub-steps of [`explicit_step`] from the force `f` at the start, with
-/// `drift(p, h_i) = h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, f_{k+1}, h_m/2)`, `Δp`
-/// still without its closing kick `h_m/2 · f_{k+1}`.
+/// The sub-steps of [`explicit_step`] from the force `f_k` at the start, with
+/// `drift(p, h_i, out)` writing `h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, h_m/2)`, `Δp`
+/// still without its closing kick `h_m/2 · f_{k+1}`. `forces` is `f_k` and
+/// the buffer that holds each sub-node's force in turn, `f_{k+1}` at the end.
 #[inline(always)]
-#[allow(clippy::type_complexity)]
 fn substeps<S: Lagrangian<N>, const N: usize>(
     system: &S,
     start: &SubstepStart<'_, N>,
-    mut f: [f64; N],
+    (f0, f): (&[f64; N], &mut [f64; N]),
     weights: &[f64],
     increments: &mut [[f64; N]],
-    drift: impl Fn(&[f64; N], f64) -> [f64; N],
-) -> ([f64; N], [f64; N], [f64; N], [f64; N], f64) {
+    drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
+) -> ([f64; N], [f64; N], [f64; N], f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
     let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
     // Half the last sub-step: its closing kick joins the next opening one.
@@ -650,20 +785,21 @@ fn substeps<S: Lagrangian<N>, const N: usize>(
     for (i, (&gamma, slot)) in weights.iter().zip(increments.iter_mut()).enumerate() {
         let hi = gamma * h;
         let kick = half + 0.5 * hi;
+        let fi: &[f64; N] = if i == 0 { f0 } else { f };
         let mut mv = [0.0; N];
         for j in 0..N {
-            dp[j] += kick * f[j];
+            dp[j] += kick * fi[j];
             mv[j] = p0[j] + (pc[j] + dp[j]);
         }
-        *slot = drift(&mv, hi);
+        drift(&mv, hi, slot);
         for j in 0..N {
             dq[j] += slot[j];
             q[j] = q0[j] + (qc[j] + dq[j]);
         }
         elapsed += gamma;
         let ti = if i == last { t1 } else { t0 + elapsed * h };
-        f = potential_force(system, ti, &q);
+        potential_force(system, ti, &q, f);
         half = 0.5 * hi;
     }
-    (dq, dp, q, f, half)
+    (dq, dp, q, half)
 }
