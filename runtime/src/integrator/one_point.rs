@@ -263,7 +263,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let slot = cache.node_force(&self.system, step, t0, &self.state.q);
         let (q0, p0, qc0, pc0) = (&self.state.q, &self.state.p, &self.carry, &self.p_carry);
         let half = 0.5 * h;
-        let f0 = &cache.forces[slot];
+        let f0 = &cache.forces[usize::from(slot)];
         let (mut dq, mut q1, mut qc1) = ([0.0; N], [0.0; N], [0.0; N]);
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
@@ -281,15 +281,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 dq = (&cache.inverse_mass * SVector::from(mv) * h).into();
             }
         }
-        let mut dq_max = 0.0;
         let mut bad = 0;
         for j in 0..N {
             let u = qc0[j] + dq[j];
             q1[j] = q0[j] + u;
             qc1[j] = u - (q1[j] - q0[j]);
-            dq_max = max_abs_step(dq_max, dq[j]);
-            bad |= non_finite_bit(q1[j]);
+            bad |= nan_bits(q1[j]);
         }
+        let dq_max = fold_max_abs(&dq);
         if let Some(last) = &self.memory.previous
             && !growth_ruled_out(dq_max, &last.dq, (h / last.h).abs())
         {
@@ -308,9 +307,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             let u = pc0[j] + half * (f0[j] + f1[j]);
             p1[j] = p0[j] + u;
             pc1[j] = u - (p1[j] - p0[j]);
-            bad |= non_finite_bit(p1[j]);
+            bad |= nan_bits(p1[j]);
         }
-        if is_non_finite(bad | non_finite_bit(t1)) {
+        if is_non_finite(bad | nan_bits(t1)) {
             let quantity = non_finite(t1, &q1, &p1).unwrap_or("position");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
@@ -484,25 +483,38 @@ pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
     if a > m { a } else { m }
 }
 
-/// `max|x|` by [`max_abs_step`]: the value `real::max_abs` returns.
+/// `max|x|`, the value `real::max_abs` returns: the maximum is exact and
+/// ignores NaN in any order, so four running maxima (which vectorise)
+/// combine to the same number as one.
 #[inline(always)]
 pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
-    x.iter().fold(0.0, |m, &v| max_abs_step(m, v))
+    let mut lanes = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for k in 0..4 {
+            lanes[k] = max_abs_step(lanes[k], chunk[k]);
+        }
+    }
+    let mut m = max_abs_step(max_abs_step(lanes[0], lanes[1]), max_abs_step(lanes[2], lanes[3]));
+    for &v in rest {
+        m = max_abs_step(m, v);
+    }
+    m
 }
 
-/// Bit 63 set exactly when `x` is not finite (its exponent field is all
-/// ones, and adding one at the field's lowest bit carries out of it); OR-ed
-/// over a step's values, with no branch per value.
+/// Zero exactly when `x` is finite (`x − x` is `+0` then, NaN otherwise):
+/// OR-ed over a step's values, a finiteness test with no branch per value
+/// that vectorises.
 #[inline(always)]
-pub(super) fn non_finite_bit(x: f64) -> u64 {
-    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
-    (x.to_bits() & EXPONENT).wrapping_add(1 << 52)
+pub(super) fn nan_bits(x: f64) -> u64 {
+    (x - x).to_bits()
 }
 
-/// Whether an OR of [`non_finite_bit`]s saw a value that is not finite.
+/// Whether an OR of [`nan_bits`] saw a value that is not finite.
 #[inline(always)]
 pub(super) fn is_non_finite(bits: u64) -> bool {
-    bits >> 63 != 0
+    bits != 0
 }
 
 /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`:
@@ -534,8 +546,9 @@ pub(crate) struct ExplicitCache<const N: usize> {
     /// one its start node's force is not in, so a failed step leaves that
     /// force intact and a successful one moves nothing.
     forces: [[f64; N]; 2],
-    /// Which buffer holds `f(t_k, q_k)`.
-    slot: usize,
+    /// Which buffer holds `f(t_k, q_k)` (a `bool`: indexing with it needs no
+    /// bounds check).
+    slot: bool,
     /// The node `k` whose force `forces[slot]` is, if any.
     pub(crate) node: Option<u64>,
 }
@@ -544,9 +557,9 @@ impl<const N: usize> ExplicitCache<N> {
     /// The buffer holding `f(t_k, q_k)` at node `step`, computed if it is not
     /// there yet.
     #[inline(always)]
-    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) -> usize {
+    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) -> bool {
         if self.node != Some(step) {
-            potential_force(system, t, q, &mut self.forces[self.slot]);
+            potential_force(system, t, q, &mut self.forces[usize::from(self.slot)]);
             self.node = Some(step);
         }
         self.slot
@@ -554,7 +567,7 @@ impl<const N: usize> ExplicitCache<N> {
 
     /// The force buffer `slot` and the other one, for the step's end force.
     #[inline(always)]
-    fn forces_at(&mut self, slot: usize) -> (&[f64; N], &mut [f64; N]) {
+    fn forces_at(&mut self, slot: bool) -> (&[f64; N], &mut [f64; N]) {
         split_forces(&mut self.forces, slot)
     }
 
@@ -562,16 +575,16 @@ impl<const N: usize> ExplicitCache<N> {
     /// is now the node force.
     #[inline(always)]
     fn advance(&mut self, step: u64) {
-        self.slot = 1 - self.slot;
+        self.slot = !self.slot;
         self.node = Some(step);
     }
 }
 
 /// The force buffer `slot` of `forces`, and the other one.
 #[inline(always)]
-fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], slot: usize) -> (&[f64; N], &mut [f64; N]) {
+fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], slot: bool) -> (&[f64; N], &mut [f64; N]) {
     let [a, b] = forces;
-    if slot == 0 { (a, b) } else { (b, a) }
+    if slot { (b, a) } else { (a, b) }
 }
 
 /// The explicit steps' cache of a constant-mass system, made at the first
@@ -596,7 +609,7 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
                 inverse_mass: m,
                 diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
                 forces: [[0.0; N]; 2],
-                slot: 0,
+                slot: false,
                 node: None,
             })))
         }
@@ -680,20 +693,19 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     // The closing kick's force: `f_{k+1}`, or `f_k` after no sub-step.
     let f: &[f64; N] = if weights.is_empty() { f0 } else { f };
     let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
-    let (mut dq_max, mut q_bad, mut p_bad) = (0.0, 0, 0);
+    let (mut q_bad, mut p_bad) = (0, 0);
     for j in 0..N {
         // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
         carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
-        dq_max = max_abs_step(dq_max, dq[j]);
-        q_bad |= non_finite_bit(q[j]);
+        q_bad |= nan_bits(q[j]);
         dp[j] += closing * f[j];
         let u = pc[j] + dp[j];
         p1[j] = p0[j] + u;
         p_carry[j] = u - (p1[j] - p0[j]);
-        p_bad |= non_finite_bit(p1[j]);
+        p_bad |= nan_bits(p1[j]);
     }
     if let Some(last) = &memory.previous
-        && !growth_ruled_out(dq_max, &last.dq, (h / last.h).abs())
+        && !growth_ruled_out(fold_max_abs(&dq), &last.dq, (h / last.h).abs())
     {
         let mut predicted = [0.0; N];
         let earlier = memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -702,7 +714,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    if is_non_finite(q_bad | p_bad | non_finite_bit(t1)) {
+    if is_non_finite(q_bad | p_bad | nan_bits(t1)) {
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
         return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("position") });
     }
