@@ -269,7 +269,7 @@ impl Method<f64> for Composition {
                 let Integrator { memory, .. } = sub;
                 it.memory.inner = OnePointMemory { previous: saved.0, earlier: saved.1, ..memory };
                 if let Some(cache) = it.memory.inner.explicit.as_deref_mut() {
-                    cache.node = None;
+                    cache.forget();
                 }
                 if let Some(work) = it.memory.inner.sparse.as_mut() {
                     work.forget_node_force();
@@ -284,7 +284,7 @@ impl Method<f64> for Composition {
         let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
         // The explicit path's cached force belongs to the composed node now.
         if let Some(cache) = memory.explicit.as_deref_mut() {
-            cache.node = cache.node.map(|_| before.step + 1);
+            cache.rekey(state.step, before.step + 1);
         }
         if let Some(work) = memory.sparse.as_mut() {
             work.rekey_node_force(before.step + 1);

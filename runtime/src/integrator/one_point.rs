@@ -260,10 +260,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Ok(cache) => cache,
             Err(failure) => return Err(self.fail(h, failure)),
         };
-        let slot = cache.node_force(&self.system, step, t0, &self.state.q);
+        cache.node_force(&self.system, step, t0, &self.state.q);
         let (q0, p0, qc0, pc0) = (&self.state.q, &self.state.p, &self.carry, &self.p_carry);
         let half = 0.5 * h;
-        let f0 = &cache.forces[usize::from(slot)];
+        let f0 = &cache.forces[usize::from(step % 2 == 1)];
         let (mut dq, mut q1, mut qc1) = ([0.0; N], [0.0; N], [0.0; N]);
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
@@ -290,7 +290,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         }
         let dq_max = fold_max_abs(&dq);
         if let Some(last) = &self.memory.previous
-            && !growth_ruled_out(dq_max, &last.dq, (h / last.h).abs())
+            && !explicit_growth_ruled_out(dq_max, fold_max_abs(q0), h, last.h, &last.dq)
         {
             let mut predicted = [0.0; N];
             let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -300,7 +300,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
             }
         }
-        let (f0, f1) = cache.forces_at(slot);
+        let (f0, f1) = cache.forces_at(step);
         potential_force(&self.system, t1, &q1, f1);
         let (mut p1, mut pc1) = ([0.0; N], [0.0; N]);
         for j in 0..N {
@@ -468,11 +468,24 @@ fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], rati
     growth_ruled_out(max_abs(dq), last_dq, ratio)
 }
 
-/// [`last_rules_out_growth`] from `dq_max = max|dq|`, gathered by the step's
-/// own loop.
+/// [`last_rules_out_growth`] from `dq_max = max|dq|`.
 #[inline(always)]
-pub(super) fn growth_ruled_out(dq_max: f64, last_dq: &[f64], ratio: f64) -> bool {
+fn growth_ruled_out(dq_max: f64, last_dq: &[f64], ratio: f64) -> bool {
     dq_max <= 1e6 * (fold_max_abs(last_dq) * ratio)
+}
+
+/// `true` when an explicit step's increment `dq` (`dq_max = max|dq|`) from
+/// `q` (`q_max = max|q|`), with the last step `(h_last, last_dq)`, is
+/// certainly no [`implausible_growth`], so that the predictor is not needed.
+/// First the bound of the position alone: the check's threshold is
+/// `1e6·max(scale, 1e-6·max|q|)`, at least `1e6·(1e-6·max|q|)` as computed
+/// (rounding is monotone), so an increment below that passes whatever the
+/// scale (every step of motion away from the origin; no division). Then
+/// [`last_rules_out_growth`]'s bound of the scaled last increment. Either
+/// way the verdict is the full check's.
+#[inline(always)]
+fn explicit_growth_ruled_out(dq_max: f64, q_max: f64, h: f64, h_last: f64, last_dq: &[f64]) -> bool {
+    dq_max <= 1e6 * (1e-6 * q_max) || growth_ruled_out(dq_max, last_dq, (h / h_last).abs())
 }
 
 /// `max(m, |x|)` as `f64::max` takes it, NaN ignored (`m` is never NaN):
@@ -542,49 +555,64 @@ pub(crate) struct ExplicitCache<const N: usize> {
     /// The diagonal of `M⁻¹` when `M⁻¹` is diagonal (a product with `N`
     /// entries instead of `N²`).
     pub(crate) diagonal: Option<[f64; N]>,
-    /// Two force buffers: a step writes the force at its end node into the
-    /// one its start node's force is not in, so a failed step leaves that
-    /// force intact and a successful one moves nothing.
+    /// Two force buffers, `forces[k % 2]` for node `k`: a step writes the
+    /// force at its end node into the one its start node's force is not in,
+    /// so a failed step leaves that force intact and a successful one moves
+    /// nothing.
     forces: [[f64; N]; 2],
-    /// Which buffer holds `f(t_k, q_k)` (a `bool`: indexing with it needs no
-    /// bounds check).
-    slot: bool,
-    /// The node `k` whose force `forces[slot]` is, if any.
-    pub(crate) node: Option<u64>,
+    /// `k + 1` when `forces[k % 2]` holds `f(t_k, q_k)` for the current node
+    /// `k`, `0` when no buffer does.
+    node: u64,
 }
 
 impl<const N: usize> ExplicitCache<N> {
-    /// The buffer holding `f(t_k, q_k)` at node `step`, computed if it is not
-    /// there yet.
+    /// Makes sure `forces[step % 2]` holds `f(t_k, q_k)` at node `step`.
     #[inline(always)]
-    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) -> bool {
-        if self.node != Some(step) {
-            potential_force(system, t, q, &mut self.forces[usize::from(self.slot)]);
-            self.node = Some(step);
+    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) {
+        if self.node != step.wrapping_add(1) {
+            potential_force(system, t, q, &mut self.forces[usize::from(step % 2 == 1)]);
+            self.node = step.wrapping_add(1);
         }
-        self.slot
     }
 
-    /// The force buffer `slot` and the other one, for the step's end force.
+    /// The force at node `step` and the buffer for the next node's.
     #[inline(always)]
-    fn forces_at(&mut self, slot: bool) -> (&[f64; N], &mut [f64; N]) {
-        split_forces(&mut self.forces, slot)
+    fn forces_at(&mut self, step: u64) -> (&[f64; N], &mut [f64; N]) {
+        split_forces(&mut self.forces, step)
     }
 
     /// The end node's force, written by the step that reached node `step`,
     /// is now the node force.
     #[inline(always)]
     fn advance(&mut self, step: u64) {
-        self.slot = !self.slot;
-        self.node = Some(step);
+        self.node = step.wrapping_add(1);
+    }
+
+    /// The node force is unknown (the next step recomputes it, to the same
+    /// bits).
+    pub(crate) fn forget(&mut self) {
+        self.node = 0;
+    }
+
+    /// The force at node `from` is the force at node `to` (a composed step's
+    /// last sub-node is its end node).
+    pub(crate) fn rekey(&mut self, from: u64, to: u64) {
+        if self.node != from.wrapping_add(1) {
+            self.node = 0;
+            return;
+        }
+        if from % 2 != to % 2 {
+            self.forces.swap(0, 1);
+        }
+        self.node = to.wrapping_add(1);
     }
 }
 
-/// The force buffer `slot` of `forces`, and the other one.
+/// The force buffer of node `step` in `forces`, and the other one.
 #[inline(always)]
-fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], slot: bool) -> (&[f64; N], &mut [f64; N]) {
+fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], step: u64) -> (&[f64; N], &mut [f64; N]) {
     let [a, b] = forces;
-    if slot { (b, a) } else { (a, b) }
+    if step % 2 == 1 { (b, a) } else { (a, b) }
 }
 
 /// The explicit steps' cache of a constant-mass system, made at the first
@@ -609,8 +637,7 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
                 inverse_mass: m,
                 diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
                 forces: [[0.0; N]; 2],
-                slot: false,
-                node: None,
+                node: 0,
             })))
         }
     }
@@ -673,9 +700,9 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     let State { step, t: t0, q: ref q0, p: ref p0 } = *node.state;
     let (qc, pc) = (node.carry, node.p_carry);
     let cache = explicit_cache(system, &mut memory.explicit, t0, q0)?;
-    let slot = cache.node_force(system, step, t0, q0);
+    cache.node_force(system, step, t0, q0);
     let ExplicitCache { inverse_mass, diagonal, forces, .. } = cache;
-    let (f0, f) = split_forces(forces, slot);
+    let (f0, f) = split_forces(forces, step);
     let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
     // The mass matrix is chosen once per step, not per sub-step.
     let (dq, mut dp, q, closing) = match diagonal {
@@ -690,8 +717,8 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
             *out = (&*inverse_mass * SVector::from(*mv) * hi).into();
         }),
     };
-    // The closing kick's force: `f_{k+1}`, or `f_k` after no sub-step.
-    let f: &[f64; N] = if weights.is_empty() { f0 } else { f };
+    // The closing kick's force: `f_{k+1}` (`f_k` after no sub-step).
+    let f: &[f64; N] = f;
     let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
     let (mut q_bad, mut p_bad) = (0, 0);
     for j in 0..N {
@@ -705,7 +732,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
         p_bad |= nan_bits(p1[j]);
     }
     if let Some(last) = &memory.previous
-        && !growth_ruled_out(fold_max_abs(&dq), &last.dq, (h / last.h).abs())
+        && !explicit_growth_ruled_out(fold_max_abs(&dq), fold_max_abs(q0), h, last.h, &last.dq)
     {
         let mut predicted = [0.0; N];
         let earlier = memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -777,41 +804,44 @@ struct SubstepStart<'a, const N: usize> {
 /// The sub-steps of [`explicit_step`] from the force `f_k` at the start, with
 /// `drift(p, h_i, out)` writing `h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, h_m/2)`, `Δp`
 /// still without its closing kick `h_m/2 · f_{k+1}`. `forces` is `f_k` and
-/// the buffer that holds each sub-node's force in turn, `f_{k+1}` at the end.
+/// the buffer that receives `f_{k+1}`; the sub-nodes' forces stay local.
 #[inline(always)]
 fn substeps<S: Lagrangian<N>, const N: usize>(
     system: &S,
     start: &SubstepStart<'_, N>,
-    (f0, f): (&[f64; N], &mut [f64; N]),
+    (f0, f_end): (&[f64; N], &mut [f64; N]),
     weights: &[f64],
     increments: &mut [[f64; N]],
     drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
 ) -> ([f64; N], [f64; N], [f64; N], f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
     let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
+    let mut f = *f0;
     // Half the last sub-step: its closing kick joins the next opening one.
     let mut half = 0.0;
     let mut elapsed = 0.0;
-    let last = weights.len().saturating_sub(1);
-    debug_assert!(increments.len() >= weights.len());
-    for (i, (&gamma, slot)) in weights.iter().zip(increments.iter_mut()).enumerate() {
+    // `increments` has room for every sub-step (`Composition::check`).
+    let m = weights.len().min(increments.len());
+    for i in 0..m {
+        let gamma = weights[i];
         let hi = gamma * h;
         let kick = half + 0.5 * hi;
-        let fi: &[f64; N] = if i == 0 { f0 } else { f };
         let mut mv = [0.0; N];
         for j in 0..N {
-            dp[j] += kick * fi[j];
+            dp[j] += kick * f[j];
             mv[j] = p0[j] + (pc[j] + dp[j]);
         }
+        let slot = &mut increments[i];
         drift(&mv, hi, slot);
         for j in 0..N {
             dq[j] += slot[j];
             q[j] = q0[j] + (qc[j] + dq[j]);
         }
         elapsed += gamma;
-        let ti = if i == last { t1 } else { t0 + elapsed * h };
-        potential_force(system, ti, &q, f);
+        let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
+        potential_force(system, ti, &q, &mut f);
         half = 0.5 * hi;
     }
+    *f_end = f;
     (dq, dp, q, half)
 }
