@@ -49,12 +49,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn memory<const N: usize>(&self) -> OnePointMemory<N> {
-        OnePointMemory {
-            previous: None,
-            earlier: None,
-            explicit: None,
-            sparse: None,
-        }
+        OnePointMemory { previous: None, earlier: None, explicit: None, sparse: None }
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(
@@ -265,12 +260,22 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let half = 0.5 * h;
         let f0 = &cache.forces[usize::from(step % 2 == 1)];
         let (mut dq, mut q1, mut qc1) = ([0.0; N], [0.0; N], [0.0; N]);
+        let mut bad = 0;
+        // The drift `x = dq[j]` and the Kahan sum of `q_{k+1}`, in the same
+        // pass as the kick where `M⁻¹` is diagonal.
+        let mut drift = |j: usize, x: f64| {
+            dq[j] = x;
+            let u = qc0[j] + x;
+            q1[j] = q0[j] + u;
+            qc1[j] = u - (q1[j] - q0[j]);
+            bad |= nan_bits(q1[j]);
+        };
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
         match &cache.diagonal {
             Some(d) => {
                 for j in 0..N {
-                    dq[j] = (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h;
+                    drift(j, (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h);
                 }
             }
             None => {
@@ -278,15 +283,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 for j in 0..N {
                     mv[j] = (p0[j] + half * f0[j]) + pc0[j];
                 }
-                dq = (&cache.inverse_mass * SVector::from(mv) * h).into();
+                let v: [f64; N] = (&cache.inverse_mass * SVector::from(mv) * h).into();
+                for j in 0..N {
+                    drift(j, v[j]);
+                }
             }
-        }
-        let mut bad = 0;
-        for j in 0..N {
-            let u = qc0[j] + dq[j];
-            q1[j] = q0[j] + u;
-            qc1[j] = u - (q1[j] - q0[j]);
-            bad |= nan_bits(q1[j]);
         }
         let dq_max = fold_max_abs(&dq);
         if let Some(last) = &self.memory.previous
