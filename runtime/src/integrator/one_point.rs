@@ -846,3 +846,80 @@ fn substeps<S: Lagrangian<N>, const N: usize>(
     *f_end = f;
     (dq, dp, q, half)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A xorshift stream of `f64`s over every exponent and sign, with
+    /// zeros, subnormals, infinities and NaNs mixed in.
+    fn awkward_values(n: usize) -> Vec<f64> {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        (0..n)
+            .map(|i| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                match i % 11 {
+                    0 => [0.0, -0.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MIN_POSITIVE / 3.0]
+                        [(seed % 6) as usize],
+                    _ => f64::from_bits(seed),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_lane_maximum_is_the_maximum_of_max_abs() {
+        let values = awkward_values(4000);
+        let mut nan_seen = false;
+        for len in 0..=9 {
+            for start in (0..values.len() - len).step_by(7) {
+                let x = &values[start..start + len];
+                nan_seen |= x.iter().any(|v| v.is_nan());
+                assert_eq!(fold_max_abs(x).to_bits(), max_abs(x).to_bits(), "{x:?}");
+            }
+        }
+        assert!(nan_seen, "the values exercised NaN");
+    }
+
+    #[test]
+    fn nan_bits_are_zero_exactly_for_finite_values() {
+        for x in awkward_values(4000) {
+            assert_eq!(is_non_finite(nan_bits(x)), !x.is_finite(), "{x:e}");
+        }
+        let all = awkward_values(12);
+        assert!(all.iter().any(|x| !x.is_finite()) && all.iter().any(|x| x.is_finite()));
+    }
+
+    /// The explicit steps' shortcuts never pass an increment the full
+    /// `implausible_growth` would refuse, and both verdicts occur.
+    #[test]
+    fn the_explicit_growth_shortcut_agrees_with_the_full_check() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut refused, mut shortcut) = (0, 0);
+        for case in 0..20_000 {
+            let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
+            let q: [f64; 3] = core::array::from_fn(|_| scale * next());
+            let last: [f64; 3] = core::array::from_fn(|_| 1e-6 * next());
+            let predicted: [f64; 3] = core::array::from_fn(|_| 1e-6 * next());
+            let size = 10f64.powf(6.0 * next() + (case % 3) as f64 - 1.0);
+            let dq: [f64; 3] = core::array::from_fn(|_| size * next());
+            let (h, h_last) = (0.01 * (1.0 + next()), 0.01 * (1.0 + next()));
+            let scaled = last.map(|x| x * (h / h_last));
+            let full = implausible_growth(&dq, &predicted, &scaled, &q);
+            if explicit_growth_ruled_out(max_abs(&dq), max_abs(&q), h, h_last, &last) {
+                assert!(!full, "case {case}: the shortcut passed a refused increment");
+                shortcut += 1;
+            }
+            refused += usize::from(full);
+        }
+        assert!(refused > 100 && shortcut > 100, "{refused} refused, {shortcut} by the shortcut");
+    }
+}
