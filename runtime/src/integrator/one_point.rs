@@ -283,6 +283,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 for j in 0..N {
                     mv[j] = (p0[j] + half * f0[j]) + pc0[j];
                 }
+                // By reference: by value the `N × N` matrix would be copied.
+                #[allow(clippy::op_ref)]
                 let v: [f64; N] = (&cache.inverse_mass * SVector::from(mv) * h).into();
                 for j in 0..N {
                     drift(j, v[j]);
@@ -521,6 +523,7 @@ pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
 /// OR-ed over a step's values, a finiteness test with no branch per value
 /// that vectorises.
 #[inline(always)]
+#[allow(clippy::eq_op)]
 pub(super) fn nan_bits(x: f64) -> u64 {
     (x - x).to_bits()
 }
@@ -715,7 +718,10 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
             }
         }),
         None => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
-            *out = (&*inverse_mass * SVector::from(*mv) * hi).into();
+            // By reference: by value the `N × N` matrix would be copied.
+            #[allow(clippy::op_ref)]
+            let v = &*inverse_mass * SVector::from(*mv) * hi;
+            *out = v.into();
         }),
     };
     // The closing kick's force: `f_{k+1}` (`f_k` after no sub-step).
