@@ -12,7 +12,8 @@
 //! forced step), `energy` (a midpoint step and `Integrator::energy` after it), `hand` (the hand-written midpoint of the bench) or
 //! `derivatives` (one `step_derivatives` evaluation per "step", nothing else); `verlet` (a hand-written Störmer–Verlet).
 //! Further cases: `kepler`, `henon-heiles` and `fpu` (the bench's FPU-β chain, N = 16) with `trapezoid`
-//! (explicit Störmer–Verlet) or `verlet`; `pendulum kahan-li8` and `pendulum hand-kahan-li8`
+//! (explicit Störmer–Verlet) or `verlet`; `fpu trapezoid-powi` (the same chain with the quartic
+//! written `d.powi(4)`, as in `chain1000`, instead of `d * d * d * d`); `pendulum kahan-li8` and `pendulum hand-kahan-li8`
 //! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
@@ -339,6 +340,11 @@ fn main() {
             n,
         ),
         ("fpu", "verlet") => hand_verlet(fpu_force, &[1.0], H, fpu_q0(), [0.0; FPU_N], n),
+        // The same chain written with `powi(4)` (the `chain1000` form): what the
+        // spelling of the quartic term costs in the generated gradient.
+        ("fpu", "trapezoid-powi") => {
+            run(Integrator::new(Chain::<FPU_N>, Trapezoid, H).start(0.0, fpu_q0(), [0.0; FPU_N]), n)
+        }
         ("chain1000", "trapezoid") => {
             run(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
         }

@@ -233,7 +233,7 @@ impl Method<f64> for Composition {
             return fused_step(it, h, t1);
         }
         let before = it.state;
-        let saved = (it.memory.inner.previous, it.memory.inner.earlier, it.memory.inner.node_force);
+        let saved = (it.memory.inner.previous, it.memory.inner.earlier);
         let mut sub = Integrator {
             system: &it.system,
             method: Trapezoid,
@@ -264,10 +264,13 @@ impl Method<f64> for Composition {
             let ti = if i + 1 == stages { t1 } else { before.t + elapsed * h };
             if let Err(e) = sub.step_by(hi, ti) {
                 // The node memory as it was; the heap caches (mass matrix,
-                // reverse-mode work) stay, the reverse-mode node force (of a
-                // sub-node) does not.
+                // reverse-mode work) stay, the node force (of a sub-node) does
+                // not: the next step recomputes it, to the same bits.
                 let Integrator { memory, .. } = sub;
-                it.memory.inner = OnePointMemory { previous: saved.0, earlier: saved.1, node_force: saved.2, ..memory };
+                it.memory.inner = OnePointMemory { previous: saved.0, earlier: saved.1, ..memory };
+                if let Some(cache) = it.memory.inner.explicit.as_deref_mut() {
+                    cache.forget();
+                }
                 if let Some(work) = it.memory.inner.sparse.as_mut() {
                     work.forget_node_force();
                 }
@@ -280,7 +283,9 @@ impl Method<f64> for Composition {
         }
         let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
         // The explicit path's cached force belongs to the composed node now.
-        memory.node_force = memory.node_force.map(|(_, f)| (before.step + 1, f));
+        if let Some(cache) = memory.explicit.as_deref_mut() {
+            cache.rekey(state.step, before.step + 1);
+        }
         if let Some(work) = memory.sparse.as_mut() {
             work.rekey_node_force(before.step + 1);
         }

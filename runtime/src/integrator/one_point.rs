@@ -31,17 +31,9 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) previous: Option<Segment<N>>,
     /// `(h, dq)` of the step before that, for the predictor.
     pub(crate) earlier: Option<(f64, [f64; N])>,
-    /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix,
-    /// once computed.
-    /// On the heap: at the sizes reverse mode serves, an inline `N × N`
-    /// matrix would not fit on a thread's stack.
-    pub(crate) inverse_mass: Option<Box<SMatrix<f64, N, N>>>,
-    /// Explicit steps: the diagonal of `M⁻¹` when `M⁻¹` is diagonal (a
-    /// product with `N` entries instead of `N²`), once computed.
-    pub(crate) inverse_mass_diagonal: Option<[f64; N]>,
-    /// Explicit steps: `(k, f(t_k, q_k))`, the force `∂L/∂q(t, q, 0)` at
-    /// node `k` (valid while the state is at node `k`).
-    pub(crate) node_force: Option<(u64, [f64; N])>,
+    /// Explicit (Störmer–Verlet) steps: `M⁻¹` of the constant mass matrix
+    /// and the force at the current node, made at the first explicit step.
+    pub(crate) explicit: Option<Box<ExplicitCache<N>>>,
     /// Reverse-mode steps: the tape, its buffers and the factored matrices
     /// (see [`Derivatives`](crate::Derivatives)); `None` in forward mode.
     pub(crate) sparse: Option<Box<super::tape_step::SparseWork>>,
@@ -57,14 +49,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn memory<const N: usize>(&self) -> OnePointMemory<N> {
-        OnePointMemory {
-            previous: None,
-            earlier: None,
-            inverse_mass: None,
-            inverse_mass_diagonal: None,
-            node_force: None,
-            sparse: None,
-        }
+        OnePointMemory { previous: None, earlier: None, explicit: None, sparse: None }
     }
 
     fn legendre<S: Lagrangian<N>, const N: usize>(
@@ -257,49 +242,85 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// No Newton iteration (`Stats` counts none); the same Kahan sums, checks
     /// and failure semantics as the Newton path, whose trajectories it
     /// reproduces to round-off. The one-stage case of [`explicit_step`],
-    /// written out.
+    /// written out: one pass over the coordinates for the kick, drift and
+    /// position sum, one for the force and one for the momentum sum; the
+    /// state is written once, after the checks.
     #[inline]
     fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
         // One stage written out rather than run through `explicit_step`'s
         // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
         // (`--bench step -- explicit`, one run each, load ≈ 3.5).
-        let State { step, t: t0, q: q0, p: p0 } = self.state;
-        if let Err(failure) = inverse_mass_once(&self.system, &mut self.memory, t0, &q0) {
-            return Err(self.fail(h, failure));
-        }
-        let f0 = match self.memory.node_force {
-            Some((k, f)) if k == step => f,
-            _ => potential_force(&self.system, t0, &q0),
+        let (step, t0) = (self.state.step, self.state.t);
+        let cache = match explicit_cache(&self.system, &mut self.memory.explicit, t0, &self.state.q) {
+            Ok(cache) => cache,
+            Err(failure) => return Err(self.fail(h, failure)),
         };
+        cache.node_force(&self.system, step, t0, &self.state.q);
+        let (q0, p0, qc0, pc0) = (&self.state.q, &self.state.p, &self.carry, &self.p_carry);
         let half = 0.5 * h;
-        let mv: [f64; N] = core::array::from_fn(|i| (p0[i] + half * f0[i]) + self.p_carry[i]);
+        let f0 = &cache.forces[usize::from(step % 2 == 1)];
+        let (mut dq, mut q1, mut qc1) = ([0.0; N], [0.0; N], [0.0; N]);
+        let mut bad = 0;
+        // The drift `x = dq[j]` and the Kahan sum of `q_{k+1}`, in the same
+        // pass as the kick where `M⁻¹` is diagonal.
+        let mut drift = |j: usize, x: f64| {
+            dq[j] = x;
+            let u = qc0[j] + x;
+            q1[j] = q0[j] + u;
+            qc1[j] = u - (q1[j] - q0[j]);
+            bad |= nan_bits(q1[j]);
+        };
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
-        let dq: [f64; N] = match (&self.memory.inverse_mass_diagonal, &self.memory.inverse_mass) {
-            (Some(d), _) => core::array::from_fn(|i| (d[i] * mv[i]) * h),
-            (None, Some(m)) => (**m * SVector::from(mv) * h).into(),
-            (None, None) => unreachable!("the inverse mass is set above"),
-        };
-        if let Some(last) = &self.memory.previous
-            && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
-            && implausible_growth(&dq, &self.predict(h), &last.dq.map(|x| x * (h / last.h)), &q0)
-        {
-            let reason = IMPLAUSIBLE_GROWTH;
-            return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+        match &cache.diagonal {
+            Some(d) => {
+                for j in 0..N {
+                    drift(j, (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h);
+                }
+            }
+            None => {
+                let mut mv = [0.0; N];
+                for j in 0..N {
+                    mv[j] = (p0[j] + half * f0[j]) + pc0[j];
+                }
+                // By reference: by value the `N × N` matrix would be copied.
+                #[allow(clippy::op_ref)]
+                let v: [f64; N] = (&cache.inverse_mass * SVector::from(mv) * h).into();
+                for j in 0..N {
+                    drift(j, v[j]);
+                }
+            }
         }
-        let (q1, carry) = kahan(&q0, &self.carry, &dq);
-        let f1 = potential_force(&self.system, t1, &q1);
-        let dp: [f64; N] = core::array::from_fn(|i| half * (f0[i] + f1[i]));
-        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
-        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+        let dq_max = fold_max_abs(&dq);
+        if let Some(last) = &self.memory.previous
+            && !explicit_growth_ruled_out(dq_max, fold_max_abs(q0), h, last.h, &last.dq)
+        {
+            let mut predicted = [0.0; N];
+            let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+            super::predict_into(h, Some((last.h, &last.dq[..])), earlier, &self.v0, &mut predicted);
+            if implausible_growth(&dq, &predicted, &last.dq.map(|x| x * (h / last.h)), q0) {
+                let reason = IMPLAUSIBLE_GROWTH;
+                return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
+            }
+        }
+        let (f0, f1) = cache.forces_at(step);
+        potential_force(&self.system, t1, &q1, f1);
+        let (mut p1, mut pc1) = ([0.0; N], [0.0; N]);
+        for j in 0..N {
+            let u = pc0[j] + half * (f0[j] + f1[j]);
+            p1[j] = p0[j] + u;
+            pc1[j] = u - (p1[j] - p0[j]);
+            bad |= nan_bits(p1[j]);
+        }
+        if is_non_finite(bad | nan_bits(t1)) {
+            let quantity = non_finite(t1, &q1, &p1).unwrap_or("position");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
         }
-        let seg = Segment { t0, h, q0, dq };
         if S::DISCONTINUOUS {
-            self.watch_energy(&seg, t1);
+            self.watch_energy(&Segment { t0, h, q0: *q0, dq }, t1);
         }
-        let taken = ExplicitStep { dq, q1, carry, p1, p_carry, f1 };
+        let taken = ExplicitStep { dq, q1, carry: qc1, p1, p_carry: pc1 };
         commit_explicit(
             &mut self.memory,
             (&mut self.state, &mut self.carry, &mut self.p_carry, &mut self.stats),
@@ -447,47 +468,183 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 /// `max|x·r| = max|x|·|r|` exactly), and the common case skips the predictor.
 #[inline(always)]
 fn last_rules_out_growth<const N: usize>(dq: &[f64; N], last_dq: &[f64; N], ratio: f64) -> bool {
-    max_abs(dq) <= 1e6 * (max_abs(last_dq) * ratio)
+    growth_ruled_out(max_abs(dq), last_dq, ratio)
 }
 
-/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`: the adjoint
-/// code `#[lagrangian]` wrote out where it could
-/// ([`Lagrangian::HAS_GRADIENT`]), else one first-order array-dual
-/// evaluation.
+/// [`last_rules_out_growth`] from `dq_max = max|dq|`.
 #[inline(always)]
-fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> [f64; N] {
+fn growth_ruled_out(dq_max: f64, last_dq: &[f64], ratio: f64) -> bool {
+    dq_max <= 1e6 * (fold_max_abs(last_dq) * ratio)
+}
+
+/// `true` when an explicit step's increment `dq` (`dq_max = max|dq|`) from
+/// `q` (`q_max = max|q|`), with the last step `(h_last, last_dq)`, is
+/// certainly no [`implausible_growth`], so that the predictor is not needed.
+/// First the bound of the position alone: the check's threshold is
+/// `1e6·max(scale, 1e-6·max|q|)`, at least `1e6·(1e-6·max|q|)` as computed
+/// (rounding is monotone), so an increment below that passes whatever the
+/// scale (every step of motion away from the origin; no division). Then
+/// [`last_rules_out_growth`]'s bound of the scaled last increment. Either
+/// way the verdict is the full check's.
+#[inline(always)]
+fn explicit_growth_ruled_out(dq_max: f64, q_max: f64, h: f64, h_last: f64, last_dq: &[f64]) -> bool {
+    dq_max <= 1e6 * (1e-6 * q_max) || growth_ruled_out(dq_max, last_dq, (h / h_last).abs())
+}
+
+/// `max(m, |x|)` as `f64::max` takes it, NaN ignored (`m` is never NaN):
+/// one `maxsd`, where `f64::max` also tests for NaN.
+#[inline(always)]
+pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
+    let a = x.abs();
+    if a > m { a } else { m }
+}
+
+/// `max|x|`, the value `real::max_abs` returns: the maximum is exact and
+/// ignores NaN in any order, so four running maxima (which vectorise)
+/// combine to the same number as one.
+#[inline(always)]
+pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
+    let mut lanes = [0.0; 4];
+    let chunks = x.chunks_exact(4);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for k in 0..4 {
+            lanes[k] = max_abs_step(lanes[k], chunk[k]);
+        }
+    }
+    let mut m = max_abs_step(max_abs_step(lanes[0], lanes[1]), max_abs_step(lanes[2], lanes[3]));
+    for &v in rest {
+        m = max_abs_step(m, v);
+    }
+    m
+}
+
+/// Zero exactly when `x` is finite (`x − x` is `+0` then, NaN otherwise):
+/// OR-ed over a step's values, a finiteness test with no branch per value
+/// that vectorises.
+#[inline(always)]
+#[allow(clippy::eq_op)]
+pub(super) fn nan_bits(x: f64) -> u64 {
+    (x - x).to_bits()
+}
+
+/// Whether an OR of [`nan_bits`] saw a value that is not finite.
+#[inline(always)]
+pub(super) fn is_non_finite(bits: u64) -> bool {
+    bits != 0
+}
+
+/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`:
+/// the adjoint code `#[lagrangian]` wrote out where it could
+/// ([`Lagrangian::HAS_GRADIENT`]; it clears `out` itself), else one
+/// first-order array-dual evaluation.
+#[inline(always)]
+fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], out: &mut [f64; N]) {
     use crate::hyperdual::DualArray;
     if S::HAS_GRADIENT {
-        let mut f = [0.0; N];
-        system.gradient_q(t, q, &[0.0; N], &mut f);
-        return f;
+        system.gradient_q(t, q, const { &[0.0; N] }, out);
+        return;
     }
     let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
-    let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
-    l.eps
+    *out = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]).eps;
 }
 
-/// `M⁻¹` of a constant-mass system into `memory`, computed at the first
-/// explicit step (and its diagonal, when it is one); a singular `M` is a
-/// typed failure.
+/// What the explicit steps keep for the whole run, on the heap (at the sizes
+/// reverse mode serves an inline `N × N` matrix would not fit on a thread's
+/// stack): `M⁻¹` of the constant mass matrix, and the force at the current
+/// node, computed by the step that reached it.
+#[derive(Clone, Debug)]
+pub(crate) struct ExplicitCache<const N: usize> {
+    pub(crate) inverse_mass: SMatrix<f64, N, N>,
+    /// The diagonal of `M⁻¹` when `M⁻¹` is diagonal (a product with `N`
+    /// entries instead of `N²`).
+    pub(crate) diagonal: Option<[f64; N]>,
+    /// Two force buffers, `forces[k % 2]` for node `k`: a step writes the
+    /// force at its end node into the one its start node's force is not in,
+    /// so a failed step leaves that force intact and a successful one moves
+    /// nothing.
+    forces: [[f64; N]; 2],
+    /// `k + 1` when `forces[k % 2]` holds `f(t_k, q_k)` for the current node
+    /// `k`, `0` when no buffer does.
+    node: u64,
+}
+
+impl<const N: usize> ExplicitCache<N> {
+    /// Makes sure `forces[step % 2]` holds `f(t_k, q_k)` at node `step`.
+    #[inline(always)]
+    fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) {
+        if self.node != step.wrapping_add(1) {
+            potential_force(system, t, q, &mut self.forces[usize::from(step % 2 == 1)]);
+            self.node = step.wrapping_add(1);
+        }
+    }
+
+    /// The force at node `step` and the buffer for the next node's.
+    #[inline(always)]
+    fn forces_at(&mut self, step: u64) -> (&[f64; N], &mut [f64; N]) {
+        split_forces(&mut self.forces, step)
+    }
+
+    /// The end node's force, written by the step that reached node `step`,
+    /// is now the node force.
+    #[inline(always)]
+    fn advance(&mut self, step: u64) {
+        self.node = step.wrapping_add(1);
+    }
+
+    /// The node force is unknown (the next step recomputes it, to the same
+    /// bits).
+    pub(crate) fn forget(&mut self) {
+        self.node = 0;
+    }
+
+    /// The force at node `from` is the force at node `to` (a composed step's
+    /// last sub-node is its end node).
+    pub(crate) fn rekey(&mut self, from: u64, to: u64) {
+        if self.node != from.wrapping_add(1) {
+            self.node = 0;
+            return;
+        }
+        if from % 2 != to % 2 {
+            self.forces.swap(0, 1);
+        }
+        self.node = to.wrapping_add(1);
+    }
+}
+
+/// The force buffer of node `step` in `forces`, and the other one.
+#[inline(always)]
+fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], step: u64) -> (&[f64; N], &mut [f64; N]) {
+    let [a, b] = forces;
+    if step % 2 == 1 { (b, a) } else { (a, b) }
+}
+
+/// The explicit steps' cache of a constant-mass system, made at the first
+/// explicit step: `M⁻¹` (and its diagonal, when it is one); a singular `M`
+/// is a typed failure.
 #[inline]
-fn inverse_mass_once<S: Lagrangian<N>, const N: usize>(
+fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
     system: &S,
-    memory: &mut OnePointMemory<N>,
+    cache: &'a mut Option<Box<ExplicitCache<N>>>,
     t0: f64,
     q0: &[f64; N],
-) -> Result<(), NewtonFailure> {
-    if memory.inverse_mass.is_some() {
-        return Ok(());
+) -> Result<&'a mut ExplicitCache<N>, NewtonFailure> {
+    match cache {
+        Some(cache) => Ok(cache),
+        empty @ None => {
+            let m = system
+                .velocity_hessian(t0, *q0, [0.0; N])
+                .try_inverse()
+                .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
+            let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+            Ok(empty.insert(Box::new(ExplicitCache {
+                inverse_mass: m,
+                diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
+                forces: [[0.0; N]; 2],
+                node: 0,
+            })))
+        }
     }
-    let m = system
-        .velocity_hessian(t0, *q0, [0.0; N])
-        .try_inverse()
-        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
-    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-    memory.inverse_mass_diagonal = diagonal.then(|| core::array::from_fn(|i| m[(i, i)]));
-    memory.inverse_mass = Some(Box::new(m));
-    Ok(())
 }
 
 /// The node an explicit step starts from, borrowed from the integrator.
@@ -500,7 +657,8 @@ pub(super) struct ExplicitNode<'a, const N: usize> {
     pub(super) v0: &'a [f64; N],
 }
 
-/// An explicit step that passed every check; nothing is committed yet.
+/// An explicit step that passed every check; nothing is committed yet (the
+/// force at its end node waits in the cache's spare buffer).
 pub(super) struct ExplicitStep<const N: usize> {
     /// The step's total increment `q_{k+1} − q_k` (before the compensation).
     pub(super) dq: [f64; N],
@@ -508,8 +666,6 @@ pub(super) struct ExplicitStep<const N: usize> {
     pub(super) carry: [f64; N],
     pub(super) p1: [f64; N],
     pub(super) p_carry: [f64; N],
-    /// The force at the new node, for the next step.
-    pub(super) f1: [f64; N],
 }
 
 /// A composition of Störmer–Verlet sub-steps of sizes `γ_i h` (`weights`;
@@ -534,7 +690,7 @@ pub(super) struct ExplicitStep<const N: usize> {
 /// compares `Δq` with the last step's total increment, the finiteness
 /// check runs on `q_{k+1}`, `p_{k+1}` and `t1`. Changes only the caches of
 /// `memory` (the inverse mass matrix; the node force stays valid for node
-/// `k`).
+/// `k`, the sub-node forces go to the spare buffer).
 #[inline(always)]
 pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     system: &S,
@@ -547,26 +703,43 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
 ) -> Result<ExplicitStep<N>, NewtonFailure> {
     let State { step, t: t0, q: ref q0, p: ref p0 } = *node.state;
     let (qc, pc) = (node.carry, node.p_carry);
-    inverse_mass_once(system, memory, t0, q0)?;
-    let f = match memory.node_force {
-        Some((k, f)) if k == step => f,
-        _ => potential_force(system, t0, q0),
-    };
+    let cache = explicit_cache(system, &mut memory.explicit, t0, q0)?;
+    cache.node_force(system, step, t0, q0);
+    let ExplicitCache { inverse_mass, diagonal, forces, .. } = cache;
+    let (f0, f) = split_forces(forces, step);
     let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
     // The mass matrix is chosen once per step, not per sub-step.
-    let (dq, mut dp, q, f, closing) = match (&memory.inverse_mass_diagonal, &memory.inverse_mass) {
+    let (dq, mut dp, q, closing) = match diagonal {
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
-        (Some(d), _) => {
-            substeps(system, &start, f, weights, increments, |mv, hi| core::array::from_fn(|j| (d[j] * mv[j]) * hi))
-        }
-        (None, Some(m)) => {
-            substeps(system, &start, f, weights, increments, |mv, hi| (**m * SVector::from(*mv) * hi).into())
-        }
-        (None, None) => unreachable!("the inverse mass is set above"),
+        Some(d) => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+            for j in 0..N {
+                out[j] = (d[j] * mv[j]) * hi;
+            }
+        }),
+        None => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+            // By reference: by value the `N × N` matrix would be copied.
+            #[allow(clippy::op_ref)]
+            let v = &*inverse_mass * SVector::from(*mv) * hi;
+            *out = v.into();
+        }),
     };
+    // The closing kick's force: `f_{k+1}` (`f_k` after no sub-step).
+    let f: &[f64; N] = f;
+    let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
+    let (mut q_bad, mut p_bad) = (0, 0);
+    for j in 0..N {
+        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
+        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
+        q_bad |= nan_bits(q[j]);
+        dp[j] += closing * f[j];
+        let u = pc[j] + dp[j];
+        p1[j] = p0[j] + u;
+        p_carry[j] = u - (p1[j] - p0[j]);
+        p_bad |= nan_bits(p1[j]);
+    }
     if let Some(last) = &memory.previous
-        && !last_rules_out_growth(&dq, &last.dq, (h / last.h).abs())
+        && !explicit_growth_ruled_out(fold_max_abs(&dq), fold_max_abs(q0), h, last.h, &last.dq)
     {
         let mut predicted = [0.0; N];
         let earlier = memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -575,28 +748,16 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
-    let (mut q_finite, mut p_finite) = (true, true);
-    for j in 0..N {
-        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
-        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
-        q_finite &= q[j].is_finite();
-        dp[j] += closing * f[j];
-        let u = pc[j] + dp[j];
-        p1[j] = p0[j] + u;
-        p_carry[j] = u - (p1[j] - p0[j]);
-        p_finite &= p1[j].is_finite();
+    if is_non_finite(q_bad | p_bad | nan_bits(t1)) {
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("position") });
     }
-    let quantity = super::first_non_finite(q_finite, p_finite, t1.is_finite());
-    if let Some(quantity) = quantity {
-        return Err(NewtonFailure::NonFinite { iterations: 0, quantity });
-    }
-    Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry, f1: f })
+    Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry })
 }
 
 /// Replaces the state `(state, carry, p_carry)` by the checked explicit step
-/// `taken` of size `h` ending at `t1`, and updates the memory (the last two
-/// steps, the node force) and the counters (no Newton iteration).
+/// `taken` of size `h` ending at `t1`, in place, and updates the memory (the
+/// last two steps, the node force) and the counters (no Newton iteration).
 #[inline(always)]
 pub(super) fn commit_explicit<const N: usize>(
     memory: &mut OnePointMemory<N>,
@@ -606,10 +767,30 @@ pub(super) fn commit_explicit<const N: usize>(
     taken: &ExplicitStep<N>,
 ) {
     let step = state.step + 1;
-    memory.node_force = Some((step, taken.f1));
-    memory.earlier = memory.previous.as_ref().map(|last| (last.h, last.dq));
-    memory.previous = Some(Segment { t0: state.t, h, q0: state.q, dq: taken.dq });
-    *state = State { step, t: t1, q: taken.q1, p: taken.p1 };
+    if let Some(cache) = memory.explicit.as_deref_mut() {
+        cache.advance(step);
+    }
+    match (&memory.previous, &mut memory.earlier) {
+        (Some(last), Some((h_earlier, dq_earlier))) => {
+            *h_earlier = last.h;
+            *dq_earlier = last.dq;
+        }
+        (Some(last), earlier) => *earlier = Some((last.h, last.dq)),
+        (None, earlier) => *earlier = None,
+    }
+    match &mut memory.previous {
+        Some(last) => {
+            last.t0 = state.t;
+            last.h = h;
+            last.q0 = state.q;
+            last.dq = taken.dq;
+        }
+        None => memory.previous = Some(Segment { t0: state.t, h, q0: state.q, dq: taken.dq }),
+    }
+    state.step = step;
+    state.t = t1;
+    state.q = taken.q1;
+    state.p = taken.p1;
     *carry = taken.carry;
     *p_carry = taken.p_carry;
     stats.steps += 1;
@@ -627,27 +808,29 @@ struct SubstepStart<'a, const N: usize> {
     h: f64,
 }
 
-/// The sub-steps of [`explicit_step`] from the force `f` at the start, with
-/// `drift(p, h_i) = h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, f_{k+1}, h_m/2)`, `Δp`
-/// still without its closing kick `h_m/2 · f_{k+1}`.
+/// The sub-steps of [`explicit_step`] from the force `f_k` at the start, with
+/// `drift(p, h_i, out)` writing `h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, h_m/2)`, `Δp`
+/// still without its closing kick `h_m/2 · f_{k+1}`. `forces` is `f_k` and
+/// the buffer that receives `f_{k+1}`; the sub-nodes' forces stay local.
 #[inline(always)]
-#[allow(clippy::type_complexity)]
 fn substeps<S: Lagrangian<N>, const N: usize>(
     system: &S,
     start: &SubstepStart<'_, N>,
-    mut f: [f64; N],
+    (f0, f_end): (&[f64; N], &mut [f64; N]),
     weights: &[f64],
     increments: &mut [[f64; N]],
-    drift: impl Fn(&[f64; N], f64) -> [f64; N],
-) -> ([f64; N], [f64; N], [f64; N], [f64; N], f64) {
+    drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
+) -> ([f64; N], [f64; N], [f64; N], f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
     let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
+    let mut f = *f0;
     // Half the last sub-step: its closing kick joins the next opening one.
     let mut half = 0.0;
     let mut elapsed = 0.0;
-    let last = weights.len().saturating_sub(1);
-    debug_assert!(increments.len() >= weights.len());
-    for (i, (&gamma, slot)) in weights.iter().zip(increments.iter_mut()).enumerate() {
+    // `increments` has room for every sub-step (`Composition::check`).
+    let m = weights.len().min(increments.len());
+    for i in 0..m {
+        let gamma = weights[i];
         let hi = gamma * h;
         let kick = half + 0.5 * hi;
         let mut mv = [0.0; N];
@@ -655,15 +838,94 @@ fn substeps<S: Lagrangian<N>, const N: usize>(
             dp[j] += kick * f[j];
             mv[j] = p0[j] + (pc[j] + dp[j]);
         }
-        *slot = drift(&mv, hi);
+        let slot = &mut increments[i];
+        drift(&mv, hi, slot);
         for j in 0..N {
             dq[j] += slot[j];
             q[j] = q0[j] + (qc[j] + dq[j]);
         }
         elapsed += gamma;
-        let ti = if i == last { t1 } else { t0 + elapsed * h };
-        f = potential_force(system, ti, &q);
+        let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
+        potential_force(system, ti, &q, &mut f);
         half = 0.5 * hi;
     }
-    (dq, dp, q, f, half)
+    *f_end = f;
+    (dq, dp, q, half)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A xorshift stream of `f64`s over every exponent and sign, with
+    /// zeros, subnormals, infinities and NaNs mixed in.
+    fn awkward_values(n: usize) -> Vec<f64> {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        (0..n)
+            .map(|i| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                match i % 11 {
+                    0 => [0.0, -0.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MIN_POSITIVE / 3.0]
+                        [(seed % 6) as usize],
+                    _ => f64::from_bits(seed),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_lane_maximum_is_the_maximum_of_max_abs() {
+        let values = awkward_values(4000);
+        let mut nan_seen = false;
+        for len in 0..=9 {
+            for start in (0..values.len() - len).step_by(7) {
+                let x = &values[start..start + len];
+                nan_seen |= x.iter().any(|v| v.is_nan());
+                assert_eq!(fold_max_abs(x).to_bits(), max_abs(x).to_bits(), "{x:?}");
+            }
+        }
+        assert!(nan_seen, "the values exercised NaN");
+    }
+
+    #[test]
+    fn nan_bits_are_zero_exactly_for_finite_values() {
+        for x in awkward_values(4000) {
+            assert_eq!(is_non_finite(nan_bits(x)), !x.is_finite(), "{x:e}");
+        }
+        let all = awkward_values(12);
+        assert!(all.iter().any(|x| !x.is_finite()) && all.iter().any(|x| x.is_finite()));
+    }
+
+    /// The explicit steps' shortcuts never pass an increment the full
+    /// `implausible_growth` would refuse, and both verdicts occur.
+    #[test]
+    fn the_explicit_growth_shortcut_agrees_with_the_full_check() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut refused, mut shortcut) = (0, 0);
+        for case in 0..20_000 {
+            let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
+            let q: [f64; 3] = core::array::from_fn(|_| scale * next());
+            let last: [f64; 3] = core::array::from_fn(|_| 1e-6 * next());
+            let predicted: [f64; 3] = core::array::from_fn(|_| 1e-6 * next());
+            let size = 10f64.powf(6.0 * next() + (case % 3) as f64 - 1.0);
+            let dq: [f64; 3] = core::array::from_fn(|_| size * next());
+            let (h, h_last) = (0.01 * (1.0 + next()), 0.01 * (1.0 + next()));
+            let scaled = last.map(|x| x * (h / h_last));
+            let full = implausible_growth(&dq, &predicted, &scaled, &q);
+            if explicit_growth_ruled_out(max_abs(&dq), max_abs(&q), h, h_last, &last) {
+                assert!(!full, "case {case}: the shortcut passed a refused increment");
+                shortcut += 1;
+            }
+            refused += usize::from(full);
+        }
+        assert!(refused > 100 && shortcut > 100, "{refused} refused, {shortcut} by the shortcut");
+    }
 }

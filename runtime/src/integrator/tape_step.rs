@@ -24,6 +24,7 @@ use core::cell::RefCell;
 
 use num_dual::Dual64;
 
+use super::one_point::{fold_max_abs, is_non_finite, nan_bits};
 use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
@@ -557,7 +558,10 @@ impl SparseWork {
     /// The Verlet step given the force `f0` at the node, into `out`, and the
     /// force at the new node into `f1`: the half kick, the mass solve and
     /// the drift in one pass when `M` is diagonal, the other half kick in
-    /// one more, each with its Kahan sum and its finiteness and size checks.
+    /// one more, each with its Kahan sum. The finiteness checks are ORs of
+    /// [`nan_bits`] in those passes (branch-free, so the passes vectorise);
+    /// which value failed is found again only on failure. The maxima of the
+    /// growth check take one more pass over `Δq` and `q_k`.
     #[allow(clippy::too_many_arguments)]
     fn verlet_into<Mo: TapeModel>(
         &mut self,
@@ -574,33 +578,31 @@ impl SparseWork {
         let half = 0.5 * h;
         let (q0, qc0, p0, pc0, f0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n], &f0[..n]);
         let (dq, q1, qc1) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.q_carry[..n]);
-        // max |Δq|, max |q_k| (for the growth check) and whether q_{k+1} is
-        // finite, gathered by the drift.
-        let (mut dq_max, mut q_max, mut q_finite) = (0.0_f64, 0.0_f64, true);
+        // Whether q_{k+1} is finite, gathered by the drift.
+        let mut q_bad = 0;
         match self.mass.as_ref().and_then(|m| m.diagonal.as_deref()) {
             Some(d) => {
                 let d = &d[..n];
                 // What the banded solve's checks would refuse, as it would.
-                let (mut rhs_finite, mut v_finite) = (true, true);
+                let mut solve_bad = 0;
                 for i in 0..n {
                     let rhs = (p0[i] + half * f0[i]) + pc0[i];
                     let v = rhs / d[i];
-                    rhs_finite &= rhs.is_finite();
-                    v_finite &= v.is_finite();
+                    solve_bad |= nan_bits(rhs) | nan_bits(v);
                     let x = v * h;
                     dq[i] = x;
                     let (sum, carry) = kahan(q0[i], qc0[i], x);
                     q1[i] = sum;
                     qc1[i] = carry;
-                    q_finite &= sum.is_finite();
-                    dq_max = dq_max.max(x.abs());
-                    q_max = q_max.max(q0[i].abs());
+                    q_bad |= nan_bits(sum);
                 }
-                if !rhs_finite {
-                    return Err(breakdown(LinearSolveError::NonFinite { quantity: "right-hand side" }).at(0));
-                }
-                if !v_finite {
-                    return Err(breakdown(LinearSolveError::NonFinite { quantity: "solution" }).at(0));
+                if is_non_finite(solve_bad) {
+                    let rhs = |i: usize| (p0[i] + half * f0[i]) + pc0[i];
+                    let quantity = match (0..n).all(|i| rhs(i).is_finite()) {
+                        false => "right-hand side",
+                        true => "solution",
+                    };
+                    return Err(breakdown(LinearSolveError::NonFinite { quantity }).at(0));
                 }
             }
             None => {
@@ -616,25 +618,23 @@ impl SparseWork {
                     let (sum, carry) = kahan(q0[i], qc0[i], x);
                     q1[i] = sum;
                     qc1[i] = carry;
-                    q_finite &= sum.is_finite();
-                    dq_max = dq_max.max(x.abs());
-                    q_max = q_max.max(q0[i].abs());
+                    q_bad |= nan_bits(sum);
                 }
             }
         }
-        self.growth_check(growth, &out.dq, node.q, dq_max, q_max)?;
+        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
         if potential_force(model, &mut self.tape, &self.zero, t1, &out.q1, f1).is_err() {
             return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
         }
         let (f1, p1, pc1) = (&f1[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
-        let mut p_finite = true;
+        let mut p_bad = 0;
         for i in 0..n {
             let (sum, carry) = kahan(p0[i], pc0[i], half * (f0[i] + f1[i]));
             p1[i] = sum;
             pc1[i] = carry;
-            p_finite &= sum.is_finite();
+            p_bad |= nan_bits(sum);
         }
-        let quantity = super::first_non_finite(q_finite, p_finite, t1.is_finite());
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok(()),
