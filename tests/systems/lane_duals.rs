@@ -234,7 +234,7 @@ fn the_macro_proves_the_bands_these_tests_rely_on() {
     assert_eq!(Fpu2::COUPLING.overall().bandwidth(), Some(2));
     assert_eq!(Fpu2::SEPARABILITY, Separability::ConstantMass);
     assert_eq!(MeanField::COUPLING.v_v.bandwidth(), None);
-    assert!(!Reach2::AUTONOMOUS);
+    const { assert!(!Reach2::AUTONOMOUS) };
     let generated = [
         ("Onsite", Onsite::HAS_GRADIENT_QV),
         ("Reach2", Reach2::HAS_GRADIENT_QV),
