@@ -7,7 +7,8 @@
 //! - `trapezoid`: the explicit Störmer–Verlet path (one reverse sweep of `L`
 //!   per step for `∂L/∂q`, the constant mass matrix factored once);
 //! - `midpoint`: the implicit midpoint rule, Newton with a tridiagonal
-//!   Jacobian from a compressed second-order sweep (3 directions);
+//!   Jacobian from the macro's gradient code evaluated once per iteration on
+//!   a dual number carrying the 3 colour classes (no tape);
 //! - `hand-written Verlet`: the analytic force of the same chain.
 //!
 //! Prints the fitted cost exponent of each in N after the criterion groups.

@@ -11,5 +11,6 @@
 mod common;
 mod dyn_lagrangian;
 mod dynamic_systems;
+mod lane_duals;
 mod large_systems;
 mod structure_analysis;

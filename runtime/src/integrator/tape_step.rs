@@ -27,6 +27,7 @@ use num_dual::Dual64;
 use super::one_point::{fold_max_abs, is_non_finite, nan_bits};
 use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
+use crate::hyperdual::DualArray;
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{all_finite, max_abs};
 use crate::structure::{Coupling, Pattern};
@@ -140,6 +141,9 @@ pub(crate) fn breakdown(e: LinearSolveError) -> Breakdown {
     match e {
         LinearSolveError::Singular { rcond, .. } => Breakdown::Singular(rcond),
         LinearSolveError::NonFinite { quantity } => Breakdown::NonFinite(quantity),
+        LinearSolveError::TooLarge { .. } => {
+            Breakdown::Rejected("the buffers of a step of this size cannot be allocated")
+        }
         _ => Breakdown::Rejected("the step matrix could not be assembled (internal error: please report)"),
     }
 }
@@ -221,6 +225,9 @@ pub(crate) struct SparseWork {
     n: usize,
     bandwidth: Option<usize>,
     tape: Tape,
+    /// The tape's inputs `(q_k, Δq, h)` (empty until the tape is used:
+    /// Newton steps from the gradient code do not need it, nor `products`
+    /// and `end`).
     inputs: Vec<f64>,
     gradient: Vec<f64>,
     /// `H·S`, inputs × directions.
@@ -280,16 +287,15 @@ impl SparseWork {
         let bandwidth = step_bandwidth(coupling, n);
         let width = bandwidth.map_or(n, |b| 2 * b + 1);
         let inputs = n.checked_mul(2).and_then(|x| x.checked_add(1));
-        let directions = seeds(n..2 * n, bandwidth).directions();
         Ok(Self {
             n,
             bandwidth,
             tape: Tape::new(),
-            inputs: zeroed(inputs, n)?,
+            inputs: Vec::new(),
             gradient: zeroed(inputs, n)?,
-            products: zeroed(inputs.and_then(|i| i.checked_mul(directions)), n)?,
+            products: Vec::new(),
             mixed: zeroed(n.checked_mul(width), n)?,
-            end: zeroed(n.checked_mul(width), n)?,
+            end: Vec::new(),
             jacobian: step_matrix(n, bandwidth)?,
             energy: None,
             mass: None,
@@ -336,7 +342,24 @@ impl SparseWork {
         self.energy = None;
     }
 
-    /// Records the action `A(q_k, Δq, h)` at `t_k = t0` on the tape.
+    /// Sizes the buffers of the tape's sweeps (once, at the first step that
+    /// records one): at `N = 100 000` and bandwidth 1 they are 8.8 MB that
+    /// steps from the gradient code never touch.
+    fn tape_buffers(&mut self) -> Result<(), LinearSolveError> {
+        let n = self.n;
+        if self.inputs.is_empty() {
+            let width = self.bandwidth.map_or(n, |b| 2 * b + 1);
+            let inputs = n.checked_mul(2).and_then(|x| x.checked_add(1));
+            let directions = seeds(n..2 * n, self.bandwidth).directions();
+            self.products = zeroed(inputs.and_then(|i| i.checked_mul(directions)), n)?;
+            self.end = zeroed(n.checked_mul(width), n)?;
+            self.inputs = zeroed(inputs, n)?;
+        }
+        Ok(())
+    }
+
+    /// Records the action `A(q_k, Δq, h)` at `t_k = t0` on the tape
+    /// ([`tape_buffers`](Self::tape_buffers) must have been called).
     fn record_action<Mo: TapeModel>(
         &mut self,
         model: &Mo,
@@ -373,10 +396,14 @@ impl SparseWork {
                 self.directional.momentum_and_energy(model, node.t, h, points, node.q, &dq, &mut self.gradient[..n])
             }
             None => {
-                let swept = self
-                    .record_action(model, node.t, h, node.q, &dq)
-                    .and_then(|_| self.tape.gradient(&mut self.gradient));
-                if swept.is_err() {
+                let swept = match self.tape_buffers() {
+                    Ok(()) => self
+                        .record_action(model, node.t, h, node.q, &dq)
+                        .and_then(|_| self.tape.gradient(&mut self.gradient))
+                        .is_ok(),
+                    Err(_) => false,
+                };
+                if !swept {
                     self.recycle(dq);
                     return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
                 }
@@ -412,7 +439,7 @@ impl SparseWork {
         let min_rcond = options.min_rcond;
         let points = directional_points(model);
         if points.is_some() {
-            self.directional.allocate(n).map_err(|e| breakdown(e).at(0))?;
+            self.directional.allocate(n, bandwidth, model.autonomous()).map_err(|e| breakdown(e).at(0))?;
         }
         let mut x = self.buffer();
         x.copy_from_slice(&guess.predictor[..n]);
@@ -479,6 +506,7 @@ impl SparseWork {
     ) -> Result<(), Breakdown> {
         let n = self.n;
         let seeds = seeds(n..2 * n, self.bandwidth);
+        self.tape_buffers().map_err(breakdown)?;
         self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
         self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products).map_err(tape_breakdown)?;
         let g = &self.gradient;
@@ -716,6 +744,146 @@ fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>, LinearSolveError> {
     Ok(v)
 }
 
+/// A dual number carrying [`LANES`](Self::LANES) directions at once: one
+/// evaluation of the gradient code on it gives that many Hessian-vector
+/// products, with the same real part as on `f64`.
+trait Lanes: Scalar {
+    /// How many directions one value carries.
+    const LANES: usize;
+    /// `re` with `scale` in direction `lane` (none: a constant).
+    fn seed(re: f64, lane: Option<usize>, scale: f64) -> Self;
+    /// The derivative part along direction `lane`.
+    fn part(&self, lane: usize) -> f64;
+}
+
+impl Lanes for Dual64 {
+    const LANES: usize = 1;
+
+    #[inline(always)]
+    fn seed(re: f64, lane: Option<usize>, scale: f64) -> Self {
+        Dual64::new(re, if lane.is_some() { scale } else { 0.0 })
+    }
+
+    #[inline(always)]
+    fn part(&self, _: usize) -> f64 {
+        self.eps
+    }
+}
+
+impl<const K: usize> Lanes for DualArray<[f64; K]> {
+    const LANES: usize = K;
+
+    #[inline(always)]
+    fn seed(re: f64, lane: Option<usize>, scale: f64) -> Self {
+        let mut x = Self::from_re(re);
+        if let Some(lane) = lane {
+            x.eps[lane] = scale;
+        }
+        x
+    }
+
+    #[inline(always)]
+    fn part(&self, lane: usize) -> f64 {
+        self.eps[lane]
+    }
+}
+
+/// The seeded point and velocity of one evaluation of the gradient code on
+/// the lane type `D`, and the gradients it returns.
+#[derive(Clone, Debug)]
+struct Seeded<D> {
+    q: Vec<D>,
+    v: Vec<D>,
+    gq: Vec<D>,
+    gv: Vec<D>,
+}
+
+impl<D> Default for Seeded<D> {
+    fn default() -> Self {
+        Self { q: Vec::new(), v: Vec::new(), gq: Vec::new(), gv: Vec::new() }
+    }
+}
+
+impl<D: Lanes> Seeded<D> {
+    /// Sizes the buffers for `n` coordinates (once).
+    fn allocate(&mut self, n: usize) -> Result<(), LinearSolveError> {
+        if self.q.len() != n {
+            let zero = D::from(0.0);
+            *self = Self { q: filled(n, zero)?, v: filled(n, zero)?, gq: filled(n, zero)?, gv: filled(n, zero)? };
+        }
+        Ok(())
+    }
+}
+
+/// The lane type for `classes` colour classes: a matrix of bandwidth 0, 1
+/// or 2 (1, 3 or 5 classes) in one evaluation per point; wider bands and
+/// general patterns in chunks of five classes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Width {
+    One,
+    Three,
+    Five,
+}
+
+impl Width {
+    fn for_classes(classes: usize) -> Self {
+        match classes {
+            1 => Width::One,
+            3 => Width::Three,
+            _ => Width::Five,
+        }
+    }
+}
+
+/// Where the entries of the derivative columns go: the band of a matrix
+/// (row `i`'s `2b + 1` entries around the diagonal) or its dense rows.
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    n: usize,
+    bandwidth: Option<usize>,
+}
+
+impl Layout {
+    /// The number of colour classes: columns `j ≡ k (mod 2b + 1)` of a
+    /// matrix of bandwidth `b` never share a row's band (Curtis, Powell and
+    /// Reid); every column its own class without a proven band.
+    fn classes(self) -> usize {
+        self.bandwidth.map_or(self.n, |b| 2 * b + 1)
+    }
+
+    /// Entries per row of the storage.
+    fn width(self) -> usize {
+        self.bandwidth.map_or(self.n, |b| 2 * b + 1)
+    }
+
+    /// Calls `add(slot, lane)` for each entry of row `i` whose column is in
+    /// the classes `first .. first + lanes` (the lane `class − first`).
+    #[inline(always)]
+    fn row(self, i: usize, first: usize, lanes: usize, mut add: impl FnMut(usize, usize)) {
+        match self.bandwidth {
+            Some(b) => {
+                // Column `i + s − b` of slot `s`, its class that modulo `2b + 1`.
+                let classes = 2 * b + 1;
+                let mut class = (i + classes - b) % classes;
+                for slot in 0..classes {
+                    if let Some(lane) = class.checked_sub(first).filter(|&l| l < lanes) {
+                        add(slot, lane);
+                    }
+                    class += 1;
+                    if class == classes {
+                        class = 0;
+                    }
+                }
+            }
+            None => {
+                for lane in 0..lanes {
+                    add(first + lane, lane);
+                }
+            }
+        }
+    }
+}
+
 /// The buffers of Newton steps from the system's generated gradient code
 /// (forward over reverse): the point and the velocity seeded on dual
 /// numbers and their gradients, and the `f64` values of the rule's points.
@@ -725,47 +893,51 @@ fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>, LinearSolveError> {
 /// `∂A/∂q_k|_{q_{k+1}} = Σ_j w [h (1 − c_j) L_q − h h⁻¹ L_v]` needs the
 /// gradient of `L` at the points, and a column class `s` of the Jacobian
 /// `J = ∂(∂A/∂q_k|_{q_{k+1}})/∂Δq` is the derivative of the same sum along
-/// `s`: the gradient code on `Dual64` with `q` seeded by `c_j s` and `v` by
-/// `h⁻¹ s`. Columns `j ≡ k (mod 2b + 1)` of a matrix of bandwidth `b` never
-/// share a row's band, so `2b + 1` classes give all of it (Curtis, Powell and
-/// Reid); `n` classes without a proven band.
+/// `s`: the gradient code on dual numbers with `q` seeded by `c_j s` and `v`
+/// by `h⁻¹ s`. All `2b + 1` classes of a band up to `b = 2` travel together
+/// on one vector dual number ([`Lanes`]), so each point costs one
+/// evaluation; wider patterns go in chunks of five classes.
 #[derive(Clone, Debug, Default)]
 struct Directional {
-    q: Vec<Dual64>,
-    v: Vec<Dual64>,
-    gq: Vec<Dual64>,
-    gv: Vec<Dual64>,
+    one: Seeded<Dual64>,
+    three: Seeded<DualArray<[f64; 3]>>,
+    five: Seeded<DualArray<[f64; 5]>>,
     /// `q_k + c_j Δq` of both points, one after the other.
     at: Vec<f64>,
     /// `Δq·h⁻¹`.
     velocity: Vec<f64>,
-    /// `J·s` of one class.
-    column: Vec<f64>,
     /// `∂L/∂q`, `∂L/∂v` in `f64` after convergence.
     fq: Vec<f64>,
     fv: Vec<f64>,
 }
 
 impl Directional {
-    /// Sizes the buffers for `n` coordinates (once).
-    fn allocate(&mut self, n: usize) -> Result<(), LinearSolveError> {
-        if self.velocity.len() == n {
-            return Ok(());
+    /// Sizes the buffers for `n` coordinates and a Jacobian of the given
+    /// bandwidth (once).
+    fn allocate(&mut self, n: usize, bandwidth: Option<usize>, autonomous: bool) -> Result<(), LinearSolveError> {
+        self.allocate_values(n, autonomous)?;
+        match Width::for_classes(Layout { n, bandwidth }.classes()) {
+            Width::One => self.one.allocate(n),
+            Width::Three => self.three.allocate(n),
+            Width::Five => self.five.allocate(n),
         }
-        let zero = Dual64::from(0.0);
-        let two_n = n.checked_mul(2).ok_or(LinearSolveError::TooLarge { n, per_column: 2 })?;
-        *self = Self {
-            q: filled(n, zero)?,
-            v: filled(n, zero)?,
-            gq: filled(n, zero)?,
-            gv: filled(n, zero)?,
-            at: filled(two_n, 0.0)?,
-            velocity: filled(n, 0.0)?,
-            column: filled(n, 0.0)?,
-            fq: filled(n, 0.0)?,
-            fv: filled(n, 0.0)?,
-        };
-        Ok(())
+    }
+
+    /// Sizes what [`momentum_and_energy`](Self::momentum_and_energy) needs
+    /// (once): the `f64` buffers, and `Dual64` ones for `∂L/∂t` when `L`
+    /// depends on time.
+    fn allocate_values(&mut self, n: usize, autonomous: bool) -> Result<(), LinearSolveError> {
+        if self.velocity.len() != n {
+            let two_n = n.checked_mul(2).ok_or(LinearSolveError::TooLarge { n, per_column: 2 })?;
+            *self = Self {
+                at: filled(two_n, 0.0)?,
+                velocity: filled(n, 0.0)?,
+                fq: filled(n, 0.0)?,
+                fv: filled(n, 0.0)?,
+                ..Self::default()
+            };
+        }
+        if autonomous { Ok(()) } else { self.one.allocate(n) }
     }
 
     /// The velocity `Δq·h⁻¹` and the points `q_k + c_j Δq`.
@@ -784,7 +956,8 @@ impl Directional {
 
     /// `∂A/∂q_k|_{q_{k+1}}` at the increment `dq` into `d_q0`, and the
     /// Jacobian `J` into `band` (row `i`'s `2b + 1` entries around the
-    /// diagonal, or whole rows without a band).
+    /// diagonal, or whole rows without a band). [`allocate`](Self::allocate)
+    /// must have been called with this bandwidth.
     #[allow(clippy::too_many_arguments)]
     fn linearize<Mo: TapeModel>(
         &mut self,
@@ -801,60 +974,12 @@ impl Directional {
         let n = q0.len();
         let inv_h = h.recip();
         self.points(points, q0, dq, inv_h);
-        let (evaluated, w) = distinct(points);
-        // The weight of `L_v`: `w h · h⁻¹`, the derivative of the action as
-        // computed (`v = Δq·h⁻¹`).
-        let b_v = w * (h * inv_h);
-        let classes = bandwidth.map_or(n, |b| 2 * b + 1);
-        d_q0.fill(0.0);
-        for k in 0..classes {
-            self.column.fill(0.0);
-            for &j in evaluated {
-                let c = points[j];
-                let a_q = w * (h * (1.0 - c));
-                let at = &self.at[j * n..(j + 1) * n];
-                // Seed the class: columns `i ≡ k (mod classes)`.
-                let mut residue = 0;
-                for i in 0..n {
-                    let on = residue == k;
-                    self.q[i] = Dual64::new(at[i], if on { c } else { 0.0 });
-                    self.v[i] = Dual64::new(self.velocity[i], if on { inv_h } else { 0.0 });
-                    residue += 1;
-                    if residue == classes {
-                        residue = 0;
-                    }
-                }
-                model.gradient_qv(Dual64::from(point_time(c, t0, h)), &self.q, &self.v, &mut self.gq, &mut self.gv);
-                for i in 0..n {
-                    self.column[i] += a_q * self.gq[i].eps - b_v * self.gv[i].eps;
-                }
-                if k == 0 {
-                    for i in 0..n {
-                        d_q0[i] += a_q * self.gq[i].re - b_v * self.gv[i].re;
-                    }
-                }
-            }
-            // Row `i`'s entry in the class sits in the one slot of its band
-            // whose column `i + slot − b` is `≡ k`.
-            match bandwidth {
-                Some(b) => {
-                    let width = classes;
-                    let mut residue = 0;
-                    for i in 0..n {
-                        let slot = (k + b + width - residue) % width;
-                        band[i * width + slot] = self.column[i];
-                        residue += 1;
-                        if residue == width {
-                            residue = 0;
-                        }
-                    }
-                }
-                None => {
-                    for i in 0..n {
-                        band[i * n + k] = self.column[i];
-                    }
-                }
-            }
+        let layout = Layout { n, bandwidth };
+        let step = Step { t0, h, inv_h, points, at: &self.at, velocity: &self.velocity };
+        match Width::for_classes(layout.classes()) {
+            Width::One => step.linearize(model, &mut self.one, layout, d_q0, band),
+            Width::Three => step.linearize(model, &mut self.three, layout, d_q0, band),
+            Width::Five => step.linearize(model, &mut self.five, layout, d_q0, band),
         }
     }
 
@@ -893,10 +1018,10 @@ impl Directional {
                 (model.lagrangian_scalar(t, at, &self.velocity), 0.0)
             } else {
                 for i in 0..n {
-                    self.q[i] = Dual64::from(at[i]);
-                    self.v[i] = Dual64::from(self.velocity[i]);
+                    self.one.q[i] = Dual64::from(at[i]);
+                    self.one.v[i] = Dual64::from(self.velocity[i]);
                 }
-                let l = model.lagrangian_scalar(Dual64::new(t, 1.0), &self.q, &self.v);
+                let l = model.lagrangian_scalar(Dual64::new(t, 1.0), &self.one.q, &self.one.v);
                 (l.re, l.eps)
             };
             let power: f64 = self.fv.iter().zip(&self.velocity).map(|(p, v)| p * v).sum();
@@ -904,6 +1029,138 @@ impl Directional {
         }
         -g_h
     }
+}
+
+/// The `f64` data of one step's points, shared by the lane types.
+struct Step<'a> {
+    t0: f64,
+    h: f64,
+    inv_h: f64,
+    points: [f64; 2],
+    /// `q_k + c_j Δq` of both points.
+    at: &'a [f64],
+    /// `Δq·h⁻¹`.
+    velocity: &'a [f64],
+}
+
+impl Step<'_> {
+    /// [`Directional::linearize`] on the lane type `D`: per chunk of
+    /// `D::LANES` classes, one evaluation of the gradient code per point.
+    /// The arithmetic of each entry is that of one `Dual64` evaluation per
+    /// class (the real part is the `f64` code's), summed over the points in
+    /// the same order.
+    fn linearize<Mo: TapeModel, D: Lanes>(
+        &self,
+        model: &Mo,
+        seeded: &mut Seeded<D>,
+        layout: Layout,
+        d_q0: &mut [f64],
+        band: &mut [f64],
+    ) {
+        let n = layout.n;
+        let width = layout.width();
+        let (evaluated, w) = distinct(self.points);
+        // The weight of `L_v`: `w h · h⁻¹`, the derivative of the action as
+        // computed (`v = Δq·h⁻¹`).
+        let b_v = w * (self.h * self.inv_h);
+        let classes = layout.classes();
+        d_q0.fill(0.0);
+        band[..n * width].fill(0.0);
+        for first in (0..classes).step_by(D::LANES) {
+            let lanes = D::LANES.min(classes - first);
+            for &j in evaluated {
+                let c = self.points[j];
+                let a_q = w * (self.h * (1.0 - c));
+                let at = &self.at[j * n..(j + 1) * n];
+                // Seed the chunk: column `i` in lane `(i mod classes) − first`.
+                let mut class: usize = 0;
+                for i in 0..n {
+                    let lane = class.checked_sub(first).filter(|&l| l < lanes);
+                    seeded.q[i] = D::seed(at[i], lane, c);
+                    seeded.v[i] = D::seed(self.velocity[i], lane, self.inv_h);
+                    class += 1;
+                    if class == classes {
+                        class = 0;
+                    }
+                }
+                let t = D::from(point_time(c, self.t0, self.h));
+                model.gradient_qv(t, &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
+                for i in 0..n {
+                    let (gq, gv) = (&seeded.gq[i], &seeded.gv[i]);
+                    let row = &mut band[i * width..(i + 1) * width];
+                    layout.row(i, first, lanes, |slot, lane| row[slot] += a_q * gq.part(lane) - b_v * gv.part(lane));
+                }
+                if first == 0 {
+                    for i in 0..n {
+                        d_q0[i] += a_q * seeded.gq[i].re() - b_v * seeded.gv[i].re();
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `∂L/∂v` and the mass matrix `∂²L/∂v²` at `(t, q, v)` from the gradient
+/// code: `∂L/∂v` on `f64` into `p`, `∂²L/∂v²` by colour classes on lane
+/// duals (`v` seeded, `q` constant) into `band` (the layout's storage).
+/// Allocates its dual buffers (a readout, not a step).
+#[allow(clippy::too_many_arguments)]
+fn mass_from_gradient_code<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    layout: Layout,
+    p: &mut [f64],
+    band: &mut [f64],
+) -> Result<(), LinearSolveError> {
+    let n = layout.n;
+    let mut fq = filled(n, 0.0)?;
+    model.gradient_qv(t, q, v, &mut fq, p);
+    match Width::for_classes(layout.classes()) {
+        Width::One => mass_lanes::<Mo, Dual64>(model, t, q, v, layout, band),
+        Width::Three => mass_lanes::<Mo, DualArray<[f64; 3]>>(model, t, q, v, layout, band),
+        Width::Five => mass_lanes::<Mo, DualArray<[f64; 5]>>(model, t, q, v, layout, band),
+    }
+}
+
+/// The mass matrix of [`mass_from_gradient_code`] on the lane type `D`.
+fn mass_lanes<Mo: TapeModel, D: Lanes>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    layout: Layout,
+    band: &mut [f64],
+) -> Result<(), LinearSolveError> {
+    let n = layout.n;
+    let width = layout.width();
+    let classes = layout.classes();
+    let mut seeded = Seeded::<D>::default();
+    seeded.allocate(n)?;
+    for (x, &y) in seeded.q.iter_mut().zip(q) {
+        *x = D::from(y);
+    }
+    band[..n * width].fill(0.0);
+    for first in (0..classes).step_by(D::LANES) {
+        let lanes = D::LANES.min(classes - first);
+        let mut class: usize = 0;
+        for i in 0..n {
+            let lane = class.checked_sub(first).filter(|&l| l < lanes);
+            seeded.v[i] = D::seed(v[i], lane, 1.0);
+            class += 1;
+            if class == classes {
+                class = 0;
+            }
+        }
+        model.gradient_qv(D::from(t), &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
+        for i in 0..n {
+            let gv = &seeded.gv[i];
+            let row = &mut band[i * width..(i + 1) * width];
+            layout.row(i, first, lanes, |slot, lane| row[slot] = gv.part(lane));
+        }
+    }
+    Ok(())
 }
 
 /// Newton's unknown (and correction) on the heap without an allocation per
@@ -964,11 +1221,20 @@ pub(crate) fn watch_energy_jump(stats: &mut Stats, before: f64, after: f64, t1: 
     }
 }
 
-/// The discrete energy `−∂A/∂t_{k+1}` of the step `(t0, h, q0, dq)`, from
+/// The discrete energy `−∂A/∂t_{k+1}` of the step `(t0, h, q0, dq)`: from
+/// the system's gradient code at the rule's points when it has it, else from
 /// one reverse sweep (NaN if the tape fails, which the runtime's use cannot
-/// provoke).
+/// provoke, or if the buffers cannot be allocated).
 pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64], dq: &[f64]) -> f64 {
     let n = q0.len();
+    if let Some(points) = directional_points(model) {
+        let mut directional = Directional::default();
+        let Ok(mut g_q0) = filled(n, 0.0) else { return f64::NAN };
+        if directional.allocate_values(n, model.autonomous()).is_err() {
+            return f64::NAN;
+        }
+        return directional.momentum_and_energy(model, t0, h, points, q0, dq, &mut g_q0);
+    }
     let mut tape = Tape::new();
     let mut inputs = Vec::with_capacity(2 * n + 1);
     inputs.extend_from_slice(q0);
@@ -1000,8 +1266,9 @@ fn potential_force<Mo: TapeModel>(
 }
 
 /// `L`, `∂L/∂v` and `∂²L/∂v²` (assembled, not factored; banded with the
-/// given bandwidth, or dense) at `(t, q, v)`, from one second-order sweep
-/// with the inputs `v`.
+/// given bandwidth, or dense) at `(t, q, v)`: from the system's gradient
+/// code (on `f64`, and by colour classes on dual numbers) when it has it,
+/// else from one second-order sweep of a tape with the inputs `v`.
 fn velocity_derivatives<Mo: TapeModel>(
     model: &Mo,
     t: f64,
@@ -1010,16 +1277,23 @@ fn velocity_derivatives<Mo: TapeModel>(
     bandwidth: Option<usize>,
 ) -> Result<(f64, Vec<f64>, Assembled), Breakdown> {
     let n = q.len();
-    let seeds = seeds(0..n, bandwidth);
-    let mut tape = Tape::new();
-    let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
-    let l = tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x)).map_err(tape_breakdown)?;
     let width = bandwidth.map_or(n, |b| 2 * b + 1);
     let mut gradient = zeroed(Some(n), n).map_err(breakdown)?;
-    let mut products = zeroed(n.checked_mul(seeds.directions()), n).map_err(breakdown)?;
     let mut band = zeroed(n.checked_mul(width), n).map_err(breakdown)?;
-    tape.hessian_product(&seeds, &mut gradient, &mut products).map_err(tape_breakdown)?;
-    seeds.recover(&products, 0..n, &mut band).map_err(tape_breakdown)?;
+    let l = if model.has_gradient_qv() {
+        let layout = Layout { n, bandwidth };
+        mass_from_gradient_code(model, t, q, v, layout, &mut gradient, &mut band).map_err(breakdown)?;
+        model.lagrangian_scalar(t, q, v)
+    } else {
+        let seeds = seeds(0..n, bandwidth);
+        let mut tape = Tape::new();
+        let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+        let l = tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x)).map_err(tape_breakdown)?;
+        let mut products = zeroed(n.checked_mul(seeds.directions()), n).map_err(breakdown)?;
+        tape.hessian_product(&seeds, &mut gradient, &mut products).map_err(tape_breakdown)?;
+        seeds.recover(&products, 0..n, &mut band).map_err(tape_breakdown)?;
+        l
+    };
     let matrix = step_matrix(n, bandwidth).map_err(breakdown)?;
     Ok((l, gradient, Assembled { n, matrix, band, bandwidth }))
 }
@@ -1069,16 +1343,22 @@ pub(crate) fn legendre<Mo: TapeModel>(
     Ok((p, energy))
 }
 
-/// The energy `E = v·∂L/∂v − L` at `(t, q, v)`, from one reverse sweep (NaN
-/// if the tape fails).
+/// The energy `E = v·∂L/∂v − L` at `(t, q, v)`: `∂L/∂v` from the system's
+/// gradient code when it has it, else from one reverse sweep (NaN if the
+/// tape fails).
 pub(crate) fn energy<Mo: TapeModel>(model: &Mo, t: f64, q: &[f64], v: &[f64]) -> f64 {
     let n = q.len();
-    let mut tape = Tape::new();
     let mut p = vec![0.0; n];
-    let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
-    let swept = tape
-        .record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x))
-        .and_then(|l| tape.gradient(&mut p).map(|_| l));
+    let swept = if model.has_gradient_qv() {
+        let mut fq = vec![0.0; n];
+        model.gradient_qv(t, q, v, &mut fq, &mut p);
+        Ok(model.lagrangian_scalar(t, q, v))
+    } else {
+        let mut tape = Tape::new();
+        let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+        tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x))
+            .and_then(|l| tape.gradient(&mut p).map(|_| l))
+    };
     match swept {
         Ok(l) => (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l,
         Err(_) => f64::NAN,
@@ -1175,5 +1455,120 @@ mod tests {
         }
         // Both verdicts occur, so the comparison tested something.
         assert!(rejected > 100 && passed > 100, "{rejected} rejected, {passed} passed");
+    }
+
+    /// A chain with a position-dependent mass, kinetic coupling of
+    /// neighbours and quartic springs (bandwidth 1), its gradient written by
+    /// hand over any scalar.
+    struct Chain;
+
+    fn chain_lagrangian<D: Scalar>(q: &[D], v: &[D]) -> D {
+        let mut l = D::from(0.0);
+        for i in 0..q.len() {
+            l += v[i] * v[i] * (q[i].cos() * 0.1 + 1.0) * 0.5 + q[i].cos();
+            if i + 1 < q.len() {
+                let e = q[i + 1] - q[i];
+                l += v[i] * v[i + 1] * (q[i] - q[i + 1]).cos() * 0.2 - e.powi(4) * 0.25;
+            }
+        }
+        l
+    }
+
+    impl TapeModel for Chain {
+        fn coupling(&self) -> Coupling {
+            Coupling::GENERAL
+        }
+        fn lagrangian(&self, _: Var, q: &[Var], v: &[Var]) -> Var {
+            chain_lagrangian(q, v)
+        }
+        fn action(&self, _: Var, _: Var, _: &[Var], _: &[Var]) -> Var {
+            unreachable!("the test steps no tape")
+        }
+        fn autonomous(&self) -> bool {
+            true
+        }
+        fn points(&self) -> Option<[f64; 2]> {
+            None
+        }
+        fn has_gradient_qv(&self) -> bool {
+            true
+        }
+        fn gradient_qv<D: Scalar>(&self, _: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+            let n = q.len();
+            for i in 0..n {
+                let (s, c) = q[i].sin_cos();
+                out_q[i] = -(v[i] * v[i] * s * 0.05) - s;
+                out_v[i] = v[i] * (c * 0.1 + 1.0);
+            }
+            for i in 0..n - 1 {
+                let (s, c) = (q[i] - q[i + 1]).sin_cos();
+                let vv = v[i] * v[i + 1] * 0.2;
+                out_q[i] -= vv * s;
+                out_q[i + 1] += vv * s;
+                out_v[i] += v[i + 1] * c * 0.2;
+                out_v[i + 1] += v[i] * c * 0.2;
+                let e3 = (q[i + 1] - q[i]).powi(3);
+                out_q[i] += e3;
+                out_q[i + 1] -= e3;
+            }
+        }
+        fn lagrangian_scalar<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
+            chain_lagrangian(q, v)
+        }
+    }
+
+    /// The vector lanes give the Jacobian and residual of one `Dual64`
+    /// evaluation per colour class (the path before them) bit for bit, for
+    /// bands of width 3, 5 and 7 (chunks) and the dense pattern (chunks),
+    /// one and two quadrature points; and the band is the Jacobian (against
+    /// central differences of the residual).
+    #[test]
+    fn vector_lanes_give_the_per_class_jacobian_bit_for_bit() {
+        let n = 23;
+        let q0: Vec<f64> = (0..n).map(|i| 0.4 * (0.7 * i as f64).sin()).collect();
+        let dq: Vec<f64> = (0..n).map(|i| 0.03 * (1.3 * i as f64 + 0.2).cos()).collect();
+        let h = 0.05;
+        for bandwidth in [Some(1), Some(2), Some(3), None] {
+            for points in [[0.5, 0.5], [0.0, 1.0], [0.3, 0.3]] {
+                let layout = Layout { n, bandwidth };
+                let width = layout.width();
+                let mut lanes = Directional::default();
+                lanes.allocate(n, bandwidth, true).unwrap();
+                let (mut r, mut band) = (vec![0.0; n], vec![f64::NAN; n * width]);
+                lanes.linearize(&Chain, 0.0, h, points, &q0, &dq, bandwidth, &mut r, &mut band);
+                // The reference: `Dual64` lanes, one class per evaluation.
+                let mut one = Seeded::<Dual64>::default();
+                one.allocate(n).unwrap();
+                let (mut r1, mut band1) = (vec![0.0; n], vec![f64::NAN; n * width]);
+                let step = Step { t0: 0.0, h, inv_h: h.recip(), points, at: &lanes.at, velocity: &lanes.velocity };
+                step.linearize(&Chain, &mut one, layout, &mut r1, &mut band1);
+                let case = format!("bandwidth {bandwidth:?}, points {points:?}");
+                assert!(r.iter().zip(&r1).all(|(a, b)| a.to_bits() == b.to_bits()), "{case}: residual");
+                assert!(band.iter().zip(&band1).all(|(a, b)| a.to_bits() == b.to_bits()), "{case}: jacobian");
+                // Column j of the Jacobian by central differences.
+                let (mut plus, mut minus) = (vec![0.0; n], vec![0.0; n]);
+                let mut scratch = vec![0.0; n * width];
+                let mut largest = 0.0f64;
+                for j in 0..n {
+                    let eps = 1e-6;
+                    let mut x = dq.clone();
+                    x[j] += eps;
+                    lanes.linearize(&Chain, 0.0, h, points, &q0, &x, bandwidth, &mut plus, &mut scratch);
+                    x[j] -= 2.0 * eps;
+                    lanes.linearize(&Chain, 0.0, h, points, &q0, &x, bandwidth, &mut minus, &mut scratch);
+                    for i in 0..n {
+                        let fd = (plus[i] - minus[i]) / (2.0 * eps);
+                        let entry = match bandwidth {
+                            Some(b) if i.abs_diff(j) > b => 0.0,
+                            Some(b) => band[i * width + j + b - i],
+                            None => band[i * n + j],
+                        };
+                        largest = largest.max((fd - entry).abs());
+                    }
+                }
+                // Entries are O(1/h) = O(20); differences of step 1e-6 are good to ~1e-8.
+                assert!(largest < 1e-6, "{case}: {largest:e}");
+            }
+        }
     }
 }
