@@ -420,8 +420,9 @@ impl GenPendula {
 
 /// A run-time-sized system with its generated gradient code hidden: the
 /// integrator records its `L` on the tape (the path before the generic
-/// gradient code), with the same structure constants.
-struct TapeOnly<S>(S);
+/// gradient code), with the same structure constants. Also used by
+/// `lane_duals`.
+pub(crate) struct TapeOnly<S>(pub(crate) S);
 
 impl<S: DynLagrangian> DynLagrangian for TapeOnly<S> {
     const AUTONOMOUS: bool = S::AUTONOMOUS;

@@ -13,8 +13,9 @@
 //!   (`velocity()`), `energy()`, and the discrete energy of explicit
 //!   trapezoid steps, against the tape's to round-off.
 //! - A failed step on this path changes nothing, and a retry succeeds.
+use super::dynamic_systems::TapeOnly;
+use lagrangian::Separability;
 use lagrangian::prelude::*;
-use lagrangian::{Coupling, Separability};
 
 /// Oscillators with a position-dependent mass and no coupling: bandwidth 0
 /// (one colour class, the plain `Dual64` evaluation).
@@ -142,24 +143,6 @@ impl Fpu2 {
             l -= 0.5 * d * d + 0.25 * d.powi(4);
         }
         l
-    }
-}
-
-/// A system with its generated gradient code hidden: every derivative
-/// comes from the tape, with the same structure constants.
-struct TapeOnly<S>(S);
-
-impl<S: DynLagrangian> DynLagrangian for TapeOnly<S> {
-    const AUTONOMOUS: bool = S::AUTONOMOUS;
-    const SEPARABILITY: Separability = S::SEPARABILITY;
-    const COUPLING: Coupling = S::COUPLING;
-
-    fn dimension(&self) -> usize {
-        self.0.dimension()
-    }
-
-    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
-        self.0.lagrangian(t, q, v)
     }
 }
 
