@@ -364,28 +364,15 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// of a step of size `h` (see `Segment` for why the increment).
     #[inline]
     pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
-        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
-        let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
-        let pc = self.p_carry;
         let p_scale = max_abs(&p0);
         // The condition estimate on the first iteration only (see
         // `newton::square_correction_unestimated`).
         let mut first = true;
         let eval = |x: &SVector<f64, N>| {
-            let seg = Segment { t0, h, q0, dq: (*x).into() };
-            // Lagrange–d'Alembert: F_k^− joins ∂A/∂q_k, ∂F_k^−/∂q_{k+1} the Jacobian.
-            let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
-            // The momentum carries its compensation: p_k is p0 + pc.
-            let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
-            let scale = p_scale.max(max_abs(&d.d_q0));
-            let step = if first {
-                first = false;
-                newton::square_correction(r, d.d2_q0_q1, min_rcond)?
-            } else {
-                newton::square_correction_unestimated(r, d.d2_q0_q1)?
-            };
-            Ok(step.cancelling(scale))
+            let estimate = core::mem::replace(&mut first, false);
+            self.del_linearization(h, (*x).into(), p_scale, estimate)
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {
@@ -401,6 +388,35 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             Err(failure) => Err(self.fail(h, failure)),
         }
+    }
+
+    /// The Newton correction of the DEL `p_k + ∂A/∂q_k = 0` at the increment
+    /// `dq` of a step of size `h` (forces included: Lagrange–d'Alembert puts
+    /// `F_k^−` into `∂A/∂q_k` and `∂F_k^−/∂q_{k+1}` into the Jacobian), its
+    /// residual measured against the terms that cancel (`p_scale` = `max|p_k|`).
+    /// `estimate`: estimate the Jacobian's condition number too.
+    #[inline]
+    pub(super) fn del_linearization(
+        &self,
+        h: f64,
+        dq: [f64; N],
+        p_scale: f64,
+        estimate: bool,
+    ) -> Result<newton::Linearization<SVector<f64, N>>, newton::Breakdown> {
+        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let (system, method) = (&self.system, &self.method);
+        let seg = Segment { t0, h, q0, dq };
+        let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+        // The momentum carries its compensation: p_k is p0 + pc.
+        let pc = &self.p_carry;
+        let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
+        let scale = p_scale.max(max_abs(&d.d_q0));
+        let step = if estimate {
+            newton::square_correction(r, d.d2_q0_q1, self.newton.min_rcond)?
+        } else {
+            newton::square_correction_unestimated(r, d.d2_q0_q1)?
+        };
+        Ok(step.cancelling(scale))
     }
 
     /// The increment predicted by quadratic extrapolation of the positions:

@@ -236,17 +236,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `h` (forces included), or `None` where the correction cannot be made
     /// (a singular or non-finite Jacobian or residual).
     fn del_correction(&self, h: f64, dq: [f64; N]) -> Option<[f64; N]> {
-        let State { t: t0, q: q0, p: p0, .. } = self.state;
-        let pc = self.p_carry;
-        let seg = Segment { t0, h, q0, dq };
-        let d = forcing::with_forces(
-            &self.system,
-            &self.method,
-            &seg,
-            derivatives::step_derivatives(&self.system, &self.method, &seg),
-        );
-        let r = SVector::<f64, N>::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
-        let step = newton::square_correction(r, d.d2_q0_q1, self.newton.min_rcond).ok()?;
+        let step = self.del_linearization(h, dq, max_abs(&self.state.p), true).ok()?;
         let out: [f64; N] = core::array::from_fn(|i| dq[i] + step.correction[i]);
         out.iter().all(|x| x.is_finite()).then_some(out)
     }
