@@ -341,10 +341,13 @@ where
             return Ok((x, report));
         }
         if let Some(prev) = previous {
-            let theta = ratio / prev;
-            if theta < 1.0 && theta / (1.0 - theta) * ratio <= 1.0 {
+            // The rate `θ = ratio / prev` and the estimate `θ/(1 − θ)·ratio ≤ 1`
+            // multiplied out by `(1 − θ)·prev > 0`: no division on the path to
+            // the verdict.
+            if ratio < prev && ratio * ratio <= prev - ratio {
                 return Ok((x, report));
             }
+            let theta = ratio / prev;
             // Round-off floor: the corrections stopped shrinking, and either
             // they are already tiny or the residual is round-off of its terms
             // (an ill-conditioned energy equation turns that round-off into
