@@ -14,7 +14,9 @@
 //! Further cases: `kepler`, `henon-heiles` and `fpu` (the bench's FPU-β chain, N = 16) with `trapezoid`
 //! (explicit Störmer–Verlet) or `verlet`; `fpu trapezoid-powi` (the same chain with the quartic
 //! written `d.powi(4)`, as in `chain1000`, instead of `d * d * d * d`); `pendulum kahan-li8` and `pendulum hand-kahan-li8`
-//! (the same composition of hand-written Verlet steps); `pendulum galerkin6` and
+//! (the same composition of hand-written Verlet steps); `verlet-compensated` (`kepler`, `henon-heiles`, `fpu`,
+//! `chain1000`) and `pendulum hand-kahan-li8-compensated`: the bench's hand-written compositions with the
+//! compensated sums the generated steps keep (`Stepper::step_compensated`); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
@@ -28,10 +30,14 @@
 
 #[path = "../tests/common/mod.rs"]
 mod common;
+#[path = "../bench/src/compositions.rs"]
+#[allow(dead_code, unreachable_pub)]
+mod compositions;
 #[path = "../bench/src/handwritten.rs"]
 mod handwritten;
 
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
+use compositions::{Composition as Hand, Stepper};
 use handwritten::*;
 use lagrangian::derivatives::step_derivatives;
 use lagrangian::{Composition, Galerkin, GalerkinIntegrator, Integrator, Midpoint, Segment, StepBounds, Trapezoid};
@@ -211,6 +217,24 @@ fn hand_verlet<const N: usize>(
     q.to_vec()
 }
 
+/// `n` steps of the bench's hand-written composition `method` (unit masses)
+/// with compensated sums ([`Stepper::step_compensated`]).
+fn compensated<const N: usize>(
+    method: Hand,
+    f: impl Fn(&[f64; N]) -> [f64; N],
+    h: f64,
+    q0: [f64; N],
+    v0: [f64; N],
+    n: usize,
+) -> Vec<f64> {
+    let mut s = Stepper::new(method, [1.0; N], &f, h, q0, v0);
+    for _ in 0..n {
+        s.step_compensated(&f);
+        black_box(&s.q);
+    }
+    s.q.to_vec()
+}
+
 fn kepler_force(q: &[f64; 2]) -> [f64; 2] {
     let r2 = q[0] * q[0] + q[1] * q[1];
     let k = -1.0 / (r2 * r2.sqrt());
@@ -302,6 +326,12 @@ fn main() {
             let f = |q: &[f64; 1]| [-(d / a.sqrt()) * (q[0] / a.sqrt()).sin()];
             hand_verlet(f, Composition::KAHAN_LI8.weights(), H, [a.sqrt()], [0.0], n)
         }
+        ("pendulum", "hand-kahan-li8-compensated") => {
+            let (a, d) = (P.m * P.l * P.l, P.m * P.g * P.l);
+            // Unit mass in the coordinate `√a θ`.
+            let f = |q: &[f64; 1]| [-(d / a.sqrt()) * (q[0] / a.sqrt()).sin()];
+            compensated(Hand::KahanLi8, f, H, [a.sqrt()], [0.0], n)
+        }
         ("pendulum", "galerkin6") => {
             run(GalerkinIntegrator::new(Pendulum { ..P }, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [1.0], [0.0]), n)
         }
@@ -328,6 +358,12 @@ fn main() {
         }
         ("kepler", "trapezoid") => run(Integrator::new(Kepler, Trapezoid, H).start(0.0, KEPLER_Q0, KEPLER_V0), n),
         ("kepler", "verlet") => hand_verlet(kepler_force, &[1.0], H, KEPLER_Q0, KEPLER_V0, n),
+        ("kepler", "verlet-compensated") => compensated(Hand::Verlet, kepler_force, H, KEPLER_Q0, KEPLER_V0, n),
+        ("henon-heiles", "verlet-compensated") => compensated(Hand::Verlet, henon_heiles_force, H, HH_Q0, HH_V0, n),
+        ("fpu", "verlet-compensated") => compensated(Hand::Verlet, fpu_force, H, fpu_q0(), [0.0; FPU_N], n),
+        ("chain1000", "verlet-compensated") => {
+            compensated(Hand::Verlet, chain_force, 0.05, chain_q0(), [0.0; CHAIN_N], n)
+        }
         ("henon-heiles", "trapezoid") => run(Integrator::new(HenonHeiles, Trapezoid, H).start(0.0, HH_Q0, HH_V0), n),
         ("henon-heiles", "verlet") => hand_verlet(henon_heiles_force, &[1.0], H, HH_Q0, HH_V0, n),
         ("fpu", "trapezoid") => run(Integrator::new(Fpu, Trapezoid, H).start(0.0, fpu_q0(), [0.0; FPU_N]), n),

@@ -51,3 +51,24 @@ fn weights_are_symmetric_and_consistent() {
         assert!(w.iter().zip(w.iter().rev()).all(|(a, b)| a == b));
     }
 }
+
+/// The compensated steps (`Stepper::step_compensated`, the bench's baseline
+/// for the generated steps' bookkeeping) are the same scheme: they follow the
+/// plain ones to round-off on the pendulum, for every composition.
+#[test]
+fn compensated_steps_follow_the_plain_ones() {
+    use lagrangian_bench::compositions::Stepper;
+    let pendulum = |q: &[f64; 1]| [-q[0].sin()];
+    for c in [Composition::Verlet, Composition::Yoshida6, Composition::KahanLi8] {
+        let mut plain = Stepper::new(c, [1.0], &pendulum, 0.05, [1.0], [0.0]);
+        let mut compensated = plain.clone();
+        for _ in 0..2000 {
+            plain.step(&pendulum);
+            compensated.step_compensated(&pendulum);
+        }
+        let (dq, dp) = ((plain.q[0] - compensated.q[0]).abs(), (plain.p[0] - compensated.p[0]).abs());
+        assert!(dq < 1e-12 && dp < 1e-12, "{c:?}: |Δq| = {dq:e}, |Δp| = {dp:e}");
+        // 100 time units: the trajectories have moved, the test compares motion.
+        assert!((plain.q[0] - 1.0).abs() > 1e-3, "{c:?}");
+    }
+}
