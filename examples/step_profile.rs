@@ -17,7 +17,8 @@
 //! (the same composition of hand-written Verlet steps); `verlet-compensated` (`kepler`, `henon-heiles`, `fpu`,
 //! `chain1000`) and `pendulum hand-kahan-li8-compensated`: the bench's hand-written compositions with the
 //! compensated sums the generated steps keep (`Stepper::step_compensated`); `pendulum galerkin6` and
-//! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`;
+//! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`,
+//! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
 //! `trace-midpoint`, `trace-trapezoid`, `trace-alpha-beta` (α = 0.3; `pendulum` or `double pendulum`)
@@ -306,6 +307,21 @@ fn main() {
         ("double pendulum", "midpoint") => {
             run(Integrator::new(DoublePendulum { ..DP }, Midpoint, H).start(0.0, [1.0, -0.5], [0.0, 0.5]), n)
         }
+        // Galerkin s = 4 at the report's step for 1e-8 over t ≤ 2 (95 steps).
+        ("double pendulum", "galerkin4") => run(
+            GalerkinIntegrator::new(DoublePendulum { ..DP }, Galerkin::<4, 4>::gauss(), 2.0 / 95.0).start(
+                0.0,
+                [1.0, -0.5],
+                [0.0, 0.5],
+            ),
+            n,
+        ),
+        ("double pendulum", "galerkin4-norcond") => run(
+            GalerkinIntegrator::new(DoublePendulum { ..DP }, Galerkin::<4, 4>::gauss(), 2.0 / 95.0)
+                .newton(lagrangian::NewtonOptions { min_rcond: 0.0, ..Default::default() })
+                .start(0.0, [1.0, -0.5], [0.0, 0.5]),
+            n,
+        ),
         ("double pendulum", "trapezoid") => {
             run(Integrator::new(DoublePendulum { ..DP }, Trapezoid, H).start(0.0, [1.0, -0.5], [0.0, 0.5]), n)
         }

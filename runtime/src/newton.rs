@@ -35,9 +35,12 @@ pub struct NewtonOptions {
     /// this is reported as singular instead of being inverted. The estimate
     /// is made where a step's Jacobian is first factored (the first Newton
     /// iteration of a fixed step, every iteration of an energy-preserving
-    /// one, the first factorisation of each Galerkin solve); later iterations of
-    /// a fixed step check only for exact singularity, so a Jacobian that
-    /// turns ill-conditioned there ends as `NotConverged`.
+    /// one, the first factorisation of each energy-preserving Galerkin
+    /// solve); later iterations of a fixed step check only for exact
+    /// singularity, so a Jacobian that turns ill-conditioned there ends as
+    /// `NotConverged`. A fixed Galerkin step estimates it only when its
+    /// solve fails, on the last block it factored (a converged iteration has
+    /// found a root whatever the conditioning).
     pub min_rcond: f64,
 }
 

@@ -252,7 +252,11 @@ where
     pub(crate) fn step_nodes(&mut self, h: T, t1: T) -> Result<(), Error<N, T>> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e = self.carry;
-        let (system, g, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
+        // The condition estimate (Hager's, a few triangular solves whose
+        // latency measured a fifth of a double-pendulum step at s = 4) is made
+        // only for a step that fails, below; a converged iteration has found a
+        // root of the block system whatever the conditioning of its Jacobian.
+        let (system, g, min_rcond) = (&self.system, &self.method, 0.0);
         let pc = self.p_carry;
         // Simplified Newton first: the Jacobian is assembled and factored at
         // the first guess only, and later iterations cost the gradient of L at
@@ -349,13 +353,15 @@ where
             (true, false) => KeptBlock::New(h, work.lu),
             (false, _) => KeptBlock::Drop,
         };
-        // Every attempt counts in the iterations reported.
+        // Every attempt counts in the iterations reported. A failure with a
+        // factored block too ill-conditioned for `min_rcond` is reported as
+        // the singular Jacobian it is.
         let solved = match solved {
             Ok((x, mut report)) => {
                 report.iterations += spent;
                 Ok((x, report))
             }
-            Err(failure) => Err(with_iterations(failure, spent)),
+            Err(failure) => Err(with_iterations(ill_conditioned(failure, &work, self.newton.min_rcond), spent)),
         };
         let (d, report) = match solved {
             Ok((x, report)) => (x.0, report),
@@ -977,6 +983,26 @@ impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
             (true, Some(kept)) => kept,
             _ => &self.lu,
         }
+    }
+}
+
+/// `failure` as [`NewtonFailure::Singular`] when the block the iteration
+/// last factored (or borrowed) is too ill-conditioned for `min_rcond`: the
+/// condition estimate of a fixed step, made only when its solve fails.
+fn ill_conditioned<const N: usize, const S: usize, T: Real>(
+    failure: NewtonFailure,
+    work: &Work<'_, N, S, T>,
+    min_rcond: f64,
+) -> NewtonFailure {
+    let (NewtonFailure::NotConverged(_) | NewtonFailure::NonFinite { .. }) = failure else { return failure };
+    if !work.valid || min_rcond <= 0.0 {
+        return failure;
+    }
+    let rcond = work.active().rcond();
+    if rcond.is_nan() || rcond < min_rcond {
+        NewtonFailure::Singular { iterations: failure.iterations(), rcond }
+    } else {
+        failure
     }
 }
 
