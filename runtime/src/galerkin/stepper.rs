@@ -1078,6 +1078,37 @@ mod tests {
     use super::*;
     use crate::system::Scalar;
 
+    /// A failed solve whose last block is nearly singular is reported as a
+    /// singular Jacobian with the estimated condition; a failure with a
+    /// well-conditioned block, or of another kind, is left as it is.
+    #[test]
+    fn a_failure_with_an_ill_conditioned_block_is_a_singular_jacobian() {
+        let factored = |eps: f64| {
+            let mut work = Work::<1, 2, f64>::new(None);
+            *work.lu.matrix_mut() = [[[[1.0], [1.0]]], [[[1.0], [1.0 + eps]]]];
+            work.lu.factor_in_place().unwrap();
+            work.valid = true;
+            work
+        };
+        let report = NewtonReport { iterations: 7, residual_norm: 1e-3, correction_norm: 1e-2 };
+        let not_converged = NewtonFailure::NotConverged(report);
+        match ill_conditioned(not_converged, &factored(1e-15), 1e-13) {
+            NewtonFailure::Singular { iterations, rcond } => {
+                assert_eq!(iterations, 7);
+                assert!(rcond < 1e-13 && rcond > 1e-17, "{rcond:e}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(ill_conditioned(not_converged, &factored(0.5), 1e-13), not_converged);
+        // Without the check (`min_rcond = 0`) or a factored block, unchanged.
+        assert_eq!(ill_conditioned(not_converged, &factored(1e-15), 0.0), not_converged);
+        let mut stale = factored(1e-15);
+        stale.valid = false;
+        assert_eq!(ill_conditioned(not_converged, &stale, 1e-13), not_converged);
+        let rejected = NewtonFailure::Rejected { iterations: 2, reason: "test" };
+        assert_eq!(ill_conditioned(rejected, &factored(1e-15), 1e-13), rejected);
+    }
+
     #[test]
     fn the_kept_block_pauses_after_each_refresh_for_twice_as_long() {
         // Refreshed (offered, not kept) four times in a row: pauses 1, 3, 7, 15, 15.
