@@ -238,7 +238,7 @@ impl<'a> Adjoint<'a> {
         let mut reverse = Vec::new();
         reverse.push(self.declare_adjoints(stmts));
         if tail.class.is_active() && self.depends_on_q(tail) {
-            let seed = self.active(quote!(1.0f64));
+            let seed = self.one();
             self.reverse(tail, seed, &mut reverse)?;
         }
         for stmt in stmts.iter().rev() {
@@ -702,6 +702,24 @@ impl<'a> Adjoint<'a> {
         g.into_token_stream()
     }
 
+    /// The seed of the reverse sweep, the adjoint of `L`: one.
+    fn one(&self) -> TokenStream {
+        self.active(quote!(1.0f64))
+    }
+
+    /// `g · x` bound to an adjoint temporary; `x` alone when `g` is the
+    /// seed (`x · 1` is `x`, and on dual numbers the product would not be
+    /// free). `active`: whether `x` is an active value (a constant is made
+    /// one in generic code).
+    fn times(&mut self, g: &TokenStream, x: TokenStream, active: bool, out: &mut Vec<TokenStream>) -> TokenStream {
+        if g.to_string() == self.one().to_string() {
+            let x = self.active_if(!active, x);
+            self.bind(x, out)
+        } else {
+            self.bind(quote!(#g * #x), out)
+        }
+    }
+
     /// The temporary of an active node.
     fn temp(&mut self, expr: &Expr) -> proc_macro2::Ident {
         let next = self.temps.len();
@@ -822,6 +840,9 @@ impl<'a> Adjoint<'a> {
         if !self.depends_on_q(expr) {
             return Some(());
         }
+        if let Some(chain) = self.product_chain(expr) {
+            return self.reverse_chain(&chain, g, out);
+        }
         match &expr.kind {
             ExprKind::Paren(inner) => self.reverse(inner, g, out),
             ExprKind::Cast { expr: inner, .. } => self.reverse(inner, g, out),
@@ -862,12 +883,12 @@ impl<'a> Adjoint<'a> {
                     BinOp::Mul(_) => {
                         if a {
                             let y = self.value(rhs)?;
-                            let g = self.bind(quote!(#g * #y), out);
+                            let g = self.times(&g, y, rhs.class.is_active(), out);
                             self.reverse(lhs, g, out)?;
                         }
                         if b {
                             let x = self.value(lhs)?;
-                            let g = self.bind(quote!(#g * #x), out);
+                            let g = self.times(&g, x, lhs.class.is_active(), out);
                             self.reverse(rhs, g, out)?;
                         }
                         Some(())
@@ -911,13 +932,192 @@ impl<'a> Adjoint<'a> {
                     if let Some(partial) = partial
                         && self.depends_on_q(operand)
                     {
-                        let g = self.bind(quote!(#g * (#partial)), out);
+                        let g = self.times(&g, quote!((#partial)), true, out);
                         self.reverse(operand, g, out)?;
                     }
                 }
                 Some(())
             }
             _ => None,
+        }
+    }
+
+    /// The product chain rooted at `expr` (`c * d * d / k`, any association
+    /// of `*` and of `/` by constants) when folding it into one rule per
+    /// distinct active factor pays: three factors or more, or an active
+    /// factor that repeats. `None` otherwise (the node's own rule is as
+    /// cheap: `c * x`, `x * y`, `x / c`).
+    fn product_chain<'e>(&self, expr: &'e Expr) -> Option<Chain<'e>> {
+        if !matches!(expr.kind, ExprKind::Binary { op: BinOp::Mul(_) | BinOp::Div(_), .. }) {
+            return None;
+        }
+        let mut chain = Chain { numerator: Vec::new(), denominator: Vec::new(), bases: Vec::new() };
+        self.flatten(expr, &mut chain);
+        let factors =
+            chain.numerator.len() + chain.denominator.len() + chain.bases.iter().map(|b| b.1 as usize).sum::<usize>();
+        (factors >= 3 || chain.bases.iter().any(|b| b.1 > 1)).then_some(chain)
+    }
+
+    /// Collects the factors of a product into `chain`.
+    fn flatten<'e>(&self, expr: &'e Expr, chain: &mut Chain<'e>) {
+        match &expr.kind {
+            _ if !expr.class.is_active() => chain.numerator.push(expr),
+            ExprKind::Paren(inner) => self.flatten(inner, chain),
+            ExprKind::Binary { lhs, op: BinOp::Mul(_), rhs } => {
+                self.flatten(lhs, chain);
+                self.flatten(rhs, chain);
+            }
+            ExprKind::Binary { lhs, op: BinOp::Div(_), rhs } if !rhs.class.is_active() => {
+                self.flatten(lhs, chain);
+                chain.denominator.push(rhs);
+            }
+            _ => {
+                // Reads of the same value (a local's version, `q[i]` at the
+                // same index) are one factor with a multiplicity.
+                let key = self.leaf_key(expr);
+                match chain.bases.iter_mut().find(|(base, _)| key.is_some() && self.leaf_key(base) == key) {
+                    Some((_, k)) => *k += 1,
+                    None => chain.bases.push((expr, 1)),
+                }
+            }
+        }
+    }
+
+    /// What identifies the value of a leaf: a local's version, `q[i]` or
+    /// `v[i]` at an index printed the same, `t`. `None` for other nodes.
+    fn leaf_key(&self, expr: &Expr) -> Option<String> {
+        match &expr.kind {
+            ExprKind::Paren(inner) => self.leaf_key(inner),
+            ExprKind::Local(id, _) => Some(format!("l{}_{}", id.0, self.version(expr))),
+            ExprKind::Param(ParamRef::Time, _) => Some("t".into()),
+            ExprKind::Index { base, index, .. } => {
+                let param = match base.kind {
+                    ExprKind::Param(ParamRef::Q, _) => "q",
+                    ExprKind::Param(ParamRef::V, _) => "v",
+                    _ => return None,
+                };
+                Some(format!("{param}[{}]", self.constant(index)?))
+            }
+            _ => None,
+        }
+    }
+
+    /// The reverse code of a product chain `C · Π bⱼ^kⱼ` (`C` the constant
+    /// factors): the adjoint of `bⱼ` gets `g · (kⱼ·C) · bⱼ^(kⱼ−1) · Π_{i≠j}
+    /// bᵢ^kᵢ`, with powers by squaring (`d³ = d²·d`), the constant product
+    /// formed once (a loop invariant) and no partial product of the chain
+    /// as written. The derivative may differ from the node-by-node rule by
+    /// rounding (a few ulps), not the primal value, which the forward code
+    /// computes as written where it is read.
+    fn reverse_chain(&mut self, chain: &Chain<'_>, g: TokenStream, out: &mut Vec<TokenStream>) -> Option<()> {
+        let numerator = chain.numerator.iter().map(|c| self.constant(c)).collect::<Option<Vec<_>>>()?;
+        let denominator = chain.denominator.iter().map(|c| self.constant(c)).collect::<Option<Vec<_>>>()?;
+        let mut values = Vec::with_capacity(chain.bases.len());
+        for (base, _) in &chain.bases {
+            values.push(self.value(base)?);
+        }
+        let mut powers = HashMap::new();
+        // `Π_{i≠j} bᵢ^kᵢ` from products of the powers before and after `j`.
+        let m = chain.bases.len();
+        let (mut before, mut after): (Vec<Option<TokenStream>>, Vec<Option<TokenStream>>) =
+            (vec![None; m + 1], vec![None; m + 1]);
+        for (j, &(base, k)) in chain.bases.iter().enumerate() {
+            if !self.depends_on_q(base) {
+                continue;
+            }
+            let mut factor = g.clone();
+            if let Some(constant) = chain_constant(k, &numerator, &denominator) {
+                factor = self.times(&factor, constant, false, out);
+            }
+            if let Some(power) = self.power(j, &values[j], k - 1, &mut powers, out) {
+                factor = self.times(&factor, power, true, out);
+            }
+            for others in [self.prefix(j, chain, &values, &mut before, &mut powers, out), {
+                self.suffix(j + 1, chain, &values, &mut after, &mut powers, out)
+            }]
+            .into_iter()
+            .flatten()
+            {
+                factor = self.times(&factor, others, true, out);
+            }
+            self.reverse(base, factor, out)?;
+        }
+        Some(())
+    }
+
+    /// `Π_{i<j} bᵢ^kᵢ` (`None`: empty), bound once per chain.
+    fn prefix(
+        &mut self,
+        j: usize,
+        chain: &Chain<'_>,
+        values: &[TokenStream],
+        memo: &mut [Option<TokenStream>],
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        if j == 0 {
+            return None;
+        }
+        if memo[j].is_none() {
+            let last = self.power(j - 1, &values[j - 1], chain.bases[j - 1].1, powers, out)?;
+            memo[j] = Some(match self.prefix(j - 1, chain, values, memo, powers, out) {
+                Some(rest) => self.bind(quote!(#rest * #last), out),
+                None => last,
+            });
+        }
+        memo[j].clone()
+    }
+
+    /// `Π_{i≥j} bᵢ^kᵢ` (`None`: empty), bound once per chain.
+    fn suffix(
+        &mut self,
+        j: usize,
+        chain: &Chain<'_>,
+        values: &[TokenStream],
+        memo: &mut [Option<TokenStream>],
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        if j >= chain.bases.len() {
+            return None;
+        }
+        if memo[j].is_none() {
+            let first = self.power(j, &values[j], chain.bases[j].1, powers, out)?;
+            memo[j] = Some(match self.suffix(j + 1, chain, values, memo, powers, out) {
+                Some(rest) => self.bind(quote!(#first * #rest), out),
+                None => first,
+            });
+        }
+        memo[j].clone()
+    }
+
+    /// `x^n` for the chain's base `j` (`None` for `n = 0`), by squaring,
+    /// each power bound once per chain.
+    fn power(
+        &mut self,
+        j: usize,
+        x: &TokenStream,
+        n: u32,
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        match n {
+            0 => None,
+            1 => Some(x.clone()),
+            _ => {
+                if let Some(power) = powers.get(&(j, n)) {
+                    return Some(power.clone());
+                }
+                let power = if n.is_multiple_of(2) {
+                    let half = self.power(j, x, n / 2, powers, out)?;
+                    self.bind(quote!(#half * #half), out)
+                } else {
+                    let lower = self.power(j, x, n - 1, powers, out)?;
+                    self.bind(quote!(#lower * #x), out)
+                };
+                powers.insert((j, n), power.clone());
+                Some(power)
+            }
         }
     }
 
@@ -974,6 +1174,39 @@ impl<'a> Adjoint<'a> {
             _ => return None,
         };
         Some(quote!((#printed)))
+    }
+}
+
+/// A product `C · Π bⱼ^kⱼ` read off a chain of `*` and of `/` by
+/// constants.
+struct Chain<'e> {
+    /// The constant factors, multiplied.
+    numerator: Vec<&'e Expr>,
+    /// The constant divisors.
+    denominator: Vec<&'e Expr>,
+    /// The distinct active factors with their multiplicities, in the order
+    /// they appear.
+    bases: Vec<(&'e Expr, u32)>,
+}
+
+/// `k · C` as one constant expression (`None` when it is one: `k = 1`, no
+/// constant factor): `(k · c₁ · c₂ …) / (d₁ · d₂ …)`, the literal `k` first
+/// so that `4.0 * 0.25` folds at compile time.
+fn chain_constant(k: u32, numerator: &[TokenStream], denominator: &[TokenStream]) -> Option<TokenStream> {
+    let k = (k > 1).then(|| {
+        let k = proc_macro2::Literal::f64_suffixed(f64::from(k));
+        quote!(#k)
+    });
+    let factors: Vec<TokenStream> = k.into_iter().chain(numerator.iter().cloned()).collect();
+    let product = factors.split_first().map(|(first, rest)| quote!(#first #(* #rest)*));
+    let divisor = denominator.split_first().map(|(first, rest)| quote!(#first #(* #rest)*));
+    match (product, divisor) {
+        (None, None) => None,
+        (Some(product), None) => Some(quote!((#product))),
+        (product, Some(divisor)) => {
+            let product = product.unwrap_or_else(|| quote!(1.0f64));
+            Some(quote!((#product / (#divisor))))
+        }
     }
 }
 
@@ -1484,6 +1717,50 @@ mod tests {
             let text = body.to_token_stream().to_string();
             assert_eq!(lagrangian(body.clone()).is_some(), generic(body).is_some(), "{text}");
         }
+    }
+
+    /// The reverse sweep of `body`: what follows the adjoints' declarations
+    /// (or the zeroing of `__out` when there are none).
+    fn reverse_of(body: syn::Block) -> String {
+        let out = lagrangian(body).unwrap();
+        let start = out.find("let mut __a").or_else(|| out.find("let __g")).unwrap();
+        out[start..].to_string()
+    }
+
+    #[test]
+    fn a_power_written_as_a_product_is_one_rule_with_its_constant_formed_once() {
+        let reverse = reverse_of(parse_quote!({
+            let d = q[1] - q[0];
+            0.25 * self.beta * d * d * d * d
+        }));
+        // One contribution to `d`: `g · (4 · 0.25 · β) · d³`, `d³ = d² · d`,
+        // not one per partial product of the chain.
+        assert_eq!(reverse.matches("__a0_0 +=").count(), 1, "{reverse}");
+        assert!(reverse.contains("= (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        assert!(reverse.contains("= __t0 * __t0 ;"), "{reverse}");
+        // No temporary of the forward sweep but `d`'s own is read: no
+        // partial product of the chain.
+        assert!(!reverse.contains("__t1"), "{reverse}");
+    }
+
+    #[test]
+    fn repeated_factors_among_others_and_divisions_by_constants_fold() {
+        let reverse = reverse_of(parse_quote!({ q[0] * q[1] * q[0] + q[2] * q[2] / self.c }));
+        // `x·y·x`: `x` gets `g · 2 · x · y` once, `y` gets `g · x²`.
+        assert_eq!(reverse.matches("__out [(0)] +=").count(), 1, "{reverse}");
+        assert_eq!(reverse.matches("__out [(1)] +=").count(), 1, "{reverse}");
+        // `z·z / c`: `g · (2 / c) · z`.
+        assert_eq!(reverse.matches("__out [(2)] +=").count(), 1, "{reverse}");
+        assert!(reverse.contains("(2f64 / (((self) . c)))"), "{reverse}");
+    }
+
+    #[test]
+    fn two_factor_products_keep_their_own_rule() {
+        // `c·x`, `x·y` and `x / c` cost one multiplication or division per
+        // operand either way: printed as before.
+        let reverse = reverse_of(parse_quote!({ self.c * q[0] + q[1] * q[2] + q[0] / self.c }));
+        assert!(!reverse.contains("f64 *"), "{reverse}");
+        assert!(reverse.contains("/ ((self) . c)"), "{reverse}");
     }
 
     #[test]
