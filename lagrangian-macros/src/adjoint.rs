@@ -149,6 +149,10 @@ struct Adjoint<'a> {
     temps: HashMap<*const Expr, usize>,
     /// The next adjoint temporary.
     next_adjoint: usize,
+    /// Adjoints of locals declared in the current scope of the reverse
+    /// sweep and not yet printed: the first contribution binds them
+    /// (`let mut __a = g`, not `0 + g`, which IEEE does not fold).
+    pending: Vec<(LocalId, usize)>,
     /// Differentiate in `v` too (`gradient_qv`), not only in `q`.
     with_v: bool,
     /// Print generic over the scalar `__D` instead of in `f64`.
@@ -167,6 +171,7 @@ impl<'a> Adjoint<'a> {
             needed: vec![false; n],
             temps: HashMap::new(),
             next_adjoint: 0,
+            pending: Vec::new(),
             with_v: false,
             generic: false,
         }
@@ -236,7 +241,7 @@ impl<'a> Adjoint<'a> {
         // The reverse sweep first, so that it says which accumulators the
         // forward sweep must compute.
         let mut reverse = Vec::new();
-        reverse.push(self.declare_adjoints(stmts));
+        self.declare_adjoints(stmts);
         if tail.class.is_active() && self.depends_on_q(tail) {
             let seed = self.one();
             self.reverse(tail, seed, &mut reverse)?;
@@ -493,10 +498,10 @@ impl<'a> Adjoint<'a> {
         depends
     }
 
-    /// `let mut __a{id} = 0.0;` for the active locals `stmts` declare that
-    /// depend on `q`.
-    fn declare_adjoints(&self, stmts: &[Stmt]) -> TokenStream {
-        let mut out = TokenStream::new();
+    /// Makes the adjoints of the active locals `stmts` declare that depend
+    /// on `q` pending: printed at their first contribution, or as zero where
+    /// they are read (or may be written in a loop) before it.
+    fn declare_adjoints(&mut self, stmts: &[Stmt]) {
         for stmt in stmts {
             let defined: Vec<(LocalId, usize)> = match stmt {
                 Stmt::Let { bindings, .. } => {
@@ -513,13 +518,26 @@ impl<'a> Adjoint<'a> {
             };
             for (local, version) in defined {
                 if self.function.locals[local.0].class.is_active() && self.local_depends(local, version) {
-                    let adjoint = adjoint_name(local, version);
-                    let zero = self.zero();
-                    out.extend(quote!(let mut #adjoint = #zero;));
+                    self.pending.push((local, version));
                 }
             }
         }
-        out
+    }
+
+    /// Prints a pending adjoint as zero (`let mut __a = 0.0`).
+    fn declare_zero(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) {
+        if let Some(position) = self.pending.iter().position(|p| *p == (local, version)) {
+            self.pending.remove(position);
+            let (adjoint, ty, zero) = (adjoint_name(local, version), self.ty(), self.zero());
+            out.push(quote!(let mut #adjoint: #ty = #zero;));
+        }
+    }
+
+    /// The adjoint of a local where it is read: declared as zero first if
+    /// nothing contributed to it yet.
+    fn read_adjoint(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) -> TokenStream {
+        self.declare_zero(local, version, out);
+        adjoint_name(local, version).into_token_stream()
     }
 
     /// The forward code of one statement. `top`: outside every loop (loops
@@ -620,7 +638,8 @@ impl<'a> Adjoint<'a> {
                 for (binding, init) in bindings.iter().zip(inits).rev() {
                     let Some(local) = binding.local else { continue };
                     if self.local_depends(local, 0) && self.depends_on_q(init) {
-                        self.reverse(init, adjoint_name(local, 0).into_token_stream(), out)?;
+                        let adjoint = self.read_adjoint(local, 0, out);
+                        self.reverse(init, adjoint, out)?;
                     }
                 }
                 Some(())
@@ -630,6 +649,22 @@ impl<'a> Adjoint<'a> {
                     if !self.loop_depends_on_q(body) {
                         return Some(());
                     }
+                    // Adjoints the loop may add to exist before it, as zero
+                    // if nothing contributed yet; the loop's own are pending
+                    // in its body.
+                    let mut read = Vec::new();
+                    body.visit(&mut |e: &Expr| {
+                        if let ExprKind::Local(id, _) = e.kind {
+                            read.push(id);
+                        }
+                        true
+                    });
+                    for (local, version) in self.pending.clone() {
+                        if read.contains(&local) {
+                            self.declare_zero(local, version, out);
+                        }
+                    }
+                    let outer = std::mem::take(&mut self.pending);
                     // Recompute the body's intermediates, then propagate.
                     let mut inner = Vec::new();
                     for stmt in &body.stmts {
@@ -644,10 +679,12 @@ impl<'a> Adjoint<'a> {
                             Stmt::Item(_) => return None,
                         }
                     }
-                    inner.push(self.declare_adjoints(&body.stmts));
+                    self.declare_adjoints(&body.stmts);
                     for stmt in body.stmts.iter().rev() {
                         self.reverse_stmt(stmt, &mut inner)?;
                     }
+                    // Adjoints nothing contributed to are not printed.
+                    self.pending = outer;
                     let var = loop_var(var.as_ref().map(|(id, _)| *id));
                     let (start, end) = (self.constant(start)?, self.constant(end)?);
                     out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
@@ -657,7 +694,8 @@ impl<'a> Adjoint<'a> {
                     let ExprKind::Local(id, _) = place.kind else { return None };
                     let version = self.version(expr);
                     if self.local_depends(id, version) && self.depends_on_q(value) {
-                        self.reverse(value, adjoint_name(id, version).into_token_stream(), out)?;
+                        let adjoint = self.read_adjoint(id, version, out);
+                        self.reverse(value, adjoint, out)?;
                     }
                     Some(())
                 }
@@ -666,7 +704,7 @@ impl<'a> Adjoint<'a> {
                     if !self.depends_on_q(value) {
                         return Some(());
                     }
-                    let adjoint = adjoint_name(id, 0);
+                    let adjoint = self.read_adjoint(id, 0, out);
                     let g = match op {
                         BinOp::AddAssign(_) => adjoint.into_token_stream(),
                         BinOp::SubAssign(_) => self.bind(quote!(-#adjoint), out),
@@ -857,8 +895,16 @@ impl<'a> Adjoint<'a> {
                 Some(())
             }
             ExprKind::Local(id, _) => {
-                let adjoint = adjoint_name(*id, self.version(expr));
-                out.push(quote!(#adjoint += #g;));
+                let version = self.version(expr);
+                let adjoint = adjoint_name(*id, version);
+                match self.pending.iter().position(|p| *p == (*id, version)) {
+                    Some(position) => {
+                        self.pending.remove(position);
+                        let ty = self.ty();
+                        out.push(quote!(let mut #adjoint: #ty = #g;));
+                    }
+                    None => out.push(quote!(#adjoint += #g;)),
+                }
                 Some(())
             }
             ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
@@ -971,14 +1017,23 @@ impl<'a> Adjoint<'a> {
                 self.flatten(lhs, chain);
                 chain.denominator.push(rhs);
             }
-            _ => {
-                // Reads of the same value (a local's version, `q[i]` at the
-                // same index) are one factor with a multiplicity.
-                let key = self.leaf_key(expr);
-                match chain.bases.iter_mut().find(|(base, _)| key.is_some() && self.leaf_key(base) == key) {
-                    Some((_, k)) => *k += 1,
-                    None => chain.bases.push((expr, 1)),
-                }
+            // `x.powi(4)` in a product is `x` four times (its own rule would
+            // multiply by `4` and by the chain's constants separately).
+            ExprKind::MethodCall { receiver, math: Math::Powi, args, .. }
+                if let Some(n) = args.first().and_then(integer_literal).filter(|n| *n >= 1) =>
+            {
+                add_base(self, chain, receiver, n);
+            }
+            _ => add_base(self, chain, expr, 1),
+        }
+
+        /// Reads of the same value (a local's version, `q[i]` at the same
+        /// index) are one factor with a multiplicity.
+        fn add_base<'e>(this: &Adjoint<'_>, chain: &mut Chain<'e>, expr: &'e Expr, n: u32) {
+            let key = this.leaf_key(expr);
+            match chain.bases.iter_mut().find(|(base, _)| key.is_some() && this.leaf_key(base) == key) {
+                Some((_, k)) => *k += n,
+                None => chain.bases.push((expr, n)),
             }
         }
     }
@@ -1187,6 +1242,16 @@ struct Chain<'e> {
     /// The distinct active factors with their multiplicities, in the order
     /// they appear.
     bases: Vec<(&'e Expr, u32)>,
+}
+
+/// The value of an integer literal (in parentheses or not), for the
+/// exponent of `powi`.
+fn integer_literal(expr: &Expr) -> Option<u32> {
+    match &expr.kind {
+        ExprKind::Paren(inner) => integer_literal(inner),
+        ExprKind::Lit(syn::Lit::Int(int)) => int.base10_parse().ok(),
+        _ => None,
+    }
 }
 
 /// `k · C` as one constant expression (`None` when it is one: `k = 1`, no
@@ -1723,7 +1788,7 @@ mod tests {
     /// (or the zeroing of `__out` when there are none).
     fn reverse_of(body: syn::Block) -> String {
         let out = lagrangian(body).unwrap();
-        let start = out.find("let mut __a").or_else(|| out.find("let __g")).unwrap();
+        let start = ["let mut __a", "let __g"].iter().filter_map(|s| out.find(s)).min().unwrap();
         out[start..].to_string()
     }
 
@@ -1735,7 +1800,8 @@ mod tests {
         }));
         // One contribution to `d`: `g · (4 · 0.25 · β) · d³`, `d³ = d² · d`,
         // not one per partial product of the chain.
-        assert_eq!(reverse.matches("__a0_0 +=").count(), 1, "{reverse}");
+        assert!(reverse.contains("let mut __a0_0 : f64 = __g"), "{reverse}");
+        assert!(!reverse.contains("__a0_0 +="), "{reverse}");
         assert!(reverse.contains("= (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
         assert!(reverse.contains("= __t0 * __t0 ;"), "{reverse}");
         // No temporary of the forward sweep but `d`'s own is read: no
@@ -1752,6 +1818,23 @@ mod tests {
         // `z·z / c`: `g · (2 / c) · z`.
         assert_eq!(reverse.matches("__out [(2)] +=").count(), 1, "{reverse}");
         assert!(reverse.contains("(2f64 / (((self) . c)))"), "{reverse}");
+    }
+
+    #[test]
+    fn an_adjoint_is_bound_by_its_first_contribution_and_zero_only_before_a_loop_adds_to_it() {
+        let reverse = reverse_of(parse_quote!({
+            let x = q[0] * q[1];
+            let mut s = x.sin();
+            for i in 0..3 {
+                s += x * q[i];
+            }
+            s
+        }));
+        // `s` gets its adjoint from the tail; `x` is added to in the loop,
+        // so it exists (as zero) before it.
+        assert!(reverse.contains("let mut __a1_0 : f64 = 1.0f64 ;"), "{reverse}");
+        assert!(reverse.contains("let mut __a0_0 : f64 = 0.0f64 ; for"), "{reverse}");
+        assert!(!reverse.contains("__a1_0 +="), "{reverse}");
     }
 
     #[test]

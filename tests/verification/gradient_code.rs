@@ -87,7 +87,7 @@ impl<const N: usize> FpuProducts<N> {
 /// Product chains of every shape the folding reads: constants first, last
 /// and between active factors, repeated factors among distinct ones
 /// (locals, `q[i]` and `v[i]` read directly, sums), divisions by constants,
-/// a seventh power.
+/// a seventh power, `powi` with a literal exponent among the factors.
 pub struct Products {
     pub c: f64,
 }
@@ -102,6 +102,8 @@ impl Products {
             - x * 0.5 * y * self.c * x * d / 3.0
             + t * q[2] * t
             + (y * y * y * y * y * y * y) / (2.0 * self.c)
+            + 0.3 * y.powi(3) * x * y
+            - self.c * d.powi(4) * 0.25
     }
 }
 
