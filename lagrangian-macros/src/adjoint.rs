@@ -21,6 +21,13 @@
 //! reverse sweep reads the value of one of its accumulators (`s * s`), not
 //! when the Lagrangian only returns it.
 //!
+//! A product chain (`0.25 * β * d * d * d * d`, `x * y * x`, `d * d / c`,
+//! `c * d.powi(4)`) is differentiated as one product `C · Π bⱼ^kⱼ`, not node
+//! by node: each distinct active factor gets `kⱼ · C · bⱼ^(kⱼ−1) · Π_{i≠j}
+//! bᵢ^kᵢ`, powers by squaring, the constants multiplied once. Written out
+//! by the user's association, the chain's reverse sweep would pay every
+//! partial product. This rounds the derivative differently, by ulps.
+//!
 //! Anything outside the subset — `if`, blocks, `return`, arrays of active
 //! values, assignments other than accumulation, an accumulator read inside a
 //! loop, an active `powf` exponent — yields no gradient code, and the
