@@ -946,6 +946,16 @@ impl<'a> Adjoint<'a> {
                         }
                         Some(())
                     }
+                    // `c / √s` (a potential `μ / r`): the adjoint of `s` is
+                    // `−c·g / (2 s √s)`, one division instead of the
+                    // quotient's and the square root's one each.
+                    BinOp::Div(_) if !lhs.class.is_active() && self.square_root(rhs).is_some() => {
+                        let (root, s) = (self.value(rhs)?, self.square_root(rhs)?);
+                        let (c, s_value) = (self.constant(lhs)?, self.value(s)?);
+                        let scaled = self.times(&g, quote!((-0.5f64 * #c)), false, out);
+                        let g = self.bind(quote!(#scaled / (#s_value * #root)), out);
+                        self.reverse(s, g, out)
+                    }
                     BinOp::Div(_) => {
                         let y = self.value(rhs)?;
                         if a {
@@ -990,6 +1000,19 @@ impl<'a> Adjoint<'a> {
                     }
                 }
                 Some(())
+            }
+            _ => None,
+        }
+    }
+
+    /// `s` when `expr` is `s.sqrt()` (in parentheses or not).
+    fn square_root<'e>(&self, expr: &'e Expr) -> Option<&'e Expr> {
+        match &expr.kind {
+            ExprKind::Paren(inner) => self.square_root(inner),
+            ExprKind::MethodCall { receiver, method, math, args, .. }
+                if matches!(Rule::of(&method.to_string(), *math, args), Some(Rule::Unary(Unary::Sqrt))) =>
+            {
+                Some(receiver)
             }
             _ => None,
         }
@@ -1842,6 +1865,14 @@ mod tests {
         assert!(reverse.contains("let mut __a1_0 : f64 = 1.0f64 ;"), "{reverse}");
         assert!(reverse.contains("let mut __a0_0 : f64 = 0.0f64 ; for"), "{reverse}");
         assert!(!reverse.contains("__a1_0 +="), "{reverse}");
+    }
+
+    #[test]
+    fn a_constant_over_a_square_root_costs_one_division() {
+        let reverse = reverse_of(parse_quote!({ self.mu / (q[0] * q[0] + q[1] * q[1]).sqrt() }));
+        assert_eq!(reverse.matches(" / ").count(), 1, "{reverse}");
+        assert!(reverse.contains("(- 0.5f64 * ((self) . mu))"), "{reverse}");
+        assert!(!reverse.contains("0.5f64 / "), "{reverse}");
     }
 
     #[test]
