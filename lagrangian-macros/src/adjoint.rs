@@ -1868,6 +1868,16 @@ mod tests {
     }
 
     #[test]
+    fn powi_with_a_literal_exponent_is_a_repeated_factor_of_its_chain() {
+        let reverse = reverse_of(parse_quote!({ 0.5 * q[0] * q[0] + 0.25 * self.beta * q[0].powi(4) + q[1].powi(3) }));
+        // `4 · 0.25 · β` in one constant, `x³` by multiplications; alone,
+        // `powi` keeps its own rule.
+        assert!(reverse.contains("(4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        assert_eq!(reverse.matches("f64 :: powi").count(), 1, "{reverse}");
+        assert!(reverse.contains("f64 :: powi (__t"), "{reverse}");
+    }
+
+    #[test]
     fn a_constant_over_a_square_root_costs_one_division() {
         let reverse = reverse_of(parse_quote!({ self.mu / (q[0] * q[0] + q[1] * q[1]).sqrt() }));
         assert_eq!(reverse.matches(" / ").count(), 1, "{reverse}");
