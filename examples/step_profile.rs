@@ -21,6 +21,8 @@
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
+//! `gradient` (`fpu`, `chain1000`, `kepler`, `henon-heiles`; `fpu gradient-powi`): the macro's `gradient_q`
+//! alone, one evaluation per "step"; `force`: the hand-written force of the `verlet` case instead.
 //! `trace-midpoint`, `trace-trapezoid`, `trace-alpha-beta` (α = 0.3; `pendulum` or `double pendulum`)
 //! print the positions of every node as bit patterns, to compare the trajectories of two builds;
 //! `trace-midpoint-nudged` starts midpoint from `q0[0]` one ulp up (what round-off alone does),
@@ -41,7 +43,9 @@ use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 use compositions::{Composition as Hand, Stepper};
 use handwritten::*;
 use lagrangian::derivatives::step_derivatives;
-use lagrangian::{Composition, Galerkin, GalerkinIntegrator, Integrator, Midpoint, Segment, StepBounds, Trapezoid};
+use lagrangian::{
+    Composition, Galerkin, GalerkinIntegrator, Integrator, Lagrangian, Midpoint, Segment, StepBounds, Trapezoid,
+};
 use std::hint::black_box;
 
 const H: f64 = 0.01;
@@ -401,6 +405,20 @@ fn main() {
             run(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
         }
         ("chain1000", "verlet") => hand_verlet(chain_force, &[1.0], 0.05, chain_q0(), [0.0; CHAIN_N], n),
+        // The generated gradient `∂L/∂q` alone against the hand-written
+        // force it replaces in the explicit step (`gradient-powi`: the FPU
+        // chain written with `d.powi(4)`).
+        ("fpu", "gradient") => repeat(|q, out| Fpu.gradient_q(0.0, q, &[0.0; FPU_N], out), fpu_q0(), n),
+        ("fpu", "gradient-powi") => repeat(|q, out| Chain::<FPU_N>.gradient_q(0.0, q, &[0.0; FPU_N], out), fpu_q0(), n),
+        ("fpu", "force") => repeat(|q, out| *out = fpu_force(q), fpu_q0(), n),
+        ("chain1000", "gradient") => {
+            repeat(|q, out| Chain::<CHAIN_N>.gradient_q(0.0, q, &[0.0; CHAIN_N], out), chain_q0(), n)
+        }
+        ("chain1000", "force") => repeat(|q, out| *out = chain_force(q), chain_q0::<CHAIN_N>(), n),
+        ("kepler", "gradient") => repeat(|q, out| Kepler.gradient_q(0.0, q, &[0.0; 2], out), KEPLER_Q0, n),
+        ("kepler", "force") => repeat(|q, out| *out = kepler_force(q), KEPLER_Q0, n),
+        ("henon-heiles", "gradient") => repeat(|q, out| HenonHeiles.gradient_q(0.0, q, &[0.0; 2], out), HH_Q0, n),
+        ("henon-heiles", "force") => repeat(|q, out| *out = henon_heiles_force(q), HH_Q0, n),
         (_, "derivatives") => {
             // The derivative evaluation alone: one `step_derivatives` (residual
             // part, momentum, Jacobian) per "step", at nearby segments (every input
@@ -454,6 +472,19 @@ fn main() {
     };
     let ns = start.elapsed().as_nanos() as f64 / n.max(1) as f64;
     println!("{ns:.1} ns/step, q = {:?}", black_box(q));
+}
+
+/// `n` evaluations of a gradient or force `f` at positions that differ
+/// from `q0` in the first coordinate (nothing is hoisted out of the loop);
+/// every result is kept (`black_box`), so no component is skipped.
+fn repeat<const N: usize>(f: impl Fn(&[f64; N], &mut [f64; N]), q0: [f64; N], n: usize) -> Vec<f64> {
+    let (mut q, mut out, mut acc) = (q0, [0.0; N], 0.0);
+    for k in 0..n {
+        q[0] = q0[0] + black_box(1e-9 * k as f64);
+        f(black_box(&q), &mut out);
+        acc += black_box(&out)[N - 1];
+    }
+    vec![acc]
 }
 
 /// `n` steps of `rule` (`midpoint`, `trapezoid` or `alpha-beta`, α = 0.3),

@@ -21,6 +21,13 @@
 //! reverse sweep reads the value of one of its accumulators (`s * s`), not
 //! when the Lagrangian only returns it.
 //!
+//! A product chain (`0.25 * β * d * d * d * d`, `x * y * x`, `d * d / c`,
+//! `c * d.powi(4)`) is differentiated as one product `C · Π bⱼ^kⱼ`, not node
+//! by node: each distinct active factor gets `kⱼ · C · bⱼ^(kⱼ−1) · Π_{i≠j}
+//! bᵢ^kᵢ`, powers by squaring, the constants multiplied once. Written out
+//! by the user's association, the chain's reverse sweep would pay every
+//! partial product. This rounds the derivative differently, by ulps.
+//!
 //! Anything outside the subset — `if`, blocks, `return`, arrays of active
 //! values, assignments other than accumulation, an accumulator read inside a
 //! loop, an active `powf` exponent — yields no gradient code, and the
@@ -149,6 +156,10 @@ struct Adjoint<'a> {
     temps: HashMap<*const Expr, usize>,
     /// The next adjoint temporary.
     next_adjoint: usize,
+    /// Adjoints of locals declared in the current scope of the reverse
+    /// sweep and not yet printed: the first contribution binds them
+    /// (`let mut __a = g`, not `0 + g`, which IEEE does not fold).
+    pending: Vec<(LocalId, usize)>,
     /// Differentiate in `v` too (`gradient_qv`), not only in `q`.
     with_v: bool,
     /// Print generic over the scalar `__D` instead of in `f64`.
@@ -167,6 +178,7 @@ impl<'a> Adjoint<'a> {
             needed: vec![false; n],
             temps: HashMap::new(),
             next_adjoint: 0,
+            pending: Vec::new(),
             with_v: false,
             generic: false,
         }
@@ -236,9 +248,9 @@ impl<'a> Adjoint<'a> {
         // The reverse sweep first, so that it says which accumulators the
         // forward sweep must compute.
         let mut reverse = Vec::new();
-        reverse.push(self.declare_adjoints(stmts));
+        self.declare_adjoints(stmts);
         if tail.class.is_active() && self.depends_on_q(tail) {
-            let seed = self.active(quote!(1.0f64));
+            let seed = self.one();
             self.reverse(tail, seed, &mut reverse)?;
         }
         for stmt in stmts.iter().rev() {
@@ -493,10 +505,10 @@ impl<'a> Adjoint<'a> {
         depends
     }
 
-    /// `let mut __a{id} = 0.0;` for the active locals `stmts` declare that
-    /// depend on `q`.
-    fn declare_adjoints(&self, stmts: &[Stmt]) -> TokenStream {
-        let mut out = TokenStream::new();
+    /// Makes the adjoints of the active locals `stmts` declare that depend
+    /// on `q` pending: printed at their first contribution, or as zero where
+    /// they are read (or may be written in a loop) before it.
+    fn declare_adjoints(&mut self, stmts: &[Stmt]) {
         for stmt in stmts {
             let defined: Vec<(LocalId, usize)> = match stmt {
                 Stmt::Let { bindings, .. } => {
@@ -513,13 +525,26 @@ impl<'a> Adjoint<'a> {
             };
             for (local, version) in defined {
                 if self.function.locals[local.0].class.is_active() && self.local_depends(local, version) {
-                    let adjoint = adjoint_name(local, version);
-                    let zero = self.zero();
-                    out.extend(quote!(let mut #adjoint = #zero;));
+                    self.pending.push((local, version));
                 }
             }
         }
-        out
+    }
+
+    /// Prints a pending adjoint as zero (`let mut __a = 0.0`).
+    fn declare_zero(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) {
+        if let Some(position) = self.pending.iter().position(|p| *p == (local, version)) {
+            self.pending.remove(position);
+            let (adjoint, ty, zero) = (adjoint_name(local, version), self.ty(), self.zero());
+            out.push(quote!(let mut #adjoint: #ty = #zero;));
+        }
+    }
+
+    /// The adjoint of a local where it is read: declared as zero first if
+    /// nothing contributed to it yet.
+    fn read_adjoint(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) -> TokenStream {
+        self.declare_zero(local, version, out);
+        adjoint_name(local, version).into_token_stream()
     }
 
     /// The forward code of one statement. `top`: outside every loop (loops
@@ -620,7 +645,8 @@ impl<'a> Adjoint<'a> {
                 for (binding, init) in bindings.iter().zip(inits).rev() {
                     let Some(local) = binding.local else { continue };
                     if self.local_depends(local, 0) && self.depends_on_q(init) {
-                        self.reverse(init, adjoint_name(local, 0).into_token_stream(), out)?;
+                        let adjoint = self.read_adjoint(local, 0, out);
+                        self.reverse(init, adjoint, out)?;
                     }
                 }
                 Some(())
@@ -630,6 +656,22 @@ impl<'a> Adjoint<'a> {
                     if !self.loop_depends_on_q(body) {
                         return Some(());
                     }
+                    // Adjoints the loop may add to exist before it, as zero
+                    // if nothing contributed yet; the loop's own are pending
+                    // in its body.
+                    let mut read = Vec::new();
+                    body.visit(&mut |e: &Expr| {
+                        if let ExprKind::Local(id, _) = e.kind {
+                            read.push(id);
+                        }
+                        true
+                    });
+                    for (local, version) in self.pending.clone() {
+                        if read.contains(&local) {
+                            self.declare_zero(local, version, out);
+                        }
+                    }
+                    let outer = std::mem::take(&mut self.pending);
                     // Recompute the body's intermediates, then propagate.
                     let mut inner = Vec::new();
                     for stmt in &body.stmts {
@@ -644,10 +686,12 @@ impl<'a> Adjoint<'a> {
                             Stmt::Item(_) => return None,
                         }
                     }
-                    inner.push(self.declare_adjoints(&body.stmts));
+                    self.declare_adjoints(&body.stmts);
                     for stmt in body.stmts.iter().rev() {
                         self.reverse_stmt(stmt, &mut inner)?;
                     }
+                    // Adjoints nothing contributed to are not printed.
+                    self.pending = outer;
                     let var = loop_var(var.as_ref().map(|(id, _)| *id));
                     let (start, end) = (self.constant(start)?, self.constant(end)?);
                     out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
@@ -657,7 +701,8 @@ impl<'a> Adjoint<'a> {
                     let ExprKind::Local(id, _) = place.kind else { return None };
                     let version = self.version(expr);
                     if self.local_depends(id, version) && self.depends_on_q(value) {
-                        self.reverse(value, adjoint_name(id, version).into_token_stream(), out)?;
+                        let adjoint = self.read_adjoint(id, version, out);
+                        self.reverse(value, adjoint, out)?;
                     }
                     Some(())
                 }
@@ -666,7 +711,7 @@ impl<'a> Adjoint<'a> {
                     if !self.depends_on_q(value) {
                         return Some(());
                     }
-                    let adjoint = adjoint_name(id, 0);
+                    let adjoint = self.read_adjoint(id, 0, out);
                     let g = match op {
                         BinOp::AddAssign(_) => adjoint.into_token_stream(),
                         BinOp::SubAssign(_) => self.bind(quote!(-#adjoint), out),
@@ -700,6 +745,24 @@ impl<'a> Adjoint<'a> {
         let ty = self.ty();
         out.push(quote!(let #g: #ty = #value;));
         g.into_token_stream()
+    }
+
+    /// The seed of the reverse sweep, the adjoint of `L`: one.
+    fn one(&self) -> TokenStream {
+        self.active(quote!(1.0f64))
+    }
+
+    /// `g · x` bound to an adjoint temporary; `x` alone when `g` is the
+    /// seed (`x · 1` is `x`, and on dual numbers the product would not be
+    /// free). `active`: whether `x` is an active value (a constant is made
+    /// one in generic code).
+    fn times(&mut self, g: &TokenStream, x: TokenStream, active: bool, out: &mut Vec<TokenStream>) -> TokenStream {
+        if g.to_string() == self.one().to_string() {
+            let x = self.active_if(!active, x);
+            self.bind(x, out)
+        } else {
+            self.bind(quote!(#g * #x), out)
+        }
     }
 
     /// The temporary of an active node.
@@ -822,6 +885,9 @@ impl<'a> Adjoint<'a> {
         if !self.depends_on_q(expr) {
             return Some(());
         }
+        if let Some(chain) = self.product_chain(expr) {
+            return self.reverse_chain(&chain, g, out);
+        }
         match &expr.kind {
             ExprKind::Paren(inner) => self.reverse(inner, g, out),
             ExprKind::Cast { expr: inner, .. } => self.reverse(inner, g, out),
@@ -836,8 +902,16 @@ impl<'a> Adjoint<'a> {
                 Some(())
             }
             ExprKind::Local(id, _) => {
-                let adjoint = adjoint_name(*id, self.version(expr));
-                out.push(quote!(#adjoint += #g;));
+                let version = self.version(expr);
+                let adjoint = adjoint_name(*id, version);
+                match self.pending.iter().position(|p| *p == (*id, version)) {
+                    Some(position) => {
+                        self.pending.remove(position);
+                        let ty = self.ty();
+                        out.push(quote!(let mut #adjoint: #ty = #g;));
+                    }
+                    None => out.push(quote!(#adjoint += #g;)),
+                }
                 Some(())
             }
             ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
@@ -862,15 +936,25 @@ impl<'a> Adjoint<'a> {
                     BinOp::Mul(_) => {
                         if a {
                             let y = self.value(rhs)?;
-                            let g = self.bind(quote!(#g * #y), out);
+                            let g = self.times(&g, y, rhs.class.is_active(), out);
                             self.reverse(lhs, g, out)?;
                         }
                         if b {
                             let x = self.value(lhs)?;
-                            let g = self.bind(quote!(#g * #x), out);
+                            let g = self.times(&g, x, lhs.class.is_active(), out);
                             self.reverse(rhs, g, out)?;
                         }
                         Some(())
+                    }
+                    // `c / √s` (a potential `μ / r`): the adjoint of `s` is
+                    // `−c·g / (2 s √s)`, one division instead of the
+                    // quotient's and the square root's one each.
+                    BinOp::Div(_) if !lhs.class.is_active() && self.square_root(rhs).is_some() => {
+                        let (root, s) = (self.value(rhs)?, self.square_root(rhs)?);
+                        let (c, s_value) = (self.constant(lhs)?, self.value(s)?);
+                        let scaled = self.times(&g, quote!((-0.5f64 * #c)), false, out);
+                        let g = self.bind(quote!(#scaled / (#s_value * #root)), out);
+                        self.reverse(s, g, out)
                     }
                     BinOp::Div(_) => {
                         let y = self.value(rhs)?;
@@ -911,13 +995,214 @@ impl<'a> Adjoint<'a> {
                     if let Some(partial) = partial
                         && self.depends_on_q(operand)
                     {
-                        let g = self.bind(quote!(#g * (#partial)), out);
+                        let g = self.times(&g, quote!((#partial)), true, out);
                         self.reverse(operand, g, out)?;
                     }
                 }
                 Some(())
             }
             _ => None,
+        }
+    }
+
+    /// `s` when `expr` is `s.sqrt()` (in parentheses or not).
+    fn square_root<'e>(&self, expr: &'e Expr) -> Option<&'e Expr> {
+        match &expr.kind {
+            ExprKind::Paren(inner) => self.square_root(inner),
+            ExprKind::MethodCall { receiver, method, math, args, .. }
+                if matches!(Rule::of(&method.to_string(), *math, args), Some(Rule::Unary(Unary::Sqrt))) =>
+            {
+                Some(receiver)
+            }
+            _ => None,
+        }
+    }
+
+    /// The product chain rooted at `expr` (`c * d * d / k`, any association
+    /// of `*` and of `/` by constants) when folding it into one rule per
+    /// distinct active factor pays: three factors or more, or an active
+    /// factor that repeats. `None` otherwise (the node's own rule is as
+    /// cheap: `c * x`, `x * y`, `x / c`).
+    fn product_chain<'e>(&self, expr: &'e Expr) -> Option<Chain<'e>> {
+        if !matches!(expr.kind, ExprKind::Binary { op: BinOp::Mul(_) | BinOp::Div(_), .. }) {
+            return None;
+        }
+        let mut chain = Chain { numerator: Vec::new(), denominator: Vec::new(), bases: Vec::new() };
+        self.flatten(expr, &mut chain);
+        let factors =
+            chain.numerator.len() + chain.denominator.len() + chain.bases.iter().map(|b| b.1 as usize).sum::<usize>();
+        (factors >= 3 || chain.bases.iter().any(|b| b.1 > 1)).then_some(chain)
+    }
+
+    /// Collects the factors of a product into `chain`.
+    fn flatten<'e>(&self, expr: &'e Expr, chain: &mut Chain<'e>) {
+        match &expr.kind {
+            _ if !expr.class.is_active() => chain.numerator.push(expr),
+            ExprKind::Paren(inner) => self.flatten(inner, chain),
+            ExprKind::Binary { lhs, op: BinOp::Mul(_), rhs } => {
+                self.flatten(lhs, chain);
+                self.flatten(rhs, chain);
+            }
+            ExprKind::Binary { lhs, op: BinOp::Div(_), rhs } if !rhs.class.is_active() => {
+                self.flatten(lhs, chain);
+                chain.denominator.push(rhs);
+            }
+            // `x.powi(4)` in a product is `x` four times (its own rule would
+            // multiply by `4` and by the chain's constants separately).
+            ExprKind::MethodCall { receiver, math: Math::Powi, args, .. }
+                if let Some(n) = args.first().and_then(integer_literal).filter(|n| *n >= 1) =>
+            {
+                add_base(self, chain, receiver, n);
+            }
+            _ => add_base(self, chain, expr, 1),
+        }
+
+        /// Reads of the same value (a local's version, `q[i]` at the same
+        /// index) are one factor with a multiplicity.
+        fn add_base<'e>(this: &Adjoint<'_>, chain: &mut Chain<'e>, expr: &'e Expr, n: u32) {
+            let key = this.leaf_key(expr);
+            match chain.bases.iter_mut().find(|(base, _)| key.is_some() && this.leaf_key(base) == key) {
+                Some((_, k)) => *k += n,
+                None => chain.bases.push((expr, n)),
+            }
+        }
+    }
+
+    /// What identifies the value of a leaf: a local's version, `q[i]` or
+    /// `v[i]` at an index printed the same, `t`. `None` for other nodes.
+    fn leaf_key(&self, expr: &Expr) -> Option<String> {
+        match &expr.kind {
+            ExprKind::Paren(inner) => self.leaf_key(inner),
+            ExprKind::Local(id, _) => Some(format!("l{}_{}", id.0, self.version(expr))),
+            ExprKind::Param(ParamRef::Time, _) => Some("t".into()),
+            ExprKind::Index { base, index, .. } => {
+                let param = match base.kind {
+                    ExprKind::Param(ParamRef::Q, _) => "q",
+                    ExprKind::Param(ParamRef::V, _) => "v",
+                    _ => return None,
+                };
+                Some(format!("{param}[{}]", self.constant(index)?))
+            }
+            _ => None,
+        }
+    }
+
+    /// The reverse code of a product chain `C · Π bⱼ^kⱼ` (`C` the constant
+    /// factors): the adjoint of `bⱼ` gets `g · (kⱼ·C) · bⱼ^(kⱼ−1) · Π_{i≠j}
+    /// bᵢ^kᵢ`, with powers by squaring (`d³ = d²·d`), the constant product
+    /// formed once (a loop invariant) and no partial product of the chain
+    /// as written. The derivative may differ from the node-by-node rule by
+    /// rounding (a few ulps), not the primal value, which the forward code
+    /// computes as written where it is read.
+    fn reverse_chain(&mut self, chain: &Chain<'_>, g: TokenStream, out: &mut Vec<TokenStream>) -> Option<()> {
+        let numerator = chain.numerator.iter().map(|c| self.constant(c)).collect::<Option<Vec<_>>>()?;
+        let denominator = chain.denominator.iter().map(|c| self.constant(c)).collect::<Option<Vec<_>>>()?;
+        let mut values = Vec::with_capacity(chain.bases.len());
+        for (base, _) in &chain.bases {
+            values.push(self.value(base)?);
+        }
+        let mut powers = HashMap::new();
+        // `Π_{i≠j} bᵢ^kᵢ` from products of the powers before and after `j`.
+        let m = chain.bases.len();
+        let (mut before, mut after): (Vec<Option<TokenStream>>, Vec<Option<TokenStream>>) =
+            (vec![None; m + 1], vec![None; m + 1]);
+        for (j, &(base, k)) in chain.bases.iter().enumerate() {
+            if !self.depends_on_q(base) {
+                continue;
+            }
+            let mut factor = g.clone();
+            if let Some(constant) = chain_constant(k, &numerator, &denominator) {
+                factor = self.times(&factor, constant, false, out);
+            }
+            if let Some(power) = self.power(j, &values[j], k - 1, &mut powers, out) {
+                factor = self.times(&factor, power, true, out);
+            }
+            for others in [self.prefix(j, chain, &values, &mut before, &mut powers, out), {
+                self.suffix(j + 1, chain, &values, &mut after, &mut powers, out)
+            }]
+            .into_iter()
+            .flatten()
+            {
+                factor = self.times(&factor, others, true, out);
+            }
+            self.reverse(base, factor, out)?;
+        }
+        Some(())
+    }
+
+    /// `Π_{i<j} bᵢ^kᵢ` (`None`: empty), bound once per chain.
+    fn prefix(
+        &mut self,
+        j: usize,
+        chain: &Chain<'_>,
+        values: &[TokenStream],
+        memo: &mut [Option<TokenStream>],
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        if j == 0 {
+            return None;
+        }
+        if memo[j].is_none() {
+            let last = self.power(j - 1, &values[j - 1], chain.bases[j - 1].1, powers, out)?;
+            memo[j] = Some(match self.prefix(j - 1, chain, values, memo, powers, out) {
+                Some(rest) => self.bind(quote!(#rest * #last), out),
+                None => last,
+            });
+        }
+        memo[j].clone()
+    }
+
+    /// `Π_{i≥j} bᵢ^kᵢ` (`None`: empty), bound once per chain.
+    fn suffix(
+        &mut self,
+        j: usize,
+        chain: &Chain<'_>,
+        values: &[TokenStream],
+        memo: &mut [Option<TokenStream>],
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        if j >= chain.bases.len() {
+            return None;
+        }
+        if memo[j].is_none() {
+            let first = self.power(j, &values[j], chain.bases[j].1, powers, out)?;
+            memo[j] = Some(match self.suffix(j + 1, chain, values, memo, powers, out) {
+                Some(rest) => self.bind(quote!(#first * #rest), out),
+                None => first,
+            });
+        }
+        memo[j].clone()
+    }
+
+    /// `x^n` for the chain's base `j` (`None` for `n = 0`), by squaring,
+    /// each power bound once per chain.
+    fn power(
+        &mut self,
+        j: usize,
+        x: &TokenStream,
+        n: u32,
+        powers: &mut HashMap<(usize, u32), TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<TokenStream> {
+        match n {
+            0 => None,
+            1 => Some(x.clone()),
+            _ => {
+                if let Some(power) = powers.get(&(j, n)) {
+                    return Some(power.clone());
+                }
+                let power = if n.is_multiple_of(2) {
+                    let half = self.power(j, x, n / 2, powers, out)?;
+                    self.bind(quote!(#half * #half), out)
+                } else {
+                    let lower = self.power(j, x, n - 1, powers, out)?;
+                    self.bind(quote!(#lower * #x), out)
+                };
+                powers.insert((j, n), power.clone());
+                Some(power)
+            }
         }
     }
 
@@ -974,6 +1259,49 @@ impl<'a> Adjoint<'a> {
             _ => return None,
         };
         Some(quote!((#printed)))
+    }
+}
+
+/// A product `C · Π bⱼ^kⱼ` read off a chain of `*` and of `/` by
+/// constants.
+struct Chain<'e> {
+    /// The constant factors, multiplied.
+    numerator: Vec<&'e Expr>,
+    /// The constant divisors.
+    denominator: Vec<&'e Expr>,
+    /// The distinct active factors with their multiplicities, in the order
+    /// they appear.
+    bases: Vec<(&'e Expr, u32)>,
+}
+
+/// The value of an integer literal (in parentheses or not), for the
+/// exponent of `powi`.
+fn integer_literal(expr: &Expr) -> Option<u32> {
+    match &expr.kind {
+        ExprKind::Paren(inner) => integer_literal(inner),
+        ExprKind::Lit(syn::Lit::Int(int)) => int.base10_parse().ok(),
+        _ => None,
+    }
+}
+
+/// `k · C` as one constant expression (`None` when it is one: `k = 1`, no
+/// constant factor): `(k · c₁ · c₂ …) / (d₁ · d₂ …)`, the literal `k` first
+/// so that `4.0 * 0.25` folds at compile time.
+fn chain_constant(k: u32, numerator: &[TokenStream], denominator: &[TokenStream]) -> Option<TokenStream> {
+    let k = (k > 1).then(|| {
+        let k = proc_macro2::Literal::f64_suffixed(f64::from(k));
+        quote!(#k)
+    });
+    let factors: Vec<TokenStream> = k.into_iter().chain(numerator.iter().cloned()).collect();
+    let product = factors.split_first().map(|(first, rest)| quote!(#first #(* #rest)*));
+    let divisor = denominator.split_first().map(|(first, rest)| quote!(#first #(* #rest)*));
+    match (product, divisor) {
+        (None, None) => None,
+        (Some(product), None) => Some(quote!((#product))),
+        (product, Some(divisor)) => {
+            let product = product.unwrap_or_else(|| quote!(1.0f64));
+            Some(quote!((#product / (#divisor))))
+        }
     }
 }
 
@@ -1484,6 +1812,86 @@ mod tests {
             let text = body.to_token_stream().to_string();
             assert_eq!(lagrangian(body.clone()).is_some(), generic(body).is_some(), "{text}");
         }
+    }
+
+    /// The reverse sweep of `body`: what follows the adjoints' declarations
+    /// (or the zeroing of `__out` when there are none).
+    fn reverse_of(body: syn::Block) -> String {
+        let out = lagrangian(body).unwrap();
+        let start = ["let mut __a", "let __g"].iter().filter_map(|s| out.find(s)).min().unwrap();
+        out[start..].to_string()
+    }
+
+    #[test]
+    fn a_power_written_as_a_product_is_one_rule_with_its_constant_formed_once() {
+        let reverse = reverse_of(parse_quote!({
+            let d = q[1] - q[0];
+            0.25 * self.beta * d * d * d * d
+        }));
+        // One contribution to `d`: `g · (4 · 0.25 · β) · d³`, `d³ = d² · d`,
+        // not one per partial product of the chain.
+        assert!(reverse.contains("let mut __a0_0 : f64 = __g"), "{reverse}");
+        assert!(!reverse.contains("__a0_0 +="), "{reverse}");
+        assert!(reverse.contains("= (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        assert!(reverse.contains("= __t0 * __t0 ;"), "{reverse}");
+        // No temporary of the forward sweep but `d`'s own is read: no
+        // partial product of the chain.
+        assert!(!reverse.contains("__t1"), "{reverse}");
+    }
+
+    #[test]
+    fn repeated_factors_among_others_and_divisions_by_constants_fold() {
+        let reverse = reverse_of(parse_quote!({ q[0] * q[1] * q[0] + q[2] * q[2] / self.c }));
+        // `x·y·x`: `x` gets `g · 2 · x · y` once, `y` gets `g · x²`.
+        assert_eq!(reverse.matches("__out [(0)] +=").count(), 1, "{reverse}");
+        assert_eq!(reverse.matches("__out [(1)] +=").count(), 1, "{reverse}");
+        // `z·z / c`: `g · (2 / c) · z`.
+        assert_eq!(reverse.matches("__out [(2)] +=").count(), 1, "{reverse}");
+        assert!(reverse.contains("(2f64 / (((self) . c)))"), "{reverse}");
+    }
+
+    #[test]
+    fn an_adjoint_is_bound_by_its_first_contribution_and_zero_only_before_a_loop_adds_to_it() {
+        let reverse = reverse_of(parse_quote!({
+            let x = q[0] * q[1];
+            let mut s = x.sin();
+            for i in 0..3 {
+                s += x * q[i];
+            }
+            s
+        }));
+        // `s` gets its adjoint from the tail; `x` is added to in the loop,
+        // so it exists (as zero) before it.
+        assert!(reverse.contains("let mut __a1_0 : f64 = 1.0f64 ;"), "{reverse}");
+        assert!(reverse.contains("let mut __a0_0 : f64 = 0.0f64 ; for"), "{reverse}");
+        assert!(!reverse.contains("__a1_0 +="), "{reverse}");
+    }
+
+    #[test]
+    fn powi_with_a_literal_exponent_is_a_repeated_factor_of_its_chain() {
+        let reverse = reverse_of(parse_quote!({ 0.5 * q[0] * q[0] + 0.25 * self.beta * q[0].powi(4) + q[1].powi(3) }));
+        // `4 · 0.25 · β` in one constant, `x³` by multiplications; alone,
+        // `powi` keeps its own rule.
+        assert!(reverse.contains("(4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        assert_eq!(reverse.matches("f64 :: powi").count(), 1, "{reverse}");
+        assert!(reverse.contains("f64 :: powi (__t"), "{reverse}");
+    }
+
+    #[test]
+    fn a_constant_over_a_square_root_costs_one_division() {
+        let reverse = reverse_of(parse_quote!({ self.mu / (q[0] * q[0] + q[1] * q[1]).sqrt() }));
+        assert_eq!(reverse.matches(" / ").count(), 1, "{reverse}");
+        assert!(reverse.contains("(- 0.5f64 * ((self) . mu))"), "{reverse}");
+        assert!(!reverse.contains("0.5f64 / "), "{reverse}");
+    }
+
+    #[test]
+    fn two_factor_products_keep_their_own_rule() {
+        // `c·x`, `x·y` and `x / c` cost one multiplication or division per
+        // operand either way: printed as before.
+        let reverse = reverse_of(parse_quote!({ self.c * q[0] + q[1] * q[2] + q[0] / self.c }));
+        assert!(!reverse.contains("f64 *"), "{reverse}");
+        assert!(reverse.contains("/ ((self) . c)"), "{reverse}");
     }
 
     #[test]

@@ -60,6 +60,53 @@ impl<const N: usize> Fpu<N> {
     }
 }
 
+/// An FPU-β chain with its terms written as products (`0.25 * β * d * d *
+/// d * d`, as users write it), which the adjoint stage folds into one rule
+/// per distinct factor.
+pub struct FpuProducts<const N: usize> {
+    pub beta: f64,
+}
+
+#[lagrangian]
+impl<const N: usize> FpuProducts<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..N {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let (a, b) = (q[0], q[N - 1]);
+        let mut potential = 0.5 * (a * a + b * b) + 0.25 * self.beta * (a * a * a * a + b * b * b * b);
+        for i in 0..N - 1 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * self.beta * d * d * d * d;
+        }
+        kinetic - potential
+    }
+}
+
+/// Product chains of every shape the folding reads: constants first, last
+/// and between active factors, repeated factors among distinct ones
+/// (locals, `q[i]` and `v[i]` read directly, sums), divisions by constants,
+/// a seventh power, `powi` with a literal exponent among the factors.
+pub struct Products {
+    pub c: f64,
+}
+
+#[lagrangian]
+impl Products {
+    fn lagrangian(&self, t: f64, q: [f64; 3], v: [f64; 3]) -> f64 {
+        let (x, y) = (q[0], q[1]);
+        let d = q[2] - q[0];
+        let l = 0.5 * v[0] * v[0] + self.c * d * d * d * d + d * d * self.c - x * y * x + d * d / self.c;
+        l + q[1] * q[1] * q[1] * 3.0 / 7.0 - x * v[1] * x * v[2] + (x + y) * (x + y) * 2.0
+            - x * 0.5 * y * self.c * x * d / 3.0
+            + t * q[2] * t
+            + (y * y * y * y * y * y * y) / (2.0 * self.c)
+            + 0.3 * y.powi(3) * x * y
+            - self.c * d.powi(4) * 0.25
+    }
+}
+
 /// Pendula hanging from a line, neighbours joined by torsion springs:
 /// separable, banded, nonlinear in every coordinate.
 pub struct CoupledPendula<const N: usize> {
@@ -291,6 +338,27 @@ fn generated_gradients_agree_with_dual_numbers_at_random_states() {
     }
 }
 
+/// Folded product chains (`c * d * d * d * d`, `d * d * c`, `x * y * x`,
+/// `d * d / c`) round the derivative differently from the dual path's
+/// product rule by a few ulps of the gradient's magnitude.
+const PRODUCT_TOLERANCE: f64 = 8.0 * f64::EPSILON;
+
+#[test]
+fn folded_product_chains_agree_with_dual_numbers_to_a_few_ulps() {
+    let cases: Vec<(&str, f64)> = vec![
+        ("products", worst_difference(&Products { c: 1.3 }, -1.5, 1.5, 500)),
+        ("products, c < 0", worst_difference(&Products { c: -0.45 }, -1.5, 1.5, 500)),
+        ("FPU-β N = 16 as products", worst_difference(&FpuProducts::<16> { beta: 1.0 }, -1.0, 1.0, 100)),
+        ("FPU-β N = 3 as products", worst_difference(&FpuProducts::<3> { beta: 0.7 }, -1.0, 1.0, 100)),
+    ];
+    for (name, worst) in &cases {
+        println!("{name}: largest relative difference {worst:.1e}");
+    }
+    for (name, worst) in cases {
+        assert!(worst <= PRODUCT_TOLERANCE, "{name}: generated and dual gradients differ by {worst:e}");
+    }
+}
+
 /// `HAS_GRADIENT` of a const-size system (and `HAS_GRADIENT_QV`, which
 /// the macro sets with it for a system of known size).
 fn has_gradient<S: Lagrangian<N>, const N: usize>() -> bool {
@@ -303,6 +371,8 @@ fn the_macro_says_which_systems_got_gradient_code() {
     let systems = [
         ("pendulum", has_gradient::<common::Pendulum, 1>(), true),
         ("FPU-β", has_gradient::<Fpu<16>, 16>(), true),
+        ("FPU-β as products", has_gradient::<FpuProducts<16>, 16>(), true),
+        ("products", has_gradient::<Products, 3>(), true),
         ("coupled pendula", has_gradient::<CoupledPendula<4>, 4>(), true),
         ("method zoo", has_gradient::<Zoo, 3>(), true),
         ("run-time-sized chain", <DynChain as DynLagrangian>::HAS_GRADIENT, true),
@@ -483,6 +553,8 @@ fn the_generic_gradient_gives_hessian_vector_products_on_dual_numbers() {
             scalar_difference(&CoupledPendula::<12> { m: 1.1, g: 9.81, l: 0.7, k: 3.0 }, -2.0, 2.0, 30),
         ),
         ("method zoo", scalar_difference(&Zoo { a: 0.7, p: 1.7, w: [0.3, -1.2, 0.8] }, -1.0, 1.0, 200)),
+        ("products", scalar_difference(&Products { c: 1.3 }, -1.5, 1.5, 200)),
+        ("FPU-β N = 16 as products", scalar_difference(&FpuProducts::<16> { beta: 1.0 }, -1.0, 1.0, 30)),
     ];
     for (name, worst) in &cases {
         println!("{name}: Hessian-vector products, largest relative difference {worst:.1e}");
