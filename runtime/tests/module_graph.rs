@@ -1,6 +1,6 @@
 //! The runtime's modules form a graph without cycles: each top-level module
 //! names (with `crate::…`, outside comments and unit tests) only modules
-//! below it. `cargo test -p lagrangian-runtime --test module_graph -- --nocapture`
+//! below it. `cargo test -p lagrangian-runtime --test integration module_graph:: -- --nocapture`
 //! prints the graph.
 #![allow(missing_docs)]
 
