@@ -48,6 +48,12 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
     /// The momentum `p = ∂L/∂v(t, q, v)`: one evaluation on a [`DualArray`]
     /// seeded on all of `v`.
     fn momentum(&self, t: f64, q: [f64; N], v: [f64; N]) -> [f64; N] {
+        if Self::HAS_GRADIENT_QV {
+            // The macro's adjoint code: `O(ops)` instead of `N` lanes per operation.
+            let (mut lq, mut lv) = ([0.0; N], [0.0; N]);
+            self.gradient_qv(t, &q, &v, &mut lq, &mut lv);
+            return lv;
+        }
         let mut vd = v.map(DualArray::<[f64; N]>::from_re);
         for (i, x) in vd.iter_mut().enumerate() {
             x.eps[i] = 1.0;
@@ -64,6 +70,22 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
     /// The Hessian `∂²L/∂v²`; the Legendre transform is regular where it is
     /// invertible. One evaluation on a [`HyperDualArray`] seeded on `v` twice.
     fn velocity_hessian(&self, t: f64, q: [f64; N], v: [f64; N]) -> SMatrix<f64, N, N> {
+        if Self::HAS_GRADIENT_QV {
+            // Forward over reverse: the macro's adjoint code on duals with one
+            // lane per velocity; row `i` of the Hessian is the lanes of
+            // `∂L/∂v_i`. `N + 1` parts per operation instead of the
+            // hyper-dual's `(N + 1)²` (the explicit path's start on an FPU
+            // chain of 16 masses was mostly this Hessian).
+            type D<const N: usize> = DualArray<[f64; N]>;
+            let qd = q.map(D::<N>::from_re);
+            let mut vd = v.map(D::<N>::from_re);
+            for (i, x) in vd.iter_mut().enumerate() {
+                x.eps[i] = 1.0;
+            }
+            let (mut lq, mut lv) = ([D::<N>::from_re(0.0); N], [D::<N>::from_re(0.0); N]);
+            self.gradient_qv_scalar(D::from_re(t), &qd, &vd, &mut lq, &mut lv);
+            return SMatrix::from_fn(|i, j| lv[i].eps[j]);
+        }
         type H<const N: usize> = HyperDualArray<[f64; N], [f64; N]>;
         let mut vd = v.map(H::<N>::from_re);
         for (i, x) in vd.iter_mut().enumerate() {

@@ -631,3 +631,63 @@ fn the_default_generic_gradient_is_correct_too() {
         assert!((hv[i].eps - rv[i]).abs() <= 1e-14, "{i}: {} against {}", hv[i].eps, rv[i]);
     }
 }
+
+/// `∂²L/∂v²` as `DiscreteMechanics::velocity_hessian` takes it for systems
+/// with gradient code (forward over the generated reverse code, one lane per
+/// velocity) against hyper-dual evaluations of the body, one pair of
+/// directions at a time, at random states: the largest difference relative
+/// to the largest entry. Position-dependent masses included (double
+/// pendulum, charged particle, coupled pendula), and the momentum
+/// `DiscreteMechanics::momentum` against dual numbers at the same states.
+fn worst_hessian_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
+    assert!(S::HAS_GRADIENT_QV, "no gradient code in (q, v) was generated");
+    let mut rng = Rng(0xc0ffee ^ N as u64);
+    let mut worst = 0.0f64;
+    for _ in 0..samples {
+        let t = rng.uniform(-3.0, 3.0);
+        let q: [f64; N] = core::array::from_fn(|_| rng.uniform(lo, hi));
+        let v: [f64; N] = core::array::from_fn(|_| rng.uniform(-2.0, 2.0));
+        let m = system.velocity_hessian(t, q, v);
+        let reference: Vec<f64> = (0..N * N)
+            .map(|ij| {
+                let (i, j) = (ij / N, ij % N);
+                let vd: [HyperDual64; N] = core::array::from_fn(|k| {
+                    HyperDual64::new(v[k], f64::from(u8::from(k == i)), f64::from(u8::from(k == j)), 0.0)
+                });
+                system.lagrangian(HyperDual64::from(t), q.map(HyperDual64::from), vd).eps1eps2
+            })
+            .collect();
+        let scale = reference.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+        assert!(scale.is_finite() && scale > 0.0, "a degenerate sample: {reference:?}");
+        for ij in 0..N * N {
+            let difference = (m[(ij / N, ij % N)] - reference[ij]).abs() / scale;
+            assert!(difference.is_finite(), "entry {ij}: {} against {}", m[(ij / N, ij % N)], reference[ij]);
+            worst = worst.max(difference);
+        }
+        let (p, dual) = (system.momentum(t, q, v), dual_velocity_gradient(system, t, &q, &v));
+        let p_scale = dual.iter().fold(0.0f64, |s, x| s.max(x.abs())).max(f64::MIN_POSITIVE);
+        for i in 0..N {
+            worst = worst.max((p[i] - dual[i]).abs() / p_scale);
+        }
+    }
+    worst
+}
+
+#[test]
+fn velocity_hessians_from_gradient_code_agree_with_hyper_dual_numbers() {
+    let cases: Vec<(&str, f64)> = vec![
+        ("pendulum", worst_hessian_difference(&PENDULUM, -3.0, 3.0, 50)),
+        ("double pendulum", worst_hessian_difference(&DOUBLE_PENDULUM, -3.0, 3.0, 50)),
+        ("charged particle", worst_hessian_difference(&CHARGED, -2.0, 2.0, 50)),
+        ("Kepler (Cartesian)", worst_hessian_difference(&Kepler { mu: 1.3 }, 0.2, 3.0, 50)),
+        ("FPU-β N = 16", worst_hessian_difference(&Fpu::<16> { beta: 1.0 }, -1.0, 1.0, 10)),
+        (
+            "coupled pendula N = 12",
+            worst_hessian_difference(&CoupledPendula::<12> { m: 1.1, g: 9.81, l: 0.7, k: 3.0 }, -2.0, 2.0, 10),
+        ),
+    ];
+    for (name, worst) in &cases {
+        println!("{name}: {worst:.1e}");
+        assert!(*worst <= TOLERANCE, "{name}: {worst:e}");
+    }
+}
