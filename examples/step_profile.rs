@@ -320,12 +320,6 @@ fn main() {
             ),
             n,
         ),
-        ("double pendulum", "galerkin4-norcond") => run(
-            GalerkinIntegrator::new(DoublePendulum { ..DP }, Galerkin::<4, 4>::gauss(), 2.0 / 95.0)
-                .newton(lagrangian::NewtonOptions { min_rcond: 0.0, ..Default::default() })
-                .start(0.0, [1.0, -0.5], [0.0, 0.5]),
-            n,
-        ),
         ("double pendulum", "trapezoid") => {
             run(Integrator::new(DoublePendulum { ..DP }, Trapezoid, H).start(0.0, [1.0, -0.5], [0.0, 0.5]), n)
         }

@@ -45,8 +45,9 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
         self.lagrangian(t, q, v)
     }
 
-    /// The momentum `p = ∂L/∂v(t, q, v)`: one evaluation on a [`DualArray`]
-    /// seeded on all of `v`.
+    /// The momentum `p = ∂L/∂v(t, q, v)`: the system's generated gradient
+    /// code where it has it ([`Lagrangian::HAS_GRADIENT_QV`]), else one
+    /// evaluation on a [`DualArray`] seeded on all of `v`.
     fn momentum(&self, t: f64, q: [f64; N], v: [f64; N]) -> [f64; N] {
         if Self::HAS_GRADIENT_QV {
             // The macro's adjoint code: `O(ops)` instead of `N` lanes per operation.
@@ -68,7 +69,10 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
     }
 
     /// The Hessian `∂²L/∂v²`; the Legendre transform is regular where it is
-    /// invertible. One evaluation on a [`HyperDualArray`] seeded on `v` twice.
+    /// invertible. The generated gradient code on a [`DualArray`] with one
+    /// lane per velocity where the system has it
+    /// ([`Lagrangian::HAS_GRADIENT_QV`]), else one evaluation on a
+    /// [`HyperDualArray`] seeded on `v` twice.
     fn velocity_hessian(&self, t: f64, q: [f64; N], v: [f64; N]) -> SMatrix<f64, N, N> {
         if Self::HAS_GRADIENT_QV {
             // Forward over reverse: the macro's adjoint code on duals with one

@@ -254,8 +254,10 @@ where
         let e = self.carry;
         // The condition estimate (Hager's, a few triangular solves whose
         // latency measured a fifth of a double-pendulum step at s = 4) is made
-        // only for a step that fails, below; a converged iteration has found a
-        // root of the block system whatever the conditioning of its Jacobian.
+        // only for a step that fails (`ill_conditioned`, below), so the
+        // iterations run without it (`min_rcond` 0); a converged iteration
+        // has found a root of the block system whatever the conditioning of
+        // its Jacobian.
         let (system, g, min_rcond) = (&self.system, &self.method, 0.0);
         let pc = self.p_carry;
         // Simplified Newton first: the Jacobian is assembled and factored at
@@ -265,14 +267,12 @@ where
         // the extrapolated guess it converges in about as many iterations as
         // full Newton. If it fails: full Newton from the same guess, then from
         // the straight line at the last secant velocity (v0 at the first step).
-        // The condition estimate is made on the first iteration of each solve.
         //
         // The Jacobian changes by O(h) from one step to the next, so a step
         // of the same size as the last one starts its simplified iteration
         // from the last step's factored block (kept in the memory), and only
         // assembles and factors its own where that one contracts slowly: most
-        // steps then cost no Hessian, no assembly and no LU at all. The
-        // condition estimate is made on the first factorisation of each solve.
+        // steps then cost no Hessian, no assembly and no LU at all.
         let policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.kept_policy);
         let has_kept = Self::KEEPS_JACOBIAN
             && matches!(&self.memory, Some(LastStep { jacobian: Some((h_lu, _)), .. }) if *h_lu == h);
@@ -965,8 +965,10 @@ impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
     }
 
     /// Prepares a new solve: simplified or full Newton, from the kept
-    /// factorisation (`kept`) or from a new one. The condition estimate is
-    /// made on the first linearisation of each solve, if that one factors.
+    /// factorisation (`kept`) or from a new one. Where the caller asks for a
+    /// condition estimate (`min_rcond > 0`: energy-preserving steps; fixed
+    /// steps estimate only on failure), it is made on the first
+    /// linearisation of each solve, if that one factors.
     #[inline]
     pub(super) fn start(&mut self, simplified: bool, kept: bool) {
         self.simplified = simplified;
