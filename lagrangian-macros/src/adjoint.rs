@@ -164,6 +164,16 @@ struct Adjoint<'a> {
     with_v: bool,
     /// Print generic over the scalar `__D` instead of in `f64`.
     generic: bool,
+    /// How many loops the reverse sweep is inside.
+    loop_depth: usize,
+    /// Straight-line bodies whose `q[i]` (and `v[i]`) are read at integer
+    /// literals only: the first contribution to `__out[i]` assigns it
+    /// (`0 + g` would put one more addition after `g`, which IEEE does not
+    /// fold), and these are the indices assigned so far.
+    assigned: Option<Vec<(bool, u32)>>,
+    /// Adjoint temporaries whose value is a constant (the seed negated, or
+    /// times constants): products with them fold at compile time.
+    constants: Vec<String>,
 }
 
 impl<'a> Adjoint<'a> {
@@ -181,6 +191,9 @@ impl<'a> Adjoint<'a> {
             pending: Vec::new(),
             with_v: false,
             generic: false,
+            loop_depth: 0,
+            assigned: None,
+            constants: Vec::new(),
         }
     }
 
@@ -247,6 +260,7 @@ impl<'a> Adjoint<'a> {
 
         // The reverse sweep first, so that it says which accumulators the
         // forward sweep must compute.
+        self.assigned = literal_leaves_only(block).then(Vec::new);
         let mut reverse = Vec::new();
         self.declare_adjoints(stmts);
         if tail.class.is_active() && self.depends_on_q(tail) {
@@ -687,9 +701,11 @@ impl<'a> Adjoint<'a> {
                         }
                     }
                     self.declare_adjoints(&body.stmts);
+                    self.loop_depth += 1;
                     for stmt in body.stmts.iter().rev() {
                         self.reverse_stmt(stmt, &mut inner)?;
                     }
+                    self.loop_depth -= 1;
                     // Adjoints nothing contributed to are not printed.
                     self.pending = outer;
                     let var = loop_var(var.as_ref().map(|(id, _)| *id));
@@ -757,12 +773,32 @@ impl<'a> Adjoint<'a> {
     /// free). `active`: whether `x` is an active value (a constant is made
     /// one in generic code).
     fn times(&mut self, g: &TokenStream, x: TokenStream, active: bool, out: &mut Vec<TokenStream>) -> TokenStream {
-        if g.to_string() == self.one().to_string() {
+        let product = if g.to_string() == self.one().to_string() {
             let x = self.active_if(!active, x);
             self.bind(x, out)
         } else {
             self.bind(quote!(#g * #x), out)
+        };
+        if !active && self.is_constant(g) {
+            self.constants.push(product.to_string());
         }
+        product
+    }
+
+    /// `−g` bound to an adjoint temporary.
+    fn negate(&mut self, g: &TokenStream, out: &mut Vec<TokenStream>) -> TokenStream {
+        let negated = self.bind(quote!(-#g), out);
+        if self.is_constant(g) {
+            self.constants.push(negated.to_string());
+        }
+        negated
+    }
+
+    /// Whether the adjoint `g` is a constant: the seed, or made from it by
+    /// negation and products with constants.
+    fn is_constant(&self, g: &TokenStream) -> bool {
+        let g = g.to_string();
+        g == self.one().to_string() || self.constants.contains(&g)
     }
 
     /// The temporary of an active node.
@@ -897,8 +933,16 @@ impl<'a> Adjoint<'a> {
                     ExprKind::Param(ParamRef::V, _) if self.with_v => name("out_v"),
                     _ => return Some(()),
                 };
+                let literal = integer_literal(index);
                 let index = self.constant(index)?;
-                out.push(quote!(#adjoint[#index] += #g;));
+                let key = (matches!(base.kind, ExprKind::Param(ParamRef::V, _)), literal.unwrap_or(u32::MAX));
+                match self.assigned.as_mut() {
+                    Some(assigned) if literal.is_some() && !assigned.contains(&key) => {
+                        assigned.push(key);
+                        out.push(quote!(#adjoint[#index] = #g;));
+                    }
+                    _ => out.push(quote!(#adjoint[#index] += #g;)),
+                }
                 Some(())
             }
             ExprKind::Local(id, _) => {
@@ -915,7 +959,7 @@ impl<'a> Adjoint<'a> {
                 Some(())
             }
             ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
-                let g = self.bind(quote!(-#g), out);
+                let g = self.negate(&g, out);
                 self.reverse(inner, g, out)
             }
             ExprKind::Binary { lhs, op, rhs } => {
@@ -928,7 +972,7 @@ impl<'a> Adjoint<'a> {
                     BinOp::Sub(_) => {
                         self.reverse(lhs, g.clone(), out)?;
                         if b {
-                            let g = self.bind(quote!(-#g), out);
+                            let g = self.negate(&g, out);
                             self.reverse(rhs, g, out)?;
                         }
                         Some(())
@@ -1110,21 +1154,54 @@ impl<'a> Adjoint<'a> {
             if !self.depends_on_q(base) {
                 continue;
             }
-            let mut factor = g.clone();
-            if let Some(constant) = chain_constant(k, &numerator, &denominator) {
-                factor = self.times(&factor, constant, false, out);
-            }
+            let constant = chain_constant(k, &numerator, &denominator);
+            let mut actives = Vec::new();
             if let Some(power) = self.power(j, &values[j], k - 1, &mut powers, out) {
-                factor = self.times(&factor, power, true, out);
+                actives.push(power);
             }
-            for others in [self.prefix(j, chain, &values, &mut before, &mut powers, out), {
-                self.suffix(j + 1, chain, &values, &mut after, &mut powers, out)
-            }]
-            .into_iter()
-            .flatten()
-            {
-                factor = self.times(&factor, others, true, out);
-            }
+            actives.extend(
+                [self.prefix(j, chain, &values, &mut before, &mut powers, out), {
+                    self.suffix(j + 1, chain, &values, &mut after, &mut powers, out)
+                }]
+                .into_iter()
+                .flatten(),
+            );
+            let factor = if self.loop_depth > 0 || self.is_constant(&g) {
+                // In a loop `g` is usually an accumulator's adjoint, the
+                // same at every iteration: `g · C` is then formed once; a
+                // constant `g` (`−1` of a subtraction) folds into `C`.
+                let mut factor = g.clone();
+                if let Some(constant) = constant {
+                    factor = self.times(&factor, constant, false, out);
+                }
+                for x in actives {
+                    factor = self.times(&factor, x, true, out);
+                }
+                factor
+            } else {
+                // Straight-line code: `g` arrives last (the reverse sweep
+                // runs after the forward one), so the partial derivative is
+                // formed from the values first and `g` multiplies it once,
+                // one product on the path from `L` to the gradient instead
+                // of one per factor.
+                let mut partial: Option<(TokenStream, bool)> = None;
+                for x in actives {
+                    partial = Some(match partial {
+                        Some((p, _)) => (self.bind(quote!(#p * #x), out), true),
+                        None => (x, true),
+                    });
+                }
+                if let Some(constant) = constant {
+                    partial = Some(match partial {
+                        Some((p, _)) => (self.bind(quote!(#p * #constant), out), true),
+                        None => (constant, false),
+                    });
+                }
+                match partial {
+                    Some((p, active)) => self.times(&g, p, active, out),
+                    None => g.clone(),
+                }
+            };
             self.reverse(base, factor, out)?;
         }
         Some(())
@@ -1274,8 +1351,29 @@ struct Chain<'e> {
     bases: Vec<(&'e Expr, u32)>,
 }
 
-/// The value of an integer literal (in parentheses or not), for the
-/// exponent of `powi`.
+/// Whether `block` has no loop and reads `q` and `v` only at integer
+/// literals: then every `__out[i]` the reverse sweep writes is known by its
+/// literal, and a first write may assign.
+fn literal_leaves_only(block: &Block) -> bool {
+    let mut only = true;
+    block.visit(&mut |e: &Expr| {
+        match &e.kind {
+            ExprKind::For { .. } => only = false,
+            ExprKind::Index { base, index, .. }
+                if matches!(base.kind, ExprKind::Param(ParamRef::Q | ParamRef::V, _))
+                    && integer_literal(index).is_none() =>
+            {
+                only = false;
+            }
+            _ => {}
+        }
+        only
+    });
+    only
+}
+
+/// The value of an integer literal (in parentheses or not): the exponent
+/// of `powi`, an index.
 fn integer_literal(expr: &Expr) -> Option<u32> {
     match &expr.kind {
         ExprKind::Paren(inner) => integer_literal(inner),
@@ -1555,9 +1653,11 @@ mod tests {
             0.5 * self.m * v[0] * v[0] + self.k / r - t * q[2].cos()
         }))
         .unwrap();
-        for write in ["__out [(0)] +=", "__out [(1)] +=", "__out [(2)] +="] {
+        // One contribution each: assigned, not added to the zero.
+        for write in ["__out [(0)] =", "__out [(1)] =", "__out [(2)] ="] {
             assert!(out.contains(write), "{write}: {out}");
         }
+        assert!(!out.contains("+="), "{out}");
         // The velocity term does not depend on `q`: its value is computed
         // (it is part of `L`), but no adjoint goes through it.
         let reverse = &out[out.find("let mut __a0_0").unwrap()..];
@@ -1581,11 +1681,11 @@ mod tests {
         let _ = crate::analyse::analyse(&cx, &mut system);
         cx.check().unwrap();
         let out = gradient_qv(&system.lagrangian).unwrap().to_string();
-        for write in ["__out [(0)] +=", "__out [(1)] +=", "__out [(2)] +=", "__out_v [(0)] +=", "__out_v [(1)] +="] {
+        for write in ["__out [(0)] =", "__out [(1)] =", "__out [(2)] =", "__out_v [(0)] =", "__out_v [(1)] ="] {
             assert!(out.contains(write), "{write}: {out}");
         }
         // `v[2]` is not read: its derivative stays the zero written first.
-        assert!(!out.contains("__out_v [(2)] +="), "{out}");
+        assert!(!out.contains("__out_v [(2)]"), "{out}");
         assert!(out.contains("for __x in __out_v . iter_mut ()"), "{out}");
         // The q-only transformation writes no velocity adjoint.
         let q_only = gradient_q(&system.lagrangian).unwrap().to_string();
@@ -1776,7 +1876,10 @@ mod tests {
             ". powi (n - 1) * f64 :: from (n)",
             "__D :: from (f64 :: signum (",
             "* __x = __D :: from (0.0f64)",
-            "__out_v [(0)] +=",
+            // First contributions assign, later ones add.
+            "__out [(1)] = __g",
+            "__out [(1)] += __g",
+            "__out_v [(0)] = __g",
         ] {
             assert!(out.contains(piece), "{piece}: {out}");
         }
@@ -1832,7 +1935,9 @@ mod tests {
         // not one per partial product of the chain.
         assert!(reverse.contains("let mut __a0_0 : f64 = __g"), "{reverse}");
         assert!(!reverse.contains("__a0_0 +="), "{reverse}");
-        assert!(reverse.contains("= (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        // Straight-line code: `d³ · (4 · 0.25 · β)` first, `g` (here the
+        // seed, one) last.
+        assert!(reverse.contains("* (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
         assert!(reverse.contains("= __t0 * __t0 ;"), "{reverse}");
         // No temporary of the forward sweep but `d`'s own is read: no
         // partial product of the chain.
@@ -1843,11 +1948,29 @@ mod tests {
     fn repeated_factors_among_others_and_divisions_by_constants_fold() {
         let reverse = reverse_of(parse_quote!({ q[0] * q[1] * q[0] + q[2] * q[2] / self.c }));
         // `x·y·x`: `x` gets `g · 2 · x · y` once, `y` gets `g · x²`.
-        assert_eq!(reverse.matches("__out [(0)] +=").count(), 1, "{reverse}");
-        assert_eq!(reverse.matches("__out [(1)] +=").count(), 1, "{reverse}");
+        assert_eq!(reverse.matches("__out [(0)] =").count(), 1, "{reverse}");
+        assert_eq!(reverse.matches("__out [(1)] =").count(), 1, "{reverse}");
         // `z·z / c`: `g · (2 / c) · z`.
-        assert_eq!(reverse.matches("__out [(2)] +=").count(), 1, "{reverse}");
+        assert_eq!(reverse.matches("__out [(2)] =").count(), 1, "{reverse}");
+        assert!(!reverse.contains("+="), "{reverse}");
         assert!(reverse.contains("(2f64 / (((self) . c)))"), "{reverse}");
+    }
+
+    #[test]
+    fn in_a_loop_every_output_adds_and_the_constant_meets_the_adjoint_first() {
+        let reverse = reverse_of(parse_quote!({
+            let mut s = 0.0;
+            for i in 0..2 {
+                let d = q[i + 1] - q[i];
+                s += 0.25 * self.beta * d * d * d * d;
+            }
+            s + q[0] * q[0]
+        }));
+        // A loop may write any index: nothing is assigned, the zeroing
+        // stays, and `g · C` comes first (`g`, the accumulator's adjoint, is
+        // the same at every iteration, so the product is a loop invariant).
+        assert!(!reverse.contains("] = __"), "{reverse}");
+        assert!(reverse.contains("__a0_0 * (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
     }
 
     #[test]

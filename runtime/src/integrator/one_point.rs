@@ -273,6 +273,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
         match &cache.diagonal {
+            Some(_) if cache.unit => {
+                for j in 0..N {
+                    drift(j, ((p0[j] + half * f0[j]) + pc0[j]) * h);
+                }
+            }
             Some(d) => {
                 for j in 0..N {
                     drift(j, (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h);
@@ -575,6 +580,10 @@ pub(crate) struct ExplicitCache<const N: usize> {
     /// The diagonal of `M⁻¹` when `M⁻¹` is diagonal (a product with `N`
     /// entries instead of `N²`).
     pub(crate) diagonal: Option<[f64; N]>,
+    /// Whether that diagonal is all ones (`M = I`, as in most particle
+    /// systems): the drift then skips the product with it, which is exact
+    /// and one multiplication shorter on the path from one force to the next.
+    pub(crate) unit: bool,
     /// Two force buffers, `forces[k % 2]` for node `k`: a step writes the
     /// force at its end node into the one its start node's force is not in,
     /// so a failed step leaves that force intact and a successful one moves
@@ -653,9 +662,11 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
                 .try_inverse()
                 .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
             let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+            let unit = diagonal && (0..N).all(|i| m[(i, i)] == 1.0);
             Ok(empty.insert(Box::new(ExplicitCache {
                 inverse_mass: m,
                 diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
+                unit,
                 forces: [[0.0; N]; 2],
                 node: 0,
             })))
@@ -721,11 +732,17 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     let (qc, pc) = (node.carry, node.p_carry);
     let cache = explicit_cache(system, &mut memory.explicit, t0, q0)?;
     cache.node_force(system, step, t0, q0);
-    let ExplicitCache { inverse_mass, diagonal, forces, .. } = cache;
+    let ExplicitCache { inverse_mass, diagonal, unit, forces, .. } = cache;
     let (f0, f) = split_forces(forces, step);
     let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
     // The mass matrix is chosen once per step, not per sub-step.
     let (dq, mut dp, q, closing) = match diagonal {
+        // `M = I`: the product with its ones is exact and skipped.
+        Some(_) if *unit => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+            for j in 0..N {
+                out[j] = mv[j] * hi;
+            }
+        }),
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
         Some(d) => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
