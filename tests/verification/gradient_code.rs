@@ -283,7 +283,7 @@ fn qv_difference<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64;
 /// `[lo, hi]ⁿ`, between the generated and the dual gradient, measured
 /// against the largest component of the dual one; `gradient_qv` (both
 /// halves) checked at the same states.
-fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
+pub(crate) fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
     assert!(S::HAS_GRADIENT, "no gradient code was generated");
     assert!(S::HAS_GRADIENT_QV, "no gradient code in (q, v) was generated");
     let mut rng = Rng(0x5eed ^ N as u64);
@@ -491,7 +491,7 @@ fn hyperdual_products<S: Lagrangian<N>, const N: usize>(
 /// must be the gradient and its derivative parts the Hessian-vector
 /// products. Returns the largest relative difference of the products from
 /// the hyper-dual ones (each half against its own largest component).
-fn scalar_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
+pub(crate) fn scalar_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo: f64, hi: f64, samples: usize) -> f64 {
     assert!(S::HAS_GRADIENT_QV, "no generic gradient code was generated");
     let mut rng = Rng(0xd0a1 ^ N as u64);
     let mut worst = 0.0f64;

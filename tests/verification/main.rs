@@ -26,6 +26,7 @@ mod galerkin_order_extended;
 mod galerkin_paper;
 mod galerkin_structure;
 mod gradient_code;
+mod gradient_fuzz;
 mod noether;
 mod perturbed_pendulum;
 mod structure;
