@@ -1,6 +1,9 @@
 #!/usr/bin/env python3
 """Writes tests/verification/gradient_fuzz.rs: random Lagrangians for the
-macro's gradient code, checked there against dual numbers.
+macro's gradient code, checked there against dual numbers; with the argument
+`structure`, tests/systems/structure_fuzz.rs: random Lagrangians whose
+proven structure (separability, coupling pattern, autonomy, cyclic
+coordinates) is checked against derivatives at random points.
 
 Each system is a random body of the subset the adjoint stage transforms
 (`let` bindings, arithmetic, product chains with repeated factors, divisions
@@ -11,6 +14,7 @@ so the file is reproducible: `python3 scripts/gradient_fuzz.py > tests/verificat
 """
 import random
 import re
+import sys
 
 SEED = 20261125
 STRAIGHT = 20  # straight-line systems, N = 2 or 3
@@ -154,7 +158,105 @@ def looped(rng, index):
     )
 
 
+def smooth(rng, x):
+    """A smooth function of the active expression `x`."""
+    return rng.choice([
+        f"({x}).sin()",
+        f"({x}).cos()",
+        f"(1.0 + ({x}) * ({x})).sqrt()",
+        f"0.5 * ({x}) * ({x})",
+        f"(0.5 * ({x})).tanh()",
+        f"({x}).powi(3)",
+    ])
+
+
+def structure_system(rng, index):
+    """A random body built from terms whose coupling is chosen: potential
+    terms in one or two coordinates at a random distance, kinetic terms
+    `v_i v_j` with a constant, position- or time-dependent coefficient,
+    terms linear in `v`, loops over neighbours at distance 1 or 2."""
+    n = rng.choice([4, 5, 6])
+    terms, uses_t = [], False
+    for _ in range(rng.randrange(2, 5)):
+        i = rng.randrange(n)
+        j = min(n - 1, i + rng.choice([0, 1, 1, 2, 3]))
+        k = rng.random()
+        if k < 0.35:
+            terms.append(f"- self.a * {smooth(rng, f'q[{j}] - q[{i}]' if i != j else f'q[{i}]')}")
+        elif k < 0.5:
+            terms.append(f"- self.b * q[{i}] * q[{j}] * {smooth(rng, f'q[{i}]')}")
+        elif k < 0.6:
+            uses_t = True
+            terms.append(f"- (self.b * t).cos() * {smooth(rng, f'q[{j}]')}")
+        elif k < 0.75:
+            coefficient = rng.choice(["self.a", f"(1.5 + ({smooth(rng, f'q[{rng.randrange(n)}]')}))", "0.3"])
+            terms.append(f"+ 0.5 * {coefficient} * v[{i}] * v[{j}]")
+        elif k < 0.82:
+            uses_t = uses_t or rng.random() < 0.5
+            factor = "(1.0 + 0.1 * (t).sin())" if uses_t else f"q[{j}]"
+            terms.append(f"+ 0.2 * {factor} * v[{i}] * v[{i}]")
+        elif k < 0.9:
+            terms.append(f"+ self.b * v[{i}] * {smooth(rng, f'q[{j}]')}")
+        else:
+            terms.append(f"+ 0.1 * v[{i}] * v[{j}] * v[{i}] * v[{j}]")
+    loops = []
+    if rng.random() < 0.6:
+        step = rng.choice([1, 1, 2])
+        d = f"q[i + {step}] - q[i]"
+        kinetic = rng.choice(["", f"\n            kinetic += 0.1 * v[i] * v[i + {step}];"])
+        loops.append(
+            f"for i in 0..N - {step} {{\n            let d = {d};\n"
+            f"            potential += self.a * {smooth(rng, 'd')};{kinetic}\n        }}"
+        )
+    body = [
+        "let mut kinetic = 0.0;",
+        "for i in 0..N {",
+        "    kinetic += 0.5 * v[i] * v[i];",
+        "}",
+        "let mut potential = 0.0;",
+    ] + loops + [f"kinetic - potential {' '.join(terms)}"]
+    args = "t: f64, " if uses_t else ""
+    code = (
+        f"pub struct Random{index}<const N: usize> {{\n    pub a: f64,\n    pub b: f64,\n}}\n\n"
+        f"#[lagrangian]\nimpl<const N: usize> Random{index}<N> {{\n"
+        f"    fn lagrangian(&self, {args}q: [f64; N], v: [f64; N]) -> f64 {{\n        "
+        + "\n        ".join(body)
+        + "\n    }\n}\n"
+    )
+    value = f"Random{index}::<{n}> {{ a: {rng.choice([0.7, 1.2])}, b: {rng.choice([0.4, 1.1])} }}"
+    return code, value
+
+
+def structure_main():
+    rng = random.Random(SEED + 1)
+    systems = [structure_system(rng, i) for i in range(16)]
+    print("//! Random Lagrangians for the structure analysis, written by")
+    print("//! `scripts/gradient_fuzz.py structure` (fixed seed; regenerate with")
+    print("//! `python3 scripts/gradient_fuzz.py structure > tests/systems/structure_fuzz.rs && cargo fmt`):")
+    print("//! bodies made of terms with chosen couplings (potentials in one or two")
+    print("//! coordinates at distances 0 to 3, kinetic terms with constant, position-")
+    print("//! or time-dependent coefficients, terms linear or quartic in `v`, loops")
+    print("//! over neighbours at distance 1 or 2). What the macro claims for each")
+    print("//! (`SEPARABILITY`, `COUPLING`, `AUTONOMOUS`, `CYCLIC`) is checked against")
+    print("//! derivatives at random points (`structure_analysis::check`), never")
+    print("//! compared with an expected answer: an overstated claim fails.")
+    print("#![allow(clippy::all, dead_code, unused_mut, unused_parens, unused_variables)]")
+    print("use super::structure_analysis::{check, check_autonomy_and_cyclic};")
+    print("use lagrangian::prelude::*;")
+    print()
+    for code, _ in systems:
+        print(code)
+    print("#[test]")
+    print("fn random_bodies_claim_no_more_structure_than_they_have() {")
+    for i, (_, value) in enumerate(systems):
+        print(f"    check(\"random {i}\", &{value}, {100 + i});")
+        print(f"    check_autonomy_and_cyclic(\"random {i}\", &{value}, {200 + i});")
+    print("}")
+
+
 def main():
+    if sys.argv[1:] == ["structure"]:
+        return structure_main()
     rng = random.Random(SEED)
     systems = [straight(rng, i) for i in range(STRAIGHT)] + [looped(rng, i) for i in range(LOOPED)]
     print("//! Random Lagrangians for the macro's gradient code, written by")

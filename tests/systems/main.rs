@@ -14,3 +14,4 @@ mod dynamic_systems;
 mod lane_duals;
 mod large_systems;
 mod structure_analysis;
+mod structure_fuzz;

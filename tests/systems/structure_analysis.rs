@@ -555,7 +555,7 @@ fn describe(p: Pattern) -> String {
 }
 
 /// Prints the claims of `S` and checks them at four random points.
-fn check<S: Lagrangian<N>, const N: usize>(name: &str, s: &S, seed: u64) {
+pub(crate) fn check<S: Lagrangian<N>, const N: usize>(name: &str, s: &S, seed: u64) {
     let (sep, coupling, force) = (S::SEPARABILITY, S::COUPLING, S::FORCE_COUPLING);
     println!(
         "{name:<22} N = {N:<3} {:<17} q–q {:<10} q–v {:<10} v–v {:<10} force: ∂F/∂q {:<10} ∂F/∂v {}",
@@ -650,6 +650,26 @@ fn check<S: Lagrangian<N>, const N: usize>(name: &str, s: &S, seed: u64) {
                     }
                 }
             }
+        }
+    }
+}
+
+/// Checks `AUTONOMOUS` and `CYCLIC` at four random points: an autonomous
+/// `L` takes the same value at two times, and `∂L/∂qᵢ` of a coordinate
+/// claimed cyclic is zero (the claims may be conservative, never wrong).
+pub(crate) fn check_autonomy_and_cyclic<S: Lagrangian<N>, const N: usize>(name: &str, s: &S, seed: u64) {
+    let mut rng = Rng(seed);
+    for _ in 0..4 {
+        let (t, q, v) = rng.point::<N>();
+        let (t2, _, _) = rng.point::<N>();
+        if S::AUTONOMOUS {
+            let (a, b) = (s.lagrangian::<f64>(t, q, v), s.lagrangian::<f64>(t2, q, v));
+            assert_eq!(a.to_bits(), b.to_bits(), "{name}: claimed autonomous, L(t = {t}) = {a}, L(t = {t2}) = {b}");
+        }
+        for i in (0..N).filter(|&i| S::CYCLIC[i]) {
+            let qd: [Dual64; N] = std::array::from_fn(|j| Dual64::new(q[j], f64::from(u8::from(i == j))));
+            let derivative = s.lagrangian(Dual64::from_re(t), qd, v.map(Dual64::from_re)).eps;
+            assert_eq!(derivative, 0.0, "{name}: q[{i}] claimed cyclic, ∂L/∂q[{i}] = {derivative:e}");
         }
     }
 }
