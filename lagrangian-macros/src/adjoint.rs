@@ -801,6 +801,13 @@ impl<'a> Adjoint<'a> {
         g == self.one().to_string() || self.constants.contains(&g)
     }
 
+    /// The names of `sin` and `cos` of the receiver of the active `sin` or
+    /// `cos` node `expr`, which its forward code binds together.
+    fn sin_cos(&mut self, expr: &Expr) -> (proc_macro2::Ident, proc_macro2::Ident) {
+        let temp = self.temp(expr);
+        (format_ident!("{}_sin", temp), format_ident!("{}_cos", temp))
+    }
+
     /// The temporary of an active node.
     fn temp(&mut self, expr: &Expr) -> proc_macro2::Ident {
         let next = self.temps.len();
@@ -860,6 +867,20 @@ impl<'a> Adjoint<'a> {
                     values.push(self.forward(arg, out)?);
                 }
                 let rule = Rule::of(&method.to_string(), *math, args)?;
+                // `sin` and `cos` as a pair: the reverse sweep's partial is
+                // the other half (on dual numbers each of them is a
+                // `sin_cos` of the real part, so this halves their cost).
+                if let Rule::Unary(f @ (Unary::Sin | Unary::Cos)) = rule {
+                    let (temp, (sin, cos)) = (self.temp(expr), self.sin_cos(expr));
+                    let (ty, pair) = match self.generic {
+                        true => (self.ty(), quote!(#receiver_value.sin_cos())),
+                        false => (self.ty(), quote!(f64::sin_cos(#receiver_value))),
+                    };
+                    out.push(quote!(let (#sin, #cos): (#ty, #ty) = #pair;));
+                    let value = if matches!(f, Unary::Sin) { sin } else { cos };
+                    out.push(quote!(let #temp: #ty = #value;));
+                    return Some(temp.into_token_stream());
+                }
                 let method = format_ident!("{}", method.to_string());
                 if self.generic {
                     // `atan2` and `mul_add` take active operands throughout.
@@ -1029,10 +1050,15 @@ impl<'a> Adjoint<'a> {
                     let value = self.value(arg)?;
                     operands.push(self.active_if(uniform && !arg.class.is_active(), value));
                 }
-                let partials = if self.generic {
-                    rule.generic_partials(&x, &y, &operands)
-                } else {
-                    rule.partials(&x, &y, &operands)
+                let partials = match rule {
+                    // The other half of the forward sweep's `sin_cos`.
+                    Rule::Unary(Unary::Sin) => vec![Some(self.sin_cos(expr).1.to_token_stream())],
+                    Rule::Unary(Unary::Cos) => {
+                        let sin = self.sin_cos(expr).0;
+                        vec![Some(quote!(-#sin))]
+                    }
+                    _ if self.generic => rule.generic_partials(&x, &y, &operands),
+                    _ => rule.partials(&x, &y, &operands),
                 };
                 let operands = std::iter::once(&**receiver).chain(args);
                 for (operand, partial) in operands.zip(partials) {
@@ -1663,7 +1689,10 @@ mod tests {
         let reverse = &out[out.find("let mut __a0_0").unwrap()..];
         assert!(!reverse.contains(". m"), "{out}");
         assert!(out.contains("f64 :: sqrt"), "{out}");
-        assert!(out.contains("- f64 :: sin"), "{out}");
+        // `cos` and its partial from one `sin_cos`.
+        assert!(out.contains("f64 :: sin_cos (__t2)"), "{out}");
+        assert!(out.contains("(- __t3_sin)"), "{out}");
+        assert!(!out.contains("f64 :: sin ("), "{out}");
     }
 
     #[test]
@@ -1871,7 +1900,7 @@ mod tests {
         // Active values are `__D`, no `f64` function is called on them.
         for piece in [
             "let mut __l0_0 : __D = __D :: from ((0.0))",
-            ". cos ()",
+            ". sin_cos ()",
             ". sqrt ()",
             ". powi (n - 1) * f64 :: from (n)",
             "__D :: from (f64 :: signum (",
@@ -1935,9 +1964,9 @@ mod tests {
         // not one per partial product of the chain.
         assert!(reverse.contains("let mut __a0_0 : f64 = __g"), "{reverse}");
         assert!(!reverse.contains("__a0_0 +="), "{reverse}");
-        // Straight-line code: `d³ · (4 · 0.25 · β)` first, `g` (here the
-        // seed, one) last.
-        assert!(reverse.contains("* (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        // `g` is the seed, a constant: the chain's constant is formed with
+        // it first (and folds), then multiplies `d³`.
+        assert!(reverse.contains("= (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
         assert!(reverse.contains("= __t0 * __t0 ;"), "{reverse}");
         // No temporary of the forward sweep but `d`'s own is read: no
         // partial product of the chain.

@@ -11,8 +11,8 @@
 //! the clock, the step policy (fixed steps, or energy-preserving steps with
 //! the step size as one more unknown), [`Stats`], and `run`/`run_until`. A
 //! discrete Lagrangian brings how one step is solved ([`Method`]): the
-//! one-point rules in `one_point.rs` (one hyper-dual sweep of the action per
-//! Newton iteration), the Galerkin rules in `galerkin/stepper.rs` (a block of
+//! one-point rules in `one_point.rs` (one hyper-dual sweep of the action, or
+//! of the macro's gradient code on dual lanes, per Newton iteration), the Galerkin rules in `galerkin/stepper.rs` (a block of
 //! `sN` unknowns). The state is only replaced once a step has converged and
 //! every published value is finite, so a failed step leaves the integrator as
 //! it was.

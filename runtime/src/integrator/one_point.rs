@@ -5,7 +5,13 @@
 //! increment `dq = q_{k+1} − q_k`, and each Newton iteration is one
 //! hyper-dual sweep of the action `A(t_k, h, q_k, dq)` that yields the
 //! residual `p_k + ∂A/∂q_k`, the Jacobian `∂²A/∂q_k∂q_{k+1}` and, after
-//! convergence, the momentum change. In any other [`Real`](crate::Real)
+//! convergence, the momentum change. Where the macro wrote gradient code
+//! (`Lagrangian::HAS_GRADIENT_QV`, no forces) and the rule is a quadrature
+//! of `L` at one or two points, the same quantities come from that code on
+//! dual numbers with one lane per coordinate (forward over reverse), which
+//! carries `N` derivative components through the operations that depend on
+//! `q` and `v` instead of the hyper-dual's `N × N` block through all of them
+//! ([`gradient_linearization`]). In any other [`Real`](crate::Real)
 //! they run as the Galerkin rule of degree 1 whose quadrature is their own
 //! point(s) (`galerkin/one_point.rs`), which is the same discrete Lagrangian.
 
@@ -17,6 +23,7 @@ use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
+use crate::hyperdual::DualArray;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, NewtonFailure, NewtonReport};
 use crate::real::max_abs;
@@ -345,7 +352,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// momenta. Returns the new compensations too; changes nothing.
     #[inline]
     pub(super) fn advance(&self, seg: &Segment<N>) -> ([f64; N], [f64; N], [f64; N], [f64; N]) {
-        let dp = forcing::momentum_change(&self.system, &self.method, seg);
+        let dp = match self.gradient_points() {
+            Some(points) => gradient_momentum_change(&self.system, points, seg),
+            None => forcing::momentum_change(&self.system, &self.method, seg),
+        };
         let (q1, q) = kahan(&self.state.q, &self.carry, &seg.dq);
         let (p1, p) = kahan(&self.state.p, &self.p_carry, &dp);
         (q1, p1, q, p)
@@ -411,17 +421,36 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
-        let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+        let (d_q0, jacobian) = match self.gradient_points() {
+            Some(points) => gradient_linearization(system, points, &seg),
+            None => {
+                let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+                (d.d_q0, d.d2_q0_q1)
+            }
+        };
         // The momentum carries its compensation: p_k is p0 + pc.
         let pc = &self.p_carry;
-        let r = SVector::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
-        let scale = p_scale.max(max_abs(&d.d_q0));
+        let r = SVector::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]);
+        let scale = p_scale.max(max_abs(&d_q0));
         let step = if estimate {
-            newton::square_correction(r, d.d2_q0_q1, self.newton.min_rcond)?
+            newton::square_correction(r, jacobian, self.newton.min_rcond)?
         } else {
-            newton::square_correction_unestimated(r, d.d2_q0_q1)?
+            newton::square_correction_unestimated(r, jacobian)?
         };
         Ok(step.cancelling(scale))
+    }
+
+    /// The rule's quadrature points `c_j` when its Newton steps take their
+    /// derivatives from the macro's gradient code: a rule of the form
+    /// `A = h Σ_j w L(t_k + c_j h, q_k + c_j Δq, Δq/h)` (midpoint,
+    /// trapezoid, α-β) on a system with `gradient_qv` and without forces.
+    #[inline(always)]
+    fn gradient_points(&self) -> Option<[f64; 2]> {
+        if S::HAS_GRADIENT_QV && !forcing::is_forced::<S, N>() {
+            self.method.galerkin_points().map(|(points, _)| points)
+        } else {
+            None
+        }
     }
 
     /// The increment predicted by quadratic extrapolation of the positions:
@@ -828,6 +857,85 @@ pub(super) fn commit_explicit<const N: usize>(
     *p_carry = taken.p_carry;
     stats.steps += 1;
     stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
+}
+
+/// `∂A/∂q_k|_{q_{k+1}}` and the Jacobian `∂²A/∂q_k∂q_{k+1}` of a rule with
+/// the quadrature points `points` (weight `w` each, see
+/// [`distinct`](super::tape_step::distinct)) on the segment `seg`, from the
+/// macro's gradient code run on dual numbers with one lane per coordinate
+/// (forward over reverse):
+///
+/// ```text
+/// ∂A/∂q_k|_{q_{k+1}} = Σ_j w h [(1 − c_j) L_q − h⁻¹ L_v](x_j),   x_j = (t_k + c_j h, q_k + c_j Δq, Δq/h)
+/// ```
+///
+/// and its derivative in `q_{k+1}` from the seeds `δq = c_j e_i`,
+/// `δv = h⁻¹ e_i`. The same quantities as the hyper-dual sweep of `A`
+/// (`derivatives::step_derivatives`), which carries the whole `N × N` block
+/// through every operation of `L`; here the gradient code carries `N`
+/// lanes, and only through the operations that depend on `q` or `v`.
+#[inline(always)]
+fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    points: [f64; 2],
+    seg: &Segment<N>,
+) -> ([f64; N], SMatrix<f64, N, N>) {
+    let Segment { t0, h, q0, dq } = *seg;
+    let inv_h = h.recip();
+    let (evaluated, w) = super::tape_step::distinct(points);
+    // The weight of `L_v`: `w h · h⁻¹`, the derivative of the action as
+    // computed (`v = Δq·h⁻¹`).
+    let b_v = w * (h * inv_h);
+    let (mut d_q0, mut jacobian) = ([0.0; N], SMatrix::<f64, N, N>::zeros());
+    for &j in evaluated {
+        let c = points[j];
+        let a_q = w * (h * (1.0 - c));
+        let seeded = |x: f64, i: usize, scale: f64| {
+            let mut x = DualArray::<[f64; N]>::from_re(x);
+            x.eps[i] = scale;
+            x
+        };
+        let q: [DualArray<[f64; N]>; N] =
+            core::array::from_fn(|i| seeded(super::tape_step::point_position(c, q0[i], dq[i]), i, c));
+        let v: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| seeded(dq[i] * inv_h, i, inv_h));
+        let (mut gq, mut gv) = ([DualArray::from_re(0.0); N], [DualArray::from_re(0.0); N]);
+        let t = DualArray::from_re(super::tape_step::point_time(c, t0, h));
+        system.gradient_qv_scalar(t, &q, &v, &mut gq, &mut gv);
+        for i in 0..N {
+            d_q0[i] += a_q * gq[i].re - b_v * gv[i].re;
+            for k in 0..N {
+                jacobian[(i, k)] += a_q * gq[i].eps[k] - b_v * gv[i].eps[k];
+            }
+        }
+    }
+    (d_q0, jacobian)
+}
+
+/// The momentum change `∂A/∂q_k + ∂A/∂q_{k+1} = Σ_j w h L_q(x_j)` (at fixed
+/// increment) of the rule with the quadrature points `points` on `seg`,
+/// from the macro's `f64` gradient code in `q` (see [`gradient_linearization`]).
+#[inline(always)]
+fn gradient_momentum_change<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    points: [f64; 2],
+    seg: &Segment<N>,
+) -> [f64; N] {
+    let Segment { t0, h, q0, dq } = *seg;
+    let inv_h = h.recip();
+    let (evaluated, w) = super::tape_step::distinct(points);
+    let v: [f64; N] = dq.map(|d| d * inv_h);
+    let mut dp = [0.0; N];
+    for &j in evaluated {
+        let c = points[j];
+        let at: [f64; N] = core::array::from_fn(|i| super::tape_step::point_position(c, q0[i], dq[i]));
+        let mut gq = [0.0; N];
+        system.gradient_q(super::tape_step::point_time(c, t0, h), &at, &v, &mut gq);
+        let wh = w * h;
+        for i in 0..N {
+            dp[i] += wh * gq[i];
+        }
+    }
+    dp
 }
 
 /// What the sub-steps of [`explicit_step`] start from.

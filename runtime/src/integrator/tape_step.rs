@@ -708,13 +708,13 @@ fn directional_points<Mo: TapeModel>(model: &Mo) -> Option<[f64; 2]> {
 }
 
 /// The points that are evaluated (one when both coincide) and their weight.
-fn distinct(points: [f64; 2]) -> (&'static [usize], f64) {
+pub(super) fn distinct(points: [f64; 2]) -> (&'static [usize], f64) {
     if points[0] == points[1] { (&[0], 1.0) } else { (&[0, 1], 0.5) }
 }
 
 /// `t_k + c h`, formed as the rules' actions form it.
 #[inline]
-fn point_time(c: f64, t0: f64, h: f64) -> f64 {
+pub(super) fn point_time(c: f64, t0: f64, h: f64) -> f64 {
     if c == 0.0 {
         t0
     } else if c == 1.0 {
@@ -726,7 +726,7 @@ fn point_time(c: f64, t0: f64, h: f64) -> f64 {
 
 /// `q_k + c Δq`, formed as the rules' actions form it.
 #[inline]
-fn point_position(c: f64, q0: f64, dq: f64) -> f64 {
+pub(super) fn point_position(c: f64, q0: f64, dq: f64) -> f64 {
     if c == 0.0 {
         q0
     } else if c == 1.0 {
