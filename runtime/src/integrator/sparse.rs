@@ -19,12 +19,12 @@
 //! energy-preserving steps, Galerkin rules, double-double. The tangent map
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
-use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Growth, Guess, Inline, Node, SparseWork, Taken, TapeModel};
 use super::{Integrator, StepPolicy};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
-use crate::newton::NewtonFailure;
+use crate::newton::{NewtonFailure, NewtonReport};
 use crate::state::State;
 use crate::structure::Coupling;
 use crate::system::{Lagrangian, Scalar};
@@ -213,6 +213,33 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     fn sparse_advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
         let model = Fixed { system: &self.system, method: &self.method };
+        // Past the first two steps, the explicit step writes into the state
+        // and the segments themselves (no copies); anything but a plain
+        // successful step is declined, undone and taken below.
+        if let (true, Some(last), Some((h_earlier, earlier_dq))) =
+            (explicit, &mut self.memory.previous, &mut self.memory.earlier)
+        {
+            let State { step, t, ref mut q, ref mut p } = self.state;
+            let inline = Inline {
+                q,
+                q_carry: &mut self.carry,
+                p,
+                p_carry: &mut self.p_carry,
+                last_q0: &mut last.q0,
+                last_dq: &mut last.dq,
+                earlier_dq,
+            };
+            if work.verlet_in_place(&model, step, h, t1, inline) {
+                *h_earlier = last.h;
+                last.t0 = t;
+                last.h = h;
+                self.state.step += 1;
+                self.state.t = t1;
+                self.stats.steps += 1;
+                self.stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
+                return Ok(());
+            }
+        }
         let State { step, t, ref q, ref p } = self.state;
         let node = Node { step, t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
         let outcome = if explicit {
