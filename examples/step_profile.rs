@@ -21,7 +21,7 @@
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
-//! `midpoint` (reverse-mode Newton steps), `yoshida4` (sub-stepped explicit composition), and
+//! `dyn-trapezoid` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (sub-stepped explicit composition), and
 //! `verlet-compensated-inplace` (a hand-written compensated Verlet on slices in place: the fair baseline
 //! of the generated explicit step); `digest-trapezoid`, `digest-midpoint`, `digest-yoshida4` print the bits
 //! of the state and of every readout after `n` steps, to compare two builds.
@@ -174,6 +174,33 @@ impl<const N: usize> Chain<N> {
             potential += 0.5 * d * d + 0.25 * d.powi(4);
         }
         d = q[N - 1];
+        potential += 0.5 * d * d + 0.25 * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// The same chain sized at run time (`DynIntegrator`, as in `chain_scaling.rs`).
+struct DynChain(usize);
+
+#[lagrangian::lagrangian]
+impl DynChain {
+    fn dimension(&self) -> usize {
+        self.0
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * d.powi(4);
+        for i in 0..n - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d.powi(4);
+        }
+        d = q[n - 1];
         potential += 0.5 * d * d + 0.25 * d.powi(4);
         kinetic - potential
     }
@@ -403,6 +430,15 @@ fn main() {
             run(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
         }
         ("chain1000", "verlet") => hand_verlet(chain_force, &[1.0], 0.05, chain_q0(), [0.0; CHAIN_N], n),
+        ("chain1000", "dyn-trapezoid") => {
+            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)
+                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
+                .unwrap();
+            for _ in 0..n {
+                black_box(sim.step().unwrap());
+            }
+            sim.state().q.clone()
+        }
         ("chain1000", "verlet-compensated-inplace") => compensated_in_place(0.05, &chain_q0::<CHAIN_N>(), n),
         // Reverse-mode Newton steps (midpoint) and sub-stepped explicit
         // compositions (Yoshida 4) of the same chain.

@@ -255,6 +255,11 @@ impl Method<f64> for Composition {
             stats: it.stats,
             derivatives: it.derivatives,
         };
+        // Reverse mode keeps the carries in its work (see `sparse.rs`): kept
+        // to be put back if a sub-step fails.
+        if let Some(work) = sub.memory.sparse.as_mut() {
+            work.save_carries();
+        }
         let mut substeps = it.memory.substeps;
         let stages = it.method.weights.len();
         let mut elapsed = 0.0;
@@ -273,6 +278,7 @@ impl Method<f64> for Composition {
                 }
                 if let Some(work) = it.memory.inner.sparse.as_mut() {
                     work.forget_node_force();
+                    work.restore_carries();
                 }
                 it.stats.failed_steps += 1;
                 return Err(e.at_state(before));
@@ -288,6 +294,7 @@ impl Method<f64> for Composition {
         }
         if let Some(work) = memory.sparse.as_mut() {
             work.rekey_node_force(before.step + 1);
+            work.discard_saved_carries();
         }
         it.state = State { step: before.step + 1, ..state };
         it.carry = carry;

@@ -19,7 +19,7 @@
 //! energy-preserving steps, Galerkin rules, double-double. The tangent map
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
-use super::tape_step::{self, Growth, Guess, Inline, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Integrator, StepPolicy};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
@@ -212,37 +212,46 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     fn sparse_advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
-        let model = Fixed { system: &self.system, method: &self.method };
-        // Past the first two steps, the explicit step writes into the state
-        // and the segments themselves (no copies); anything but a plain
-        // successful step is declined, undone and taken below.
-        if let (true, Some(last), Some((h_earlier, earlier_dq))) =
-            (explicit, &mut self.memory.previous, &mut self.memory.earlier)
-        {
-            let State { step, t, ref mut q, ref mut p } = self.state;
-            let inline = Inline {
-                q,
-                q_carry: &mut self.carry,
-                p,
-                p_carry: &mut self.p_carry,
-                last_q0: &mut last.q0,
-                last_dq: &mut last.dq,
-                earlier_dq,
-            };
-            if work.verlet_in_place(&model, step, h, t1, inline) {
-                *h_earlier = last.h;
-                last.t0 = t;
-                last.h = h;
-                self.state.step += 1;
-                self.state.t = t1;
-                self.stats.steps += 1;
-                self.stats.last = NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 };
-                return Ok(());
+        // The carries out of the work while it steps; put back, or replaced
+        // by the step's, below.
+        let [q_carry, p_carry] = core::mem::take(&mut work.carries);
+        let outcome = self.sparse_try(work, h, t1, explicit, (&q_carry, &p_carry));
+        let (taken, energy) = match outcome {
+            Ok(taken) => taken,
+            Err(failure) => {
+                work.carries = [q_carry, p_carry];
+                return Err(self.fail(h, failure));
             }
+        };
+        if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
+            tape_step::watch_energy_jump(&mut self.stats, work.energy.unwrap_or(self.energy), after, t1);
         }
+        if !explicit {
+            work.energy = energy;
+        }
+        let Taken { dq, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
+        self.commit(&dq, &q1, &p1, report, h, t1);
+        work.carries = [q_carry1, p_carry1];
+        for buffer in [dq, q1, p1, q_carry, p_carry] {
+            work.recycle(buffer);
+        }
+        Ok(())
+    }
+
+    /// The step of [`sparse_advance`](Self::sparse_advance) from the node
+    /// with the Kahan compensations `carries`, nothing changed yet.
+    fn sparse_try(
+        &self,
+        work: &mut SparseWork,
+        h: f64,
+        t1: f64,
+        explicit: bool,
+        carries: (&[f64], &[f64]),
+    ) -> Result<(Taken, Option<f64>), NewtonFailure> {
+        let model = Fixed { system: &self.system, method: &self.method };
         let State { step, t, ref q, ref p } = self.state;
-        let node = Node { step, t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
-        let outcome = if explicit {
+        let node = Node { step, t, q, p, q_carry: carries.0, p_carry: carries.1 };
+        if explicit {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));
             let last = self.memory.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
@@ -253,23 +262,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             let last = self.memory.previous.map(|last| last.dq.map(|x| x * (h / last.h)));
             let guess = Guess { predictor: &predictor, last: last.as_ref().map(|x| &x[..]) };
             work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
-        };
-        let (taken, energy) = outcome.map_err(|failure| self.fail(h, failure))?;
-        if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
-            tape_step::watch_energy_jump(&mut self.stats, work.energy.unwrap_or(self.energy), after, t1);
         }
-        if !explicit {
-            work.energy = energy;
-        }
-        self.commit(&taken, h, t1);
-        work.recycle_taken(taken);
-        Ok(())
     }
 
-    /// Replaces the state by the step `taken` from the current node, in
-    /// place (the arrays are copied into, not moved).
-    fn commit(&mut self, taken: &Taken, h: f64, t1: f64) {
-        let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
+    /// Replaces the state by the step `(Δq, q_{k+1}, p_{k+1})` from the
+    /// current node, in place (the arrays are copied into, not moved; the
+    /// carries are the caller's).
+    fn commit(&mut self, dq: &[f64], q1: &[f64], p1: &[f64], report: NewtonReport, h: f64, t1: f64) {
         let memory = &mut self.memory;
         match (&memory.previous, &mut memory.earlier) {
             (Some(last), Some((h_earlier, dq_earlier))) => {
@@ -288,15 +287,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             None => memory.previous = Some(Segment { t0: self.state.t, h, q0: self.state.q, dq: array(dq) }),
         }
-        self.carry.copy_from_slice(q_carry);
-        self.p_carry.copy_from_slice(p_carry);
         self.state.q.copy_from_slice(q1);
         self.state.p.copy_from_slice(p1);
         self.state.step += 1;
         self.state.t = t1;
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
-        self.stats.last = *report;
+        self.stats.last = report;
     }
 
     /// The discrete energy `−∂A/∂t_{k+1}` of the last step in reverse mode

@@ -218,45 +218,6 @@ pub(crate) struct Taken {
     pub(crate) report: NewtonReport,
 }
 
-/// The arrays of a node and of the last two steps that a const-size
-/// integrator keeps inline (`[f64; N]`), which
-/// [`SparseWork::verlet_in_place`] rewrites in place: `(q_k, p_k)` and their
-/// Kahan compensations become those of node `k + 1`, the last segment's
-/// `(q0, Δq)` those of the new step, and the earlier increment the last one.
-pub(crate) struct Inline<'a> {
-    pub(crate) q: &'a mut [f64],
-    pub(crate) q_carry: &'a mut [f64],
-    pub(crate) p: &'a mut [f64],
-    pub(crate) p_carry: &'a mut [f64],
-    pub(crate) last_q0: &'a mut [f64],
-    pub(crate) last_dq: &'a mut [f64],
-    pub(crate) earlier_dq: &'a mut [f64],
-}
-
-impl Inline<'_> {
-    /// Undoes the first pass of [`SparseWork::verlet_in_place`] (and the
-    /// momentum pass when `momentum`) from `undo`, the old values of the
-    /// arrays it overwrote: `[last_q0, earlier_dq, q_carry, p, p_carry]`.
-    fn restore(&mut self, undo: &[f64], n: usize, momentum: bool) {
-        let (old_q0, rest) = undo.split_at(n);
-        let (old_earlier, rest) = rest.split_at(n);
-        let (old_qc, rest) = rest.split_at(n);
-        let (old_p, old_pc) = rest.split_at(n);
-        for i in 0..n {
-            // The old q_k and Δq_{k−1} moved along; the rest comes back from `undo`.
-            self.q[i] = self.last_q0[i];
-            self.last_q0[i] = old_q0[i];
-            self.last_dq[i] = self.earlier_dq[i];
-            self.earlier_dq[i] = old_earlier[i];
-            self.q_carry[i] = old_qc[i];
-        }
-        if momentum {
-            self.p[..n].copy_from_slice(&old_p[..n]);
-            self.p_carry[..n].copy_from_slice(&old_pc[..n]);
-        }
-    }
-}
-
 /// The heap-side work of reverse-mode steps: the tape and the buffers of its
 /// sweeps (scratch, rebuilt when cloned), and what persists between steps.
 #[derive(Debug)]
@@ -290,14 +251,19 @@ pub(crate) struct SparseWork {
     /// The buffers of Newton steps from the generated gradient code (empty
     /// until the first such step).
     directional: Directional,
-    /// In-place explicit steps ([`verlet_in_place`](Self::verlet_in_place)):
-    /// the old values of the five arrays a step overwrites and cannot
-    /// rebuild, `5n` long (empty until the first such step).
-    undo: Vec<f64>,
+    /// A const-size integrator's Kahan compensations of `q_k` and `p_k` in
+    /// reverse mode (its inline `carry` and `p_carry` stay zero): on the
+    /// heap, a step's new ones are swapped in, not copied (see
+    /// `sparse.rs`). Zero at the start, like the integrator's.
+    pub(crate) carries: [Vec<f64>; 2],
+    /// [`carries`](Self::carries) as [`save_carries`](Self::save_carries)
+    /// found them, for a composed step to restore on failure.
+    saved_carries: Option<[Vec<f64>; 2]>,
 }
 
-/// How many spare buffers [`SparseWork`] keeps: a step takes at most eight.
-const SPARE_BUFFERS: usize = 10;
+/// How many spare buffers [`SparseWork`] keeps: a step takes at most eight,
+/// and a composed step keeps two saved carries.
+const SPARE_BUFFERS: usize = 12;
 
 impl Clone for SparseWork {
     fn clone(&self) -> Self {
@@ -317,7 +283,8 @@ impl Clone for SparseWork {
             zero: self.zero.clone(),
             spare: Vec::new(),
             directional: Directional::default(),
-            undo: Vec::new(),
+            carries: self.carries.clone(),
+            saved_carries: self.saved_carries.clone(),
         }
     }
 }
@@ -347,7 +314,8 @@ impl SparseWork {
             zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
             spare: Vec::new(),
             directional: Directional::default(),
-            undo: Vec::new(),
+            carries: [zeroed(Some(n), n)?, zeroed(Some(n), n)?],
+            saved_carries: None,
         })
     }
 
@@ -369,6 +337,38 @@ impl SparseWork {
     pub(crate) fn recycle_taken(&mut self, taken: Taken) {
         let Taken { dq, q1, q_carry, p1, p_carry, .. } = taken;
         for buffer in [dq, q1, q_carry, p1, p_carry] {
+            self.recycle(buffer);
+        }
+    }
+
+    /// Keeps a copy of [`carries`](Self::carries) for
+    /// [`restore_carries`](Self::restore_carries) (a composed step's
+    /// sub-steps advance them before the composed step is known to succeed).
+    pub(crate) fn save_carries(&mut self) {
+        let mut saved = [self.buffer(), self.buffer()];
+        for (copy, carry) in saved.iter_mut().zip(&self.carries) {
+            copy.copy_from_slice(carry);
+        }
+        self.discard_saved_carries();
+        self.saved_carries = Some(saved);
+    }
+
+    /// Puts back the carries [`save_carries`](Self::save_carries) kept, or
+    /// zeros (those of an integrator's start) when it kept none.
+    pub(crate) fn restore_carries(&mut self) {
+        match self.saved_carries.take() {
+            Some(saved) => {
+                for buffer in core::mem::replace(&mut self.carries, saved) {
+                    self.recycle(buffer);
+                }
+            }
+            None => self.carries.iter_mut().for_each(|c| c.fill(0.0)),
+        }
+    }
+
+    /// Drops the carries [`save_carries`](Self::save_carries) kept.
+    pub(crate) fn discard_saved_carries(&mut self) {
+        for buffer in self.saved_carries.take().into_iter().flatten() {
             self.recycle(buffer);
         }
     }
@@ -712,171 +712,6 @@ impl SparseWork {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok(()),
         }
-    }
-
-    /// The explicit step of [`verlet_step`](Self::verlet_step) written into
-    /// the integrator's own arrays, for a const-size integrator past its
-    /// first two steps: the same operations in the same order (the same
-    /// bits), without the step's copies out of [`Taken`]. The old values the
-    /// step overwrites go to `undo` as it goes (streamed, cheaper than the
-    /// copies), and anything but a plain successful step (no mass matrix or
-    /// node force yet, a non-finite value, a growth the cheap bound cannot
-    /// rule out, a tape failure) puts everything back and returns `false`:
-    /// the caller then takes the step by [`verlet_step`](Self::verlet_step),
-    /// which decides and reports it as always. `true`: the step is taken,
-    /// and the caller updates the scalars (times, step sizes, counters).
-    pub(crate) fn verlet_in_place<Mo: TapeModel>(
-        &mut self,
-        model: &Mo,
-        step: u64,
-        h: f64,
-        t1: f64,
-        mut inline: Inline<'_>,
-    ) -> bool {
-        let n = self.n;
-        let f0 = match self.node_force.take() {
-            Some((k, f)) if k == step && self.mass.is_some() && t1.is_finite() => f,
-            other => {
-                self.node_force = other;
-                return false;
-            }
-        };
-        if self.undo.len() != 5 * n {
-            match zeroed(n.checked_mul(5), n) {
-                Ok(undo) => self.undo = undo,
-                Err(_) => {
-                    self.node_force = Some((step, f0));
-                    return false;
-                }
-            }
-        }
-        let mut f1 = self.buffer();
-        let taken = self.verlet_passes(model, h, t1, &f0, &mut f1, &mut inline);
-        match taken {
-            Ok(()) => {
-                self.node_force = Some((step + 1, f1));
-                self.recycle(f0);
-                self.energy = None;
-                true
-            }
-            Err(momentum) => {
-                if let Some(momentum) = momentum {
-                    inline.restore(&self.undo, n, momentum);
-                }
-                self.node_force = Some((step, f0));
-                self.recycle(f1);
-                false
-            }
-        }
-    }
-
-    /// The passes of [`verlet_in_place`](Self::verlet_in_place): the half
-    /// kick, the mass solve and the drift with the rotation of the
-    /// segments in one pass (the drift's pass of
-    /// [`verlet_into`](Self::verlet_into), and the copies of a commit), the
-    /// force at the new node, the momentum in one more. `Err` says what must
-    /// be undone: nothing (`None`), the first pass, or both.
-    fn verlet_passes<Mo: TapeModel>(
-        &mut self,
-        model: &Mo,
-        h: f64,
-        t1: f64,
-        f0: &[f64],
-        f1: &mut [f64],
-        inline: &mut Inline<'_>,
-    ) -> Result<(), Option<bool>> {
-        let n = self.n;
-        let half = 0.5 * h;
-        let Some(mass) = self.mass.as_ref() else { return Err(None) };
-        let (old_q0, rest) = self.undo.split_at_mut(n);
-        let (old_earlier, rest) = rest.split_at_mut(n);
-        let (old_qc, rest) = rest.split_at_mut(n);
-        let (old_p, old_pc) = rest.split_at_mut(n);
-        let Inline { q, q_carry: qc, p, p_carry: pc, last_q0, last_dq, earlier_dq } = inline;
-        let (q, qc, p, pc, f0) = (&mut q[..n], &mut qc[..n], &mut p[..n], &mut pc[..n], &f0[..n]);
-        let (last_q0, last_dq, earlier_dq) = (&mut last_q0[..n], &mut last_dq[..n], &mut earlier_dq[..n]);
-        let (old_q0, old_earlier, old_qc) = (&mut old_q0[..n], &mut old_earlier[..n], &mut old_qc[..n]);
-        // Whether q_{k+1} is finite, gathered by the drift.
-        let mut q_bad = 0;
-        match mass.diagonal.as_deref() {
-            Some(d) => {
-                let d = &d[..n];
-                let mut solve_bad = 0;
-                for i in 0..n {
-                    let (q0, qc0) = (q[i], qc[i]);
-                    let rhs = (p[i] + half * f0[i]) + pc[i];
-                    let v = rhs / d[i];
-                    solve_bad |= nan_bits(rhs) | nan_bits(v);
-                    let x = v * h;
-                    let (sum, carry) = kahan(q0, qc0, x);
-                    q_bad |= nan_bits(sum);
-                    old_q0[i] = last_q0[i];
-                    old_earlier[i] = earlier_dq[i];
-                    old_qc[i] = qc0;
-                    earlier_dq[i] = last_dq[i];
-                    last_dq[i] = x;
-                    last_q0[i] = q0;
-                    q[i] = sum;
-                    qc[i] = carry;
-                }
-                if is_non_finite(solve_bad) {
-                    return Err(Some(false));
-                }
-            }
-            None => {
-                // The right-hand side solved in a spare buffer first: a
-                // failed solve has written nothing.
-                let mut rhs = self.spare.pop().unwrap_or_else(|| vec![0.0; n]);
-                for i in 0..n {
-                    rhs[i] = (p[i] + half * f0[i]) + pc[i];
-                }
-                let solved = mass.assembled.solve(&mut rhs).is_ok();
-                if solved {
-                    for i in 0..n {
-                        let (q0, qc0) = (q[i], qc[i]);
-                        let x = rhs[i] * h;
-                        let (sum, carry) = kahan(q0, qc0, x);
-                        q_bad |= nan_bits(sum);
-                        old_q0[i] = last_q0[i];
-                        old_earlier[i] = earlier_dq[i];
-                        old_qc[i] = qc0;
-                        earlier_dq[i] = last_dq[i];
-                        last_dq[i] = x;
-                        last_q0[i] = q0;
-                        q[i] = sum;
-                        qc[i] = carry;
-                    }
-                }
-                self.spare.push(rhs);
-                if !solved {
-                    return Err(None);
-                }
-            }
-        }
-        // The cheap bound of `growth_check` (Δq now in `last_dq`, q_k in
-        // `last_q0`); where it cannot decide, the full check is left to
-        // `verlet_step`.
-        if is_non_finite(q_bad) || fold_max_abs(last_dq) > 1e6 * (1e-6 * fold_max_abs(last_q0)) {
-            return Err(Some(false));
-        }
-        if potential_force(model, &mut self.tape, &self.zero, t1, q, f1).is_err() {
-            return Err(Some(false));
-        }
-        let (f1, old_p, old_pc) = (&f1[..n], &mut old_p[..n], &mut old_pc[..n]);
-        let mut p_bad = 0;
-        for i in 0..n {
-            let (p0, pc0) = (p[i], pc[i]);
-            let (sum, carry) = kahan(p0, pc0, half * (f0[i] + f1[i]));
-            old_p[i] = p0;
-            old_pc[i] = pc0;
-            p[i] = sum;
-            pc[i] = carry;
-            p_bad |= nan_bits(sum);
-        }
-        if is_non_finite(p_bad) {
-            return Err(Some(true));
-        }
-        Ok(())
     }
 
     /// [`implausible_growth`] of the increment `dq` from `q`, whose largest
