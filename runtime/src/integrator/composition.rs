@@ -110,7 +110,8 @@ pub struct CompositionMemory<const N: usize> {
     /// node force.
     pub(crate) inner: OnePointMemory<N>,
     /// The sub-steps of the last step (the first `stages` entries), when
-    /// they were taken one by one.
+    /// they were taken one by one in forward mode (reverse mode reads only
+    /// the last one, `inner.previous`).
     pub(crate) substeps: [Segment<N>; MAX_STAGES],
     pub(crate) stages: usize,
     /// The size of the last composed step.
@@ -260,7 +261,10 @@ impl Method<f64> for Composition {
         if let Some(work) = sub.memory.sparse.as_mut() {
             work.save_carries();
         }
-        let mut substeps = it.memory.substeps;
+        // Reverse mode reads only the last sub-step, which stays in
+        // `inner.previous`: no copies of the sub-steps (16 kB each at N = 1000).
+        let reverse = it.derivatives.reverse::<N>();
+        let mut substeps = if reverse { None } else { Some(it.memory.substeps) };
         let stages = it.method.weights.len();
         let mut elapsed = 0.0;
         for (i, gamma) in it.method.weights.iter().enumerate() {
@@ -283,8 +287,8 @@ impl Method<f64> for Composition {
                 it.stats.failed_steps += 1;
                 return Err(e.at_state(before));
             }
-            if let Some(seg) = sub.memory.previous {
-                substeps[i] = seg;
+            if let (Some(seg), Some(substeps)) = (&sub.memory.previous, &mut substeps) {
+                substeps[i] = *seg;
             }
         }
         let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
@@ -301,7 +305,9 @@ impl Method<f64> for Composition {
         it.p_carry = p_carry;
         it.watched_energy = watched_energy;
         it.memory.inner = memory;
-        it.memory.substeps = substeps;
+        if let Some(substeps) = substeps {
+            it.memory.substeps = substeps;
+        }
         it.memory.stages = stages;
         it.memory.last_h = Some(h);
         it.stats.steps += 1;
@@ -328,9 +334,10 @@ impl Method<f64> for Composition {
     /// composed step ends with); the energy of the initial data at `k = 0`.
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
-            return match it.memory.stages {
-                0 => it.energy,
-                m => super::sparse::step_energy(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
+            // The last sub-step is the inner memory's last step.
+            return match (it.memory.stages, &it.memory.inner.previous) {
+                (1.., Some(last)) => super::sparse::step_energy(&it.system, &Trapezoid, last),
+                _ => it.energy,
             };
         }
         match it.memory.stages {
@@ -345,6 +352,13 @@ impl Method<f64> for Composition {
 
 impl F64Readouts for Composition {
     fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
+        if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
+            // The last sub-step is the inner memory's last step.
+            return match (it.memory.stages, &it.memory.inner.previous) {
+                (1.., Some(last)) => last.dq.map(|x| x / last.h),
+                _ => it.v0,
+            };
+        }
         match it.memory.stages {
             0 => it.v0,
             m => {
