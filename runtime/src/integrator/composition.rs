@@ -29,6 +29,7 @@
 
 use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
+use super::sparse::Stepper;
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
 use crate::derivatives::{self, Segment};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
@@ -233,6 +234,13 @@ impl Method<f64> for Composition {
         if fused && !super::sparse::too_large_for_forward(N) && !it.derivatives.reverse::<N>() {
             return fused_step(it, h, t1);
         }
+        // `if const` on its own: codegen can skip the sub-integrator below for large N.
+        if const { super::sparse::too_large_for_forward(N) } {
+            return sparse_step(it, h, t1);
+        }
+        if it.derivatives.reverse::<N>() {
+            return sparse_step(it, h, t1);
+        }
         let before = it.state;
         let saved = (it.memory.inner.previous, it.memory.inner.earlier);
         let mut sub = Integrator {
@@ -256,15 +264,7 @@ impl Method<f64> for Composition {
             stats: it.stats,
             derivatives: it.derivatives,
         };
-        // Reverse mode keeps the carries in its work (see `sparse.rs`): kept
-        // to be put back if a sub-step fails.
-        if let Some(work) = sub.memory.sparse.as_mut() {
-            work.save_carries();
-        }
-        // Reverse mode reads only the last sub-step, which stays in
-        // `inner.previous`: no copies of the sub-steps (16 kB each at N = 1000).
-        let reverse = it.derivatives.reverse::<N>();
-        let mut substeps = if reverse { None } else { Some(it.memory.substeps) };
+        let mut substeps = it.memory.substeps;
         let stages = it.method.weights.len();
         let mut elapsed = 0.0;
         for (i, gamma) in it.method.weights.iter().enumerate() {
@@ -282,13 +282,12 @@ impl Method<f64> for Composition {
                 }
                 if let Some(work) = it.memory.inner.sparse.as_mut() {
                     work.forget_node_force();
-                    work.restore_carries();
                 }
                 it.stats.failed_steps += 1;
                 return Err(e.at_state(before));
             }
-            if let (Some(seg), Some(substeps)) = (&sub.memory.previous, &mut substeps) {
-                substeps[i] = *seg;
+            if let Some(seg) = sub.memory.previous {
+                substeps[i] = seg;
             }
         }
         let Integrator { state, carry, p_carry, mut memory, stats, watched_energy, .. } = sub;
@@ -298,16 +297,13 @@ impl Method<f64> for Composition {
         }
         if let Some(work) = memory.sparse.as_mut() {
             work.rekey_node_force(before.step + 1);
-            work.discard_saved_carries();
         }
         it.state = State { step: before.step + 1, ..state };
         it.carry = carry;
         it.p_carry = p_carry;
         it.watched_energy = watched_energy;
         it.memory.inner = memory;
-        if let Some(substeps) = substeps {
-            it.memory.substeps = substeps;
-        }
+        it.memory.substeps = substeps;
         it.memory.stages = stages;
         it.memory.last_h = Some(h);
         it.stats.steps += 1;
@@ -404,6 +400,69 @@ impl F64Readouts for Composition {
                 .sum()
         })
     }
+}
+
+/// A composed step in reverse mode: the trapezoid sub-steps step the
+/// integrator's own fields ([`Stepper`]), with no sub-integrator and no
+/// copies of the sub-steps (the readouts need only the last one, which is
+/// `inner.previous`). A failed sub-step puts back the node, the last two
+/// segments and the carries as they were before the composed step.
+fn sparse_step<S: Lagrangian<N>, const N: usize>(
+    it: &mut Integrator<S, Composition, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    // `Integrator::EXPLICIT` for the trapezoid rule (reverse mode refuses forces).
+    let explicit = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS
+        && S::SEPARABILITY.has_constant_mass()
+        && !S::HAS_FORCE
+        && !S::HAS_DISSIPATION;
+    let before = it.state;
+    let saved = (it.memory.inner.previous, it.memory.inner.earlier);
+    if let Some(work) = it.memory.inner.sparse.as_mut() {
+        work.save_carries();
+    }
+    // The sub-steps count into a copy: a composed step is one step.
+    let mut stats = it.stats;
+    let weights = it.method.weights;
+    let mut elapsed = 0.0;
+    for (i, gamma) in weights.iter().enumerate() {
+        elapsed += gamma;
+        let ti = if i + 1 == weights.len() { t1 } else { before.t + elapsed * h };
+        let mut stepper = Stepper {
+            system: &it.system,
+            method: &Trapezoid,
+            newton: &it.newton,
+            v0: &it.v0,
+            energy: it.energy,
+            state: &mut it.state,
+            memory: &mut it.memory.inner,
+            stats: &mut stats,
+        };
+        if let Err(e) = stepper.step(gamma * h, ti, explicit) {
+            it.state = before;
+            (it.memory.inner.previous, it.memory.inner.earlier) = saved;
+            if let Some(work) = it.memory.inner.sparse.as_mut() {
+                // The node force of a sub-node: the next step recomputes it, to the same bits.
+                work.forget_node_force();
+                work.restore_carries();
+            }
+            it.stats.failed_steps += 1;
+            return Err(e.at_state(before));
+        }
+    }
+    if let Some(work) = it.memory.inner.sparse.as_mut() {
+        // The cached node force belongs to the composed node now.
+        work.rekey_node_force(before.step + 1);
+        work.discard_saved_carries();
+    }
+    it.state.step = before.step + 1;
+    it.memory.stages = weights.len();
+    it.memory.last_h = Some(h);
+    it.stats.steps += 1;
+    it.stats.newton_iterations = stats.newton_iterations;
+    it.stats.last = stats.last;
+    Ok(())
 }
 
 /// A composed step on a system whose trapezoid sub-steps are explicit, in
