@@ -653,15 +653,19 @@ fn compensated_in_place(h: f64, q0: &[f64], n: usize) -> Vec<f64> {
     let half = 0.5 * h;
     force(&q, &mut f0);
     for _ in 0..n {
-        // Half kick and drift in one pass (`p` itself changes at the end).
+        // Half kick and drift in one pass (`p` itself changes at the end);
+        // the slices cut to one length, so that the loops have no bounds checks.
+        let (q, qc, p, pc) = (&mut q[..len], &mut qc[..len], &mut p[..len], &mut pc[..len]);
+        let old = &f0[..len];
         for i in 0..len {
-            let x = ((p[i] + half * f0[i]) + pc[i]) * h;
+            let x = ((p[i] + half * old[i]) + pc[i]) * h;
             (q[i], qc[i]) = kahan(q[i], qc[i], x);
         }
-        force(&q, &mut f1);
+        force(q, &mut f1);
         // Both half kicks as one compensated sum.
+        let new = &f1[..len];
         for i in 0..len {
-            (p[i], pc[i]) = kahan(p[i], pc[i], half * (f0[i] + f1[i]));
+            (p[i], pc[i]) = kahan(p[i], pc[i], half * (old[i] + new[i]));
         }
         core::mem::swap(&mut f0, &mut f1);
         black_box(&q);
