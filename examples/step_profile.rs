@@ -20,7 +20,11 @@
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`,
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
-//! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode).
+//! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
+//! `dyn-trapezoid` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (sub-stepped explicit composition), and
+//! `verlet-compensated-inplace` (a hand-written compensated Verlet on slices in place: the fair baseline
+//! of the generated explicit step); `digest-trapezoid`, `digest-midpoint`, `digest-yoshida4` print the bits
+//! of the state and of every readout after `n` steps, to compare two builds.
 //! `gradient` (`fpu`, `chain1000`, `kepler`, `henon-heiles`; `fpu gradient-powi`): the macro's `gradient_q`
 //! alone, one evaluation per "step"; `force`: the hand-written force of the `verlet` case instead.
 //! `trace-midpoint`, `trace-trapezoid`, `trace-alpha-beta` (α = 0.3; `pendulum` or `double pendulum`)
@@ -170,6 +174,33 @@ impl<const N: usize> Chain<N> {
             potential += 0.5 * d * d + 0.25 * d.powi(4);
         }
         d = q[N - 1];
+        potential += 0.5 * d * d + 0.25 * d.powi(4);
+        kinetic - potential
+    }
+}
+
+/// The same chain sized at run time (`DynIntegrator`, as in `chain_scaling.rs`).
+struct DynChain(usize);
+
+#[lagrangian::lagrangian]
+impl DynChain {
+    fn dimension(&self) -> usize {
+        self.0
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut d = q[0];
+        let mut potential = 0.5 * d * d + 0.25 * d.powi(4);
+        for i in 0..n - 1 {
+            d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d.powi(4);
+        }
+        d = q[n - 1];
         potential += 0.5 * d * d + 0.25 * d.powi(4);
         kinetic - potential
     }
@@ -399,6 +430,40 @@ fn main() {
             run(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
         }
         ("chain1000", "verlet") => hand_verlet(chain_force, &[1.0], 0.05, chain_q0(), [0.0; CHAIN_N], n),
+        ("chain1000", "dyn-trapezoid") => {
+            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)
+                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
+                .unwrap();
+            for _ in 0..n {
+                black_box(sim.step().unwrap());
+            }
+            sim.state().q.clone()
+        }
+        ("chain1000", "verlet-compensated-inplace") => compensated_in_place(0.05, &chain_q0::<CHAIN_N>(), n),
+        // Reverse-mode Newton steps (midpoint) and sub-stepped explicit
+        // compositions (Yoshida 4) of the same chain.
+        ("chain1000", "midpoint") => {
+            run(Integrator::new(Chain::<CHAIN_N>, Midpoint, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
+        }
+        ("chain1000", "yoshida4") => big_stack(move || {
+            run(
+                Integrator::new(Chain::<CHAIN_N>, Composition::YOSHIDA4, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]),
+                n,
+            )
+        }),
+        // The bits of every readout after `n` steps, to compare two builds.
+        ("chain1000", "digest-trapezoid") => {
+            digest(Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
+        }
+        ("chain1000", "digest-midpoint") => {
+            digest(Integrator::new(Chain::<CHAIN_N>, Midpoint, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]), n)
+        }
+        ("chain1000", "digest-yoshida4") => big_stack(move || {
+            digest(
+                Integrator::new(Chain::<CHAIN_N>, Composition::YOSHIDA4, 0.05).start(0.0, chain_q0(), [0.0; CHAIN_N]),
+                n,
+            )
+        }),
         // The generated gradient `∂L/∂q` alone against the hand-written
         // force it replaces in the explicit step (`gradient-powi`: the FPU
         // chain written with `d.powi(4)`).
@@ -526,6 +591,86 @@ fn trace<S: lagrangian::Lagrangian<N>, const N: usize>(
         }
         _ => panic!("unknown rule {rule:?}"),
     }
+}
+
+/// `f` in a thread with a 256 MiB stack: a composition's integrator at
+/// `N = 1000` (its sub-steps and sub-integrator inline, 15 segments of 16 kB)
+/// overflows the main thread's 8 MiB.
+fn big_stack(f: impl FnOnce() -> Vec<f64> + Send + 'static) -> Vec<f64> {
+    std::thread::Builder::new().stack_size(256 << 20).spawn(f).unwrap().join().unwrap()
+}
+
+/// FNV-1a over the bits of `values`.
+fn fnv(values: &[f64]) -> u64 {
+    values.iter().fold(0xcbf2_9ce4_8422_2325, |h, x| (h ^ x.to_bits()).wrapping_mul(0x100_0000_01b3))
+}
+
+/// `n` steps, then the bits of the state and of every readout (digests of
+/// the arrays), to compare the trajectories of two builds exactly.
+fn digest<S: lagrangian::Lagrangian<N>, M: lagrangian::F64Readouts, const N: usize>(
+    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error<N>>,
+    n: usize,
+) -> Vec<f64> {
+    let mut sim = sim.unwrap();
+    sim.run(n, |_| {}).unwrap();
+    let s = sim.state();
+    println!("step {} t {:016x}", s.step, s.t.to_bits());
+    println!("q {:016x} p {:016x}", fnv(&s.q), fnv(&s.p));
+    println!("discrete energy {:016x}", sim.discrete_energy().to_bits());
+    println!("last step size {:?}", sim.last_step_size().map(f64::to_bits));
+    println!("velocity {:016x}", fnv(&sim.velocity().unwrap()));
+    println!("energy {:016x}", sim.energy().unwrap().to_bits());
+    // One more step after the readouts (the predictor and the caches).
+    sim.step().unwrap();
+    println!("next q {:016x} p {:016x}", fnv(&sim.state().q), fnv(&sim.state().p));
+    println!("stats {:?}", sim.stats());
+    vec![]
+}
+
+/// `n` compensated Störmer–Verlet steps of the chain (unit masses) on slices
+/// in place: the fair large-N baseline of the generated explicit step, with
+/// the same Kahan sums of `q` and `p` (`tape_step.rs`) and the force written
+/// into a buffer, no arrays returned by value.
+fn compensated_in_place(h: f64, q0: &[f64], n: usize) -> Vec<f64> {
+    let len = q0.len();
+    let (mut q, mut qc, mut p, mut pc) = (q0.to_vec(), vec![0.0; len], vec![0.0; len], vec![0.0; len]);
+    // The forces at the node and at the next node, swapped after each step.
+    let (mut f0, mut f1) = (vec![0.0; len], vec![0.0; len]);
+    let kahan = |a: f64, c: f64, b: f64| {
+        let u = c + b;
+        let sum = a + u;
+        (sum, u - (sum - a))
+    };
+    let force = |q: &[f64], f: &mut [f64]| {
+        let spring = |d: f64| d + d * d * d;
+        let mut left = spring(q[0]);
+        for i in 0..q.len() {
+            let right = spring(if i + 1 < q.len() { q[i + 1] - q[i] } else { -q[i] });
+            f[i] = right - left;
+            left = right;
+        }
+    };
+    let half = 0.5 * h;
+    force(&q, &mut f0);
+    for _ in 0..n {
+        // Half kick and drift in one pass (`p` itself changes at the end);
+        // the slices cut to one length, so that the loops have no bounds checks.
+        let (q, qc, p, pc) = (&mut q[..len], &mut qc[..len], &mut p[..len], &mut pc[..len]);
+        let old = &f0[..len];
+        for i in 0..len {
+            let x = ((p[i] + half * old[i]) + pc[i]) * h;
+            (q[i], qc[i]) = kahan(q[i], qc[i], x);
+        }
+        force(q, &mut f1);
+        // Both half kicks as one compensated sum.
+        let new = &f1[..len];
+        for i in 0..len {
+            (p[i], pc[i]) = kahan(p[i], pc[i], half * (old[i] + new[i]));
+        }
+        core::mem::swap(&mut f0, &mut f1);
+        black_box(&q);
+    }
+    q
 }
 
 fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(

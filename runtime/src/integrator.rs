@@ -386,9 +386,12 @@ pub struct Integrator<S, M: Method<T>, const N: usize, T: Real = f64> {
     pub(crate) h: T,
     pub(crate) newton: NewtonOptions,
     pub(crate) state: State<N, T>,
-    /// Kahan compensation of the position: it is `state.q + carry`.
+    /// Kahan compensation of the position: it is `state.q + carry`. Zero in
+    /// reverse mode, whose steps keep it on the heap (swapped, not copied:
+    /// `SparseWork::carries`).
     pub(crate) carry: [T; N],
-    /// Kahan compensation of the momentum: it is `state.p + p_carry`.
+    /// Kahan compensation of the momentum: it is `state.p + p_carry` (zero
+    /// in reverse mode, like `carry`).
     pub(crate) p_carry: [T; N],
     pub(crate) policy: StepPolicy,
     pub(crate) fallback: EnergyFallback,

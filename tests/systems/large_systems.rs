@@ -12,6 +12,9 @@
 //! - The energy error of a chain of 1 000 oscillates without drift.
 //! - A 256-link pendulum (dense) runs.
 //! - What reverse mode does not do yet is refused with a typed error.
+//! - A failed reverse-mode step (explicit, or a composition failing on a
+//!   later sub-step) leaves every readout as it was, and the steps after it
+//!   are those of a twin that never failed.
 //! - Newton steps from the generated gradient code on dual numbers (forward
 //!   over reverse) give the tape path's steps to round-off with the same
 //!   Newton iterations (FPU-β chain, coupled pendula; N = 16 and 64).
@@ -358,4 +361,74 @@ fn newton_steps_from_the_gradient_code_give_the_tapes_steps() {
         assert!(d <= 1e-13, "{name}: {d:e}");
         assert!(i <= 1 && total >= 200, "{name}: iterations ±{i}, {total}");
     }
+}
+
+/// Oscillators coupled by quartic springs, the first held off `q_0 = 1` by
+/// the potential `−0.01 √(1 − q_0)`, whose force is NaN beyond: a step that
+/// carries `q_0` over fails (in a composition, on the sub-step that does).
+pub struct Wall<const N: usize>;
+
+#[lagrangian]
+impl<const N: usize> Wall<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut l = 0.01 * (1.0 - q[0]).sqrt();
+        for i in 0..N {
+            l += 0.5 * v[i] * v[i] - 0.5 * q[i] * q[i];
+        }
+        for i in 0..N - 1 {
+            let d = q[i + 1] - q[i];
+            l -= 0.25 * d * d * d * d;
+        }
+        l
+    }
+}
+
+/// Every readout of an integrator as bits, to compare two exactly.
+fn readouts<M: lagrangian::F64Readouts, const N: usize>(it: &Integrator<Wall<N>, M, N>) -> Vec<u64> {
+    let s = it.state();
+    let mut bits = vec![s.step, s.t.to_bits(), it.discrete_energy().to_bits(), it.stats().steps];
+    bits.extend(s.q.iter().chain(&s.p).map(|x| x.to_bits()));
+    bits.extend(it.velocity().unwrap().iter().map(|x| x.to_bits()));
+    bits.push(it.last_step_size().map_or(0, f64::to_bits));
+    bits
+}
+
+/// A failed reverse-mode step (explicit, and a composition failing on its
+/// second sub-step, after the first was taken) leaves every readout as it
+/// was, and the steps after it are those of a twin that never failed: the
+/// node, the last two segments, the Kahan carries and the cached force are
+/// all put back.
+#[test]
+fn a_failed_reverse_step_changes_nothing() {
+    fn check<M: lagrangian::F64Readouts + Copy>(method: M, v: f64, name: &str) {
+        let q0: [f64; 8] = core::array::from_fn(|i| if i == 0 { 0.8 } else { 0.1 * i as f64 });
+        let mut v0 = [0.0; 8];
+        v0[0] = v;
+        let start =
+            || Integrator::new(Wall::<8>, method, 0.01).derivatives(Derivatives::Reverse).start(0.0, q0, v0).unwrap();
+        // The smallest of these steps that fails (the larger ones fail too).
+        for h_bad in [0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0] {
+            let (mut it, mut twin) = (start(), start());
+            it.run(5, |_| {}).unwrap();
+            twin.run(5, |_| {}).unwrap();
+            let before = readouts(&it);
+            it.set_step_size(h_bad).unwrap();
+            let Err(failure) = it.step() else { continue };
+            assert!(matches!(failure, Error::NonFinite { .. }), "{name}: {failure}");
+            assert_eq!(it.stats().failed_steps, 1, "{name}");
+            assert_eq!(readouts(&it), before, "{name}");
+            it.set_step_size(0.01).unwrap();
+            it.run(5, |_| {}).unwrap();
+            twin.run(5, |_| {}).unwrap();
+            assert_eq!(readouts(&it), readouts(&twin), "{name}");
+            println!("{name}: the step of {h_bad} failed and changed nothing");
+            return;
+        }
+        panic!("{name}: no step failed");
+    }
+    // Trapezoid: q_0 near 0.85 moving up, over the wall.
+    check(Trapezoid, 1.0, "trapezoid");
+    // Yoshida 4, q_0 near 0.75 moving down: the first sub-step takes q_0
+    // down, the second (weight −1.70) up past 1.
+    check(Composition::YOSHIDA4, -1.0, "yoshida4");
 }

@@ -29,6 +29,7 @@
 
 use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
+use super::sparse::Stepper;
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
 use crate::derivatives::{self, Segment};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
@@ -110,7 +111,8 @@ pub struct CompositionMemory<const N: usize> {
     /// node force.
     pub(crate) inner: OnePointMemory<N>,
     /// The sub-steps of the last step (the first `stages` entries), when
-    /// they were taken one by one.
+    /// they were taken one by one in forward mode (reverse mode reads only
+    /// the last one, `inner.previous`).
     pub(crate) substeps: [Segment<N>; MAX_STAGES],
     pub(crate) stages: usize,
     /// The size of the last composed step.
@@ -232,6 +234,13 @@ impl Method<f64> for Composition {
         if fused && !super::sparse::too_large_for_forward(N) && !it.derivatives.reverse::<N>() {
             return fused_step(it, h, t1);
         }
+        // `if const` on its own: codegen can skip the sub-integrator below for large N.
+        if const { super::sparse::too_large_for_forward(N) } {
+            return sparse_step(it, h, t1);
+        }
+        if it.derivatives.reverse::<N>() {
+            return sparse_step(it, h, t1);
+        }
         let before = it.state;
         let saved = (it.memory.inner.previous, it.memory.inner.earlier);
         let mut sub = Integrator {
@@ -321,9 +330,10 @@ impl Method<f64> for Composition {
     /// composed step ends with); the energy of the initial data at `k = 0`.
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
-            return match it.memory.stages {
-                0 => it.energy,
-                m => super::sparse::step_energy(&it.system, &Trapezoid, &it.memory.substeps[m - 1]),
+            // The last sub-step is the inner memory's last step.
+            return match (it.memory.stages, &it.memory.inner.previous) {
+                (1.., Some(last)) => super::sparse::step_energy(&it.system, &Trapezoid, last),
+                _ => it.energy,
             };
         }
         match it.memory.stages {
@@ -338,6 +348,13 @@ impl Method<f64> for Composition {
 
 impl F64Readouts for Composition {
     fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
+        if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
+            // The last sub-step is the inner memory's last step.
+            return match (it.memory.stages, &it.memory.inner.previous) {
+                (1.., Some(last)) => last.dq.map(|x| x / last.h),
+                _ => it.v0,
+            };
+        }
         match it.memory.stages {
             0 => it.v0,
             m => {
@@ -383,6 +400,69 @@ impl F64Readouts for Composition {
                 .sum()
         })
     }
+}
+
+/// A composed step in reverse mode: the trapezoid sub-steps step the
+/// integrator's own fields ([`Stepper`]), with no sub-integrator and no
+/// copies of the sub-steps (the readouts need only the last one, which is
+/// `inner.previous`). A failed sub-step puts back the node, the last two
+/// segments and the carries as they were before the composed step.
+fn sparse_step<S: Lagrangian<N>, const N: usize>(
+    it: &mut Integrator<S, Composition, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    // `Integrator::EXPLICIT` for the trapezoid rule (reverse mode refuses forces).
+    let explicit = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS
+        && S::SEPARABILITY.has_constant_mass()
+        && !S::HAS_FORCE
+        && !S::HAS_DISSIPATION;
+    let before = it.state;
+    let saved = (it.memory.inner.previous, it.memory.inner.earlier);
+    if let Some(work) = it.memory.inner.sparse.as_mut() {
+        work.save_carries();
+    }
+    // The sub-steps count into a copy: a composed step is one step.
+    let mut stats = it.stats;
+    let weights = it.method.weights;
+    let mut elapsed = 0.0;
+    for (i, gamma) in weights.iter().enumerate() {
+        elapsed += gamma;
+        let ti = if i + 1 == weights.len() { t1 } else { before.t + elapsed * h };
+        let mut stepper = Stepper {
+            system: &it.system,
+            method: &Trapezoid,
+            newton: &it.newton,
+            v0: &it.v0,
+            energy: it.energy,
+            state: &mut it.state,
+            memory: &mut it.memory.inner,
+            stats: &mut stats,
+        };
+        if let Err(e) = stepper.step(gamma * h, ti, explicit) {
+            it.state = before;
+            (it.memory.inner.previous, it.memory.inner.earlier) = saved;
+            if let Some(work) = it.memory.inner.sparse.as_mut() {
+                // The node force of a sub-node: the next step recomputes it, to the same bits.
+                work.forget_node_force();
+                work.restore_carries();
+            }
+            it.stats.failed_steps += 1;
+            return Err(e.at_state(before));
+        }
+    }
+    if let Some(work) = it.memory.inner.sparse.as_mut() {
+        // The cached node force belongs to the composed node now.
+        work.rekey_node_force(before.step + 1);
+        work.discard_saved_carries();
+    }
+    it.state.step = before.step + 1;
+    it.memory.stages = weights.len();
+    it.memory.last_h = Some(h);
+    it.stats.steps += 1;
+    it.stats.newton_iterations = stats.newton_iterations;
+    it.stats.last = stats.last;
+    Ok(())
 }
 
 /// A composed step on a system whose trapezoid sub-steps are explicit, in

@@ -20,11 +20,11 @@
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
 use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
-use super::{Integrator, StepPolicy};
+use super::{Integrator, OnePointMemory, Stats, StepPolicy};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
-use crate::newton::NewtonFailure;
+use crate::newton::{NewtonFailure, NewtonOptions, NewtonReport};
 use crate::state::State;
 use crate::structure::Coupling;
 use crate::system::{Lagrangian, Scalar};
@@ -196,6 +196,52 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// (`tape_step.rs`), or its explicit Störmer–Verlet step when `explicit`.
     /// A failed step leaves the integrator as it was.
     pub(super) fn sparse_step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
+        let mut stepper = Stepper {
+            system: &self.system,
+            method: &self.method,
+            newton: &self.newton,
+            v0: &self.v0,
+            energy: self.energy,
+            state: &mut self.state,
+            memory: &mut self.memory,
+            stats: &mut self.stats,
+        };
+        stepper.step(h, t1, explicit)
+    }
+
+    /// The discrete energy `−∂A/∂t_{k+1}` of the last step in reverse mode
+    /// (one reverse sweep unless the step already recorded it); the energy
+    /// of the initial data before the first step.
+    pub(super) fn sparse_discrete_energy(&self) -> f64 {
+        let Some(seg) = &self.memory.previous else { return self.energy };
+        match self.memory.sparse.as_ref().and_then(|w| w.energy) {
+            Some(e) => e,
+            None => step_energy(&self.system, &self.method, seg),
+        }
+    }
+}
+
+/// What a reverse-mode step reads and writes of a const-size integrator,
+/// borrowed field by field: an integrator's own (`sparse_step`), or a
+/// composition's, whose trapezoid sub-steps then step its fields in place
+/// instead of a sub-integrator built by value (a copy of every inline array).
+pub(super) struct Stepper<'a, S, M, const N: usize> {
+    pub(super) system: &'a S,
+    pub(super) method: &'a M,
+    pub(super) newton: &'a NewtonOptions,
+    pub(super) v0: &'a [f64; N],
+    /// `E_0`, which the energy watch of a discontinuous system compares the
+    /// first step's with.
+    pub(super) energy: f64,
+    pub(super) state: &'a mut State<N>,
+    pub(super) memory: &'a mut OnePointMemory<N>,
+    pub(super) stats: &'a mut Stats,
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, N> {
+    /// One fixed step (see `Integrator::sparse_step`); a failed one changes
+    /// nothing but the failure count.
+    pub(super) fn step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
         let mut work = match self.memory.sparse.take() {
             Some(work) => work,
             None => match SparseWork::new(N, S::COUPLING) {
@@ -206,16 +252,52 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 }
             },
         };
-        let outcome = self.sparse_advance(&mut work, h, t1, explicit);
+        let outcome = self.advance(&mut work, h, t1, explicit);
         self.memory.sparse = Some(work);
         outcome
     }
 
-    fn sparse_advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
-        let model = Fixed { system: &self.system, method: &self.method };
-        let State { step, t, ref q, ref p } = self.state;
-        let node = Node { step, t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
-        let outcome = if explicit {
+    fn advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
+        // The carries out of the work while it steps; put back, or replaced
+        // by the step's, below.
+        let [q_carry, p_carry] = core::mem::take(&mut work.carries);
+        let outcome = self.try_step(work, h, t1, explicit, (&q_carry, &p_carry));
+        let (taken, energy) = match outcome {
+            Ok(taken) => taken,
+            Err(failure) => {
+                work.carries = [q_carry, p_carry];
+                return Err(self.fail(h, failure));
+            }
+        };
+        if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
+            tape_step::watch_energy_jump(self.stats, work.energy.unwrap_or(self.energy), after, t1);
+        }
+        if !explicit {
+            work.energy = energy;
+        }
+        let Taken { dq, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
+        self.commit(&dq, &q1, &p1, report, h, t1);
+        work.carries = [q_carry1, p_carry1];
+        for buffer in [dq, q1, p1, q_carry, p_carry] {
+            work.recycle(buffer);
+        }
+        Ok(())
+    }
+
+    /// The step of [`advance`](Self::advance) from the node
+    /// with the Kahan compensations `carries`, nothing changed yet.
+    fn try_step(
+        &self,
+        work: &mut SparseWork,
+        h: f64,
+        t1: f64,
+        explicit: bool,
+        carries: (&[f64], &[f64]),
+    ) -> Result<(Taken, Option<f64>), NewtonFailure> {
+        let model = Fixed { system: self.system, method: self.method };
+        let State { step, t, ref q, ref p } = *self.state;
+        let node = Node { step, t, q, p, q_carry: carries.0, p_carry: carries.1 };
+        if explicit {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));
             let last = self.memory.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
@@ -225,25 +307,15 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             let predictor = self.predict(h);
             let last = self.memory.previous.map(|last| last.dq.map(|x| x * (h / last.h)));
             let guess = Guess { predictor: &predictor, last: last.as_ref().map(|x| &x[..]) };
-            work.newton_step(&model, &node, h, t1, &guess, &self.newton).map(|(taken, e)| (taken, Some(e)))
-        };
-        let (taken, energy) = outcome.map_err(|failure| self.fail(h, failure))?;
-        if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
-            tape_step::watch_energy_jump(&mut self.stats, work.energy.unwrap_or(self.energy), after, t1);
+            work.newton_step(&model, &node, h, t1, &guess, self.newton).map(|(taken, e)| (taken, Some(e)))
         }
-        if !explicit {
-            work.energy = energy;
-        }
-        self.commit(&taken, h, t1);
-        work.recycle_taken(taken);
-        Ok(())
     }
 
-    /// Replaces the state by the step `taken` from the current node, in
-    /// place (the arrays are copied into, not moved).
-    fn commit(&mut self, taken: &Taken, h: f64, t1: f64) {
-        let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
-        let memory = &mut self.memory;
+    /// Replaces the state by the step `(Δq, q_{k+1}, p_{k+1})` from the
+    /// current node, in place (the arrays are copied into, not moved; the
+    /// carries are the caller's).
+    fn commit(&mut self, dq: &[f64], q1: &[f64], p1: &[f64], report: NewtonReport, h: f64, t1: f64) {
+        let memory = &mut *self.memory;
         match (&memory.previous, &mut memory.earlier) {
             (Some(last), Some((h_earlier, dq_earlier))) => {
                 *h_earlier = last.h;
@@ -261,26 +333,28 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             None => memory.previous = Some(Segment { t0: self.state.t, h, q0: self.state.q, dq: array(dq) }),
         }
-        self.carry.copy_from_slice(q_carry);
-        self.p_carry.copy_from_slice(p_carry);
         self.state.q.copy_from_slice(q1);
         self.state.p.copy_from_slice(p1);
         self.state.step += 1;
         self.state.t = t1;
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
-        self.stats.last = *report;
+        self.stats.last = report;
     }
 
-    /// The discrete energy `−∂A/∂t_{k+1}` of the last step in reverse mode
-    /// (one reverse sweep unless the step already recorded it); the energy
-    /// of the initial data before the first step.
-    pub(super) fn sparse_discrete_energy(&self) -> f64 {
-        let Some(seg) = &self.memory.previous else { return self.energy };
-        match self.memory.sparse.as_ref().and_then(|w| w.energy) {
-            Some(e) => e,
-            None => step_energy(&self.system, &self.method, seg),
-        }
+    /// Counts a failed step and turns its failure into the error.
+    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
+        self.stats.failed_steps += 1;
+        Error::from_newton(failure, *self.state, h)
+    }
+
+    /// `Integrator::predict`: the increment predicted for a step of size `h`.
+    fn predict(&self, h: f64) -> [f64; N] {
+        let mut out = [0.0; N];
+        let last = self.memory.previous.as_ref().map(|last| (last.h, &last.dq[..]));
+        let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        super::predict_into(h, last, earlier, self.v0, &mut out);
+        out
     }
 }
 

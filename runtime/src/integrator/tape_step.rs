@@ -251,10 +251,19 @@ pub(crate) struct SparseWork {
     /// The buffers of Newton steps from the generated gradient code (empty
     /// until the first such step).
     directional: Directional,
+    /// A const-size integrator's Kahan compensations of `q_k` and `p_k` in
+    /// reverse mode (its inline `carry` and `p_carry` stay zero): on the
+    /// heap, a step's new ones are swapped in, not copied (see
+    /// `sparse.rs`). Zero at the start, like the integrator's.
+    pub(crate) carries: [Vec<f64>; 2],
+    /// [`carries`](Self::carries) as [`save_carries`](Self::save_carries)
+    /// found them, for a composed step to restore on failure.
+    saved_carries: Option<[Vec<f64>; 2]>,
 }
 
-/// How many spare buffers [`SparseWork`] keeps: a step takes at most eight.
-const SPARE_BUFFERS: usize = 10;
+/// How many spare buffers [`SparseWork`] keeps: a step takes at most eight,
+/// and a composed step keeps two saved carries.
+const SPARE_BUFFERS: usize = 12;
 
 impl Clone for SparseWork {
     fn clone(&self) -> Self {
@@ -274,6 +283,8 @@ impl Clone for SparseWork {
             zero: self.zero.clone(),
             spare: Vec::new(),
             directional: Directional::default(),
+            carries: self.carries.clone(),
+            saved_carries: self.saved_carries.clone(),
         }
     }
 }
@@ -303,6 +314,8 @@ impl SparseWork {
             zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
             spare: Vec::new(),
             directional: Directional::default(),
+            carries: [zeroed(Some(n), n)?, zeroed(Some(n), n)?],
+            saved_carries: None,
         })
     }
 
@@ -324,6 +337,38 @@ impl SparseWork {
     pub(crate) fn recycle_taken(&mut self, taken: Taken) {
         let Taken { dq, q1, q_carry, p1, p_carry, .. } = taken;
         for buffer in [dq, q1, q_carry, p1, p_carry] {
+            self.recycle(buffer);
+        }
+    }
+
+    /// Keeps a copy of [`carries`](Self::carries) for
+    /// [`restore_carries`](Self::restore_carries) (a composed step's
+    /// sub-steps advance them before the composed step is known to succeed).
+    pub(crate) fn save_carries(&mut self) {
+        let mut saved = [self.buffer(), self.buffer()];
+        for (copy, carry) in saved.iter_mut().zip(&self.carries) {
+            copy.copy_from_slice(carry);
+        }
+        self.discard_saved_carries();
+        self.saved_carries = Some(saved);
+    }
+
+    /// Puts back the carries [`save_carries`](Self::save_carries) kept, or
+    /// zeros (those of an integrator's start) when it kept none.
+    pub(crate) fn restore_carries(&mut self) {
+        match self.saved_carries.take() {
+            Some(saved) => {
+                for buffer in core::mem::replace(&mut self.carries, saved) {
+                    self.recycle(buffer);
+                }
+            }
+            None => self.carries.iter_mut().for_each(|c| c.fill(0.0)),
+        }
+    }
+
+    /// Drops the carries [`save_carries`](Self::save_carries) kept.
+    pub(crate) fn discard_saved_carries(&mut self) {
+        for buffer in self.saved_carries.take().into_iter().flatten() {
             self.recycle(buffer);
         }
     }
