@@ -172,8 +172,14 @@ struct Adjoint<'a> {
     /// fold), and these are the indices assigned so far.
     assigned: Option<Vec<(bool, u32)>>,
     /// Adjoint temporaries whose value is a constant (the seed negated, or
-    /// times constants): products with them fold at compile time.
+    /// times constants): products with them fold at compile time, and in
+    /// generic code they are `f64`, so that a product with an active value
+    /// scales its lanes instead of paying the dual product rule.
     constants: Vec<String>,
+    /// Adjoints of locals whose only contribution so far is a constant:
+    /// the local's adjoint is that constant until a second contribution
+    /// (or a loop that may add to it) makes it a variable.
+    aliases: Vec<((LocalId, usize), TokenStream)>,
 }
 
 impl<'a> Adjoint<'a> {
@@ -194,6 +200,7 @@ impl<'a> Adjoint<'a> {
             loop_depth: 0,
             assigned: None,
             constants: Vec::new(),
+            aliases: Vec::new(),
         }
     }
 
@@ -557,8 +564,21 @@ impl<'a> Adjoint<'a> {
     /// The adjoint of a local where it is read: declared as zero first if
     /// nothing contributed to it yet.
     fn read_adjoint(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) -> TokenStream {
+        if let Some((_, constant)) = self.aliases.iter().find(|(key, _)| *key == (local, version)) {
+            return constant.clone();
+        }
         self.declare_zero(local, version, out);
         adjoint_name(local, version).into_token_stream()
+    }
+
+    /// Turns the adjoint of a local that is a constant so far into a
+    /// variable holding it (`let mut __a = c`), before something adds to it.
+    fn materialize(&mut self, local: LocalId, version: usize, out: &mut Vec<TokenStream>) {
+        if let Some(position) = self.aliases.iter().position(|(key, _)| *key == (local, version)) {
+            let (_, constant) = self.aliases.remove(position);
+            let (adjoint, ty, value) = (adjoint_name(local, version), self.ty(), self.as_active(&constant));
+            out.push(quote!(let mut #adjoint: #ty = #value;));
+        }
     }
 
     /// The forward code of one statement. `top`: outside every loop (loops
@@ -685,6 +705,15 @@ impl<'a> Adjoint<'a> {
                             self.declare_zero(local, version, out);
                         }
                     }
+                    // A constant adjoint the loop may add to becomes a
+                    // variable first (an accumulator's adjoint is only read
+                    // in a loop, never added to).
+                    let aliased: Vec<(LocalId, usize)> = self.aliases.iter().map(|(key, _)| *key).collect();
+                    for (local, version) in aliased {
+                        if read.contains(&local) && !self.accumulator[local.0] {
+                            self.materialize(local, version, out);
+                        }
+                    }
                     let outer = std::mem::take(&mut self.pending);
                     // Recompute the body's intermediates, then propagate.
                     let mut inner = Vec::new();
@@ -730,7 +759,7 @@ impl<'a> Adjoint<'a> {
                     let adjoint = self.read_adjoint(id, 0, out);
                     let g = match op {
                         BinOp::AddAssign(_) => adjoint.into_token_stream(),
-                        BinOp::SubAssign(_) => self.bind(quote!(-#adjoint), out),
+                        BinOp::SubAssign(_) => self.negate(&adjoint, out),
                         _ => return None,
                     };
                     self.reverse(value, g, out)
@@ -765,7 +794,7 @@ impl<'a> Adjoint<'a> {
 
     /// The seed of the reverse sweep, the adjoint of `L`: one.
     fn one(&self) -> TokenStream {
-        self.active(quote!(1.0f64))
+        quote!(1.0f64)
     }
 
     /// `g · x` bound to an adjoint temporary; `x` alone when `g` is the
@@ -773,25 +802,35 @@ impl<'a> Adjoint<'a> {
     /// free). `active`: whether `x` is an active value (a constant is made
     /// one in generic code).
     fn times(&mut self, g: &TokenStream, x: TokenStream, active: bool, out: &mut Vec<TokenStream>) -> TokenStream {
-        let product = if g.to_string() == self.one().to_string() {
-            let x = self.active_if(!active, x);
-            self.bind(x, out)
-        } else {
-            self.bind(quote!(#g * #x), out)
-        };
-        if !active && self.is_constant(g) {
-            self.constants.push(product.to_string());
+        let seed = g.to_string() == self.one().to_string();
+        match (self.is_constant(g), active) {
+            // A constant: `f64` in generic code too.
+            (true, false) => self.bind_constant(if seed { x } else { quote!(#g * #x) }, out),
+            (true, true) if seed => self.bind(x, out),
+            // `D · f64`: the lanes scaled (IEEE `*` commutes).
+            (true, true) if self.generic => self.bind(quote!(#x * #g), out),
+            _ => self.bind(quote!(#g * #x), out),
         }
-        product
+    }
+
+    /// `let __g{k}: f64 = value;` for a constant adjoint, returning `__g{k}`.
+    fn bind_constant(&mut self, value: TokenStream, out: &mut Vec<TokenStream>) -> TokenStream {
+        let g = format_ident!("__g{}", self.next_adjoint);
+        self.next_adjoint += 1;
+        out.push(quote!(let #g: f64 = #value;));
+        self.constants.push(g.to_string());
+        g.into_token_stream()
     }
 
     /// `−g` bound to an adjoint temporary.
     fn negate(&mut self, g: &TokenStream, out: &mut Vec<TokenStream>) -> TokenStream {
-        let negated = self.bind(quote!(-#g), out);
-        if self.is_constant(g) {
-            self.constants.push(negated.to_string());
-        }
-        negated
+        if self.is_constant(g) { self.bind_constant(quote!(-#g), out) } else { self.bind(quote!(-#g), out) }
+    }
+
+    /// The adjoint `g` as an active value: a constant one made active in
+    /// generic code.
+    fn as_active(&self, g: &TokenStream) -> TokenStream {
+        if self.generic && self.is_constant(g) { self.active(g.clone()) } else { g.clone() }
     }
 
     /// Whether the adjoint `g` is a constant: the seed, or made from it by
@@ -957,6 +996,7 @@ impl<'a> Adjoint<'a> {
                 let literal = integer_literal(index);
                 let index = self.constant(index)?;
                 let key = (matches!(base.kind, ExprKind::Param(ParamRef::V, _)), literal.unwrap_or(u32::MAX));
+                let g = self.as_active(&g);
                 match self.assigned.as_mut() {
                     Some(assigned) if literal.is_some() && !assigned.contains(&key) => {
                         assigned.push(key);
@@ -970,12 +1010,22 @@ impl<'a> Adjoint<'a> {
                 let version = self.version(expr);
                 let adjoint = adjoint_name(*id, version);
                 match self.pending.iter().position(|p| *p == (*id, version)) {
+                    // A first contribution that is a constant: the adjoint
+                    // is that constant until another one arrives.
+                    Some(position) if self.is_constant(&g) => {
+                        self.pending.remove(position);
+                        self.aliases.push(((*id, version), g));
+                    }
                     Some(position) => {
                         self.pending.remove(position);
                         let ty = self.ty();
                         out.push(quote!(let mut #adjoint: #ty = #g;));
                     }
-                    None => out.push(quote!(#adjoint += #g;)),
+                    None => {
+                        self.materialize(*id, version, out);
+                        let g = self.as_active(&g);
+                        out.push(quote!(#adjoint += #g;));
+                    }
                 }
                 Some(())
             }
@@ -1018,18 +1068,30 @@ impl<'a> Adjoint<'a> {
                         let (root, s) = (self.value(rhs)?, self.square_root(rhs)?);
                         let (c, s_value) = (self.constant(lhs)?, self.value(s)?);
                         let scaled = self.times(&g, quote!((-0.5f64 * #c)), false, out);
+                        let scaled = self.as_active(&scaled);
                         let g = self.bind(quote!(#scaled / (#s_value * #root)), out);
                         self.reverse(s, g, out)
                     }
                     BinOp::Div(_) => {
                         let y = self.value(rhs)?;
                         if a {
-                            let g = self.bind(quote!(#g / #y), out);
+                            // `g / c` of a constant `c` is a constant too.
+                            let g = match (self.is_constant(&g), rhs.class.is_active()) {
+                                (true, false) => self.bind_constant(quote!(#g / #y), out),
+                                _ => {
+                                    let g = self.as_active(&g);
+                                    self.bind(quote!(#g / #y), out)
+                                }
+                            };
                             self.reverse(lhs, g, out)?;
                         }
                         if b {
                             let quotient = self.value(expr)?;
-                            let g = self.bind(quote!(-(#g * #quotient) / #y), out);
+                            let product = match self.is_constant(&g) && self.generic {
+                                true => quote!(#quotient * #g),
+                                false => quote!(#g * #quotient),
+                            };
+                            let g = self.bind(quote!(-(#product) / #y), out);
                             self.reverse(rhs, g, out)?;
                         }
                         Some(())
@@ -1905,14 +1967,19 @@ mod tests {
             ". powi (n - 1) * f64 :: from (n)",
             "__D :: from (f64 :: signum (",
             "* __x = __D :: from (0.0f64)",
-            // First contributions assign, later ones add.
+            // First contributions assign, later ones add; a constant
+            // adjoint is an `f64`, made active where it is stored.
             "__out [(1)] = __g",
-            "__out [(1)] += __g",
+            "__out [(1)] += __D :: from (__g",
             "__out_v [(0)] = __g",
+            "let __g3 : f64 = - 1.0f64",
+            "(- __t5_sin) * __g3",
         ] {
             assert!(out.contains(piece), "{piece}: {out}");
         }
-        for absent in [": f64 =", "f64 :: cos", "f64 :: sin", "f64 :: sqrt", "f64 :: powi"] {
+        // Only constant adjoints are `f64` (`: f64 = - 1.0f64`, `(3.0)`),
+        // never a value computed from `q` or `v`.
+        for absent in [": f64 = __t", ": f64 = __q", "f64 :: cos", "f64 :: sin", "f64 :: sqrt", "f64 :: powi"] {
             assert!(!out.contains(absent), "{absent}: {out}");
         }
         // `c - x` keeps its order with `c` made active; `c * x` and `c / x`
@@ -1920,8 +1987,8 @@ mod tests {
         assert!(out.contains("__D :: from ((2.0)) - __t"), "{out}");
         assert!(out.contains("* (3.0)"), "{out}");
         assert!(out.contains("__D :: from (((self) . k)) / __t"), "{out}");
-        // The reverse sweep starts from an active one.
-        assert!(out.contains("__D :: from (1.0f64)"), "{out}");
+        // The reverse sweep starts from the seed one, an `f64` constant.
+        assert!(out.contains("- 1.0f64"), "{out}");
     }
 
     #[test]
@@ -1997,9 +2064,12 @@ mod tests {
         }));
         // A loop may write any index: nothing is assigned, the zeroing
         // stays, and `g · C` comes first (`g`, the accumulator's adjoint, is
-        // the same at every iteration, so the product is a loop invariant).
+        // the same at every iteration). Here `g` is the seed, a constant:
+        // the accumulator's adjoint is not a variable at all, and `g · C`
+        // is a constant `f64` (folded at compile time).
         assert!(!reverse.contains("] = __"), "{reverse}");
-        assert!(reverse.contains("__a0_0 * (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
+        assert!(!reverse.contains("__a0_0"), "{reverse}");
+        assert!(reverse.contains(": f64 = (4f64 * ((0.25) * ((self) . beta)))"), "{reverse}");
     }
 
     #[test]
@@ -2012,11 +2082,11 @@ mod tests {
             }
             s
         }));
-        // `s` gets its adjoint from the tail; `x` is added to in the loop,
-        // so it exists (as zero) before it.
-        assert!(reverse.contains("let mut __a1_0 : f64 = 1.0f64 ;"), "{reverse}");
+        // `s` gets its adjoint from the tail, the seed: a constant, no
+        // variable; `x` is added to in the loop, so it exists (as zero)
+        // before it.
+        assert!(!reverse.contains("__a1_0"), "{reverse}");
         assert!(reverse.contains("let mut __a0_0 : f64 = 0.0f64 ; for"), "{reverse}");
-        assert!(!reverse.contains("__a1_0 +="), "{reverse}");
     }
 
     #[test]
