@@ -220,6 +220,14 @@ fn chains_up_to_a_thousand_masses_run_in_a_default_thread_newton() {
     chains_in_a_default_thread(Midpoint, "midpoint (banded Newton)");
 }
 
+/// A composition's integrator keeps the last step's sub-steps (inline, 15
+/// segments) and, in reverse mode, steps the integrator's own fields: a
+/// 1000-mass chain still fits a default thread.
+#[test]
+fn chains_up_to_a_thousand_masses_run_in_a_default_thread_composition() {
+    chains_in_a_default_thread(lagrangian::Composition::YOSHIDA4, "Yoshida 4 (explicit sub-steps)");
+}
+
 #[test]
 fn the_energy_error_of_a_long_chain_does_not_drift() {
     // 1 000 masses, mode 100 excited with strains of 0.3, 4 000 midpoint
