@@ -32,7 +32,7 @@ use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
 use super::sparse::Stepper;
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
 use crate::derivatives::{self, Segment};
-use crate::discrete::{DiscreteLagrangian, Trapezoid};
+use crate::discrete::Trapezoid;
 use crate::error::Error;
 use crate::mechanics::DiscreteMechanics;
 use crate::state::State;
@@ -138,6 +138,13 @@ pub(crate) struct FusedSubsteps<const N: usize> {
 }
 
 impl<const N: usize> CompositionMemory<N> {
+    /// Reverse mode, whose sub-steps step the integrator's own memory: the
+    /// last sub-step of the last composed step is the inner memory's last
+    /// step (`None` before the first composed step).
+    fn last_substep_in_place(&self) -> Option<&Segment<N>> {
+        self.inner.previous.as_ref().filter(|_| self.stages > 0)
+    }
+
     /// Sub-step `i` of the last composed step, made with `weights`.
     fn substep(&self, i: usize, weights: &[f64]) -> Segment<N> {
         let (Some(fused), Some(start), Some(h)) = (&self.fused, &self.inner.previous, self.last_h) else {
@@ -226,11 +233,7 @@ impl Method<f64> for Composition {
     ) -> Result<(), Error<N>> {
         // Explicit sub-steps in forward mode are fused (the energy watch of a
         // discontinuous system needs every sub-step's energy: sub-stepped).
-        let fused = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS
-            && S::SEPARABILITY.has_constant_mass()
-            && !S::HAS_FORCE
-            && !S::HAS_DISSIPATION
-            && !S::DISCONTINUOUS;
+        let fused = Integrator::<S, Trapezoid, N>::EXPLICIT && !S::DISCONTINUOUS;
         if fused && !super::sparse::too_large_for_forward(N) && !it.derivatives.reverse::<N>() {
             return fused_step(it, h, t1);
         }
@@ -330,10 +333,9 @@ impl Method<f64> for Composition {
     /// composed step ends with); the energy of the initial data at `k = 0`.
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
-            // The last sub-step is the inner memory's last step.
-            return match (it.memory.stages, &it.memory.inner.previous) {
-                (1.., Some(last)) => super::sparse::step_energy(&it.system, &Trapezoid, last),
-                _ => it.energy,
+            return match it.memory.last_substep_in_place() {
+                Some(last) => super::sparse::step_energy(&it.system, &Trapezoid, last),
+                None => it.energy,
             };
         }
         match it.memory.stages {
@@ -349,10 +351,9 @@ impl Method<f64> for Composition {
 impl F64Readouts for Composition {
     fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
-            // The last sub-step is the inner memory's last step.
-            return match (it.memory.stages, &it.memory.inner.previous) {
-                (1.., Some(last)) => last.dq.map(|x| x / last.h),
-                _ => it.v0,
+            return match it.memory.last_substep_in_place() {
+                Some(last) => last.dq.map(|x| x / last.h),
+                None => it.v0,
             };
         }
         match it.memory.stages {
@@ -412,11 +413,7 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     h: f64,
     t1: f64,
 ) -> Result<(), Error<N>> {
-    // `Integrator::EXPLICIT` for the trapezoid rule (reverse mode refuses forces).
-    let explicit = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS
-        && S::SEPARABILITY.has_constant_mass()
-        && !S::HAS_FORCE
-        && !S::HAS_DISSIPATION;
+    let explicit = Integrator::<S, Trapezoid, N>::EXPLICIT;
     let before = it.state;
     let saved = (it.memory.inner.previous, it.memory.inner.earlier);
     if let Some(work) = it.memory.inner.sparse.as_mut() {

@@ -46,6 +46,19 @@ pub struct OnePointMemory<const N: usize> {
     pub(crate) sparse: Option<Box<super::tape_step::SparseWork>>,
 }
 
+impl<const N: usize> OnePointMemory<N> {
+    /// The increment of a step of size `h` predicted from the last two steps
+    /// (`v0·h` before the first): see [`predict_into`](super::predict_into).
+    #[inline]
+    pub(super) fn predict(&self, h: f64, v0: &[f64; N]) -> [f64; N] {
+        let mut out = [0.0; N];
+        let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
+        let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        super::predict_into(h, last, earlier, v0, &mut out);
+        out
+    }
+}
+
 impl<M: DiscreteLagrangian> sealed::Sealed for M {}
 
 impl<M: DiscreteLagrangian> Method<f64> for M {
@@ -236,7 +249,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// The rule's DEL is explicit for this system (see
     /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]): the macro proved
     /// `L = ½ vᵀMv − V(t, q)` with constant `M`, and there are no forces.
-    const EXPLICIT: bool =
+    pub(super) const EXPLICIT: bool =
         M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass() && !S::HAS_FORCE && !S::HAS_DISSIPATION;
 
     /// One step of the trapezoid rule on `L = ½ vᵀMv − V(t, q)` with constant
@@ -459,11 +472,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// error is `O(h³)`, so Newton usually converges in two iterations.
     #[inline]
     pub(super) fn predict(&self, h: f64) -> [f64; N] {
-        let mut out = [0.0; N];
-        let last = self.memory.previous.as_ref().map(|last| (last.h, &last.dq[..]));
-        let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        super::predict_into(h, last, earlier, &self.v0, &mut out);
-        out
+        self.memory.predict(h, &self.v0)
     }
 
     /// The last step as a segment `(t_k, h, q_k, dq)`: its increment `dq` is

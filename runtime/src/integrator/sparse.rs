@@ -348,13 +348,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         Error::from_newton(failure, *self.state, h)
     }
 
-    /// `Integrator::predict`: the increment predicted for a step of size `h`.
+    /// The increment predicted for a step of size `h`.
     fn predict(&self, h: f64) -> [f64; N] {
-        let mut out = [0.0; N];
-        let last = self.memory.previous.as_ref().map(|last| (last.h, &last.dq[..]));
-        let earlier = self.memory.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        super::predict_into(h, last, earlier, self.v0, &mut out);
-        out
+        self.memory.predict(h, self.v0)
     }
 }
 
