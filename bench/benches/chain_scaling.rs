@@ -9,7 +9,10 @@
 //! - `midpoint`: the implicit midpoint rule, Newton with a tridiagonal
 //!   Jacobian from the macro's gradient code evaluated once per iteration on
 //!   a dual number carrying the 3 colour classes (no tape);
-//! - `hand-written Verlet`: the analytic force of the same chain.
+//! - `hand-written Verlet`: the analytic force of the same chain, plain
+//!   sums; `hand-written Verlet, compensated sums`: the same with the Kahan
+//!   sums of `q` and `p` the generated steps keep, in place (the fair
+//!   baseline: the same arithmetic).
 //!
 //! Prints the fitted cost exponent of each in N after the criterion groups.
 //!
@@ -96,6 +99,52 @@ impl Verlet {
     }
 }
 
+/// Hand-written velocity Verlet, unit masses, with the Kahan-compensated
+/// sums of `q` and `p` the generated steps keep (`q`, its compensation `qc`,
+/// `p`, `pc` updated in place, the forces at both nodes in two buffers
+/// swapped after each step): the fair baseline of the generated explicit
+/// step, which does the same arithmetic.
+struct CompensatedVerlet {
+    q: Vec<f64>,
+    qc: Vec<f64>,
+    p: Vec<f64>,
+    pc: Vec<f64>,
+    f0: Vec<f64>,
+    f1: Vec<f64>,
+}
+
+impl CompensatedVerlet {
+    fn new(q: &[f64]) -> Self {
+        let n = q.len();
+        let mut f0 = vec![0.0; n];
+        force(q, &mut f0);
+        Self { q: q.to_vec(), qc: vec![0.0; n], p: vec![0.0; n], pc: vec![0.0; n], f0, f1: vec![0.0; n] }
+    }
+
+    fn step(&mut self, h: f64) {
+        let kahan = |a: f64, c: f64, b: f64| {
+            let u = c + b;
+            let sum = a + u;
+            (sum, u - (sum - a))
+        };
+        let half = 0.5 * h;
+        let n = self.q.len();
+        // One length for every slice: the loops have no bounds checks.
+        let (q, qc, p, pc) = (&mut self.q[..n], &mut self.qc[..n], &mut self.p[..n], &mut self.pc[..n]);
+        let old = &self.f0[..n];
+        for i in 0..n {
+            let x = ((p[i] + half * old[i]) + pc[i]) * h;
+            (q[i], qc[i]) = kahan(q[i], qc[i], x);
+        }
+        force(q, &mut self.f1);
+        let new = &self.f1[..n];
+        for i in 0..n {
+            (p[i], pc[i]) = kahan(p[i], pc[i], half * (old[i] + new[i]));
+        }
+        core::mem::swap(&mut self.f0, &mut self.f1);
+    }
+}
+
 const H: f64 = 0.05;
 const STEPS: usize = 20;
 
@@ -110,8 +159,19 @@ fn seconds_per_step(repeats: usize, mut run: impl FnMut()) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// `(trapezoid, midpoint, hand-written)` seconds per step at size `N`.
-fn costs<const N: usize>(c: &mut Criterion) -> (f64, f64, f64) {
+/// Seconds per step at size `N` of each contender.
+#[derive(Clone, Copy)]
+struct Costs {
+    trapezoid: f64,
+    midpoint: f64,
+    /// The plain hand-written Verlet.
+    hand: f64,
+    /// The hand-written Verlet with compensated sums, in place.
+    compensated: f64,
+}
+
+/// The [`Costs`] of the const-size chain of `N` masses.
+fn costs<const N: usize>(c: &mut Criterion) -> Costs {
     let q0 = start_q::<N>();
     let mut g = c.benchmark_group(format!("FPU-β chain, N = {N}, {STEPS} steps"));
     g.sample_size(10);
@@ -119,9 +179,16 @@ fn costs<const N: usize>(c: &mut Criterion) -> (f64, f64, f64) {
     let mut explicit = Integrator::new(Fpu::<N>, Trapezoid, H).start(0.0, q0, [0.0; N]).unwrap();
     let mut implicit = Integrator::new(Fpu::<N>, Midpoint, H).start(0.0, q0, [0.0; N]).unwrap();
     let mut verlet = Verlet::new(&q0);
+    let mut kahan = CompensatedVerlet::new(&q0);
     let mut trapezoid = move || {
         explicit.run(STEPS, |_| {}).unwrap();
         black_box(explicit.state().q[0]);
+    };
+    let mut compensated = move || {
+        for _ in 0..STEPS {
+            kahan.step(H);
+        }
+        black_box(kahan.q[0]);
     };
     let mut midpoint = move || {
         implicit.run(STEPS, |_| {}).unwrap();
@@ -136,8 +203,14 @@ fn costs<const N: usize>(c: &mut Criterion) -> (f64, f64, f64) {
     g.bench_function("trapezoid (explicit, reverse mode)", |b| b.iter(&mut trapezoid));
     g.bench_function("midpoint (banded Newton, reverse mode)", |b| b.iter(&mut midpoint));
     g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
+    g.bench_function("hand-written Verlet, compensated sums", |b| b.iter(&mut compensated));
     g.finish();
-    (seconds_per_step(20, &mut trapezoid), seconds_per_step(10, &mut midpoint), seconds_per_step(50, &mut hand))
+    Costs {
+        trapezoid: seconds_per_step(20, &mut trapezoid),
+        midpoint: seconds_per_step(10, &mut midpoint),
+        hand: seconds_per_step(50, &mut hand),
+        compensated: seconds_per_step(50, &mut compensated),
+    }
 }
 
 fn slope(n: &[f64], t: &[f64]) -> f64 {
@@ -153,11 +226,8 @@ fn scaling(c: &mut Criterion) {
     let sizes = [100.0, 200.0, 500.0, 1000.0, 2000.0];
     let rows = [costs::<100>(c), costs::<200>(c), costs::<500>(c), costs::<1000>(c), costs::<2000>(c)];
     println!("\nFPU-β chain, µs per step (best of repeated runs of {STEPS} steps):");
-    println!("{:>6} {:>12} {:>12} {:>12} {:>10}", "N", "trapezoid", "midpoint", "hand Verlet", "trap/hand");
-    for (n, (t, m, h)) in sizes.iter().zip(rows) {
-        println!("{n:>6} {:>12.2} {:>12.2} {:>12.3} {:>10.1}", t * 1e6, m * 1e6, h * 1e6, t / h);
-    }
-    let column = |k: usize| -> Vec<f64> { rows.iter().map(|r| [r.0, r.1, r.2][k]).collect() };
+    table(&sizes, &rows);
+    let column = |k: usize| -> Vec<f64> { rows.iter().map(|r| [r.trapezoid, r.midpoint, r.hand][k]).collect() };
     println!(
         "fitted cost exponent in N: trapezoid {:.2}, midpoint {:.2}, hand-written {:.2}",
         slope(&sizes, &column(0)),
@@ -194,9 +264,29 @@ impl DynFpu {
     }
 }
 
-/// `(trapezoid, midpoint, hand-written Verlet)` seconds per step of the
-/// run-time-sized chain of `n` masses, `steps` steps per timed run.
-fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64, f64, f64) {
+/// The µs per step of each contender and the ratios of the explicit
+/// trapezoid to the plain and the compensated hand-written Verlet.
+fn table(sizes: &[f64], rows: &[Costs]) {
+    println!(
+        "{:>7} {:>10} {:>10} {:>12} {:>14} {:>10} {:>14}",
+        "N", "trapezoid", "midpoint", "hand Verlet", "compensated", "trap/hand", "trap/compens."
+    );
+    for (n, r) in sizes.iter().zip(rows) {
+        println!(
+            "{n:>7} {:>10.2} {:>10.2} {:>12.3} {:>14.3} {:>10.2} {:>14.2}",
+            r.trapezoid * 1e6,
+            r.midpoint * 1e6,
+            r.hand * 1e6,
+            r.compensated * 1e6,
+            r.trapezoid / r.hand,
+            r.trapezoid / r.compensated
+        );
+    }
+}
+
+/// The [`Costs`] of the run-time-sized chain of `n` masses, `steps` steps
+/// per timed run.
+fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs {
     let k = n.div_ceil(10);
     let a = 0.3 * (n + 1) as f64 / (k as f64 * std::f64::consts::PI);
     let q0: Vec<f64> =
@@ -211,6 +301,13 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
         }
         black_box(verlet.q[0]);
     };
+    let mut kahan = CompensatedVerlet::new(&q0);
+    let mut compensated = move || {
+        for _ in 0..steps {
+            kahan.step(H);
+        }
+        black_box(kahan.q[0]);
+    };
     let mut trapezoid = move || {
         explicit.run(steps, |_| {}).unwrap();
         black_box(explicit.state().q[0]);
@@ -224,6 +321,7 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
     g.bench_function("trapezoid (explicit)", |b| b.iter(&mut trapezoid));
     g.bench_function("midpoint (banded Newton)", |b| b.iter(&mut midpoint));
     g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
+    g.bench_function("hand-written Verlet, compensated sums", |b| b.iter(&mut compensated));
     g.finish();
     let per_step = |repeats: usize, run: &mut dyn FnMut()| {
         (0..repeats)
@@ -234,7 +332,12 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> (f64,
             })
             .fold(f64::INFINITY, f64::min)
     };
-    (per_step(repeats, &mut trapezoid), per_step(repeats, &mut midpoint), per_step(5 * repeats, &mut hand))
+    Costs {
+        trapezoid: per_step(repeats, &mut trapezoid),
+        midpoint: per_step(repeats, &mut midpoint),
+        hand: per_step(5 * repeats, &mut hand),
+        compensated: per_step(5 * repeats, &mut compensated),
+    }
 }
 
 /// `VmHWM` of this process from `/proc/self/status`, if readable.
@@ -246,14 +349,11 @@ fn peak_memory() -> Option<String> {
 fn dyn_scaling(c: &mut Criterion) {
     // (N, steps per timed run, repeats)
     let sizes = [(100, 20, 20), (1_000, 20, 10), (10_000, 10, 5), (100_000, 2, 3)];
-    let rows: Vec<(f64, f64, f64)> = sizes.iter().map(|&(n, steps, repeats)| dyn_costs(c, n, steps, repeats)).collect();
+    let rows: Vec<Costs> = sizes.iter().map(|&(n, steps, repeats)| dyn_costs(c, n, steps, repeats)).collect();
     println!("\nrun-time-sized FPU-β chain (DynIntegrator), µs per step (best of repeated runs):");
-    println!("{:>7} {:>12} {:>12} {:>12} {:>10}", "N", "trapezoid", "midpoint", "hand Verlet", "trap/hand");
-    for (&(n, _, _), (t, m, h)) in sizes.iter().zip(&rows) {
-        println!("{n:>7} {:>12.2} {:>12.2} {:>12.3} {:>10.2}", t * 1e6, m * 1e6, h * 1e6, t / h);
-    }
     let n: Vec<f64> = sizes.iter().map(|s| s.0 as f64).collect();
-    let (t, m): (Vec<f64>, Vec<f64>) = rows.into_iter().map(|(t, m, _)| (t, m)).unzip();
+    table(&n, &rows);
+    let (t, m): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| (r.trapezoid, r.midpoint)).unzip();
     println!(
         "fitted cost exponent in N (100 … 100 000): trapezoid {:.2}, midpoint {:.2}",
         slope(&n, &t),

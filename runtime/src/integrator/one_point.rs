@@ -559,20 +559,25 @@ pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
 }
 
 /// `max|x|`, the value `real::max_abs` returns: the maximum is exact and
-/// ignores NaN in any order, so four running maxima (which vectorise)
+/// ignores NaN in any order, so running maxima in sixteen lanes (eight
+/// vector registers, whose chains of dependent `max` overlap; four lanes
+/// were bound by that latency, 0.3 µs for two passes at `N = 1000`)
 /// combine to the same number as one.
 #[inline(always)]
 pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
-    let mut lanes = [0.0; 4];
-    let chunks = x.chunks_exact(4);
-    let rest = chunks.remainder();
+    const LANES: usize = 16;
+    let mut lanes = [0.0; LANES];
+    let (chunks, rest) = x.as_chunks::<LANES>();
     for chunk in chunks {
-        for k in 0..4 {
+        for k in 0..LANES {
             lanes[k] = max_abs_step(lanes[k], chunk[k]);
         }
     }
-    let mut m = max_abs_step(max_abs_step(lanes[0], lanes[1]), max_abs_step(lanes[2], lanes[3]));
+    let mut m = 0.0;
     for &v in rest {
+        m = max_abs_step(m, v);
+    }
+    for v in lanes {
         m = max_abs_step(m, v);
     }
     m
