@@ -207,6 +207,31 @@ impl DynChain {
 }
 
 /// The chain's start of `chain_scaling.rs`: mode `N/10`, spring strains 0.3.
+/// A planar pendulum of `N` equal links (as in the tests' large systems):
+/// a dense, position-dependent mass matrix.
+struct NLink<const N: usize>;
+
+#[lagrangian::lagrangian]
+impl<const N: usize> NLink<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let (mut vx, mut vy, mut y) = (0.0, 0.0, 0.0);
+        let mut l = 0.0;
+        for i in 0..N {
+            vx += q[i].cos() * v[i];
+            vy += q[i].sin() * v[i];
+            y -= q[i].cos();
+            l += 0.5 * (vx * vx + vy * vy) - y;
+        }
+        l
+    }
+}
+
+/// `n` midpoint steps of the `N`-link pendulum with the given derivatives.
+fn nlink_mode<const N: usize>(mode: lagrangian::Derivatives, n: usize) -> Vec<f64> {
+    let q0: [f64; N] = core::array::from_fn(|i| 0.5 * (1.0 + i as f64 / N as f64));
+    run(Integrator::new(NLink::<N>, Midpoint, 0.01).derivatives(mode).start(0.0, q0, [0.0; N]), n)
+}
+
 fn chain_q0<const N: usize>() -> [f64; N] {
     let k = N.div_ceil(10);
     let a = 0.3 * (N + 1) as f64 / (k as f64 * std::f64::consts::PI);
@@ -439,6 +464,28 @@ fn main() {
             }
             sim.state().q.clone()
         }
+        // Newton steps of small chains in forward and in reverse mode: where
+        // `Derivatives::REVERSE_MIN_N` should lie.
+        ("chain8", "midpoint-forward") => newton_mode::<8>(lagrangian::Derivatives::Forward, n),
+        ("chain8", "midpoint-reverse") => newton_mode::<8>(lagrangian::Derivatives::Reverse, n),
+        ("chain10", "midpoint-forward") => newton_mode::<10>(lagrangian::Derivatives::Forward, n),
+        ("chain10", "midpoint-reverse") => newton_mode::<10>(lagrangian::Derivatives::Reverse, n),
+        ("chain12", "midpoint-forward") => newton_mode::<12>(lagrangian::Derivatives::Forward, n),
+        ("chain12", "midpoint-reverse") => newton_mode::<12>(lagrangian::Derivatives::Reverse, n),
+        ("nlink4", "midpoint-forward") => nlink_mode::<4>(lagrangian::Derivatives::Forward, n),
+        ("nlink4", "midpoint-reverse") => nlink_mode::<4>(lagrangian::Derivatives::Reverse, n),
+        ("nlink8", "midpoint-forward") => nlink_mode::<8>(lagrangian::Derivatives::Forward, n),
+        ("nlink8", "midpoint-reverse") => nlink_mode::<8>(lagrangian::Derivatives::Reverse, n),
+        ("nlink12", "midpoint-forward") => nlink_mode::<12>(lagrangian::Derivatives::Forward, n),
+        ("nlink12", "midpoint-reverse") => nlink_mode::<12>(lagrangian::Derivatives::Reverse, n),
+        ("nlink16", "midpoint-forward") => nlink_mode::<16>(lagrangian::Derivatives::Forward, n),
+        ("nlink16", "midpoint-reverse") => nlink_mode::<16>(lagrangian::Derivatives::Reverse, n),
+        ("chain16", "midpoint-forward") => newton_mode::<16>(lagrangian::Derivatives::Forward, n),
+        ("chain16", "midpoint-reverse") => newton_mode::<16>(lagrangian::Derivatives::Reverse, n),
+        ("chain24", "midpoint-forward") => newton_mode::<24>(lagrangian::Derivatives::Forward, n),
+        ("chain24", "midpoint-reverse") => newton_mode::<24>(lagrangian::Derivatives::Reverse, n),
+        ("chain32", "midpoint-forward") => newton_mode::<32>(lagrangian::Derivatives::Forward, n),
+        ("chain32", "midpoint-reverse") => newton_mode::<32>(lagrangian::Derivatives::Reverse, n),
         ("chain1000", "verlet-compensated-inplace") => compensated_in_place(0.05, &chain_q0::<CHAIN_N>(), n),
         // Reverse-mode Newton steps (midpoint) and sub-stepped explicit
         // compositions (Yoshida 4) of the same chain.
@@ -671,6 +718,11 @@ fn compensated_in_place(h: f64, q0: &[f64], n: usize) -> Vec<f64> {
         black_box(&q);
     }
     q
+}
+
+/// `n` midpoint steps of the chain of `N` masses with the given derivatives.
+fn newton_mode<const N: usize>(mode: lagrangian::Derivatives, n: usize) -> Vec<f64> {
+    run(Integrator::new(Chain::<N>, Midpoint, 0.05).derivatives(mode).start(0.0, chain_q0(), [0.0; N]), n)
 }
 
 fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(

@@ -419,8 +419,27 @@ impl<const N: usize> Wall<N> {
     }
 }
 
+/// [`Wall`] declared discontinuous: its compositions take their sub-steps
+/// one by one (and can fail after some of them were taken).
+pub struct WallSubstepped<const N: usize>;
+
+#[lagrangian(discontinuous)]
+impl<const N: usize> WallSubstepped<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut l = 0.01 * (1.0 - q[0]).sqrt();
+        for i in 0..N {
+            l += 0.5 * v[i] * v[i] - 0.5 * q[i] * q[i];
+        }
+        for i in 0..N - 1 {
+            let d = q[i + 1] - q[i];
+            l -= 0.25 * d * d * d * d;
+        }
+        l
+    }
+}
+
 /// Every readout of an integrator as bits, to compare two exactly.
-fn readouts<M: lagrangian::F64Readouts, const N: usize>(it: &Integrator<Wall<N>, M, N>) -> Vec<u64> {
+fn readouts<S: Lagrangian<N>, M: lagrangian::F64Readouts, const N: usize>(it: &Integrator<S, M, N>) -> Vec<u64> {
     let s = it.state();
     let mut bits = vec![s.step, s.t.to_bits(), it.discrete_energy().to_bits(), it.stats().steps];
     bits.extend(s.q.iter().chain(&s.p).map(|x| x.to_bits()));
@@ -429,19 +448,19 @@ fn readouts<M: lagrangian::F64Readouts, const N: usize>(it: &Integrator<Wall<N>,
     bits
 }
 
-/// A failed reverse-mode step (explicit, and a composition failing on its
-/// second sub-step, after the first was taken) leaves every readout as it
-/// was, and the steps after it are those of a twin that never failed: the
-/// node, the last two segments, the Kahan carries and the cached force are
-/// all put back.
+/// A failed reverse-mode step (explicit, a fused composition, and a
+/// sub-stepped one failing on its second sub-step, after the first was
+/// taken) leaves every readout as it was, and the steps after it are those
+/// of a twin that never failed: the node, the last two segments, the Kahan
+/// carries and the cached force are all put back.
 #[test]
 fn a_failed_reverse_step_changes_nothing() {
-    fn check<M: lagrangian::F64Readouts + Copy>(method: M, v: f64, name: &str) {
+    fn check<S: Lagrangian<8>, M: lagrangian::F64Readouts + Copy>(system: fn() -> S, method: M, v: f64, name: &str) {
         let q0: [f64; 8] = core::array::from_fn(|i| if i == 0 { 0.8 } else { 0.1 * i as f64 });
         let mut v0 = [0.0; 8];
         v0[0] = v;
         let start =
-            || Integrator::new(Wall::<8>, method, 0.01).derivatives(Derivatives::Reverse).start(0.0, q0, v0).unwrap();
+            || Integrator::new(system(), method, 0.01).derivatives(Derivatives::Reverse).start(0.0, q0, v0).unwrap();
         // The smallest of these steps that fails (the larger ones fail too).
         for h_bad in [0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0] {
             let (mut it, mut twin) = (start(), start());
@@ -463,8 +482,9 @@ fn a_failed_reverse_step_changes_nothing() {
         panic!("{name}: no step failed");
     }
     // Trapezoid: q_0 near 0.85 moving up, over the wall.
-    check(Trapezoid, 1.0, "trapezoid");
+    check(|| Wall::<8>, Trapezoid, 1.0, "trapezoid");
     // Yoshida 4, q_0 near 0.75 moving down: the first sub-step takes q_0
     // down, the second (weight −1.70) up past 1.
-    check(Composition::YOSHIDA4, -1.0, "yoshida4");
+    check(|| Wall::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (fused)");
+    check(|| WallSubstepped::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (sub-stepped)");
 }

@@ -1,9 +1,11 @@
 //! Verification: compositions of explicit Störmer–Verlet sub-steps run fused
-//! in forward mode (one check, one compensated sum and one commit per
-//! composed step). They agree to round-off with the same compositions taken
-//! sub-step by sub-step (reverse mode keeps that path), their readouts are
-//! rebuilt from the kept sub-step increments, and a failed fused step leaves
-//! no trace.
+//! (one check, one compensated sum and one commit per composed step), in
+//! forward mode on `[f64; N]` arrays and in reverse mode on the heap with
+//! the same operations. They agree to round-off with the same compositions
+//! taken sub-step by sub-step (a system declared discontinuous keeps that
+//! path: its energy watch needs every sub-step), forward and reverse mode
+//! agree with each other, their readouts are rebuilt from the kept sub-step
+//! increments, and a failed fused step leaves no trace.
 use crate::common;
 
 use common::{PENDULUM, Pendulum};
@@ -21,6 +23,29 @@ impl Kepler {
     }
 }
 
+/// [`Kepler`] declared discontinuous: its compositions are taken sub-step
+/// by sub-step.
+#[derive(Clone)]
+struct KeplerSubstepped;
+
+#[lagrangian(discontinuous)]
+impl KeplerSubstepped {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+}
+
+/// [`Coupled`] declared discontinuous (sub-stepped compositions).
+#[derive(Clone)]
+struct CoupledSubstepped;
+
+#[lagrangian(discontinuous)]
+impl CoupledSubstepped {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (2.0 * v[0] * v[0] + v[0] * v[1] + v[1] * v[1]) - 0.5 * (q[0] * q[0] + q[1] * q[1]) - 0.25 * q[0].powi(4)
+    }
+}
+
 /// Two anharmonic oscillators with a constant, non-diagonal mass matrix
 /// (the dense `M⁻¹` product of the explicit path).
 #[derive(Clone)]
@@ -33,45 +58,78 @@ impl Coupled {
     }
 }
 
-/// Max |difference| of the states, discrete energies and velocities of the
-/// fused (forward) and sub-stepped (reverse) runs after `steps` steps.
-fn fused_against_sub_steps<S: Lagrangian<2> + Clone>(
-    system: S,
-    method: Composition,
-    h: f64,
-    q0: [f64; 2],
-    v0: [f64; 2],
+/// Max |difference| of the states, discrete energies and velocities of two
+/// runs after `steps` steps.
+fn difference<A: Lagrangian<2>, B: Lagrangian<2>>(
+    a: &mut Integrator<A, Composition, 2>,
+    b: &mut Integrator<B, Composition, 2>,
     steps: usize,
 ) -> (f64, f64, f64) {
-    let start = |d| Integrator::new(system.clone(), method, h).derivatives(d).start(0.0, q0, v0).unwrap();
-    let (mut fused, mut sub) = (start(Derivatives::Forward), start(Derivatives::Reverse));
-    fused.run(steps, |_| {}).unwrap();
-    sub.run(steps, |_| {}).unwrap();
-    assert_eq!(fused.stats().newton_iterations, 0);
-    assert_eq!(fused.stats().steps, steps as u64);
-    let diff = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-    let (f, s) = (fused.state(), sub.state());
-    let state = diff(&f.q, &s.q).max(diff(&f.p, &s.p));
-    let energy = (fused.discrete_energy() - sub.discrete_energy()).abs();
-    let velocity = diff(&fused.velocity().unwrap(), &sub.velocity().unwrap());
+    a.run(steps, |_| {}).unwrap();
+    b.run(steps, |_| {}).unwrap();
+    let diff = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let (s, t) = (a.state(), b.state());
+    let state = diff(&s.q, &t.q).max(diff(&s.p, &t.p));
+    let energy = (a.discrete_energy() - b.discrete_energy()).abs();
+    let velocity = diff(&a.velocity().unwrap(), &b.velocity().unwrap());
     (state, energy, velocity)
+}
+
+/// `(fused forward against sub-stepped, fused reverse against fused
+/// forward)` differences (see [`difference`]) after `steps` steps of
+/// `system`, whose discontinuous twin `substepped` takes the sub-steps one
+/// by one.
+fn fused_runs<S: Lagrangian<2> + Clone, T: Lagrangian<2>>(
+    (system, substepped): (S, T),
+    method: Composition,
+    h: f64,
+    (q0, v0): ([f64; 2], [f64; 2]),
+    steps: usize,
+) -> [(f64, f64, f64); 2] {
+    let start = |d| Integrator::new(system.clone(), method, h).derivatives(d).start(0.0, q0, v0).unwrap();
+    let mut fused = start(Derivatives::Forward);
+    let mut sub = Integrator::new(substepped, method, h).start(0.0, q0, v0).unwrap();
+    let against_sub_steps = difference(&mut fused, &mut sub, steps);
+    let (mut forward, mut reverse) = (start(Derivatives::Forward), start(Derivatives::Reverse));
+    let modes = difference(&mut forward, &mut reverse, steps);
+    for it in [&fused, &forward] {
+        assert_eq!(it.stats().newton_iterations, 0);
+        assert_eq!(it.stats().steps, steps as u64);
+    }
+    assert_eq!(reverse.stats().newton_iterations, 0);
+    assert_eq!(reverse.stats().steps, steps as u64);
+    [against_sub_steps, modes]
 }
 
 #[test]
 fn fused_steps_agree_with_sub_steps_to_round_off() {
-    let kepler = |m| fused_against_sub_steps(Kepler, m, 0.05, [0.5, 0.0], [0.0, 3f64.sqrt()], 1000);
-    let coupled = |m| fused_against_sub_steps(Coupled, m, 0.05, [1.0, -0.5], [0.0, 0.3], 1000);
+    let start = ([0.5, 0.0], [0.0, 3f64.sqrt()]);
+    let kepler = |m| fused_runs((Kepler, KeplerSubstepped), m, 0.05, start, 1000);
+    let coupled = |m| fused_runs((Coupled, CoupledSubstepped), m, 0.05, ([1.0, -0.5], [0.0, 0.3]), 1000);
     for (name, method) in [
         ("Yoshida 4", Composition::YOSHIDA4),
         ("Yoshida 6", Composition::YOSHIDA6),
         ("Kahan–Li 8", Composition::KAHAN_LI8),
     ] {
-        for (system, (state, energy, velocity)) in [("Kepler", kepler(method)), ("coupled", coupled(method))] {
-            println!("{name}, {system}: max |Δ(q, p)| {state:.1e}, |ΔE_d| {energy:.1e}, |Δv| {velocity:.1e}");
+        for (system, [sub, modes]) in [("Kepler", kepler(method)), ("coupled", coupled(method))] {
+            let (state, energy, velocity) = sub;
+            println!(
+                "{name}, {system}: fused / sub-stepped: max |Δ(q, p)| {state:.1e}, |ΔE_d| {energy:.1e}, |Δv| {velocity:.1e}"
+            );
             // Round-off over 1000 steps (the orbit's period is 3.6, so about 14 orbits).
             assert!(state < 1e-11, "{name}, {system}: states differ by {state:e}");
             assert!(energy < 1e-11, "{name}, {system}: discrete energies differ by {energy:e}");
             assert!(velocity < 1e-11, "{name}, {system}: velocities differ by {velocity:e}");
+            let (state, energy, velocity) = modes;
+            println!(
+                "{name}, {system}: forward / reverse: max |Δ(q, p)| {state:.1e}, |ΔE_d| {energy:.1e}, |Δv| {velocity:.1e}"
+            );
+            // The same operations but for `M⁻¹`: a product with forward
+            // mode's inverse, reverse mode's reciprocals of a diagonal or
+            // its LU solve.
+            assert!(state < 1e-12, "{name}, {system}: states differ by {state:e}");
+            assert!(energy < 1e-12, "{name}, {system}: discrete energies differ by {energy:e}");
+            assert!(velocity < 1e-12, "{name}, {system}: velocities differ by {velocity:e}");
         }
     }
 }

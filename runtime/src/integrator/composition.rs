@@ -29,7 +29,7 @@
 
 use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
-use super::sparse::Stepper;
+use super::sparse::{LastSubstep, Stepper};
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
 use crate::derivatives::{self, Segment};
 use crate::discrete::Trapezoid;
@@ -124,6 +124,9 @@ pub struct CompositionMemory<const N: usize> {
     pub(crate) fused: Option<Box<[FusedSubsteps<N>; 2]>>,
     /// Which entry of `fused` holds the last step.
     pub(crate) fused_last: usize,
+    /// Fused explicit steps in reverse mode: the last sub-step of the last
+    /// step (the readouts' segment; `inner` holds whole steps), on the heap.
+    pub(crate) last_fused: Option<LastSubstep>,
 }
 
 /// The sub-steps of a fused explicit step: with the composed step's start
@@ -141,8 +144,14 @@ impl<const N: usize> CompositionMemory<N> {
     /// Reverse mode, whose sub-steps step the integrator's own memory: the
     /// last sub-step of the last composed step is the inner memory's last
     /// step (`None` before the first composed step).
-    fn last_substep_in_place(&self) -> Option<&Segment<N>> {
-        self.inner.previous.as_ref().filter(|_| self.stages > 0)
+    fn last_substep_in_place(&self) -> Option<Segment<N>> {
+        if self.stages == 0 {
+            return None;
+        }
+        match &self.last_fused {
+            Some(last) => Some(last.segment()),
+            None => self.inner.previous,
+        }
     }
 
     /// Sub-step `i` of the last composed step, made with `weights`.
@@ -185,6 +194,7 @@ impl Method<f64> for Composition {
             last_h: None,
             fused: None,
             fused_last: 0,
+            last_fused: None,
         }
     }
 
@@ -334,7 +344,7 @@ impl Method<f64> for Composition {
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
             return match it.memory.last_substep_in_place() {
-                Some(last) => super::sparse::step_energy(&it.system, &Trapezoid, last),
+                Some(last) => super::sparse::step_energy(&it.system, &Trapezoid, &last),
                 None => it.energy,
             };
         }
@@ -414,6 +424,9 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     t1: f64,
 ) -> Result<(), Error<N>> {
     let explicit = Integrator::<S, Trapezoid, N>::EXPLICIT;
+    if explicit && !S::DISCONTINUOUS {
+        return sparse_fused_step(it, h, t1);
+    }
     let before = it.state;
     let saved = (it.memory.inner.previous, it.memory.inner.earlier);
     if let Some(work) = it.memory.inner.sparse.as_mut() {
@@ -459,6 +472,34 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     it.stats.steps += 1;
     it.stats.newton_iterations = stats.newton_iterations;
     it.stats.last = stats.last;
+    Ok(())
+}
+
+/// A composed step on a system whose trapezoid sub-steps are explicit, in
+/// reverse mode: the sub-steps fused on the reverse-mode work's buffers
+/// (`SparseWork::verlet_composed`, the slice form of [`fused_step`], with
+/// the same operations), checked and committed once; the readouts' last
+/// sub-step is kept in `last_fused`. A failed step changes nothing
+/// observable.
+fn sparse_fused_step<S: Lagrangian<N>, const N: usize>(
+    it: &mut Integrator<S, Composition, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    let weights = it.method.weights;
+    let mut stepper = Stepper {
+        system: &it.system,
+        method: &Trapezoid,
+        newton: &it.newton,
+        v0: &it.v0,
+        energy: it.energy,
+        state: &mut it.state,
+        memory: &mut it.memory.inner,
+        stats: &mut it.stats,
+    };
+    stepper.composed_step(h, t1, weights, &mut it.memory.last_fused)?;
+    it.memory.stages = weights.len();
+    it.memory.last_h = Some(h);
     Ok(())
 }
 

@@ -19,7 +19,7 @@
 //! energy-preserving steps, Galerkin rules, double-double. The tangent map
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
-use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Composed, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Integrator, OnePointMemory, Stats, StepPolicy};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
@@ -68,11 +68,15 @@ impl Derivatives {
     pub const FORWARD_MAX_N: usize = 32;
 
     /// The smallest system [`Derivatives::Automatic`] steps in reverse mode
-    /// when it can: measured (`examples`-style timing of an FPU-β chain and
-    /// coupled pendula, midpoint, one run under load), reverse mode's Newton
-    /// step is faster from `N = 8` (5.6 against 7.8 µs; at `N = 4`, 2.7
-    /// against 0.65 µs) and 40 times faster at `N = 32` (23 against 911 µs).
-    pub const REVERSE_MIN_N: usize = 8;
+    /// when it can. Measured (`examples/step_profile.rs`, cases `chainN` and
+    /// `nlinkN` with `midpoint-forward` / `midpoint-reverse`, idle 2-core
+    /// machine), µs per midpoint step forward / reverse, with forward mode's
+    /// Newton derivatives from the macro's gradient code on dual lanes:
+    /// FPU-β chain (banded) N = 8: 1.4 / 1.9, N = 10: 2.3 / 2.5, N = 12:
+    /// 3.6 / 2.9, N = 16: 8.3 / 3.2, N = 32: 52 / 6.5; `N`-link pendulum
+    /// (dense) N = 4: 0.82 / 3.8, N = 8: 9.5 / 9.6, N = 12: 36 / 19, N = 16:
+    /// 90 / 31. Both cross near `N = 10`.
+    pub const REVERSE_MIN_N: usize = 10;
 
     /// Whether a system of `N` coordinates is stepped in reverse mode (after
     /// `start` resolved `Automatic`; unresolved, `Automatic` answers by size
@@ -242,19 +246,73 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     /// One fixed step (see `Integrator::sparse_step`); a failed one changes
     /// nothing but the failure count.
     pub(super) fn step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
-        let mut work = match self.memory.sparse.take() {
-            Some(work) => work,
-            None => match SparseWork::new(N, S::COUPLING) {
-                Ok(work) => Box::new(work),
-                Err(_) => {
-                    let reason = "the step matrix of this size cannot be allocated";
-                    return Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }));
-                }
-            },
-        };
+        let mut work = self.work(h)?;
         let outcome = self.advance(&mut work, h, t1, explicit);
         self.memory.sparse = Some(work);
         outcome
+    }
+
+    /// The reverse-mode work, taken out of the memory (made at the first
+    /// step); the caller puts it back.
+    fn work(&mut self, h: f64) -> Result<Box<SparseWork>, Error<N>> {
+        match self.memory.sparse.take() {
+            Some(work) => Ok(work),
+            None => match SparseWork::new(N, S::COUPLING) {
+                Ok(work) => Ok(Box::new(work)),
+                Err(_) => {
+                    let reason = "the step matrix of this size cannot be allocated";
+                    Err(self.fail(h, NewtonFailure::Rejected { iterations: 0, reason }))
+                }
+            },
+        }
+    }
+
+    /// One composed step of explicit trapezoid sub-steps of sizes `γ_i h`
+    /// (`weights`), fused (`SparseWork::verlet_composed`) and committed
+    /// once: the memory then holds whole steps, as forward mode's fused
+    /// compositions do, and `last_substep` receives the last sub-step (the
+    /// readouts' segment). A failed step changes nothing but the failure
+    /// count.
+    pub(super) fn composed_step(
+        &mut self,
+        h: f64,
+        t1: f64,
+        weights: &[f64],
+        last_substep: &mut Option<LastSubstep>,
+    ) -> Result<(), Error<N>> {
+        let mut work = self.work(h)?;
+        let [q_carry, p_carry] = core::mem::take(&mut work.carries);
+        let outcome = {
+            let model = Fixed { system: self.system, method: self.method };
+            let State { step, t, ref q, ref p } = *self.state;
+            let node = Node { step, t, q, p, q_carry: &q_carry, p_carry: &p_carry };
+            // The predictor only when the growth check needs it.
+            let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));
+            let last = self.memory.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+            let growth = Growth { last, predict: &predict };
+            work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond)
+        };
+        let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
+            Ok(composed) => composed,
+            Err(failure) => {
+                work.carries = [q_carry, p_carry];
+                self.memory.sparse = Some(work);
+                return Err(self.fail(h, failure));
+            }
+        };
+        let Taken { dq: total, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
+        self.commit(&total, &q1, &p1, report, h, t1);
+        work.carries = [q_carry1, p_carry1];
+        // The last sub-step's buffers are kept, not copied.
+        if let Some(old) = last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
+            work.recycle(old.q0);
+            work.recycle(old.dq);
+        }
+        for buffer in [total, q1, p1, q_carry, p_carry] {
+            work.recycle(buffer);
+        }
+        self.memory.sparse = Some(work);
+        Ok(())
     }
 
     fn advance(&mut self, work: &mut SparseWork, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
@@ -351,6 +409,23 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     /// The increment predicted for a step of size `h`.
     fn predict(&self, h: f64) -> [f64; N] {
         self.memory.predict(h, self.v0)
+    }
+}
+
+/// The last sub-step `(t, h, q, δq)` of a fused composed step in reverse
+/// mode, on the heap (its buffers are handed over by the step, not copied).
+#[derive(Clone, Debug)]
+pub(crate) struct LastSubstep {
+    pub(crate) t0: f64,
+    pub(crate) h: f64,
+    pub(crate) q0: Vec<f64>,
+    pub(crate) dq: Vec<f64>,
+}
+
+impl LastSubstep {
+    /// As a segment of a const-size system.
+    pub(crate) fn segment<const N: usize>(&self) -> Segment<N> {
+        Segment { t0: self.t0, h: self.h, q0: array(&self.q0), dq: array(&self.dq) }
     }
 }
 

@@ -218,6 +218,22 @@ pub(crate) struct Taken {
     pub(crate) report: NewtonReport,
 }
 
+/// A fused composed explicit step ([`SparseWork::verlet_composed`]): the
+/// composed step, and its last sub-step `(t, h, q, δq)`.
+pub(crate) struct Composed {
+    pub(crate) taken: Taken,
+    pub(crate) last: (f64, f64, Vec<f64>, Vec<f64>),
+}
+
+/// The buffers of [`SparseWork::composed_into`] besides the step's own: the
+/// running force, `Δp`, and the last sub-step's start and increment.
+struct ComposedScratch<'a> {
+    f: &'a mut Vec<f64>,
+    dp: &'a mut Vec<f64>,
+    last_q0: &'a mut Vec<f64>,
+    last_dq: &'a mut Vec<f64>,
+}
+
 /// The heap-side work of reverse-mode steps: the tape and the buffers of its
 /// sweeps (scratch, rebuilt when cloned), and what persists between steps.
 #[derive(Debug)]
@@ -588,27 +604,7 @@ impl SparseWork {
         growth: &Growth<'_>,
         min_rcond: f64,
     ) -> Result<Taken, NewtonFailure> {
-        let n = self.n;
-        let tape_failed = NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED };
-        if self.mass.is_none() {
-            let zero = zeroed(Some(n), n).map_err(|e| breakdown(e).at(0))?;
-            let (_, _, mut mass) =
-                velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
-                    .map_err(|b| b.at(0))?;
-            mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
-            self.mass = Some(Mass::new(mass));
-        }
-        let f0 = match self.node_force.take() {
-            Some((k, f)) if k == node.step => f,
-            stale => {
-                let mut f = match stale {
-                    Some((_, f)) => f,
-                    None => self.buffer(),
-                };
-                potential_force(model, &mut self.tape, &self.zero, node.t, node.q, &mut f).map_err(|_| tape_failed)?;
-                f
-            }
-        };
+        let f0 = self.explicit_node(model, node, min_rcond)?;
         let dq = self.buffer();
         let mut taken = self.taken(dq, NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 });
         let mut f1 = self.buffer();
@@ -625,6 +621,196 @@ impl SparseWork {
                 self.recycle_taken(taken);
                 Err(failure)
             }
+        }
+    }
+
+    /// What every explicit step needs first: the constant mass matrix
+    /// (factored at the first one; a singular one is a typed failure) and
+    /// the force at `node` (the cached one when it is that node's, which the
+    /// caller puts back or replaces).
+    fn explicit_node<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        min_rcond: f64,
+    ) -> Result<Vec<f64>, NewtonFailure> {
+        let n = self.n;
+        if self.mass.is_none() {
+            let zero = zeroed(Some(n), n).map_err(|e| breakdown(e).at(0))?;
+            let (_, _, mut mass) =
+                velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
+                    .map_err(|b| b.at(0))?;
+            mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
+            self.mass = Some(Mass::new(mass));
+        }
+        match self.node_force.take() {
+            Some((k, f)) if k == node.step => Ok(f),
+            stale => {
+                let mut f = match stale {
+                    Some((_, f)) => f,
+                    None => self.buffer(),
+                };
+                match potential_force(model, &mut self.tape, &self.zero, node.t, node.q, &mut f) {
+                    Ok(()) => Ok(f),
+                    Err(_) => {
+                        self.recycle(f);
+                        Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED })
+                    }
+                }
+            }
+        }
+    }
+
+    /// A composition of explicit Störmer–Verlet sub-steps of sizes `γ_i h`
+    /// (`weights`) fused into one step on the work's buffers, checked and
+    /// returned once: the slice form of forward mode's fused composed step
+    /// (`one_point.rs`, `explicit_step`), with the same operations in the
+    /// same order,
+    ///
+    /// ```text
+    /// Δp ← Δp + (h_{i−1} + h_i)/2 · f_i,   δq_i = h_i M⁻¹ (p_k + (c_p + Δp)),
+    /// Δq ← Δq + δq_i,   f_{i+1} = f(t_{i+1}, q_k + (c_q + Δq)),
+    /// ```
+    ///
+    /// then `Δp ← Δp + h_m/2 · f_{m+1}` and `q_{k+1}`, `p_{k+1}` as Kahan
+    /// sums of `Δq`, `Δp` with the node's compensations. The growth check
+    /// compares `Δq` with the last (composed) step's increment. Returns the
+    /// composed step and its last sub-step `(t, h_m, q, δq_m)` (the readouts'
+    /// segment); keeps the node force of `node` on failure, and on success
+    /// the end node's force for the next step.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn verlet_composed<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        h: f64,
+        t1: f64,
+        weights: &[f64],
+        growth: &Growth<'_>,
+        min_rcond: f64,
+    ) -> Result<Composed, NewtonFailure> {
+        let f0 = self.explicit_node(model, node, min_rcond)?;
+        let dq = self.buffer();
+        let mut taken = self.taken(dq, NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 });
+        let (mut f, mut dp, mut last_q0, mut last_dq) = (self.buffer(), self.buffer(), self.buffer(), self.buffer());
+        let scratch = ComposedScratch { f: &mut f, dp: &mut dp, last_q0: &mut last_q0, last_dq: &mut last_dq };
+        match self.composed_into(model, node, (h, t1), weights, growth, &f0, &mut taken, scratch) {
+            Ok((t0_last, h_last)) => {
+                self.node_force = Some((node.step + 1, f));
+                self.recycle(f0);
+                self.recycle(dp);
+                self.energy = None;
+                Ok(Composed { taken, last: (t0_last, h_last, last_q0, last_dq) })
+            }
+            Err(failure) => {
+                self.node_force = Some((node.step, f0));
+                for buffer in [f, dp, last_q0, last_dq] {
+                    self.recycle(buffer);
+                }
+                self.recycle_taken(taken);
+                Err(failure)
+            }
+        }
+    }
+
+    /// The sub-steps of [`verlet_composed`](Self::verlet_composed) from the
+    /// node force `f0`, into `out`; returns the last sub-step's start time
+    /// and size. `scratch.f` ends with the force at the end node.
+    #[allow(clippy::too_many_arguments)]
+    fn composed_into<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        (h, t1): (f64, f64),
+        weights: &[f64],
+        growth: &Growth<'_>,
+        f0: &[f64],
+        out: &mut Taken,
+        scratch: ComposedScratch<'_>,
+    ) -> Result<(f64, f64), NewtonFailure> {
+        let n = self.n;
+        let ComposedScratch { f, dp, last_q0, last_dq } = scratch;
+        let (q0, qc0, p0, pc0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n]);
+        let (dq, q, mv) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.p1[..n]);
+        let (f, dp, last_q0, last_dq) = (&mut f[..n], &mut dp[..n], &mut last_q0[..n], &mut last_dq[..n]);
+        let f0 = &f0[..n];
+        dq.fill(0.0);
+        dp.fill(0.0);
+        let mass = self.mass.as_ref().map(|m| (m.unit, m.inverse_diagonal.as_deref()));
+        // Half the last sub-step: its closing kick joins the next opening one.
+        let (mut half, mut elapsed) = (0.0, 0.0);
+        let (mut t_last, mut h_last) = (node.t, 0.0);
+        let m = weights.len();
+        if m == 1 {
+            last_q0.copy_from_slice(q0);
+        }
+        for (i, &gamma) in weights.iter().enumerate() {
+            let hi = gamma * h;
+            let kick = half + 0.5 * hi;
+            // The force at the sub-step's start: the node's, then the last
+            // sub-node's (no copy of the node force).
+            let fi: &[f64] = if i == 0 { f0 } else { f };
+            for j in 0..n {
+                dp[j] += kick * fi[j];
+                mv[j] = p0[j] + (pc0[j] + dp[j]);
+            }
+            match mass {
+                Some((true, _)) => {
+                    for j in 0..n {
+                        last_dq[j] = mv[j] * hi;
+                    }
+                }
+                Some((false, Some(d))) => {
+                    let d = &d[..n];
+                    for j in 0..n {
+                        last_dq[j] = (d[j] * mv[j]) * hi;
+                    }
+                }
+                _ => {
+                    if let Some(mass) = &self.mass {
+                        mass.assembled.solve(mv).map_err(|e| breakdown(e).at(0))?;
+                    }
+                    for j in 0..n {
+                        last_dq[j] = mv[j] * hi;
+                    }
+                }
+            }
+            // The sub-nodes' positions go to `last_q0`, which then holds
+            // the last sub-step's start; the end node's to `q`.
+            let x: &mut [f64] = if i + 1 == m { &mut *q } else { &mut *last_q0 };
+            for j in 0..n {
+                dq[j] += last_dq[j];
+                x[j] = q0[j] + (qc0[j] + dq[j]);
+            }
+            elapsed += gamma;
+            let ti = if i + 1 == m { t1 } else { node.t + elapsed * h };
+            if i + 1 < m {
+                t_last = ti;
+            } else {
+                h_last = hi;
+            }
+            if potential_force(model, &mut self.tape, &self.zero, ti, x, f).is_err() {
+                return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
+            }
+            half = 0.5 * hi;
+        }
+        let (qc1, p1, pc1) = (&mut out.q_carry[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
+        let (mut q_bad, mut p_bad) = (0, 0);
+        for j in 0..n {
+            // `q` holds `q_k + (c_q + Δq)`: the Kahan sum's new value.
+            qc1[j] = (qc0[j] + dq[j]) - (q[j] - q0[j]);
+            q_bad |= nan_bits(q[j]);
+            dp[j] += half * f[j];
+            let (sum, carry) = kahan(p0[j], pc0[j], dp[j]);
+            p1[j] = sum;
+            pc1[j] = carry;
+            p_bad |= nan_bits(sum);
+        }
+        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        match quantity {
+            Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
+            None => Ok((t_last, h_last)),
         }
     }
 
