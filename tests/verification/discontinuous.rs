@@ -3,8 +3,9 @@
 //! jump of the discrete energy where the trajectory crosses it.
 #![allow(missing_docs)]
 
-use lagrangian::Lagrangian;
 use lagrangian::prelude::*;
+use lagrangian::structure::Separability;
+use lagrangian::{DynIntegrator, DynLagrangian, Lagrangian, Scalar};
 
 /// A free particle of unit mass with a potential step of height `h` at
 /// `q = x0`.
@@ -18,6 +19,42 @@ impl PotentialStep {
     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
         let beyond = q[0] > self.x0;
         0.5 * v[0] * v[0] - if beyond { self.h } else { 0.0 }
+    }
+}
+
+/// The step with its structure declared by hand (a user's own
+/// `Lagrangian` impl: the macro proves no structure through a branch):
+/// `½v² − V(q)` with a constant mass, so trapezoid steps are explicit.
+pub struct ExplicitStep(PotentialStep);
+
+impl Lagrangian<1> for ExplicitStep {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const DISCONTINUOUS: bool = true;
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+        Lagrangian::<1>::lagrangian(&self.0, t, q, v)
+    }
+}
+
+/// The same step on a chain of free particles sized at run time, its
+/// structure declared by hand: explicit steps of a [`DynIntegrator`].
+pub struct DynStep(usize);
+
+impl DynLagrangian for DynStep {
+    const AUTONOMOUS: bool = true;
+    const DISCONTINUOUS: bool = true;
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn dimension(&self) -> usize {
+        self.0
+    }
+    fn lagrangian<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
+        let mut l = D::from(0.0);
+        for (q, v) in q.iter().zip(v) {
+            let beyond = q.re() > 0.5;
+            l += D::from(0.5) * *v * *v - D::from(if beyond { 0.3 } else { 0.0 });
+        }
+        l
     }
 }
 
@@ -70,6 +107,61 @@ fn crossing_the_step_shows_as_an_energy_jump_at_the_crossing() {
     assert!(stats.largest_energy_jump > 0.1, "{stats:?}");
     // Within a few steps of the crossing.
     assert!((0.48..0.54).contains(&stats.largest_energy_jump_at), "{stats:?}");
+}
+
+#[test]
+fn a_composition_reports_the_jump_of_its_sub_steps() {
+    // The same crossing under Yoshida 4: a discontinuous system's composed
+    // steps are taken sub-step by sub-step so that the watch sees each one.
+    let system = PotentialStep { h: 0.3, x0: 0.5 };
+    let mut sim = Integrator::new(system, lagrangian::Composition::YOSHIDA4, 0.01).start(0.0, [0.0], [1.0]).unwrap();
+    sim.run_until(1.0, |_| {}).unwrap();
+    let stats = sim.stats();
+    println!(
+        "potential step, Yoshida 4: largest energy jump {:.3} at t = {:.3}",
+        stats.largest_energy_jump, stats.largest_energy_jump_at
+    );
+    assert!(stats.largest_energy_jump > 0.1, "{stats:?}");
+    assert!((0.47..0.55).contains(&stats.largest_energy_jump_at), "{stats:?}");
+}
+
+#[test]
+fn explicit_and_reverse_mode_steps_report_the_jump_too() {
+    // Explicit trapezoid steps (a constant mass: Störmer–Verlet, no Newton)
+    // and compositions of them, in forward and in reverse mode; and the
+    // branching form's Newton steps in reverse mode.
+    fn jump<S: Lagrangian<1>, M: lagrangian::F64Readouts + Copy>(
+        system: S,
+        method: M,
+        derivatives: lagrangian::Derivatives,
+        explicit: bool,
+    ) -> (f64, f64) {
+        let mut sim = Integrator::new(system, method, 0.01).derivatives(derivatives).start(0.0, [0.0], [1.0]).unwrap();
+        sim.run_until(1.0, |_| {}).unwrap();
+        assert_eq!(sim.stats().newton_iterations == 0, explicit, "{:?}", sim.stats());
+        (sim.stats().largest_energy_jump, sim.stats().largest_energy_jump_at)
+    }
+    use lagrangian::Composition;
+    use lagrangian::Derivatives::{Forward, Reverse};
+    let explicit = || ExplicitStep(PotentialStep { h: 0.3, x0: 0.5 });
+    let branch = || PotentialStep { h: 0.3, x0: 0.5 };
+    let cases = [
+        ("declared, trapezoid, forward", jump(explicit(), Trapezoid, Forward, true)),
+        ("declared, trapezoid, reverse", jump(explicit(), Trapezoid, Reverse, true)),
+        ("declared, Yoshida 4, forward", jump(explicit(), Composition::YOSHIDA4, Forward, true)),
+        ("declared, Yoshida 4, reverse", jump(explicit(), Composition::YOSHIDA4, Reverse, true)),
+        ("branch, midpoint, reverse", jump(branch(), Midpoint, Reverse, false)),
+        ("branch, Yoshida 4, reverse", jump(branch(), Composition::YOSHIDA4, Reverse, false)),
+    ];
+    let mut chain = DynIntegrator::new(DynStep(3), Trapezoid, 0.01).start(0.0, &[0.0; 3], &[1.0; 3]).unwrap();
+    chain.run_until(1.0, |_| {}).unwrap();
+    assert_eq!(chain.stats().newton_iterations, 0);
+    let dynamic = (chain.stats().largest_energy_jump, chain.stats().largest_energy_jump_at);
+    for (name, (size, at)) in cases.into_iter().chain([("declared, run-time-sized, trapezoid", dynamic)]) {
+        println!("potential step, {name}: largest energy jump {size:.3} at t = {at:.3}");
+        assert!(size > 0.1, "{name}: {size}");
+        assert!((0.47..0.55).contains(&at), "{name}: {at}");
+    }
 }
 
 #[test]

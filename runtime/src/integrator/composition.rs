@@ -322,6 +322,9 @@ impl Method<f64> for Composition {
         it.stats.steps += 1;
         it.stats.newton_iterations = stats.newton_iterations;
         it.stats.last = stats.last;
+        // The energy watch of a discontinuous system saw every sub-step.
+        it.stats.largest_energy_jump = stats.largest_energy_jump;
+        it.stats.largest_energy_jump_at = stats.largest_energy_jump_at;
         Ok(())
     }
 
@@ -472,6 +475,9 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     it.stats.steps += 1;
     it.stats.newton_iterations = stats.newton_iterations;
     it.stats.last = stats.last;
+    // The energy watch of a discontinuous system saw every sub-step.
+    it.stats.largest_energy_jump = stats.largest_energy_jump;
+    it.stats.largest_energy_jump_at = stats.largest_energy_jump_at;
     Ok(())
 }
 

@@ -516,6 +516,8 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
+        // The last step's discrete energy, read before an explicit step clears it.
+        let before = self.work.energy.unwrap_or(self.energy);
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
         let outcome = if Self::EXPLICIT {
@@ -539,10 +541,19 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
                 return Err(DynError::from_newton(failure, self.state.clone(), h));
             }
         };
+        // An explicit step computes no energy; a discontinuous system's watch
+        // takes it from the new segment (one reverse sweep).
+        let energy = match energy {
+            None if S::DISCONTINUOUS => {
+                let model = Sliced { system: &self.system, points: self.points };
+                Some(tape_step::step_energy(&model, self.state.t, h, &self.state.q, &taken.dq))
+            }
+            energy => energy,
+        };
         if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
-            tape_step::watch_energy_jump(&mut self.stats, self.work.energy.unwrap_or(self.energy), after, t1);
+            tape_step::watch_energy_jump(&mut self.stats, before, after, t1);
         }
-        if !Self::EXPLICIT {
+        if !Self::EXPLICIT || S::DISCONTINUOUS {
             self.work.energy = energy;
         }
         self.commit(taken, h, t1);

@@ -319,6 +319,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         // The carries out of the work while it steps; put back, or replaced
         // by the step's, below.
         let [q_carry, p_carry] = core::mem::take(&mut work.carries);
+        // The last step's discrete energy, read before an explicit step clears it.
+        let before = work.energy.unwrap_or(self.energy);
         let outcome = self.try_step(work, h, t1, explicit, (&q_carry, &p_carry));
         let (taken, energy) = match outcome {
             Ok(taken) => taken,
@@ -327,10 +329,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
                 return Err(self.fail(h, failure));
             }
         };
+        // An explicit step computes no energy; a discontinuous system's watch
+        // takes it from the new segment (one reverse sweep).
+        let energy = match energy {
+            None if S::DISCONTINUOUS => {
+                let seg = Segment { t0: self.state.t, h, q0: self.state.q, dq: array(&taken.dq) };
+                Some(step_energy(self.system, self.method, &seg))
+            }
+            energy => energy,
+        };
         if let (true, Some(after)) = (S::DISCONTINUOUS, energy) {
-            tape_step::watch_energy_jump(self.stats, work.energy.unwrap_or(self.energy), after, t1);
+            tape_step::watch_energy_jump(self.stats, before, after, t1);
         }
-        if !explicit {
+        if !explicit || S::DISCONTINUOUS {
             work.energy = energy;
         }
         let Taken { dq, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
