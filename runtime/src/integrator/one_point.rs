@@ -559,13 +559,20 @@ pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
 }
 
 /// `max|x|`, the value `real::max_abs` returns: the maximum is exact and
-/// ignores NaN in any order, so running maxima in sixteen lanes (eight
-/// vector registers, whose chains of dependent `max` overlap; four lanes
-/// were bound by that latency, 0.3 µs for two passes at `N = 1000`)
-/// combine to the same number as one.
+/// ignores NaN in any order, so running maxima in several lanes (which
+/// vectorise) combine to the same number as one. Four lanes for short
+/// inputs; sixteen (eight vector registers, whose chains of dependent `max`
+/// overlap) from 64 values, where four were bound by that latency (0.3 µs
+/// for two passes at `N = 1000`). For a const `N` the choice is made at
+/// compile time.
 #[inline(always)]
 pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
-    const LANES: usize = 16;
+    if x.len() >= 64 { fold_max_abs_lanes::<16>(x) } else { fold_max_abs_lanes::<4>(x) }
+}
+
+/// [`fold_max_abs`] with `LANES` running maxima.
+#[inline(always)]
+fn fold_max_abs_lanes<const LANES: usize>(x: &[f64]) -> f64 {
     let mut lanes = [0.0; LANES];
     let (chunks, rest) = x.as_chunks::<LANES>();
     for chunk in chunks {
@@ -573,11 +580,16 @@ pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
             lanes[k] = max_abs_step(lanes[k], chunk[k]);
         }
     }
-    let mut m = 0.0;
-    for &v in rest {
-        m = max_abs_step(m, v);
+    // Pairwise, as the lanes of the vector registers combine.
+    let mut width = LANES;
+    while width > 1 {
+        width /= 2;
+        for k in 0..width {
+            lanes[k] = max_abs_step(lanes[k], lanes[k + width]);
+        }
     }
-    for v in lanes {
+    let mut m = lanes[0];
+    for &v in rest {
         m = max_abs_step(m, v);
     }
     m
@@ -1034,7 +1046,9 @@ mod tests {
     fn the_lane_maximum_is_the_maximum_of_max_abs() {
         let values = awkward_values(4000);
         let mut nan_seen = false;
-        for len in 0..=9 {
+        // Every length around the lane counts, and long ones (sixteen lanes
+        // from 64 values).
+        for len in (0..=40).chain([63, 64, 65, 79, 80, 81, 200, 1001]) {
             for start in (0..values.len() - len).step_by(7) {
                 let x = &values[start..start + len];
                 nan_seen |= x.iter().any(|v| v.is_nan());
