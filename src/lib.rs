@@ -163,7 +163,7 @@ pub mod prelude {
         Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction,
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
-    pub use lagrangian_runtime::{DynError, DynIntegrator, DynState};
+    pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

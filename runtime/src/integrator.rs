@@ -33,7 +33,7 @@ mod tape_step;
 mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
-pub use dynamic::{DynError, DynIntegrator, DynIntegratorBuilder, DynState};
+pub use dynamic::{DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;

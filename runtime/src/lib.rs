@@ -43,8 +43,8 @@ pub use error::Error;
 pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{
-    Composition, Derivatives, DynError, DynIntegrator, DynIntegratorBuilder, DynState, EnergyFallback, F64Readouts,
-    Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
+    Composition, Derivatives, DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState, EnergyFallback,
+    F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
 };
 #[doc(hidden)]
 pub use integrator::{CompositionMemory, OnePointMemory};

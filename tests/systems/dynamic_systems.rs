@@ -5,6 +5,9 @@
 //!   mode take the same steps (to 1e-14) on the same system: an FPU-β chain
 //!   (midpoint, and trapezoid on its explicit path) and coupled pendula
 //!   (non-separable, banded; midpoint).
+//! - Compositions of explicit trapezoid sub-steps (Yoshida 4, Kahan–Li 8)
+//!   take the const-size integrator's fused steps; with Newton sub-steps
+//!   they are refused.
 //! - An FPU-β chain of 100 000 masses runs in a thread with a 2 MiB stack.
 //! - The energy error of a chain of 1 000 is bounded without drift.
 //! - Bad input is a typed error; a failed step changes nothing and a retry
@@ -16,7 +19,7 @@
 //!   trapezoid with Newton, α-β); a chain of 1 000 without energy drift and
 //!   one of 100 000 in a 2 MiB thread on that path.
 use lagrangian::prelude::*;
-use lagrangian::{Coupling, Derivatives, Pattern, Separability};
+use lagrangian::{Composition, Coupling, Derivatives, DynMethod, Pattern, Separability};
 
 /// An FPU-β chain with fixed ends, unit masses and springs, of run-time length.
 struct DynFpu {
@@ -117,7 +120,7 @@ fn chain_mode(n: usize, k: usize, strain: f64) -> Vec<f64> {
 fn path_difference<S, M, const N: usize>(system: impl Fn() -> S, method: M, h: f64, steps: usize) -> (f64, u64, u64)
 where
     S: DynLagrangian,
-    M: DiscreteLagrangian,
+    M: F64Readouts + DynMethod + Copy,
 {
     let q0 = chain_mode(N, 2, 0.3);
     let v0: Vec<f64> = (0..N).map(|i| 0.1 * (i as f64).sin()).collect();
@@ -179,9 +182,13 @@ fn a_chain_of_100_000_masses_runs_in_a_2_mib_thread() {
             let mut trapezoid = DynIntegrator::new(system(), Trapezoid, h).start(0.0, &q0, &vec![0.0; n]).unwrap();
             trapezoid.run(10, |_| {}).unwrap();
             assert_eq!(trapezoid.stats().newton_iterations, 0);
+            let start = |method| DynIntegrator::new(system(), method, h).start(0.0, &q0, &vec![0.0; n]).unwrap();
+            let mut yoshida = start(Composition::YOSHIDA4);
+            yoshida.run(3, |_| {}).unwrap();
             for (name, state, e) in [
                 ("midpoint, 3 steps", midpoint.state(), midpoint.energy().unwrap()),
                 ("trapezoid, 10 steps", trapezoid.state(), trapezoid.energy().unwrap()),
+                ("Yoshida 4, 3 steps", yoshida.state(), yoshida.energy().unwrap()),
             ] {
                 assert!(state.q.iter().chain(&state.p).all(|x| x.is_finite()), "{name}");
                 let error = (e - e0).abs() / e0;
@@ -312,7 +319,7 @@ fn bad_input_is_a_typed_error() {
 
 /// An absurd step fails with a typed error carrying the state, changes
 /// nothing, and a retry with the old step continues as if it never failed.
-fn fail_and_retry<M: DiscreteLagrangian>(method: M, absurd: f64, expected: fn(&DynError) -> bool) {
+fn fail_and_retry<M: DynMethod + Copy + core::fmt::Debug>(method: M, absurd: f64, expected: fn(&DynError) -> bool) {
     let n = 64;
     let q0 = chain_mode(n, 5, 0.3);
     let start = || DynIntegrator::new(DynFpu { n, beta: 1.0 }, method, 0.05).start(0.0, &q0, &vec![0.0; n]).unwrap();
@@ -356,6 +363,24 @@ fn a_failed_step_changes_nothing_and_a_retry_succeeds() {
     // still returns a finite state: the quadratic predictor extrapolates as
     // far as the step goes, so the plausibility check does not fire.)
     fail_and_retry(Trapezoid, 1e100, |e| matches!(e, DynError::NonFinite { quantity: "momentum", .. }));
+    // A fused composition: the positions overflow.
+    fail_and_retry(Composition::YOSHIDA4, 1e100, |e| matches!(e, DynError::NonFinite { .. }));
+}
+
+#[test]
+fn run_time_sized_compositions_take_the_const_size_steps() {
+    let fpu = || DynFpu { n: 16, beta: 1.0 };
+    for (name, method) in [("Yoshida 4", Composition::YOSHIDA4), ("Kahan–Li 8", Composition::KAHAN_LI8)] {
+        let (d, f, r) = path_difference::<_, _, 16>(fpu, method, 0.05, 100);
+        println!("FPU-β N = 16, {name} (fused explicit sub-steps): difference {d:.2e}, Newton iterations {f} / {r}");
+        assert!(d <= 1e-14 && f == 0 && r == 0, "{name}: {d:e} {f} {r}");
+    }
+    // Not separable: its sub-steps would need Newton, which the
+    // run-time-sized compositions do not take yet.
+    let q0 = chain_mode(16, 2, 0.3);
+    let pendula = DynPendula { n: 16, c: 0.3, k: 0.5 };
+    let refused = DynIntegrator::new(pendula, Composition::YOSHIDA4, 0.05).start(0.0, &q0, &[0.0; 16]);
+    assert!(matches!(refused, Err(DynError::Unsupported { .. })), "{:?}", refused.err());
 }
 
 /// The FPU-β chain through `#[lagrangian]` over slices: the macro writes

@@ -10,15 +10,59 @@
 //! here from the rule's quadrature points
 //! ([`DiscreteLagrangian::galerkin_points`]), over slices.
 
-use super::tape_step::{self, Growth, Guess, Node, SparseWork, Taken, TapeModel};
+use super::composition::Composition;
+use super::method::sealed;
+use super::sparse::LastSubstep;
+use super::tape_step::{self, Composed, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats};
-use crate::discrete::DiscreteLagrangian;
+use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::newton::{NewtonFailure, NewtonOptions};
 use crate::real::all_finite;
 use crate::structure::Coupling;
 use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
 use num_dual::DualNum;
+
+/// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
+/// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
+/// [`AlphaBeta`](crate::AlphaBeta), or a rule of one's own with quadrature
+/// points), or a [`Composition`] of trapezoid steps whose sub-steps are
+/// explicit (a system with [`Separability::ConstantMass`](crate::Separability)).
+pub trait DynMethod: sealed::Sealed {
+    /// The quadrature points `[c_1, c_2]` of the (sub-)step's rule; `None`
+    /// for a rule of another form (refused at `start`).
+    fn points(&self) -> Option<[f64; 2]>;
+
+    /// The sub-step weights `γ_1 … γ_m` of a composition; `None` for one
+    /// step of the rule.
+    fn weights(&self) -> Option<&'static [f64]> {
+        None
+    }
+
+    /// Whether the (sub-)step's DEL is explicit on a constant mass matrix
+    /// (see [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]).
+    const EXPLICIT_FOR_CONSTANT_MASS: bool;
+}
+
+impl<M: DiscreteLagrangian> DynMethod for M {
+    fn points(&self) -> Option<[f64; 2]> {
+        self.galerkin_points().map(|(points, _)| points)
+    }
+
+    const EXPLICIT_FOR_CONSTANT_MASS: bool = M::EXPLICIT_FOR_CONSTANT_MASS;
+}
+
+impl DynMethod for Composition {
+    fn points(&self) -> Option<[f64; 2]> {
+        Trapezoid.points()
+    }
+
+    fn weights(&self) -> Option<&'static [f64]> {
+        Some(Composition::weights(self))
+    }
+
+    const EXPLICIT_FOR_CONSTANT_MASS: bool = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS;
+}
 
 /// The state of a [`DynIntegrator`] at node `k`: time, position and discrete
 /// momentum `p_k = ∂A(x_{k−1}, x_k)/∂q_k`, on the heap.
@@ -265,7 +309,7 @@ pub struct DynIntegratorBuilder<S, M> {
     newton: NewtonOptions,
 }
 
-impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
+impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
@@ -284,11 +328,21 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
     /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
     /// transform is not regular).
     pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, DynError> {
-        let Some((points, _)) = self.method.galerkin_points() else {
+        let Some(points) = self.method.points() else {
             return Err(DynError::Unsupported {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
+        if self.method.weights().is_some() && !DynIntegrator::<S, M>::EXPLICIT {
+            return Err(DynError::Unsupported {
+                what: "a composition on a run-time-sized system whose sub-steps are not explicit (the system must be proven `½ vᵀMv − V(t, q)` with a constant mass matrix)",
+            });
+        }
+        if self.method.weights().is_some() && S::DISCONTINUOUS {
+            return Err(DynError::Unsupported {
+                what: "a composition on a run-time-sized system declared discontinuous (its fused steps do not watch each sub-step's energy)",
+            });
+        }
         self.newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
         DynError::check_step(self.h)?;
         let n = self.system.dimension();
@@ -322,6 +376,7 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegratorBuilder<S, M> {
             v0: v0.to_vec(),
             previous: None,
             earlier: None,
+            last_substep: None,
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
             work: Box::new(work),
@@ -341,7 +396,8 @@ struct DynSegment {
 /// A variational integrator for a system whose size is known only at run
 /// time ([`DynLagrangian`]), with a one-point discrete Lagrangian `M`
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
-/// [`AlphaBeta`](crate::AlphaBeta)) and fixed steps.
+/// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of explicit
+/// trapezoid sub-steps ([`DynMethod`]), and fixed steps.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
@@ -399,6 +455,9 @@ pub struct DynIntegrator<S, M> {
     previous: Option<DynSegment>,
     /// `(h, Δq)` of the step before the last, for the predictor.
     earlier: Option<(f64, Vec<f64>)>,
+    /// Compositions: the last sub-step of the last (composed) step, the
+    /// readouts' segment; `previous` and `earlier` hold whole steps.
+    last_substep: Option<LastSubstep>,
     clock: Clock<f64>,
     stats: Stats,
     work: Box<SparseWork>,
@@ -413,7 +472,7 @@ impl<S, M> DynIntegrator<S, M> {
     }
 }
 
-impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
+impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// The rule's DEL is explicit for this system (see
     /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]).
     const EXPLICIT: bool = M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass();
@@ -520,6 +579,26 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
         let before = self.work.energy.unwrap_or(self.energy);
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
+        if let Some(weights) = self.method.weights() {
+            // A composition (explicit sub-steps, checked at `start`): fused.
+            let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
+            let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+            let growth = Growth { last, predict: &predict };
+            let outcome = self.work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond);
+            let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
+                Ok(composed) => composed,
+                Err(failure) => {
+                    self.stats.failed_steps += 1;
+                    return Err(DynError::from_newton(failure, self.state.clone(), h));
+                }
+            };
+            self.commit(taken, h, t1);
+            if let Some(old) = self.last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
+                self.work.recycle(old.q0);
+                self.work.recycle(old.dq);
+            }
+            return Ok(());
+        }
         let outcome = if Self::EXPLICIT {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
@@ -592,21 +671,28 @@ impl<S: DynLagrangian, M: DiscreteLagrangian> DynIntegrator<S, M> {
     /// (one reverse sweep unless the step recorded it); at `k = 0`, the
     /// continuous energy of the initial data.
     pub fn discrete_energy(&self) -> f64 {
+        let model = Sliced { system: &self.system, points: self.points };
+        // A composition's: that of its last sub-step.
+        if let Some(last) = &self.last_substep {
+            return tape_step::step_energy(&model, last.t0, last.h, &last.q0, &last.dq);
+        }
         let Some(seg) = &self.previous else { return self.energy };
         match self.work.energy {
             Some(e) => e,
-            None => {
-                let model = Sliced { system: &self.system, points: self.points };
-                tape_step::step_energy(&model, seg.t0, seg.h, &seg.q0, &seg.dq)
-            }
+            None => tape_step::step_energy(&model, seg.t0, seg.h, &seg.q0, &seg.dq),
         }
     }
 
     /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`
     /// (Newton from the last secant velocity, with banded or dense solves).
     pub fn velocity(&self) -> Result<Vec<f64>, DynError> {
-        let guess: Vec<f64> = match &self.previous {
-            Some(last) => last.dq.iter().map(|x| x / last.h).collect(),
+        // The last (sub-)step's secant velocity.
+        let last = match &self.last_substep {
+            Some(sub) => Some((sub.h, &sub.dq)),
+            None => self.previous.as_ref().map(|last| (last.h, &last.dq)),
+        };
+        let guess: Vec<f64> = match last {
+            Some((h, dq)) => dq.iter().map(|x| x / h).collect(),
             None => self.v0.clone(),
         };
         let model = Sliced { system: &self.system, points: self.points };
