@@ -5,9 +5,8 @@
 //!   mode take the same steps (to 1e-14) on the same system: an FPU-β chain
 //!   (midpoint, and trapezoid on its explicit path) and coupled pendula
 //!   (non-separable, banded; midpoint).
-//! - Compositions of explicit trapezoid sub-steps (Yoshida 4, Kahan–Li 8)
-//!   take the const-size integrator's fused steps; with Newton sub-steps
-//!   they are refused.
+//! - Compositions (Yoshida 4, Kahan–Li 8) take the const-size integrator's
+//!   steps: fused explicit sub-steps, or Newton sub-steps one by one.
 //! - An FPU-β chain of 100 000 masses runs in a thread with a 2 MiB stack.
 //! - The energy error of a chain of 1 000 is bounded without drift.
 //! - Bad input is a typed error; a failed step changes nothing and a retry
@@ -320,9 +319,19 @@ fn bad_input_is_a_typed_error() {
 /// An absurd step fails with a typed error carrying the state, changes
 /// nothing, and a retry with the old step continues as if it never failed.
 fn fail_and_retry<M: DynMethod + Copy + core::fmt::Debug>(method: M, absurd: f64, expected: fn(&DynError) -> bool) {
+    fail_and_retry_with(|| DynFpu { n: 64, beta: 1.0 }, method, absurd, expected);
+}
+
+/// [`fail_and_retry`] on the system `system()` of 64 coordinates.
+fn fail_and_retry_with<S: DynLagrangian, M: DynMethod + Copy + core::fmt::Debug>(
+    system: impl Fn() -> S,
+    method: M,
+    absurd: f64,
+    expected: fn(&DynError) -> bool,
+) {
     let n = 64;
     let q0 = chain_mode(n, 5, 0.3);
-    let start = || DynIntegrator::new(DynFpu { n, beta: 1.0 }, method, 0.05).start(0.0, &q0, &vec![0.0; n]).unwrap();
+    let start = || DynIntegrator::new(system(), method, 0.05).start(0.0, &q0, &vec![0.0; n]).unwrap();
     let mut sim = start();
     sim.run(5, |_| {}).unwrap();
     let (before, stats, energy) = (sim.state().clone(), *sim.stats(), sim.discrete_energy());
@@ -365,6 +374,14 @@ fn a_failed_step_changes_nothing_and_a_retry_succeeds() {
     fail_and_retry(Trapezoid, 1e100, |e| matches!(e, DynError::NonFinite { quantity: "momentum", .. }));
     // A fused composition: the positions overflow.
     fail_and_retry(Composition::YOSHIDA4, 1e100, |e| matches!(e, DynError::NonFinite { .. }));
+    // Newton sub-steps (coupled pendula, not separable): a sub-step fails
+    // after others were taken.
+    fail_and_retry_with(
+        || DynPendula { n: 64, c: 0.3, k: 0.5 },
+        Composition::YOSHIDA4,
+        1e3,
+        |e| matches!(e, DynError::NewtonDidNotConverge { .. } | DynError::StepRejected { .. }),
+    );
 }
 
 #[test]
@@ -375,12 +392,12 @@ fn run_time_sized_compositions_take_the_const_size_steps() {
         println!("FPU-β N = 16, {name} (fused explicit sub-steps): difference {d:.2e}, Newton iterations {f} / {r}");
         assert!(d <= 1e-14 && f == 0 && r == 0, "{name}: {d:e} {f} {r}");
     }
-    // Not separable: its sub-steps would need Newton, which the
-    // run-time-sized compositions do not take yet.
-    let q0 = chain_mode(16, 2, 0.3);
-    let pendula = DynPendula { n: 16, c: 0.3, k: 0.5 };
-    let refused = DynIntegrator::new(pendula, Composition::YOSHIDA4, 0.05).start(0.0, &q0, &[0.0; 16]);
-    assert!(matches!(refused, Err(DynError::Unsupported { .. })), "{:?}", refused.err());
+    // Not separable: Newton sub-steps, one by one, as the const-size
+    // integrator's reverse mode takes them.
+    let pendula = || DynPendula { n: 16, c: 0.3, k: 0.5 };
+    let (d, f, r) = path_difference::<_, _, 16>(pendula, Composition::YOSHIDA4, 0.05, 100);
+    println!("coupled pendula N = 16, Yoshida 4 (Newton sub-steps): difference {d:.2e}, Newton iterations {f} / {r}");
+    assert!(d <= 1e-14 && f == r && r >= 300, "{d:e} {f} {r}");
 }
 
 /// The FPU-β chain through `#[lagrangian]` over slices: the macro writes

@@ -26,8 +26,10 @@ use num_dual::DualNum;
 /// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
 /// [`AlphaBeta`](crate::AlphaBeta), or a rule of one's own with quadrature
-/// points), or a [`Composition`] of trapezoid steps whose sub-steps are
-/// explicit (a system with [`Separability::ConstantMass`](crate::Separability)).
+/// points), or a [`Composition`] of trapezoid steps (fused when its
+/// sub-steps are explicit, on a system with
+/// [`Separability::ConstantMass`](crate::Separability); one by one
+/// otherwise).
 pub trait DynMethod: sealed::Sealed {
     /// The quadrature points `[c_1, c_2]` of the (sub-)step's rule; `None`
     /// for a rule of another form (refused at `start`).
@@ -220,6 +222,19 @@ impl DynError {
         }
     }
 
+    /// The error of a sub-step, as the composed step's: with the state that
+    /// step started from (and the integrator holds again) and its size.
+    fn at_composed(mut self, from: DynState, size: f64) -> Self {
+        match &mut self {
+            DynError::NewtonDidNotConverge { state, h, .. }
+            | DynError::SingularJacobian { state, h, .. }
+            | DynError::NonFinite { state, h, .. }
+            | DynError::StepRejected { state, h, .. } => (*state, *h) = (from, size),
+            _ => {}
+        }
+        self
+    }
+
     /// `Ok` for a finite, positive step size.
     fn check_step(h: f64) -> Result<(), Self> {
         if h.is_finite() && h > 0.0 { Ok(()) } else { Err(DynError::InvalidStepSize { h }) }
@@ -333,16 +348,6 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
-        if self.method.weights().is_some() && !DynIntegrator::<S, M>::EXPLICIT {
-            return Err(DynError::Unsupported {
-                what: "a composition on a run-time-sized system whose sub-steps are not explicit (the system must be proven `½ vᵀMv − V(t, q)` with a constant mass matrix)",
-            });
-        }
-        if self.method.weights().is_some() && S::DISCONTINUOUS {
-            return Err(DynError::Unsupported {
-                what: "a composition on a run-time-sized system declared discontinuous (its fused steps do not watch each sub-step's energy)",
-            });
-        }
         self.newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
         DynError::check_step(self.h)?;
         let n = self.system.dimension();
@@ -377,6 +382,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             previous: None,
             earlier: None,
             last_substep: None,
+            composed_h: None,
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
             work: Box::new(work),
@@ -396,8 +402,9 @@ struct DynSegment {
 /// A variational integrator for a system whose size is known only at run
 /// time ([`DynLagrangian`]), with a one-point discrete Lagrangian `M`
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
-/// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of explicit
-/// trapezoid sub-steps ([`DynMethod`]), and fixed steps.
+/// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of trapezoid
+/// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
+/// one), and fixed steps.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
@@ -458,6 +465,9 @@ pub struct DynIntegrator<S, M> {
     /// Compositions: the last sub-step of the last (composed) step, the
     /// readouts' segment; `previous` and `earlier` hold whole steps.
     last_substep: Option<LastSubstep>,
+    /// Compositions: the size of the last composed step (`previous` is its
+    /// last sub-step when the sub-steps are taken one by one).
+    composed_h: Option<f64>,
     clock: Clock<f64>,
     stats: Stats,
     work: Box<SparseWork>,
@@ -504,7 +514,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// The size of the last step taken; `None` before the first.
     pub fn last_step_size(&self) -> Option<f64> {
-        self.previous.as_ref().map(|last| last.h)
+        self.composed_h.or(self.previous.as_ref().map(|last| last.h))
     }
 
     /// Work counters (Newton iterations per step: `newton_iterations / steps`;
@@ -572,6 +582,79 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// One step of size `h` whose end node is stamped with time `t1`.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
+        match self.method.weights() {
+            // Explicit sub-steps are fused, unless a discontinuous system's
+            // energy watch needs each one.
+            Some(weights) if Self::EXPLICIT && !S::DISCONTINUOUS => self.fused_step(weights, h, t1),
+            Some(weights) => self.substeps(weights, h, t1),
+            None => self.single_step(h, t1),
+        }
+    }
+
+    /// A composed step taken sub-step by sub-step (Newton sub-steps, or a
+    /// discontinuous system): each one a step of the trapezoid rule of size
+    /// `γ_i h`, then the node counted once. A failed sub-step puts back the
+    /// state, the compensations, the last two segments and the counters
+    /// from before the composed step.
+    fn substeps(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), DynError> {
+        let saved = (self.state.clone(), self.carry.clone(), self.p_carry.clone());
+        let memory = (self.previous.clone(), self.earlier.clone(), self.work.energy, self.stats);
+        let (start, mut elapsed) = (self.state.t, 0.0);
+        for (i, &gamma) in weights.iter().enumerate() {
+            elapsed += gamma;
+            let ti = if i + 1 == weights.len() { t1 } else { start + elapsed * h };
+            if let Err(e) = self.single_step(gamma * h, ti) {
+                let (state, carry, p_carry) = saved;
+                let (previous, earlier, energy, stats) = memory;
+                (self.state, self.carry, self.p_carry) = (state, carry, p_carry);
+                (self.previous, self.earlier) = (previous, earlier);
+                // The node force (of a sub-node) is recomputed, to the same bits.
+                self.work.forget_node_force();
+                self.work.energy = energy;
+                self.stats = stats;
+                self.stats.failed_steps += 1;
+                return Err(e.at_composed(self.state.clone(), h));
+            }
+        }
+        let (before, stats) = (saved.0.step, memory.3.steps);
+        self.state.step = before + 1;
+        self.stats.steps = stats + 1;
+        self.work.rekey_node_force(before + 1);
+        self.composed_h = Some(h);
+        Ok(())
+    }
+
+    /// A composed step of explicit sub-steps, fused
+    /// ([`SparseWork::verlet_composed`]).
+    fn fused_step(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), DynError> {
+        let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
+        let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
+        let model = Sliced { system: &self.system, points: self.points };
+        let DynState { step, t, q, p } = &self.state;
+        let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
+        let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
+        let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
+        let growth = Growth { last, predict: &predict };
+        let outcome = self.work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond);
+        let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
+            Ok(composed) => composed,
+            Err(failure) => {
+                self.stats.failed_steps += 1;
+                return Err(DynError::from_newton(failure, self.state.clone(), h));
+            }
+        };
+        self.commit(taken, h, t1);
+        if let Some(old) = self.last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
+            self.work.recycle(old.q0);
+            self.work.recycle(old.dq);
+        }
+        self.composed_h = Some(h);
+        Ok(())
+    }
+
+    /// One step of the rule (a sub-step of a composition: the trapezoid
+    /// rule's) of size `h` ending at `t1`.
+    fn single_step(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
@@ -579,26 +662,6 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let before = self.work.energy.unwrap_or(self.energy);
         let DynState { step, t, q, p } = &self.state;
         let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
-        if let Some(weights) = self.method.weights() {
-            // A composition (explicit sub-steps, checked at `start`): fused.
-            let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
-            let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
-            let growth = Growth { last, predict: &predict };
-            let outcome = self.work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond);
-            let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
-                Ok(composed) => composed,
-                Err(failure) => {
-                    self.stats.failed_steps += 1;
-                    return Err(DynError::from_newton(failure, self.state.clone(), h));
-                }
-            };
-            self.commit(taken, h, t1);
-            if let Some(old) = self.last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
-                self.work.recycle(old.q0);
-                self.work.recycle(old.dq);
-            }
-            return Ok(());
-        }
         let outcome = if Self::EXPLICIT {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
