@@ -21,7 +21,7 @@
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
-//! `dyn-trapezoid` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (sub-stepped explicit composition), and
+//! `dyn-trapezoid` and `dyn-yoshida4` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (Yoshida 4 of explicit sub-steps, fused), and
 //! `verlet-compensated-inplace` (a hand-written compensated Verlet on slices in place: the fair baseline
 //! of the generated explicit step); `digest-trapezoid`, `digest-midpoint`, `digest-yoshida4` print the bits
 //! of the state and of every readout after `n` steps, to compare two builds.
@@ -486,6 +486,15 @@ fn main() {
         ("chain24", "midpoint-reverse") => newton_mode::<24>(lagrangian::Derivatives::Reverse, n),
         ("chain32", "midpoint-forward") => newton_mode::<32>(lagrangian::Derivatives::Forward, n),
         ("chain32", "midpoint-reverse") => newton_mode::<32>(lagrangian::Derivatives::Reverse, n),
+        ("chain1000", "dyn-yoshida4") => {
+            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Composition::YOSHIDA4, 0.05)
+                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
+                .unwrap();
+            for _ in 0..n {
+                black_box(sim.step().unwrap());
+            }
+            sim.state().q.clone()
+        }
         ("chain1000", "verlet-compensated-inplace") => compensated_in_place(0.05, &chain_q0::<CHAIN_N>(), n),
         // Reverse-mode Newton steps (midpoint) and sub-stepped explicit
         // compositions (Yoshida 4) of the same chain.
