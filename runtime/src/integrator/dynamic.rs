@@ -12,8 +12,7 @@
 
 use super::composition::Composition;
 use super::method::sealed;
-use super::sparse::LastSubstep;
-use super::tape_step::{self, Composed, Growth, Guess, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{self, Composed, Growth, Guess, LastSubstep, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::newton::{NewtonFailure, NewtonOptions};
@@ -636,7 +635,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
         let growth = Growth { last, predict: &predict };
         let outcome = self.work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond);
-        let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
+        let Composed { taken, last } = match outcome {
             Ok(composed) => composed,
             Err(failure) => {
                 self.stats.failed_steps += 1;
@@ -644,7 +643,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             }
         };
         self.commit(taken, h, t1);
-        if let Some(old) = self.last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
+        if let Some(old) = self.last_substep.replace(last) {
             self.work.recycle(old.q0);
             self.work.recycle(old.dq);
         }

@@ -19,6 +19,7 @@
 //! energy-preserving steps, Galerkin rules, double-double. The tangent map
 //! (a dense `2N × 2N` matrix) is not offered for these systems.
 
+pub(crate) use super::tape_step::LastSubstep;
 use super::tape_step::{self, Composed, Growth, Guess, Node, SparseWork, Taken, TapeModel};
 use super::{Integrator, OnePointMemory, Stats, StepPolicy};
 use crate::derivatives::Segment;
@@ -292,7 +293,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
             let growth = Growth { last, predict: &predict };
             work.verlet_composed(&model, &node, h, t1, weights, &growth, self.newton.min_rcond)
         };
-        let Composed { taken, last: (t0, h_last, q0, dq) } = match outcome {
+        let Composed { taken, last } = match outcome {
             Ok(composed) => composed,
             Err(failure) => {
                 work.carries = [q_carry, p_carry];
@@ -304,7 +305,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         self.commit(&total, &q1, &p1, report, h, t1);
         work.carries = [q_carry1, p_carry1];
         // The last sub-step's buffers are kept, not copied.
-        if let Some(old) = last_substep.replace(LastSubstep { t0, h: h_last, q0, dq }) {
+        if let Some(old) = last_substep.replace(last) {
             work.recycle(old.q0);
             work.recycle(old.dq);
         }
@@ -421,16 +422,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     fn predict(&self, h: f64) -> [f64; N] {
         self.memory.predict(h, self.v0)
     }
-}
-
-/// The last sub-step `(t, h, q, δq)` of a fused composed step in reverse
-/// mode, on the heap (its buffers are handed over by the step, not copied).
-#[derive(Clone, Debug)]
-pub(crate) struct LastSubstep {
-    pub(crate) t0: f64,
-    pub(crate) h: f64,
-    pub(crate) q0: Vec<f64>,
-    pub(crate) dq: Vec<f64>,
 }
 
 impl LastSubstep {

@@ -219,10 +219,20 @@ pub(crate) struct Taken {
 }
 
 /// A fused composed explicit step ([`SparseWork::verlet_composed`]): the
-/// composed step, and its last sub-step `(t, h, q, δq)`.
+/// composed step, and its last sub-step (the readouts' segment).
 pub(crate) struct Composed {
     pub(crate) taken: Taken,
-    pub(crate) last: (f64, f64, Vec<f64>, Vec<f64>),
+    pub(crate) last: LastSubstep,
+}
+
+/// The last sub-step `(t, h, q, δq)` of a fused composed step, on the heap
+/// (its buffers are handed over by the step, not copied).
+#[derive(Clone, Debug)]
+pub(crate) struct LastSubstep {
+    pub(crate) t0: f64,
+    pub(crate) h: f64,
+    pub(crate) q0: Vec<f64>,
+    pub(crate) dq: Vec<f64>,
 }
 
 /// The buffers of [`SparseWork::composed_into`] besides the step's own: the
@@ -700,7 +710,7 @@ impl SparseWork {
                 self.recycle(f0);
                 self.recycle(dp);
                 self.energy = None;
-                Ok(Composed { taken, last: (t0_last, h_last, last_q0, last_dq) })
+                Ok(Composed { taken, last: LastSubstep { t0: t0_last, h: h_last, q0: last_q0, dq: last_dq } })
             }
             Err(failure) => {
                 self.node_force = Some((node.step, f0));
@@ -736,7 +746,7 @@ impl SparseWork {
         let f0 = &f0[..n];
         dq.fill(0.0);
         dp.fill(0.0);
-        let mass = self.mass.as_ref().map(|m| (m.unit, m.inverse_diagonal.as_deref()));
+        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
         // Half the last sub-step: its closing kick joins the next opening one.
         let (mut half, mut elapsed) = (0.0, 0.0);
         let (mut t_last, mut h_last) = (node.t, 0.0);
@@ -754,19 +764,19 @@ impl SparseWork {
                 dp[j] += kick * fi[j];
                 mv[j] = p0[j] + (pc0[j] + dp[j]);
             }
-            match mass {
-                Some((true, _)) => {
+            match velocity {
+                Velocity::Unit => {
                     for j in 0..n {
                         last_dq[j] = mv[j] * hi;
                     }
                 }
-                Some((false, Some(d))) => {
+                Velocity::Diagonal(d) => {
                     let d = &d[..n];
                     for j in 0..n {
                         last_dq[j] = (d[j] * mv[j]) * hi;
                     }
                 }
-                _ => {
+                Velocity::Solved => {
                     if let Some(mass) = &self.mass {
                         mass.assembled.solve(mv).map_err(|e| breakdown(e).at(0))?;
                     }
@@ -839,30 +849,23 @@ impl SparseWork {
         let (dq, q1, qc1) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.q_carry[..n]);
         // The drift's momentum `(p_k + (h/2) f_k) + c_p`, before `M⁻¹`.
         let rhs = |i: usize| (p0[i] + half * f0[i]) + pc0[i];
-        let mass = self.mass.as_ref().map(|m| (m.unit, m.inverse_diagonal.as_deref()));
-        let velocity = match mass {
-            Some((true, _)) => Velocity::Unit,
-            // Products with the reciprocals of the diagonal (as forward
-            // mode's `M⁻¹`), not a division per entry, whose throughput cost
-            // 0.35 µs of a 2.5 µs step at N = 1000.
-            Some((false, Some(d))) => Velocity::Diagonal(d),
-            _ => {
-                for i in 0..n {
-                    dq[i] = rhs(i);
-                }
-                if let Some(mass) = &self.mass {
-                    mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
-                }
-                Velocity::Solved
+        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
+        if let Velocity::Solved = velocity {
+            for i in 0..n {
+                dq[i] = rhs(i);
             }
-        };
+            if let Some(mass) = &self.mass {
+                mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
+            }
+        }
         let q_bad = drift_pass((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1));
-        if is_non_finite(q_bad)
-            && let Some((unit, Some(d))) = mass
-        {
+        if is_non_finite(q_bad) && !matches!(velocity, Velocity::Solved) {
             // What the banded solve's checks would refuse, as it would
             // (found again only on failure).
-            let v = |i: usize| if unit { rhs(i) } else { d[i] * rhs(i) };
+            let v = |i: usize| match velocity {
+                Velocity::Diagonal(d) => d[i] * rhs(i),
+                _ => rhs(i),
+            };
             let quantity = match ((0..n).all(|i| rhs(i).is_finite()), (0..n).all(|i| v(i).is_finite())) {
                 (false, _) => Some("right-hand side"),
                 (true, false) => Some("solution"),
@@ -1435,6 +1438,17 @@ impl Mass {
         let inverse_diagonal = inverse_diagonal.filter(|d| d.iter().all(|x| x.is_finite()));
         let unit = inverse_diagonal.as_ref().is_some_and(|d| d.iter().all(|&x| x == 1.0));
         Self { assembled, inverse_diagonal, unit }
+    }
+
+    /// How a drift applies `M⁻¹`: skipped for `M = I`, products with the
+    /// reciprocals of a diagonal (as forward mode's `M⁻¹`; a division per
+    /// entry cost 0.35 µs of a 2.5 µs step at N = 1000), else the solve.
+    fn velocity(&self) -> Velocity<'_> {
+        match &self.inverse_diagonal {
+            _ if self.unit => Velocity::Unit,
+            Some(d) => Velocity::Diagonal(d),
+            None => Velocity::Solved,
+        }
     }
 }
 
