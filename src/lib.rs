@@ -156,8 +156,8 @@ pub mod prelude {
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
     pub use lagrangian_runtime::{
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, DynLagrangian, EnergyFallback, Error, F64Readouts,
-        Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Symmetry,
-        Trapezoid,
+        Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Summation,
+        Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{
         Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction,

@@ -44,7 +44,7 @@ pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{
     Composition, Derivatives, DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState, EnergyFallback,
-    F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy,
+    F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy, Summation,
 };
 #[doc(hidden)]
 pub use integrator::{CompositionMemory, OnePointMemory};

@@ -30,6 +30,7 @@ mod gradient_fuzz;
 mod noether;
 mod perturbed_pendulum;
 mod structure;
+mod summation;
 mod time_dependent;
 mod time_transformed;
 mod time_transformed_splitting;

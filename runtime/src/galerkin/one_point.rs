@@ -116,6 +116,7 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
         clock: it.clock,
         stats: it.stats,
         derivatives: it.derivatives,
+        summation: it.summation,
     };
     let outcome = op(&mut g);
     let Integrator {

@@ -36,8 +36,8 @@
 
 use crate::error::Error;
 use crate::integrator::{
-    F64Readouts, IMPLAUSIBLE_GROWTH, Integrator, IntegratorBuilder, Method, StepBounds, StepPolicy, implausible_growth,
-    kahan, non_finite,
+    F64Readouts, IMPLAUSIBLE_GROWTH, Integrator, IntegratorBuilder, Method, StepBounds, StepPolicy, add_increment,
+    implausible_growth, non_finite,
 };
 use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{Real, all_finite, max_abs};
@@ -429,9 +429,9 @@ where
                 dp[i] += w * lq[i];
             }
         }
-        let (p1, p_carry) = kahan(&p0, &self.p_carry, &dp);
-        // q_{k+1} = (q_k + e_k) + D_s, Kahan-summed.
-        let (q1, carry) = kahan(&q0, &e, &d[S - 1]);
+        let (p1, p_carry) = add_increment(self.summation, &p0, &self.p_carry, &dp);
+        // q_{k+1} = (q_k + e_k) + D_s, Kahan-summed (`e_k` zero under plain summation).
+        let (q1, carry) = add_increment(self.summation, &q0, &e, &d[S - 1]);
         // L at the end node too, which Gauss points do not reach.
         if lagrangian_finite {
             let mut v1 = [T::zero(); N];

@@ -30,7 +30,7 @@
 use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
 use super::sparse::{LastSubstep, Stepper};
-use super::{Integrator, OnePointMemory, StepBounds, StepPolicy};
+use super::{Integrator, OnePointMemory, StepBounds, StepPolicy, Summation};
 use crate::derivatives::{self, Segment};
 use crate::discrete::Trapezoid;
 use crate::error::Error;
@@ -136,6 +136,8 @@ pub struct CompositionMemory<const N: usize> {
 pub(crate) struct FusedSubsteps<const N: usize> {
     /// The position's Kahan compensation at the start of the step.
     carry: [f64; N],
+    /// The sub-steps updated `q` in place ([`Summation::Plain`]).
+    plain: bool,
     /// Each sub-step's increment `δq_i`.
     increments: [[f64; N]; MAX_STAGES],
 }
@@ -159,17 +161,20 @@ impl<const N: usize> CompositionMemory<N> {
         let (Some(fused), Some(start), Some(h)) = (&self.fused, &self.inner.previous, self.last_h) else {
             return self.substeps[i];
         };
-        let FusedSubsteps { carry, increments } = &fused[self.fused_last];
-        // The sub-node positions `q_k + (c_q + Δq)` and times of `explicit_step`.
-        let (mut dq, mut elapsed) = ([0.0; N], 0.0);
+        let FusedSubsteps { carry, plain, increments } = &fused[self.fused_last];
+        // The sub-node positions and times of `explicit_step`: `q_k + (c_q +
+        // Δq)`, or summed in place under plain summation.
+        let (mut dq, mut q, mut elapsed) = ([0.0; N], start.q0, 0.0);
         for (step_dq, gamma) in increments[..i].iter().zip(weights) {
             for j in 0..N {
                 dq[j] += step_dq[j];
+                q[j] += step_dq[j];
             }
             elapsed += gamma;
         }
         let (t0, q0) = match i {
             0 => (start.t0, start.q0),
+            _ if *plain => (start.t0 + elapsed * h, q),
             _ => (start.t0 + elapsed * h, core::array::from_fn(|j| start.q0[j] + (carry[j] + dq[j]))),
         };
         Segment { t0, h: weights[i] * h, q0, dq: increments[i] }
@@ -276,6 +281,7 @@ impl Method<f64> for Composition {
             clock: it.clock,
             stats: it.stats,
             derivatives: it.derivatives,
+            summation: it.summation,
         };
         let mut substeps = it.memory.substeps;
         let stages = it.method.weights.len();
@@ -451,6 +457,7 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
             state: &mut it.state,
             memory: &mut it.memory.inner,
             stats: &mut stats,
+            summation: it.summation,
         };
         if let Err(e) = stepper.step(gamma * h, ti, explicit) {
             it.state = before;
@@ -502,6 +509,7 @@ fn sparse_fused_step<S: Lagrangian<N>, const N: usize>(
         state: &mut it.state,
         memory: &mut it.memory.inner,
         stats: &mut it.stats,
+        summation: it.summation,
     };
     stepper.composed_step(h, t1, weights, &mut it.memory.last_fused)?;
     it.memory.stages = weights.len();
@@ -521,13 +529,19 @@ fn fused_step<S: Lagrangian<N>, const N: usize>(
     let weights = it.method.weights;
     let spare = 1 - it.memory.fused_last;
     let fused = it.memory.fused.get_or_insert_with(|| {
-        let empty = FusedSubsteps { carry: [0.0; N], increments: [[0.0; N]; MAX_STAGES] };
+        let empty = FusedSubsteps { carry: [0.0; N], plain: false, increments: [[0.0; N]; MAX_STAGES] };
         Box::new([empty.clone(), empty])
     });
     let into = &mut fused[spare];
     into.carry = it.carry;
+    into.plain = it.summation.is_plain();
     let node = ExplicitNode { state: &it.state, carry: &it.carry, p_carry: &it.p_carry, v0: &it.v0 };
-    let taken = match explicit_step(&it.system, &mut it.memory.inner, node, h, t1, weights, &mut into.increments) {
+    let (inner, increments) = (&mut it.memory.inner, &mut into.increments);
+    let taken = match it.summation {
+        Summation::Compensated => explicit_step::<S, N, false>(&it.system, inner, node, h, t1, weights, increments),
+        Summation::Plain => explicit_step::<S, N, true>(&it.system, inner, node, h, t1, weights, increments),
+    };
+    let taken = match taken {
         Ok(taken) => taken,
         Err(failure) => return Err(it.fail(h, failure)),
     };

@@ -13,7 +13,7 @@
 use super::composition::Composition;
 use super::method::sealed;
 use super::tape_step::{self, Composed, Growth, Guess, LastSubstep, Node, SparseWork, Taken, TapeModel};
-use super::{Clock, Stats};
+use super::{Clock, Stats, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::newton::{NewtonFailure, NewtonOptions};
 use crate::real::all_finite;
@@ -321,12 +321,20 @@ pub struct DynIntegratorBuilder<S, M> {
     method: M,
     h: f64,
     newton: NewtonOptions,
+    summation: Summation,
 }
 
 impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
+        self
+    }
+
+    /// How increments are added to the state ([`Summation`]):
+    /// [`Summation::Compensated`] by default.
+    pub fn summation(mut self, summation: Summation) -> Self {
+        self.summation = summation;
         self
     }
 
@@ -373,6 +381,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             points,
             h: self.h,
             newton: self.newton,
+            summation: self.summation,
             state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
             carry: vec![0.0; n],
             p_carry: vec![0.0; n],
@@ -450,6 +459,9 @@ pub struct DynIntegrator<S, M> {
     points: [f64; 2],
     h: f64,
     newton: NewtonOptions,
+    /// How increments are added to the state; under [`Summation::Plain`]
+    /// `carry` and `p_carry` stay zero.
+    summation: Summation,
     state: DynState,
     /// Kahan compensation of the position: it is `state.q + carry`.
     carry: Vec<f64>,
@@ -477,7 +489,7 @@ impl<S, M> DynIntegrator<S, M> {
     /// `method` and step `h`; continue with [`DynIntegratorBuilder::start`].
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: S, method: M, h: f64) -> DynIntegratorBuilder<S, M> {
-        DynIntegratorBuilder { system, method, h, newton: NewtonOptions::default() }
+        DynIntegratorBuilder { system, method, h, newton: NewtonOptions::default(), summation: Summation::Compensated }
     }
 }
 
@@ -514,6 +526,11 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// The size of the last step taken; `None` before the first.
     pub fn last_step_size(&self) -> Option<f64> {
         self.composed_h.or(self.previous.as_ref().map(|last| last.h))
+    }
+
+    /// How increments are added to the state ([`DynIntegratorBuilder::summation`]).
+    pub fn summation(&self) -> Summation {
+        self.summation
     }
 
     /// Work counters (Newton iterations per step: `newton_iterations / steps`;
@@ -630,7 +647,15 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
         let DynState { step, t, q, p } = &self.state;
-        let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
+        let node = Node {
+            step: *step,
+            t: *t,
+            q,
+            p,
+            q_carry: &self.carry,
+            p_carry: &self.p_carry,
+            plain: self.summation.is_plain(),
+        };
         let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
         let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
         let growth = Growth { last, predict: &predict };
@@ -660,7 +685,15 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         // The last step's discrete energy, read before an explicit step clears it.
         let before = self.work.energy.unwrap_or(self.energy);
         let DynState { step, t, q, p } = &self.state;
-        let node = Node { step: *step, t: *t, q, p, q_carry: &self.carry, p_carry: &self.p_carry };
+        let node = Node {
+            step: *step,
+            t: *t,
+            q,
+            p,
+            q_carry: &self.carry,
+            p_carry: &self.p_carry,
+            plain: self.summation.is_plain(),
+        };
         let outcome = if Self::EXPLICIT {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
@@ -706,11 +739,14 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     fn commit(&mut self, taken: Taken, h: f64, t1: f64) {
         let Taken { dq, q1, q_carry, p1, p_carry, report } = taken;
         let q0 = core::mem::replace(&mut self.state.q, q1);
-        let freed = [
-            core::mem::replace(&mut self.state.p, p1),
-            core::mem::replace(&mut self.carry, q_carry),
-            core::mem::replace(&mut self.p_carry, p_carry),
-        ];
+        let p0 = core::mem::replace(&mut self.state.p, p1);
+        // Under plain summation the step wrote no compensations: the zeros stay.
+        let freed = match self.summation {
+            Summation::Compensated => {
+                [p0, core::mem::replace(&mut self.carry, q_carry), core::mem::replace(&mut self.p_carry, p_carry)]
+            }
+            Summation::Plain => [p0, q_carry, p_carry],
+        };
         for buffer in freed {
             self.work.recycle(buffer);
         }

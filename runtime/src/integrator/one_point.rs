@@ -18,7 +18,10 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::method::{F64Readouts, Method, sealed};
-use super::{IMPLAUSIBLE_GROWTH, Integrator, Stats, StepBounds, StepPolicy, implausible_growth, kahan, non_finite};
+use super::{
+    IMPLAUSIBLE_GROWTH, Integrator, Stats, StepBounds, StepPolicy, Summation, add_increment, implausible_growth,
+    non_finite,
+};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -222,7 +225,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             return self.sparse_step(h, t1, Self::EXPLICIT);
         }
         if Self::EXPLICIT {
-            return self.verlet_step(h, t1);
+            return match self.summation {
+                Summation::Compensated => self.verlet_step::<false>(h, t1),
+                Summation::Plain => self.verlet_step::<true>(h, t1),
+            };
         }
         let State { step, t: t0, q: q0, .. } = self.state;
         let (dq, report) = self.solve_del(h)?;
@@ -264,9 +270,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// reproduces to round-off. The one-stage case of [`explicit_step`],
     /// written out: one pass over the coordinates for the kick, drift and
     /// position sum, one for the force and one for the momentum sum; the
-    /// state is written once, after the checks.
+    /// state is written once, after the checks. `PLAIN`
+    /// ([`Summation::Plain`]): `q_k + Δq` and `p_k + Δp` rounded once, the
+    /// compensations (zero) neither read nor written.
     #[inline]
-    fn verlet_step(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+    fn verlet_step<const PLAIN: bool>(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
         // One stage written out rather than run through `explicit_step`'s
         // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
         // (`--bench step -- explicit`, one run each, load ≈ 3.5).
@@ -285,28 +293,34 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // pass as the kick where `M⁻¹` is diagonal.
         let mut drift = |j: usize, x: f64| {
             dq[j] = x;
-            let u = qc0[j] + x;
-            q1[j] = q0[j] + u;
-            qc1[j] = u - (q1[j] - q0[j]);
+            if PLAIN {
+                q1[j] = q0[j] + x;
+            } else {
+                let u = qc0[j] + x;
+                q1[j] = q0[j] + u;
+                qc1[j] = u - (q1[j] - q0[j]);
+            }
             bad |= nan_bits(q1[j]);
         };
+        // The drift's momentum `(p_k + (h/2) f_k) + c_p`.
+        let momentum = |j: usize| if PLAIN { p0[j] + half * f0[j] } else { (p0[j] + half * f0[j]) + pc0[j] };
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
         match &cache.diagonal {
             Some(_) if cache.unit => {
                 for j in 0..N {
-                    drift(j, ((p0[j] + half * f0[j]) + pc0[j]) * h);
+                    drift(j, momentum(j) * h);
                 }
             }
             Some(d) => {
                 for j in 0..N {
-                    drift(j, (d[j] * ((p0[j] + half * f0[j]) + pc0[j])) * h);
+                    drift(j, (d[j] * momentum(j)) * h);
                 }
             }
             None => {
                 let mut mv = [0.0; N];
                 for j in 0..N {
-                    mv[j] = (p0[j] + half * f0[j]) + pc0[j];
+                    mv[j] = momentum(j);
                 }
                 // By reference: by value the `N × N` matrix would be copied.
                 #[allow(clippy::op_ref)]
@@ -332,9 +346,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         potential_force(&self.system, t1, &q1, f1);
         let (mut p1, mut pc1) = ([0.0; N], [0.0; N]);
         for j in 0..N {
-            let u = pc0[j] + half * (f0[j] + f1[j]);
-            p1[j] = p0[j] + u;
-            pc1[j] = u - (p1[j] - p0[j]);
+            if PLAIN {
+                p1[j] = p0[j] + half * (f0[j] + f1[j]);
+            } else {
+                let u = pc0[j] + half * (f0[j] + f1[j]);
+                p1[j] = p0[j] + u;
+                pc1[j] = u - (p1[j] - p0[j]);
+            }
             bad |= nan_bits(p1[j]);
         }
         if is_non_finite(bad | nan_bits(t1)) {
@@ -369,8 +387,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             Some(points) => gradient_momentum_change(&self.system, points, seg),
             None => forcing::momentum_change(&self.system, &self.method, seg),
         };
-        let (q1, q) = kahan(&self.state.q, &self.carry, &seg.dq);
-        let (p1, p) = kahan(&self.state.p, &self.p_carry, &dp);
+        let (q1, q) = add_increment(self.summation, &self.state.q, &self.carry, &seg.dq);
+        let (p1, p) = add_increment(self.summation, &self.state.p, &self.p_carry, &dp);
         (q1, p1, q, p)
     }
 
@@ -773,8 +791,14 @@ pub(super) struct ExplicitStep<const N: usize> {
 /// check runs on `q_{k+1}`, `p_{k+1}` and `t1`. Changes only the caches of
 /// `memory` (the inverse mass matrix; the node force stays valid for node
 /// `k`, the sub-node forces go to the spare buffer).
+///
+/// `PLAIN` ([`Summation::Plain`], the compensations zero): the sub-steps
+/// update `q` and `p` in place as a hand-written composition does,
+/// `p ← p + (h_{i−1} + h_i)/2 · f_i`, `q ← q + h_i M⁻¹ p`, each sub-node
+/// position rounded once, and `Δq = q_{k+1} − q_k` is formed at the end for
+/// the growth check and the step's memory.
 #[inline(always)]
-pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
+pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     system: &S,
     memory: &mut OnePointMemory<N>,
     node: ExplicitNode<'_, N>,
@@ -793,19 +817,19 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     // The mass matrix is chosen once per step, not per sub-step.
     let (dq, mut dp, q, closing) = match diagonal {
         // `M = I`: the product with its ones is exact and skipped.
-        Some(_) if *unit => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+        Some(_) if *unit => substeps::<S, N, PLAIN>(system, &start, (f0, f), weights, increments, |mv, hi, out| {
             for j in 0..N {
                 out[j] = mv[j] * hi;
             }
         }),
         // A diagonal `M⁻¹` skips the products with its zeros, which add
         // exact zeros (only the sign of a zero increment can differ).
-        Some(d) => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+        Some(d) => substeps::<S, N, PLAIN>(system, &start, (f0, f), weights, increments, |mv, hi, out| {
             for j in 0..N {
                 out[j] = (d[j] * mv[j]) * hi;
             }
         }),
-        None => substeps(system, &start, (f0, f), weights, increments, |mv, hi, out| {
+        None => substeps::<S, N, PLAIN>(system, &start, (f0, f), weights, increments, |mv, hi, out| {
             // By reference: by value the `N × N` matrix would be copied.
             #[allow(clippy::op_ref)]
             let v = &*inverse_mass * SVector::from(*mv) * hi;
@@ -817,13 +841,18 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize>(
     let (mut carry, mut p1, mut p_carry) = ([0.0; N], [0.0; N], [0.0; N]);
     let (mut q_bad, mut p_bad) = (0, 0);
     for j in 0..N {
-        // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
-        carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
         q_bad |= nan_bits(q[j]);
-        dp[j] += closing * f[j];
-        let u = pc[j] + dp[j];
-        p1[j] = p0[j] + u;
-        p_carry[j] = u - (p1[j] - p0[j]);
+        if PLAIN {
+            // `dp` holds the momentum itself (see `substeps`).
+            p1[j] = dp[j] + closing * f[j];
+        } else {
+            // `q` holds `q0 + (qc + dq)`: the Kahan sum's new value.
+            carry[j] = (qc[j] + dq[j]) - (q[j] - q0[j]);
+            dp[j] += closing * f[j];
+            let u = pc[j] + dp[j];
+            p1[j] = p0[j] + u;
+            p_carry[j] = u - (p1[j] - p0[j]);
+        }
         p_bad |= nan_bits(p1[j]);
     }
     if let Some(last) = &memory.previous
@@ -979,8 +1008,10 @@ struct SubstepStart<'a, const N: usize> {
 /// `drift(p, h_i, out)` writing `h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, h_m/2)`, `Δp`
 /// still without its closing kick `h_m/2 · f_{k+1}`. `forces` is `f_k` and
 /// the buffer that receives `f_{k+1}`; the sub-nodes' forces stay local.
+/// `PLAIN`: `q` and `p` are updated in place, and the second value is the
+/// momentum `p` before the closing kick, not `Δp`.
 #[inline(always)]
-fn substeps<S: Lagrangian<N>, const N: usize>(
+fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     system: &S,
     start: &SubstepStart<'_, N>,
     (f0, f_end): (&[f64; N], &mut [f64; N]),
@@ -989,6 +1020,9 @@ fn substeps<S: Lagrangian<N>, const N: usize>(
     drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
 ) -> ([f64; N], [f64; N], [f64; N], f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
+    if PLAIN {
+        return substeps_in_place(system, start, (f0, f_end), weights, increments, drift);
+    }
     let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
     let mut f = *f0;
     // Half the last sub-step: its closing kick joins the next opening one.
@@ -1018,6 +1052,44 @@ fn substeps<S: Lagrangian<N>, const N: usize>(
     }
     *f_end = f;
     (dq, dp, q, half)
+}
+
+/// [`substeps`] under [`Summation::Plain`]: `p ← p + (h_{i−1} + h_i)/2 · f_i`,
+/// `q ← q + h_i M⁻¹ p` in place, the way a hand-written composition steps;
+/// returns `(q_{k+1} − q_k, p, q_{k+1}, h_m/2)` with `p` still without its
+/// closing kick.
+#[inline(always)]
+fn substeps_in_place<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    start: &SubstepStart<'_, N>,
+    (f0, f_end): (&[f64; N], &mut [f64; N]),
+    weights: &[f64],
+    increments: &mut [[f64; N]],
+    drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
+) -> ([f64; N], [f64; N], [f64; N], f64) {
+    let SubstepStart { q0, p0, t0, t1, h, .. } = *start;
+    let (mut q, mut p, mut f) = (*q0, *p0, *f0);
+    let (mut half, mut elapsed) = (0.0, 0.0);
+    let m = weights.len().min(increments.len());
+    for i in 0..m {
+        let gamma = weights[i];
+        let hi = gamma * h;
+        let kick = half + 0.5 * hi;
+        for j in 0..N {
+            p[j] += kick * f[j];
+        }
+        let slot = &mut increments[i];
+        drift(&p, hi, slot);
+        for j in 0..N {
+            q[j] += slot[j];
+        }
+        elapsed += gamma;
+        let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
+        potential_force(system, ti, &q, &mut f);
+        half = 0.5 * hi;
+    }
+    *f_end = f;
+    (core::array::from_fn(|j| q[j] - q0[j]), p, q, half)
 }
 
 #[cfg(test)]

@@ -21,7 +21,7 @@
 
 pub(crate) use super::tape_step::LastSubstep;
 use super::tape_step::{self, Composed, Growth, Guess, Node, SparseWork, Taken, TapeModel};
-use super::{Integrator, OnePointMemory, Stats, StepPolicy};
+use super::{Integrator, OnePointMemory, Stats, StepPolicy, Summation};
 use crate::derivatives::Segment;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -210,6 +210,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             state: &mut self.state,
             memory: &mut self.memory,
             stats: &mut self.stats,
+            summation: self.summation,
         };
         stepper.step(h, t1, explicit)
     }
@@ -241,6 +242,8 @@ pub(super) struct Stepper<'a, S, M, const N: usize> {
     pub(super) state: &'a mut State<N>,
     pub(super) memory: &'a mut OnePointMemory<N>,
     pub(super) stats: &'a mut Stats,
+    /// Under [`Summation::Plain`] the work's carries stay zero.
+    pub(super) summation: Summation,
 }
 
 impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, N> {
@@ -286,7 +289,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         let outcome = {
             let model = Fixed { system: self.system, method: self.method };
             let State { step, t, ref q, ref p } = *self.state;
-            let node = Node { step, t, q, p, q_carry: &q_carry, p_carry: &p_carry };
+            let plain = self.summation.is_plain();
+            let node = Node { step, t, q, p, q_carry: &q_carry, p_carry: &p_carry, plain };
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));
             let last = self.memory.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
@@ -303,7 +307,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         };
         let Taken { dq: total, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
         self.commit(&total, &q1, &p1, report, h, t1);
-        work.carries = [q_carry1, p_carry1];
+        let [q_carry, p_carry] = self.swap_carries(&mut work, [q_carry, p_carry], [q_carry1, p_carry1]);
         // The last sub-step's buffers are kept, not copied.
         if let Some(old) = last_substep.replace(last) {
             work.recycle(old.q0);
@@ -347,11 +351,22 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         }
         let Taken { dq, q1, q_carry: q_carry1, p1, p_carry: p_carry1, report } = taken;
         self.commit(&dq, &q1, &p1, report, h, t1);
-        work.carries = [q_carry1, p_carry1];
+        let [q_carry, p_carry] = self.swap_carries(work, [q_carry, p_carry], [q_carry1, p_carry1]);
         for buffer in [dq, q1, p1, q_carry, p_carry] {
             work.recycle(buffer);
         }
         Ok(())
+    }
+
+    /// Puts the step's new compensations `taken` into the work in place of
+    /// the node's `old` and returns the buffers to recycle: `old` then, or,
+    /// under [`Summation::Plain`] (whose steps leave `taken` unwritten), the
+    /// step's, the node's zeros staying.
+    fn swap_carries(&self, work: &mut SparseWork, old: [Vec<f64>; 2], taken: [Vec<f64>; 2]) -> [Vec<f64>; 2] {
+        match self.summation {
+            Summation::Compensated => core::mem::replace(&mut work.carries, taken),
+            Summation::Plain => core::mem::replace(&mut work.carries, old),
+        }
     }
 
     /// The step of [`advance`](Self::advance) from the node
@@ -366,7 +381,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     ) -> Result<(Taken, Option<f64>), NewtonFailure> {
         let model = Fixed { system: self.system, method: self.method };
         let State { step, t, ref q, ref p } = *self.state;
-        let node = Node { step, t, q, p, q_carry: carries.0, p_carry: carries.1 };
+        let node = Node { step, t, q, p, q_carry: carries.0, p_carry: carries.1, plain: self.summation.is_plain() };
         if explicit {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| out.copy_from_slice(&self.predict(h));

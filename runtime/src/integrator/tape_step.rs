@@ -176,6 +176,10 @@ pub(crate) struct Node<'a> {
     pub(crate) p: &'a [f64],
     pub(crate) q_carry: &'a [f64],
     pub(crate) p_carry: &'a [f64],
+    /// [`Summation::Plain`](crate::Summation::Plain): the compensations are
+    /// zero and stay so; a step neither reads them nor writes the
+    /// [`Taken`] ones (the caller keeps its zeros).
+    pub(crate) plain: bool,
 }
 
 /// What a step knows of the motion so far: the predicted increment, and the
@@ -482,8 +486,17 @@ impl SparseWork {
             }
         };
         let mut taken = self.taken(dq, report);
-        kahan_into(node.q, node.q_carry, &taken.dq, &mut taken.q1, &mut taken.q_carry);
-        kahan_into(node.p, node.p_carry, &self.gradient[..n], &mut taken.p1, &mut taken.p_carry);
+        if node.plain {
+            let (q0, p0, dp) = (&node.q[..n], &node.p[..n], &self.gradient[..n]);
+            let (dq, q1, p1) = (&taken.dq[..n], &mut taken.q1[..n], &mut taken.p1[..n]);
+            for i in 0..n {
+                q1[i] = q0[i] + dq[i];
+                p1[i] = p0[i] + dp[i];
+            }
+        } else {
+            kahan_into(node.q, node.q_carry, &taken.dq, &mut taken.q1, &mut taken.q_carry);
+            kahan_into(node.p, node.p_carry, &self.gradient[..n], &mut taken.p1, &mut taken.p_carry);
+        }
         if let Some(quantity) = super::non_finite(t1, &taken.q1, &taken.p1) {
             self.recycle_taken(taken);
             return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity });
@@ -738,6 +751,9 @@ impl SparseWork {
         out: &mut Taken,
         scratch: ComposedScratch<'_>,
     ) -> Result<(f64, f64), NewtonFailure> {
+        if node.plain {
+            return self.composed_in_place(model, node, (h, t1), weights, growth, f0, out, scratch);
+        }
         let n = self.n;
         let ComposedScratch { f, dp, last_q0, last_dq } = scratch;
         let (q0, qc0, p0, pc0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n]);
@@ -824,6 +840,98 @@ impl SparseWork {
         }
     }
 
+    /// [`composed_into`](Self::composed_into) under [`Summation::Plain`](crate::Summation::Plain):
+    /// `p ← p + (h_{i−1} + h_i)/2 · f_i`, `q ← q + h_i M⁻¹ p` in place in
+    /// `out.p1` and `out.q1`, as a hand-written composition steps (forward
+    /// mode's `substeps_in_place`, same operations in the same order), then
+    /// the closing kick and `Δq = q_{k+1} − q_k` for the growth check.
+    #[allow(clippy::too_many_arguments)]
+    fn composed_in_place<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        node: &Node<'_>,
+        (h, t1): (f64, f64),
+        weights: &[f64],
+        growth: &Growth<'_>,
+        f0: &[f64],
+        out: &mut Taken,
+        scratch: ComposedScratch<'_>,
+    ) -> Result<(f64, f64), NewtonFailure> {
+        let n = self.n;
+        let ComposedScratch { f, dp: solved, last_q0, last_dq } = scratch;
+        let (q0, p0) = (&node.q[..n], &node.p[..n]);
+        let (dq, q, p) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.p1[..n]);
+        let (f, solved, last_q0, last_dq) = (&mut f[..n], &mut solved[..n], &mut last_q0[..n], &mut last_dq[..n]);
+        let f0 = &f0[..n];
+        q.copy_from_slice(q0);
+        p.copy_from_slice(p0);
+        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
+        let (mut half, mut elapsed) = (0.0, 0.0);
+        let (mut t_last, mut h_last) = (node.t, 0.0);
+        let m = weights.len();
+        for (i, &gamma) in weights.iter().enumerate() {
+            let hi = gamma * h;
+            let kick = half + 0.5 * hi;
+            let fi: &[f64] = if i == 0 { f0 } else { f };
+            for j in 0..n {
+                p[j] += kick * fi[j];
+            }
+            match velocity {
+                Velocity::Unit => {
+                    for j in 0..n {
+                        last_dq[j] = p[j] * hi;
+                    }
+                }
+                Velocity::Diagonal(d) => {
+                    let d = &d[..n];
+                    for j in 0..n {
+                        last_dq[j] = (d[j] * p[j]) * hi;
+                    }
+                }
+                Velocity::Solved => {
+                    solved.copy_from_slice(p);
+                    if let Some(mass) = &self.mass {
+                        mass.assembled.solve(solved).map_err(|e| breakdown(e).at(0))?;
+                    }
+                    for j in 0..n {
+                        last_dq[j] = solved[j] * hi;
+                    }
+                }
+            }
+            if i + 1 == m {
+                // The last sub-step's start, for the readouts.
+                last_q0.copy_from_slice(q);
+            }
+            for j in 0..n {
+                q[j] += last_dq[j];
+            }
+            elapsed += gamma;
+            let ti = if i + 1 == m { t1 } else { node.t + elapsed * h };
+            if i + 1 < m {
+                t_last = ti;
+            } else {
+                h_last = hi;
+            }
+            if potential_force(model, &mut self.tape, &self.zero, ti, q, f).is_err() {
+                return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
+            }
+            half = 0.5 * hi;
+        }
+        let (mut q_bad, mut p_bad) = (0, 0);
+        for j in 0..n {
+            dq[j] = q[j] - q0[j];
+            q_bad |= nan_bits(q[j]);
+            p[j] += half * f[j];
+            p_bad |= nan_bits(p[j]);
+        }
+        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        match quantity {
+            Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
+            None => Ok((t_last, h_last)),
+        }
+    }
+
     /// The Verlet step given the force `f0` at the node, into `out`, and the
     /// force at the new node into `f1`: the half kick, the mass solve and
     /// the drift in one pass when `M` is diagonal, the other half kick in
@@ -845,10 +953,14 @@ impl SparseWork {
     ) -> Result<(), NewtonFailure> {
         let n = self.n;
         let half = 0.5 * h;
-        let (q0, qc0, p0, pc0, f0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n], &f0[..n]);
+        let plain = node.plain;
+        let (q0, p0, f0) = (&node.q[..n], &node.p[..n], &f0[..n]);
+        // Under plain summation the compensations are neither read nor
+        // written (`q0`, `p0` stand in for them, unused).
+        let (qc0, pc0) = if plain { (q0, p0) } else { (&node.q_carry[..n], &node.p_carry[..n]) };
         let (dq, q1, qc1) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.q_carry[..n]);
         // The drift's momentum `(p_k + (h/2) f_k) + c_p`, before `M⁻¹`.
-        let rhs = |i: usize| (p0[i] + half * f0[i]) + pc0[i];
+        let rhs = |i: usize| if plain { p0[i] + half * f0[i] } else { (p0[i] + half * f0[i]) + pc0[i] };
         let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
         if let Velocity::Solved = velocity {
             for i in 0..n {
@@ -858,7 +970,10 @@ impl SparseWork {
                 mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
             }
         }
-        let q_bad = drift_pass((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1));
+        let q_bad = match plain {
+            false => drift_pass::<false>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1)),
+            true => drift_pass::<true>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1)),
+        };
         if is_non_finite(q_bad) && !matches!(velocity, Velocity::Solved) {
             // What the banded solve's checks would refuse, as it would
             // (found again only on failure).
@@ -881,11 +996,18 @@ impl SparseWork {
         }
         let (f1, p1, pc1) = (&f1[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
         let mut p_bad = 0;
-        for i in 0..n {
-            let (sum, carry) = kahan(p0[i], pc0[i], half * (f0[i] + f1[i]));
-            p1[i] = sum;
-            pc1[i] = carry;
-            p_bad |= nan_bits(sum);
+        if plain {
+            for i in 0..n {
+                p1[i] = p0[i] + half * (f0[i] + f1[i]);
+                p_bad |= nan_bits(p1[i]);
+            }
+        } else {
+            for i in 0..n {
+                let (sum, carry) = kahan(p0[i], pc0[i], half * (f0[i] + f1[i]));
+                p1[i] = sum;
+                pc1[i] = carry;
+                p_bad |= nan_bits(sum);
+            }
         }
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
         match quantity {
@@ -1456,8 +1578,10 @@ impl Mass {
 /// `v` of the momentum `(p_k + (h/2) f_k) + c_p` (`momentum = [p_k, f_k,
 /// c_p]`), and `q_{k+1} = q_k + Δq` as a Kahan sum with the compensation
 /// `qc0`. Returns the OR of the [`nan_bits`] of `q_{k+1}`.
+/// `PLAIN` ([`Summation::Plain`](crate::Summation::Plain)): `c_p`, `qc0`
+/// are not read, `qc1` not written, and `q_{k+1} = q_k + Δq` is rounded once.
 #[inline(always)]
-fn drift_pass(
+fn drift_pass<const PLAIN: bool>(
     (h, half): (f64, f64),
     momentum: [&[f64]; 3],
     velocity: Velocity<'_>,
@@ -1465,9 +1589,9 @@ fn drift_pass(
     (dq, q1, qc1): (&mut [f64], &mut [f64], &mut [f64]),
 ) -> u64 {
     match velocity {
-        Velocity::Unit => drift_loop::<0>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1)),
-        Velocity::Diagonal(d) => drift_loop::<1>((h, half), momentum, d, (q0, qc0), (dq, q1, qc1)),
-        Velocity::Solved => drift_loop::<2>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1)),
+        Velocity::Unit => drift_loop::<0, PLAIN>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1)),
+        Velocity::Diagonal(d) => drift_loop::<1, PLAIN>((h, half), momentum, d, (q0, qc0), (dq, q1, qc1)),
+        Velocity::Solved => drift_loop::<2, PLAIN>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1)),
     }
 }
 
@@ -1487,7 +1611,7 @@ enum Velocity<'a> {
 /// the reciprocals of the diagonal for 1): one loop per kind, which
 /// vectorises.
 #[inline(always)]
-fn drift_loop<const KIND: u8>(
+fn drift_loop<const KIND: u8, const PLAIN: bool>(
     (h, half): (f64, f64),
     [p0, f0, pc0]: [&[f64]; 3],
     d: &[f64],
@@ -1498,20 +1622,27 @@ fn drift_loop<const KIND: u8>(
     // One length for every slice, so that the loop has no bounds checks.
     let d = if KIND == 1 { &d[..n] } else { q0 };
     let (p0, f0, pc0, qc0) = (&p0[..n], &f0[..n], &pc0[..n], &qc0[..n]);
-    let (dq, q1, qc1) = (&mut dq[..n], &mut q1[..n], &mut qc1[..n]);
+    let (dq, q1) = (&mut dq[..n], &mut q1[..n]);
+    let qc1: &mut [f64] = if PLAIN { &mut [] } else { &mut qc1[..n] };
     let mut bad = 0;
     for i in 0..n {
+        // The momentum `(p_k + (h/2) f_k) + c_p`.
+        let momentum = |i: usize| if PLAIN { p0[i] + half * f0[i] } else { (p0[i] + half * f0[i]) + pc0[i] };
         let v = match KIND {
-            0 => (p0[i] + half * f0[i]) + pc0[i],
-            1 => d[i] * ((p0[i] + half * f0[i]) + pc0[i]),
+            0 => momentum(i),
+            1 => d[i] * momentum(i),
             _ => dq[i],
         };
         let x = v * h;
         dq[i] = x;
-        let (sum, carry) = kahan(q0[i], qc0[i], x);
-        q1[i] = sum;
-        qc1[i] = carry;
-        bad |= nan_bits(sum);
+        if PLAIN {
+            q1[i] = q0[i] + x;
+        } else {
+            let (sum, carry) = kahan(q0[i], qc0[i], x);
+            q1[i] = sum;
+            qc1[i] = carry;
+        }
+        bad |= nan_bits(q1[i]);
     }
     bad
 }
