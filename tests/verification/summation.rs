@@ -70,9 +70,12 @@ fn error<M: Method<f64>>(method: M, summation: Summation, derivatives: Derivativ
     (0..2).map(|i| (sim.state().q[i] - exact(i)).abs()).fold(0.0, f64::max)
 }
 
+/// A run of [`error`] with one method.
+type Run = fn(Summation, Derivatives) -> f64;
+
 #[test]
 fn compensated_sums_keep_the_state_at_round_off_and_plain_ones_do_not() {
-    let runs: [(&str, fn(Summation, Derivatives) -> f64); 3] = [
+    let runs: [(&str, Run); 3] = [
         ("trapezoid (explicit)", |s, d| error(Trapezoid, s, d)),
         ("yoshida 4 (fused)", |s, d| error(Composition::YOSHIDA4, s, d)),
         ("midpoint (newton)", |s, d| error(Midpoint, s, d)),
