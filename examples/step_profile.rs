@@ -48,7 +48,8 @@ use compositions::{Composition as Hand, Stepper};
 use handwritten::*;
 use lagrangian::derivatives::step_derivatives;
 use lagrangian::{
-    Composition, Galerkin, GalerkinIntegrator, Integrator, Lagrangian, Midpoint, Segment, StepBounds, Trapezoid,
+    Composition, Galerkin, GalerkinIntegrator, Integrator, Lagrangian, Midpoint, Segment, StepBounds, Summation,
+    Trapezoid,
 };
 use std::hint::black_box;
 
@@ -387,6 +388,36 @@ fn main() {
             ),
             n,
         ),
+        // `Summation::Plain`: the state's sums rounded once, as the
+        // hand-written steps do.
+        ("pendulum", "midpoint-plain") => {
+            run(Integrator::new(Pendulum { ..P }, Midpoint, H).summation(Summation::Plain).start(0.0, [1.0], [0.0]), n)
+        }
+        ("pendulum", "kahan-li8-plain") => run(
+            Integrator::new(Pendulum { ..P }, Composition::KAHAN_LI8, H).summation(Summation::Plain).start(
+                0.0,
+                [1.0],
+                [0.0],
+            ),
+            n,
+        ),
+        ("double pendulum", "midpoint-plain") => run(
+            Integrator::new(DoublePendulum { ..DP }, Midpoint, H).summation(Summation::Plain).start(
+                0.0,
+                [1.0, -0.5],
+                [0.0, 0.5],
+            ),
+            n,
+        ),
+        ("kepler", "trapezoid-plain") => {
+            run(Integrator::new(Kepler, Trapezoid, H).summation(Summation::Plain).start(0.0, KEPLER_Q0, KEPLER_V0), n)
+        }
+        ("henon-heiles", "trapezoid-plain") => {
+            run(Integrator::new(HenonHeiles, Trapezoid, H).summation(Summation::Plain).start(0.0, HH_Q0, HH_V0), n)
+        }
+        ("fpu", "trapezoid-plain") => {
+            run(Integrator::new(Fpu, Trapezoid, H).summation(Summation::Plain).start(0.0, fpu_q0(), [0.0; FPU_N]), n)
+        }
         ("pendulum", "kahan-li8") => {
             run(Integrator::new(Pendulum { ..P }, Composition::KAHAN_LI8, H).start(0.0, [1.0], [0.0]), n)
         }
@@ -486,6 +517,24 @@ fn main() {
         ("chain24", "midpoint-reverse") => newton_mode::<24>(lagrangian::Derivatives::Reverse, n),
         ("chain32", "midpoint-forward") => newton_mode::<32>(lagrangian::Derivatives::Forward, n),
         ("chain32", "midpoint-reverse") => newton_mode::<32>(lagrangian::Derivatives::Reverse, n),
+        ("chain1000", "dyn-trapezoid-plain") => {
+            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)
+                .summation(Summation::Plain)
+                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
+                .unwrap();
+            for _ in 0..n {
+                black_box(sim.step().unwrap());
+            }
+            sim.state().q.clone()
+        }
+        ("chain1000", "trapezoid-plain") => run(
+            Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).summation(Summation::Plain).start(
+                0.0,
+                chain_q0(),
+                [0.0; CHAIN_N],
+            ),
+            n,
+        ),
         ("chain1000", "dyn-yoshida4") => {
             let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Composition::YOSHIDA4, 0.05)
                 .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])

@@ -9,6 +9,8 @@
 //! - `midpoint`: the implicit midpoint rule, Newton with a tridiagonal
 //!   Jacobian from the macro's gradient code evaluated once per iteration on
 //!   a dual number carrying the 3 colour classes (no tape);
+//! - `trapezoid, plain sums`: the same with `Summation::Plain` (the
+//!   hand-written step's arithmetic);
 //! - `hand-written Verlet`: the analytic force of the same chain, plain
 //!   sums; `hand-written Verlet, compensated sums`: the same with the Kahan
 //!   sums of `q` and `p` the generated steps keep, in place (the fair
@@ -163,6 +165,9 @@ fn seconds_per_step(repeats: usize, mut run: impl FnMut()) -> f64 {
 #[derive(Clone, Copy)]
 struct Costs {
     trapezoid: f64,
+    /// The trapezoid step with `Summation::Plain` (the hand-written step's
+    /// arithmetic: no compensated sums).
+    plain: f64,
     midpoint: f64,
     /// The plain hand-written Verlet.
     hand: f64,
@@ -177,12 +182,18 @@ fn costs<const N: usize>(c: &mut Criterion) -> Costs {
     g.sample_size(10);
     // The integrators keep stepping across iterations: only steps are timed.
     let mut explicit = Integrator::new(Fpu::<N>, Trapezoid, H).start(0.0, q0, [0.0; N]).unwrap();
+    let mut explicit_plain =
+        Integrator::new(Fpu::<N>, Trapezoid, H).summation(Summation::Plain).start(0.0, q0, [0.0; N]).unwrap();
     let mut implicit = Integrator::new(Fpu::<N>, Midpoint, H).start(0.0, q0, [0.0; N]).unwrap();
     let mut verlet = Verlet::new(&q0);
     let mut kahan = CompensatedVerlet::new(&q0);
     let mut trapezoid = move || {
         explicit.run(STEPS, |_| {}).unwrap();
         black_box(explicit.state().q[0]);
+    };
+    let mut plain = move || {
+        explicit_plain.run(STEPS, |_| {}).unwrap();
+        black_box(explicit_plain.state().q[0]);
     };
     let mut compensated = move || {
         for _ in 0..STEPS {
@@ -201,12 +212,14 @@ fn costs<const N: usize>(c: &mut Criterion) -> Costs {
         black_box(verlet.q[0]);
     };
     g.bench_function("trapezoid (explicit, reverse mode)", |b| b.iter(&mut trapezoid));
+    g.bench_function("trapezoid (explicit, reverse mode), plain sums", |b| b.iter(&mut plain));
     g.bench_function("midpoint (banded Newton, reverse mode)", |b| b.iter(&mut midpoint));
     g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
     g.bench_function("hand-written Verlet, compensated sums", |b| b.iter(&mut compensated));
     g.finish();
     Costs {
         trapezoid: seconds_per_step(20, &mut trapezoid),
+        plain: seconds_per_step(20, &mut plain),
         midpoint: seconds_per_step(10, &mut midpoint),
         hand: seconds_per_step(50, &mut hand),
         compensated: seconds_per_step(50, &mut compensated),
@@ -268,18 +281,19 @@ impl DynFpu {
 /// trapezoid to the plain and the compensated hand-written Verlet.
 fn table(sizes: &[f64], rows: &[Costs]) {
     println!(
-        "{:>7} {:>10} {:>10} {:>12} {:>14} {:>10} {:>14}",
-        "N", "trapezoid", "midpoint", "hand Verlet", "compensated", "trap/hand", "trap/compens."
+        "{:>7} {:>10} {:>10} {:>10} {:>12} {:>14} {:>14} {:>11}",
+        "N", "trapezoid", "plain", "midpoint", "hand Verlet", "compensated", "trap/compens.", "plain/hand"
     );
     for (n, r) in sizes.iter().zip(rows) {
         println!(
-            "{n:>7} {:>10.2} {:>10.2} {:>12.3} {:>14.3} {:>10.2} {:>14.2}",
+            "{n:>7} {:>10.2} {:>10.2} {:>10.2} {:>12.3} {:>14.3} {:>14.2} {:>11.2}",
             r.trapezoid * 1e6,
+            r.plain * 1e6,
             r.midpoint * 1e6,
             r.hand * 1e6,
             r.compensated * 1e6,
-            r.trapezoid / r.hand,
-            r.trapezoid / r.compensated
+            r.trapezoid / r.compensated,
+            r.plain / r.hand
         );
     }
 }
@@ -293,6 +307,8 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs
         (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (n + 1) as f64).sin()).collect();
     let v0 = vec![0.0; n];
     let mut explicit = DynIntegrator::new(DynFpu(n), Trapezoid, H).start(0.0, &q0, &v0).unwrap();
+    let mut explicit_plain =
+        DynIntegrator::new(DynFpu(n), Trapezoid, H).summation(Summation::Plain).start(0.0, &q0, &v0).unwrap();
     let mut implicit = DynIntegrator::new(DynFpu(n), Midpoint, H).start(0.0, &q0, &v0).unwrap();
     let mut verlet = Verlet::new(&q0);
     let mut hand = move || {
@@ -312,6 +328,10 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs
         explicit.run(steps, |_| {}).unwrap();
         black_box(explicit.state().q[0]);
     };
+    let mut plain = move || {
+        explicit_plain.run(steps, |_| {}).unwrap();
+        black_box(explicit_plain.state().q[0]);
+    };
     let mut midpoint = move || {
         implicit.run(steps, |_| {}).unwrap();
         black_box(implicit.state().q[0]);
@@ -319,6 +339,7 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs
     let mut g = c.benchmark_group(format!("run-time-sized FPU-β chain, N = {n}, {steps} steps"));
     g.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
     g.bench_function("trapezoid (explicit)", |b| b.iter(&mut trapezoid));
+    g.bench_function("trapezoid (explicit), plain sums", |b| b.iter(&mut plain));
     g.bench_function("midpoint (banded Newton)", |b| b.iter(&mut midpoint));
     g.bench_function("hand-written Verlet", |b| b.iter(&mut hand));
     g.bench_function("hand-written Verlet, compensated sums", |b| b.iter(&mut compensated));
@@ -334,6 +355,7 @@ fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs
     };
     Costs {
         trapezoid: per_step(repeats, &mut trapezoid),
+        plain: per_step(repeats, &mut plain),
         midpoint: per_step(repeats, &mut midpoint),
         hand: per_step(5 * repeats, &mut hand),
         compensated: per_step(5 * repeats, &mut compensated),

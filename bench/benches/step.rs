@@ -9,7 +9,7 @@ use lagrangian_bench::handwritten;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use handwritten::*;
-use lagrangian::{Composition, Integrator, Midpoint, StepBounds, Trapezoid};
+use lagrangian::{Composition, Integrator, Midpoint, StepBounds, Summation, Trapezoid};
 use lagrangian_bench::compositions::{Composition as HandComposition, Stepper};
 use lagrangian_bench::problems::{HenonHeilesSys, KeplerSys};
 use std::hint::black_box;
@@ -42,6 +42,13 @@ fn pendulum(c: &mut Criterion) {
     g.bench_function("generated midpoint", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut sim = Integrator::new(Pendulum { ..P }, Trapezoid, H).start(0.0, [1.0], [0.0]).unwrap();
     g.bench_function("generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    // `Summation::Plain`: the state's sums rounded once, as the hand-written steps do.
+    let plain = |method| Integrator::new(Pendulum { ..P }, method, H).summation(Summation::Plain);
+    let mut sim = plain(Midpoint).start(0.0, [1.0], [0.0]).unwrap();
+    g.bench_function("generated midpoint, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut sim =
+        Integrator::new(Pendulum { ..P }, Trapezoid, H).summation(Summation::Plain).start(0.0, [1.0], [0.0]).unwrap();
+    g.bench_function("generated trapezoid, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut hand = PendulumMidpoint::new(pendulum_params(), H, 1.0, 0.0);
     g.bench_function("hand-written midpoint", |b| {
         b.iter(|| {
@@ -66,6 +73,9 @@ fn double_pendulum(c: &mut Criterion) {
     g.bench_function("generated midpoint", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut sim = Integrator::new(DoublePendulum { ..DP }, Trapezoid, H).start(0.0, q0, v0).unwrap();
     g.bench_function("generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut sim =
+        Integrator::new(DoublePendulum { ..DP }, Midpoint, H).summation(Summation::Plain).start(0.0, q0, v0).unwrap();
+    g.bench_function("generated midpoint, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut hand = DoubleStepper::new(double_params(), DoubleMethod::Midpoint, H, q0, v0);
     g.bench_function("hand-written midpoint", |b| {
         b.iter(|| {
@@ -134,6 +144,8 @@ fn explicit(c: &mut Criterion) {
     };
     let mut sim = Integrator::new(KeplerSys, Trapezoid, H).start(0.0, kq, kv).unwrap();
     g.bench_function("kepler generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut sim = Integrator::new(KeplerSys, Trapezoid, H).summation(Summation::Plain).start(0.0, kq, kv).unwrap();
+    g.bench_function("kepler generated trapezoid, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut hand = Stepper::new(HandComposition::Verlet, [1.0; 2], &kepler, H, kq, kv);
     g.bench_function("kepler hand-written verlet", |b| {
         b.iter(|| {
@@ -152,6 +164,8 @@ fn explicit(c: &mut Criterion) {
     let henon_heiles = |q: &[f64; 2]| [-q[0] - 2.0 * q[0] * q[1], -q[1] - q[0] * q[0] + q[1] * q[1]];
     let mut sim = Integrator::new(HenonHeilesSys, Trapezoid, H).start(0.0, hq, hv).unwrap();
     g.bench_function("henon-heiles generated trapezoid", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut sim = Integrator::new(HenonHeilesSys, Trapezoid, H).summation(Summation::Plain).start(0.0, hq, hv).unwrap();
+    g.bench_function("henon-heiles generated trapezoid, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
     let mut hand = Stepper::new(HandComposition::Verlet, [1.0; 2], &henon_heiles, H, hq, hv);
     g.bench_function("henon-heiles hand-written verlet", |b| {
         b.iter(|| {
@@ -170,6 +184,18 @@ fn explicit(c: &mut Criterion) {
     let pendulum = |q: &[f64; 1]| [-params.d * q[0].sin()];
     let mut sim = Integrator::new(Pendulum { ..P }, Composition::KAHAN_LI8, H).start(0.0, [1.0], [0.0]).unwrap();
     g.bench_function("pendulum generated kahan-li8", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let plain = |method| Integrator::new(Pendulum { ..P }, method, H).summation(Summation::Plain);
+    let mut sim = plain(Composition::KAHAN_LI8).start(0.0, [1.0], [0.0]).unwrap();
+    g.bench_function("pendulum generated kahan-li8, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut sim = plain(Composition::YOSHIDA6).start(0.0, [1.0], [0.0]).unwrap();
+    g.bench_function("pendulum generated yoshida6, plain sums", |b| b.iter(|| black_box(sim.step().unwrap().q)));
+    let mut hand = Stepper::new(HandComposition::Yoshida6, [1.0 / params.a], &pendulum, H, [1.0], [0.0]);
+    g.bench_function("pendulum hand-written yoshida6", |b| {
+        b.iter(|| {
+            hand.step(&pendulum);
+            black_box(hand.q)
+        })
+    });
     let mut hand = Stepper::new(HandComposition::KahanLi8, [1.0 / params.a], &pendulum, H, [1.0], [0.0]);
     g.bench_function("pendulum hand-written kahan-li8", |b| {
         b.iter(|| {
