@@ -18,7 +18,7 @@ use std::cell::Cell;
 
 use common::{DOUBLE_PENDULUM, PENDULUM};
 use lagrangian::prelude::*;
-use lagrangian::{AlphaBeta, Composition, DoubleDouble, GalerkinIntegrator, Method};
+use lagrangian::{AlphaBeta, Composition, Derivatives, DoubleDouble, GalerkinIntegrator, Method, Summation};
 
 struct Counting;
 
@@ -55,13 +55,23 @@ fn allocations() -> u64 {
 }
 
 /// Allocations made by 500 steps after one warm-up step.
-fn allocations_while_stepping<S, M, const N: usize, T>(mut sim: Integrator<S, M, N, T>) -> u64
+fn allocations_while_stepping<S, M, const N: usize, T>(sim: Integrator<S, M, N, T>) -> u64
 where
     S: Lagrangian<N>,
     M: Method<T>,
     T: lagrangian::Real,
 {
-    sim.step().expect("warm-up step");
+    allocations_after_warm_up(sim, 1)
+}
+
+/// Allocations made by 500 steps after `warm_up` steps.
+fn allocations_after_warm_up<S, M, const N: usize, T>(mut sim: Integrator<S, M, N, T>, warm_up: usize) -> u64
+where
+    S: Lagrangian<N>,
+    M: Method<T>,
+    T: lagrangian::Real,
+{
+    sim.run(warm_up, |_| {}).expect("warm-up steps");
     let before = allocations();
     sim.run(500, |_| {}).expect("steps");
     allocations() - before
@@ -110,6 +120,79 @@ fn one_point_rules_do_not_allocate() {
     for (name, n) in cases {
         assert_eq!(n, 0, "{name}: {n} allocations in 500 steps");
     }
+}
+
+/// Reverse mode keeps its buffers on the heap in a pool and reuses them,
+/// with compensated or plain sums (each commits its buffers differently).
+/// The pool fills over the first steps (the last step's segment from the
+/// second, the step before it from the third), and grows once more, by two
+/// buffers, the first time the growth check cannot decide from its cheap
+/// bound and writes out the predictor: so a few allocations in 500 steps
+/// after three warm-up steps, where a step that lost a buffer would
+/// allocate at every step (the bug this caught: 1000).
+#[test]
+fn reverse_mode_and_plain_sums_do_not_allocate() {
+    let h = 0.01;
+    fn allocations_while_stepping<S: Lagrangian<N>, M: Method<f64>, const N: usize>(
+        sim: Integrator<S, M, N, f64>,
+    ) -> u64 {
+        allocations_after_warm_up(sim, 3)
+    }
+    let reverse = |method: Composition, summation| {
+        allocations_while_stepping(
+            Integrator::new(DOUBLE_PENDULUM, method, h)
+                .derivatives(Derivatives::Reverse)
+                .summation(summation)
+                .start(0.0, [1.0, 0.5], [0.0, 0.0])
+                .unwrap(),
+        )
+    };
+    let forward = |summation| {
+        allocations_while_stepping(
+            Integrator::new(PENDULUM, Composition::YOSHIDA4, h).summation(summation).start(0.0, [1.0], [0.0]).unwrap(),
+        )
+    };
+    let midpoint = |summation| {
+        allocations_while_stepping(
+            Integrator::new(PENDULUM, Midpoint, h)
+                .derivatives(Derivatives::Reverse)
+                .summation(summation)
+                .start(0.0, [1.0], [0.0])
+                .unwrap(),
+        )
+    };
+    let cases: [(&str, u64); 8] = [
+        (
+            "double pendulum Yoshida 4, reverse mode (Newton sub-steps)",
+            reverse(Composition::YOSHIDA4, Summation::Compensated),
+        ),
+        ("the same, plain sums", reverse(Composition::YOSHIDA4, Summation::Plain)),
+        ("pendulum Yoshida 4, forward mode (fused)", forward(Summation::Compensated)),
+        ("the same, plain sums", forward(Summation::Plain)),
+        ("pendulum midpoint, reverse mode", midpoint(Summation::Compensated)),
+        ("the same, plain sums", midpoint(Summation::Plain)),
+        (
+            "pendulum trapezoid, reverse mode (explicit)",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, Trapezoid, h)
+                    .derivatives(Derivatives::Reverse)
+                    .start(0.0, [1.0], [0.0])
+                    .unwrap(),
+            ),
+        ),
+        (
+            "pendulum Kahan–Li 8, reverse mode (fused), plain sums",
+            allocations_while_stepping(
+                Integrator::new(PENDULUM, Composition::KAHAN_LI8, h)
+                    .derivatives(Derivatives::Reverse)
+                    .summation(Summation::Plain)
+                    .start(0.0, [1.0], [0.0])
+                    .unwrap(),
+            ),
+        ),
+    ];
+    let allocating: Vec<String> = cases.iter().filter(|c| c.1 > 2).map(|(name, n)| format!("{name}: {n}")).collect();
+    assert!(allocating.is_empty(), "allocations in 500 steps: {allocating:?}");
 }
 
 #[test]

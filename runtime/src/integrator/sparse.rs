@@ -363,10 +363,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     /// under [`Summation::Plain`] (whose steps leave `taken` unwritten), the
     /// step's, the node's zeros staying.
     fn swap_carries(&self, work: &mut SparseWork, old: [Vec<f64>; 2], taken: [Vec<f64>; 2]) -> [Vec<f64>; 2] {
-        match self.summation {
-            Summation::Compensated => core::mem::replace(&mut work.carries, taken),
-            Summation::Plain => core::mem::replace(&mut work.carries, old),
-        }
+        // The work's carries were taken out for the step (they are `old`).
+        let (kept, freed) = match self.summation {
+            Summation::Compensated => (taken, old),
+            Summation::Plain => (old, taken),
+        };
+        work.carries = kept;
+        freed
     }
 
     /// The step of [`advance`](Self::advance) from the node

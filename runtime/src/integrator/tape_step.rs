@@ -1622,27 +1622,27 @@ fn drift_loop<const KIND: u8, const PLAIN: bool>(
     // One length for every slice, so that the loop has no bounds checks.
     let d = if KIND == 1 { &d[..n] } else { q0 };
     let (p0, f0, pc0, qc0) = (&p0[..n], &f0[..n], &pc0[..n], &qc0[..n]);
-    let (dq, q1) = (&mut dq[..n], &mut q1[..n]);
-    let qc1: &mut [f64] = if PLAIN { &mut [] } else { &mut qc1[..n] };
+    let (dq, q1, qc1) = (&mut dq[..n], &mut q1[..n], &mut qc1[..n]);
     let mut bad = 0;
     for i in 0..n {
         // The momentum `(p_k + (h/2) f_k) + c_p`.
-        let momentum = |i: usize| if PLAIN { p0[i] + half * f0[i] } else { (p0[i] + half * f0[i]) + pc0[i] };
+        let momentum = if PLAIN { p0[i] + half * f0[i] } else { (p0[i] + half * f0[i]) + pc0[i] };
         let v = match KIND {
-            0 => momentum(i),
-            1 => d[i] * momentum(i),
+            0 => momentum,
+            1 => d[i] * momentum,
             _ => dq[i],
         };
         let x = v * h;
         dq[i] = x;
-        if PLAIN {
-            q1[i] = q0[i] + x;
+        let sum = if PLAIN {
+            q0[i] + x
         } else {
             let (sum, carry) = kahan(q0[i], qc0[i], x);
-            q1[i] = sum;
             qc1[i] = carry;
-        }
-        bad |= nan_bits(q1[i]);
+            sum
+        };
+        q1[i] = sum;
+        bad |= nan_bits(sum);
     }
     bad
 }
