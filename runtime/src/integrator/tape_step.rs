@@ -631,7 +631,11 @@ impl SparseWork {
         let dq = self.buffer();
         let mut taken = self.taken(dq, NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 });
         let mut f1 = self.buffer();
-        match self.verlet_into(model, node, h, t1, growth, &f0, &mut taken, &mut f1) {
+        let outcome = match node.plain {
+            false => self.verlet_into::<_, false>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
+            true => self.verlet_into::<_, true>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
+        };
+        match outcome {
             Ok(()) => {
                 self.node_force = Some((node.step + 1, f1));
                 self.recycle(f0);
@@ -939,8 +943,11 @@ impl SparseWork {
     /// [`nan_bits`] in those passes (branch-free, so the passes vectorise);
     /// which value failed is found again only on failure. The maxima of the
     /// growth check take one more pass over `Δq` and `q_k`.
+    ///
+    /// `PLAIN` ([`Summation::Plain`](crate::Summation::Plain)): the
+    /// compensations are neither read nor written, the sums rounded once.
     #[allow(clippy::too_many_arguments)]
-    fn verlet_into<Mo: TapeModel>(
+    fn verlet_into<Mo: TapeModel, const PLAIN: bool>(
         &mut self,
         model: &Mo,
         node: &Node<'_>,
@@ -953,7 +960,7 @@ impl SparseWork {
     ) -> Result<(), NewtonFailure> {
         let n = self.n;
         let half = 0.5 * h;
-        let plain = node.plain;
+        let plain = PLAIN;
         let (q0, p0, f0) = (&node.q[..n], &node.p[..n], &f0[..n]);
         // Under plain summation the compensations are neither read nor
         // written (`q0`, `p0` stand in for them, unused).
@@ -970,10 +977,7 @@ impl SparseWork {
                 mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
             }
         }
-        let q_bad = match plain {
-            false => drift_pass::<false>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1)),
-            true => drift_pass::<true>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1)),
-        };
+        let q_bad = drift_pass::<PLAIN>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1));
         if is_non_finite(q_bad) && !matches!(velocity, Velocity::Solved) {
             // What the banded solve's checks would refuse, as it would
             // (found again only on failure).
