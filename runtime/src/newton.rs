@@ -137,15 +137,30 @@ pub(crate) struct Linearization<X> {
     pub(crate) correction: X,
     pub(crate) residual_norm: f64,
     /// `‖R‖` relative to the size of the terms that cancel in it (for the
-    /// DEL, `‖p_k‖` and `‖∂A/∂q_k‖`): a few `ε` means `R` is pure round-off.
-    pub(crate) residual_ratio: f64,
+    /// DEL, `‖p_k‖` and `‖∂A/∂q_k‖`) is `cancelled / scale`: a few `ε` means
+    /// `R` is pure round-off. Two numbers, so that the test
+    /// `cancelled ≤ c ε · scale` takes no division (two per fixed step on
+    /// the one-point path).
+    pub(crate) cancelled: f64,
+    pub(crate) scale: f64,
 }
 
 impl<X> Linearization<X> {
+    /// A correction whose residual is not compared with its terms.
+    pub(crate) fn new(correction: X, residual_norm: f64) -> Self {
+        Self { correction, residual_norm, cancelled: f64::INFINITY, scale: 1.0 }
+    }
+
     /// Records the size of the terms whose cancellation forms the residual.
     pub(crate) fn cancelling(mut self, scale: f64) -> Self {
-        self.residual_ratio = self.residual_norm / scale;
+        (self.cancelled, self.scale) = (self.residual_norm, scale);
         self
+    }
+
+    /// `true` when the residual is at most `k ε` of the terms that cancel in it.
+    #[inline(always)]
+    fn round_off(&self, k: f64) -> bool {
+        self.cancelled <= k * self.scale
     }
 }
 
@@ -230,7 +245,9 @@ fn checked_inverse<const N: usize>(
     }
     let inv = j.try_inverse().ok_or(Breakdown::Singular(0.0))?;
     if let Some(min_rcond) = min_rcond {
-        let rc = rcond(j, &inv);
+        // One coordinate: `‖J‖₁ ‖J⁻¹‖₁ = |j| |1/j|`, one to within `ε`
+        // wherever `1/j` is finite (and `min_rcond < 1`): no division.
+        let rc = if N == 1 { if inv[0].is_finite() { 1.0 } else { 0.0 } } else { rcond(j, &inv) };
         if rc.is_nan() || rc < min_rcond {
             return Err(Breakdown::Singular(rc));
         }
@@ -246,7 +263,7 @@ pub(crate) fn square_correction<const N: usize>(
     min_rcond: f64,
 ) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
     let inv = checked_inverse(&r, &j, Some(min_rcond))?;
-    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
+    Ok(Linearization::new(-(inv * r), r.amax()))
 }
 
 /// [`square_correction`] without the condition estimate, for the later
@@ -264,7 +281,7 @@ pub(crate) fn square_correction_unestimated<const N: usize>(
     j: SMatrix<f64, N, N>,
 ) -> Result<Linearization<SVector<f64, N>>, Breakdown> {
     let inv = checked_inverse(&r, &j, None)?;
-    Ok(Linearization { correction: -(inv * r), residual_norm: r.amax(), residual_ratio: f64::INFINITY })
+    Ok(Linearization::new(-(inv * r), r.amax()))
 }
 
 /// The correction of the bordered system
@@ -305,11 +322,10 @@ pub(crate) fn bordered_correction<const N: usize>(
     // equation, and the increment, which follows the step along the DEL
     // solutions (`∂Δq/∂h = −A⁻¹b`), only up to that and the positions' ulps.
     let t_floor = 4.0 * f64::EPSILON * t_scale / s.abs();
-    Ok(Linearization {
-        correction: Extended { q: dq, t: dt, t_floor, q_floor: 4.0 * f64::EPSILON * q_size + ainv_b.amax() * t_floor },
-        residual_norm: r.amax().max(r_t.abs()),
-        residual_ratio: f64::INFINITY,
-    })
+    Ok(Linearization::new(
+        Extended { q: dq, t: dt, t_floor, q_floor: 4.0 * f64::EPSILON * q_size + ainv_b.amax() * t_floor },
+        r.amax().max(r_t.abs()),
+    ))
 }
 
 /// Newton's method from `x`; `linearize` returns the correction at an iterate.
@@ -330,7 +346,7 @@ where
         let step = linearize(&x).map_err(|b| b.at(iterations))?;
         report.residual_norm = step.residual_norm;
         x.update(&step.correction);
-        if step.residual_ratio <= 4.0 * X::EPSILON {
+        if step.round_off(4.0 * X::EPSILON) {
             // The residual was round-off of its own terms: this correction was
             // the last one that can change anything.
             return Ok((x, report));
@@ -355,7 +371,7 @@ where
             // they are already tiny or the residual is round-off of its terms
             // (an ill-conditioned energy equation turns that round-off into
             // corrections of h far above ε); more iterations only stir bits.
-            if theta >= 0.5 && (ratio * options.rtol <= 1e3 * X::EPSILON || step.residual_ratio <= 1e3 * X::EPSILON) {
+            if theta >= 0.5 && (ratio * options.rtol <= 1e3 * X::EPSILON || step.round_off(1e3 * X::EPSILON)) {
                 return Ok((x, report));
             }
             growing = if theta >= 1.0 { growing + 1 } else { 0 };

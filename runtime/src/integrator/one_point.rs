@@ -459,9 +459,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 (d.d_q0, d.d2_q0_q1)
             }
         };
-        // The momentum carries its compensation: p_k is p0 + pc.
+        // The momentum carries its compensation: p_k is p0 + pc (zero, and
+        // not added, under plain summation: one addition fewer on the chain
+        // from one iterate to the next).
         let pc = &self.p_carry;
-        let r = SVector::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]);
+        let r = match self.summation {
+            Summation::Compensated => SVector::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]),
+            Summation::Plain => SVector::from_fn(|i, _| p0[i] + d_q0[i]),
+        };
         let scale = p_scale.max(max_abs(&d_q0));
         let step = if estimate {
             newton::square_correction(r, jacobian, self.newton.min_rcond)?

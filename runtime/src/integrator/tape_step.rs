@@ -560,8 +560,7 @@ impl SparseWork {
             for x in r.iter_mut() {
                 *x = -*x;
             }
-            Ok(Linearization { correction: Slot(&correction), residual_norm, residual_ratio: f64::INFINITY }
-                .cancelling(scale))
+            Ok(Linearization::new(Slot(&correction), residual_norm).cancelling(scale))
         };
         let solved = newton::solve(Slot(&x), options, linearize).map(|(_, report)| report);
         self.recycle(correction.into_inner());
@@ -1830,7 +1829,7 @@ pub(crate) fn velocity<Mo: TapeModel>(
         let residual_norm = max_abs(&r);
         hessian.solve(&mut r).map_err(breakdown)?;
         r.iter_mut().for_each(|x| *x = -*x);
-        Ok(Linearization { correction: r, residual_norm, residual_ratio: f64::INFINITY }.cancelling(scale))
+        Ok(Linearization::new(r, residual_norm).cancelling(scale))
     };
     match newton::solve(guess.to_vec(), &options, linearize) {
         Ok((v, _)) => Ok(v),

@@ -219,7 +219,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 d.d2_t0_t1,
                 min_rcond,
             )?;
-            lin.residual_ratio = ratio_q.max(ratio_t);
+            (lin.cancelled, lin.scale) = (ratio_q.max(ratio_t), 1.0);
             Ok(lin)
         };
         match newton::solve(start, &self.newton, linearize) {
