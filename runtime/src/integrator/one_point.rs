@@ -947,7 +947,7 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
     // computed (`v = Δq·h⁻¹`).
     let b_v = w * (h * inv_h);
     let (mut d_q0, mut jacobian) = ([0.0; N], SMatrix::<f64, N, N>::zeros());
-    for &j in evaluated {
+    for (n, &j) in evaluated.iter().enumerate() {
         let c = points[j];
         let a_q = w * (h * (1.0 - c));
         let seeded = |x: f64, i: usize, scale: f64| {
@@ -961,10 +961,15 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
         let (mut gq, mut gv) = ([DualArray::from_re(0.0); N], [DualArray::from_re(0.0); N]);
         let t = DualArray::from_re(super::tape_step::point_time(c, t0, h));
         system.gradient_qv_scalar(t, &q, &v, &mut gq, &mut gv);
+        // The first point's terms start the sums (`0 + x` is an IEEE
+        // addition on Newton's chain of dependent operations).
+        let first = n == 0;
         for i in 0..N {
-            d_q0[i] += a_q * gq[i].re - b_v * gv[i].re;
+            let d = a_q * gq[i].re - b_v * gv[i].re;
+            d_q0[i] = if first { d } else { d_q0[i] + d };
             for k in 0..N {
-                jacobian[(i, k)] += a_q * gq[i].eps[k] - b_v * gv[i].eps[k];
+                let e = a_q * gq[i].eps[k] - b_v * gv[i].eps[k];
+                jacobian[(i, k)] = if first { e } else { jacobian[(i, k)] + e };
             }
         }
     }
@@ -985,14 +990,14 @@ fn gradient_momentum_change<S: Lagrangian<N>, const N: usize>(
     let (evaluated, w) = super::tape_step::distinct(points);
     let v: [f64; N] = dq.map(|d| d * inv_h);
     let mut dp = [0.0; N];
-    for &j in evaluated {
+    for (n, &j) in evaluated.iter().enumerate() {
         let c = points[j];
         let at: [f64; N] = core::array::from_fn(|i| super::tape_step::point_position(c, q0[i], dq[i]));
         let mut gq = [0.0; N];
         system.gradient_q(super::tape_step::point_time(c, t0, h), &at, &v, &mut gq);
         let wh = w * h;
         for i in 0..N {
-            dp[i] += wh * gq[i];
+            dp[i] = if n == 0 { wh * gq[i] } else { dp[i] + wh * gq[i] };
         }
     }
     dp
