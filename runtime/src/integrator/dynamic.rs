@@ -493,6 +493,13 @@ impl<S, M> DynIntegrator<S, M> {
     }
 }
 
+/// The node a step of a run-time-sized integrator starts from: its state,
+/// the compensations `(carry, p_carry)` and how the step sums.
+fn node_at<'a>(state: &'a DynState, (q_carry, p_carry): (&'a [f64], &'a [f64]), summation: Summation) -> Node<'a> {
+    let DynState { step, t, q, p } = state;
+    Node { step: *step, t: *t, q, p, q_carry, p_carry, plain: summation.is_plain() }
+}
+
 impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// The rule's DEL is explicit for this system (see
     /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]).
@@ -646,16 +653,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
-        let DynState { step, t, q, p } = &self.state;
-        let node = Node {
-            step: *step,
-            t: *t,
-            q,
-            p,
-            q_carry: &self.carry,
-            p_carry: &self.p_carry,
-            plain: self.summation.is_plain(),
-        };
+        let node = node_at(&self.state, (&self.carry, &self.p_carry), self.summation);
         let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
         let last = self.previous.as_ref().map(|last| (&last.dq[..], h / last.h));
         let growth = Growth { last, predict: &predict };
@@ -684,16 +682,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let model = Sliced { system: &self.system, points: self.points };
         // The last step's discrete energy, read before an explicit step clears it.
         let before = self.work.energy.unwrap_or(self.energy);
-        let DynState { step, t, q, p } = &self.state;
-        let node = Node {
-            step: *step,
-            t: *t,
-            q,
-            p,
-            q_carry: &self.carry,
-            p_carry: &self.p_carry,
-            plain: self.summation.is_plain(),
-        };
+        let node = node_at(&self.state, (&self.carry, &self.p_carry), self.summation);
         let outcome = if Self::EXPLICIT {
             // The predictor only when the growth check needs it.
             let predict = |out: &mut [f64]| super::predict_into(h, last, earlier, &self.v0, out);
@@ -701,7 +690,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             let growth = Growth { last, predict: &predict };
             self.work.verlet_step(&model, &node, h, t1, &growth, self.newton.min_rcond).map(|taken| (taken, None))
         } else {
-            let mut predictor = vec![0.0; q.len()];
+            let mut predictor = vec![0.0; self.state.q.len()];
             super::predict_into(h, last, earlier, &self.v0, &mut predictor);
             let scaled: Option<Vec<f64>> =
                 self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());

@@ -783,27 +783,7 @@ impl SparseWork {
                 dp[j] += kick * fi[j];
                 mv[j] = p0[j] + (pc0[j] + dp[j]);
             }
-            match velocity {
-                Velocity::Unit => {
-                    for j in 0..n {
-                        last_dq[j] = mv[j] * hi;
-                    }
-                }
-                Velocity::Diagonal(d) => {
-                    let d = &d[..n];
-                    for j in 0..n {
-                        last_dq[j] = (d[j] * mv[j]) * hi;
-                    }
-                }
-                Velocity::Solved => {
-                    if let Some(mass) = &self.mass {
-                        mass.assembled.solve(mv).map_err(|e| breakdown(e).at(0))?;
-                    }
-                    for j in 0..n {
-                        last_dq[j] = mv[j] * hi;
-                    }
-                }
-            }
+            self.sub_drift(velocity, mv, hi, last_dq)?;
             // The sub-nodes' positions go to `last_q0`, which then holds
             // the last sub-step's start; the end node's to `q`.
             let x: &mut [f64] = if i + 1 == m { &mut *q } else { &mut *last_q0 };
@@ -843,6 +823,35 @@ impl SparseWork {
         }
     }
 
+    /// A sub-step's drift `out = h_i M⁻¹ v` from the momentum `v` (solved in
+    /// place when `M` takes a banded or dense solve, read otherwise).
+    fn sub_drift(&self, velocity: Velocity<'_>, v: &mut [f64], hi: f64, out: &mut [f64]) -> Result<(), NewtonFailure> {
+        let n = out.len();
+        let v = &mut v[..n];
+        match velocity {
+            Velocity::Unit => {
+                for j in 0..n {
+                    out[j] = v[j] * hi;
+                }
+            }
+            Velocity::Diagonal(d) => {
+                let d = &d[..n];
+                for j in 0..n {
+                    out[j] = (d[j] * v[j]) * hi;
+                }
+            }
+            Velocity::Solved => {
+                if let Some(mass) = &self.mass {
+                    mass.assembled.solve(v).map_err(|e| breakdown(e).at(0))?;
+                }
+                for j in 0..n {
+                    out[j] = v[j] * hi;
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// [`composed_into`](Self::composed_into) under [`Summation::Plain`](crate::Summation::Plain):
     /// `p ← p + (h_{i−1} + h_i)/2 · f_i`, `q ← q + h_i M⁻¹ p` in place in
     /// `out.p1` and `out.q1`, as a hand-written composition steps (forward
@@ -879,27 +888,12 @@ impl SparseWork {
             for j in 0..n {
                 p[j] += kick * fi[j];
             }
-            match velocity {
-                Velocity::Unit => {
-                    for j in 0..n {
-                        last_dq[j] = p[j] * hi;
-                    }
-                }
-                Velocity::Diagonal(d) => {
-                    let d = &d[..n];
-                    for j in 0..n {
-                        last_dq[j] = (d[j] * p[j]) * hi;
-                    }
-                }
-                Velocity::Solved => {
-                    solved.copy_from_slice(p);
-                    if let Some(mass) = &self.mass {
-                        mass.assembled.solve(solved).map_err(|e| breakdown(e).at(0))?;
-                    }
-                    for j in 0..n {
-                        last_dq[j] = solved[j] * hi;
-                    }
-                }
+            // A solve works in place: `p` must stay, so it gets a copy.
+            if let Velocity::Solved = velocity {
+                solved.copy_from_slice(p);
+                self.sub_drift(velocity, solved, hi, last_dq)?;
+            } else {
+                self.sub_drift(velocity, p, hi, last_dq)?;
             }
             if i + 1 == m {
                 // The last sub-step's start, for the readouts.
