@@ -136,8 +136,6 @@ pub struct CompositionMemory<const N: usize> {
 pub(crate) struct FusedSubsteps<const N: usize> {
     /// The position's Kahan compensation at the start of the step.
     carry: [f64; N],
-    /// The sub-steps updated `q` in place ([`Summation::Plain`]).
-    plain: bool,
     /// Each sub-step's increment `δq_i`.
     increments: [[f64; N]; MAX_STAGES],
 }
@@ -156,26 +154,27 @@ impl<const N: usize> CompositionMemory<N> {
         }
     }
 
-    /// Sub-step `i` of the last composed step, made with `weights`.
-    fn substep(&self, i: usize, weights: &[f64]) -> Segment<N> {
+    /// Sub-step `i` of the last composed step, made with `weights` and
+    /// `summation`.
+    fn substep(&self, i: usize, weights: &[f64], summation: Summation) -> Segment<N> {
         let (Some(fused), Some(start), Some(h)) = (&self.fused, &self.inner.previous, self.last_h) else {
             return self.substeps[i];
         };
-        let FusedSubsteps { carry, plain, increments } = &fused[self.fused_last];
+        let FusedSubsteps { carry, increments } = &fused[self.fused_last];
         // The sub-node positions and times of `explicit_step`: `q_k + (c_q +
         // Δq)`, or summed in place under plain summation.
-        let (mut dq, mut q, mut elapsed) = ([0.0; N], start.q0, 0.0);
+        let plain = summation.is_plain();
+        let (mut sum, mut elapsed) = (if plain { start.q0 } else { [0.0; N] }, 0.0);
         for (step_dq, gamma) in increments[..i].iter().zip(weights) {
             for j in 0..N {
-                dq[j] += step_dq[j];
-                q[j] += step_dq[j];
+                sum[j] += step_dq[j];
             }
             elapsed += gamma;
         }
         let (t0, q0) = match i {
             0 => (start.t0, start.q0),
-            _ if *plain => (start.t0 + elapsed * h, q),
-            _ => (start.t0 + elapsed * h, core::array::from_fn(|j| start.q0[j] + (carry[j] + dq[j]))),
+            _ if plain => (start.t0 + elapsed * h, sum),
+            _ => (start.t0 + elapsed * h, core::array::from_fn(|j| start.q0[j] + (carry[j] + sum[j]))),
         };
         Segment { t0, h: weights[i] * h, q0, dq: increments[i] }
     }
@@ -360,7 +359,7 @@ impl Method<f64> for Composition {
         match it.memory.stages {
             0 => it.system.energy(it.state.t, it.state.q, it.v0),
             m => {
-                let last = it.memory.substep(m - 1, it.method.weights);
+                let last = it.memory.substep(m - 1, it.method.weights, it.summation);
                 -derivatives::end_time_derivative(&it.system, &Trapezoid, &last)
             }
         }
@@ -378,7 +377,7 @@ impl F64Readouts for Composition {
         match it.memory.stages {
             0 => it.v0,
             m => {
-                let last = it.memory.substep(m - 1, it.method.weights);
+                let last = it.memory.substep(m - 1, it.method.weights, it.summation);
                 last.dq.map(|x| x / last.h)
             }
         }
@@ -392,9 +391,10 @@ impl F64Readouts for Composition {
             return None;
         }
         let weights = it.method.weights;
-        let mut product = symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substep(0, weights))?.matrix();
+        let mut product =
+            symplectic::tangent_map(&it.system, &Trapezoid, &it.memory.substep(0, weights, it.summation))?.matrix();
         for i in 1..m {
-            let seg = it.memory.substep(i, weights);
+            let seg = it.memory.substep(i, weights, it.summation);
             product = symplectic::tangent_map(&it.system, &Trapezoid, &seg)?.matrix() * product;
         }
         let block = |r: usize, c: usize| nalgebra::SMatrix::<f64, N, N>::from_fn(|a, b| product[(r + a, c + b)]);
@@ -414,7 +414,7 @@ impl F64Readouts for Composition {
         (m > 0).then(|| {
             (0..m)
                 .map(|i| {
-                    let seg = it.memory.substep(i, it.method.weights);
+                    let seg = it.memory.substep(i, it.method.weights, it.summation);
                     crate::noether::forcing_impulse(&it.system, &Trapezoid, &seg, symmetry)
                 })
                 .sum()
@@ -529,12 +529,11 @@ fn fused_step<S: Lagrangian<N>, const N: usize>(
     let weights = it.method.weights;
     let spare = 1 - it.memory.fused_last;
     let fused = it.memory.fused.get_or_insert_with(|| {
-        let empty = FusedSubsteps { carry: [0.0; N], plain: false, increments: [[0.0; N]; MAX_STAGES] };
+        let empty = FusedSubsteps { carry: [0.0; N], increments: [[0.0; N]; MAX_STAGES] };
         Box::new([empty.clone(), empty])
     });
     let into = &mut fused[spare];
     into.carry = it.carry;
-    into.plain = it.summation.is_plain();
     let node = ExplicitNode { state: &it.state, carry: &it.carry, p_carry: &it.p_carry, v0: &it.v0 };
     let (inner, increments) = (&mut it.memory.inner, &mut into.increments);
     let taken = match it.summation {

@@ -1018,8 +1018,10 @@ struct SubstepStart<'a, const N: usize> {
 /// `drift(p, h_i, out)` writing `h_i M⁻¹ p`: `(Δq, Δp, q_{k+1}, h_m/2)`, `Δp`
 /// still without its closing kick `h_m/2 · f_{k+1}`. `forces` is `f_k` and
 /// the buffer that receives `f_{k+1}`; the sub-nodes' forces stay local.
-/// `PLAIN`: `q` and `p` are updated in place, and the second value is the
-/// momentum `p` before the closing kick, not `Δp`.
+/// `PLAIN` ([`Summation::Plain`]): `p ← p + (h_{i−1} + h_i)/2 · f_i`,
+/// `q ← q + h_i M⁻¹ p` in place, the way a hand-written composition steps,
+/// and the second value is the momentum `p` before the closing kick, not
+/// `Δp`; `Δq = q_{k+1} − q_k` is formed at the end.
 #[inline(always)]
 fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     system: &S,
@@ -1030,30 +1032,34 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
 ) -> ([f64; N], [f64; N], [f64; N], f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
-    if PLAIN {
-        return substeps_in_place(system, start, (f0, f_end), weights, increments, drift);
-    }
-    let (mut dq, mut dp, mut q) = ([0.0; N], [0.0; N], *q0);
+    // `dp` is `Δp` from the node, or under `PLAIN` the momentum itself.
+    let (mut dq, mut dp, mut q) = ([0.0; N], if PLAIN { *p0 } else { [0.0; N] }, *q0);
     let mut f = *f0;
     // Half the last sub-step: its closing kick joins the next opening one.
     let mut half = 0.0;
     let mut elapsed = 0.0;
     // `increments` has room for every sub-step (`Composition::check`).
     let m = weights.len().min(increments.len());
+    let mut mv = [0.0; N];
     for i in 0..m {
         let gamma = weights[i];
         let hi = gamma * h;
         let kick = half + 0.5 * hi;
-        let mut mv = [0.0; N];
         for j in 0..N {
             dp[j] += kick * f[j];
-            mv[j] = p0[j] + (pc[j] + dp[j]);
+            if !PLAIN {
+                mv[j] = p0[j] + (pc[j] + dp[j]);
+            }
         }
         let slot = &mut increments[i];
-        drift(&mv, hi, slot);
+        drift(if PLAIN { &dp } else { &mv }, hi, slot);
         for j in 0..N {
-            dq[j] += slot[j];
-            q[j] = q0[j] + (qc[j] + dq[j]);
+            if PLAIN {
+                q[j] += slot[j];
+            } else {
+                dq[j] += slot[j];
+                q[j] = q0[j] + (qc[j] + dq[j]);
+            }
         }
         elapsed += gamma;
         let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
@@ -1061,45 +1067,10 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
         half = 0.5 * hi;
     }
     *f_end = f;
+    if PLAIN {
+        dq = core::array::from_fn(|j| q[j] - q0[j]);
+    }
     (dq, dp, q, half)
-}
-
-/// [`substeps`] under [`Summation::Plain`]: `p ← p + (h_{i−1} + h_i)/2 · f_i`,
-/// `q ← q + h_i M⁻¹ p` in place, the way a hand-written composition steps;
-/// returns `(q_{k+1} − q_k, p, q_{k+1}, h_m/2)` with `p` still without its
-/// closing kick.
-#[inline(always)]
-fn substeps_in_place<S: Lagrangian<N>, const N: usize>(
-    system: &S,
-    start: &SubstepStart<'_, N>,
-    (f0, f_end): (&[f64; N], &mut [f64; N]),
-    weights: &[f64],
-    increments: &mut [[f64; N]],
-    drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
-) -> ([f64; N], [f64; N], [f64; N], f64) {
-    let SubstepStart { q0, p0, t0, t1, h, .. } = *start;
-    let (mut q, mut p, mut f) = (*q0, *p0, *f0);
-    let (mut half, mut elapsed) = (0.0, 0.0);
-    let m = weights.len().min(increments.len());
-    for i in 0..m {
-        let gamma = weights[i];
-        let hi = gamma * h;
-        let kick = half + 0.5 * hi;
-        for j in 0..N {
-            p[j] += kick * f[j];
-        }
-        let slot = &mut increments[i];
-        drift(&p, hi, slot);
-        for j in 0..N {
-            q[j] += slot[j];
-        }
-        elapsed += gamma;
-        let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
-        potential_force(system, ti, &q, &mut f);
-        half = 0.5 * hi;
-    }
-    *f_end = f;
-    (core::array::from_fn(|j| q[j] - q0[j]), p, q, half)
 }
 
 #[cfg(test)]

@@ -741,7 +741,13 @@ impl SparseWork {
 
     /// The sub-steps of [`verlet_composed`](Self::verlet_composed) from the
     /// node force `f0`, into `out`; returns the last sub-step's start time
-    /// and size. `scratch.f` ends with the force at the end node.
+    /// and size. `scratch.f` ends with the force at the end node. Under
+    /// [`Summation::Plain`](crate::Summation::Plain) (`node.plain`) the
+    /// sub-steps update `q` and `p` in place in `out.q1` and `out.p1`,
+    /// `p ← p + (h_{i−1} + h_i)/2 · f_i`, `q ← q + h_i M⁻¹ p`, as a
+    /// hand-written composition steps (forward mode's `substeps`, same
+    /// operations in the same order), and `Δq = q_{k+1} − q_k` is formed at
+    /// the end for the growth check.
     #[allow(clippy::too_many_arguments)]
     fn composed_into<Mo: TapeModel>(
         &mut self,
@@ -754,23 +760,28 @@ impl SparseWork {
         out: &mut Taken,
         scratch: ComposedScratch<'_>,
     ) -> Result<(f64, f64), NewtonFailure> {
-        if node.plain {
-            return self.composed_in_place(model, node, (h, t1), weights, growth, f0, out, scratch);
-        }
-        let n = self.n;
+        let (n, plain) = (self.n, node.plain);
         let ComposedScratch { f, dp, last_q0, last_dq } = scratch;
-        let (q0, qc0, p0, pc0) = (&node.q[..n], &node.q_carry[..n], &node.p[..n], &node.p_carry[..n]);
-        let (dq, q, mv) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.p1[..n]);
+        let (q0, p0) = (&node.q[..n], &node.p[..n]);
+        // Compensated: `p` is each drift's momentum `p_k + (c_p + Δp)`, `dp`
+        // holds `Δp` and `q` the end node; plain: `p` and `q` are the running
+        // momentum and position, and `dp` a copy of `p` for a solve.
+        let (dq, q, p) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.p1[..n]);
         let (f, dp, last_q0, last_dq) = (&mut f[..n], &mut dp[..n], &mut last_q0[..n], &mut last_dq[..n]);
         let f0 = &f0[..n];
-        dq.fill(0.0);
-        dp.fill(0.0);
+        if plain {
+            q.copy_from_slice(q0);
+            p.copy_from_slice(p0);
+        } else {
+            dq.fill(0.0);
+            dp.fill(0.0);
+        }
         let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
         // Half the last sub-step: its closing kick joins the next opening one.
         let (mut half, mut elapsed) = (0.0, 0.0);
         let (mut t_last, mut h_last) = (node.t, 0.0);
         let m = weights.len();
-        if m == 1 {
+        if m == 1 && !plain {
             last_q0.copy_from_slice(q0);
         }
         for (i, &gamma) in weights.iter().enumerate() {
@@ -779,17 +790,38 @@ impl SparseWork {
             // The force at the sub-step's start: the node's, then the last
             // sub-node's (no copy of the node force).
             let fi: &[f64] = if i == 0 { f0 } else { f };
-            for j in 0..n {
-                dp[j] += kick * fi[j];
-                mv[j] = p0[j] + (pc0[j] + dp[j]);
-            }
-            self.sub_drift(velocity, mv, hi, last_dq)?;
-            // The sub-nodes' positions go to `last_q0`, which then holds
-            // the last sub-step's start; the end node's to `q`.
-            let x: &mut [f64] = if i + 1 == m { &mut *q } else { &mut *last_q0 };
-            for j in 0..n {
-                dq[j] += last_dq[j];
-                x[j] = q0[j] + (qc0[j] + dq[j]);
+            if plain {
+                for j in 0..n {
+                    p[j] += kick * fi[j];
+                }
+                // A solve works in place: `p` must stay, so it gets a copy.
+                if let Velocity::Solved = velocity {
+                    dp.copy_from_slice(p);
+                    self.sub_drift(velocity, dp, hi, last_dq)?;
+                } else {
+                    self.sub_drift(velocity, p, hi, last_dq)?;
+                }
+                if i + 1 == m {
+                    // The last sub-step's start, for the readouts.
+                    last_q0.copy_from_slice(q);
+                }
+                for j in 0..n {
+                    q[j] += last_dq[j];
+                }
+            } else {
+                let (qc0, pc0) = (&node.q_carry[..n], &node.p_carry[..n]);
+                for j in 0..n {
+                    dp[j] += kick * fi[j];
+                    p[j] = p0[j] + (pc0[j] + dp[j]);
+                }
+                self.sub_drift(velocity, p, hi, last_dq)?;
+                // The sub-nodes' positions go to `last_q0`, which then holds
+                // the last sub-step's start; the end node's to `q`.
+                let x: &mut [f64] = if i + 1 == m { &mut *q } else { &mut *last_q0 };
+                for j in 0..n {
+                    dq[j] += last_dq[j];
+                    x[j] = q0[j] + (qc0[j] + dq[j]);
+                }
             }
             elapsed += gamma;
             let ti = if i + 1 == m { t1 } else { node.t + elapsed * h };
@@ -798,22 +830,33 @@ impl SparseWork {
             } else {
                 h_last = hi;
             }
-            if potential_force(model, &mut self.tape, &self.zero, ti, x, f).is_err() {
+            let at: &[f64] = if plain || i + 1 == m { q } else { last_q0 };
+            if potential_force(model, &mut self.tape, &self.zero, ti, at, f).is_err() {
                 return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
             }
             half = 0.5 * hi;
         }
-        let (qc1, p1, pc1) = (&mut out.q_carry[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
         let (mut q_bad, mut p_bad) = (0, 0);
-        for j in 0..n {
-            // `q` holds `q_k + (c_q + Δq)`: the Kahan sum's new value.
-            qc1[j] = (qc0[j] + dq[j]) - (q[j] - q0[j]);
-            q_bad |= nan_bits(q[j]);
-            dp[j] += half * f[j];
-            let (sum, carry) = kahan(p0[j], pc0[j], dp[j]);
-            p1[j] = sum;
-            pc1[j] = carry;
-            p_bad |= nan_bits(sum);
+        if plain {
+            for j in 0..n {
+                dq[j] = q[j] - q0[j];
+                q_bad |= nan_bits(q[j]);
+                p[j] += half * f[j];
+                p_bad |= nan_bits(p[j]);
+            }
+        } else {
+            let (qc0, pc0) = (&node.q_carry[..n], &node.p_carry[..n]);
+            let (qc1, pc1) = (&mut out.q_carry[..n], &mut out.p_carry[..n]);
+            for j in 0..n {
+                // `q` holds `q_k + (c_q + Δq)`: the Kahan sum's new value.
+                qc1[j] = (qc0[j] + dq[j]) - (q[j] - q0[j]);
+                q_bad |= nan_bits(q[j]);
+                dp[j] += half * f[j];
+                let (sum, carry) = kahan(p0[j], pc0[j], dp[j]);
+                p[j] = sum;
+                pc1[j] = carry;
+                p_bad |= nan_bits(sum);
+            }
         }
         self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
@@ -850,83 +893,6 @@ impl SparseWork {
             }
         }
         Ok(())
-    }
-
-    /// [`composed_into`](Self::composed_into) under [`Summation::Plain`](crate::Summation::Plain):
-    /// `p ← p + (h_{i−1} + h_i)/2 · f_i`, `q ← q + h_i M⁻¹ p` in place in
-    /// `out.p1` and `out.q1`, as a hand-written composition steps (forward
-    /// mode's `substeps_in_place`, same operations in the same order), then
-    /// the closing kick and `Δq = q_{k+1} − q_k` for the growth check.
-    #[allow(clippy::too_many_arguments)]
-    fn composed_in_place<Mo: TapeModel>(
-        &mut self,
-        model: &Mo,
-        node: &Node<'_>,
-        (h, t1): (f64, f64),
-        weights: &[f64],
-        growth: &Growth<'_>,
-        f0: &[f64],
-        out: &mut Taken,
-        scratch: ComposedScratch<'_>,
-    ) -> Result<(f64, f64), NewtonFailure> {
-        let n = self.n;
-        let ComposedScratch { f, dp: solved, last_q0, last_dq } = scratch;
-        let (q0, p0) = (&node.q[..n], &node.p[..n]);
-        let (dq, q, p) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.p1[..n]);
-        let (f, solved, last_q0, last_dq) = (&mut f[..n], &mut solved[..n], &mut last_q0[..n], &mut last_dq[..n]);
-        let f0 = &f0[..n];
-        q.copy_from_slice(q0);
-        p.copy_from_slice(p0);
-        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
-        let (mut half, mut elapsed) = (0.0, 0.0);
-        let (mut t_last, mut h_last) = (node.t, 0.0);
-        let m = weights.len();
-        for (i, &gamma) in weights.iter().enumerate() {
-            let hi = gamma * h;
-            let kick = half + 0.5 * hi;
-            let fi: &[f64] = if i == 0 { f0 } else { f };
-            for j in 0..n {
-                p[j] += kick * fi[j];
-            }
-            // A solve works in place: `p` must stay, so it gets a copy.
-            if let Velocity::Solved = velocity {
-                solved.copy_from_slice(p);
-                self.sub_drift(velocity, solved, hi, last_dq)?;
-            } else {
-                self.sub_drift(velocity, p, hi, last_dq)?;
-            }
-            if i + 1 == m {
-                // The last sub-step's start, for the readouts.
-                last_q0.copy_from_slice(q);
-            }
-            for j in 0..n {
-                q[j] += last_dq[j];
-            }
-            elapsed += gamma;
-            let ti = if i + 1 == m { t1 } else { node.t + elapsed * h };
-            if i + 1 < m {
-                t_last = ti;
-            } else {
-                h_last = hi;
-            }
-            if potential_force(model, &mut self.tape, &self.zero, ti, q, f).is_err() {
-                return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
-            }
-            half = 0.5 * hi;
-        }
-        let (mut q_bad, mut p_bad) = (0, 0);
-        for j in 0..n {
-            dq[j] = q[j] - q0[j];
-            q_bad |= nan_bits(q[j]);
-            p[j] += half * f[j];
-            p_bad |= nan_bits(p[j]);
-        }
-        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
-        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
-        match quantity {
-            Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
-            None => Ok((t_last, h_last)),
-        }
     }
 
     /// The Verlet step given the force `f0` at the node, into `out`, and the
