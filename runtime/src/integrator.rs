@@ -46,7 +46,7 @@ pub use variable_step::{EnergyFallback, StepBounds};
 pub struct Stats {
     /// Steps taken successfully.
     pub steps: u64,
-    /// Newton iterations (residual-and-Jacobian evaluations) over all successful steps.
+    /// Newton iterations (residual evaluations) over all successful steps.
     pub newton_iterations: u64,
     /// Steps that failed and were not applied.
     pub failed_steps: u64,

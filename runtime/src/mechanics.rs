@@ -103,11 +103,12 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
     /// The velocity `v` with `∂L/∂v(t, q, v) = p` (inverse Legendre
     /// transform), by Newton's method from `guess`.
     fn velocity(&self, t: f64, q: [f64; N], p: [f64; N], guess: [f64; N]) -> Result<[f64; N], LegendreFailure> {
-        let eval = |v: &SVector<f64, N>| {
+        let eval = |v: &SVector<f64, N>, _| {
             let v: [f64; N] = (*v).into();
             let m = self.momentum(t, q, v);
             let r = SVector::<f64, N>::from_fn(|i, _| m[i] - p[i]);
             newton::square_correction(r, self.velocity_hessian(t, q, v), NewtonOptions::default().min_rcond)
+                .map(|(step, _)| step)
         };
         match newton::solve(SVector::from(guess), &NewtonOptions::default(), eval) {
             Ok((v, _)) => Ok(v.into()),

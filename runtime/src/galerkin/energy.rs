@@ -103,7 +103,7 @@ where
         let min_rcond = self.newton.min_rcond;
         let mut work = Work::new(None);
         let mut factored = false;
-        let fixed = |x: &Nodes<N, S, T>| {
+        let fixed = |x: &Nodes<N, S, T>, _| {
             // Full Newton, the condition estimated at every iteration.
             work.start(false, false);
             let lin = linearize(system, g, t0, h, (&q0, &e), (&p0, &pc), &x.0, min_rcond, &mut work)?;

@@ -317,7 +317,7 @@ where
         let attempt = |guess: BlockVector<N, S, T>, simplify: bool, kept: bool, work: &mut Work<'_, N, S, T>| {
             let options = if kept { &kept_options } else { &self.newton };
             work.start(simplify, kept);
-            newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>| linearize(x, work))
+            newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>, _| linearize(x, work))
         };
         let predicted = self.predict_nodes(h);
         let mut spent = 0;

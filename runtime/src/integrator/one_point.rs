@@ -28,7 +28,7 @@ use crate::error::Error;
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
 use crate::mechanics::DiscreteMechanics;
-use crate::newton::{self, NewtonFailure, NewtonReport};
+use crate::newton::{self, Jacobian, NewtonFailure, NewtonReport};
 use crate::real::max_abs;
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
@@ -414,11 +414,16 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
         // The condition estimate on the first iteration only (see
-        // `newton::square_correction_unestimated`).
+        // `newton::square_correction_unestimated`); the inverse Jacobian is
+        // kept for the iterations Newton lets keep it.
         let mut first = true;
-        let eval = |x: &SVector<f64, N>| {
+        let mut inverse = None;
+        let eval = |x: &SVector<f64, N>, jacobian: Jacobian| {
             let estimate = core::mem::replace(&mut first, false);
-            self.del_linearization(h, (*x).into(), p_scale, estimate)
+            if jacobian == Jacobian::Fresh {
+                inverse = None;
+            }
+            self.del_linearization(h, (*x).into(), p_scale, estimate, &mut inverse)
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {
@@ -440,7 +445,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `dq` of a step of size `h` (forces included: Lagrange–d'Alembert puts
     /// `F_k^−` into `∂A/∂q_k` and `∂F_k^−/∂q_{k+1}` into the Jacobian), its
     /// residual measured against the terms that cancel (`p_scale` = `max|p_k|`).
-    /// `estimate`: estimate the Jacobian's condition number too.
+    /// `estimate`: estimate the Jacobian's condition number too. With an
+    /// `inverse` Jacobian kept from an earlier iterate, the correction is made
+    /// with it (simplified Newton: see [`Jacobian::Kept`]), and from the
+    /// macro's gradient code only the residual is evaluated; without one, the
+    /// inverse made here is left in it.
     #[inline]
     pub(super) fn del_linearization(
         &self,
@@ -448,10 +457,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         dq: [f64; N],
         p_scale: f64,
         estimate: bool,
+        inverse: &mut Option<SMatrix<f64, N, N>>,
     ) -> Result<newton::Linearization<SVector<f64, N>>, newton::Breakdown> {
-        let State { t: t0, q: q0, p: p0, .. } = self.state;
+        let State { t: t0, q: q0, .. } = self.state;
         let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
+        if let (Some(points), Some(kept)) = (self.gradient_points(), inverse.as_ref()) {
+            // The residual alone, in `f64`: no dual lanes, and the correction
+            // does not wait for `1/J` (a shorter chain of dependent operations
+            // from one iterate to the next).
+            let d_q0 = gradient_residual(system, points, &seg);
+            let scale = p_scale.max(max_abs(&d_q0));
+            return Ok(newton::kept_correction(self.del_residual(&d_q0), kept)?.cancelling(scale));
+        }
         let (d_q0, jacobian) = match self.gradient_points() {
             Some(points) => gradient_linearization(system, points, &seg),
             None => {
@@ -459,21 +477,34 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 (d.d_q0, d.d2_q0_q1)
             }
         };
-        // The momentum carries its compensation: p_k is p0 + pc (zero, and
-        // not added, under plain summation: one addition fewer on the chain
-        // from one iterate to the next).
-        let pc = &self.p_carry;
-        let r = match self.summation {
-            Summation::Compensated => SVector::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]),
-            Summation::Plain => SVector::from_fn(|i, _| p0[i] + d_q0[i]),
-        };
+        let r = self.del_residual(&d_q0);
         let scale = p_scale.max(max_abs(&d_q0));
-        let step = if estimate {
-            newton::square_correction(r, jacobian, self.newton.min_rcond)?
-        } else {
-            newton::square_correction_unestimated(r, jacobian)?
+        let step = match inverse.as_ref() {
+            Some(kept) => newton::kept_correction(r, kept)?,
+            None => {
+                let (step, inv) = if estimate {
+                    newton::square_correction(r, jacobian, self.newton.min_rcond)?
+                } else {
+                    newton::square_correction_unestimated(r, jacobian)?
+                };
+                *inverse = Some(inv);
+                step
+            }
         };
         Ok(step.cancelling(scale))
+    }
+
+    /// The DEL residual `p_k + ∂A/∂q_k` from `d_q0 = ∂A/∂q_k`. The momentum
+    /// carries its compensation: `p_k` is `p0 + pc` (zero, and not added,
+    /// under plain summation: one addition fewer on the chain from one
+    /// iterate to the next).
+    #[inline(always)]
+    fn del_residual(&self, d_q0: &[f64; N]) -> SVector<f64, N> {
+        let (p0, pc) = (&self.state.p, &self.p_carry);
+        match self.summation {
+            Summation::Compensated => SVector::from_fn(|i, _| (p0[i] + d_q0[i]) + pc[i]),
+            Summation::Plain => SVector::from_fn(|i, _| p0[i] + d_q0[i]),
+        }
     }
 
     /// The rule's quadrature points `c_j` when its Newton steps take their
@@ -974,6 +1005,31 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
         }
     }
     (d_q0, jacobian)
+}
+
+/// The residual part `∂A/∂q_k` of [`gradient_linearization`] alone, from the
+/// macro's `f64` gradient code: the same operations on the same numbers, so
+/// the same bits as the dual sweep's real parts.
+#[inline(always)]
+fn gradient_residual<S: Lagrangian<N>, const N: usize>(system: &S, points: [f64; 2], seg: &Segment<N>) -> [f64; N] {
+    let Segment { t0, h, q0, dq } = *seg;
+    let inv_h = h.recip();
+    let (evaluated, w) = super::tape_step::distinct(points);
+    let b_v = w * (h * inv_h);
+    let v: [f64; N] = dq.map(|d| d * inv_h);
+    let mut d_q0 = [0.0; N];
+    for (n, &j) in evaluated.iter().enumerate() {
+        let c = points[j];
+        let a_q = w * (h * (1.0 - c));
+        let q: [f64; N] = core::array::from_fn(|i| super::tape_step::point_position(c, q0[i], dq[i]));
+        let (mut gq, mut gv) = ([0.0; N], [0.0; N]);
+        system.gradient_qv(super::tape_step::point_time(c, t0, h), &q, &v, &mut gq, &mut gv);
+        for i in 0..N {
+            let d = a_q * gq[i] - b_v * gv[i];
+            d_q0[i] = if n == 0 { d } else { d_q0[i] + d };
+        }
+    }
+    d_q0
 }
 
 /// The momentum change `∂A/∂q_k + ∂A/∂q_{k+1} = Σ_j w h L_q(x_j)` (at fixed

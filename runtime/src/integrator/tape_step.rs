@@ -28,7 +28,7 @@ use super::one_point::{fold_max_abs, is_non_finite, nan_bits};
 use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::hyperdual::DualArray;
-use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
+use crate::newton::{self, Breakdown, Jacobian, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{all_finite, max_abs};
 use crate::structure::{Coupling, Pattern};
 use crate::system::Scalar;
@@ -533,11 +533,15 @@ impl SparseWork {
         // barely changes within a step; later iterations still refuse a zero
         // or non-finite pivot.
         let mut first = true;
-        let linearize = |iterate: &Slot<'_>| -> Result<Linearization<Slot<'_>>, Breakdown> {
+        let linearize = |iterate: &Slot<'_>, jacobian: Jacobian| -> Result<Linearization<Slot<'_>>, Breakdown> {
             let x = iterate.0.borrow();
             let mut r = correction.borrow_mut();
             // `r` first holds `∂A/∂q_k|_{q_{k+1}}`, then the residual.
             match points {
+                // A kept Jacobian: the residual alone, in `f64`.
+                Some(points) if jacobian == Jacobian::Kept => {
+                    self.directional.residual(model, node.t, h, points, q0, &x, &mut r)
+                }
                 Some(points) => {
                     self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
                 }
@@ -552,9 +556,14 @@ impl SparseWork {
             if !r.iter().all(|x| x.is_finite()) {
                 return Err(Breakdown::NonFinite("residual"));
             }
-            let rcond_floor = if first { min_rcond } else { 0.0 };
-            first = false;
-            assemble_and_factor(&mut self.jacobian, n, bandwidth, &self.mixed, rcond_floor)?;
+            // Where Newton lets it, the factors of the last iterate's
+            // Jacobian are kept (simplified Newton; the first request of a
+            // solve is always for a fresh one).
+            if jacobian == Jacobian::Fresh {
+                let rcond_floor = if first { min_rcond } else { 0.0 };
+                first = false;
+                assemble_and_factor(&mut self.jacobian, n, bandwidth, &self.mixed, rcond_floor)?;
+            }
             let residual_norm = max_abs(&r);
             self.jacobian.solve(&mut r).map_err(breakdown)?;
             for x in r.iter_mut() {
@@ -1293,6 +1302,37 @@ impl Directional {
         }
     }
 
+    /// `∂A/∂q_k|_{q_{k+1}}` at the increment `dq` alone into `d_q0`, from the
+    /// `f64` gradient code: the real parts of [`linearize`](Self::linearize),
+    /// summed in the same order, for the iterations that keep the Jacobian.
+    #[allow(clippy::too_many_arguments)]
+    fn residual<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        points: [f64; 2],
+        q0: &[f64],
+        dq: &[f64],
+        d_q0: &mut [f64],
+    ) {
+        let n = q0.len();
+        let inv_h = h.recip();
+        self.points(points, q0, dq, inv_h);
+        let (evaluated, w) = distinct(points);
+        let b_v = w * (h * inv_h);
+        d_q0.fill(0.0);
+        for &j in evaluated {
+            let c = points[j];
+            let a_q = w * (h * (1.0 - c));
+            let at = &self.at[j * n..(j + 1) * n];
+            model.gradient_qv(point_time(c, t0, h), at, &self.velocity, &mut self.fq, &mut self.fv);
+            for i in 0..n {
+                d_q0[i] += a_q * self.fq[i] - b_v * self.fv[i];
+            }
+        }
+    }
+
     /// After convergence: `∂A/∂q_k` at fixed increment (the momentum change)
     /// into `g_q0`, and the step's discrete energy `−∂A/∂h`, from the `f64`
     /// gradient code and `L` (with `∂L/∂t` on a dual number when `L`
@@ -1778,7 +1818,7 @@ pub(crate) fn velocity<Mo: TapeModel>(
     let n = q.len();
     let options = NewtonOptions::default();
     let bandwidth = mass_bandwidth(model.coupling(), n);
-    let linearize = |v: &Vec<f64>| -> Result<Linearization<Vec<f64>>, Breakdown> {
+    let linearize = |v: &Vec<f64>, _| -> Result<Linearization<Vec<f64>>, Breakdown> {
         let (_, m, mut hessian) = velocity_derivatives(model, t, q, v, bandwidth)?;
         let mut r: Vec<f64> = (0..n).map(|i| m[i] - p[i]).collect();
         if !r.iter().all(|x| x.is_finite()) {

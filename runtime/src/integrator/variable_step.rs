@@ -184,7 +184,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         };
         let (system, method, min_rcond) = (&self.system, &self.method, self.newton.min_rcond);
         let pc = self.p_carry;
-        let linearize = |x: &Extended<N>| {
+        let linearize = |x: &Extended<N>, _| {
             if x.t.is_nan() || x.t <= 0.0 {
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
             }
@@ -236,7 +236,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `h` (forces included), or `None` where the correction cannot be made
     /// (a singular or non-finite Jacobian or residual).
     fn del_correction(&self, h: f64, dq: [f64; N]) -> Option<[f64; N]> {
-        let step = self.del_linearization(h, dq, max_abs(&self.state.p), true).ok()?;
+        let step = self.del_linearization(h, dq, max_abs(&self.state.p), true, &mut None).ok()?;
         let out: [f64; N] = core::array::from_fn(|i| dq[i] + step.correction[i]);
         out.iter().all(|x| x.is_finite()).then_some(out)
     }
