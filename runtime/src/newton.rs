@@ -148,12 +148,21 @@ pub(crate) struct Linearization<X> {
     /// the one-point path).
     pub(crate) cancelled: f64,
     pub(crate) scale: f64,
+    /// Made with a Jacobian kept from an earlier iterate ([`Jacobian::Kept`]):
+    /// the stopping rule then holds its estimate to 1/100 of the tolerance.
+    pub(crate) kept: bool,
 }
 
 impl<X> Linearization<X> {
     /// A correction whose residual is not compared with its terms.
     pub(crate) fn new(correction: X, residual_norm: f64) -> Self {
-        Self { correction, residual_norm, cancelled: f64::INFINITY, scale: 1.0 }
+        Self { correction, residual_norm, cancelled: f64::INFINITY, scale: 1.0, kept: false }
+    }
+
+    /// Marks a correction made with a kept Jacobian.
+    pub(crate) fn kept(mut self) -> Self {
+        self.kept = true;
+        self
     }
 
     /// Records the size of the terms whose cancellation forms the residual.
@@ -300,7 +309,7 @@ pub(crate) fn kept_correction<const N: usize>(
     if !r.iter().all(|v| v.is_finite()) {
         return Err(Breakdown::NonFinite("residual"));
     }
-    Ok(Linearization::new(-(inv * r), r.amax()))
+    Ok(Linearization::new(-(inv * r), r.amax()).kept())
 }
 
 /// [`square_correction`] without the condition estimate, for the later
@@ -409,7 +418,7 @@ where
             // to 1/100 of the tolerance, so that a kept Jacobian leaves no
             // more error than a fresh one (`tests/newton_accuracy.rs`: 7.3e-16
             // of the increment, as full Newton; 4.5e-15 with 1/4).
-            let margin = if jacobian == Jacobian::Kept { 100.0 } else { 1.0 };
+            let margin = if step.kept { 100.0 } else { 1.0 };
             if ratio < prev && margin * (ratio * ratio) <= prev - ratio {
                 return Ok((x, report));
             }

@@ -932,7 +932,13 @@ where
     for rho in 0..S {
         residual_ratio = residual_ratio.max(max_abs(&r[rho]) / scale[rho]);
     }
-    Ok(Linearization { correction, residual_norm: max_abs(r.as_flattened()), cancelled: residual_ratio, scale: 1.0 })
+    Ok(Linearization {
+        correction,
+        residual_norm: max_abs(r.as_flattened()),
+        cancelled: residual_ratio,
+        scale: 1.0,
+        kept: false,
+    })
 }
 
 /// The state of the Newton iteration of one step across its attempts: the

@@ -450,7 +450,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// with it (simplified Newton: see [`Jacobian::Kept`]), and from the
     /// macro's gradient code only the residual is evaluated; without one, the
     /// inverse made here is left in it.
-    #[inline]
+    #[inline(always)]
     pub(super) fn del_linearization(
         &self,
         h: f64,
@@ -462,19 +462,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let State { t: t0, q: q0, .. } = self.state;
         let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
-        if let (Some(points), Some(kept)) = (self.gradient_points(), inverse.as_ref()) {
+        let (d_q0, jacobian) = match (self.gradient_points(), &*inverse) {
             // The residual alone, in `f64`: no dual lanes, and the correction
             // does not wait for `1/J` (a shorter chain of dependent operations
             // from one iterate to the next).
-            let d_q0 = gradient_residual(system, points, &seg);
-            let scale = p_scale.max(max_abs(&d_q0));
-            return Ok(newton::kept_correction(self.del_residual(&d_q0), kept)?.cancelling(scale));
-        }
-        let (d_q0, jacobian) = match self.gradient_points() {
-            Some(points) => gradient_linearization(system, points, &seg),
-            None => {
+            (Some(points), Some(_)) => (gradient_residual(system, points, &seg), None),
+            (Some(points), None) => {
+                let (d_q0, jacobian) = gradient_linearization(system, points, &seg);
+                (d_q0, Some(jacobian))
+            }
+            (None, _) => {
                 let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
-                (d.d_q0, d.d2_q0_q1)
+                (d.d_q0, Some(d.d2_q0_q1))
             }
         };
         let r = self.del_residual(&d_q0);
@@ -482,6 +481,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let step = match inverse.as_ref() {
             Some(kept) => newton::kept_correction(r, kept)?,
             None => {
+                // Only the residual-alone branch above leaves no Jacobian, and
+                // only beside a kept inverse (a zero one would be reported singular).
+                let jacobian = jacobian.unwrap_or_else(SMatrix::zeros);
                 let (step, inv) = if estimate {
                     newton::square_correction(r, jacobian, self.newton.min_rcond)?
                 } else {

@@ -569,7 +569,8 @@ impl SparseWork {
             for x in r.iter_mut() {
                 *x = -*x;
             }
-            Ok(Linearization::new(Slot(&correction), residual_norm).cancelling(scale))
+            let lin = Linearization::new(Slot(&correction), residual_norm).cancelling(scale);
+            Ok(if jacobian == Jacobian::Kept { lin.kept() } else { lin })
         };
         let solved = newton::solve(Slot(&x), options, linearize).map(|(_, report)| report);
         self.recycle(correction.into_inner());
