@@ -413,6 +413,18 @@ where
     (a.eps.q, a.eps.t)
 }
 
+/// `∂A/∂q_k` at fixed `q_{k+1}`, the DEL's part of the step (one
+/// [`DualArray`] evaluation): the residual of the Newton iterations that
+/// keep their Jacobian.
+#[inline]
+pub(crate) fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    dual_array_position_action(system, method, seg, Var::Q0).eps
+}
+
 /// `∂A/∂q_{k+1}`, the momentum at the end of a segment (one [`DualArray`] evaluation).
 #[inline]
 pub fn end_momentum<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]

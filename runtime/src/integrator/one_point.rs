@@ -467,6 +467,12 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // does not wait for `1/J` (a shorter chain of dependent operations
             // from one iterate to the next).
             (Some(points), Some(_)) => (gradient_residual(system, points, &seg), None),
+            // Without gradient code: first derivatives on `N` dual lanes
+            // instead of the hyper-dual sweep's `N² + 2N` (forces keep the
+            // full evaluation, which adds theirs).
+            (None, Some(_)) if !forcing::is_forced::<S, N>() => {
+                (derivatives::start_gradient(system, method, &seg), None)
+            }
             (Some(points), None) => {
                 let (d_q0, jacobian) = gradient_linearization(system, points, &seg);
                 (d_q0, Some(jacobian))

@@ -545,6 +545,7 @@ impl SparseWork {
                 Some(points) => {
                     self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
                 }
+                None if jacobian == Jacobian::Kept => self.tape_residual(model, node.t, h, q0, &x, &mut r)?,
                 None => self.tape_linearize(model, node.t, h, q0, &x, &mut r)?,
             }
             let mut scale = max_abs(p0);
@@ -611,6 +612,29 @@ impl SparseWork {
         seeds.recover(&self.products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
         for (a, b) in self.mixed.iter_mut().zip(&self.end) {
             *a -= b;
+        }
+        Ok(())
+    }
+
+    /// `∂A/∂q_k|_{q_{k+1}}` alone from the tape (one reverse sweep, no
+    /// second-order products): the residual of the iterations that keep
+    /// their Jacobian.
+    fn tape_residual<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        q0: &[f64],
+        dq: &[f64],
+        d_q0: &mut [f64],
+    ) -> Result<(), Breakdown> {
+        let n = self.n;
+        self.tape_buffers().map_err(breakdown)?;
+        self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
+        self.tape.gradient(&mut self.gradient).map_err(tape_breakdown)?;
+        let g = &self.gradient;
+        for i in 0..n {
+            d_q0[i] = g[i] - g[n + i];
         }
         Ok(())
     }
