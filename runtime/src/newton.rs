@@ -390,7 +390,10 @@ where
     let mut previous: Option<f64> = None;
     let mut growing = 0;
     let mut jacobian = Jacobian::Fresh;
-    for iterations in 1..=options.max_iterations {
+    // `0..max` and a `+ 1`, not `1..=max`: an inclusive range carries an
+    // exhaustion flag through every iteration.
+    for iteration in 0..options.max_iterations {
+        let iterations = iteration + 1;
         report.iterations = iterations;
         let step = linearize(&x, jacobian).map_err(|b| b.at(iterations))?;
         report.residual_norm = step.residual_norm;
