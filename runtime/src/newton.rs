@@ -398,12 +398,12 @@ where
         let step = linearize(&x, jacobian).map_err(|b| b.at(iterations))?;
         report.residual_norm = step.residual_norm;
         x.update(&step.correction);
-        let ratio = x.error_ratio(&step.correction, options.rtol, options.atol);
         if step.round_off(4.0 * X::EPSILON) {
             // The residual was round-off of its own terms: this correction was
             // the last one that can change anything.
             return Ok((x, report));
         }
+        let ratio = x.error_ratio(&step.correction, options.rtol, options.atol);
         report.correction_norm = ratio * options.rtol;
         if !ratio.is_finite() {
             return Err(NewtonFailure::NonFinite { iterations, quantity: "correction" });

@@ -462,24 +462,23 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let State { t: t0, q: q0, .. } = self.state;
         let (system, method) = (&self.system, &self.method);
         let seg = Segment { t0, h, q0, dq };
+        // Beside a kept inverse the residual alone is evaluated where that is
+        // cheaper, and the Jacobian is a zero that is not used.
         let (d_q0, jacobian) = match (self.gradient_points(), &*inverse) {
-            // The residual alone, in `f64`: no dual lanes, and the correction
-            // does not wait for `1/J` (a shorter chain of dependent operations
-            // from one iterate to the next).
-            (Some(points), Some(_)) => (gradient_residual(system, points, &seg), None),
+            // In `f64`: no dual lanes, and the correction does not wait for
+            // `1/J` (a shorter chain of dependent operations from one iterate
+            // to the next).
+            (Some(points), Some(_)) => (gradient_residual(system, points, &seg), SMatrix::zeros()),
             // Without gradient code: first derivatives on `N` dual lanes
             // instead of the hyper-dual sweep's `N² + 2N` (forces keep the
             // full evaluation, which adds theirs).
             (None, Some(_)) if !forcing::is_forced::<S, N>() => {
-                (derivatives::start_gradient(system, method, &seg), None)
+                (derivatives::start_gradient(system, method, &seg), SMatrix::zeros())
             }
-            (Some(points), None) => {
-                let (d_q0, jacobian) = gradient_linearization(system, points, &seg);
-                (d_q0, Some(jacobian))
-            }
+            (Some(points), None) => gradient_linearization(system, points, &seg),
             (None, _) => {
                 let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
-                (d.d_q0, Some(d.d2_q0_q1))
+                (d.d_q0, d.d2_q0_q1)
             }
         };
         let r = self.del_residual(&d_q0);
@@ -487,9 +486,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let step = match inverse.as_ref() {
             Some(kept) => newton::kept_correction(r, kept)?,
             None => {
-                // Only the residual-alone branch above leaves no Jacobian, and
-                // only beside a kept inverse (a zero one would be reported singular).
-                let jacobian = jacobian.unwrap_or_else(SMatrix::zeros);
                 let (step, inv) = if estimate {
                     newton::square_correction(r, jacobian, self.newton.min_rcond)?
                 } else {

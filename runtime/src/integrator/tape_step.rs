@@ -545,8 +545,7 @@ impl SparseWork {
                 Some(points) => {
                     self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
                 }
-                None if jacobian == Jacobian::Kept => self.tape_residual(model, node.t, h, q0, &x, &mut r)?,
-                None => self.tape_linearize(model, node.t, h, q0, &x, &mut r)?,
+                None => self.tape_linearize(model, node.t, h, q0, &x, &mut r, jacobian)?,
             }
             let mut scale = max_abs(p0);
             for i in 0..n {
@@ -587,8 +586,11 @@ impl SparseWork {
     }
 
     /// The tape's linearisation at the increment `dq`: `∂A/∂q_k|_{q_{k+1}} =
-    /// g_{q_k} − g_{Δq}` into `d_q0` and `J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq²` into
-    /// `mixed`, from one recording and one compressed second-order sweep.
+    /// g_{q_k} − g_{Δq}` into `d_q0` and, for a fresh `jacobian`,
+    /// `J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq²` into `mixed`, from one recording and one
+    /// compressed second-order sweep (a kept one: one reverse sweep, no
+    /// second-order products).
+    #[allow(clippy::too_many_arguments)]
     fn tape_linearize<Mo: TapeModel>(
         &mut self,
         model: &Mo,
@@ -597,44 +599,29 @@ impl SparseWork {
         q0: &[f64],
         dq: &[f64],
         d_q0: &mut [f64],
+        jacobian: Jacobian,
     ) -> Result<(), Breakdown> {
         let n = self.n;
         let seeds = seeds(n..2 * n, self.bandwidth);
         self.tape_buffers().map_err(breakdown)?;
         self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
-        self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products).map_err(tape_breakdown)?;
+        match jacobian {
+            Jacobian::Kept => self.tape.gradient(&mut self.gradient),
+            Jacobian::Fresh => self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products),
+        }
+        .map_err(tape_breakdown)?;
         let g = &self.gradient;
         for i in 0..n {
             d_q0[i] = g[i] - g[n + i];
+        }
+        if jacobian == Jacobian::Kept {
+            return Ok(());
         }
         // J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq², entry by entry of the pattern.
         seeds.recover(&self.products, 0..n, &mut self.mixed).map_err(tape_breakdown)?;
         seeds.recover(&self.products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
         for (a, b) in self.mixed.iter_mut().zip(&self.end) {
             *a -= b;
-        }
-        Ok(())
-    }
-
-    /// `∂A/∂q_k|_{q_{k+1}}` alone from the tape (one reverse sweep, no
-    /// second-order products): the residual of the iterations that keep
-    /// their Jacobian.
-    fn tape_residual<Mo: TapeModel>(
-        &mut self,
-        model: &Mo,
-        t0: f64,
-        h: f64,
-        q0: &[f64],
-        dq: &[f64],
-        d_q0: &mut [f64],
-    ) -> Result<(), Breakdown> {
-        let n = self.n;
-        self.tape_buffers().map_err(breakdown)?;
-        self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
-        self.tape.gradient(&mut self.gradient).map_err(tape_breakdown)?;
-        let g = &self.gradient;
-        for i in 0..n {
-            d_q0[i] = g[i] - g[n + i];
         }
         Ok(())
     }
