@@ -27,6 +27,7 @@ mod galerkin_paper;
 mod galerkin_structure;
 mod gradient_code;
 mod gradient_fuzz;
+mod impulse;
 mod noether;
 mod perturbed_pendulum;
 mod structure;

@@ -231,9 +231,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             };
         }
         let State { step, t: t0, q: q0, .. } = self.state;
-        let (dq, report) = self.solve_del(h)?;
+        let (dq, report, impulse) = self.solve_del_with_impulse(h)?;
         let seg = Segment { t0, h, q0, dq };
-        let (q1, p1, carry, p_carry) = self.advance(&seg);
+        let (q1, p1, carry, p_carry) = self.advance(&seg, impulse);
         if let Some(quantity) = non_finite(t1, &q1, &p1) {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
@@ -380,12 +380,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// taken at fixed increment. Summed this way the rounding of the nodes
     /// does not accumulate (it is carried into the next sum), so a moving
     /// centre of mass or large coordinates do not bias the energy or the
-    /// momenta. Returns the new compensations too; changes nothing.
+    /// momenta. `impulse`: the momentum change when Newton's last
+    /// linearisation already gave it ([`Impulse`]); evaluated otherwise.
+    /// Returns the new compensations too; changes nothing.
     #[inline]
-    pub(super) fn advance(&self, seg: &Segment<N>) -> ([f64; N], [f64; N], [f64; N], [f64; N]) {
-        let dp = match self.gradient_points() {
-            Some(points) => gradient_momentum_change(&self.system, points, seg),
-            None => forcing::momentum_change(&self.system, &self.method, seg),
+    pub(super) fn advance(
+        &self,
+        seg: &Segment<N>,
+        impulse: Option<[f64; N]>,
+    ) -> ([f64; N], [f64; N], [f64; N], [f64; N]) {
+        let dp = match (impulse, self.gradient_points()) {
+            (Some(dp), _) => dp,
+            (None, Some(points)) => gradient_momentum_change(&self.system, points, seg),
+            (None, None) => forcing::momentum_change(&self.system, &self.method, seg),
         };
         let (q1, q) = add_increment(self.summation, &self.state.q, &self.carry, &seg.dq);
         let (p1, p) = add_increment(self.summation, &self.state.p, &self.p_carry, &dp);
@@ -410,6 +417,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// of a step of size `h` (see `Segment` for why the increment).
     #[inline]
     pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
+        self.solve_del_with_impulse(h).map(|(dq, report, _)| (dq, report))
+    }
+
+    /// [`solve_del`](Self::solve_del), and the step's momentum change
+    /// `Σ_j w h L_q(q_j)` at the solution where Newton's last linearisation
+    /// gives it ([`Impulse`]).
+    #[inline]
+    #[allow(clippy::type_complexity)]
+    pub(super) fn solve_del_with_impulse(
+        &mut self,
+        h: f64,
+    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>), Error<N>> {
         let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
@@ -418,12 +437,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // kept for the iterations Newton lets keep it.
         let mut first = true;
         let mut inverse = None;
+        let mut impulse = Impulse::new();
         let eval = |x: &SVector<f64, N>, jacobian: Jacobian| {
             let estimate = core::mem::replace(&mut first, false);
             if jacobian == Jacobian::Fresh {
                 inverse = None;
             }
-            self.del_linearization(h, (*x).into(), p_scale, estimate, &mut inverse)
+            self.del_linearization(h, (*x).into(), p_scale, estimate, &mut inverse, &mut impulse)
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {
@@ -435,7 +455,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     let reason = IMPLAUSIBLE_GROWTH;
                     return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
                 }
-                Ok((dq, report))
+                Ok((dq, report, impulse.at_solution(&dq, p_scale)))
             }
             Err(failure) => Err(self.fail(h, failure)),
         }
@@ -449,7 +469,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `inverse` Jacobian kept from an earlier iterate, the correction is made
     /// with it (simplified Newton: see [`Jacobian::Kept`]), and from the
     /// macro's gradient code only the residual is evaluated; without one, the
-    /// inverse made here is left in it.
+    /// inverse made here is left in it. From the gradient code, the impulse
+    /// at `dq` and the correction made there are left in `impulse`.
     #[inline(always)]
     pub(super) fn del_linearization(
         &self,
@@ -458,6 +479,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         p_scale: f64,
         estimate: bool,
         inverse: &mut Option<SMatrix<f64, N, N>>,
+        impulse: &mut Impulse<N>,
     ) -> Result<newton::Linearization<SVector<f64, N>>, newton::Breakdown> {
         let State { t: t0, q: q0, .. } = self.state;
         let (system, method) = (&self.system, &self.method);
@@ -468,14 +490,27 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // In `f64`: no dual lanes, and the correction does not wait for
             // `1/J` (a shorter chain of dependent operations from one iterate
             // to the next).
-            (Some(points), Some(_)) => (gradient_residual(system, points, &seg), SMatrix::zeros()),
+            (Some(points), Some(_)) => {
+                let (d_q0, dp) = gradient_residual(system, points, &seg);
+                impulse.evaluated(dp, None);
+                (d_q0, SMatrix::zeros())
+            }
             // Without gradient code: first derivatives on `N` dual lanes
             // instead of the hyper-dual sweep's `N² + 2N` (forces keep the
             // full evaluation, which adds theirs).
             (None, Some(_)) if !forcing::is_forced::<S, N>() => {
                 (derivatives::start_gradient(system, method, &seg), SMatrix::zeros())
             }
-            (Some(points), None) => gradient_linearization(system, points, &seg),
+            (Some(points), None) if Impulse::<N>::LINEARISED => {
+                let mut slope = SMatrix::zeros();
+                let (d_q0, jacobian, dp) = gradient_linearization(system, points, &seg, Some(&mut slope));
+                impulse.evaluated(dp, Some(slope));
+                (d_q0, jacobian)
+            }
+            (Some(points), None) => {
+                let (d_q0, jacobian, _) = gradient_linearization(system, points, &seg, None);
+                (d_q0, jacobian)
+            }
             (None, _) => {
                 let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
                 (d.d_q0, d.d2_q0_q1)
@@ -495,6 +530,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 step
             }
         };
+        if Impulse::<N>::LINEARISED {
+            impulse.correction = step.correction.into();
+        }
         Ok(step.cancelling(scale))
     }
 
@@ -974,7 +1012,8 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
     system: &S,
     points: [f64; 2],
     seg: &Segment<N>,
-) -> ([f64; N], SMatrix<f64, N, N>) {
+    mut impulse_slope: Option<&mut SMatrix<f64, N, N>>,
+) -> ([f64; N], SMatrix<f64, N, N>, [f64; N]) {
     let Segment { t0, h, q0, dq } = *seg;
     let inv_h = h.recip();
     let (evaluated, w) = super::tape_step::distinct(points);
@@ -982,6 +1021,8 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
     // computed (`v = Δq·h⁻¹`).
     let b_v = w * (h * inv_h);
     let (mut d_q0, mut jacobian) = ([0.0; N], SMatrix::<f64, N, N>::zeros());
+    let mut dp = [0.0; N];
+    let wh = w * h;
     for (n, &j) in evaluated.iter().enumerate() {
         let c = points[j];
         let a_q = w * (h * (1.0 - c));
@@ -1007,21 +1048,39 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
                 jacobian[(i, k)] = if first { e } else { jacobian[(i, k)] + e };
             }
         }
+        if let Some(slope) = impulse_slope.as_deref_mut() {
+            // The impulse as `gradient_momentum_change` sums it (the same
+            // bits), and its derivative in the increment.
+            for i in 0..N {
+                let d = wh * gq[i].re;
+                dp[i] = if first { d } else { dp[i] + d };
+                for k in 0..N {
+                    let e = wh * gq[i].eps[k];
+                    slope[(i, k)] = if first { e } else { slope[(i, k)] + e };
+                }
+            }
+        }
     }
-    (d_q0, jacobian)
+    (d_q0, jacobian, dp)
 }
 
 /// The residual part `∂A/∂q_k` of [`gradient_linearization`] alone, from the
 /// macro's `f64` gradient code: the same operations on the same numbers, so
-/// the same bits as the dual sweep's real parts.
+/// the same bits as the dual sweep's real parts. And the impulse
+/// `Σ_j w h L_q(q_j)` (where [`Impulse::LINEARISED`]; zeros otherwise).
 #[inline(always)]
-fn gradient_residual<S: Lagrangian<N>, const N: usize>(system: &S, points: [f64; 2], seg: &Segment<N>) -> [f64; N] {
+fn gradient_residual<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    points: [f64; 2],
+    seg: &Segment<N>,
+) -> ([f64; N], [f64; N]) {
     let Segment { t0, h, q0, dq } = *seg;
     let inv_h = h.recip();
     let (evaluated, w) = super::tape_step::distinct(points);
     let b_v = w * (h * inv_h);
     let v: [f64; N] = dq.map(|d| d * inv_h);
-    let mut d_q0 = [0.0; N];
+    let (mut d_q0, mut dp) = ([0.0; N], [0.0; N]);
+    let wh = w * h;
     for (n, &j) in evaluated.iter().enumerate() {
         let c = points[j];
         let a_q = w * (h * (1.0 - c));
@@ -1031,9 +1090,86 @@ fn gradient_residual<S: Lagrangian<N>, const N: usize>(system: &S, points: [f64;
         for i in 0..N {
             let d = a_q * gq[i] - b_v * gv[i];
             d_q0[i] = if n == 0 { d } else { d_q0[i] + d };
+            if Impulse::<N>::LINEARISED {
+                dp[i] = if n == 0 { wh * gq[i] } else { dp[i] + wh * gq[i] };
+            }
         }
     }
-    d_q0
+    (d_q0, dp)
+}
+
+/// The impulse `I(Δq) = Σ_j w h L_q(q_j, Δq/h)` of a step taken from the
+/// macro's gradient code: the momentum change `p_{k+1} − p_k =
+/// ∂A/∂q_k + ∂A/∂q_{k+1}` once the DEL holds. Newton's linearisations
+/// evaluate it at each iterate beside the residual (one multiply-add per
+/// coordinate and point), and the fresh ones its derivative `I'` in the
+/// increment (`N²` more, from the dual parts they carry), so that at the
+/// solution `Δq_n = Δq_{n−1} + δ` it is `I(Δq_{n−1}) + I'(Δq_F) δ`
+/// (`Δq_F`: the iterate of the last fresh linearisation), without the
+/// evaluation of `L_q` at `Δq_n` a step would otherwise end with.
+///
+/// The error of that, `I''(Δq_{n−1} − Δq_F, δ) + ½ I''(δ, δ)` to leading
+/// order, is bounded a priori. Newton keeps a Jacobian only after a
+/// correction below [`KEEP_BELOW`](newton::KEEP_BELOW) of the unknown, and
+/// only while the kept iterations contract at least fourfold, so
+/// `‖Δq_{n−1} − Δq_F‖ ≤ 2·KEEP_BELOW·‖Δq_n‖`; where `I'` changes by at most
+/// its own size over a displacement of the increment's size
+/// (`‖I''‖ ‖Δq‖ ≤ ‖I'‖`, which a step that resolves the motion satisfies with
+/// room to spare), the error is at most
+/// `‖I'δ‖ (2·KEEP_BELOW + ‖δ‖/‖Δq_n‖)`. The impulse is linearised only where
+/// that is below a quarter of an ulp of the momentum's terms (on a converged
+/// step at the default tolerance `δ` is a few ulps of `Δq` and it is), and
+/// evaluated at `Δq_n` otherwise; where `I'` varies faster, by a factor `K`,
+/// the error is at most `K/4` ulps. `tests/verification/impulse.rs` checks
+/// the momentum change against the impulse evaluated at the stored
+/// increment, at tolerances from `1e-14` to `1e-10`.
+pub(super) struct Impulse<const N: usize> {
+    /// `I` at the last iterate evaluated.
+    at: Option<[f64; N]>,
+    /// `I'` at the iterate of the last fresh linearisation.
+    slope: SMatrix<f64, N, N>,
+    /// The correction made from the last iterate.
+    correction: [f64; N],
+}
+
+impl<const N: usize> Impulse<N> {
+    /// Carried through Newton only for small systems: `N²` operations per
+    /// fresh linearisation and at the end, against one evaluation of `L_q`
+    /// saved per step.
+    pub(super) const LINEARISED: bool = N <= 4;
+
+    pub(super) fn new() -> Self {
+        Self { at: None, slope: SMatrix::zeros(), correction: [0.0; N] }
+    }
+
+    /// `I` evaluated at an iterate, and `I'` when the linearisation there
+    /// is fresh.
+    #[inline(always)]
+    fn evaluated(&mut self, value: [f64; N], slope: Option<SMatrix<f64, N, N>>) {
+        if Self::LINEARISED {
+            self.at = Some(value);
+            if let Some(slope) = slope {
+                self.slope = slope;
+            }
+        }
+    }
+
+    /// `I` at `dq`, the increment Newton returned after the last
+    /// correction, or `None` where it is to be evaluated there. `p_scale`:
+    /// `max|p_k|`.
+    #[inline(always)]
+    fn at_solution(&self, dq: &[f64; N], p_scale: f64) -> Option<[f64; N]> {
+        let value = self.at?;
+        let change = self.slope * SVector::from(self.correction);
+        let dq_max = max_abs(dq);
+        let error = change.amax() * (2.0 * newton::KEEP_BELOW * dq_max + max_abs(&self.correction));
+        // NaN anywhere: not within, evaluated.
+        let within = error <= 0.25 * f64::EPSILON * p_scale.max(max_abs(&value)) * dq_max;
+        if !within {
+            return None;
+        }
+        Some(core::array::from_fn(|i| value[i] + change[i]))
+    }
 }
 
 /// The momentum change `∂A/∂q_k + ∂A/∂q_{k+1} = Σ_j w h L_q(x_j)` (at fixed

@@ -236,7 +236,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// `h` (forces included), or `None` where the correction cannot be made
     /// (a singular or non-finite Jacobian or residual).
     fn del_correction(&self, h: f64, dq: [f64; N]) -> Option<[f64; N]> {
-        let step = self.del_linearization(h, dq, max_abs(&self.state.p), true, &mut None).ok()?;
+        let step = self
+            .del_linearization(h, dq, max_abs(&self.state.p), true, &mut None, &mut super::one_point::Impulse::new())
+            .ok()?;
         let out: [f64; N] = core::array::from_fn(|i| dq[i] + step.correction[i]);
         out.iter().all(|x| x.is_finite()).then_some(out)
     }
@@ -531,7 +533,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let h = seg.h;
         // E_{k+1} alone: the momentum comes from `advance` as an increment.
         let d_t1 = derivatives::end_time_derivative(&self.system, &self.method, &seg);
-        let (q1, p1, carry, p_carry) = self.advance(&seg);
+        let (q1, p1, carry, p_carry) = self.advance(&seg, None);
         // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
         let y = h - self.time_error;
         let t1 = t0 + y;
