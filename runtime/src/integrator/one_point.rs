@@ -1126,8 +1126,9 @@ fn gradient_residual<S: Lagrangian<N>, const N: usize>(
 pub(super) struct Impulse<const N: usize> {
     /// `I` at the last iterate evaluated.
     at: Option<[f64; N]>,
-    /// `I'` at the iterate of the last fresh linearisation.
-    slope: SMatrix<f64, N, N>,
+    /// `I'` at the iterate of the last fresh linearisation (`None`, and
+    /// not initialised, where not [`LINEARISED`](Self::LINEARISED)).
+    slope: Option<SMatrix<f64, N, N>>,
     /// The correction made from the last iterate.
     correction: [f64; N],
 }
@@ -1139,7 +1140,7 @@ impl<const N: usize> Impulse<N> {
     pub(super) const LINEARISED: bool = N <= 4;
 
     pub(super) fn new() -> Self {
-        Self { at: None, slope: SMatrix::zeros(), correction: [0.0; N] }
+        Self { at: None, slope: None, correction: [0.0; N] }
     }
 
     /// `I` evaluated at an iterate, and `I'` when the linearisation there
@@ -1148,7 +1149,7 @@ impl<const N: usize> Impulse<N> {
     fn evaluated(&mut self, value: [f64; N], slope: Option<SMatrix<f64, N, N>>) {
         if Self::LINEARISED {
             self.at = Some(value);
-            if let Some(slope) = slope {
+            if slope.is_some() {
                 self.slope = slope;
             }
         }
@@ -1159,8 +1160,8 @@ impl<const N: usize> Impulse<N> {
     /// `max|p_k|`.
     #[inline(always)]
     fn at_solution(&self, dq: &[f64; N], p_scale: f64) -> Option<[f64; N]> {
-        let value = self.at?;
-        let change = self.slope * SVector::from(self.correction);
+        let (value, slope) = (self.at?, self.slope.as_ref()?);
+        let change = slope * SVector::from(self.correction);
         let dq_max = max_abs(dq);
         let error = change.amax() * (2.0 * newton::KEEP_BELOW * dq_max + max_abs(&self.correction));
         // NaN anywhere: not within, evaluated.
