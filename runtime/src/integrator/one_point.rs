@@ -501,14 +501,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             (None, Some(_)) if !forcing::is_forced::<S, N>() => {
                 (derivatives::start_gradient(system, method, &seg), SMatrix::zeros())
             }
-            (Some(points), None) if Impulse::<N>::LINEARISED => {
-                let mut slope = SMatrix::zeros();
-                let (d_q0, jacobian, dp) = gradient_linearization(system, points, &seg, Some(&mut slope));
-                impulse.evaluated(dp, Some(slope));
-                (d_q0, jacobian)
-            }
             (Some(points), None) => {
-                let (d_q0, jacobian, _) = gradient_linearization(system, points, &seg, None);
+                // `I'` only where the impulse is linearised.
+                let mut slope = Impulse::<N>::LINEARISED.then(SMatrix::zeros);
+                let (d_q0, jacobian, dp) = gradient_linearization(system, points, &seg, slope.as_mut());
+                impulse.evaluated(dp, slope);
                 (d_q0, jacobian)
             }
             (None, _) => {
