@@ -164,6 +164,7 @@ pub mod prelude {
     };
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
+    pub use lagrangian_runtime::{Event, Plan, Solution, Stepping};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

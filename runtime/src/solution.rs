@@ -3,7 +3,7 @@
 //!
 //! ```
 //! use lagrangian_runtime::{Integrator, Lagrangian, Midpoint, Scalar};
-//! use lagrangian_runtime::solution::Plan;
+//! use lagrangian_runtime::solution::{Plan, Stepping};
 //!
 //! #[derive(Clone)]
 //! struct Oscillator;
@@ -58,9 +58,10 @@ use crate::mechanics::DiscreteMechanics;
 use crate::state::State;
 use crate::system::Lagrangian;
 
-/// An integrator as the workflow tools drive it, in `f64`: implemented for
-/// [`Integrator`](crate::Integrator) and [`GalerkinIntegrator`](crate::GalerkinIntegrator)
-/// (in `f64`) in one place, `stepping.rs`.
+/// An integrator as the workflow tools drive it, in `f64`: implemented once
+/// for the [`Integrator`](crate::Integrator) with every method (one-point
+/// rules, Galerkin, compositions), in `stepping.rs`. Its provided method
+/// [`solve`](Self::solve) is the one way to a [`Solution`].
 pub trait Stepping<const N: usize> {
     /// The integrated system.
     type System: Lagrangian<N>;
@@ -95,6 +96,21 @@ pub trait Stepping<const N: usize> {
     /// The method's own interpolant of the last step, which ran from `start`
     /// to the current node `end`.
     fn native(&self, start: &Node<N>, end: &Node<N>) -> Self::Native;
+
+    /// Integrates as `plan` says and returns the [`Solution`]: the nodes
+    /// (from the current one on), values at requested times by dense output,
+    /// events, statistics and how the run ended (see the [module](self)).
+    ///
+    /// Returns `Err` only for a plan that cannot run (nothing is integrated
+    /// then); a failure during the run ends it with the partial solution,
+    /// whose [`status`](Solution::status) and [`error`](Solution::error) say
+    /// what failed. The integrator is left at the last node of the solution.
+    fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>>
+    where
+        Self: Sized + Clone,
+    {
+        solve(self, plan)
+    }
 }
 
 /// Which interpolant dense output uses (see [`crate::dense`]).

@@ -18,4 +18,5 @@ mod galerkin_errors;
 mod guidance;
 mod long_expressions;
 mod macro_rewrite;
+mod method_matrix;
 mod solution;

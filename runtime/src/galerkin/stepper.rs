@@ -34,6 +34,7 @@
 //! Energy-preserving variable steps are in `energy.rs` (the step size as one
 //! more unknown of the step).
 
+use crate::dense::{GalerkinPolynomial, Node};
 use crate::error::Error;
 use crate::integrator::{
     F64Readouts, IMPLAUSIBLE_GROWTH, Integrator, IntegratorBuilder, Method, StepBounds, StepPolicy, add_increment,
@@ -701,6 +702,18 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
             impulse += dot(&fnode[m], &symmetry.generator(&node(m)));
         }
         Some(impulse)
+    }
+
+    /// The step's polynomial through its nodes (order `s + 1`).
+    type Native<const N: usize> = GalerkinPolynomial<N, S>;
+
+    fn native<Sys: Lagrangian<N>, const N: usize>(
+        it: &Integrator<Sys, Self, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> GalerkinPolynomial<N, S> {
+        let nodes = it.last_nodes().unwrap_or([end.q; S]);
+        GalerkinPolynomial::new(start.t, end.t - start.t, *it.method.control_nodes(), start.q, nodes)
     }
 }
 

@@ -31,6 +31,7 @@ use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
 use super::sparse::{LastSubstep, Stepper};
 use super::{Integrator, OnePointMemory, StepBounds, StepPolicy, Summation};
+use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::Trapezoid;
 use crate::error::Error;
@@ -419,6 +420,18 @@ impl F64Readouts for Composition {
                 })
                 .sum()
         })
+    }
+
+    /// The sub-steps are not kept as one interpolant: dense output is the
+    /// cubic Hermite through both nodes of the composed step.
+    type Native<const N: usize> = Hermite<N>;
+
+    fn native<S: Lagrangian<N>, const N: usize>(
+        _: &Integrator<S, Self, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> Hermite<N> {
+        Hermite::cubic(start, end)
     }
 }
 

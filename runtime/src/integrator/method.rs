@@ -16,6 +16,7 @@
 //! point(s), which is the same discrete Lagrangian.
 
 use super::{Integrator, StepBounds, StepPolicy};
+use crate::dense::{DenseStep, Node};
 use crate::error::Error;
 use crate::real::Real;
 use crate::symplectic::TangentMap;
@@ -164,6 +165,21 @@ pub trait F64Readouts: Method<f64> {
         it: &Integrator<S, Self, N, f64>,
         symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64>
+    where
+        Self: Sized;
+
+    /// The method's own interpolant of one step, for dense output.
+    #[doc(hidden)]
+    type Native<const N: usize>: DenseStep<N>;
+
+    /// The interpolant of the last step, which ran from `start` to the
+    /// current node `end`.
+    #[doc(hidden)]
+    fn native<S: Lagrangian<N>, const N: usize>(
+        it: &Integrator<S, Self, N, f64>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> Self::Native<N>
     where
         Self: Sized;
 }

@@ -22,6 +22,7 @@ use super::{
     IMPLAUSIBLE_GROWTH, Integrator, Stats, StepBounds, StepPolicy, Summation, add_increment, implausible_growth,
     non_finite,
 };
+use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
@@ -213,6 +214,18 @@ impl<M: DiscreteLagrangian> F64Readouts for M {
             return it.memory.previous.map(|_| 0.0);
         }
         Some(crate::noether::forcing_impulse(&it.system, &it.method, it.memory.previous.as_ref()?, symmetry))
+    }
+
+    /// A one-point step is a straight line in `q`: dense output is the cubic
+    /// Hermite through both nodes.
+    type Native<const N: usize> = Hermite<N>;
+
+    fn native<S: Lagrangian<N>, const N: usize>(
+        _: &Integrator<S, Self, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> Hermite<N> {
+        Hermite::cubic(start, end)
     }
 }
 
