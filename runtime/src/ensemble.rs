@@ -13,8 +13,10 @@
 //!
 //! Built: [`shard`] gives the contiguous range of inputs of job `k` of `n`,
 //! [`Shard`] holds one job's results with the index of its first member,
-//! and [`merge`] puts the shards of all jobs back into one [`Ensemble`],
-//! checking that they cover every input once. With the feature `serde`,
+//! and [`merge`] puts the shards of all jobs back into one [`Ensemble`] of
+//! a given number of members, refusing shards that leave a member out
+//! (between shards, at the head or at the tail), hold one twice or hold one
+//! past the end. With the feature `serde`,
 //! inputs of the user's types, [`Shard`] and [`Ensemble`] serialise (as JSON
 //! through `serde_json`, or any serde format), so each job writes its shard
 //! to a file and one last job merges them.
@@ -33,7 +35,7 @@
 //! task, 64)`, runs those members with [`run`] (rayon uses the job's
 //! cores) and writes a [`Shard`]; a dependent job
 //! (`sbatch --dependency=afterok:<array job id>`) reads the 64 files and
-//! calls [`merge`]. Every member is independent, so the merged result equals
+//! calls [`merge`] with the number of inputs. Every member is independent, so the merged result equals
 //! a single-machine run bit for bit. MPI (rsmpi) is not offered: array jobs
 //! need no communication between members.
 
