@@ -379,3 +379,88 @@ fn read_json_refuses_values_that_are_not_numbers_or_the_documented_texts() {
     let sol = Solution::<1>::read_json(json("[0,1,2]", STEP, Q, P, P, ENERGY).as_bytes()).unwrap();
     assert_eq!(sol.t, [0.0, 1.0, 2.0]);
 }
+
+fn runner(cases: u32) -> proptest::test_runner::TestRunner {
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    let config = Config { cases, failure_persistence: None, ..Config::default() };
+    TestRunner::new_with_rng(config, TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]))
+}
+
+/// Any bit patterns, NaNs of every payload among them, in every column.
+#[test]
+fn any_bits_round_trip_in_both_formats() {
+    use proptest::prelude::*;
+    let rows = proptest::collection::vec((any::<[u64; 8]>(), any::<Option<u64>>()), 0..12);
+    runner(500)
+        .run(&rows, |rows| {
+            let x = |i: usize| rows.iter().map(move |(b, _)| f64::from_bits(b[i]));
+            let pair = |i: usize| x(i).zip(x(i + 1)).map(|(a, b)| [a, b]).collect::<Vec<_>>();
+            let sol = table(
+                x(0).collect(),
+                rows.iter().map(|(_, s)| *s).collect(),
+                pair(1),
+                pair(3),
+                pair(5),
+                x(7).collect(),
+            );
+            let mut csv = Vec::new();
+            sol.write_csv(&mut csv).unwrap();
+            let back = Solution::<2>::read_csv(csv.as_slice()).unwrap();
+            prop_assert_eq!(column_bits(&back), column_bits(&sol));
+            prop_assert_eq!(&back.step, &sol.step);
+            let mut json = Vec::new();
+            sol.write_json(&mut json).unwrap();
+            let back = Solution::<2>::read_json(json.as_slice()).unwrap();
+            prop_assert_eq!(column_bits(&back), column_bits(&sol));
+            prop_assert_eq!(&back.step, &sol.step);
+            Ok(())
+        })
+        .unwrap();
+}
+
+/// Files with bytes replaced, inserted or cut off: the readers return a
+/// typed error or a solution the writers accept, and never panic.
+#[test]
+fn damaged_files_are_errors_or_consistent_solutions() {
+    use proptest::prelude::*;
+    let mut csv = Vec::new();
+    three_rows().write_csv(&mut csv).unwrap();
+    let mut json = Vec::new();
+    three_rows().write_json(&mut json).unwrap();
+    let bytes = b",:[]{}\"\n0123456789.-eNaIfnul ";
+    let edit = (any::<bool>(), 0..4usize, proptest::collection::vec((any::<usize>(), 0..bytes.len()), 1..4));
+    let (csv_errors, json_errors) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
+    runner(3000)
+        .run(&edit, |(use_csv, kind, places)| {
+            let mut file = if use_csv { csv.clone() } else { json.clone() };
+            for (at, b) in places {
+                let at = at % file.len().max(1);
+                match kind {
+                    0 | 1 => {
+                        if let Some(x) = file.get_mut(at) {
+                            *x = bytes[b];
+                        }
+                    }
+                    2 => file.insert(at, bytes[b]),
+                    _ => file.truncate(at),
+                }
+            }
+            let read = if use_csv {
+                Solution::<1>::read_csv(file.as_slice())
+            } else {
+                Solution::<1>::read_json(file.as_slice())
+            };
+            match read {
+                Ok(sol) => {
+                    sol.write_csv(Vec::new()).unwrap();
+                    sol.write_json(Vec::new()).unwrap();
+                }
+                Err(_) if use_csv => csv_errors.set(csv_errors.get() + 1),
+                Err(_) => json_errors.set(json_errors.get() + 1),
+            }
+            Ok(())
+        })
+        .unwrap();
+    let (csv_errors, json_errors) = (csv_errors.get(), json_errors.get());
+    assert!(csv_errors > 100 && json_errors > 100, "{csv_errors} {json_errors}");
+}
