@@ -13,8 +13,10 @@
 //!
 //! Built: [`shard`] gives the contiguous range of inputs of job `k` of `n`,
 //! [`Shard`] holds one job's results with the index of its first member,
-//! and [`merge`] puts the shards of all jobs back into one [`Ensemble`],
-//! checking that they cover every input once. With the feature `serde`,
+//! and [`merge`] puts the shards of all jobs back into one [`Ensemble`] of
+//! a given number of members, refusing shards that leave a member out
+//! (between shards, at the head or at the tail), hold one twice or hold one
+//! past the end. With the feature `serde`,
 //! inputs of the user's types, [`Shard`] and [`Ensemble`] serialise (as JSON
 //! through `serde_json`, or any serde format), so each job writes its shard
 //! to a file and one last job merges them.
@@ -33,7 +35,7 @@
 //! task, 64)`, runs those members with [`run`] (rayon uses the job's
 //! cores) and writes a [`Shard`]; a dependent job
 //! (`sbatch --dependency=afterok:<array job id>`) reads the 64 files and
-//! calls [`merge`]. Every member is independent, so the merged result equals
+//! calls [`merge`] with the number of inputs. Every member is independent, so the merged result equals
 //! a single-machine run bit for bit. MPI (rsmpi) is not offered: array jobs
 //! need no communication between members.
 
@@ -135,13 +137,28 @@ pub enum ShardError {
         /// The number of shards.
         count: usize,
     },
-    /// The shards leave a member out or hold one twice.
-    #[error("the shards do not cover the members once: member {member} is {problem}")]
-    Coverage {
-        /// The first member in question.
-        member: usize,
-        /// `"missing"` or `"duplicated"`.
-        problem: &'static str,
+    /// No shard holds these members (a gap between shards, or a missing
+    /// head or tail); the first such range.
+    #[error("the shards do not cover the members once: members {}..{} are missing", .members.start, .members.end)]
+    Missing {
+        /// The members missing.
+        members: Range<usize>,
+    },
+    /// A shard holds members that an earlier one (in order of `start`)
+    /// holds too; the first such range.
+    #[error("the shards do not cover the members once: members {}..{} are duplicated", .members.start, .members.end)]
+    Duplicated {
+        /// The members held twice.
+        members: Range<usize>,
+    },
+    /// A shard holds members at or past the end of the ensemble.
+    #[error("a shard holds members {}..{}, past the end of the ensemble of {len}", .members.start, .members.end)]
+    Beyond {
+        /// The members out of range (an empty range for an empty shard
+        /// that starts past the end).
+        members: Range<usize>,
+        /// The number of members of the ensemble.
+        len: usize,
     },
 }
 
@@ -166,19 +183,34 @@ pub struct Shard<O, E> {
     pub results: Ensemble<O, E>,
 }
 
-/// The ensemble of all shards, in member order; refused unless they cover
-/// `0 … len` exactly once.
-pub fn merge<O, E>(mut shards: Vec<Shard<O, E>>) -> Result<Ensemble<O, E>, ShardError> {
+/// The ensemble of `len` members from the shards of all jobs, in member
+/// order. Refused unless the shards hold every member `0 … len` exactly once:
+/// a member no shard holds (between shards, before the first or after the
+/// last) is [`ShardError::Missing`], one held twice
+/// [`ShardError::Duplicated`], one at or past `len` [`ShardError::Beyond`].
+/// Empty shards are allowed anywhere within `0 ..= len`.
+pub fn merge<O, E>(mut shards: Vec<Shard<O, E>>, len: usize) -> Result<Ensemble<O, E>, ShardError> {
     shards.sort_by_key(|s| s.start);
     let mut results = Vec::new();
     for s in shards {
-        if s.start > results.len() {
-            return Err(ShardError::Coverage { member: results.len(), problem: "missing" });
+        // Saturating: a start near `usize::MAX` read from a file must not overflow.
+        let end = s.start.saturating_add(s.results.len());
+        if end > len || s.start > len {
+            return Err(ShardError::Beyond { members: s.start.max(len)..end.max(len), len });
         }
-        if s.start < results.len() && !s.results.is_empty() {
-            return Err(ShardError::Coverage { member: s.start, problem: "duplicated" });
+        if s.results.is_empty() {
+            continue;
+        }
+        if s.start > results.len() {
+            return Err(ShardError::Missing { members: results.len()..s.start });
+        }
+        if s.start < results.len() {
+            return Err(ShardError::Duplicated { members: s.start..end.min(results.len()) });
         }
         results.extend(s.results.results);
+    }
+    if results.len() < len {
+        return Err(ShardError::Missing { members: results.len()..len });
     }
     Ok(Ensemble { results })
 }
@@ -211,10 +243,59 @@ mod tests {
             let r = shard(10, k, 3).unwrap();
             Shard { start: r.start, results: run_serial(&inputs[r], square) }
         };
-        assert_eq!(merge(vec![part(2), part(0), part(1)]), Ok(whole.clone()));
-        assert_eq!(merge(vec![part(0), part(2)]), Err(ShardError::Coverage { member: 4, problem: "missing" }));
-        assert_eq!(merge(vec![part(0), part(0)]), Err(ShardError::Coverage { member: 0, problem: "duplicated" }));
+        assert_eq!(merge(vec![part(2), part(0), part(1)], 10), Ok(whole.clone()));
+        assert_eq!(merge(vec![part(0), part(2)], 10), Err(ShardError::Missing { members: 4..7 }));
+        assert_eq!(merge(vec![part(0), part(0), part(1), part(2)], 10), Err(ShardError::Duplicated { members: 0..4 }));
         assert_eq!(whole.failures().map(|(i, _)| i).collect::<Vec<_>>(), vec![7]);
+    }
+
+    /// Shards of `0 … 10` in three jobs, the members' results their indices.
+    fn shards_of_ten() -> Vec<Shard<usize, ()>> {
+        (0..3)
+            .map(|k| {
+                let r = shard(10, k, 3).unwrap();
+                Shard { start: r.start, results: Ensemble { results: r.map(Ok).collect() } }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_missing_tail_or_head_is_refused_with_the_missing_members() {
+        let [s0, s1, s2]: [Shard<usize, ()>; 3] = shards_of_ten().try_into().unwrap();
+        // Shards 0 and 1 of 3 hold 7 of the 10 members.
+        assert_eq!(merge(vec![s0.clone(), s1.clone()], 10), Err(ShardError::Missing { members: 7..10 }));
+        assert_eq!(merge(vec![s1.clone(), s2.clone()], 10), Err(ShardError::Missing { members: 0..4 }));
+        assert_eq!(merge(Vec::<Shard<usize, ()>>::new(), 10), Err(ShardError::Missing { members: 0..10 }));
+        let message = merge(vec![s0.clone(), s1.clone()], 10).unwrap_err().to_string();
+        assert_eq!(message, "the shards do not cover the members once: members 7..10 are missing");
+        let all = merge(vec![s2, s0, s1], 10).unwrap();
+        assert_eq!(all.results, (0..10).map(Ok).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn members_past_the_end_and_overlaps_are_refused() {
+        let shards = shards_of_ten();
+        // The whole ensemble is 10 members, not 9.
+        assert_eq!(merge(shards.clone(), 9), Err(ShardError::Beyond { members: 9..10, len: 9 }));
+        // Shard 1 moved to start at 3: member 3 is held twice.
+        let mut overlapping = shards.clone();
+        overlapping[1].start = 3;
+        assert_eq!(merge(overlapping, 10), Err(ShardError::Duplicated { members: 3..4 }));
+        // A start read from a file near `usize::MAX` neither overflows nor passes.
+        let mut far = shards.clone();
+        far[2].start = usize::MAX - 1;
+        assert_eq!(merge(far, 10), Err(ShardError::Beyond { members: usize::MAX - 1..usize::MAX, len: 10 }));
+        // Empty shards are fine within the ensemble, refused past its end.
+        let empty = |start| Shard { start, results: Ensemble { results: Vec::new() } };
+        let mut with_empty = shards.clone();
+        with_empty.extend([empty(0), empty(5), empty(10)]);
+        assert_eq!(merge(with_empty, 10).map(|e| e.len()), Ok(10));
+        let mut with_far_empty = shards;
+        with_far_empty.push(empty(11));
+        assert_eq!(merge(with_far_empty, 10), Err(ShardError::Beyond { members: 11..11, len: 10 }));
+        // An empty ensemble from no shards or one empty shard.
+        assert_eq!(merge(Vec::<Shard<usize, ()>>::new(), 0).map(|e| e.len()), Ok(0));
+        assert_eq!(merge(vec![empty(0)], 0).map(|e| e.len()), Ok(0));
     }
 
     #[test]

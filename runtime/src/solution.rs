@@ -48,7 +48,12 @@
 //! typed error is not: its message is kept in the status), and
 //! [`Solution::write_csv`], [`Solution::read_csv`], [`Solution::write_json`]
 //! and [`Solution::read_json`] write and read it through `csv` and
-//! `serde_json`.
+//! `serde_json`. Every `f64` comes back bit for bit, the non-finite ones
+//! too: they are written as the texts `inf`, `-inf`, `NaN`, `-NaN` and
+//! `NaN:0x…` (the bits of any other NaN), which neither format has a number
+//! for. The writers refuse a solution whose columns differ in length, and
+//! the readers refuse, with a [`TableError`] that says what is wrong and
+//! where, anything that is not the table of a solution with `N` coordinates.
 
 use crate::dense::{DenseStep, Hermite, Node, acceleration};
 use crate::error::Error;
@@ -242,6 +247,7 @@ pub enum Status {
         /// The index of the event.
         event: usize,
         /// The event time (the integrator's last node).
+        #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
         t: f64,
     },
     /// A step or an event function failed; [`Solution::error`] holds the
@@ -275,14 +281,19 @@ pub struct RunStats {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct EnergyWatch {
     /// The tolerance on `|E_L − E_0| / |E_0|`.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub tolerance: f64,
     /// `E_0`, the energy at the first node.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub initial: f64,
     /// The largest relative change seen at a node.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub largest: f64,
     /// Where it happened.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub largest_at: f64,
     /// The first node time where the change exceeded the tolerance.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::option"))]
     pub exceeded_at: Option<f64>,
 }
 
@@ -372,6 +383,7 @@ pub enum SolveError<const N: usize> {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Solution<const N: usize> {
     /// Times.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
     pub t: Vec<f64>,
     /// The node index `k` of a node row, `None` for an interpolated one.
     pub step: Vec<Option<u64>>,
@@ -385,6 +397,7 @@ pub struct Solution<const N: usize> {
     #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
     pub v: Vec<[f64; N]>,
     /// The energy `E_L(t, q, v)` (empty under [`Plan::without_velocities`]).
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
     pub energy: Vec<f64>,
     /// Located events, in time order.
     pub events: Vec<EventRecord<N>>,
@@ -847,21 +860,86 @@ fn progress_bar(span: f64) -> indicatif::ProgressBar {
 }
 
 /// Why a solution could not be written or read.
+///
+/// Rows are counted from 0, the first row after the CSV header (the index
+/// of the row in the solution's columns); header columns are counted from 0.
 #[cfg(feature = "serde")]
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum TableError {
-    /// From the CSV reader or writer.
+    /// From the CSV reader or writer (input or output, and text that is not
+    /// UTF-8).
     #[error("csv: {0}")]
     Csv(#[from] csv::Error),
-    /// From the JSON reader or writer.
+    /// From the JSON reader or writer: malformed JSON, a missing field, a row
+    /// of `q`, `p` or `v` without exactly `N` values, or a value that is
+    /// neither a number nor one of the texts of non-finite values (the
+    /// message gives the line and column).
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
-    /// A CSV table whose columns do not fit a solution with `N` coordinates.
-    #[error("csv: {reason}")]
-    Shape {
-        /// What does not fit.
-        reason: String,
+    /// Columns of different lengths: `step`, `q` and `p` have one row per
+    /// time in `t`, `v` has one too or none (a solution without
+    /// velocities), and `energy` has one per row of `v`.
+    #[error("column `{column}` has {rows} rows, `{reference}` has {expected}")]
+    Length {
+        /// The column whose length is wrong (`"step"`, `"q"`, `"p"`, `"v"` or `"energy"`).
+        column: &'static str,
+        /// Its length.
+        rows: usize,
+        /// The column it is compared with (`"t"` or, for `energy`, `"v"`).
+        reference: &'static str,
+        /// The length of that column.
+        expected: usize,
+    },
+    /// A CSV table whose number of columns fits neither layout of a solution
+    /// with `N` coordinates.
+    #[error(
+        "csv: {found} columns fit no solution with N = {n}, which has {without} without velocities and {with} with them"
+    )]
+    Columns {
+        /// The number of columns of the header.
+        found: usize,
+        /// The number of coordinates `N`.
+        n: usize,
+        /// `2 + 2N`: `t, step, q…, p…`.
+        without: usize,
+        /// `3 + 3N`: `t, step, q…, p…, v…, energy`.
+        with: usize,
+    },
+    /// A CSV header whose name at `column` is not the one
+    /// [`write_csv`](Solution::write_csv) writes there for `N` coordinates.
+    #[error("csv: header column {column} is `{found}`, expected `{expected}`")]
+    Header {
+        /// The index of the column.
+        column: usize,
+        /// The name found.
+        found: String,
+        /// The name expected.
+        expected: String,
+    },
+    /// A CSV row with a number of fields other than the header's.
+    #[error("csv: row {row} has {fields} fields, the header has {expected}")]
+    Fields {
+        /// The index of the row.
+        row: usize,
+        /// Its number of fields.
+        fields: usize,
+        /// The number of columns of the header.
+        expected: usize,
+    },
+    /// A CSV field that is not a value of its column: a number (or the text
+    /// of a non-finite value) for the values, a node index or nothing for
+    /// `step`.
+    #[error("csv: row {row}, column `{column}`: `{text}` is not {expected}")]
+    Value {
+        /// The index of the row.
+        row: usize,
+        /// The name of the column.
+        column: String,
+        /// The field.
+        text: String,
+        /// What the column holds.
+        expected: &'static str,
     },
 }
 
@@ -869,32 +947,61 @@ pub enum TableError {
 impl<const N: usize> Solution<N> {
     /// The CSV header: `t, step, q0 …, p0 …` and, with velocities,
     /// `v0 …, energy`.
-    fn header(&self) -> Vec<String> {
+    fn header(velocities: bool) -> Vec<String> {
         let mut h = vec!["t".to_string(), "step".to_string()];
-        for name in ["q", "p"] {
+        let names: &[&str] = if velocities { &["q", "p", "v"] } else { &["q", "p"] };
+        for name in names {
             h.extend((0..N).map(|i| format!("{name}{i}")));
         }
-        if !self.v.is_empty() {
-            h.extend((0..N).map(|i| format!("v{i}")));
+        if velocities {
             h.push("energy".to_string());
         }
         h
     }
 
-    /// Writes the rows as CSV (header `t,step,q0,…,p0,…[,v0,…,energy]`; an
-    /// empty `step` marks an interpolated row). Numbers are written by the
-    /// `csv` crate in their shortest form that reads back to the same `f64`.
-    /// Events, statistics and status are not part of the table (see
-    /// [`write_json`](Self::write_json)).
+    /// Checks that the columns have the lengths of one table (see
+    /// [`TableError::Length`]); `true` when the table has velocities.
+    fn check_columns(&self) -> Result<bool, TableError> {
+        let rows = self.t.len();
+        let length = |column, len, reference, expected| {
+            if len == expected { Ok(()) } else { Err(TableError::Length { column, rows: len, reference, expected }) }
+        };
+        length("step", self.step.len(), "t", rows)?;
+        length("q", self.q.len(), "t", rows)?;
+        length("p", self.p.len(), "t", rows)?;
+        let velocities = !self.v.is_empty();
+        if velocities {
+            length("v", self.v.len(), "t", rows)?;
+        }
+        length("energy", self.energy.len(), "v", self.v.len())?;
+        Ok(velocities)
+    }
+
+    /// Writes the rows as CSV: the header `t,step,q0,…,p0,…` and, for a
+    /// solution with velocities, `v0,…,energy`; one line per row, an empty
+    /// `step` for an interpolated row. Finite numbers are written by the
+    /// `csv` crate in their shortest form that reads back to the same `f64`
+    /// (`-0.0` and subnormals included); non-finite ones as `inf`, `-inf`,
+    /// `NaN` (the quiet NaN `f64::NAN`), `-NaN` (the same with the sign bit
+    /// set) and, for any other NaN, `NaN:0x` and the 16 hexadecimal digits
+    /// of its bits, so that [`read_csv`](Self::read_csv) gets every value
+    /// back bit for bit. Events, statistics and status are not part of the
+    /// table (see [`write_json`](Self::write_json)).
+    ///
+    /// A solution whose columns differ in length (possible for one built by
+    /// hand: the fields are public) is refused with
+    /// [`TableError::Length`] before anything is written.
     pub fn write_csv<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
+        use crate::serde_arrays::{Float, Seq};
+        let velocities = self.check_columns()?;
         let mut out = csv::Writer::from_writer(w);
-        out.write_record(self.header())?;
+        out.write_record(Self::header(velocities))?;
         for i in 0..self.len() {
-            if self.v.is_empty() {
-                out.serialize((self.t[i], self.step[i], self.q[i].as_slice(), self.p[i].as_slice()))?;
+            let (t, step, q, p) = (Float(self.t[i]), self.step[i], Seq(&self.q[i]), Seq(&self.p[i]));
+            if velocities {
+                out.serialize((t, step, q, p, Seq(&self.v[i]), Float(self.energy[i])))?;
             } else {
-                let row = (self.q[i].as_slice(), self.p[i].as_slice(), self.v[i].as_slice(), self.energy[i]);
-                out.serialize((self.t[i], self.step[i], row))?;
+                out.serialize((t, step, q, p))?;
             }
         }
         out.flush().map_err(csv::Error::from)?;
@@ -903,33 +1010,91 @@ impl<const N: usize> Solution<N> {
 
     /// Reads a table written by [`write_csv`](Self::write_csv) (status
     /// `Finished`, no events, zero statistics: the table holds only rows).
+    ///
+    /// The header must be the one `write_csv` writes for `N` coordinates,
+    /// with or without velocities (else [`TableError::Columns`] or
+    /// [`TableError::Header`]); every row must have as many fields as the
+    /// header ([`TableError::Fields`]); every value must be a finite number
+    /// or one of the texts `write_csv` writes for non-finite values, and a
+    /// `step` a node index or empty ([`TableError::Value`], with the row and
+    /// the column).
     pub fn read_csv<R: std::io::Read>(r: R) -> Result<Self, TableError> {
-        let mut input = csv::Reader::from_reader(r);
-        let columns = input.headers()?.len();
-        let velocities = match columns {
-            c if c == 2 + 2 * N => false,
-            c if c == 3 + 3 * N => true,
-            c => return Err(TableError::Shape { reason: format!("{c} columns do not fit N = {N}") }),
+        let mut input = csv::ReaderBuilder::new().flexible(true).from_reader(r);
+        let header = input.headers()?.clone();
+        let (without, with) = (2 + 2 * N, 3 + 3 * N);
+        let velocities = match header.len() {
+            c if c == without => false,
+            c if c == with => true,
+            found => return Err(TableError::Columns { found, n: N, without, with }),
         };
+        let names = Self::header(velocities);
+        for (column, (found, expected)) in header.iter().zip(&names).enumerate() {
+            if found != expected {
+                return Err(TableError::Header { column, found: found.to_string(), expected: expected.clone() });
+            }
+        }
         let mut sol = Self::empty();
-        for record in input.records() {
-            let (t, step, rest): (f64, Option<u64>, Vec<f64>) = record?.deserialize(None)?;
-            let take = |k: usize| -> [f64; N] { core::array::from_fn(|i| rest[k * N + i]) };
-            let v = velocities.then(|| (take(2), rest[3 * N]));
-            sol.push(step, t, take(0), take(1), v);
+        for (row, record) in input.records().enumerate() {
+            let record = record?;
+            if record.len() != names.len() {
+                return Err(TableError::Fields { row, fields: record.len(), expected: names.len() });
+            }
+            let wrong = |column: usize, expected| TableError::Value {
+                row,
+                column: names[column].clone(),
+                text: record[column].to_string(),
+                expected,
+            };
+            let value =
+                |column: usize| crate::serde_arrays::parse(&record[column]).ok_or_else(|| wrong(column, "a number"));
+            let values = |first: usize| -> Result<[f64; N], TableError> {
+                let mut x = [0.0; N];
+                for (i, x) in x.iter_mut().enumerate() {
+                    *x = value(first + i)?;
+                }
+                Ok(x)
+            };
+            let t = value(0)?;
+            let step = match &record[1] {
+                "" => None,
+                text => Some(text.parse::<u64>().map_err(|_| wrong(1, "a node index or empty"))?),
+            };
+            let (q, p) = (values(2)?, values(2 + N)?);
+            let v = if velocities { Some((values(2 + 2 * N)?, value(2 + 3 * N)?)) } else { None };
+            sol.push(step, t, q, p, v);
         }
         Ok(sol)
     }
 
     /// Writes the whole solution (rows, events, statistics, status) as JSON.
+    /// Finite numbers are written in their shortest form that reads back to
+    /// the same `f64`; non-finite ones (JSON has no literal for them) as the
+    /// strings `"inf"`, `"-inf"`, `"NaN"` (the quiet NaN `f64::NAN`),
+    /// `"-NaN"` (the same with the sign bit set) and, for any other NaN,
+    /// `"NaN:0x"` and the 16 hexadecimal digits of its bits, so that
+    /// [`read_json`](Self::read_json) gets every value back bit for bit. The
+    /// same holds for the solution's `Serialize` in any human-readable serde
+    /// format; binary formats carry the `f64` itself.
+    ///
+    /// A solution whose columns differ in length (possible for one built by
+    /// hand: the fields are public) is refused with
+    /// [`TableError::Length`] before anything is written.
     pub fn write_json<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
+        self.check_columns()?;
         Ok(serde_json::to_writer(w, self)?)
     }
 
     /// Reads a solution written by [`write_json`](Self::write_json); the
     /// typed [`error`](Self::error) of a failed run comes back as `None`
     /// (its message is in the status).
+    ///
+    /// Values must be numbers or the strings `write_json` writes for
+    /// non-finite values, and rows of `q`, `p` and `v` must have `N` values
+    /// ([`TableError::Json`]); the columns must have the lengths of one
+    /// table ([`TableError::Length`]).
     pub fn read_json<R: std::io::Read>(r: R) -> Result<Self, TableError> {
-        Ok(serde_json::from_reader(r)?)
+        let sol: Self = serde_json::from_reader(r)?;
+        sol.check_columns()?;
+        Ok(sol)
     }
 }

@@ -12,4 +12,6 @@ mod compensated;
 mod module_graph;
 mod newton_accuracy;
 mod properties;
+#[cfg(feature = "serde")]
+mod solution_files;
 mod variable_steps;

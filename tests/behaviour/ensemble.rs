@@ -83,7 +83,7 @@ fn sharded_ensembles_serialise_and_merge() {
     }
     let shards: Vec<Shard<Solution<1>, String>> =
         files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
-    let merged: Ensemble<Solution<1>, String> = ensemble::merge(shards).unwrap();
+    let merged: Ensemble<Solution<1>, String> = ensemble::merge(shards, inputs.len()).unwrap();
     assert_eq!(merged, whole);
     assert_eq!(merged.len(), 20);
 }
