@@ -55,6 +55,7 @@ pub struct EventRecord<const N: usize> {
     /// Which event (its index in the plan).
     pub event: usize,
     /// The time of the crossing.
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub t: f64,
     /// The position there, by dense output.
     #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]

@@ -5,7 +5,7 @@
 //! round-trips bit for bit in both formats.
 
 use lagrangian_runtime::solution::{EnergyWatch, RunStats, Status, TableError};
-use lagrangian_runtime::{EventRecord, Integrator, Lagrangian, Midpoint, Scalar, Solution};
+use lagrangian_runtime::{EventRecord, Integrator, Lagrangian, Midpoint, Scalar, Solution, Stepping};
 
 /// A solution of `N` coordinates from its columns, without events.
 fn table<const N: usize>(
