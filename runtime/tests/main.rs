@@ -12,4 +12,5 @@ mod compensated;
 mod module_graph;
 mod newton_accuracy;
 mod properties;
+mod solve_failures;
 mod variable_steps;
