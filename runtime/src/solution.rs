@@ -662,7 +662,12 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         found.sort_by(|a, b| a.t.total_cmp(&b.t));
         let stop = found.iter().position(|r| self.plan.events[r.event].action != Action::Record);
         if let Some(k) = stop {
-            found.truncate(k + 1);
+            // Events at the very time of the first stop or landing are
+            // recorded too (each event gets its record); later ones are not
+            // reached.
+            let t = found[k].t;
+            let keep = found[k..].iter().take_while(|r| r.t == t).count();
+            found.truncate(k + keep);
         }
         Ok((found, stop, g_end))
     }

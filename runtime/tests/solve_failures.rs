@@ -99,3 +99,19 @@ fn a_failure_after_a_stop_landing_leaves_the_step_start() {
     reference.run(100, |_| {}).unwrap();
     assert_eq!(*reference.state(), state);
 }
+
+/// Two identical stop events (and a recording one at the same time) are
+/// all recorded; the run stops at their time, named by the first.
+#[test]
+fn identical_stop_events_each_get_their_record() {
+    let mut sim = Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0]).unwrap();
+    let zero = || Event::new(|_, q: &[f64; 1], _| q[0]);
+    let plan = Plan::until(10.0).event(zero().action(Action::Stop)).event(zero().action(Action::Stop)).event(zero());
+    let solution = sim.solve(plan).unwrap();
+    let t = solution.events[0].t;
+    assert!((t - std::f64::consts::FRAC_PI_2).abs() < 1e-4, "{t}");
+    assert_eq!(solution.events.iter().map(|e| e.event).collect::<Vec<_>>(), [0, 1, 2]);
+    assert!(solution.events.iter().all(|e| e.t == t), "{:?}", solution.events);
+    assert_eq!(solution.status, Status::Stopped { event: 0, t });
+    assert_eq!(sim.state().t, t);
+}
