@@ -17,6 +17,11 @@
 //! [`EventRecord`] keeps the dense-output state, where `g` is zero to the
 //! tolerance.
 //!
+//! Events located at the same time as the first stop or landing are all
+//! recorded (two identical stop events give two records; the run's
+//! [`Status::Stopped`](crate::Status::Stopped) names the first in the plan's
+//! order); later ones in that step are not reached.
+//!
 //! Limits: two crossings within one step (or between the samples set by
 //! [`Event::samples`]) cancel and are not seen; a crossing at the initial time
 //! is not reported.

@@ -38,11 +38,16 @@
 //! solve per row) and the energy is `E_L(t, q, v)`;
 //! [`Plan::without_velocities`] keeps only `t, q, p` and skips those solves.
 //!
-//! A step that fails ends the run: the solution holds everything up to the
-//! last good node, its [`status`](Solution::status) is
+//! A step that fails ends the run, and so does a failure of what follows a
+//! step (an event function that is not finite, a node velocity that cannot
+//! be found): the solution holds everything up to the last good node, which
+//! is its last node row (kept even between the nodes [`Plan::every`]
+//! keeps, unless that is 0; with NaN velocity and energy if its velocity
+//! cannot be found), its [`status`](Solution::status) is
 //! [`Status::Failed`] and [`error`](Solution::error) holds the typed error,
-//! and the integrator is at that last node. [`Solution::into_result`] turns
-//! that into an `Err` for callers who want `?`.
+//! and the integrator is at that last node: the step that failed, and what
+//! it recorded, are undone. [`Solution::into_result`] turns that into an
+//! `Err` for callers who want `?`.
 //!
 //! With the feature `serde`, [`Solution`] is `Serialize`/`Deserialize` (the
 //! typed error is not: its message is kept in the status), and
@@ -477,6 +482,17 @@ impl<const N: usize> Solution<N> {
             self.energy.push(e);
         }
     }
+
+    /// Drops the rows from `rows` on and the events from `events` on.
+    fn truncate(&mut self, rows: usize, events: usize) {
+        self.t.truncate(rows);
+        self.step.truncate(rows);
+        self.q.truncate(rows);
+        self.p.truncate(rows);
+        self.v.truncate(rows);
+        self.energy.truncate(rows);
+        self.events.truncate(events);
+    }
 }
 
 /// A node as the driver carries it: the velocity only once it was needed.
@@ -555,6 +571,21 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         };
         self.sol.push(Some(c.step), c.node.t, c.node.q, c.node.p, v);
         Ok(())
+    }
+
+    /// Makes the last good node `c` (where the integrator is after a failed
+    /// step) the last node row, unless it is one already or the plan keeps
+    /// no nodes. Its velocity and energy are NaN when its velocity cannot be
+    /// found.
+    fn keep_last_good(&mut self, c: &mut Carried<N>) {
+        let last_node = self.sol.step.iter().rev().find_map(|&k| k);
+        if self.plan.every == 0 || last_node == Some(c.step) {
+            return;
+        }
+        if self.keep_node(c).is_err() {
+            let nan = self.plan.velocities.then_some(([f64::NAN; N], f64::NAN));
+            self.sol.push(Some(c.step), c.node.t, c.node.q, c.node.p, nan);
+        }
     }
 
     /// Keeps the save times in `(after, upto]`, by `dense`.
@@ -660,7 +691,12 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         found.sort_by(|a, b| a.t.total_cmp(&b.t));
         let stop = found.iter().position(|r| self.plan.events[r.event].action != Action::Record);
         if let Some(k) = stop {
-            found.truncate(k + 1);
+            // Events at the very time of the first stop or landing are
+            // recorded too (each event gets its record); later ones are not
+            // reached.
+            let t = found[k].t;
+            let keep = found[k..].iter().take_while(|r| r.t == t).count();
+            found.truncate(k + keep);
         }
         Ok((found, stop, g_end))
     }
@@ -716,7 +752,6 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let dense_needed = has_events || !d.plan.save_at.is_empty();
-    let rewind = d.plan.events.iter().any(|e| e.action != Action::Record);
     let v_each_step = dense_needed || d.plan.energy_tolerance.is_some();
     #[cfg(feature = "progress")]
     let bar = d.plan.progress.then(|| progress_bar(t_end - d.sim.state().t));
@@ -745,83 +780,134 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
         let n = prev.node;
         g_prev.push(d.g(i, n.t, &n.q, &n.v)?);
     }
-    let mut rejoin: Option<f64> = None;
-    let mut last_h = None;
-    while prev.node.t < t_end {
-        let before = rewind.then(|| d.sim.clone());
-        let result = match rejoin.take() {
-            Some(t) => d.sim.land(t),
-            None if d.sim.reaches(t_end, last_h) => d.sim.land(t_end),
-            None => d.sim.step(),
-        };
-        result?;
-        d.steps += 1;
-        let mut end = d.node(v_each_step)?;
-        let mut landed = None;
-        if dense_needed {
-            let dense = d.interpolant(&mut prev, &mut end)?;
-            let mut upto = end.node.t;
-            if has_events {
-                let (found, stop, g_end) = d.crossings(&dense, &prev.node, &end.node, &g_prev)?;
-                g_prev = g_end;
-                d.sol.events.extend_from_slice(&found);
-                if let Some(k) = stop {
-                    let record = found[k];
-                    upto = record.t;
-                    landed = Some((record, end.node.t));
+    // Everything after a step that can fail (velocity solves, accelerations,
+    // event functions, the landing step) needs the integrator as it was
+    // before the step, to go back to the solution's last node.
+    let fallible = v_each_step
+        || (d.plan.velocities && d.plan.every > 0)
+        || d.plan.observer.is_some()
+        || d.plan.dense == DenseKind::Quintic;
+    let mut lp = Loop { prev, g_prev, rejoin: None, last_h: None };
+    while lp.prev.node.t < t_end {
+        let mut before = (fallible || has_events).then(|| d.sim.clone());
+        let mark = (d.sol.len(), d.sol.events.len(), d.next_save);
+        match advance(d, &mut lp, &mut before, dense_needed, v_each_step) {
+            Ok(true) => return Ok(()),
+            Ok(false) => {}
+            Err(e) => {
+                // The step (or what follows it) failed: back to the last
+                // good node, which becomes the solution's last node row.
+                if let Some(before) = before {
+                    *d.sim = before;
                 }
-            }
-            d.keep_saved(&dense, prev.node.t, upto);
-        }
-        if let Some((record, t_step_end)) = landed {
-            // Redo the step from its start so that it ends on the event.
-            if let Some(before) = before {
-                *d.sim = before;
-            }
-            d.sim.land(record.t)?;
-            d.sol.stats.redone_steps += 1;
-            end = d.node(true)?;
-            for i in 0..d.plan.events.len() {
-                g_prev[i] = if i == record.event {
-                    // The side the crossing left g on: the node at t* can
-                    // differ from the dense output by the local error, and
-                    // must not count as a second crossing.
-                    let (q, v) = (record.q, record.v);
-                    d.g(i, record.t, &q, &v)?
-                } else {
-                    let n = end.node;
-                    d.g(i, n.t, &n.q, &n.v)?
-                };
-            }
-            match d.plan.events[record.event].action {
-                Action::Stop => {
-                    d.sol.status = Status::Stopped { event: record.event, t: record.t };
-                    finish_node(d, &mut end, true)?;
-                    return Ok(());
-                }
-                _ => {
-                    if t_step_end > record.t {
-                        rejoin = Some(t_step_end);
-                    }
-                }
+                d.sol.truncate(mark.0, mark.1);
+                d.next_save = mark.2;
+                d.keep_last_good(&mut lp.prev);
+                return Err(e);
             }
         }
-        let last = end.node.t >= t_end;
-        finish_node(d, &mut end, last)?;
         #[cfg(feature = "progress")]
         if let Some(bar) = &bar
-            && (d.steps.is_multiple_of(64) || last)
+            && (d.steps.is_multiple_of(64) || lp.prev.node.t >= t_end)
         {
-            bar.set_position((((end.node.t - t0) / (t_end - t0)) * PROGRESS_UNITS as f64) as u64);
+            bar.set_position((((lp.prev.node.t - t0) / (t_end - t0)) * PROGRESS_UNITS as f64) as u64);
         }
-        last_h = Some(end.node.t - prev.node.t);
-        prev = end;
     }
     #[cfg(feature = "progress")]
     if let Some(bar) = bar {
         bar.finish();
     }
     Ok(())
+}
+
+/// What the loop of [`run`] carries from one step to the next.
+struct Loop<const N: usize> {
+    /// The last node.
+    prev: Carried<N>,
+    /// The event values there.
+    g_prev: Vec<f64>,
+    /// The end of a step interrupted by a landing event.
+    rejoin: Option<f64>,
+    /// The length of the last step.
+    last_h: Option<f64>,
+}
+
+/// One step of [`run`] with everything it records; `Ok(true)` when a stop
+/// event ended the run. `before` is the integrator before the step (when
+/// something after the step can fail or an event can stop or land).
+fn advance<I: Stepping<N> + Clone, const N: usize>(
+    d: &mut Driver<'_, '_, I, N>,
+    lp: &mut Loop<N>,
+    before: &mut Option<I>,
+    dense_needed: bool,
+    v_each_step: bool,
+) -> Result<bool, SolveError<N>> {
+    let t_end = d.plan.t_end;
+    let has_events = !d.plan.events.is_empty();
+    let result = match lp.rejoin.take() {
+        Some(t) => d.sim.land(t),
+        None if d.sim.reaches(t_end, lp.last_h) => d.sim.land(t_end),
+        None => d.sim.step(),
+    };
+    result?;
+    d.steps += 1;
+    let prev = &mut lp.prev;
+    let mut end = d.node(v_each_step)?;
+    let mut landed = None;
+    if dense_needed {
+        let dense = d.interpolant(prev, &mut end)?;
+        let mut upto = end.node.t;
+        if has_events {
+            let (found, stop, g_end) = d.crossings(&dense, &prev.node, &end.node, &lp.g_prev)?;
+            lp.g_prev = g_end;
+            d.sol.events.extend_from_slice(&found);
+            if let Some(k) = stop {
+                let record = found[k];
+                upto = record.t;
+                landed = Some((record, end.node.t));
+            }
+        }
+        d.keep_saved(&dense, prev.node.t, upto);
+    }
+    if let Some((record, t_step_end)) = landed {
+        // Redo the step from its start so that it ends on the event (the
+        // copy stays: what follows can still fail).
+        if let Some(before) = before.as_ref() {
+            *d.sim = before.clone();
+        }
+        d.sim.land(record.t)?;
+        d.sol.stats.redone_steps += 1;
+        end = d.node(true)?;
+        for i in 0..d.plan.events.len() {
+            lp.g_prev[i] = if i == record.event {
+                // The side the crossing left g on: the node at t* can
+                // differ from the dense output by the local error, and
+                // must not count as a second crossing.
+                let (q, v) = (record.q, record.v);
+                d.g(i, record.t, &q, &v)?
+            } else {
+                let n = end.node;
+                d.g(i, n.t, &n.q, &n.v)?
+            };
+        }
+        match d.plan.events[record.event].action {
+            Action::Stop => {
+                finish_node(d, &mut end, true)?;
+                d.sol.status = Status::Stopped { event: record.event, t: record.t };
+                return Ok(true);
+            }
+            _ => {
+                if t_step_end > record.t {
+                    lp.rejoin = Some(t_step_end);
+                }
+            }
+        }
+    }
+    let last = end.node.t >= t_end;
+    finish_node(d, &mut end, last)?;
+    lp.last_h = Some(end.node.t - prev.node.t);
+    *prev = end;
+    Ok(false)
 }
 
 /// Node rows, observer and energy watch after a step.

@@ -14,4 +14,5 @@ mod newton_accuracy;
 mod properties;
 #[cfg(feature = "serde")]
 mod solution_files;
+mod solve_failures;
 mod variable_steps;
