@@ -168,6 +168,42 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// What is missing.
         what: &'static str,
     },
+    /// Time-transformed steps: the step density `g = dt/ds` is not finite
+    /// and positive at the state or inside the step from it.
+    #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
+    InvalidDensity {
+        /// The physical state the integrator holds.
+        state: State<N, T>,
+        /// The offending value of `g`.
+        value: f64,
+    },
+    /// Time-transformed steps: a step in `s` advanced time by less than the
+    /// floor (or not at all): the monitor makes the steps collapse.
+    #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
+    TimeStepCollapsed {
+        /// The physical state the integrator holds.
+        state: State<N, T>,
+        /// The time the refused step advanced.
+        dt: f64,
+        /// The smallest time step allowed.
+        floor: f64,
+    },
+    /// Time-transformed steps: the search for the partial step in `s` that
+    /// ends on the target time did not converge.
+    #[error("no step in s found that lands on t = {target}: the closest reached {reached}")]
+    Landing {
+        /// The target.
+        target: f64,
+        /// The closest time reached.
+        reached: f64,
+    },
+    /// A setting of the driver that cannot work (a penalty, a time-step
+    /// floor, a shift of a time transformation).
+    #[error("invalid setting: {reason}")]
+    InvalidSetting {
+        /// What is wrong with it.
+        reason: &'static str,
+    },
     /// The velocity for a momentum could not be found (inverse Legendre transform).
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
     InverseLegendre {
@@ -208,10 +244,51 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::StepRejected { state, .. }
             | Error::NoEnergyStep { state, .. }
             | Error::InvalidTarget { state, .. }
+            | Error::InvalidDensity { state, .. }
+            | Error::TimeStepCollapsed { state, .. }
             | Error::InverseLegendre { state, .. } => *state = at,
             _ => {}
         }
         self
+    }
+
+    /// The same error with its state mapped by `f`: a time-transformed
+    /// driver reports the failure of its step in `s`, whose state is the
+    /// extended `(q, t)`, at the physical state.
+    pub(crate) fn map_state<const K: usize>(self, f: impl FnOnce(State<N, T>) -> State<K, T>) -> Error<K, T> {
+        match self {
+            Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm } => {
+                Error::NewtonDidNotConverge { state: f(state), h, iterations, residual_norm, correction_norm }
+            }
+            Error::SingularJacobian { state, h, iterations, rcond } => {
+                Error::SingularJacobian { state: f(state), h, iterations, rcond }
+            }
+            Error::NonFinite { state, h, iterations, quantity } => {
+                Error::NonFinite { state: f(state), h, iterations, quantity }
+            }
+            Error::StepRejected { state, h, iterations, reason } => {
+                Error::StepRejected { state: f(state), h, iterations, reason }
+            }
+            Error::NoEnergyStep { state, h_lo, h_hi, h_best, mismatch, iterations, root_test } => {
+                Error::NoEnergyStep { state: f(state), h_lo, h_hi, h_best, mismatch, iterations, root_test }
+            }
+            Error::InvalidStepSize { h } => Error::InvalidStepSize { h },
+            Error::InvalidStepBounds { h_min, h_max, max_ratio } => {
+                Error::InvalidStepBounds { h_min, h_max, max_ratio }
+            }
+            Error::InvalidInitialData { reason } => Error::InvalidInitialData { reason },
+            Error::InvalidNewtonOptions { reason } => Error::InvalidNewtonOptions { reason },
+            Error::InvalidTarget { target, state } => Error::InvalidTarget { target, state: f(state) },
+            Error::InvalidMethod { reason } => Error::InvalidMethod { reason },
+            Error::Unsupported { what } => Error::Unsupported { what },
+            Error::InvalidDensity { state, value } => Error::InvalidDensity { state: f(state), value },
+            Error::TimeStepCollapsed { state, dt, floor } => Error::TimeStepCollapsed { state: f(state), dt, floor },
+            Error::Landing { target, reached } => Error::Landing { target, reached },
+            Error::InvalidSetting { reason } => Error::InvalidSetting { reason },
+            Error::InverseLegendre { state, iterations, residual_norm } => {
+                Error::InverseLegendre { state: f(state), iterations, residual_norm }
+            }
+        }
     }
 
     /// `Ok` for a usable configuration: a finite, positive step size, valid

@@ -58,5 +58,5 @@ pub use state::State;
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;
 pub use system::{DynLagrangian, Lagrangian, Scalar};
-pub use time_transform::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformError, TimeTransformed};
+pub use time_transform::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
 pub use time_transform::{ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction};

@@ -94,13 +94,14 @@ pub trait Stepping<const N: usize> {
     /// steps, the size the energy equation picks).
     fn step(&mut self) -> Result<(), Error<N>>;
 
-    /// `true` when the next step would reach `t_end` or pass it, so that the
-    /// caller should land on it with [`land`](Self::land) instead; `last_h`
-    /// is the length of the last step taken (`None` before the first).
-    fn reaches(&self, t_end: f64, last_h: Option<f64>) -> bool;
+    /// One step toward `t_end`: the integrator's own step, or, when that
+    /// step would reach `t_end` or pass it, the shortened step that ends on
+    /// `t_end` exactly; `last_h` is the length of the last step taken
+    /// (`None` before the first).
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>>;
 
     /// Steps to `t` exactly (the integrators' `run_until`); from within one
-    /// step of `t` (see [`reaches`](Self::reaches)), one shortened step.
+    /// step of `t`, one shortened step.
     fn land(&mut self, t: f64) -> Result<(), Error<N>>;
 
     /// The method's own interpolant of the last step, which ran from `start`
@@ -846,8 +847,7 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
     let has_events = !d.plan.events.is_empty();
     let result = match lp.rejoin.take() {
         Some(t) => d.sim.land(t),
-        None if d.sim.reaches(t_end, lp.last_h) => d.sim.land(t_end),
-        None => d.sim.step(),
+        None => d.sim.step_toward(t_end, lp.last_h),
     };
     result?;
     d.steps += 1;

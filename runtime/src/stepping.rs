@@ -9,12 +9,13 @@
 //! the method brings), using only its public accessors; `solve` is the
 //! trait's provided method.
 
-use crate::dense::Node;
+use crate::dense::{Hermite, Node};
 use crate::error::Error;
 use crate::integrator::{F64Readouts, Integrator, Stats, StepPolicy};
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Lagrangian;
+use crate::time_transform::{Adaptive, SStepper, StepDensity, TimeTransformed};
 
 /// `true` when a fixed step of size `h` from `t` ends within `10⁻⁹ h` of
 /// `t_end` or beyond it: the rule of the integrators' `run_until`.
@@ -58,8 +59,8 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Stepping<N> for Integrato
         Integrator::step(self).map(|_| ())
     }
 
-    fn reaches(&self, t_end: f64, _last_h: Option<f64>) -> bool {
-        reaches(self, t_end)
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+        if reaches(self, t_end) { self.run_until(t_end, |_| {}) } else { Integrator::step(self).map(|_| ()) }
     }
 
     fn land(&mut self, t: f64) -> Result<(), Error<N>> {
@@ -70,5 +71,51 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Stepping<N> for Integrato
     /// rules and compositions, the step polynomial for Galerkin.
     fn native(&self, start: &Node<N>, end: &Node<N>) -> M::Native<N> {
         M::native(self, start, end)
+    }
+}
+
+/// The implicit time-transformed driver in `f64`: its steps are steps of
+/// `σ` in `s`; landing solves for the partial step in `s` that ends on the
+/// physical time asked for.
+impl<I, Sys, G, const N: usize, const M: usize> Stepping<N> for Adaptive<I, Sys, G, N, M>
+where
+    I: SStepper<M, System = TimeTransformed<Sys, G, N>>,
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+{
+    type System = Sys;
+    type Native = Hermite<N>;
+
+    fn system(&self) -> &Sys {
+        Adaptive::system(self)
+    }
+
+    fn state(&self) -> State<N> {
+        Adaptive::state(self)
+    }
+
+    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        Adaptive::velocity(self)
+    }
+
+    fn stats(&self) -> Stats {
+        Adaptive::stats(self)
+    }
+
+    fn step(&mut self) -> Result<(), Error<N>> {
+        Adaptive::step(self).map(|_| ())
+    }
+
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+        Adaptive::step_toward(self, t_end)
+    }
+
+    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+        self.run_until(t, |_| {})
+    }
+
+    /// The cubic Hermite through both nodes in physical time.
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Hermite<N> {
+        Hermite::cubic(start, end)
     }
 }

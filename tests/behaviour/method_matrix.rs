@@ -2,7 +2,8 @@
 //! same [`Plan`] and the same [`Solution`].
 //!
 //! Each row is one method on the double pendulum (non-separable: every
-//! method solves its step by Newton) and each column one workflow:
+//! method solves its step by Newton; the time-transformed ones with the
+//! curvature monitor) and each column one workflow:
 //! - `land`: 100 targets reached exactly (the node's time is the target's bits);
 //! - `solve`: nodes every 5 steps, 7 save times by dense output, a `Record`
 //!   event (`q₀ = 0`) and a `Stop` event (`t = 1.7`); the saved values and
@@ -158,9 +159,29 @@ fn every_method_through_one_stepper_trait() {
             || Integrator::new(DoublePendulum, Composition::KAHAN_LI8, 0.04).start(0.0, Q0, V0).unwrap(),
             1e-5,
         ),
+        row(
+            "time-transformed midpoint",
+            || {
+                TimeTransformed::new(DoublePendulum, Curvature::new(1.0).unwrap())
+                    .rule(Midpoint, 0.03)
+                    .start::<3>(0.0, Q0, V0)
+                    .unwrap()
+            },
+            3e-4,
+        ),
+        row(
+            "time-transformed Galerkin s = 2",
+            || {
+                TimeTransformed::new(DoublePendulum, Curvature::new(1.0).unwrap())
+                    .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
+                    .start::<3>(0.0, Q0, V0)
+                    .unwrap()
+            },
+            2e-5,
+        ),
     ];
-    println!("{:<16} | {:<26} | {:<34} | files", "method", "land", "solve");
+    println!("{:<32} | {:<26} | {:<34} | files", "method", "land", "solve");
     for r in &rows {
-        println!("{:<16} | {:<26} | {:<34} | {}", r.name, r.land, r.solve, r.files);
+        println!("{:<32} | {:<26} | {:<34} | {}", r.name, r.land, r.solve, r.files);
     }
 }

@@ -423,12 +423,12 @@ impl StepDensity<1> for Breathing {
 fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
     let err =
         TimeTransformed::new(Oscillator, Position).rule(Midpoint, 0.1).start::<2>(0.0, [-0.5], [0.0]).unwrap_err();
-    assert!(matches!(err, TimeTransformError::InvalidDensity { value, .. } if value == -0.5), "{err:?}");
+    assert!(matches!(err, Error::InvalidDensity { value, .. } if value == -0.5), "{err:?}");
     // A g that turns NaN inside a step: that step is refused, the state kept.
     let mut sim =
         TimeTransformed::new(Oscillator, NanAfterHalf).rule(Midpoint, 0.07).start::<2>(0.0, [1.0], [0.0]).unwrap();
     let err = sim.run_until(1.0, |_| {}).unwrap_err();
-    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    let Error::InvalidDensity { state, value } = err else { panic!("{err:?}") };
     assert!(value.is_nan() && state == sim.state() && state.t <= 0.5 && state.t > 0.4, "{state:?}");
 }
 
@@ -437,7 +437,7 @@ fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
     let mut sim =
         TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
     let err = sim.run_until(2.0, |_| {}).unwrap_err();
-    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    let Error::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
     assert!(dt < floor && state == sim.state() && state.t < 1.0, "{dt} {floor} {state:?}");
 }
 
@@ -452,23 +452,23 @@ fn invalid_settings_and_targets_are_typed_errors() {
     assert!(Curvature::new(0.0).is_none());
     for sigma in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, sigma)).unwrap_err();
-        assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+        assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
     }
     let e = start(TimeTransformed::new(Oscillator, bad).rule(Midpoint, 0.1)).unwrap_err();
-    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
     let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).penalty(-1.0)).unwrap_err();
-    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
     let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).min_time_step(f64::NAN)).unwrap_err();
-    assert!(matches!(e, TimeTransformError::InvalidSetting { .. }), "{e:?}");
+    assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
     let e = TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).start::<2>(0.0, [f64::NAN], [0.0]).unwrap_err();
-    assert!(matches!(e, TimeTransformError::Step(Error::InvalidInitialData { .. })), "{e:?}");
+    assert!(matches!(e, Error::InvalidInitialData { .. }), "{e:?}");
     let mut sim =
         TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
     sim.run_until(1.0, |_| {}).unwrap();
     for target in [0.5, f64::NAN, f64::INFINITY] {
         let before = sim.state();
         let e = sim.run_until(target, |_| {}).unwrap_err();
-        assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
+        assert!(matches!(e, Error::InvalidTarget { .. }), "{e:?}");
         assert_eq!(sim.state(), before);
     }
     // The current time is a no-op; many targets are hit exactly.
@@ -733,21 +733,21 @@ fn double_double_driver_refuses_bad_monitors_with_the_state_kept() {
     type Dd = DoubleDouble;
     let d = Dd::from;
     let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, d(0.1)).start::<2>(d(0.0), [d(-0.5)], [d(0.0)]);
-    assert!(matches!(err, Err(TimeTransformError::InvalidDensity { value, .. }) if value == -0.5), "{err:?}");
+    assert!(matches!(err, Err(Error::InvalidDensity { value, .. }) if value == -0.5), "{err:?}");
     let mut sim = TimeTransformed::new(Oscillator, NanAfterHalf)
         .rule(Midpoint, d(0.07))
         .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
         .unwrap();
     let err = sim.run_until(d(1.0), |_| {}).unwrap_err();
-    let TimeTransformError::InvalidDensity { state, value } = err else { panic!("{err:?}") };
+    let Error::InvalidDensity { state, value } = err else { panic!("{err:?}") };
     assert!(value.is_nan() && state == sim.state() && state.t.to_f64() <= 0.5 && state.t.to_f64() > 0.4, "{state:?}");
     let mut sim = TimeTransformed::new(Oscillator, Collapsing)
         .rule(Midpoint, d(0.1))
         .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
         .unwrap();
     let err = sim.run_until(d(2.0), |_| {}).unwrap_err();
-    let TimeTransformError::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
+    let Error::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
     assert!(dt < floor && state == sim.state() && state.t.to_f64() < 1.0, "{dt} {floor} {state:?}");
     let e = sim.run_until(d(f64::NAN), |_| {}).unwrap_err();
-    assert!(matches!(e, TimeTransformError::InvalidTarget { .. }), "{e:?}");
+    assert!(matches!(e, Error::InvalidTarget { .. }), "{e:?}");
 }

@@ -603,7 +603,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
     }
 
     /// The smallest physical time a step in `s` may advance; a step that
-    /// advances less is refused with [`TimeTransformError::TimeStepCollapsed`].
+    /// advances less is refused with [`Error::TimeStepCollapsed`].
     /// Default: `10⁻⁸ σ g(t0, q0)`, the first step's size times `10⁻⁸`.
     pub fn min_time_step(mut self, dt: T) -> Self {
         self.min_time_step = Some(dt);
@@ -615,34 +615,34 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
     /// `M` is `N + 1` (checked at compile time): `.start::<3>(…)` for a
     /// planar problem.
     ///
-    /// Fails with [`TimeTransformError::InvalidSetting`] for a step, penalty
+    /// Fails with [`Error::InvalidSetting`] for a step, penalty
     /// or floor that is not finite and positive or a monitor that cannot be
-    /// evaluated, [`TimeTransformError::InvalidDensity`] where `g(t0, q0)` is
+    /// evaluated, [`Error::InvalidDensity`] where `g(t0, q0)` is
     /// not finite and positive, and with the integrator's own errors
-    /// ([`TimeTransformError::Step`]) for invalid initial data.
+    /// (the error of the rule in `s`) for invalid initial data.
     #[allow(clippy::type_complexity)]
     pub fn start<const M: usize>(
         self,
         t0: T,
         q0: [T; N],
         v0: [T; N],
-    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, TimeTransformError<N, M, T>>
+    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, Error<N, T>>
     where
         K: SMethod<Sys, G, N, M, T>,
     {
         const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
-        self.system.density.check().map_err(|reason| TimeTransformError::InvalidSetting { reason })?;
+        self.system.density.check().map_err(|reason| Error::InvalidSetting { reason })?;
         let sigma = self.sigma.to_f64();
         if !(self.sigma.is_finite() && sigma > 0.0) {
-            return Err(TimeTransformError::InvalidSetting { reason: "the step in `s` must be finite and positive" });
+            return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
         if !t0.is_finite() || !all_finite(&q0) || !all_finite(&v0) {
-            return Err(TimeTransformError::Step(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" }));
+            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
         let state = State { step: 0, t: t0, q: q0, p: [T::from(f64::NAN); N] };
         let g0 = self.system.density(t0, &q0);
         if !(g0.is_finite() && g0.to_f64() > 0.0) {
-            return Err(TimeTransformError::InvalidDensity { state, value: g0.to_f64() });
+            return Err(Error::InvalidDensity { state, value: g0.to_f64() });
         }
         // The constant c is part of the method, not of the state: f64 in every type.
         let sys = &*self.system.system;
@@ -653,16 +653,14 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         let penalty = match self.penalty {
             Some(c) if c.is_finite() && c > 0.0 => c,
             Some(_) => {
-                return Err(TimeTransformError::InvalidSetting { reason: "the penalty must be finite and positive" });
+                return Err(Error::InvalidSetting { reason: "the penalty must be finite and positive" });
             }
             None if scale.is_finite() && scale > 0.0 => 1.0 / scale,
             None => 1.0,
         };
         let floor = self.min_time_step.unwrap_or(T::from(1e-8) * self.sigma * g0);
         if !(floor.is_finite() && floor.to_f64() > 0.0) {
-            return Err(TimeTransformError::InvalidSetting {
-                reason: "the smallest time step must be finite and positive",
-            });
+            return Err(Error::InvalidSetting { reason: "the smallest time step must be finite and positive" });
         }
         let mut system = self.system;
         system.penalty = penalty;
@@ -674,61 +672,12 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         }
         x0[N] = t0;
         w0[N] = g0;
-        let inner = self.method.start_s(system, self.sigma, self.newton, x0, w0).map_err(TimeTransformError::Step)?;
+        let inner = self
+            .method
+            .start_s(system, self.sigma, self.newton, x0, w0)
+            .map_err(|e| e.map_state(|x| physical::<T, N, M>(&x)))?;
         Ok(Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None })
     }
-}
-
-/// What went wrong in a time-transformed integration. The integrator is left
-/// as it was before the failed call. `T` is the real type of the run; the
-/// diagnostic numbers (values of `g`, time steps, targets) are `f64`.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum TimeTransformError<const N: usize, const M: usize, T: Real = f64> {
-    /// The integrator in `s` failed (its state is in `x = (q, t)`).
-    #[error("the step in s failed: {0}")]
-    Step(Error<M, T>),
-    /// `g` is not finite and positive at the state or inside the step from it.
-    #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
-    InvalidDensity {
-        /// The physical state the integrator holds.
-        state: State<N, T>,
-        /// The offending value of `g`.
-        value: f64,
-    },
-    /// A step in `s` advanced time by less than the floor (or not at all):
-    /// the monitor makes the steps collapse.
-    #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
-    TimeStepCollapsed {
-        /// The physical state the integrator holds.
-        state: State<N, T>,
-        /// The time the refused step advanced.
-        dt: f64,
-        /// The smallest time step allowed.
-        floor: f64,
-    },
-    /// A target time behind the current one, or not finite.
-    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
-    InvalidTarget {
-        /// The rejected target.
-        target: f64,
-        /// The physical state the integrator holds.
-        state: State<N, T>,
-    },
-    /// The search for the step in `s` that ends on the target time did not converge.
-    #[error("no step in s found that lands on t = {target}: the closest reached {reached}")]
-    Landing {
-        /// The target.
-        target: f64,
-        /// The closest time reached.
-        reached: f64,
-    },
-    /// A setting that cannot work.
-    #[error("invalid setting: {reason}")]
-    InvalidSetting {
-        /// What is wrong with it.
-        reason: &'static str,
-    },
 }
 
 /// An adaptive integrator in physical time built from a fixed-step
@@ -986,38 +935,36 @@ where
 
     /// The physical velocity `v` with `∂L/∂v(t, q, v) = p`: Newton in `f64`,
     /// refined in `T` when `T` is wider.
-    pub fn velocity(&self) -> Result<[T; N], TimeTransformError<N, M, T>> {
+    pub fn velocity(&self) -> Result<[T; N], Error<N, T>> {
         let s = self.state();
-        velocity_in(self.system(), (s.t, s.q, s.p), self.v_guess).map_err(|f| {
-            TimeTransformError::Step(Error::InverseLegendre {
-                state: self.inner.extended_state(),
-                iterations: f.iterations,
-                residual_norm: f.residual_norm,
-            })
+        velocity_in(self.system(), (s.t, s.q, s.p), self.v_guess).map_err(|f| Error::InverseLegendre {
+            state: s,
+            iterations: f.iterations,
+            residual_norm: f.residual_norm,
         })
     }
 
     /// The physical energy `E_L(t, q, v)` at the current state, in `T`.
-    pub fn energy(&self) -> Result<T, TimeTransformError<N, M, T>> {
+    pub fn energy(&self) -> Result<T, Error<N, T>> {
         let v = self.velocity()?;
         let s = self.state();
         Ok(energy_in(self.system(), s.t, s.q, v))
     }
 
     /// Sets the step in `s` for the following steps.
-    pub fn set_step_size(&mut self, sigma: T) -> Result<(), TimeTransformError<N, M, T>> {
-        self.inner.set_s_step_size(sigma).map_err(TimeTransformError::Step)
+    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<N, T>> {
+        self.inner.set_s_step_size(sigma).map_err(|e| e.map_state(|x| physical::<T, N, M>(&x)))
     }
 
     /// One step of `σ` in `s`. Refused, with the state kept, where `g` is
     /// not finite and positive inside the step or at its end, and where the
     /// step advances time by less than [`min_time_step`](Self::min_time_step).
-    pub fn step(&mut self) -> Result<State<N, T>, TimeTransformError<N, M, T>> {
+    pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
         let before = self.inner.clone();
         self.try_step(before)
     }
 
-    fn try_step(&mut self, before: I) -> Result<State<N, T>, TimeTransformError<N, M, T>> {
+    fn try_step(&mut self, before: I) -> Result<State<N, T>, Error<N, T>> {
         let start = self.state();
         self.inner.transformed().invalid.set(None);
         if let Err(e) = self.inner.s_step() {
@@ -1025,8 +972,8 @@ where
             let invalid = self.inner.transformed().invalid.get();
             self.inner = before;
             return Err(match invalid {
-                Some(value) => TimeTransformError::InvalidDensity { state: start, value },
-                None => TimeTransformError::Step(e),
+                Some(value) => Error::InvalidDensity { state: start, value },
+                None => e.map_state(|x| physical::<T, N, M>(&x)),
             });
         }
         let x = self.inner.extended_state();
@@ -1035,14 +982,14 @@ where
         let dt = end.t - self.inner_time(&before);
         if !(g1.is_finite() && g1.to_f64() > 0.0) {
             self.inner = before;
-            return Err(TimeTransformError::InvalidDensity { state: start, value: g1.to_f64() });
+            return Err(Error::InvalidDensity { state: start, value: g1.to_f64() });
         }
         // NaN fails too.
         let margin = (dt - self.floor).to_f64();
         if margin.is_nan() || margin < 0.0 {
             self.inner = before;
             let floor = self.floor.to_f64();
-            return Err(TimeTransformError::TimeStepCollapsed { state: start, dt: dt.to_f64(), floor });
+            return Err(Error::TimeStepCollapsed { state: start, dt: dt.to_f64(), floor });
         }
         self.after_step(&start, &end, dt);
         Ok(self.state())
@@ -1061,7 +1008,7 @@ where
     }
 
     /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M, T>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -1076,33 +1023,39 @@ where
     /// `t = t_end` exactly (the coordinate `t` of the state in `s` keeps that
     /// last unit). The step `σ` is unchanged afterwards. A target equal to
     /// the current time is a no-op.
-    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), TimeTransformError<N, M, T>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         let now = self.state();
         if !t_end.is_finite() || above(now.t, t_end) {
-            return Err(TimeTransformError::InvalidTarget { target: t_end.to_f64(), state: now });
+            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: now });
         }
-        loop {
-            let start = self.state();
-            if !above(t_end, start.t) {
-                return Ok(());
-            }
-            let before = self.inner.clone();
-            self.try_step(before.clone())?;
-            let t = self.inner_time(&self.inner);
-            if !above(t, t_end) {
-                observe(self);
-                continue;
-            }
-            self.inner = before;
-            self.land(t_end, t, &start)?;
+        while above(t_end, self.state().t) {
+            self.step_toward(t_end)?;
             observe(self);
+        }
+        Ok(())
+    }
+
+    /// One step of `σ` in `s`, or, when it would pass the physical time
+    /// `t_end`, the partial step that ends on it (see
+    /// [`run_until`](Self::run_until)); a no-op at or beyond `t_end`.
+    pub(crate) fn step_toward(&mut self, t_end: T) -> Result<(), Error<N, T>> {
+        let start = self.state();
+        if !above(t_end, start.t) {
             return Ok(());
         }
+        let before = self.inner.clone();
+        self.try_step(before.clone())?;
+        let t = self.inner_time(&self.inner);
+        if above(t, t_end) {
+            self.inner = before;
+            self.land(t_end, t, &start)?;
+        }
+        Ok(())
     }
 
     /// The partial step in `s` from the current state that ends on `t_end`,
     /// given that the full step ends at `t_over > t_end`.
-    fn land(&mut self, t_end: T, t_over: T, start: &State<N, T>) -> Result<(), TimeTransformError<N, M, T>> {
+    fn land(&mut self, t_end: T, t_over: T, start: &State<N, T>) -> Result<(), Error<N, T>> {
         let sigma = self.inner.s_step_size();
         let t0 = self.inner_time(&self.inner);
         let tol = 4.0 * T::EPSILON * t_end.to_f64().abs().max(t0.to_f64().abs()).max(f64::MIN_POSITIVE);
@@ -1156,7 +1109,7 @@ where
                 self.landed = Some((end.step, t_end));
                 Ok(())
             }
-            best => Err(TimeTransformError::Landing {
+            best => Err(Error::Landing {
                 target: t_end.to_f64(),
                 reached: best.map_or(t0.to_f64(), |(f, _)| (t_end + f).to_f64()),
             }),
