@@ -685,8 +685,10 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum TimeTransformError<const N: usize, const M: usize, T: Real = f64> {
-    /// The integrator in `s` failed (its state is in `x = (q, t)`).
-    #[error("the step in s failed: {0}")]
+    /// The integrator in `s` failed. Its error is that of the integrator in
+    /// `s`: its `state` has the fictitious time `s` in `state.t` and
+    /// `x = (q, t)` in `state.q`; the message names that time `s`.
+    #[error("the step in s failed: {}", in_s(.0))]
     Step(Error<M, T>),
     /// `g` is not finite and positive at the state or inside the step from it.
     #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
@@ -729,6 +731,12 @@ pub enum TimeTransformError<const N: usize, const M: usize, T: Real = f64> {
         /// What is wrong with it.
         reason: &'static str,
     },
+}
+
+/// The message of an error of the integrator in `s`, whose time is `s`:
+/// every `t = ` of it is the fictitious time, named `s = `.
+fn in_s<const M: usize, T: Real>(e: &Error<M, T>) -> String {
+    e.to_string().replace("t = ", "s = ")
 }
 
 /// An adaptive integrator in physical time built from a fixed-step
