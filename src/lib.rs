@@ -159,9 +159,7 @@ pub mod prelude {
         Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Summation,
         Symmetry, Trapezoid,
     };
-    pub use lagrangian_runtime::{
-        Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction,
-    };
+    pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
     pub use lagrangian_runtime::{Event, Plan, Solution, Stepping};

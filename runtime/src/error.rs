@@ -197,6 +197,46 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// The closest time reached.
         reached: f64,
     },
+    /// The explicit time-transformed splitting: the system is not of the
+    /// form `½ vᵀMv − V(t, q)` with a constant, regular `M` that it needs.
+    #[error("not separable: {reason}")]
+    NotSeparable {
+        /// The requirement that is not met.
+        reason: &'static str,
+    },
+    /// The explicit time-transformed splitting: an argument of `f'` was not
+    /// finite and positive inside a step: the shift `c` is too small for the
+    /// energy reached (a time-dependent `V` can raise it), or the state is
+    /// not finite.
+    #[error("the argument {which:?} of f' is {value}, not finite and positive (step from t = {})", .state.t)]
+    TimeFunctionArgument {
+        /// The physical state the integrator holds.
+        state: State<N, T>,
+        /// Which argument.
+        which: Argument,
+        /// Its value.
+        value: f64,
+    },
+    /// The explicit time-transformed splitting lost the orbit: at the step's
+    /// end node, the drift's rate `dt/ds = f'(T + p_t + c)` and the kick's
+    /// `f'(c − V)`, whose ratio the method keeps at its initial value (1 from
+    /// [`start`](crate::ExplicitTimeTransformed::start): the two arguments
+    /// are equal on the level `Γ = 0`) up to the method's error, differ from
+    /// that ratio by more than a factor 2. The energy error is then as large
+    /// as `c − V` itself: `σ` is far too large for this part of the orbit, or
+    /// the orbit runs into the singularity of `V` with a time function that
+    /// does not regularise it (a collision with `α < 1` on Kepler).
+    #[error(
+        "the step from t = {} lost the orbit: the ratio of the drift's rate dt/ds = f'(T + p_t + c) to the kick's f'(c − V) changed by a factor {factor:e} (1 on the exact flow, at most 2 allowed): the step σ is too large here, or the orbit meets a singularity of V that f does not regularise",
+        .state.t
+    )]
+    OrbitLost {
+        /// The physical state the integrator holds.
+        state: State<N, T>,
+        /// The ratio of the rates at the failing point divided by that at
+        /// the start (outside `[1/2, 2]`, or NaN).
+        factor: f64,
+    },
     /// A setting of the driver that cannot work (a penalty, a time-step
     /// floor, a shift of a time transformation).
     #[error("invalid setting: {reason}")]
@@ -246,6 +286,8 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::InvalidTarget { state, .. }
             | Error::InvalidDensity { state, .. }
             | Error::TimeStepCollapsed { state, .. }
+            | Error::TimeFunctionArgument { state, .. }
+            | Error::OrbitLost { state, .. }
             | Error::InverseLegendre { state, .. } => *state = at,
             _ => {}
         }
@@ -285,6 +327,11 @@ impl<const N: usize, T: Real> Error<N, T> {
             Error::TimeStepCollapsed { state, dt, floor } => Error::TimeStepCollapsed { state: f(state), dt, floor },
             Error::Landing { target, reached } => Error::Landing { target, reached },
             Error::InvalidSetting { reason } => Error::InvalidSetting { reason },
+            Error::NotSeparable { reason } => Error::NotSeparable { reason },
+            Error::TimeFunctionArgument { state, which, value } => {
+                Error::TimeFunctionArgument { state: f(state), which, value }
+            }
+            Error::OrbitLost { state, factor } => Error::OrbitLost { state: f(state), factor },
             Error::InverseLegendre { state, iterations, residual_norm } => {
                 Error::InverseLegendre { state: f(state), iterations, residual_norm }
             }
@@ -305,6 +352,16 @@ impl<const N: usize, T: Real> Error<N, T> {
     pub(crate) fn check_step(h: f64) -> Result<(), Self> {
         if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
     }
+}
+
+/// Which argument of `f'` failed the positivity check in the explicit
+/// time-transformed splitting ([`Error::TimeFunctionArgument`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Argument {
+    /// `T(p) + p_t + c`, in a drift.
+    Kinetic,
+    /// `c − V(t, q)`, in a kick.
+    Potential,
 }
 
 /// The root test of [`Error::NoEnergyStep`] as text for its message.

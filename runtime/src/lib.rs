@@ -59,4 +59,4 @@ pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;
 pub use system::{DynLagrangian, Lagrangian, Scalar};
 pub use time_transform::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
-pub use time_transform::{ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, SplittingError, TimeFunction};
+pub use time_transform::{ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};

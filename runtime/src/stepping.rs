@@ -12,10 +12,11 @@
 use crate::dense::{Hermite, Node};
 use crate::error::Error;
 use crate::integrator::{F64Readouts, Integrator, Stats, StepPolicy};
+use crate::real::Real;
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Lagrangian;
-use crate::time_transform::{Adaptive, SStepper, StepDensity, TimeTransformed};
+use crate::time_transform::{Adaptive, ExplicitAdaptive, SStepper, StepDensity, TimeTransformed};
 
 /// `true` when a fixed step of size `h` from `t` ends within `10⁻⁹ h` of
 /// `t_end` or beyond it: the rule of the integrators' `run_until`.
@@ -108,6 +109,48 @@ where
 
     fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
         Adaptive::step_toward(self, t_end)
+    }
+
+    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+        self.run_until(t, |_| {})
+    }
+
+    /// The cubic Hermite through both nodes in physical time.
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Hermite<N> {
+        Hermite::cubic(start, end)
+    }
+}
+
+/// The explicit time-transformed splitting: steps of `σ` in `s`, landing
+/// by the partial step in `s` that ends on the physical time asked for.
+impl<Sys: Lagrangian<N>, T: Real, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, T, N> {
+    type System = Sys;
+    type Native = Hermite<N>;
+
+    fn system(&self) -> &Sys {
+        ExplicitAdaptive::system(self)
+    }
+
+    fn state(&self) -> State<N> {
+        ExplicitAdaptive::state(self)
+    }
+
+    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        Ok(ExplicitAdaptive::velocity(self))
+    }
+
+    /// Steps in `s`; the gradient evaluations of `V` are not Newton
+    /// iterations and are not counted here (see [`ExplicitAdaptive::stats`]).
+    fn stats(&self) -> Stats {
+        Stats { steps: ExplicitAdaptive::stats(self).steps, ..Stats::default() }
+    }
+
+    fn step(&mut self) -> Result<(), Error<N>> {
+        ExplicitAdaptive::step(self).map(|_| ())
+    }
+
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+        ExplicitAdaptive::step_toward(self, t_end)
     }
 
     fn land(&mut self, t: f64) -> Result<(), Error<N>> {

@@ -398,10 +398,10 @@ impl Damped {
 #[test]
 fn non_separable_systems_are_refused() {
     let err = ExplicitTimeTransformed::new(VariableMass, LOG, 0.1).start(0.0, [1.0], [0.0]).unwrap_err();
-    assert!(matches!(err, SplittingError::NotSeparable { .. }), "{err:?}");
+    assert!(matches!(err, Error::NotSeparable { .. }), "{err:?}");
     assert!(err.to_string().contains("constant mass matrix"), "{err}");
     let err = ExplicitTimeTransformed::new(Damped, LOG, 0.1).start(0.0, [1.0], [0.0]).unwrap_err();
-    assert!(matches!(err, SplittingError::NotSeparable { .. }), "{err:?}");
+    assert!(matches!(err, Error::NotSeparable { .. }), "{err:?}");
 }
 
 #[test]
@@ -409,26 +409,26 @@ fn bad_settings_and_initial_data_are_typed_errors() {
     let (q0, v0) = kepler_start(0.9);
     let start = |f: TimeFunction, sigma: f64| ExplicitTimeTransformed::new(Kepler, f, sigma).start(0.0, q0, v0);
     for sigma in [0.0, -0.1, f64::NAN, f64::INFINITY] {
-        assert!(matches!(start(LOG, sigma), Err(SplittingError::InvalidSetting { .. })), "σ = {sigma}");
+        assert!(matches!(start(LOG, sigma), Err(Error::InvalidSetting { .. })), "σ = {sigma}");
     }
     for alpha in [0.0, -1.0, f64::NAN] {
-        assert!(matches!(start(TimeFunction::Power(alpha), 0.1), Err(SplittingError::InvalidSetting { .. })));
+        assert!(matches!(start(TimeFunction::Power(alpha), 0.1), Err(Error::InvalidSetting { .. })));
     }
     for (q, v) in [([f64::NAN, 0.0], v0), (q0, [0.0, f64::INFINITY])] {
         let err = ExplicitTimeTransformed::new(Kepler, LOG, 0.1).start(0.0, q, v).unwrap_err();
-        assert!(matches!(err, SplittingError::InvalidInitialData { .. }), "{err:?}");
+        assert!(matches!(err, Error::InvalidInitialData { .. }), "{err:?}");
     }
     // c − V(q0) = −20 + 1/0.1 < 0.
     let err = ExplicitTimeTransformed::new(Kepler, LOG, 0.1).shift(-20.0).start(0.0, q0, v0).unwrap_err();
-    assert!(matches!(err, SplittingError::InvalidArgument { which: Argument::Potential, .. }), "{err:?}");
+    assert!(matches!(err, Error::TimeFunctionArgument { which: Argument::Potential, .. }), "{err:?}");
     let mut sim = start(LOG, 0.1).unwrap();
-    assert!(matches!(sim.set_step_size(0.0), Err(SplittingError::InvalidSetting { .. })));
-    assert!(matches!(sim.set_step_size(f64::NAN), Err(SplittingError::InvalidSetting { .. })));
+    assert!(matches!(sim.set_step_size(0.0), Err(Error::InvalidSetting { .. })));
+    assert!(matches!(sim.set_step_size(f64::NAN), Err(Error::InvalidSetting { .. })));
     assert_eq!(sim.step_size(), 0.1);
     sim.run(3, |_| {}).unwrap();
     let before = sim.state();
     let err = sim.run_until(before.t - 1.0, |_| {}).unwrap_err();
-    assert!(matches!(err, SplittingError::InvalidTarget { .. }), "{err:?}");
+    assert!(matches!(err, Error::InvalidTarget { .. }), "{err:?}");
     assert_eq!(sim.state(), before);
 }
 
@@ -451,7 +451,7 @@ fn a_shift_too_small_for_the_orbit_fails_with_the_state_kept() {
             Err(e) => break e,
         }
     };
-    assert!(matches!(err, SplittingError::InvalidArgument { .. }), "{err:?}");
+    assert!(matches!(err, Error::TimeFunctionArgument { .. }), "{err:?}");
     assert_eq!(sim.state(), last);
     assert!(sim.state().q[0].hypot(sim.state().q[1]) > 0.15);
     assert_eq!(sim.step().unwrap_err(), err);
@@ -464,7 +464,7 @@ fn collapsing_steps_are_refused_with_the_state_kept() {
     let mut sim = ExplicitTimeTransformed::new(Kepler, LOG, 0.01).min_time_step(1.0).start(0.0, q0, v0).unwrap();
     let before = sim.state();
     let err = sim.step().unwrap_err();
-    assert!(matches!(err, SplittingError::TimeStepCollapsed { .. }), "{err:?}");
+    assert!(matches!(err, Error::TimeStepCollapsed { .. }), "{err:?}");
     assert_eq!(sim.state(), before);
     assert_eq!(sim.stats().steps, 0);
     // A landing step may be short: run_until onto a time just ahead works.

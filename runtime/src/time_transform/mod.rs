@@ -40,9 +40,10 @@
 
 mod splitting;
 
+pub use crate::error::Argument;
+
 pub use splitting::{
-    Argument, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingError, SplittingStats,
-    TimeFunction,
+    ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingStats, TimeFunction,
 };
 
 use core::cell::Cell;
