@@ -38,6 +38,12 @@ pub(crate) const CHUNK: usize = 64;
 /// (`Span::mixed_site`), so it cannot capture or shadow a user's variable.
 const PARTIAL: &str = "__lagrangian_partial";
 
+/// Whether `ident` names a partial result of a split chain. The name is
+/// hygienic, so a user's variable cannot carry it into the generated code.
+pub(crate) fn is_partial(ident: &Ident) -> bool {
+    ident == PARTIAL
+}
+
 /// Splits every chain of more than [`CHUNK`] operands in `item`.
 pub(crate) fn split(item: &mut syn::ItemImpl) {
     Splitter.visit_item_impl_mut(item);
