@@ -1033,8 +1033,7 @@ mod tests {
 
     #[test]
     fn long_chains_become_chunk_methods_in_order() {
-        let terms = 2 * crate::chains::CHUNK + 1;
-        let chain = (1..terms).map(|k| format!(" + {k}.0 * (q[0] * self.c).sin()")).collect::<String>();
+        let chain = (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * (q[0] * self.c).sin()")).collect::<String>();
         let source = format!(
             "impl P {{ fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 {{ 0.5 * v[0] * v[0]{chain} }} }}"
         );
@@ -1051,8 +1050,16 @@ mod tests {
         for call in &calls {
             assert!(out.contains(call.as_str()), "{call}\n{out}");
         }
-        assert!(!out.contains("chunk_3"), "{out}");
-        assert!(out.contains("# [inline (never)] fn __lagrangian_lagrangian_chunk_1 < __D : :: lagrangian :: __private :: Scalar > (& self , __lagrangian_partial : __D , t : __D , q : & [__D ; 1] , v : & [__D ; 1]) -> __D { __lagrangian_partial + (q [0] * self . c) . sin () * 64.0"), "{out}");
+        let last = (crate::chains::LONG - 1) / crate::chains::CHUNK;
+        assert!(out.contains(&format!("__lagrangian_lagrangian_chunk_{last} (")), "{out}");
+        assert!(!out.contains(&format!("__lagrangian_lagrangian_chunk_{} (", last + 1)), "{out}");
+        let second = format!(
+            "# [inline (never)] fn __lagrangian_lagrangian_chunk_1 < __D : :: lagrangian :: __private :: Scalar > \
+             (& self , __lagrangian_partial : __D , t : __D , q : & [__D ; 1] , v : & [__D ; 1]) -> __D \
+             {{ __lagrangian_partial + (q [0] * self . c) . sin () * {}.0",
+            crate::chains::CHUNK
+        );
+        assert!(out.contains(&second), "{out}");
         assert!(out.contains("# [doc (hidden)] impl P {"), "{out}");
     }
 
@@ -1060,7 +1067,7 @@ mod tests {
     fn chains_reading_locals_or_items_stay_inline() {
         for prelude in ["let x = q[0] * 2.0;", "const K: f64 = 2.0; let y = 1.0;"] {
             let read = if prelude.starts_with("let") { "x" } else { "K * q[0]" };
-            let chain = (0..2 * crate::chains::CHUNK).map(|k| format!(" + {k}.0 * {read}")).collect::<String>();
+            let chain = (0..crate::chains::LONG).map(|k| format!(" + {k}.0 * {read}")).collect::<String>();
             let source = format!(
                 "impl P {{ fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {{ {prelude} v[0] * v[0]{chain} }} }}"
             );
