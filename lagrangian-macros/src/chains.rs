@@ -200,7 +200,7 @@ mod tests {
         let product = vec!["y"; LONG].join(" * ");
         let product: syn::Expr = syn::parse_str(&product).unwrap();
         let out = split_body(parse_quote!({ 1.0 + (#product).sqrt() }));
-        let chunk = vec!["y"; CHUNK].join(" * ");
+        let chunk = ["y"; CHUNK].join(" * ");
         let rest = (CHUNK..LONG)
             .collect::<Vec<_>>()
             .chunks(CHUNK)

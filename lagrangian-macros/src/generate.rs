@@ -432,10 +432,8 @@ impl Chunks {
         }
         // `&q`: the method holds an array or a slice, a chunk a reference
         // to one; the argument coerces from either.
-        for binder in [Some(&function.q), v].into_iter().flatten() {
-            if let Some(x) = binder {
-                params.push((x.clone(), state.clone(), quote!(&#x)));
-            }
+        for x in [Some(&function.q), v].into_iter().flatten().flatten() {
+            params.push((x.clone(), state.clone(), quote!(&#x)));
         }
         Chunks {
             prefix: format!("__lagrangian_{}_chunk", function.name),
