@@ -7,13 +7,13 @@
 //! proportion. Measured with rustc 1.95 and its default 8 MiB stack: rustc
 //! alone overflows on a plain `f64` function summing about 6000 terms, and
 //! `syn::Item::clone` on about 5000. So the first thing the macro does, in
-//! one pass that walks chains with a loop, is to rewrite every chain of more
-//! than [`CHUNK`] operands (of one precedence level: `+ -`, `* / %`, `&&`,
-//! `||`, ...) into a block of partial results,
+//! one pass that walks chains with a loop, is to rewrite every chain of at
+//! least [`LONG`] operands (of one precedence level: `+ -`, `* / %`, `&&`,
+//! `||`, ...) into a block of partial results of [`CHUNK`] operands each,
 //!
 //! ```text
-//! { let __lagrangian_partial = t0 + ... + t63;
-//!   let __lagrangian_partial = __lagrangian_partial + t64 + ... + t127;
+//! { let __lagrangian_partial = t0 + ... + t7;
+//!   let __lagrangian_partial = __lagrangian_partial + t8 + ... + t15;
 //!   ...
 //!   __lagrangian_partial }
 //! ```
@@ -21,8 +21,11 @@
 //! in the user's method and hence in the generated one. These are the same
 //! operations on the same operands in the same (left-to-right) order, so the
 //! result is bit for bit the same, and `&&`/`||` keep their short-circuits.
-//! Chains of up to [`CHUNK`] operands, i.e. all ordinary code, are left as
-//! written. After the pass no tree is deeper than the user's nesting of
+//! Shorter chains, i.e. all ordinary code, are left as written (the
+//! gradient code of `adjoint` covers them, not blocks). `generate` prints
+//! each partial result of the generic method as a function of its own,
+//! whose optimisation costs LLVM time growing faster than its length: hence
+//! chunks shorter than the threshold. After the pass no tree is deeper than the user's nesting of
 //! parentheses, blocks, calls and `else if`s, which no stage flattens: those
 //! stay limited by syn's recursive parser (see the crate docs).
 
@@ -30,15 +33,25 @@ use proc_macro2::Span;
 use syn::visit_mut::{self, VisitMut};
 use syn::{BinOp, Expr, ExprBinary, Ident};
 
-/// The most operands a chain keeps before it is split, and the size of each
-/// partial result.
-pub(crate) const CHUNK: usize = 64;
+/// The fewest operands of a chain that is split.
+pub(crate) const LONG: usize = 65;
+
+/// The operands of each partial result of a split chain. Measured on a
+/// generated crate summing 300 sines (`scripts/compile_time.py`): chunks
+/// of 64 took 25 s of CPU, 16 took 15 s, 8 took 12 s and 4 took 13 s.
+pub(crate) const CHUNK: usize = 8;
 
 /// The local variable holding the partial results; hygienic
 /// (`Span::mixed_site`), so it cannot capture or shadow a user's variable.
 const PARTIAL: &str = "__lagrangian_partial";
 
-/// Splits every chain of more than [`CHUNK`] operands in `item`.
+/// Whether `ident` names a partial result of a split chain. The name is
+/// hygienic, so a user's variable cannot carry it into the generated code.
+pub(crate) fn is_partial(ident: &Ident) -> bool {
+    ident == PARTIAL
+}
+
+/// Splits every chain of at least [`LONG`] operands in `item`.
 pub(crate) fn split(item: &mut syn::ItemImpl) {
     Splitter.visit_item_impl_mut(item);
 }
@@ -91,7 +104,7 @@ impl VisitMut for Splitter {
         for (_, operand) in &mut rest {
             self.visit_expr_mut(operand);
         }
-        *expr = if rest.len() < CHUNK { fold(first, rest) } else { partials(first, rest) };
+        *expr = if rest.len() + 1 < LONG { fold(first, rest) } else { partials(first, rest) };
     }
 }
 
@@ -162,32 +175,38 @@ mod tests {
 
     #[test]
     fn long_chains_become_partial_results_in_order() {
-        let terms: Vec<syn::Expr> = (0..2 * CHUNK + 1).map(|i| parse_quote!(x * #i)).collect();
-        let (a, b) = (&terms[1..CHUNK], &terms[CHUNK..2 * CHUNK]);
-        let (first, last) = (&terms[0], &terms[2 * CHUNK]);
-        let chain = quote!(#first #(- #a)* #(+ #b)* - #last);
+        let terms: Vec<syn::Expr> = (0..LONG).map(|i| parse_quote!(x * #i)).collect();
+        let chain = quote!(#(#terms)-*);
         let out = split_body(parse_quote!({ #chain }));
         let partial = Ident::new(PARTIAL, Span::call_site());
+        let (head, rest) = terms.split_at(CHUNK);
+        let stmts = rest.chunks(CHUNK).map(|chunk| quote!(let #partial = #partial #(- #chunk)*;));
         let expected = quote!({
             {
-                let #partial = #first #(- #a)*;
-                let #partial = #partial #(+ #b)*;
-                let #partial = #partial - #last;
+                let #partial = #(#head)-*;
+                #(#stmts)*
                 #partial
             }
         });
         assert_eq!(out, expected.to_string());
+        // One operand fewer is left as written.
+        let short = &terms[..LONG - 1];
+        let chain = quote!(#(#short)-*);
+        assert_eq!(split_body(parse_quote!({ #chain })), quote!({ #chain }).to_string());
     }
 
     #[test]
     fn chains_inside_operands_are_split_too() {
-        let product = vec!["y"; CHUNK + 1].join(" * ");
+        let product = vec!["y"; LONG].join(" * ");
         let product: syn::Expr = syn::parse_str(&product).unwrap();
         let out = split_body(parse_quote!({ 1.0 + (#product).sqrt() }));
-        let expected = format!(
-            "{{ 1.0 + ({{ let {PARTIAL} = {} ; let {PARTIAL} = {PARTIAL} * y ; {PARTIAL} }}) . sqrt () }}",
-            vec!["y"; CHUNK].join(" * ")
-        );
+        let chunk = ["y"; CHUNK].join(" * ");
+        let rest = (CHUNK..LONG)
+            .collect::<Vec<_>>()
+            .chunks(CHUNK)
+            .map(|c| format!("let {PARTIAL} = {PARTIAL} * {} ; ", vec!["y"; c.len()].join(" * ")))
+            .collect::<String>();
+        let expected = format!("{{ 1.0 + ({{ let {PARTIAL} = {chunk} ; {rest}{PARTIAL} }}) . sqrt () }}");
         assert_eq!(out, expected);
     }
 

@@ -9,11 +9,12 @@
 use crate::analyse::{Analysis, Band, Cyclic, Separability, Structure};
 use crate::attr::{Args, SymmetryDecl};
 use crate::ctxt::{Errors, Site};
-use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, Math, Stmt, System};
+use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, LetBinding, Local, Math, ParamRef, Stmt, System};
 use crate::parse::{Dim, Len, MethodKind};
 use proc_macro2::{Delimiter, Group, Ident, Span, TokenStream};
 use quote::{ToTokens, quote, quote_spanned};
-use syn::{BinOp, ImplItem, ItemImpl, Type};
+use std::cell::RefCell;
+use syn::{BinOp, ImplItem, ItemImpl, Token, Type};
 
 /// The user's block followed by the trait impl: `Lagrangian<N>` for a
 /// system of arrays, `DynLagrangian` for one of slices.
@@ -34,13 +35,20 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
     let structure = structure(&n, &analysis.structure);
     // Turns on the runtime's record of energy jumps.
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
-    let methods = std::iter::once(&system.lagrangian)
+    let mut chunks = Vec::new();
+    let methods: Vec<_> = std::iter::once(&system.lagrangian)
         .chain(&system.dissipation)
         .chain(&system.force)
-        .map(|function| method(function, Some(&n)));
+        .map(|function| {
+            let (method, method_chunks) = method(function, Some(&n));
+            chunks.extend(method_chunks);
+            method
+        })
+        .collect();
     let gradient = crate::adjoint::method(&system.lagrangian, Some(&n));
     let step_density = system.step_density.as_ref().map(|function| {
-        let density = density_method(function, &n);
+        let (density, density_chunks) = density_method(function, &n);
+        chunks.extend(density_chunks);
         let time_dependent = function.time.is_some();
         quote! {
             #cfgs
@@ -51,6 +59,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             }
         }
     });
+    let chunk_impl = chunk_impl(item, chunks);
     quote! {
         #user_impl
 
@@ -72,6 +81,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
         }
 
         #step_density
+        #chunk_impl
     }
 }
 
@@ -91,7 +101,8 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
     let structure = structure(&quote!(::core::primitive::usize::MAX), &analysis.structure);
     let (separability, coupling) = (&structure.separability, &structure.coupling);
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
-    let lagrangian = method(&system.lagrangian, None);
+    let (lagrangian, chunks) = method(&system.lagrangian, None);
+    let chunk_impl = chunk_impl(item, chunks);
     let gradient = crate::adjoint::method(&system.lagrangian, None);
     quote! {
         #user_impl
@@ -113,6 +124,8 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
             #lagrangian
             #gradient
         }
+
+        #chunk_impl
     }
 }
 
@@ -301,9 +314,9 @@ impl ToTokens for StructureItems {
     }
 }
 
-/// One trait method; `n` is `None` for a run-time-sized system, whose
-/// `q` and `v` are slices.
-fn method(function: &Function, n: Option<&TokenStream>) -> TokenStream {
+/// One trait method, and the chunks of its long chains (see [`Chunks`]);
+/// `n` is `None` for a run-time-sized system, whose `q` and `v` are slices.
+fn method(function: &Function, n: Option<&TokenStream>) -> (TokenStream, Vec<TokenStream>) {
     let d = scalar_type();
     let name = &function.name;
     let binder = |binder: &Binder| match binder {
@@ -322,23 +335,28 @@ fn method(function: &Function, n: Option<&TokenStream>) -> TokenStream {
         quote!(#q: #state, #v: #state)
     };
     let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
-    let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
+    let time = function.time.as_ref().filter(|_| function.kind.takes_time());
+    let chunks = Chunks::new(function, time, Some(&function.v), n);
+    let printer =
+        Printer { locals: &function.locals, ret: function.return_class(), d: d.clone(), chunks: Some(&chunks) };
     let body = printer.block(&function.body, Some(function.return_class()));
     let self_token = syn::Token![self](function.self_span);
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
-    // argument through memory (measured 10% of a double-pendulum step).
-    quote! {
+    // argument through memory (measured 10% of a double-pendulum step). A
+    // long body is a short list of calls to its chunks by then.
+    let method = quote! {
         #[inline(always)]
         fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
-    }
+    };
+    (method, chunks.into_items())
 }
 
 /// `StepDensity::density` from the user's `fn step_density(&self, [t,] q)`:
 /// the body printed generic over `D`, with `q` taken from the reference the
 /// trait passes. `self` is the monitor, which is the system itself
 /// (`TimeTransformed::with_own_density` shares one value for both roles).
-fn density_method(function: &Function, n: &TokenStream) -> TokenStream {
+fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<TokenStream>) {
     let d = scalar_type();
     let binder = |binder: &Binder| match binder {
         Some(ident) => ident.to_token_stream(),
@@ -346,12 +364,14 @@ fn density_method(function: &Function, n: &TokenStream) -> TokenStream {
     };
     let q = binder(&function.q);
     let t = function.time.as_ref().map_or_else(|| quote!(_), binder);
-    let printer = Printer { locals: &function.locals, ret: function.return_class(), d: d.clone() };
+    let chunks = Chunks::new(function, function.time.as_ref(), None, Some(n));
+    let printer =
+        Printer { locals: &function.locals, ret: function.return_class(), d: d.clone(), chunks: Some(&chunks) };
     let body = printer.block(&function.body, Some(function.return_class()));
     let self_token = syn::Token![self](function.self_span);
     let system = Ident::new("__LagrangianSystem", Span::call_site());
     let q_ref = Ident::new("__lagrangian_q", Span::call_site());
-    quote! {
+    let density = quote! {
         #[inline(always)]
         fn density<#system, #d>(&#self_token, _: &#system, #t: #d, #q_ref: &[#d; #n]) -> #d
         where
@@ -361,7 +381,131 @@ fn density_method(function: &Function, n: &TokenStream) -> TokenStream {
             let #q: [#d; #n] = *#q_ref;
             #body
         }
+    };
+    (density, chunks.into_items())
+}
+
+/// The chunks of one method's long chains, printed as methods of their own.
+///
+/// `chains` splits a chain of more than [`CHUNK`](crate::chains::CHUNK)
+/// operands into a block of partial results. Printed inline, the generated
+/// method would still be as long as the chain, and the runtime instantiates
+/// it for every scalar type it evaluates `L` on (`f64`, dual and hyper-dual
+/// numbers of several widths, its tape variables: about ten) and inlines it
+/// into its callers; LLVM's optimisation of one function costs more than
+/// linear time in its length, and its function specialisation recurses
+/// along the chain of partial results deep enough to overflow rustc's
+/// stack. So each partial result whose operands read only `t`, `q`, `v`,
+/// `self`, constants and partial results becomes an `#[inline(never)]`
+/// method of a hidden inherent impl, which takes the previous partial
+/// result as an argument: the same operations in the same order (the same
+/// bits), and no function longer than one chunk.
+struct Chunks {
+    /// The names of the chunk methods, before their index.
+    prefix: String,
+    /// The user's `self`, for the hygiene of `self.field` in the operands.
+    self_token: Token![self],
+    /// The scalar type parameter.
+    d: Ident,
+    /// The parameters after the partial result: name, type and argument.
+    params: Vec<(Ident, TokenStream, TokenStream)>,
+    /// Whether the body declares items (`const`, `use`), which a chunk
+    /// printed elsewhere could not see: then nothing is outlined.
+    has_items: bool,
+    /// The chunk methods printed so far.
+    items: RefCell<Vec<TokenStream>>,
+}
+
+impl Chunks {
+    /// The chunks of `function`, whose generated method receives `t` (when
+    /// `time` is given), `q` and `v` (when given) of length `n`, or slices
+    /// when `n` is `None`.
+    fn new(function: &Function, time: Option<&Binder>, v: Option<&Binder>, n: Option<&TokenStream>) -> Self {
+        let d = scalar_type();
+        let state = match n {
+            Some(n) => quote!(&[#d; #n]),
+            None => quote!(&[#d]),
+        };
+        let mut params = Vec::new();
+        if let Some(Some(t)) = time {
+            params.push((t.clone(), d.to_token_stream(), t.to_token_stream()));
+        }
+        // `&q`: the method holds an array or a slice, a chunk a reference
+        // to one; the argument coerces from either.
+        for x in [Some(&function.q), v].into_iter().flatten().flatten() {
+            params.push((x.clone(), state.clone(), quote!(&#x)));
+        }
+        Chunks {
+            prefix: format!("__lagrangian_{}_chunk", function.name),
+            self_token: Token![self](function.self_span),
+            d,
+            params,
+            has_items: has_items(&function.body),
+            items: RefCell::new(Vec::new()),
+        }
     }
+
+    /// Prints `body` as the next chunk method and returns the statement
+    /// `let partial = self.chunk(previous, t, &q, &v);` that calls it.
+    fn call(&self, span: Span, partial: &Ident, previous: Option<&Ident>, body: TokenStream) -> TokenStream {
+        let mut items = self.items.borrow_mut();
+        let name = Ident::new(&format!("{}_{}", self.prefix, items.len()), Span::call_site());
+        let (d, self_token) = (&self.d, &self.self_token);
+        let names = self.params.iter().map(|(name, ..)| name);
+        let types = self.params.iter().map(|(_, ty, _)| ty);
+        let args = self.params.iter().map(|(.., arg)| arg);
+        let (previous_param, previous_arg) = match previous {
+            Some(previous) => (quote!(#previous: #d,), quote!(#previous,)),
+            None => (TokenStream::new(), TokenStream::new()),
+        };
+        items.push(quote! {
+            #[inline(never)]
+            fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
+                #body
+            }
+        });
+        quote_spanned!(span=> let #partial = #self_token.#name(#previous_arg #(#args),*);)
+    }
+
+    /// The chunk methods, for the hidden inherent impl.
+    fn into_items(self) -> Vec<TokenStream> {
+        self.items.into_inner()
+    }
+}
+
+/// Whether `block` or a block inside it declares an item.
+fn has_items(block: &Block) -> bool {
+    let mut found = block.stmts.iter().any(|stmt| matches!(stmt, Stmt::Item(_)));
+    block.visit(&mut |expr| {
+        let inner = |block: &Block| block.stmts.iter().any(|stmt| matches!(stmt, Stmt::Item(_)));
+        match &expr.kind {
+            ExprKind::Block(block) | ExprKind::For { body: block, .. } => found |= inner(block),
+            ExprKind::If { then_branch, .. } => found |= inner(then_branch),
+            _ => {}
+        }
+        !found
+    });
+    found
+}
+
+/// The hidden inherent impl holding the chunk methods of long chains, or
+/// nothing when no chain was long.
+fn chunk_impl(item: &ItemImpl, chunks: Vec<TokenStream>) -> Option<TokenStream> {
+    if chunks.is_empty() {
+        return None;
+    }
+    let cfgs = cfgs(item);
+    let (impl_generics, _, where_clause) = item.generics.split_for_impl();
+    let self_ty = &item.self_ty;
+    Some(quote! {
+        // Pieces of the user's bodies, linted as the user's methods.
+        #cfgs
+        #[allow(warnings, clippy::all, clippy::pedantic, clippy::nursery, clippy::restriction)]
+        #[doc(hidden)]
+        impl #impl_generics #self_ty #where_clause {
+            #(#chunks)*
+        }
+    })
 }
 
 /// Prints the IR of one function as code generic over `D`.
@@ -371,6 +515,8 @@ struct Printer<'a> {
     ret: Class,
     /// The scalar type parameter.
     d: Ident,
+    /// Where the chunks of long chains go; `None` prints them inline.
+    chunks: Option<&'a Chunks>,
 }
 
 impl Printer<'_> {
@@ -380,9 +526,76 @@ impl Printer<'_> {
         let last = block.stmts.len().saturating_sub(1);
         let stmts = block.stmts.iter().enumerate().map(|(i, stmt)| match (stmt, to) {
             (Stmt::Expr { expr, semi: false }, Some(to)) if i == last => self.coerce(expr, to),
-            _ => self.stmt(stmt),
+            _ => self.outlined(stmt).unwrap_or_else(|| self.stmt(stmt)),
         });
         quote_spanned!(span=> { #(#stmts)* })
+    }
+
+    /// A partial result of a long chain as a call to a chunk method (see
+    /// [`Chunks`]), or `None` when `stmt` is not one or cannot be outlined.
+    fn outlined(&self, stmt: &Stmt) -> Option<TokenStream> {
+        let chunks = self.chunks.filter(|chunks| !chunks.has_items)?;
+        let Stmt::Let { span, bindings, tuple: false, ty: None, inits } = stmt else { return None };
+        let ([LetBinding { local: Some(local), mutable: false }], [init]) = (bindings.as_slice(), inits.as_slice())
+        else {
+            return None;
+        };
+        let partial = &self.locals[local.0];
+        if !crate::chains::is_partial(&partial.name) || partial.class != Class::Active {
+            return None;
+        }
+        // The previous partial result opens the chain, and is passed in
+        // as a `D`.
+        let mut first = init;
+        while let ExprKind::Binary { lhs, .. } = &first.kind {
+            first = lhs;
+        }
+        let previous = match &first.kind {
+            ExprKind::Local(id, _) if crate::chains::is_partial(&self.locals[id.0].name) => {
+                let previous = &self.locals[id.0];
+                if previous.class != Class::Active {
+                    return None;
+                }
+                Some(&previous.name)
+            }
+            _ => None,
+        };
+        if !self.outlinable(init) {
+            return None;
+        }
+        let body = self.coerce(init, Class::Active);
+        Some(chunks.call(*span, &partial.name, previous, body))
+    }
+
+    /// Whether `expr` reads nothing a chunk method does not receive: `q`
+    /// and `v` only indexed or measured, no local but partial results, no
+    /// control flow leaving it, no assignment.
+    fn outlinable(&self, expr: &Expr) -> bool {
+        let mut ok = true;
+        expr.visit(&mut |expr| {
+            match &expr.kind {
+                ExprKind::Index { base, index, .. } if matches!(base.kind, ExprKind::Param(..)) => {
+                    ok &= self.outlinable(index);
+                    return false;
+                }
+                ExprKind::MethodCall { receiver, math: Math::Len, .. }
+                    if matches!(receiver.kind, ExprKind::Param(..)) =>
+                {
+                    return false;
+                }
+                ExprKind::Param(ParamRef::Time, _) => {}
+                ExprKind::Local(id, _) => ok &= crate::chains::is_partial(&self.locals[id.0].name),
+                ExprKind::Param(..)
+                | ExprKind::Assign { .. }
+                | ExprKind::Return(_)
+                | ExprKind::Break(_)
+                | ExprKind::Continue(_)
+                | ExprKind::For { .. } => ok = false,
+                _ => {}
+            }
+            ok
+        });
+        ok
     }
 
     fn stmt(&self, stmt: &Stmt) -> TokenStream {
@@ -808,6 +1021,57 @@ mod tests {
         assert!(out.starts_with("impl Pendulum"), "{out}");
         assert!(out.contains("# [allow (dead_code)] fn lagrangian"), "{out}");
         assert!(out.ends_with(&expected.to_string()), "{out}");
+    }
+
+    /// The whole expansion of `item`, chains split as the macro splits them.
+    fn expanded(mut item: ItemImpl) -> String {
+        crate::chains::split(&mut item);
+        generated(&item)
+    }
+
+    #[test]
+    fn long_chains_become_chunk_methods_in_order() {
+        let chain = (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * (q[0] * self.c).sin()")).collect::<String>();
+        let source = format!(
+            "impl P {{ fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 {{ 0.5 * v[0] * v[0]{chain} }} }}"
+        );
+        let out = expanded(syn::parse_str(&source).unwrap());
+        let partial = "__lagrangian_partial";
+        // The first chunk starts the chain, the others continue it; `t` is
+        // passed although unread (the chunk cannot know), `q` and `v` by
+        // reference.
+        let calls = [
+            format!("let {partial} = self . __lagrangian_lagrangian_chunk_0 (t , & q , & v) ;"),
+            format!("let {partial} = self . __lagrangian_lagrangian_chunk_1 ({partial} , t , & q , & v) ;"),
+            format!("let {partial} = self . __lagrangian_lagrangian_chunk_2 ({partial} , t , & q , & v) ;"),
+        ];
+        for call in &calls {
+            assert!(out.contains(call.as_str()), "{call}\n{out}");
+        }
+        let last = (crate::chains::LONG - 1) / crate::chains::CHUNK;
+        assert!(out.contains(&format!("__lagrangian_lagrangian_chunk_{last} (")), "{out}");
+        assert!(!out.contains(&format!("__lagrangian_lagrangian_chunk_{} (", last + 1)), "{out}");
+        let second = format!(
+            "# [inline (never)] fn __lagrangian_lagrangian_chunk_1 < __D : :: lagrangian :: __private :: Scalar > \
+             (& self , __lagrangian_partial : __D , t : __D , q : & [__D ; 1] , v : & [__D ; 1]) -> __D \
+             {{ __lagrangian_partial + (q [0] * self . c) . sin () * {}.0",
+            crate::chains::CHUNK
+        );
+        assert!(out.contains(&second), "{out}");
+        assert!(out.contains("# [doc (hidden)] impl P {"), "{out}");
+    }
+
+    #[test]
+    fn chains_reading_locals_or_items_stay_inline() {
+        for prelude in ["let x = q[0] * 2.0;", "const K: f64 = 2.0; let y = 1.0;"] {
+            let read = if prelude.starts_with("let") { "x" } else { "K * q[0]" };
+            let chain = (0..crate::chains::LONG).map(|k| format!(" + {k}.0 * {read}")).collect::<String>();
+            let source = format!(
+                "impl P {{ fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {{ {prelude} v[0] * v[0]{chain} }} }}"
+            );
+            let out = expanded(syn::parse_str(&source).unwrap());
+            assert!(!out.contains("chunk"), "{out}");
+        }
     }
 
     #[test]

@@ -90,8 +90,10 @@ use proc_macro::TokenStream;
 /// Long expressions: a chain of one precedence level (`a + b - c + ...`,
 /// `a * b * ...`, `&&`, `||`) of more than 64 operands is split, in the
 /// method as written and in the generated one, into a block of partial
-/// results of 64 operands each: the same operations in the same order, so
-/// the same result bit for bit. rustc itself overflows its default stack on
+/// results of 8 operands each: the same operations in the same order, so
+/// the same result bit for bit. In the generated methods each partial
+/// result is a separate `#[inline(never)]` function, so that the compile
+/// time grows linearly with the length of the chain. rustc itself overflows its default stack on
 /// a flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
 /// products compile (`tests/behaviour/long_expressions.rs`). Nesting — parentheses,
 /// blocks, `else if` — is not flattened: syn's parser and every later stage
