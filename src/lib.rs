@@ -39,6 +39,48 @@
 //! # Ok(()) }
 //! ```
 //!
+//! ## One way in: a method is a value
+//!
+//! Every driver implements [`Stepping`]: its provided method
+//! [`solve`](Stepping::solve) runs a [`Plan`] (end time, thinning, save
+//! times by dense output, events) and returns the same [`Solution`] for every
+//! method — the one-point rules, Galerkin rules, compositions and both
+//! time-transformed drivers. Changing the method changes one value:
+//!
+//! ```
+//! use lagrangian::prelude::*;
+//!
+//! #[derive(Clone)]
+//! pub struct Pendulum;
+//!
+//! #[lagrangian]
+//! impl Pendulum {
+//!     fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+//!         0.5 * v[0] * v[0] + 9.81 * q[0].cos()
+//!     }
+//! }
+//!
+//! /// The first time the pendulum passes through the bottom, and the solution.
+//! fn first_crossing(mut sim: impl Stepping<1> + Clone) -> Result<(f64, Solution<1>), Box<dyn std::error::Error>> {
+//!     let plan = Plan::until(5.0).every(10).event(Event::new(|_, q, _| q[0]));
+//!     let sol = sim.solve(plan)?.into_result()?;
+//!     Ok((sol.events[0].t, sol))
+//! }
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let (q0, v0) = ([1.0], [0.0]);
+//! let (a, _) = first_crossing(Integrator::new(Pendulum, Midpoint, 0.001).start(0.0, q0, v0)?)?;
+//! let (b, _) = first_crossing(Integrator::new(Pendulum, Galerkin::<3, 3>::gauss(), 0.05).start(0.0, q0, v0)?)?;
+//! let (c, _) = first_crossing(Integrator::new(Pendulum, Composition::YOSHIDA6, 0.02).start(0.0, q0, v0)?)?;
+//! let density = Curvature::new(1.0).unwrap();
+//! let (d, _) = first_crossing(TimeTransformed::new(Pendulum, density).rule(Midpoint, 0.005).start::<2>(0.0, q0, v0)?)?;
+//! // A quarter of the period of a 1 rad swing: K(sin ½)/√g = 0.534784 s.
+//! for t in [a, b, c, d] {
+//!     assert!((t - 0.534784).abs() < 1e-4, "{t}");
+//! }
+//! # Ok(()) }
+//! ```
+//!
 //! ## What you can write
 //!
 //! The signature is `fn lagrangian(&self, [t: f64,] q: [f64; N], v: [f64; N]) -> f64`;
