@@ -77,7 +77,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
     }
 
     fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<DoubleDouble> {
-        memory.1.map(|last| last.h)
+        memory.1.as_ref().map(|last| last.h)
     }
 
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, DoubleDouble>) -> DoubleDouble {
@@ -111,7 +111,8 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
         energy_carry: it.energy_carry,
         time_error: it.time_error,
         watched_energy: it.watched_energy,
-        memory: it.memory.1,
+        // Moved, not copied: it holds the kept Newton block on the heap.
+        memory: it.memory.1.take(),
         v0: it.v0,
         clock: it.clock,
         stats: it.stats,
