@@ -59,6 +59,9 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         h: DoubleDouble,
         t1: DoubleDouble,
     ) -> Result<(), Error<N, DoubleDouble>> {
+        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
+            return Err(super::stepper::refused());
+        }
         as_galerkin_run(it, |g| g.step_nodes(h, t1))
     }
 
@@ -66,10 +69,16 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         it: &mut Integrator<S, Self, N, DoubleDouble>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, DoubleDouble>> {
+        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
+            return Err(super::stepper::refused());
+        }
         as_galerkin_run(it, |g| g.energy_step_nodes(bounds))
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, DoubleDouble>) {
+        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
+            return;
+        }
         let _ = as_galerkin_run(it, |g| {
             g.reread_node_energy();
             Ok(())

@@ -539,6 +539,9 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         h: T,
         t1: T,
     ) -> Result<(), Error<N, T>> {
+        if const { too_large::<N, S, T>() } {
+            return Err(refused());
+        }
         it.step_nodes(h, t1)
     }
 
@@ -546,10 +549,16 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         it: &mut Integrator<Sys, Self, N, T>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, T>> {
+        if const { too_large::<N, S, T>() } {
+            return Err(refused());
+        }
         it.energy_step_nodes(bounds)
     }
 
     fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N, T>) {
+        if const { too_large::<N, S, T>() } {
+            return;
+        }
         it.reread_node_energy();
     }
 
@@ -577,12 +586,30 @@ pub(crate) const MAX_BLOCK_BYTES: usize = 64 << 10;
 /// Galerkin rules have no reverse-mode step.
 pub(crate) fn block_fits<const N: usize, const S: usize, T: Real>() -> Result<(), Error<N, T>> {
     if N <= crate::Derivatives::FORWARD_MAX_N && core::mem::size_of::<BlockMatrix<N, S, T>>() > MAX_BLOCK_BYTES {
-        return Err(Error::Unsupported {
-            what: "galerkin rules whose sN × sN Newton block exceeds 64 KiB (sN > 90 in f64, sN > 64 in \
-                   DoubleDouble): the step factors it on the thread's stack; use a lower degree s",
-        });
+        return Err(Error::Unsupported { what: BLOCK_TOO_LARGE });
     }
     Ok(())
+}
+
+/// Why a rule with a Newton block over [`MAX_BLOCK_BYTES`] is refused.
+const BLOCK_TOO_LARGE: &str = "galerkin rules whose sN × sN Newton block exceeds 64 KiB (sN > 90 in f64, \
+                               sN > 64 in DoubleDouble): the step factors it on the thread's stack; use a \
+                               lower degree s";
+
+/// Whether `start` refuses a Galerkin step of this size (more than
+/// `FORWARD_MAX_N` coordinates, or a block over [`MAX_BLOCK_BYTES`]). Used
+/// as `if const { too_large::<N, S, T>() }` in front of every step path:
+/// the frame of a function is reserved on entry whatever branch runs, so
+/// code that inlines a step of a size `start` refuses would still reserve
+/// its `(sN)²` blocks and `N²` derivative values, and overflow the stack of
+/// the caller that only holds the refused integrator.
+pub(crate) const fn too_large<const N: usize, const S: usize, T>() -> bool {
+    N > crate::Derivatives::FORWARD_MAX_N || core::mem::size_of::<BlockMatrix<N, S, T>>() > MAX_BLOCK_BYTES
+}
+
+/// The error of a step path of a size `start` refuses (never reached).
+pub(crate) fn refused<const N: usize, T: Real>() -> Error<N, T> {
+    Error::Unsupported { what: BLOCK_TOO_LARGE }
 }
 
 /// The policies a Galerkin rule supports for the system `Sys`.
@@ -615,6 +642,10 @@ pub(crate) fn legendre<Sys: Lagrangian<N>, const N: usize, T: Real>(
     q0: [T; N],
     v0: [T; N],
 ) -> Result<([T; N], T), Error<N, T>> {
+    // The Hessian of `L` below holds `3N²` entries on the stack.
+    if const { too_large::<N, 1, T>() } {
+        return Err(refused());
+    }
     let point = PointDerivatives::at(system, t0, q0, v0);
     let p0 = point.v;
     if !all_finite(&p0) || !point.value.is_finite() {
