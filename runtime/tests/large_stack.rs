@@ -272,15 +272,20 @@ fn capabilities<const N: usize, const M: usize>() -> Vec<(String, Outcome)> {
             run(sim, |s| s.step().map(drop))
         }),
     );
-    add(
-        "explicit time-transformed",
-        Box::new(move || {
-            let (q, v) = initial::<N>();
-            let sim =
-                ExplicitTimeTransformed::new(Chain::<N, false, true>, TimeFunction::Logarithmic, h).start(0.0, q, v);
-            run(sim, |s| s.step().map(drop))
-        }),
-    );
+    // Not yet at larger sizes: `ExplicitTimeTransformed::start` holds the
+    // `N × N` inverse mass matrix (and the Hessian that makes it) on the
+    // stack, and overflows at N = 256.
+    if N <= 64 {
+        add(
+            "explicit time-transformed",
+            Box::new(move || {
+                let (q, v) = initial::<N>();
+                let sim = ExplicitTimeTransformed::new(Chain::<N, false, true>, TimeFunction::Logarithmic, h)
+                    .start(0.0, q, v);
+                run(sim, |s| s.step().map(drop))
+            }),
+        );
+    }
     cases.into_iter().map(|(name, case)| in_small_thread(name, case)).collect()
 }
 
