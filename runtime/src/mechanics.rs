@@ -201,9 +201,8 @@ fn momentum_by_lanes<S: Lagrangian<N> + ?Sized, const N: usize>(
             x
         });
         let l = system.lagrangian(D::from_re(t), q.map(D::from_re), vd);
-        for k in 0..LANES.min(N - first) {
-            p[first + k] = l.eps[k];
-        }
+        let n = LANES.min(N - first);
+        p[first..first + n].copy_from_slice(&l.eps[..n]);
     }
     p
 }
