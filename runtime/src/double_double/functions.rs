@@ -21,14 +21,17 @@ const SERIES_TOL: f64 = 1e-34;
 /// the cap only bounds the work for NaN arguments.
 const MAX_TERMS: u32 = 80;
 
-/// Binary powering; a negative power is the reciprocal of the positive one,
-/// which is more accurate than powering the reciprocal.
+/// Binary powering of `|x|`; a negative power is the reciprocal of the
+/// positive one, which is more accurate than powering the reciprocal. The
+/// sign is applied last, so that an odd power of `−0` or of a negative
+/// number whose power under- or overflows keeps it, as for `f64`.
 pub(super) fn powi(x: DD, n: i32) -> DD {
     if n == 0 {
         return DD::ONE;
     }
+    let negative = x.hi.is_sign_negative() && n % 2 != 0;
     let mut m = n.unsigned_abs();
-    let mut base = x;
+    let mut base = x.abs();
     let mut acc = DD::ONE;
     loop {
         if m & 1 == 1 {
@@ -40,29 +43,51 @@ pub(super) fn powi(x: DD, n: i32) -> DD {
         }
         base = base.square();
     }
-    if n < 0 { DD::ONE / acc } else { acc }
+    let v = if n < 0 { DD::ONE / acc } else { acc };
+    if negative { -v } else { v }
 }
 
-/// `xⁿ`: through [`powi`] when `n` is an integer, else `exp(n ln x)`.
+/// `xⁿ` with the special values of `f64`'s `powf` (IEEE 754 `pow`):
+/// through [`powi`] when `n` is an integer in `i32`, else `exp(n ln|x|)`
+/// with the sign of an odd integer power of a negative `x`. `x⁰ = 1ⁿ = 1`
+/// (NaN included), `|x|^{±∞}` is 1, 0 or ∞, zeros and infinities of
+/// either sign give 0 or ∞, and a negative finite `x` with a non-integer
+/// `n` gives NaN.
 pub(super) fn powf(x: DD, n: f64) -> DD {
-    if n == 0.0 {
+    if n == 0.0 || x == DD::ONE {
         return DD::ONE;
     }
     if x.is_nan() || n.is_nan() {
         return DD::NAN;
     }
-    if n.fract() == 0.0 && n.abs() <= f64::from(i32::MAX) {
+    // `fract` of an infinity is NaN: not an integer.
+    let integer = n.fract() == 0.0;
+    if integer && n.abs() <= f64::from(i32::MAX) {
         return powi(x, n as i32);
     }
-    if x.hi == 0.0 {
-        return if n > 0.0 { DD::ZERO } else { DD::INFINITY };
+    let a = x.abs();
+    if n.is_infinite() {
+        return if a == DD::ONE {
+            DD::ONE
+        } else if (a.hi > 1.0) == (n > 0.0) {
+            DD::INFINITY
+        } else {
+            DD::ZERO
+        };
     }
-    if x.hi < 0.0 && n.fract() == 0.0 {
-        // An integer power beyond i32 of a negative base: the sign from the parity, as for f64.
-        let magnitude = exp(ln(-x).mul_f64(n));
-        return if n % 2.0 == 0.0 { magnitude } else { -magnitude };
+    let zero_or_infinite = a.hi == 0.0 || !a.is_finite();
+    if x.hi < 0.0 && !integer && !zero_or_infinite {
+        return DD::NAN;
     }
-    exp(ln(x).mul_f64(n))
+    let magnitude = if zero_or_infinite {
+        // 0ⁿ and ∞⁻ⁿ are 0 for n > 0; their reciprocals ∞.
+        if (a.hi == 0.0) == (n > 0.0) { DD::ZERO } else { DD::INFINITY }
+    } else {
+        exp(ln(a).mul_f64(n))
+    };
+    // Beyond i32 an integer is odd only below 2⁵³ (every f64 above is even).
+    let odd = integer && n % 2.0 != 0.0;
+    if x.hi.is_sign_negative() && odd { -magnitude } else { magnitude }
 }
 
 /// One Newton step `s + (x − s²)/(2s)` from the correctly rounded `f64` root.
@@ -157,6 +182,10 @@ pub(super) fn exp_m1(x: DD) -> DD {
     if x.is_nan() {
         return DD::NAN;
     }
+    if x.hi == 0.0 {
+        // ±0, its sign kept.
+        return x;
+    }
     if x.hi.abs() < 1.0 { expm1_reduced(x) } else { exp(x) - 1.0 }
 }
 
@@ -243,11 +272,20 @@ pub(super) fn log2(x: DD) -> DD {
     ln_m / DD::LN_2 + f64::from(k)
 }
 
-/// `ln(1 + x)`, accurate near 0: the series on `s = x/(2 + x)` for
-/// `x ∈ (−0.29, 0.41)` (where `1 + x ∈ (1/√2, √2)`), else `ln(1 + x)`.
+/// Below this `|x|`, `ln(1 + x) = x − x²/2` to far below `2⁻¹⁰⁴` (the next
+/// term is `x³/3`), and `x/(2 + x)` of a subnormal `x` would round to zero.
+const LN_1P_TINY: f64 = 1e-17;
+
+/// `ln(1 + x)`, accurate near 0: `x − x²/2` for `|x| < 10⁻¹⁷` (±0 and
+/// subnormals included, which the halving in `x/(2 + x)` would lose), the
+/// series on `s = x/(2 + x)` for `x ∈ (−0.29, 0.41)` (where
+/// `1 + x ∈ (1/√2, √2)`), else `ln(1 + x)`.
 pub(super) fn ln_1p(x: DD) -> DD {
     if x.is_nan() {
         return DD::NAN;
+    }
+    if x.hi.abs() < LN_1P_TINY {
+        return if x.hi == 0.0 { x } else { x - x.square().ldexp(-1) };
     }
     if x.hi > -0.29 && x.hi < 0.41 { atanh_series(x / (x + 2.0)).ldexp(1) } else { ln(x + 1.0) }
 }
@@ -264,6 +302,10 @@ const LARGE_ARGUMENT: f64 = 1_048_576.0; // 2^20
 pub(super) fn sin_cos(x: DD) -> (DD, DD) {
     if !x.is_finite() {
         return (DD::NAN, DD::NAN);
+    }
+    if x.hi == 0.0 {
+        // sin(±0) = ±0.
+        return (x, DD::ONE);
     }
     let (quadrant, r) = if x.hi.abs() < LARGE_ARGUMENT {
         let k = (x.hi * consts::FRAC_2_PI).round();
@@ -482,7 +524,9 @@ pub(super) fn atan2(y: DD, x: DD) -> DD {
     let (xr, yr) = (x / r, y / r);
     let z = DD::from(y.hi.atan2(x.hi));
     let (s, c) = sin_cos(z);
-    if xr.hi.abs() > yr.hi.abs() { z + (yr - s) / c } else { z - (xr - c) / s }
+    let v = if xr.hi.abs() > yr.hi.abs() { z + (yr - s) / c } else { z - (xr - c) / s };
+    // An angle that underflows to zero keeps the sign of `y`, as for `f64`.
+    if v.hi == 0.0 { with_sign(DD::ZERO) } else { v }
 }
 
 /// `√((1 − x)(1 + x))`: `1 − x²` without cancellation near `|x| = 1`.
@@ -527,7 +571,7 @@ pub(super) fn sinh(x: DD) -> DD {
         let e = exp_m1(a);
         (e + e / (e + 1.0)).ldexp(-1)
     };
-    if x.hi < 0.0 { -v } else { v }
+    if x.hi.is_sign_negative() { -v } else { v }
 }
 
 /// `cosh x = (eˣ + e⁻ˣ)/2`.
@@ -556,7 +600,7 @@ pub(super) fn tanh(x: DD) -> DD {
         let e = exp_m1(a.ldexp(1));
         e / (e + 2.0)
     };
-    if x.hi < 0.0 { -v } else { v }
+    if x.hi.is_sign_negative() { -v } else { v }
 }
 
 /// Beyond this, `√(x² ± 1) = x` to far below `2⁻¹⁰⁴` and `x²` could overflow.
@@ -574,7 +618,7 @@ pub(super) fn asinh(x: DD) -> DD {
         let a2 = a.square();
         ln_1p(a + a2 / (sqrt(a2 + 1.0) + 1.0))
     };
-    if x.hi < 0.0 { -v } else { v }
+    if x.hi.is_sign_negative() { -v } else { v }
 }
 
 /// `acosh x = ln(1 + t + √(t(t + 2)))`, `t = x − 1`: accurate near 1.
@@ -593,6 +637,10 @@ pub(super) fn acosh(x: DD) -> DD {
 pub(super) fn atanh(x: DD) -> DD {
     if x.is_nan() || x.hi.abs() > 1.0 {
         return DD::NAN;
+    }
+    if x.hi == 0.0 {
+        // ±0, its sign kept (the series would add a `+0`).
+        return x;
     }
     if x.hi.abs() < 0.2 { atanh_series(x) } else { ln_1p(x.ldexp(1) / (DD::ONE - x)).ldexp(-1) }
 }

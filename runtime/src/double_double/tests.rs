@@ -817,3 +817,134 @@ fn trig_of_huge_arguments_matches_mpmath() {
         assert!(rel_err((-x).cos(), x.cos()) <= 1e-31, "cos(-x) at {hi:e}");
     }
 }
+
+/// Edge-case arguments: signed zeros, subnormals, the smallest normal, tiny
+/// and huge normal numbers, the largest finite number, infinities and NaN.
+const EDGES: [f64; 29] = [
+    0.0,
+    -0.0,
+    5e-324,
+    -5e-324,
+    1e-310,
+    -1e-310,
+    f64::MIN_POSITIVE,
+    -f64::MIN_POSITIVE,
+    1e-300,
+    -1e-300,
+    1e-20,
+    -1e-20,
+    0.5,
+    -0.5,
+    1.0,
+    -1.0,
+    2.0,
+    -2.0,
+    2.5,
+    1e20,
+    -1e20,
+    1e300,
+    -1e300,
+    f64::MAX,
+    -f64::MAX,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    f64::NAN,
+    710.0,
+];
+
+/// Whether a double-double result `got` (rounded to `f64`) is `f64`'s `want`:
+/// both NaN, or equal infinities, or zeros of the same sign, or non-zero
+/// finite values of the same sign within `ulps` units in the last place of
+/// `want` (subnormal results within one subnormal unit, but never zero).
+fn agrees_with_f64(got: DD, want: f64, ulps: f64) -> bool {
+    let got = got.to_f64();
+    if want.is_nan() || got.is_nan() {
+        return want.is_nan() && got.is_nan();
+    }
+    if want.is_infinite() || got.is_infinite() || want == 0.0 || got == 0.0 {
+        return got == want && got.is_sign_negative() == want.is_sign_negative();
+    }
+    let ulp = (want.abs() * f64::EPSILON).max(5e-324);
+    got.is_sign_negative() == want.is_sign_negative() && (got - want).abs() <= ulps * ulp
+}
+
+/// Every function of `functions.rs` with an `f64` counterpart, on the edge
+/// cases where `f64` defines a result: the same class of value (NaN,
+/// infinity, signed zero) and, where finite, the same value to a few ulps.
+#[test]
+fn functions_match_f64_on_edge_cases() {
+    type Pair = (&'static str, fn(DD) -> DD, fn(f64) -> f64);
+    let unary: [Pair; 22] = [
+        ("exp", |x| x.exp(), f64::exp),
+        ("exp_m1", |x| x.exp_m1(), f64::exp_m1),
+        ("exp2", |x| x.exp2(), f64::exp2),
+        ("ln", |x| x.ln(), f64::ln),
+        ("ln_1p", |x| x.ln_1p(), f64::ln_1p),
+        ("log2", |x| x.log2(), f64::log2),
+        ("log10", |x| x.log10(), f64::log10),
+        ("sqrt", |x| x.sqrt(), f64::sqrt),
+        ("cbrt", |x| x.cbrt(), f64::cbrt),
+        ("sin", |x| x.sin(), f64::sin),
+        ("cos", |x| x.cos(), f64::cos),
+        ("tan", |x| x.tan(), f64::tan),
+        ("asin", |x| x.asin(), f64::asin),
+        ("acos", |x| x.acos(), f64::acos),
+        ("atan", |x| x.atan(), f64::atan),
+        ("sinh", |x| x.sinh(), f64::sinh),
+        ("cosh", |x| x.cosh(), f64::cosh),
+        ("tanh", |x| x.tanh(), f64::tanh),
+        ("asinh", |x| x.asinh(), f64::asinh),
+        ("acosh", |x| x.acosh(), f64::acosh),
+        ("atanh", |x| x.atanh(), f64::atanh),
+        ("recip", |x| x.recip(), f64::recip),
+    ];
+    let mut failures = Vec::new();
+    for (name, f, g) in unary {
+        for x in EDGES {
+            let (got, want) = (f(DD::from(x)), g(x));
+            // `tan` near a multiple of π/2 and `sin`/`cos` of huge arguments
+            // are ill-conditioned: the class of the result is compared there.
+            let ulps = if matches!(name, "sin" | "cos" | "tan") && x.abs() > 1e6 { f64::INFINITY } else { 4.0 };
+            // f64 overflows in `x²` there; the true value is ln(2x) ≈ 710.48.
+            if (name == "asinh" && x.abs() == f64::MAX) || (name == "acosh" && x == f64::MAX) {
+                assert!((got.to_f64().abs() - (f64::MAX.ln() + core::f64::consts::LN_2)).abs() < 1e-12, "{name}(MAX)");
+                continue;
+            }
+            if !agrees_with_f64(got, want, ulps) {
+                failures.push(format!("{name}({x:e}) = {:e}, f64: {want:e}", got.to_f64()));
+            }
+        }
+    }
+    for y in EDGES {
+        for x in EDGES {
+            let (got, want) = (DD::from(y).atan2(DD::from(x)), y.atan2(x));
+            if !agrees_with_f64(got, want, 4.0) {
+                failures.push(format!("atan2({y:e}, {x:e}) = {:e}, f64: {want:e}", got.to_f64()));
+            }
+        }
+    }
+    let exponents =
+        [0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0, 2.5, -2.5, 1e10, 1e10 + 1.0, -1e10 - 1.0, 1e300];
+    let exponents = exponents.into_iter().chain([f64::INFINITY, f64::NEG_INFINITY, f64::NAN]);
+    for n in exponents {
+        for x in EDGES {
+            let (got, want) = (DD::from(x).powf(n), x.powf(n));
+            // `x^n` amplifies the relative error of `ln x` by `|n ln x|`.
+            let amplification = (n * x.abs().ln()).abs();
+            let ulps = 4.0 + if amplification.is_finite() { amplification } else { 0.0 };
+            if !agrees_with_f64(got, want, ulps) {
+                failures.push(format!("powf({x:e}, {n:e}) = {:e}, f64: {want:e}", got.to_f64()));
+            }
+        }
+    }
+    for n in [0, 1, -1, 2, -2, 3, -3, 1075, -1075, i32::MAX, i32::MIN] {
+        for x in EDGES {
+            let (got, want) = (DD::from(x).powi(n), x.powi(n));
+            let ulps = 4.0 + 4.0 * f64::from(n).abs().min(1e4);
+            if !agrees_with_f64(got, want, ulps) {
+                failures.push(format!("powi({x:e}, {n}) = {:e}, f64: {want:e}", got.to_f64()));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{} disagreements:\n{}", failures.len(), failures.join("\n"));
+}
