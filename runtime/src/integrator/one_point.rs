@@ -234,7 +234,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let (dq, report, impulse) = self.solve_del_with_impulse(h)?;
         let seg = Segment { t0, h, q0, dq };
         let (q1, p1, carry, p_carry) = self.advance(&seg, impulse);
-        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+        let quantity =
+            if action_finite(&self.system, &self.method, &seg) { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
+        if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
         }
@@ -355,8 +357,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             bad |= nan_bits(p1[j]);
         }
-        if is_non_finite(bad | nan_bits(t1)) {
-            let quantity = non_finite(t1, &q1, &p1).unwrap_or("position");
+        if is_non_finite(bad | nan_bits(t1)) || !node_lagrangian_finite(&self.system, t1, &q1) {
+            let quantity = non_finite(t1, &q1, &p1).unwrap_or("lagrangian");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
         }
@@ -610,6 +612,29 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };
         Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
     }
+}
+
+/// Whether the action of the solved step `seg`, `L` at the rule's points
+/// (in `f64`), is finite. Its derivatives can be finite where `L` is not
+/// (`L = ln(1 − q)` past `q = 1` has a finite derivative on the wrong
+/// branch): the step is only valid where the action itself is.
+#[inline(always)]
+pub(super) fn action_finite<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> bool {
+    method.fixed_step_action::<S, f64, N>(system, seg.t0, seg.h, seg.q0, seg.dq).is_finite()
+}
+
+/// Whether `L(t, q, 0) = −V(t, q)` is finite at the end node `q` of an
+/// explicit step (a separable system with constant mass): with the start
+/// node's, checked by the step before (or at `start`), it makes the
+/// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
+/// finite where it is not.
+#[inline(always)]
+fn node_lagrangian_finite<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> bool {
+    system.lagrangian(t, *q, [0.0; N]).is_finite()
 }
 
 /// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
@@ -940,9 +965,9 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize, const PLAIN: bool>
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    if is_non_finite(q_bad | p_bad | nan_bits(t1)) {
+    if is_non_finite(q_bad | p_bad | nan_bits(t1)) || !node_lagrangian_finite(system, t1, &q) {
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
-        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("position") });
+        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("lagrangian") });
     }
     Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry })
 }
