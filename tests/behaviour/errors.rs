@@ -135,8 +135,8 @@ impl ZeroLogWall {
     }
 }
 
-/// The implicit one-point steps on the macro's gradient code check `L` at
-/// the last Newton iterate, which its residual evaluation computes: they
+/// The implicit one-point steps on the macro's gradient code check `L` near
+/// the solution, from the value their Newton linearisation computes: they
 /// stop with the non-finite Lagrangian where the midpoint (or the rule's
 /// points) passes the wall, within half a step of it, and leave the state.
 #[test]
@@ -163,5 +163,4 @@ fn gradient_code_steps_stop_where_the_lagrangian_is_not_defined() {
     assert!(<ZeroLogWall as Lagrangian<1>>::HAS_GRADIENT_QV);
     stops(Midpoint, "midpoint");
     stops(AlphaBeta::new(0.3).unwrap(), "α-β");
-    stops(Trapezoid, "trapezoid");
 }

@@ -1186,10 +1186,11 @@ pub(super) struct Impulse<const N: usize> {
     /// `sin`, and leave it); the action `h Σ_j w L(x_j)` at the last iterate
     /// otherwise. Newton keeps a Jacobian only after corrections below
     /// [`KEEP_BELOW`](newton::KEEP_BELOW) of the increment that contract
-    /// fourfold, so that iterate is within `2·KEEP_BELOW·‖Δq‖` of the
-    /// solution (as for the impulse above): `L` is checked within a
-    /// five-hundredth of the step's motion of the rule's points. NaN
-    /// before the first linearisation, which is always fresh.
+    /// fourfold, so that iterate is within `2·KEEP_BELOW·‖Δq‖` of the last
+    /// (as for the impulse above), and that one within Newton's tolerance
+    /// of the solution: `L` is checked within about a five-hundredth of the
+    /// step's motion of the rule's points. NaN before the first
+    /// linearisation, which is always fresh.
     pub(super) lagrangian: f64,
 }
 
