@@ -72,6 +72,18 @@ pub(crate) fn gradient_qv_generic(function: &Function) -> Option<TokenStream> {
     adjoint.function_body(&function.body)
 }
 
+/// The statements of `value_gradient_qv_scalar<__D>(&self, __t, __q, __v,
+/// __out, __out_v) -> __D`: those of [`gradient_qv_generic`], every forward
+/// loop kept (also those whose sums only the value of `L` reads), then the
+/// value of `L` the forward sweep computed. `None` outside the subset.
+pub(crate) fn value_gradient_qv_generic(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.with_v = true;
+    adjoint.generic = true;
+    adjoint.value = true;
+    adjoint.function_body(&function.body)
+}
+
 /// `const HAS_GRADIENT` and `fn gradient_q` for the trait impl, with
 /// `HAS_GRADIENT_QV` and `gradient_qv_scalar` (generic over the scalar), and
 /// `gradient_qv` in `f64` for a system of known size; nothing when the body
@@ -99,6 +111,24 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
     // products of the implicit steps' Jacobians (forward over reverse).
     let generic = gradient_qv_generic(function).map(|body| {
         let d = scalar();
+        // And with the value of `L`, which the implicit steps check at
+        // their last Newton iterate: size-known systems (the slice trait
+        // has no such method).
+        let value = n.and_then(|_| value_gradient_qv_generic(function)).map(|body| {
+            quote! {
+                #[inline]
+                fn value_gradient_qv_scalar<#d: ::lagrangian::__private::Scalar>(
+                    &#self_token,
+                    #t: #d,
+                    #q: &[#d],
+                    #v: &[#d],
+                    #out: &mut [#d],
+                    #out_v: &mut [#d],
+                ) -> #d {
+                    #body
+                }
+            }
+        });
         quote! {
             const HAS_GRADIENT_QV: bool = true;
             #[inline]
@@ -112,6 +142,7 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
             ) {
                 #body
             }
+            #value
         }
     });
     Some(quote! {
@@ -164,6 +195,9 @@ struct Adjoint<'a> {
     with_v: bool,
     /// Print generic over the scalar `__D` instead of in `f64`.
     generic: bool,
+    /// End with the value of `L` (`value_gradient_qv_scalar`): every
+    /// forward loop is kept, also where only that value reads its sums.
+    value: bool,
     /// How many loops the reverse sweep is inside.
     loop_depth: usize,
     /// Straight-line bodies whose `q[i]` (and `v[i]`) are read at integer
@@ -197,6 +231,7 @@ impl<'a> Adjoint<'a> {
             pending: Vec::new(),
             with_v: false,
             generic: false,
+            value: false,
             loop_depth: 0,
             assigned: None,
             constants: Vec::new(),
@@ -286,7 +321,16 @@ impl<'a> Adjoint<'a> {
                 _ => self.forward_stmt(stmt, true, &mut forward)?,
             }
         }
-        self.forward(tail, &mut forward)?;
+        // The value of `L` bound before the reverse sweep, whose names it
+        // cannot then shadow.
+        let value = match self.value {
+            true => {
+                let (value, ty, name) = (self.forward_active(tail, &mut forward)?, self.ty(), name("value"));
+                forward.push(quote!(let #name: #ty = #value;));
+                Some(name)
+            }
+            false => self.forward(tail, &mut forward).map(|_| None)?,
+        };
         let out = name("out");
         let zero = self.zero();
         let clear_v = self.with_v.then(|| {
@@ -303,6 +347,7 @@ impl<'a> Adjoint<'a> {
             #clear_v
             #(#forward)*
             #(#reverse)*
+            #value
         })
     }
 
@@ -598,7 +643,7 @@ impl<'a> Adjoint<'a> {
             }
             Stmt::Expr { expr, .. } => match &expr.kind {
                 ExprKind::For { var, start, limits, end, body } => {
-                    if top && !self.adds_to_needed(body) {
+                    if top && !self.value && !self.adds_to_needed(body) {
                         return Some(());
                     }
                     let mut inner = Vec::new();
@@ -1945,6 +1990,50 @@ mod tests {
         let _ = crate::analyse::analyse(&cx, &mut system);
         cx.check().unwrap();
         gradient_qv_generic(&system.lagrangian).map(|body| body.to_string())
+    }
+
+    #[test]
+    fn the_value_version_keeps_every_forward_loop_and_returns_l() {
+        let chain: ItemImpl = parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut l = 0.0;
+                    for i in 0..N {
+                        l += 0.5 * v[i] * v[i];
+                    }
+                    for i in 0..N - 1 {
+                        let d = q[i + 1] - q[i];
+                        l -= 0.5 * d * d + self.beta / 4.0 * d.powi(4);
+                    }
+                    l + q[0].cos()
+                }
+            }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&chain)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let gradient = gradient_qv_generic(&system.lagrangian).unwrap().to_string();
+        let out = value_gradient_qv_generic(&system.lagrangian).unwrap().to_string();
+        // Zeroing both outputs, the reverse loops over both sums, and here
+        // the two forward loops the value reads.
+        assert_eq!(out.matches("for ").count(), gradient.matches("for ").count() + 2, "{out}");
+        // The value, bound before the reverse sweep, is the body's last
+        // expression; the gradient is the same code.
+        let bound = out.find("let __value : __D =").expect(&out);
+        assert!(bound < out.find("__out [(0)]").unwrap(), "{out}");
+        assert!(out.trim_end().ends_with("__value"), "{out}");
+        assert!(!gradient.contains("__value"), "{gradient}");
+        // A value with a constant term.
+        let item: ItemImpl = parse_quote! {
+            impl P { fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 { 0.0 * q[0] + self.k } }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let out = value_gradient_qv_generic(&system.lagrangian).unwrap().to_string();
+        assert!(out.contains("let __value : __D ="), "{out}");
     }
 
     #[test]

@@ -415,14 +415,15 @@ where
 
 /// `∂A/∂q_k` at fixed `q_{k+1}`, the DEL's part of the step (one
 /// [`DualArray`] evaluation): the residual of the Newton iterations that
-/// keep their Jacobian.
+/// keep their Jacobian. With it, the action `A` (the real part).
 #[inline]
-pub(crate) fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> [f64; N]
+pub(crate) fn start_gradient<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> ([f64; N], f64)
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    dual_array_position_action(system, method, seg, Var::Q0).eps
+    let a = dual_array_position_action(system, method, seg, Var::Q0);
+    (a.eps, a.re)
 }
 
 /// `∂A/∂q_{k+1}`, the momentum at the end of a segment (one [`DualArray`] evaluation).

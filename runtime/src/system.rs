@@ -189,6 +189,23 @@ pub trait Lagrangian<const N: usize> {
             out_v[i] = self.lagrangian(t, qd, x).eps;
         }
     }
+
+    /// [`gradient_qv_scalar`](Self::gradient_qv_scalar), returning the value
+    /// of `L` at `(t, q, v)` too: an implicit step checks with it that the
+    /// action it solves for is finite (`L` can be NaN where its derivatives
+    /// are finite, as `ln(1 − q)` past `q = 1` on the wrong branch) without
+    /// evaluating `L` once more. The adjoint code computes `L` in its
+    /// forward sweep anyway.
+    ///
+    /// The default calls `gradient_qv_scalar`, then
+    /// [`lagrangian`](Self::lagrangian). `#[lagrangian]` writes it as the
+    /// same code as `gradient_qv_scalar`, returning the value its forward
+    /// sweep computes.
+    #[inline]
+    fn value_gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) -> D {
+        self.gradient_qv_scalar(t, q, v, out_q, out_v);
+        self.lagrangian(t, core::array::from_fn(|i| q[i]), core::array::from_fn(|i| v[i]))
+    }
 }
 
 /// A borrowed system is the same system (the integrator borrows it to run a
@@ -236,6 +253,11 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
         (**self).gradient_qv_scalar(t, q, v, out_q, out_v);
+    }
+
+    #[inline(always)]
+    fn value_gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) -> D {
+        (**self).value_gradient_qv_scalar(t, q, v, out_q, out_v)
     }
 }
 

@@ -37,6 +37,7 @@ impl Lagrangian<1> for Pendulum {
 }
 
 /// A potential with a wall at q = 1 where `L` stops being defined.
+#[derive(Clone, Copy)]
 struct LogWall;
 impl Lagrangian<1> for LogWall {
     const AUTONOMOUS: bool = true;
@@ -237,4 +238,136 @@ fn a_declared_discontinuity_shows_as_an_energy_jump() {
     let mut free = Integrator::new(FreeDeclared, Midpoint, 0.01).start(0.0, [0.0], [1.0]).unwrap();
     free.run_until(1.0, |_| {}).unwrap();
     assert!(free.stats().largest_energy_jump < 1e-12, "{:?}", free.stats());
+}
+
+/// `L = ½v² + 10⁻³ ln((q − 2)(q − 3))`: not defined (NaN) for `2 < q < 3`,
+/// where its derivatives `10⁻³ (2q − 5)/((q − 2)(q − 3))` stay finite.
+#[derive(Clone, Copy)]
+struct NanBand;
+impl Lagrangian<1> for NanBand {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.5 + ((q[0] - 2.0) * (q[0] - 3.0)).ln() * 1e-3
+    }
+}
+
+/// A system with its structure declared as the macro would (gradient code,
+/// and for `SEPARABLE` the constant-mass form that makes the trapezoid rule
+/// explicit): the one-point rules take their gradient-code and
+/// Störmer–Verlet paths on it.
+#[derive(Clone, Copy)]
+struct Declared<S, const SEPARABLE: bool>(S);
+impl<S: Lagrangian<1>, const SEPARABLE: bool> Lagrangian<1> for Declared<S, SEPARABLE> {
+    const AUTONOMOUS: bool = S::AUTONOMOUS;
+    const CYCLIC: [bool; 1] = S::CYCLIC;
+    const HAS_GRADIENT: bool = true;
+    const HAS_GRADIENT_QV: bool = true;
+    const SEPARABILITY: lagrangian_runtime::Separability = if SEPARABLE {
+        lagrangian_runtime::Separability::ConstantMass
+    } else {
+        lagrangian_runtime::Separability::NotProven
+    };
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+        self.0.lagrangian(t, q, v)
+    }
+}
+
+/// Steps until the first error, checking that it is the non-finite
+/// Lagrangian, that it leaves the state as it was, and that no published
+/// state lies where `defined` says `L` is not. A step's action is `L` at its
+/// quadrature points, so the last state may lie up to half a step (the
+/// midpoint rule's point) beyond the region where `L` is defined: `defined`
+/// takes that margin into account.
+fn stops_at_the_undefined_lagrangian<S: Lagrangian<1>, M: lagrangian_runtime::F64Readouts>(
+    sim: Integrator<S, M, 1>,
+    defined: impl Fn(f64) -> bool,
+    name: &str,
+) {
+    match stops_before_the_undefined_lagrangian(sim, defined, name) {
+        Error::NonFinite { quantity: "lagrangian", .. } => {}
+        other => panic!("{name}: {other}"),
+    }
+}
+
+/// [`stops_at_the_undefined_lagrangian`] accepting any typed error (an
+/// energy-preserving step may find no step size that solves its energy
+/// equation before it reaches the region): the error.
+fn stops_before_the_undefined_lagrangian<S: Lagrangian<1>, M: lagrangian_runtime::F64Readouts>(
+    mut sim: Integrator<S, M, 1>,
+    defined: impl Fn(f64) -> bool,
+    name: &str,
+) -> Error<1> {
+    let mut last = *sim.state();
+    let err = loop {
+        let before = *sim.state();
+        match sim.step() {
+            Ok(s) => last = *s,
+            Err(e) => {
+                assert_eq!(*sim.state(), before, "{name}: a failed step changed the state");
+                break e;
+            }
+        }
+        assert!(sim.state().step < 10_000, "{name}: never stopped (q = {})", sim.state().q[0]);
+    };
+    assert!(defined(last.q[0]), "{name}: stepped to q = {} where L is not defined", last.q[0]);
+    err
+}
+
+/// Every method stops with a typed error at the step whose action is not
+/// finite, where `L` is NaN with finite derivatives, and at the wall of a
+/// logarithmic potential.
+#[test]
+fn every_method_stops_where_the_lagrangian_is_not_defined() {
+    use lagrangian_runtime::{AlphaBeta, Composition, Derivatives};
+    fn all<S: Lagrangian<1> + Copy>(system: S, q0: f64, defined: fn(f64) -> bool, name: &str) {
+        let h = 0.01;
+        let start = |q0: f64| (0.0, [q0], [1.0]);
+        let (t0, q, v) = start(q0);
+        for derivatives in [Derivatives::Forward, Derivatives::Reverse] {
+            let tag = |rule: &str| format!("{name}, {rule}, {derivatives:?}");
+            stops_at_the_undefined_lagrangian(
+                Integrator::new(system, Midpoint, h).derivatives(derivatives).start(t0, q, v).unwrap(),
+                defined,
+                &tag("midpoint"),
+            );
+            stops_at_the_undefined_lagrangian(
+                Integrator::new(system, Trapezoid, h).derivatives(derivatives).start(t0, q, v).unwrap(),
+                defined,
+                &tag("trapezoid"),
+            );
+            stops_at_the_undefined_lagrangian(
+                Integrator::new(system, AlphaBeta::new(0.3).unwrap(), h)
+                    .derivatives(derivatives)
+                    .start(t0, q, v)
+                    .unwrap(),
+                defined,
+                &tag("α-β"),
+            );
+            stops_at_the_undefined_lagrangian(
+                Integrator::new(system, Composition::YOSHIDA4, h).derivatives(derivatives).start(t0, q, v).unwrap(),
+                defined,
+                &tag("Yoshida 4"),
+            );
+        }
+        stops_before_the_undefined_lagrangian(
+            Integrator::new(system, Midpoint, h).energy_preserving(StepBounds::around(h)).start(t0, q, v).unwrap(),
+            defined,
+            &format!("{name}, energy-preserving midpoint"),
+        );
+        stops_at_the_undefined_lagrangian(
+            GalerkinIntegrator::new(system, Galerkin::<2, 2>::gauss(), h).start(t0, q, v).unwrap(),
+            defined,
+            &format!("{name}, galerkin"),
+        );
+    }
+    // Half a step of margin (|v| ≈ 1, h = 0.01).
+    let band = |q: f64| !(2.006..=2.994).contains(&q);
+    let wall = |q: f64| q < 1.006;
+    all(NanBand, 1.5, band, "NaN band");
+    all(Declared::<_, false>(NanBand), 1.5, band, "NaN band, gradient code");
+    all(Declared::<_, true>(NanBand), 1.5, band, "NaN band, separable");
+    all(LogWall, 0.9, wall, "log wall");
+    all(Declared::<_, false>(LogWall), 0.9, wall, "log wall, gradient code");
+    all(Declared::<_, true>(LogWall), 0.9, wall, "log wall, separable");
 }

@@ -120,3 +120,47 @@ fn run_until_lands_exactly_on_the_target() {
     sim.step().unwrap();
     assert!((sim.state().t - 1.3).abs() < 1e-15);
 }
+
+/// `L = ½ v² + c ln(1 − q)` with `c = 0`: free motion, and `L` is NaN past
+/// `q = 1`, where the gradient code's derivatives `−c/(1 − q)` stay finite.
+#[derive(Clone, Copy)]
+struct ZeroLogWall {
+    c: f64,
+}
+
+#[lagrangian]
+impl ZeroLogWall {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] + self.c * (1.0 - q[0]).ln()
+    }
+}
+
+/// The implicit one-point steps on the macro's gradient code check `L` near
+/// the solution, from the value their Newton linearisation computes: they
+/// stop with the non-finite Lagrangian where the midpoint (or the rule's
+/// points) passes the wall, within half a step of it, and leave the state.
+#[test]
+fn gradient_code_steps_stop_where_the_lagrangian_is_not_defined() {
+    fn stops<M: DiscreteLagrangian>(method: M, name: &str) {
+        let h = 0.01;
+        let system = ZeroLogWall { c: 0.0 };
+        let mut sim = Integrator::new(system, method, h).start(0.0, [0.5], [1.0]).unwrap();
+        let err = loop {
+            let before = *sim.state();
+            match sim.step() {
+                Ok(_) => {}
+                Err(e) => {
+                    assert_eq!(*sim.state(), before, "{name}: a failed step changed the state");
+                    break e;
+                }
+            }
+            assert!(sim.state().step < 1000, "{name}: never stopped (q = {})", sim.state().q[0]);
+        };
+        assert!(matches!(err, Error::NonFinite { quantity: "lagrangian", .. }), "{name}: {err}");
+        let q = sim.state().q[0];
+        assert!((0.99..1.006).contains(&q), "{name}: stopped at q = {q}");
+    }
+    assert!(<ZeroLogWall as Lagrangian<1>>::HAS_GRADIENT_QV);
+    stops(Midpoint, "midpoint");
+    stops(AlphaBeta::new(0.3).unwrap(), "α-β");
+}

@@ -244,10 +244,15 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             };
         }
         let State { step, t: t0, q: q0, .. } = self.state;
-        let (dq, report, impulse) = self.solve_del_with_impulse(h)?;
+        let (dq, report, impulse, lagrangian) = self.solve_del_with_impulse(h)?;
         let seg = Segment { t0, h, q0, dq };
         let (q1, p1, carry, p_carry) = self.advance(&seg, impulse);
-        if let Some(quantity) = non_finite(t1, &q1, &p1) {
+        // `L` at the rule's points of an iterate near the solution `dq`
+        // (see `solve_del_with_impulse`): Newton's evaluation there computed
+        // it on the way to the residual, so the check costs no evaluation of
+        // its own.
+        let quantity = if lagrangian.is_finite() { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
+        if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
         }
@@ -368,8 +373,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             bad |= nan_bits(p1[j]);
         }
-        if is_non_finite(bad | nan_bits(t1)) {
-            let quantity = non_finite(t1, &q1, &p1).unwrap_or("position");
+        if is_non_finite(bad | nan_bits(t1)) || !node_lagrangian_finite(&self.system, t1, &q1) {
+            let quantity = non_finite(t1, &q1, &p1).unwrap_or("lagrangian");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
         }
@@ -430,18 +435,24 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// of a step of size `h` (see `Segment` for why the increment).
     #[inline]
     pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
-        self.solve_del_with_impulse(h).map(|(dq, report, _)| (dq, report))
+        self.solve_del_with_impulse(h).map(|(dq, report, _, _)| (dq, report))
     }
 
-    /// [`solve_del`](Self::solve_del), and the step's momentum change
+    /// [`solve_del`](Self::solve_del), the step's momentum change
     /// `Σ_j w h L_q(q_j)` at the solution where Newton's last linearisation
-    /// gives it ([`Impulse`]).
+    /// gives it ([`Impulse`]), and a number that is finite exactly where `L`
+    /// is finite at the rule's points of an iterate near the solution (up
+    /// to overflow of a sum of finite values; see [`Impulse::lagrangian`]):
+    /// the last one, or from gradient code the last fresh linearisation's,
+    /// within `2·KEEP_BELOW·‖Δq‖` of it. Not the returned increment itself:
+    /// where `L` stops being finite closer to the solution than that, the
+    /// step is taken.
     #[inline]
     #[allow(clippy::type_complexity)]
     pub(super) fn solve_del_with_impulse(
         &mut self,
         h: f64,
-    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>), Error<N>> {
+    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>, f64), Error<N>> {
         let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
@@ -468,7 +479,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     let reason = IMPLAUSIBLE_GROWTH;
                     return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
                 }
-                Ok((dq, report, impulse.at_solution(&dq, p_scale)))
+                Ok((dq, report, impulse.at_solution(&dq, p_scale), impulse.lagrangian))
             }
             Err(failure) => Err(self.fail(h, failure)),
         }
@@ -483,7 +494,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// with it (simplified Newton: see [`Jacobian::Kept`]), and from the
     /// macro's gradient code only the residual is evaluated; without one, the
     /// inverse made here is left in it. From the gradient code, the impulse
-    /// at `dq` and the correction made there are left in `impulse`.
+    /// at `dq` and the correction made there are left in `impulse`, and
+    /// `L` at the rule's points ([`Impulse::lagrangian`]) from every path
+    /// but the gradient code's residual beside a kept inverse.
     #[inline(always)]
     pub(super) fn del_linearization(
         &self,
@@ -503,6 +516,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // In `f64`: no dual lanes, and the correction does not wait for
             // `1/J` (a shorter chain of dependent operations from one iterate
             // to the next).
+            // `L` is not evaluated here: its value would cost the
+            // transcendental functions whose derivatives the residual does
+            // not need (`cos` beside `sin`); the last fresh iterate's stays.
             (Some(points), Some(_)) => {
                 let (d_q0, dp) = gradient_residual(system, points, &seg);
                 impulse.evaluated(dp, None);
@@ -512,17 +528,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             // instead of the hyper-dual sweep's `N² + 2N` (forces keep the
             // full evaluation, which adds theirs).
             (None, Some(_)) if !forcing::is_forced::<S, N>() => {
-                (derivatives::start_gradient(system, method, &seg), SMatrix::zeros())
+                let (d_q0, action) = derivatives::start_gradient(system, method, &seg);
+                impulse.lagrangian = action;
+                (d_q0, SMatrix::zeros())
             }
             (Some(points), None) => {
                 // `I'` only where the impulse is linearised.
                 let mut slope = Impulse::<N>::LINEARISED.then(SMatrix::zeros);
-                let (d_q0, jacobian, dp) = gradient_linearization(system, points, &seg, slope.as_mut());
+                let (d_q0, jacobian, dp, lagrangian) = gradient_linearization(system, points, &seg, slope.as_mut());
                 impulse.evaluated(dp, slope);
+                impulse.lagrangian = lagrangian;
                 (d_q0, jacobian)
             }
             (None, _) => {
                 let d = forcing::with_forces(system, method, &seg, derivatives::step_derivatives(system, method, &seg));
+                impulse.lagrangian = d.action;
                 (d.d_q0, d.d2_q0_q1)
             }
         };
@@ -623,6 +643,29 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let behind = Segment { t0: ahead.t0 - h, h, q0: core::array::from_fn(|i| ahead.q0[i] - dq[i]), dq };
         Some(forcing::energy_balance(&self.system, &self.method, &behind, ahead))
     }
+}
+
+/// Whether the action of the solved step `seg`, `L` at the rule's points
+/// (in `f64`), is finite. Its derivatives can be finite where `L` is not
+/// (`L = ln(1 − q)` past `q = 1` has a finite derivative on the wrong
+/// branch): the step is only valid where the action itself is.
+#[inline(always)]
+pub(super) fn action_finite<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> bool {
+    method.fixed_step_action::<S, f64, N>(system, seg.t0, seg.h, seg.q0, seg.dq).is_finite()
+}
+
+/// Whether `L(t, q, 0) = −V(t, q)` is finite at the end node `q` of an
+/// explicit step (a separable system with constant mass): with the start
+/// node's, checked by the step before (or at `start`), it makes the
+/// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
+/// finite where it is not.
+#[inline(always)]
+fn node_lagrangian_finite<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> bool {
+    system.lagrangian(t, *q, [0.0; N]).is_finite()
 }
 
 /// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
@@ -953,9 +996,9 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize, const PLAIN: bool>
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    if is_non_finite(q_bad | p_bad | nan_bits(t1)) {
+    if is_non_finite(q_bad | p_bad | nan_bits(t1)) || !node_lagrangian_finite(system, t1, &q) {
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
-        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("position") });
+        return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("lagrangian") });
     }
     Ok(ExplicitStep { dq, q1: q, carry, p1, p_carry })
 }
@@ -1017,13 +1060,14 @@ pub(super) fn commit_explicit<const N: usize>(
 /// (`derivatives::step_derivatives`), which carries the whole `N × N` block
 /// through every operation of `L`; here the gradient code carries `N`
 /// lanes, and only through the operations that depend on `q` or `v`.
+/// Last, `Σ_j L(x_j)`, which the gradient code computes on the way.
 #[inline(always)]
 fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
     system: &S,
     points: [f64; 2],
     seg: &Segment<N>,
     mut impulse_slope: Option<&mut SMatrix<f64, N, N>>,
-) -> ([f64; N], SMatrix<f64, N, N>, [f64; N]) {
+) -> ([f64; N], SMatrix<f64, N, N>, [f64; N], f64) {
     let Segment { t0, h, q0, dq } = *seg;
     let inv_h = h.recip();
     let (evaluated, w) = super::tape_step::distinct(points);
@@ -1032,6 +1076,7 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
     let b_v = w * (h * inv_h);
     let (mut d_q0, mut jacobian) = ([0.0; N], SMatrix::<f64, N, N>::zeros());
     let mut dp = [0.0; N];
+    let mut lagrangian = 0.0;
     let wh = w * h;
     for (n, &j) in evaluated.iter().enumerate() {
         let c = points[j];
@@ -1046,10 +1091,11 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
         let v: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| seeded(dq[i] * inv_h, i, inv_h));
         let (mut gq, mut gv) = ([DualArray::from_re(0.0); N], [DualArray::from_re(0.0); N]);
         let t = DualArray::from_re(super::tape_step::point_time(c, t0, h));
-        system.gradient_qv_scalar(t, &q, &v, &mut gq, &mut gv);
+        let l = system.value_gradient_qv_scalar(t, &q, &v, &mut gq, &mut gv).re;
         // The first point's terms start the sums (`0 + x` is an IEEE
         // addition on Newton's chain of dependent operations).
         let first = n == 0;
+        lagrangian = if first { l } else { lagrangian + l };
         for i in 0..N {
             let d = a_q * gq[i].re - b_v * gv[i].re;
             d_q0[i] = if first { d } else { d_q0[i] + d };
@@ -1071,7 +1117,7 @@ fn gradient_linearization<S: Lagrangian<N>, const N: usize>(
             }
         }
     }
-    (d_q0, jacobian, dp)
+    (d_q0, jacobian, dp, lagrangian)
 }
 
 /// The residual part `∂A/∂q_k` of [`gradient_linearization`] alone, from the
@@ -1133,6 +1179,9 @@ fn gradient_residual<S: Lagrangian<N>, const N: usize>(
 /// the error is at most `K/4` ulps. `tests/verification/impulse.rs` checks
 /// the momentum change against the impulse evaluated at the stored
 /// increment, at tolerances from `1e-14` to `1e-10`.
+///
+/// Beside the impulse it carries what the step checks `L` with
+/// ([`lagrangian`](Self::lagrangian)), which every linearisation leaves.
 pub(super) struct Impulse<const N: usize> {
     /// `I` at the last iterate evaluated.
     at: Option<[f64; N]>,
@@ -1141,6 +1190,21 @@ pub(super) struct Impulse<const N: usize> {
     slope: Option<SMatrix<f64, N, N>>,
     /// The correction made from the last iterate.
     correction: [f64; N],
+    /// Finite exactly where `L` is finite at the rule's points of an
+    /// iterate (up to overflow of a sum of finite values): from the
+    /// gradient code, `Σ_j L(x_j)` at the iterate of the last fresh
+    /// linearisation, whose forward sweep on dual numbers computes `L`'s
+    /// transcendental functions anyway (the `f64` residuals of a kept
+    /// Jacobian skip those the derivatives do not need, such as `cos` beside
+    /// `sin`, and leave it); the action `h Σ_j w L(x_j)` at the last iterate
+    /// otherwise. Newton keeps a Jacobian only after corrections below
+    /// [`KEEP_BELOW`](newton::KEEP_BELOW) of the increment that contract
+    /// fourfold, so that iterate is within `2·KEEP_BELOW·‖Δq‖` of the last
+    /// (as for the impulse above), and that one within Newton's tolerance
+    /// of the solution: `L` is checked within about a five-hundredth of the
+    /// step's motion of the rule's points. NaN before the first
+    /// linearisation, which is always fresh.
+    pub(super) lagrangian: f64,
 }
 
 impl<const N: usize> Impulse<N> {
@@ -1150,7 +1214,7 @@ impl<const N: usize> Impulse<N> {
     pub(super) const LINEARISED: bool = N <= 4;
 
     pub(super) fn new() -> Self {
-        Self { at: None, slope: None, correction: [0.0; N] }
+        Self { at: None, slope: None, correction: [0.0; N], lagrangian: f64::NAN }
     }
 
     /// `I` evaluated at an iterate, and `I'` when the linearisation there

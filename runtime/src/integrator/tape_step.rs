@@ -465,8 +465,9 @@ impl SparseWork {
     ) -> Result<(Taken, f64), NewtonFailure> {
         let (dq, report) = self.solve(model, node, h, guess, options)?;
         let n = self.n;
-        // The momentum change at fixed increment and the step's energy.
-        let energy = match directional_points(model) {
+        // The momentum change at fixed increment, the step's energy and
+        // whether its action is finite.
+        let (energy, action_finite) = match directional_points(model) {
             Some(points) => {
                 self.directional.momentum_and_energy(model, node.t, h, points, node.q, &dq, &mut self.gradient[..n])
             }
@@ -474,17 +475,20 @@ impl SparseWork {
                 let swept = match self.tape_buffers() {
                     Ok(()) => self
                         .record_action(model, node.t, h, node.q, &dq)
-                        .and_then(|_| self.tape.gradient(&mut self.gradient))
-                        .is_ok(),
-                    Err(_) => false,
+                        .and_then(|action| self.tape.gradient(&mut self.gradient).map(|()| action)),
+                    Err(_) => Err(TapeError::TooLarge),
                 };
-                if !swept {
+                let Ok(action) = swept else {
                     self.recycle(dq);
                     return Err(NewtonFailure::Rejected { iterations: report.iterations, reason: TAPE_FAILED });
-                }
-                -self.gradient[2 * n]
+                };
+                (-self.gradient[2 * n], action.is_finite())
             }
         };
+        if !action_finite {
+            self.recycle(dq);
+            return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "lagrangian" });
+        }
         let mut taken = self.taken(dq, report);
         if node.plain {
             let (q0, p0, dp) = (&node.q[..n], &node.p[..n], &self.gradient[..n]);
@@ -880,7 +884,8 @@ impl SparseWork {
             }
         }
         self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
-        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite())
+            .or_else(|| (!potential_finite(model, &self.zero.0, t1, &out.q1[..n])).then_some("lagrangian"));
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok((t_last, h_last)),
@@ -993,7 +998,8 @@ impl SparseWork {
                 p_bad |= nan_bits(sum);
             }
         }
-        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
+        let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite())
+            .or_else(|| (!potential_finite(model, &self.zero.0, t1, &out.q1[..n])).then_some("lagrangian"));
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok(()),
@@ -1348,7 +1354,8 @@ impl Directional {
     /// After convergence: `∂A/∂q_k` at fixed increment (the momentum change)
     /// into `g_q0`, and the step's discrete energy `−∂A/∂h`, from the `f64`
     /// gradient code and `L` (with `∂L/∂t` on a dual number when `L`
-    /// depends on time) at the points.
+    /// depends on time) at the points; with the energy, whether `L` is
+    /// finite at every point.
     #[allow(clippy::too_many_arguments)]
     fn momentum_and_energy<Mo: TapeModel>(
         &mut self,
@@ -1359,7 +1366,7 @@ impl Directional {
         q0: &[f64],
         dq: &[f64],
         g_q0: &mut [f64],
-    ) -> f64 {
+    ) -> (f64, bool) {
         let n = q0.len();
         let inv_h = h.recip();
         self.points(points, q0, dq, inv_h);
@@ -1367,6 +1374,7 @@ impl Directional {
         g_q0.fill(0.0);
         // ∂A/∂h = Σ_j w [L + c_j h ∂L/∂t − L_v·Δq·h⁻¹].
         let mut g_h = 0.0;
+        let mut lagrangian_finite = true;
         for &j in evaluated {
             let c = points[j];
             let t = point_time(c, t0, h);
@@ -1388,8 +1396,9 @@ impl Directional {
             };
             let power: f64 = self.fv.iter().zip(&self.velocity).map(|(p, v)| p * v).sum();
             g_h += w * (l + c * h * l_t - power);
+            lagrangian_finite &= l.is_finite();
         }
-        -g_h
+        (-g_h, lagrangian_finite)
     }
 }
 
@@ -1685,7 +1694,7 @@ pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64]
         if directional.allocate_values(n, model.autonomous()).is_err() {
             return f64::NAN;
         }
-        return directional.momentum_and_energy(model, t0, h, points, q0, dq, &mut g_q0);
+        return directional.momentum_and_energy(model, t0, h, points, q0, dq, &mut g_q0).0;
     }
     let mut tape = Tape::new();
     let mut inputs = Vec::with_capacity(2 * n + 1);
@@ -1698,6 +1707,15 @@ pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64]
         Ok(()) => -gradient[2 * n],
         Err(_) => f64::NAN,
     }
+}
+
+/// Whether `L(t, q, 0) = −V(t, q)` of a separable system with constant
+/// mass is finite at the end node `q` of an explicit step: with the start
+/// node's, checked by the step before (or at `start`), it makes the
+/// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
+/// finite where it is not.
+pub(super) fn potential_finite<Mo: TapeModel>(model: &Mo, zero: &[f64], t: f64, q: &[f64]) -> bool {
+    model.lagrangian_scalar(t, q, zero).is_finite()
 }
 
 /// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from one reverse

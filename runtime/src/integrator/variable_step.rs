@@ -537,7 +537,13 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         // t_{k+1} = t_k + h with Kahan compensation: times stay exact sums of the steps.
         let y = h - self.time_error;
         let t1 = t0 + y;
-        let quantity = if d_t1.is_finite() { non_finite(t1, &q1, &p1) } else { Some("energy") };
+        let quantity = if !super::one_point::action_finite(&self.system, &self.method, &seg) {
+            Some("lagrangian")
+        } else if d_t1.is_finite() {
+            non_finite(t1, &q1, &p1)
+        } else {
+            Some("energy")
+        };
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
