@@ -160,7 +160,7 @@ fn gradient_code_steps_stop_where_the_lagrangian_is_not_defined() {
         let q = sim.state().q[0];
         assert!((0.99..1.006).contains(&q), "{name}: stopped at q = {q}");
     }
-    assert!(<ZeroLogWall as Lagrangian<1>>::HAS_GRADIENT_QV);
+    const { assert!(<ZeroLogWall as Lagrangian<1>>::HAS_GRADIENT_QV) };
     stops(Midpoint, "midpoint");
     stops(AlphaBeta::new(0.3).unwrap(), "α-β");
 }
