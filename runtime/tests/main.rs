@@ -12,6 +12,7 @@ mod compensated;
 mod module_graph;
 mod newton_accuracy;
 mod properties;
+mod properties_workflow;
 #[cfg(feature = "serde")]
 mod solution_files;
 mod solve_failures;
