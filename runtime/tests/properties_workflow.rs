@@ -693,7 +693,7 @@ fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
     let data_ok = case.t0.is_finite() && q0.iter().chain(&v0).all(|x| x.is_finite());
     // `NotSeparable` (checked before the shift) also where the mass matrix
     // `∂²L/∂v²` is not finite at data of extreme magnitude (|q| ~ 1e154 on Kepler).
-    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100);
+    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
     let expected = if !settings_ok {
         Some("InvalidSetting")
     } else if !data_ok {
@@ -724,7 +724,7 @@ fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
                     let floor_given_bad = case.min_time_step.is_some_and(|dt| !(dt.is_finite() && dt > 0.0));
                     // `NotSeparable` also where the mass matrix `∂²L/∂v²` is not
                     // finite at data of extreme magnitude (|q| ~ 1e268 on Kepler).
-                    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100);
+                    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
                     let ok = e.kind == "InvalidArgument"
                         || (e.kind == "InvalidSetting"
                             && (floor_given_bad
@@ -1708,4 +1708,42 @@ fn explicit_time_transformation_errors_carry_the_landed_time() {
     };
     assert_eq!(sim.state(), before, "the failed step changed the driver");
     assert_eq!(carried, before, "{e}");
+}
+
+/// Found by the implicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
+/// the pendulum with the curvature monitor (floor 1.5), Galerkin s = 2 in
+/// `s`, σ = 0.0706, from rest at q0 = −1.567: one `step` returns `Ok` with
+/// `t = 13.2` (σ g ≈ 0.06 expected), `q = 89.6` and the energy 436.6 (from
+/// −0.033): Newton converged to a spurious solution of the step in `s`, and
+/// the driver accepted it. A typed error would be acceptable.
+#[test]
+#[ignore = "defect: Adaptive returns Ok from a spurious step (t jumps by 13, E from -0.03 to 437)"]
+fn implicit_time_transformation_rejects_a_spurious_step() {
+    let monitor = Curvature::new(1.5).unwrap();
+    let mut sim = TimeTransformed::new(Pendulum, monitor)
+        .galerkin(Galerkin::<2, 2>::gauss(), 0.07056106993564934)
+        .newton(NewtonOptions::default())
+        .start::<2>(0.0, [-1.5673888557424274], [0.0])
+        .unwrap();
+    let e0 = sim.energy().unwrap();
+    if let Ok(s) = sim.step() {
+        let e = sim.energy().unwrap_or(f64::NAN);
+        assert!((e - e0).abs() <= 1.0 && s.t < 1.0, "E {e0} -> {e} at {s:?}");
+    }
+}
+
+/// Found by the solve property in the long run: a `Land` event on `v = 0`
+/// (3 samples per step) on the separable pendulum from `q0 = 3.24e120` at
+/// rest keeps node rows twice (the same node index `k` twice in `step`, at
+/// k = 1150 and 2664): the landing puts a node on the event time, and the
+/// node is recorded again.
+#[test]
+#[ignore = "defect: solve keeps a node row twice (same step index) around a Land event"]
+fn solve_keeps_each_node_once_around_land_events() {
+    let mut sim = Integrator::new(SepPendulum, Midpoint, 0.01).start(0.0, [3.240812251899315e120], [0.0]).unwrap();
+    let event = Event::new(|_, _, v: &[f64; 1]| v[0]).action(Action::Land).samples(3);
+    let sol = sim.solve(Plan::until(1.6595561523241817).without_velocities().event(event)).unwrap();
+    let nodes: Vec<u64> = sol.step.iter().filter_map(|&k| k).collect();
+    let twice: Vec<u64> = nodes.windows(2).filter(|w| w[0] >= w[1]).map(|w| w[1]).collect();
+    assert!(twice.is_empty(), "node rows kept twice: {twice:?} ({:?})", sol.status);
 }
