@@ -14,6 +14,7 @@ mod lost_orbits;
 mod module_graph;
 mod newton_accuracy;
 mod properties;
+mod properties_workflow;
 #[cfg(feature = "serde")]
 mod solution_files;
 mod solve_failures;

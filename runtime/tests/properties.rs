@@ -36,7 +36,7 @@ use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRu
 // ---------------------------------------------------------------- systems
 
 #[derive(Clone, Copy)]
-struct Pendulum;
+pub(crate) struct Pendulum;
 impl Lagrangian<1> for Pendulum {
     const AUTONOMOUS: bool = true;
     const CYCLIC: [bool; 1] = [false];
@@ -46,7 +46,7 @@ impl Lagrangian<1> for Pendulum {
 }
 
 #[derive(Clone, Copy)]
-struct DoublePendulum;
+pub(crate) struct DoublePendulum;
 impl Lagrangian<2> for DoublePendulum {
     const AUTONOMOUS: bool = true;
     const CYCLIC: [bool; 2] = [false, false];
@@ -58,7 +58,7 @@ impl Lagrangian<2> for DoublePendulum {
 /// Kepler in polar coordinates `(r, φ)`: singular at `r = 0`, and `∂²L/∂v²`
 /// is singular there too.
 #[derive(Clone, Copy)]
-struct KeplerPolar;
+pub(crate) struct KeplerPolar;
 impl Lagrangian<2> for KeplerPolar {
     const AUTONOMOUS: bool = true;
     const CYCLIC: [bool; 2] = [false, true];
@@ -68,7 +68,7 @@ impl Lagrangian<2> for KeplerPolar {
 }
 
 #[derive(Clone, Copy)]
-struct KeplerCartesian;
+pub(crate) struct KeplerCartesian;
 impl Lagrangian<2> for KeplerCartesian {
     const AUTONOMOUS: bool = true;
     const CYCLIC: [bool; 2] = [false, false];
@@ -143,14 +143,14 @@ const SYSTEMS: [&str; 8] = [
 // ---------------------------------------------------------------- cases
 
 #[derive(Clone, Copy, Debug)]
-enum Method {
+pub(crate) enum Method {
     Midpoint,
     Trapezoid,
     AlphaBeta(f64),
 }
 
 #[derive(Clone, Copy, Debug)]
-enum Op {
+pub(crate) enum Op {
     Step,
     /// Multiply the step size by this factor.
     ScaleStep(f64),
@@ -161,19 +161,19 @@ enum Op {
 }
 
 #[derive(Clone, Debug)]
-struct Case {
-    system: usize,
-    method: Method,
+pub(crate) struct Case {
+    pub(crate) system: usize,
+    pub(crate) method: Method,
     /// Galerkin degree: 2 or 3 (Gauss).
-    degree: usize,
-    t0: f64,
-    q0: [f64; 2],
-    v0: [f64; 2],
-    h: f64,
+    pub(crate) degree: usize,
+    pub(crate) t0: f64,
+    pub(crate) q0: [f64; 2],
+    pub(crate) v0: [f64; 2],
+    pub(crate) h: f64,
     /// Energy-preserving steps with these bounds, and whether to fall back to least squares.
-    energy: Option<(StepBounds, bool)>,
-    newton: NewtonOptions,
-    ops: Vec<Op>,
+    pub(crate) energy: Option<(StepBounds, bool)>,
+    pub(crate) newton: NewtonOptions,
+    pub(crate) ops: Vec<Op>,
 }
 
 const SPECIALS: [f64; 16] = [
@@ -196,7 +196,7 @@ const SPECIALS: [f64; 16] = [
 ];
 
 /// Any float: specials, raw bit patterns (NaN payloads, subnormals), log-uniform magnitudes.
-fn wild() -> impl Strategy<Value = f64> {
+pub(crate) fn wild() -> impl Strategy<Value = f64> {
     prop_oneof![
         2 => proptest::sample::select(&SPECIALS[..]),
         1 => any::<u64>().prop_map(f64::from_bits),
@@ -205,15 +205,15 @@ fn wild() -> impl Strategy<Value = f64> {
 }
 
 /// Mostly plausible, sometimes wild.
-fn value(lo: f64, hi: f64) -> impl Strategy<Value = f64> {
+pub(crate) fn value(lo: f64, hi: f64) -> impl Strategy<Value = f64> {
     prop_oneof![6 => lo..hi, 1 => wild()]
 }
 
-fn step_size() -> impl Strategy<Value = f64> {
+pub(crate) fn step_size() -> impl Strategy<Value = f64> {
     prop_oneof![6 => 1e-4..0.3f64, 1 => (-12.0..3.0f64).prop_map(|e| 10f64.powf(e)), 1 => wild()]
 }
 
-fn newton_options() -> impl Strategy<Value = NewtonOptions> {
+pub(crate) fn newton_options() -> impl Strategy<Value = NewtonOptions> {
     let custom = (0usize..40, value(1e-16, 1e-6), value(0.0, 1e-10), value(0.0, 1e-10))
         .prop_map(|(max_iterations, rtol, atol, min_rcond)| NewtonOptions { max_iterations, rtol, atol, min_rcond });
     prop_oneof![4 => Just(NewtonOptions::default()), 1 => custom]
@@ -226,7 +226,7 @@ fn energy(h: f64) -> impl Strategy<Value = Option<(StepBounds, bool)>> {
     prop_oneof![3 => Just(None), 2 => around, 1 => custom]
 }
 
-fn ops() -> impl Strategy<Value = Vec<Op>> {
+pub(crate) fn ops() -> impl Strategy<Value = Vec<Op>> {
     let op = prop_oneof![
         8 => Just(Op::Step),
         1 => prop_oneof![
@@ -245,7 +245,7 @@ fn ops() -> impl Strategy<Value = Vec<Op>> {
     proptest::collection::vec(op, 1..16)
 }
 
-fn case() -> impl Strategy<Value = Case> {
+pub(crate) fn case() -> impl Strategy<Value = Case> {
     let method = prop_oneof![
         2 => Just(Method::Midpoint),
         1 => Just(Method::Trapezoid),
@@ -276,29 +276,29 @@ fn case() -> impl Strategy<Value = Case> {
 /// Outcomes by name, for the summary printed with `--nocapture`, and the
 /// first case of each observation worth a look.
 #[derive(Default)]
-struct Tally {
+pub(crate) struct Tally {
     counts: BTreeMap<String, u64>,
     examples: BTreeMap<String, String>,
     /// The case being run, for the examples.
-    current: String,
+    pub(crate) current: String,
 }
 
 impl Tally {
-    fn add(&mut self, key: impl Into<String>) {
+    pub(crate) fn add(&mut self, key: impl Into<String>) {
         *self.counts.entry(key.into()).or_default() += 1;
     }
     /// Counts an observation that is allowed but noteworthy, keeping its first case.
-    fn note(&mut self, key: &str, detail: impl FnOnce() -> String) {
+    pub(crate) fn note(&mut self, key: &str, detail: impl FnOnce() -> String) {
         self.add(key);
         if !self.examples.contains_key(key) {
             let example = format!("{}\n    {}", detail(), self.current);
             self.examples.insert(key.to_string(), example);
         }
     }
-    fn get(&self, key: &str) -> u64 {
+    pub(crate) fn get(&self, key: &str) -> u64 {
         self.counts.get(key).copied().unwrap_or(0)
     }
-    fn print(&self, title: &str) {
+    pub(crate) fn print(&self, title: &str) {
         println!("\n{title}");
         let failures: u64 = self.counts.iter().filter(|(k, _)| k.ends_with("(failed)")).map(|(_, n)| n).sum();
         println!("  {:<56} {:>9}", "panics", self.get("panics"));
@@ -317,7 +317,7 @@ fn cases() -> u32 {
     std::env::var("LAGRANGIAN_PROP_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(4000)
 }
 
-fn runner(cases: u32) -> TestRunner {
+pub(crate) fn runner(cases: u32) -> TestRunner {
     let seed: u64 = std::env::var("LAGRANGIAN_PROP_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(11);
     let mut bytes = [0u8; 32];
     bytes[..8].copy_from_slice(&seed.to_le_bytes());
@@ -327,7 +327,7 @@ fn runner(cases: u32) -> TestRunner {
 
 // ---------------------------------------------------------------- errors
 
-fn kind<const N: usize, T: Real>(e: &Error<N, T>) -> &'static str {
+pub(crate) fn kind<const N: usize, T: Real>(e: &Error<N, T>) -> &'static str {
     match e {
         Error::NewtonDidNotConverge { .. } => "NewtonDidNotConverge",
         Error::SingularJacobian { .. } => "SingularJacobian",
@@ -347,7 +347,7 @@ fn kind<const N: usize, T: Real>(e: &Error<N, T>) -> &'static str {
 }
 
 /// The state a step error carries, for the kinds a step can fail with.
-fn step_error_state<const N: usize, T: Real>(e: &Error<N, T>) -> Option<&State<N, T>> {
+pub(crate) fn step_error_state<const N: usize, T: Real>(e: &Error<N, T>) -> Option<&State<N, T>> {
     match e {
         Error::NewtonDidNotConverge { state, .. }
         | Error::SingularJacobian { state, .. }
@@ -359,18 +359,18 @@ fn step_error_state<const N: usize, T: Real>(e: &Error<N, T>) -> Option<&State<N
 }
 
 /// Bit patterns of a state: `==` on floats would call NaN unequal to itself and −0 equal to 0.
-fn bits<const N: usize>(s: &State<N>) -> (u64, u64, [u64; N], [u64; N]) {
+pub(crate) fn bits<const N: usize>(s: &State<N>) -> (u64, u64, [u64; N], [u64; N]) {
     (s.step, s.t.to_bits(), s.q.map(f64::to_bits), s.p.map(f64::to_bits))
 }
 
-fn finite<const N: usize>(s: &State<N>) -> bool {
+pub(crate) fn finite<const N: usize>(s: &State<N>) -> bool {
     s.t.is_finite() && s.q.iter().chain(&s.p).all(|x| x.is_finite())
 }
 
 // ---------------------------------------------------------------- both integrators
 
 /// What the properties need of an integrator.
-trait Sim<const N: usize> {
+pub(crate) trait Sim<const N: usize> {
     fn step(&mut self) -> Result<State<N>, Error<N>>;
     fn set_step_size(&mut self, h: f64) -> Result<(), Error<N>>;
     fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(&State<N>)) -> Result<(), Error<N>>;
@@ -439,7 +439,7 @@ struct Record {
 const RUNAWAY: &str = "runaway run_until";
 const MAX_RUN_UNTIL_STEPS: u64 = 100_000;
 
-fn guarded<T>(tally: &mut Tally, what: &str, f: impl FnOnce() -> T) -> Result<T, TestCaseError> {
+pub(crate) fn guarded<T>(tally: &mut Tally, what: &str, f: impl FnOnce() -> T) -> Result<T, TestCaseError> {
     match catch_unwind(AssertUnwindSafe(f)) {
         Ok(v) => Ok(v),
         Err(payload) => {
@@ -641,7 +641,7 @@ fn unit(case: &Case, h: f64) -> f64 {
 
 /// Runs the case's operations on `sim`, retrying every failed step with half
 /// the step size, then replays them on fresh integrators from `fresh`.
-fn exercise<const N: usize>(
+pub(crate) fn exercise<const N: usize>(
     case: &Case,
     tally: &mut Tally,
     fresh: &dyn Fn() -> Box<dyn Sim<N>>,
@@ -741,7 +741,7 @@ fn expected_start_error(case: &Case, n: usize, forced: bool, galerkin: bool, aut
 /// Checks the outcome of `start`: the kind the documented checks predict,
 /// `InvalidInitialData` where `L` itself is not finite, and a first state
 /// that is the initial data. `Ok(true)` when it started.
-fn check_start<S: Lagrangian<N>, const N: usize>(
+pub(crate) fn check_start<S: Lagrangian<N>, const N: usize>(
     system: &S,
     case: &Case,
     galerkin: bool,
@@ -773,7 +773,7 @@ fn check_start<S: Lagrangian<N>, const N: usize>(
     }
 }
 
-fn first<const N: usize>(x: [f64; 2]) -> [f64; N] {
+pub(crate) fn first<const N: usize>(x: [f64; 2]) -> [f64; N] {
     core::array::from_fn(|i| x[i])
 }
 

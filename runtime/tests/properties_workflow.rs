@@ -1,0 +1,1749 @@
+//! Property-based bad-input suite over the workflow surfaces that
+//! `properties.rs` does not reach: compositions, both time-transformed
+//! drivers, `solve(Plan)`, the solution readers on the output of real runs and
+//! ensemble shards. It reuses that file's systems, case generator, tally and
+//! step properties.
+//!
+//! Properties checked on every case:
+//! - nothing panics (every call runs under `catch_unwind`);
+//! - compositions (`Composition::YOSHIDA4/YOSHIDA6/KAHAN_LI8` as the method of
+//!   `Integrator`), on separable systems (explicit sub-steps) and
+//!   non-separable or unproven ones (Newton sub-steps): every property of
+//!   `properties.rs` (typed start errors, a failed step leaves the
+//!   integrator bit-identical, `run_until` lands exactly, replays and clean
+//!   runs bit-identical), energy-preserving steps refused, and the energy of
+//!   the pendulum within `(hω)²` of its scale over 200 steps where `hω ≤ ½`;
+//! - the implicit time-transformed driver (`TimeTransformed` → `Adaptive`,
+//!   midpoint and Galerkin in `s`) and the explicit one
+//!   (`ExplicitTimeTransformed`, leapfrog and compositions, logarithmic and
+//!   power-law time functions): start errors of the documented kinds, a
+//!   failed step leaves the driver bit-identical and carries its state, a
+//!   step advances time, `run_until` lands exactly or refuses the target
+//!   typed, and a run that returns `Ok` conserves the energy (implicit) or
+//!   the extended Hamiltonian and the energy (explicit) to a loose bound;
+//! - `solve(Plan)` with random `every(n)`, `save_at` lists (unsorted,
+//!   out-of-range and NaN ones must be `SolveError::InvalidSaveTime` with
+//!   the index of the first bad time), events with random actions,
+//!   directions, tolerances, samples and functions that sometimes return
+//!   NaN, on midpoint, Galerkin, the three compositions and the implicit
+//!   time transformation (its `Integrator` in `s`): a plan that cannot run is
+//!   the typed error its first defect predicts and leaves the integrator
+//!   untouched; otherwise the rows are in time order within `[t0, t_end]`,
+//!   the last row is a node equal to the integrator's state (whatever the
+//!   status), a finished run ends exactly on `t_end` with every save time,
+//!   a stop ends exactly on its event time, time events are located to
+//!   their tolerance, the status is `Failed` exactly when the error is set,
+//!   and node energies of the pendulum stay within the step's bound;
+//! - `Solution::write_csv`/`read_csv` and `write_json`/`read_json` (feature
+//!   `serde`) give every solution of those runs back bit for bit, and a file
+//!   truncated anywhere is a typed error or a prefix of the rows;
+//! - `ensemble::shard` covers the members once, and `ensemble::merge` of
+//!   random shard splits, with shards dropped, duplicated, reordered,
+//!   shifted, padded with empty shards or merged to a wrong length, returns
+//!   the ensemble exactly when the shards hold every member once (bit
+//!   equal to the single-job run), and otherwise the `ShardError` that the
+//!   first defect predicts.
+//!
+//! Case counts: `LAGRANGIAN_PROP_CASES` sets the base count `B` (default
+//! [`DEFAULT_BASE`], chosen so that the file runs in well under 30 s); the
+//! tests run `B/4` (compositions), `B/4` (implicit time transformation),
+//! `B` (explicit time transformation), `B/2` (solve) and `5 B` (shards)
+//! cases. Seed: `LAGRANGIAN_PROP_SEED`, as in `properties.rs`. A long run:
+//!
+//! ```text
+//! LAGRANGIAN_PROP_CASES=4000 CARGO_TARGET_DIR=... cargo test -p lagrangian-runtime --all-features \
+//!     --test integration properties_workflow:: -- --nocapture --test-threads=2
+//! ```
+#![allow(missing_docs)]
+
+use std::cell::RefCell;
+
+use lagrangian_runtime::ensemble::{self, Ensemble, Shard, ShardError};
+use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
+use lagrangian_runtime::solution::{DenseKind, Plan, SolveError, Status, Stepping};
+use lagrangian_runtime::{
+    Action, Composition, Curvature, Direction, Event, ExplicitTimeTransformed, Integrator, Lagrangian, LeapfrogForm,
+    Midpoint, NewtonOptions, RadiusPower, Scalar, Separability, SplittingError, State, StepDensity, TimeFunction,
+    TimeTransformError, TimeTransformed,
+};
+use proptest::prelude::*;
+use proptest::test_runner::TestCaseError;
+
+use crate::properties::{
+    Case, DoublePendulum, KeplerPolar, Op, Pendulum, Sim, Tally, bits, case, check_start, exercise, finite, first,
+    guarded, kind, newton_options, runner, step_error_state, value, wild,
+};
+
+/// The base case count without `LAGRANGIAN_PROP_CASES`.
+const DEFAULT_BASE: u32 = 1000;
+
+fn base() -> u32 {
+    std::env::var("LAGRANGIAN_PROP_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(DEFAULT_BASE)
+}
+
+// ---------------------------------------------------------------- systems
+
+/// The pendulum of `properties.rs`, declared separable: compositions take
+/// explicit Störmer–Verlet sub-steps, and the explicit time transformation
+/// accepts it.
+#[derive(Clone, Copy, Debug)]
+struct SepPendulum;
+impl Lagrangian<1> for SepPendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.5 + q[0].cos() * 9.81
+    }
+}
+
+/// Kepler in Cartesian coordinates, declared separable.
+#[derive(Clone, Copy, Debug)]
+struct SepKepler;
+impl Lagrangian<2> for SepKepler {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 2] = [false, false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+        (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+    }
+}
+
+/// The energy scale `S = v²/2 + g` and the fastest angular rate of a
+/// pendulum started at `v0` (its rate when rotating, plus the small
+/// oscillations'); the energy bound of a run with step `h` is `(hω)² S`.
+fn pendulum_scales(v0: f64) -> (f64, f64) {
+    let s = 0.5 * v0 * v0 + 9.81;
+    (s, 9.81f64.sqrt() + (v0 * v0 + 4.0 * 9.81).sqrt())
+}
+
+/// Runs `cases` cases of `strategy` through `one`, prints the tally and
+/// fails on a failed property or a panic.
+fn property<T: std::fmt::Debug>(
+    name: &str,
+    cases: u32,
+    strategy: impl Strategy<Value = T>,
+    one: impl Fn(&T, &mut Tally) -> Result<(), TestCaseError>,
+) -> Tally {
+    let tally = RefCell::new(Tally::default());
+    let mut runner = runner(cases);
+    let start = std::time::Instant::now();
+    let result = runner.run(&strategy, |c| {
+        let tally = &mut *tally.borrow_mut();
+        tally.add("cases run");
+        tally.current = format!("{c:?}");
+        one(&c, tally)
+    });
+    let tally = tally.into_inner();
+    tally.print(&format!(
+        "{name}: {cases} cases in {:.1} s (tallies include shrinking if a case failed)",
+        start.elapsed().as_secs_f64()
+    ));
+    if let Err(e) = result {
+        panic!("{name}: {e}");
+    }
+    assert_eq!(tally.get("panics"), 0);
+    assert_eq!(tally.get("runaway"), 0);
+    assert_eq!(tally.get("states lost"), 0);
+    tally
+}
+
+// ---------------------------------------------------------------- compositions
+
+const COMPOSITIONS: [Composition; 3] = [Composition::YOSHIDA4, Composition::YOSHIDA6, Composition::KAHAN_LI8];
+const COMPOSITION_SYSTEMS: [&str; 5] = [
+    "pendulum (separable: explicit)",
+    "kepler cartesian (separable: explicit)",
+    "pendulum (unproven: Newton)",
+    "double pendulum (Newton)",
+    "kepler polar (Newton)",
+];
+
+fn composition_case<S, const N: usize>(
+    system: S,
+    which: usize,
+    case: &Case,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError>
+where
+    S: Lagrangian<N> + Copy + 'static,
+{
+    let composition = COMPOSITIONS[which];
+    let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
+    // Energy-preserving steps are refused: only fixed steps go on.
+    if let Some((bounds, _)) = case.energy {
+        let r = guarded(tally, "composition start (energy-preserving)", || {
+            Integrator::new(system, composition, case.h).energy_preserving(bounds).start(case.t0, q0, v0).map(|_| ())
+        })?;
+        match r {
+            Ok(()) => return Err(TestCaseError::fail("a composition accepted energy-preserving steps")),
+            Err(e) => tally.add(format!("energy-preserving start: {} (failed)", kind(&e))),
+        }
+    }
+    let case = &Case { energy: None, ..case.clone() };
+    let build =
+        move |case: &Case| Integrator::new(system, composition, case.h).newton(case.newton).start(case.t0, q0, v0);
+    let started = guarded(tally, "start", || build(case))?;
+    if check_start(&system, case, false, started.as_ref().map(|s| *s.state()), tally)? {
+        let owned = case.clone();
+        let fresh = move || -> Box<dyn Sim<N>> { Box::new(build(&owned).expect("started once already")) };
+        exercise(case, tally, &fresh)?;
+    }
+    Ok(())
+}
+
+/// The energy of the pendulum over 200 composition steps stays within
+/// `(hω)² S` of its start where `hω ≤ ½`.
+fn composition_energy<S: Lagrangian<1> + Copy>(
+    system: S,
+    which: usize,
+    case: &Case,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    let (s, omega) = pendulum_scales(case.v0[0]);
+    let h = case.h;
+    if !(h.is_finite() && h > 0.0 && h * omega <= 0.5 && case.q0[0].abs() <= 10.0 && case.t0.is_finite()) {
+        return Ok(());
+    }
+    // With a floor for the round-off of 200 steps.
+    let bound = ((h * omega).powi(2) + 1e-11) * s;
+    let r = guarded(tally, "energy run", || -> Result<f64, lagrangian_runtime::Error<1>> {
+        let mut sim = Integrator::new(system, COMPOSITIONS[which], h).start(case.t0, [case.q0[0]], [case.v0[0]])?;
+        let e0 = sim.energy()?;
+        let mut worst = 0.0f64;
+        sim.run(200, |sim| {
+            let e = sim.energy().unwrap_or(f64::NAN);
+            worst = if (e - e0).abs() > worst || e.is_nan() { (e - e0).abs() } else { worst };
+        })?;
+        Ok(worst)
+    })?;
+    match r {
+        Ok(worst) => {
+            tally.add("energy run: ok");
+            prop_assert!(worst <= bound, "energy error {worst:e} > bound {bound:e} (h ω = {})", h * omega);
+        }
+        Err(e) => tally.add(format!("energy run: {} (failed)", kind(&e))),
+    }
+    Ok(())
+}
+
+#[test]
+fn compositions_under_random_and_adversarial_input() {
+    let cases = base().div_ceil(4);
+    let strategy = (case(), 0..COMPOSITION_SYSTEMS.len(), 0..3usize);
+    let tally = property("Compositions", cases, strategy, |(case, system, which), tally| {
+        tally.add(format!("system: {}", COMPOSITION_SYSTEMS[*system]));
+        match system {
+            0 => {
+                composition_case(SepPendulum, *which, case, tally)?;
+                composition_energy(SepPendulum, *which, case, tally)
+            }
+            1 => composition_case(SepKepler, *which, case, tally),
+            2 => {
+                composition_case(Pendulum, *which, case, tally)?;
+                composition_energy(Pendulum, *which, case, tally)
+            }
+            3 => composition_case(DoublePendulum, *which, case, tally),
+            _ => composition_case(KeplerPolar, *which, case, tally),
+        }
+    });
+    assert!(tally.get("cases stepped") > 0 && tally.get("step: ok") > 0 && tally.get("energy run: ok") > 0);
+}
+
+// ---------------------------------------------------------------- time-transformed drivers
+
+/// What the properties need of a time-transformed driver.
+trait Driver<const N: usize> {
+    fn step(&mut self) -> Result<State<N>, Failure<N>>;
+    fn set_sigma(&mut self, sigma: f64) -> Result<(), Failure<N>>;
+    fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>>;
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>>;
+    fn state(&self) -> State<N>;
+    /// The bits of everything a failed step must leave alone.
+    fn fingerprint(&self) -> Vec<u64>;
+    fn sigma(&self) -> f64;
+    /// The time step of the last step (before the first: `σ g` here); the
+    /// density here can be far from the one along the next steps.
+    fn time_unit(&self) -> f64;
+    /// The energy and, for the explicit driver, the extended Hamiltonian.
+    fn invariants(&self) -> (f64, f64);
+}
+
+/// A driver's error: its kind, the state it carries, and whether it is a refused target.
+#[derive(Debug)]
+struct Failure<const N: usize> {
+    kind: String,
+    state: Option<State<N>>,
+    target: bool,
+    message: String,
+}
+
+impl<const N: usize, const M: usize> From<TimeTransformError<N, M>> for Failure<N> {
+    fn from(e: TimeTransformError<N, M>) -> Self {
+        let message = e.to_string();
+        let (kind, state, target) = match &e {
+            TimeTransformError::Step(inner) => {
+                let s = step_error_state(inner).map(|x| State {
+                    step: x.step,
+                    t: x.q[N],
+                    q: core::array::from_fn(|i| x.q[i]),
+                    p: core::array::from_fn(|i| x.p[i]),
+                });
+                (format!("Step({})", kind(inner)), s, false)
+            }
+            TimeTransformError::InvalidDensity { state, .. } => ("InvalidDensity".into(), Some(*state), false),
+            TimeTransformError::TimeStepCollapsed { state, .. } => ("TimeStepCollapsed".into(), Some(*state), false),
+            TimeTransformError::InvalidTarget { state, .. } => ("InvalidTarget".into(), Some(*state), true),
+            TimeTransformError::Landing { .. } => ("Landing".into(), None, false),
+            TimeTransformError::InvalidSetting { .. } => ("InvalidSetting".into(), None, false),
+            _ => ("(unknown variant)".into(), None, false),
+        };
+        Failure { kind, state, target, message }
+    }
+}
+
+impl<const N: usize> From<SplittingError<N>> for Failure<N> {
+    fn from(e: SplittingError<N>) -> Self {
+        let message = e.to_string();
+        let (kind, state, target) = match &e {
+            SplittingError::NotSeparable { .. } => ("NotSeparable", None, false),
+            SplittingError::InvalidArgument { state, .. } => ("InvalidArgument", Some(*state), false),
+            SplittingError::NonFinite { state } => ("NonFinite", Some(*state), false),
+            SplittingError::TimeStepCollapsed { state, .. } => ("TimeStepCollapsed", Some(*state), false),
+            SplittingError::InvalidTarget { state, .. } => ("InvalidTarget", Some(*state), true),
+            SplittingError::Landing { .. } => ("Landing", None, false),
+            SplittingError::InvalidSetting { .. } => ("InvalidSetting", None, false),
+            SplittingError::InvalidInitialData { .. } => ("InvalidInitialData", None, false),
+            _ => ("(unknown variant)", None, false),
+        };
+        Failure { kind: kind.into(), state, target, message }
+    }
+}
+
+fn state_bits<const N: usize>(s: &State<N>) -> Vec<u64> {
+    let (k, t, q, p) = bits(s);
+    let mut v = vec![k, t];
+    v.extend(q);
+    v.extend(p);
+    v
+}
+
+impl<Sys, const N: usize> Driver<N> for lagrangian_runtime::ExplicitAdaptive<Sys, f64, N>
+where
+    Sys: Lagrangian<N>,
+{
+    fn step(&mut self) -> Result<State<N>, Failure<N>> {
+        lagrangian_runtime::ExplicitAdaptive::step(self).map_err(Failure::from)
+    }
+    fn set_sigma(&mut self, sigma: f64) -> Result<(), Failure<N>> {
+        self.set_step_size(sigma).map_err(Failure::from)
+    }
+    fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>> {
+        lagrangian_runtime::ExplicitAdaptive::run_until(self, t, |s| observe(s.state())).map_err(Failure::from)
+    }
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>> {
+        lagrangian_runtime::ExplicitAdaptive::run(self, n, |s| observe(s.state())).map_err(Failure::from)
+    }
+    fn state(&self) -> State<N> {
+        lagrangian_runtime::ExplicitAdaptive::state(self)
+    }
+    fn fingerprint(&self) -> Vec<u64> {
+        let x = self.extended_point();
+        let mut v = state_bits(&self.state());
+        v.extend([x.t.to_bits(), x.p_t.to_bits(), self.step_size().to_bits(), self.stats().steps]);
+        v.extend(x.q.map(f64::to_bits));
+        v.extend(x.p.map(f64::to_bits));
+        v.push(self.last_time_step().map_or(1, f64::to_bits));
+        v
+    }
+    fn sigma(&self) -> f64 {
+        self.step_size()
+    }
+    fn time_unit(&self) -> f64 {
+        self.last_time_step().unwrap_or(self.step_size() * self.density())
+    }
+    fn invariants(&self) -> (f64, f64) {
+        (self.energy(), self.extended_hamiltonian())
+    }
+}
+
+impl<I, Sys, G, const N: usize, const M: usize> Driver<N> for lagrangian_runtime::Adaptive<I, Sys, G, N, M>
+where
+    I: lagrangian_runtime::time_transform::SStepper<M, f64, System = TimeTransformed<Sys, G, N>>,
+    Sys: Lagrangian<N>,
+    G: StepDensity<N>,
+{
+    fn step(&mut self) -> Result<State<N>, Failure<N>> {
+        lagrangian_runtime::Adaptive::step(self).map_err(Failure::from)
+    }
+    fn set_sigma(&mut self, sigma: f64) -> Result<(), Failure<N>> {
+        self.set_step_size(sigma).map_err(Failure::from)
+    }
+    fn run_until(&mut self, t: f64, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>> {
+        lagrangian_runtime::Adaptive::run_until(self, t, |s| observe(s.state())).map_err(Failure::from)
+    }
+    fn run(&mut self, n: usize, observe: &mut dyn FnMut(State<N>)) -> Result<(), Failure<N>> {
+        lagrangian_runtime::Adaptive::run(self, n, |s| observe(s.state())).map_err(Failure::from)
+    }
+    fn state(&self) -> State<N> {
+        lagrangian_runtime::Adaptive::state(self)
+    }
+    fn fingerprint(&self) -> Vec<u64> {
+        let x = self.extended_state();
+        let mut v = state_bits(&self.state());
+        v.extend([x.step, self.step_size().to_bits(), self.stats().steps]);
+        v.extend(x.q.map(f64::to_bits));
+        v.extend(x.p.map(f64::to_bits));
+        v.push(self.last_time_step().map_or(1, f64::to_bits));
+        v
+    }
+    fn sigma(&self) -> f64 {
+        self.step_size()
+    }
+    fn time_unit(&self) -> f64 {
+        self.last_time_step().unwrap_or(self.step_size() * self.density())
+    }
+    fn invariants(&self) -> (f64, f64) {
+        (self.energy().unwrap_or(f64::NAN), f64::NAN)
+    }
+}
+
+/// The bounds a run that returned `Ok` must keep: `|E − E0| ≤ energy`,
+/// `|H̃ − H̃0| ≤ hamiltonian`; `None` where the case is outside the regime
+/// the bound is for.
+#[derive(Clone, Copy, Debug)]
+struct Conservation {
+    energy: f64,
+    hamiltonian: f64,
+    /// The configuration of the known defect of the explicit time
+    /// transformation (an orbit lost at a collision, returned as `Ok`),
+    /// being fixed in parallel: a violation is tallied with its case, not failed.
+    known_defect: bool,
+    /// The bounds are for steps in `s` up to this size; a case whose
+    /// operations set a larger one is checked up to there.
+    max_sigma: f64,
+}
+
+/// Checks that an error carries `expected`. One difference is tallied, not
+/// failed: the explicit driver's errors carry the time of its phase, not the
+/// landed time `state()` reports after `run_until` (a few units in the last
+/// place apart; `explicit_time_transformation_errors_carry_the_landed_time`).
+fn check_carried<const N: usize>(
+    carried: &State<N>,
+    expected: &State<N>,
+    e: &Failure<N>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    if bits(carried) == bits(expected) {
+        return Ok(());
+    }
+    let same_but_t = (carried.step, carried.q.map(f64::to_bits), carried.p.map(f64::to_bits))
+        == (expected.step, expected.q.map(f64::to_bits), expected.p.map(f64::to_bits));
+    if same_but_t && (carried.t - expected.t).abs() <= 16.0 * f64::EPSILON * expected.t.abs().max(1e-300) {
+        tally.note("defect: an error after a landing carries the un-landed time", || {
+            format!("carried t = {:e}, state t = {:e}: {e:?}", carried.t, expected.t)
+        });
+        return Ok(());
+    }
+    prop_assert_eq!(bits(carried), bits(expected), "the error carries another state: {:?}", e);
+    Ok(())
+}
+
+/// Applies the operations with every property checked.
+fn drive<const N: usize>(
+    sim: &mut dyn Driver<N>,
+    ops: &[Op],
+    conservation: Option<Conservation>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    let (e0, h0) = sim.invariants();
+    let mut conservation = conservation;
+    // The σ of the last step taken: the time unit scales with σ.
+    let mut stepped_sigma = sim.sigma();
+    for &op in ops {
+        let before = sim.state();
+        let print = sim.fingerprint();
+        let sigma0 = sim.sigma();
+        let name = format!("{op:?}");
+        let name = name.split('(').next().unwrap_or_default().to_string();
+        let result = match op {
+            Op::Step => {
+                let r = guarded(tally, "step", || sim.step())?;
+                if let Ok(s) = &r {
+                    prop_assert!(finite(s), "published a non-finite state {s:?}");
+                    prop_assert_eq!(bits(s), bits(&sim.state()));
+                    prop_assert_eq!(s.step, before.step + 1);
+                    prop_assert!(s.t >= before.t, "time went back: {} -> {}", before.t, s.t);
+                    if s.t == before.t {
+                        tally.note("step: ok, t did not advance (dt below the spacing of t)", || {
+                            format!("{before:?} -> {s:?}")
+                        });
+                    }
+                }
+                r.map(|_| ())
+            }
+            Op::ScaleStep(f) => {
+                let sigma = sigma0 * f;
+                let r = guarded(tally, "set_step_size", || sim.set_sigma(sigma))?;
+                match &r {
+                    Ok(()) => {
+                        prop_assert!(sigma.is_finite() && sigma > 0.0, "accepted σ = {sigma}");
+                        prop_assert_eq!(sim.sigma().to_bits(), sigma.to_bits());
+                    }
+                    Err(e) => {
+                        prop_assert!(!(sigma.is_finite() && sigma > 0.0), "refused σ = {sigma}: {e:?}");
+                        prop_assert!(e.kind.contains("InvalidSetting") || e.kind.contains("InvalidStepSize"), "{e:?}");
+                        prop_assert_eq!(sim.sigma().to_bits(), sigma0.to_bits());
+                    }
+                }
+                prop_assert_eq!(bits(&sim.state()), bits(&before));
+                r
+            }
+            Op::RunUntil(c) => {
+                let target = before.t + c * sim.time_unit() * (sigma0 / stepped_sigma);
+                let mut seen = before;
+                let mut count = 0u64;
+                let mut bad = None;
+                let r = guarded(tally, "run_until", || {
+                    sim.run_until(target, &mut |s| {
+                        count += 1;
+                        if !finite(&s) || s.t < seen.t {
+                            bad.get_or_insert((seen, s));
+                        }
+                        seen = s;
+                        if count > 100_000 {
+                            std::panic::panic_any("runaway run_until");
+                        }
+                    })
+                })?;
+                prop_assert!(bad.is_none(), "run_until published {:?}", bad);
+                let after = sim.state();
+                match &r {
+                    Ok(()) => {
+                        prop_assert!(target.is_finite() && target >= before.t);
+                        prop_assert!(after.t == target, "landed on {} instead of {}", after.t, target);
+                        prop_assert_eq!(sim.sigma().to_bits(), sigma0.to_bits(), "run_until changed σ");
+                    }
+                    Err(e) if !target.is_finite() || target < before.t => {
+                        prop_assert!(e.target, "{e:?}");
+                        prop_assert_eq!(sim.fingerprint(), print.clone());
+                    }
+                    Err(e) => {
+                        prop_assert!(!e.target, "refused a reachable target {target}: {e:?}");
+                        prop_assert!(finite(&after), "{after:?}");
+                        prop_assert!(after.t < target, "failed after reaching its target: {e:?}");
+                        if let Some(s) = e.state {
+                            check_carried(&s, &after, e, tally)?;
+                        }
+                    }
+                }
+                r
+            }
+            Op::Run(n) => {
+                let r = guarded(tally, "run", || sim.run(n, &mut |_| {}))?;
+                let after = sim.state();
+                match &r {
+                    Ok(()) => prop_assert_eq!(after.step, before.step + n as u64),
+                    Err(e) => {
+                        prop_assert!(finite(&after));
+                        if let Some(s) = e.state {
+                            check_carried(&s, &after, e, tally)?;
+                        }
+                    }
+                }
+                r
+            }
+        };
+        match &result {
+            Ok(()) => tally.add(format!("{name}: ok")),
+            Err(e) => {
+                tally.add(format!("{name}: {} (failed)", e.kind));
+                prop_assert!(!e.message.is_empty());
+                if matches!(op, Op::Step) {
+                    let kept = sim.fingerprint() == print;
+                    if !kept {
+                        tally.add("states lost");
+                    }
+                    prop_assert!(kept, "a failed step changed the driver: {e:?}");
+                    let carried = e.state;
+                    prop_assert!(carried.is_some(), "a step failed without its state: {e:?}");
+                    check_carried(&carried.unwrap(), &before, e, tally)?;
+                }
+            }
+        }
+        if !matches!(op, Op::ScaleStep(_)) {
+            stepped_sigma = sim.sigma();
+        }
+        if conservation.is_some_and(|c| sim.sigma().is_nan() || sim.sigma() > c.max_sigma) {
+            conservation = None;
+        }
+        if let (Ok(()), Some(c)) = (&result, conservation) {
+            let (e, h) = sim.invariants();
+            let (de, dh) = ((e - e0).abs(), (h - h0).abs());
+            tally.add("conservation checked");
+            let kept = de <= c.energy && (!h0.is_finite() || dh <= c.hamiltonian);
+            if !kept && c.known_defect {
+                tally.note("known defect: conservation lost near a collision (Ok returned)", || {
+                    format!("E {e0} -> {e}, H̃ {h0} -> {h} at {:?}", sim.state())
+                });
+                break;
+            }
+            prop_assert!(de <= c.energy, "energy {e0} -> {e} (bound {:e}) at {:?}", c.energy, sim.state());
+            if h0.is_finite() {
+                prop_assert!(dh <= c.hamiltonian, "H̃ {h0} -> {h} (bound {:e}) at {:?}", c.hamiltonian, sim.state());
+            }
+        }
+    }
+    tally.add("cases stepped");
+    Ok(())
+}
+
+// ---------------------------------------------------------------- explicit time transformation
+
+#[derive(Clone, Debug)]
+struct ExplicitCase {
+    /// 0: Kepler, 1: pendulum.
+    system: usize,
+    function: TimeFunction,
+    composition: Option<usize>,
+    kick_drift_kick: bool,
+    shift: Option<f64>,
+    min_time_step: Option<f64>,
+    sigma: f64,
+    t0: f64,
+    q0: [f64; 2],
+    v0: [f64; 2],
+    ops: Vec<Op>,
+}
+
+fn sigma() -> impl Strategy<Value = f64> {
+    prop_oneof![6 => 1e-3..0.2f64, 1 => (-8.0..1.0f64).prop_map(|e| 10f64.powf(e)), 1 => wild()]
+}
+
+fn coords() -> impl Strategy<Value = [f64; 2]> {
+    [value(-3.0, 3.0), value(-3.0, 3.0)]
+}
+
+fn driver_ops() -> impl Strategy<Value = Vec<Op>> {
+    crate::properties::ops()
+}
+
+fn explicit_case() -> impl Strategy<Value = ExplicitCase> {
+    let function = prop_oneof![
+        3 => Just(TimeFunction::Logarithmic),
+        2 => Just(TimeFunction::Power(1.5)),
+        1 => value(0.25, 3.0).prop_map(TimeFunction::Power),
+    ];
+    let composition = prop_oneof![2 => Just(None), 1 => (0..3usize).prop_map(Some)];
+    let shift = prop_oneof![4 => Just(None), 1 => value(-2.0, 5.0).prop_map(Some)];
+    let min_dt = prop_oneof![6 => Just(None), 1 => wild().prop_map(Some)];
+    let t0 = prop_oneof![3 => Just(0.0), 1 => value(-100.0, 100.0)];
+    let head = (0..2usize, function, composition, any::<bool>(), shift, min_dt);
+    (head, sigma(), t0, coords(), coords(), driver_ops()).prop_map(
+        |((system, function, composition, kdk, shift, min_time_step), sigma, t0, q0, v0, ops)| ExplicitCase {
+            system,
+            function,
+            composition,
+            kick_drift_kick: kdk,
+            shift,
+            min_time_step,
+            sigma,
+            t0,
+            q0,
+            v0,
+            ops,
+        },
+    )
+}
+
+/// Kepler started at `r ≤ 0.05` or with `|r × v| ≤ 0.05`, or bound with an
+/// eccentricity above 0.9, passes close to the centre: the configuration of
+/// the known defect of the explicit time transformation (an orbit lost at a
+/// collision, returned as `Ok`), which is being fixed in parallel. There a
+/// violated bound is tallied with its first case instead of failing.
+fn near_collision(q0: [f64; 2], v0: [f64; 2]) -> bool {
+    let r = q0[0].hypot(q0[1]);
+    let l = (q0[0] * v0[1] - q0[1] * v0[0]).abs();
+    let e = 0.5 * (v0[0] * v0[0] + v0[1] * v0[1]) - 1.0 / r;
+    let ecc = (1.0 + 2.0 * e * l * l).max(0.0).sqrt();
+    r <= 0.05 || l <= 0.05 || (e < 0.0 && ecc > 0.9)
+}
+
+fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
+    system: S,
+    case: &ExplicitCase,
+    conservation: Option<Conservation>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
+    let mut b = ExplicitTimeTransformed::new(system, case.function, case.sigma);
+    if let Some(k) = case.composition {
+        b = b.composition(COMPOSITIONS[k]);
+    }
+    b = b.form(if case.kick_drift_kick { LeapfrogForm::KickDriftKick } else { LeapfrogForm::DriftKickDrift });
+    if let Some(c) = case.shift {
+        b = b.shift(c);
+    }
+    if let Some(dt) = case.min_time_step {
+        b = b.min_time_step(dt);
+    }
+    let started = guarded(tally, "start", || b.start(case.t0, q0, v0))?;
+    let alpha = case.function.exponent();
+    let settings_ok = case.sigma.is_finite() && case.sigma > 0.0 && alpha.is_finite() && alpha > 0.0;
+    let data_ok = case.t0.is_finite() && q0.iter().chain(&v0).all(|x| x.is_finite());
+    // `NotSeparable` (checked before the shift) also where the mass matrix
+    // `∂²L/∂v²` is not finite at data of extreme magnitude (|q| ~ 1e154 on Kepler).
+    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
+    let expected = if !settings_ok {
+        Some("InvalidSetting")
+    } else if !data_ok {
+        Some("InvalidInitialData")
+    } else if case.shift.is_some_and(|c| !c.is_finite()) && !extreme {
+        Some("InvalidSetting")
+    } else {
+        None
+    };
+    let mut sim = match started {
+        Ok(sim) => {
+            prop_assert!(expected.is_none(), "start accepted a case that is {:?}", expected);
+            tally.add("start: ok");
+            let s = Driver::state(&sim);
+            prop_assert_eq!(
+                (s.step, s.t.to_bits(), s.q.map(f64::to_bits)),
+                (0, case.t0.to_bits(), q0.map(f64::to_bits))
+            );
+            sim
+        }
+        Err(e) => {
+            let e = Failure::from(e);
+            tally.add(format!("start: {} (failed)", e.kind));
+            match expected {
+                Some(k) => prop_assert_eq!(e.kind.as_str(), k, "{}", e.message),
+                None => {
+                    // Left: the argument of f' at the start, and the floor.
+                    let floor_given_bad = case.min_time_step.is_some_and(|dt| !(dt.is_finite() && dt > 0.0));
+                    // `NotSeparable` also where the mass matrix `∂²L/∂v²` is not
+                    // finite at data of extreme magnitude (|q| ~ 1e268 on Kepler).
+                    let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
+                    let ok = e.kind == "InvalidArgument"
+                        || (e.kind == "InvalidSetting"
+                            && (floor_given_bad
+                                || case.min_time_step.is_none()
+                                || case.shift.is_some_and(|c| !c.is_finite())))
+                        || (e.kind == "NotSeparable" && extreme);
+                    prop_assert!(ok, "unexpected start error {:?}", e);
+                }
+            }
+            return Ok(());
+        }
+    };
+    drive(&mut sim, &case.ops, conservation, tally)
+}
+
+#[test]
+fn explicit_time_transformation_under_random_and_adversarial_input() {
+    let tally = property("ExplicitTimeTransformed", base(), explicit_case(), |case, tally| {
+        // The loose bounds hold in the regime the method is for: the
+        // standard time functions, σ ≤ 0.2, data of order one, no shift or
+        // minimum step of the user's.
+        let nominal = matches!(case.function, TimeFunction::Logarithmic | TimeFunction::Power(1.5))
+            && case.sigma <= 0.2
+            && case.shift.is_none()
+            && case.min_time_step.is_none()
+            && case.t0.abs() <= 100.0
+            && case.q0.iter().chain(&case.v0).all(|x| x.abs() <= 3.0);
+        if case.system == 0 {
+            tally.add("system: kepler");
+            let (q, v) = (case.q0, case.v0);
+            let conservation = nominal.then(|| {
+                let scale = 0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / q[0].hypot(q[1]);
+                Conservation {
+                    energy: 0.1 * scale,
+                    hamiltonian: 0.1,
+                    known_defect: near_collision(q, v),
+                    max_sigma: 0.2,
+                }
+            });
+            explicit_one(SepKepler, case, conservation, tally)
+        } else {
+            tally.add("system: pendulum");
+            let (s, _) = pendulum_scales(case.v0[0]);
+            let conservation = nominal.then_some(Conservation {
+                energy: 0.1 * s,
+                hamiltonian: 0.1,
+                known_defect: false,
+                // The logarithmic transformation takes long time steps where `c − V` is small (the
+                // turning points): σ = 0.16 changed E by 14 % of S in one step.
+                max_sigma: 0.05,
+            });
+            explicit_one(SepPendulum, case, conservation, tally)
+        }
+    });
+    assert!(tally.get("Step: ok") > 0 && tally.get("conservation checked") > 0);
+}
+
+// ---------------------------------------------------------------- implicit time transformation
+
+#[derive(Clone, Debug)]
+struct ImplicitCase {
+    /// 0: Kepler with `|q|^α`, 1: pendulum with the curvature monitor.
+    system: usize,
+    galerkin: bool,
+    /// `α` of the Kepler monitor, or the curvature floor.
+    monitor: f64,
+    /// An out-of-range index in the Kepler monitor.
+    bad_index: bool,
+    penalty: Option<f64>,
+    min_time_step: Option<f64>,
+    newton: NewtonOptions,
+    sigma: f64,
+    t0: f64,
+    q0: [f64; 2],
+    v0: [f64; 2],
+    ops: Vec<Op>,
+}
+
+fn implicit_case() -> impl Strategy<Value = ImplicitCase> {
+    let monitor = prop_oneof![3 => Just(1.5), 1 => Just(1.0), 1 => value(-2.0, 3.0)];
+    let penalty = prop_oneof![4 => Just(None), 1 => value(1e-3, 10.0).prop_map(Some)];
+    let min_dt = prop_oneof![6 => Just(None), 1 => wild().prop_map(Some)];
+    let t0 = prop_oneof![3 => Just(0.0), 1 => value(-100.0, 100.0)];
+    let head = (0..2usize, any::<bool>(), monitor, proptest::bool::weighted(0.05), penalty, min_dt);
+    (head, newton_options(), sigma(), t0, coords(), coords(), driver_ops()).prop_map(
+        |((system, galerkin, monitor, bad_index, penalty, min_time_step), newton, sigma, t0, q0, v0, ops)| {
+            ImplicitCase {
+                system,
+                galerkin,
+                monitor,
+                bad_index,
+                penalty,
+                min_time_step,
+                newton,
+                sigma,
+                t0,
+                q0,
+                v0,
+                ops,
+            }
+        },
+    )
+}
+
+fn implicit_one<S, G, const N: usize, const M: usize>(
+    system: TimeTransformed<S, G, N>,
+    case: &ImplicitCase,
+    conservation: Option<Conservation>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError>
+where
+    S: Lagrangian<N> + 'static,
+    G: StepDensity<N> + 'static,
+{
+    let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
+    macro_rules! configure {
+        ($b:expr) => {{
+            let mut b = $b.newton(case.newton);
+            if let Some(c) = case.penalty {
+                b = b.penalty(c);
+            }
+            if let Some(dt) = case.min_time_step {
+                b = b.min_time_step(dt);
+            }
+            b
+        }};
+    }
+    let o = &case.newton;
+    let options_ok = o.rtol.is_finite()
+        && o.rtol > 0.0
+        && o.atol.is_finite()
+        && o.atol >= 0.0
+        && o.max_iterations > 0
+        && (0.0..1.0).contains(&o.min_rcond);
+    let expected = if case.bad_index || !(case.sigma.is_finite() && case.sigma > 0.0) {
+        Some("InvalidSetting")
+    } else if !(case.t0.is_finite() && q0.iter().chain(&v0).all(|x| x.is_finite())) {
+        Some("Step(InvalidInitialData)")
+    } else {
+        None
+    };
+    macro_rules! go {
+        ($b:expr) => {{
+            let b = configure!($b);
+            let started = guarded(tally, "start", || b.start::<M>(case.t0, q0, v0))?;
+            match started {
+                Ok(mut sim) => {
+                    prop_assert!(expected.is_none(), "start accepted a case that is {:?}", expected);
+                    prop_assert!(options_ok, "start accepted Newton options {:?}", o);
+                    tally.add("start: ok");
+                    let s = Driver::state(&sim);
+                    prop_assert_eq!(
+                        (s.step, s.t.to_bits(), s.q.map(f64::to_bits)),
+                        (0, case.t0.to_bits(), q0.map(f64::to_bits))
+                    );
+                    drive(&mut sim, &case.ops, conservation, tally)
+                }
+                Err(e) => {
+                    let e = Failure::from(e);
+                    tally.add(format!("start: {} (failed)", e.kind));
+                    match expected {
+                        Some(k) => prop_assert_eq!(e.kind.as_str(), k, "{}", e.message),
+                        None => {
+                            let ok = matches!(
+                                e.kind.as_str(),
+                                "InvalidDensity" | "InvalidSetting" | "Step(InvalidInitialData)"
+                            ) || (!options_ok && e.kind == "Step(InvalidNewtonOptions)");
+                            prop_assert!(ok, "unexpected start error {:?}", e);
+                        }
+                    }
+                    Ok(())
+                }
+            }
+        }};
+    }
+    if case.galerkin {
+        go!(system.galerkin(Galerkin::<2, 2>::gauss(), case.sigma))
+    } else {
+        go!(system.rule(Midpoint, case.sigma))
+    }
+}
+
+#[test]
+fn implicit_time_transformation_under_random_and_adversarial_input() {
+    let tally = property("TimeTransformed (Adaptive)", base().div_ceil(4), implicit_case(), |case, tally| {
+        tally.add(if case.galerkin { "method: galerkin s = 2" } else { "method: midpoint" });
+        let nominal = case.sigma <= 0.1
+            && case.min_time_step.is_none()
+            && case.penalty.is_none()
+            && case.newton == NewtonOptions::default()
+            && case.t0.abs() <= 100.0
+            && case.q0.iter().chain(&case.v0).all(|x| x.abs() <= 3.0);
+        if case.system == 0 {
+            tally.add("system: kepler, |q|^α");
+            let (q, v) = (case.q0, case.v0);
+            let indices = if case.bad_index { [0, 2] } else { [0, 1] };
+            let Some(monitor) = RadiusPower::new(indices, case.monitor) else {
+                prop_assert!(!case.monitor.is_finite());
+                tally.add("RadiusPower::new: None (exponent not finite)");
+                return Ok(());
+            };
+            let conservation = (nominal && case.monitor == 1.5 && !near_collision(q, v)).then(|| {
+                let scale = 0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / q[0].hypot(q[1]);
+                Conservation { energy: 0.1 * scale, hamiltonian: f64::INFINITY, known_defect: false, max_sigma: 0.1 }
+            });
+            implicit_one::<_, _, 2, 3>(TimeTransformed::new(SepKepler, monitor), case, conservation, tally)
+        } else {
+            tally.add("system: pendulum, curvature");
+            let Some(monitor) = Curvature::new(case.monitor) else {
+                prop_assert!(!(case.monitor.is_finite() && case.monitor > 0.0));
+                tally.add("Curvature::new: None (floor not finite and positive)");
+                return Ok(());
+            };
+            let (s, _) = pendulum_scales(case.v0[0]);
+            let conservation = (nominal && case.monitor >= 0.5).then_some(Conservation {
+                energy: 0.1 * s,
+                hamiltonian: f64::INFINITY,
+                known_defect: false,
+                max_sigma: 0.1,
+            });
+            let case = &ImplicitCase { bad_index: false, ..case.clone() };
+            implicit_one::<_, _, 1, 2>(TimeTransformed::new(Pendulum, monitor), case, conservation, tally)
+        }
+    });
+    assert!(tally.get("Step: ok") > 0 && tally.get("conservation checked") > 0);
+}
+
+// ---------------------------------------------------------------- solve(Plan)
+
+#[derive(Clone, Debug)]
+struct EventCase {
+    /// 0: `q[coord] − level`, 1: `v[coord] − level`, 2: `t − level` (level as a fraction of the span).
+    function: usize,
+    coord: usize,
+    level: f64,
+    /// NaN for `t` past this fraction of the span.
+    nan_after: Option<f64>,
+    action: Action,
+    direction: Direction,
+    tolerance: Option<f64>,
+    samples: usize,
+}
+
+#[derive(Clone, Debug)]
+enum SaveTimes {
+    Sorted,
+    /// Two times swapped.
+    Swapped(usize, usize),
+    /// A time past the end or before the start.
+    Outside(bool),
+    /// A NaN at this index.
+    Nan(usize),
+}
+
+#[derive(Clone, Debug)]
+struct SolveCase {
+    /// 0: midpoint, 1: Galerkin s = 2, 2..=4: compositions, 5: time-transformed Kepler in `s`.
+    integrator: usize,
+    /// 0: separable pendulum, 1: double pendulum (Kepler for the time transformation).
+    system: usize,
+    h: f64,
+    q0: [f64; 2],
+    v0: [f64; 2],
+    span: f64,
+    every: usize,
+    fractions: Vec<f64>,
+    save: SaveTimes,
+    events: Vec<EventCase>,
+    dense: DenseKind,
+    velocities: bool,
+    energy_tolerance: Option<f64>,
+    /// Where to cut the written files.
+    cut: f64,
+}
+
+const INTEGRATORS: [&str; 6] =
+    ["midpoint", "galerkin s = 2", "yoshida 4", "yoshida 6", "kahan-li 8", "time-transformed kepler (in s)"];
+
+fn event_case() -> impl Strategy<Value = EventCase> {
+    let action = prop_oneof![Just(Action::Record), Just(Action::Stop), Just(Action::Land)];
+    let direction = prop_oneof![Just(Direction::Either), Just(Direction::Rising), Just(Direction::Falling)];
+    let tolerance = prop_oneof![
+        24 => Just(None),
+        1 => proptest::sample::select(&[1e-6, 1e-10, 1e-300][..]).prop_map(Some),
+        1 => proptest::sample::select(&[0.0, -1.0, f64::NAN, f64::INFINITY][..]).prop_map(Some),
+    ];
+    let samples = prop_oneof![24 => Just(1usize), 1 => Just(0usize), 8 => 2..5usize];
+    let nan_after = prop_oneof![5 => Just(None), 1 => (0.0..1.2f64).prop_map(Some)];
+    (0..3usize, 0..3usize, -1.0..1.2f64, nan_after, action, direction, tolerance, samples).prop_map(
+        |(function, coord, level, nan_after, action, direction, tolerance, samples)| EventCase {
+            function,
+            coord,
+            level,
+            nan_after,
+            action,
+            direction,
+            tolerance,
+            samples,
+        },
+    )
+}
+
+fn solve_case() -> impl Strategy<Value = SolveCase> {
+    let span = prop_oneof![
+        16 => 0.0..2.0f64,
+        1 => proptest::sample::select(&[0.0, -0.0, -1.0, -1e-300, f64::NAN, f64::INFINITY, f64::NEG_INFINITY][..]),
+    ];
+    let every = prop_oneof![4 => Just(1usize), 3 => 0..8usize, 1 => Just(usize::MAX)];
+    let save = prop_oneof![
+        12 => Just(SaveTimes::Sorted),
+        1 => (0..6usize, 0..6usize).prop_map(|(a, b)| SaveTimes::Swapped(a, b)),
+        1 => any::<bool>().prop_map(SaveTimes::Outside),
+        1 => (0..6usize).prop_map(SaveTimes::Nan),
+    ];
+    let fractions = proptest::collection::vec(
+        prop_oneof![4 => 0.0..1.0f64, 1 => proptest::sample::select(&[0.0, 1.0, 0.5][..])],
+        0..6,
+    );
+    let dense = prop_oneof![3 => Just(DenseKind::Native), 1 => Just(DenseKind::Cubic), 1 => Just(DenseKind::Quintic)];
+    let energy_tolerance = prop_oneof![
+        4 => Just(None),
+        1 => (1e-8..1.0f64).prop_map(Some),
+        1 => proptest::sample::select(&[0.0, -1.0, f64::NAN, f64::INFINITY][..]).prop_map(Some),
+    ];
+    let head = (0..6usize, 0..2usize, 0.01..0.2f64, [value(-3.0, 3.0), value(-3.0, 3.0)], [-3.0..3.0f64, -3.0..3.0f64]);
+    let plan = (span, every, fractions, save, proptest::collection::vec(event_case(), 0..4), dense);
+    let rest = (proptest::bool::weighted(0.8), energy_tolerance, 0.0..1.0f64);
+    (head, plan, rest).prop_map(
+        |(
+            (integrator, system, h, q0, v0),
+            (span, every, fractions, save, events, dense),
+            (velocities, energy_tolerance, cut),
+        )| SolveCase {
+            integrator,
+            system,
+            h,
+            q0,
+            v0,
+            span,
+            every,
+            fractions,
+            save,
+            events,
+            dense,
+            velocities,
+            energy_tolerance,
+            cut,
+        },
+    )
+}
+
+/// The save times of a case that starts at `t0` and ends at `t_end`.
+fn save_times(case: &SolveCase, t0: f64, t_end: f64) -> Vec<f64> {
+    let mut f = case.fractions.clone();
+    f.sort_by(f64::total_cmp);
+    let mut times: Vec<f64> = f.iter().map(|&x| if x == 1.0 { t_end } else { t0 + x * (t_end - t0) }).collect();
+    match case.save {
+        SaveTimes::Sorted => {}
+        SaveTimes::Swapped(a, b) if a < times.len() && b < times.len() => times.swap(a, b),
+        SaveTimes::Swapped(..) => {}
+        SaveTimes::Outside(true) => times.push(t_end + 1.0),
+        SaveTimes::Outside(false) => times.insert(0, t0 - 1.0),
+        SaveTimes::Nan(i) => times.insert(i.min(times.len()), f64::NAN),
+    }
+    times
+}
+
+/// The error `solve` must refuse the plan with, by its documented checks in order.
+fn expected_plan_error(case: &SolveCase, t0: f64, t_end: f64, save: &[f64]) -> Option<String> {
+    if !t_end.is_finite() || t_end < t0 {
+        return Some("InvalidEnd".into());
+    }
+    let mut previous = t0;
+    for (i, &time) in save.iter().enumerate() {
+        if !(time >= previous && time <= t_end) {
+            return Some(format!("InvalidSaveTime({i})"));
+        }
+        previous = time;
+    }
+    for (i, e) in case.events.iter().enumerate() {
+        let tol = e.tolerance.unwrap_or(1e-14);
+        if !(tol.is_finite() && tol > 0.0) || e.samples == 0 {
+            return Some(format!("InvalidEvent({i})"));
+        }
+    }
+    if case.energy_tolerance.is_some_and(|tol| !(tol.is_finite() && tol > 0.0)) {
+        return Some("InvalidPlan".into());
+    }
+    None
+}
+
+fn solve_kind<const N: usize>(e: &SolveError<N>) -> String {
+    match e {
+        SolveError::Step(e) => format!("Step({})", kind(e)),
+        SolveError::InvalidEnd { .. } => "InvalidEnd".into(),
+        SolveError::InvalidSaveTime { index, .. } => format!("InvalidSaveTime({index})"),
+        SolveError::NonFiniteEvent { event, .. } => format!("NonFiniteEvent({event})"),
+        SolveError::InvalidEvent { event, .. } => format!("InvalidEvent({event})"),
+        SolveError::InvalidPlan { .. } => "InvalidPlan".into(),
+        SolveError::NoAcceleration { .. } => "NoAcceleration".into(),
+        _ => "(unknown variant)".into(),
+    }
+}
+
+fn plan<'a, const N: usize>(case: &SolveCase, t0: f64, t_end: f64, save: Vec<f64>) -> Plan<'a, N> {
+    let mut plan = Plan::until(t_end).every(case.every).save_at(save).dense(case.dense);
+    let span = t_end - t0;
+    for e in &case.events {
+        let e = e.clone();
+        let (level, nan_after) = (e.level, e.nan_after.map(|f| t0 + f * span));
+        let g = move |t: f64, q: &[f64; N], v: &[f64; N]| {
+            if nan_after.is_some_and(|after| t > after) {
+                return f64::NAN;
+            }
+            match e.function {
+                0 => q[e.coord % N] - level,
+                1 => v[e.coord % N] - level,
+                _ => t - (t0 + level * span),
+            }
+        };
+        let mut event = Event::new(g).action(e.action).direction(e.direction).samples(e.samples);
+        if let Some(tol) = e.tolerance {
+            event = event.tolerance(tol);
+        }
+        plan = plan.event(event);
+    }
+    if !case.velocities {
+        plan = plan.without_velocities();
+    }
+    if let Some(tol) = case.energy_tolerance {
+        plan = plan.energy_tolerance(tol);
+    }
+    plan
+}
+
+/// Solves `case` on `sim` with every property checked; `energy` is the bound
+/// on the change of the node energies of a finished run, where one applies.
+fn solve_one<I: Stepping<N> + Clone, const N: usize>(
+    mut sim: I,
+    case: &SolveCase,
+    energy: Option<f64>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    let start = Stepping::state(&sim);
+    let t0 = start.t;
+    let t_end = t0 + case.span;
+    let save = save_times(case, t0, t_end);
+    let expected = expected_plan_error(case, t0, t_end, &save);
+    let result = guarded(tally, "solve", || sim.solve(plan(case, t0, t_end, save.clone())))?;
+    let sol = match result {
+        Err(e) => {
+            let k = solve_kind(&e);
+            tally.add(format!("solve: {k} (refused)"));
+            prop_assert_eq!(Some(k), expected, "{}", e);
+            prop_assert_eq!(bits(&Stepping::state(&sim)), bits(&start), "a refused plan moved the integrator");
+            return Ok(());
+        }
+        Ok(sol) => {
+            prop_assert!(expected.is_none(), "solve accepted a plan that is {:?}", expected);
+            sol
+        }
+    };
+    let now = Stepping::state(&sim);
+    let status = match &sol.status {
+        Status::Finished => "Finished".to_string(),
+        Status::Stopped { .. } => "Stopped".to_string(),
+        Status::Failed { .. } => format!("Failed: {}", sol.error.as_ref().map_or("no error".into(), solve_kind)),
+    };
+    tally.add(format!("solve: {status}"));
+    prop_assert_eq!(matches!(sol.status, Status::Failed { .. }), sol.error.is_some(), "{:?}", sol.status);
+    // Columns and rows.
+    let rows = sol.len();
+    prop_assert!(sol.step.len() == rows && sol.q.len() == rows && sol.p.len() == rows);
+    let extra = if case.velocities { rows } else { 0 };
+    prop_assert!(sol.v.len() == extra && sol.energy.len() == extra, "v/energy columns {} {}", sol.v.len(), rows);
+    prop_assert!(sol.t.windows(2).all(|w| w[0] <= w[1]), "rows out of time order: {:?}", sol.t);
+    prop_assert!(sol.t.iter().all(|&t| t >= t0 && t <= t_end), "a row outside [{t0}, {t_end}]: {:?}", sol.t);
+    let nodes: Vec<u64> = sol.step.iter().filter_map(|&k| k).collect();
+    prop_assert!(nodes.windows(2).all(|w| w[0] < w[1]), "node indices {:?}", nodes);
+    prop_assert!(finite(&now), "the integrator is at {now:?}");
+    // The last row is a node, and it is where the integrator is.
+    if case.every > 0 {
+        let last = rows - 1;
+        prop_assert_eq!(sol.step[last], Some(now.step), "the last row is not the integrator's node");
+        let row = State { step: now.step, t: sol.t[last], q: sol.q[last], p: sol.p[last] };
+        if bits(&row) != bits(&now) {
+            tally.add("states lost");
+        }
+        prop_assert_eq!(bits(&row), bits(&now), "the last node row is not the integrator's state");
+        prop_assert_eq!(nodes.first(), Some(&start.step), "the first node is not the start");
+    } else {
+        prop_assert!(nodes.is_empty(), "every(0) kept nodes {:?}", nodes);
+    }
+    // Interpolated rows are save times, a prefix of them for a run that ended early.
+    let saved: Vec<u64> = sol.step.iter().zip(&sol.t).filter(|(k, _)| k.is_none()).map(|(_, t)| t.to_bits()).collect();
+    let wanted: Vec<u64> = save.iter().map(|t| t.to_bits()).collect();
+    prop_assert!(saved.len() <= wanted.len() && saved[..] == wanted[..saved.len()], "saved {saved:?} of {wanted:?}");
+    // Events in time order and within the run.
+    prop_assert!(sol.events.windows(2).all(|w| w[0].t <= w[1].t), "events out of order");
+    for r in &sol.events {
+        prop_assert!(r.t >= t0 && r.t <= now.t.max(t0), "event at {} outside [{t0}, {}]", r.t, now.t);
+        let e = &case.events[r.event];
+        if e.function == 2 && e.nan_after.is_none() {
+            let exact = t0 + e.level * case.span;
+            let tol = e.tolerance.unwrap_or(1e-14) * exact.abs().max(1.0) + 16.0 * f64::EPSILON * exact.abs().max(1.0);
+            prop_assert!((r.t - exact).abs() <= tol, "time event at {} instead of {exact}", r.t);
+        }
+    }
+    match &sol.status {
+        Status::Finished => {
+            prop_assert!(now.t == t_end, "finished at {} instead of {t_end}", now.t);
+            prop_assert_eq!(saved.len(), wanted.len(), "a finished run left out save times");
+            if let Some(bound) = energy.filter(|_| case.velocities) {
+                let e: Vec<f64> =
+                    sol.energy.iter().zip(&sol.step).filter(|(_, k)| k.is_some()).map(|(e, _)| *e).collect();
+                if let Some(&e0) = e.first() {
+                    let worst = e.iter().fold(0.0f64, |m, &x| m.max((x - e0).abs()));
+                    tally.add("solve: energy checked");
+                    prop_assert!(worst <= bound, "node energy changed by {worst:e} > {bound:e}");
+                }
+            }
+        }
+        Status::Stopped { event, t } => {
+            prop_assert!(now.t == *t, "stopped at {} instead of the event time {t}", now.t);
+            prop_assert!(case.events[*event].action == Action::Stop);
+            prop_assert!(sol.events.iter().any(|r| r.event == *event && r.t == *t), "no record of the stop");
+        }
+        Status::Failed { .. } => {
+            prop_assert!(now.t <= t_end);
+        }
+    }
+    #[cfg(feature = "serde")]
+    files::round_trip(&sol, case.cut, tally)?;
+    Ok(())
+}
+
+fn solve_by_integrator<S: Lagrangian<N> + Copy, const N: usize>(
+    system: S,
+    case: &SolveCase,
+    energy: Option<f64>,
+    tally: &mut Tally,
+) -> Result<(), TestCaseError> {
+    let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
+    macro_rules! go {
+        ($method:expr) => {{
+            let started = guarded(tally, "start", || Integrator::new(system, $method, case.h).start(0.0, q0, v0))?;
+            match started {
+                Ok(sim) => solve_one(sim, case, energy, tally),
+                Err(e) => {
+                    tally.add(format!("start: {} (failed)", kind(&e)));
+                    // Also on finite data where `L` or its momentum is not finite.
+                    prop_assert_eq!(kind(&e), "InvalidInitialData", "{}", e);
+                    Ok(())
+                }
+            }
+        }};
+    }
+    match case.integrator {
+        0 => go!(Midpoint),
+        1 => {
+            let started = guarded(tally, "start", || {
+                GalerkinIntegrator::new(system, Galerkin::<2, 2>::gauss(), case.h).start(0.0, q0, v0)
+            })?;
+            match started {
+                Ok(sim) => solve_one(sim, case, energy, tally),
+                Err(e) => {
+                    tally.add(format!("start: {} (failed)", kind(&e)));
+                    // Also on finite data where `L` or its momentum is not finite.
+                    prop_assert_eq!(kind(&e), "InvalidInitialData", "{}", e);
+                    Ok(())
+                }
+            }
+        }
+        k => go!(COMPOSITIONS[k - 2]),
+    }
+}
+
+#[test]
+#[allow(clippy::result_large_err)]
+fn solve_under_random_and_adversarial_plans() {
+    let tally = property("solve(Plan)", base().div_ceil(2), solve_case(), |case, tally| {
+        tally.add(format!("integrator: {}", INTEGRATORS[case.integrator]));
+        if case.integrator == 5 {
+            // The time-transformed Kepler problem integrated in `s` by the
+            // integrator of the adapter: `x = (q, t)`, started at `x' = (g v, g)`.
+            let q0 = [case.q0[0], case.q0[1], 0.0];
+            let g0 = case.q0[0].hypot(case.q0[1]).powf(1.5);
+            let w0 = [g0 * case.v0[0], g0 * case.v0[1], g0];
+            let monitor = RadiusPower::new([0, 1], 1.5).expect("a finite exponent");
+            let system = TimeTransformed::new(SepKepler, monitor).with_penalty(1.0).expect("a positive penalty");
+            let started = guarded(tally, "start", || Integrator::new(system, Midpoint, case.h).start(0.0, q0, w0))?;
+            return match started {
+                Ok(sim) => solve_one(sim, case, None, tally),
+                Err(e) => {
+                    tally.add(format!("start: {} (failed)", kind(&e)));
+                    Ok(())
+                }
+            };
+        }
+        if case.system == 0 {
+            let (s, omega) = pendulum_scales(case.v0[0]);
+            let order_factor = if case.integrator >= 2 { 4.0 } else { 1.0 };
+            let energy = (case.h * omega <= 0.5 && case.q0[0].abs() <= 10.0)
+                .then_some((order_factor * (case.h * omega).powi(2) + 1e-11) * s);
+            solve_by_integrator(SepPendulum, case, energy, tally)
+        } else {
+            solve_by_integrator(DoublePendulum, case, None, tally)
+        }
+    });
+    assert!(
+        tally.get("solve: Finished") > 0 && tally.get("solve: Stopped") > 0 && tally.get("solve: energy checked") > 0
+    );
+}
+
+// ---------------------------------------------------------------- solutions on disk
+
+#[cfg(feature = "serde")]
+mod files {
+    use lagrangian_runtime::solution::{Solution, Status};
+    use proptest::prelude::*;
+    use proptest::test_runner::TestCaseError;
+
+    use crate::properties::{Tally, guarded};
+
+    /// The bits of the table: `t, step, q, p, v, energy`.
+    fn table<const N: usize>(s: &Solution<N>) -> Vec<u64> {
+        let mut v = Vec::new();
+        for i in 0..s.len() {
+            v.push(s.t[i].to_bits());
+            v.extend(match s.step[i] {
+                Some(k) => [1, k],
+                None => [0, 0],
+            });
+            v.extend(s.q[i].map(f64::to_bits));
+            v.extend(s.p[i].map(f64::to_bits));
+        }
+        v.extend(s.v.iter().flat_map(|x| x.map(f64::to_bits)));
+        v.extend(s.energy.iter().map(|x| x.to_bits()));
+        v
+    }
+
+    /// The bits of everything else `write_json` writes.
+    fn rest<const N: usize>(s: &Solution<N>) -> (Vec<u64>, String, String) {
+        let mut v = Vec::new();
+        for r in &s.events {
+            v.extend([r.event as u64, r.t.to_bits(), u64::from(r.rising)]);
+            v.extend(r.q.map(f64::to_bits));
+            v.extend(r.v.map(f64::to_bits));
+        }
+        if let Some(w) = &s.energy_watch {
+            v.extend([w.tolerance, w.initial, w.largest, w.largest_at].map(f64::to_bits));
+            v.push(w.exceeded_at.map_or(1, f64::to_bits));
+        }
+        let status = match &s.status {
+            Status::Stopped { event, t } => format!("Stopped({event}, {:x})", t.to_bits()),
+            other => format!("{other:?}"),
+        };
+        (v, format!("{:?}", s.stats), status)
+    }
+
+    /// Both formats give `sol` back bit for bit, and a copy cut at `cut` (a
+    /// fraction of its length) is a typed error or a prefix of its rows.
+    pub(super) fn round_trip<const N: usize>(
+        sol: &Solution<N>,
+        cut: f64,
+        tally: &mut Tally,
+    ) -> Result<(), TestCaseError> {
+        let mut csv = Vec::new();
+        guarded(tally, "write_csv", || sol.write_csv(&mut csv))?
+            .map_err(|e| TestCaseError::fail(format!("write_csv: {e}")))?;
+        let back = guarded(tally, "read_csv", || Solution::<N>::read_csv(csv.as_slice()))?
+            .map_err(|e| TestCaseError::fail(format!("read_csv of its own output: {e}")))?;
+        prop_assert_eq!(table(&back), table(sol), "CSV round trip differs");
+        let mut json = Vec::new();
+        guarded(tally, "write_json", || sol.write_json(&mut json))?
+            .map_err(|e| TestCaseError::fail(format!("write_json: {e}")))?;
+        let back = guarded(tally, "read_json", || Solution::<N>::read_json(json.as_slice()))?
+            .map_err(|e| TestCaseError::fail(format!("read_json of its own output: {e}")))?;
+        prop_assert_eq!(table(&back), table(sol), "JSON round trip differs");
+        prop_assert_eq!(rest(&back), rest(sol), "JSON round trip differs");
+        prop_assert!(back.error.is_none());
+        tally.add("files: round trip bit for bit");
+        // Cut copies.
+        let at = ((csv.len() as f64) * cut) as usize;
+        match guarded(tally, "read_csv (cut)", || Solution::<N>::read_csv(&csv[..at]))? {
+            Ok(cut) => {
+                tally.add("files: cut CSV read");
+                let rows = cut.len();
+                prop_assert!(rows <= sol.len(), "a cut file has more rows");
+                // All but the last row are whole; the last may have lost digits.
+                let whole = rows.saturating_sub(1);
+                let prefix = |s: &Solution<N>| {
+                    let mut s = s.clone();
+                    s.t.truncate(whole);
+                    s.step.truncate(whole);
+                    s.q.truncate(whole);
+                    s.p.truncate(whole);
+                    s.v.truncate(whole.min(s.v.len()));
+                    s.energy.truncate(whole.min(s.energy.len()));
+                    table(&s)
+                };
+                prop_assert_eq!(prefix(&cut), prefix(sol), "a cut CSV file changed the rows before the cut");
+            }
+            Err(e) => {
+                let _ = e.to_string();
+                tally.add("files: cut CSV refused");
+            }
+        }
+        let at = ((json.len() as f64) * cut) as usize;
+        match guarded(tally, "read_json (cut)", || Solution::<N>::read_json(&json[..at]))? {
+            Ok(_) => prop_assert!(at == json.len(), "read a JSON file cut at {at} of {}", json.len()),
+            Err(e) => {
+                let _ = e.to_string();
+                tally.add("files: cut JSON refused");
+            }
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------- ensemble shards
+
+#[derive(Clone, Debug)]
+enum Damage {
+    Drop(usize),
+    Duplicate(usize),
+    /// Move a shard's start by this much.
+    Shift(usize, i64),
+    /// An empty shard starting here.
+    Empty(usize),
+    /// Merge to a length off by this much.
+    Length(i64),
+}
+
+#[derive(Clone, Debug)]
+struct ShardCase {
+    len: usize,
+    count: usize,
+    /// A request for a shard that may not exist.
+    probe: (usize, usize),
+    damage: Vec<Damage>,
+    /// A permutation seed.
+    order: u64,
+}
+
+fn shard_case() -> impl Strategy<Value = ShardCase> {
+    let damage = prop_oneof![
+        2 => any::<usize>().prop_map(Damage::Drop),
+        2 => any::<usize>().prop_map(Damage::Duplicate),
+        2 => (any::<usize>(), prop_oneof![3 => -3..4i64, 1 => Just(i64::MAX), 1 => Just(i64::MIN)]).prop_map(|(i, d)| Damage::Shift(i, d)),
+        2 => prop_oneof![0..200usize, Just(usize::MAX)].prop_map(Damage::Empty),
+        1 => prop_oneof![-3..4i64, Just(i64::MAX)].prop_map(Damage::Length),
+    ];
+    let damage = prop_oneof![1 => Just(Vec::new()), 1 => proptest::collection::vec(damage, 1..4)];
+    (0..150usize, 1..12usize, (0..14usize, 0..14usize), damage, any::<u64>())
+        .prop_map(|(len, count, probe, damage, order)| ShardCase { len, count, probe, damage, order })
+}
+
+/// A member: cheap, deterministic, some fail.
+fn member(i: usize, x: &f64) -> Result<f64, String> {
+    if i % 7 == 3 { Err(format!("member {i}")) } else { Ok(x.sqrt() * (i as f64 + 0.5)) }
+}
+
+fn shard_one(case: &ShardCase, tally: &mut Tally) -> Result<(), TestCaseError> {
+    let (len, count) = (case.len, case.count);
+    // `shard` on a request that may not exist.
+    let (index, of) = case.probe;
+    match guarded(tally, "shard", || ensemble::shard(len, index, of))? {
+        Ok(r) => {
+            prop_assert!(of > 0 && index < of);
+            prop_assert!(r.end <= len && r.len() >= len / of && r.len() <= len / of + 1, "{r:?}");
+        }
+        Err(e) => {
+            prop_assert!(of == 0 || index >= of, "{e}");
+            prop_assert_eq!(e, ShardError::NoSuchShard { index, count: of });
+            tally.add("shard: NoSuchShard (refused)");
+        }
+    }
+    let inputs: Vec<f64> = (0..len).map(|i| i as f64 * 0.25).collect();
+    let whole = ensemble::run_serial(&inputs, member);
+    let mut shards: Vec<Shard<f64, String>> = Vec::new();
+    let mut next = 0;
+    for k in 0..count {
+        let r = ensemble::shard(len, k, count).map_err(|e| TestCaseError::fail(format!("{e}")))?;
+        prop_assert_eq!(r.start, next, "shards not contiguous");
+        next = r.end;
+        let results = ensemble::run_serial(&inputs[r.clone()], |i, x| member(r.start + i, x));
+        shards.push(Shard { start: r.start, results });
+    }
+    prop_assert_eq!(next, len, "shards do not reach the end");
+    let mut merge_len = len;
+    for d in &case.damage {
+        let n = shards.len();
+        match *d {
+            Damage::Drop(i) if n > 0 => {
+                shards.remove(i % n);
+            }
+            Damage::Duplicate(i) if n > 0 => shards.push(shards[i % n].clone()),
+            Damage::Shift(i, by) if n > 0 => {
+                let s = &mut shards[i % n];
+                s.start = s.start.saturating_add_signed(by as isize);
+            }
+            Damage::Empty(start) => shards.push(Shard { start, results: Ensemble { results: Vec::new() } }),
+            Damage::Length(by) => merge_len = merge_len.saturating_add_signed(by as isize),
+            _ => {}
+        }
+    }
+    // Reorder.
+    let mut order = case.order;
+    for i in (1..shards.len()).rev() {
+        order = order.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        shards.swap(i, (order >> 33) as usize % (i + 1));
+    }
+    // What the shards hold.
+    let beyond = shards.iter().any(|s| s.start > merge_len || s.start.saturating_add(s.results.len()) > merge_len);
+    let mut held = vec![0u32; merge_len.min(1 << 20)];
+    for s in &shards {
+        for m in s.start..s.start.saturating_add(s.results.len()) {
+            if let Some(c) = held.get_mut(m) {
+                *c += 1;
+            }
+        }
+    }
+    let complete = !beyond && merge_len < (1 << 20) && held.iter().all(|&c| c == 1);
+    // The members the shards hold, where they hold them.
+    let expected: Option<Vec<Result<f64, String>>> = complete.then(|| {
+        let mut v = vec![Ok(f64::NAN); merge_len];
+        for s in &shards {
+            for (i, r) in s.results.results.iter().enumerate() {
+                v[s.start + i] = r.clone().map_err(|e| format!("{e}"));
+            }
+        }
+        v
+    });
+    let untouched = case.damage.is_empty();
+    let merged = guarded(tally, "merge", || ensemble::merge(shards.clone(), merge_len))?;
+    match merged {
+        Ok(e) => {
+            tally.add(if case.damage.is_empty() { "merge: ok" } else { "merge: ok (damage left the set whole)" });
+            prop_assert!(complete, "merged a set that does not hold every member once: {:?}", summary(&shards));
+            prop_assert_eq!(e.len(), merge_len);
+            let expected = expected.unwrap_or_default();
+            let same = e.results.iter().zip(&expected).all(|(a, b)| match (a, b) {
+                (Ok(x), Ok(y)) => x.to_bits() == y.to_bits(),
+                (Err(x), Err(y)) => format!("{x}") == *y,
+                _ => false,
+            });
+            prop_assert!(same, "the merged ensemble is not the shards' members in order");
+            if untouched {
+                let whole_same = e.results.iter().zip(&whole.results).all(|(a, b)| match (a, b) {
+                    (Ok(x), Ok(y)) => x.to_bits() == y.to_bits(),
+                    (Err(x), Err(y)) => x == y,
+                    _ => false,
+                });
+                prop_assert!(whole_same && e.len() == len, "the merged ensemble differs from the single-job run");
+            }
+        }
+        Err(e) => {
+            let _ = e.to_string();
+            prop_assert!(!complete, "refused a set that holds every member once: {e} {:?}", summary(&shards));
+            match &e {
+                ShardError::Beyond { members, len } => {
+                    tally.add("merge: Beyond (refused)");
+                    prop_assert!(beyond && *len == merge_len, "{e}");
+                    prop_assert!(
+                        members.end > merge_len || members.start > merge_len || members.start >= merge_len,
+                        "{e}"
+                    );
+                }
+                ShardError::Missing { members } => {
+                    tally.add("merge: Missing (refused)");
+                    prop_assert!(!members.is_empty() && members.end <= merge_len, "{e}");
+                    prop_assert_eq!(
+                        held.get(members.start).copied().unwrap_or(0),
+                        0,
+                        "{} but member {} is held",
+                        e,
+                        members.start
+                    );
+                }
+                ShardError::Duplicated { members } => {
+                    tally.add("merge: Duplicated (refused)");
+                    prop_assert!(!members.is_empty(), "{e}");
+                    prop_assert!(
+                        held.get(members.start).copied().unwrap_or(0) >= 2,
+                        "{} but member {} is held once",
+                        e,
+                        members.start
+                    );
+                }
+                other => return Err(TestCaseError::fail(format!("merge failed with {other:?}"))),
+            }
+        }
+    }
+    Ok(())
+}
+
+fn summary(shards: &[Shard<f64, String>]) -> Vec<(usize, usize)> {
+    shards.iter().map(|s| (s.start, s.results.len())).collect()
+}
+
+#[test]
+fn ensemble_shards_under_random_splits_and_damage() {
+    let tally = property("ensemble::shard/merge", base() * 5, shard_case(), shard_one);
+    assert!(tally.get("merge: ok") > 0 && tally.get("merge: Missing (refused)") > 0);
+    assert!(tally.get("merge: Duplicated (refused)") > 0 && tally.get("merge: Beyond (refused)") > 0);
+}
+
+// ---------------------------------------------------------------- defects found
+
+/// The known defect of the explicit time transformation that is being fixed
+/// in parallel (an orbit lost at a collision, returned as `Ok`), as the
+/// explicit property found it: a radial fall from rest (`q0 = (1, 0)`,
+/// `v0 = 0`, logarithmic time function, σ = 0.001); after a few steps the
+/// step in `s` is set to an absurd 2.7e127 and the next operations return
+/// `Ok` with the body at the centre, `q = (0, 0)`, and the energy `−∞`
+/// (from −1). A typed error is acceptable, a wrong `Ok` is not. The property
+/// excludes Kepler orbits that pass close to the centre (`near_collision`)
+/// from failing on it and tallies them instead.
+#[test]
+#[ignore = "known defect being fixed in parallel: the explicit time transformation loses the orbit at a collision and returns Ok"]
+fn explicit_time_transformation_keeps_the_orbit_through_a_collision() {
+    let mut sim = ExplicitTimeTransformed::new(SepKepler, TimeFunction::Logarithmic, 0.001)
+        .start(0.0, [1.0, 0.0], [0.0, 0.0])
+        .unwrap();
+    let e0 = sim.energy();
+    let check = |sim: &lagrangian_runtime::ExplicitAdaptive<SepKepler, f64, 2>, what: &str| {
+        let e = sim.energy();
+        assert!((e - e0).abs() <= 0.1, "after {what}: E {e0} -> {e} at {:?}", sim.state());
+    };
+    for _ in 0..8 {
+        sim.step().unwrap();
+    }
+    let dt = |sim: &lagrangian_runtime::ExplicitAdaptive<SepKepler, f64, 2>| sim.last_time_step().unwrap();
+    let target = sim.state().t + 4.792860466661801 * dt(&sim);
+    if sim.run_until(target, |_| {}).is_ok() {
+        check(&sim, "run_until");
+    }
+    if sim.step().is_ok() {
+        check(&sim, "step");
+    }
+    let target = sim.state().t + dt(&sim);
+    if sim.run_until(target, |_| {}).is_ok() {
+        check(&sim, "run_until");
+    }
+    sim.set_step_size(0.001 * 2.7437060336299085e130).unwrap();
+    if sim.step().is_ok() {
+        check(&sim, "the step with σ = 2.7e127");
+    }
+    let target = sim.state().t + 1.041157323876029 * dt(&sim);
+    if sim.run_until(target, |_| {}).is_ok() {
+        check(&sim, "run_until after it");
+    }
+}
+
+/// Found by the explicit property: after `run_until` lands on a target, the
+/// driver's `state().t` is the target, but the state a failed step's error
+/// carries has the time of the internal phase (here 3 units in the last
+/// place from it): `advance` builds it with `start.physical(step)`, which
+/// ignores the landed time that `state()` substitutes. The error should
+/// carry the state the driver reports.
+#[test]
+#[ignore = "defect: ExplicitAdaptive's step errors carry the un-landed time after run_until (splitting.rs advance)"]
+fn explicit_time_transformation_errors_carry_the_landed_time() {
+    let mut sim = ExplicitTimeTransformed::new(SepKepler, TimeFunction::Power(1.5), 0.10543886122406454)
+        .shift(-0.10801411951912579)
+        .start(0.0, [2.231014810368318, 0.0], [-0.8729855610728894, 2.244000413448686])
+        .unwrap();
+    sim.step().unwrap();
+    sim.step().unwrap();
+    let target = sim.state().t + 1.115994806657683 * sim.last_time_step().unwrap();
+    sim.run_until(target, |_| {}).unwrap();
+    assert_eq!(sim.state().t, target);
+    let before = sim.state();
+    let e = sim.step().expect_err("the step fails (the argument of f' is not positive)");
+    let carried = match &e {
+        SplittingError::InvalidArgument { state, .. }
+        | SplittingError::NonFinite { state }
+        | SplittingError::TimeStepCollapsed { state, .. } => *state,
+        other => panic!("{other}"),
+    };
+    assert_eq!(sim.state(), before, "the failed step changed the driver");
+    assert_eq!(carried, before, "{e}");
+}
+
+/// Found by the implicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
+/// the pendulum with the curvature monitor (floor 1.5), Galerkin s = 2 in
+/// `s`, σ = 0.0706, from rest at q0 = −1.567: one `step` returns `Ok` with
+/// `t = 13.2` (σ g ≈ 0.06 expected), `q = 89.6` and the energy 436.6 (from
+/// −0.033): Newton converged to a spurious solution of the step in `s`, and
+/// the driver accepted it. A typed error would be acceptable.
+#[test]
+#[ignore = "defect: Adaptive returns Ok from a spurious step (t jumps by 13, E from -0.03 to 437)"]
+fn implicit_time_transformation_rejects_a_spurious_step() {
+    let monitor = Curvature::new(1.5).unwrap();
+    let mut sim = TimeTransformed::new(Pendulum, monitor)
+        .galerkin(Galerkin::<2, 2>::gauss(), 0.07056106993564934)
+        .newton(NewtonOptions::default())
+        .start::<2>(0.0, [-1.5673888557424274], [0.0])
+        .unwrap();
+    let e0 = sim.energy().unwrap();
+    if let Ok(s) = sim.step() {
+        let e = sim.energy().unwrap_or(f64::NAN);
+        assert!((e - e0).abs() <= 1.0 && s.t < 1.0, "E {e0} -> {e} at {s:?}");
+    }
+}
+
+/// Found by the solve property in the long run: a `Land` event on `v = 0`
+/// (3 samples per step) on the separable pendulum from `q0 = 3.24e120` at
+/// rest keeps node rows twice (the same node index `k` twice in `step`, at
+/// k = 1150 and 2664): the landing puts a node on the event time, and the
+/// node is recorded again.
+#[test]
+#[ignore = "defect: solve keeps a node row twice (same step index) around a Land event"]
+fn solve_keeps_each_node_once_around_land_events() {
+    let mut sim = Integrator::new(SepPendulum, Midpoint, 0.01).start(0.0, [3.240812251899315e120], [0.0]).unwrap();
+    let event = Event::new(|_, _, v: &[f64; 1]| v[0]).action(Action::Land).samples(3);
+    let sol = sim.solve(Plan::until(1.6595561523241817).without_velocities().event(event)).unwrap();
+    let nodes: Vec<u64> = sol.step.iter().filter_map(|&k| k).collect();
+    let twice: Vec<u64> = nodes.windows(2).filter(|w| w[0] >= w[1]).map(|w| w[1]).collect();
+    assert!(twice.is_empty(), "node rows kept twice: {twice:?} ({:?})", sol.status);
+}
