@@ -62,9 +62,9 @@ use lagrangian_runtime::ensemble::{self, Ensemble, Shard, ShardError};
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::solution::{DenseKind, Plan, SolveError, Status, Stepping};
 use lagrangian_runtime::{
-    Action, Composition, Curvature, Direction, Event, ExplicitTimeTransformed, Integrator, Lagrangian, LeapfrogForm,
-    Midpoint, NewtonOptions, RadiusPower, Scalar, Separability, SplittingError, State, StepDensity, TimeFunction,
-    TimeTransformError, TimeTransformed,
+    Action, Composition, Curvature, Direction, Error, Event, ExplicitTimeTransformed, Integrator, Lagrangian,
+    LeapfrogForm, Midpoint, NewtonOptions, RadiusPower, Scalar, Separability, State, StepDensity, TimeFunction,
+    TimeTransformed,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -278,43 +278,19 @@ struct Failure<const N: usize> {
     message: String,
 }
 
-impl<const N: usize, const M: usize> From<TimeTransformError<N, M>> for Failure<N> {
-    fn from(e: TimeTransformError<N, M>) -> Self {
+impl<const N: usize> From<Error<N>> for Failure<N> {
+    fn from(e: Error<N>) -> Self {
         let message = e.to_string();
         let (kind, state, target) = match &e {
-            TimeTransformError::Step(inner) => {
-                let s = step_error_state(inner).map(|x| State {
-                    step: x.step,
-                    t: x.q[N],
-                    q: core::array::from_fn(|i| x.q[i]),
-                    p: core::array::from_fn(|i| x.p[i]),
-                });
-                (format!("Step({})", kind(inner)), s, false)
-            }
-            TimeTransformError::InvalidDensity { state, .. } => ("InvalidDensity".into(), Some(*state), false),
-            TimeTransformError::TimeStepCollapsed { state, .. } => ("TimeStepCollapsed".into(), Some(*state), false),
-            TimeTransformError::InvalidTarget { state, .. } => ("InvalidTarget".into(), Some(*state), true),
-            TimeTransformError::Landing { .. } => ("Landing".into(), None, false),
-            TimeTransformError::InvalidSetting { .. } => ("InvalidSetting".into(), None, false),
-            _ => ("(unknown variant)".into(), None, false),
-        };
-        Failure { kind, state, target, message }
-    }
-}
-
-impl<const N: usize> From<SplittingError<N>> for Failure<N> {
-    fn from(e: SplittingError<N>) -> Self {
-        let message = e.to_string();
-        let (kind, state, target) = match &e {
-            SplittingError::NotSeparable { .. } => ("NotSeparable", None, false),
-            SplittingError::InvalidArgument { state, .. } => ("InvalidArgument", Some(*state), false),
-            SplittingError::NonFinite { state } => ("NonFinite", Some(*state), false),
-            SplittingError::TimeStepCollapsed { state, .. } => ("TimeStepCollapsed", Some(*state), false),
-            SplittingError::InvalidTarget { state, .. } => ("InvalidTarget", Some(*state), true),
-            SplittingError::Landing { .. } => ("Landing", None, false),
-            SplittingError::InvalidSetting { .. } => ("InvalidSetting", None, false),
-            SplittingError::InvalidInitialData { .. } => ("InvalidInitialData", None, false),
-            _ => ("(unknown variant)", None, false),
+            Error::InvalidTarget { state, .. } => ("InvalidTarget", Some(*state), true),
+            Error::InvalidDensity { state, .. } => ("InvalidDensity", Some(*state), false),
+            Error::TimeStepCollapsed { state, .. } => ("TimeStepCollapsed", Some(*state), false),
+            Error::TimeFunctionArgument { state, .. } => ("TimeFunctionArgument", Some(*state), false),
+            Error::OrbitLost { state, .. } => ("OrbitLost", Some(*state), false),
+            Error::Landing { .. } => ("Landing", None, false),
+            Error::InvalidSetting { .. } => ("InvalidSetting", None, false),
+            Error::NotSeparable { .. } => ("NotSeparable", None, false),
+            other => (kind(other), step_error_state(other).copied(), false),
         };
         Failure { kind: kind.into(), state, target, message }
     }
@@ -725,7 +701,7 @@ fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
                     // `NotSeparable` also where the mass matrix `∂²L/∂v²` is not
                     // finite at data of extreme magnitude (|q| ~ 1e268 on Kepler).
                     let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
-                    let ok = e.kind == "InvalidArgument"
+                    let ok = e.kind == "TimeFunctionArgument"
                         || (e.kind == "InvalidSetting"
                             && (floor_given_bad
                                 || case.min_time_step.is_none()
@@ -862,7 +838,7 @@ where
     let expected = if case.bad_index || !(case.sigma.is_finite() && case.sigma > 0.0) {
         Some("InvalidSetting")
     } else if !(case.t0.is_finite() && q0.iter().chain(&v0).all(|x| x.is_finite())) {
-        Some("Step(InvalidInitialData)")
+        Some("InvalidInitialData")
     } else {
         None
     };
@@ -888,10 +864,9 @@ where
                     match expected {
                         Some(k) => prop_assert_eq!(e.kind.as_str(), k, "{}", e.message),
                         None => {
-                            let ok = matches!(
-                                e.kind.as_str(),
-                                "InvalidDensity" | "InvalidSetting" | "Step(InvalidInitialData)"
-                            ) || (!options_ok && e.kind == "Step(InvalidNewtonOptions)");
+                            let ok =
+                                matches!(e.kind.as_str(), "InvalidDensity" | "InvalidSetting" | "InvalidInitialData")
+                                    || (!options_ok && e.kind == "InvalidNewtonOptions");
                             prop_assert!(ok, "unexpected start error {:?}", e);
                         }
                     }
@@ -1701,9 +1676,10 @@ fn explicit_time_transformation_errors_carry_the_landed_time() {
     let before = sim.state();
     let e = sim.step().expect_err("the step fails (the argument of f' is not positive)");
     let carried = match &e {
-        SplittingError::InvalidArgument { state, .. }
-        | SplittingError::NonFinite { state }
-        | SplittingError::TimeStepCollapsed { state, .. } => *state,
+        Error::TimeFunctionArgument { state, .. }
+        | Error::NonFinite { state, .. }
+        | Error::TimeStepCollapsed { state, .. }
+        | Error::OrbitLost { state, .. } => *state,
         other => panic!("{other}"),
     };
     assert_eq!(sim.state(), before, "the failed step changed the driver");
