@@ -519,7 +519,9 @@ fn main() {
         ("nlink16", "midpoint-reverse") => nlink_mode::<16>(lagrangian::Derivatives::Reverse, n),
         ("chain16", "midpoint-forward") => newton_mode::<16>(lagrangian::Derivatives::Forward, n),
         ("chain16", "midpoint-reverse") => newton_mode::<16>(lagrangian::Derivatives::Reverse, n),
+        ("chain24", "midpoint-forward") => newton_mode::<24>(lagrangian::Derivatives::Forward, n),
         ("chain24", "midpoint-reverse") => newton_mode::<24>(lagrangian::Derivatives::Reverse, n),
+        ("chain32", "midpoint-forward") => newton_mode::<32>(lagrangian::Derivatives::Forward, n),
         ("chain32", "midpoint-reverse") => newton_mode::<32>(lagrangian::Derivatives::Reverse, n),
         ("chain1000", "dyn-trapezoid-plain") => {
             let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)

@@ -55,9 +55,6 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
             self.gradient_qv(t, &q, &v, &mut lq, &mut lv);
             return lv;
         }
-        if const { N > crate::Derivatives::FORWARD_MAX_N } {
-            return momentum_by_lanes(self, t, q, v);
-        }
         let mut vd = v.map(DualArray::<[f64; N]>::from_re);
         for (i, x) in vd.iter_mut().enumerate() {
             x.eps[i] = 1.0;
@@ -176,37 +173,6 @@ pub trait DiscreteMechanics<const N: usize>: Lagrangian<N> {
 
 impl<S: Lagrangian<N> + ?Sized, const N: usize> DiscreteMechanics<N> for S {}
 
-/// Velocities seeded per evaluation of [`momentum_by_lanes`].
-const LANES: usize = 8;
-
-/// `∂L/∂v` by `⌈N/8⌉` evaluations on duals of [`LANES`] lanes, each seeded
-/// on the next eight velocities: a dual of `N` lanes is `8(N + 1)` bytes, and
-/// the `3N` of them an evaluation holds would not fit a 2 MiB thread stack at
-/// `N = 256` (1.5 MiB). Each lane is computed by the same operations as in
-/// one evaluation of `N` lanes, so the result is the same bit for bit.
-fn momentum_by_lanes<S: Lagrangian<N> + ?Sized, const N: usize>(
-    system: &S,
-    t: f64,
-    q: [f64; N],
-    v: [f64; N],
-) -> [f64; N] {
-    type D = DualArray<[f64; LANES]>;
-    let mut p = [0.0; N];
-    for first in (0..N).step_by(LANES) {
-        let vd: [D; N] = core::array::from_fn(|i| {
-            let mut x = D::from_re(v[i]);
-            if (first..first + LANES).contains(&i) {
-                x.eps[i - first] = 1.0;
-            }
-            x
-        });
-        let l = system.lagrangian(D::from_re(t), q.map(D::from_re), vd);
-        let n = LANES.min(N - first);
-        p[first..first + n].copy_from_slice(&l.eps[..n]);
-    }
-    p
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -226,31 +192,6 @@ mod tests {
     }
 
     /// One array evaluation against one scalar evaluation per entry: equal bit for bit.
-    /// A chain of 11 coupled rotors: two full blocks of lanes and a partial one.
-    struct Rotors;
-
-    impl Lagrangian<11> for Rotors {
-        const AUTONOMOUS: bool = true;
-        const CYCLIC: [bool; 11] = [false; 11];
-        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 11], v: [D; 11]) -> D {
-            let mut l = D::zero();
-            for i in 0..11 {
-                l += v[i] * v[i] * (0.5 + 0.1 * i as f64) + q[i].cos();
-                if i + 1 < 11 {
-                    l += v[i] * v[i + 1] * (q[i] - q[i + 1]).cos() * 0.2;
-                }
-            }
-            l
-        }
-    }
-
-    #[test]
-    fn the_momentum_by_lanes_equals_one_evaluation_bit_for_bit() {
-        let q = core::array::from_fn(|i| 0.3 * i as f64 - 1.1);
-        let v = core::array::from_fn(|i| (0.7 * i as f64).sin());
-        assert_eq!(super::momentum_by_lanes(&Rotors, 0.2, q, v), Rotors.momentum(0.2, q, v));
-    }
-
     #[test]
     fn momentum_and_velocity_hessian_equal_the_scalar_evaluations() {
         let (t, q, v) = (0.3, [1.2, -0.7], [0.9, -1.1]);

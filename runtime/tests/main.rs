@@ -9,7 +9,6 @@
 
 mod bad_input;
 mod compensated;
-mod large_stack;
 mod lost_orbits;
 mod module_graph;
 mod newton_accuracy;

@@ -174,7 +174,7 @@ where
 
     /// One energy-preserving step after the first (see the module documentation).
     pub(crate) fn energy_step_nodes(&mut self, bounds: StepBounds) -> Result<(), Error<N, T>> {
-        let Some(last) = self.memory.as_ref().map(|l| l.h) else {
+        let Some(last) = self.memory.map(|l| l.h) else {
             return self.first_node_energy_step();
         };
         let (lo, hi) = bounds.bracket(last.to_f64());
@@ -299,7 +299,7 @@ where
     /// the energy (then the coefficients cannot be read off). A diagnostic,
     /// computed on the error path only.
     fn node_root_test(&self, bounds: StepBounds) -> Option<(f64, f64, f64)> {
-        let eta = self.memory.as_ref()?.h.to_f64();
+        let eta = self.memory?.h.to_f64();
         let m = i32::try_from(self.method.order()).ok()?;
         if m < 2 || m % 2 != 0 {
             return None;

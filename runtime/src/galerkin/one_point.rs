@@ -59,9 +59,6 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         h: DoubleDouble,
         t1: DoubleDouble,
     ) -> Result<(), Error<N, DoubleDouble>> {
-        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
-            return Err(super::stepper::refused());
-        }
         as_galerkin_run(it, |g| g.step_nodes(h, t1))
     }
 
@@ -69,16 +66,10 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         it: &mut Integrator<S, Self, N, DoubleDouble>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, DoubleDouble>> {
-        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
-            return Err(super::stepper::refused());
-        }
         as_galerkin_run(it, |g| g.energy_step_nodes(bounds))
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, DoubleDouble>) {
-        if const { super::stepper::too_large::<N, 1, DoubleDouble>() } {
-            return;
-        }
         let _ = as_galerkin_run(it, |g| {
             g.reread_node_energy();
             Ok(())
@@ -86,7 +77,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
     }
 
     fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<DoubleDouble> {
-        memory.1.as_ref().map(|last| last.h)
+        memory.1.map(|last| last.h)
     }
 
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, DoubleDouble>) -> DoubleDouble {
@@ -120,8 +111,7 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
         energy_carry: it.energy_carry,
         time_error: it.time_error,
         watched_energy: it.watched_energy,
-        // Moved, not copied: it holds the kept Newton block on the heap.
-        memory: it.memory.1.take(),
+        memory: it.memory.1,
         v0: it.v0,
         clock: it.clock,
         stats: it.stats,

@@ -56,25 +56,18 @@ pub type GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> = Integra
 
 /// The last step taken: where it started and its node increments.
 #[doc(hidden)]
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LastStep<const N: usize, const S: usize, T> {
     pub(crate) t0: T,
     pub(crate) h: T,
     pub(crate) q0: [T; N],
     pub(crate) carry: [T; N],
     pub(crate) d: [[T; N]; S],
-    /// The step size `block` was assembled for, when it holds the factored
-    /// Newton block a simplified Newton iteration of this step converged
-    /// with: the next step of the same size starts from it instead of
-    /// assembling and factoring its own (see `step_nodes`). `None`: no block
-    /// to keep, and `block` is storage for the next one.
-    pub(crate) jacobian: Option<T>,
-    /// The kept block, on the heap: its `(sN)²` entries inline would make
-    /// the integrator, and every value holding one (a `Result` of `start`),
-    /// too large for a thread's stack at large `sN` (2 MiB at `s = 2`,
-    /// `N = 256`). Allocated at the first step and reused by every later
-    /// one, so stepping does not allocate.
-    pub(crate) block: Box<Lu<N, S, T>>,
+    /// The factored Newton block a simplified Newton iteration of this step
+    /// converged with, and the step size it was assembled for: the next step
+    /// of the same size starts from it instead of assembling and factoring
+    /// its own (see `step_nodes`).
+    pub(crate) jacobian: Option<(T, Lu<N, S, T>)>,
     /// When to offer the kept block again after it contracted too slowly.
     pub(crate) kept_policy: KeptPolicy,
 }
@@ -202,7 +195,7 @@ where
     /// The node values `Q_1 … Q_s` of the last step's polynomial (`Q_s = q_k`),
     /// or `None` before the first step.
     pub fn last_nodes(&self) -> Option<[[T; N]; S]> {
-        let last = self.memory.as_ref()?;
+        let last = self.memory?;
         Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
     }
 
@@ -282,10 +275,10 @@ where
         // assembles and factors its own where that one contracts slowly: most
         // steps then cost no Hessian, no assembly and no LU at all.
         let policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.kept_policy);
-        let has_kept =
-            Self::KEEPS_JACOBIAN && matches!(&self.memory, Some(LastStep { jacobian: Some(h_lu), .. }) if *h_lu == h);
+        let has_kept = Self::KEEPS_JACOBIAN
+            && matches!(&self.memory, Some(LastStep { jacobian: Some((h_lu, _)), .. }) if *h_lu == h);
         let offered = has_kept && policy.offers();
-        if offered && let Some(LastStep { jacobian: Some(_), block: lu, .. }) = &mut self.memory {
+        if offered && let Some(LastStep { jacobian: Some((_, lu)), .. }) = &mut self.memory {
             // Kept for a second step: from here on it serves several solves
             // per step, each cheaper as a product with the inverse. (Inverting
             // changes no result a failed step could leave behind: a run
@@ -293,7 +286,7 @@ where
             lu.invert_in_place();
         }
         let cached = match &self.memory {
-            Some(LastStep { jacobian: Some(_), block, .. }) if offered => Some(&**block),
+            Some(LastStep { jacobian: Some((_, lu)), .. }) if offered => Some(lu),
             _ => None,
         };
         let cached_lu = cached.is_some();
@@ -458,32 +451,17 @@ where
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
-        match &mut self.memory {
-            Some(last) => {
+        match (&mut self.memory, jacobian) {
+            // The kept block stays where it is.
+            (Some(last), KeptBlock::Same) => {
                 (last.t0, last.h, last.q0, last.carry, last.d) = (t0, h, q0, e, d);
-                match jacobian {
-                    // The kept block stays where it is.
-                    KeptBlock::Same => {}
-                    // Into the storage the memory already has: no allocation.
-                    KeptBlock::New(h_lu, lu) => {
-                        *last.block = lu;
-                        last.jacobian = Some(h_lu);
-                        last.kept_policy = KeptPolicy::default();
-                    }
-                    // The storage stays for the next block.
-                    KeptBlock::Drop => {
-                        last.jacobian = None;
-                        last.kept_policy = KeptPolicy::default();
-                    }
-                }
             }
-            memory @ None => {
-                let (jacobian, block) = match jacobian {
-                    KeptBlock::New(h_lu, lu) => (Some(h_lu), Box::new(lu)),
-                    _ => (None, Box::new(Lu::zeroed())),
+            (memory, jacobian) => {
+                let jacobian = match jacobian {
+                    KeptBlock::New(h, lu) => Some((h, lu)),
+                    _ => None,
                 };
-                *memory =
-                    Some(LastStep { t0, h, q0, carry: e, d, jacobian, block, kept_policy: KeptPolicy::default() });
+                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian, kept_policy: KeptPolicy::default() });
             }
         }
         self.carry = carry;
@@ -498,7 +476,7 @@ where
     /// `(t0, h, q0, carry, d)` of the last step.
     #[allow(clippy::type_complexity)]
     pub(super) fn last_step_parts(&self) -> Option<(T, T, [T; N], [T; N], BlockVector<N, S, T>)> {
-        self.memory.as_ref().map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
+        self.memory.map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
     }
 }
 
@@ -520,7 +498,6 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, T>> {
-        block_fits::<N, S, T>()?;
         supports_policy::<Sys, N, T>(policy)
     }
 
@@ -539,9 +516,6 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         h: T,
         t1: T,
     ) -> Result<(), Error<N, T>> {
-        if const { too_large::<N, S, T>() } {
-            return Err(refused());
-        }
         it.step_nodes(h, t1)
     }
 
@@ -549,67 +523,20 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         it: &mut Integrator<Sys, Self, N, T>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, T>> {
-        if const { too_large::<N, S, T>() } {
-            return Err(refused());
-        }
         it.energy_step_nodes(bounds)
     }
 
     fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N, T>) {
-        if const { too_large::<N, S, T>() } {
-            return;
-        }
         it.reread_node_energy();
     }
 
     fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<T> {
-        memory.as_ref().map(|last| last.h)
+        memory.map(|last| last.h)
     }
 
     fn discrete_energy<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N, T>) -> T {
         it.node_discrete_energy()
     }
-}
-
-/// The largest Newton block, in bytes, a Galerkin step factors. The step
-/// assembles and factors its `sN × sN` block on the thread's stack (a few
-/// copies of it: the block being factored, its inverse while the kept block
-/// is inverted, the block moved into the memory), beside `O(N²)` derivative
-/// values; 64 KiB (`sN ≤ 90` in `f64`, `sN ≤ 64` in
-/// [`DoubleDouble`](crate::DoubleDouble)) leaves most of a 2 MiB thread to
-/// the user's `L` and the rest of the step.
-pub(crate) const MAX_BLOCK_BYTES: usize = 64 << 10;
-
-/// Refuses a rule whose Newton block exceeds [`MAX_BLOCK_BYTES`]. Systems
-/// larger than [`Derivatives::FORWARD_MAX_N`](crate::Derivatives::FORWARD_MAX_N)
-/// pass here: they are refused for the reason that matters to them, that
-/// Galerkin rules have no reverse-mode step.
-pub(crate) fn block_fits<const N: usize, const S: usize, T: Real>() -> Result<(), Error<N, T>> {
-    if N <= crate::Derivatives::FORWARD_MAX_N && core::mem::size_of::<BlockMatrix<N, S, T>>() > MAX_BLOCK_BYTES {
-        return Err(Error::Unsupported { what: BLOCK_TOO_LARGE });
-    }
-    Ok(())
-}
-
-/// Why a rule with a Newton block over [`MAX_BLOCK_BYTES`] is refused.
-const BLOCK_TOO_LARGE: &str = "galerkin rules whose sN × sN Newton block exceeds 64 KiB (sN > 90 in f64, \
-                               sN > 64 in DoubleDouble): the step factors it on the thread's stack; use a \
-                               lower degree s";
-
-/// Whether `start` refuses a Galerkin step of this size (more than
-/// `FORWARD_MAX_N` coordinates, or a block over [`MAX_BLOCK_BYTES`]). Used
-/// as `if const { too_large::<N, S, T>() }` in front of every step path:
-/// the frame of a function is reserved on entry whatever branch runs, so
-/// code that inlines a step of a size `start` refuses would still reserve
-/// its `(sN)²` blocks and `N²` derivative values, and overflow the stack of
-/// the caller that only holds the refused integrator.
-pub(crate) const fn too_large<const N: usize, const S: usize, T>() -> bool {
-    N > crate::Derivatives::FORWARD_MAX_N || core::mem::size_of::<BlockMatrix<N, S, T>>() > MAX_BLOCK_BYTES
-}
-
-/// The error of a step path of a size `start` refuses (never reached).
-pub(crate) fn refused<const N: usize, T: Real>() -> Error<N, T> {
-    Error::Unsupported { what: BLOCK_TOO_LARGE }
 }
 
 /// The policies a Galerkin rule supports for the system `Sys`.
@@ -642,10 +569,6 @@ pub(crate) fn legendre<Sys: Lagrangian<N>, const N: usize, T: Real>(
     q0: [T; N],
     v0: [T; N],
 ) -> Result<([T; N], T), Error<N, T>> {
-    // The Hessian of `L` below holds `3N²` entries on the stack.
-    if const { too_large::<N, 1, T>() } {
-        return Err(refused());
-    }
     let point = PointDerivatives::at(system, t0, q0, v0);
     let p0 = point.v;
     if !all_finite(&p0) || !point.value.is_finite() {
@@ -738,7 +661,7 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
     /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
     /// [`Galerkin::node_hessian`]. Allocates.
     fn tangent_map<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> Option<TangentMap<N>> {
-        let last = it.memory.as_ref()?;
+        let last = it.memory?;
         let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
         tangent_map(&it.system, &it.method, last.t0, last.h, q0, &last.d)
     }
@@ -755,7 +678,7 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
         it: &Integrator<Sys, Self, N>,
         symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
-        let last = it.memory.as_ref()?;
+        let last = it.memory?;
         let g = &it.method;
         let mut fnode = [[0.0; N]; S];
         let mut f_end = [0.0; N];

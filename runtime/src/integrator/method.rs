@@ -78,9 +78,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         let _ = policy;
         if reverse {
             return Err(Error::Unsupported {
-                what: "reverse-mode derivatives (systems of more than `Derivatives::FORWARD_MAX_N` = 16 coordinates, \
-                       whose forward-mode step would overflow a 2 MiB thread stack) with this method: only \
-                       midpoint, trapezoid, α-β and compositions in `f64` have them",
+                what: "reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`) with this method: only midpoint, trapezoid, α-β and compositions in `f64` have them",
             });
         }
         Ok(())

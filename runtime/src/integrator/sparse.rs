@@ -65,18 +65,8 @@ pub enum Derivatives {
 
 impl Derivatives {
     /// The largest system [`Derivatives::Automatic`] steps in forward mode
-    /// and [`Derivatives::Forward`] accepts: every capability of forward
-    /// mode (forces, energy-preserving steps, Galerkin rules,
-    /// [`DoubleDouble`](crate::DoubleDouble)) runs in a thread with the
-    /// default 2 MiB stack up to this size.
-    ///
-    /// Forward mode's stack grows like `N³`: each value carries an `N × N`
-    /// block, and a step holds a number of them that grows with the
-    /// operations of `L`. Measured on a hand-written FPU-β chain
-    /// (`runtime/tests/large_stack.rs`, test profile): the stack frame of a
-    /// forward-mode midpoint step is 2.2 MiB at `N = 32`, which overflowed a
-    /// 2 MiB thread, and a few hundred KiB at `N = 16`.
-    pub const FORWARD_MAX_N: usize = 16;
+    /// and [`Derivatives::Forward`] accepts.
+    pub const FORWARD_MAX_N: usize = 32;
 
     /// The smallest system [`Derivatives::Automatic`] steps in reverse mode
     /// when it can. Measured (`examples/step_profile.rs`, cases `chainN` and
@@ -111,9 +101,6 @@ impl Derivatives {
     }
 }
 
-// The refusal messages name the limit.
-const _: () = assert!(Derivatives::FORWARD_MAX_N == 16);
-
 /// Whether `n` coordinates are beyond forward mode. Used as `if const {
 /// too_large_for_forward(N) }` in front of every forward-mode path: the
 /// condition is a constant after monomorphization, so codegen can skip the
@@ -130,16 +117,12 @@ pub(crate) const fn too_large_for_forward(n: usize) -> bool {
 pub(crate) fn unsupported<S: Lagrangian<N>, const N: usize>(policy: &StepPolicy) -> Option<&'static str> {
     if S::HAS_FORCE || S::HAS_DISSIPATION {
         return Some(
-            "forces or dissipation with reverse-mode derivatives (systems of more than `Derivatives::FORWARD_MAX_N` \
-             = 16 coordinates, whose forward-mode step would overflow a 2 MiB thread stack); use fixed steps \
-             without forces",
+            "forces or dissipation with reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`)",
         );
     }
     if let StepPolicy::EnergyPreserving(_) = policy {
         return Some(
-            "energy-preserving steps with reverse-mode derivatives (systems of more than \
-             `Derivatives::FORWARD_MAX_N` = 16 coordinates, whose forward-mode step would overflow a 2 MiB \
-             thread stack); use fixed steps (midpoint, trapezoid, α-β or a composition)",
+            "energy-preserving steps with reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`)",
         );
     }
     None
