@@ -25,7 +25,7 @@ Shapes (terms are the operands of the Lagrangian's top-level sum):
   scripts/compile_time.py --print              # the table only
   scripts/compile_time.py --sizes 100,300 --shapes sines --timeout 900
   scripts/compile_time.py --workspace /tmp/old # measure another checkout
-  scripts/compile_time.py --reuse              # keep the finished builds of an earlier run
+  scripts/compile_time.py --reuse              # keep the builds an earlier run finished or stopped
 
 A build that exceeds `--timeout` wall seconds is stopped and reported as
 such; larger sizes of that shape are skipped. The fitted exponent is the
@@ -148,12 +148,24 @@ def measured(log):
     return cpu, field("Maximum resident set size (kbytes)") / 1024.0, seconds
 
 
+def load_of(directory):
+    """The 1-minute load average when the build in `directory` ended, if recorded."""
+    path = os.path.join(directory, "load")
+    return float(open(path).read()) if os.path.exists(path) else None
+
+
 def build(directory, target, timeout, reuse=False):
-    """CPU seconds and peak RSS (MB) of `cargo build --release`, or None on timeout."""
+    """CPU seconds, peak RSS (MB), wall seconds and load of `cargo build --release`, or None on timeout."""
     log = os.path.join(directory, "time.log")
     # A finished build of the same source, from an earlier run in this directory.
+    stopped = os.path.join(directory, "stopped")
     if reuse and os.path.exists(log) and "Exit status: 0" in open(log).read():
-        return measured(log)
+        return measured(log) + (load_of(directory),)
+    # Or one an earlier run stopped at the same timeout.
+    if reuse and os.path.exists(stopped) and float(open(stopped).read()) == timeout:
+        return None
+    if os.path.exists(stopped):
+        os.remove(stopped)
     env = dict(os.environ, CARGO_TARGET_DIR=target)
     cmd = ["/usr/bin/time", "-v", "-o", log, "cargo", "build", "--release", "--quiet"]
     start = time.time()
@@ -166,11 +178,16 @@ def build(directory, target, timeout, reuse=False):
     except subprocess.TimeoutExpired:
         os.killpg(proc.pid, 9)
         proc.communicate()
+        with open(stopped, "w") as f:
+            f.write(repr(timeout))
         return None
     if proc.returncode != 0:
         sys.stderr.write(stderr[-4000:])
         raise SystemExit("build failed in %s" % directory)
-    return measured(log)
+    # What the machine's other work did to the wall time.
+    with open(os.path.join(directory, "load"), "w") as f:
+        f.write(open("/proc/loadavg").read().split()[0])
+    return measured(log) + (load_of(directory),)
 
 
 def fit(points):
@@ -192,7 +209,8 @@ def main():
     ap.add_argument("--workspace", default=ROOT, help="checkout whose `lagrangian` the crates depend on")
     ap.add_argument("--dir", default="/tmp/lagrangian-compile-time", help="scratch directory")
     ap.add_argument("--reuse", action="store_true",
-                    help="take the measurement of a crate already built by an earlier run in --dir (same source)")
+                    help="take the measurement of a crate an earlier run in --dir built (same source), "
+                    "or stopped at the same --timeout")
     ap.add_argument("--print", action="store_true", help="print the page instead of writing docs/compile-time.md")
     args = ap.parse_args()
     workspace = os.path.abspath(args.workspace)
@@ -217,19 +235,21 @@ def main():
             main_rs = os.path.join(directory, "src", "main.rs")
             before = open(main_rs).read() if os.path.exists(main_rs) else None
             terms, n = generate(directory, name, shape, size, workspace)
-            if open(main_rs).read() != before and os.path.exists(os.path.join(directory, "time.log")):
-                os.remove(os.path.join(directory, "time.log"))
+            if open(main_rs).read() != before:
+                for old in ("time.log", "load", "stopped"):
+                    if os.path.exists(os.path.join(directory, old)):
+                        os.remove(os.path.join(directory, old))
             if stopped:
-                rows.append((shape, terms, n, None, None, None, "skipped"))
+                rows.append((shape, terms, n, None, None, None, None, "skipped"))
                 continue
             result = build(directory, target, args.timeout, args.reuse)
             if result is None:
                 stopped = True
-                rows.append((shape, terms, n, None, None, None, "stopped after %.0f s wall" % args.timeout))
+                rows.append((shape, terms, n, None, None, None, None, "stopped after %.0f s wall" % args.timeout))
             else:
-                cpu, rss, wall = result
+                cpu, rss, wall, load = result
                 points.append((terms, cpu))
-                rows.append((shape, terms, n, cpu, rss, wall, ""))
+                rows.append((shape, terms, n, cpu, rss, wall, load, ""))
             sys.stderr.write("%s %d terms (N = %d): %s\n" % (shape, terms, n, rows[-1][3:]))
         fits.append((shape, fit(points), len(points)))
 
@@ -254,16 +274,18 @@ def main():
         "Each row is `cargo build --release` of a generated one-file crate (its",
         "dependencies already built): CPU seconds are user + system of cargo and",
         "the compiler (GNU time), which a shared machine affects far less than",
-        "wall seconds (also shown); peak RSS is the largest process's. Terms are",
-        "the operands of the Lagrangian's top-level sum; N the coordinates.",
+        "wall seconds (also shown, with the 1-minute load average when the build",
+        "ended); peak RSS is the largest process's. Terms are the operands of the",
+        "Lagrangian's top-level sum; N the coordinates.",
         "",
-        "| shape | terms | N | CPU s | peak RSS MB | wall s | |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | --- |",
+        "| shape | terms | N | CPU s | peak RSS MB | wall s | load | |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
-    for shape, terms, n, cpu, rss, wall, note in rows:
+    for shape, terms, n, cpu, rss, wall, load, note in rows:
         fmt = lambda x, f: f % x if x is not None else "–"
         lines.append(
-            "| %s | %d | %d | %s | %s | %s | %s |" % (shape, terms, n, fmt(cpu, "%.1f"), fmt(rss, "%.0f"), fmt(wall, "%.0f"), note)
+            "| %s | %d | %d | %s | %s | %s | %s | %s |"
+            % (shape, terms, n, fmt(cpu, "%.1f"), fmt(rss, "%.0f"), fmt(wall, "%.0f"), fmt(load, "%.1f"), note)
         )
     lines += ["", "Fitted exponent (least squares of log CPU s against log terms):", ""]
     lines += ["| shape | exponent | sizes fitted |", "| --- | ---: | ---: |"]

@@ -93,9 +93,12 @@ use proc_macro::TokenStream;
 /// results of 8 operands each: the same operations in the same order, so
 /// the same result bit for bit. In the generated methods each partial
 /// result is a separate `#[inline(never)]` function, so that the compile
-/// time grows linearly with the length of the chain. rustc itself overflows its default stack on
-/// a flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
-/// products compile (`tests/behaviour/long_expressions.rs`). Nesting — parentheses,
+/// time grows linearly with the length of the chain (`docs/compile-time.md`
+/// has the constant: each function is compiled once per scalar type the
+/// runtime evaluates `L` on). rustc itself overflows its default stack on a
+/// flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
+/// products compile, at opt-level 3 too
+/// (`release-tests/long_expressions.rs`). Nesting — parentheses,
 /// blocks, `else if` — is not flattened: syn's parser and every later stage
 /// recurse on it. syn's parser alone overflows rustc's default stack between
 /// 500 and 1000 nested parentheses (measured with rustc 1.95), so expressions

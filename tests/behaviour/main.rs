@@ -16,7 +16,6 @@ mod errors;
 mod events;
 mod galerkin_errors;
 mod guidance;
-mod long_expressions;
 mod macro_rewrite;
 mod method_matrix;
 mod solution;
