@@ -26,6 +26,7 @@ Shapes (terms are the operands of the Lagrangian's top-level sum):
   scripts/compile_time.py --sizes 100,300 --shapes sines --timeout 900
   scripts/compile_time.py --workspace /tmp/old # measure another checkout
   scripts/compile_time.py --reuse              # keep the builds an earlier run finished or stopped
+  scripts/compile_time.py --reuse-only         # the page from earlier runs alone
 
 A build that exceeds `--timeout` wall seconds is stopped and reported as
 such; larger sizes of that shape are skipped. The fitted exponent is the
@@ -155,15 +156,18 @@ def load_of(directory):
 
 
 def build(directory, target, timeout, reuse=False):
-    """CPU seconds, peak RSS (MB), wall seconds and load of `cargo build --release`, or None on timeout."""
+    """CPU seconds, peak RSS (MB), wall seconds and load of `cargo build --release`; the wall
+    seconds after which it was stopped; or, with `reuse == "only"` and no earlier build, a note."""
     log = os.path.join(directory, "time.log")
     # A finished build of the same source, from an earlier run in this directory.
     stopped = os.path.join(directory, "stopped")
     if reuse and os.path.exists(log) and "Exit status: 0" in open(log).read():
         return measured(log) + (load_of(directory),)
-    # Or one an earlier run stopped at the same timeout.
-    if reuse and os.path.exists(stopped) and float(open(stopped).read()) == timeout:
-        return None
+    # Or one an earlier run stopped at the same timeout or a longer one.
+    if reuse and os.path.exists(stopped) and float(open(stopped).read()) >= timeout:
+        return float(open(stopped).read())
+    if reuse == "only":
+        return "not measured"
     if os.path.exists(stopped):
         os.remove(stopped)
     env = dict(os.environ, CARGO_TARGET_DIR=target)
@@ -180,7 +184,7 @@ def build(directory, target, timeout, reuse=False):
         proc.communicate()
         with open(stopped, "w") as f:
             f.write(repr(timeout))
-        return None
+        return timeout
     if proc.returncode != 0:
         sys.stderr.write(stderr[-4000:])
         raise SystemExit("build failed in %s" % directory)
@@ -210,7 +214,9 @@ def main():
     ap.add_argument("--dir", default="/tmp/lagrangian-compile-time", help="scratch directory")
     ap.add_argument("--reuse", action="store_true",
                     help="take the measurement of a crate an earlier run in --dir built (same source), "
-                    "or stopped at the same --timeout")
+                    "or stopped at --timeout or later")
+    ap.add_argument("--reuse-only", action="store_true",
+                    help="as --reuse, and build nothing: sizes no earlier run finished or stopped are not measured")
     ap.add_argument("--print", action="store_true", help="print the page instead of writing docs/compile-time.md")
     args = ap.parse_args()
     workspace = os.path.abspath(args.workspace)
@@ -221,10 +227,10 @@ def main():
     os.makedirs(scratch, exist_ok=True)
 
     # Dependencies first, with a one-term crate, so that no measurement includes them.
-    warm = os.path.join(scratch, "warmup")
-    generate(warm, "warmup", "sines", 2, workspace)
-    if build(warm, target, None) is None:
-        raise SystemExit("warm-up build failed")
+    if not args.reuse_only:
+        warm = os.path.join(scratch, "warmup")
+        generate(warm, "warmup", "sines", 2, workspace)
+        build(warm, target, None)
 
     rows, fits = [], []
     for shape in shapes:
@@ -242,10 +248,12 @@ def main():
             if stopped:
                 rows.append((shape, terms, n, None, None, None, None, "skipped"))
                 continue
-            result = build(directory, target, args.timeout, args.reuse)
-            if result is None:
+            result = build(directory, target, args.timeout, "only" if args.reuse_only else args.reuse)
+            if isinstance(result, str):
+                rows.append((shape, terms, n, None, None, None, None, result))
+            elif isinstance(result, float):
                 stopped = True
-                rows.append((shape, terms, n, None, None, None, None, "stopped after %.0f s wall" % args.timeout))
+                rows.append((shape, terms, n, None, None, None, None, "stopped after %.0f s wall" % result))
             else:
                 cpu, rss, wall, load = result
                 points.append((terms, cpu))
@@ -259,7 +267,9 @@ def main():
     )
     rustc = subprocess.run(["rustc", "--version"], capture_output=True, text=True).stdout.strip()
     load = open("/proc/loadavg").read().split()[:3]
-    command = "scripts/compile_time.py " + " ".join(a for a in sys.argv[1:] if a not in ("--print", "--reuse"))
+    command = "scripts/compile_time.py " + " ".join(
+        a for a in sys.argv[1:] if a not in ("--print", "--reuse", "--reuse-only")
+    )
     lines = [
         "# Compile time against the length of the Lagrangian",
         "",
@@ -267,7 +277,8 @@ def main():
         "",
         "- date: %s" % datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
         "- commit: `%s`" % (rev or "unknown"),
-        "- machine: %d cores (`nproc`), %s; load average %s when the run ended" % (os.cpu_count(), cpu_model, " ".join(load)),
+        "- machine: %d cores (`nproc`), %s; load average %s when the page was written"
+        % (os.cpu_count(), cpu_model, " ".join(load)),
         "- compiler: %s" % rustc,
         "- command: `%s`" % command.strip(),
         "",
