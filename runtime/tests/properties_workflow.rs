@@ -1723,3 +1723,22 @@ fn solve_keeps_each_node_once_around_land_events() {
     let twice: Vec<u64> = nodes.windows(2).filter(|w| w[0] >= w[1]).map(|w| w[1]).collect();
     assert!(twice.is_empty(), "node rows kept twice: {twice:?} ({:?})", sol.status);
 }
+
+/// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
+/// the separable pendulum from rest at q0 = −1.532 (`V = −0.38`, so the
+/// default shift is `c = 0` and `c − V` stays ≥ 0.38 on the exact flow),
+/// logarithmic time function, σ = 0.0237, one drift–kick–drift step:
+/// `H̃` goes from 0 to 0.114, past the property's bound 0.1, with the energy
+/// within its bound. Whether the bound or the step is wrong is open.
+#[test]
+#[ignore = "open: H̃ changes by 0.114 in one leapfrog step of the pendulum near a turning point (bound 0.1)"]
+fn explicit_time_transformation_keeps_the_extended_hamiltonian_near_a_turning_point() {
+    let mut sim = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, 0.023742912992331222)
+        .start(0.0, [-1.531904632271458], [0.0])
+        .unwrap();
+    let h0 = sim.extended_hamiltonian();
+    if sim.step().is_ok() {
+        let h = sim.extended_hamiltonian();
+        assert!((h - h0).abs() <= 0.1, "H̃ {h0} -> {h} at {:?}", sim.state());
+    }
+}
