@@ -472,12 +472,26 @@ where
 }
 
 /// `∂A/∂t_{k+1}` alone (one dual evaluation); `−∂A/∂t_{k+1}` is the discrete energy `E_{k+1}`.
+///
+/// The chain rule through `v̂ = Δq/h` forms `∂v̂/∂h = −v̂/h`, which overflows
+/// where `v̂/h` exceeds the range while `v̂²`, the size of the result, does
+/// not (`v̂ = 1e146`, `h = 1e-95`). There the derivative is taken in the
+/// relative step instead, `h(1 + ε)`: its chain factor is `−v̂`, and
+/// `∂A/∂t_{k+1} = (∂A/∂ε)/h`. It is a second evaluation only where the
+/// first is not finite, so every other value stays that of the direct form.
 pub fn end_time_derivative<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> f64
 where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
-    dual_action(system, method, seg, Var::T1).eps
+    let direct = dual_action(system, method, seg, Var::T1).eps;
+    if direct.is_finite() || !seg.h.is_finite() || seg.h == 0.0 {
+        return direct;
+    }
+    let (t0, mut h, q0, dq) = lift(seg, &[], |_: &mut Dual64, _, _| {});
+    h.eps = seg.h;
+    let relative = method.action(system, t0, h, q0, dq).eps / seg.h;
+    if relative.is_finite() { relative } else { direct }
 }
 
 /// The position blocks of the Hessian of `A`: `(∂²A/∂q_k², ∂²A/∂q_k∂q_{k+1}, ∂²A/∂q_{k+1}²)`,

@@ -217,17 +217,21 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// Its value.
         value: f64,
     },
-    /// The explicit time-transformed splitting lost the orbit: at the step's
-    /// end node, the drift's rate `dt/ds = f'(T + p_t + c)` and the kick's
-    /// `f'(c − V)`, whose ratio the method keeps at its initial value (1 from
-    /// [`start`](crate::ExplicitTimeTransformed::start): the two arguments
-    /// are equal on the level `Γ = 0`) up to the method's error, differ from
-    /// that ratio by more than a factor 2. The energy error is then as large
-    /// as `c − V` itself: `σ` is far too large for this part of the orbit, or
-    /// the orbit runs into the singularity of `V` with a time function that
-    /// does not regularise it (a collision with `α < 1` on Kepler).
+    /// A time-transformed step lost the orbit: the rate `dt/ds` it took
+    /// left the step density by more than a factor 2 against the rate at
+    /// its start. On the exact flow the rate equals the density (on the
+    /// level set of the transformed Hamiltonian that the start puts the
+    /// orbit on), so such a step has an energy error as large as the energy
+    /// scale itself: `σ` is far too large for this part of the orbit, the
+    /// step's Newton solve converged to a spurious root, or the orbit runs
+    /// into a singularity that the time transformation does not regularise
+    /// (a collision with `α < 1` on Kepler).
+    ///
+    /// The explicit splitting compares its drift's rate `f'(T + p_t + c)`
+    /// with its kick's `f'(c − V)`; the implicit driver compares `t'/g`,
+    /// which is `1 + c·u` with `u = p_t + E` and `c` the penalty.
     #[error(
-        "the step from t = {} lost the orbit: the ratio of the drift's rate dt/ds = f'(T + p_t + c) to the kick's f'(c − V) changed by a factor {factor:e} (1 on the exact flow, at most 2 allowed): the step σ is too large here, or the orbit meets a singularity of V that f does not regularise",
+        "the step from t = {} lost the orbit: its rate dt/ds against the step density's changed by a factor {factor:e} (1 on the exact flow, at most 2 allowed): the step σ is too large here, the step converged to a spurious root, or the orbit meets a singularity that the time transformation does not regularise",
         .state.t
     )]
     OrbitLost {

@@ -400,27 +400,9 @@ struct Conservation {
     max_sigma: f64,
 }
 
-/// Checks that an error carries `expected`. One difference is tallied, not
-/// failed: the explicit driver's errors carry the time of its phase, not the
-/// landed time `state()` reports after `run_until` (a few units in the last
-/// place apart; `explicit_time_transformation_errors_carry_the_landed_time`).
-fn check_carried<const N: usize>(
-    carried: &State<N>,
-    expected: &State<N>,
-    e: &Failure<N>,
-    tally: &mut Tally,
-) -> Result<(), TestCaseError> {
-    if bits(carried) == bits(expected) {
-        return Ok(());
-    }
-    let same_but_t = (carried.step, carried.q.map(f64::to_bits), carried.p.map(f64::to_bits))
-        == (expected.step, expected.q.map(f64::to_bits), expected.p.map(f64::to_bits));
-    if same_but_t && (carried.t - expected.t).abs() <= 16.0 * f64::EPSILON * expected.t.abs().max(1e-300) {
-        tally.note("defect: an error after a landing carries the un-landed time", || {
-            format!("carried t = {:e}, state t = {:e}: {e:?}", carried.t, expected.t)
-        });
-        return Ok(());
-    }
+/// Checks that an error carries `expected`, bit for bit (after a landing
+/// too, where the reported time is the target).
+fn check_carried<const N: usize>(carried: &State<N>, expected: &State<N>, e: &Failure<N>) -> Result<(), TestCaseError> {
     prop_assert_eq!(bits(carried), bits(expected), "the error carries another state: {:?}", e);
     Ok(())
 }
@@ -509,7 +491,7 @@ fn drive<const N: usize>(
                         prop_assert!(finite(&after), "{after:?}");
                         prop_assert!(after.t < target, "failed after reaching its target: {e:?}");
                         if let Some(s) = e.state {
-                            check_carried(&s, &after, e, tally)?;
+                            check_carried(&s, &after, e)?;
                         }
                     }
                 }
@@ -523,7 +505,7 @@ fn drive<const N: usize>(
                     Err(e) => {
                         prop_assert!(finite(&after));
                         if let Some(s) = e.state {
-                            check_carried(&s, &after, e, tally)?;
+                            check_carried(&s, &after, e)?;
                         }
                     }
                 }
@@ -543,7 +525,7 @@ fn drive<const N: usize>(
                     prop_assert!(kept, "a failed step changed the driver: {e:?}");
                     let carried = e.state;
                     prop_assert!(carried.is_some(), "a step failed without its state: {e:?}");
-                    check_carried(&carried.unwrap(), &before, e, tally)?;
+                    check_carried(&carried.unwrap(), &before, e)?;
                 }
             }
         }
@@ -1621,7 +1603,6 @@ fn ensemble_shards_under_random_splits_and_damage() {
 /// excludes Kepler orbits that pass close to the centre (`near_collision`)
 /// from failing on it and tallies them instead.
 #[test]
-#[ignore = "known defect being fixed in parallel: the explicit time transformation loses the orbit at a collision and returns Ok"]
 fn explicit_time_transformation_keeps_the_orbit_through_a_collision() {
     let mut sim = ExplicitTimeTransformed::new(SepKepler, TimeFunction::Logarithmic, 0.001)
         .start(0.0, [1.0, 0.0], [0.0, 0.0])
@@ -1657,44 +1638,53 @@ fn explicit_time_transformation_keeps_the_orbit_through_a_collision() {
 }
 
 /// Found by the explicit property: after `run_until` lands on a target, the
-/// driver's `state().t` is the target, but the state a failed step's error
-/// carries has the time of the internal phase (here 3 units in the last
-/// place from it): `advance` builds it with `start.physical(step)`, which
-/// ignores the landed time that `state()` substitutes. The error should
-/// carry the state the driver reports.
+/// driver's `state().t` is the target while its internal phase's time is 3
+/// units in the last place from it; a failed step's error carries the state
+/// the driver reports, with the target time.
 #[test]
-#[ignore = "defect: ExplicitAdaptive's step errors carry the un-landed time after run_until (splitting.rs advance)"]
 fn explicit_time_transformation_errors_carry_the_landed_time() {
     let mut sim = ExplicitTimeTransformed::new(SepKepler, TimeFunction::Power(1.5), 0.10543886122406454)
         .shift(-0.10801411951912579)
         .start(0.0, [2.231014810368318, 0.0], [-0.8729855610728894, 2.244000413448686])
         .unwrap();
     sim.step().unwrap();
-    sim.step().unwrap();
-    let target = sim.state().t + 1.115994806657683 * sim.last_time_step().unwrap();
-    sim.run_until(target, |_| {}).unwrap();
-    assert_eq!(sim.state().t, target);
-    let before = sim.state();
-    let e = sim.step().expect_err("the step fails (the argument of f' is not positive)");
-    let carried = match &e {
-        Error::TimeFunctionArgument { state, .. }
-        | Error::NonFinite { state, .. }
-        | Error::TimeStepCollapsed { state, .. }
-        | Error::OrbitLost { state, .. } => *state,
-        other => panic!("{other}"),
-    };
-    assert_eq!(sim.state(), before, "the failed step changed the driver");
-    assert_eq!(carried, before, "{e}");
+    let t1 = sim.state().t;
+    let mut second = sim.clone();
+    second.step().unwrap();
+    let dt2 = second.last_time_step().unwrap();
+    // Land inside the second step (which succeeds), then step on: the full
+    // step from near the second node fails (the argument of f' turns negative).
+    let mut failures = 0;
+    for k in 1..20 {
+        let mut sim = sim.clone();
+        let target = t1 + f64::from(k) / 20.0 * dt2;
+        sim.run_until(target, |_| {}).unwrap();
+        assert_eq!(sim.state().t, target);
+        let before = sim.state();
+        let Err(e) = sim.step() else { continue };
+        failures += 1;
+        let carried = match &e {
+            Error::TimeFunctionArgument { state, .. }
+            | Error::NonFinite { state, .. }
+            | Error::TimeStepCollapsed { state, .. }
+            | Error::OrbitLost { state, .. } => *state,
+            other => panic!("{other}"),
+        };
+        assert_eq!(sim.state(), before, "the failed step changed the driver");
+        assert_eq!(carried, before, "{e}");
+    }
+    assert!(failures > 0, "no step failed after a landing");
 }
 
 /// Found by the implicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
 /// the pendulum with the curvature monitor (floor 1.5), Galerkin s = 2 in
-/// `s`, σ = 0.0706, from rest at q0 = −1.567: one `step` returns `Ok` with
-/// `t = 13.2` (σ g ≈ 0.06 expected), `q = 89.6` and the energy 436.6 (from
-/// −0.033): Newton converged to a spurious solution of the step in `s`, and
-/// the driver accepted it. A typed error would be acceptable.
+/// `s`, σ = 0.0706, from rest at q0 = −1.567: Newton (at `rtol = 1e-14`)
+/// converges to a spurious solution of the step in `s` with `t = 13.2`
+/// (σ g ≈ 0.06 expected), `q = 89.6` and the energy 436.6 (from −0.033).
+/// The driver refuses it as a lost orbit (its rate `t'/g` is thousands of
+/// times the density's), with the state kept; a step that stays on the
+/// orbit would do too.
 #[test]
-#[ignore = "defect: Adaptive returns Ok from a spurious step (t jumps by 13, E from -0.03 to 437)"]
 fn implicit_time_transformation_rejects_a_spurious_step() {
     let monitor = Curvature::new(1.5).unwrap();
     let mut sim = TimeTransformed::new(Pendulum, monitor)
@@ -1703,9 +1693,18 @@ fn implicit_time_transformation_rejects_a_spurious_step() {
         .start::<2>(0.0, [-1.5673888557424274], [0.0])
         .unwrap();
     let e0 = sim.energy().unwrap();
-    if let Ok(s) = sim.step() {
-        let e = sim.energy().unwrap_or(f64::NAN);
-        assert!((e - e0).abs() <= 1.0 && s.t < 1.0, "E {e0} -> {e} at {s:?}");
+    let before = (sim.state(), sim.extended_state());
+    match sim.step() {
+        Ok(s) => {
+            let e = sim.energy().unwrap();
+            assert!((e - e0).abs() <= 1e-3 && s.t < 0.1, "E {e0} -> {e} at {s:?}");
+        }
+        Err(e) => {
+            let Error::OrbitLost { state, factor } = e else { panic!("{e}") };
+            assert!(!(0.5..=2.0).contains(&factor), "{e}");
+            assert_eq!(state, before.0);
+            assert_eq!((sim.state(), sim.extended_state()), before, "the refused step changed the driver");
+        }
     }
 }
 
@@ -1715,7 +1714,7 @@ fn implicit_time_transformation_rejects_a_spurious_step() {
 /// k = 1150 and 2664): the landing puts a node on the event time, and the
 /// node is recorded again.
 #[test]
-#[ignore = "defect: solve keeps a node row twice (same step index) around a Land event"]
+#[ignore = "defect: solve keeps a node row twice (same step index) around a Land event; cause not found yet"]
 fn solve_keeps_each_node_once_around_land_events() {
     let mut sim = Integrator::new(SepPendulum, Midpoint, 0.01).start(0.0, [3.240812251899315e120], [0.0]).unwrap();
     let event = Event::new(|_, _, v: &[f64; 1]| v[0]).action(Action::Land).samples(3);
@@ -1723,4 +1722,23 @@ fn solve_keeps_each_node_once_around_land_events() {
     let nodes: Vec<u64> = sol.step.iter().filter_map(|&k| k).collect();
     let twice: Vec<u64> = nodes.windows(2).filter(|w| w[0] >= w[1]).map(|w| w[1]).collect();
     assert!(twice.is_empty(), "node rows kept twice: {twice:?} ({:?})", sol.status);
+}
+
+/// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
+/// the separable pendulum from rest at q0 = −1.532 (`V = −0.38`, so the
+/// default shift is `c = 0` and `c − V` stays ≥ 0.38 on the exact flow),
+/// logarithmic time function, σ = 0.0237, one drift–kick–drift step:
+/// `H̃` goes from 0 to 0.114, past the property's bound 0.1, with the energy
+/// within its bound. Whether the bound or the step is wrong is open.
+#[test]
+#[ignore = "open: H̃ changes by 0.114 in one leapfrog step of the pendulum near a turning point (bound 0.1)"]
+fn explicit_time_transformation_keeps_the_extended_hamiltonian_near_a_turning_point() {
+    let mut sim = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, 0.023742912992331222)
+        .start(0.0, [-1.531904632271458], [0.0])
+        .unwrap();
+    let h0 = sim.extended_hamiltonian();
+    if sim.step().is_ok() {
+        let h = sim.extended_hamiltonian();
+        assert!((h - h0).abs() <= 0.1, "H̃ {h0} -> {h} at {:?}", sim.state());
+    }
 }

@@ -677,7 +677,10 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
             .method
             .start_s(system, self.sigma, self.newton, x0, w0)
             .map_err(|e| e.map_state(|x| physical::<T, N, M>(&x)))?;
-        Ok(Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None })
+        let mut adaptive =
+            Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None, rate: None };
+        adaptive.rate = adaptive.rate_at(&adaptive.inner.extended_state(), v0);
+        Ok(adaptive)
     }
 }
 
@@ -750,6 +753,9 @@ pub struct Adaptive<I, Sys, G, const N: usize, const M: usize, T = f64> {
     landed: Option<(u64, T)>,
     v_guess: [T; N],
     last_dt: Option<T>,
+    /// `t'/g = 1 + c·u` at the current node (`None` where its velocity
+    /// cannot be found): the reference of the lost-orbit check.
+    rate: Option<f64>,
 }
 
 impl<I: Clone, Sys, G, const N: usize, const M: usize, T: Copy> Clone for Adaptive<I, Sys, G, N, M, T> {
@@ -958,8 +964,11 @@ where
     }
 
     /// One step of `σ` in `s`. Refused, with the state kept, where `g` is
-    /// not finite and positive inside the step or at its end, and where the
-    /// step advances time by less than [`min_time_step`](Self::min_time_step).
+    /// not finite and positive inside the step or at its end, where the
+    /// step advances time by less than [`min_time_step`](Self::min_time_step),
+    /// and where it has lost the orbit ([`Error::OrbitLost`]: the rate
+    /// `t'/g = 1 + c·u`, `u = p_t + E`, changed by more than a factor 2,
+    /// which a spurious root of the step's Newton solve does).
     pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
         let before = self.inner.clone();
         self.try_step(before)
@@ -972,37 +981,92 @@ where
             // Read the flag before restoring: the saved copy has its own.
             let invalid = self.inner.transformed().invalid.get();
             self.inner = before;
+            // The step in `s` starts from the state the driver reports (its
+            // time is the landed one after `run_until`).
             return Err(match invalid {
                 Some(value) => Error::InvalidDensity { state: start, value },
-                None => e.map_state(|x| physical::<T, N, M>(&x)),
+                None => e.map_state(|_| start),
             });
         }
-        let x = self.inner.extended_state();
+        let t0 = self.inner_time(&before);
+        match self.verify(&self.inner, t0, &start, Some(self.floor)) {
+            Ok((end, dt, rate)) => {
+                self.after_step(&start, &end, dt, rate);
+                Ok(self.state())
+            }
+            Err(e) => {
+                self.inner = before;
+                Err(e)
+            }
+        }
+    }
+
+    /// Checks a computed step from the current node (time `t0`, reported
+    /// state `start`) to `candidate`'s node: the density there, the time it
+    /// advanced (against `floor`, if given), and the rate `t'/g` against the
+    /// current node's. Returns the end state, the time step and the rate at
+    /// the end.
+    #[allow(clippy::type_complexity)]
+    fn verify(
+        &self,
+        candidate: &I,
+        t0: T,
+        start: &State<N, T>,
+        floor: Option<T>,
+    ) -> Result<(State<N, T>, T, Option<f64>), Error<N, T>> {
+        let x = candidate.extended_state();
         let end = physical::<T, N, M>(&x);
-        let g1 = self.inner.transformed().density(end.t, &end.q);
-        let dt = end.t - self.inner_time(&before);
+        let g1 = candidate.transformed().density(end.t, &end.q);
+        let dt = end.t - t0;
         if !(g1.is_finite() && g1.to_f64() > 0.0) {
-            self.inner = before;
-            return Err(Error::InvalidDensity { state: start, value: g1.to_f64() });
+            return Err(Error::InvalidDensity { state: *start, value: g1.to_f64() });
         }
-        // NaN fails too.
-        let margin = (dt - self.floor).to_f64();
-        if margin.is_nan() || margin < 0.0 {
-            self.inner = before;
-            let floor = self.floor.to_f64();
-            return Err(Error::TimeStepCollapsed { state: start, dt: dt.to_f64(), floor });
+        if let Some(floor) = floor {
+            // NaN fails too.
+            let margin = (dt - floor).to_f64();
+            if margin.is_nan() || margin < 0.0 {
+                return Err(Error::TimeStepCollapsed { state: *start, dt: dt.to_f64(), floor: floor.to_f64() });
+            }
         }
-        self.after_step(&start, &end, dt);
-        Ok(self.state())
+        let guess: [T; N] = core::array::from_fn(|i| (end.q[i] - start.q[i]) / dt);
+        let rate = self.rate_at(&x, guess);
+        if let (Some(r0), Some(r1)) = (self.rate, rate) {
+            // NaN fails too.
+            let factor = r1 / r0;
+            if !(0.5..=2.0).contains(&factor) {
+                return Err(Error::OrbitLost { state: *start, factor });
+            }
+        }
+        Ok((end, dt, rate))
+    }
+
+    /// The rate `t'/g = 1 + c·u` at the node `x` in `s`, with
+    /// `u = p_t + E(t, q, v)` (`(t'/g − 1)/c` by the Legendre transform of
+    /// the penalty term); `None` where the velocity cannot be found from
+    /// `guess`. The exact flow keeps `u` at its initial value (0) for any
+    /// `L`, time-dependent or forced: the transformed Hamiltonian
+    /// `g u + ½ c g u²` is conserved in `s`, and a force changes `p_t` and
+    /// `E` by opposite amounts. A step keeps it to its energy error, so a
+    /// change by a factor 2 is a step that has not followed the flow. Computed
+    /// in `f64` in every real type: only its size matters.
+    fn rate_at(&self, x: &State<M, T>, guess: [T; N]) -> Option<f64> {
+        let s = physical::<T, N, M>(x);
+        let f = |a: [T; N]| a.map(|y| y.to_f64());
+        let system = self.system();
+        let (t, q) = (s.t.to_f64(), f(s.q));
+        let v = system.velocity(t, q, f(s.p), f(guess)).ok()?;
+        let u = x.p[N].to_f64() + system.energy(t, q, v);
+        Some(1.0 + self.inner.transformed().penalty * u)
     }
 
     fn inner_time(&self, i: &I) -> T {
         i.extended_state().q[N]
     }
 
-    fn after_step(&mut self, start: &State<N, T>, end: &State<N, T>, dt: T) {
+    fn after_step(&mut self, start: &State<N, T>, end: &State<N, T>, dt: T, rate: Option<f64>) {
         self.landed = None;
         self.last_dt = Some(dt);
+        self.rate = rate;
         for i in 0..N {
             self.v_guess[i] = (end.q[i] - start.q[i]) / dt;
         }
@@ -1068,21 +1132,27 @@ where
         let (mut lo, mut f_lo) = (T::zero(), t0 - t_end);
         let (mut hi, mut f_hi) = (sigma, t_over - t_end);
         let mut side = 0i8;
-        let mut best: Option<(T, I)> = None;
+        let mut best: Option<(T, I, Option<f64>)> = None;
         for _ in 0..60 {
             let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
             if !(above(s, lo) && above(hi, s)) {
                 s = (lo + hi) * 0.5;
             }
             let mut trial = self.inner.clone();
-            if trial.set_s_step_size(s).is_err() || trial.s_step().is_err() {
-                // Unsolvable trial: move the upper end down and try again.
+            let verified = if trial.set_s_step_size(s).is_err() || trial.s_step().is_err() {
+                None
+            } else {
+                // No floor: a landing step may be arbitrarily short.
+                self.verify(&trial, t0, start, None).ok()
+            };
+            let Some((_, _, rate)) = verified else {
+                // Unsolvable or refused trial: move the upper end down and try again.
                 hi = s;
                 continue;
-            }
+            };
             let f = self.inner_time(&trial) - t_end;
-            if best.as_ref().is_none_or(|(b, _)| f.to_f64().abs() < b.to_f64().abs()) {
-                best = Some((f, trial.clone()));
+            if best.as_ref().is_none_or(|(b, ..)| f.to_f64().abs() < b.to_f64().abs()) {
+                best = Some((f, trial.clone(), rate));
             }
             if f.to_f64().abs() <= tol {
                 break;
@@ -1102,17 +1172,17 @@ where
             }
         }
         match best {
-            Some((f, mut trial)) if f.to_f64().abs() <= 64.0 * tol => {
+            Some((f, mut trial, rate)) if f.to_f64().abs() <= 64.0 * tol => {
                 let _ = trial.set_s_step_size(sigma);
                 let end = physical::<T, N, M>(&trial.extended_state());
                 self.inner = trial;
-                self.after_step(start, &end, end.t - t0);
+                self.after_step(start, &end, end.t - t0, rate);
                 self.landed = Some((end.step, t_end));
                 Ok(())
             }
             best => Err(Error::Landing {
                 target: t_end.to_f64(),
-                reached: best.map_or(t0.to_f64(), |(f, _)| (t_end + f).to_f64()),
+                reached: best.map_or(t0.to_f64(), |(f, ..)| (t_end + f).to_f64()),
             }),
         }
     }

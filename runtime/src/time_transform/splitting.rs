@@ -640,7 +640,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// ([`Error::OrbitLost`]), and where the step advances time by
     /// less than [`min_time_step`](Self::min_time_step).
     pub fn step(&mut self) -> Result<State<N>, Error<N>> {
-        let (phase, cached, evaluations) = self.advance(self.phase, self.cached, self.sigma)?;
+        let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
         self.commit(phase, cached)?;
         Ok(self.state())
@@ -656,7 +656,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         let a = kinetic_energy(&self.inverse_mass, &point.p).0 + point.p_t + self.shift;
         let b = self.shift - potential(&self.system, point.t, point.q);
         let clocks = ClockBounds::new(self.function.exponent(), a, b);
-        let (end, ..) = self.advance_with(phase, None, self.sigma, &clocks)?;
+        let (end, ..) = self.advance_with(phase, None, self.sigma, &clocks, || phase.physical(self.step))?;
         Ok(ExtendedPoint { t: end.t, q: end.q, p: end.p, p_t: end.p_t })
     }
 
@@ -676,14 +676,17 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         Ok(())
     }
 
-    /// The composed step of size `h` from `phase`; changes nothing but the
-    /// counters. Returns the end point and the gradient there, if computed.
+    /// The composed step of size `h` from the current node; changes nothing
+    /// but the counters. Returns the end point and the gradient there, if
+    /// computed. Its errors carry [`state`](Self::state), which after a
+    /// landing has the target time rather than that of the phase.
     #[inline]
-    fn advance(&self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>, h: T) -> Result<Stepped<T, N>, Error<N>> {
-        self.advance_with(phase, cached, h, &self.clocks)
+    fn advance(&self, h: T) -> Result<Stepped<T, N>, Error<N>> {
+        self.advance_with(self.phase, self.cached, h, &self.clocks, || self.state())
     }
 
-    /// [`advance`](Self::advance) with the range of the rates' ratio given.
+    /// [`advance`](Self::advance) from `phase`, with the range of the rates'
+    /// ratio and the state its errors carry given.
     #[inline(always)]
     fn advance_with(
         &self,
@@ -691,13 +694,11 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         mut cached: Option<Gradient<T, N>>,
         h: T,
         clocks: &ClockBounds,
+        origin: impl Fn() -> State<N>,
     ) -> Result<Stepped<T, N>, Error<N>> {
-        let start = phase;
         let fail = |fault: Fault<T>| match fault {
-            Fault::Argument(which, value) => {
-                Error::TimeFunctionArgument { state: start.physical(self.step), which, value: value.re() }
-            }
-            Fault::Clocks(factor) => Error::OrbitLost { state: start.physical(self.step), factor },
+            Fault::Argument(which, value) => Error::TimeFunctionArgument { state: origin(), which, value: value.re() },
+            Fault::Clocks(factor) => Error::OrbitLost { state: origin(), factor },
         };
         let w = self.weights;
         let m = w.len();
@@ -723,12 +724,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             }
         }
         if !phase.t.is_finite() || !all_finite(&phase.q) || !all_finite(&phase.p) || !phase.p_t.is_finite() {
-            return Err(Error::NonFinite {
-                state: start.physical(self.step),
-                h: h.to_f64(),
-                iterations: 0,
-                quantity: "state",
-            });
+            return Err(Error::NonFinite { state: origin(), h: h.to_f64(), iterations: 0, quantity: "state" });
         }
         // The end node's arguments of f' (the potential from the last
         // kick's gradient for kick–drift–kick, evaluated for drift–kick–drift).
@@ -829,7 +825,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             return Ok(());
         }
         let target = T::from(t_end);
-        let (phase, cached, evaluations) = self.advance(self.phase, self.cached, self.sigma)?;
+        let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
         if (phase.t - target).re() <= 0.0 { self.commit(phase, cached) } else { self.land(target, phase.t) }
     }
@@ -859,7 +855,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
                 s = (lo + hi) * 0.5;
             }
             self.stats.landing_trials += 1;
-            let Ok((trial, cached, evaluations)) = self.advance(self.phase, self.cached, s) else {
+            let Ok((trial, cached, evaluations)) = self.advance(s) else {
                 hi = s;
                 continue;
             };
