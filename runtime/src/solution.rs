@@ -878,6 +878,10 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
         d.sim.land(record.t)?;
         d.sol.stats.redone_steps += 1;
         end = d.node(true)?;
+        // An event at the step's start (to the clock's resolution) lands on
+        // the node the step began from: no new node, and its row (if kept)
+        // exists already.
+        let at_start = end.step == prev.step;
         for i in 0..d.plan.events.len() {
             lp.g_prev[i] = if i == record.event {
                 // The side the crossing left g on: the node at t* can
@@ -891,6 +895,11 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
             };
         }
         match d.plan.events[record.event].action {
+            Action::Stop if at_start => {
+                d.keep_last_good(&mut end);
+                d.sol.status = Status::Stopped { event: record.event, t: record.t };
+                return Ok(true);
+            }
             Action::Stop => {
                 finish_node(d, &mut end, true)?;
                 d.sol.status = Status::Stopped { event: record.event, t: record.t };
@@ -899,6 +908,9 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
             _ => {
                 if t_step_end > record.t {
                     lp.rejoin = Some(t_step_end);
+                }
+                if at_start {
+                    return Ok(false);
                 }
             }
         }

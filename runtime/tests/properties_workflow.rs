@@ -1714,7 +1714,6 @@ fn implicit_time_transformation_rejects_a_spurious_step() {
 /// k = 1150 and 2664): the landing puts a node on the event time, and the
 /// node is recorded again.
 #[test]
-#[ignore = "defect: solve keeps a node row twice (same step index) around a Land event; cause not found yet"]
 fn solve_keeps_each_node_once_around_land_events() {
     let mut sim = Integrator::new(SepPendulum, Midpoint, 0.01).start(0.0, [3.240812251899315e120], [0.0]).unwrap();
     let event = Event::new(|_, _, v: &[f64; 1]| v[0]).action(Action::Land).samples(3);
