@@ -227,6 +227,9 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
                 return Err(Error::InvalidStepSize { h: self.h.to_f64() });
             }
         }
+        if S::CONSTRAINTS != M::CONSTRAINTS {
+            return Err(Error::Unsupported { what: crate::constrained::UNCONSTRAINED_METHOD });
+        }
         self.method.supports::<S, N>(&self.policy)?;
         self.derivatives.check::<N, T>()?;
         // `Automatic` is resolved here, once: reverse mode above
