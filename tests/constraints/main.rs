@@ -430,3 +430,34 @@ fn solve_gives_dense_output_of_a_constrained_run() {
     let off = solution.q.iter().map(|q| (q[0] * q[0] + q[1] * q[1] - 1.0).abs()).fold(0.0, f64::max);
     assert!(off < 1e-8, "{off:e}");
 }
+
+/// A pendulum whose length grows with time: a rheonomic constraint, which
+/// the macro accepts and the one-point constrained steps do not take yet.
+#[derive(Clone, Debug)]
+struct Lengthening;
+
+#[lagrangian]
+impl Lengthening {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn constraints(&self, t: f64, q: [f64; 2]) -> [f64; 1] {
+        let l = 1.0 + 0.1 * t;
+        [q[0] * q[0] + q[1] * q[1] - l * l]
+    }
+}
+
+#[test]
+fn time_dependent_constraints_are_refused_by_name() {
+    const {
+        assert!(!<Lengthening as Lagrangian<2>>::CONSTRAINTS_AUTONOMOUS);
+        assert!(<Pendulum as Lagrangian<2>>::CONSTRAINTS_AUTONOMOUS);
+        assert!(<FourBar as Lagrangian<4>>::CONSTRAINTS == 3);
+    }
+    let method = Constrained::<_, 1>::new(Midpoint);
+    let result = Integrator::new(Lengthening, method, 0.01).start(0.0, [0.0, -1.0], [1.0, 0.0]);
+    assert!(
+        matches!(result, Err(Error::Unsupported { what }) if what.contains("time-dependent holonomic constraints")),
+        "{result:?}"
+    );
+}
