@@ -42,10 +42,6 @@ use crate::system::Lagrangian;
 
 use linear::{inverse, solve_schur};
 
-/// Why an integrator refuses a system whose constraint count differs from
-/// the method's.
-pub(crate) const UNCONSTRAINED_METHOD: &str = "a system whose number of holonomic constraints (`Lagrangian::CONSTRAINTS`) differs from the method's: a constrained system runs under `Constrained::<_, M>::new(rule)` with its own `M` and a one-point rule (midpoint, trapezoid, α-β); compositions, Galerkin rules and double-double runs with constraints are not supported yet";
-
 /// The relative tolerance within which initial data must satisfy the
 /// constraints and their hidden (velocity-level) form; see
 /// [`Error::InconsistentConstraints`].
