@@ -195,6 +195,7 @@ pub use lagrangian_runtime::*;
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
+    pub use lagrangian_runtime::Constrained;
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
     pub use lagrangian_runtime::{
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, DynLagrangian, EnergyFallback, Error, F64Readouts,
@@ -219,3 +220,8 @@ pub mod __private {
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+/// The chapter on holonomic constraints, its examples compiled and run as doc tests.
+#[doc = include_str!("../docs/guide/constraints.md")]
+#[cfg(doctest)]
+pub struct GuideConstraints;

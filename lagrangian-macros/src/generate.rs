@@ -16,6 +16,8 @@ use quote::{ToTokens, quote, quote_spanned};
 use std::cell::RefCell;
 use syn::{BinOp, ImplItem, ItemImpl, Token, Type};
 
+mod constraints;
+
 /// The user's block followed by the trait impl: `Lagrangian<N>` for a
 /// system of arrays, `DynLagrangian` for one of slices.
 pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
@@ -46,6 +48,11 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
         })
         .collect();
     let gradient = crate::adjoint::method(&system.lagrangian, Some(&n));
+    let constraints = system.constraints.as_ref().map(|(function, m)| {
+        let (items, constraint_chunks) = constraints::items(function, m, &n);
+        chunks.extend(constraint_chunks);
+        items
+    });
     let step_density = system.step_density.as_ref().map(|function| {
         let (density, density_chunks) = density_method(function, &n);
         chunks.extend(density_chunks);
@@ -78,6 +85,7 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
             #structure
             #(#methods)*
             #gradient
+            #constraints
         }
 
         #step_density

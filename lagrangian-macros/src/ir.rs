@@ -5,7 +5,7 @@
 //! has been lowered into it no later stage needs an "unsupported" case. Names
 //! are already resolved: a variable is a parameter, a local or a constant.
 
-use crate::parse::{Dim, MethodKind};
+use crate::parse::{Dim, Len, MethodKind};
 use proc_macro2::Span;
 use syn::{BinOp, ExprPath, Ident, Item, Lit, Member, RangeLimits, Token, Type, UnOp};
 
@@ -23,6 +23,8 @@ pub(crate) struct System {
     pub(crate) force: Option<Function>,
     /// The step density `g(t, q)` of the time-transformed integrators, if given.
     pub(crate) step_density: Option<Function>,
+    /// The holonomic constraints `g(t, q)` and their number `M`, if given.
+    pub(crate) constraints: Option<(Function, Len)>,
 }
 
 impl System {
@@ -32,6 +34,7 @@ impl System {
             .chain(self.dissipation.as_mut())
             .chain(self.force.as_mut())
             .chain(self.step_density.as_mut())
+            .chain(self.constraints.as_mut().map(|(function, _)| function))
     }
 }
 

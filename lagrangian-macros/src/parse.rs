@@ -21,6 +21,9 @@ pub(crate) enum MethodKind {
     /// `fn step_density(&self, [t,] q) -> f64`, optional: the monitor
     /// `g(t, q)` of the time-transformed integrators.
     StepDensity,
+    /// `fn constraints(&self, [t,] q) -> [f64; M]`, optional: holonomic
+    /// constraints `g(t, q) = 0` (see `crate::constraints`).
+    Constraints,
 }
 
 impl MethodKind {
@@ -31,12 +34,13 @@ impl MethodKind {
             Self::Dissipation => "dissipation",
             Self::Force => "force",
             Self::StepDensity => "step_density",
+            Self::Constraints => "constraints",
         }
     }
 
     /// The kind of a method called `ident`, if it is one the macro recognises.
     pub(crate) fn from_ident(ident: &Ident) -> Option<Self> {
-        [Self::Lagrangian, Self::Dissipation, Self::Force, Self::StepDensity]
+        [Self::Lagrangian, Self::Dissipation, Self::Force, Self::StepDensity, Self::Constraints]
             .into_iter()
             .find(|kind| ident == kind.name())
     }
@@ -47,15 +51,17 @@ impl MethodKind {
         self != Self::Dissipation
     }
 
-    /// Whether the method takes the velocity; a step density is `g(t, q)`.
+    /// Whether the method takes the velocity; a step density and the
+    /// constraints are functions of `(t, q)`.
     pub(crate) fn takes_velocity(self) -> bool {
-        self != Self::StepDensity
+        !matches!(self, Self::StepDensity | Self::Constraints)
     }
 
     /// Whether the method returns one value per coordinate (`[f64; N]`)
-    /// rather than a scalar.
+    /// rather than a scalar; the constraints return `[f64; M]`, one value
+    /// per constraint.
     pub(crate) fn returns_array(self) -> bool {
-        self == Self::Force
+        matches!(self, Self::Force | Self::Constraints)
     }
 }
 
@@ -71,6 +77,8 @@ pub(crate) struct Input<'a> {
     pub(crate) force: Option<Method<'a>>,
     /// `fn step_density`, if present.
     pub(crate) step_density: Option<Method<'a>>,
+    /// `fn constraints`, if present.
+    pub(crate) constraints: Option<Method<'a>>,
     /// `fn dimension`, if present: the size of a run-time-sized system,
     /// whose `lagrangian` takes slices. Not rewritten, so not a
     /// [`MethodKind`]; ignored when the Lagrangian takes arrays.
@@ -81,8 +89,15 @@ impl<'a> Input<'a> {
     /// Picks the recognised methods out of `item`. When a name appears twice
     /// the first one is kept: rustc reports the duplicate definition itself.
     pub(crate) fn from_syn(item: &'a ItemImpl) -> Self {
-        let mut input =
-            Input { item, lagrangian: None, dissipation: None, force: None, step_density: None, dimension: None };
+        let mut input = Input {
+            item,
+            lagrangian: None,
+            dissipation: None,
+            force: None,
+            step_density: None,
+            constraints: None,
+            dimension: None,
+        };
         for func in item.items.iter().filter_map(|item| match item {
             ImplItem::Fn(func) => Some(func),
             _ => None,
@@ -98,6 +113,7 @@ impl<'a> Input<'a> {
                 MethodKind::Dissipation => &mut input.dissipation,
                 MethodKind::Force => &mut input.force,
                 MethodKind::StepDensity => &mut input.step_density,
+                MethodKind::Constraints => &mut input.constraints,
             };
             if slot.is_none() {
                 *slot = Some(Method::from_syn(kind, func));

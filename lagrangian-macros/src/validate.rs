@@ -6,6 +6,7 @@
 //! [`body`].
 
 mod body;
+mod constraints;
 
 use crate::ctxt::Ctxt;
 use crate::ir::{Binder, System};
@@ -70,6 +71,8 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
     let dissipation = optional(&input.dissipation);
     let force = optional(&input.force);
     let step_density = optional(&input.step_density);
+    let constraints =
+        optional(&input.constraints).map(|f| Some((f?, input.constraints.as_ref().and_then(constraints::count)?)));
     if dynamic {
         check_dimension(cx, input.dimension, lagrangian, &item.self_ty);
     }
@@ -81,6 +84,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         dissipation: dissipation.map_or(Some(None), |f| f.map(Some))?,
         force: force.map_or(Some(None), |f| f.map(Some))?,
         step_density: step_density.map_or(Some(None), |f| f.map(Some))?,
+        constraints: constraints.map_or(Some(None), |f| f.map(Some))?,
     })
 }
 
@@ -291,13 +295,15 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         // array (then they are `(q, v)`, and `v` is the mistake).
         let velocity = |v: &Param<'_>| {
             let (pat, ty) = (v.pat, v.ty);
-            cx.error_spanned_by(
-                quote::quote!(#pat: #ty),
+            let message = if method.kind == MethodKind::Constraints {
+                constraints::velocity_message()
+            } else {
                 format!(
                     "`{name}` takes no velocity: a step density is `g(t, q)`, \
                      write `fn {name}(&self, [t: f64,] q: [f64; N]) -> f64`"
-                ),
-            );
+                )
+            };
+            cx.error_spanned_by(quote::quote!(#pat: #ty), message);
         };
         match method.params.as_slice() {
             [q] => (None, q, None),
@@ -479,6 +485,9 @@ fn display(binder: &Binder, role: &str) -> String {
 /// Checks the return type: `f64`, or `[f64; N]` for `force`. `n` is the `N`
 /// to expect, when known. `false` if it was reported.
 fn check_return(cx: &Ctxt, method: &Method<'_>, n: Option<&Len>) -> bool {
+    if method.kind == MethodKind::Constraints {
+        return constraints::check_return(cx, method, n);
+    }
     let name = method.kind.name();
     let expected = match (method.kind.returns_array(), n) {
         (false, _) => "f64".to_owned(),

@@ -258,6 +258,43 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// `‖∂L/∂v − p‖∞` at the last iterate.
         residual_norm: f64,
     },
+    /// Holonomic constraints: the initial data lie off the constraint
+    /// manifold `g(q) = 0` or off its tangent space `G(q) v = 0` by more
+    /// than `tolerance` (relative: the distance `|g_i| / ‖∇g_i‖` against
+    /// `max(‖q‖∞, 1)`, and `|G_i v| / ‖∇g_i‖` against `‖v‖∞`). Project them
+    /// first with [`Constrained::project`](crate::Constrained::project).
+    #[error(
+        "initial data inconsistent with the constraints: relative distance {position:e} from g(q) = 0 and {velocity:e} from G(q) v = 0 (tolerance {tolerance:e}); project them with `Constrained::project`"
+    )]
+    InconsistentConstraints {
+        /// The relative distance from the constraint manifold.
+        position: f64,
+        /// The relative size of the velocity component normal to it.
+        velocity: f64,
+        /// The tolerance both must meet.
+        tolerance: f64,
+    },
+    /// Holonomic constraints: the constraint Jacobian `G(q) = ∂g/∂q` has
+    /// lower rank than the number of constraints (redundant constraints, or a
+    /// singular configuration such as the dead point of a four-bar linkage),
+    /// at the initial data or inside a step.
+    #[error(
+        "rank-deficient constraint jacobian at t = {} (step {}): reciprocal condition number {rcond:e} of the constraint block (redundant constraints or a singular configuration)",
+        .state.t, .state.step
+    )]
+    SingularConstraints {
+        /// The state the integrator holds (the initial data at the start).
+        state: State<N, T>,
+        /// The reciprocal condition number of `G Gᵀ` (at the start) or of
+        /// the step's Schur complement `G(q_{k+1}) A⁻¹ G(q_k)ᵀ`.
+        rcond: f64,
+    },
+    /// Holonomic constraints: `g(q)` or its Jacobian is NaN or infinite.
+    #[error("non-finite constraint value at t = {} (step {})", .state.t, .state.step)]
+    NonFiniteConstraints {
+        /// The state the integrator holds (the initial data at the start).
+        state: State<N, T>,
+    },
 }
 
 impl<const N: usize, T: Real> Error<N, T> {
@@ -292,7 +329,9 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::TimeStepCollapsed { state, .. }
             | Error::TimeFunctionArgument { state, .. }
             | Error::OrbitLost { state, .. }
-            | Error::InverseLegendre { state, .. } => *state = at,
+            | Error::InverseLegendre { state, .. }
+            | Error::SingularConstraints { state, .. }
+            | Error::NonFiniteConstraints { state } => *state = at,
             _ => {}
         }
         self
@@ -336,6 +375,11 @@ impl<const N: usize, T: Real> Error<N, T> {
                 Error::TimeFunctionArgument { state: f(state), which, value }
             }
             Error::OrbitLost { state, factor } => Error::OrbitLost { state: f(state), factor },
+            Error::InconsistentConstraints { position, velocity, tolerance } => {
+                Error::InconsistentConstraints { position, velocity, tolerance }
+            }
+            Error::SingularConstraints { state, rcond } => Error::SingularConstraints { state: f(state), rcond },
+            Error::NonFiniteConstraints { state } => Error::NonFiniteConstraints { state: f(state) },
             Error::InverseLegendre { state, iterations, residual_norm } => {
                 Error::InverseLegendre { state: f(state), iterations, residual_norm }
             }

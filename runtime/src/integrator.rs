@@ -227,6 +227,9 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
                 return Err(Error::InvalidStepSize { h: self.h.to_f64() });
             }
         }
+        if S::CONSTRAINTS != M::CONSTRAINTS {
+            return Err(Error::Unsupported { what: CONSTRAINT_COUNT_MISMATCH });
+        }
         self.method.supports::<S, N>(&self.policy)?;
         self.derivatives.check::<N, T>()?;
         // `Automatic` is resolved here, once: reverse mode above
@@ -272,6 +275,10 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
         })
     }
 }
+
+/// Why an integrator refuses a system whose number of holonomic
+/// constraints differs from the method's.
+const CONSTRAINT_COUNT_MISMATCH: &str = "a system whose number of holonomic constraints (`Lagrangian::CONSTRAINTS`) differs from the method's: a constrained system runs under `Constrained::<_, M>::new(rule)` with its own `M` and a one-point rule (midpoint, trapezoid, α-β); compositions, Galerkin rules and double-double runs with constraints are not supported yet";
 
 /// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
 #[inline(always)]

@@ -7,6 +7,7 @@
 //! [`Lagrangian`] trait.
 
 pub mod banded;
+pub mod constrained;
 pub mod dense;
 pub mod derivatives;
 pub mod discrete;
@@ -35,6 +36,7 @@ pub mod system;
 pub mod tape;
 pub mod time_transform;
 
+pub use constrained::Constrained;
 pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};

@@ -108,6 +108,28 @@ pub trait Lagrangian<const N: usize> {
         [D::zero(); N]
     }
 
+    /// The number `M` of holonomic constraints `g(t, q) = 0` the system is
+    /// subject to ([`constraints`](Self::constraints)); 0 (none) by default.
+    /// `#[lagrangian]` sets it from `fn constraints(&self, [t,] q) -> [f64; M]`.
+    /// A constrained system runs only under
+    /// [`Constrained`](crate::Constrained) steps, which hold `g = 0` and its
+    /// hidden velocity-level form at every node; every other integrator
+    /// refuses it at construction.
+    const CONSTRAINTS: usize = 0;
+
+    /// `false` when [`constraints`](Self::constraints) depends on time
+    /// (the user's method takes `t`).
+    const CONSTRAINTS_AUTONOMOUS: bool = true;
+
+    /// The constraint values `g(t, q)`, written into `g`, whose length is
+    /// [`CONSTRAINTS`](Self::CONSTRAINTS). Generic over the [`Scalar`] so
+    /// that one evaluation on dual numbers seeded on `q` gives the
+    /// constraint Jacobian `G = ∂g/∂q`. The default writes nothing.
+    #[inline(always)]
+    fn constraints<D: Scalar>(&self, t: D, q: &[D; N], g: &mut [D]) {
+        let _ = (t, q, g);
+    }
+
     /// `true` when [`gradient_q`](Self::gradient_q) is plain `f64` code
     /// written for this system: `#[lagrangian]` sets it when it could
     /// transform the body into reverse-mode (adjoint) code, whose cost is a

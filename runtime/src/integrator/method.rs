@@ -47,6 +47,12 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
     /// Order of the one-step map for a regular Lagrangian.
     fn method_order(&self) -> u32;
 
+    /// The number of holonomic constraints the method holds: 0 for every
+    /// method but [`Constrained`](crate::Constrained). The integrator refuses
+    /// a system whose `Lagrangian::CONSTRAINTS` differs.
+    #[doc(hidden)]
+    const CONSTRAINTS: usize = 0;
+
     /// The memory before the first step.
     #[doc(hidden)]
     fn memory<const N: usize>(&self) -> Self::Memory<N>;

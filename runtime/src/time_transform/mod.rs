@@ -632,6 +632,9 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         K: SMethod<Sys, G, N, M, T>,
     {
         const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
+        if Sys::CONSTRAINTS != 0 {
+            return Err(Error::Unsupported { what: "time transformation of a system with holonomic constraints" });
+        }
         self.system.density.check().map_err(|reason| Error::InvalidSetting { reason })?;
         let sigma = self.sigma.to_f64();
         if !(self.sigma.is_finite() && sigma > 0.0) {

@@ -206,6 +206,9 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
     /// finite); with [`Error::TimeFunctionArgument`] a shift that makes
     /// `c − V(t0, q0)` not positive.
     pub fn start<T: Real>(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<ExplicitAdaptive<Sys, T, N>, Error<N>> {
+        if Sys::CONSTRAINTS != 0 {
+            return Err(Error::Unsupported { what: "time transformation of a system with holonomic constraints" });
+        }
         if !Sys::SEPARABILITY.has_constant_mass() {
             return Err(Error::NotSeparable {
                 reason: "the splitting needs `L = ½ vᵀMv − V(t, q)` with a constant mass matrix `M` \

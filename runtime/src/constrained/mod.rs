@@ -1,0 +1,461 @@
+//! Holonomic constraints `g(q) = 0`: the constrained discrete Euler–Lagrange
+//! equations of a one-point discrete Lagrangian in position–momentum form
+//! (RATTLE; Marsden & West, *Discrete mechanics and variational
+//! integrators*, Acta Numerica 2001, §3.4; Hairer, Lubich & Wanner,
+//! *Geometric Numerical Integration*, §VII.1):
+//!
+//! ```text
+//! p_k     = −D₁A(q_k, q_{k+1}) − G(q_k)ᵀ λ_k,         g(q_{k+1}) = 0,
+//! p_{k+1} =  D₂A(q_k, q_{k+1}) + G(q_{k+1})ᵀ μ_k,      G(q_{k+1}) v(q_{k+1}, p_{k+1}) = 0,
+//! ```
+//!
+//! with `A = h L_d` the step action and `G = ∂g/∂q`. The first line is
+//! solved for `(q_{k+1}, λ_k)` by Newton's method on the `(N + M)`
+//! saddle-point system, eliminated block-wise: the step Jacobian
+//! `J = ∂²A/∂q_k∂q_{k+1}` is inverted and the `M × M` Schur complement
+//! `G(q_{k+1}) J⁻¹ G(q_k)ᵀ` solved for the multiplier correction. The
+//! second line is solved for `(v_{k+1}, μ_k)` the same way with the Hessian
+//! `∂²L/∂v²` in place of `J` (one iteration for a quadratic kinetic energy).
+//! Both constraints then hold to Newton's tolerance at every node: the
+//! positions on the manifold, the momenta on its cotangent space. The map
+//! is symplectic on the constrained cotangent bundle.
+//!
+//! A rank-deficient `G` (redundant constraints, a dead point) shows as a
+//! singular Schur complement and is a typed error, with the state kept.
+
+mod linear;
+mod project;
+
+use nalgebra::{SMatrix, SVector};
+
+use crate::dense::{Hermite, Node};
+use crate::derivatives::{self, Segment};
+use crate::discrete::DiscreteLagrangian;
+use crate::error::Error;
+use crate::hyperdual::DualArray;
+use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment, predict_into};
+use crate::mechanics::DiscreteMechanics;
+use crate::real::max_abs;
+use crate::state::State;
+use crate::symplectic::TangentMap;
+use crate::system::Lagrangian;
+
+use linear::{inverse, solve_schur};
+
+/// The relative tolerance within which initial data must satisfy the
+/// constraints and their hidden (velocity-level) form; see
+/// [`Error::InconsistentConstraints`].
+pub const CONSISTENCY_TOLERANCE: f64 = 1e-10;
+
+/// A one-point discrete Lagrangian (midpoint, trapezoid, α-β) with the `M`
+/// holonomic constraints of the system imposed at every node, RATTLE-style
+/// (see the [module documentation](self)).
+///
+/// `M` must equal the system's [`Lagrangian::CONSTRAINTS`] (the length of
+/// the array `fn constraints` returns); the integrator refuses the system
+/// otherwise.
+///
+/// ```
+/// use lagrangian_runtime::{Constrained, Integrator, Lagrangian, Midpoint, Scalar};
+///
+/// /// A pendulum as a point on a circle of radius 1, written by hand
+/// /// (`#[lagrangian]` writes this from `fn constraints`).
+/// struct Pendulum;
+/// impl Lagrangian<2> for Pendulum {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 2] = [false, false];
+///     const CONSTRAINTS: usize = 1;
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+///         (v[0] * v[0] + v[1] * v[1]) * 0.5 - q[1]
+///     }
+///     fn constraints<D: Scalar>(&self, _t: D, q: &[D; 2], g: &mut [D]) {
+///         g[0] = q[0] * q[0] + q[1] * q[1] - 1.0;
+///     }
+/// }
+///
+/// let method = Constrained::<_, 1>::new(Midpoint);
+/// let mut sim = Integrator::new(Pendulum, method, 0.01).start(0.0, [1.0, 0.0], [0.0, 0.0])?;
+/// sim.run(1000, |_| {})?;
+/// let [x, y] = sim.state().q;
+/// assert!((x * x + y * y - 1.0).abs() < 1e-14);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Constrained<D, const M: usize> {
+    /// The unconstrained rule whose action is made stationary on the manifold.
+    pub rule: D,
+}
+
+impl<D: DiscreteLagrangian, const M: usize> Constrained<D, M> {
+    /// The rule `rule` with `M` constraints imposed at the nodes.
+    pub fn new(rule: D) -> Self {
+        Self { rule }
+    }
+}
+
+/// What a constrained method keeps of its last steps.
+#[doc(hidden)]
+#[derive(Clone, Copy, Debug)]
+pub struct ConstrainedMemory<const N: usize, const M: usize> {
+    /// The last step, `None` before the first.
+    previous: Option<Segment<N>>,
+    /// The step before it.
+    earlier: Option<Segment<N>>,
+    /// The multiplier `λ` of the last step: the next step's first guess.
+    lambda: [f64; M],
+    /// The velocity at the current node (the initial one at the start).
+    velocity: [f64; N],
+}
+
+impl<D: DiscreteLagrangian, const M: usize> Sealed for Constrained<D, M> {}
+
+/// `g(t, q)` in `f64`.
+pub(crate) fn values<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
+    system: &S,
+    t: f64,
+    q: &[f64; N],
+) -> [f64; M] {
+    let mut g = [0.0; M];
+    system.constraints(t, q, &mut g);
+    g
+}
+
+/// `g(t, q)` and the Jacobian `G = ∂g/∂q` from one evaluation on duals
+/// seeded on `q`; `None` when a value is not finite.
+pub(crate) fn jacobian<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
+    system: &S,
+    t: f64,
+    q: &[f64; N],
+) -> Option<([f64; M], SMatrix<f64, M, N>)> {
+    type D<const N: usize> = DualArray<[f64; N]>;
+    let mut qd = q.map(D::<N>::from_re);
+    for (i, x) in qd.iter_mut().enumerate() {
+        x.eps[i] = 1.0;
+    }
+    let mut g = [D::<N>::from_re(0.0); M];
+    system.constraints(D::from_re(t), &qd, &mut g);
+    let value = g.map(|x| x.re);
+    let jac = SMatrix::<f64, M, N>::from_fn(|i, j| g[i].eps[j]);
+    (value.iter().all(|x| x.is_finite()) && jac.iter().all(|x| x.is_finite())).then_some((value, jac))
+}
+
+/// The relative distances of `(q, v)` from the manifold and its tangent
+/// space (see [`Error::InconsistentConstraints`]).
+pub(crate) fn inconsistency<const N: usize, const M: usize>(
+    g: &[f64; M],
+    jac: &SMatrix<f64, M, N>,
+    q: &[f64; N],
+    v: &[f64; N],
+) -> (f64, f64) {
+    let gv = jac * SVector::from(*v);
+    let (mut position, mut velocity) = (0.0f64, 0.0f64);
+    for i in 0..M {
+        let norm = jac.row(i).norm();
+        position = position.max(g[i].abs() / norm);
+        velocity = velocity.max(gv[i].abs() / norm);
+    }
+    (position / max_abs(q).max(1.0), if max_abs(v) > 0.0 { velocity / max_abs(v) } else { velocity })
+}
+
+impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
+    type Memory<const N: usize> = ConstrainedMemory<N, M>;
+
+    const CONSTRAINTS: usize = M;
+
+    fn method_order(&self) -> u32 {
+        self.rule.order()
+    }
+
+    fn memory<const N: usize>(&self) -> ConstrainedMemory<N, M> {
+        ConstrainedMemory { previous: None, earlier: None, lambda: [0.0; M], velocity: [0.0; N] }
+    }
+
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+        if M == 0 || M >= N {
+            return Err(Error::InvalidMethod {
+                reason: "holonomic constraints: the number of constraints M must satisfy 0 < M < N",
+            });
+        }
+        if !matches!(policy, StepPolicy::Fixed) {
+            return Err(Error::Unsupported { what: "energy-preserving steps with holonomic constraints" });
+        }
+        if S::HAS_FORCE || S::HAS_DISSIPATION {
+            return Err(Error::Unsupported { what: "forces or dissipation with holonomic constraints" });
+        }
+        if !S::CONSTRAINTS_AUTONOMOUS {
+            return Err(Error::Unsupported { what: "time-dependent holonomic constraints (`constraints` taking `t`)" });
+        }
+        if !S::AUTONOMOUS {
+            return Err(Error::Unsupported { what: "a time-dependent Lagrangian with holonomic constraints" });
+        }
+        Ok(())
+    }
+
+    fn supports_derivatives<S: Lagrangian<N>, const N: usize>(
+        &self,
+        reverse: bool,
+        _: &StepPolicy,
+    ) -> Result<(), Error<N>> {
+        if reverse {
+            return Err(Error::Unsupported {
+                what: "reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`) with holonomic constraints",
+            });
+        }
+        Ok(())
+    }
+
+    fn legendre<S: Lagrangian<N>, const N: usize>(
+        system: &S,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<([f64; N], f64), Error<N>> {
+        let state = State { step: 0, t: t0, q: q0, p: [0.0; N] };
+        let (g, jac) = jacobian::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
+        let (_, rcond) = inverse(jac * jac.transpose());
+        if rcond < 1e-12 {
+            return Err(Error::SingularConstraints { state, rcond });
+        }
+        let (position, velocity) = inconsistency(&g, &jac, &q0, &v0);
+        if !(position <= CONSISTENCY_TOLERANCE && velocity <= CONSISTENCY_TOLERANCE) {
+            return Err(Error::InconsistentConstraints { position, velocity, tolerance: CONSISTENCY_TOLERANCE });
+        }
+        let p0 = system.momentum(t0, q0, v0);
+        let l = system.lagrangian(t0, q0, v0);
+        if !l.is_finite() || !p0.iter().all(|x| x.is_finite()) {
+            return Err(Error::InvalidInitialData { reason: "L or ∂L/∂v is not finite at the initial data" });
+        }
+        let (_, rcond) = inverse(system.velocity_hessian(t0, q0, v0));
+        if rcond < 1e-14 {
+            return Err(Error::InvalidInitialData {
+                reason: "∂²L/∂v² is singular at the initial data: the Legendre transform is not regular",
+            });
+        }
+        let energy = (0..N).map(|i| v0[i] * p0[i]).sum::<f64>() - l;
+        Ok((p0, energy))
+    }
+
+    fn fixed_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N>,
+        h: f64,
+        t1: f64,
+    ) -> Result<(), Error<N>> {
+        match step(it, h, t1) {
+            Ok(()) => Ok(()),
+            Err(error) => {
+                it.stats.failed_steps += 1;
+                Err(error)
+            }
+        }
+    }
+
+    fn energy_step<S: Lagrangian<N>, const N: usize>(
+        _: &mut Integrator<S, Self, N>,
+        _: StepBounds,
+    ) -> Result<(), Error<N>> {
+        // Refused at `start` by `supports`.
+        Err(Error::Unsupported { what: "energy-preserving steps with holonomic constraints" })
+    }
+
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(_: &mut Integrator<S, Self, N>) {}
+
+    fn last_step_size<const N: usize>(memory: &ConstrainedMemory<N, M>) -> Option<f64> {
+        memory.previous.map(|last| last.h)
+    }
+
+    fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> f64 {
+        match &it.memory.previous {
+            // The constraint forces do no work on the step's end node: the
+            // energy is that of the unconstrained action.
+            Some(seg) => -derivatives::end_time_derivative(&it.system, &it.method.rule, seg),
+            None => it.energy,
+        }
+    }
+}
+
+/// One constrained step; on failure nothing in `it` has changed.
+fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &mut Integrator<S, Constrained<D, M>, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    let State { t: t0, q: q0, p: p0, .. } = it.state;
+    let state = it.state;
+    let options = it.newton;
+    let rule = it.method.rule;
+    let system = &it.system;
+    let (_, g0) = jacobian::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
+    let g0t = g0.transpose();
+
+    // Positions: (q_{k+1}, λ_k) from p_k + D₁A + G(q_k)ᵀλ = 0, g(q_{k+1}) = 0.
+    let mut dq = [0.0; N];
+    {
+        let last = it.memory.previous.as_ref().map(|s| (s.h, &s.dq[..]));
+        let earlier = it.memory.earlier.as_ref().map(|s| (s.h, &s.dq[..]));
+        let v = if it.memory.previous.is_some() { &it.memory.velocity } else { &it.v0 };
+        predict_into(h, last, earlier, v, &mut dq);
+    }
+    let mut lambda = SVector::<f64, M>::from(it.memory.lambda);
+    let mut iterations = 0;
+    let mut converged = false;
+    let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
+    while iterations < options.max_iterations {
+        iterations += 1;
+        let seg = Segment { t0, h, q0, dq };
+        let sd = derivatives::step_derivatives(system, &rule, &seg);
+        let q1 = seg.q1();
+        let (g1, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
+        let r1 = SVector::<f64, N>::from_fn(|i, _| p0[i] + sd.d_q0[i]) + g0t * lambda;
+        let r2 = SVector::<f64, M>::from(g1);
+        residual_norm = r1.amax().max(r2.amax());
+        if !residual_norm.is_finite() || !sd.d2_q0_q1.iter().all(|x| x.is_finite()) {
+            return Err(Error::NonFinite { state, h, iterations, quantity: "residual" });
+        }
+        let (ddq, dlambda) = match solve_schur(&sd.d2_q0_q1, &g0t, &jac1, &r1, &r2, options.min_rcond) {
+            Ok(x) => x,
+            Err(linear::Singular::Block(rcond)) => {
+                return Err(Error::SingularJacobian { state, h, iterations, rcond });
+            }
+            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+        };
+        for i in 0..N {
+            dq[i] += ddq[i];
+        }
+        lambda += dlambda;
+        correction_norm = ddq.amax();
+        if !correction_norm.is_finite() {
+            return Err(Error::NonFinite { state, h, iterations, quantity: "correction" });
+        }
+        // The constraint is evaluated at `q_k + Δq`, so no correction below
+        // the round-off of that sum is meaningful: a step from rest has an
+        // increment far smaller than the position.
+        let floor = 4.0 * f64::EPSILON * max_abs(&q1).max(max_abs(&q0));
+        if correction_norm <= options.rtol * max_abs(&dq) + options.atol + floor {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
+    }
+    let seg = Segment { t0, h, q0, dq };
+    let q1 = seg.q1();
+    let (_, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
+    let end = derivatives::end_momentum(system, &rule, &seg);
+
+    // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + G(q_{k+1})ᵀμ, G(q_{k+1}) v = 0.
+    let jac1t = jac1.transpose();
+    let mut v = SVector::<f64, N>::from_fn(|i, _| dq[i] / h);
+    let mut mu = SVector::<f64, M>::zeros();
+    let mut momentum_converged = false;
+    let mut momentum_iterations = 0;
+    while momentum_iterations < options.max_iterations {
+        momentum_iterations += 1;
+        let vv: [f64; N] = v.into();
+        let p = system.momentum(t1, q1, vv);
+        let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
+        let r2 = jac1 * v;
+        let hessian = system.velocity_hessian(t1, q1, vv);
+        // The same saddle-point form with `−Gᵀ` in the upper right block.
+        let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), &jac1, &r1, &r2, options.min_rcond) {
+            Ok(x) => x,
+            Err(linear::Singular::Block(rcond)) => {
+                return Err(Error::SingularJacobian { state, h, iterations: iterations + momentum_iterations, rcond });
+            }
+            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+        };
+        v += dv;
+        mu += dmu;
+        let norm = dv.amax();
+        if !norm.is_finite() {
+            return Err(Error::NonFinite {
+                state,
+                h,
+                iterations: iterations + momentum_iterations,
+                quantity: "momentum",
+            });
+        }
+        if norm <= options.rtol * v.amax() + options.atol {
+            momentum_converged = true;
+            break;
+        }
+    }
+    if !momentum_converged {
+        return Err(Error::NewtonDidNotConverge {
+            state,
+            h,
+            iterations: iterations + momentum_iterations,
+            residual_norm: f64::NAN,
+            correction_norm: f64::NAN,
+        });
+    }
+    let p1: [f64; N] = (SVector::from(end) + jac1t * mu).into();
+    if !q1.iter().chain(&p1).all(|x| x.is_finite()) || !t1.is_finite() {
+        return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
+    }
+
+    // Commit.
+    let (q_new, carry) = add_increment(it.summation, &q0, &it.carry, &dq);
+    it.state = State { step: state.step + 1, t: t1, q: q_new, p: p1 };
+    it.carry = carry;
+    it.p_carry = [0.0; N];
+    it.memory.earlier = it.memory.previous;
+    it.memory.previous = Some(seg);
+    it.memory.lambda = lambda.into();
+    it.memory.velocity = v.into();
+    it.stats.steps += 1;
+    it.stats.newton_iterations += (iterations + momentum_iterations) as u64;
+    Ok(())
+}
+
+impl<D: DiscreteLagrangian, const M: usize> F64Readouts for Constrained<D, M> {
+    fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
+        if it.memory.previous.is_some() { it.memory.velocity } else { it.v0 }
+    }
+
+    /// Not offered yet: the tangent map of a constrained step lives on the
+    /// constraint manifold's cotangent bundle.
+    fn tangent_map<S: Lagrangian<N>, const N: usize>(_: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
+        None
+    }
+
+    /// Forces are refused with constraints: no impulse.
+    fn forcing_impulse<S: Lagrangian<N>, const N: usize>(
+        it: &Integrator<S, Self, N>,
+        _: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64> {
+        it.memory.previous.map(|_| 0.0)
+    }
+
+    type Native<const N: usize> = Hermite<N>;
+
+    fn native<S: Lagrangian<N>, const N: usize>(
+        _: &Integrator<S, Self, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> Hermite<N> {
+        Hermite::cubic(start, end)
+    }
+}
+
+impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> Integrator<S, Constrained<D, M>, N> {
+    /// The constraint values `g(q_k)` at the current node.
+    pub fn constraint_values(&self) -> [f64; M] {
+        values::<S, N, M>(&self.system, self.state.t, &self.state.q)
+    }
+
+    /// The hidden constraint `G(q_k) v_k` at the current node, with `v_k`
+    /// the velocity of the momentum `p_k`.
+    pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
+        let v = self.velocity()?;
+        let (_, jac) = jacobian::<S, N, M>(&self.system, self.state.t, &self.state.q)
+            .ok_or(Error::NonFiniteConstraints { state: self.state })?;
+        Ok((jac * SVector::from(v)).into())
+    }
+
+    /// The multiplier `λ_k` of the last step (zero before the first): with
+    /// `G(q_k)ᵀλ_k` it is the constraint impulse on the step's start node.
+    pub fn multipliers(&self) -> [f64; M] {
+        self.memory.lambda
+    }
+}
