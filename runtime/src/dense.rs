@@ -209,9 +209,23 @@ impl<const N: usize, const S: usize> DenseStep<N> for GalerkinPolynomial<N, S> {
 /// ```
 ///
 /// One evaluation of `L` on a hyper-dual seeded on `v` (first infinitesimal)
-/// and on `(q, t, v)` (second), plus the force. `None` where `∂²L/∂v²` is
-/// singular or a value is not finite.
+/// and on `(q, t, v)` (second), plus the force; above 8 coordinates
+/// evaluations on blocks of eight seeds, whose numbers do not grow with `N`.
+/// `None` where `∂²L/∂v²` is singular or a value is not finite.
 pub fn acceleration<S: Lagrangian<N> + ?Sized, const N: usize>(
+    system: &S,
+    t: f64,
+    q: [f64; N],
+    v: [f64; N],
+) -> Option<[f64; N]> {
+    if const { N > BLOCKS_ABOVE } {
+        return acceleration_by_blocks(system, t, q, v);
+    }
+    acceleration_at_once(system, t, q, v)
+}
+
+/// [`acceleration`] from one evaluation.
+fn acceleration_at_once<S: Lagrangian<N> + ?Sized, const N: usize>(
     system: &S,
     t: f64,
     q: [f64; N],
@@ -237,6 +251,75 @@ pub fn acceleration<S: Lagrangian<N> + ?Sized, const N: usize>(
         l.eps2.a.q[i] + f[i] - coupling - l.mixed(i, N)
     });
     let a = mass.try_inverse()? * rhs;
+    a.iter().all(|x| x.is_finite()).then(|| core::array::from_fn(|i| a[i]))
+}
+
+/// Above this many coordinates [`acceleration`] evaluates `L` on blocks of
+/// [`LANES`] seeds: the one evaluation's numbers carry `N × (2N + 1)` mixed
+/// parts (16 kB at `N = 32`, 1 MiB at `N = 256`), far more than a thread's
+/// stack holds for the `2N` arguments of `L`.
+const BLOCKS_ABOVE: usize = 8;
+
+/// Seeds per side of the blocked evaluations.
+const LANES: usize = 8;
+
+/// [`acceleration`] by blocks: `∂²L/∂v²` from `⌈N/8⌉²` evaluations seeded
+/// on eight velocities on each side, the last of each row of blocks also
+/// seeded (second infinitesimal) along `(q̇, ṫ) = (v, 1)`, which gives
+/// `∂²L/∂v∂q v + ∂²L/∂v∂t` directly; `∂L/∂q` from `⌈N/8⌉` dual
+/// evaluations. The mass matrix and the solve are on the heap.
+fn acceleration_by_blocks<S: Lagrangian<N> + ?Sized, const N: usize>(
+    system: &S,
+    t: f64,
+    q: [f64; N],
+    v: [f64; N],
+) -> Option<[f64; N]> {
+    // ε2 lanes: eight velocities, then the direction (v, 1) in `(q, t)`.
+    type H = HyperDualArray<[f64; LANES], [f64; LANES + 1]>;
+    type D = crate::hyperdual::DualArray<[f64; LANES]>;
+    let mut mass = nalgebra::DMatrix::<f64>::zeros(N, N);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(N);
+    let f = generalized_force(system, t, q, v);
+    for i0 in (0..N).step_by(LANES) {
+        let rows = LANES.min(N - i0);
+        for j0 in (0..N).step_by(LANES) {
+            let columns = LANES.min(N - j0);
+            let last = j0 + LANES >= N;
+            let mut qd = q.map(H::from_re);
+            let mut vd = v.map(H::from_re);
+            let mut td = H::from_re(t);
+            for i in 0..rows {
+                vd[i0 + i].eps1[i] = 1.0;
+            }
+            for j in 0..columns {
+                vd[j0 + j].eps2[j] = 1.0;
+            }
+            if last {
+                for k in 0..N {
+                    qd[k].eps2[LANES] = v[k];
+                }
+                td.eps2[LANES] = 1.0;
+            }
+            let l = system.lagrangian(td, qd, vd);
+            for i in 0..rows {
+                for j in 0..columns {
+                    mass[(i0 + i, j0 + j)] = l.eps1eps2[i][j];
+                }
+                if last {
+                    rhs[i0 + i] -= l.eps1eps2[i][LANES];
+                }
+            }
+        }
+        let mut qd = q.map(D::from_re);
+        for i in 0..rows {
+            qd[i0 + i].eps[i] = 1.0;
+        }
+        let l = system.lagrangian(D::from_re(t), qd, v.map(D::from_re));
+        for i in 0..rows {
+            rhs[i0 + i] += l.eps[i] + f[i0 + i];
+        }
+    }
+    let a = mass.lu().solve(&rhs)?;
     a.iter().all(|x| x.is_finite()).then(|| core::array::from_fn(|i| a[i]))
 }
 
@@ -273,6 +356,42 @@ mod tests {
         for i in 0..2 {
             assert!((a[i] - expected[i]).abs() < 1e-14, "{a:?} against {expected:?}");
         }
+    }
+
+    /// A ring of 11 rotors with coupled, position-dependent masses, a
+    /// time-dependent drive and a force: two full blocks and a partial one.
+    struct Rotors;
+
+    impl Lagrangian<11> for Rotors {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 11] = [false; 11];
+        const HAS_FORCE: bool = true;
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 11], v: [D; 11]) -> D {
+            let mut l = D::zero();
+            for i in 0..11 {
+                let j = (i + 1) % 11;
+                l += v[i] * v[i] * (q[i].cos() * 0.2 + 1.0 + 0.1 * i as f64) * 0.5 + q[i].cos() * t.sin();
+                l += v[i] * v[j] * (q[i] - q[j]).cos() * 0.2 + v[i] * q[j] * 0.3;
+            }
+            l
+        }
+        fn force<D: Scalar>(&self, _t: D, q: [D; 11], v: [D; 11]) -> [D; 11] {
+            core::array::from_fn(|i| v[i] * -0.05 + q[i] * 0.01)
+        }
+    }
+
+    /// The blocked evaluation against the one evaluation.
+    #[test]
+    fn acceleration_by_blocks_agrees_with_the_one_evaluation() {
+        let q = core::array::from_fn(|i| 0.37 * i as f64 - 1.3);
+        let v = core::array::from_fn(|i| (0.7 * i as f64).sin());
+        let one = acceleration_at_once(&Rotors, 0.4, q, v).unwrap();
+        let blocks = acceleration_by_blocks(&Rotors, 0.4, q, v).unwrap();
+        let scale = one.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for i in 0..11 {
+            assert!((one[i] - blocks[i]).abs() <= 1e-13 * scale, "{i}: {} vs {}", one[i], blocks[i]);
+        }
+        assert_eq!(acceleration(&Rotors, 0.4, q, v), Some(blocks));
     }
 
     #[test]

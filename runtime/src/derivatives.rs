@@ -8,7 +8,9 @@
 //! on `q_{k+1}`), of a variable step one evaluation on
 //! `HyperDualArray<Timed<f64, N>, Timed<f64, N>>` (the times as an extra slot
 //! on each side); the end momentum (and energy) is one evaluation on a
-//! first-order [`DualArray`].
+//! first-order [`DualArray`]. Above `HYPER_BLOCKS_ABOVE` (hyper-duals) and
+//! `DUAL_BLOCKS_ABOVE` (duals) coordinates the seeds go in blocks of eight,
+//! one evaluation per block, so that no number's size grows with `N`.
 //!
 //! Why these types (see [`crate::hyperdual`]): until this module used them, it
 //! did `N²` evaluations on num-dual's scalar `HyperDual64`, one per pair of
@@ -297,6 +299,166 @@ where
     method.action(system, t0, h, q0, dq)
 }
 
+/// Lanes per evaluation of the blocked derivatives below.
+const LANES: usize = 8;
+
+/// Above this many coordinates a hyper-dual evaluation seeded on all of
+/// `q_k` and `q_{k+1}` (or the extended nodes) is split into blocks of
+/// [`LANES`] × [`LANES`] seeds: each of its numbers carries an `N × N` block
+/// (8.7 kB at `N = 32`), and a step holds hundreds of them, so that the one
+/// evaluation's frame grows like `N³` (it overflowed a 2 MiB thread at
+/// `N = 32`). A block holds `1 + 16 + 64` parts whatever `N`; each entry is
+/// computed by the same operations as in the one evaluation, bit for bit,
+/// at `⌈N/8⌉²` evaluations instead of one.
+pub(crate) const HYPER_BLOCKS_ABOVE: usize = 16;
+
+/// Above this many coordinates a dual evaluation seeded on all of a node is
+/// split into blocks of [`LANES`] seeds: its numbers carry `N` parts each
+/// (2 kB at `N = 256`), and a step holds a few `N` of them.
+pub(crate) const DUAL_BLOCKS_ABOVE: usize = 32;
+
+/// A hyper-dual of [`LANES`] seeds on each side.
+type BlockDual = HyperDualArray<[f64; LANES], [f64; LANES]>;
+
+/// `A` on a [`BlockDual`] with `ε1_i` seeded on `a(a0 + i)` for
+/// `a0 + i < na` and `ε2_j` on `b(b0 + j)` for `b0 + j < nb`; with
+/// `positions` the times enter as plain numbers (every seed a position).
+#[allow(clippy::too_many_arguments)]
+fn hyper_block<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    positions: bool,
+    a: &impl Fn(usize) -> Var,
+    (a0, na): (usize, usize),
+    b: &impl Fn(usize) -> Var,
+    (b0, nb): (usize, usize),
+) -> BlockDual
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    if positions {
+        let (mut q0, mut dq) = constant_positions::<BlockDual, N>(seg);
+        for i in 0..LANES.min(na - a0) {
+            seed_position(&mut q0, &mut dq, a(a0 + i), |y, s| y.eps1[i] += s);
+        }
+        for j in 0..LANES.min(nb - b0) {
+            seed_position(&mut q0, &mut dq, b(b0 + j), |y, s| y.eps2[j] += s);
+        }
+        return method.fixed_step_action(system, seg.t0, seg.h, q0, dq);
+    }
+    let mut x = constant(seg);
+    for i in 0..LANES.min(na - a0) {
+        seed(&mut x, a(a0 + i), |y: &mut BlockDual, s| y.eps1[i] += s);
+    }
+    for j in 0..LANES.min(nb - b0) {
+        seed(&mut x, b(b0 + j), |y: &mut BlockDual, s| y.eps2[j] += s);
+    }
+    let (t0, h, q0, dq) = x;
+    method.action(system, t0, h, q0, dq)
+}
+
+/// The value, both gradients and the mixed block of `A` with `ε1` on
+/// `a(0..na)` and `ε2` on `b(0..nb)`, by [`LANES`] × [`LANES`] blocks:
+/// `first(i, ∂A/∂a_i)`, `second(j, ∂A/∂b_j)`, `mixed(i, j, ∂²A/∂a_i∂b_j)`.
+#[allow(clippy::too_many_arguments)]
+fn hyper_blocks<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    positions: bool,
+    (a, na): (impl Fn(usize) -> Var, usize),
+    (b, nb): (impl Fn(usize) -> Var, usize),
+    mut first: impl FnMut(usize, f64),
+    mut second: impl FnMut(usize, f64),
+    mut mixed: impl FnMut(usize, usize, f64),
+) -> f64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut value = 0.0;
+    for a0 in (0..na).step_by(LANES) {
+        for b0 in (0..nb).step_by(LANES) {
+            let x = hyper_block(system, method, seg, positions, &a, (a0, na), &b, (b0, nb));
+            value = x.re;
+            for i in 0..LANES.min(na - a0) {
+                if b0 == 0 {
+                    first(a0 + i, x.eps1[i]);
+                }
+                for j in 0..LANES.min(nb - b0) {
+                    mixed(a0 + i, b0 + j, x.eps1eps2[i][j]);
+                }
+            }
+            if a0 == 0 {
+                for j in 0..LANES.min(nb - b0) {
+                    second(b0 + j, x.eps2[j]);
+                }
+            }
+        }
+    }
+    value
+}
+
+/// The value and gradient of `A` with `ε` on `a(0..n)`, by blocks of
+/// [`LANES`] seeds: `gradient(i, ∂A/∂a_i)`; with `positions` the times
+/// enter as plain numbers.
+fn dual_blocks<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    positions: bool,
+    (a, n): (impl Fn(usize) -> Var, usize),
+    mut gradient: impl FnMut(usize, f64),
+) -> f64
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    type D = DualArray<[f64; LANES]>;
+    let mut value = 0.0;
+    for a0 in (0..n).step_by(LANES) {
+        let lanes = LANES.min(n - a0);
+        let x: D = if positions {
+            let (mut q0, mut dq) = constant_positions::<D, N>(seg);
+            for i in 0..lanes {
+                seed_position(&mut q0, &mut dq, a(a0 + i), |y, s| y.eps[i] += s);
+            }
+            method.fixed_step_action(system, seg.t0, seg.h, q0, dq)
+        } else {
+            let mut x = constant(seg);
+            for i in 0..lanes {
+                seed(&mut x, a(a0 + i), |y: &mut D, s| y.eps[i] += s);
+            }
+            let (t0, h, q0, dq) = x;
+            method.action(system, t0, h, q0, dq)
+        };
+        value = x.re;
+        for i in 0..lanes {
+            gradient(a0 + i, x.eps[i]);
+        }
+    }
+    value
+}
+
+/// `[∂A/∂a_i]` over the `N` position variables `a(i)`, by blocks (see
+/// [`dual_blocks`]), and `A`.
+fn position_gradient_by_blocks<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+    a: impl Fn(usize) -> Var,
+) -> ([f64; N], f64)
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut g = [0.0; N];
+    let value = dual_blocks(system, method, seg, true, (a, N), |i, x| g[i] = x);
+    (g, value)
+}
+
 /// Slot `i` of the start node in the extended variables: `q_k[i]`, then `t_k` in slot `N`.
 fn start_var<const N: usize>(i: usize) -> Var {
     if i < N { Var::Q0(i) } else { Var::T0 }
@@ -354,6 +516,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > HYPER_BLOCKS_ABOVE } {
+        return step_derivatives_by_blocks(system, method, seg);
+    }
     let a = hyper_array_position_action(system, method, seg, Var::Q0, Var::Q1);
     StepDerivatives { action: a.re, d_q0: a.eps1, d_q1: a.eps2, d2_q0_q1: SMatrix::from_fn(|i, j| a.eps1eps2[i][j]) }
 }
@@ -389,6 +554,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > HYPER_BLOCKS_ABOVE } {
+        return extended_step_derivatives_by_blocks(system, method, seg);
+    }
     let a: ExtendedDual<N> = hyper_array_action(system, method, seg, start_var::<N>, end_var::<N>);
     let m = &a.eps1eps2;
     ExtendedStepDerivatives {
@@ -401,6 +569,67 @@ where
     }
 }
 
+/// [`step_derivatives`] by blocks of seeds (see [`HYPER_BLOCKS_ABOVE`]).
+fn step_derivatives_by_blocks<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> StepDerivatives<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let (mut d_q0, mut d_q1, mut d2_q0_q1) = ([0.0; N], [0.0; N], SMatrix::zeros());
+    let action = hyper_blocks(
+        system,
+        method,
+        seg,
+        true,
+        (Var::Q0, N),
+        (Var::Q1, N),
+        |i, x| d_q0[i] = x,
+        |j, x| d_q1[j] = x,
+        |i, j, x| d2_q0_q1[(i, j)] = x,
+    );
+    StepDerivatives { action, d_q0, d_q1, d2_q0_q1 }
+}
+
+/// [`extended_step_derivatives`] by blocks of seeds (see [`HYPER_BLOCKS_ABOVE`]).
+fn extended_step_derivatives_by_blocks<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> ExtendedStepDerivatives<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut d = ExtendedStepDerivatives {
+        d_q0: [0.0; N],
+        d_t0: 0.0,
+        d2_q0_q1: SMatrix::zeros(),
+        d2_q0_t1: nalgebra::SVector::zeros(),
+        d2_t0_q1: nalgebra::SVector::zeros(),
+        d2_t0_t1: 0.0,
+    };
+    let mut d_t0 = 0.0;
+    let mut d_q0 = [0.0; N];
+    hyper_blocks(
+        system,
+        method,
+        seg,
+        false,
+        (start_var::<N>, N + 1),
+        (end_var::<N>, N + 1),
+        |i, x| if i < N { d_q0[i] = x } else { d_t0 = x },
+        |_, _| {},
+        |i, j, x| match (i < N, j < N) {
+            (true, true) => d.d2_q0_q1[(i, j)] = x,
+            (true, false) => d.d2_q0_t1[i] = x,
+            (false, true) => d.d2_t0_q1[j] = x,
+            (false, false) => d.d2_t0_t1 = x,
+        },
+    );
+    (d.d_q0, d.d_t0) = (d_q0, d_t0);
+    d
+}
+
 /// `(∂A/∂q_{k+1}, ∂A/∂t_{k+1})`: the momentum and minus the energy at the
 /// end of a segment (one [`DualArray`] evaluation).
 #[inline]
@@ -409,6 +638,11 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > DUAL_BLOCKS_ABOVE } {
+        let (mut q, mut t) = ([0.0; N], 0.0);
+        dual_blocks(system, method, seg, false, (end_var::<N>, N + 1), |j, x| if j < N { q[j] = x } else { t = x });
+        return (q, t);
+    }
     let a: DualArray<Timed<f64, N>> = dual_array_action(system, method, seg, end_var::<N>);
     (a.eps.q, a.eps.t)
 }
@@ -422,6 +656,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > DUAL_BLOCKS_ABOVE } {
+        return position_gradient_by_blocks(system, method, seg, Var::Q0);
+    }
     let a = dual_array_position_action(system, method, seg, Var::Q0);
     (a.eps, a.re)
 }
@@ -433,6 +670,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > DUAL_BLOCKS_ABOVE } {
+        return position_gradient_by_blocks(system, method, seg, Var::Q1).0;
+    }
     dual_array_position_action(system, method, seg, Var::Q1).eps
 }
 
@@ -446,6 +686,9 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > DUAL_BLOCKS_ABOVE } {
+        return position_gradient_by_blocks(system, method, seg, Var::Translate).0;
+    }
     dual_array_position_action(system, method, seg, Var::Translate).eps
 }
 
@@ -467,6 +710,35 @@ where
     S: Lagrangian<N> + ?Sized,
     M: DiscreteLagrangian,
 {
+    if const { N > HYPER_BLOCKS_ABOVE } {
+        // Two gradients instead of a hyper-dual whose mixed block is unused.
+        let mut g = ActionGradient { action: 0.0, d_t0: 0.0, d_q0: [0.0; N], d_t1: 0.0, d_q1: [0.0; N] };
+        let (mut d_q0, mut d_t0) = ([0.0; N], 0.0);
+        dual_blocks(
+            system,
+            method,
+            seg,
+            false,
+            (start_var::<N>, N + 1),
+            |i, x| {
+                if i < N { d_q0[i] = x } else { d_t0 = x }
+            },
+        );
+        let (mut d_q1, mut d_t1) = ([0.0; N], 0.0);
+        g.action =
+            dual_blocks(
+                system,
+                method,
+                seg,
+                false,
+                (end_var::<N>, N + 1),
+                |j, x| {
+                    if j < N { d_q1[j] = x } else { d_t1 = x }
+                },
+            );
+        (g.d_q0, g.d_t0, g.d_q1, g.d_t1) = (d_q0, d_t0, d_q1, d_t1);
+        return g;
+    }
     let a: ExtendedDual<N> = hyper_array_action(system, method, seg, start_var::<N>, end_var::<N>);
     ActionGradient { action: a.re, d_t0: a.eps1.t, d_q0: a.eps1.q, d_t1: a.eps2.t, d_q1: a.eps2.q }
 }
@@ -509,6 +781,11 @@ where
     M: DiscreteLagrangian,
 {
     let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
+        if const { N > HYPER_BLOCKS_ABOVE } {
+            let mut m = SMatrix::<f64, N, N>::zeros();
+            hyper_blocks(system, method, seg, true, (a, N), (b, N), |_, _| {}, |_, _| {}, |i, j, x| m[(i, j)] = x);
+            return m;
+        }
         let x = hyper_array_position_action(system, method, seg, a, b);
         SMatrix::<f64, N, N>::from_fn(|i, j| x.eps1eps2[i][j])
     };
@@ -533,6 +810,25 @@ where
     // Row or column `r` of the blocks (time first) is slot `slot(r)` of the duals (time last).
     let slot = |r: usize| if r == 0 { N } else { r - 1 };
     let block = |a: fn(usize) -> Var, b: fn(usize) -> Var| {
+        if const { N > HYPER_BLOCKS_ABOVE } {
+            let mut m = DMatrix::zeros(N + 1, N + 1);
+            // Slot `s` of the duals is row or column `(s + 1) mod (N + 1)`.
+            let row = |s: usize| (s + 1) % (N + 1);
+            hyper_blocks(
+                system,
+                method,
+                seg,
+                false,
+                (a, N + 1),
+                (b, N + 1),
+                |_, _| {},
+                |_, _| {},
+                |i, j, x| {
+                    m[(row(i), row(j))] = x;
+                },
+            );
+            return m;
+        }
         let x: ExtendedDual<N> = hyper_array_action(system, method, seg, a, b);
         DMatrix::from_fn(N + 1, N + 1, |i, j| x.mixed(slot(i), slot(j)))
     };
@@ -626,5 +922,52 @@ mod tests {
         agree(&Midpoint);
         agree(&Trapezoid);
         agree(&AlphaBeta::new(0.3).unwrap());
+    }
+
+    /// A time-dependent chain of 11 coupled rotors: two full blocks of
+    /// seeds and a partial one (12 extended slots: one full, one partial).
+    struct Rotors;
+
+    impl Lagrangian<11> for Rotors {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 11] = [false; 11];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 11], v: [D; 11]) -> D {
+            let mut l = D::zero();
+            for i in 0..11 {
+                l += v[i] * v[i] * (0.5 + 0.1 * i as f64) + q[i].cos() * (t * 0.3).sin();
+                if i + 1 < 11 {
+                    l += v[i] * v[i + 1] * (q[i] - q[i + 1]).cos() * 0.2;
+                }
+            }
+            l
+        }
+    }
+
+    /// The blocked evaluations against the one evaluation of all seeds:
+    /// equal bit for bit.
+    fn blocks_agree<M: DiscreteLagrangian>(method: &M) {
+        let seg = Segment {
+            t0: 0.4,
+            h: 0.05,
+            q0: core::array::from_fn(|i| 0.3 * i as f64 - 1.1),
+            dq: core::array::from_fn(|i| 0.01 * (0.7 * i as f64).sin()),
+        };
+        let s = &Rotors;
+        assert_eq!(step_derivatives_by_blocks(s, method, &seg), step_derivatives(s, method, &seg));
+        assert_eq!(extended_step_derivatives_by_blocks(s, method, &seg), extended_step_derivatives(s, method, &seg));
+        let (start, value) = position_gradient_by_blocks(s, method, &seg, Var::Q0);
+        assert_eq!((start, value), start_gradient(s, method, &seg));
+        assert_eq!(position_gradient_by_blocks(s, method, &seg, Var::Q1).0, end_momentum(s, method, &seg));
+        assert_eq!(position_gradient_by_blocks(s, method, &seg, Var::Translate).0, momentum_change(s, method, &seg));
+        let (mut q, mut t) = ([0.0; 11], 0.0);
+        dual_blocks(s, method, &seg, false, (end_var::<11>, 12), |j, x| if j < 11 { q[j] = x } else { t = x });
+        assert_eq!((q, t), end_gradient(s, method, &seg));
+    }
+
+    #[test]
+    fn blocked_evaluations_equal_the_one_evaluation_bit_for_bit() {
+        blocks_agree(&Midpoint);
+        blocks_agree(&Trapezoid);
+        blocks_agree(&AlphaBeta::new(0.3).unwrap());
     }
 }

@@ -38,6 +38,7 @@ pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
 pub use sparse::Derivatives;
+pub(crate) use sparse::velocity as reverse_mode_velocity;
 pub(crate) use variable_step::root_band;
 pub use variable_step::{EnergyFallback, StepBounds};
 
@@ -724,12 +725,15 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Integrator<S, M, N> {
     /// diagnostic, not for the stepping loop.
     ///
     /// Also `None` for a system with forces: its step map is not symplectic,
-    /// and the tangent map would need the derivatives of the discrete forces.
-    pub fn last_tangent_map(&self) -> Option<TangentMap<N>> {
-        if S::HAS_FORCE || S::HAS_DISSIPATION {
+    /// and the tangent map would need the derivatives of the discrete forces;
+    /// and above [`Derivatives::FORWARD_MAX_N`] coordinates, where the steps
+    /// have no dense `2N × 2N` Jacobian. Boxed: its `4N²` entries inline
+    /// would not fit a thread's stack at large `N` (2 MiB at `N = 256`).
+    pub fn last_tangent_map(&self) -> Option<Box<TangentMap<N>>> {
+        if const { sparse::too_large_for_forward(N) } || S::HAS_FORCE || S::HAS_DISSIPATION {
             return None;
         }
-        M::tangent_map(self)
+        M::tangent_map(self).map(Box::new)
     }
 
     /// The discrete momentum map `J_k = p_k·ξ(q_k)` of a symmetry at the current node (docs/theory.md §7).

@@ -9,6 +9,7 @@
 
 mod bad_input;
 mod compensated;
+mod large_stack;
 mod lost_orbits;
 mod module_graph;
 mod newton_accuracy;

@@ -37,7 +37,7 @@
 //! is not conserved).
 
 use super::Galerkin;
-use super::linalg::BlockVector;
+use super::linalg::{BlockVector, Lu};
 use super::method::PointDerivatives;
 use super::stepper::{KeptBlock, Nodes, Work, linearize};
 use crate::error::Error;
@@ -96,12 +96,13 @@ where
         &self,
         h: T,
         d: BlockVector<N, S, T>,
+        storage: &mut Lu<N, S, T>,
     ) -> Result<(BlockVector<N, S, T>, T, T, BlockVector<N, S, T>, f64, usize), NewtonFailure> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let (e, pc) = (self.carry, self.p_carry);
         let (system, g) = (&self.system, &self.method);
         let min_rcond = self.newton.min_rcond;
-        let mut work = Work::new(None);
+        let mut work = Work::new(None, core::mem::replace(storage, Lu::empty()));
         let mut factored = false;
         let fixed = |x: &Nodes<N, S, T>, _| {
             // Full Newton, the condition estimated at every iteration.
@@ -110,11 +111,13 @@ where
             factored = true;
             Ok(lin)
         };
-        let (x, report) = newton::solve(Nodes(d), &self.newton, fixed)?;
+        let solved = newton::solve(Nodes(d), &self.newton, fixed);
+        *storage = work.lu;
+        let (x, report) = solved?;
         if !factored {
             return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "jacobian" });
         }
-        let lu = work.lu;
+        let lu = &*storage;
         let d = x.0;
         let zero = T::zero();
         let mut border: BlockVector<N, S, T> = [[zero; N]; S];
@@ -174,18 +177,24 @@ where
 
     /// One energy-preserving step after the first (see the module documentation).
     pub(crate) fn energy_step_nodes(&mut self, bounds: StepBounds) -> Result<(), Error<N, T>> {
-        let Some(last) = self.memory.map(|l| l.h) else {
+        let Some(last) = self.memory.as_ref().map(|l| l.h) else {
             return self.first_node_energy_step();
         };
+        // The memory's spare block storage, for every probe of this step.
+        let mut storage =
+            self.memory.as_mut().map_or_else(Lu::empty, |l| core::mem::replace(&mut l.spare, Lu::empty()));
         let (lo, hi) = bounds.bracket(last.to_f64());
         let mut h = T::from(self.h.to_f64().clamp(lo, hi));
         let mut d = self.predict_nodes(h);
         let mut spent = 0;
         let mut solved: Option<T> = None;
         for _ in 0..self.newton.max_iterations {
-            let (nodes, gh, slope, w, scale, iterations) = match self.energy_probe(h, d) {
+            let (nodes, gh, slope, w, scale, iterations) = match self.energy_probe(h, d, &mut storage) {
                 Ok(probe) => probe,
-                Err(failure) => return Err(self.fail(h, super::stepper::with_iterations(failure, spent))),
+                Err(failure) => {
+                    self.keep_storage(KeptBlock::Drop, storage);
+                    return Err(self.fail(h, super::stepper::with_iterations(failure, spent)));
+                }
             };
             spent += iterations;
             d = nodes;
@@ -226,9 +235,9 @@ where
             // Newton on h found no root near the guess: search the whole
             // bracket (a sign change, then bisection), and where there is none
             // apply the configured fallback.
-            let mut found = self.node_search_bracket(lo, hi, &mut spent);
+            let mut found = self.node_search_bracket(lo, hi, &mut spent, &mut storage);
             if found.is_none() && self.fallback == EnergyFallback::LeastSquares {
-                found = self.node_least_squares(lo, hi, &mut spent);
+                found = self.node_least_squares(lo, hi, &mut spent, &mut storage);
                 fallback = found.is_some();
             }
             if let Some(probe) = found {
@@ -245,6 +254,7 @@ where
         };
         if solved.is_none() || !(lo..=hi).contains(&h.to_f64()) {
             self.stats.failed_steps += 1;
+            self.keep_storage(KeptBlock::Drop, storage);
             return Err(Error::NoEnergyStep {
                 state: self.state,
                 h_lo: lo,
@@ -260,7 +270,7 @@ where
         let t1 = t0 + y;
         let time_error = (t1 - t0) - y;
         let report = NewtonReport { iterations: spent, residual_norm: mismatch, correction_norm: 0.0 };
-        self.commit(h, t1, d, report, KeptBlock::Drop)?;
+        self.commit(h, t1, d, report, KeptBlock::Drop, storage)?;
         self.time_error = time_error;
         self.h = h;
         if fallback {
@@ -275,9 +285,9 @@ where
 
     /// `g` at step size `h`, its node equations solved from the predicted
     /// nodes, or `None` where they cannot be; the iterations go to `spent`.
-    fn node_probe(&self, h: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_probe(&self, h: f64, spent: &mut usize, storage: &mut Lu<N, S, T>) -> Option<Probe<N, S, T>> {
         let h = T::from(h);
-        let (nodes, g, _, _, _, iterations) = self.energy_probe(h, self.predict_nodes(h)).ok()?;
+        let (nodes, g, _, _, _, iterations) = self.energy_probe(h, self.predict_nodes(h), storage).ok()?;
         *spent += iterations;
         Some(Probe { h, nodes, g })
     }
@@ -299,14 +309,16 @@ where
     /// the energy (then the coefficients cannot be read off). A diagnostic,
     /// computed on the error path only.
     fn node_root_test(&self, bounds: StepBounds) -> Option<(f64, f64, f64)> {
-        let eta = self.memory?.h.to_f64();
+        let eta = self.memory.as_ref()?.h.to_f64();
         let m = i32::try_from(self.method.order()).ok()?;
         if m < 2 || m % 2 != 0 {
             return None;
         }
         let mut spent = 0;
-        let g1 = self.node_probe(eta, &mut spent)?.g.to_f64();
-        let g2 = self.node_probe(0.5 * eta, &mut spent)?.g.to_f64();
+        // A diagnostic of the error path: storage of its own.
+        let mut storage = Lu::empty();
+        let g1 = self.node_probe(eta, &mut spent, &mut storage)?.g.to_f64();
+        let g2 = self.node_probe(0.5 * eta, &mut spent, &mut storage)?.g.to_f64();
         let noise = 100.0 * f64::EPSILON * self.energy.to_f64().abs();
         if g1.abs() <= noise || g2.abs() <= noise {
             return None;
@@ -321,11 +333,17 @@ where
     /// Samples `g(h)` at nine points of `[lo, hi]` for a sign change and
     /// bisects it to round-off, or `None` without a sign change. Probes
     /// whose node equations fail are skipped.
-    fn node_search_bracket(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_search_bracket(
+        &self,
+        lo: f64,
+        hi: f64,
+        spent: &mut usize,
+        storage: &mut Lu<N, S, T>,
+    ) -> Option<Probe<N, S, T>> {
         let negative = |p: &Probe<N, S, T>| p.g < T::zero();
         let mut previous: Option<Probe<N, S, T>> = None;
         for k in 0..=8 {
-            let Some(here) = self.node_probe(lo + (hi - lo) * k as f64 / 8.0, spent) else { continue };
+            let Some(here) = self.node_probe(lo + (hi - lo) * k as f64 / 8.0, spent, storage) else { continue };
             if let Some(before) = previous
                 && negative(&before) != negative(&here)
             {
@@ -335,7 +353,7 @@ where
                     if mid <= a.h.to_f64() || mid >= b.h.to_f64() {
                         break;
                     }
-                    let Some(m) = self.node_probe(mid, spent) else { break };
+                    let Some(m) = self.node_probe(mid, spent, storage) else { break };
                     if negative(&m) == negative(&a) {
                         a = m;
                     } else {
@@ -352,12 +370,18 @@ where
     /// The admissible step of least energy mismatch, by golden section on
     /// `[lo, hi]` (Kane, Marsden & Ortiz's least-squares step); `None` where
     /// no probe could be solved.
-    fn node_least_squares(&self, lo: f64, hi: f64, spent: &mut usize) -> Option<Probe<N, S, T>> {
+    fn node_least_squares(
+        &self,
+        lo: f64,
+        hi: f64,
+        spent: &mut usize,
+        storage: &mut Lu<N, S, T>,
+    ) -> Option<Probe<N, S, T>> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
         let size = |p: &Option<Probe<N, S, T>>| p.as_ref().map_or(f64::INFINITY, |p| p.g.to_f64().abs());
         let (mut a, mut b) = (lo, hi);
         let (mut c, mut d) = (b - INV_PHI * (b - a), a + INV_PHI * (b - a));
-        let (mut pc, mut pd) = (self.node_probe(c, spent), self.node_probe(d, spent));
+        let (mut pc, mut pd) = (self.node_probe(c, spent, storage), self.node_probe(d, spent, storage));
         let mut best = if size(&pc) <= size(&pd) { pc } else { pd };
         for _ in 0..40 {
             if b - a <= 1e-9 * b {
@@ -366,11 +390,11 @@ where
             if size(&pc) < size(&pd) {
                 (b, d, pd) = (d, c, pc);
                 c = b - INV_PHI * (b - a);
-                pc = self.node_probe(c, spent);
+                pc = self.node_probe(c, spent, storage);
             } else {
                 (a, c, pc) = (c, d, pd);
                 d = a + INV_PHI * (b - a);
-                pd = self.node_probe(d, spent);
+                pd = self.node_probe(d, spent, storage);
             }
             for p in [&pc, &pd] {
                 if size(p) < size(&best) {

@@ -1,10 +1,15 @@
 //! Dense LU with partial pivoting on the `sN × sN` Newton block of a
-//! Galerkin step, with static sizes and no allocation.
+//! Galerkin step, with static sizes.
 //!
 //! Stable Rust has no `[f64; S * N]`, so the block system is held as arrays
 //! of arrays: a vector is `[[f64; N]; S]` (node, then coordinate) and a
-//! matrix `[[[[f64; N]; S]; N]; S]` (row node, row coordinate, column node,
-//! column coordinate). A row `[[f64; N]; S]` and the list of rows are
+//! matrix the `sN` rows `[[f64; N]; S]` (row node, row coordinate; then
+//! column node, column coordinate). The matrix lives on the heap: its
+//! `(sN)²` entries would make a step's frame, and every value holding a
+//! factored block, too large for a thread's stack at large `sN` (2 MiB at
+//! `s = 2`, `N = 256`). Its storage is allocated once, row by row (no
+//! `(sN)²` temporary on the stack), and the integrator reuses it from step
+//! to step, so stepping does not allocate. A row and the list of rows are
 //! flattened to slices of length `sN` by `as_flattened`, on which the
 //! textbook elimination runs (Golub & Van Loan, Alg. 3.4.1). The reciprocal
 //! condition number in the 1-norm is estimated from the factors by Hager's
@@ -15,12 +20,75 @@ use crate::real::{Real, all_finite};
 /// A vector of the block system: `S` blocks of `N`.
 pub(crate) type BlockVector<const N: usize, const S: usize, T = f64> = [[T; N]; S];
 
-/// A matrix of the block system: `S × S` blocks of `N × N`, row-major by
-/// `(row node, row coordinate)`.
-pub(crate) type BlockMatrix<const N: usize, const S: usize, T = f64> = [[[[T; N]; S]; N]; S];
+/// A matrix of the block system: `S × S` blocks of `N × N`, its `sN` rows
+/// ordered by `(row node, row coordinate)` on the heap. `a[m][i][n][k]` is
+/// the entry of row `(m, i)` and column `(n, k)`. Empty (no allocation)
+/// until first written through [`Lu::matrix_mut`].
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct BlockMatrix<const N: usize, const S: usize, T = f64> {
+    rows: Box<[[[T; N]; S]]>,
+}
+
+impl<const N: usize, const S: usize, T: Real> BlockMatrix<N, S, T> {
+    /// No storage yet.
+    fn empty() -> Self {
+        Self { rows: Box::default() }
+    }
+
+    /// `sN` rows of zeros, allocated without an `(sN)²` stack temporary.
+    fn zeroed() -> Self {
+        Self { rows: vec![[[T::zero(); N]; S]; S * N].into_boxed_slice() }
+    }
+
+    /// Allocated (with arbitrary entries) when empty.
+    fn ensure_allocated(&mut self) {
+        if self.rows.is_empty() {
+            *self = Self::zeroed();
+        }
+    }
+
+    /// Every entry zero, in the storage it has.
+    pub(crate) fn fill_zero(&mut self) {
+        self.ensure_allocated();
+        self.rows.fill([[T::zero(); N]; S]);
+    }
+
+    /// The `sN` rows.
+    fn rows(&self) -> &[[[T; N]; S]] {
+        &self.rows
+    }
+
+    /// The `sN` rows.
+    fn rows_mut(&mut self) -> &mut [[[T; N]; S]] {
+        &mut self.rows
+    }
+
+    /// A matrix from its blocks.
+    #[cfg(test)]
+    pub(crate) fn from_blocks(a: [[[[T; N]; S]; N]; S]) -> Self {
+        Self { rows: a.as_flattened().to_vec().into_boxed_slice() }
+    }
+}
+
+impl<const N: usize, const S: usize, T> core::ops::Index<usize> for BlockMatrix<N, S, T> {
+    type Output = [[[T; N]; S]; N];
+
+    /// The `N` rows of row node `m`.
+    #[inline]
+    fn index(&self, m: usize) -> &Self::Output {
+        &self.rows.as_chunks::<N>().0[m]
+    }
+}
+
+impl<const N: usize, const S: usize, T> core::ops::IndexMut<usize> for BlockMatrix<N, S, T> {
+    #[inline]
+    fn index_mut(&mut self, m: usize) -> &mut Self::Output {
+        &mut self.rows.as_chunks_mut::<N>().0[m]
+    }
+}
 
 /// The factors `PA = LU` (unit lower `L` below the diagonal, `U` on and above).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
     lu: BlockMatrix<N, S, T>,
     perm: [[usize; N]; S],
@@ -43,23 +111,34 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     /// Factors `a`.
     #[cfg(test)]
     pub(crate) fn factor(a: &BlockMatrix<N, S, T>) -> Result<Self, LuFailure> {
-        let mut out = Self::zeroed();
-        *out.matrix_mut() = *a;
+        let mut out = Self::empty();
+        *out.matrix_mut() = a.clone();
         out.factor_in_place()?;
         Ok(out)
     }
 
-    /// Storage for a matrix to be factored in place, all zero.
+    /// No storage yet: allocated by the first [`matrix_mut`](Self::matrix_mut).
     #[inline]
-    pub(crate) fn zeroed() -> Self {
-        let zero = T::zero();
-        Self { lu: [[[[zero; N]; S]; N]; S], perm: [[0; N]; S], norm1: zero, inverted: false }
+    pub(crate) fn empty() -> Self {
+        Self { lu: BlockMatrix::empty(), perm: [[0; N]; S], norm1: T::zero(), inverted: false }
+    }
+
+    /// Whether the storage is allocated.
+    pub(crate) fn is_allocated(&self) -> bool {
+        !self.lu.rows.is_empty()
+    }
+
+    /// Storage for a matrix to be factored in place, allocated.
+    pub(crate) fn allocated() -> Self {
+        Self { lu: BlockMatrix::zeroed(), ..Self::empty() }
     }
 
     /// The matrix [`factor_in_place`](Self::factor_in_place) factors: the
-    /// Newton block is assembled here, so that it is never copied.
+    /// Newton block is assembled here, so that it is never copied. Its
+    /// entries are those left by the last use of the storage.
     #[inline]
     pub(crate) fn matrix_mut(&mut self) -> &mut BlockMatrix<N, S, T> {
+        self.lu.ensure_allocated();
         &mut self.lu
     }
 
@@ -76,7 +155,8 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
         for (i, p) in perm.iter_mut().enumerate() {
             *p = i;
         }
-        let rows = out.lu.as_flattened_mut();
+        out.lu.ensure_allocated();
+        let rows = out.lu.rows_mut();
         let mut col_sums = [[zero; N]; S];
         for row in rows.iter() {
             for (s, x) in col_sums.as_flattened_mut().iter_mut().zip(row.as_flattened()) {
@@ -128,7 +208,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
             // x are independent sums, which vectorise.
             let mut x = [[T::zero(); N]; S];
             let xf = x.as_flattened_mut();
-            for (column, &y) in self.lu.as_flattened().iter().zip(b.as_flattened()) {
+            for (column, &y) in self.lu.rows().iter().zip(b.as_flattened()) {
                 for (xi, &a) in xf.iter_mut().zip(column.as_flattened()) {
                     *xi += a * y;
                 }
@@ -143,20 +223,22 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     /// worth it for a block the simplified Newton iteration keeps for many
     /// solves (at `sN = 12` a substitution costs about three times the
     /// product, whose rows are independent). The condition estimate needs
-    /// the factors: take it before.
-    pub(crate) fn invert_in_place(&mut self) {
+    /// the factors: take it before. `scratch` is storage for the inverse;
+    /// it receives the storage of the factors.
+    pub(crate) fn invert_in_place(&mut self, scratch: &mut Self) {
         if self.inverted {
             return;
         }
         let n = S * N;
-        let mut inverse = [[[[T::zero(); N]; S]; N]; S];
+        let inverse = &mut scratch.lu;
+        inverse.ensure_allocated();
         for k in 0..n {
             let mut e = [[T::zero(); N]; S];
             e.as_flattened_mut()[k] = T::one();
             // Stored transposed: row k of the storage is column k of A⁻¹.
-            inverse.as_flattened_mut()[k] = self.substitute(&e);
+            inverse.rows_mut()[k] = self.substitute(&e);
         }
-        self.lu = inverse;
+        core::mem::swap(&mut self.lu, inverse);
         self.inverted = true;
     }
 
@@ -165,7 +247,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     fn substitute(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
         debug_assert!(!self.inverted);
         let n = S * N;
-        let rows = self.lu.as_flattened();
+        let rows = self.lu.rows();
         let perm = self.perm.as_flattened();
         let bf = b.as_flattened();
         let mut x = [[T::zero(); N]; S];
@@ -193,7 +275,7 @@ impl<const N: usize, const S: usize, T: Real> Lu<N, S, T> {
     fn solve_transposed(&self, b: &BlockVector<N, S, T>) -> BlockVector<N, S, T> {
         debug_assert!(!self.inverted);
         let n = S * N;
-        let rows = self.lu.as_flattened();
+        let rows = self.lu.rows();
         let perm = self.perm.as_flattened();
         let mut w = *b;
         let wf = w.as_flattened_mut();
@@ -256,16 +338,16 @@ mod tests {
     use nalgebra::DMatrix;
 
     fn dense<const N: usize, const S: usize>(a: &BlockMatrix<N, S>) -> DMatrix<f64> {
-        let rows = a.as_flattened();
+        let rows = a.rows();
         DMatrix::from_fn(S * N, S * N, |i, j| rows[i].as_flattened()[j])
     }
 
     #[test]
     fn solves_and_estimates_the_condition_like_a_dense_inverse() {
         // A non-symmetric 3 × 3 blocks of 2 × 2, needing pivoting (zero leading entry).
-        let mut a: BlockMatrix<2, 3> = [[[[0.0; 2]; 3]; 2]; 3];
+        let mut a: BlockMatrix<2, 3> = BlockMatrix::zeroed();
         let mut seed = 0.3f64;
-        for rows in a.as_flattened_mut() {
+        for rows in a.rows_mut() {
             for x in rows.as_flattened_mut() {
                 seed = (seed * 7.31 + 0.17).fract();
                 *x = seed - 0.5;
@@ -294,9 +376,9 @@ mod tests {
 
     #[test]
     fn reports_singular_and_non_finite_matrices() {
-        let a: BlockMatrix<1, 2> = [[[[1.0], [2.0]]], [[[2.0], [4.0]]]];
+        let a: BlockMatrix<1, 2> = BlockMatrix::from_blocks([[[[1.0], [2.0]]], [[[2.0], [4.0]]]]);
         assert!(matches!(Lu::factor(&a), Err(LuFailure::Singular)) || Lu::factor(&a).unwrap().rcond() < 1e-15);
-        let b: BlockMatrix<1, 2> = [[[[f64::NAN], [2.0]]], [[[2.0], [4.0]]]];
+        let b: BlockMatrix<1, 2> = BlockMatrix::from_blocks([[[[f64::NAN], [2.0]]], [[[2.0], [4.0]]]]);
         assert_eq!(Lu::factor(&b).unwrap_err(), LuFailure::NonFinite);
     }
 }

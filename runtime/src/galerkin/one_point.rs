@@ -12,6 +12,7 @@
 //! ([`DiscreteLagrangian::galerkin_points`]). The `f64` path of these rules
 //! (`integrator/one_point.rs`) stays the direct one.
 
+use super::stepper::{beyond_forward, refused};
 use super::{Galerkin, GalerkinMemory, NodeFamily, Quadrature};
 use crate::DoubleDouble;
 use crate::discrete::DiscreteLagrangian;
@@ -51,6 +52,9 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         q0: [DoubleDouble; N],
         v0: [DoubleDouble; N],
     ) -> Result<([DoubleDouble; N], DoubleDouble), Error<N, DoubleDouble>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         super::legendre(system, t0, q0, v0)
     }
 
@@ -59,6 +63,9 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         h: DoubleDouble,
         t1: DoubleDouble,
     ) -> Result<(), Error<N, DoubleDouble>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         as_galerkin_run(it, |g| g.step_nodes(h, t1))
     }
 
@@ -66,10 +73,16 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         it: &mut Integrator<S, Self, N, DoubleDouble>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, DoubleDouble>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         as_galerkin_run(it, |g| g.energy_step_nodes(bounds))
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, DoubleDouble>) {
+        if const { beyond_forward(N) } {
+            return;
+        }
         let _ = as_galerkin_run(it, |g| {
             g.reread_node_energy();
             Ok(())
@@ -77,7 +90,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
     }
 
     fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<DoubleDouble> {
-        memory.1.map(|last| last.h)
+        memory.1.as_ref().map(|last| last.h)
     }
 
     fn discrete_energy<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, DoubleDouble>) -> DoubleDouble {
@@ -111,7 +124,8 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
         energy_carry: it.energy_carry,
         time_error: it.time_error,
         watched_energy: it.watched_energy,
-        memory: it.memory.1,
+        // Moved, not copied: it holds the Newton block's storage on the heap.
+        memory: it.memory.1.take(),
         v0: it.v0,
         clock: it.clock,
         stats: it.stats,

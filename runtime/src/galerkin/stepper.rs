@@ -56,18 +56,25 @@ pub type GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> = Integra
 
 /// The last step taken: where it started and its node increments.
 #[doc(hidden)]
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct LastStep<const N: usize, const S: usize, T> {
     pub(crate) t0: T,
     pub(crate) h: T,
     pub(crate) q0: [T; N],
     pub(crate) carry: [T; N],
     pub(crate) d: [[T; N]; S],
-    /// The factored Newton block a simplified Newton iteration of this step
-    /// converged with, and the step size it was assembled for: the next step
-    /// of the same size starts from it instead of assembling and factoring
-    /// its own (see `step_nodes`).
-    pub(crate) jacobian: Option<(T, Lu<N, S, T>)>,
+    /// The step size `block` was assembled for, when it holds the factored
+    /// Newton block a simplified Newton iteration of this step converged
+    /// with: the next step of the same size starts from it instead of
+    /// assembling and factoring its own (see `step_nodes`). `None`: `block`
+    /// holds nothing to keep.
+    pub(crate) jacobian: Option<T>,
+    /// The kept block (see `jacobian`); its matrix is on the heap.
+    pub(crate) block: Lu<N, S, T>,
+    /// Storage for the next step's own block (and for the inverse of the
+    /// kept one): allocated at the first step and passed between `block` and
+    /// the steps, so that later steps do not allocate.
+    pub(crate) spare: Lu<N, S, T>,
     /// When to offer the kept block again after it contracted too slowly.
     pub(crate) kept_policy: KeptPolicy,
 }
@@ -195,7 +202,7 @@ where
     /// The node values `Q_1 … Q_s` of the last step's polynomial (`Q_s = q_k`),
     /// or `None` before the first step.
     pub fn last_nodes(&self) -> Option<[[T; N]; S]> {
-        let last = self.memory?;
+        let last = self.memory.as_ref()?;
         Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
     }
 
@@ -275,24 +282,28 @@ where
         // assembles and factors its own where that one contracts slowly: most
         // steps then cost no Hessian, no assembly and no LU at all.
         let policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.kept_policy);
-        let has_kept = Self::KEEPS_JACOBIAN
-            && matches!(&self.memory, Some(LastStep { jacobian: Some((h_lu, _)), .. }) if *h_lu == h);
+        let has_kept =
+            Self::KEEPS_JACOBIAN && matches!(&self.memory, Some(LastStep { jacobian: Some(h_lu), .. }) if *h_lu == h);
         let offered = has_kept && policy.offers();
-        if offered && let Some(LastStep { jacobian: Some((_, lu)), .. }) = &mut self.memory {
+        // The step's own block goes into the memory's spare storage (none
+        // before the first step: allocated when first assembled).
+        let mut storage =
+            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
+        if offered && let Some(LastStep { jacobian: Some(_), block, .. }) = &mut self.memory {
             // Kept for a second step: from here on it serves several solves
             // per step, each cheaper as a product with the inverse. (Inverting
             // changes no result a failed step could leave behind: a run
             // without that step inverts the same factors at the same point.)
-            lu.invert_in_place();
+            block.invert_in_place(&mut storage);
         }
         let cached = match &self.memory {
-            Some(LastStep { jacobian: Some((_, lu)), .. }) if offered => Some(lu),
+            Some(LastStep { jacobian: Some(_), block, .. }) if offered => Some(block),
             _ => None,
         };
         let cached_lu = cached.is_some();
         // One factorisation in place for all attempts of the step, the kept
         // one borrowed: the block (1.2 kB at sN = 12) is never copied.
-        let mut work = Work::new(cached);
+        let mut work = Work::new(cached, storage);
         let linearize = |x: &Nodes<N, S, T>, work: &mut Work<'_, N, S, T>| {
             // Whether this iteration assembles a new Jacobian.
             let fresh = !(work.simplified && work.valid);
@@ -348,12 +359,6 @@ where
             };
             solved = attempt(guess, simplify, false, &mut work);
         }
-        // The block the converged simplified iteration used, for the next step.
-        let jacobian = match (Self::KEEPS_JACOBIAN && work.simplified && work.valid, work.uses_kept) {
-            (true, true) => KeptBlock::Same,
-            (true, false) => KeptBlock::New(h, work.lu),
-            (false, _) => KeptBlock::Drop,
-        };
         // Every attempt counts in the iterations reported. A failure with a
         // factored block too ill-conditioned for `min_rcond` is reported as
         // the singular Jacobian it is.
@@ -364,9 +369,19 @@ where
             }
             Err(failure) => Err(with_iterations(ill_conditioned(failure, &work, self.newton.min_rcond), spent)),
         };
+        // The block the converged simplified iteration used, for the next
+        // step, and the storage that goes back to the memory.
+        let (jacobian, storage) = match (Self::KEEPS_JACOBIAN && work.simplified && work.valid, work.uses_kept) {
+            (true, true) => (KeptBlock::Same, work.lu),
+            (true, false) => (KeptBlock::New(h, work.lu), Lu::empty()),
+            (false, _) => (KeptBlock::Drop, work.lu),
+        };
         let (d, report) = match solved {
             Ok((x, report)) => (x.0, report),
-            Err(failure) => return Err(self.fail(h, failure)),
+            Err(failure) => {
+                self.keep_storage(jacobian, storage);
+                return Err(self.fail(h, failure));
+            }
         };
         if let Some(last) = &self.memory {
             let f = |x: &[T; N]| x.map(|v| v.to_f64());
@@ -374,11 +389,12 @@ where
             let reached = f(&last.d[S - 1]).map(|x| x * rho);
             if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&q0)) {
                 let reason = IMPLAUSIBLE_GROWTH;
+                self.keep_storage(jacobian, storage);
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
             }
         }
         let kept = matches!(jacobian, KeptBlock::Same);
-        self.commit(h, t1, d, report, jacobian)?;
+        self.commit(h, t1, d, report, jacobian, storage)?;
         if let Some(last) = &mut self.memory {
             last.kept_policy = policy.after(offered, has_kept && !offered, kept);
         }
@@ -387,7 +403,9 @@ where
 
     /// Applies a step of size `h` (end time `t1`) whose block system is
     /// solved by the increments `d`: the momentum update, the Kahan sums and
-    /// the checks of every published value. On failure nothing changes.
+    /// the checks of every published value; `jacobian` the block to keep and
+    /// `storage` the step's other block storage, both for the memory. On
+    /// failure nothing changes but the storage going back to the memory.
     #[inline]
     pub(super) fn commit(
         &mut self,
@@ -396,6 +414,7 @@ where
         d: BlockVector<N, S, T>,
         report: NewtonReport,
         jacobian: KeptBlock<N, S, T>,
+        storage: Lu<N, S, T>,
     ) -> Result<(), Error<N, T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
@@ -449,19 +468,46 @@ where
         let quantity = if lagrangian_finite { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
+            self.keep_storage(jacobian, storage);
             return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
         }
-        match (&mut self.memory, jacobian) {
-            // The kept block stays where it is.
-            (Some(last), KeptBlock::Same) => {
+        match &mut self.memory {
+            Some(last) => {
                 (last.t0, last.h, last.q0, last.carry, last.d) = (t0, h, q0, e, d);
+                match jacobian {
+                    // The kept block stays where it is.
+                    KeptBlock::Same => last.spare = storage,
+                    // The old kept block's storage becomes the spare.
+                    KeptBlock::New(h_lu, lu) => {
+                        last.spare = core::mem::replace(&mut last.block, lu);
+                        last.jacobian = Some(h_lu);
+                        last.kept_policy = KeptPolicy::default();
+                    }
+                    KeptBlock::Drop => {
+                        last.spare = storage;
+                        last.jacobian = None;
+                        last.kept_policy = KeptPolicy::default();
+                    }
+                }
             }
-            (memory, jacobian) => {
-                let jacobian = match jacobian {
-                    KeptBlock::New(h, lu) => Some((h, lu)),
-                    _ => None,
+            memory @ None => {
+                // The first step allocates both blocks the later ones reuse.
+                let (jacobian, block, spare) = match jacobian {
+                    KeptBlock::New(h_lu, lu) => (Some(h_lu), lu, Lu::allocated()),
+                    _ => (None, Lu::allocated(), storage),
                 };
-                *memory = Some(LastStep { t0, h, q0, carry: e, d, jacobian, kept_policy: KeptPolicy::default() });
+                let spare = if spare.is_allocated() { spare } else { Lu::allocated() };
+                *memory = Some(LastStep {
+                    t0,
+                    h,
+                    q0,
+                    carry: e,
+                    d,
+                    jacobian,
+                    block,
+                    spare,
+                    kept_policy: KeptPolicy::default(),
+                });
             }
         }
         self.carry = carry;
@@ -476,7 +522,23 @@ where
     /// `(t0, h, q0, carry, d)` of the last step.
     #[allow(clippy::type_complexity)]
     pub(super) fn last_step_parts(&self) -> Option<(T, T, [T; N], [T; N], BlockVector<N, S, T>)> {
-        self.memory.map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
+        self.memory.as_ref().map(|l| (l.t0, l.h, l.q0, l.carry, l.d))
+    }
+
+    /// Gives the block storage of a step that failed back to the memory (as
+    /// its spare: what the step factored is not kept), so that the next
+    /// step does not allocate. Before the first step there is no memory to
+    /// keep it.
+    pub(super) fn keep_storage(&mut self, jacobian: KeptBlock<N, S, T>, storage: Lu<N, S, T>) {
+        let storage = match jacobian {
+            KeptBlock::New(_, lu) => lu,
+            _ => storage,
+        };
+        if let Some(last) = &mut self.memory
+            && storage.is_allocated()
+        {
+            last.spare = storage;
+        }
     }
 }
 
@@ -507,6 +569,9 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         q0: [T; N],
         v0: [T; N],
     ) -> Result<([T; N], T), Error<N, T>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         legendre(system, t0, q0, v0)
     }
 
@@ -516,6 +581,9 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         h: T,
         t1: T,
     ) -> Result<(), Error<N, T>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         it.step_nodes(h, t1)
     }
 
@@ -523,19 +591,45 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         it: &mut Integrator<Sys, Self, N, T>,
         bounds: StepBounds,
     ) -> Result<(), Error<N, T>> {
+        if const { beyond_forward(N) } {
+            return Err(refused());
+        }
         it.energy_step_nodes(bounds)
     }
 
     fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N, T>) {
+        if const { beyond_forward(N) } {
+            return;
+        }
         it.reread_node_energy();
     }
 
     fn last_step_size<const N: usize>(memory: &Self::Memory<N>) -> Option<T> {
-        memory.map(|last| last.h)
+        memory.as_ref().map(|last| last.h)
     }
 
     fn discrete_energy<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N, T>) -> T {
         it.node_discrete_energy()
+    }
+}
+
+/// Whether `start` refuses a Galerkin rule on `n` coordinates: above
+/// [`Derivatives::FORWARD_MAX_N`](crate::Derivatives::FORWARD_MAX_N), where
+/// it has no derivatives (Galerkin rules have forward mode only). Used as
+/// `if const { beyond_forward(N) }` in front of every step path: a
+/// function's frame is reserved on entry whatever branch runs, so code that
+/// inlines a step of a size `start` refuses would still reserve its `N²`
+/// derivative values on the stack of the caller that holds the refused
+/// integrator.
+pub(crate) const fn beyond_forward(n: usize) -> bool {
+    n > crate::Derivatives::FORWARD_MAX_N
+}
+
+/// The error of a step path [`beyond_forward`] compiles out (never reached:
+/// `start` refuses first).
+pub(crate) fn refused<const N: usize, T: Real>() -> Error<N, T> {
+    Error::Unsupported {
+        what: "galerkin rules above `Derivatives::FORWARD_MAX_N` coordinates: they have forward-mode derivatives only",
     }
 }
 
@@ -661,7 +755,10 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
     /// interior nodes as functions of `(q_k, p_k)`; the Hessian comes from
     /// [`Galerkin::node_hessian`]. Allocates.
     fn tangent_map<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> Option<TangentMap<N>> {
-        let last = it.memory?;
+        if const { beyond_forward(N) } {
+            return None;
+        }
+        let last = it.memory.as_ref()?;
         let q0 = core::array::from_fn(|i| last.q0[i] + last.carry[i]);
         tangent_map(&it.system, &it.method, last.t0, last.h, q0, &last.d)
     }
@@ -678,7 +775,10 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
         it: &Integrator<Sys, Self, N>,
         symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
-        let last = it.memory?;
+        if const { beyond_forward(N) } {
+            return None;
+        }
+        let last = it.memory.as_ref()?;
         let g = &it.method;
         let mut fnode = [[0.0; N]; S];
         let mut f_end = [0.0; N];
@@ -790,7 +890,7 @@ where
     }
     let jac: &mut BlockMatrix<N, S, T> = work.lu.matrix_mut();
     if !frozen {
-        *jac = [[[[zero; N]; S]; N]; S];
+        jac.fill_zero();
     }
     let mut direct = [zero; N];
     let mut grad: BlockVector<N, S, T> = [[zero; N]; S];
@@ -978,9 +1078,9 @@ pub(super) struct Work<'a, const N: usize, const S: usize, T> {
 impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
     /// Starting from a kept factorisation, or from none.
     #[inline]
-    pub(super) fn new(kept: Option<&'a Lu<N, S, T>>) -> Self {
+    pub(super) fn new(kept: Option<&'a Lu<N, S, T>>, storage: Lu<N, S, T>) -> Self {
         let valid = kept.is_some();
-        Self { kept, uses_kept: valid, lu: Lu::zeroed(), valid, simplified: true, check: true, last_correction: None }
+        Self { kept, uses_kept: valid, lu: storage, valid, simplified: true, check: true, last_correction: None }
     }
 
     /// Prepares a new solve: simplified or full Newton, from the kept
@@ -1105,8 +1205,8 @@ mod tests {
     #[test]
     fn a_failure_with_an_ill_conditioned_block_is_a_singular_jacobian() {
         let factored = |eps: f64| {
-            let mut work = Work::<1, 2, f64>::new(None);
-            *work.lu.matrix_mut() = [[[[1.0], [1.0]]], [[[1.0], [1.0 + eps]]]];
+            let mut work = Work::<1, 2, f64>::new(None, Lu::empty());
+            *work.lu.matrix_mut() = BlockMatrix::from_blocks([[[[1.0], [1.0]]], [[[1.0], [1.0 + eps]]]]);
             work.lu.factor_in_place().unwrap();
             work.valid = true;
             work

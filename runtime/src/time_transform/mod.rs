@@ -415,7 +415,7 @@ pub trait SStepper<const M: usize, T: Real = f64>: Clone {
     fn s_stats(&self) -> Stats;
     /// The tangent map of the last step in `(q, t, p, p_t)`; `None` in a
     /// real type other than `f64` (the runtime computes tangent maps in `f64`).
-    fn s_tangent_map(&self) -> Option<TangentMap<M>>;
+    fn s_tangent_map(&self) -> Option<Box<TangentMap<M>>>;
 }
 
 impl<Sys, G, Mth, const N: usize, const M: usize> SStepper<M> for Integrator<TimeTransformed<Sys, G, N>, Mth, M>
@@ -443,7 +443,7 @@ where
     fn s_stats(&self) -> Stats {
         *self.stats()
     }
-    fn s_tangent_map(&self) -> Option<TangentMap<M>> {
+    fn s_tangent_map(&self) -> Option<Box<TangentMap<M>>> {
         self.last_tangent_map()
     }
 }
@@ -474,7 +474,7 @@ where
     fn s_stats(&self) -> Stats {
         *self.stats()
     }
-    fn s_tangent_map(&self) -> Option<TangentMap<M>> {
+    fn s_tangent_map(&self) -> Option<Box<TangentMap<M>>> {
         None
     }
 }
@@ -796,7 +796,14 @@ where
     T: Real,
 {
     let f = |x: [T; N]| x.map(|y| y.to_f64());
-    let v = system.velocity(t.to_f64(), f(q), f(p), f(guess))?;
+    let v = if const { N > crate::Derivatives::FORWARD_MAX_N } {
+        // The tape's banded or dense solves: the forward-mode Hessian's
+        // `N × N` values do not fit a thread's stack at large `N`.
+        crate::integrator::reverse_mode_velocity(system, t.to_f64(), &f(q), &f(p), &f(guess))
+            .map_err(|(iterations, residual_norm)| LegendreFailure { iterations, residual_norm })?
+    } else {
+        system.velocity(t.to_f64(), f(q), f(p), f(guess))?
+    };
     let mut v = v.map(T::from);
     if !wider_than_f64::<T>() {
         return Ok(v);
@@ -807,7 +814,7 @@ where
         let residual: [T; N] = core::array::from_fn(|i| momentum[i] - p[i]);
         // As in `f64`: a singular Hessian or a value that is not finite has no residual to report.
         let failure = LegendreFailure { iterations, residual_norm: f64::INFINITY };
-        let inverse = splitting::invert(hessian).ok_or(failure)?;
+        let inverse = splitting::invert(&hessian).ok_or(failure)?;
         let mut size = 0.0f64;
         let mut scale = 0.0f64;
         for i in 0..N {
@@ -938,8 +945,14 @@ where
 
     /// The tangent map of the last step in the extended phase space
     /// `(q, t, p, p_t)`: symplectic; `None` before the first step, with
-    /// forces, and in a real type other than `f64`.
-    pub fn last_tangent_map(&self) -> Option<TangentMap<M>> {
+    /// forces, in a real type other than `f64`, and above
+    /// [`Derivatives::FORWARD_MAX_N`](crate::Derivatives::FORWARD_MAX_N)
+    /// extended coordinates `M`. Boxed: its `4M²` entries inline would not
+    /// fit a thread's stack at large `M`.
+    pub fn last_tangent_map(&self) -> Option<Box<TangentMap<M>>> {
+        if const { M > crate::Derivatives::FORWARD_MAX_N } {
+            return None;
+        }
         self.inner.s_tangent_map()
     }
 

@@ -37,6 +37,7 @@ use crate::real::{Real, all_finite};
 use crate::state::State;
 use crate::system::Lagrangian;
 use num_dual::HyperDual;
+use std::sync::Arc;
 
 /// The function `f` of the time-transformed Hamiltonian
 /// `Γ = f(T + p_t + c) − f(c − V)`: only its derivative `f'` enters the flows,
@@ -234,14 +235,15 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
                          where the time function's argument c − V is not defined",
             });
         }
+        // `M` and `M⁻¹` on the heap: `N²` entries each (512 KiB at N = 256).
         let mass = mass_matrix(&self.system, t0, q0);
         if !mass.iter().flatten().all(|m| m.is_finite()) {
             return Err(Error::InvalidInitialData {
                 reason: "the mass matrix `M = ∂²L/∂v²` is not finite at the initial state (a singularity of L)",
             });
         }
-        let inverse_mass =
-            invert(mass).ok_or(Error::NotSeparable { reason: "the mass matrix `M = ∂²L/∂v²` is singular" })?;
+        let inverse_mass: Arc<[[T; N]; N]> =
+            invert(&mass).ok_or(Error::NotSeparable { reason: "the mass matrix `M = ∂²L/∂v²` is singular" })?.into();
         let mut p = [T::zero(); N];
         for i in 0..N {
             for j in 0..N {
@@ -370,7 +372,9 @@ pub struct ExplicitAdaptive<Sys, T, const N: usize> {
     order: u32,
     form: LeapfrogForm,
     shift: T,
-    inverse_mass: [[T; N]; N],
+    /// `M⁻¹`, on the heap and shared by clones: `N²` entries inline would
+    /// make the driver too large for a thread's stack at large `N`.
+    inverse_mass: Arc<[[T; N]; N]>,
     /// The allowed range of the ratio of the arguments of `f'`.
     clocks: ClockBounds,
     phase: Phase<T, N>,
@@ -436,8 +440,8 @@ enum Fault<T> {
 }
 
 /// `M = ∂²L/∂v²` at `(t0, q0, 0)`: constant for the systems accepted.
-fn mass_matrix<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> [[T; N]; N] {
-    let mut m = [[T::zero(); N]; N];
+fn mass_matrix<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> Box<[[T; N]; N]> {
+    let mut m = zeroed_square::<T, N>();
     let qh = q.map(HyperDual::from_re);
     for i in 0..N {
         for j in i..N {
@@ -452,10 +456,25 @@ fn mass_matrix<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [
     m
 }
 
-/// Gauss–Jordan with partial pivoting; `None` when singular or not finite.
-pub(super) fn invert<T: Real, const N: usize>(a: [[T; N]; N]) -> Option<[[T; N]; N]> {
-    let mut a = a;
-    let mut inv = [[T::zero(); N]; N];
+/// An `N × N` matrix of zeros on the heap, allocated row by row (no `N²`
+/// temporary on the stack).
+fn zeroed_square<T: Real, const N: usize>() -> Box<[[T; N]; N]> {
+    square(vec![[T::zero(); N]; N])
+}
+
+/// The `N` rows as a boxed matrix.
+fn square<T, const N: usize>(rows: Vec<[T; N]>) -> Box<[[T; N]; N]> {
+    match rows.into_boxed_slice().try_into() {
+        Ok(m) => m,
+        Err(_) => unreachable!("a matrix has N rows"),
+    }
+}
+
+/// Gauss–Jordan with partial pivoting, on the heap; `None` when singular or
+/// not finite.
+pub(super) fn invert<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<Box<[[T; N]; N]>> {
+    let mut a = square(a.to_vec());
+    let mut inv = zeroed_square::<T, N>();
     for (i, row) in inv.iter_mut().enumerate() {
         row[i] = T::one();
     }
@@ -513,6 +532,9 @@ fn potential<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T;
 /// on array duals.
 #[inline(always)]
 fn gradient<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> Gradient<T, N> {
+    if const { N > GRADIENT_BLOCKS_ABOVE } {
+        return gradient_by_blocks(system, t, q);
+    }
     if S::AUTONOMOUS {
         let qd: [DualArray<[T; N], T>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
         let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(T::zero()); N]);
@@ -523,6 +545,41 @@ fn gradient<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; 
         let l = system.lagrangian(td, qd, [DualArray::from_re(T::zero()); N]);
         Gradient { v: -l.re, dv: l.eps.q.map(|x| -x), dt: -l.eps.t }
     }
+}
+
+/// Above this many coordinates [`gradient`] evaluates `V` on duals of
+/// [`LANES`] lanes, block by block: a dual of `N` lanes is `8(N + 1)` bytes
+/// in `f64`, and the `2N` arguments of `L` alone would take 1 MiB of a
+/// thread's stack at `N = 256`.
+const GRADIENT_BLOCKS_ABOVE: usize = 32;
+
+/// Coordinates seeded per evaluation of [`gradient_by_blocks`].
+const LANES: usize = 8;
+
+/// [`gradient`] by `⌈N/8⌉` evaluations seeded on eight coordinates each
+/// (each lane by the same operations as in one evaluation), and `∂_t V` by
+/// one more for a time-dependent `L`.
+fn gradient_by_blocks<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: T, q: [T; N]) -> Gradient<T, N> {
+    type D<T> = DualArray<[T; LANES], T>;
+    let mut out = Gradient { v: T::zero(), dv: [T::zero(); N], dt: T::zero() };
+    let zero_v = [D::<T>::from_re(T::zero()); N];
+    for first in (0..N).step_by(LANES) {
+        let lanes = LANES.min(N - first);
+        let qd: [D<T>; N] = core::array::from_fn(|i| {
+            if (first..first + lanes).contains(&i) { DualArray::variable(q[i], i - first) } else { D::from_re(q[i]) }
+        });
+        let l = system.lagrangian(D::from_re(t), qd, zero_v);
+        out.v = -l.re;
+        for i in 0..lanes {
+            out.dv[first + i] = -l.eps[i];
+        }
+    }
+    if !S::AUTONOMOUS {
+        type D1<T> = DualArray<[T; 1], T>;
+        let l = system.lagrangian(DualArray::variable(t, 0), q.map(D1::from_re), [D1::<T>::from_re(T::zero()); N]);
+        out.dt = -l.eps[0];
+    }
+    out
 }
 
 impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
