@@ -3,7 +3,7 @@
 
 Generates one-file user crates (a path dependency on this workspace's facade
 crate `lagrangian`, a `main` that integrates the system with the midpoint
-rule as the README does), builds each with `cargo build --release`, and
+rule as the README's first example does), builds each with `cargo build --release`, and
 reports the CPU time (user + system of cargo and every rustc it runs, from
 GNU time) and the peak resident memory of the build. CPU time, not wall
 time: the machine is usually shared, and CPU seconds do not depend on the

@@ -225,3 +225,28 @@ pub struct ReadmeDoctests;
 #[doc = include_str!("../docs/guide/constraints.md")]
 #[cfg(doctest)]
 pub struct GuideConstraints;
+
+/// The guide's chapters (`docs/guide/`), each compiled and run as doc tests.
+#[cfg(doctest)]
+pub mod guide {
+    #[doc = include_str!("../docs/guide/01-first-system.md")]
+    pub struct FirstSystem;
+    #[doc = include_str!("../docs/guide/02-accuracy.md")]
+    pub struct Accuracy;
+    #[doc = include_str!("../docs/guide/03-long-runs.md")]
+    pub struct LongRuns;
+    #[doc = include_str!("../docs/guide/04-forces.md")]
+    pub struct Forces;
+    #[doc = include_str!("../docs/guide/05-variable-steps.md")]
+    pub struct VariableSteps;
+    #[doc = include_str!("../docs/guide/06-large-systems.md")]
+    pub struct LargeSystems;
+    #[doc = include_str!("../docs/guide/07-solutions.md")]
+    pub struct Solutions;
+    #[doc = include_str!("../docs/guide/08-ensembles.md")]
+    pub struct Ensembles;
+    #[doc = include_str!("../docs/guide/09-performance.md")]
+    pub struct Performance;
+    #[doc = include_str!("../docs/guide/10-theory.md")]
+    pub struct Theory;
+}

@@ -4,8 +4,7 @@
 //!
 //! Run with `cargo bench --bench galerkin` (cargo's default `bench` profile).
 //! The work–precision part first calibrates every method to the same final
-//! error (printed), then times the whole run; the ratios in the README come
-//! from those times.
+//! error (printed), then times the whole run and prints the ratios.
 #![allow(missing_docs)]
 
 use std::hint::black_box;

@@ -1,6 +1,6 @@
 //! Time-transformed (Sundman–Poincaré) steps against fixed steps and DOP853
 //! on Kepler e = 0.9 over 1000 orbits, at final position errors 1e-6 and
-//! 1e-9 (issue 14's measurement), in one run.
+//! 1e-9, in one run.
 //!
 //! Run with `cargo bench -p lagrangian-bench --bench time_transformed`
 //! (cargo's `bench` profile = release). Every method is swept from coarse to

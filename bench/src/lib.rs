@@ -5,7 +5,7 @@
 //! compositions), on problems with checked reference solutions.
 //!
 //! `cargo run --release -p lagrangian-bench` writes `target/report/`; see
-//! [`cli`] for the options and [`report`] for the JSON schema.
+//! `--help` for the options and [`report`] for the JSON schema.
 
 pub mod calibrate;
 pub mod clock;

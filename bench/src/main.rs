@@ -13,7 +13,7 @@ lagrangian-bench: work–precision and stress report of the lagrangian integrato
 
 USAGE:
     cargo run --release -p lagrangian-bench -- [OPTIONS]
-    cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE] [--section NAME[,NAME..]]
+    cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE].. [--section NAME[,NAME..]]
 
 OPTIONS:
     --quick                  short horizons, two targets (about 2 minutes on 2 cores)
@@ -32,8 +32,9 @@ OPTIONS:
     --list                   list problems and methods
     -h, --help               this text
 
-readme: rewrites the README's generated performance tables from a report's
-JSON (default target/report/report.json and README.md): each section between
+readme: rewrites the generated performance tables from a report's JSON
+(default target/report/report.json; pages README.md and docs/measurements.md,
+or each --readme FILE): each section between
 `<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
 headline, step-cost, galerkin-step-cost, compositions, time-transformed (from a report
 of the suite's own horizons), calibrated-ID (every method's calibrated run on problem
@@ -74,7 +75,7 @@ fn run(args: Vec<String>) -> Result<(), String> {
     let mut progress = true;
     let mut readme_mode = false;
     let mut from = PathBuf::from("target/report/report.json");
-    let mut readme_path = PathBuf::from("README.md");
+    let mut readme_paths: Vec<PathBuf> = Vec::new();
     let mut sections: Vec<String> = Vec::new();
     let mut horizon_scale = 1.0;
     let mut targets: Option<Vec<f64>> = None;
@@ -84,7 +85,7 @@ fn run(args: Vec<String>) -> Result<(), String> {
             "readme" => readme_mode = true,
             "--from" => from = PathBuf::from(args.next().ok_or("`--from` needs a file")?),
             "--section" => sections.extend(values(&mut args, "--section")?),
-            "--readme" => readme_path = PathBuf::from(args.next().ok_or("`--readme` needs a file")?),
+            "--readme" => readme_paths.push(PathBuf::from(args.next().ok_or("`--readme` needs a file")?)),
             "--quick" => suite = Suite::Quick,
             "--full" => suite = Suite::Full,
             "--tiny" => suite = Suite::Tiny,
@@ -151,7 +152,10 @@ fn run(args: Vec<String>) -> Result<(), String> {
         }
     }
     if readme_mode {
-        return readme::update(&from, &readme_path, &sections);
+        if readme_paths.is_empty() {
+            readme_paths = readme::PAGES.iter().map(PathBuf::from).collect();
+        }
+        return readme::update_pages(&from, &readme_paths, &sections);
     }
     let config =
         Config { suite, problems, methods, reference_tolerance, progress, horizon_scale, targets, calibration_only };

@@ -1,7 +1,7 @@
 //! Cost of one step at a fixed step size: the generated midpoint and
 //! trapezoid steps against the hand-written ones of [`crate::handwritten`]
 //! (analytic derivatives), on the report's pendulum and double pendulum.
-//! The README's ns/step table is generated from these numbers.
+//! The ns/step table of `docs/measurements.md` is generated from these numbers.
 
 use std::hint::black_box;
 

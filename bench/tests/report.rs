@@ -118,6 +118,9 @@ fn tiny_report_writes_every_file() {
     let text = std::fs::read_to_string(&readme).unwrap();
     assert!(text.starts_with("intro\n") && text.ends_with("rest\n") && !text.contains("stale"));
     assert!(text.contains("| pendulum | 1.0e-3 |"), "{text}");
+    // Each section says which command and day made it.
+    assert!(text.contains("`cargo run --release -p lagrangian-bench -- --tiny"), "{text}");
+    assert!(text.contains("Suite `tiny` of 20"), "{text}");
     assert!(text.contains("\nmiddle\n") && text.contains("| double pendulum | "), "{text}");
     // One section only, and an unknown one refused.
     std::fs::write(&readme, "<!-- bench:compositions:begin -->\n<!-- bench:compositions:end -->\n").unwrap();
@@ -270,4 +273,15 @@ fn a_scaled_calibration_fills_only_its_own_readme_section() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("cannot supply section `headline`"));
     assert_eq!(std::fs::read_to_string(&readme).unwrap(), new);
     assert!(!update(Some("calibrated-pendulum-x2")).status.success());
+}
+
+/// The date in a generated section's header is the report file's day.
+#[test]
+fn day_counts_become_calendar_dates() {
+    use lagrangian_bench::readme::civil_from_days;
+    assert_eq!(civil_from_days(0), (1970, 1, 1));
+    assert_eq!(civil_from_days(-1), (1969, 12, 31));
+    assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+    assert_eq!(civil_from_days(20_000), (2024, 10, 4));
+    assert_eq!(civil_from_days(20_785), (2026, 11, 28));
 }

@@ -12,25 +12,16 @@
 //! `DUAL_BLOCKS_ABOVE` (duals) coordinates the seeds go in blocks of eight,
 //! one evaluation per block, so that no number's size grows with `N`.
 //!
-//! Why these types (see [`crate::hyperdual`]): until this module used them, it
-//! did `N²` evaluations on num-dual's scalar `HyperDual64`, one per pair of
-//! seeds, repeating every `sin`/`cos` of the user's `L` `N²` times, because
-//! num-dual's vector duals (`Option<SMatrix>` parts, not `Copy`) are not
-//! inlined under cargo's default release profile: for the double-pendulum
-//! block, 430 ns with nested `DualSVec64<2>`, 165 ns with `DualSVec<Dual64, 2>`,
-//! 53 ns with four scalar evaluations. The array duals are `Copy` structs of
-//! `f64` arrays that LLVM unrolls, and their formulas and operation order are
-//! num-dual's, so every derivative is bit for bit the scalar one (unit test
-//! below) and the integrators' trajectories are unchanged.
-//!
-//! Measured with `cargo bench --bench step` (default `bench` profile, 2-core
-//! machine shared with other builds), ns per double-pendulum midpoint step:
-//! 519–542 with `N²` scalar evaluations, 245 with one array evaluation per
-//! iteration; with the accompanying changes (discrete Lagrangians building
-//! their arrays by loops, the generated `lagrangian` `inline(always)`)
-//! 215–225, against 143–148 for the hand-written analytic step. For the
-//! pendulum (`N = 1`, where one scalar evaluation already was one evaluation)
-//! 95–103 → 90–93 against 49–52.
+//! Why these types (see [`crate::hyperdual`]): num-dual's vector duals
+//! (`Option<SMatrix>` parts, not `Copy`) are not inlined under cargo's
+//! default release profile, and its scalar `HyperDual64` needs `N²`
+//! evaluations, one per pair of seeds, repeating every `sin`/`cos` of the
+//! user's `L` `N²` times. The array duals are `Copy` structs of `f64` arrays
+//! that LLVM unrolls, and their formulas and operation order are num-dual's,
+//! so every derivative is bit for bit the scalar one (unit test below): one
+//! evaluation per Newton iteration gives what `N²` scalar ones give, at about
+//! half the cost of a double-pendulum step (`cargo bench -p lagrangian-bench
+//! --bench step`).
 //!
 //! The scalar evaluations (`hyper_action`, `dual_action`) stay as the
 //! reference the array ones are tested against.

@@ -112,6 +112,36 @@ pub fn run_serial<I, O, E>(inputs: &[I], member: impl Fn(usize, &I) -> Result<O,
 /// Runs `member(index, &input)` for every input, in parallel on rayon's
 /// global thread pool (feature `rayon`; without it, serially). Results are in
 /// the order of the inputs and equal those of [`run_serial`].
+///
+/// ```
+/// use lagrangian_runtime::ensemble::{self, MemberError};
+/// use lagrangian_runtime::{Error, Integrator, Lagrangian, Midpoint, Scalar};
+///
+/// /// `L = ½v² − ½ω²q²`.
+/// struct Oscillator(f64);
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0] * (self.0 * self.0)) * 0.5
+///     }
+/// }
+///
+/// // One run per frequency; the last one cannot start.
+/// let omegas = [0.5, 1.0, 2.0, f64::NAN];
+/// let results = ensemble::run(&omegas, |_index, &omega| -> Result<f64, Error<1>> {
+///     let mut sim = Integrator::new(Oscillator(omega), Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
+///     sim.run_until(1.0, |_| {})?;
+///     Ok(sim.state().q[0])
+/// });
+/// assert_eq!(results.len(), 4);
+/// for (i, q) in results.successes() {
+///     assert!((q - omegas[i].cos()).abs() < 1e-4);
+/// }
+/// let failed: Vec<usize> = results.failures().map(|(i, _)| i).collect();
+/// assert_eq!(failed, [3]);
+/// assert!(matches!(results.results[3], Err(MemberError::Failed(Error::InvalidInitialData { .. }))));
+/// ```
 pub fn run<I: Sync, O: Send, E: Send>(
     inputs: &[I],
     member: impl Fn(usize, &I) -> Result<O, E> + Sync,

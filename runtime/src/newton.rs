@@ -3,10 +3,10 @@
 //! Each iteration evaluates the residual and its Jacobian once (for the
 //! one-step map, one hyper-dual sweep of the action), factors the Jacobian,
 //! checks its conditioning (the fixed-step DEL at the first iteration of a
-//! step only: [`square_correction_unestimated`]) and applies the full
+//! step only: `square_correction_unestimated`) and applies the full
 //! correction. Once a correction is small and the iteration contracts, a
 //! caller may keep the factored Jacobian for the next iteration
-//! ([`Jacobian::Kept`], simplified Newton: Hairer & Wanner, *Solving ODEs
+//! (`Jacobian::Kept`, simplified Newton: Hairer & Wanner, *Solving ODEs
 //! II*, §IV.8). Convergence is
 //! declared on the size of the correction, using the contraction estimate
 //! `θ = ‖Δ_n‖ / ‖Δ_{n−1}‖` (Hairer & Wanner, *Solving ODEs II*, §IV.8) to stop

@@ -12,7 +12,7 @@
 use crate::system::Scalar;
 
 /// A real number type: `f64` itself, or an extended-precision type whose
-/// [`DualNum::re`](num_dual::DualNum::re) rounds it to `f64`.
+/// `DualNum::re` rounds it to `f64`.
 pub trait Real: Scalar + Send + Sync {
     /// The relative spacing of the type's numbers near 1 (`f64::EPSILON`
     /// for `f64`): Newton's round-off floors scale with it.

@@ -51,13 +51,13 @@
 //!
 //! With the feature `serde`, [`Solution`] is `Serialize`/`Deserialize` (the
 //! typed error is not: its message is kept in the status), and
-//! [`Solution::write_csv`], [`Solution::read_csv`], [`Solution::write_json`]
-//! and [`Solution::read_json`] write and read it through `csv` and
+//! `Solution::write_csv`, `read_csv`, `write_json` and `read_json` write and
+//! read it through `csv` and
 //! `serde_json`. Every `f64` comes back bit for bit, the non-finite ones
 //! too: they are written as the texts `inf`, `-inf`, `NaN`, `-NaN` and
 //! `NaN:0x…` (the bits of any other NaN), which neither format has a number
 //! for. The writers refuse a solution whose columns differ in length, and
-//! the readers refuse, with a [`TableError`] that says what is wrong and
+//! the readers refuse, with a `TableError` that says what is wrong and
 //! where, anything that is not the table of a solution with `N` coordinates.
 
 use crate::dense::{DenseStep, Hermite, Node, acceleration};
@@ -141,8 +141,41 @@ pub enum DenseKind {
 /// An observer called at nodes: `(node, k)`.
 type Observer<'a, const N: usize> = Box<dyn FnMut(&Node<N>) + 'a>;
 
-/// What [`solve`](crate::Integrator::solve) does: how far, what it keeps,
+/// What [`solve`](Stepping::solve) does: how far, what it keeps,
 /// which events it watches.
+///
+/// ```
+/// # use lagrangian_runtime::{Lagrangian, Scalar};
+/// # #[derive(Clone)]
+/// # struct Oscillator;
+/// # impl Lagrangian<1> for Oscillator {
+/// #     const AUTONOMOUS: bool = true;
+/// #     const CYCLIC: [bool; 1] = [false];
+/// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+/// #         (v[0] * v[0] - q[0] * q[0]) * 0.5
+/// #     }
+/// # }
+/// use lagrangian_runtime::{Action, DenseKind, Event, Integrator, Midpoint, Plan, Stepping};
+///
+/// let mut nodes = 0;
+/// let plan = Plan::until(10.0)
+///     .every(100) // keep every 100th node
+///     .save_at(vec![0.05, 2.5]) // and these times, interpolated
+///     .dense(DenseKind::Quintic)
+///     .energy_tolerance(1e-3) // warn if E_L drifts further
+///     .observe_every(1, |_| nodes += 1) // called at every node
+///     .event(Event::new(|_t, q, _v| q[0]).action(Action::Record));
+/// let mut sim = Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
+/// let solution = sim.solve(plan)?;
+/// // Nodes 0, 100, …, 1000 and the two requested times.
+/// assert_eq!(solution.len(), 13);
+/// // cos t crosses zero at π/2 + kπ: three times before t = 10.
+/// assert_eq!(solution.events.len(), 3);
+/// assert!((solution.events[0].t - std::f64::consts::FRAC_PI_2).abs() < 1e-4);
+/// assert!(solution.energy_warning().is_none());
+/// assert!(nodes >= 1000);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct Plan<'a, const N: usize> {
     t_end: f64,
     every: usize,
@@ -268,11 +301,11 @@ pub enum Status {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct RunStats {
-    /// Steps taken by the integrator over its life (its [`Stats`](crate::Stats)).
+    /// Steps taken by the integrator over its life (its [`Stats`]).
     pub steps: u64,
-    /// Newton iterations over all steps (its [`Stats`](crate::Stats)).
+    /// Newton iterations over all steps (its [`Stats`]).
     pub newton_iterations: u64,
-    /// Failed steps (its [`Stats`](crate::Stats)).
+    /// Failed steps (its [`Stats`]).
     pub failed_steps: u64,
     /// Steps of this run that were taken again to end on an event.
     pub redone_steps: u64,
@@ -385,6 +418,43 @@ pub enum SolveError<const N: usize> {
 }
 
 /// A recorded run: one row per kept node or requested time, in time order.
+///
+/// The columns are public vectors of equal length (`v` and `energy` empty
+/// under [`Plan::without_velocities`]). A run that fails part-way still
+/// returns its rows up to the last good node, with [`status`](Self::status)
+/// and [`error`](Self::error) set; [`into_result`](Self::into_result) turns
+/// that into an `Err` that carries them.
+///
+/// ```
+/// # use lagrangian_runtime::{Lagrangian, Scalar};
+/// # #[derive(Clone)]
+/// # struct Oscillator;
+/// # impl Lagrangian<1> for Oscillator {
+/// #     const AUTONOMOUS: bool = true;
+/// #     const CYCLIC: [bool; 1] = [false];
+/// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+/// #         (v[0] * v[0] - q[0] * q[0]) * 0.5
+/// #     }
+/// # }
+/// use lagrangian_runtime::{Event, Integrator, Plan, SolveError, Stepping, Trapezoid};
+///
+/// let mut sim = Integrator::new(Oscillator, Trapezoid, 0.01).start(0.0, [1.0], [0.0])?;
+/// let solution = sim.solve(Plan::until(2.0).every(10))?;
+/// assert!(solution.is_finished());
+/// let last = solution.len() - 1;
+/// assert_eq!((solution.t[last], solution.step[last]), (2.0, Some(200)));
+/// assert!((solution.q[last][0] - 2f64.cos()).abs() < 1e-4);
+/// assert!((solution.energy[last] - 0.5).abs() < 1e-4); // E_L = ½(v² + q²)
+///
+/// // An event function that stops being finite ends the run with a typed
+/// // error; the rows up to the last good node are kept.
+/// let broken = Event::new(|t, _q, _v| if t < 1.0 { 1.0 } else { f64::NAN });
+/// let mut sim = Integrator::new(Oscillator, Trapezoid, 0.01).start(0.0, [1.0], [0.0])?;
+/// let failed = sim.solve(Plan::until(2.0).event(broken))?.into_result().unwrap_err();
+/// assert!(matches!(failed.error, SolveError::NonFiniteEvent { .. }));
+/// assert!(*failed.solution.t.last().unwrap() < 1.0 + 1e-9);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Solution<const N: usize> {

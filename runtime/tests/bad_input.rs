@@ -1,5 +1,5 @@
-//! Regression tests for inputs that used to slip through: every one is now a
-//! typed error or a correct result, and a failed step keeps the state.
+//! Inputs that must not slip through: every one is a typed error or a
+//! correct result, and a failed step keeps the state.
 #![allow(missing_docs)]
 
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};

@@ -4,15 +4,15 @@
 //! hard one (Cartesian Kepler e = 0.99 from perihelion, first-order
 //! predictor). The stepper stops at `rtol = 1e-14`, but full Newton
 //! converges quadratically, so its last iterate is far more accurate than
-//! that: measured at most 7.3e-16 relative to `|dq|`. This guards the
-//! shortcuts that would stop at the tolerance instead: a simplified Newton
-//! (the second iteration's Jacobian frozen from the first) was tried and
-//! measured 7.6e-14 here (double pendulum, trapezoid) and 1.2e-14 (Kepler),
-//! because the stopping rule's contraction estimate then mixes Newton's rate
-//! with the frozen iteration's. The simplified iterations the runtime takes
-//! now (after a small, contracting correction: `newton::Jacobian::Kept`) are
-//! therefore held to 1/100 of the tolerance: 7.3e-16 here, as without them
-//! (4.5e-15 when held to 1/4 only).
+//! that: at most 7.3e-16 relative to `|dq|`. This guards against
+//! shortcuts that stop at the tolerance instead: a simplified Newton that
+//! freezes the second iteration's Jacobian from the first stops at 7.6e-14
+//! here (double pendulum, trapezoid) and 1.2e-14 (Kepler), because the
+//! stopping rule's contraction estimate then mixes Newton's rate with the
+//! frozen iteration's. The simplified iterations the runtime takes (after a
+//! small, contracting correction: `newton::Jacobian::Kept`) are therefore
+//! held to 1/100 of the tolerance: 7.3e-16 here, as without them (4.5e-15
+//! when held to 1/4 only).
 #![allow(missing_docs)]
 
 use lagrangian_runtime::derivatives::{Segment, step_derivatives};

@@ -8,7 +8,7 @@
 //!   neighbours, one of them driven in time) and a dense, position-dependent
 //!   mass matrix (pendula coupled all to all): the same trajectories to round-off
 //!   and the same Newton iterations (midpoint, trapezoid with Newton, α-β).
-//! - The readouts, which no longer record a tape for these systems: the
+//! - The readouts, which record no tape for these systems: the
 //!   Legendre map at `start` (`p0`), the inverse Legendre map
 //!   (`velocity()`), `energy()`, and the discrete energy of explicit
 //!   trapezoid steps, against the tape's to round-off.

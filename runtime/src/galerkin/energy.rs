@@ -23,11 +23,11 @@
 //!
 //! as its Schur complement `g'(h) = d − c·J⁻¹b` (the block LU of the fixed
 //! step gives `J⁻¹b`, which also moves the nodes with `h`). A coupled Newton
-//! on `(D, h)` together was tried first and abandoned: the energy error of a
+//! on `(D, h)` together does not converge: the energy error of a
 //! method of order `2s` is `O(h^{2s+1})`, so `g'` is small and round-off
 //! fixes `h` only to about `64 ε |E| / |g'|` (1e-6 relative for s = 3 at
-//! h = 0.025 on the pendulum); every such correction of `h` disturbed the
-//! nodes, and the coupled iteration never met its tolerance. The first step has the given size (its energy, not the
+//! h = 0.025 on the pendulum); every such correction of `h` disturbs the
+//! nodes, and the coupled iteration does not meet its tolerance. The first step has the given size (its energy, not the
 //! continuous `E_L(q0, v0)`, is the one conserved), and a step whose size
 //! leaves the admissible bracket `[max(h_min, h_{k−1}/r), min(h_max, r·h_{k−1})]`,
 //! or whose Newton solve fails, is refused with the state kept.

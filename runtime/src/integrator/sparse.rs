@@ -69,14 +69,10 @@ impl Derivatives {
     pub const FORWARD_MAX_N: usize = 32;
 
     /// The smallest system [`Derivatives::Automatic`] steps in reverse mode
-    /// when it can. Measured (`examples/step_profile.rs`, cases `chainN` and
-    /// `nlinkN` with `midpoint-forward` / `midpoint-reverse`, idle 2-core
-    /// machine), µs per midpoint step forward / reverse, with forward mode's
-    /// Newton derivatives from the macro's gradient code on dual lanes:
-    /// FPU-β chain (banded) N = 8: 1.4 / 1.9, N = 10: 2.3 / 2.5, N = 12:
-    /// 3.6 / 2.9, N = 16: 8.3 / 3.2, N = 32: 52 / 6.5; `N`-link pendulum
-    /// (dense) N = 4: 0.82 / 3.8, N = 8: 9.5 / 9.6, N = 12: 36 / 19, N = 16:
-    /// 90 / 31. Both cross near `N = 10`.
+    /// when it can: where a midpoint step costs the same in both modes, for
+    /// a banded FPU-β chain and a dense `N`-link pendulum alike
+    /// (`examples/step_profile.rs`, cases `chainN` and `nlinkN` with
+    /// `midpoint-forward` and `midpoint-reverse`, compare them).
     pub const REVERSE_MIN_N: usize = 10;
 
     /// Whether a system of `N` coordinates is stepped in reverse mode (after

@@ -132,6 +132,35 @@ static LEAPFROG: [f64; 1] = [1.0];
 /// Hamiltonian systems*, 1999; Mikkola & Tanikawa, *Algorithmic
 /// regularization of the few-body problem*, 1999): order 2 in `σ` as a
 /// leapfrog, 4, 6 or 8 composed (Yoshida 1990; Kahan & Li 1997).
+///
+/// ```
+/// use lagrangian_runtime::time_transform::{ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
+/// use lagrangian_runtime::Composition;
+/// use lagrangian_runtime::{Lagrangian, Scalar, Separability};
+///
+/// /// Kepler in the plane, μ = 1 (as `#[lagrangian]` would declare it).
+/// struct Kepler;
+/// impl Lagrangian<2> for Kepler {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 2] = [false; 2];
+///     const SEPARABILITY: Separability = Separability::ConstantMass;
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+///         (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+///     }
+/// }
+///
+/// let e: f64 = 0.9;
+/// let (q0, v0) = ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()]);
+/// // The logarithmic Hamiltonian, drift–kick–drift, composed to order 8.
+/// let mut sim = ExplicitTimeTransformed::new(Kepler, TimeFunction::Logarithmic, 0.2)
+///     .composition(Composition::KAHAN_LI8)
+///     .form(LeapfrogForm::DriftKickDrift)
+///     .start(0.0, q0, v0)?;
+/// sim.run_until(2.0 * std::f64::consts::PI, |_| {})?;
+/// assert_eq!(sim.state().t, 2.0 * std::f64::consts::PI);
+/// assert!((sim.state().q[0] - (1.0 - e)).abs() < 1e-6);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Clone, Debug)]
 pub struct ExplicitTimeTransformed<Sys, const N: usize> {
     system: Sys,
