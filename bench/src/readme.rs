@@ -7,7 +7,8 @@ use std::fs;
 use std::path::Path;
 
 use crate::output::{
-    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table,
+    calibrated_table, galerkin_cost_table, headline, load, stated_command, step_cost_table, time_transformed_table,
+    twins_table,
 };
 use crate::report::{Report, SCHEMA_VERSION};
 
@@ -37,8 +38,9 @@ fn end(name: &str) -> String {
 
 fn origin(report: &Report) -> String {
     format!(
-        "Suite `{}` ({} cores, {}/{}; {})",
+        "Suite `{}`{} ({} cores, {}/{}; {})",
         report.suite,
+        stated_command(report),
         report.machine.cores,
         report.machine.os,
         report.machine.arch,
