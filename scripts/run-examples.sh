@@ -14,3 +14,12 @@ done
 # Events on dense output and a parallel ensemble: the Hénon–Heiles Poincaré section.
 echo "== henon_heiles_section"
 cargo run --quiet --release --example henon_heiles_section --features rayon
+# An ensemble in two shards, merged and compared with the serial run bit for
+# bit (scripts/slurm/run.sh runs the same as a Slurm array job).
+echo "== ensemble_shard"
+dir=$(mktemp -d)
+for k in 0 1; do
+    cargo run --quiet --release --example ensemble_shard -- shard --members 1000 --shard "$k" --shards 2 --out "$dir/shard-$k.json"
+done
+cargo run --quiet --release --example ensemble_shard -- merge --members 1000 --shards 2 --dir "$dir"
+rm -rf "$dir"

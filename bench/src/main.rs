@@ -15,9 +15,15 @@ USAGE:
     cargo run --release -p lagrangian-bench -- [OPTIONS]
     cargo run --release -p lagrangian-bench -- readme [--from FILE] [--readme FILE].. [--section NAME[,NAME..]]
 
+Without options: the default suite, one problem of each family at a fifth of its
+horizon, two targets, every method and peer crate, the stress section at 10⁵
+steps (45 s of CPU time on one thread); a progress line on stderr as each problem
+and method starts, the headline table and the report's path at the end.
+
 OPTIONS:
-    --quick                  short horizons, two targets (about 2 minutes on 2 cores)
-    --full                   ten targets, larger time budgets, longer energy runs
+    --full                   every problem at its own horizon, three targets, energy runs over
+                             100 horizons, 10⁷-step runs (about 9 minutes on 2 cores)
+    --exhaustive             ten targets, larger time budgets, energy runs over 1000 horizons
     --tiny                   smallest sizes (for the test suite)
     --problem ID[,ID..]      only these problems (repeatable)
     --method NAME[,NAME..]   only these methods (repeatable)
@@ -28,7 +34,7 @@ OPTIONS:
     --calibration-only       only the work–precision calibration (no long energy runs, stress section
                              or step costs)
     --reference-tolerance X  relative agreement a reference must reach (default 1e-14)
-    --no-progress            no progress bars
+    --no-progress            no progress lines
     --list                   list problems and methods
     -h, --help               this text
 
@@ -43,7 +49,7 @@ these). A section the report cannot supply is left as it is.
 ";
 
 fn main() -> ExitCode {
-    let args = std::env::args().skip(1).collect();
+    let args: Vec<String> = std::env::args().skip(1).collect();
     // Double-double Galerkin references on 18 degrees of freedom keep large blocks on the stack.
     let worker = std::thread::Builder::new().stack_size(256 << 20).spawn(move || run(args));
     let result = match worker.map(|w| w.join()) {
@@ -65,7 +71,26 @@ fn values(args: &mut impl Iterator<Item = String>, flag: &str) -> Result<Vec<Str
     Ok(v.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
 }
 
+/// The command line that runs `args`, to state in the report.
+fn command(args: &[String]) -> String {
+    let mut c = String::from("cargo run --release -p lagrangian-bench");
+    if !args.is_empty() {
+        c.push_str(" --");
+    }
+    for a in args {
+        let plain = !a.is_empty() && a.chars().all(|c| c.is_ascii_alphanumeric() || "-_.,/=+:".contains(c));
+        c.push(' ');
+        if plain {
+            c.push_str(a);
+        } else {
+            c.push_str(&format!("'{}'", a.replace('\'', r"'\''")));
+        }
+    }
+    c
+}
+
 fn run(args: Vec<String>) -> Result<(), String> {
+    let command = command(&args);
     let mut args = args.into_iter();
     let mut suite = Suite::Default;
     let mut problems: Option<Vec<String>> = None;
@@ -86,8 +111,8 @@ fn run(args: Vec<String>) -> Result<(), String> {
             "--from" => from = PathBuf::from(args.next().ok_or("`--from` needs a file")?),
             "--section" => sections.extend(values(&mut args, "--section")?),
             "--readme" => readme_paths.push(PathBuf::from(args.next().ok_or("`--readme` needs a file")?)),
-            "--quick" => suite = Suite::Quick,
             "--full" => suite = Suite::Full,
+            "--exhaustive" => suite = Suite::Exhaustive,
             "--tiny" => suite = Suite::Tiny,
             "--no-progress" => progress = false,
             "--calibration-only" => calibration_only = true,
@@ -140,6 +165,7 @@ fn run(args: Vec<String>) -> Result<(), String> {
             }
             "--list" => {
                 println!("problems: {}", suite::problem_ids().join(", "));
+                println!("problems of the default suite: {}", suite::DEFAULT_PROBLEMS.join(", "));
                 let known: Vec<String> = Method::all().iter().map(|m| m.name()).collect();
                 println!("methods: {}", known.join(", "));
                 return Ok(());
@@ -157,11 +183,27 @@ fn run(args: Vec<String>) -> Result<(), String> {
         }
         return readme::update_pages(&from, &readme_paths, &sections);
     }
-    let config =
-        Config { suite, problems, methods, reference_tolerance, progress, horizon_scale, targets, calibration_only };
+    let config = Config {
+        suite,
+        problems,
+        methods,
+        reference_tolerance,
+        progress,
+        horizon_scale,
+        targets,
+        calibration_only,
+        command,
+    };
+    let start = std::time::Instant::now();
     let report = suite::run(&config)?;
     output::write(&report, &out)?;
-    println!("report written to {}", out.display());
+    println!("Fastest method of each kind per problem and target (suite `{}`):\n", report.suite);
     print!("{}", output::headline(&report, &report.targets));
+    println!(
+        "\nreport: {} (also report.html, report.json and the plots in {}); {:.0} s",
+        out.join("report.md").display(),
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
     Ok(())
 }

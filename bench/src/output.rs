@@ -459,6 +459,12 @@ pub fn galerkin_cost_table(report: &Report) -> String {
     s
 }
 
+/// ` (command)` when the report records the command that ran it, for the
+/// text that says where a table came from.
+pub fn stated_command(report: &Report) -> String {
+    if report.command.is_empty() { String::new() } else { format!(" (`{}`)", report.command) }
+}
+
 /// How busy the machine was, for the text under a table.
 pub fn load(report: &Report) -> String {
     match (report.machine.load_start, report.machine.load_end) {
@@ -472,12 +478,17 @@ fn document(r: &Report) -> Vec<Block> {
     let mut d = vec![
         Heading(1, "lagrangian: work–precision and stress report".into()),
         Para(format!(
-            "Suite `{}`, lagrangian-bench {}, {} cores ({}/{}). Error = `max_i |q_i(T) − q_i^ref(T)|` at the horizon T. \
+            "Suite `{}`{}, lagrangian-bench {}, {} cores ({}/{}). Error = `max_i |q_i(T) − q_i^ref(T)|` at the horizon T. \
              Each method is calibrated per target with the rule: the coarsest step count (largest tolerance) for which \
              it and the next two finer settings meet the target. Times are CPU seconds of the thread that ran the integrator \
              (minimum of the repeats for the calibrated settings), on a machine shared with other work. \
              Every number is in `report.json` (schema in `bench/src/report.rs`).",
-            r.suite, r.crate_version, r.machine.cores, r.machine.os, r.machine.arch
+            r.suite,
+            stated_command(r),
+            r.crate_version,
+            r.machine.cores,
+            r.machine.os,
+            r.machine.arch
         )),
         Heading(2, "Headline".into()),
     ];

@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use crate::output::{
-    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table,
+    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table,
+    twins_table,
 };
 use crate::report::{Report, SCHEMA_VERSION};
 
@@ -47,7 +48,7 @@ fn origin(report: &Report, date: Option<&str>) -> String {
         "Suite `{}`{}, `{}` ({} cores, {}/{}; {})",
         report.suite,
         date.map(|d| format!(" of {d}")).unwrap_or_default(),
-        command(report),
+        if report.command.is_empty() { command(report) } else { report.command.clone() },
         report.machine.cores,
         report.machine.os,
         report.machine.arch,

@@ -1,17 +1,21 @@
 //! The report's data: one JSON file, `report.json`, with this schema
-//! (`schema_version` 4; fields are never renamed or removed within a version,
+//! (`schema_version` 5; fields are never renamed or removed within a version,
 //! and the deserialising structs below refuse unknown fields, so a file that
 //! parses into [`Report`] matches the schema). Version 2 added `machine`'s
 //! load averages, `problems[].twins` and `step_costs` (absent in a version 1
 //! file, read as empty); version 3 the angular-momentum errors of the long
 //! runs (`energy[].momentum_*`) and `stress.long_runs` (absent before: read as
 //! empty); version 4 measures every `seconds` as CPU time of the thread that
-//! ran the integrator (wall-clock before; no field changed).
+//! ran the integrator (wall-clock before; no field changed); version 5 added
+//! `command` (absent before: read as empty) and renamed the suites: the
+//! default suite of version 4 is `full` from version 5 on, its `full` is
+//! `exhaustive`, and `default` is the short suite that `quick` was.
 //!
 //! ```text
 //! Report
-//!   schema_version: 4
-//!   suite: "tiny" | "quick" | "default" | "full"
+//!   schema_version: 5
+//!   suite: "tiny" | "default" | "full" | "exhaustive"
+//!   command                              the command line that ran it
 //!   crate_version, machine { cores, os, arch, load_start | null, load_end | null }
 //!   horizon_scale, calibration_only       --scale (default 1), --calibration-only (default false)
 //!                                        1-minute load averages when the suite started and ended
@@ -40,7 +44,7 @@
 //!     bad_input: [{ class, method, outcome }]
 //!     long_runs: [{ problem, method, setting, steps, t_end, seconds, energy_max_abs | null,
 //!                   momentum_max_abs | null, outcome }]
-//!                                        10⁷ steps (10⁵ in --quick) at the calibrated step
+//!                                        10⁷ steps (10⁵ in the default suite) at the calibrated step
 //! ```
 //!
 //! `seconds` are CPU times of the thread that ran the integrator ([`crate::clock`]); `calibrated.seconds` is the
@@ -54,7 +58,7 @@ use crate::methods::{Family, Setting};
 use crate::problem::Reference;
 
 /// The version of the schema described in the module docs.
-pub const SCHEMA_VERSION: u32 = 4;
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// The whole report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -64,6 +68,9 @@ pub struct Report {
     pub schema_version: u32,
     /// Which suite produced it.
     pub suite: String,
+    /// The command that ran it (`cargo run --release -p lagrangian-bench -- …`).
+    #[serde(default)]
+    pub command: String,
     /// Version of `lagrangian-bench`.
     pub crate_version: String,
     /// Where it ran.
@@ -290,7 +297,7 @@ pub struct Stress {
     pub long_runs: Vec<LongRun>,
 }
 
-/// A run of many steps (10⁷ in the default suite) at a calibrated step size.
+/// A run of many steps (10⁷ in the full suite) at a calibrated step size.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct LongRun {

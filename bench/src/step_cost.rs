@@ -20,9 +20,9 @@ pub const H: f64 = 0.01;
 fn sizes(suite: Suite) -> (usize, u32) {
     match suite {
         Suite::Tiny => (2_000, 1),
-        Suite::Quick => (50_000, 3),
-        Suite::Default => (200_000, 5),
-        Suite::Full => (1_000_000, 7),
+        Suite::Default => (50_000, 3),
+        Suite::Full => (200_000, 5),
+        Suite::Exhaustive => (1_000_000, 7),
     }
 }
 

@@ -1,11 +1,9 @@
 //! Runs the suites: references, calibration sweeps, timing of the selected
 //! settings, long energy runs and the stress section, into a [`Report`].
 
-use std::io::IsTerminal;
+use std::cell::Cell;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
-
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::calibrate::{self, Limits};
 use crate::methods::{Family, Method, Setting};
@@ -17,88 +15,111 @@ use crate::report::*;
 pub enum Suite {
     /// For the test suite: horizons ×0.02, two loose targets, tiny budgets.
     Tiny,
-    /// `--quick`: horizons ×0.2, two targets, ≤ 2 minutes on 2 cores.
-    Quick,
-    /// The default.
+    /// The default: one problem of each family ([`DEFAULT_PROBLEMS`]),
+    /// horizons ×0.2, two targets, every method and peer, the stress section
+    /// at 10⁵ steps; 45 s of CPU time (one thread) on the 2-core test machine.
     Default,
-    /// `--full`: ten targets, larger budgets and longer energy runs.
+    /// `--full`: every problem at its own horizon, three targets, energy runs
+    /// over 100 horizons, 10⁷-step runs.
     Full,
+    /// `--exhaustive`: ten targets, larger budgets, energy runs over 1000 horizons.
+    Exhaustive,
 }
+
+/// The problems of the default suite: one of each family (the Kepler orbit
+/// at e = 0.5; e = 0.9 and 0.99 stay in its hard-orbit runs).
+pub const DEFAULT_PROBLEMS: [&str; 8] = [
+    "pendulum",
+    "kepler-0.5",
+    "henon-heiles",
+    "outer-solar-system",
+    "double-pendulum",
+    "fpu-beta",
+    "perturbed-pendulum",
+    "sensor",
+];
 
 impl Suite {
     /// Name in the JSON.
     pub fn name(self) -> &'static str {
         match self {
             Suite::Tiny => "tiny",
-            Suite::Quick => "quick",
             Suite::Default => "default",
             Suite::Full => "full",
+            Suite::Exhaustive => "exhaustive",
+        }
+    }
+    /// The problems it runs unless `--problem` says otherwise (`None`: all).
+    pub fn problems(self) -> Option<&'static [&'static str]> {
+        match self {
+            Suite::Default => Some(&DEFAULT_PROBLEMS),
+            Suite::Tiny | Suite::Full | Suite::Exhaustive => None,
         }
     }
     /// Multiplies every problem's horizon.
     pub fn scale(self) -> f64 {
         match self {
             Suite::Tiny => 0.02,
-            Suite::Quick => 0.2,
-            Suite::Default | Suite::Full => 1.0,
+            Suite::Default => 0.2,
+            Suite::Full | Suite::Exhaustive => 1.0,
         }
     }
     /// Target errors.
     pub fn targets(self) -> Vec<f64> {
         match self {
             Suite::Tiny => vec![1e-3, 1e-6],
-            Suite::Quick => vec![1e-4, 1e-8],
-            Suite::Default => vec![1e-4, 1e-7, 1e-10],
-            Suite::Full => (3..=12).map(|k| 10f64.powi(-k)).collect(),
+            Suite::Default => vec![1e-4, 1e-8],
+            Suite::Full => vec![1e-4, 1e-7, 1e-10],
+            Suite::Exhaustive => (3..=12).map(|k| 10f64.powi(-k)).collect(),
         }
     }
     fn limits(self, smallest_target: f64) -> Limits {
         let (run_budget, per_octave) = match self {
             Suite::Tiny => (0.02, 2),
-            Suite::Quick => (0.25, 4),
+            Suite::Default => (0.25, 4),
             // Halved twice from (2.0, 8), which did not finish in 25 minutes.
-            Suite::Default => (1.0, 4),
-            Suite::Full => (20.0, 8),
+            Suite::Full => (1.0, 4),
+            Suite::Exhaustive => (20.0, 8),
         };
         Limits { smallest_target, run_budget, per_octave }
     }
     fn repeats(self) -> u32 {
         match self {
-            Suite::Tiny | Suite::Quick => 1,
-            Suite::Default => 3,
-            Suite::Full => 5,
+            Suite::Tiny | Suite::Default => 1,
+            Suite::Full => 3,
+            Suite::Exhaustive => 5,
         }
     }
     /// Long energy runs: this many horizons.
     fn long_factor(self) -> f64 {
         match self {
             Suite::Tiny => 2.0,
-            Suite::Quick => 10.0,
-            Suite::Default => 100.0,
-            Suite::Full => 1000.0,
+            Suite::Default => 10.0,
+            Suite::Full => 100.0,
+            Suite::Exhaustive => 1000.0,
         }
     }
     /// Steps of the long runs of the stress section.
     fn many_steps(self) -> usize {
         match self {
             Suite::Tiny => 1_000,
-            Suite::Quick => 100_000,
-            Suite::Default | Suite::Full => 10_000_000,
+            Suite::Default => 100_000,
+            Suite::Full | Suite::Exhaustive => 10_000_000,
         }
     }
     /// Steps per orbit of the hard-orbit runs (tolerances for the adaptive ones).
     fn hard_settings(self) -> (Vec<usize>, Vec<f64>) {
         match self {
             Suite::Tiny => (vec![200], vec![1e-6]),
-            Suite::Quick => (vec![200, 2000], vec![1e-6, 1e-9]),
-            Suite::Default | Suite::Full => (vec![200, 2000, 20000], vec![1e-6, 1e-9, 1e-12]),
+            Suite::Default => (vec![200, 2000], vec![1e-6, 1e-9]),
+            Suite::Full | Suite::Exhaustive => (vec![200, 2000, 20000], vec![1e-6, 1e-9, 1e-12]),
         }
     }
     fn bad_input_timeout(self) -> Duration {
         Duration::from_secs(match self {
             Suite::Tiny => 2,
-            Suite::Quick => 5,
-            Suite::Default | Suite::Full => 20,
+            Suite::Default => 5,
+            Suite::Full | Suite::Exhaustive => 20,
         })
     }
 }
@@ -108,13 +129,13 @@ impl Suite {
 pub struct Config {
     /// The suite.
     pub suite: Suite,
-    /// Problem ids (`None`: all).
+    /// Problem ids (`None`: the suite's, [`Suite::problems`]).
     pub problems: Option<Vec<String>>,
     /// Methods (`None`: all).
     pub methods: Option<Vec<Method>>,
     /// Relative agreement a reference must reach in its check.
     pub reference_tolerance: f64,
-    /// Show progress bars.
+    /// Progress lines on stderr ([`Progress`]).
     pub progress: bool,
     /// Multiplies every problem's horizon (on top of the suite's scale).
     pub horizon_scale: f64,
@@ -123,6 +144,8 @@ pub struct Config {
     /// Only the work–precision calibration: no long energy runs, stress
     /// section or step costs (for long horizons, `--scale`).
     pub calibration_only: bool,
+    /// The command that runs this configuration, stated in the report.
+    pub command: String,
 }
 
 /// The ids of every problem of the work–precision suite.
@@ -130,39 +153,43 @@ pub fn problem_ids() -> Vec<&'static str> {
     problem::all(1.0).iter().map(|p| p.id()).collect()
 }
 
-fn bar(config: &Config, len: u64, prefix: String) -> ProgressBar {
-    if !config.progress {
-        return ProgressBar::hidden();
-    }
-    let b = ProgressBar::new(len);
-    b.set_style(
-        ProgressStyle::with_template("{prefix:>20} [{bar:30}] {pos}/{len} {elapsed:>4} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    b.set_prefix(prefix);
-    b
-}
-
 /// The 1-minute load average (Linux), so a report says how busy the machine was.
 fn load_average() -> Option<f64> {
     std::fs::read_to_string("/proc/loadavg").ok()?.split_whitespace().next()?.parse().ok()
 }
 
-/// Progress as plain lines when stderr is no terminal (indicatif draws nothing
-/// there), so a long run in the background shows where it is.
-struct Log {
+/// Progress on stderr, a line as each unit of work starts: seconds since the
+/// start, the unit's number of all, the problem and method; plain lines, so
+/// that a terminal, a log file and CI show the same.
+pub struct Progress {
     on: bool,
     start: Instant,
+    done: Cell<usize>,
+    total: usize,
 }
 
-impl Log {
-    fn new(config: &Config) -> Log {
-        Log { on: config.progress && !std::io::stderr().is_terminal(), start: Instant::now() }
+impl Progress {
+    /// `total` units, silent unless `on`.
+    pub fn new(on: bool, total: usize) -> Progress {
+        Progress { on, start: Instant::now(), done: Cell::new(0), total }
     }
-    fn line(&self, what: impl std::fmt::Display) {
+    /// Unit `what` starts.
+    pub fn unit(&self, what: impl std::fmt::Display) {
+        self.done.set(self.done.get() + 1);
         if self.on {
-            eprintln!("[{:7.1} s] {what}", self.start.elapsed().as_secs_f64());
+            let width = self.total.to_string().len();
+            eprintln!(
+                "[{:6.1} s] {:>width$}/{} {what}",
+                self.start.elapsed().as_secs_f64(),
+                self.done.get(),
+                self.total
+            );
+        }
+    }
+    /// The end of the work.
+    pub fn finish(&self) {
+        if self.on {
+            eprintln!("[{:6.1} s] done", self.start.elapsed().as_secs_f64());
         }
     }
 }
@@ -171,53 +198,50 @@ impl Log {
 pub fn run(config: &Config) -> Result<Report, String> {
     let suite = config.suite;
     let load_start = load_average();
-    let log = Log::new(config);
     let targets = config.targets.clone().unwrap_or_else(|| suite.targets());
     let scale = suite.scale() * config.horizon_scale;
     let smallest = targets.iter().copied().fold(f64::INFINITY, f64::min);
     let methods = config.methods.clone().unwrap_or_else(Method::all);
-    let problems: Vec<Box<dyn Problem>> = problem::all(scale)
-        .into_iter()
-        .filter(|p| config.problems.as_ref().is_none_or(|ids| ids.iter().any(|id| id == p.id())))
-        .collect();
+    let chosen = |id: &str| match (&config.problems, suite.problems()) {
+        (Some(ids), _) => ids.iter().any(|i| i == id),
+        (None, Some(ids)) => ids.contains(&id),
+        (None, None) => true,
+    };
+    let problems: Vec<Box<dyn Problem>> = problem::all(scale).into_iter().filter(|p| chosen(p.id())).collect();
+    let applicable = |p: &dyn Problem| methods.iter().copied().filter(|&m| p.applies(m)).collect::<Vec<Method>>();
+    // Per problem: the reference, each method, the twins and energy runs; then the stress section.
+    let stress_units = if config.calibration_only { 0 } else { problems.len() + HARD_ORBITS + 3 };
+    let units = problems.iter().map(|p| applicable(&**p).len() + 2).sum::<usize>() + stress_units;
+    let progress = Progress::new(config.progress, units);
     let mut reports = Vec::new();
-    for p in &problems {
-        let applicable: Vec<Method> = methods.iter().copied().filter(|&m| p.applies(m)).collect();
+    for (i, p) in problems.iter().enumerate() {
+        let applicable = applicable(&**p);
         let t_end = p.horizon();
-        let b = bar(config, applicable.len() as u64 * 2 + 1, p.id().to_string());
-        b.set_message("reference");
-        log.line(format_args!("{}: reference", p.id()));
+        let at = format!("problem {}/{} {}", i + 1, problems.len(), p.id());
+        progress.unit(format_args!("{at}: reference"));
         let reference = p.reference(t_end, config.reference_tolerance)?;
-        b.inc(1);
-        log.line(format_args!("{}: reference done, sweeps of {} methods", p.id(), applicable.len()));
         let limits = suite.limits(smallest);
         let mut sweeps = Vec::new();
         let mut calibrated = Vec::new();
-        for &m in &applicable {
-            b.set_message(format!("sweep {}", m.name()));
-            let points = calibrate::sweep(&**p, m, &reference.q, t_end, limits, |pt| {
-                b.set_message(format!("sweep {} {:?}", m.name(), pt.setting));
-            });
-            b.inc(1);
-            b.set_message(format!("timing {}", m.name()));
+        for (j, &m) in applicable.iter().enumerate() {
+            progress.unit(format_args!("{at}: method {}/{} {}", j + 1, applicable.len(), m.name()));
+            let points = calibrate::sweep(&**p, m, &reference.q, t_end, limits, |_| {});
             for &target in &targets {
                 calibrated.push(time_selected(&**p, m, &points, target, &reference.q, t_end, suite.repeats()));
             }
-            b.inc(1);
-            log.line(format_args!("{}: {} swept ({} runs) and timed", p.id(), m.name(), points.len()));
             sweeps.push(Sweep { method: m.name(), family: m.family(), order: m.order(), points });
         }
-        b.set_message("generated against hand-written");
+        progress.unit(format_args!(
+            "{at}: generated against hand-written{}",
+            if config.calibration_only { "" } else { ", long energy runs" }
+        ));
         let twins = twins(&**p, &applicable, &calibrated, &targets, t_end, suite.repeats().max(5));
         let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
-        b.set_message("long energy runs");
-        log.line(format_args!("{}: long energy runs", p.id()));
         let energy = if config.calibration_only {
             Vec::new()
         } else {
             long_energy(&**p, &applicable, &calibrated, targets[0], t_end * suite.long_factor())
         };
-        b.finish_with_message("done");
         reports.push(ProblemReport {
             id: p.id().to_string(),
             title: p.title().to_string(),
@@ -235,17 +259,17 @@ pub fn run(config: &Config) -> Result<Report, String> {
     let (stress, step_costs) = if config.calibration_only {
         (Stress::default(), Vec::new())
     } else {
-        log.line("stress");
-        let mut stress = stress(config, &methods, &problems, &references);
-        log.line("long runs");
+        let mut stress = stress(config, &methods, &problems, &references, &progress);
+        progress.unit(format_args!("stress: {} steps at the calibrated step", suite.many_steps()));
         stress.long_runs = long_runs(config, &methods, &problems, &reports);
-        log.line("step costs");
+        progress.unit("step costs");
         (stress, crate::step_cost::measure(suite))
     };
-    log.line("done");
+    progress.finish();
     Ok(Report {
         schema_version: SCHEMA_VERSION,
         suite: suite.name().to_string(),
+        command: config.command.clone(),
         crate_version: env!("CARGO_PKG_VERSION").to_string(),
         machine: Machine {
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -496,7 +520,16 @@ fn fixed_step(methods: &[Method]) -> Vec<Method> {
 }
 
 /// `references[i]` is `q(T)` of `problems[i]`.
-fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>], references: &[&[f64]]) -> Stress {
+/// The problems of the hard-orbit runs.
+const HARD_ORBITS: usize = 2;
+
+fn stress(
+    config: &Config,
+    methods: &[Method],
+    problems: &[Box<dyn Problem>],
+    references: &[&[f64]],
+    progress: &Progress,
+) -> Stress {
     let suite = config.suite;
     let mut out = Stress::default();
     // Largest step: scanning down from one period by 2^{1/2}, the first step
@@ -507,11 +540,10 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>], re
     let not_conserved = "(energy not conserved) largest h = period·2^(-k/2) that runs to T without a failure and ends \
                          with max|q(T) − q_ref(T)| ≤ 0.1·max(1, max|q_ref(T)|)";
     let fixed = fixed_step(methods);
-    let b = bar(config, (problems.len() * fixed.len()) as u64, "largest step".into());
     for (p, reference) in problems.iter().zip(references) {
+        progress.unit(format_args!("stress: largest step on {}", p.id()));
         let far = 0.1 * reference.iter().fold(1.0f64, |m, x| m.max(x.abs()));
         for &m in fixed.iter().filter(|&&m| p.applies(m)) {
-            b.set_message(format!("{} {}", p.id(), m.name()));
             let t_end = p.horizon();
             let mut found = None;
             for k in 0..40 {
@@ -535,22 +567,19 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>], re
                 h_over_period: found.map(|h| h / p.time_scale()),
                 criterion: if p.conservative() { conserved } else { not_conserved }.to_string(),
             });
-            b.inc(1);
         }
     }
-    b.finish_with_message("done");
     // Hard orbits.
     let (per_orbit, tolerances) = suite.hard_settings();
-    let hard: Vec<Box<dyn Problem>> = vec![
+    let hard: [Box<dyn Problem>; HARD_ORBITS] = [
         problem::all(suite.scale()).into_iter().find(|p| p.id() == "kepler-0.9").expect("kepler-0.9 is a problem"),
         problem::kepler_099(suite.scale()),
     ];
-    let b = bar(config, (hard.len() * methods.len()) as u64, "hard orbits".into());
     for p in &hard {
+        progress.unit(format_args!("stress: hard orbit {}", p.id()));
         let t_end = p.horizon();
         let reference = p.reference(t_end, config.reference_tolerance);
         for &m in methods.iter().filter(|&&m| p.applies(m)) {
-            b.set_message(format!("{} {}", p.id(), m.name()));
             let settings: Vec<Setting> = if let Some(sigma0) = m.sigma0() {
                 [1.0, 0.25, 0.0625].iter().map(|&f| Setting::Sigma(f * sigma0)).collect()
             } else if m.adaptive() {
@@ -575,10 +604,9 @@ fn stress(config: &Config, methods: &[Method], problems: &[Box<dyn Problem>], re
                     outcome: run.failure.unwrap_or_else(|| "ok".to_string()),
                 });
             }
-            b.inc(1);
         }
     }
-    b.finish_with_message("done");
+    progress.unit("stress: bad input");
     out.bad_input = bad_input(config, methods);
     out
 }
@@ -599,7 +627,6 @@ fn cases() -> Vec<Case> {
 
 fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
     let cases = cases();
-    let b = bar(config, (cases.len() * methods.len()) as u64, "bad input".into());
     // Panics are outcomes here, not noise on the terminal.
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
@@ -607,7 +634,6 @@ fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
     for (class, id, q0, v0, t_end) in cases {
         let applies = |m: Method| problem::all(config.suite.scale()).iter().any(|p| p.id() == id && p.applies(m));
         for &m in methods.iter().filter(|&&m| applies(m)) {
-            b.set_message(format!("{class}: {}", m.name()));
             let (tx, rx) = mpsc::channel();
             let (q0, v0) = (q0.clone(), v0.clone());
             let scale = config.suite.scale();
@@ -640,12 +666,10 @@ fn bad_input(config: &Config, methods: &[Method]) -> Vec<BadInput> {
                 Ok(Err(panic)) => format!("panicked: {}", panic_message(&*panic)),
                 Err(_) => format!("did not return within {} s", config.suite.bad_input_timeout().as_secs()),
             };
-            b.inc(1);
             out.push(BadInput { class: class.to_string(), method: m.name(), outcome });
         }
     }
     std::panic::set_hook(hook);
-    b.finish_with_message("done");
     out
 }
 

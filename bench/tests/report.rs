@@ -38,6 +38,7 @@ fn tiny_report_writes_every_file() {
     let report: Report = serde_json::from_slice(&read(&out.join("report.json"))).expect("the JSON matches the schema");
     assert_eq!(report.schema_version, SCHEMA_VERSION);
     assert_eq!(report.suite, "tiny");
+    assert!(report.command.starts_with("cargo run --release -p lagrangian-bench -- --tiny --no-progress"));
     assert_eq!(report.problems.iter().map(|p| p.id.as_str()).collect::<Vec<_>>(), ["pendulum", "kepler-0.5"]);
     for p in &report.problems {
         // Every method but the time-transformed ones, which need a step density (Kepler's r^{3/2}).
@@ -138,6 +139,48 @@ fn tiny_report_writes_every_file() {
     assert!(!status.status.success());
     assert!(String::from_utf8_lossy(&status.stderr).contains("unknown README section `nope`"));
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Progress: a line per unit of work as it starts (number of all, problem,
+/// method), then `done`; the headline and the report's path on stdout.
+#[test]
+fn progress_lines_name_problem_method_and_count() {
+    let dir = scratch("progress");
+    let out = dir.join("report");
+    let run = bin()
+        .args(["--tiny", "--problem", "pendulum", "--method", "verlet,midpoint", "--calibration-only", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let err = String::from_utf8_lossy(&run.stderr);
+    // Without the stress section: the reference, the methods in the order given, the twins.
+    let lines: Vec<&str> = err.lines().map(|l| l.split_once("] ").map_or(l, |(_, rest)| rest)).collect();
+    assert_eq!(
+        lines,
+        [
+            "1/4 problem 1/1 pendulum: reference",
+            "2/4 problem 1/1 pendulum: method 1/2 verlet",
+            "3/4 problem 1/1 pendulum: method 2/2 midpoint",
+            "4/4 problem 1/1 pendulum: generated against hand-written",
+            "done",
+        ],
+        "{err}"
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("| pendulum | 1.0e-3 |"), "{stdout}");
+    assert!(stdout.contains(&format!("report: {}", out.join("report.md").display())), "{stdout}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The default suite names problems that exist, one of each family.
+#[test]
+fn the_default_suite_runs_known_problems() {
+    let known = lagrangian_bench::suite::problem_ids();
+    let default = lagrangian_bench::suite::DEFAULT_PROBLEMS;
+    assert!(default.iter().all(|id| known.contains(id)), "{default:?} against {known:?}");
+    assert_eq!(default.iter().filter(|id| id.starts_with("kepler-")).count(), 1);
+    assert_eq!(default.len(), known.len() - 1, "every problem but the second Kepler orbit");
 }
 
 #[test]
