@@ -10,8 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use crate::output::{
-    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table,
-    twins_table,
+    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table,
 };
 use crate::report::{Report, SCHEMA_VERSION};
 
