@@ -201,6 +201,7 @@ pub mod prelude {
         Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Summation,
         Symmetry, Trapezoid,
     };
+    pub use lagrangian_runtime::{Auto, Estimate, Solved, Tolerance, solve_to};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
@@ -219,3 +220,8 @@ pub mod __private {
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
+
+/// The guide's page on the tolerance-driven solve, compiled and run as doc tests.
+#[doc = include_str!("../docs/guide/automatic.md")]
+#[cfg(doctest)]
+pub struct GuideAutomatic;

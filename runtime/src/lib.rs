@@ -6,6 +6,7 @@
 //! built and tested apart. The runtime knows a user's system only through the
 //! [`Lagrangian`] trait.
 
+pub mod auto;
 pub mod banded;
 pub mod dense;
 pub mod derivatives;
@@ -35,6 +36,7 @@ pub mod system;
 pub mod tape;
 pub mod time_transform;
 
+pub use auto::{Auto, Estimate, Solved, Tolerance, solve_to};
 pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};
