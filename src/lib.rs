@@ -202,6 +202,7 @@ pub mod prelude {
         Integrator, Lagrangian, Method, Midpoint, NewtonOptions, Scalar, State, StepBounds, StepPolicy, Summation,
         Symmetry, Trapezoid,
     };
+    pub use lagrangian_runtime::{Auto, Estimate, Solved, Tolerance, solve_to};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
@@ -220,11 +221,6 @@ pub mod __private {
 #[doc = include_str!("../README.md")]
 #[cfg(doctest)]
 pub struct ReadmeDoctests;
-
-/// The chapter on holonomic constraints, its examples compiled and run as doc tests.
-#[doc = include_str!("../docs/guide/constraints.md")]
-#[cfg(doctest)]
-pub struct GuideConstraints;
 
 /// The guide's chapters (`docs/guide/`), each compiled and run as doc tests.
 #[cfg(doctest)]
@@ -249,4 +245,10 @@ pub mod guide {
     pub struct Performance;
     #[doc = include_str!("../docs/guide/10-theory.md")]
     pub struct Theory;
+    #[doc = include_str!("../docs/guide/automatic.md")]
+    pub struct Automatic;
+    #[doc = include_str!("../docs/guide/constraints.md")]
+    pub struct Constraints;
+    #[doc = include_str!("../docs/guide/cluster.md")]
+    pub struct Cluster;
 }

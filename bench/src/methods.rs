@@ -49,6 +49,10 @@ pub enum Method {
     /// Hamiltonian, Kahan–Li 8 of the drift–kick–drift leapfrog, uniform
     /// steps `σ` in the new time), on the problems with a step density.
     TimeTransformedSplit,
+    /// Project: the tolerance-driven solve (`lagrangian::Auto`): it chooses
+    /// the method, its order and its step from `rtol = tol`; the time
+    /// includes its survey and pilot.
+    Auto,
 }
 
 /// Who wrote a method.
@@ -95,6 +99,7 @@ impl Method {
             Method::TimeTransformed(6),
             Method::TimeTransformedAuto(6),
             Method::TimeTransformedSplit,
+            Method::Auto,
         ]);
         m
     }
@@ -119,6 +124,7 @@ impl Method {
             Method::TimeTransformed(s) => format!("tt-galerkin-{s}"),
             Method::TimeTransformedAuto(s) => format!("tt-auto-galerkin-{s}"),
             Method::TimeTransformedSplit => "tt-split-logh-kahan-li-8".into(),
+            Method::Auto => "auto".into(),
         }
     }
 
@@ -140,7 +146,8 @@ impl Method {
             | Method::GeneratedKahanLi8
             | Method::TimeTransformed(_)
             | Method::TimeTransformedAuto(_)
-            | Method::TimeTransformedSplit => Family::Project,
+            | Method::TimeTransformedSplit
+            | Method::Auto => Family::Project,
             Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 => Family::Peer,
             Method::Verlet | Method::Yoshida6 | Method::KahanLi8 => Family::HandWritten,
         }
@@ -156,12 +163,14 @@ impl Method {
             Method::DiffEqGauss6 | Method::Yoshida6 | Method::GeneratedYoshida6 => 6,
             Method::GeneratedYoshida4 => 4,
             Method::KahanLi8 | Method::GeneratedKahanLi8 | Method::TimeTransformedSplit => 8,
+            // Chosen per problem and tolerance; the highest it may choose.
+            Method::Auto => 16,
         }
     }
 
     /// `true` when the method is calibrated by a tolerance rather than a step count.
     pub fn adaptive(self) -> bool {
-        matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6)
+        matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 | Method::Auto)
     }
 
     /// The coarsest `σ` of a time-transformed method's sweep; `None` for the others.
@@ -233,6 +242,21 @@ pub struct Run {
     /// `(t, |L − L0|/|L0|)` samples of the angular momentum `L`, at the same
     /// times, when asked for and the problem conserves it.
     pub momentum: Vec<(f64, f64)>,
+    /// What the tolerance-driven solve reported ([`Method::Auto`] only).
+    pub auto: Option<AutoReport>,
+}
+
+/// The estimate and choice of a [`Method::Auto`] run.
+#[derive(Clone, Debug, Default)]
+pub struct AutoReport {
+    /// The estimated global error at the end.
+    pub estimate: f64,
+    /// The absolute error asked for, `rtol · Q`.
+    pub requested: f64,
+    /// The method it ran.
+    pub method: String,
+    /// Steps of the survey and pilot.
+    pub pilot_steps: u64,
 }
 
 /// The relative errors of the conserved quantities of a model at a state.
@@ -376,6 +400,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
         (Method::TimeTransformedSplit, Setting::Sigma(sigma)) => model
             .time_transformed(Transformed::Splitting, sigma, t_end, &mut record)
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
+        (Method::Auto, Setting::Tolerance(tol)) => auto(model, (q0, v0), tol, t_end, samples, &mut record),
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
     out.seconds = start.seconds();
@@ -456,5 +481,43 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     match result {
         Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
         Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+    }
+}
+
+/// The tolerance-driven solve with `rtol = tol`, pilot included; with
+/// `samples > 0` every node is kept and recorded (`record` thins them).
+fn auto<M: Model<N>, const N: usize>(
+    model: &M,
+    (q0, v0): ([f64; N], [f64; N]),
+    tol: f64,
+    t_end: f64,
+    samples: usize,
+    record: &mut impl FnMut(f64, &[f64; N], &[f64; N]),
+) -> Run {
+    // Only the last node unless the energy is sampled.
+    let plan = if samples > 0 { Plan::until(t_end) } else { Plan::until(t_end).every(usize::MAX).without_velocities() };
+    match Auto::new(model.system(), 0.0, q0, v0).tolerance(Tolerance::relative(tol)).solve(plan) {
+        Ok(solved) => {
+            let sol = &solved.solution;
+            if samples > 0 {
+                for ((t, q), v) in sol.t.iter().zip(&sol.q).zip(&sol.v) {
+                    record(*t, q, v);
+                }
+            }
+            let est = &solved.estimate;
+            let steps = sol.stats.steps + est.pilot.steps;
+            let auto = Some(AutoReport {
+                estimate: est.error,
+                requested: est.requested,
+                method: est.method_name.clone(),
+                pilot_steps: est.pilot.steps,
+            });
+            match (sol.error.as_ref(), sol.q.last()) {
+                (None, Some(q)) => Run { q: q.to_vec(), steps, auto, ..Run::default() },
+                (Some(e), _) => Run { failure: Some(e.to_string()), steps, auto, ..Run::default() },
+                (None, None) => Run { failure: Some("no node kept".into()), steps, auto, ..Run::default() },
+            }
+        }
+        Err(e) => Run::failed(e.to_string(), 0.0),
     }
 }

@@ -17,7 +17,7 @@ pub type Dd = DoubleDouble;
 /// One problem with `N` degrees of freedom, as the report needs it.
 pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     /// The `#[lagrangian]` system the project's integrators run.
-    type Sys: Lagrangian<N>;
+    type Sys: Lagrangian<N> + Clone;
     /// Short name used on the command line and in file names.
     const ID: &'static str;
     /// Title for plots and tables.

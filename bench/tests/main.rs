@@ -5,6 +5,7 @@
 //! `cargo test --workspace` paid five times. Run one file with
 //! `cargo test -p lagrangian-bench --test integration <file>::`.
 
+mod auto;
 mod compositions;
 mod handwritten_agreement;
 mod peer_sampling;

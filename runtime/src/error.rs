@@ -121,9 +121,9 @@ pub enum Error<const N: usize, T: Real = f64> {
         h: f64,
     },
     /// Variable-step bounds that are not finite, not positive, `h_min > h_max`,
-    /// or a ratio that is not finite and above 1.
+    /// a ratio that is not finite and above 1, or an accuracy outside `(0, 1)`.
     #[error(
-        "invalid step bounds h_min = {h_min}, h_max = {h_max}, max_ratio = {max_ratio}: need 0 < h_min ≤ h_max, both finite, and 1 < max_ratio < ∞"
+        "invalid step bounds h_min = {h_min}, h_max = {h_max}, max_ratio = {max_ratio}: need 0 < h_min ≤ h_max, both finite, 1 < max_ratio < ∞ and an accuracy, if any, in (0, 1)"
     )]
     InvalidStepBounds {
         /// The rejected lower bound.
@@ -247,6 +247,59 @@ pub enum Error<const N: usize, T: Real = f64> {
     InvalidSetting {
         /// What is wrong with it.
         reason: &'static str,
+    },
+    /// A tolerance of a tolerance-driven solve ([`Auto`](crate::auto::Auto))
+    /// that is NaN, not positive, or not below 1 (relative), or an absolute
+    /// tolerance that is negative or not finite.
+    #[error("invalid tolerance {value}: {reason}")]
+    InvalidTolerance {
+        /// The rejected value.
+        value: f64,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// A span of a tolerance-driven solve that is empty, reversed or not finite.
+    #[error("invalid span from t0 = {t0} to t_end = {t_end}: it must be finite with t_end > t0")]
+    InvalidSpan {
+        /// The start.
+        t0: f64,
+        /// The end.
+        t_end: f64,
+    },
+    /// The tolerance asked for lies below what `f64` arithmetic reaches on
+    /// this problem: the round-off accumulated over the steps the tolerance
+    /// needs is larger than the tolerance itself.
+    #[error(
+        "tolerance {requested:e} is below what f64 reaches on this problem (round-off floor about {floor:e} over the span): run in extended precision (`DoubleDouble`) or relax the tolerance"
+    )]
+    ToleranceUnreachable {
+        /// The absolute error asked for (`rtol · scale + atol`).
+        requested: f64,
+        /// The estimated round-off floor of the global error in `f64`.
+        floor: f64,
+    },
+    /// The pilot's error estimate grows exponentially (a positive Lyapunov
+    /// exponent) so fast that no method in `f64` meets the tolerance over the
+    /// span: an answer would be confident and wrong.
+    #[error(
+        "chaotic: no method meets the tolerance over this span (the pilot's error grows like exp({rate:.3} t); the round-off alone grows to {floor:e} by t = {t_end}, against {requested:e} asked for): shorten the span or relax the tolerance"
+    )]
+    Chaotic {
+        /// The absolute error asked for.
+        requested: f64,
+        /// The round-off alone, amplified to the end of the span.
+        floor: f64,
+        /// The measured growth rate of the error (per unit time).
+        rate: f64,
+        /// The end of the span.
+        t_end: f64,
+    },
+    /// Every candidate method of a tolerance-driven solve failed in its
+    /// pilot; one line per candidate says which failed where.
+    #[error("no candidate method completed its pilot: {}", .failures.join("; "))]
+    NoMethod {
+        /// `method: error` for each candidate tried, in order.
+        failures: Vec<String>,
     },
     /// The velocity for a momentum could not be found (inverse Legendre transform).
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
@@ -383,6 +436,11 @@ impl<const N: usize, T: Real> Error<N, T> {
             Error::InverseLegendre { state, iterations, residual_norm } => {
                 Error::InverseLegendre { state: f(state), iterations, residual_norm }
             }
+            Error::InvalidTolerance { value, reason } => Error::InvalidTolerance { value, reason },
+            Error::InvalidSpan { t0, t_end } => Error::InvalidSpan { t0, t_end },
+            Error::ToleranceUnreachable { requested, floor } => Error::ToleranceUnreachable { requested, floor },
+            Error::Chaotic { requested, floor, rate, t_end } => Error::Chaotic { requested, floor, rate, t_end },
+            Error::NoMethod { failures } => Error::NoMethod { failures },
         }
     }
 

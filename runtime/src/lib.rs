@@ -6,6 +6,7 @@
 //! built and tested apart. The runtime knows a user's system only through the
 //! [`Lagrangian`] trait.
 
+pub mod auto;
 pub mod banded;
 pub mod constrained;
 pub mod dense;
@@ -36,6 +37,7 @@ pub mod system;
 pub mod tape;
 pub mod time_transform;
 
+pub use auto::{Auto, Estimate, Solved, Tolerance, solve_to};
 pub use constrained::Constrained;
 pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};

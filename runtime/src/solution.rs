@@ -220,6 +220,11 @@ impl<'a, const N: usize> Plan<'a, N> {
         }
     }
 
+    /// The end time.
+    pub(crate) fn end(&self) -> f64 {
+        self.t_end
+    }
+
     /// Keep every `n`-th node, counted in steps of this run, and the first
     /// and last; `0` keeps no nodes (only [`save_at`](Self::save_at) values).
     pub fn every(mut self, n: usize) -> Self {

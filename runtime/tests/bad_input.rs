@@ -104,13 +104,13 @@ fn galerkin_stops_where_the_lagrangian_is_not_defined() {
 
 #[test]
 fn step_bounds_are_validated_and_enforced() {
-    let infinite = StepBounds { h_min: 1e-3, h_max: 0.02, max_ratio: f64::INFINITY };
+    let infinite = StepBounds { h_min: 1e-3, h_max: 0.02, max_ratio: f64::INFINITY, accuracy: None };
     let start = |b| Integrator::new(Pendulum, Midpoint, 0.01).energy_preserving(b).start(0.0, [1.0], [0.0]);
     assert!(matches!(start(infinite), Err(Error::InvalidStepBounds { .. })));
     let one = StepBounds { max_ratio: 1.0, ..infinite };
     assert!(matches!(start(one), Err(Error::InvalidStepBounds { .. })));
 
-    let bounds = StepBounds { h_min: 1e-3, h_max: 0.02, max_ratio: 2.0 };
+    let bounds = StepBounds { h_min: 1e-3, h_max: 0.02, max_ratio: 2.0, accuracy: None };
     let mut sim = start(bounds).unwrap();
     assert!(matches!(sim.set_step_size(1e300), Err(Error::InvalidStepSize { .. })));
     let mut t = 0.0;

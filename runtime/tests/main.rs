@@ -7,6 +7,7 @@
 //! `cargo test -p lagrangian-runtime --test integration <file>::`.
 #![allow(missing_docs)]
 
+mod auto;
 mod bad_input;
 mod compensated;
 mod large_stack;

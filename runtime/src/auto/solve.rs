@@ -1,0 +1,461 @@
+//! The tolerance-driven solve: choose, pilot, run.
+
+use crate::Galerkin;
+use crate::error::Error;
+use crate::guidance::{self, Rule};
+use crate::integrator::{Composition, Integrator};
+use crate::solution::{Plan, Solution, SolveError, Stepping};
+use crate::system::Lagrangian;
+use crate::time_transform::{ExplicitTimeTransformed, TimeFunction};
+
+use super::choice::{self, Candidate, Facts, Family, Fixed};
+use super::pilot::{self, Clock, Cost, Growth, Probe, Richardson};
+use super::tolerance::Tolerance;
+
+/// The fraction of the span the pilot covers (at least one period of the
+/// fastest mode at the start, at most the whole span).
+const PILOT_FRACTION: f64 = 0.1;
+/// The estimate the step aims at, as a fraction of the tolerance: the
+/// Richardson estimate is asymptotic, and the error of a fixed-step method
+/// is not monotone in `h`.
+const SAFETY: f64 = 0.3;
+/// Pilot rounds per candidate before its last step is taken as it is.
+const ROUNDS: usize = 5;
+/// Checkpoints of the pilot, each twice as far from the start as the one before.
+const CHECKPOINTS: usize = 7;
+/// Samples of `ρ` for the step-density survey.
+const SURVEY_SAMPLES: usize = 256;
+
+/// The answer of a tolerance-driven solve: the [`Solution`] of the final
+/// run and the [`Estimate`] of its error.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solved<const N: usize> {
+    /// The final run, as any [`Stepping::solve`] returns it.
+    pub solution: Solution<N>,
+    /// The error estimate, the method and why, and the pilot's cost.
+    pub estimate: Estimate,
+}
+
+/// What the solve estimates and decided.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// The estimated global error `max_i |q_i − q_i^exact|` at the end of the span.
+    pub error: f64,
+    /// The scale `Q` of the positions the relative tolerance refers to.
+    pub scale: f64,
+    /// The absolute error asked for, `rtol · Q + atol`.
+    pub requested: f64,
+    /// The pilot measured the error over `[t0, measured_until]` and
+    /// extrapolated it to the end with [`growth`](Self::growth).
+    pub measured_until: f64,
+    /// The growth of the error the pilot measured.
+    pub growth: Growth,
+    /// The method that ran.
+    pub method: Candidate,
+    /// Its name.
+    pub method_name: String,
+    /// Why it was chosen, in one line.
+    pub reason: String,
+    /// The step: `h`, or `σ` in the new time of the time transformation.
+    pub step: f64,
+    /// `max ρ / mean ρ` of the linearisation along the survey, when it ran
+    /// (only for systems the time transformation applies to).
+    pub density_ratio: Option<f64>,
+    /// What the pilot cost.
+    pub pilot: Cost,
+    /// Candidates whose pilot failed before this one: `method: error`.
+    pub failures: Vec<String>,
+}
+
+/// A tolerance-driven solve: the method, its order and its step are chosen
+/// to meet a [`Tolerance`] at the end of the span, from the structure facts
+/// of the system and a pilot run (see the [module](super)).
+///
+/// ```
+/// use lagrangian_runtime::auto::{Auto, Tolerance};
+/// use lagrangian_runtime::{Lagrangian, Plan, Scalar, Separability};
+///
+/// #[derive(Clone)]
+/// struct Oscillator;
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     const SEPARABILITY: Separability = Separability::ConstantMass;
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+///     }
+/// }
+///
+/// let solved = Auto::new(Oscillator, 0.0, [1.0], [0.0]).tolerance(Tolerance::relative(1e-8)).solve(Plan::until(20.0))?;
+/// let q = solved.solution.q.last().unwrap()[0];
+/// assert!((q - 20f64.cos()).abs() < 1e-7);
+/// assert!(solved.estimate.error < 1e-8);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct Auto<S, const N: usize> {
+    system: S,
+    t0: f64,
+    q0: [f64; N],
+    v0: [f64; N],
+    tolerance: Tolerance,
+    fixed: Fixed,
+    step: Option<f64>,
+}
+
+/// Solves `system` from `(t0, q0, v0)` to `t_end` within `tolerance`,
+/// keeping every node: [`Auto`] with the defaults.
+pub fn solve_to<S: Lagrangian<N> + Clone, const N: usize>(
+    system: S,
+    t0: f64,
+    q0: [f64; N],
+    v0: [f64; N],
+    t_end: f64,
+    tolerance: Tolerance,
+) -> Result<Solved<N>, SolveError<N>> {
+    Auto::new(system, t0, q0, v0).tolerance(tolerance).solve(Plan::until(t_end))
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
+    /// A solve from `(t0, q0, v0)` with the default tolerance `rtol = 1e-8`.
+    pub fn new(system: S, t0: f64, q0: [f64; N], v0: [f64; N]) -> Self {
+        Self { system, t0, q0, v0, tolerance: Tolerance::relative(1e-8), fixed: Fixed::default(), step: None }
+    }
+
+    /// The tolerance to meet.
+    pub fn tolerance(mut self, tolerance: Tolerance) -> Self {
+        self.tolerance = tolerance;
+        self
+    }
+
+    /// Fixes the method family; the order and step are still chosen.
+    pub fn family(mut self, family: Family) -> Self {
+        self.fixed.family = Some(family);
+        self
+    }
+
+    /// Fixes the order (of the fixed family, or of the one chosen).
+    pub fn order(mut self, order: u32) -> Self {
+        self.fixed.order = Some(order);
+        self
+    }
+
+    /// Fixes the step (`h`, or `σ` for the time transformation): the pilot
+    /// then only estimates the error of that step.
+    pub fn step(mut self, step: f64) -> Self {
+        self.step = Some(step);
+        self
+    }
+
+    /// Chooses, pilots and runs to the end of `plan` (which also says what
+    /// the [`Solution`] keeps). Typed refusals: [`Error::InvalidTolerance`],
+    /// [`Error::InvalidSpan`], [`Error::ToleranceUnreachable`],
+    /// [`Error::Chaotic`], [`Error::NoMethod`] (every candidate's pilot
+    /// failed), all as [`SolveError::Step`].
+    pub fn solve(self, plan: Plan<'_, N>) -> Result<Solved<N>, SolveError<N>> {
+        let clock = Clock::start();
+        let t_end = plan.end();
+        self.tolerance.validate()?;
+        if !(self.t0.is_finite() && t_end.is_finite() && t_end > self.t0) {
+            return Err(Error::InvalidSpan { t0: self.t0, t_end }.into());
+        }
+        if let Some(h) = self.step {
+            Error::<N>::check_step(h)?;
+        }
+        let facts = Facts::of::<S, N>();
+        let span = t_end - self.t0;
+        let rho = guidance::linearize(&self.system, self.t0, self.q0, self.v0)
+            .map(|l| l.fastest)
+            .ok()
+            .filter(|r| *r > 0.0 && r.is_finite());
+        // One period of the fastest mode at the start, at least.
+        let tp = self.t0 + (PILOT_FRACTION * span).max(rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r)).min(span);
+        let checkpoints: [f64; CHECKPOINTS] =
+            core::array::from_fn(|i| self.t0 + (tp - self.t0) * 0.5f64.powi((CHECKPOINTS - 1 - i) as i32));
+        let settle = rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r).min(0.25 * (tp - self.t0));
+        let mut cost = Cost::default();
+        let first = choice::candidates::<N>(facts, self.tolerance.rtol, None, self.fixed)?;
+        // The survey: how strongly the needed step density varies along the orbit.
+        let mut density_ratio = None;
+        if facts.transformable() && self.fixed.family.is_none_or(|f| f == Family::TimeTransformed) {
+            let c = first[0].0;
+            let mut h = self.initial_step(c, rho, span);
+            // A step too coarse for the fastest part of the orbit fails: a finer one.
+            for _ in 0..3 {
+                let n = ((tp - self.t0) / h).ceil().max(1.0) as usize;
+                let stride = (n / SURVEY_SAMPLES).max(1);
+                if let Ok(p) = run_probe(c, &self, h, &checkpoints, stride) {
+                    cost.steps += p.steps;
+                    let mean = p.rates.iter().sum::<f64>() / p.rates.len().max(1) as f64;
+                    let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
+                    if mean > 0.0 && max.is_finite() {
+                        density_ratio = Some(max / mean);
+                    }
+                    break;
+                }
+                h /= 4.0;
+            }
+        }
+        let candidates = choice::candidates::<N>(facts, self.tolerance.rtol, density_ratio, self.fixed)?;
+        let mut failures = Vec::new();
+        for (candidate, reason) in candidates {
+            match self.pilot(candidate, rho, span, &checkpoints, settle, &mut cost) {
+                Ok((step, rich, scale)) => {
+                    let requested = self.tolerance.bound(scale);
+                    let (step, error) = step;
+                    // The round-off of the final run, amplified like the error.
+                    let steps = self.final_steps(candidate, step, span, rho);
+                    let floor = 10.0
+                        * f64::EPSILON
+                        * scale
+                        * steps.sqrt()
+                        * match rich.growth {
+                            Growth::Exponential(rate) => (rate * span).exp(),
+                            Growth::Power(_) => 1.0,
+                        };
+                    if requested < floor {
+                        return Err(match rich.growth {
+                            Growth::Exponential(rate) => Error::Chaotic { requested, floor, rate, t_end },
+                            Growth::Power(_) => Error::ToleranceUnreachable { requested, floor },
+                        }
+                        .into());
+                    }
+                    cost.seconds = clock.seconds();
+                    let estimate = Estimate {
+                        error,
+                        scale,
+                        requested,
+                        measured_until: tp,
+                        growth: rich.growth,
+                        method: candidate,
+                        method_name: candidate.name(),
+                        reason,
+                        step,
+                        density_ratio,
+                        pilot: cost,
+                        failures,
+                    };
+                    let solution = self.run(candidate, step, span, plan)?;
+                    return Ok(Solved { solution, estimate });
+                }
+                Err(e) => failures.push(format!("{}: {e}", candidate.name())),
+            }
+        }
+        Err(Error::NoMethod { failures }.into())
+    }
+
+    /// A first step from the linearisation at the start: the fastest mode's
+    /// phase error over the span about the tolerance.
+    fn initial_step(&self, c: Candidate, rho: Option<f64>, span: f64) -> f64 {
+        let Some(rho) = rho else { return span / 64.0 };
+        let rule = Rule::galerkin_gauss((c.order / 2).max(1));
+        let periods = (rho * span).max(1.0);
+        let h = rule.omega_h((SAFETY * self.tolerance.rtol / periods).max(1e-300)).min(0.5) / rho;
+        match c.family {
+            // Compositions spend `m` sub-steps per step of order `p`.
+            Family::Composition | Family::TimeTransformed => h * 4.0,
+            Family::Galerkin => h,
+        }
+    }
+
+    /// The steps of the final run at `step` (for the time transformation,
+    /// estimated as if `σ` were a time step at the start's density).
+    fn final_steps(&self, c: Candidate, step: f64, span: f64, _rho: Option<f64>) -> f64 {
+        match c.family {
+            Family::TimeTransformed => match self.tt_density() {
+                Some(g) => (span / (step * g)).max(1.0),
+                None => 1.0,
+            },
+            _ => (span / step).ceil().max(1.0),
+        }
+    }
+
+    fn tt_density(&self) -> Option<f64> {
+        ExplicitTimeTransformed::new(self.system.clone(), TimeFunction::Logarithmic, 1.0)
+            .start(self.t0, self.q0, self.v0)
+            .ok()
+            .map(|it| it.density())
+            .filter(|g| g.is_finite() && *g > 0.0)
+    }
+
+    /// The pilot of one candidate: `Ok((step, estimate at that step, scale))`.
+    #[allow(clippy::type_complexity)]
+    fn pilot(
+        &self,
+        c: Candidate,
+        rho: Option<f64>,
+        span: f64,
+        checkpoints: &[f64; CHECKPOINTS],
+        settle: f64,
+        cost: &mut Cost,
+    ) -> Result<((f64, f64), Richardson, f64), Error<N>> {
+        let mut h = match (self.step, c.family) {
+            (Some(h), _) => h,
+            (None, Family::TimeTransformed) => {
+                let g = self.tt_density().ok_or(Error::InvalidSetting { reason: "no step density at the start" })?;
+                self.initial_step(c, rho, span) / g
+            }
+            (None, _) => self.initial_step(c, rho, span),
+        };
+        let p = c.order as i32;
+        let mut failures = 0;
+        let mut last: Option<((f64, f64), Richardson, f64)> = None;
+        // A few coarse steps over the pilot at least.
+        let h_max = (checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0;
+        let fixed_step = c.family != Family::TimeTransformed;
+        for _ in 0..ROUNDS {
+            if fixed_step && self.step.is_none() {
+                h = h.min(h_max);
+            }
+            // Fixed steps: checkpoints on the coarse nodes (two steps from
+            // the start at least), so that neither run takes a landing step.
+            let times: Vec<f64> = if fixed_step {
+                let mut t: Vec<f64> = checkpoints
+                    .iter()
+                    .map(|&c| ((c - self.t0) / h).round())
+                    .filter(|&m| m >= 2.0)
+                    .map(|m| self.t0 + m * h)
+                    .collect();
+                t.dedup();
+                if t.is_empty() {
+                    t.push(self.t0 + 2.0 * h);
+                }
+                t
+            } else {
+                checkpoints.to_vec()
+            };
+            let tp = *times.last().expect("at least one checkpoint");
+            let coarse = run_probe(c, self, h, &times, 0);
+            let fine = coarse.as_ref().ok().map(|_| run_probe(c, self, h / 2.0, &times, 0));
+            let (coarse, fine) = match (coarse, fine) {
+                (Ok(a), Some(Ok(b))) => (a, b),
+                (Err(e), _) | (_, Some(Err(e))) => {
+                    failures += 1;
+                    if failures > 2 || self.step.is_some() {
+                        return Err(e);
+                    }
+                    h /= 4.0;
+                    continue;
+                }
+                (Ok(_), None) => unreachable!("the fine run follows a successful coarse one"),
+            };
+            cost.steps += coarse.steps + fine.steps;
+            let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
+            let rich = Richardson::new(&coarse, &fine, c.order, &times, self.t0, settle);
+            let target = SAFETY * self.tolerance.bound(scale);
+            let at_end = rich.at(self.t0, tp, self.t0 + span);
+            if self.step.is_some() {
+                return Ok(((h, at_end), rich, scale));
+            }
+            if let Growth::Exponential(_) = rich.growth {
+                // Round-off amplified over the span already above the
+                // tolerance: no step helps (the caller refuses).
+                let amplified = rich.noise * pilot::amplification(rich.growth, self.t0, tp, self.t0 + span);
+                if amplified > target {
+                    return Ok(((h, at_end), rich, scale));
+                }
+            }
+            if rich.error <= 100.0 * rich.noise {
+                // The difference is round-off: the method is more accurate
+                // than it can show at this step. A coarser step shows it,
+                // unless round-off alone is already the tolerance.
+                let roundoff = rich.noise * pilot::amplification(rich.growth, self.t0, tp, self.t0 + span);
+                if let Some(prev) = last.filter(|_| roundoff > target) {
+                    return Ok(prev);
+                }
+                if fixed_step && h >= h_max {
+                    // As coarse as the pilot resolves and still exact to round-off.
+                    return Ok(((h, at_end.max(roundoff)), rich, scale));
+                }
+                last = Some(((h, at_end.max(roundoff)), rich, scale));
+                h *= 4.0;
+                continue;
+            }
+            let ratio = (target / at_end).powf(1.0 / p as f64);
+            let h_new = h * ratio;
+            // The estimate at the step taken: error ∝ h^p.
+            let estimate = at_end * ratio.powi(p);
+            last = Some(((h_new, estimate), rich, scale));
+            if (0.5..=2.0).contains(&ratio) {
+                break;
+            }
+            // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
+            h *= ratio.clamp(1.0 / 16.0, 4.0);
+        }
+        last.ok_or(Error::InvalidSetting { reason: "no pilot round completed" })
+    }
+
+    /// The final run at `step` to the end of `plan`.
+    fn run(&self, c: Candidate, step: f64, span: f64, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>> {
+        let step = match c.family {
+            Family::TimeTransformed => step,
+            _ => span / (span / step).ceil(),
+        };
+        struct Run<'p, const N: usize>(Plan<'p, N>);
+        impl<'p, const N: usize> Visit<N> for Run<'p, N> {
+            type Out = Result<Solution<N>, SolveError<N>>;
+            fn visit<I: Stepping<N> + Clone>(self, mut it: I) -> Self::Out {
+                it.solve(self.0)
+            }
+        }
+        dispatch(c, self, step, Run(plan))?
+    }
+}
+
+/// Something done with a stepper of any type.
+trait Visit<const N: usize> {
+    type Out;
+    fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out;
+}
+
+fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
+    c: Candidate,
+    auto: &Auto<S, N>,
+    step: f64,
+    checkpoints: &[f64],
+    stride: usize,
+) -> Result<Probe<N>, Error<N>> {
+    struct P<'a>(&'a [f64], usize);
+    impl<const N: usize> Visit<N> for P<'_> {
+        type Out = Result<Probe<N>, Error<N>>;
+        fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out {
+            pilot::probe(it, self.0, self.1)
+        }
+    }
+    dispatch(c, auto, step, P(checkpoints, stride))?
+}
+
+fn composition(order: u32) -> Composition {
+    match order {
+        4 => Composition::YOSHIDA4,
+        6 => Composition::YOSHIDA6,
+        _ => Composition::KAHAN_LI8,
+    }
+}
+
+/// Builds the stepper of `c` with step `step` at the start and hands it to `v`.
+fn dispatch<S: Lagrangian<N> + Clone, V: Visit<N>, const N: usize>(
+    c: Candidate,
+    auto: &Auto<S, N>,
+    step: f64,
+    v: V,
+) -> Result<V::Out, Error<N>> {
+    let (sys, t0, q0, v0) = (auto.system.clone(), auto.t0, auto.q0, auto.v0);
+    macro_rules! galerkin {
+        ($($s:literal)*) => {
+            match c.order / 2 {
+                $($s => Ok(v.visit(Integrator::new(sys, Galerkin::<$s, $s>::gauss(), step).start(t0, q0, v0)?)),)*
+                _ => Err(Error::InvalidMethod { reason: "no such Galerkin degree in a tolerance-driven solve" }),
+            }
+        };
+    }
+    match c.family {
+        Family::Composition => Ok(v.visit(Integrator::new(sys, composition(c.order), step).start(t0, q0, v0)?)),
+        Family::Galerkin => galerkin!(2 3 4 6 8),
+        Family::TimeTransformed => Ok(v.visit(
+            ExplicitTimeTransformed::new(sys, TimeFunction::Logarithmic, step)
+                .composition(composition(c.order))
+                .start(t0, q0, v0)?,
+        )),
+    }
+}

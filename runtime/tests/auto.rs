@@ -1,0 +1,161 @@
+//! The tolerance-driven solve on systems implemented by hand: accuracy
+//! against closed forms, the estimate against the true error, the choice,
+//! and the typed refusals.
+
+use lagrangian_runtime::auto::{Auto, Family, Tolerance};
+use lagrangian_runtime::{Error, Lagrangian, Plan, Scalar, Separability, SolveError};
+
+#[derive(Clone)]
+struct Oscillator;
+impl Lagrangian<1> for Oscillator {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        (v[0] * v[0] - q[0] * q[0]) * 0.5
+    }
+}
+
+/// The same oscillator without the structure facts: Galerkin.
+#[derive(Clone)]
+struct Unproven;
+impl Lagrangian<1> for Unproven {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        (v[0] * v[0] - q[0] * q[0]) * 0.5
+    }
+}
+
+#[derive(Clone)]
+struct Kepler;
+impl Lagrangian<2> for Kepler {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 2] = [false, false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+        (v[0] * v[0] + v[1] * v[1]) * 0.5 + (q[0] * q[0] + q[1] * q[1]).sqrt().recip()
+    }
+}
+
+/// A double pendulum (unit masses and lengths, g = 9.81): chaotic at this energy.
+#[derive(Clone)]
+struct DoublePendulum;
+impl Lagrangian<2> for DoublePendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 2] = [false, false];
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+        v[0] * v[0] + v[1] * v[1] * 0.5 + v[0] * v[1] * (q[0] - q[1]).cos() + q[0].cos() * 19.62 + q[1].cos() * 9.81
+    }
+}
+
+fn end_error<const N: usize>(q: &[[f64; N]], exact: [f64; N]) -> f64 {
+    let last = q.last().unwrap();
+    last.iter().zip(exact).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+}
+
+#[test]
+fn oscillator_meets_the_tolerance_and_the_estimate_is_honest() {
+    for rtol in [1e-4, 1e-8, 1e-12] {
+        for (name, solved) in [
+            (
+                "composition",
+                Auto::new(Oscillator, 0.0, [1.0], [0.0])
+                    .tolerance(Tolerance::relative(rtol))
+                    .solve(Plan::until(50.0).every(usize::MAX)),
+            ),
+            (
+                "galerkin",
+                Auto::new(Unproven, 0.0, [1.0], [0.0])
+                    .tolerance(Tolerance::relative(rtol))
+                    .solve(Plan::until(50.0).every(usize::MAX)),
+            ),
+        ] {
+            let solved = solved.unwrap();
+            let err = end_error(&solved.solution.q, [50f64.cos()]);
+            let est = &solved.estimate;
+            eprintln!(
+                "{name} rtol {rtol:e}: error {err:.2e}, estimate {:.2e}, {} h = {:.3e}, pilot {} steps",
+                est.error, est.method_name, est.step, est.pilot.steps
+            );
+            assert!(err <= 10.0 * rtol, "{name} rtol {rtol:e}: error {err:e}");
+            assert!(
+                est.error / err < 10.0 && err / est.error < 10.0 || err < 100.0 * f64::EPSILON,
+                "{name} rtol {rtol:e}: error {err:e}, estimate {:e}",
+                est.error
+            );
+        }
+    }
+}
+
+#[test]
+fn the_choice_follows_the_structure_facts() {
+    let tol = Tolerance::relative(1e-8);
+    let sep =
+        Auto::new(Oscillator, 0.0, [1.0], [0.0]).tolerance(tol).solve(Plan::until(10.0).every(usize::MAX)).unwrap();
+    assert_eq!(sep.estimate.method.family, Family::Composition);
+    let general =
+        Auto::new(Unproven, 0.0, [1.0], [0.0]).tolerance(tol).solve(Plan::until(10.0).every(usize::MAX)).unwrap();
+    assert_eq!(general.estimate.method.family, Family::Galerkin);
+    // Kepler e = 0.9 from the aphelion: the needed step density varies by far more than 4.
+    let e: f64 = 0.9;
+    let (q0, v0) = ([1.0 + e, 0.0], [0.0, ((1.0 - e) / (1.0 + e)).sqrt()]);
+    let t_end = 4.0 * core::f64::consts::TAU;
+    let kepler = Auto::new(Kepler, 0.0, q0, v0).tolerance(tol).solve(Plan::until(t_end).every(usize::MAX)).unwrap();
+    assert_eq!(kepler.estimate.method.family, Family::TimeTransformed, "{:?}", kepler.estimate);
+    assert!(kepler.estimate.density_ratio.unwrap() > 4.0);
+    // After whole orbits the body is back at the aphelion.
+    let err = end_error(&kepler.solution.q, q0);
+    eprintln!("kepler: error {err:e}, {:?}", kepler.estimate);
+    assert!(err < 10.0 * 1e-8 * (1.0 + e), "{err:e}");
+}
+
+#[test]
+fn a_fixed_family_is_kept() {
+    let solved = Auto::new(Oscillator, 0.0, [1.0], [0.0])
+        .tolerance(Tolerance::relative(1e-6))
+        .family(Family::Galerkin)
+        .order(6)
+        .solve(Plan::until(10.0).every(usize::MAX))
+        .unwrap();
+    assert_eq!(solved.estimate.method.family, Family::Galerkin);
+    assert_eq!(solved.estimate.method.order, 6);
+    assert!(end_error(&solved.solution.q, [10f64.cos()]) < 1e-5);
+}
+
+fn refusal<const N: usize>(r: Result<impl Sized, SolveError<N>>) -> Error<N> {
+    match r {
+        Err(SolveError::Step(e)) => e,
+        Err(e) => panic!("not a step error: {e}"),
+        Ok(_) => panic!("accepted"),
+    }
+}
+
+#[test]
+fn bad_requests_are_typed_errors() {
+    let solve = |rtol: f64, t0: f64, t_end: f64| {
+        refusal(Auto::new(Oscillator, t0, [1.0], [0.0]).tolerance(Tolerance::relative(rtol)).solve(Plan::until(t_end)))
+    };
+    for rtol in [f64::NAN, 0.0, -1e-6, 1.0, 2.0] {
+        assert!(matches!(solve(rtol, 0.0, 1.0), Error::InvalidTolerance { .. }), "{rtol}");
+    }
+    let atol = Auto::new(Oscillator, 0.0, [1.0], [0.0]).tolerance(Tolerance::relative(1e-6).absolute(-1.0));
+    assert!(matches!(refusal(atol.solve(Plan::until(1.0))), Error::InvalidTolerance { .. }));
+    for (t0, t_end) in [(0.0, 0.0), (1.0, 0.0), (0.0, f64::INFINITY), (f64::NAN, 1.0)] {
+        assert!(matches!(solve(1e-6, t0, t_end), Error::InvalidSpan { .. }), "{t0} {t_end}");
+    }
+    // Below the round-off of f64 over thousands of steps.
+    assert!(matches!(solve(1e-17, 0.0, 100.0), Error::ToleranceUnreachable { .. }));
+}
+
+#[test]
+fn chaos_over_a_long_span_is_refused() {
+    let r = Auto::new(DoublePendulum, 0.0, [2.0, 2.5], [0.0, 0.0])
+        .tolerance(Tolerance::relative(1e-8))
+        .solve(Plan::until(500.0).every(usize::MAX));
+    match r {
+        Err(SolveError::Step(Error::Chaotic { rate, .. })) => assert!(rate > 0.1, "{rate}"),
+        Err(e) => panic!("{e}"),
+        Ok(s) => panic!("accepted: {:?}", s.estimate),
+    }
+}
