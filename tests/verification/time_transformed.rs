@@ -436,9 +436,22 @@ fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
 fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
     let mut sim =
         TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    // As g = (1 − t)² collapses, g'/g grows without bound: the steps either
+    // fall below the time-step floor or stop following the flow (the rate
+    // t'/g jumps) first; both are refused with the state kept, before t = 1.
     let err = sim.run_until(2.0, |_| {}).unwrap_err();
-    let Error::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
-    assert!(dt < floor && state == sim.state() && state.t < 1.0, "{dt} {floor} {state:?}");
+    let state = match err {
+        Error::TimeStepCollapsed { state, dt, floor } => {
+            assert!(dt < floor, "{dt} {floor}");
+            state
+        }
+        Error::OrbitLost { state, factor } => {
+            assert!(!(0.5..=2.0).contains(&factor), "{factor}");
+            state
+        }
+        _ => panic!("{err:?}"),
+    };
+    assert!(state == sim.state() && state.t < 1.0 && state.t > 0.9, "{state:?}");
 }
 
 #[test]
@@ -746,8 +759,18 @@ fn double_double_driver_refuses_bad_monitors_with_the_state_kept() {
         .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
         .unwrap();
     let err = sim.run_until(d(2.0), |_| {}).unwrap_err();
-    let Error::TimeStepCollapsed { state, dt, floor } = err else { panic!("{err:?}") };
-    assert!(dt < floor && state == sim.state() && state.t.to_f64() < 1.0, "{dt} {floor} {state:?}");
+    let state = match err {
+        Error::TimeStepCollapsed { state, dt, floor } => {
+            assert!(dt < floor, "{dt} {floor}");
+            state
+        }
+        Error::OrbitLost { state, factor } => {
+            assert!(!(0.5..=2.0).contains(&factor), "{factor}");
+            state
+        }
+        _ => panic!("{err:?}"),
+    };
+    assert!(state == sim.state() && state.t.to_f64() < 1.0 && state.t.to_f64() > 0.9, "{state:?}");
     let e = sim.run_until(d(f64::NAN), |_| {}).unwrap_err();
     assert!(matches!(e, Error::InvalidTarget { .. }), "{e:?}");
 }
