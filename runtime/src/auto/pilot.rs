@@ -122,6 +122,11 @@ impl Richardson {
         let noise = 10.0 * f64::EPSILON * scale * (fine.steps.max(1) as f64).sqrt();
         let error = e[e.len() - 1];
         let mut growth = Growth::Power(1.0);
+        // An oscillation's error sampled at one instant can sit near a zero
+        // of its phase (a turning point moves by a phase error to second
+        // order only), so one steep interval is no proof: exponential growth
+        // is two steep intervals in a row, as `e^{λt}` keeps them.
+        let mut steep_before = false;
         for i in 1..e.len() {
             let (a, b) = (e[i - 1], e[i]);
             // Above round-off, below saturation, after the first period.
@@ -129,7 +134,8 @@ impl Richardson {
                 continue;
             }
             let k = (b / a).ln() / ((times[i] - t0) / (times[i - 1] - t0)).ln();
-            growth = if k > 3.0 {
+            let steep = k > 3.0;
+            growth = if steep && steep_before {
                 Growth::Exponential((b / a).ln() / (times[i] - times[i - 1]))
             } else {
                 match growth {
@@ -137,6 +143,7 @@ impl Richardson {
                     Growth::Power(_) => Growth::Power(k.clamp(1.0, 2.0)),
                 }
             };
+            steep_before = steep;
         }
         // An error that saturates before two checkpoints show its growth:
         // judged from the first measurable checkpoint to the last.
