@@ -1104,7 +1104,13 @@ where
         let f = |a: [T; N]| a.map(|y| y.to_f64());
         let system = self.system();
         let (t, q) = (s.t.to_f64(), f(s.q));
-        let v = system.velocity(t, q, f(s.p), f(guess)).ok()?;
+        let v = if const { N > crate::Derivatives::FORWARD_MAX_N } {
+            // As in the driver's velocity: the forward-mode Hessian's
+            // `N × N` values do not fit a thread's stack at large `N`.
+            crate::integrator::reverse_mode_velocity(system, t, &q, &f(s.p), &f(guess)).ok()?
+        } else {
+            system.velocity(t, q, f(s.p), f(guess)).ok()?
+        };
         let u = x.p[N].to_f64() + system.energy(t, q, v);
         Some(1.0 + self.inner.transformed().penalty * u)
     }
