@@ -189,6 +189,28 @@ pub enum ShardError {
 
 /// The inputs of job `index` of `count` over `len` members: contiguous
 /// ranges whose sizes differ by at most one.
+///
+/// Each job of an array (one Slurm task, say) runs its range and writes a
+/// [`Shard`]; [`merge`] puts the shards back together:
+///
+/// ```
+/// use lagrangian_runtime::ensemble::{self, Shard};
+///
+/// let squares = |_index: usize, x: &f64| -> Result<f64, String> { Ok(x * x) };
+/// let inputs: Vec<f64> = (0..10).map(f64::from).collect();
+/// let shards: Vec<Shard<f64, String>> = (0..3)
+///     .map(|job| {
+///         let range = ensemble::shard(inputs.len(), job, 3).expect("job < 3");
+///         Shard { start: range.start, results: ensemble::run_serial(&inputs[range], squares) }
+///     })
+///     .collect();
+/// assert_eq!(ensemble::shard(10, 0, 3)?, 0..4);
+/// let merged = ensemble::merge(shards, inputs.len())?;
+/// assert_eq!(merged, ensemble::run_serial(&inputs, squares));
+/// // A missing job is refused, not a silently shorter ensemble.
+/// assert!(ensemble::merge::<f64, String>(Vec::new(), 10).is_err());
+/// # Ok::<(), ensemble::ShardError>(())
+/// ```
 pub fn shard(len: usize, index: usize, count: usize) -> Result<Range<usize>, ShardError> {
     if count == 0 || index >= count {
         return Err(ShardError::NoSuchShard { index, count });

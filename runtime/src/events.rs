@@ -76,6 +76,36 @@ pub struct EventRecord<const N: usize> {
 pub type EventFn<'a, const N: usize> = Box<dyn FnMut(f64, &[f64; N], &[f64; N]) -> f64 + 'a>;
 
 /// An event function with its direction, action and tolerance.
+///
+/// The crossings of `g(t, q, v) = 0` between nodes are located on the dense
+/// output; [`Action::Record`] keeps them in the solution's `events`,
+/// [`Action::Stop`] also ends the run there. The zeros of an oscillator
+/// `q = cos t` going down, recorded over two periods:
+///
+/// ```
+/// # use lagrangian_runtime::{Action, Direction, Event, Galerkin, Integrator, Lagrangian, Plan, Scalar};
+/// # use lagrangian_runtime::Stepping;
+/// /// `L = ½v² − ½q²`.
+/// #[derive(Clone)]
+/// struct Oscillator;
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+///     }
+/// }
+///
+/// let mut sim = Integrator::new(Oscillator, Galerkin::<3, 3>::gauss(), 0.1).start(0.0, [1.0], [0.0])?;
+/// let plan = Plan::until(4.0 * std::f64::consts::PI)
+///     .event(Event::new(|_t, q, _v| q[0]).direction(Direction::Falling).action(Action::Record));
+/// let solution = sim.solve(plan)?.into_result()?;
+/// let zeros: Vec<f64> = solution.events.iter().map(|e| e.t).collect();
+/// let pi = std::f64::consts::PI;
+/// assert_eq!(zeros.len(), 2);
+/// assert!((zeros[0] - pi / 2.0).abs() < 1e-8 && (zeros[1] - 5.0 * pi / 2.0).abs() < 1e-8);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct Event<'a, const N: usize> {
     pub(crate) g: EventFn<'a, N>,
     pub(crate) direction: Direction,
