@@ -541,13 +541,14 @@ impl Chunks {
     }
 
     /// A chunk reading `leaves` (of a system of `n` coordinates), as four
-    /// methods: its body generic over the scalar; the body at the
-    /// `f64` gradient and Hessian types of `lagrangian_runtime::chunk`,
-    /// seeded on the leaves; and the method the chunk's caller calls, which
-    /// lifts those to a dual number over `f64` by the chain rule and
-    /// evaluates the body for any other scalar. Each scalar type then
-    /// compiles a call, not the body: the body is compiled for `f64`, the
-    /// two fixed types and whatever extended-precision numbers are used.
+    /// methods: its body generic over the scalar; its gradient and its
+    /// Hessian in `f64`, both the body at the one type
+    /// `lagrangian_runtime::chunk::Column` seeded on the leaves (the
+    /// Hessian a column at a time); and the method the chunk's caller
+    /// calls, which lifts those to a dual number over `f64` by the chain
+    /// rule and evaluates the body for any other scalar. Each scalar type
+    /// then compiles a call, not the body: the body is compiled for `f64`,
+    /// `Column` and whatever extended-precision numbers are used.
     fn lowered(
         &self,
         name: &Ident,
@@ -589,9 +590,11 @@ impl Chunks {
             Leaf::Time => quote!(#name),
             Leaf::State(_, i) => quote!(#name[#i]),
         };
-        // One `f64` method per seeding: the body on `#ty`, every input a
-        // constant but the leaves.
-        let seeded = |method: &Ident, ty: TokenStream, seed: TokenStream| {
+        // The body on `chunk::Column`, every input a constant but the
+        // leaves, with the second direction on leaf `column` (none when it
+        // is `k`).
+        let column_type = quote!(#chunk::Column<#k>);
+        let column = |column: TokenStream| {
             let constants = self.params.iter().map(|(name, ty, _)| {
                 let real = real(name);
                 if *d == ty.to_string() {
@@ -603,7 +606,7 @@ impl Chunks {
             let seeds = leaves.iter().enumerate().filter_map(|(i, leaf)| {
                 let name = binder(leaf)?;
                 let (place, value) = (at(name, leaf), at(&real(name), leaf));
-                Some(quote!(#place = #seed(#value, #i);))
+                Some(quote!(#place = #chunk::leaf(#value, #i, #column);))
             });
             let previous = previous.map(|previous| {
                 let real = real(previous);
@@ -611,17 +614,27 @@ impl Chunks {
             });
             let args = self.params.iter().map(|(.., arg)| arg);
             quote! {
-                #[inline(never)]
-                fn #method(&#self_token, #previous_f64 #(#f64_params),*) -> #ty {
-                    type #d = #ty;
-                    #(#constants)*
-                    #(#seeds)*
-                    #self_token.#body_name::<#d>(#previous #(#args),*)
-                }
+                type #d = #column_type;
+                #(#constants)*
+                #(#seeds)*
+                #self_token.#body_name::<#d>(#previous #(#args),*)
             }
         };
-        let gradient = seeded(&gradient_name, quote!(#chunk::Gradient<#k>), quote!(#chunk::gradient_leaf));
-        let hessian = seeded(&hessian_name, quote!(#chunk::Hessian<#k>), quote!(#chunk::hessian_leaf));
+        let j = Ident::new("__lagrangian_column", Span::mixed_site());
+        let gradient_body = column(quote!(#k));
+        let hessian_body = column(quote!(#j));
+        let gradient = quote! {
+            #[inline(never)]
+            fn #gradient_name(&#self_token, #previous_f64 #(#f64_params),*) -> #column_type {
+                #gradient_body
+            }
+        };
+        let hessian = quote! {
+            #[inline(never)]
+            fn #hessian_name(&#self_token, #previous_f64 #(#f64_params),*) -> #chunk::Hessian<#k> {
+                #chunk::columns(|#j| { #hessian_body })
+            }
+        };
         // The dispatch on the scalar: `if` on a constant, so each type
         // compiles one branch.
         let reals = self.params.iter().map(|(name, ty, _)| {
@@ -654,7 +667,7 @@ impl Chunks {
                     #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, #c.eps1eps2.as_flattened())
                 } else if <#d as #scalar>::FIRST_ORDER {
                     let #c = #self_token.#gradient_name(#previous_real #reals);
-                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps, &[])
+                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, &[])
                 } else {
                     #self_token.#body_name(#previous_arg #(#body_args),*)
                 }
@@ -1256,7 +1269,7 @@ mod tests {
         assert!(out.contains(&second), "{out}");
         // Its one leaf `q[0]` seeded in the `f64` gradient and Hessian
         // methods, which every dual number over `f64` goes through.
-        for (method, ty, seed) in [("gradient", "Gradient", "gradient_leaf"), ("hessian", "Hessian", "hessian_leaf")] {
+        for (method, ty, column) in [("gradient", "Column", "1usize"), ("hessian", "Hessian", "__lagrangian_column")] {
             let lowered = format!(
                 "fn __lagrangian_lagrangian_chunk_1_{method} (& self , __lagrangian___lagrangian_partial : f64 , \
                  __lagrangian_t : f64 , __lagrangian_q : & [f64 ; 1] , __lagrangian_v : & [f64 ; 1]) \
@@ -1264,7 +1277,7 @@ mod tests {
             );
             assert!(out.contains(&lowered), "{lowered}\n{out}");
             let seeded = format!(
-                "q [0usize] = :: lagrangian :: __private :: chunk :: {seed} (__lagrangian_q [0usize] , 0usize) ;"
+                "q [0usize] = :: lagrangian :: __private :: chunk :: leaf (__lagrangian_q [0usize] , 0usize , {column}) ;"
             );
             assert!(out.contains(&seeded), "{seeded}\n{out}");
         }
@@ -1284,19 +1297,19 @@ mod tests {
         // The second chunk reads `q[0]`, `v[1]`, `t`, `q[1]`, in that order.
         let chunk = out.split("fn __lagrangian_lagrangian_chunk_1_hessian").nth(1).expect("a lowered chunk");
         let chunk = &chunk[..chunk.find("fn ").unwrap()];
-        let hessian = ":: lagrangian :: __private :: chunk :: hessian_leaf";
+        let leaf = ":: lagrangian :: __private :: chunk :: leaf";
         for (i, seed) in [
-            format!("q [0usize] = {hessian} (__lagrangian_q [0usize] , 0usize)"),
-            format!("v [1usize] = {hessian} (__lagrangian_v [1usize] , 1usize)"),
-            format!("t = {hessian} (__lagrangian_t , 2usize)"),
-            format!("q [1usize] = {hessian} (__lagrangian_q [1usize] , 3usize)"),
+            format!("q [0usize] = {leaf} (__lagrangian_q [0usize] , 0usize , __lagrangian_column)"),
+            format!("v [1usize] = {leaf} (__lagrangian_v [1usize] , 1usize , __lagrangian_column)"),
+            format!("t = {leaf} (__lagrangian_t , 2usize , __lagrangian_column)"),
+            format!("q [1usize] = {leaf} (__lagrangian_q [1usize] , 3usize , __lagrangian_column)"),
         ]
         .iter()
         .enumerate()
         {
             assert!(chunk.contains(seed.as_str()), "leaf {i}: {seed}\n{chunk}");
         }
-        assert!(chunk.contains("Hessian < 4usize >"), "{chunk}");
+        assert!(chunk.contains("Hessian < 4usize >") && chunk.contains("Column < 4usize >"), "{chunk}");
 
         // An index the macro cannot read keeps the chunk generic only.
         let chain = (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * q[self.i]")).collect::<String>();

@@ -8,10 +8,11 @@
 //! variables, and for a system of `N` coordinates the `N`-wide ones carry
 //! `N` or `N²` parts through every operation. The compile time then grows
 //! as terms × types × `N²`. Instead, a chunk reading `k` leaves (`t`, and
-//! `q[i]`, `v[i]` at literal indices) is compiled at two fixed types only,
-//! [`Gradient<k>`] and [`Hessian<k>`], both over plain `f64` and seeded on
-//! its own leaves, and every dual number over `f64` takes its value from
-//! there: [`compose`] is the second-order Taylor polynomial of the chunk at
+//! `q[i]`, `v[i]` at literal indices) is compiled at one fixed type only,
+//! [`Column<k>`] over plain `f64`: its value, its gradient in the `k`
+//! leaves and one column of its Hessian, whose width grows as `k`, not
+//! `k²` ([`columns`] evaluates it once per column). Every dual number over
+//! `f64` then takes its value from there: [`compose`] is the second-order Taylor polynomial of the chunk at
 //! the real parts of its leaves, composed with the leaves' derivative
 //! parts,
 //!
@@ -34,12 +35,14 @@
 //! those types.
 
 use crate::Scalar;
-use crate::hyperdual::{DualArray, HyperDualArray};
+use crate::hyperdual::HyperDualArray;
 
-/// A chunk's value and gradient with respect to its `K` leaves.
-pub type Gradient<const K: usize> = DualArray<[f64; K]>;
+/// A chunk's value, gradient and one column of its Hessian with respect
+/// to its `K` leaves.
+pub type Column<const K: usize> = HyperDualArray<[f64; K], [f64; 1]>;
 
-/// A chunk's value, gradient and Hessian with respect to its `K` leaves.
+/// A chunk's value, gradient (`eps1`) and Hessian (`eps1eps2`) with
+/// respect to its `K` leaves, as [`columns`] assembles them.
 pub type Hessian<const K: usize> = HyperDualArray<[f64; K], [f64; K]>;
 
 /// The real part of `x`.
@@ -60,19 +63,30 @@ pub fn constants<D: Scalar, const N: usize>(x: &[f64; N]) -> [D; N] {
     x.map(D::from)
 }
 
-/// Leaf `i` of `K` at the value `x`: `ε_i` (and `ε1_i`, `ε2_i`) seeded.
+/// Leaf `i` of `K` at the value `x`: `ε1_i` seeded, and `ε2` too when `i`
+/// is the column `column` being evaluated.
 #[inline(always)]
-pub fn gradient_leaf<const K: usize>(x: f64, i: usize) -> Gradient<K> {
-    Gradient::variable(x, i)
+pub fn leaf<const K: usize>(x: f64, i: usize, column: usize) -> Column<K> {
+    let mut h = Column::from_re(x);
+    h.eps1[i] = 1.0;
+    if i == column {
+        h.eps2[0] = 1.0;
+    }
+    h
 }
 
-/// Leaf `i` of `K` at the value `x`, seeded in both `ε1` and `ε2`, so
-/// that the mixed part is the Hessian.
+/// The value, gradient and Hessian of a chunk from `column(j)`, its
+/// evaluation with the second direction seeded on leaf `j`, for every `j`.
 #[inline(always)]
-pub fn hessian_leaf<const K: usize>(x: f64, i: usize) -> Hessian<K> {
-    let mut h = Hessian::from_re(x);
-    h.eps1[i] = 1.0;
-    h.eps2[i] = 1.0;
+pub fn columns<const K: usize>(mut column: impl FnMut(usize) -> Column<K>) -> Hessian<K> {
+    let mut h = Hessian::<K>::from_re(0.0);
+    for j in 0..K {
+        let c = column(j);
+        (h.re, h.eps1) = (c.re, c.eps1);
+        for i in 0..K {
+            h.eps1eps2[i][j] = c.eps1eps2[i][0];
+        }
+    }
     h
 }
 
