@@ -407,7 +407,10 @@ fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<Tok
 /// `self`, constants and partial results becomes an `#[inline(never)]`
 /// method of a hidden inherent impl, which takes the previous partial
 /// result as an argument: the same operations in the same order (the same
-/// bits), and no function longer than one chunk.
+/// bits), and no function longer than one chunk. A chunk that reads `t`,
+/// `q` and `v` only at literal indices is moreover lowered to `f64` (see
+/// [`Chunks::lowered`]), so that its body is compiled for two or three
+/// types instead of about ten.
 struct Chunks {
     /// The names of the chunk methods, before their index.
     prefix: String,
