@@ -5,7 +5,8 @@
 //! same terms accumulated in a loop, both as the user's method and as the
 //! generated trait method; a pendulum written as 256 terms steps as the
 //! two-term pendulum does, in forward and in reverse mode, which
-//! instantiates its chunks on every scalar type the steps use.
+//! evaluates its chunks on every scalar type the steps use (through their
+//! `f64` lowering on dual numbers, see `chunk_derivatives.rs`).
 //!
 //! The bodies are built by `macro_rules!` doubling a list of terms, so the
 //! source stays short while the macro sees one flat chain.

@@ -212,6 +212,7 @@ pub mod prelude {
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
+    pub use lagrangian_runtime::chunk;
     pub use lagrangian_runtime::{
         Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, StepDensity, Symmetry,
     };

@@ -407,7 +407,10 @@ fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<Tok
 /// `self`, constants and partial results becomes an `#[inline(never)]`
 /// method of a hidden inherent impl, which takes the previous partial
 /// result as an argument: the same operations in the same order (the same
-/// bits), and no function longer than one chunk.
+/// bits), and no function longer than one chunk. A chunk that reads `t`,
+/// `q` and `v` only at literal indices is moreover lowered to `f64` (see
+/// [`Chunks::lowered`]), so that its body is compiled for two or three
+/// types instead of about ten.
 struct Chunks {
     /// The names of the chunk methods, before their index.
     prefix: String,
@@ -422,7 +425,27 @@ struct Chunks {
     has_items: bool,
     /// The chunk methods printed so far.
     items: RefCell<Vec<TokenStream>>,
+    /// The binders of `t`, `q` and `v` where the chunks receive them.
+    binders: [Option<Ident>; 3],
+    /// The length of `q` and `v`; `None` for slices, whose chunks stay
+    /// generic (no [`Leaf`] can be proven in range).
+    n: Option<TokenStream>,
 }
+
+/// A variable a chunk reads, seeded when its derivatives are taken in
+/// `f64` (see `lagrangian_runtime::chunk`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Leaf {
+    /// `t`.
+    Time,
+    /// `q[i]` (0) or `v[i]` (1), at a literal index.
+    State(usize, usize),
+}
+
+/// The most leaves a chunk lowered to `f64` may read: its Hessian has
+/// their square of entries in every intermediate value. A chunk reading
+/// more stays generic.
+const MAX_LEAVES: usize = 16;
 
 impl Chunks {
     /// The chunks of `function`, whose generated method receives `t` (when
@@ -443,6 +466,7 @@ impl Chunks {
         for x in [Some(&function.q), v].into_iter().flatten().flatten() {
             params.push((x.clone(), state.clone(), quote!(&#x)));
         }
+        let binders = [time.cloned().flatten(), function.q.clone(), v.cloned().flatten()];
         Chunks {
             prefix: format!("__lagrangian_{}_chunk", function.name),
             self_token: Token![self](function.self_span),
@@ -450,12 +474,51 @@ impl Chunks {
             params,
             has_items: has_items(&function.body),
             items: RefCell::new(Vec::new()),
+            binders,
+            n: n.cloned(),
         }
+    }
+
+    /// The leaves `expr` reads, in order of first reading; `None` when it
+    /// indexes `q` or `v` other than by an integer literal, or reads more
+    /// than [`MAX_LEAVES`].
+    fn leaves(expr: &Expr) -> Option<Vec<Leaf>> {
+        let mut leaves = Vec::new();
+        let mut ok = true;
+        expr.visit(&mut |expr| {
+            let leaf = match &expr.kind {
+                ExprKind::Index { base, index, .. } => match (&base.kind, index.literal_index()) {
+                    (ExprKind::Param(ParamRef::Q, _), Some(i)) => Leaf::State(0, i),
+                    (ExprKind::Param(ParamRef::V, _), Some(i)) => Leaf::State(1, i),
+                    (ExprKind::Param(..), None) => {
+                        ok = false;
+                        return false;
+                    }
+                    _ => return ok,
+                },
+                ExprKind::Param(ParamRef::Time, _) => Leaf::Time,
+                _ => return ok,
+            };
+            if !leaves.contains(&leaf) {
+                leaves.push(leaf);
+            }
+            false
+        });
+        (ok && !leaves.is_empty() && leaves.len() <= MAX_LEAVES).then_some(leaves)
     }
 
     /// Prints `body` as the next chunk method and returns the statement
     /// `let partial = self.chunk(previous, t, &q, &v);` that calls it.
-    fn call(&self, span: Span, partial: &Ident, previous: Option<&Ident>, body: TokenStream) -> TokenStream {
+    /// With `leaves`, the chunk is lowered to `f64` as well (see
+    /// [`Chunks::lowered`]).
+    fn call(
+        &self,
+        span: Span,
+        partial: &Ident,
+        previous: Option<&Ident>,
+        body: TokenStream,
+        leaves: Option<Vec<Leaf>>,
+    ) -> TokenStream {
         let mut items = self.items.borrow_mut();
         let name = Ident::new(&format!("{}_{}", self.prefix, items.len()), Span::call_site());
         let (d, self_token) = (&self.d, &self.self_token);
@@ -466,13 +529,153 @@ impl Chunks {
             Some(previous) => (quote!(#previous: #d,), quote!(#previous,)),
             None => (TokenStream::new(), TokenStream::new()),
         };
-        items.push(quote! {
+        match (leaves, &self.n) {
+            (Some(leaves), Some(n)) => {
+                items.push(self.lowered(&name, previous, body, &leaves, n));
+            }
+            _ => items.push(quote! {
+                #[inline(never)]
+                fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
+                    #body
+                }
+            }),
+        }
+        quote_spanned!(span=> let #partial = #self_token.#name(#previous_arg #(#args),*);)
+    }
+
+    /// A chunk reading `leaves` (of a system of `n` coordinates), as four
+    /// methods: its body generic over the scalar; its gradient and its
+    /// Hessian in `f64`, both the body at the one type
+    /// `lagrangian_runtime::chunk::Column` seeded on the leaves (the
+    /// Hessian a column at a time); and the method the chunk's caller
+    /// calls, which lifts those to a dual number over `f64` by the chain
+    /// rule and evaluates the body for any other scalar. Each scalar type
+    /// then compiles a call, not the body: the body is compiled for `f64`,
+    /// `Column` and whatever extended-precision numbers are used.
+    fn lowered(
+        &self,
+        name: &Ident,
+        previous: Option<&Ident>,
+        body: TokenStream,
+        leaves: &[Leaf],
+        n: &TokenStream,
+    ) -> TokenStream {
+        let (d, self_token) = (&self.d, &self.self_token);
+        let chunk = quote!(::lagrangian::__private::chunk);
+        let scalar = quote!(::lagrangian::__private::Scalar);
+        let k = leaves.len();
+        let suffixed = |suffix: &str| Ident::new(&format!("{name}_{suffix}"), Span::call_site());
+        let (body_name, gradient_name, hessian_name) = (suffixed("body"), suffixed("gradient"), suffixed("hessian"));
+        let names: Vec<_> = self.params.iter().map(|(name, ..)| name).collect();
+        let types: Vec<_> = self.params.iter().map(|(_, ty, _)| ty).collect();
+        let (previous_param, previous_arg) = match previous {
+            Some(previous) => (quote!(#previous: #d,), quote!(#previous,)),
+            None => (TokenStream::new(), TokenStream::new()),
+        };
+        // The `f64` methods take the real parts, under hygienic names.
+        let real = |name: &Ident| Ident::new(&format!("__lagrangian_{name}"), Span::mixed_site());
+        let f64_params = self.params.iter().map(|(name, ty, _)| {
+            let ty = if *d == ty.to_string() { quote!(f64) } else { quote!(&[f64; #n]) };
+            let real = real(name);
+            quote!(#real: #ty)
+        });
+        let f64_params: Vec<_> = f64_params.collect();
+        let previous_f64 = previous.map(|previous| {
+            let real = real(previous);
+            quote!(#real: f64,)
+        });
+        // The leaves' binders and where each is read.
+        let binder = |leaf: &Leaf| match leaf {
+            Leaf::Time => self.binders[0].as_ref(),
+            Leaf::State(which, _) => self.binders[1 + which].as_ref(),
+        };
+        let at = |name: &Ident, leaf: &Leaf| match leaf {
+            Leaf::Time => quote!(#name),
+            Leaf::State(_, i) => quote!(#name[#i]),
+        };
+        // The body on `chunk::Column`, every input a constant but the
+        // leaves, with the second direction on leaf `column` (none when it
+        // is `k`).
+        let column_type = quote!(#chunk::Column<#k>);
+        let column = |column: TokenStream| {
+            let constants = self.params.iter().map(|(name, ty, _)| {
+                let real = real(name);
+                if *d == ty.to_string() {
+                    quote!(let mut #name = <#d as ::core::convert::From<f64>>::from(#real);)
+                } else {
+                    quote!(let mut #name: [#d; #n] = #chunk::constants(#real);)
+                }
+            });
+            let seeds = leaves.iter().enumerate().filter_map(|(i, leaf)| {
+                let name = binder(leaf)?;
+                let (place, value) = (at(name, leaf), at(&real(name), leaf));
+                Some(quote!(#place = #chunk::leaf(#value, #i, #column);))
+            });
+            let previous = previous.map(|previous| {
+                let real = real(previous);
+                quote!(<#d as ::core::convert::From<f64>>::from(#real),)
+            });
+            let args = self.params.iter().map(|(.., arg)| arg);
+            quote! {
+                type #d = #column_type;
+                #(#constants)*
+                #(#seeds)*
+                #self_token.#body_name::<#d>(#previous #(#args),*)
+            }
+        };
+        let j = Ident::new("__lagrangian_column", Span::mixed_site());
+        let gradient_body = column(quote!(#k));
+        let hessian_body = column(quote!(#j));
+        let gradient = quote! {
             #[inline(never)]
-            fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
+            fn #gradient_name(&#self_token, #previous_f64 #(#f64_params),*) -> #column_type {
+                #gradient_body
+            }
+        };
+        let hessian = quote! {
+            #[inline(never)]
+            fn #hessian_name(&#self_token, #previous_f64 #(#f64_params),*) -> #chunk::Hessian<#k> {
+                #chunk::columns(|#j| { #hessian_body })
+            }
+        };
+        // The dispatch on the scalar: `if` on a constant, so each type
+        // compiles one branch.
+        let reals = self.params.iter().map(|(name, ty, _)| {
+            if *d == ty.to_string() { quote!(#chunk::real(#name)) } else { quote!(&#chunk::reals(#name)) }
+        });
+        let reals = quote!(#(#reals),*);
+        let previous_real = previous.map(|previous| quote!(#chunk::real(#previous),));
+        let previous_value = match previous {
+            Some(previous) => quote!(#previous),
+            None => quote!(<#d as ::core::convert::From<f64>>::from(0.0)),
+        };
+        let leaf_values = leaves.iter().map(|leaf| match binder(leaf) {
+            Some(name) => at(name, leaf),
+            None => quote!(<#d as ::core::convert::From<f64>>::from(0.0)),
+        });
+        let leaf_values = quote!(&[#(#leaf_values),*]);
+        let body_args = self.params.iter().map(|(name, ..)| name);
+        let c = Ident::new("__lagrangian_chunk", Span::mixed_site());
+        quote! {
+            #[inline(never)]
+            fn #body_name<#d: #scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
                 #body
             }
-        });
-        quote_spanned!(span=> let #partial = #self_token.#name(#previous_arg #(#args),*);)
+            #gradient
+            #hessian
+            #[inline(never)]
+            fn #name<#d: #scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
+                if <#d as #scalar>::SECOND_ORDER {
+                    let #c = #self_token.#hessian_name(#previous_real #reals);
+                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, #c.eps1eps2.as_flattened())
+                } else if <#d as #scalar>::FIRST_ORDER {
+                    let #c = #self_token.#gradient_name(#previous_real #reals);
+                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, &[])
+                } else {
+                    #self_token.#body_name(#previous_arg #(#body_args),*)
+                }
+            }
+        }
     }
 
     /// The chunk methods, for the hidden inherent impl.
@@ -572,7 +775,7 @@ impl Printer<'_> {
             return None;
         }
         let body = self.coerce(init, Class::Active);
-        Some(chunks.call(*span, &partial.name, previous, body))
+        Some(chunks.call(*span, &partial.name, previous, body, Chunks::leaves(init)))
     }
 
     /// Whether `expr` reads nothing a chunk method does not receive: `q`
@@ -1059,14 +1262,66 @@ mod tests {
         let last = (crate::chains::LONG - 1) / crate::chains::CHUNK;
         assert!(out.contains(&format!("__lagrangian_lagrangian_chunk_{last} (")), "{out}");
         assert!(!out.contains(&format!("__lagrangian_lagrangian_chunk_{} (", last + 1)), "{out}");
+        // Its body, generic over the scalar.
         let second = format!(
-            "# [inline (never)] fn __lagrangian_lagrangian_chunk_1 < __D : :: lagrangian :: __private :: Scalar > \
+            "# [inline (never)] fn __lagrangian_lagrangian_chunk_1_body < __D : :: lagrangian :: __private :: Scalar > \
              (& self , __lagrangian_partial : __D , t : __D , q : & [__D ; 1] , v : & [__D ; 1]) -> __D \
              {{ __lagrangian_partial + (q [0] * self . c) . sin () * {}.0",
             crate::chains::CHUNK
         );
         assert!(out.contains(&second), "{out}");
+        // Its one leaf `q[0]` seeded in the `f64` gradient and Hessian
+        // methods, which every dual number over `f64` goes through.
+        for (method, ty, column) in [("gradient", "Column", "1usize"), ("hessian", "Hessian", "__lagrangian_column")] {
+            let lowered = format!(
+                "fn __lagrangian_lagrangian_chunk_1_{method} (& self , __lagrangian___lagrangian_partial : f64 , \
+                 __lagrangian_t : f64 , __lagrangian_q : & [f64 ; 1] , __lagrangian_v : & [f64 ; 1]) \
+                 -> :: lagrangian :: __private :: chunk :: {ty} < 1usize >"
+            );
+            assert!(out.contains(&lowered), "{lowered}\n{out}");
+            let seeded = format!(
+                "q [0usize] = :: lagrangian :: __private :: chunk :: leaf (__lagrangian_q [0usize] , 0usize , {column}) ;"
+            );
+            assert!(out.contains(&seeded), "{seeded}\n{out}");
+        }
+        assert!(out.contains("if < __D as :: lagrangian :: __private :: Scalar > :: SECOND_ORDER {"), "{out}");
+        assert!(out.contains("else if < __D as :: lagrangian :: __private :: Scalar > :: FIRST_ORDER {"), "{out}");
         assert!(out.contains("# [doc (hidden)] impl P {"), "{out}");
+    }
+
+    #[test]
+    fn chunks_seed_the_leaves_they_read_and_index_nothing_else() {
+        let chain =
+            (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * (q[{}] * v[1] + t)", k % 2)).collect::<String>();
+        let source = format!(
+            "impl P {{ fn lagrangian(&self, t: f64, q: [f64; 2], v: [f64; 2]) -> f64 {{ 0.5 * v[0] * v[0]{chain} }} }}"
+        );
+        let out = expanded(syn::parse_str(&source).unwrap());
+        // The second chunk reads `q[0]`, `v[1]`, `t`, `q[1]`, in that order.
+        let chunk = out.split("fn __lagrangian_lagrangian_chunk_1_hessian").nth(1).expect("a lowered chunk");
+        let chunk = &chunk[..chunk.find("fn ").unwrap()];
+        let leaf = ":: lagrangian :: __private :: chunk :: leaf";
+        for (i, seed) in [
+            format!("q [0usize] = {leaf} (__lagrangian_q [0usize] , 0usize , __lagrangian_column)"),
+            format!("v [1usize] = {leaf} (__lagrangian_v [1usize] , 1usize , __lagrangian_column)"),
+            format!("t = {leaf} (__lagrangian_t , 2usize , __lagrangian_column)"),
+            format!("q [1usize] = {leaf} (__lagrangian_q [1usize] , 3usize , __lagrangian_column)"),
+        ]
+        .iter()
+        .enumerate()
+        {
+            assert!(chunk.contains(seed.as_str()), "leaf {i}: {seed}\n{chunk}");
+        }
+        assert!(chunk.contains("Hessian < 4usize >") && chunk.contains("Column < 4usize >"), "{chunk}");
+
+        // An index the macro cannot read keeps the chunk generic only.
+        let chain = (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * q[self.i]")).collect::<String>();
+        let source = format!(
+            "impl P {{ fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {{ 0.5 * v[0] * v[0]{chain} }} }}"
+        );
+        let out = expanded(syn::parse_str(&source).unwrap());
+        assert!(out.contains("fn __lagrangian_lagrangian_chunk_1 <"), "{out}");
+        assert!(!out.contains("_hessian") && !out.contains("SECOND_ORDER"), "{out}");
     }
 
     #[test]

@@ -8,6 +8,8 @@
 
 pub mod auto;
 pub mod banded;
+#[doc(hidden)]
+pub mod chunk;
 pub mod constrained;
 pub mod dense;
 pub mod derivatives;

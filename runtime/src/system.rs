@@ -17,9 +17,35 @@ use crate::symmetry::Symmetry;
 /// [`DualArray`](crate::hyperdual::DualArray)) and the mixed second
 /// derivatives of the one-step map ([`HyperDual64`](num_dual::HyperDual64),
 /// [`HyperDualArray`](crate::hyperdual::HyperDualArray)).
-pub trait Scalar: DualNum<Primitive = f64> + Copy {}
+pub trait Scalar: DualNum<Primitive = f64> + Copy {
+    /// `true` for a dual number over plain `f64` with first derivatives
+    /// only ([`Dual64`](num_dual::Dual64),
+    /// [`DualArray`](crate::hyperdual::DualArray)): the chunks of a long
+    /// Lagrangian reach it from their gradient in `f64`
+    /// ([`chunk`](crate::chunk)) instead of being compiled for it.
+    const FIRST_ORDER: bool = false;
 
-impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}
+    /// `true` for a number over plain `f64` with exact first and second
+    /// derivatives ([`HyperDual64`](num_dual::HyperDual64),
+    /// [`HyperDualArray`](crate::hyperdual::HyperDualArray),
+    /// [`tape::Var`](crate::tape::Var)): the chunks of a long Lagrangian
+    /// reach it from their gradient and Hessian in `f64`
+    /// ([`chunk`](crate::chunk)).
+    const SECOND_ORDER: bool = false;
+}
+
+impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {
+    const FIRST_ORDER: bool = T::NDERIV == 1 && over_f64::<T>();
+    const SECOND_ORDER: bool = T::NDERIV == 2 && over_f64::<T>();
+}
+
+/// Whether the parts of `T` are plain `f64`: its element type has no
+/// derivatives and the size of an `f64` (not a
+/// [`DoubleDouble`](crate::DoubleDouble), whose values a chunk evaluated in
+/// `f64` would round).
+const fn over_f64<T: DualNum>() -> bool {
+    <T::InnerDual as DualNum>::NDERIV == 0 && core::mem::size_of::<T::InnerDual>() == core::mem::size_of::<f64>()
+}
 
 /// A mechanical (or electromechanical) system with `N` degrees of freedom,
 /// described by its Lagrangian `L(t, q, v)`.
