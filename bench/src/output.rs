@@ -344,6 +344,71 @@ pub fn time_transformed_table(report: &Report) -> String {
     s
 }
 
+/// The tolerance-driven solve against the fastest other project method at
+/// one problem and target, both calibrated to it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoRatio {
+    /// The problem.
+    pub problem: String,
+    /// The target error.
+    pub target: f64,
+    /// Seconds of the calibrated auto run; `None` where it missed the target.
+    pub auto: Option<f64>,
+    /// The fastest other project method and its seconds.
+    pub fastest: Option<(String, f64)>,
+}
+
+impl AutoRatio {
+    /// Auto's time over the fastest method's.
+    pub fn ratio(&self) -> Option<f64> {
+        Some(self.auto? / self.fastest.as_ref()?.1)
+    }
+}
+
+/// [`AutoRatio`] for every problem and target of `report` that ran `auto`.
+pub fn auto_ratios(report: &Report) -> Vec<AutoRatio> {
+    let mut out = Vec::new();
+    for p in &report.problems {
+        for &target in &report.targets {
+            let Some(auto) = p.calibrated.iter().find(|c| c.method == "auto" && c.target == target) else { continue };
+            let fastest = p
+                .calibrated
+                .iter()
+                .filter(|c| c.target == target && c.family == Family::Project && c.method != "auto")
+                .filter(|c| c.setting.is_some())
+                .filter_map(|c| Some((c.method.clone(), c.seconds?)))
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            out.push(AutoRatio {
+                problem: p.id.clone(),
+                target,
+                auto: auto.setting.as_ref().and(auto.seconds),
+                fastest,
+            });
+        }
+    }
+    out
+}
+
+/// The tolerance-driven solve (pilot included) against the fastest project
+/// method at each target, with the ratio of their times.
+pub fn auto_table(report: &Report) -> String {
+    let mut s = String::from(
+        "| problem | target | auto | fastest project method | auto / fastest |\n| --- | --- | --- | --- | --- |\n",
+    );
+    for r in auto_ratios(report) {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            r.problem,
+            e(r.target),
+            r.auto.map_or("not reached".into(), ms),
+            r.fastest.as_ref().map_or("—".into(), |(n, t)| format!("{n} ({})", ms(*t))),
+            ratio(r.ratio())
+        );
+    }
+    s
+}
+
 /// Every method's calibrated run on problem `p`, per target, fastest first;
 /// the methods that did not reach a target in one line after.
 pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {

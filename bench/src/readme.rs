@@ -26,12 +26,13 @@ pub const PAGES: [&str; 2] = ["README.md", "docs/measurements.md"];
 
 /// The generated sections: `(name, what it holds)`; besides these,
 /// `calibrated-ID` and `calibrated-ID-xK` (see [`named`]).
-pub const SECTIONS: [(&str, &str); 5] = [
+pub const SECTIONS: [(&str, &str); 6] = [
     ("headline", "best project method, peer crate and hand-written composition per problem and target"),
     ("step-cost", "ns per step, generated against hand-written"),
     ("galerkin-step-cost", "ns and Newton iterations per Galerkin step against s"),
     ("compositions", "project compositions against the hand-written ones at equal error"),
     ("time-transformed", "time-transformed Galerkin against fixed steps and DOP853 on the Kepler orbits"),
+    ("auto", "the tolerance-driven solve, pilot included, against the fastest project method at equal error"),
 ];
 
 fn begin(name: &str) -> String {
@@ -134,6 +135,20 @@ pub fn named(name: &str, report: &Report, date: Option<&str>) -> Option<String> 
             if scale == 1.0 { String::new() } else { format!(" run at {scale}× that horizon") },
             p.horizon,
             calibrated_table(report, p)
+        );
+        return Some(format!("{}\n{body}{}", begin(name), end(name)));
+    }
+    if name == "auto" {
+        // Calibration alone supplies it, at the suite's own horizons.
+        if report.horizon_scale != 1.0 {
+            return None;
+        }
+        let body = format!(
+            "{}; every problem at its horizon; `auto` is calibrated like every method (its tolerance the \
+             coarsest for which it and the next two finer ones meet the target) and timed with its pilot and \
+             choice included, against the fastest project method calibrated to the same target.\n\n{}",
+            origin(report, date),
+            crate::output::auto_table(report)
         );
         return Some(format!("{}\n{body}{}", begin(name), end(name)));
     }

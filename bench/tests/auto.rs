@@ -121,7 +121,6 @@ fn the_report_problems_meet_their_tolerances() {
 /// Conservative problems: the energy error of the auto solve stays bounded
 /// (its second half no larger than a few times its first: no drift).
 #[test]
-#[ignore = "defect: the pilot judges the pendulum's error growth exponential and refuses it as chaotic"]
 fn energy_is_bounded_where_conserved() {
     big_stack(|| {
         for (id, scale) in [("pendulum", 0.2), ("kepler-0.5", 0.2)] {

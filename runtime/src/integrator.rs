@@ -54,6 +54,14 @@ pub struct Stats {
     /// Energy-preserving steps taken by [`EnergyFallback::LeastSquares`]
     /// because no step size satisfied the energy equation.
     pub energy_fallbacks: u64,
+    /// Energy-preserving steps with an accuracy bound
+    /// ([`StepBounds::with_accuracy`]) whose energy equation had no root at
+    /// or below the bound: taken at the step of least energy mismatch below
+    /// it, whatever the [`EnergyFallback`]; the discrete energy (or the
+    /// balance of a damped system) changed by the mismatch there.
+    pub accuracy_capped_steps: u64,
+    /// The largest relative energy mismatch `|g|/|E|` of those steps.
+    pub largest_capped_energy_defect: f64,
     /// The report of the last successful Newton solve.
     pub last: NewtonReport,
     /// For a system declared discontinuous (`Lagrangian::DISCONTINUOUS`):
@@ -656,7 +664,21 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
             };
             if last {
                 let h = self.h;
-                M::fixed_step(self, remaining, t_end)?;
+                // An accuracy bound caps the energy steps below the bracket:
+                // the landing keeps under the last step, in equal pieces.
+                let pieces = match (self.policy, M::last_step_size(&self.memory)) {
+                    (StepPolicy::EnergyPreserving(StepBounds { accuracy: Some(_), .. }), Some(h_prev)) => {
+                        (remaining.to_f64() / h_prev.to_f64()).ceil().max(1.0)
+                    }
+                    _ => 1.0,
+                };
+                let t_start = self.state.t;
+                for i in 1..pieces as usize {
+                    let t1 = t_start + remaining * (i as f64 / pieces);
+                    M::fixed_step(self, t1 - self.state.t, t1)?;
+                    observe(self);
+                }
+                M::fixed_step(self, t_end - self.state.t, t_end)?;
                 self.clock = Clock { t: self.state.t, step: self.state.step };
                 if let StepPolicy::EnergyPreserving(_) = self.policy {
                     // A fixed landing step: conserve its energy from here on,

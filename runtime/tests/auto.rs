@@ -2,8 +2,8 @@
 //! against closed forms, the estimate against the true error, the choice,
 //! and the typed refusals.
 
-use lagrangian_runtime::auto::{Auto, Family, Tolerance};
-use lagrangian_runtime::{Error, Lagrangian, Plan, Scalar, Separability, SolveError};
+use lagrangian_runtime::auto::{Auto, Family, Growth, Tolerance};
+use lagrangian_runtime::{Composition, Error, Integrator, Lagrangian, Plan, Scalar, Separability, SolveError};
 
 #[derive(Clone)]
 struct Oscillator;
@@ -46,6 +46,31 @@ impl Lagrangian<2> for DoublePendulum {
     const CYCLIC: [bool; 2] = [false, false];
     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
         v[0] * v[0] + v[1] * v[1] * 0.5 + v[0] * v[1] * (q[0] - q[1]).cos() + q[0].cos() * 19.62 + q[1].cos() * 9.81
+    }
+}
+
+/// The pendulum `L = ½v² + g cos q`, `g = 9.81`.
+#[derive(Clone)]
+struct Pendulum;
+impl Lagrangian<1> for Pendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.5 + q[0].cos() * 9.81
+    }
+}
+
+/// Hénon–Heiles, `V = ½(x² + y²) + x²y − y³/3`.
+#[derive(Clone)]
+struct HenonHeiles;
+impl Lagrangian<2> for HenonHeiles {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 2] = [false, false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+        let (x, y) = (q[0], q[1]);
+        (v[0] * v[0] + v[1] * v[1]) * 0.5 - (x * x + y * y) * 0.5 - x * x * y + y * y * y * (1.0 / 3.0)
     }
 }
 
@@ -155,6 +180,52 @@ fn chaos_over_a_long_span_is_refused() {
         .solve(Plan::until(500.0).every(usize::MAX));
     match r {
         Err(SolveError::Step(Error::Chaotic { rate, .. })) => assert!(rate > 0.1, "{rate}"),
+        Err(e) => panic!("{e}"),
+        Ok(s) => panic!("accepted: {:?}", s.estimate),
+    }
+}
+
+#[test]
+fn the_pendulum_is_an_oscillation_not_chaos() {
+    // From rest at 1 rad over t = 20 (about ten periods).
+    let (t_end, n) = (20.0, 20_000);
+    let mut reference =
+        Integrator::new(Pendulum, Composition::KAHAN_LI8, t_end / n as f64).start(0.0, [1.0], [0.0]).unwrap();
+    reference.run(n, |_| {}).unwrap();
+    let exact = reference.state().q;
+    for rtol in [1e-6, 1e-8, 1e-10] {
+        let solved = Auto::new(Pendulum, 0.0, [1.0], [0.0])
+            .tolerance(Tolerance::relative(rtol))
+            .solve(Plan::until(t_end).every(usize::MAX))
+            .unwrap_or_else(|e| panic!("rtol {rtol:e}: {e}"));
+        let est = &solved.estimate;
+        let err = end_error(&solved.solution.q, exact);
+        eprintln!(
+            "pendulum rtol {rtol:e}: error {err:.2e}, estimate {:.2e}, {:?}, {}",
+            est.error, est.growth, est.method_name
+        );
+        assert!(matches!(est.growth, Growth::Power(_)), "{:?}", est.growth);
+        assert!(err <= 10.0 * est.requested, "rtol {rtol:e}: error {err:e}, requested {:e}", est.requested);
+        assert!(
+            est.error / err < 10.0 && err / est.error < 10.0,
+            "rtol {rtol:e}: error {err:e}, estimate {:e}",
+            est.error
+        );
+    }
+}
+
+#[test]
+fn henon_heiles_above_the_escape_energy_of_its_tori_is_refused() {
+    // E = 1/6 from x = y = 0: the chaotic sea; over t = 2000 the round-off
+    // alone grows past any tolerance.
+    let e: f64 = 1.0 / 6.0;
+    let vy = 0.1;
+    let vx = (2.0 * e - vy * vy).sqrt();
+    let r = Auto::new(HenonHeiles, 0.0, [0.0, 0.0], [vx, vy])
+        .tolerance(Tolerance::relative(1e-8))
+        .solve(Plan::until(2000.0).every(usize::MAX));
+    match r {
+        Err(SolveError::Step(Error::Chaotic { rate, .. })) => assert!(rate > 0.01, "{rate}"),
         Err(e) => panic!("{e}"),
         Ok(s) => panic!("accepted: {:?}", s.estimate),
     }

@@ -3,16 +3,26 @@
 //! and the step that meets the tolerance at the end of the span.
 //!
 //! Over the pilot `[t0, t0 + Tp]` the method runs with step `h` (or `σ` in
-//! the new time of a time transformation) and with `h/2`; at the
-//! checkpoints `Tp/4, Tp/2, Tp` the error of the coarse run is
-//! `e ≈ ‖q_h − q_{h/2}‖∞ · 2^p/(2^p − 1)` for a method of order `p`
-//! (running maximum). Its growth between checkpoints decides the
-//! extrapolation to the end `T`: linear in time (a symplectic method on
-//! integrable motion: the phase error grows linearly), a power `t^k` with
-//! `1 ≤ k ≤ 2` as the pilot measures it, or exponential when the local
-//! exponent `k = Δln e / Δln t` exceeds 3 (an exponential `e^{λt}` has
-//! `k = λt`, growing without bound), with the measured rate `λ`: the
-//! signature of chaos.
+//! the new time of a time transformation) and with `h/2`. The two runs are
+//! compared in phase space at every node they share (every coarse node of a
+//! fixed-step method; the checkpoints of a time transformation, whose nodes
+//! fall at different times): the distance
+//! `d = max(‖Δq‖∞, ‖Δp‖∞ · Q/P)`, with `Q` and `P` the largest `|q_i|` and
+//! `|p_i|` met, measures the momentum difference in units of the positions.
+//! The error of the coarse run is `e ≈ d · 2^p/(2^p − 1)` for a method of
+//! order `p`, kept as a running maximum. An oscillation's position error
+//! alone vanishes twice a period (the phase error moves the turning points
+//! only to second order), so sampled at a few instants it can look as if it
+//! grew by orders of magnitude between them; its phase-space error, maximal
+//! over the nodes, grows as the phase error does: linearly in time for a
+//! symplectic method on integrable motion.
+//!
+//! The growth of `e` between the checkpoints `Tp/64, …, Tp/2, Tp` decides the
+//! extrapolation to the end `T`: a power `t^k` with `1 ≤ k ≤ 2` as the pilot
+//! measures it, or exponential when the local exponent
+//! `k = Δln e / Δln t` exceeds 3 over two intervals in a row (an
+//! exponential `e^{λt}` has `k = λt`, growing without bound), with the
+//! measured rate `λ`: the signature of chaos.
 
 use std::time::Instant;
 
@@ -30,29 +40,47 @@ pub enum Growth {
     Exponential(f64),
 }
 
+/// One recorded node of a pilot run.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Sample<const N: usize> {
+    pub t: f64,
+    pub q: [f64; N],
+    pub p: [f64; N],
+}
+
 /// What one run of a pilot recorded.
 #[derive(Clone, Debug)]
 pub(crate) struct Probe<const N: usize> {
-    /// `q` at each checkpoint.
-    pub q: Vec<[f64; N]>,
+    /// The start and the recorded nodes, in time order.
+    pub samples: Vec<Sample<N>>,
     /// `max_t ‖q(t)‖∞` over the nodes.
     pub scale: f64,
+    /// `max_t ‖p(t)‖∞` over the nodes.
+    pub p_scale: f64,
     /// The fastest rate `ρ` of the linearisation at sampled nodes.
     pub rates: Vec<f64>,
     /// Steps taken.
     pub steps: u64,
 }
 
-/// Runs `it` through `checkpoints` (increasing), sampling `ρ` at every
+/// Runs `it` through `checkpoints` (increasing), recording every node when
+/// `every_node` (otherwise the checkpoints) and sampling `ρ` at every
 /// `stride`-th node when `stride > 0`.
 pub(crate) fn probe<I: Stepping<N>, const N: usize>(
     mut it: I,
     checkpoints: &[f64],
+    every_node: bool,
     stride: usize,
 ) -> Result<Probe<N>, Error<N>> {
     let start = it.state();
-    let mut out =
-        Probe { q: Vec::new(), scale: start.q.iter().fold(0.0f64, |m, x| m.max(x.abs())), rates: Vec::new(), steps: 0 };
+    let norm = |x: &[f64; N]| x.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let mut out = Probe {
+        samples: vec![Sample { t: start.t, q: start.q, p: start.p }],
+        scale: norm(&start.q),
+        p_scale: norm(&start.p),
+        rates: Vec::new(),
+        steps: 0,
+    };
     let mut last_h = None;
     let mut k = 0usize;
     for &tc in checkpoints {
@@ -60,11 +88,15 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
             let t = it.state().t;
             it.step_toward(tc, last_h)?;
             let s = it.state();
-            if !s.q.iter().all(|x| x.is_finite()) {
+            if !s.q.iter().chain(&s.p).all(|x| x.is_finite()) {
                 return Err(Error::NonFinite { state: s, h: s.t - t, iterations: 0, quantity: "position" });
             }
             last_h = Some(s.t - t);
-            out.scale = s.q.iter().fold(out.scale, |m, x| m.max(x.abs()));
+            out.scale = out.scale.max(norm(&s.q));
+            out.p_scale = out.p_scale.max(norm(&s.p));
+            if every_node || s.t >= tc {
+                out.samples.push(Sample { t: s.t, q: s.q, p: s.p });
+            }
             k += 1;
             if stride > 0 && k.is_multiple_of(stride) {
                 let v = it.velocity()?;
@@ -73,7 +105,6 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
                 }
             }
         }
-        out.q.push(it.state().q);
     }
     out.steps = it.stats().steps;
     Ok(out)
@@ -82,8 +113,8 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
 /// The error estimate of a coarse/fine pair.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Richardson {
-    /// The estimated error of the coarse run at the last checkpoint
-    /// (running maximum over the checkpoints).
+    /// The estimated error of the coarse run at the pilot's end (running
+    /// maximum over the shared nodes).
     pub error: f64,
     /// The growth measured.
     pub growth: Growth,
@@ -92,12 +123,35 @@ pub(crate) struct Richardson {
     pub noise: f64,
 }
 
+/// `(t, running maximum of the phase-space distance)` at the nodes both
+/// probes recorded (times equal to a few ulps of the span).
+fn distances<const N: usize>(coarse: &Probe<N>, fine: &Probe<N>, scale: f64) -> Vec<(f64, f64)> {
+    // Momenta in units of the positions; a run at rest weighs positions only.
+    let weight = if coarse.p_scale.max(fine.p_scale) > 0.0 { scale / coarse.p_scale.max(fine.p_scale) } else { 0.0 };
+    let (first, last) = (coarse.samples[0].t, coarse.samples[coarse.samples.len() - 1].t);
+    let tol = 64.0 * f64::EPSILON * first.abs().max(last.abs()).max(last - first);
+    let mut out = Vec::with_capacity(coarse.samples.len());
+    let mut running = 0.0f64;
+    let mut j = 0;
+    for a in &coarse.samples {
+        while j < fine.samples.len() && fine.samples[j].t < a.t - tol {
+            j += 1;
+        }
+        let Some(b) = fine.samples.get(j).filter(|b| (b.t - a.t).abs() <= tol) else { continue };
+        let dq = a.q.iter().zip(&b.q).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let dp = a.p.iter().zip(&b.p).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        running = running.max(dq.max(dp * weight));
+        out.push((a.t, running));
+    }
+    out
+}
+
 impl Richardson {
-    /// From the coarse and fine probes of a method of order `p` at the
-    /// checkpoints `times` (each twice as far from `t0` as the one before).
-    /// The growth is judged between checkpoints at least `settle` after
-    /// `t0` (a period of the fastest mode: before it, the error of an
-    /// oscillation can rise by more than any power of `t` as its phase turns).
+    /// From the coarse and fine probes of a method of order `p`, with the
+    /// growth judged at the checkpoints `times` (each twice as far from `t0`
+    /// as the one before) from `settle` after `t0` on (a period of the
+    /// fastest mode: within it, the error of an oscillation is still turning
+    /// with its phase).
     pub(crate) fn new<const N: usize>(
         coarse: &Probe<N>,
         fine: &Probe<N>,
@@ -107,30 +161,27 @@ impl Richardson {
         settle: f64,
     ) -> Self {
         let factor = 2f64.powi(order as i32) / (2f64.powi(order as i32) - 1.0);
-        let mut running = 0.0f64;
-        let e: Vec<f64> = coarse
-            .q
+        let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
+        let d = distances(coarse, fine, scale);
+        // The running maximum at each checkpoint: the last shared node not after it.
+        let e: Vec<f64> = times
             .iter()
-            .zip(&fine.q)
-            .map(|(a, b)| {
-                let d = a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-                running = running.max(d * factor);
-                running
+            .map(|&tc| {
+                let i = d.partition_point(|&(t, _)| t <= tc + 64.0 * f64::EPSILON * tc.abs());
+                if i == 0 { 0.0 } else { d[i - 1].1 * factor }
             })
             .collect();
-        let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
         let noise = 10.0 * f64::EPSILON * scale * (fine.steps.max(1) as f64).sqrt();
-        let error = e[e.len() - 1];
+        let error = d.last().map_or(0.0, |x| x.1 * factor);
         let mut growth = Growth::Power(1.0);
-        // An oscillation's error sampled at one instant can sit near a zero
-        // of its phase (a turning point moves by a phase error to second
-        // order only), so one steep interval is no proof: exponential growth
-        // is two steep intervals in a row, as `e^{λt}` keeps them.
+        // Exponential growth keeps every interval steep; a bend of a power
+        // law (an error rising as a resonance is crossed) makes one.
         let mut steep_before = false;
         for i in 1..e.len() {
             let (a, b) = (e[i - 1], e[i]);
             // Above round-off, below saturation, after the first period.
             if times[i - 1] - t0 < 0.99 * settle || a <= 100.0 * noise || b >= 1e-2 * scale {
+                steep_before = false;
                 continue;
             }
             let k = (b / a).ln() / ((times[i] - t0) / (times[i - 1] - t0)).ln();

@@ -23,6 +23,9 @@ const SAFETY: f64 = 0.3;
 const ROUNDS: usize = 5;
 /// Checkpoints of the pilot, each twice as far from the start as the one before.
 const CHECKPOINTS: usize = 7;
+/// Uniformly spaced landings of a time-transformed pilot, where its two
+/// runs are compared besides the checkpoints.
+const LANDINGS: usize = 32;
 /// Samples of `ρ` for the step-density survey.
 const SURVEY_SAMPLES: usize = 256;
 
@@ -184,7 +187,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             for _ in 0..3 {
                 let n = ((tp - self.t0) / h).ceil().max(1.0) as usize;
                 let stride = (n / SURVEY_SAMPLES).max(1);
-                if let Ok(p) = run_probe(c, &self, h, &checkpoints, stride) {
+                if let Ok(p) = run_probe(c, &self, h, &checkpoints, false, stride) {
                     cost.steps += p.steps;
                     let mean = p.rates.iter().sum::<f64>() / p.rates.len().max(1) as f64;
                     let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
@@ -325,8 +328,22 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 checkpoints.to_vec()
             };
             let tp = *times.last().expect("at least one checkpoint");
-            let coarse = run_probe(c, self, h, &times, 0);
-            let fine = coarse.as_ref().ok().map(|_| run_probe(c, self, h / 2.0, &times, 0));
+            // A time transformation's nodes fall at different times in the
+            // two runs: they are compared where both land, on the
+            // checkpoints and a uniform grid between them.
+            let landings: Vec<f64> = if fixed_step {
+                times.clone()
+            } else {
+                let mut l: Vec<f64> = (1..=LANDINGS)
+                    .map(|i| self.t0 + (tp - self.t0) * i as f64 / LANDINGS as f64)
+                    .chain(times.iter().copied())
+                    .collect();
+                l.sort_by(f64::total_cmp);
+                l.dedup();
+                l
+            };
+            let coarse = run_probe(c, self, h, &landings, fixed_step, 0);
+            let fine = coarse.as_ref().ok().map(|_| run_probe(c, self, h / 2.0, &landings, fixed_step, 0));
             let (coarse, fine) = match (coarse, fine) {
                 (Ok(a), Some(Ok(b))) => (a, b),
                 (Err(e), _) | (_, Some(Err(e))) => {
@@ -413,16 +430,17 @@ fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
     auto: &Auto<S, N>,
     step: f64,
     checkpoints: &[f64],
+    every_node: bool,
     stride: usize,
 ) -> Result<Probe<N>, Error<N>> {
-    struct P<'a>(&'a [f64], usize);
+    struct P<'a>(&'a [f64], bool, usize);
     impl<const N: usize> Visit<N> for P<'_> {
         type Out = Result<Probe<N>, Error<N>>;
         fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out {
-            pilot::probe(it, self.0, self.1)
+            pilot::probe(it, self.0, self.1, self.2)
         }
     }
-    dispatch(c, auto, step, P(checkpoints, stride))?
+    dispatch(c, auto, step, P(checkpoints, every_node, stride))?
 }
 
 fn composition(order: u32) -> Composition {

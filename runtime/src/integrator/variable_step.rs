@@ -64,7 +64,14 @@ use crate::system::Lagrangian;
 /// the one-point rules also keep `ρh` below the bound at which the fastest
 /// mode `ρ` of the linearisation at the node has relative frequency error
 /// `accuracy` (the rule of [`guidance`](crate::guidance), order 2,
-/// `C = 1/12`): `h ≤ √(12 · accuracy) / ρ`.
+/// `C = 1/12`): `h ≤ √(12 · accuracy) / ρ`. Where every root of the energy
+/// equation lies beyond that bound, the accuracy wins: the step of least
+/// energy mismatch at or below the bound is taken (whatever the
+/// [`EnergyFallback`]), the discrete energy takes the value it reaches, and
+/// the step is counted in
+/// [`Stats::accuracy_capped_steps`](super::Stats::accuracy_capped_steps).
+/// A damped motion coming to rest ends in such steps: its energy error is
+/// below any tolerance there, and its motion stays resolved.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepBounds {
     /// Smallest acceptable step.
@@ -137,6 +144,18 @@ pub enum EnergyFallback {
     LeastSquares,
 }
 
+/// How an energy-preserving step was chosen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Taken {
+    /// A root of the energy equation.
+    Root,
+    /// The least mismatch, by [`EnergyFallback::LeastSquares`].
+    LeastSquares,
+    /// The least mismatch below the accuracy bound, with its relative
+    /// mismatch: the energy root lies beyond the bound.
+    Capped(f64),
+}
+
 /// One evaluation of the energy equation along the DEL solutions.
 #[derive(Clone, Copy, Debug)]
 struct Probe<const N: usize> {
@@ -162,6 +181,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
         let h_prev = self.memory.previous.map_or(self.h, |last| last.h);
         let (mut lo, mut hi) = bounds.bracket(h_prev);
+        let mut capped = false;
         if bounds.accuracy.is_some() {
             let State { t, q, p, .. } = self.state;
             // The last step's mean velocity starts the inverse Legendre transform.
@@ -169,17 +189,19 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             if let Ok(v) = self.system.velocity(t, q, p, guess)
                 && let Some(cap) = bounds.accuracy_cap(&self.system, (t, q, v))
             {
-                hi = hi.min(cap.max(bounds.h_min));
+                let bound = cap.max(bounds.h_min);
+                capped = bound < hi;
+                hi = hi.min(bound);
                 lo = lo.min(hi);
             }
         }
         let guess = self.h.clamp(lo, hi);
         // Trial solves below may fail; only the outcome of the whole step counts.
         let stats = self.stats;
-        let outcome = self.coupled(guess, lo, hi).or_else(|spent| self.bracketed(guess, lo, hi, spent));
+        let outcome = self.coupled(guess, lo, hi).or_else(|spent| self.bracketed(guess, lo, hi, capped, spent));
         self.stats = stats;
         match outcome {
-            Ok((seg, report, fallback)) => self.accept(seg, report, fallback),
+            Ok((seg, report, taken)) => self.accept(seg, report, taken),
             Err(e) => {
                 self.stats.failed_steps += 1;
                 Err(e)
@@ -189,7 +211,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
 
     /// Stage 1: Newton on `(dq, h)` from the DEL solution at `guess`. `Err`
     /// carries the iterations spent when it fails or lands outside `[lo, hi]`.
-    fn coupled(&mut self, guess: f64, lo: f64, hi: f64) -> Result<(Segment<N>, NewtonReport, bool), usize> {
+    fn coupled(&mut self, guess: f64, lo: f64, hi: f64) -> Result<(Segment<N>, NewtonReport, Taken), usize> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e0 = self.energy_target();
         // With two steps of history, start from the extrapolated step and the
@@ -269,7 +291,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         match newton::solve(start, &self.newton, linearize) {
             Ok((x, mut report)) if x.t >= lo && x.t <= hi => {
                 report.iterations += first.iterations;
-                Ok((Segment { t0, h: x.t, q0, dq: x.q.into() }, report, false))
+                Ok((Segment { t0, h: x.t, q0, dq: x.q.into() }, report, Taken::Root))
             }
             Ok((_, report)) => Err(first.iterations + report.iterations),
             Err(failure) => Err(first.iterations + failure.iterations()),
@@ -324,14 +346,16 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// from it, instead of ending the step: a large trial step is the usual
     /// failure, and the smaller ones may still hold a root or the least
     /// mismatch. Only when no trial in the bracket solves does the step fail,
-    /// with the error of the last trial.
+    /// with the error of the last trial. `capped`: the accuracy bound, not
+    /// the step ratio, sets `hi` (see [`least_squares`](Self::least_squares)).
     fn bracketed(
         &mut self,
         guess: f64,
         mut lo: f64,
         mut hi: f64,
+        capped: bool,
         mut spent: usize,
-    ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
+    ) -> Result<(Segment<N>, NewtonReport, Taken), Error<N>> {
         let spent = &mut spent;
         // The first probe that solves: the guess, or halfway down towards `lo`
         // while trials fail (each failure lowers `hi`).
@@ -350,7 +374,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
         };
         if at_guess.solved() {
-            return Ok((at_guess.seg, self.report(&at_guess, *spent), false));
+            return Ok((at_guess.seg, self.report(&at_guess, *spent), Taken::Root));
         }
         let guess = at_guess.seg.h;
         // Sample the bracket, nearest points first, for a sign change.
@@ -374,7 +398,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     continue;
                 };
                 if p.solved() {
-                    return Ok((p.seg, self.report(&p, *spent), false));
+                    return Ok((p.seg, self.report(&p, *spent), Taken::Root));
                 }
                 let near = if below { &mut left } else { &mut right };
                 if p.g.signum() != near.g.signum() {
@@ -388,8 +412,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
         }
         match bracket {
-            Some((a, b)) => self.root(a, b, spent).map(|p| (p.seg, self.report(&p, *spent), false)),
-            None => self.least_squares(lo, hi, at_guess, spent),
+            Some((a, b)) => self.root(a, b, spent).map(|p| (p.seg, self.report(&p, *spent), Taken::Root)),
+            None => self.least_squares(lo, hi, capped, at_guess, spent),
         }
     }
 
@@ -444,13 +468,23 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// No sign change found: minimise `|g|` over `[lo, hi]` by golden section,
     /// then report it or take it, as the fallback says. Trial steps whose DEL
     /// fails count as infinitely bad.
+    ///
+    /// When the accuracy bound sets `hi` (`capped`), the step of least
+    /// mismatch is taken whatever the fallback: every step that could solve
+    /// the energy equation is longer than the accuracy asked for allows,
+    /// and the accuracy is the stronger demand. The step still solves the
+    /// DEL, the discrete energy takes its new value, and the step is counted
+    /// in [`Stats::accuracy_capped_steps`](super::Stats::accuracy_capped_steps)
+    /// with its relative mismatch in
+    /// [`Stats::largest_capped_energy_defect`](super::Stats::largest_capped_energy_defect).
     fn least_squares(
         &mut self,
         lo: f64,
         hi: f64,
+        capped: bool,
         start: Probe<N>,
         spent: &mut usize,
-    ) -> Result<(Segment<N>, NewtonReport, bool), Error<N>> {
+    ) -> Result<(Segment<N>, NewtonReport, Taken), Error<N>> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
         let mismatch = |p: &Option<Probe<N>>| p.map_or(f64::INFINITY, |p| p.g.abs());
         let (mut a, mut b) = (lo, hi);
@@ -468,7 +502,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     // A root after all, between two roots the sampling stepped over.
                     let (l, r) = if p.seg.h < start.seg.h { (p, start) } else { (start, p) };
                     let root = if p.solved() { p } else { self.root(l, r, spent)? };
-                    return Ok((root.seg, self.report(&root, *spent), false));
+                    return Ok((root.seg, self.report(&root, *spent), Taken::Root));
                 }
             }
             if b - a <= 1e-9 * b {
@@ -484,8 +518,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 pd = self.probe(d, spent).ok();
             }
         }
+        if capped {
+            return Ok((best.seg, self.report(&best, *spent), Taken::Capped(best.g.abs() / best.scale)));
+        }
         match self.fallback {
-            EnergyFallback::LeastSquares => Ok((best.seg, self.report(&best, *spent), true)),
+            EnergyFallback::LeastSquares => Ok((best.seg, self.report(&best, *spent), Taken::LeastSquares)),
             EnergyFallback::Fail => Err(Error::NoEnergyStep {
                 state: self.state,
                 h_lo: lo,
@@ -572,7 +609,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// Applies a solved step: `p_{k+1}`, `E_{k+1}`, the Kahan-summed time.
-    fn accept(&mut self, seg: Segment<N>, report: NewtonReport, fallback: bool) -> Result<&State<N>, Error<N>> {
+    fn accept(&mut self, seg: Segment<N>, report: NewtonReport, taken: Taken) -> Result<&State<N>, Error<N>> {
         let State { step, t: t0, .. } = self.state;
         let h = seg.h;
         // E_{k+1} alone: the momentum comes from `advance` as an increment.
@@ -598,8 +635,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if S::DISCONTINUOUS {
             self.watch_energy(&seg, t1);
         }
-        if fallback {
-            // The least-squares step changed the energy: conserve its new value.
+        if taken != Taken::Root {
+            // A least-mismatch step changed the energy: conserve its new value.
             (self.energy, self.energy_carry) = (-d_t1, 0.0);
         } else {
             // E_{k+1} = E_k − (∂A/∂t_k + ∂A/∂t_{k+1}), Kahan-summed: the target
@@ -625,7 +662,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         self.clock = super::Clock { t: t1, step: step + 1 };
         self.stats.steps += 1;
         self.stats.newton_iterations += report.iterations as u64;
-        self.stats.energy_fallbacks += u64::from(fallback);
+        match taken {
+            Taken::Root => {}
+            Taken::LeastSquares => self.stats.energy_fallbacks += 1,
+            Taken::Capped(defect) => {
+                self.stats.accuracy_capped_steps += 1;
+                self.stats.largest_capped_energy_defect = self.stats.largest_capped_energy_defect.max(defect);
+            }
+        }
         self.stats.last = report;
         Ok(&self.state)
     }
