@@ -233,7 +233,8 @@ pub struct Run {
     pub steps: u64,
     /// Newton iterations per step (project methods).
     pub newton_per_step: Option<f64>,
-    /// Right-hand-side or force evaluations (peers and compositions).
+    /// Right-hand-side or force evaluations (peers and compositions);
+    /// derivative evaluations of `L` at quadrature points (Galerkin rules).
     pub evaluations: Option<u64>,
     /// Wall-clock seconds of the integration alone.
     pub seconds: f64,
@@ -478,9 +479,13 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     });
     let stats = sim.stats();
     let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
+    // Derivative evaluations of L at quadrature points, with and without the Hessian.
+    let points = sim.point_evaluations();
+    let evaluations = Some(points.gradients + points.hessians);
+    let steps = stats.steps;
     match result {
-        Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
-        Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+        Ok(()) => Run { q: sim.state().q.to_vec(), steps, newton_per_step: per_step, evaluations, ..Run::default() },
+        Err(e) => Run { failure: Some(e.to_string()), steps, newton_per_step: per_step, evaluations, ..Run::default() },
     }
 }
 

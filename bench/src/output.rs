@@ -413,7 +413,7 @@ pub fn auto_table(report: &Report) -> String {
 /// the methods that did not reach a target in one line after.
 pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
     let mut s = String::from(
-        "| target | method | setting | steps | worst error of 3 | time | Newton it./step |\n| --- | --- | --- | --- | --- | --- | --- |\n",
+        "| target | method | setting | steps | worst error of 3 | time | Newton it./step | evaluations/step |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let steps_of = |c: &Calibrated| {
         let sweep = p.sweeps.iter().find(|w| w.method == c.method)?;
@@ -424,16 +424,23 @@ pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
             p.calibrated.iter().filter(|c| c.target == target && c.setting.is_some() && c.seconds.is_some()).collect();
         met.sort_by(|a, b| a.seconds.unwrap_or(f64::INFINITY).total_cmp(&b.seconds.unwrap_or(f64::INFINITY)));
         for c in met {
+            let steps = steps_of(c);
+            // Right-hand sides (peers, compositions) or derivatives of L at quadrature points (Galerkin).
+            let per_step = match (c.evaluations, steps) {
+                (Some(k), Some(n)) if n > 0 => format!("{:.1}", k as f64 / n as f64),
+                _ => "—".into(),
+            };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
                 e(target),
                 c.method,
                 c.setting.as_ref().map_or("—".into(), setting),
-                steps_of(c).map_or("—".into(), |n| n.to_string()),
+                steps.map_or("—".into(), |n| n.to_string()),
                 c.worst_of_three.map_or("—".into(), e),
                 c.seconds.map_or("—".into(), ms),
-                c.newton_per_step.map_or("—".into(), |x| format!("{x:.2}"))
+                c.newton_per_step.map_or("—".into(), |x| format!("{x:.2}")),
+                per_step
             );
         }
         let missed: Vec<&str> = p

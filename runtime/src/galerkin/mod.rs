@@ -47,5 +47,5 @@ mod stepper;
 pub use basis::NodeFamily;
 pub use method::Galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
-pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, tangent_map};
+pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};
 pub(crate) use stepper::{GalerkinMemory, discrete_energy_of, legendre, supports_policy};

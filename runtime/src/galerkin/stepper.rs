@@ -77,6 +77,23 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     pub(crate) spare: Lu<N, S, T>,
     /// When to offer the kept block again after it contracted too slowly.
     pub(crate) kept_policy: KeptPolicy,
+    /// The derivative evaluations of `L` over the successful fixed steps so far.
+    pub(crate) evaluations: PointEvaluations,
+}
+
+/// Evaluations of the derivatives of `L` at quadrature points, summed over
+/// the successful fixed steps of a Galerkin integrator
+/// ([`Integrator::point_evaluations`]): the work measure of an implicit step
+/// that iteration counts alone hide (a simplified iteration costs gradients
+/// only, one with a new Jacobian a Hessian at every point).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PointEvaluations {
+    /// Gradients `(∂L/∂q, ∂L/∂v)` at one point: `R` per iteration that
+    /// reuses a Jacobian, and `R` per step for the momentum update.
+    pub gradients: u64,
+    /// Gradients with the Hessian of `L` at one point: `R` per iteration
+    /// that assembles a new Jacobian.
+    pub hessians: u64,
 }
 
 /// Back-off for the kept Newton block: where a block one step old contracts
@@ -204,6 +221,13 @@ where
     pub fn last_nodes(&self) -> Option<[[T; N]; S]> {
         let last = self.memory.as_ref()?;
         Some(last.d.map(|d| core::array::from_fn(|i| last.q0[i] + (last.carry[i] + d[i]))))
+    }
+
+    /// The derivative evaluations of `L` at quadrature points over the
+    /// successful fixed steps so far (zero before the first step, and for
+    /// energy-preserving steps, which are not counted).
+    pub fn point_evaluations(&self) -> PointEvaluations {
+        self.memory.as_ref().map_or_else(PointEvaluations::default, |last| last.evaluations)
     }
 
     /// Whether a step starts from the last step's Jacobian (see
@@ -369,6 +393,8 @@ where
             }
             Err(failure) => Err(with_iterations(ill_conditioned(failure, &work, self.newton.min_rcond), spent)),
         };
+        // Linearisations with a kept and with a new Jacobian, for the counts.
+        let (kept_linearisations, new_linearisations) = (work.gradients, work.hessians);
         // The block the converged simplified iteration used, for the next
         // step, and the storage that goes back to the memory.
         let (jacobian, storage) = match (Self::KEEPS_JACOBIAN && work.simplified && work.valid, work.uses_kept) {
@@ -397,6 +423,9 @@ where
         self.commit(h, t1, d, report, jacobian, storage)?;
         if let Some(last) = &mut self.memory {
             last.kept_policy = policy.after(offered, has_kept && !offered, kept);
+            // Every linearisation of every attempt, and the momentum update.
+            last.evaluations.gradients += (R * (kept_linearisations + 1)) as u64;
+            last.evaluations.hessians += (R * new_linearisations) as u64;
         }
         Ok(())
     }
@@ -507,6 +536,7 @@ where
                     block,
                     spare,
                     kept_policy: KeptPolicy::default(),
+                    evaluations: PointEvaluations::default(),
                 });
             }
         }
@@ -888,6 +918,11 @@ where
         // A new block, in the step's own storage (a kept one stays as it is).
         work.uses_kept = false;
     }
+    if frozen {
+        work.gradients += 1;
+    } else {
+        work.hessians += 1;
+    }
     let jac: &mut BlockMatrix<N, S, T> = work.lu.matrix_mut();
     if !frozen {
         jac.fill_zero();
@@ -1073,6 +1108,10 @@ pub(super) struct Work<'a, const N: usize, const S: usize, T> {
     pub(super) check: bool,
     /// Size of the last correction of the simplified iteration.
     pub(super) last_correction: Option<f64>,
+    /// Linearisations with a kept Jacobian (gradients of `L` only), over all solves.
+    pub(super) gradients: usize,
+    /// Linearisations that assembled a new Jacobian, over all solves.
+    pub(super) hessians: usize,
 }
 
 impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
@@ -1080,7 +1119,17 @@ impl<'a, const N: usize, const S: usize, T: Real> Work<'a, N, S, T> {
     #[inline]
     pub(super) fn new(kept: Option<&'a Lu<N, S, T>>, storage: Lu<N, S, T>) -> Self {
         let valid = kept.is_some();
-        Self { kept, uses_kept: valid, lu: storage, valid, simplified: true, check: true, last_correction: None }
+        Self {
+            kept,
+            uses_kept: valid,
+            lu: storage,
+            valid,
+            simplified: true,
+            check: true,
+            last_correction: None,
+            gradients: 0,
+            hessians: 0,
+        }
     }
 
     /// Prepares a new solve: simplified or full Newton, from the kept
@@ -1275,6 +1324,47 @@ mod tests {
         }
         let s = sim.stats();
         (sim.state().q, sim.state().p, s.newton_iterations as f64 / s.steps as f64)
+    }
+
+    /// Every linearisation costs `R` derivative evaluations and the momentum
+    /// update `R` gradients more; with the kept block most steps assemble no
+    /// Jacobian, so Hessians are a small share of the evaluations.
+    #[test]
+    fn point_evaluations_count_every_linearisation() {
+        let mut sim =
+            Integrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
+        assert_eq!(sim.point_evaluations(), PointEvaluations::default());
+        sim.run(200, |_| {}).unwrap();
+        let (e, s) = (sim.point_evaluations(), sim.stats());
+        assert_eq!(e.gradients + e.hessians, 6 * (s.newton_iterations + s.steps), "{e:?} {s:?}");
+        // The first step assembles its own Jacobian; afterwards a kept one
+        // serves most steps (Hessians on fewer than one step in four).
+        assert!(e.hessians >= 6, "{e:?}");
+        assert!(e.hessians < 6 * s.steps / 4, "{e:?} {s:?}");
+    }
+
+    /// `L = ½v² + ln q`, defined for `q > 0` only.
+    struct Logarithmic;
+
+    impl Lagrangian<1> for Logarithmic {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 1] = [false];
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+            v[0] * v[0] * 0.5 + q[0].ln()
+        }
+    }
+
+    #[test]
+    fn a_failed_step_counts_no_evaluations() {
+        // From q = 1 towards 0 at speed 10: steps of 0.01 stay in q > 0, a
+        // step of 1 leaves it (ln q is NaN there) and fails.
+        let mut sim = Integrator::new(Logarithmic, Galerkin::<3, 3>::gauss(), 0.01).start(0.0, [1.0], [-10.0]).unwrap();
+        sim.run(3, |_| {}).unwrap();
+        let before = sim.point_evaluations();
+        assert!(before.gradients + before.hessians > 0, "{before:?}");
+        sim.set_step_size(1.0).unwrap();
+        assert!(sim.step().is_err());
+        assert_eq!(sim.point_evaluations(), before);
     }
 
     #[test]
