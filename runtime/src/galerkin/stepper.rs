@@ -1051,6 +1051,7 @@ where
         cancelled: residual_ratio,
         scale: 1.0,
         kept: false,
+        floor: 0.0,
     })
 }
 
