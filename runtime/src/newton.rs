@@ -151,17 +151,29 @@ pub(crate) struct Linearization<X> {
     /// Made with a Jacobian kept from an earlier iterate ([`Jacobian::Kept`]):
     /// the stopping rule then holds its estimate to 1/100 of the tolerance.
     pub(crate) kept: bool,
+    /// The size, in the unknown's own units, of a correction that the
+    /// rounding of the points the equations are evaluated at can leave
+    /// (for the DEL, `4 ε max|q_k|`): a stalled iteration whose corrections
+    /// are below it has converged as far as `f64` can tell, even where the
+    /// unknown (an increment) is far smaller than those points.
+    pub(crate) floor: f64,
 }
 
 impl<X> Linearization<X> {
     /// A correction whose residual is not compared with its terms.
     pub(crate) fn new(correction: X, residual_norm: f64) -> Self {
-        Self { correction, residual_norm, cancelled: f64::INFINITY, scale: 1.0, kept: false }
+        Self { correction, residual_norm, cancelled: f64::INFINITY, scale: 1.0, kept: false, floor: 0.0 }
     }
 
     /// Marks a correction made with a kept Jacobian.
     pub(crate) fn kept(mut self) -> Self {
         self.kept = true;
+        self
+    }
+
+    /// Records the rounding floor of the correction (see [`floor`](Self::floor)).
+    pub(crate) fn floor(mut self, floor: f64) -> Self {
+        self.floor = floor;
         self
     }
 
@@ -427,10 +439,18 @@ where
             }
             let theta = ratio / prev;
             // Round-off floor: the corrections stopped shrinking, and either
-            // they are already tiny or the residual is round-off of its terms
+            // they are already tiny, or the residual is round-off of its terms
             // (an ill-conditioned energy equation turns that round-off into
-            // corrections of h far above ε); more iterations only stir bits.
-            if theta >= 0.5 && (ratio * options.rtol <= 1e3 * X::EPSILON || step.round_off(1e3 * X::EPSILON)) {
+            // corrections of h far above ε), or, with a fresh Jacobian, they
+            // are below what the rounding of the evaluation points leaves
+            // (an increment far smaller than the positions: a chain near
+            // rest, where the residual's noise is 1e-12 of the increment);
+            // more iterations only stir bits.
+            if theta >= 0.5
+                && (ratio * options.rtol <= 1e3 * X::EPSILON
+                    || step.round_off(1e3 * X::EPSILON)
+                    || (!step.kept && x.error_ratio(&step.correction, options.rtol, options.atol + step.floor) <= 1.0))
+            {
                 return Ok((x, report));
             }
             growing = if theta >= 1.0 { growing + 1 } else { 0 };
@@ -546,6 +566,32 @@ mod tests {
         };
         let err = solve(SVector::<f64, 1>::new(0.7), &NewtonOptions::default(), eval).unwrap_err();
         assert!(matches!(err, NewtonFailure::NotConverged(_) | NewtonFailure::Singular { .. }), "{err:?}");
+    }
+
+    /// `x = 1e-7` from the root itself (an exact predictor), with a
+    /// residual whose noise alternates by 1e-19 (as that of an increment of
+    /// 1e-7 evaluated beside positions of order 1): every correction is
+    /// noise, 1e-12 to 2e-12 of the unknown, above `rtol`, and they do not
+    /// contract.
+    fn noisy(floor: f64) -> Result<(SVector<f64, 1>, NewtonReport), NewtonFailure> {
+        let mut sign = 1.0;
+        let eval = |x: &SVector<f64, 1>, _| {
+            sign = -sign;
+            let r = SVector::<f64, 1>::new(x[0] - 1e-7 + sign * 1e-19);
+            square_correction(r, SMatrix::<f64, 1, 1>::new(1.0), 1e-13).map(|(step, _)| step.floor(floor))
+        };
+        solve(SVector::<f64, 1>::new(1e-7), &NewtonOptions::default(), eval)
+    }
+
+    #[test]
+    fn a_stall_below_the_rounding_of_the_positions_is_converged() {
+        // Without a floor the noise cannot be told from a failing iteration.
+        assert!(matches!(noisy(0.0), Err(NewtonFailure::NotConverged(_))), "{:?}", noisy(0.0));
+        // Beside positions of order 1 it is below their rounding.
+        let (x, report) = noisy(4.0 * f64::EPSILON).unwrap();
+        assert!((x[0] - 1e-7).abs() <= 2e-19, "{x} {report:?}");
+        // A stall above the floor is still a failure.
+        assert!(matches!(noisy(1e-20), Err(NewtonFailure::NotConverged(_))), "{:?}", noisy(1e-20));
     }
 
     #[test]

@@ -14,6 +14,7 @@ mod large_stack;
 mod lost_orbits;
 mod module_graph;
 mod newton_accuracy;
+mod newton_stopping;
 mod properties;
 mod properties_workflow;
 #[cfg(feature = "serde")]

@@ -19,8 +19,10 @@
 //!   power-law time functions): start errors of the documented kinds, a
 //!   failed step leaves the driver bit-identical and carries its state, a
 //!   step advances time, `run_until` lands exactly or refuses the target
-//!   typed, and a run that returns `Ok` conserves the energy (implicit) or
-//!   the extended Hamiltonian and the energy (explicit) to a loose bound;
+//!   typed, and a run that returns `Ok` conserves the energy to a loose
+//!   bound and (explicit) keeps the rates of its two clocks within the
+//!   factor 2 that its lost-orbit check promises (Kepler orbits through a
+//!   collision included);
 //! - `solve(Plan)` with random `every(n)`, `save_at` lists (unsorted,
 //!   out-of-range and NaN ones must be `SolveError::InvalidSaveTime` with
 //!   the index of the first bad time), events with random actions,
@@ -265,7 +267,10 @@ trait Driver<const N: usize> {
     /// The time step of the last step (before the first: `σ g` here); the
     /// density here can be far from the one along the next steps.
     fn time_unit(&self) -> f64;
-    /// The energy and, for the explicit driver, the extended Hamiltonian.
+    /// Whether a step has been taken (the time unit is then the last step's).
+    fn stepped(&self) -> bool;
+    /// The energy and, for the explicit driver, the ratio of the rates of
+    /// its two clocks (see [`clock_factor`]); NaN where there is none.
     fn invariants(&self) -> (f64, f64);
 }
 
@@ -338,8 +343,11 @@ where
     fn time_unit(&self) -> f64 {
         self.last_time_step().unwrap_or(self.step_size() * self.density())
     }
+    fn stepped(&self) -> bool {
+        self.last_time_step().is_some()
+    }
     fn invariants(&self) -> (f64, f64) {
-        (self.energy(), self.extended_hamiltonian())
+        (self.energy(), clock_factor(self))
     }
 }
 
@@ -379,21 +387,44 @@ where
     fn time_unit(&self) -> f64 {
         self.last_time_step().unwrap_or(self.step_size() * self.density())
     }
+    fn stepped(&self) -> bool {
+        self.last_time_step().is_some()
+    }
     fn invariants(&self) -> (f64, f64) {
         (self.energy().unwrap_or(f64::NAN), f64::NAN)
     }
 }
 
-/// The bounds a run that returned `Ok` must keep: `|E − E0| ≤ energy`,
-/// `|H̃ − H̃0| ≤ hamiltonian`; `None` where the case is outside the regime
-/// the bound is for.
+/// The rate of the drift over that of the kick of an explicit
+/// time-transformed driver, `f'(a)/f'(b) = (b/a)^α` with `a = T + p_t + c`
+/// and `b = c − V`: 1 on the exact flow from `Γ = 0`. It is what the driver's
+/// lost-orbit check bounds (to a factor 2 of its value at the start); for
+/// `f = ln` it is `exp(−Γ)`.
+///
+/// `Γ` itself is no measure of a lost orbit: with `p_t` constant it is
+/// `f(b + E − E0) − f(b) ≈ f'(b)(E − E0)`, the energy error magnified by
+/// the step density, which is largest where `b` is smallest (a pendulum's
+/// turning points: see
+/// `explicit_time_transformation_near_a_turning_point_moves_the_extended_hamiltonian_by_its_local_error`).
+fn clock_factor<Sys: Lagrangian<N>, const N: usize>(sim: &lagrangian_runtime::ExplicitAdaptive<Sys, f64, N>) -> f64 {
+    let (p, v) = (sim.state().p, sim.velocity());
+    let kinetic = 0.5 * p.iter().zip(&v).map(|(p, v)| p * v).sum::<f64>();
+    let a = kinetic + sim.time_momentum() + sim.shift();
+    a.powf(-sim.time_function().exponent()) / sim.density()
+}
+
+/// The bounds a run that returned `Ok` must keep: `|E − E0| ≤ energy` and,
+/// with `clocks`, the ratio of the clocks' rates within the factor 2 of its
+/// start that the explicit driver's lost-orbit check promises; `None` where
+/// the case is outside the regime the bound is for.
 #[derive(Clone, Copy, Debug)]
 struct Conservation {
     energy: f64,
-    hamiltonian: f64,
-    /// The configuration of the known defect of the explicit time
-    /// transformation (an orbit lost at a collision, returned as `Ok`),
-    /// being fixed in parallel: a violation is tallied with its case, not failed.
+    clocks: bool,
+    /// Kepler passing close to the centre with the explicit driver
+    /// (`near_collision`): the open defect of an energy lost with `Ok`
+    /// returned (see `explicit_kick_drift_kick_loses_the_energy_near_a_collision`),
+    /// tallied with its first case instead of failed.
     known_defect: bool,
     /// The bounds are for steps in `s` up to this size; a case whose
     /// operations set a larger one is checked up to there.
@@ -414,7 +445,7 @@ fn drive<const N: usize>(
     conservation: Option<Conservation>,
     tally: &mut Tally,
 ) -> Result<(), TestCaseError> {
-    let (e0, h0) = sim.invariants();
+    let (e0, k0) = sim.invariants();
     let mut conservation = conservation;
     // The σ of the last step taken: the time unit scales with σ.
     let mut stepped_sigma = sim.sigma();
@@ -529,26 +560,34 @@ fn drive<const N: usize>(
                 }
             }
         }
-        if !matches!(op, Op::ScaleStep(_)) {
+        // Before the first step the time unit is `σ g` with the current σ:
+        // it follows a changed σ by itself (with σ raised by 1e280 and the
+        // ratio applied again, seed 12 aimed 1e277 time units ahead).
+        if !matches!(op, Op::ScaleStep(_)) || !sim.stepped() {
             stepped_sigma = sim.sigma();
         }
         if conservation.is_some_and(|c| sim.sigma().is_nan() || sim.sigma() > c.max_sigma) {
             conservation = None;
         }
         if let (Ok(()), Some(c)) = (&result, conservation) {
-            let (e, h) = sim.invariants();
-            let (de, dh) = ((e - e0).abs(), (h - h0).abs());
+            let (e, k) = sim.invariants();
             tally.add("conservation checked");
-            let kept = de <= c.energy && (!h0.is_finite() || dh <= c.hamiltonian);
-            if !kept && c.known_defect {
-                tally.note("known defect: conservation lost near a collision (Ok returned)", || {
-                    format!("E {e0} -> {e}, H̃ {h0} -> {h} at {:?}", sim.state())
+            if (e - e0).abs() > c.energy && c.known_defect {
+                tally.note("known defect: energy lost near a collision (Ok returned)", || {
+                    format!("E {e0} -> {e} at {:?}", sim.state())
                 });
                 break;
             }
-            prop_assert!(de <= c.energy, "energy {e0} -> {e} (bound {:e}) at {:?}", c.energy, sim.state());
-            if h0.is_finite() {
-                prop_assert!(dh <= c.hamiltonian, "H̃ {h0} -> {h} (bound {:e}) at {:?}", c.hamiltonian, sim.state());
+            prop_assert!((e - e0).abs() <= c.energy, "energy {e0} -> {e} (bound {:e}) at {:?}", c.energy, sim.state());
+            if c.clocks {
+                // The driver checks the ratio of the arguments of `f'` in its
+                // own arithmetic: a few ulps of slack.
+                let ratio = k / k0;
+                prop_assert!(
+                    (0.5 * (1.0 - 1e-12)..=2.0 * (1.0 + 1e-12)).contains(&ratio),
+                    "the clocks' rates moved by a factor {ratio} (from {k0} to {k}) at {:?}",
+                    sim.state()
+                );
             }
         }
     }
@@ -615,10 +654,10 @@ fn explicit_case() -> impl Strategy<Value = ExplicitCase> {
 }
 
 /// Kepler started at `r ≤ 0.05` or with `|r × v| ≤ 0.05`, or bound with an
-/// eccentricity above 0.9, passes close to the centre: the configuration of
-/// the known defect of the explicit time transformation (an orbit lost at a
-/// collision, returned as `Ok`), which is being fixed in parallel. There a
-/// violated bound is tallied with its first case instead of failing.
+/// eccentricity above 0.9, passes close to the centre, where the implicit
+/// driver's energy is not held to the property's bound (its monitor
+/// `|q|^{3/2}` at a fixed `σ` does not resolve a collision; a typed error or
+/// the state kept are still asserted there).
 fn near_collision(q0: [f64; 2], v0: [f64; 2]) -> bool {
     let r = q0[0].hypot(q0[1]);
     let l = (q0[0] * v0[1] - q0[1] * v0[0]).abs();
@@ -716,12 +755,7 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
             let (q, v) = (case.q0, case.v0);
             let conservation = nominal.then(|| {
                 let scale = 0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / q[0].hypot(q[1]);
-                Conservation {
-                    energy: 0.1 * scale,
-                    hamiltonian: 0.1,
-                    known_defect: near_collision(q, v),
-                    max_sigma: 0.2,
-                }
+                Conservation { energy: 0.1 * scale, clocks: true, known_defect: near_collision(q, v), max_sigma: 0.2 }
             });
             explicit_one(SepKepler, case, conservation, tally)
         } else {
@@ -729,7 +763,7 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
             let (s, _) = pendulum_scales(case.v0[0]);
             let conservation = nominal.then_some(Conservation {
                 energy: 0.1 * s,
-                hamiltonian: 0.1,
+                clocks: true,
                 known_defect: false,
                 // The logarithmic transformation takes long time steps where `c − V` is small (the
                 // turning points): σ = 0.16 changed E by 14 % of S in one step.
@@ -886,7 +920,7 @@ fn implicit_time_transformation_under_random_and_adversarial_input() {
             };
             let conservation = (nominal && case.monitor == 1.5 && !near_collision(q, v)).then(|| {
                 let scale = 0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / q[0].hypot(q[1]);
-                Conservation { energy: 0.1 * scale, hamiltonian: f64::INFINITY, known_defect: false, max_sigma: 0.1 }
+                Conservation { energy: 0.1 * scale, clocks: false, known_defect: false, max_sigma: 0.1 }
             });
             implicit_one::<_, _, 2, 3>(TimeTransformed::new(SepKepler, monitor), case, conservation, tally)
         } else {
@@ -899,7 +933,7 @@ fn implicit_time_transformation_under_random_and_adversarial_input() {
             let (s, _) = pendulum_scales(case.v0[0]);
             let conservation = (nominal && case.monitor >= 0.5).then_some(Conservation {
                 energy: 0.1 * s,
-                hamiltonian: f64::INFINITY,
+                clocks: false,
                 known_defect: false,
                 max_sigma: 0.1,
             });
@@ -1725,19 +1759,63 @@ fn solve_keeps_each_node_once_around_land_events() {
 
 /// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
 /// the separable pendulum from rest at q0 = −1.532 (`V = −0.38`, so the
-/// default shift is `c = 0` and `c − V` stays ≥ 0.38 on the exact flow),
-/// logarithmic time function, σ = 0.0237, one drift–kick–drift step:
-/// `H̃` goes from 0 to 0.114, past the property's bound 0.1, with the energy
-/// within its bound. Whether the bound or the step is wrong is open.
+/// default shift is `c = 0` and `c − V` stays ≥ 0.38 on the exact flow, 1/26
+/// of the energy scale 9.81), logarithmic time function, σ = 0.0237, one
+/// drift–kick–drift step: `Γ` goes from 0 to 0.114.
+///
+/// That is the step's truncation error, not a lost orbit. With `p_t = −E0`
+/// fixed, `Γ = ln((T − E0)/(−V)) = ln(1 + (E − E0) g)`, `g = 1/(c − V)` the
+/// step density: the energy error of the step (0.061, 0.6 % of the scale)
+/// magnified by the density, which is largest at the turning points. From a
+/// turning point the one-step change of `Γ` is even in `σ` (the leapfrog is
+/// symmetric and reversible, and the start is its own reverse), so it
+/// shrinks like `σ⁴`: fitted orders 3.26, 3.76, 3.94, 3.98, then 4.00 to
+/// three digits over the halvings of σ. The two clocks' rates stay within 12 % of each other, inside the
+/// factor 2 the lost-orbit check allows. So the step is accepted, and the
+/// property bounds the energy and the clocks' ratio instead of `Γ`.
 #[test]
-#[ignore = "open: H̃ changes by 0.114 in one leapfrog step of the pendulum near a turning point (bound 0.1)"]
-fn explicit_time_transformation_keeps_the_extended_hamiltonian_near_a_turning_point() {
-    let mut sim = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, 0.023742912992331222)
-        .start(0.0, [-1.531904632271458], [0.0])
+fn explicit_time_transformation_near_a_turning_point_moves_the_extended_hamiltonian_by_its_local_error() {
+    let q0 = -1.531904632271458;
+    // (E − E0, Γ − Γ0, density and clocks' ratio after the step, that ratio at the start)
+    let one_step = |sigma: f64| {
+        let mut sim = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, sigma)
+            .start(0.0, [q0], [0.0])
+            .unwrap();
+        let (e0, g0, k0) = (sim.energy(), sim.extended_hamiltonian(), clock_factor(&sim));
+        assert_eq!(sim.shift(), 0.0);
+        sim.step().unwrap();
+        (sim.energy() - e0, sim.extended_hamiltonian() - g0, sim.density(), clock_factor(&sim) / k0)
+    };
+    let sigma = 0.023742912992331222;
+    let (de, dg, density, ratio) = one_step(sigma);
+    assert!((dg - 0.114).abs() < 1e-3, "Γ − Γ0 = {dg}");
+    assert!((dg - (de * density).ln_1p()).abs() <= 1e-14, "Γ − Γ0 = {dg}, ln(1 + ΔE g) = {}", (de * density).ln_1p());
+    assert!(de.abs() <= 0.01 * 9.81, "E − E0 = {de}");
+    assert!((1.0 / 1.15..1.0 / 1.05).contains(&ratio), "the clocks' ratio moved by {ratio}");
+    let changes: Vec<f64> = (0..9).map(|j| one_step(sigma / f64::from(1 << j)).1.abs()).collect();
+    let orders: Vec<f64> = changes.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
+    for (j, order) in orders.iter().enumerate().skip(3) {
+        assert!((order - 4.0).abs() <= 0.07, "order {order} from σ/{} (orders {orders:?})", 1 << j);
+    }
+}
+
+/// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`)
+/// once near-collision cases were no longer excused: Kepler from r = 0.035,
+/// logarithmic, kick–drift–kick, σ = 0.0709: `run_until(2.5 time units)` and
+/// two steps return `Ok` with the energy moved from −27.2 to −23.6 (13 %),
+/// the clocks' ratio within its bound. Open.
+#[test]
+#[ignore = "open: the explicit kick-drift-kick leapfrog loses 13 % of the energy near a collision and returns Ok"]
+fn explicit_kick_drift_kick_loses_the_energy_near_a_collision() {
+    let mut sim = ExplicitTimeTransformed::new(SepKepler, TimeFunction::Logarithmic, 0.07090402140756377)
+        .form(LeapfrogForm::KickDriftKick)
+        .start(0.0, [0.03506140016022266, 5.220410398978456e-215], [-0.8265625704819802, 1.4022675807030673])
         .unwrap();
-    let h0 = sim.extended_hamiltonian();
-    if sim.step().is_ok() {
-        let h = sim.extended_hamiltonian();
-        assert!((h - h0).abs() <= 0.1, "H̃ {h0} -> {h} at {:?}", sim.state());
+    let e0 = sim.energy();
+    let target = 2.5 * sim.step_size() * sim.density();
+    let ok = sim.run_until(target, |_| {}).and_then(|()| sim.step().map(|_| ())).and_then(|()| sim.step().map(|_| ()));
+    if ok.is_ok() {
+        let e = sim.energy();
+        assert!((e - e0).abs() <= 0.1 * e0.abs(), "E {e0} -> {e} at {:?}", sim.state());
     }
 }

@@ -1086,6 +1086,7 @@ where
         cancelled: residual_ratio,
         scale: 1.0,
         kept: false,
+        floor: 0.0,
     })
 }
 

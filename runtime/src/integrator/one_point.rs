@@ -456,6 +456,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
+        // Newton's rounding floor for the increment: that of the positions.
+        let q_floor = 4.0 * f64::EPSILON * max_abs(&q0);
         // The condition estimate on the first iteration only (see
         // `newton::square_correction_unestimated`); the inverse Jacobian is
         // kept for the iterations Newton lets keep it.
@@ -468,6 +470,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 inverse = None;
             }
             self.del_linearization(h, (*x).into(), p_scale, estimate, &mut inverse, &mut impulse)
+                .map(|step| step.floor(q_floor))
         };
         match newton::solve(SVector::from(predictor), &self.newton, eval) {
             Ok((dq, report)) => {

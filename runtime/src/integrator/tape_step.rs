@@ -525,6 +525,8 @@ impl SparseWork {
         let (q0, p0, pc) = (node.q, node.p, node.p_carry);
         let bandwidth = self.bandwidth;
         let min_rcond = options.min_rcond;
+        // Newton's rounding floor for the increment: that of the positions.
+        let q_floor = 4.0 * f64::EPSILON * max_abs(q0);
         let points = directional_points(model);
         if points.is_some() {
             self.directional.allocate(n, bandwidth, model.autonomous()).map_err(|e| breakdown(e).at(0))?;
@@ -573,7 +575,7 @@ impl SparseWork {
             for x in r.iter_mut() {
                 *x = -*x;
             }
-            let lin = Linearization::new(Slot(&correction), residual_norm).cancelling(scale);
+            let lin = Linearization::new(Slot(&correction), residual_norm).cancelling(scale).floor(q_floor);
             Ok(if jacobian == Jacobian::Kept { lin.kept() } else { lin })
         };
         let solved = newton::solve(Slot(&x), options, linearize).map(|(_, report)| report);

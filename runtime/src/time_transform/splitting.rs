@@ -710,6 +710,14 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// The extended Hamiltonian `Γ`, zero on the exact flow; for
     /// `f = ln` it is `ln((T + p_t + c)/(c − V))`, otherwise
     /// `((T + p_t + c)^{1−α} − (c − V)^{1−α})/(1 − α)`.
+    ///
+    /// The steps keep a nearby modified `Γ`, not `Γ` itself: with `p_t`
+    /// constant, `Γ ≈ f'(c − V)(H − H0)`, the energy error times the step
+    /// density, and it moves most where `c − V` is smallest (from a
+    /// pendulum's turning point with `c − V` at 1/26 of its energy scale,
+    /// one leapfrog step moved it by 0.11 with the energy within 0.6 %).
+    /// The lost-orbit check bounds the ratio of the rates `f'(T + p_t + c)`
+    /// and `f'(c − V)` instead (`exp(−Γ)` for `f = ln`).
     pub fn extended_hamiltonian(&self) -> f64 {
         let ph = &self.phase;
         let a = kinetic_energy(&self.inverse_mass, &ph.p).0 + ph.p_t + self.shift;
