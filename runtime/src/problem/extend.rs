@@ -1,0 +1,215 @@
+//! The implicit time transformation behind a [`Scheme`]: its drivers on the
+//! extended system of `N + 1` coordinates, and the table that names `N + 1`
+//! for each `N`.
+//!
+//! Stable Rust cannot write the type `Adaptive<…, N, { N + 1 }>` for a
+//! generic `N` (that needs `generic_const_exprs`), and a run-time `match N`
+//! over the candidates would instantiate every arm for every size (each arm
+//! a whole integrator, refused at compile time where `M ≠ N + 1`). So a
+//! sealed trait, [`Extended`], implemented by a macro for `Dim<1>` …
+//! `Dim<64>` (see [`MAX_TRANSFORMED_N`]), names the extended driver type
+//! with the literal `N + 1`; only the sizes a program uses are instantiated,
+//! and for each only when its scheme is matched. Larger systems take
+//! [`TimeTransformed`] directly, with `start::<{ N + 1 }>` written out.
+
+use super::scheme::{OnePoint, Scheme};
+use super::support::MAX_TRANSFORMED_N;
+use crate::dense::{Hermite, Node};
+use crate::discrete::{Midpoint, Trapezoid};
+use crate::error::Error;
+use crate::galerkin::{Galerkin, GalerkinIntegrator, Quadrature};
+use crate::integrator::{Integrator, Stats};
+use crate::newton::NewtonOptions;
+use crate::solution::Stepping;
+use crate::state::State;
+use crate::system::Lagrangian;
+use crate::time_transform::{Adaptive, Curvature, TimeTransformed};
+
+/// The transformed system in `s`.
+type Tt<S, const N: usize> = TimeTransformed<S, Curvature, N>;
+
+/// The adaptive driver around a one-point rule `R`.
+type OnePointIn<S, R, const N: usize, const M: usize> = Adaptive<Integrator<Tt<S, N>, R, M>, S, Curvature, N, M>;
+
+/// The adaptive driver around the Galerkin rule of degree `D`.
+type GalerkinIn<S, const N: usize, const M: usize, const D: usize> =
+    Adaptive<GalerkinIntegrator<Tt<S, N>, M, D, D>, S, Curvature, N, M>;
+
+/// The implicit time-transformed driver of a [`Scheme::TimeTransformed`],
+/// `N` physical and `M = N + 1` extended coordinates: one variant per
+/// method in `s`.
+// The variants are the drivers themselves, of their own sizes: one is
+// built per run and never moved in the stepping loop, and a box would add
+// an indirection to every step.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone)]
+pub enum Transformed<S, const N: usize, const M: usize> {
+    /// Midpoint in `s`.
+    Midpoint(OnePointIn<S, Midpoint, N, M>),
+    /// Trapezoid in `s`.
+    Trapezoid(OnePointIn<S, Trapezoid, N, M>),
+    /// α-β in `s`.
+    AlphaBeta(OnePointIn<S, crate::discrete::AlphaBeta, N, M>),
+    /// Galerkin s = 2 in `s`.
+    Galerkin2(GalerkinIn<S, N, M, 2>),
+    /// Galerkin s = 3 in `s`.
+    Galerkin3(GalerkinIn<S, N, M, 3>),
+    /// Galerkin s = 4 in `s`.
+    Galerkin4(GalerkinIn<S, N, M, 4>),
+}
+
+/// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
+macro_rules! each {
+    ($x:expr, $d:ident => $body:expr) => {
+        match $x {
+            Transformed::Midpoint($d) => $body,
+            Transformed::Trapezoid($d) => $body,
+            Transformed::AlphaBeta($d) => $body,
+            Transformed::Galerkin2($d) => $body,
+            Transformed::Galerkin3($d) => $body,
+            Transformed::Galerkin4($d) => $body,
+        }
+    };
+}
+
+impl<S: Lagrangian<N>, const N: usize, const M: usize> Transformed<S, N, M> {
+    /// Starts the driver of `inner` in `s` (the schemes
+    /// [`supports`](super::supports) accepts around a time transformation).
+    #[allow(clippy::too_many_arguments)]
+    fn start(
+        system: S,
+        inner: &Scheme,
+        density: Curvature,
+        sigma: f64,
+        newton: Option<NewtonOptions>,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<Self, Error<N>> {
+        let tt = TimeTransformed::new(system, density);
+        macro_rules! go {
+            ($builder:expr, $variant:ident) => {{
+                let b = $builder;
+                let b = match newton {
+                    Some(o) => b.newton(o),
+                    None => b,
+                };
+                b.start::<M>(t0, q0, v0).map(Transformed::$variant)
+            }};
+        }
+        match inner {
+            Scheme::OnePoint(OnePoint::Midpoint) => go!(tt.rule(Midpoint, sigma), Midpoint),
+            Scheme::OnePoint(OnePoint::Trapezoid) => go!(tt.rule(Trapezoid, sigma), Trapezoid),
+            Scheme::OnePoint(OnePoint::AlphaBeta(m)) => go!(tt.rule(*m, sigma), AlphaBeta),
+            Scheme::Galerkin { degree: 2, nodes, .. } => {
+                go!(tt.galerkin(Galerkin::<2, 2>::new(*nodes, Quadrature::gauss_legendre()), sigma), Galerkin2)
+            }
+            Scheme::Galerkin { degree: 3, nodes, .. } => {
+                go!(tt.galerkin(Galerkin::<3, 3>::new(*nodes, Quadrature::gauss_legendre()), sigma), Galerkin3)
+            }
+            Scheme::Galerkin { degree: 4, nodes, .. } => {
+                go!(tt.galerkin(Galerkin::<4, 4>::new(*nodes, Quadrature::gauss_legendre()), sigma), Galerkin4)
+            }
+            _ => Err(Error::Unsupported { what: "this method in `s` under the time transformation" }),
+        }
+    }
+}
+
+/// Every variant through the one stepper trait; dense output by the cubic
+/// Hermite in physical time, as each driver's own.
+impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transformed<S, N, M> {
+    type System = S;
+    type Native = Hermite<N>;
+
+    fn system(&self) -> &S {
+        each!(self, d => Stepping::system(d))
+    }
+
+    fn state(&self) -> State<N> {
+        each!(self, d => Stepping::state(d))
+    }
+
+    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        each!(self, d => Stepping::velocity(d))
+    }
+
+    fn stats(&self) -> Stats {
+        each!(self, d => Stepping::stats(d))
+    }
+
+    fn step(&mut self) -> Result<(), Error<N>> {
+        each!(self, d => Stepping::step(d))
+    }
+
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+        each!(self, d => Stepping::step_toward(d, t_end, last_h))
+    }
+
+    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+        each!(self, d => Stepping::land(d, t))
+    }
+
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Hermite<N> {
+        Hermite::cubic(start, end)
+    }
+}
+
+/// `N`, as a type that can name `N + 1` (see the [module](self)).
+#[derive(Clone, Copy, Debug)]
+pub struct Dim<const N: usize>;
+
+mod sealed {
+    /// Implemented only by the table of [`Dim`](super::Dim).
+    pub trait Sealed {}
+}
+
+/// The sizes `N` (1 to [`MAX_TRANSFORMED_N`]) whose extended system of
+/// `N + 1` coordinates a [`Scheme::TimeTransformed`] can build; sealed and
+/// implemented for every such `Dim<N>`, so a program with a literal size
+/// never names it.
+pub trait Extended<const N: usize>: sealed::Sealed {
+    /// The driver, with `M = N + 1`.
+    #[doc(hidden)]
+    type Transformed<S: Lagrangian<N> + Clone>: Stepping<N, System = S, Native = Hermite<N>> + Clone;
+
+    /// Starts it.
+    #[doc(hidden)]
+    #[allow(clippy::too_many_arguments)]
+    fn start<S: Lagrangian<N> + Clone>(
+        system: S,
+        inner: &Scheme,
+        density: Curvature,
+        sigma: f64,
+        newton: Option<NewtonOptions>,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<Self::Transformed<S>, Error<N>>;
+}
+
+/// The table: `impl Extended<n> for Dim<n>` with `M = n + 1`.
+macro_rules! table {
+    ($($n:literal)*) => {$(
+        impl sealed::Sealed for Dim<$n> {}
+        impl Extended<$n> for Dim<$n> {
+            type Transformed<S: Lagrangian<$n> + Clone> = Transformed<S, $n, { $n + 1 }>;
+            fn start<S: Lagrangian<$n> + Clone>(
+                system: S,
+                inner: &Scheme,
+                density: Curvature,
+                sigma: f64,
+                newton: Option<NewtonOptions>,
+                t0: f64,
+                q0: [f64; $n],
+                v0: [f64; $n],
+            ) -> Result<Self::Transformed<S>, Error<$n>> {
+                Transformed::start(system, inner, density, sigma, newton, t0, q0, v0)
+            }
+        }
+    )*};
+}
+
+table!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16 17 18 19 20 21 22 23 24 25 26 27 28 29 30 31 32
+    33 34 35 36 37 38 39 40 41 42 43 44 45 46 47 48 49 50 51 52 53 54 55 56 57 58 59 60 61 62 63 64);
+
+const _: () = assert!(MAX_TRANSFORMED_N == 64, "the table lists every size up to MAX_TRANSFORMED_N");
