@@ -253,4 +253,6 @@ pub mod guide {
     pub struct Constraints;
     #[doc = include_str!("../docs/guide/cluster.md")]
     pub struct Cluster;
+    #[doc = include_str!("../docs/guide/one-way-in.md")]
+    pub struct OneWayIn;
 }

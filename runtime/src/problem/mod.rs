@@ -29,4 +29,4 @@ pub use extend::{Dim, Extended, Transformed};
 pub use scheme::{GalerkinQuadrature, OnePoint, Scheme};
 pub use statement::Problem;
 pub use stepper::{Interpolant, Stepper};
-pub use support::{Capability, Combination, MAX_TRANSFORMED_N, Policy, Size, supports};
+pub use support::{Capability, Combination, MAX_PROBLEM_N, Policy, Size, supports};

@@ -12,13 +12,14 @@
 //! also typed.
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
+
 use crate::integrator::StepBounds;
 
-/// The largest number of degrees of freedom of a compile-time-sized system
-/// under the implicit time transformation through a [`Scheme`]: its
-/// extended system has `N + 1` coordinates, and stable Rust names `N + 1`
-/// only for sizes listed in a table ([`Dim`](super::Dim)).
-pub const MAX_TRANSFORMED_N: usize = 64;
+/// The largest number of degrees of freedom of a compile-time-sized
+/// [`Problem`](super::Problem): the implicit time transformation extends a
+/// system to `N + 1` coordinates, and stable Rust names `N + 1` only for
+/// sizes listed in a table ([`Extended`](super::Extended)).
+pub const MAX_PROBLEM_N: usize = 1024;
 
 /// How the step sizes are chosen: a value apart from the [`Scheme`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -165,6 +166,9 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 
 /// The rules for a compile-time-sized system.
 fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
+    if n > MAX_PROBLEM_N {
+        return Err("a compile-time size above 1024 through `Problem`: use `DynProblem` or a driver directly");
+    }
     let fixed = matches!(c.policy, Policy::Fixed { .. });
     match c.scheme {
         Scheme::OnePoint(_) | Scheme::Galerkin { .. } => variable_steps(c),
@@ -194,11 +198,6 @@ fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
             if !fixed {
                 return Err(
                     "variable steps under a time transformation: its steps in `s` are fixed, the density varies them in t",
-                );
-            }
-            if n > MAX_TRANSFORMED_N {
-                return Err(
-                    "the implicit time transformation through `Scheme` of a system with more than 64 degrees of freedom: use `TimeTransformed` with `start::<{N + 1}>`",
                 );
             }
             Ok(())
