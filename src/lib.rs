@@ -196,6 +196,7 @@ pub use lagrangian_runtime::*;
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
     pub use lagrangian_runtime::Constrained;
+    pub use lagrangian_runtime::problem::{Capability, GalerkinQuadrature, OnePoint};
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
     pub use lagrangian_runtime::{
         AlphaBeta, DiscreteLagrangian, DiscreteMechanics, DynLagrangian, EnergyFallback, Error, F64Readouts,
@@ -206,6 +207,7 @@ pub mod prelude {
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
+    pub use lagrangian_runtime::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
     pub use lagrangian_runtime::{Event, Plan, Solution, Stepping};
 }
 
@@ -252,4 +254,6 @@ pub mod guide {
     pub struct Constraints;
     #[doc = include_str!("../docs/guide/cluster.md")]
     pub struct Cluster;
+    #[doc = include_str!("../docs/guide/one-way-in.md")]
+    pub struct OneWayIn;
 }

@@ -26,6 +26,7 @@ mod integrator;
 pub mod mechanics;
 pub mod newton;
 pub mod noether;
+pub mod problem;
 mod real;
 #[cfg(feature = "serde")]
 mod serde_arrays;
@@ -58,6 +59,7 @@ pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};
 pub use num_dual;
+pub use problem::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
 pub use real::Real;
 pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
 pub use state::State;

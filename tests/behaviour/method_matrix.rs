@@ -1,23 +1,29 @@
-//! One way in: every method family through the same [`Stepping`] trait, the
-//! same [`Plan`] and the same [`Solution`].
+//! One way in: every method family as a [`Scheme`] value on one
+//! [`Problem`], through one [`Stepper`], one [`Plan`] and one [`Solution`],
+//! with the system's size known at compile time and at run time.
 //!
 //! Each row is one method on the double pendulum (non-separable: every
 //! method solves its step by Newton; the time-transformed ones with the
 //! curvature monitor), and the explicit time-transformed splitting on
 //! Kepler (e = 0.5), which needs a separable system; each column is one
-//! workflow:
-//! - `land`: 100 targets reached exactly (the node's time is the target's bits);
+//! workflow, for `Problem` (compile-time `N`) and `DynProblem` (run-time):
+//! - `land`: 100 targets reached exactly (the node's time is the target's
+//!   bits); at run time also the agreement with the compile-time run;
 //! - `solve`: nodes every 5 steps, 7 save times by dense output, a `Record`
 //!   event (`q₀ = 0`) and a `Stop` event (`t = 1.7`); the saved values and
 //!   the event time are checked against a reference to the method's
-//!   accuracy, the run ends on the stop time with the integrator there;
+//!   accuracy, the run ends on the stop time with the stepper there;
 //! - `files`: the solution written as CSV and JSON and read back bit for bit.
 //!
-//! `cargo test --test behaviour method_matrix -- --nocapture` prints the
-//! matrix with each cell's checked number.
+//! A cell that is not defined is the typed refusal of
+//! `lagrangian::problem::supports`, checked to be exactly that text (the
+//! capability page lists them). `cargo test --test behaviour method_matrix
+//! -- --nocapture` prints the matrix with each cell's checked number.
 
+use crate::common::schemes::families;
 use lagrangian::prelude::*;
-use lagrangian::{Action, Status};
+use lagrangian::problem::supports;
+use lagrangian::{Action, DynError, Status};
 
 #[derive(Clone)]
 struct DoublePendulum;
@@ -44,6 +50,38 @@ struct Kepler;
 #[lagrangian]
 impl Kepler {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
+    }
+}
+
+/// The double pendulum with its size known at run time: the same `L` over
+/// slices.
+#[derive(Clone)]
+struct DoublePendulumDyn;
+
+#[lagrangian]
+impl DoublePendulumDyn {
+    fn dimension(&self) -> usize {
+        2
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
+    }
+}
+
+/// Kepler with its size known at run time.
+#[derive(Clone)]
+struct KeplerDyn;
+
+#[lagrangian]
+impl KeplerDyn {
+    fn dimension(&self) -> usize {
+        2
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
         0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
     }
 }
@@ -148,101 +186,113 @@ fn row<I: Stepping<2> + Clone>(
     Row { name, land, solve, files }
 }
 
-#[test]
-fn every_method_through_one_stepper_trait() {
-    let pendulum = &reference(DoublePendulum, Q0, V0);
-    let kepler = &reference(Kepler, KEPLER_Q0, KEPLER_V0);
-    let rows = [
-        row(
-            "midpoint",
-            pendulum,
-            || Integrator::new(DoublePendulum, Midpoint, 0.005).start(0.0, Q0, V0).unwrap(),
-            2e-4,
-        ),
-        row(
-            "trapezoid",
-            pendulum,
-            || Integrator::new(DoublePendulum, Trapezoid, 0.005).start(0.0, Q0, V0).unwrap(),
-            1e-3,
-        ),
-        row(
-            "α-β (α = 0.5)",
-            pendulum,
-            || Integrator::new(DoublePendulum, AlphaBeta::new(0.5).unwrap(), 0.005).start(0.0, Q0, V0).unwrap(),
-            2e-4,
-        ),
-        row(
-            "Galerkin s = 2",
-            pendulum,
-            || Integrator::new(DoublePendulum, Galerkin::<2, 2>::gauss(), 0.02).start(0.0, Q0, V0).unwrap(),
-            2e-5,
-        ),
-        row(
-            "Galerkin s = 3",
-            pendulum,
-            || Integrator::new(DoublePendulum, Galerkin::<3, 3>::gauss(), 0.02).start(0.0, Q0, V0).unwrap(),
-            1e-7,
-        ),
-        row(
-            "Galerkin s = 4",
-            pendulum,
-            || Integrator::new(DoublePendulum, Galerkin::<4, 4>::gauss(), 0.02).start(0.0, Q0, V0).unwrap(),
-            1e-8,
-        ),
-        row(
-            "Yoshida 4",
-            pendulum,
-            || Integrator::new(DoublePendulum, Composition::YOSHIDA4, 0.01).start(0.0, Q0, V0).unwrap(),
-            2e-4,
-        ),
-        row(
-            "Yoshida 6",
-            pendulum,
-            || Integrator::new(DoublePendulum, Composition::YOSHIDA6, 0.02).start(0.0, Q0, V0).unwrap(),
-            2e-5,
-        ),
-        row(
-            "Kahan–Li 8",
-            pendulum,
-            || Integrator::new(DoublePendulum, Composition::KAHAN_LI8, 0.04).start(0.0, Q0, V0).unwrap(),
-            1e-5,
-        ),
-        row(
-            "time-transformed midpoint",
-            pendulum,
-            || {
-                TimeTransformed::new(DoublePendulum, Curvature::new(1.0).unwrap())
-                    .rule(Midpoint, 0.03)
-                    .start::<3>(0.0, Q0, V0)
-                    .unwrap()
-            },
-            3e-4,
-        ),
-        row(
-            "time-transformed Galerkin s = 2",
-            pendulum,
-            || {
-                TimeTransformed::new(DoublePendulum, Curvature::new(1.0).unwrap())
-                    .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
-                    .start::<3>(0.0, Q0, V0)
-                    .unwrap()
-            },
-            2e-5,
-        ),
-        row(
-            "explicit time-transformed Kahan–Li 8",
-            kepler,
-            || {
-                ExplicitTimeTransformed::new(Kepler, TimeFunction::Logarithmic, 0.05)
-                    .composition(Composition::KAHAN_LI8)
-                    .start(0.0, KEPLER_Q0, KEPLER_V0)
-                    .unwrap()
-            },
-            2e-7,
-        ),
-    ];
-    println!("{:<36} | {:<26} | {:<34} | files", "method", "land", "solve");
-    for r in &rows {
-        println!("{:<36} | {:<26} | {:<34} | {}", r.name, r.land, r.solve, r.files);
+/// Step size and dense-output tolerance of each family, in the order of
+/// [`families`].
+const STEPS: [(f64, f64); 12] = [
+    (0.005, 2e-4),
+    (0.005, 1e-3),
+    (0.005, 2e-4),
+    (0.02, 2e-5),
+    (0.02, 1e-7),
+    (0.02, 1e-8),
+    (0.01, 2e-4),
+    (0.02, 2e-5),
+    (0.04, 1e-5),
+    (0.03, 3e-4),
+    (0.1, 2e-5),
+    (0.05, 2e-7),
+];
+
+/// The run-time-sized cells of one family: landing on the same 100 targets
+/// as the compile-time run (agreeing with its final `q` to `1e-10`), and
+/// the typed refusal of `solve` and of the files; or, for a family the
+/// run-time driver does not have, its refusal in every cell.
+fn dynamic_row<S: DynLagrangian + Clone>(
+    problem: &DynProblem<S>,
+    scheme: &Scheme,
+    h: f64,
+    compiled: [f64; 2],
+) -> [String; 3] {
+    let refusal = |e: DynError| {
+        let DynError::Unsupported { what } = e else { panic!("not a typed refusal: {e}") };
+        format!("refused: {what}")
+    };
+    let mut sim = match problem.stepper(scheme, h) {
+        Ok(sim) => sim,
+        Err(e) => {
+            let text = refusal(e);
+            return [text.clone(), text.clone(), text];
+        }
+    };
+    for i in 1..=100 {
+        let target = T_END * f64::from(i) / 100.0 * (1.0 - 1e-3 / std::f64::consts::PI);
+        sim.run_until(target).unwrap();
+        assert_eq!(sim.state().t.to_bits(), target.to_bits(), "run-time target {i}");
     }
+    let gap = (0..2).map(|j| (sim.state().q[j] - compiled[j]).abs()).fold(0.0, f64::max);
+    assert!(gap <= 1e-10, "run-time and compile-time runs differ by {gap:e}");
+    let solve = refusal(problem.supports(scheme, h, Capability::Solve).unwrap_err());
+    [format!("100/100 exact, {} steps, Δq {gap:.0e} to compile-time", sim.stats().steps), solve.clone(), solve]
+}
+
+#[test]
+fn every_method_through_one_problem() {
+    let references = [reference(DoublePendulum, Q0, V0), reference(Kepler, KEPLER_Q0, KEPLER_V0)];
+    let pendulum = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let kepler = Problem::new(Kepler, 0.0, KEPLER_Q0, KEPLER_V0);
+    let pendulum_dyn = DynProblem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec());
+    let kepler_dyn = DynProblem::new(KeplerDyn, 0.0, KEPLER_Q0.to_vec(), KEPLER_V0.to_vec());
+    let mut table = Vec::new();
+    for ((name, scheme, separable), (h, tolerance)) in families().into_iter().zip(STEPS) {
+        let (compiled, last_q) = if separable {
+            let r = row(name, &references[1], || kepler.stepper(&scheme, h).unwrap(), tolerance);
+            let mut sim = kepler.stepper(&scheme, h).unwrap();
+            (r, land_all(&mut sim))
+        } else {
+            let r = row(name, &references[0], || pendulum.stepper(&scheme, h).unwrap(), tolerance);
+            let mut sim = pendulum.stepper(&scheme, h).unwrap();
+            (r, land_all(&mut sim))
+        };
+        let runtime = if separable {
+            dynamic_row(&kepler_dyn, &scheme, h, last_q)
+        } else {
+            dynamic_row(&pendulum_dyn, &scheme, h, last_q)
+        };
+        table.push((compiled, runtime));
+    }
+    println!("{:<36} | {:<26} | {:<34} | {:<26} | run-time N", "method", "land", "solve", "files");
+    for (r, d) in &table {
+        let runtime =
+            if d[0] == d[1] { "refused (every cell)".to_string() } else { format!("{}; solve, files refused", d[0]) };
+        println!("{:<36} | {:<26} | {:<34} | {:<26} | {runtime}", r.name, r.land, r.solve, r.files);
+    }
+    // What the run-time-sized driver has: the one-point rules and the
+    // compositions step and land; the rest, and `solve` for all, are refused
+    // with exactly the text of `supports`.
+    let stepping: Vec<bool> = table.iter().map(|(_, d)| !d[0].starts_with("refused")).collect();
+    let expected = [true, true, true, false, false, false, true, true, true, false, false, false];
+    assert_eq!(stepping, expected);
+    for ((_, scheme, _), (_, d)) in families().iter().zip(&table) {
+        let query = |capability| lagrangian::problem::Combination {
+            scheme,
+            policy: Policy::fixed(0.01),
+            size: lagrangian::problem::Size::Dynamic,
+            forced: false,
+            constraints: 0,
+            capability,
+        };
+        let solve = supports(&query(Capability::Solve)).unwrap_err();
+        assert_eq!(d[1], format!("refused: {solve}"));
+        if let Err(step) = supports(&query(Capability::Step)) {
+            assert_eq!(d[0], format!("refused: {step}"));
+        }
+    }
+}
+
+/// Lands on the 100 targets of the matrix and returns the final `q`.
+fn land_all<I: Stepping<2>>(sim: &mut I) -> [f64; 2] {
+    for i in 1..=100 {
+        sim.land(T_END * f64::from(i) / 100.0 * (1.0 - 1e-3 / std::f64::consts::PI)).unwrap();
+    }
+    sim.state().q
 }

@@ -8,7 +8,9 @@
 use crate::common;
 
 use common::forced::DampedOscillator;
+use common::schemes::families;
 use lagrangian::prelude::*;
+use lagrangian::problem::{Combination, Size, supports};
 
 /// `L = ½ v² + g cos q`, g = 9.81.
 pub struct Pendulum;
@@ -214,9 +216,37 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
         cells.push(outcomes.iter().map(Result::is_ok).collect::<Vec<_>>());
     }
     print!("{table}");
+    let (schemes, defined) = scheme_table();
+    print!("{schemes}");
     if let Some(page) = std::env::var_os("LAGRANGIAN_CAPABILITIES") {
-        std::fs::write(&page, capabilities_page(&table)).expect("the capabilities page is writable");
+        std::fs::write(&page, capabilities_page(&table, &schemes)).expect("the capabilities page is writable");
     }
+    // What `supports` defines: every family with fixed steps at compile-time
+    // size; energy steps for the one-point and Galerkin rules (balance
+    // steps, of a forced system, for the one-point rules); forces with
+    // fixed steps but for the splitting; no compile-time size above 1024;
+    // at run-time size fixed steps of the one-point rules and compositions,
+    // and `solve` for none.
+    let one_point = [true, true, true, true, false, true, false];
+    let galerkin = [true, true, false, true, false, false, false];
+    let composition = [true, false, false, true, false, true, false];
+    let transformed = [true, false, false, true, false, false, false];
+    let splitting = [true, false, false, false, false, false, false];
+    let expected = [
+        one_point,
+        one_point,
+        one_point,
+        galerkin,
+        galerkin,
+        galerkin,
+        composition,
+        composition,
+        composition,
+        transformed,
+        transformed,
+        splitting,
+    ];
+    assert_eq!(defined, expected);
     // The expectation: what works today. Energy-preserving trapezoid, α-β
     // (α ≠ ½) and Galerkin s = 4 lose the root of the energy equation on the
     // pendulum from rest within a fraction of a swing (typed NoEnergyStep;
@@ -236,9 +266,54 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     }
 }
 
-/// The generated page `docs/capabilities.md`: the matrix with where and how
-/// it was made.
-fn capabilities_page(table: &str) -> String {
+/// A column of the scheme table: its name, the policy from a step, the
+/// size, whether the system is forced, and what is asked.
+type Column = (&'static str, fn(f64) -> Policy, Size, bool, Capability);
+
+/// The columns of the scheme table.
+const SCHEME_COLUMNS: [Column; 7] = [
+    ("fixed, N = 2", Policy::fixed, Size::Const(2), false, Capability::Solve),
+    ("energy-preserving, N = 2", Policy::energy_preserving, Size::Const(2), false, Capability::Solve),
+    ("energy-balance, forced, N = 2", Policy::energy_balance, Size::Const(2), true, Capability::Solve),
+    ("fixed, forced, N = 2", Policy::fixed, Size::Const(2), true, Capability::Solve),
+    ("fixed, N = 1025", Policy::fixed, Size::Const(1025), false, Capability::Solve),
+    ("fixed, run-time N: step, `run_until`", Policy::fixed, Size::Dynamic, false, Capability::Step),
+    ("fixed, run-time N: `solve`, files", Policy::fixed, Size::Dynamic, false, Capability::Solve),
+];
+
+/// Every method family × step policy × size through `Problem` (or
+/// `DynProblem`): what `lagrangian::problem::supports` answers, the
+/// markdown table and whether each cell is defined.
+fn scheme_table() -> (String, Vec<[bool; 7]>) {
+    let names: Vec<&str> = SCHEME_COLUMNS.iter().map(|c| c.0).collect();
+    let mut table = format!("| scheme | {} |\n|---|{}\n", names.join(" | "), "---|".repeat(names.len()));
+    let mut defined = Vec::new();
+    for (name, scheme, _) in families() {
+        let mut row = [false; 7];
+        let cells: Vec<String> = SCHEME_COLUMNS
+            .iter()
+            .zip(&mut row)
+            .map(|(&(_, policy, size, forced, capability), cell)| {
+                let query =
+                    Combination { scheme: &scheme, policy: policy(0.01), size, forced, constraints: 0, capability };
+                match supports(&query) {
+                    Ok(()) => {
+                        *cell = true;
+                        "defined".to_string()
+                    }
+                    Err(why) => format!("refused: {why}"),
+                }
+            })
+            .collect();
+        table += &format!("| {name} | {} |\n", cells.join(" | "));
+        defined.push(row);
+    }
+    (table, defined)
+}
+
+/// The generated page `docs/capabilities.md`: the matrices with where and
+/// how they were made.
+fn capabilities_page(table: &str, schemes: &str) -> String {
     let days = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() / 86_400);
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     format!(
@@ -248,7 +323,15 @@ fn capabilities_page(table: &str) -> String {
          Do not edit by hand.\n\n\
          Every discrete Lagrangian × step policy × number type on the pendulum from 1 rad (forced: a damped \
          oscillator) either integrates with the property named, checked, or is refused with a typed error, \
-         quoted. The test fails when a cell changes.\n\n{table}",
+         quoted. The test fails when a cell changes.\n\n{table}\n\
+         ## One way in: `Problem`, `Scheme` and `Policy`\n\n\
+         What `lagrangian::problem::supports` answers for each method family as a `Scheme` value, each step \
+         `Policy` and each size (compile-time `N` through `Problem`, run-time through `DynProblem`); a refused \
+         cell is the `Error::Unsupported` (`DynError::Unsupported`) that `Problem::stepper` and `Problem::solve` \
+         return at construction, with this text. A defined cell may still be refused by its driver for the \
+         values of a system (a mass matrix that is not constant for the splitting; the energy equation without \
+         a root, as above). The behaviour test `method_matrix` steps, lands, solves and writes every defined \
+         fixed-step cell.\n\n{schemes}",
         civil_date(days as i64),
         std::env::consts::OS,
         std::env::consts::ARCH,

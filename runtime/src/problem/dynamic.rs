@@ -1,0 +1,181 @@
+//! The run-time-sized problem: the same [`Scheme`] and [`Policy`] values on
+//! a [`DynLagrangian`], stepped by the reverse-mode [`DynIntegrator`]; what
+//! that driver does not have is refused by [`supports`](super::supports)
+//! with [`DynError::Unsupported`].
+
+use super::scheme::{OnePoint, Scheme};
+use super::support::{Capability, Combination, Policy, Size, supports};
+use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
+use crate::integrator::{Composition, DynError, DynIntegrator, DynMethod, DynState, Stats};
+use crate::newton::NewtonOptions;
+use crate::system::DynLagrangian;
+
+/// A system whose number of coordinates is known at run time, with its
+/// initial data.
+///
+/// ```
+/// use lagrangian_runtime::problem::{Capability, DynProblem, Scheme};
+/// use lagrangian_runtime::{Composition, DynLagrangian, Scalar};
+///
+/// /// Uncoupled oscillators, as many as `n`.
+/// #[derive(Clone)]
+/// struct Oscillators { n: usize }
+/// impl DynLagrangian for Oscillators {
+///     const AUTONOMOUS: bool = true;
+///     fn dimension(&self) -> usize { self.n }
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+///         let mut l = D::from(0.0);
+///         for i in 0..q.len() {
+///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
+///         }
+///         l
+///     }
+/// }
+///
+/// let problem = DynProblem::new(Oscillators { n: 3 }, 0.0, vec![1.0; 3], vec![0.0; 3]);
+/// let mut sim = problem.stepper(&Scheme::MIDPOINT, 0.01)?;
+/// sim.run_until(1.0)?;
+/// assert_eq!(sim.state().t, 1.0);
+/// assert!((sim.state().q[2] - 1f64.cos()).abs() < 1e-4);
+/// // Galerkin rules are not defined on run-time-sized systems: a typed refusal.
+/// assert!(problem.stepper(&Scheme::galerkin(2), 0.1).is_err());
+/// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_err());
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct DynProblem<S> {
+    system: S,
+    t0: f64,
+    q0: Vec<f64>,
+    v0: Vec<f64>,
+    newton: Option<NewtonOptions>,
+}
+
+/// The driver behind a [`DynStepper`].
+#[derive(Clone, Debug)]
+enum DynDriver<S> {
+    Midpoint(DynIntegrator<S, Midpoint>),
+    Trapezoid(DynIntegrator<S, Trapezoid>),
+    AlphaBeta(DynIntegrator<S, AlphaBeta>),
+    Composition(DynIntegrator<S, Composition>),
+}
+
+/// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
+macro_rules! each {
+    ($x:expr, $d:ident => $body:expr) => {
+        match $x {
+            DynDriver::Midpoint($d) => $body,
+            DynDriver::Trapezoid($d) => $body,
+            DynDriver::AlphaBeta($d) => $body,
+            DynDriver::Composition($d) => $body,
+        }
+    };
+}
+
+impl<S: DynLagrangian + Clone> DynProblem<S> {
+    /// `system` from `(t0, q0, v0)`.
+    pub fn new(system: S, t0: f64, q0: Vec<f64>, v0: Vec<f64>) -> Self {
+        Self { system, t0, q0, v0, newton: None }
+    }
+
+    /// Newton settings (default: the driver's own).
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = Some(options);
+        self
+    }
+
+    /// `Ok` when `scheme` under `policy` can do `capability` on a
+    /// run-time-sized system; otherwise [`DynError::Unsupported`] naming
+    /// the combination.
+    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), DynError> {
+        let combination = Combination {
+            scheme,
+            policy: policy.into(),
+            size: Size::Dynamic,
+            forced: false,
+            constraints: 0,
+            capability,
+        };
+        supports(&combination).map_err(|what| DynError::Unsupported { what })
+    }
+
+    /// A stepper of `scheme` under `policy`; [`DynError::Unsupported`] for
+    /// what [`supports`](super::supports) refuses, else the driver's own
+    /// errors of `start`.
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<DynStepper<S>, DynError> {
+        let policy = policy.into();
+        self.supports(scheme, policy, Capability::Step)?;
+        let driver = match scheme {
+            Scheme::OnePoint(OnePoint::Midpoint) => DynDriver::Midpoint(self.start(Midpoint, policy)?),
+            Scheme::OnePoint(OnePoint::Trapezoid) => DynDriver::Trapezoid(self.start(Trapezoid, policy)?),
+            Scheme::OnePoint(OnePoint::AlphaBeta(m)) => DynDriver::AlphaBeta(self.start(*m, policy)?),
+            Scheme::Composition { weights, .. } => DynDriver::Composition(self.start(*weights, policy)?),
+            _ => return Err(DynError::Unsupported { what: "this scheme on a run-time-sized system" }),
+        };
+        Ok(DynStepper { driver, scheme: scheme.clone() })
+    }
+
+    fn start<M: DynMethod>(&self, method: M, policy: Policy) -> Result<DynIntegrator<S, M>, DynError> {
+        let mut builder = DynIntegrator::new(self.system.clone(), method, policy.step());
+        if let Some(options) = self.newton {
+            builder = builder.newton(options);
+        }
+        builder.start(self.t0, &self.q0, &self.v0)
+    }
+}
+
+/// A running integration of a [`DynProblem`]: the stepping half of
+/// [`Stepper`](super::Stepper) on the heap-backed state.
+#[derive(Clone, Debug)]
+pub struct DynStepper<S> {
+    driver: DynDriver<S>,
+    scheme: Scheme,
+}
+
+impl<S: DynLagrangian> DynStepper<S> {
+    /// The method.
+    pub fn scheme(&self) -> &Scheme {
+        &self.scheme
+    }
+
+    /// The state at the current node.
+    pub fn state(&self) -> &DynState {
+        each!(&self.driver, d => d.state())
+    }
+
+    /// The momenta `p_k` at the current node.
+    pub fn momenta(&self) -> &[f64] {
+        &self.state().p
+    }
+
+    /// The velocity whose momentum is `p_k`.
+    pub fn velocity(&self) -> Result<Vec<f64>, DynError> {
+        each!(&self.driver, d => d.velocity())
+    }
+
+    /// The energy `E_L(t_k, q_k, v_k)` at the current node.
+    pub fn energy(&self) -> Result<f64, DynError> {
+        each!(&self.driver, d => d.energy())
+    }
+
+    /// Work counters.
+    pub fn stats(&self) -> Stats {
+        each!(&self.driver, d => *d.stats())
+    }
+
+    /// One step; on failure nothing changes.
+    pub fn step(&mut self) -> Result<&DynState, DynError> {
+        each!(&mut self.driver, d => d.step().map(|_| ()))?;
+        Ok(self.state())
+    }
+
+    /// `n` steps.
+    pub fn run(&mut self, n: usize) -> Result<(), DynError> {
+        each!(&mut self.driver, d => d.run(n, |_| {}))
+    }
+
+    /// Steps to `t_end` exactly (the last step shortened).
+    pub fn run_until(&mut self, t_end: f64) -> Result<(), DynError> {
+        each!(&mut self.driver, d => d.run_until(t_end, |_| {}))
+    }
+}

@@ -1,0 +1,164 @@
+//! The method of a run as a value: which discrete Lagrangian, composition or
+//! time transformation steps a [`Problem`](super::Problem), chosen at run
+//! time and dispatched to the const-generic kernels behind one `match`.
+//!
+//! A [`Scheme`] says nothing about step sizes: those are the step
+//! [`Policy`](super::Policy), a separate value. Whether a scheme, a policy
+//! and a system go together is answered in one place,
+//! [`supports`](super::supports).
+
+use crate::discrete::AlphaBeta;
+use crate::galerkin::NodeFamily;
+use crate::integrator::Composition;
+use crate::time_transform::{Curvature, TimeFunction};
+
+/// A one-point discrete Lagrangian: the action of a step from one
+/// evaluation point (or two, for the trapezoid).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OnePoint {
+    /// `h L((q_k + q_{k+1})/2, (q_{k+1} − q_k)/h)`, order 2.
+    Midpoint,
+    /// The average of `L` at both ends, order 2 (Störmer–Verlet on a
+    /// separable system).
+    Trapezoid,
+    /// `L` at `α q_k + (1 − α) q_{k+1}`; order 2 at `α = ½`, 1 otherwise.
+    AlphaBeta(AlphaBeta),
+}
+
+/// The quadrature of a Galerkin rule of degree `s`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GalerkinQuadrature {
+    /// `s` Gauss–Legendre points: order `2s` (Gauss collocation).
+    #[default]
+    GaussLegendre,
+    /// `s + 1` Gauss–Lobatto points, exact to degree `2s − 1` like the
+    /// Gauss rule, with the step's end points among them.
+    GaussLobatto,
+}
+
+/// A method chosen at run time. Every value either builds a stepper for a
+/// [`Problem`](super::Problem) or is refused by
+/// [`supports`](super::supports) with
+/// [`Error::Unsupported`](crate::Error::Unsupported) naming the combination.
+///
+/// ```
+/// use lagrangian_runtime::problem::{GalerkinQuadrature, OnePoint, Scheme};
+/// use lagrangian_runtime::{Composition, Curvature, NodeFamily};
+///
+/// let methods = [
+///     Scheme::MIDPOINT,
+///     Scheme::galerkin(3),
+///     Scheme::Galerkin { degree: 4, nodes: NodeFamily::Equispaced, quadrature: GalerkinQuadrature::GaussLobatto },
+///     Scheme::composition(Composition::YOSHIDA6, OnePoint::Trapezoid),
+///     Scheme::MIDPOINT.time_transformed(Curvature::new(1.0).unwrap()),
+/// ];
+/// assert_eq!(methods.iter().map(Scheme::order).collect::<Vec<_>>(), [2, 6, 8, 6, 2]);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Scheme {
+    /// One step of a one-point rule.
+    OnePoint(OnePoint),
+    /// The continuous Galerkin rule of degree `s` (`degree` 2, 3 or 4 here;
+    /// the const-generic [`Galerkin`](crate::Galerkin) has every degree).
+    Galerkin {
+        /// The degree `s` of the step polynomial.
+        degree: usize,
+        /// Where its control nodes lie.
+        nodes: NodeFamily,
+        /// Its quadrature.
+        quadrature: GalerkinQuadrature,
+    },
+    /// A symmetric composition of sub-steps of `base` with the weights of
+    /// `weights` (Yoshida 4 or 6, Kahan–Li 8).
+    Composition {
+        /// The weights and order.
+        weights: Composition,
+        /// The rule of each sub-step.
+        base: OnePoint,
+    },
+    /// The implicit Sundman–Poincaré time transformation around `inner`:
+    /// fixed steps in `s` with `dt/ds = g(t, q)` given by the curvature
+    /// monitor `density`; the extended system has `N + 1` coordinates.
+    TimeTransformed {
+        /// The method in `s`.
+        inner: Box<Scheme>,
+        /// The step density.
+        density: Curvature,
+    },
+    /// The explicit time-transformed splitting (Blanes & Iserles) of a
+    /// separable system with a constant mass matrix, with its time function
+    /// and the composition of its leapfrog (order 2 without one).
+    Splitting {
+        /// `f` of the transformed Hamiltonian.
+        function: TimeFunction,
+        /// The composition of the leapfrog, if any.
+        composition: Option<Composition>,
+    },
+}
+
+impl Scheme {
+    /// The midpoint rule.
+    pub const MIDPOINT: Self = Self::OnePoint(OnePoint::Midpoint);
+    /// The trapezoid rule.
+    pub const TRAPEZOID: Self = Self::OnePoint(OnePoint::Trapezoid);
+
+    /// The α-β rule with weight `alpha` on `q_k`; `None` for an `alpha`
+    /// that is not finite.
+    pub fn alpha_beta(alpha: f64) -> Option<Self> {
+        AlphaBeta::new(alpha).map(|m| Self::OnePoint(OnePoint::AlphaBeta(m)))
+    }
+
+    /// Galerkin of degree `degree` on Gauss–Lobatto nodes with Gauss–Legendre
+    /// quadrature (order `2s`).
+    pub fn galerkin(degree: usize) -> Self {
+        Self::Galerkin { degree, nodes: NodeFamily::GaussLobatto, quadrature: GalerkinQuadrature::GaussLegendre }
+    }
+
+    /// A composition of `base` sub-steps.
+    pub fn composition(weights: Composition, base: OnePoint) -> Self {
+        Self::Composition { weights, base }
+    }
+
+    /// This scheme in `s` under the implicit time transformation with the
+    /// curvature monitor.
+    pub fn time_transformed(self, density: Curvature) -> Self {
+        Self::TimeTransformed { inner: Box::new(self), density }
+    }
+
+    /// The explicit time-transformed splitting with `function`, composed
+    /// with `composition` if given.
+    pub fn splitting(function: TimeFunction, composition: Option<Composition>) -> Self {
+        Self::Splitting { function, composition }
+    }
+
+    /// The order of the one-step map for a regular Lagrangian.
+    pub fn order(&self) -> u32 {
+        match self {
+            Self::OnePoint(OnePoint::AlphaBeta(m)) if m.alpha() != 0.5 => 1,
+            Self::OnePoint(_) => 2,
+            Self::Galerkin { degree, .. } => 2 * *degree as u32,
+            Self::Composition { weights, .. } => weights.order(),
+            Self::TimeTransformed { inner, .. } => inner.order(),
+            Self::Splitting { composition, .. } => composition.map_or(2, |c| c.order()),
+        }
+    }
+
+    /// A short name for tables and errors.
+    pub fn name(&self) -> String {
+        let one = |m: &OnePoint| match m {
+            OnePoint::Midpoint => "midpoint".to_string(),
+            OnePoint::Trapezoid => "trapezoid".to_string(),
+            OnePoint::AlphaBeta(m) => format!("α-β (α = {})", m.alpha()),
+        };
+        match self {
+            Self::OnePoint(m) => one(m),
+            Self::Galerkin { degree, .. } => format!("Galerkin s = {degree}"),
+            Self::Composition { weights, base } => format!("order-{} composition of {}", weights.order(), one(base)),
+            Self::TimeTransformed { inner, .. } => format!("time-transformed {}", inner.name()),
+            Self::Splitting { composition, .. } => {
+                format!("explicit time-transformed splitting, order {}", composition.map_or(2, |c| c.order()))
+            }
+        }
+    }
+}

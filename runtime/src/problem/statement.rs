@@ -1,0 +1,194 @@
+//! The problem: a system and its initial data, stated once; the method and
+//! the step policy are values given when it is solved or stepped.
+
+use super::extend::{Dim, Extended};
+use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
+use super::stepper::{Driver, Stepper};
+use super::support::{Capability, Combination, Policy, Size, supports};
+use crate::discrete::{Midpoint, Trapezoid};
+use crate::error::Error;
+use crate::galerkin::{Galerkin, NodeFamily, Quadrature};
+use crate::integrator::{Integrator, IntegratorBuilder, Method};
+use crate::newton::NewtonOptions;
+use crate::solution::{Plan, Solution, SolveError};
+use crate::system::Lagrangian;
+use crate::time_transform::ExplicitTimeTransformed;
+
+/// A compile-time-sized system with its initial data `(t0, q0, v0)`; the
+/// end of the run is the [`Plan`]'s.
+///
+/// [`solve`](Self::solve) and [`stepper`](Self::stepper) take the method as
+/// a [`Scheme`] value and the step sizes as a [`Policy`] (or just `h`), and
+/// return the same [`Solution`] and the same [`Stepper`] whatever the
+/// method; a combination that is not defined is refused by
+/// [`supports`](super::supports) before anything runs.
+///
+/// ```
+/// use lagrangian_runtime::problem::{Problem, Scheme};
+/// use lagrangian_runtime::{Lagrangian, Plan, Scalar};
+///
+/// #[derive(Clone)]
+/// struct Oscillator;
+/// impl Lagrangian<1> for Oscillator {
+///     const AUTONOMOUS: bool = true;
+///     const CYCLIC: [bool; 1] = [false];
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+///     }
+/// }
+///
+/// let problem = Problem::new(Oscillator, 0.0, [1.0], [0.0]);
+/// for (scheme, h, tolerance) in [(Scheme::MIDPOINT, 0.01, 1e-4), (Scheme::galerkin(3), 0.1, 1e-8)] {
+///     let solution = problem.solve(&scheme, h, Plan::until(1.0))?;
+///     let last = solution.len() - 1;
+///     assert!((solution.q[last][0] - 1f64.cos()).abs() < tolerance);
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Clone, Debug)]
+pub struct Problem<S, const N: usize> {
+    system: S,
+    t0: f64,
+    q0: [f64; N],
+    v0: [f64; N],
+    newton: Option<NewtonOptions>,
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
+    /// `system` from `(t0, q0, v0)`.
+    pub fn new(system: S, t0: f64, q0: [f64; N], v0: [f64; N]) -> Self {
+        Self { system, t0, q0, v0, newton: None }
+    }
+
+    /// Newton settings for the implicit schemes (default: each driver's own).
+    pub fn newton(mut self, options: NewtonOptions) -> Self {
+        self.newton = Some(options);
+        self
+    }
+
+    /// The system.
+    pub fn system(&self) -> &S {
+        &self.system
+    }
+
+    /// The initial data `(t0, q0, v0)`.
+    pub fn initial(&self) -> (f64, [f64; N], [f64; N]) {
+        (self.t0, self.q0, self.v0)
+    }
+
+    /// `Ok` when `scheme` under `policy` can do `capability` on this
+    /// problem; otherwise [`Error::Unsupported`] naming the combination
+    /// (see [`supports`](super::supports)).
+    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), Error<N>> {
+        let combination = Combination {
+            scheme,
+            policy: policy.into(),
+            size: Size::Const(N),
+            forced: S::HAS_FORCE || S::HAS_DISSIPATION,
+            constraints: S::CONSTRAINTS,
+            capability,
+        };
+        supports(&combination).map_err(|what| Error::Unsupported { what })
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    /// A stepper of `scheme` under `policy` at the initial data.
+    ///
+    /// Fails with [`Error::Unsupported`] for a combination
+    /// [`supports`](super::supports) refuses, and otherwise with the
+    /// driver's own errors of `start` (invalid step, initial data or
+    /// settings; a system the splitting cannot take).
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, N>, Error<N>> {
+        let policy = policy.into();
+        self.supports(scheme, policy, Capability::Step)?;
+        let driver = self.driver(scheme, policy)?;
+        Ok(Stepper { driver, scheme: scheme.clone(), policy })
+    }
+
+    /// Integrates with `scheme` under `policy` as `plan` says: the same
+    /// [`Solution`] and [`SolveError`] as [`Stepping::solve`] on any driver.
+    /// A refused combination or a failed start is `SolveError::Step`.
+    pub fn solve(
+        &self,
+        scheme: &Scheme,
+        policy: impl Into<Policy>,
+        plan: Plan<'_, N>,
+    ) -> Result<Solution<N>, SolveError<N>> {
+        let policy = policy.into();
+        self.supports(scheme, policy, Capability::Solve)?;
+        self.stepper(scheme, policy)?.solve(plan)
+    }
+
+    /// The driver of `scheme`: the one `match` from the value to the
+    /// const-generic kernels.
+    fn driver(&self, scheme: &Scheme, policy: Policy) -> Result<Driver<S, N>, Error<N>> {
+        let (t0, q0, v0) = (self.t0, self.q0, self.v0);
+        let h = policy.step();
+        match scheme {
+            Scheme::OnePoint(OnePoint::Midpoint) => self.integrator(Midpoint, policy).map(Driver::Midpoint),
+            Scheme::OnePoint(OnePoint::Trapezoid) => self.integrator(Trapezoid, policy).map(Driver::Trapezoid),
+            Scheme::OnePoint(OnePoint::AlphaBeta(m)) => self.integrator(*m, policy).map(Driver::AlphaBeta),
+            Scheme::Galerkin { degree, nodes, quadrature } => self.galerkin(*degree, *nodes, *quadrature, policy),
+            Scheme::Composition { weights, .. } => self.integrator(*weights, policy).map(Driver::Composition),
+            Scheme::TimeTransformed { inner, density } => {
+                <Dim<N> as Extended<N>>::start(self.system.clone(), inner, *density, h, self.newton, t0, q0, v0)
+                    .map(Driver::Transformed)
+            }
+            Scheme::Splitting { function, composition } => {
+                let mut split = ExplicitTimeTransformed::new(self.system.clone(), *function, h);
+                if let Some(c) = composition {
+                    split = split.composition(*c);
+                }
+                split.start(t0, q0, v0).map(Driver::Splitting)
+            }
+        }
+    }
+
+    /// The Galerkin driver of degree `degree` (2, 3 or 4).
+    fn galerkin(
+        &self,
+        degree: usize,
+        nodes: NodeFamily,
+        quadrature: GalerkinQuadrature,
+        policy: Policy,
+    ) -> Result<Driver<S, N>, Error<N>> {
+        use GalerkinQuadrature::{GaussLegendre as G, GaussLobatto as L};
+        match (degree, quadrature) {
+            (2, G) => {
+                self.integrator(Galerkin::<2, 2>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss2)
+            }
+            (3, G) => {
+                self.integrator(Galerkin::<3, 3>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss3)
+            }
+            (4, G) => {
+                self.integrator(Galerkin::<4, 4>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss4)
+            }
+            (2, L) => {
+                self.integrator(Galerkin::<2, 3>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto2)
+            }
+            (3, L) => {
+                self.integrator(Galerkin::<3, 4>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto3)
+            }
+            (4, L) => {
+                self.integrator(Galerkin::<4, 5>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto4)
+            }
+            _ => Err(Error::Unsupported { what: "a Galerkin degree other than 2, 3 or 4 through `Scheme`" }),
+        }
+    }
+
+    /// The [`Integrator`] of `method` under `policy` at the initial data.
+    fn integrator<M: Method<f64>>(&self, method: M, policy: Policy) -> Result<Integrator<S, M, N>, Error<N>> {
+        let mut builder: IntegratorBuilder<S, M> = Integrator::new(self.system.clone(), method, policy.step());
+        if let Some(bounds) = policy.bounds() {
+            builder = builder.energy_preserving(bounds);
+        }
+        if let Some(options) = self.newton {
+            builder = builder.newton(options);
+        }
+        builder.start(self.t0, self.q0, self.v0)
+    }
+}

@@ -1,0 +1,297 @@
+//! One stepper for every [`Scheme`]: an enum over the drivers, each a
+//! const-generic fast path, matched once per call.
+//!
+//! The enum holds the drivers inline (no box, no virtual call): a step of
+//! the pendulum's midpoint rule through [`Stepper`] is the integrator's own
+//! step behind one `match` on the variant.
+
+use super::extend::{Dim, Extended};
+use super::scheme::Scheme;
+use super::support::Policy;
+use crate::dense::{DenseStep, GalerkinPolynomial, Hermite, Node};
+use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
+use crate::error::Error;
+use crate::galerkin::Galerkin;
+use crate::integrator::{Composition, Integrator, Stats};
+use crate::mechanics::DiscreteMechanics;
+use crate::solution::{Plan, Solution, SolveError, Stepping};
+use crate::state::State;
+use crate::system::Lagrangian;
+use crate::time_transform::ExplicitAdaptive;
+
+/// The driver behind a [`Stepper`].
+pub(super) enum Driver<S: Lagrangian<N> + Clone, const N: usize>
+where
+    Dim<N>: Extended<N>,
+{
+    Midpoint(Integrator<S, Midpoint, N>),
+    Trapezoid(Integrator<S, Trapezoid, N>),
+    AlphaBeta(Integrator<S, AlphaBeta, N>),
+    Gauss2(Integrator<S, Galerkin<2, 2>, N>),
+    Gauss3(Integrator<S, Galerkin<3, 3>, N>),
+    Gauss4(Integrator<S, Galerkin<4, 4>, N>),
+    Lobatto2(Integrator<S, Galerkin<2, 3>, N>),
+    Lobatto3(Integrator<S, Galerkin<3, 4>, N>),
+    Lobatto4(Integrator<S, Galerkin<4, 5>, N>),
+    Composition(Integrator<S, Composition, N>),
+    Transformed(<Dim<N> as Extended<N>>::Transformed<S>),
+    Splitting(ExplicitAdaptive<S, f64, N>),
+}
+
+/// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is;
+/// with a constructor `$wrap`, wraps the result back into that variant.
+macro_rules! each {
+    ($x:expr, $d:ident => $body:expr) => {
+        match $x {
+            Driver::Midpoint($d) => $body,
+            Driver::Trapezoid($d) => $body,
+            Driver::AlphaBeta($d) => $body,
+            Driver::Gauss2($d) => $body,
+            Driver::Gauss3($d) => $body,
+            Driver::Gauss4($d) => $body,
+            Driver::Lobatto2($d) => $body,
+            Driver::Lobatto3($d) => $body,
+            Driver::Lobatto4($d) => $body,
+            Driver::Composition($d) => $body,
+            Driver::Transformed($d) => $body,
+            Driver::Splitting($d) => $body,
+        }
+    };
+    ($x:expr, $d:ident => $body:expr, $wrap:ident) => {
+        match $x {
+            Driver::Midpoint($d) => $wrap::Midpoint($body),
+            Driver::Trapezoid($d) => $wrap::Trapezoid($body),
+            Driver::AlphaBeta($d) => $wrap::AlphaBeta($body),
+            Driver::Gauss2($d) => $wrap::Gauss2($body),
+            Driver::Gauss3($d) => $wrap::Gauss3($body),
+            Driver::Gauss4($d) => $wrap::Gauss4($body),
+            Driver::Lobatto2($d) => $wrap::Lobatto2($body),
+            Driver::Lobatto3($d) => $wrap::Lobatto3($body),
+            Driver::Lobatto4($d) => $wrap::Lobatto4($body),
+            Driver::Composition($d) => $wrap::Composition($body),
+            Driver::Transformed($d) => $wrap::Transformed($body),
+            Driver::Splitting($d) => $wrap::Splitting($body),
+        }
+    };
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Driver<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    fn clone(&self) -> Self {
+        each!(self, d => d.clone(), Self)
+    }
+}
+
+/// The interpolant of one step of a [`Stepper`]: the cubic Hermite, or a
+/// Galerkin step's own polynomial.
+#[derive(Clone, Debug)]
+pub enum Interpolant<const N: usize> {
+    /// The cubic Hermite through both nodes.
+    Hermite(Hermite<N>),
+    /// The step polynomial of degree 2.
+    Galerkin2(GalerkinPolynomial<N, 2>),
+    /// The step polynomial of degree 3.
+    Galerkin3(GalerkinPolynomial<N, 3>),
+    /// The step polynomial of degree 4.
+    Galerkin4(GalerkinPolynomial<N, 4>),
+}
+
+impl<const N: usize> DenseStep<N> for Interpolant<N> {
+    fn t0(&self) -> f64 {
+        match self {
+            Self::Hermite(p) => p.t0(),
+            Self::Galerkin2(p) => p.t0(),
+            Self::Galerkin3(p) => p.t0(),
+            Self::Galerkin4(p) => p.t0(),
+        }
+    }
+
+    fn t1(&self) -> f64 {
+        match self {
+            Self::Hermite(p) => p.t1(),
+            Self::Galerkin2(p) => p.t1(),
+            Self::Galerkin3(p) => p.t1(),
+            Self::Galerkin4(p) => p.t1(),
+        }
+    }
+
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+        match self {
+            Self::Hermite(p) => p.eval(t),
+            Self::Galerkin2(p) => p.eval(t),
+            Self::Galerkin3(p) => p.eval(t),
+            Self::Galerkin4(p) => p.eval(t),
+        }
+    }
+}
+
+/// A running integration of a [`Problem`](super::Problem) with any
+/// [`Scheme`]: step by step, to exact targets, or to a [`Solution`] by
+/// [`solve`](Stepping::solve), with one error type, [`Error`].
+///
+/// A failed step leaves the stepper as it was (each driver's own
+/// guarantee), so a retry starts from the state the error carries.
+pub struct Stepper<S: Lagrangian<N> + Clone, const N: usize>
+where
+    Dim<N>: Extended<N>,
+{
+    pub(super) driver: Driver<S, N>,
+    pub(super) scheme: Scheme,
+    pub(super) policy: Policy,
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Stepper<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    fn clone(&self) -> Self {
+        Self { driver: self.driver.clone(), scheme: self.scheme.clone(), policy: self.policy }
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> core::fmt::Debug for Stepper<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Stepper")
+            .field("scheme", &self.scheme)
+            .field("policy", &self.policy)
+            .field("state", &Stepping::state(self))
+            .finish()
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    /// The method.
+    pub fn scheme(&self) -> &Scheme {
+        &self.scheme
+    }
+
+    /// The step policy.
+    pub fn policy(&self) -> Policy {
+        self.policy
+    }
+
+    /// The state `(k, t_k, q_k, p_k)` at the current node (physical time
+    /// and momenta for the time-transformed schemes; `k` counts their steps
+    /// in `s`).
+    pub fn state(&self) -> State<N> {
+        Stepping::state(self)
+    }
+
+    /// The momenta `p_k` at the current node.
+    pub fn momenta(&self) -> [f64; N] {
+        Stepping::state(self).p
+    }
+
+    /// The velocity whose momentum is `p_k`.
+    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        Stepping::velocity(self)
+    }
+
+    /// The energy `E_L(t_k, q_k, v_k)` at the current node, with `v_k` the
+    /// velocity of `p_k`: one meaning for every scheme.
+    pub fn energy(&self) -> Result<f64, Error<N>> {
+        let s = Stepping::state(self);
+        let v = Stepping::velocity(self)?;
+        Ok(Stepping::system(self).energy(s.t, s.q, v))
+    }
+
+    /// Work counters (steps; Newton iterations of the implicit schemes).
+    pub fn stats(&self) -> Stats {
+        Stepping::stats(self)
+    }
+
+    /// The system.
+    pub fn system(&self) -> &S {
+        Stepping::system(self)
+    }
+
+    /// One step; on failure nothing changes.
+    pub fn step(&mut self) -> Result<State<N>, Error<N>> {
+        Stepping::step(self)?;
+        Ok(Stepping::state(self))
+    }
+
+    /// `n` steps, calling `observe` after each.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+        for _ in 0..n {
+            Stepping::step(self)?;
+            observe(self);
+        }
+        Ok(())
+    }
+
+    /// Steps to `t_end` exactly: the last step is shortened (or, for the
+    /// time-transformed schemes, a partial step in `s` is solved for) so
+    /// that the node's time is `t_end`.
+    pub fn run_until(&mut self, t_end: f64) -> Result<(), Error<N>> {
+        Stepping::land(self, t_end)
+    }
+
+    /// Integrates as `plan` says: [`Stepping::solve`], named here so that
+    /// the trait need not be in scope.
+    pub fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>> {
+        Stepping::solve(self, plan)
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepping<N> for Stepper<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    type System = S;
+    type Native = Interpolant<N>;
+
+    fn system(&self) -> &S {
+        each!(&self.driver, d => Stepping::system(d))
+    }
+
+    fn state(&self) -> State<N> {
+        each!(&self.driver, d => Stepping::state(d))
+    }
+
+    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        each!(&self.driver, d => Stepping::velocity(d))
+    }
+
+    fn stats(&self) -> Stats {
+        each!(&self.driver, d => Stepping::stats(d))
+    }
+
+    #[inline]
+    fn step(&mut self) -> Result<(), Error<N>> {
+        each!(&mut self.driver, d => Stepping::step(d))
+    }
+
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+        each!(&mut self.driver, d => Stepping::step_toward(d, t_end, last_h))
+    }
+
+    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+        each!(&mut self.driver, d => Stepping::land(d, t))
+    }
+
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Interpolant<N> {
+        match &self.driver {
+            Driver::Gauss2(d) => Interpolant::Galerkin2(Stepping::native(d, start, end)),
+            Driver::Gauss3(d) => Interpolant::Galerkin3(Stepping::native(d, start, end)),
+            Driver::Gauss4(d) => Interpolant::Galerkin4(Stepping::native(d, start, end)),
+            Driver::Lobatto2(d) => Interpolant::Galerkin2(Stepping::native(d, start, end)),
+            Driver::Lobatto3(d) => Interpolant::Galerkin3(Stepping::native(d, start, end)),
+            Driver::Lobatto4(d) => Interpolant::Galerkin4(Stepping::native(d, start, end)),
+            Driver::Midpoint(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::Trapezoid(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::AlphaBeta(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::Composition(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::Transformed(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::Splitting(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+        }
+    }
+}

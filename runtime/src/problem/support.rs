@@ -1,0 +1,261 @@
+//! The one place that says whether a combination of method, step policy,
+//! system and workflow is defined, and the refusal that names it.
+//!
+//! [`Problem::stepper`](super::Problem::stepper),
+//! [`DynProblem::stepper`](super::DynProblem::stepper) and the capability
+//! page ask [`supports`] before they build anything, so a combination that
+//! is not defined is an [`Error::Unsupported`](crate::Error::Unsupported)
+//! (or [`DynError::Unsupported`](crate::DynError::Unsupported)) at
+//! construction, with the text returned here. What only a driver can judge
+//! from the system's values (a mass matrix that is not constant for the
+//! splitting, a singular Legendre transform) it still refuses at `start`,
+//! also typed.
+
+use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
+
+use crate::integrator::StepBounds;
+
+/// The largest number of degrees of freedom of a compile-time-sized
+/// [`Problem`](super::Problem): the implicit time transformation extends a
+/// system to `N + 1` coordinates, and stable Rust names `N + 1` only for
+/// sizes listed in a table ([`Extended`](super::Extended)).
+pub const MAX_PROBLEM_N: usize = 1024;
+
+/// How the step sizes are chosen: a value apart from the [`Scheme`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Policy {
+    /// Every step has size `h` (for the time-transformed schemes: the step
+    /// `σ` in the fictive time `s`).
+    Fixed {
+        /// The step.
+        h: f64,
+    },
+    /// Energy-preserving variable steps within `bounds` from the first
+    /// guess `h`, for a system without forces: `E_{k+1} = E_k`.
+    EnergyPreserving {
+        /// The first guess.
+        h: f64,
+        /// The admissible steps.
+        bounds: StepBounds,
+    },
+    /// Energy-balance variable steps for a forced system:
+    /// `E_{k+1} − E_k = W_k`, the discrete work of the forces.
+    EnergyBalance {
+        /// The first guess.
+        h: f64,
+        /// The admissible steps.
+        bounds: StepBounds,
+    },
+}
+
+impl Policy {
+    /// Fixed steps of size `h`.
+    pub fn fixed(h: f64) -> Self {
+        Self::Fixed { h }
+    }
+
+    /// Energy-preserving steps from `h` within [`StepBounds::around`]`(h)`.
+    pub fn energy_preserving(h: f64) -> Self {
+        Self::EnergyPreserving { h, bounds: StepBounds::around(h) }
+    }
+
+    /// Energy-balance steps from `h` within [`StepBounds::around`]`(h)`.
+    pub fn energy_balance(h: f64) -> Self {
+        Self::EnergyBalance { h, bounds: StepBounds::around(h) }
+    }
+
+    /// The (first) step size.
+    pub fn step(&self) -> f64 {
+        match *self {
+            Self::Fixed { h } | Self::EnergyPreserving { h, .. } | Self::EnergyBalance { h, .. } => h,
+        }
+    }
+
+    /// The bounds of variable steps; `None` for fixed steps.
+    pub fn bounds(&self) -> Option<StepBounds> {
+        match *self {
+            Self::Fixed { .. } => None,
+            Self::EnergyPreserving { bounds, .. } | Self::EnergyBalance { bounds, .. } => Some(bounds),
+        }
+    }
+}
+
+/// A step size alone means fixed steps.
+impl From<f64> for Policy {
+    fn from(h: f64) -> Self {
+        Self::Fixed { h }
+    }
+}
+
+/// Whether the number of coordinates is a type parameter or a run-time value.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Size {
+    /// `N` known at compile time ([`Problem`](super::Problem)).
+    Const(usize),
+    /// Known at run time ([`DynProblem`](super::DynProblem)).
+    Dynamic,
+}
+
+/// What is asked of the stepper.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Capability {
+    /// Steps, `run` and `run_until` landing exactly on targets.
+    Step,
+    /// `solve(Plan)` → [`Solution`](crate::Solution): thinning, save times by
+    /// dense output, events, and the CSV and JSON files of the solution.
+    Solve,
+}
+
+/// One combination of method, policy, system and workflow.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Combination<'a> {
+    /// The method.
+    pub scheme: &'a Scheme,
+    /// The step policy.
+    pub policy: Policy,
+    /// The system's size.
+    pub size: Size,
+    /// Whether the system has `force` or `dissipation`.
+    pub forced: bool,
+    /// The number of holonomic constraints of the system.
+    pub constraints: usize,
+    /// What is asked.
+    pub capability: Capability,
+}
+
+/// `Ok` when the combination is defined; otherwise the refusal naming it,
+/// the text of [`Error::Unsupported`](crate::Error::Unsupported).
+///
+/// ```
+/// use lagrangian_runtime::problem::{Capability, Combination, Policy, Scheme, Size, supports};
+///
+/// let galerkin = Scheme::galerkin(3);
+/// let mut query = Combination {
+///     scheme: &galerkin,
+///     policy: Policy::fixed(0.1),
+///     size: Size::Const(2),
+///     forced: false,
+///     constraints: 0,
+///     capability: Capability::Solve,
+/// };
+/// assert!(supports(&query).is_ok());
+/// query.size = Size::Dynamic;
+/// assert!(supports(&query).unwrap_err().contains("run-time-sized"));
+/// ```
+pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
+    if c.constraints != 0 {
+        return Err("a system with holonomic constraints through `Problem`: step it with `Constrained`");
+    }
+    if let Scheme::Galerkin { degree, .. } = c.scheme
+        && !(2..=4).contains(degree)
+    {
+        return Err(
+            "a Galerkin degree other than 2, 3 or 4 through `Scheme`: the const-generic `Galerkin::<S, R>` has every degree",
+        );
+    }
+    if let Scheme::Composition { base, .. } = c.scheme
+        && *base != OnePoint::Trapezoid
+    {
+        return Err("a composition of midpoint or α-β sub-steps: the compositions are of trapezoid sub-steps");
+    }
+    match c.size {
+        Size::Const(n) => constant(c, n),
+        Size::Dynamic => dynamic(c),
+    }
+}
+
+/// The rules for a compile-time-sized system.
+fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
+    if n > MAX_PROBLEM_N {
+        return Err("a compile-time size above 1024 through `Problem`: use `DynProblem` or a driver directly");
+    }
+    let fixed = matches!(c.policy, Policy::Fixed { .. });
+    match c.scheme {
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => variable_steps(c),
+        Scheme::Composition { .. } if fixed => Ok(()),
+        Scheme::Composition { .. } => Err("variable steps with a composition: its steps are fixed"),
+        Scheme::TimeTransformed { inner, .. } => {
+            match inner.as_ref() {
+                Scheme::OnePoint(_) | Scheme::Galerkin { quadrature: GalerkinQuadrature::GaussLegendre, .. } => {}
+                Scheme::Galerkin { .. } => {
+                    return Err(
+                        "time transformation around a Galerkin rule with Gauss–Lobatto quadrature: only Gauss–Legendre is offered in `s`",
+                    );
+                }
+                _ => {
+                    return Err(
+                        "time transformation around a composition, the splitting or another time transformation: the method in `s` is a one-point or Galerkin rule",
+                    );
+                }
+            }
+            if let Scheme::Galerkin { degree, .. } = inner.as_ref()
+                && !(2..=4).contains(degree)
+            {
+                return Err(
+                    "a Galerkin degree other than 2, 3 or 4 through `Scheme`: the const-generic `Galerkin::<S, R>` has every degree",
+                );
+            }
+            if !fixed {
+                return Err(
+                    "variable steps under a time transformation: its steps in `s` are fixed, the density varies them in t",
+                );
+            }
+            Ok(())
+        }
+        Scheme::Splitting { .. } if c.forced => Err(
+            "the explicit time-transformed splitting of a forced system: its flows are those of `T(p)` and `V(q)` alone",
+        ),
+        Scheme::Splitting { .. } if fixed => Ok(()),
+        Scheme::Splitting { .. } => Err("variable steps with the explicit splitting: its steps in `s` are fixed"),
+    }
+}
+
+/// Variable steps of the one-point and Galerkin rules.
+fn variable_steps(c: &Combination<'_>) -> Result<(), &'static str> {
+    match (c.policy, c.forced, c.scheme) {
+        (Policy::Fixed { .. }, _, _) => Ok(()),
+        (Policy::EnergyPreserving { .. }, true, _) => Err(
+            "energy-preserving steps of a forced system: its energy changes by the work of the forces (`Policy::EnergyBalance`)",
+        ),
+        (Policy::EnergyPreserving { .. }, false, _) => Ok(()),
+        (Policy::EnergyBalance { .. }, false, _) => Err(
+            "energy-balance steps of a system without forces: there is no work to balance (`Policy::EnergyPreserving`)",
+        ),
+        (Policy::EnergyBalance { .. }, true, Scheme::OnePoint(_)) => Ok(()),
+        (Policy::EnergyBalance { .. }, true, _) => {
+            Err("energy-balance steps with a Galerkin rule: the discrete work is written for the one-point rules")
+        }
+    }
+}
+
+/// The rules for a run-time-sized system (the reverse-mode driver).
+fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
+    match c.scheme {
+        Scheme::OnePoint(_) | Scheme::Composition { .. } => {}
+        Scheme::Galerkin { .. } => {
+            return Err("a Galerkin rule on a run-time-sized system: its steps are one-point rules and compositions");
+        }
+        Scheme::TimeTransformed { .. } => {
+            return Err(
+                "the implicit time transformation of a run-time-sized system: its extended system is compile-time-sized",
+            );
+        }
+        Scheme::Splitting { .. } => {
+            return Err(
+                "the explicit time-transformed splitting of a run-time-sized system: its phase is compile-time-sized",
+            );
+        }
+    }
+    if !matches!(c.policy, Policy::Fixed { .. }) {
+        return Err("variable steps on a run-time-sized system: its steps are fixed");
+    }
+    if c.forced {
+        return Err("forces on a run-time-sized system: `DynLagrangian` has no `force` or `dissipation`");
+    }
+    match c.capability {
+        Capability::Step => Ok(()),
+        Capability::Solve => Err(
+            "`solve(Plan)` on a run-time-sized system: `Solution` has compile-time-sized rows; step it and record what you need",
+        ),
+    }
+}
