@@ -156,7 +156,7 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transform
     }
 }
 
-/// `N`, as a type that can name `N + 1` (see the [module](self)).
+/// `N`, as a type that can name `N + 1` (see [`Extended`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Dim<const N: usize>;
 

@@ -110,7 +110,7 @@ where
     }
 
     /// Integrates with `scheme` under `policy` as `plan` says: the same
-    /// [`Solution`] and [`SolveError`] as [`Stepping::solve`] on any driver.
+    /// [`Solution`] and [`SolveError`] as [`Stepping::solve`](crate::Stepping::solve) on any driver.
     /// A refused combination or a failed start is `SolveError::Step`.
     pub fn solve(
         &self,
