@@ -1799,8 +1799,8 @@ fn explicit_time_transformation_near_a_turning_point_moves_the_extended_hamilton
     }
 }
 
-/// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`)
-/// once near-collision cases were no longer excused: Kepler from r = 0.035,
+/// What the explicit property finds in the long run (`LAGRANGIAN_PROP_CASES=100000`)
+/// when it does not excuse near-collision cases: Kepler from r = 0.035,
 /// logarithmic, kick–drift–kick, σ = 0.0709: `run_until(2.5 time units)` and
 /// two steps return `Ok` with the energy moved from −27.2 to −23.6 (13 %),
 /// the clocks' ratio within its bound. Open.
