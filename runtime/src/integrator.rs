@@ -19,7 +19,7 @@
 
 use crate::error::Error;
 use crate::newton::{NewtonFailure, NewtonOptions, NewtonReport};
-use crate::real::{Real, all_finite, max_abs};
+use crate::real::{Real, all_finite, kahan, max_abs};
 use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, generalized_force};
@@ -289,15 +289,6 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
 /// constraints differs from the method's.
 const CONSTRAINT_COUNT_MISMATCH: &str = "a system whose number of holonomic constraints (`Lagrangian::CONSTRAINTS`) differs from the method's: a constrained system runs under `Constrained::<_, M>::new(rule)` with its own `M` and a one-point rule (midpoint, trapezoid, α-β); compositions, Galerkin rules and double-double runs with constraints are not supported yet";
 
-/// `a + (c + b)` summed with Kahan's compensation `c`: `(sum, new compensation)`.
-#[inline(always)]
-pub(crate) fn kahan<T: crate::real::Real, const N: usize>(a: &[T; N], c: &[T; N], b: &[T; N]) -> ([T; N], [T; N]) {
-    let mut sum = [T::zero(); N];
-    let mut carry = [T::zero(); N];
-    kahan_into(a, c, b, &mut sum, &mut carry);
-    (sum, carry)
-}
-
 /// [`kahan`] or, under [`Summation::Plain`], `a + b` with a zero
 /// compensation (the compensation `c` of a plain state is zero).
 #[inline(always)]
@@ -310,16 +301,6 @@ pub(crate) fn add_increment<T: crate::real::Real, const N: usize>(
     match summation {
         Summation::Compensated => kahan(a, c, b),
         Summation::Plain => (core::array::from_fn(|i| a[i] + b[i]), [T::zero(); N]),
-    }
-}
-
-/// [`kahan`] on slices of one length, into `sum` and `carry`.
-#[inline(always)]
-pub(crate) fn kahan_into<T: crate::real::Real>(a: &[T], c: &[T], b: &[T], sum: &mut [T], carry: &mut [T]) {
-    for i in 0..a.len() {
-        let u = c[i] + b[i];
-        sum[i] = a[i] + u;
-        carry[i] = u - (sum[i] - a[i]);
     }
 }
 

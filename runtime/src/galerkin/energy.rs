@@ -38,7 +38,7 @@
 
 use super::Galerkin;
 use super::linalg::{BlockVector, Lu};
-use super::method::PointDerivatives;
+use super::method::{PointDerivatives, step_energy};
 use super::stepper::{KeptBlock, Nodes, Work, linearize};
 use crate::error::Error;
 use crate::integrator::{Clock, Integrator};
@@ -54,32 +54,6 @@ struct Probe<const N: usize, const S: usize, T> {
     h: T,
     nodes: BlockVector<N, S, T>,
     g: T,
-}
-
-/// The discrete energy `Σ_j b_j E_L(c_j)` of a step of size `h` with increments `d`.
-pub(super) fn step_energy<Sys, T, const N: usize, const S: usize, const R: usize>(
-    system: &Sys,
-    g: &super::Galerkin<S, R, T>,
-    t0: T,
-    h: T,
-    base: (&[T; N], &[T; N]),
-    d: &BlockVector<N, S, T>,
-) -> T
-where
-    Sys: Lagrangian<N> + ?Sized,
-    T: Real,
-{
-    let mut e = T::zero();
-    for j in 0..R {
-        let (t, q, v) = g.point(t0, h, base, d, j);
-        let (l, _, lv) = super::method::point_gradient(system, t, q, v);
-        let mut ej = -l;
-        for i in 0..N {
-            ej += v[i] * lv[i];
-        }
-        e += g.quadrature().weights()[j] * ej;
-    }
-    e
 }
 
 impl<Sys, const N: usize, const S: usize, const R: usize, T> Integrator<Sys, Galerkin<S, R, T>, N, T>

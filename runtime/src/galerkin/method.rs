@@ -47,6 +47,7 @@
 use nalgebra::DMatrix;
 
 use super::basis::{NodeFamily, lagrange, lagrange_derivative};
+use super::linalg::BlockVector;
 use super::quadrature::Quadrature;
 use crate::hyperdual::{DualArray, HyperDualArray, Pair, Vector};
 use crate::real::Real;
@@ -519,6 +520,32 @@ impl<const N: usize, T: Real> PointDerivatives<N, T> {
             }
         }
     }
+}
+
+/// The discrete energy `Σ_j b_j E_L(c_j)` of a step of size `h` with increments `d`.
+pub(super) fn step_energy<Sys, T, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    g: &Galerkin<S, R, T>,
+    t0: T,
+    h: T,
+    base: (&[T; N], &[T; N]),
+    d: &BlockVector<N, S, T>,
+) -> T
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    let mut e = T::zero();
+    for j in 0..R {
+        let (t, q, v) = g.point(t0, h, base, d, j);
+        let (l, _, lv) = point_gradient(system, t, q, v);
+        let mut ej = -l;
+        for i in 0..N {
+            ej += v[i] * lv[i];
+        }
+        e += g.quadrature().weights()[j] * ej;
+    }
+    e
 }
 
 #[cfg(test)]

@@ -752,7 +752,7 @@ where
         }
         return e;
     };
-    let mut e = super::energy::step_energy(system, g, last.t0, last.h, (&last.q0, &last.carry), &last.d);
+    let mut e = super::method::step_energy(system, g, last.t0, last.h, (&last.q0, &last.carry), &last.d);
     if !Sys::AUTONOMOUS {
         for j in 0..R {
             let (t, q, v) = g.point(last.t0, last.h, (&last.q0, &last.carry), &last.d, j);

@@ -30,7 +30,7 @@ use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Jacobian, NewtonFailure, NewtonReport};
-use crate::real::max_abs;
+use crate::real::{fold_max_abs, is_non_finite, max_abs, nan_bits};
 use crate::state::State;
 use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
@@ -702,66 +702,6 @@ fn explicit_growth_ruled_out(dq_max: f64, q_max: f64, h: f64, h_last: f64, last_
     dq_max <= 1e6 * (1e-6 * q_max) || growth_ruled_out(dq_max, last_dq, (h / h_last).abs())
 }
 
-/// `max(m, |x|)` as `f64::max` takes it, NaN ignored (`m` is never NaN):
-/// one `maxsd`, where `f64::max` also tests for NaN.
-#[inline(always)]
-pub(super) fn max_abs_step(m: f64, x: f64) -> f64 {
-    let a = x.abs();
-    if a > m { a } else { m }
-}
-
-/// `max|x|`, the value `real::max_abs` returns: the maximum is exact and
-/// ignores NaN in any order, so running maxima in several lanes (which
-/// vectorise) combine to the same number as one. Four lanes for short
-/// inputs; sixteen (eight vector registers, whose chains of dependent `max`
-/// overlap) from 64 values, where four were bound by that latency (0.3 µs
-/// for two passes at `N = 1000`). For a const `N` the choice is made at
-/// compile time.
-#[inline(always)]
-pub(super) fn fold_max_abs(x: &[f64]) -> f64 {
-    if x.len() >= 64 { fold_max_abs_lanes::<16>(x) } else { fold_max_abs_lanes::<4>(x) }
-}
-
-/// [`fold_max_abs`] with `LANES` running maxima.
-#[inline(always)]
-fn fold_max_abs_lanes<const LANES: usize>(x: &[f64]) -> f64 {
-    let mut lanes = [0.0; LANES];
-    let (chunks, rest) = x.as_chunks::<LANES>();
-    for chunk in chunks {
-        for k in 0..LANES {
-            lanes[k] = max_abs_step(lanes[k], chunk[k]);
-        }
-    }
-    // Pairwise, as the lanes of the vector registers combine.
-    let mut width = LANES;
-    while width > 1 {
-        width /= 2;
-        for k in 0..width {
-            lanes[k] = max_abs_step(lanes[k], lanes[k + width]);
-        }
-    }
-    let mut m = lanes[0];
-    for &v in rest {
-        m = max_abs_step(m, v);
-    }
-    m
-}
-
-/// Zero exactly when `x` is finite (`x − x` is `+0` then, NaN otherwise):
-/// OR-ed over a step's values, a finiteness test with no branch per value
-/// that vectorises.
-#[inline(always)]
-#[allow(clippy::eq_op)]
-pub(super) fn nan_bits(x: f64) -> u64 {
-    (x - x).to_bits()
-}
-
-/// Whether an OR of [`nan_bits`] saw a value that is not finite.
-#[inline(always)]
-pub(super) fn is_non_finite(bits: u64) -> bool {
-    bits != 0
-}
-
 /// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`:
 /// the adjoint code `#[lagrangian]` wrote out where it could
 /// ([`Lagrangian::HAS_GRADIENT`]; it clears `out` itself), else one
@@ -1350,49 +1290,6 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A xorshift stream of `f64`s over every exponent and sign, with
-    /// zeros, subnormals, infinities and NaNs mixed in.
-    fn awkward_values(n: usize) -> Vec<f64> {
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        (0..n)
-            .map(|i| {
-                seed ^= seed << 13;
-                seed ^= seed >> 7;
-                seed ^= seed << 17;
-                match i % 11 {
-                    0 => [0.0, -0.0, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MIN_POSITIVE / 3.0]
-                        [(seed % 6) as usize],
-                    _ => f64::from_bits(seed),
-                }
-            })
-            .collect()
-    }
-
-    #[test]
-    fn the_lane_maximum_is_the_maximum_of_max_abs() {
-        let values = awkward_values(4000);
-        let mut nan_seen = false;
-        // Every length around the lane counts, and long ones (sixteen lanes
-        // from 64 values).
-        for len in (0..=40).chain([63, 64, 65, 79, 80, 81, 200, 1001]) {
-            for start in (0..values.len() - len).step_by(7) {
-                let x = &values[start..start + len];
-                nan_seen |= x.iter().any(|v| v.is_nan());
-                assert_eq!(fold_max_abs(x).to_bits(), max_abs(x).to_bits(), "{x:?}");
-            }
-        }
-        assert!(nan_seen, "the values exercised NaN");
-    }
-
-    #[test]
-    fn nan_bits_are_zero_exactly_for_finite_values() {
-        for x in awkward_values(4000) {
-            assert_eq!(is_non_finite(nan_bits(x)), !x.is_finite(), "{x:e}");
-        }
-        let all = awkward_values(12);
-        assert!(all.iter().any(|x| !x.is_finite()) && all.iter().any(|x| x.is_finite()));
-    }
 
     /// The explicit steps' shortcuts never pass an increment the full
     /// `implausible_growth` would refuse, and both verdicts occur.

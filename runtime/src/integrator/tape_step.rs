@@ -24,12 +24,12 @@ use core::cell::RefCell;
 
 use num_dual::Dual64;
 
-use super::one_point::{fold_max_abs, is_non_finite, nan_bits};
-use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth, kahan_into};
+use super::{IMPLAUSIBLE_GROWTH, Stats, implausible_growth};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::hyperdual::DualArray;
 use crate::newton::{self, Breakdown, Jacobian, Linearization, NewtonFailure, NewtonOptions, NewtonReport, Unknown};
 use crate::real::{all_finite, max_abs};
+use crate::real::{fold_max_abs, is_non_finite, kahan_add as kahan, kahan_into, nan_bits};
 use crate::structure::{Coupling, Pattern};
 use crate::system::Scalar;
 use crate::tape::{Seeds, Tape, TapeError, Var};
@@ -1553,15 +1553,6 @@ impl Unknown for Slot<'_> {
     fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
         max_abs(&dx.0.borrow()) / (rtol * max_abs(&self.0.borrow()) + atol)
     }
-}
-
-/// The Kahan sum `a + b` with the compensation `c` of `a`: `(sum, carry)`,
-/// the operations of [`kahan_into`].
-#[inline(always)]
-fn kahan(a: f64, c: f64, b: f64) -> (f64, f64) {
-    let u = c + b;
-    let sum = a + u;
-    (sum, u - (sum - a))
 }
 
 /// The factored constant mass matrix of the explicit path, and the
