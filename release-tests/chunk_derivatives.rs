@@ -7,10 +7,10 @@
 //! accuracy (a chunk lowered to `f64` would round them to `f64`).
 #![allow(missing_docs)]
 
-use lagrangian::hyperdual::{DualArray, HyperDualArray};
+use lagrangian::__private::hyperdual::{DualArray, HyperDualArray};
+use lagrangian::__private::tape::{Seeds, Tape, Var};
 use lagrangian::num_dual::{Dual64, DualStruct, HyperDual, HyperDual64};
 use lagrangian::prelude::*;
-use lagrangian::tape::{Seeds, Tape, Var};
 use lagrangian::{Lagrangian, Scalar};
 
 /// Seven doublings of ten terms reading `t`, both coordinates and both

@@ -190,7 +190,26 @@
 //! with another step size.
 
 pub use lagrangian_macros::lagrangian;
-pub use lagrangian_runtime::*;
+// The public surface, listed: the types a user names, and the modules that
+// are documented extension points. The engine's internals (`tape`, `banded`,
+// `hyperdual`, `chunk`) stay in the runtime crate.
+pub use lagrangian_runtime::Constrained;
+pub use lagrangian_runtime::num_dual;
+pub use lagrangian_runtime::{
+    Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives,
+    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, DynError, DynIntegrator,
+    DynIntegratorBuilder, DynLagrangian, DynMethod, DynProblem, DynState, DynStepper, EnergyFallback, Error, Estimate,
+    Event, EventRecord, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling,
+    Galerkin, GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure,
+    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, Pattern, Plan, Policy, Problem, Quadrature,
+    RadiusPower, Real, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State, Stats, Status,
+    StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
+    TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
+};
+pub use lagrangian_runtime::{
+    auto, constrained, dense, derivatives, discrete, double_double, ensemble, events, forcing, galerkin, guidance,
+    mechanics, newton, noether, problem, solution, structure, symplectic, system, time_transform,
+};
 
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
@@ -214,10 +233,10 @@ pub mod prelude {
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
-    pub use lagrangian_runtime::chunk;
     pub use lagrangian_runtime::{
         Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, StepDensity, Symmetry,
     };
+    pub use lagrangian_runtime::{chunk, hyperdual, tape};
 }
 
 /// The README's examples, compiled and run as doc tests.

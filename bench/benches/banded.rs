@@ -18,7 +18,7 @@
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
-use lagrangian::banded::{BandedMatrix, DenseMatrix, StepMatrix};
+use lagrangian_runtime::banded::{BandedMatrix, DenseMatrix, StepMatrix};
 
 /// The band of row `i`, as `(column offset, value)`: a dominant diagonal
 /// and decaying neighbours out to `bandwidth`.
