@@ -1,0 +1,225 @@
+//! The continuous quantities at a node: the Legendre map `p = ∂L/∂v`, the
+//! energy, its inverse (the velocity of a momentum, by Newton), the
+//! potential force of a separable `L`, and the discrete energy of a step.
+
+use super::directional::{Directional, Layout, directional_points, mass_from_gradient_code};
+use super::{
+    TapeModel, assemble_and_factor, breakdown, filled, mass_bandwidth, seeds, step_matrix, tape_breakdown, zeroed,
+};
+use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
+use crate::integrator::Stats;
+use crate::newton::{self, Breakdown, Linearization, NewtonFailure, NewtonOptions, Unknown};
+use crate::real::{all_finite, max_abs};
+use crate::tape::{Tape, TapeError, Var};
+
+/// Records the relative change `|after − before| / |before|` of the discrete
+/// energy across node `t1` in `stats` when it is the largest so far (the
+/// watch of a system declared discontinuous).
+pub(crate) fn watch_energy_jump(stats: &mut Stats, before: f64, after: f64, t1: f64) {
+    let jump = (after - before).abs() / before.abs().max(f64::MIN_POSITIVE);
+    if jump.is_finite() && jump > stats.largest_energy_jump {
+        stats.largest_energy_jump = jump;
+        stats.largest_energy_jump_at = t1;
+    }
+}
+
+/// The discrete energy `−∂A/∂t_{k+1}` of the step `(t0, h, q0, dq)`: from
+/// the system's gradient code at the rule's points when it has it, else from
+/// one reverse sweep (NaN if the tape fails, which the runtime's use cannot
+/// provoke, or if the buffers cannot be allocated).
+pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64], dq: &[f64]) -> f64 {
+    let n = q0.len();
+    if let Some(points) = directional_points(model) {
+        let mut directional = Directional::default();
+        let Ok(mut g_q0) = filled(n, 0.0) else { return f64::NAN };
+        if directional.allocate_values(n, model.autonomous()).is_err() {
+            return f64::NAN;
+        }
+        return directional.momentum_and_energy(model, t0, h, points, q0, dq, &mut g_q0).0;
+    }
+    let mut tape = Tape::new();
+    let mut inputs = Vec::with_capacity(2 * n + 1);
+    inputs.extend_from_slice(q0);
+    inputs.extend_from_slice(dq);
+    inputs.push(h);
+    let recorded = tape.record(&inputs, |x: &[Var]| model.action(Var::constant(t0), x[2 * n], &x[..n], &x[n..2 * n]));
+    let mut gradient = vec![0.0; 2 * n + 1];
+    match recorded.and_then(|_| tape.gradient(&mut gradient)) {
+        Ok(()) => -gradient[2 * n],
+        Err(_) => f64::NAN,
+    }
+}
+
+/// Whether `L(t, q, 0) = −V(t, q)` of a separable system with constant
+/// mass is finite at the end node `q` of an explicit step: with the start
+/// node's, checked by the step before (or at `start`), it makes the
+/// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
+/// finite where it is not.
+pub(super) fn potential_finite<Mo: TapeModel>(model: &Mo, zero: &[f64], t: f64, q: &[f64]) -> bool {
+    model.lagrangian_scalar(t, q, zero).is_finite()
+}
+
+/// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from one reverse
+/// sweep with the inputs `q`.
+pub(super) fn potential_force<Mo: TapeModel>(
+    model: &Mo,
+    tape: &mut Tape,
+    zero: &(Vec<f64>, Vec<Var>),
+    t: f64,
+    q: &[f64],
+    out: &mut [f64],
+) -> Result<(), TapeError> {
+    if model.gradient_q(t, q, &zero.0, out) {
+        return Ok(());
+    }
+    tape.record(q, |x: &[Var]| model.lagrangian(Var::constant(t), x, &zero.1))?;
+    tape.gradient(out)
+}
+
+/// `L`, `∂L/∂v` and `∂²L/∂v²` (assembled, not factored; banded with the
+/// given bandwidth, or dense) at `(t, q, v)`: from the system's gradient
+/// code (on `f64`, and by colour classes on dual numbers) when it has it,
+/// else from one second-order sweep of a tape with the inputs `v`.
+pub(super) fn velocity_derivatives<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    bandwidth: Option<usize>,
+) -> Result<(f64, Vec<f64>, Assembled), Breakdown> {
+    let n = q.len();
+    let width = bandwidth.map_or(n, |b| 2 * b + 1);
+    let mut gradient = zeroed(Some(n), n).map_err(breakdown)?;
+    let mut band = zeroed(n.checked_mul(width), n).map_err(breakdown)?;
+    let l = if model.has_gradient_qv() {
+        let layout = Layout { n, bandwidth };
+        mass_from_gradient_code(model, t, q, v, layout, &mut gradient, &mut band).map_err(breakdown)?;
+        model.lagrangian_scalar(t, q, v)
+    } else {
+        let seeds = seeds(0..n, bandwidth);
+        let mut tape = Tape::new();
+        let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+        let l = tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x)).map_err(tape_breakdown)?;
+        let mut products = zeroed(n.checked_mul(seeds.directions()), n).map_err(breakdown)?;
+        tape.hessian_product(&seeds, &mut gradient, &mut products).map_err(tape_breakdown)?;
+        seeds.recover(&products, 0..n, &mut band).map_err(tape_breakdown)?;
+        l
+    };
+    let matrix = step_matrix(n, bandwidth).map_err(breakdown)?;
+    Ok((l, gradient, Assembled { n, matrix, band, bandwidth }))
+}
+
+/// A Hessian block read from the tape, ready to be factored.
+#[derive(Clone, Debug)]
+pub(super) struct Assembled {
+    pub(super) n: usize,
+    pub(super) matrix: StepSolver,
+    pub(super) band: Vec<f64>,
+    pub(super) bandwidth: Option<usize>,
+}
+
+impl Assembled {
+    /// Assembles and factors the block.
+    pub(super) fn factor_in_place(&mut self, min_rcond: f64) -> Result<(), Breakdown> {
+        assemble_and_factor(&mut self.matrix, self.n, self.bandwidth, &self.band, min_rcond)
+    }
+
+    pub(super) fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
+        self.matrix.solve(b)
+    }
+}
+
+/// The momentum `p = ∂L/∂v` and energy `E = v·p − L` at `(t, q, v)`, with a
+/// check that `∂²L/∂v²` is regular there (its banded or dense LU). `Err`
+/// says why the data cannot start an integration.
+pub(crate) fn legendre<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+) -> Result<(Vec<f64>, f64), &'static str> {
+    let n = q.len();
+    let (l, p, mut hessian) = velocity_derivatives(model, t, q, v, mass_bandwidth(model.coupling(), n))
+        .map_err(|_| "the lagrangian or its derivatives could not be evaluated at the initial data")?;
+    if !l.is_finite() || !all_finite(&p) {
+        return Err("the lagrangian or its momentum is not finite at the initial data");
+    }
+    if hessian.factor_in_place(0.0).is_err() {
+        return Err("∂²L/∂v² is singular at the initial data: the legendre transform is not regular");
+    }
+    let energy = (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l;
+    if !energy.is_finite() {
+        return Err("the energy is not finite at the initial data");
+    }
+    Ok((p, energy))
+}
+
+/// The energy `E = v·∂L/∂v − L` at `(t, q, v)`: `∂L/∂v` from the system's
+/// gradient code when it has it, else from one reverse sweep (NaN if the
+/// tape fails).
+pub(crate) fn energy<Mo: TapeModel>(model: &Mo, t: f64, q: &[f64], v: &[f64]) -> f64 {
+    let n = q.len();
+    let mut p = vec![0.0; n];
+    let swept = if model.has_gradient_qv() {
+        let mut fq = vec![0.0; n];
+        model.gradient_qv(t, q, v, &mut fq, &mut p);
+        Ok(model.lagrangian_scalar(t, q, v))
+    } else {
+        let mut tape = Tape::new();
+        let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
+        tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x))
+            .and_then(|l| tape.gradient(&mut p).map(|_| l))
+    };
+    match swept {
+        Ok(l) => (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l,
+        Err(_) => f64::NAN,
+    }
+}
+
+/// The velocity whose momentum `∂L/∂v(t, q, v)` is `p`, by Newton's method
+/// from `guess` with banded or dense solves (the inverse Legendre
+/// transform). `Err` carries `(iterations, residual norm)`.
+pub(crate) fn velocity<Mo: TapeModel>(
+    model: &Mo,
+    t: f64,
+    q: &[f64],
+    p: &[f64],
+    guess: &[f64],
+) -> Result<Vec<f64>, (usize, f64)> {
+    let n = q.len();
+    let options = NewtonOptions::default();
+    let bandwidth = mass_bandwidth(model.coupling(), n);
+    let linearize = |v: &Vec<f64>, _| -> Result<Linearization<Vec<f64>>, Breakdown> {
+        let (_, m, mut hessian) = velocity_derivatives(model, t, q, v, bandwidth)?;
+        let mut r: Vec<f64> = (0..n).map(|i| m[i] - p[i]).collect();
+        if !r.iter().all(|x| x.is_finite()) {
+            return Err(Breakdown::NonFinite("residual"));
+        }
+        let scale = max_abs(p).max(max_abs(&m));
+        hessian.factor_in_place(options.min_rcond)?;
+        let residual_norm = max_abs(&r);
+        hessian.solve(&mut r).map_err(breakdown)?;
+        r.iter_mut().for_each(|x| *x = -*x);
+        Ok(Linearization::new(r, residual_norm).cancelling(scale))
+    };
+    match newton::solve(guess.to_vec(), &options, linearize) {
+        Ok((v, _)) => Ok(v),
+        Err(NewtonFailure::NotConverged(r)) => Err((r.iterations, r.residual_norm)),
+        Err(f) => Err((f.iterations(), f64::INFINITY)),
+    }
+}
+
+/// The heap vector Newton iterates on in reverse mode.
+impl Unknown for Vec<f64> {
+    #[inline]
+    fn update(&mut self, dx: &Self) {
+        for (x, d) in self.iter_mut().zip(dx) {
+            *x += d;
+        }
+    }
+
+    #[inline]
+    fn error_ratio(&self, dx: &Self, rtol: f64, atol: f64) -> f64 {
+        max_abs(dx) / (rtol * max_abs(self) + atol)
+    }
+}
