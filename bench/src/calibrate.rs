@@ -26,6 +26,21 @@ pub struct Point {
     pub evaluations: Option<u64>,
     /// The method's error message when the run failed.
     pub failure: Option<String>,
+    /// What the tolerance-driven solve chose (`auto` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub auto: Option<AutoChoice>,
+}
+
+/// The method a tolerance-driven solve ran and its pilot's share.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AutoChoice {
+    /// The method it ran.
+    pub method: String,
+    /// Steps of the survey and pilot (the rest are the final run's).
+    pub pilot_steps: u64,
+    /// Seconds of the choice and pilot (wall clock).
+    pub pilot_seconds: f64,
 }
 
 /// How far a sweep may go.
@@ -58,6 +73,11 @@ pub fn point(setting: Setting, run: &Run, reference: &[f64]) -> Point {
         newton_per_step: run.newton_per_step,
         evaluations: run.evaluations,
         failure: run.failure.clone(),
+        auto: run.auto.as_ref().map(|a| AutoChoice {
+            method: a.method.clone(),
+            pilot_steps: a.pilot_steps,
+            pilot_seconds: a.pilot_seconds,
+        }),
     }
 }
 

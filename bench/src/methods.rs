@@ -258,6 +258,12 @@ pub struct AutoReport {
     pub method: String,
     /// Steps of the survey and pilot.
     pub pilot_steps: u64,
+    /// Wall-clock seconds of the choice and pilot.
+    pub pilot_seconds: f64,
+    /// The step of the final run (`h`, or `σ` of a time transformation).
+    pub step: f64,
+    /// The error growth the pilot measured.
+    pub growth: String,
 }
 
 /// The relative errors of the conserved quantities of a model at a state.
@@ -516,6 +522,9 @@ fn auto<M: Model<N>, const N: usize>(
                 requested: est.requested,
                 method: est.method_name.clone(),
                 pilot_steps: est.pilot.steps,
+                pilot_seconds: est.pilot.seconds,
+                step: est.step,
+                growth: format!("{:?}", est.growth),
             });
             match (sol.error.as_ref(), sol.q.last()) {
                 (None, Some(q)) => Run { q: q.to_vec(), steps, auto, ..Run::default() },

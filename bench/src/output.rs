@@ -356,6 +356,10 @@ pub struct AutoRatio {
     pub auto: Option<f64>,
     /// The fastest other project method and its seconds.
     pub fastest: Option<(String, f64)>,
+    /// Steps of the calibrated auto run (pilot included) and of the fastest method's.
+    pub steps: (Option<u64>, Option<u64>),
+    /// What auto chose at its calibrated setting.
+    pub choice: Option<crate::calibrate::AutoChoice>,
 }
 
 impl AutoRatio {
@@ -378,11 +382,22 @@ pub fn auto_ratios(report: &Report) -> Vec<AutoRatio> {
                 .filter(|c| c.setting.is_some())
                 .filter_map(|c| Some((c.method.clone(), c.seconds?)))
                 .min_by(|a, b| a.1.total_cmp(&b.1));
+            let point = |method: &str, setting: Option<&Setting>| {
+                let sweep = p.sweeps.iter().find(|w| w.method == method)?;
+                sweep.points.iter().find(|pt| Some(&pt.setting) == setting)
+            };
+            let auto_point = point("auto", auto.setting.as_ref());
+            let fastest_steps = fastest.as_ref().and_then(|(m, _)| {
+                let c = p.calibrated.iter().find(|c| &c.method == m && c.target == target)?;
+                point(m, c.setting.as_ref()).map(|pt| pt.steps)
+            });
             out.push(AutoRatio {
                 problem: p.id.clone(),
                 target,
                 auto: auto.setting.as_ref().and(auto.seconds),
                 fastest,
+                steps: (auto_point.map(|pt| pt.steps), fastest_steps),
+                choice: auto_point.and_then(|pt| pt.auto.clone()),
             });
         }
     }
@@ -390,23 +405,80 @@ pub fn auto_ratios(report: &Report) -> Vec<AutoRatio> {
 }
 
 /// The tolerance-driven solve (pilot included) against the fastest project
-/// method at each target, with the ratio of their times.
+/// method at each target, with the ratio of their times; then the cases
+/// above 1.5× with the reason the report's numbers show.
 pub fn auto_table(report: &Report) -> String {
     let mut s = String::from(
-        "| problem | target | auto | fastest project method | auto / fastest |\n| --- | --- | --- | --- | --- |\n",
+        "| problem | target | auto | auto ran | steps (pilot) | fastest project method | its steps | auto / fastest |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
-    for r in auto_ratios(report) {
+    let ratios = auto_ratios(report);
+    let count = |n: Option<u64>| n.map_or("—".into(), |n| n.to_string());
+    for r in &ratios {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} |",
             r.problem,
             e(r.target),
             r.auto.map_or("not reached".into(), ms),
+            r.choice.as_ref().map_or("—".into(), |c| c.method.clone()),
+            match (r.steps.0, &r.choice) {
+                (Some(n), Some(c)) => format!("{n} ({})", c.pilot_steps),
+                (n, _) => count(n),
+            },
             r.fastest.as_ref().map_or("—".into(), |(n, t)| format!("{n} ({})", ms(*t))),
+            count(r.steps.1),
             ratio(r.ratio())
         );
     }
+    let above: Vec<String> = ratios
+        .iter()
+        .filter(|r| r.ratio().is_some_and(|x| x > 1.5))
+        .map(|r| format!("{} at {}: {:.1}×, {}", r.problem, e(r.target), r.ratio().unwrap_or(f64::NAN), auto_reason(r)))
+        .collect();
+    if above.is_empty() {
+        s.push_str("\nNo case above 1.5×.\n");
+    } else {
+        let _ = writeln!(s, "\nAbove 1.5× ({} of {}):\n", above.len(), ratios.len());
+        for a in above {
+            let _ = writeln!(s, "- {a}");
+        }
+    }
     s
+}
+
+/// Why auto takes longer than the fastest method at `r`, from the steps
+/// the report recorded: another method, the pilot's share, a final step
+/// finer than the calibrated one, or the fixed cost of the choice.
+fn auto_reason(r: &AutoRatio) -> String {
+    let (Some(choice), (Some(steps), Some(fastest_steps)), Some((fastest, _))) = (&r.choice, r.steps, &r.fastest)
+    else {
+        return "no steps recorded".into();
+    };
+    let final_steps = steps.saturating_sub(choice.pilot_steps);
+    let same = match choice.method.as_str() {
+        m if m.starts_with("Kahan–Li 8 composition") => fastest == "composition-kahan-li8",
+        m if m.starts_with("explicit time-transformed") => fastest.starts_with("tt-split-logh"),
+        m if m.starts_with("Galerkin s = ") => fastest == &format!("galerkin-{}", &m["Galerkin s = ".len()..]),
+        _ => false,
+    };
+    let mut why = Vec::new();
+    if !same {
+        why.push(format!("ran {} where {fastest} is faster", choice.method));
+    }
+    if choice.pilot_steps as f64 >= 0.5 * final_steps as f64 {
+        why.push(format!("pilot {} steps against {final_steps} of the final run", choice.pilot_steps));
+    }
+    if same && final_steps as f64 > 1.3 * fastest_steps as f64 {
+        why.push(format!(
+            "final run {:.1}× the calibrated steps (the step the estimate allows is finer)",
+            final_steps as f64 / fastest_steps as f64
+        ));
+    }
+    if why.is_empty() {
+        why.push(format!("the fixed cost of the choice and pilot ({} wall clock)", ms(choice.pilot_seconds)));
+    }
+    why.join("; ")
 }
 
 /// Every method's calibrated run on problem `p`, per target, fastest first;

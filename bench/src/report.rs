@@ -25,7 +25,8 @@
 //!     reference: { q, kind, check, agreement, accepted, seconds }
 //!     sweeps: [{ method, family, order, points: [Point] }]
 //!       Point { setting: {"steps": n} | {"tolerance": t} | {"sigma": σ}, error | null, seconds, steps,
-//!               newton_per_step | null, evaluations | null, failure | null }
+//!               newton_per_step | null, evaluations | null, failure | null,
+//!               auto?: { method, pilot_steps, pilot_seconds } (only `auto`) }
 //!     calibrated: [{ method, family, target, setting | null, error | null,
 //!                    worst_of_three | null, seconds | null, repeats, newton_per_step | null, evaluations | null }]
 //!     recommendations: [{ target, best | null, best_project | null, best_peer | null, best_hand_written | null }]

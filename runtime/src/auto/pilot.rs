@@ -4,18 +4,22 @@
 //!
 //! Over the pilot `[t0, t0 + Tp]` the method runs with step `h` (or `σ` in
 //! the new time of a time transformation) and with `h/2`. The two runs are
-//! compared in phase space at every node they share (every coarse node of a
-//! fixed-step method; the checkpoints of a time transformation, whose nodes
-//! fall at different times): the distance
-//! `d = max(‖Δq‖∞, ‖Δp‖∞ · Q/P)`, with `Q` and `P` the largest `|q_i|` and
-//! `|p_i|` met, measures the momentum difference in units of the positions.
-//! The error of the coarse run is `e ≈ d · 2^p/(2^p − 1)` for a method of
-//! order `p`, kept as a running maximum. An oscillation's position error
-//! alone vanishes twice a period (the phase error moves the turning points
-//! only to second order), so sampled at a few instants it can look as if it
-//! grew by orders of magnitude between them; its phase-space error, maximal
-//! over the nodes, grows as the phase error does: linearly in time for a
-//! symplectic method on integrable motion.
+//! compared in position at every node they share: every coarse node of a
+//! fixed-step method; for a time transformation, whose nodes fall at
+//! different times in the two runs, every coarse node `k` against the fine
+//! node `2k` at the same new time, moved to the coarse node's time along
+//! the fine run's velocity (no landings: a landing step solves for its
+//! partial step, and many of them would make the pilot a different method
+//! from the final run). The error of the coarse run is
+//! `e ≈ ‖Δq‖∞ · 2^p/(2^p − 1)` for a method of order `p`, kept as a running
+//! maximum over the nodes: the tolerance is on positions, and an
+//! oscillation's position error, which vanishes twice a period, is kept at
+//! its peak. Weighing the momentum difference in as well (in units `Q/P`)
+//! overestimates the error tenfold on an eccentric orbit, whose momentum
+//! error at pericentre is `a δt` for a position error `v δt`; the growth,
+//! though, is judged on that phase-space distance, which grows as the
+//! phase error does from the start (the position error from a start at rest
+//! rises steeply enough over the first checkpoints to look exponential).
 //!
 //! The growth of `e` between the checkpoints `Tp/64, …, Tp/2, Tp` decides the
 //! extrapolation to the end `T`: a power `t^k` with `1 ≤ k ≤ 2` as the pilot
@@ -27,8 +31,8 @@
 use std::time::Instant;
 
 use crate::error::Error;
-use crate::guidance;
 use crate::solution::Stepping;
+use crate::system::Lagrangian;
 
 /// How the global error grows with time, as measured by the pilot.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,7 +69,8 @@ pub(crate) struct Probe<const N: usize> {
 
 /// Runs `it` through `checkpoints` (increasing), recording every node when
 /// `every_node` (otherwise the checkpoints) and sampling `ρ` at every
-/// `stride`-th node when `stride > 0`.
+/// `stride`-th node when `stride > 0` (only for `½ vᵀMv − V(q)` with a
+/// constant `M`: see [`Rates`]).
 pub(crate) fn probe<I: Stepping<N>, const N: usize>(
     mut it: I,
     checkpoints: &[f64],
@@ -83,6 +88,7 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
     };
     let mut last_h = None;
     let mut k = 0usize;
+    let mut rates = if stride > 0 { Rates::new(it.system(), start.t, &start.q) } else { None };
     for &tc in checkpoints {
         while it.state().t < tc {
             let t = it.state().t;
@@ -98,16 +104,83 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
                 out.samples.push(Sample { t: s.t, q: s.q, p: s.p });
             }
             k += 1;
-            if stride > 0 && k.is_multiple_of(stride) {
-                let v = it.velocity()?;
-                if let Ok(lin) = guidance::linearize(it.system(), s.t, s.q, v) {
-                    out.rates.push(lin.fastest);
-                }
+            if stride > 0
+                && k.is_multiple_of(stride)
+                && let Some(rate) = rates.as_mut().and_then(|r| r.at(it.system(), s.t, &s.q, POWER_ITERATIONS))
+            {
+                out.rates.push(rate);
             }
         }
     }
     out.steps = it.stats().steps;
     Ok(out)
+}
+
+/// Power iterations per sample of [`Rates::at`] (warm-started from the
+/// previous sample's mode).
+const POWER_ITERATIONS: usize = 3;
+
+/// The fastest rate `ρ = √|λ|max` of the linearisation of
+/// `½ vᵀMv − V(q)` with a constant mass matrix `M`, whose rates are the
+/// `√|λ(M⁻¹∇²V)|`: power iteration on central differences of the generated
+/// gradient `∂L/∂q` along a mode carried from one sample to the next, with
+/// `M` factored once. Two gradients per iteration in place of the `4N`
+/// accelerations (each solving for `M` again) and the dense eigenvalue
+/// problem of [`guidance::linearize`](crate::guidance::linearize), which
+/// along a survey of many nodes on 15 coordinates cost 100× a whole
+/// calibrated run.
+pub(crate) struct Rates<const N: usize> {
+    mass: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    mode: [f64; N],
+}
+
+impl<const N: usize> Rates<N> {
+    /// `M = ∂²L/∂v²` from `∂L/∂v = M v` at the unit velocities; `None`
+    /// when it is singular or not finite.
+    pub(crate) fn new<S: Lagrangian<N> + ?Sized>(system: &S, t: f64, q: &[f64; N]) -> Option<Self> {
+        let mut m = nalgebra::DMatrix::<f64>::zeros(N, N);
+        let (mut gq, mut gv) = ([0.0; N], [0.0; N]);
+        for j in 0..N {
+            let unit: [f64; N] = core::array::from_fn(|i| if i == j { 1.0 } else { 0.0 });
+            system.gradient_qv(t, q, &unit, &mut gq, &mut gv);
+            for i in 0..N {
+                m[(i, j)] = gv[i];
+            }
+        }
+        if !m.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        let mass = m.lu();
+        mass.is_invertible().then_some(Self { mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) })
+    }
+
+    /// `ρ` at `(t, q)` after `iterations` power iterations.
+    pub(crate) fn at<S: Lagrangian<N> + ?Sized>(
+        &mut self,
+        system: &S,
+        t: f64,
+        q: &[f64; N],
+        iterations: usize,
+    ) -> Option<f64> {
+        let delta = f64::EPSILON.cbrt() * q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let zero = [0.0; N];
+        let (mut plus, mut minus) = ([0.0; N], [0.0; N]);
+        let mut lambda = 0.0;
+        for _ in 0..iterations {
+            let norm = self.mode.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if !(norm > 0.0 && norm.is_finite()) {
+                return None;
+            }
+            let u = self.mode.map(|x| x / norm);
+            system.gradient_q(t, &core::array::from_fn(|i| q[i] + delta * u[i]), &zero, &mut plus);
+            system.gradient_q(t, &core::array::from_fn(|i| q[i] - delta * u[i]), &zero, &mut minus);
+            let force = nalgebra::DVector::from_fn(N, |i, _| (plus[i] - minus[i]) / (2.0 * delta));
+            let x = self.mass.solve(&force)?;
+            self.mode = core::array::from_fn(|i| x[i]);
+            lambda = x.norm();
+        }
+        (lambda.is_finite() && lambda > 0.0).then(|| lambda.sqrt())
+    }
 }
 
 /// The error estimate of a coarse/fine pair.
@@ -123,25 +196,71 @@ pub(crate) struct Richardson {
     pub noise: f64,
 }
 
-/// `(t, running maximum of the phase-space distance)` at the nodes both
-/// probes recorded (times equal to a few ulps of the span).
-fn distances<const N: usize>(coarse: &Probe<N>, fine: &Probe<N>, scale: f64) -> Vec<(f64, f64)> {
-    // Momenta in units of the positions; a run at rest weighs positions only.
-    let weight = if coarse.p_scale.max(fine.p_scale) > 0.0 { scale / coarse.p_scale.max(fine.p_scale) } else { 0.0 };
+/// `(t, running maximum of the position difference, running maximum of the
+/// phase-space difference)` at the nodes the two probes share; the phase
+/// space weighs the momentum difference in units of the positions (`Q/P`),
+/// so that an oscillation's growth is seen before its position error has
+/// turned through a period (the position error alone, rising from a start
+/// at rest, looks exponential over the first checkpoints). Fixed steps: the nodes at equal times (to a few ulps of
+/// the span). A time transformation (`by_index`): coarse node `k` and fine
+/// node `2k` lie at the same new time `s` but at different physical times,
+/// so the fine position is moved to the coarse node's time along the fine
+/// run's velocity (central difference of its neighbours), `Δq − v Δt`; both
+/// runs land only at the pilot's end, where they are compared directly.
+fn distances<const N: usize>(coarse: &Probe<N>, fine: &Probe<N>, by_index: bool) -> Vec<(f64, f64, f64)> {
     let (first, last) = (coarse.samples[0].t, coarse.samples[coarse.samples.len() - 1].t);
     let tol = 64.0 * f64::EPSILON * first.abs().max(last.abs()).max(last - first);
+    let (scale, p_scale) = (coarse.scale.max(fine.scale), coarse.p_scale.max(fine.p_scale));
+    // Momenta in units of the positions; a run at rest weighs positions only.
+    let weight = if p_scale > 0.0 { scale / p_scale } else { 0.0 };
     let mut out = Vec::with_capacity(coarse.samples.len());
-    let mut running = 0.0f64;
+    let (mut running, mut running_phase) = (0.0f64, 0.0f64);
+    let mut push = |t: f64, (dq, dp): (f64, f64)| {
+        running = running.max(dq);
+        running_phase = running_phase.max(dq.max(dp * weight));
+        out.push((t, running, running_phase));
+    };
+    // `(‖Δq‖∞, ‖Δp‖∞)` with `b` moved to `a.t` along the rates `(v, f)`.
+    let diff = |a: &Sample<N>, b: &Sample<N>, (v, f): ([f64; N], [f64; N])| {
+        let dt = a.t - b.t;
+        (
+            (0..N).fold(0.0f64, |m, i| m.max((a.q[i] - b.q[i] - v[i] * dt).abs())),
+            (0..N).fold(0.0f64, |m, i| m.max((a.p[i] - b.p[i] - f[i] * dt).abs())),
+        )
+    };
+    let still = ([0.0; N], [0.0; N]);
+    if by_index {
+        let (nc, nf) = (coarse.samples.len(), fine.samples.len());
+        for (k, a) in coarse.samples.iter().enumerate().take(nc - 1) {
+            let j = 2 * k;
+            if j + 1 >= nf - 1 {
+                break;
+            }
+            let b = &fine.samples[j];
+            let rates = if j == 0 {
+                still
+            } else {
+                let (l, r) = (&fine.samples[j - 1], &fine.samples[j + 1]);
+                (
+                    core::array::from_fn(|i| (r.q[i] - l.q[i]) / (r.t - l.t)),
+                    core::array::from_fn(|i| (r.p[i] - l.p[i]) / (r.t - l.t)),
+                )
+            };
+            push(a.t, diff(a, b, rates));
+        }
+        let (a, b) = (&coarse.samples[nc - 1], &fine.samples[nf - 1]);
+        if (a.t - b.t).abs() <= tol {
+            push(a.t, diff(a, b, still));
+        }
+        return out;
+    }
     let mut j = 0;
     for a in &coarse.samples {
         while j < fine.samples.len() && fine.samples[j].t < a.t - tol {
             j += 1;
         }
         let Some(b) = fine.samples.get(j).filter(|b| (b.t - a.t).abs() <= tol) else { continue };
-        let dq = a.q.iter().zip(&b.q).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-        let dp = a.p.iter().zip(&b.p).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-        running = running.max(dq.max(dp * weight));
-        out.push((a.t, running));
+        push(a.t, diff(a, b, still));
     }
     out
 }
@@ -151,7 +270,8 @@ impl Richardson {
     /// growth judged at the checkpoints `times` (each twice as far from `t0`
     /// as the one before) from `settle` after `t0` on (a period of the
     /// fastest mode: within it, the error of an oscillation is still turning
-    /// with its phase).
+    /// with its phase); `by_index` pairs the nodes of a time transformation
+    /// (see [`distances`]).
     pub(crate) fn new<const N: usize>(
         coarse: &Probe<N>,
         fine: &Probe<N>,
@@ -159,19 +279,23 @@ impl Richardson {
         times: &[f64],
         t0: f64,
         settle: f64,
+        by_index: bool,
     ) -> Self {
         let factor = 2f64.powi(order as i32) / (2f64.powi(order as i32) - 1.0);
         let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
-        let d = distances(coarse, fine, scale);
+        let d = distances(coarse, fine, by_index);
         // The running maximum at each checkpoint: the last shared node not after it.
         let e: Vec<f64> = times
             .iter()
             .map(|&tc| {
-                let i = d.partition_point(|&(t, _)| t <= tc + 64.0 * f64::EPSILON * tc.abs());
-                if i == 0 { 0.0 } else { d[i - 1].1 * factor }
+                let i = d.partition_point(|&(t, _, _)| t <= tc + 64.0 * f64::EPSILON * tc.abs());
+                if i == 0 { 0.0 } else { d[i - 1].2 * factor }
             })
             .collect();
         let noise = 10.0 * f64::EPSILON * scale * (fine.steps.max(1) as f64).sqrt();
+        // The growth is judged on the phase-space distance (see `distances`),
+        // the error on the positions.
+        let phase_error = d.last().map_or(0.0, |x| x.2 * factor);
         let error = d.last().map_or(0.0, |x| x.1 * factor);
         let mut growth = Growth::Power(1.0);
         // Exponential growth keeps every interval steep; a bend of a power
@@ -198,12 +322,12 @@ impl Richardson {
         }
         // An error that saturates before two checkpoints show its growth:
         // judged from the first measurable checkpoint to the last.
-        if matches!(growth, Growth::Power(_)) && error >= 1e-2 * scale {
+        if matches!(growth, Growth::Power(_)) && phase_error >= 1e-2 * scale {
             let n = e.len() - 1;
             if let Some(i) = (0..n).find(|&i| times[i] - t0 >= 0.99 * settle && e[i] > 10.0 * noise) {
-                let k = (error / e[i]).ln() / ((times[n] - t0) / (times[i] - t0)).ln();
+                let k = (phase_error / e[i]).ln() / ((times[n] - t0) / (times[i] - t0)).ln();
                 if k > 3.0 {
-                    growth = Growth::Exponential((error / e[i]).ln() / (times[n] - times[i]));
+                    growth = Growth::Exponential((phase_error / e[i]).ln() / (times[n] - times[i]));
                 }
             }
         }

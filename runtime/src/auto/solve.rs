@@ -9,7 +9,7 @@ use crate::system::Lagrangian;
 use crate::time_transform::{ExplicitTimeTransformed, TimeFunction};
 
 use super::choice::{self, Candidate, Facts, Family, Fixed};
-use super::pilot::{self, Clock, Cost, Growth, Probe, Richardson};
+use super::pilot::{self, Clock, Cost, Growth, Probe, Rates, Richardson};
 use super::tolerance::Tolerance;
 
 /// The fraction of the span the pilot covers (at least one period of the
@@ -19,15 +19,28 @@ const PILOT_FRACTION: f64 = 0.1;
 /// Richardson estimate is asymptotic, and the error of a fixed-step method
 /// is not monotone in `h`.
 const SAFETY: f64 = 0.3;
+/// The step the pilot's estimate leads to, over the pilot's step, that is
+/// taken without piloting again: finer steps down to a quarter (the
+/// asymptotic model `e ∝ h^p` holds better at finer steps, and an estimate
+/// from a coarse step still in its pre-asymptotic range errs on the safe
+/// side), coarser up to twice.
+const ACCEPT: core::ops::RangeInclusive<f64> = 0.25..=2.0;
 /// Pilot rounds per candidate before its last step is taken as it is.
 const ROUNDS: usize = 5;
 /// Checkpoints of the pilot, each twice as far from the start as the one before.
 const CHECKPOINTS: usize = 7;
-/// Uniformly spaced landings of a time-transformed pilot, where its two
-/// runs are compared besides the checkpoints.
-const LANDINGS: usize = 32;
 /// Samples of `ρ` for the step-density survey.
-const SURVEY_SAMPLES: usize = 256;
+const SURVEY_SAMPLES: usize = 64;
+/// Power iterations for `ρ` at the start (from no known mode).
+const START_ITERATIONS: usize = 30;
+/// Coarse steps a time-transformed pilot takes at least: its two runs are
+/// compared node by node.
+const TT_PILOT_STEPS: u64 = 16;
+/// The largest `ρ h` of a composition's step, with `ρ` the fastest rate met
+/// at the start and along the survey: Kahan–Li 8 on the report's FPU-β
+/// chain diverges at `ρ h ≈ 4.4` and its Richardson estimate is already
+/// five times low at `ρ h ≈ 1.9`.
+const COMPOSITION_RHO_H: f64 = 1.5;
 
 /// The answer of a tolerance-driven solve: the [`Solution`] of the final
 /// run and the [`Estimate`] of its error.
@@ -167,10 +180,15 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         }
         let facts = Facts::of::<S, N>();
         let span = t_end - self.t0;
-        let rho = guidance::linearize(&self.system, self.t0, self.q0, self.v0)
-            .map(|l| l.fastest)
-            .ok()
-            .filter(|r| *r > 0.0 && r.is_finite());
+        // `½ vᵀMv − V(q)`: power iteration on the gradient, a fraction of the
+        // cost of the dense linearisation on many coordinates.
+        let rho = if facts.explicit() {
+            Rates::new(&self.system, self.t0, &self.q0)
+                .and_then(|mut r| r.at(&self.system, self.t0, &self.q0, START_ITERATIONS))
+        } else {
+            guidance::linearize(&self.system, self.t0, self.q0, self.v0).map(|l| l.fastest).ok()
+        }
+        .filter(|r| *r > 0.0 && r.is_finite());
         // One period of the fastest mode at the start, at least.
         let tp = self.t0 + (PILOT_FRACTION * span).max(rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r)).min(span);
         let checkpoints: [f64; CHECKPOINTS] =
@@ -180,6 +198,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let first = choice::candidates::<N>(facts, self.tolerance.rtol, None, self.fixed)?;
         // The survey: how strongly the needed step density varies along the orbit.
         let mut density_ratio = None;
+        let mut rho_max = rho.unwrap_or(0.0);
         if facts.transformable() && self.fixed.family.is_none_or(|f| f == Family::TimeTransformed) {
             let c = first[0].0;
             let mut h = self.initial_step(c, rho, span);
@@ -191,6 +210,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     cost.steps += p.steps;
                     let mean = p.rates.iter().sum::<f64>() / p.rates.len().max(1) as f64;
                     let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
+                    rho_max = rho_max.max(max);
                     if mean > 0.0 && max.is_finite() {
                         density_ratio = Some(max / mean);
                     }
@@ -202,7 +222,11 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let candidates = choice::candidates::<N>(facts, self.tolerance.rtol, density_ratio, self.fixed)?;
         let mut failures = Vec::new();
         for (candidate, reason) in candidates {
-            match self.pilot(candidate, rho, span, &checkpoints, settle, &mut cost) {
+            let h_cap = match candidate.family {
+                Family::Composition if rho_max > 0.0 && self.step.is_none() => COMPOSITION_RHO_H / rho_max,
+                _ => f64::INFINITY,
+            };
+            match self.pilot(candidate, rho, span, &checkpoints, settle, h_cap, &mut cost) {
                 Ok((step, rich, scale)) => {
                     let requested = self.tolerance.bound(scale);
                     let (step, error) = step;
@@ -255,8 +279,11 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let periods = (rho * span).max(1.0);
         let h = rule.omega_h((SAFETY * self.tolerance.rtol / periods).max(1e-300)).min(0.5) / rho;
         match c.family {
-            // Compositions spend `m` sub-steps per step of order `p`.
-            Family::Composition | Family::TimeTransformed => h * 4.0,
+            // Compositions spend `m` sub-steps per step of order `p`, and
+            // start coarse: a coarse round costs a fraction of one at the
+            // final step, and the step it leads to is accepted down to a
+            // quarter of it (see `ACCEPT`).
+            Family::Composition | Family::TimeTransformed => h * 16.0,
             Family::Galerkin => h,
         }
     }
@@ -281,8 +308,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             .filter(|g| g.is_finite() && *g > 0.0)
     }
 
-    /// The pilot of one candidate: `Ok((step, estimate at that step, scale))`.
-    #[allow(clippy::type_complexity)]
+    /// The pilot of one candidate, its steps at most `h_cap`:
+    /// `Ok((step, estimate at that step, scale))`.
+    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
     fn pilot(
         &self,
         c: Candidate,
@@ -290,6 +318,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         span: f64,
         checkpoints: &[f64; CHECKPOINTS],
         settle: f64,
+        h_cap: f64,
         cost: &mut Cost,
     ) -> Result<((f64, f64), Richardson, f64), Error<N>> {
         let mut h = match (self.step, c.family) {
@@ -304,7 +333,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let mut failures = 0;
         let mut last: Option<((f64, f64), Richardson, f64)> = None;
         // A few coarse steps over the pilot at least.
-        let h_max = (checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0;
+        let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
         for _ in 0..ROUNDS {
             if fixed_step && self.step.is_none() {
@@ -329,21 +358,20 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             };
             let tp = *times.last().expect("at least one checkpoint");
             // A time transformation's nodes fall at different times in the
-            // two runs: they are compared where both land, on the
-            // checkpoints and a uniform grid between them.
-            let landings: Vec<f64> = if fixed_step {
-                times.clone()
-            } else {
-                let mut l: Vec<f64> = (1..=LANDINGS)
-                    .map(|i| self.t0 + (tp - self.t0) * i as f64 / LANDINGS as f64)
-                    .chain(times.iter().copied())
-                    .collect();
-                l.sort_by(f64::total_cmp);
-                l.dedup();
-                l
+            // two runs: they are compared node by node at equal new time, and
+            // land only at the pilot's end.
+            let landings: Vec<f64> = if fixed_step { times.clone() } else { vec![tp] };
+            let coarse = run_probe(c, self, h, &landings, true, 0);
+            let fine = match &coarse {
+                Ok(p) if !fixed_step && p.steps < TT_PILOT_STEPS && self.step.is_none() => {
+                    // Too few nodes to compare: a finer σ.
+                    cost.steps += p.steps;
+                    h *= p.steps.max(1) as f64 / (2 * TT_PILOT_STEPS) as f64;
+                    continue;
+                }
+                Ok(_) => Some(run_probe(c, self, h / 2.0, &landings, true, 0)),
+                Err(_) => None,
             };
-            let coarse = run_probe(c, self, h, &landings, fixed_step, 0);
-            let fine = coarse.as_ref().ok().map(|_| run_probe(c, self, h / 2.0, &landings, fixed_step, 0));
             let (coarse, fine) = match (coarse, fine) {
                 (Ok(a), Some(Ok(b))) => (a, b),
                 (Err(e), _) | (_, Some(Err(e))) => {
@@ -358,7 +386,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             };
             cost.steps += coarse.steps + fine.steps;
             let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
-            let rich = Richardson::new(&coarse, &fine, c.order, &times, self.t0, settle);
+            let rich = Richardson::new(&coarse, &fine, c.order, &times, self.t0, settle, !fixed_step);
             let target = SAFETY * self.tolerance.bound(scale);
             let at_end = rich.at(self.t0, tp, self.t0 + span);
             if self.step.is_some() {
@@ -389,11 +417,12 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 continue;
             }
             let ratio = (target / at_end).powf(1.0 / p as f64);
+            let ratio = ratio.min(h_cap / h);
             let h_new = h * ratio;
             // The estimate at the step taken: error ∝ h^p.
             let estimate = at_end * ratio.powi(p);
             last = Some(((h_new, estimate), rich, scale));
-            if (0.5..=2.0).contains(&ratio) {
+            if ACCEPT.contains(&ratio) {
                 break;
             }
             // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
