@@ -204,6 +204,7 @@ pub mod prelude {
         Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{Auto, Estimate, Solved, Tolerance, solve_to};
+    pub use lagrangian_runtime::{Checkpoints, Loss, Parametric};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
@@ -216,7 +217,8 @@ pub mod prelude {
 pub mod __private {
     pub use lagrangian_runtime::chunk;
     pub use lagrangian_runtime::{
-        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, StepDensity, Symmetry,
+        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Parametric, Pattern, Scalar, Separability, StepDensity,
+        Symmetry,
     };
 }
 
@@ -256,4 +258,6 @@ pub mod guide {
     pub struct Cluster;
     #[doc = include_str!("../docs/guide/one-way-in.md")]
     pub struct OneWayIn;
+    #[doc = include_str!("../docs/guide/derivatives.md")]
+    pub struct Derivatives;
 }
