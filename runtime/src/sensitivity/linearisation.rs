@@ -3,7 +3,7 @@
 //!
 //! A one-point rule (midpoint, trapezoid, α-β) is the Galerkin rule of
 //! degree 1 with two quadrature points `c_1, c_2` of weight ½
-//! ([`DiscreteLagrangian::galerkin_points`](crate::DiscreteLagrangian::galerkin_points)):
+//! ([`DiscreteLagrangian::galerkin_points`]):
 //!
 //! ```text
 //! A   = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)
