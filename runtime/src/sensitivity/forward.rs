@@ -120,7 +120,7 @@ pub(crate) struct Propagation<'s, S, const N: usize, const P: usize> {
     /// `(k, S_k)` of the nodes `k` with `k % every == 0`.
     pub(crate) kept: Vec<(u64, Jacobian)>,
     /// The last node's `(k, S_k)`.
-    pub(crate) last: Option<(u64, Jacobian)>,
+    pub(crate) last: Option<(u64, Tangent<N, P>)>,
     pub(crate) error: Option<Error<N>>,
 }
 
@@ -147,11 +147,10 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
             }
         }
         let k = node.step;
-        let jacobian = self.tangent.jacobian();
         if self.every > 0 && k.is_multiple_of(self.every as u64) {
-            self.kept.push((k, jacobian.clone()));
+            self.kept.push((k, self.tangent.jacobian()));
         }
-        self.last = Some((k, jacobian));
+        self.last = Some((k, self.tangent));
         self.previous = Some(node);
     }
 
@@ -164,7 +163,7 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
                 kept.binary_search_by_key(&k, |(i, _)| *i)
                     .ok()
                     .map(|i| kept[i].1.clone())
-                    .or_else(|| last.as_ref().filter(|(i, _)| *i == k).map(|(_, j)| j.clone()))
+                    .or_else(|| last.as_ref().filter(|(i, _)| *i == k).map(|(_, s)| s.jacobian()))
             });
             match found {
                 Some(j) => jacobians.push(j),
