@@ -206,9 +206,10 @@ pub use lagrangian_runtime::{
     StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
     TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
+pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use lagrangian_runtime::{
     auto, constrained, dense, derivatives, discrete, double_double, ensemble, events, forcing, galerkin, guidance,
-    mechanics, newton, noether, problem, solution, structure, symplectic, system, time_transform,
+    mechanics, newton, noether, problem, sensitivity, solution, structure, symplectic, system, time_transform,
 };
 
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
@@ -223,6 +224,7 @@ pub mod prelude {
         Symmetry, Trapezoid,
     };
     pub use lagrangian_runtime::{Auto, Estimate, Solved, Tolerance, solve_to};
+    pub use lagrangian_runtime::{Checkpoints, Loss, Parametric};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
@@ -234,7 +236,8 @@ pub mod prelude {
 #[doc(hidden)]
 pub mod __private {
     pub use lagrangian_runtime::{
-        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Pattern, Scalar, Separability, StepDensity, Symmetry,
+        Coupling, DynLagrangian, ForceCoupling, Lagrangian, Parametric, Pattern, Scalar, Separability, StepDensity,
+        Symmetry,
     };
     pub use lagrangian_runtime::{chunk, hyperdual, tape};
 }
@@ -275,4 +278,6 @@ pub mod guide {
     pub struct Cluster;
     #[doc = include_str!("../docs/guide/one-way-in.md")]
     pub struct OneWayIn;
+    #[doc = include_str!("../docs/guide/derivatives.md")]
+    pub struct Derivatives;
 }

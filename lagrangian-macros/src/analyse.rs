@@ -66,7 +66,7 @@ pub(crate) fn analyse(cx: &Ctxt, system: &mut System) -> Analysis {
 }
 
 /// Classifies `function`; `false` if it is inconsistent (see [`Analysis`]).
-fn classify(cx: &Ctxt, function: &mut Function) -> bool {
+pub(crate) fn classify(cx: &Ctxt, function: &mut Function) -> bool {
     let ret = function.return_class();
     let Function { kind, body, locals, .. } = function;
     let kind = *kind;

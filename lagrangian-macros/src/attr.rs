@@ -1,5 +1,5 @@
 //! The arguments of the attribute: `#[lagrangian(discontinuous, symmetry =
-//! ..., ...)]`.
+//! ..., parameters(...), ...)]`.
 //!
 //! `discontinuous` acknowledges a Lagrangian that jumps where a branch on
 //! `t`, `q` or `v` changes (see `discontinuity`): the body is accepted and
@@ -12,12 +12,18 @@
 //! a closure or function `&[f64; N] -> [f64; N]` giving `ξ(q)`. The indices
 //! are checked against `N` when `N` is a literal; a declared symmetry is not
 //! proven (the runtime's `noether::symmetry_defect` measures it).
+//!
+//! `parameters(m, l, g)` names `f64` fields of the system whose derivatives
+//! the runtime's sensitivities and adjoint carry (`generate::parameters`).
+//! The list must be non-empty and name each field once; a name that no body
+//! reads as `self.name` is an error (differentiating with respect to it
+//! would give zero, which is more likely a typo than a wish).
 
 use crate::ctxt::Ctxt;
 use crate::parse::Len;
 use proc_macro2::TokenStream;
 use syn::punctuated::Punctuated;
-use syn::{Expr, ExprCall, ExprLit, Lit, LitInt, Meta, Token};
+use syn::{Expr, ExprCall, ExprLit, Ident, Lit, LitInt, Meta, Token};
 
 /// The parsed arguments.
 #[derive(Default)]
@@ -29,6 +35,8 @@ pub(crate) struct Args {
     /// The `symmetry` key of every `symmetry = ...`, readable or not: where
     /// a run-time-sized system refuses them.
     pub(crate) symmetry_keys: Vec<syn::Path>,
+    /// The names of `parameters(...)`, in order, and the `parameters` key.
+    pub(crate) parameters: Option<(syn::Path, Vec<Ident>)>,
 }
 
 /// One declared symmetry.
@@ -44,8 +52,11 @@ pub(crate) enum SymmetryDecl {
 const EXPECTED: &str = "`symmetry = translation(i)`, `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
 
 /// Every argument the attribute takes.
-const ARGUMENTS: &str =
-    "`discontinuous`, `symmetry = translation(i)`, `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
+const ARGUMENTS: &str = "`discontinuous`, `parameters(a, b, ...)`, `symmetry = translation(i)`, \
+                         `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
+
+/// What `parameters` takes.
+const PARAMETERS: &str = "`parameters` takes the names of `f64` fields of the system, as in `parameters(m, l, g)`";
 
 /// Parses the attribute's arguments, reporting what it cannot read.
 pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
@@ -70,6 +81,10 @@ pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
             out.discontinuous = true;
             continue;
         }
+        if meta.path().is_ident("parameters") {
+            parameters(cx, &meta, &mut out);
+            continue;
+        }
         let Meta::NameValue(pair) = &meta else {
             cx.error_spanned_by(&meta, format!("unknown argument: `#[lagrangian]` takes {ARGUMENTS}"));
             continue;
@@ -84,6 +99,38 @@ pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
         }
     }
     out
+}
+
+/// `parameters(a, b, ...)`: field names, at least one, each once.
+fn parameters(cx: &Ctxt, meta: &Meta, out: &mut Args) {
+    let Meta::List(list) = meta else {
+        cx.error_spanned_by(meta, PARAMETERS);
+        return;
+    };
+    if out.parameters.is_some() {
+        cx.error_spanned_by(&list.path, "`parameters` is given twice: name every parameter in one list");
+        return;
+    }
+    let names = match list.parse_args_with(Punctuated::<Ident, Token![,]>::parse_terminated) {
+        Ok(names) => names,
+        Err(error) => {
+            cx.error_at(error.span(), PARAMETERS);
+            return;
+        }
+    };
+    if names.is_empty() {
+        cx.error_at(list.delimiter.span().join(), format!("`parameters()` names no parameter: {PARAMETERS}"));
+        return;
+    }
+    let mut seen: Vec<Ident> = Vec::new();
+    for name in names {
+        if seen.contains(&name) {
+            cx.error_spanned_by(&name, format!("parameter `{name}` is named twice"));
+        } else {
+            seen.push(name);
+        }
+    }
+    out.parameters = Some((list.path.clone(), seen));
 }
 
 /// One `symmetry = <value>`.
@@ -163,6 +210,18 @@ pub(crate) fn check(cx: &Ctxt, decls: &[SymmetryDecl], n: &Len) {
             }
             SymmetryDecl::Generator(_) => {}
         }
+    }
+}
+
+/// Refuses parameters on a run-time-sized system: the runtime's
+/// sensitivities are written for compile-time-sized states.
+pub(crate) fn refuse_parameters(cx: &Ctxt, args: &Args) {
+    if let Some((key, _)) = &args.parameters {
+        cx.error_spanned_by(
+            key,
+            "`parameters` is not supported for run-time-sized systems (`q: &[f64]`): \
+             the sensitivities are written for `q: [f64; N]`",
+        );
     }
 }
 

@@ -16,16 +16,27 @@ pub(crate) fn expand(attr: TokenStream, item: ItemImpl) -> TokenStream {
     match system.as_ref().map(|system| &system.n) {
         Some(Dim::Fixed(n)) => attr::check(&cx, &args.symmetries, n),
         // `DynLagrangian` has no `SYMMETRIES`.
-        Some(Dim::Dynamic) => attr::refuse_symmetries(&cx, &args),
+        Some(Dim::Dynamic) => {
+            attr::refuse_symmetries(&cx, &args);
+            attr::refuse_parameters(&cx, &args);
+        }
         None => {}
     }
+    let parametric = match system.as_ref().map(|system| &system.n) {
+        Some(Dim::Fixed(n)) => generate::parameters::prepare(&cx, &input, &args).map(|copy| (copy, n.clone())),
+        _ => None,
+    };
     let analysis = system.as_mut().map(|system| analyse::analyse(&cx, system));
     if let Some(system) = &system {
         discontinuity::check(&cx, &system.lagrangian, args.discontinuous);
     }
     match (cx.check(), system, analysis) {
         (Ok(()), Some(system), Some(analysis)) if analysis.consistent => {
-            generate::expand(&item, &system, &analysis, &args)
+            let mut out = generate::expand(&item, &system, &analysis, &args);
+            if let Some((copy, n)) = &parametric {
+                out.extend(generate::parameters::items(&item, copy, n));
+            }
+            out
         }
         // The body mixes types in a way rustc rejects on the user's own
         // method; generated code would only repeat that error.

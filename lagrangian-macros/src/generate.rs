@@ -17,6 +17,7 @@ use std::cell::RefCell;
 use syn::{BinOp, ImplItem, ItemImpl, Token, Type};
 
 mod constraints;
+pub(crate) mod parameters;
 
 /// The user's block followed by the trait impl: `Lagrangian<N>` for a
 /// system of arrays, `DynLagrangian` for one of slices.

@@ -348,6 +348,13 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// The state the integrator holds (the initial data at the start).
         state: State<N, T>,
     },
+    /// The loss of an adjoint gradient, or its derivative, is NaN or
+    /// infinite at a node ([`Problem::gradient`](crate::Problem::gradient)).
+    #[error("the loss or its gradient is not finite at t = {} (step {})", .state.t, .state.step)]
+    NonFiniteLoss {
+        /// The node.
+        state: State<N, T>,
+    },
 }
 
 impl<const N: usize, T: Real> Error<N, T> {
@@ -384,7 +391,8 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::OrbitLost { state, .. }
             | Error::InverseLegendre { state, .. }
             | Error::SingularConstraints { state, .. }
-            | Error::NonFiniteConstraints { state } => *state = at,
+            | Error::NonFiniteConstraints { state }
+            | Error::NonFiniteLoss { state } => *state = at,
             _ => {}
         }
         self
@@ -433,6 +441,7 @@ impl<const N: usize, T: Real> Error<N, T> {
             }
             Error::SingularConstraints { state, rcond } => Error::SingularConstraints { state: f(state), rcond },
             Error::NonFiniteConstraints { state } => Error::NonFiniteConstraints { state: f(state) },
+            Error::NonFiniteLoss { state } => Error::NonFiniteLoss { state: f(state) },
             Error::InverseLegendre { state, iterations, residual_norm } => {
                 Error::InverseLegendre { state: f(state), iterations, residual_norm }
             }

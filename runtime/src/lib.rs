@@ -28,6 +28,7 @@ pub mod newton;
 pub mod noether;
 pub mod problem;
 mod real;
+pub mod sensitivity;
 #[cfg(feature = "serde")]
 mod serde_arrays;
 pub mod solution;
@@ -61,6 +62,7 @@ pub use noether::{Generator, Symmetry};
 pub use num_dual;
 pub use problem::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
 pub use real::Real;
+pub use sensitivity::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
 pub use state::State;
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};

@@ -226,12 +226,13 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // steps, of a forced system, for the one-point rules); forces with
     // fixed steps but for the splitting; no compile-time size above 1024;
     // at run-time size fixed steps of the one-point rules and compositions,
-    // and `solve` for none.
-    let one_point = [true, true, true, true, false, true, false];
-    let galerkin = [true, true, false, true, false, false, false];
-    let composition = [true, false, false, true, false, true, false];
-    let transformed = [true, false, false, true, false, false, false];
-    let splitting = [true, false, false, false, false, false, false];
+    // and `solve` for none; sensitivities and the adjoint for fixed steps of
+    // the one-point rules, forced or not.
+    let one_point = [true, true, true, true, false, true, false, true, true, false];
+    let galerkin = [true, true, false, true, false, false, false, false, false, false];
+    let composition = [true, false, false, true, false, true, false, false, false, false];
+    let transformed = [true, false, false, true, false, false, false, false, false, false];
+    let splitting = [true, false, false, false, false, false, false, false, false, false];
     let expected = [
         one_point,
         one_point,
@@ -271,7 +272,7 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
 type Column = (&'static str, fn(f64) -> Policy, Size, bool, Capability);
 
 /// The columns of the scheme table.
-const SCHEME_COLUMNS: [Column; 7] = [
+const SCHEME_COLUMNS: [Column; 10] = [
     ("fixed, N = 2", Policy::fixed, Size::Const(2), false, Capability::Solve),
     ("energy-preserving, N = 2", Policy::energy_preserving, Size::Const(2), false, Capability::Solve),
     ("energy-balance, forced, N = 2", Policy::energy_balance, Size::Const(2), true, Capability::Solve),
@@ -279,17 +280,26 @@ const SCHEME_COLUMNS: [Column; 7] = [
     ("fixed, N = 1025", Policy::fixed, Size::Const(1025), false, Capability::Solve),
     ("fixed, run-time N: step, `run_until`", Policy::fixed, Size::Dynamic, false, Capability::Step),
     ("fixed, run-time N: `solve`, files", Policy::fixed, Size::Dynamic, false, Capability::Solve),
+    ("sensitivities, adjoint: fixed, N = 2", Policy::fixed, Size::Const(2), false, Capability::Sensitivities),
+    ("sensitivities, adjoint: fixed, forced, N = 2", Policy::fixed, Size::Const(2), true, Capability::Sensitivities),
+    (
+        "sensitivities, adjoint: energy-preserving, N = 2",
+        Policy::energy_preserving,
+        Size::Const(2),
+        false,
+        Capability::Sensitivities,
+    ),
 ];
 
 /// Every method family × step policy × size through `Problem` (or
 /// `DynProblem`): what `lagrangian::problem::supports` answers, the
 /// markdown table and whether each cell is defined.
-fn scheme_table() -> (String, Vec<[bool; 7]>) {
+fn scheme_table() -> (String, Vec<[bool; 10]>) {
     let names: Vec<&str> = SCHEME_COLUMNS.iter().map(|c| c.0).collect();
     let mut table = format!("| scheme | {} |\n|---|{}\n", names.join(" | "), "---|".repeat(names.len()));
     let mut defined = Vec::new();
     for (name, scheme, _) in families() {
-        let mut row = [false; 7];
+        let mut row = [false; 10];
         let cells: Vec<String> = SCHEME_COLUMNS
             .iter()
             .zip(&mut row)

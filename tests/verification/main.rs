@@ -30,6 +30,7 @@ mod gradient_fuzz;
 mod impulse;
 mod noether;
 mod perturbed_pendulum;
+mod sensitivities;
 mod structure;
 mod summation;
 mod time_dependent;

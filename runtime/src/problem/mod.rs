@@ -5,6 +5,8 @@
 //! Problem::new(system, t0, q0, v0)          DynProblem::new(system, t0, q0, v0)   (run-time size)
 //!   .solve(&scheme, policy, plan) -> Solution<N>       (the same for every Scheme)
 //!   .stepper(&scheme, policy)     -> Stepper<S, N>     (step, run, run_until, solve, state, energy, …)
+//!   .solve_with_sensitivities(&scheme, policy, plan) -> Sensitivities<N>   (S: Parametric)
+//!   .gradient(&scheme, h, t_end, &loss, checkpoints) -> Gradient<N, P>     (S: Parametric)
 //! supports(&Combination) -> Ok | the refusal naming the combination
 //! ```
 //!
@@ -20,6 +22,7 @@
 mod dynamic;
 mod extend;
 mod scheme;
+mod sensitivities;
 mod statement;
 mod stepper;
 mod support;

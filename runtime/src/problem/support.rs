@@ -104,6 +104,11 @@ pub enum Capability {
     /// `solve(Plan)` → [`Solution`](crate::Solution): thinning, save times by
     /// dense output, events, and the CSV and JSON files of the solution.
     Solve,
+    /// Derivatives of the trajectory with respect to the parameters and the
+    /// initial data: forward sensitivities
+    /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
+    /// and the discrete adjoint ([`Problem::gradient`](super::Problem::gradient)).
+    Sensitivities,
 }
 
 /// One combination of method, policy, system and workflow.
@@ -158,9 +163,35 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     {
         return Err("a composition of midpoint or α-β sub-steps: the compositions are of trapezoid sub-steps");
     }
+    if c.capability == Capability::Sensitivities {
+        sensitivities(c)?;
+    }
     match c.size {
         Size::Const(n) => constant(c, n),
         Size::Dynamic => dynamic(c),
+    }
+}
+
+/// The methods whose step the sensitivities and the adjoint differentiate:
+/// fixed steps of the one-point rules.
+fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
+    if c.size == Size::Dynamic {
+        return Err("sensitivities of a run-time-sized system: they are written for `Problem`'s compile-time `N`");
+    }
+    match (c.scheme, c.policy) {
+        (Scheme::OnePoint(_), Policy::Fixed { .. }) => Ok(()),
+        (Scheme::OnePoint(_), _) => Err(
+            "sensitivities under variable steps: the step size chosen by the energy equation is not differentiated yet",
+        ),
+        (Scheme::Galerkin { .. }, _) => {
+            Err("sensitivities of a Galerkin rule: not differentiated yet; the one-point rules are")
+        }
+        (Scheme::Composition { .. }, _) => {
+            Err("sensitivities of a composition: not differentiated yet; the one-point rules are")
+        }
+        (Scheme::TimeTransformed { .. } | Scheme::Splitting { .. }, _) => Err(
+            "sensitivities of a time-transformed scheme: the step in `s` and its density are not differentiated yet",
+        ),
     }
 }
 
@@ -254,6 +285,8 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
     }
     match c.capability {
         Capability::Step => Ok(()),
+        // Refused by `sensitivities` before the size is looked at.
+        Capability::Sensitivities => Err("sensitivities of a run-time-sized system"),
         Capability::Solve => Err(
             "`solve(Plan)` on a run-time-sized system: `Solution` has compile-time-sized rows; step it and record what you need",
         ),

@@ -1,0 +1,37 @@
+//! Derivatives of the computed trajectory with respect to the parameters
+//! `θ` of the system and the initial data `(q0, v0)` (docs/theory.md §11).
+//!
+//! A fixed step of a one-point rule is the map `x_{k+1} = Φ(x_k, θ)`,
+//! `x = (q, p)`, defined by the discrete Euler–Lagrange (and
+//! Lagrange–d'Alembert) equations
+//!
+//! ```text
+//! p_k + D₁A(q_k, q_{k+1}; θ) + F⁻(q_k, q_{k+1}; θ) = 0
+//! p_{k+1} = D₂A(q_k, q_{k+1}; θ) + F⁺(q_k, q_{k+1}; θ)
+//! ```
+//!
+//! Its Jacobians `Φ_x`, `Φ_θ` follow from the implicit function theorem
+//! with the derivatives of those two functions from nested dual numbers
+//! ([`linearisation`]). Forward sensitivities ([`forward`]) propagate
+//! `S_{k+1} = Φ_x S_k + Φ_θ`; the discrete adjoint ([`adjoint`]) runs
+//! `λ_k = ∂ℓ_k/∂x_k + Φ_xᵀ λ_{k+1}` backwards and sums `Φ_θᵀ λ_{k+1}`, the
+//! exact gradient of the computed loss, with checkpoints so that memory is
+//! `O(checkpoints + segment)`. Both use the same linearisation of each
+//! step, so they agree to round-off; the pairing `λ_kᵀ S_k` of the two is
+//! conserved by a symplectic step.
+//!
+//! The entry points are [`Problem::solve_with_sensitivities`] and
+//! [`Problem::gradient`](crate::Problem::gradient); which combinations
+//! they take is said by [`supports`](crate::problem::supports) with
+//! [`Capability::Sensitivities`](crate::problem::Capability::Sensitivities).
+//!
+//! [`Problem::solve_with_sensitivities`]: crate::Problem::solve_with_sensitivities
+
+pub mod adjoint;
+pub mod forward;
+pub mod linearisation;
+mod parametric;
+
+pub use adjoint::{Checkpoints, Gradient, Loss};
+pub use forward::{Jacobian, Sensitivities};
+pub use parametric::Parametric;
