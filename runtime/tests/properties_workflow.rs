@@ -818,7 +818,9 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
                 // r = 2.2e-16 reached 1.1e-7 of it. Data with a coordinate
                 // below 1e-100 take their arithmetic through the subnormal
                 // range (x = 2.2e-308 lost 1.8e-6 of the energy and 5e-7 of
-                // |q| |p| in q × p): neither is checked to round-off there.
+                // |q| |p| in q × p): neither is checked to round-off there,
+                // nor q × p near a collision, where the drift's cancellation
+                // loses 7e-7 of |q| |p| at r = 2e-25 from the centre.
                 let tiny = q.iter().chain(&v).any(|x| *x != 0.0 && x.abs() < 1e-100);
                 let exact = case.function == TimeFunction::Logarithmic
                     && !case.kick_drift_kick
@@ -831,7 +833,7 @@ fn explicit_time_transformation_under_random_and_adversarial_input() {
                 } else {
                     Some((0.1 * scale, 0.0))
                 };
-                Conservation { energy, clocks: true, angular: !tiny, max_sigma: 0.2 }
+                Conservation { energy, clocks: true, angular: !tiny && !near_collision(q, v), max_sigma: 0.2 }
             });
             explicit_one(SepKepler, case, conservation, tally)
         } else {
