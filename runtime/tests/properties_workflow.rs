@@ -481,6 +481,15 @@ fn drive<const N: usize>(
     let (e0, k0, l0) = (start.energy, start.clocks, start.angular);
     // The largest |q| |p| so far: the size of the round-off in q × p.
     let mut angular_scale = l0.1;
+    // The largest |q| so far: a drift that ends near a collision cancels
+    // positions of this size, so the node's |q| (and its `V`) carries a
+    // relative round-off error of about ε · q_scale / |q|, and the orbit
+    // keeps that energy error after it (r = 9e-30 reached from r = 3e-16:
+    // 0.65 % of E two steps later). From a node where the cancellation
+    // exceeds 1e3 on, the energy is held only through the clocks.
+    let radius = |q: &[f64; N]| q.iter().fold(0.0_f64, |r, x| r.hypot(*x));
+    let mut q_scale = radius(&sim.state().q);
+    let mut cancelled = false;
     let mut conservation = conservation;
     // The σ of the last step taken: the time unit scales with σ.
     let mut stepped_sigma = sim.sigma();
@@ -610,9 +619,16 @@ fn drive<const N: usize>(
             tally.add("conservation checked");
             if let Some((absolute, relative)) = c.energy {
                 // The implicit driver has no `|T| + |V|` (NaN): no relative term.
-                let bound = absolute + if relative > 0.0 { relative * now.energy_scale } else { 0.0 };
-                prop_assert!((e - e0).abs() <= bound, "energy {e0} -> {e} (bound {bound:e}) at {:?}", sim.state());
-                tally.add(if relative > 0.0 { "energy checked to round-off" } else { "energy checked" });
+                let r = radius(&sim.state().q);
+                q_scale = q_scale.max(r);
+                cancelled |= relative > 0.0 && !(r * 1e3 >= q_scale);
+                if cancelled {
+                    tally.add("energy held by the clocks after a near-collision node");
+                } else {
+                    let bound = absolute + if relative > 0.0 { relative * now.energy_scale } else { 0.0 };
+                    prop_assert!((e - e0).abs() <= bound, "energy {e0} -> {e} (bound {bound:e}) at {:?}", sim.state());
+                    tally.add(if relative > 0.0 { "energy checked to round-off" } else { "energy checked" });
+                }
             }
             if c.angular {
                 angular_scale = angular_scale.max(now.angular.1);
@@ -775,12 +791,15 @@ fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
                     // matrix `∂²L/∂v²` is singular or not finite at data of
                     // extreme magnitude (|q| ~ 1e268 on Kepler).
                     let extreme = q0.iter().chain(&v0).any(|x| x.abs() > 1e100 || (*x != 0.0 && x.abs() < 1e-100));
+                    // Kepler started at the centre: `V` is not finite there.
+                    let singular = case.system == 0 && q0.iter().all(|x| *x == 0.0);
                     let ok = e.kind == "TimeFunctionArgument"
                         || (e.kind == "InvalidSetting"
                             && (floor_given_bad
                                 || case.min_time_step.is_none()
                                 || case.shift.is_some_and(|c| !c.is_finite())))
-                        || ((e.kind == "NotSeparable" || e.kind == "InvalidInitialData") && extreme);
+                        || ((e.kind == "NotSeparable" || e.kind == "InvalidInitialData") && extreme)
+                        || (e.kind == "InvalidInitialData" && singular);
                     prop_assert!(ok, "unexpected start error {:?}", e);
                 }
             }
