@@ -621,7 +621,7 @@ fn drive<const N: usize>(
                 // The implicit driver has no `|T| + |V|` (NaN): no relative term.
                 let r = radius(&sim.state().q);
                 q_scale = q_scale.max(r);
-                cancelled |= relative > 0.0 && !(r * 1e3 >= q_scale);
+                cancelled |= relative > 0.0 && (r * 1e3 < q_scale || r.is_nan());
                 if cancelled {
                     tally.add("energy held by the clocks after a near-collision node");
                 } else {
