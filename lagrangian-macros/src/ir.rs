@@ -165,6 +165,17 @@ impl Block {
         }
     }
 
+    /// Calls [`Expr::visit_mut`] on every expression of the block.
+    pub(crate) fn visit_mut(&mut self, f: &mut impl FnMut(&mut Expr) -> bool) {
+        for stmt in &mut self.stmts {
+            match stmt {
+                Stmt::Let { inits, .. } => inits.iter_mut().for_each(|init| init.visit_mut(f)),
+                Stmt::Expr { expr, .. } => expr.visit_mut(f),
+                Stmt::Item(_) => {}
+            }
+        }
+    }
+
     /// The final expression giving the block its value, if any.
     #[cfg(test)]
     pub(crate) fn tail(&self) -> Option<&Expr> {
@@ -284,6 +295,57 @@ impl Expr {
                 args.iter().for_each(|arg| arg.visit(f));
             }
             ExprKind::Array(elems) => elems.iter().for_each(|elem| elem.visit(f)),
+        }
+    }
+
+    /// [`visit`](Self::visit) with mutable access: `f` may rewrite an
+    /// expression, and returns whether to descend into what it left.
+    pub(crate) fn visit_mut(&mut self, f: &mut impl FnMut(&mut Expr) -> bool) {
+        if !f(self) {
+            return;
+        }
+        match &mut self.kind {
+            ExprKind::Lit(_)
+            | ExprKind::Path(_)
+            | ExprKind::SelfValue(_)
+            | ExprKind::Param(..)
+            | ExprKind::Local(..)
+            | ExprKind::Break(_)
+            | ExprKind::Continue(_) => {}
+            ExprKind::Field { base: expr, .. }
+            | ExprKind::Unary { expr, .. }
+            | ExprKind::Cast { expr, .. }
+            | ExprKind::Paren(expr)
+            | ExprKind::Repeat { elem: expr, .. } => expr.visit_mut(f),
+            ExprKind::Return(expr) => {
+                if let Some(expr) = expr {
+                    expr.visit_mut(f);
+                }
+            }
+            ExprKind::Index { base: a, index: b, .. }
+            | ExprKind::Binary { lhs: a, rhs: b, .. }
+            | ExprKind::Assign { place: a, value: b, .. } => {
+                a.visit_mut(f);
+                b.visit_mut(f);
+            }
+            ExprKind::Block(block) => block.visit_mut(f),
+            ExprKind::If { cond, then_branch, else_branch } => {
+                cond.visit_mut(f);
+                then_branch.visit_mut(f);
+                if let Some(else_branch) = else_branch {
+                    else_branch.visit_mut(f);
+                }
+            }
+            ExprKind::For { start, end, body, .. } => {
+                start.visit_mut(f);
+                end.visit_mut(f);
+                body.visit_mut(f);
+            }
+            ExprKind::MethodCall { receiver, args, .. } => {
+                receiver.visit_mut(f);
+                args.iter_mut().for_each(|arg| arg.visit_mut(f));
+            }
+            ExprKind::Array(elems) => elems.iter_mut().for_each(|elem| elem.visit_mut(f)),
         }
     }
 }

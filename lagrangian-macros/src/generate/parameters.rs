@@ -14,7 +14,7 @@
 use super::{Printer, cfgs, scalar_type};
 use crate::attr::Args;
 use crate::ctxt::Ctxt;
-use crate::ir::{Binder, Block, Expr, ExprKind, Function, Local, LocalId, Stmt};
+use crate::ir::{Binder, Block, Expr, ExprKind, Function, Local, LocalId};
 use crate::parse::{Input, Len};
 use proc_macro2::{Ident, Span, TokenStream};
 use quote::{ToTokens, format_ident, quote, quote_spanned};
@@ -45,7 +45,7 @@ pub(crate) fn prepare(cx: &Ctxt, input: &Input<'_>, args: &Args) -> Option<Copy>
                 (id, ident)
             })
             .collect();
-        block(&mut function.body, names, &ids, &mut used);
+        substitute(&mut function.body, names, &ids, &mut used);
     }
     for (name, used) in names.iter().zip(&used) {
         if !used {
@@ -79,70 +79,20 @@ fn local_name(name: &Ident) -> Ident {
     format_ident!("__lagrangian_theta_{}", name, span = Span::call_site())
 }
 
-fn block(block: &mut Block, names: &[Ident], ids: &[(LocalId, Ident)], used: &mut [bool]) {
-    for stmt in &mut block.stmts {
-        match stmt {
-            Stmt::Let { inits, .. } => inits.iter_mut().for_each(|init| expr(init, names, ids, used)),
-            Stmt::Expr { expr: e, .. } => expr(e, names, ids, used),
-            Stmt::Item(_) => {}
+/// Replaces every `self.<parameter>` in `block` by the parameter's local,
+/// marking the parameters it met in `used`.
+fn substitute(block: &mut Block, names: &[Ident], ids: &[(LocalId, Ident)], used: &mut [bool]) {
+    block.visit_mut(&mut |e: &mut Expr| {
+        if let ExprKind::Field { base, member: Member::Named(member) } = &e.kind
+            && matches!(base.kind, ExprKind::SelfValue(_))
+            && let Some(j) = names.iter().position(|name| name == member)
+        {
+            used[j] = true;
+            e.kind = ExprKind::Local(ids[j].0, ids[j].1.clone());
+            return false;
         }
-    }
-}
-
-/// Replaces `self.<parameter>` in `e` by the parameter's local.
-fn expr(e: &mut Expr, names: &[Ident], ids: &[(LocalId, Ident)], used: &mut [bool]) {
-    if let ExprKind::Field { base, member: Member::Named(member) } = &e.kind
-        && matches!(base.kind, ExprKind::SelfValue(_))
-        && let Some(j) = names.iter().position(|name| name == member)
-    {
-        used[j] = true;
-        e.kind = ExprKind::Local(ids[j].0, ids[j].1.clone());
-        return;
-    }
-    let mut go = |e: &mut Expr| expr(e, names, ids, used);
-    match &mut e.kind {
-        ExprKind::Lit(_)
-        | ExprKind::Path(_)
-        | ExprKind::SelfValue(_)
-        | ExprKind::Param(..)
-        | ExprKind::Local(..)
-        | ExprKind::Break(_)
-        | ExprKind::Continue(_) => {}
-        ExprKind::Field { base: inner, .. }
-        | ExprKind::Unary { expr: inner, .. }
-        | ExprKind::Cast { expr: inner, .. }
-        | ExprKind::Paren(inner)
-        | ExprKind::Repeat { elem: inner, .. } => go(inner),
-        ExprKind::Return(inner) => {
-            if let Some(inner) = inner {
-                go(inner);
-            }
-        }
-        ExprKind::Index { base: a, index: b, .. }
-        | ExprKind::Binary { lhs: a, rhs: b, .. }
-        | ExprKind::Assign { place: a, value: b, .. } => {
-            go(a);
-            go(b);
-        }
-        ExprKind::Block(b) => block(b, names, ids, used),
-        ExprKind::If { cond, then_branch, else_branch } => {
-            expr(cond, names, ids, used);
-            block(then_branch, names, ids, used);
-            if let Some(else_branch) = else_branch {
-                expr(else_branch, names, ids, used);
-            }
-        }
-        ExprKind::For { start, end, body, .. } => {
-            expr(start, names, ids, used);
-            expr(end, names, ids, used);
-            block(body, names, ids, used);
-        }
-        ExprKind::MethodCall { receiver, args, .. } => {
-            go(receiver);
-            args.iter_mut().for_each(go);
-        }
-        ExprKind::Array(elems) => elems.iter_mut().for_each(go),
-    }
+        true
+    });
 }
 
 /// The `Parametric<N, P>` impl.
