@@ -5,8 +5,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::methods::{Method, Run, Setting};
+use crate::methods::{Method, Setting};
 use crate::problem::Problem;
+use crate::run::Run;
 
 /// One run of a sweep.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -3,8 +3,10 @@
 
 use nalgebra034::SVector;
 
-use crate::methods::{Invariants, Method, Run};
+use crate::invariants::Invariants;
+use crate::methods::Method;
 use crate::problems::Model;
+use crate::run::Run;
 
 /// The first-order form of a model, as both crates want it.
 struct Ode<'a, M, const N: usize>(&'a M);

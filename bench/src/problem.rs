@@ -4,8 +4,10 @@
 use lagrangian::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::methods::{self, Method, Run, Setting};
+use crate::integrate;
+use crate::methods::{Method, Setting};
 use crate::problems::{self as p, Dd, Model};
+use crate::run::Run;
 
 /// How a reference solution was obtained and checked.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -52,7 +54,7 @@ pub trait Problem: Send + Sync {
     fn applies(&self, method: Method) -> bool {
         (!method.needs_separable() || self.separable()) && (!method.needs_time_transform() || self.time_transform())
     }
-    /// One run (see [`methods::run`]).
+    /// One run (see [`integrate::run`]).
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run;
     /// The same run from other initial data (bad-input classes of the stress section).
     fn run_from(&self, q0: Vec<f64>, v0: Vec<f64>, method: Method, setting: Setting, t_end: f64) -> Run;
@@ -120,13 +122,13 @@ where
         M::TIME_TRANSFORM
     }
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run {
-        methods::run::<M, N, D>(&self.0, self.0.initial(), method, setting, t_end, samples)
+        integrate::run::<M, N, D>(&self.0, self.0.initial(), method, setting, t_end, samples)
     }
     fn run_from(&self, q0: Vec<f64>, v0: Vec<f64>, method: Method, setting: Setting, t_end: f64) -> Run {
         let (Ok(q0), Ok(v0)) = (<[f64; N]>::try_from(q0), <[f64; N]>::try_from(v0)) else {
             return Run { failure: Some(format!("initial data must have {N} components")), ..Run::default() };
         };
-        methods::run::<M, N, D>(&self.0, (q0, v0), method, setting, t_end, 0)
+        integrate::run::<M, N, D>(&self.0, (q0, v0), method, setting, t_end, 0)
     }
     fn double_double_galerkin(&self, t_end: f64, n: usize) -> Result<Vec<f64>, String> {
         Ok(galerkin_dd(&self.0, t_end, n)?.iter().map(|x| x.to_f64()).collect())

@@ -6,7 +6,7 @@
 use lagrangian::prelude::*;
 
 use crate::exact;
-use crate::methods::Run;
+use crate::run::Run;
 
 /// Called with `(t, q, q̇)` after each step of a run.
 pub type Observer<'a, const N: usize> = dyn FnMut(f64, &[f64; N], &[f64; N]) + 'a;

@@ -11,20 +11,9 @@ use lagrangian::prelude::*;
 use crate::handwritten::{DoubleMethod, DoubleParams, DoubleStepper, PendulumMidpoint, PendulumParams, PendulumVerlet};
 use crate::problems::{DoublePendulum, Model, Pendulum, PendulumSys};
 use crate::report::StepCost;
-use crate::suite::Suite;
 
 /// The step size of every measurement.
 pub const H: f64 = 0.01;
-
-/// `(steps per run, runs)` of a suite.
-fn sizes(suite: Suite) -> (usize, u32) {
-    match suite {
-        Suite::Tiny => (2_000, 1),
-        Suite::Default => (50_000, 3),
-        Suite::Full => (200_000, 5),
-        Suite::Exhaustive => (1_000_000, 7),
-    }
-}
 
 /// Times `run` (which takes `steps` steps and returns Newton iterations per
 /// step, if any) `repeats` times; the best run.
@@ -102,10 +91,10 @@ fn galerkin<const S: usize>(system: &PendulumSys, steps: usize) -> Option<Option
     Some(Some(s.newton_iterations as f64 / s.steps.max(1) as f64))
 }
 
-/// Measures every pair; a method that fails (it should not) is left out.
-pub fn measure(suite: Suite) -> Vec<StepCost> {
-    let size = sizes(suite);
-    let steps = size.0;
+/// Measures every pair, each the best of `runs` runs of `steps` steps; a
+/// method that fails (it should not) is left out.
+pub fn measure(steps: usize, runs: u32) -> Vec<StepCost> {
+    let size = (steps, runs);
     let mut out = Vec::new();
 
     let pendulum = Pendulum { scale: 1.0 }.system();

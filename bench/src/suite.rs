@@ -99,6 +99,15 @@ impl Suite {
             Suite::Exhaustive => 1000.0,
         }
     }
+    /// `(steps per run, runs)` of the step-cost measurements.
+    fn step_cost_sizes(self) -> (usize, u32) {
+        match self {
+            Suite::Tiny => (2_000, 1),
+            Suite::Default => (50_000, 3),
+            Suite::Full => (200_000, 5),
+            Suite::Exhaustive => (1_000_000, 7),
+        }
+    }
     /// Steps of the long runs of the stress section.
     fn many_steps(self) -> usize {
         match self {
@@ -263,7 +272,8 @@ pub fn run(config: &Config) -> Result<Report, String> {
         progress.unit(format_args!("stress: {} steps at the calibrated step", suite.many_steps()));
         stress.long_runs = long_runs(config, &methods, &problems, &reports);
         progress.unit("step costs");
-        (stress, crate::step_cost::measure(suite))
+        let (steps, runs) = suite.step_cost_sizes();
+        (stress, crate::step_cost::measure(steps, runs))
     };
     progress.finish();
     Ok(Report {

@@ -8,6 +8,7 @@
 mod auto;
 mod compositions;
 mod handwritten_agreement;
+mod module_graph;
 mod peer_sampling;
 mod references;
 mod report;

@@ -9,8 +9,9 @@
 //! wrong final position (0.4 away), where the accepted steps have 4e-11.
 
 use lagrangian_bench::exact::kepler_position;
-use lagrangian_bench::methods::{Method, Run, Setting};
+use lagrangian_bench::methods::{Method, Setting};
 use lagrangian_bench::problem::{self, Problem};
+use lagrangian_bench::run::Run;
 use nalgebra034::Vector4;
 use ode_solvers::{Dop853, OutputType, System};
 
