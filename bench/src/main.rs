@@ -71,13 +71,24 @@ fn values(args: &mut impl Iterator<Item = String>, flag: &str) -> Result<Vec<Str
     Ok(v.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
 }
 
-/// The command line that runs `args`, to state in the report.
+/// The command line that runs `args`, to state in the report. `--out DIR`
+/// is left out: where the report is written does not change what it
+/// measures, and a reader's machine has no such directory.
 fn command(args: &[String]) -> String {
+    let mut kept = Vec::with_capacity(args.len());
+    let mut rest = args.iter();
+    while let Some(a) = rest.next() {
+        if a == "--out" {
+            rest.next();
+        } else {
+            kept.push(a);
+        }
+    }
     let mut c = String::from("cargo run --release -p lagrangian-bench");
-    if !args.is_empty() {
+    if !kept.is_empty() {
         c.push_str(" --");
     }
-    for a in args {
+    for a in kept {
         let plain = !a.is_empty() && a.chars().all(|c| c.is_ascii_alphanumeric() || "-_.,/=+:".contains(c));
         c.push(' ');
         if plain {
@@ -206,4 +217,17 @@ fn run(args: Vec<String>) -> Result<(), String> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::command;
+
+    #[test]
+    fn the_stated_command_leaves_out_the_output_directory() {
+        let args: Vec<String> = ["--full", "--out", "/tmp/x", "--method", "auto,galerkin-4"].map(String::from).into();
+        assert_eq!(command(&args), "cargo run --release -p lagrangian-bench -- --full --method auto,galerkin-4");
+        let args: Vec<String> = ["--out", "/tmp/x"].map(String::from).into();
+        assert_eq!(command(&args), "cargo run --release -p lagrangian-bench");
+    }
 }

@@ -33,7 +33,7 @@ use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::hyperdual::DualArray;
-use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment, predict_into};
+use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment, predict_into};
 use crate::mechanics::DiscreteMechanics;
 use crate::real::max_abs;
 use crate::state::State;
@@ -248,16 +248,6 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
             }
         }
     }
-
-    fn energy_step<S: Lagrangian<N>, const N: usize>(
-        _: &mut Integrator<S, Self, N>,
-        _: StepBounds,
-    ) -> Result<(), Error<N>> {
-        // Refused at `start` by `supports`.
-        Err(Error::Unsupported { what: "energy-preserving steps with holonomic constraints" })
-    }
-
-    fn reread_energy<S: Lagrangian<N>, const N: usize>(_: &mut Integrator<S, Self, N>) {}
 
     fn last_step_size<const N: usize>(memory: &ConstrainedMemory<N, M>) -> Option<f64> {
         memory.previous.map(|last| last.h)

@@ -30,7 +30,7 @@
 use super::method::{F64Readouts, Method, sealed};
 use super::one_point::{ExplicitNode, commit_explicit, explicit_step};
 use super::sparse::{LastSubstep, Stepper};
-use super::{Integrator, OnePointMemory, StepBounds, StepPolicy, Summation};
+use super::{Integrator, OnePointMemory, StepPolicy, Summation};
 use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::Trapezoid;
@@ -359,16 +359,6 @@ impl Method<f64> for Composition {
         it.stats.largest_energy_jump_at = stats.largest_energy_jump_at;
         Ok(())
     }
-
-    fn energy_step<S: Lagrangian<N>, const N: usize>(
-        _: &mut Integrator<S, Self, N>,
-        _: StepBounds,
-    ) -> Result<(), Error<N>> {
-        // `supports` refuses the policy at `start`.
-        Err(Error::Unsupported { what: "energy-preserving steps with a composition" })
-    }
-
-    fn reread_energy<S: Lagrangian<N>, const N: usize>(_: &mut Integrator<S, Self, N>) {}
 
     fn last_step_size<const N: usize>(memory: &CompositionMemory<N>) -> Option<f64> {
         memory.last_h

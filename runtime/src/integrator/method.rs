@@ -124,20 +124,27 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         Self: Sized;
 
     /// One energy-preserving step (the first one included); on failure the
-    /// integrator is unchanged.
+    /// integrator is unchanged. A method without energy-preserving steps
+    /// keeps this refusal, which `supports` already gives at `start`.
     #[doc(hidden)]
     fn energy_step<S: Lagrangian<N>, const N: usize>(
-        it: &mut Integrator<S, Self, N, T>,
-        bounds: StepBounds,
+        _it: &mut Integrator<S, Self, N, T>,
+        _bounds: StepBounds,
     ) -> Result<(), Error<N, T>>
     where
-        Self: Sized;
+        Self: Sized,
+    {
+        Err(Error::Unsupported { what: "energy-preserving steps with this method" })
+    }
 
-    /// Sets the energy target of energy-preserving steps from the last step.
+    /// Sets the energy target of energy-preserving steps from the last step
+    /// (nothing to set for a method without them).
     #[doc(hidden)]
-    fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, T>)
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(_it: &mut Integrator<S, Self, N, T>)
     where
-        Self: Sized;
+        Self: Sized,
+    {
+    }
 
     /// The size of the last step; `None` before the first.
     #[doc(hidden)]
