@@ -5,6 +5,7 @@ use super::extend::{Dim, Extended};
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::stepper::{Driver, Stepper};
 use super::support::{Capability, Combination, Policy, Size, supports};
+use crate::auto::Auto;
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, NodeFamily, Quadrature};
@@ -74,6 +75,34 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
     /// The initial data `(t0, q0, v0)`.
     pub fn initial(&self) -> (f64, [f64; N], [f64; N]) {
         (self.t0, self.q0, self.v0)
+    }
+
+    /// The same problem solved to an accuracy instead of with a method: the
+    /// library chooses the method family, its order and its step, and
+    /// reports the error it estimates ([`Auto`]; any part can still be
+    /// fixed there).
+    ///
+    /// ```
+    /// # use lagrangian_runtime::problem::Problem;
+    /// # use lagrangian_runtime::{Lagrangian, Plan, Scalar, auto::Tolerance};
+    /// # #[derive(Clone)]
+    /// # struct Oscillator;
+    /// # impl Lagrangian<1> for Oscillator {
+    /// #     const AUTONOMOUS: bool = true;
+    /// #     const CYCLIC: [bool; 1] = [false];
+    /// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+    /// #         (v[0] * v[0] - q[0] * q[0]) * 0.5
+    /// #     }
+    /// # }
+    /// let problem = Problem::new(Oscillator, 0.0, [1.0], [0.0]);
+    /// let solved = problem.auto().tolerance(Tolerance::relative(1e-8)).solve(Plan::until(20.0))?;
+    /// let last = solved.solution.len() - 1;
+    /// assert!((solved.solution.q[last][0] - 20f64.cos()).abs() < 1e-7);
+    /// assert!(solved.estimate.error < 1e-8);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn auto(&self) -> Auto<S, N> {
+        Auto::new(self.system.clone(), self.t0, self.q0, self.v0)
     }
 
     /// `Ok` when `scheme` under `policy` can do `capability` on this
