@@ -236,12 +236,6 @@ impl<'a, const N: usize> Plan<'a, N> {
         !self.save_at.is_empty() || !self.events.is_empty()
     }
 
-    /// The observer and its period, taken out of the plan so that another
-    /// observer can call it in turn.
-    pub(crate) fn take_observer(&mut self) -> Option<(usize, Observer<'a, N>)> {
-        self.observer.take()
-    }
-
     /// Keep every `n`-th node, counted in steps of this run, and the first
     /// and last; `0` keeps no nodes (only [`save_at`](Self::save_at) values).
     pub fn every(mut self, n: usize) -> Self {

@@ -46,6 +46,7 @@ mod stepper;
 
 pub use basis::NodeFamily;
 pub use method::Galerkin;
+pub(crate) use one_point::as_galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};
 pub(crate) use stepper::{GalerkinMemory, discrete_energy_of, legendre, supports_policy};

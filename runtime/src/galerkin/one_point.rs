@@ -164,7 +164,7 @@ fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
 /// The Galerkin rule of degree 1 whose two quadrature points (weights ½
 /// each) are the rule's own; a rule that names none gets NaN points, which
 /// `check` refuses before any step.
-fn as_galerkin<M: DiscreteLagrangian, T: crate::real::Real>(method: &M) -> Galerkin<1, 2, T> {
+pub(crate) fn as_galerkin<M: DiscreteLagrangian, T: crate::real::Real>(method: &M) -> Galerkin<1, 2, T> {
     let (points, exact) = method.galerkin_points().unwrap_or(([f64::NAN; 2], 0));
     Galerkin::new(NodeFamily::Equispaced, Quadrature::two_points(points.map(T::from), exact))
 }

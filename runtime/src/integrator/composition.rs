@@ -183,7 +183,7 @@ impl<const N: usize> CompositionMemory<N> {
 
     /// Sub-step `i` of the last composed step, made with `weights` and
     /// `summation`.
-    fn substep(&self, i: usize, weights: &[f64], summation: Summation) -> Segment<N> {
+    pub(crate) fn substep(&self, i: usize, weights: &[f64], summation: Summation) -> Segment<N> {
         let (Some(fused), Some(start), Some(h)) = (&self.fused, &self.inner.previous, self.last_h) else {
             return self.substeps[i];
         };

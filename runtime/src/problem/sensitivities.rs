@@ -2,16 +2,22 @@
 //! ([`crate::sensitivity`]): forward sensitivities with the solution, and
 //! the adjoint gradient of a loss.
 
+use core::cell::RefCell;
+
 use super::extend::{Dim, Extended};
-use super::scheme::Scheme;
+use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
+use super::stepper::{Driver, Interpolant, Stepper};
 use super::support::{Capability, Policy};
+use crate::dense::Node;
+use crate::derivatives::Segment;
 use crate::error::Error;
+use crate::integrator::Stats;
 use crate::sensitivity::Parametric;
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
-use crate::sensitivity::linearisation::Rule;
-use crate::solution::{Plan, SolveError};
+use crate::sensitivity::linearisation::{MAX_DEGREE, Piece, Rule};
+use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
 
@@ -23,19 +29,14 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N>
 where
     Dim<N>: Extended<N>,
 {
-    /// The rule of `scheme` when the combination has sensitivities;
-    /// otherwise the refusal of [`supports`](super::supports) (or of a
-    /// discontinuous Lagrangian).
-    fn differentiable(&self, scheme: &Scheme, policy: Policy) -> Result<Rule, Error<N>> {
+    /// Asks [`supports`](super::supports) whether `scheme` under `policy`
+    /// has sensitivities (and refuses a discontinuous Lagrangian).
+    fn differentiable(&self, scheme: &Scheme, policy: Policy) -> Result<(), Error<N>> {
         self.supports(scheme, policy, Capability::Sensitivities)?;
         if S::DISCONTINUOUS {
             return Err(Error::Unsupported { what: DISCONTINUOUS });
         }
-        match scheme {
-            Scheme::OnePoint(rule) => Ok(Rule::of(rule)),
-            // `supports` accepts the one-point rules only.
-            _ => Err(Error::Unsupported { what: "sensitivities of this scheme" }),
-        }
+        Ok(())
     }
 
     /// Solves as [`solve`](Self::solve) does and returns, with the solution,
@@ -44,7 +45,8 @@ where
     /// (no finite differences).
     ///
     /// The combinations are those [`supports`](super::supports) accepts with
-    /// [`Capability::Sensitivities`]: fixed steps of the one-point rules.
+    /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
+    /// the Galerkin rules and the compositions.
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
     /// called.
@@ -85,33 +87,24 @@ where
         &self,
         scheme: &Scheme,
         policy: impl Into<Policy>,
-        mut plan: Plan<'_, N>,
+        plan: Plan<'_, N>,
     ) -> Result<Sensitivities<N>, SolveError<N>>
     where
         S: Parametric<N, P>,
     {
         let policy = policy.into();
-        let rule = self.differentiable(scheme, policy)?;
+        self.differentiable(scheme, policy)?;
         if plan.interpolates() {
             return Err(SolveError::InvalidPlan {
                 reason: "sensitivities are computed at the nodes: a plan with save times or events has rows between them",
             });
         }
-        let mut stepper = self.stepper(scheme, policy)?;
+        let stepper = self.stepper(scheme, policy)?;
+        let rule = stepper.rule()?;
         let propagation =
-            std::cell::RefCell::new(Propagation::new(self.system(), rule, self.initial(), plan.kept_every()));
-        let mut theirs = plan.take_observer();
-        let mut k = 0u64;
-        let plan = plan.observe_every(1, |node| {
-            propagation.borrow_mut().node(State { step: k, t: node.t, q: node.q, p: node.p });
-            if let Some((n, observe)) = theirs.as_mut()
-                && k.is_multiple_of(*n as u64)
-            {
-                observe(node);
-            }
-            k += 1;
-        });
-        let solution = stepper.solve(plan)?;
+            RefCell::new(Propagation::new(self.system(), rule, self.initial(), plan.kept_every(), &stepper.state()));
+        let mut tracked = Tracked { stepper, propagation: &propagation, pieces: Vec::new() };
+        let solution = Stepping::solve(&mut tracked, plan)?;
         Ok(propagation.into_inner().finish(solution))
     }
 
@@ -137,8 +130,171 @@ where
         S: Parametric<N, P>,
     {
         let policy = Policy::fixed(h);
-        let rule = self.differentiable(scheme, policy)?;
+        self.differentiable(scheme, policy)?;
         let stepper = self.stepper(scheme, policy)?;
+        let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
+    }
+}
+
+/// Why a composition stepped in reverse mode has no sensitivities.
+const REVERSE_COMPOSITION: &str = "sensitivities of a composition stepped in reverse mode (above \
+     `Derivatives::FORWARD_MAX_N` coordinates): its sub-steps are not kept";
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    /// The Galerkin rule every step of this stepper is made of.
+    pub(crate) fn rule(&self) -> Result<Rule, Error<N>> {
+        Ok(match &self.driver {
+            Driver::Midpoint(_) => Rule::one_point(&OnePoint::Midpoint),
+            Driver::Trapezoid(_) | Driver::Composition(_) => Rule::one_point(&OnePoint::Trapezoid),
+            Driver::AlphaBeta(d) => Rule::one_point(&OnePoint::AlphaBeta(d.method)),
+            Driver::Gauss2(d) => Rule::galerkin(&d.method),
+            Driver::Gauss3(d) => Rule::galerkin(&d.method),
+            Driver::Gauss4(d) => Rule::galerkin(&d.method),
+            Driver::Lobatto2(d) => Rule::galerkin(&d.method),
+            Driver::Lobatto3(d) => Rule::galerkin(&d.method),
+            Driver::Lobatto4(d) => Rule::galerkin(&d.method),
+            // `supports` refuses them before a stepper is built.
+            Driver::Transformed(_) | Driver::Splitting(_) => {
+                return Err(Error::Unsupported { what: "sensitivities of a time-transformed scheme" });
+            }
+        })
+    }
+
+    /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
+    /// step, from `from` to the current node, was made of.
+    pub(crate) fn last_pieces(&self, from: &State<N>, out: &mut Vec<Piece<N>>) -> Result<(), Error<N>> {
+        let to = Stepping::state(self);
+        let galerkin = |t0: f64, h: f64, q0: [f64; N], carry: [f64; N], d: &[[f64; N]]| {
+            let mut piece = Piece { t0, h, q0: core::array::from_fn(|i| q0[i] + carry[i]), d: [[0.0; N]; MAX_DEGREE] };
+            piece.d[..d.len()].copy_from_slice(d);
+            piece
+        };
+        let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
+        match &self.driver {
+            Driver::Midpoint(_) | Driver::Trapezoid(_) | Driver::AlphaBeta(_) => {
+                out.push(Piece::segment(&Segment::between((from.t, from.q), (to.t, to.q))));
+            }
+            Driver::Gauss2(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Gauss3(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Gauss4(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Lobatto2(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Lobatto3(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Lobatto4(d) => {
+                let l = d.memory.as_ref().ok_or(missing)?;
+                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
+            }
+            Driver::Composition(d) => {
+                if d.derivatives.reverse::<N>() {
+                    return Err(Error::Unsupported { what: REVERSE_COMPOSITION });
+                }
+                let weights = d.method.weights();
+                out.extend((0..d.memory.stages).map(|i| Piece::segment(&d.memory.substep(i, weights, d.summation))));
+            }
+            Driver::Transformed(_) | Driver::Splitting(_) => return Err(missing),
+        }
+        Ok(())
+    }
+}
+
+/// A stepper that hands each step it takes to the forward propagation:
+/// [`Stepping::solve`] runs it as it runs the stepper itself.
+struct Tracked<'p, 's, S: Parametric<N, P>, const N: usize, const P: usize>
+where
+    Dim<N>: Extended<N>,
+{
+    stepper: Stepper<S, N>,
+    propagation: &'p RefCell<Propagation<'s, S, N, P>>,
+    /// The pieces of the last step (storage reused from step to step).
+    pieces: Vec<Piece<N>>,
+}
+
+impl<S: Parametric<N, P>, const N: usize, const P: usize> Clone for Tracked<'_, '_, S, N, P>
+where
+    Dim<N>: Extended<N>,
+{
+    fn clone(&self) -> Self {
+        Self { stepper: self.stepper.clone(), propagation: self.propagation, pieces: Vec::new() }
+    }
+}
+
+impl<S: Parametric<N, P>, const N: usize, const P: usize> Tracked<'_, '_, S, N, P>
+where
+    Dim<N>: Extended<N>,
+{
+    /// Runs `step` and propagates the tangent through it when it succeeds.
+    fn tracked(&mut self, step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error<N>>) -> Result<(), Error<N>> {
+        let from = self.stepper.state();
+        step(&mut self.stepper)?;
+        self.pieces.clear();
+        let pieces = self.stepper.last_pieces(&from, &mut self.pieces).map(|()| self.pieces.as_slice());
+        self.propagation.borrow_mut().step(&from, pieces, &self.stepper.state());
+        Ok(())
+    }
+}
+
+impl<S: Parametric<N, P>, const N: usize, const P: usize> Stepping<N> for Tracked<'_, '_, S, N, P>
+where
+    Dim<N>: Extended<N>,
+{
+    type System = S;
+    type Native = Interpolant<N>;
+
+    fn system(&self) -> &S {
+        Stepping::system(&self.stepper)
+    }
+
+    fn state(&self) -> State<N> {
+        Stepping::state(&self.stepper)
+    }
+
+    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+        Stepping::velocity(&self.stepper)
+    }
+
+    fn stats(&self) -> Stats {
+        Stepping::stats(&self.stepper)
+    }
+
+    fn step(&mut self) -> Result<(), Error<N>> {
+        self.tracked(Stepping::step)
+    }
+
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+        self.tracked(|s| Stepping::step_toward(s, t_end, last_h))
+    }
+
+    /// One step at a time, so that each is propagated (a plan for
+    /// sensitivities lands only on its end, one step away).
+    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+        let mut last_h = None;
+        while Stepping::state(&self.stepper).t < t {
+            let t0 = Stepping::state(&self.stepper).t;
+            self.step_toward(t, last_h)?;
+            last_h = Some(Stepping::state(&self.stepper).t - t0);
+        }
+        Ok(())
+    }
+
+    fn native(&self, start: &Node<N>, end: &Node<N>) -> Interpolant<N> {
+        Stepping::native(&self.stepper, start, end)
     }
 }

@@ -105,7 +105,8 @@ pub enum Capability {
     /// dense output, events, and the CSV and JSON files of the solution.
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
-    /// initial data: forward sensitivities
+    /// initial data (fixed steps of the one-point rules, the Galerkin rules
+    /// and the compositions): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
     /// and the discrete adjoint ([`Problem::gradient`](super::Problem::gradient)).
     Sensitivities,
@@ -173,23 +174,26 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 }
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
-/// fixed steps of the one-point rules.
+/// fixed steps of the one-point rules, the Galerkin rules and the
+/// compositions.
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
-    if c.size == Size::Dynamic {
-        return Err("sensitivities of a run-time-sized system: they are written for `Problem`'s compile-time `N`");
-    }
-    match (c.scheme, c.policy) {
-        (Scheme::OnePoint(_), Policy::Fixed { .. }) => Ok(()),
-        (Scheme::OnePoint(_), _) => Err(
+    let n = match c.size {
+        Size::Dynamic => {
+            return Err("sensitivities of a run-time-sized system: they are written for `Problem`'s compile-time `N`");
+        }
+        Size::Const(n) => n,
+    };
+    let fixed = matches!(c.policy, Policy::Fixed { .. });
+    match c.scheme {
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } if fixed => Ok(()),
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => Err(
             "sensitivities under variable steps: the step size chosen by the energy equation is not differentiated yet",
         ),
-        (Scheme::Galerkin { .. }, _) => {
-            Err("sensitivities of a Galerkin rule: not differentiated yet; the one-point rules are")
-        }
-        (Scheme::Composition { .. }, _) => {
-            Err("sensitivities of a composition: not differentiated yet; the one-point rules are")
-        }
-        (Scheme::TimeTransformed { .. } | Scheme::Splitting { .. }, _) => Err(
+        Scheme::Composition { .. } if n > crate::Derivatives::FORWARD_MAX_N => Err(
+            "sensitivities of a composition above `Derivatives::FORWARD_MAX_N` coordinates: it steps in reverse mode, which keeps only its last sub-step",
+        ),
+        Scheme::Composition { .. } => Ok(()),
+        Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => Err(
             "sensitivities of a time-transformed scheme: the step in `s` and its density are not differentiated yet",
         ),
     }

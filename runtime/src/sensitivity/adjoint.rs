@@ -22,7 +22,6 @@ use num_dual::Dual64;
 
 use super::Parametric;
 use super::linearisation::{InitialMomentum, Rule, StepJacobian};
-use crate::derivatives::Segment;
 use crate::error::Error;
 use crate::problem::{Dim, Extended, Stepper};
 use crate::solution::Stepping;
@@ -211,10 +210,13 @@ where
     let (_, dq, dp, mut dtheta) = loss_at(loss, &last, &theta, true)?;
     let (mut lq, mut lp) = (dq, dp);
 
-    // Reverse: each segment from its copy, backwards.
+    // Reverse: each segment from its copy, backwards. `steps[i]` runs from
+    // `nodes[i]` to `nodes[i + 1]` and is made of `pieces[steps[i]]`.
     let mut costates = Vec::with_capacity(kept.len());
     let mut recomputed_steps = 0;
     let mut nodes = Vec::with_capacity(m + 1);
+    let mut steps = Vec::with_capacity(m);
+    let mut pieces = Vec::with_capacity(m);
     for start in kept.into_iter().rev() {
         let first = start.state().step;
         if first == last.step {
@@ -224,24 +226,25 @@ where
         }
         let mut sim = start;
         nodes.clear();
+        steps.clear();
+        pieces.clear();
         nodes.push(sim.state());
         let mut last_h = None;
         while sim.state().step < (first + m as u64).min(last.step) {
-            let t = sim.state().t;
+            let from = sim.state();
             Stepping::step_toward(&mut sim, t_end, last_h)?;
-            last_h = Some(sim.state().t - t);
+            last_h = Some(sim.state().t - from.t);
+            let begin = pieces.len();
+            sim.last_pieces(&from, &mut pieces)?;
+            steps.push(begin..pieces.len());
             nodes.push(sim.state());
             recomputed_steps += 1;
         }
-        for pair in nodes.windows(2).rev() {
-            let (from, to) = (pair[0], pair[1]);
-            let seg = Segment::between((from.t, from.q), (to.t, to.q));
-            let j = StepJacobian::at(&system, &rule, &theta, &seg).ok_or(Error::SingularJacobian {
-                state: from,
-                h: seg.h,
-                iterations: 0,
-                rcond: 0.0,
-            })?;
+        for (i, range) in steps.iter().enumerate().rev() {
+            let from = nodes[i];
+            let j = StepJacobian::of_step(&system, &rule, &theta, &pieces[range.clone()]).ok_or(
+                Error::SingularJacobian { state: from, h: nodes[i + 1].t - from.t, iterations: 0, rcond: 0.0 },
+            )?;
             let m = &j.state;
             dtheta += j.dq_dtheta.transpose() * lq + j.dp_dtheta.transpose() * lp;
             let (_, gq, gp, gth) = loss_at(loss, &from, &theta, false)?;

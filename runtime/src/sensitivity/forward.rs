@@ -6,8 +6,7 @@
 use nalgebra::{DMatrix, SMatrix};
 
 use super::Parametric;
-use super::linearisation::{InitialMomentum, Rule, StepJacobian};
-use crate::derivatives::Segment;
+use super::linearisation::{InitialMomentum, Piece, Rule, StepJacobian};
 use crate::error::Error;
 use crate::solution::Solution;
 use crate::state::State;
@@ -108,14 +107,13 @@ pub struct Sensitivities<const N: usize> {
     pub error: Option<Error<N>>,
 }
 
-/// Propagates the tangent from node to node as the nodes arrive, keeping
-/// the Jacobians of the nodes the plan keeps as rows.
+/// Propagates the tangent from node to node as the steps are taken,
+/// keeping the Jacobians of the nodes the plan keeps as rows.
 pub(crate) struct Propagation<'s, S, const N: usize, const P: usize> {
     system: &'s S,
     rule: Rule,
     theta: [f64; P],
     every: usize,
-    previous: Option<State<N>>,
     tangent: Tangent<N, P>,
     /// `(k, S_k)` of the nodes `k` with `k % every == 0`.
     pub(crate) kept: Vec<(u64, Jacobian)>,
@@ -125,33 +123,50 @@ pub(crate) struct Propagation<'s, S, const N: usize, const P: usize> {
 }
 
 impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S, N, P> {
-    pub(crate) fn new(system: &'s S, rule: Rule, initial: (f64, [f64; N], [f64; N]), every: usize) -> Self {
+    /// From the initial node `node` (step 0) of the problem's initial data.
+    pub(crate) fn new(
+        system: &'s S,
+        rule: Rule,
+        initial: (f64, [f64; N], [f64; N]),
+        every: usize,
+        node: &State<N>,
+    ) -> Self {
         let theta = system.parameters();
         let tangent = Tangent::initial(&InitialMomentum::at(system, &theta, initial));
-        Self { system, rule, theta, every, previous: None, tangent, kept: Vec::new(), last: None, error: None }
+        let mut out = Self { system, rule, theta, every, tangent, kept: Vec::new(), last: None, error: None };
+        out.keep(node.step);
+        out
     }
 
-    /// The next node (the first call is node 0).
-    pub(crate) fn node(&mut self, node: State<N>) {
+    /// The step from `from`, made of `pieces` (or why they are not known),
+    /// to the node `to`.
+    pub(crate) fn step(&mut self, from: &State<N>, pieces: Result<&[Piece<N>], Error<N>>, to: &State<N>) {
         if self.error.is_some() {
             return;
         }
-        if let Some(prev) = self.previous {
-            let seg = Segment::between((prev.t, prev.q), (node.t, node.q));
-            match StepJacobian::at(self.system, &self.rule, &self.theta, &seg) {
-                Some(j) => self.tangent = self.tangent.step(&j),
-                None => {
-                    self.error = Some(Error::SingularJacobian { state: prev, h: seg.h, iterations: 0, rcond: 0.0 });
-                    return;
-                }
+        let pieces = match pieces {
+            Ok(pieces) => pieces,
+            Err(e) => {
+                self.error = Some(e);
+                return;
+            }
+        };
+        match StepJacobian::of_step(self.system, &self.rule, &self.theta, pieces) {
+            Some(j) => self.tangent = self.tangent.step(&j),
+            None => {
+                let h = to.t - from.t;
+                self.error = Some(Error::SingularJacobian { state: *from, h, iterations: 0, rcond: 0.0 });
+                return;
             }
         }
-        let k = node.step;
+        self.keep(to.step);
+    }
+
+    fn keep(&mut self, k: u64) {
         if self.every > 0 && k.is_multiple_of(self.every as u64) {
             self.kept.push((k, self.tangent.jacobian()));
         }
         self.last = Some((k, self.tangent));
-        self.previous = Some(node);
     }
 
     /// The Jacobians of the rows of `solution`.

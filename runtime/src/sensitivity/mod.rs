@@ -1,18 +1,13 @@
 //! Derivatives of the computed trajectory with respect to the parameters
 //! `θ` of the system and the initial data `(q0, v0)` (docs/theory.md §11).
 //!
-//! A fixed step of a one-point rule is the map `x_{k+1} = Φ(x_k, θ)`,
-//! `x = (q, p)`, defined by the discrete Euler–Lagrange (and
-//! Lagrange–d'Alembert) equations
-//!
-//! ```text
-//! p_k + D₁A(q_k, q_{k+1}; θ) + F⁻(q_k, q_{k+1}; θ) = 0
-//! p_{k+1} = D₂A(q_k, q_{k+1}; θ) + F⁺(q_k, q_{k+1}; θ)
-//! ```
-//!
-//! Its Jacobians `Φ_x`, `Φ_θ` follow from the implicit function theorem
-//! with the derivatives of those two functions from nested dual numbers
-//! ([`linearisation`]). Forward sensitivities ([`forward`]) propagate
+//! A fixed step is the map `x_{k+1} = Φ(x_k, θ)`, `x = (q, p)`, defined by
+//! the discrete Euler–Lagrange (and Lagrange–d'Alembert) equations of a
+//! Galerkin step (a one-point rule is the one of degree 1 with its own
+//! points; a composition is the product of its sub-steps). Its Jacobians
+//! `Φ_x`, `Φ_θ` follow from the implicit function theorem, the interior
+//! nodes of a Galerkin step eliminated with them, with the derivatives of
+//! the step's equations from nested dual numbers ([`linearisation`]). Forward sensitivities ([`forward`]) propagate
 //! `S_{k+1} = Φ_x S_k + Φ_θ`; the discrete adjoint ([`adjoint`]) runs
 //! `λ_k = ∂ℓ_k/∂x_k + Φ_xᵀ λ_{k+1}` backwards and sums `Φ_θᵀ λ_{k+1}`, the
 //! exact gradient of the computed loss, with checkpoints so that memory is

@@ -1,0 +1,204 @@
+//! The cost of the discrete adjoint: the time of `Problem::gradient`
+//! against the time of the forward run it differentiates (the same steps
+//! with no derivatives), and the peak heap memory of a gradient over 10⁶
+//! steps with `⌈√n⌉` checkpoints, counted by this binary's global allocator.
+//!
+//! `cargo bench -p lagrangian-bench --bench adjoint`
+//!
+//! Prints a markdown table. Timings are the minimum of several runs of CPU
+//! wall time (`Instant`) on an otherwise shared machine; the memory is the
+//! largest number of live heap bytes during the call above the bytes live
+//! before it.
+#![allow(missing_docs)]
+// A counting `GlobalAlloc` cannot be written without `unsafe`; it forwards
+// every call to the system allocator unchanged.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::hint::black_box;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use lagrangian::prelude::*;
+
+/// The system allocator, counting live and peak bytes.
+struct Counting;
+
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // SAFETY: the caller upholds `GlobalAlloc::alloc`'s contract.
+        let p = unsafe { System.alloc(layout) };
+        if !p.is_null() {
+            let live = LIVE.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
+            PEAK.fetch_max(live, Ordering::Relaxed);
+        }
+        p
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: the caller upholds `GlobalAlloc::dealloc`'s contract.
+        unsafe { System.dealloc(ptr, layout) };
+        LIVE.fetch_sub(layout.size(), Ordering::Relaxed);
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+/// A double pendulum with `m1`, `l1` and `g` as parameters.
+#[derive(Clone)]
+struct DoublePendulum {
+    m1: f64,
+    m2: f64,
+    l1: f64,
+    l2: f64,
+    g: f64,
+}
+
+#[lagrangian(parameters(m1, l1, g))]
+impl DoublePendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let kinetic = 0.5 * (self.m1 + self.m2) * self.l1 * self.l1 * v[0] * v[0]
+            + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
+            + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + (self.m1 + self.m2) * self.g * self.l1 * q[0].cos() + self.m2 * self.g * self.l2 * q[1].cos()
+    }
+}
+
+/// An FPU-β chain with fixed ends, `L = Σ ½ v_i² − Σ (½ k d² + ¼ β d⁴)`,
+/// `d = q_{i+1} − q_i`, with the stiffness `k` and `β` as parameters.
+#[derive(Clone)]
+struct Chain<const N: usize> {
+    theta: [f64; 2],
+}
+
+impl<const N: usize> Lagrangian<N> for Chain<N> {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; N] = [false; N];
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
+        self.lagrangian_with(&self.theta.map(D::from), t, q, v)
+    }
+}
+
+impl<const N: usize> Parametric<N, 2> for Chain<N> {
+    const NAMES: [&'static str; 2] = ["k", "beta"];
+    fn parameters(&self) -> [f64; 2] {
+        self.theta
+    }
+    fn with_parameters(&self, theta: [f64; 2]) -> Self {
+        Self { theta }
+    }
+    fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; N], v: [D; N]) -> D {
+        let [k, beta] = *theta;
+        let mut l = D::zero();
+        for i in 0..=N {
+            let left = if i == 0 { D::zero() } else { q[i - 1] };
+            let right = if i == N { D::zero() } else { q[i] };
+            let d = right - left;
+            l -= k * d * d * 0.5 + beta * d.powi(4) * 0.25;
+            if i < N {
+                l += v[i] * v[i] * 0.5;
+            }
+        }
+        l
+    }
+}
+
+/// `Σ_k 10⁻³ |q_k|² + |q_n|²`.
+struct Squares;
+
+impl<const N: usize, const P: usize> Loss<N, P> for Squares {
+    fn running<D: Scalar>(&self, _k: u64, _t: f64, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
+        q.iter().fold(D::zero(), |s, &x| s + x * x) * 1e-3
+    }
+    fn terminal<D: Scalar>(&self, _t: f64, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
+        q.iter().fold(D::zero(), |s, &x| s + x * x)
+    }
+}
+
+/// The least of `reps` timings of `f`, in seconds.
+fn best(reps: usize, mut f: impl FnMut()) -> f64 {
+    (0..reps)
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Forward run and gradient of `problem` with `scheme` over `steps` steps
+/// of size `h`: (forward s, gradient s).
+fn costs<S, const N: usize, const P: usize>(
+    problem: &Problem<S, N>,
+    scheme: &Scheme,
+    h: f64,
+    steps: usize,
+) -> (f64, f64)
+where
+    S: Parametric<N, P>,
+    lagrangian::problem::Dim<N>: lagrangian::problem::Extended<N>,
+{
+    let t_end = steps as f64 * h;
+    let checkpoints = Checkpoints::Budget((steps as f64).sqrt().ceil() as usize);
+    let reps = 5;
+    let forward = best(reps, || {
+        let mut sim = problem.stepper(scheme, h).unwrap();
+        sim.run_until(t_end).unwrap();
+        black_box(sim.state());
+    });
+    let gradient = best(reps, || {
+        black_box(problem.gradient(scheme, h, t_end, &Squares, checkpoints).unwrap());
+    });
+    (forward, gradient)
+}
+
+fn row(what: &str, steps: usize, (forward, gradient): (f64, f64)) {
+    println!("| {what} | {steps} | {:.3} | {:.3} | {:.1} |", forward * 1e3, gradient * 1e3, gradient / forward);
+}
+
+fn chain<const N: usize>(scheme: &Scheme, steps: usize)
+where
+    lagrangian::problem::Dim<N>: lagrangian::problem::Extended<N>,
+{
+    let q0: [f64; N] = core::array::from_fn(|i| 0.1 * ((i as f64 + 1.0) * 0.7).sin());
+    let problem = Problem::new(Chain::<N> { theta: [1.0, 0.5] }, 0.0, q0, [0.0; N]);
+    row(&format!("FPU-β chain N = {N}, {}", scheme.name()), steps, costs::<_, N, 2>(&problem, scheme, 0.05, steps));
+}
+
+fn main() {
+    let pendulum = DoublePendulum { m1: 1.0, m2: 0.8, l1: 1.2, l2: 0.9, g: 9.81 };
+    let problem = Problem::new(pendulum, 0.0, [0.6, -0.3], [0.2, 0.5]);
+    println!("| system, method | steps | forward run (ms) | gradient (ms) | gradient / forward |");
+    println!("|---|---|---|---|---|");
+    let (h, steps) = (1e-3, 10_000);
+    for scheme in
+        [Scheme::MIDPOINT, Scheme::galerkin(3), Scheme::composition(Composition::KAHAN_LI8, OnePoint::Trapezoid)]
+    {
+        row(&format!("double pendulum, {}", scheme.name()), steps, costs::<_, 2, 3>(&problem, &scheme, h, steps));
+    }
+    chain::<8>(&Scheme::MIDPOINT, 1000);
+    chain::<16>(&Scheme::MIDPOINT, 1000);
+    chain::<32>(&Scheme::MIDPOINT, 1000);
+    chain::<64>(&Scheme::MIDPOINT, 100);
+
+    // Peak memory over 10⁶ steps with ⌈√n⌉ = 1000 checkpoints.
+    let n = 1_000_000;
+    let before = LIVE.load(Ordering::Relaxed);
+    PEAK.store(before, Ordering::Relaxed);
+    let start = Instant::now();
+    let g = problem.gradient(&Scheme::MIDPOINT, h, n as f64 * h, &Squares, Checkpoints::Budget(1000)).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let peak = PEAK.load(Ordering::Relaxed) - before;
+    let stepper = std::mem::size_of::<lagrangian::problem::Stepper<DoublePendulum, 2>>();
+    println!(
+        "\npeak heap of the double-pendulum midpoint gradient over {} steps, Checkpoints::Budget(1000): {:.2} MB \
+         ({} checkpoint costates; a stepper is {stepper} bytes inline), {seconds:.1} s",
+        g.last.step,
+        peak as f64 / 1e6,
+        g.costates.len()
+    );
+}
