@@ -231,7 +231,8 @@ pub struct Run {
     pub failure: Option<String>,
     /// Steps taken (accepted steps for adaptive methods).
     pub steps: u64,
-    /// Newton iterations per step (project methods).
+    /// Newton iterations per step (project methods; for Gauss Galerkin
+    /// rules, fixed-point and Newton iterations).
     pub newton_per_step: Option<f64>,
     /// Right-hand-side or force evaluations (peers and compositions);
     /// derivative evaluations of `L` at quadrature points (Galerkin rules).
@@ -485,9 +486,10 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     });
     let stats = sim.stats();
     let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
-    // Derivative evaluations of L at quadrature points, with and without the Hessian.
+    // Derivative evaluations of L at quadrature points: gradients, with the
+    // whole Hessian (Newton) or the Hessian in v only (fixed-point steps).
     let points = sim.point_evaluations();
-    let evaluations = Some(points.gradients + points.hessians);
+    let evaluations = Some(points.gradients + points.hessians + points.velocity_hessians);
     let steps = stats.steps;
     match result {
         Ok(()) => Run { q: sim.state().q.to_vec(), steps, newton_per_step: per_step, evaluations, ..Run::default() },
