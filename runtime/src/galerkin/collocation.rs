@@ -233,7 +233,7 @@ fn invert<const N: usize, T: Real>(mut a: [[T; N]; N]) -> Option<[[T; N]; N]> {
     for col in 0..N {
         let pivot = (col..N).max_by(|&x, &y| a[x][col].abs().to_f64().total_cmp(&a[y][col].abs().to_f64()))?;
         let p = a[pivot][col];
-        if !(p.abs().to_f64() > 0.0) || !p.is_finite() {
+        if p.abs().to_f64() == 0.0 || !p.is_finite() {
             return None;
         }
         a.swap(col, pivot);
