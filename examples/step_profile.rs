@@ -19,7 +19,7 @@
 //! `chain1000`) and `pendulum hand-kahan-li8-compensated`: the bench's hand-written compositions with the
 //! compensated sums the generated steps keep (`Stepper::step_compensated`); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`,
-//! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2);
+//! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2; `galerkin4-newton`: solved by Newton only);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
 //! `dyn-trapezoid` and `dyn-yoshida4` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (Yoshida 4 of explicit sub-steps, fused), and
@@ -381,6 +381,16 @@ fn main() {
                 [1.0, -0.5],
                 [0.0, 0.5],
             ),
+            n,
+        ),
+        // The same steps solved by Newton only (no fixed-point iteration).
+        ("double pendulum", "galerkin4-newton") => run(
+            GalerkinIntegrator::new(
+                DoublePendulum { ..DP },
+                Galerkin::<4, 4>::gauss().with_iteration(lagrangian::galerkin::StageIteration::Newton),
+                2.0 / 95.0,
+            )
+            .start(0.0, [1.0, -0.5], [0.0, 0.5]),
             n,
         ),
         ("double pendulum", "trapezoid") => {

@@ -197,9 +197,10 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     });
     let stats = sim.stats();
     let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
-    // Derivative evaluations of L at quadrature points, with and without the Hessian.
+    // Derivative evaluations of L at quadrature points: gradients, with the
+    // whole Hessian (Newton) or the Hessian in v only (fixed-point steps).
     let points = sim.point_evaluations();
-    let evaluations = Some(points.gradients + points.hessians);
+    let evaluations = Some(points.gradients + points.hessians + points.velocity_hessians);
     let steps = stats.steps;
     match result {
         Ok(()) => Run { q: sim.state().q.to_vec(), steps, newton_per_step: per_step, evaluations, ..Run::default() },

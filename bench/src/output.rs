@@ -485,7 +485,7 @@ fn auto_reason(r: &AutoRatio) -> String {
 /// the methods that did not reach a target in one line after.
 pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
     let mut s = String::from(
-        "| target | method | setting | steps | worst error of 3 | time | Newton it./step | evaluations/step |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        "| target | method | setting | steps | worst error of 3 | time | Newton or fixed-point it./step | evaluations/step |\n| --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     let steps_of = |c: &Calibrated| {
         let sweep = p.sweeps.iter().find(|w| w.method == c.method)?;

@@ -9,7 +9,8 @@ pub struct Run {
     pub failure: Option<String>,
     /// Steps taken (accepted steps for adaptive methods).
     pub steps: u64,
-    /// Newton iterations per step (project methods).
+    /// Newton iterations per step (project methods; for Gauss Galerkin
+    /// rules, fixed-point and Newton iterations).
     pub newton_per_step: Option<f64>,
     /// Right-hand-side or force evaluations (peers and compositions);
     /// derivative evaluations of `L` at quadrature points (Galerkin rules).

@@ -14,6 +14,7 @@ mod derivatives;
 mod ensemble;
 mod errors;
 mod events;
+mod galerkin_collocation;
 mod galerkin_errors;
 mod guidance;
 mod macro_rewrite;

@@ -97,6 +97,39 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     pub(crate) extrapolate: [[T; S]; S],
     /// `ℓ_1'(1) … ℓ_s'(1)`: the velocity at the end of a step, `Σ_n ℓ_n'(1) D_n / h`.
     pub(crate) end_d: [T; S],
+    /// The Runge–Kutta matrix of the quadrature points, `a_ij = ∫_0^{c_i} L_j`
+    /// with `L_j` the Lagrange basis on `c_1 … c_r` (the Gauss collocation
+    /// matrix for Gauss–Legendre points): stage values from stage velocities.
+    pub(crate) stage_from_stages: [[T; R]; R],
+    /// `∫_0^{τ_m} L_j`, row `m − 1`: the node increments `D_m = h Σ_j (·) V_j`
+    /// of the step polynomial whose velocities at the points are `V_j`.
+    pub(crate) node_from_stages: [[T; R]; S],
+    /// How the step equations are solved ([`StageIteration`]).
+    iteration: StageIteration,
+}
+
+/// How a fixed Galerkin step solves its equations.
+///
+/// With as many Gauss–Legendre points as the degree (every
+/// [`Galerkin::gauss`] rule) the step is Gauss collocation of the
+/// Hamiltonian system in `(q, p)`, and its equations can be solved by a
+/// fixed-point iteration on the velocities at the points, with gradients of
+/// `L` only (no Jacobian of the step): see the `collocation` module of the
+/// runtime's Galerkin rules. Both iterations converge to the same step, to
+/// round-off. Other quadratures always use Newton.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StageIteration {
+    /// The fixed-point iteration where it contracts fast enough, Newton on
+    /// the steps where it does not (a stiff step, a poor first guess),
+    /// chosen per step from the observed contraction.
+    #[default]
+    Automatic,
+    /// The fixed-point iteration only: a step on which it does not converge
+    /// fails with a typed error (for checks; rules without collocation form
+    /// use Newton whatever this says).
+    FixedPoint,
+    /// Newton on the node values (with a kept Jacobian) on every step.
+    Newton,
 }
 
 impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
@@ -118,6 +151,9 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             col_d_max: [0.0; S],
             extrapolate: [[T::zero(); S]; S],
             end_d: [T::zero(); S],
+            stage_from_stages: [[T::zero(); R]; R],
+            node_from_stages: [[T::zero(); R]; S],
+            iteration: StageIteration::Automatic,
         };
         if S == 0 {
             return g;
@@ -154,7 +190,45 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
                 g.extrapolate[m][n] = lagrange(&x, n + 1, T::one() + x[m + 1]) - delta;
             }
         }
+        // ∫_0^τ L_j = τ Σ_k b_k L_j(τ c_k), exact for Gauss–Legendre points
+        // (L_j has degree r − 1); only used where the rule is Gauss.
+        let c = quadrature.nodes();
+        let integral = |tau: T, j: usize| -> T {
+            let mut sum = T::zero();
+            for (k, &ck) in c.iter().enumerate() {
+                sum += quadrature.weights()[k] * lagrange(c, j, tau * ck);
+            }
+            tau * sum
+        };
+        for i in 0..R {
+            for j in 0..R {
+                g.stage_from_stages[i][j] = integral(c[i], j);
+            }
+        }
+        for m in 0..S {
+            for j in 0..R {
+                g.node_from_stages[m][j] = integral(x[m + 1], j);
+            }
+        }
         g
+    }
+
+    /// The rule with the given way of solving its step equations (the
+    /// default is [`StageIteration::Automatic`]).
+    pub fn with_iteration(mut self, iteration: StageIteration) -> Self {
+        self.iteration = iteration;
+        self
+    }
+
+    /// How the step equations are solved.
+    pub fn iteration(&self) -> StageIteration {
+        self.iteration
+    }
+
+    /// Whether the step is Gauss collocation (`s` Gauss–Legendre points for
+    /// degree `s`), which the fixed-point iteration solves.
+    pub(crate) fn is_collocation(&self) -> bool {
+        R == S && matches!(self.quadrature.kind(), super::QuadratureKind::GaussLegendre)
     }
 
     /// The node family of the step polynomial.
@@ -412,6 +486,43 @@ where
 {
     let (_, lq, lv) = point_gradient(system, t, q, v);
     (lq, lv)
+}
+
+/// `(∂L/∂q, ∂L/∂v, ∂²L/∂v²)` at one point: one evaluation of `L` on a
+/// [`HyperDualArray`] with `ε1` seeded on `v` and `ε2` on `(q, v)`
+/// (`1 + 3N + 2N²` components; above `N = ROWS` by the rows of the whole
+/// Hessian, which keep the numbers small).
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+pub(crate) fn velocity_hessian<Sys, T, const N: usize>(
+    system: &Sys,
+    t: T,
+    q: [T; N],
+    v: [T; N],
+) -> ([T; N], [T; N], [[T; N]; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    if N > ROWS {
+        let p = PointDerivatives::at(system, t, q, v);
+        return (p.q, p.v, p.vv);
+    }
+    type D<const N: usize, T> = HyperDualArray<[T; N], Seeds<N, T>, T>;
+    let qd = core::array::from_fn(|i| {
+        let mut d = D::<N, T>::from_re(q[i]);
+        d.eps2.a[i] = T::one();
+        d
+    });
+    let vd = core::array::from_fn(|i| {
+        let mut d = D::<N, T>::from_re(v[i]);
+        d.eps1[i] = T::one();
+        d.eps2.b[i] = T::one();
+        d
+    });
+    let l = system.lagrangian(D::from_re(t), qd, vd);
+    let vv = core::array::from_fn(|i| core::array::from_fn(|k| l.mixed(i, N + k)));
+    (l.eps2.a, l.eps2.b, vv)
 }
 
 /// The rows of the Hessian of `L` per evaluation above `N = ROWS / 2`.

@@ -15,6 +15,7 @@
 //! | `linear.rs` | Chen, Guo & Wu (finite elements) §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
 //! | `quadratic.rs` | Chen, Guo & Wu (finite elements) §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
+//! | `collocation.rs` | Gauss rules as collocation: the step by fixed-point iteration on the velocities at the points, no Jacobian |
 //! | `stepper.rs` | the Galerkin rules as a [`Method`](crate::Method) of the one [`Integrator`](crate::Integrator): the block Newton step (fixed steps, forces), tangent map |
 //! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |
 //! | `one_point.rs` | the one-point rules in `DoubleDouble`, run as degree-1 Galerkin rules with their own points |
@@ -35,6 +36,7 @@
 //! without forces.
 
 mod basis;
+mod collocation;
 mod energy;
 mod linalg;
 mod linear;
@@ -45,7 +47,7 @@ mod quadrature;
 mod stepper;
 
 pub use basis::NodeFamily;
-pub use method::Galerkin;
+pub use method::{Galerkin, StageIteration};
 pub(crate) use one_point::as_galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};

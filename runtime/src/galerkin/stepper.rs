@@ -47,8 +47,9 @@ use crate::symplectic::TangentMap;
 use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
+use super::collocation;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
-use super::method::{Galerkin, PointDerivatives, gradient_at, point_gradient};
+use super::method::{Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient};
 
 /// The builder of a Galerkin integrator: [`IntegratorBuilder`] with a
 /// [`Galerkin`] rule.
@@ -79,6 +80,9 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     pub(crate) kept_policy: KeptPolicy,
     /// The derivative evaluations of `L` over the successful fixed steps so far.
     pub(crate) evaluations: PointEvaluations,
+    /// When to try the fixed-point iteration again after it failed to
+    /// converge fast enough (`collocation.rs`): the same back-off as the kept block's.
+    pub(crate) fixed_point: KeptPolicy,
 }
 
 /// Evaluations of the derivatives of `L` at quadrature points, summed over
@@ -94,6 +98,10 @@ pub struct PointEvaluations {
     /// Gradients with the Hessian of `L` at one point: `R` per iteration
     /// that assembles a new Jacobian.
     pub hessians: u64,
+    /// Hessians `∂²L/∂v²` in the velocities only at one point: `R` per step
+    /// solved by the fixed-point iteration of a Gauss rule (whose
+    /// iterations count `R` gradients each).
+    pub velocity_hessians: u64,
 }
 
 /// Back-off for the kept Newton block: where a block one step old contracts
@@ -284,6 +292,36 @@ where
     pub(crate) fn step_nodes(&mut self, h: T, t1: T) -> Result<(), Error<N, T>> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e = self.carry;
+        let predicted = self.predict_nodes(h);
+        // Gauss rules try the fixed-point iteration on the stage velocities
+        // first (`collocation.rs`: gradients of L only, no Jacobian); a step
+        // where it contracts slowly or diverges goes on to Newton below,
+        // and the next steps skip it for a while (the kept block's back-off).
+        let fixed_policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.fixed_point);
+        let iteration = self.method.iteration();
+        let fixed_offered = self.method.is_collocation()
+            && match iteration {
+                StageIteration::Newton => false,
+                StageIteration::FixedPoint => true,
+                StageIteration::Automatic => fixed_policy.offers(),
+            };
+        let mut fixed_spent = 0;
+        if fixed_offered {
+            let p = (&p0, &self.p_carry);
+            // Alone, the fixed point is only stopped by divergence.
+            let slowest = match iteration {
+                StageIteration::FixedPoint => 1.0,
+                _ => collocation::SLOWEST_CONTRACTION,
+            };
+            match collocation::solve(&self.system, &self.method, t0, h, (&q0, &e), p, &predicted, slowest) {
+                Ok(c) => return self.commit_fixed_point(h, t1, c, &predicted),
+                Err(failure) if iteration == StageIteration::FixedPoint => {
+                    let failure = NewtonFailure::Rejected { iterations: failure.iterations, reason: failure.reason };
+                    return Err(self.fail(h, failure));
+                }
+                Err(failure) => fixed_spent = failure.iterations,
+            }
+        }
         // The condition estimate (Hager's, a few triangular solves whose
         // latency measured a fifth of a double-pendulum step at s = 4) is made
         // only for a step that fails (`ill_conditioned`, below), so the
@@ -355,8 +393,7 @@ where
             work.start(simplify, kept);
             newton::solve(Nodes(guess), options, |x: &Nodes<N, S, T>, _| linearize(x, work))
         };
-        let predicted = self.predict_nodes(h);
-        let mut spent = 0;
+        let mut spent = fixed_spent;
         // (Degree 1 has a single block: full Newton is cheaper there, measured
         // 148 against 222 ns per pendulum step.)
         let mut solved = attempt(predicted, S >= 2, cached_lu, &mut work);
@@ -423,9 +460,48 @@ where
         self.commit(h, t1, d, report, jacobian, storage)?;
         if let Some(last) = &mut self.memory {
             last.kept_policy = policy.after(offered, has_kept && !offered, kept);
-            // Every linearisation of every attempt, and the momentum update.
-            last.evaluations.gradients += (R * (kept_linearisations + 1)) as u64;
+            let collocation = self.method.is_collocation() && iteration == StageIteration::Automatic;
+            last.fixed_point = fixed_policy.after(fixed_offered, collocation && !fixed_offered, false);
+            // Every linearisation of every attempt, the fixed-point
+            // iterations before them, and the momentum update.
+            let fixed_gradients = fixed_spent.saturating_sub(1);
+            last.evaluations.gradients += (R * (kept_linearisations + fixed_gradients + 1)) as u64;
             last.evaluations.hessians += (R * new_linearisations) as u64;
+            if fixed_offered {
+                last.evaluations.velocity_hessians += R as u64;
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies a step the fixed-point iteration solved (`converged`, from
+    /// the guess `predicted`), with the checks of a Newton step; the kept
+    /// Newton block stays in the memory for the steps that need it.
+    fn commit_fixed_point(
+        &mut self,
+        h: T,
+        t1: T,
+        converged: collocation::Converged<N, S, T>,
+        predicted: &BlockVector<N, S, T>,
+    ) -> Result<(), Error<N, T>> {
+        let collocation::Converged { d, iterations, residual_norm, correction_norm } = converged;
+        let report = NewtonReport { iterations, residual_norm, correction_norm };
+        if let Some(last) = &self.memory {
+            let f = |x: &[T; N]| x.map(|v| v.to_f64());
+            let rho = (h / last.h).to_f64();
+            let reached = f(&last.d[S - 1]).map(|x| x * rho);
+            if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&self.state.q)) {
+                return Err(self.fail(h, NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH }));
+            }
+        }
+        let storage =
+            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
+        self.commit(h, t1, d, report, KeptBlock::Same, storage)?;
+        if let Some(last) = &mut self.memory {
+            last.fixed_point = KeptPolicy::default();
+            // The first iteration's gradients come with the Hessians in v.
+            last.evaluations.gradients += (R * iterations) as u64;
+            last.evaluations.velocity_hessians += R as u64;
         }
         Ok(())
     }
@@ -537,6 +613,7 @@ where
                     spare,
                     kept_policy: KeptPolicy::default(),
                     evaluations: PointEvaluations::default(),
+                    fixed_point: KeptPolicy::default(),
                 });
             }
         }
@@ -1316,9 +1393,8 @@ mod tests {
     /// Kepler e = 0.5 from pericentre with `n` steps of Galerkin s = 6, the
     /// `k`-th of size `size(k)`; the final state and Newton iterations per step.
     fn kepler_run(n: usize, size: impl Fn(usize) -> f64) -> ([f64; 2], [f64; 2], f64) {
-        let mut sim = Integrator::new(Kepler, Galerkin::<6, 6>::gauss(), size(0))
-            .start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()])
-            .unwrap();
+        let newton = Galerkin::<6, 6>::gauss().with_iteration(StageIteration::Newton);
+        let mut sim = Integrator::new(Kepler, newton, size(0)).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
         for k in 0..n {
             sim.set_step_size(size(k)).unwrap();
             sim.step().unwrap();
@@ -1332,8 +1408,8 @@ mod tests {
     /// Jacobian, so Hessians are a small share of the evaluations.
     #[test]
     fn point_evaluations_count_every_linearisation() {
-        let mut sim =
-            Integrator::new(Kepler, Galerkin::<6, 6>::gauss(), 0.1).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
+        let newton = Galerkin::<6, 6>::gauss().with_iteration(StageIteration::Newton);
+        let mut sim = Integrator::new(Kepler, newton, 0.1).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
         assert_eq!(sim.point_evaluations(), PointEvaluations::default());
         sim.run(200, |_| {}).unwrap();
         let (e, s) = (sim.point_evaluations(), sim.stats());
@@ -1342,6 +1418,13 @@ mod tests {
         // serves most steps (Hessians on fewer than one step in four).
         assert!(e.hessians >= 6, "{e:?}");
         assert!(e.hessians < 6 * s.steps / 4, "{e:?} {s:?}");
+        // The fixed-point iteration: gradients at every point per iteration
+        // (the first with the Hessian in v) and for the momentum update.
+        let fixed = Galerkin::<6, 6>::gauss().with_iteration(StageIteration::FixedPoint);
+        let mut sim = Integrator::new(Kepler, fixed, 0.05).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
+        sim.run(200, |_| {}).unwrap();
+        let (e, s) = (sim.point_evaluations(), sim.stats());
+        assert_eq!(e, PointEvaluations { gradients: 6 * s.newton_iterations, hessians: 0, velocity_hessians: 6 * 200 });
     }
 
     /// `L = ½v² + ln q`, defined for `q > 0` only.

@@ -20,6 +20,10 @@ use crate::system::Lagrangian;
 use crate::time_transform::ExplicitAdaptive;
 
 /// The driver behind a [`Stepper`].
+// The variants differ by their Galerkin tables (the collocation tables grow
+// with `R²`); a stepper holds one driver for a whole run, so boxing would buy
+// nothing but an indirection on every step.
+#[allow(clippy::large_enum_variant)]
 pub(super) enum Driver<S: Lagrangian<N> + Clone, const N: usize>
 where
     Dim<N>: Extended<N>,

@@ -1,0 +1,303 @@
+//! Gauss Galerkin steps as collocation: the step equations solved by a
+//! fixed-point iteration on the velocities at the points, without a Jacobian.
+//!
+//! With degree `s` and `s` Gauss–Legendre points the Galerkin step is the
+//! `s`-stage Gauss collocation method of the Hamiltonian system in `(q, p)`
+//! (Marsden & West, *Acta Numerica* 2001, §2.6; Hairer, Lubich & Wanner,
+//! *Geometric Numerical Integration*, §VI.6.3). With `a_ij = ∫_0^{c_i} L_j`
+//! and the stage velocities `V_i` as unknowns:
+//!
+//! ```text
+//! Q_i = q_k + h Σ_j a_ij V_j
+//! G_j = ∂L/∂q(t_j, Q_j, V_j) + F(t_j, Q_j, V_j)        (F = Q − ∂R/∂v, the generalised force)
+//! P_i = p_k + h Σ_j a_ij G_j
+//! V_i ← V_i + M_i⁻¹ (P_i − ∂L/∂v(t_i, Q_i, V_i)),   M_i = ∂²L/∂v² at the first guess
+//! ```
+//!
+//! A fixed point solves the Galerkin equations of `stepper.rs`: testing them
+//! with the degree-`s` polynomial `φ = ∫_0^τ L_i` (so `φ(c_j) = a_ji`,
+//! `φ(1) = b_i`) and using `b_j a_ji + b_i a_ij = b_i b_j` (Gauss) gives
+//! `∂L/∂v(Q_i, V_i) = P_i`, and the node increments of the step polynomial
+//! are `D_m = h Σ_j (∫_0^{τ_m} L_j) V_j`. The converged step is therefore the
+//! step Newton finds, to round-off (`tests/behaviour/galerkin_collocation.rs`).
+//!
+//! This is the iteration of Antoñana, Makazaga & Murua's IRKGL16 (*J. Comput.
+//! Phys.* 2017), with the momentum equation solved in `v` by one Newton step
+//! per stage: exact for `L = ½ vᵀM(q)v + b(q)·v − U(q)` up to the change of
+//! `M` from the first guess to the solution. Each iteration costs one
+//! gradient of `L` (and the force) per point and `s` products by `N × N`
+//! matrices; `M_i` costs one Hessian in `v` per point per step. It contracts
+//! like `h ‖∂f/∂y‖`: where it contracts slowly (a stiff step) or diverges,
+//! the stepper falls back to Newton (`stepper.rs`).
+//!
+//! Stopping: the iteration runs until its correction is at round-off (a few
+//! ulps of the largest velocity), or the next one would be by the observed
+//! contraction, or it stops decreasing near round-off (IRKGL16's
+//! criterion), so the step it returns is converged as far as `f64` allows,
+//! as the Newton iteration's `rtol = 1e-14` is.
+
+use crate::real::{Real, all_finite, max_abs};
+use crate::system::{Lagrangian, generalized_force};
+
+use super::linalg::BlockVector;
+use super::method::{Galerkin, gradient_at, velocity_hessian};
+
+/// Most iterations a step may take before Newton takes over.
+const MAX_ITERATIONS: usize = 20;
+
+/// The fixed point contracts too slowly where one iteration reduces the
+/// correction by less than this: Newton then takes over. Measured on the
+/// double pendulum (s = 4, h = 2/95, `examples/step_profile.rs` under
+/// callgrind): a fixed-point iteration costs about 2.6k instructions, a
+/// Newton step with a kept Jacobian 17.6k (2.9 iterations); the fixed point
+/// contracts by 0.01–0.05 per iteration there and breaks even at about 6.5
+/// iterations, so an iteration that reduces the correction by less than a
+/// tenth would cost more than Newton.
+pub(super) const SLOWEST_CONTRACTION: f64 = 0.1;
+
+/// A correction (relative to the largest stage velocity) at round-off.
+const ROUND_OFF: f64 = 4.0 * f64::EPSILON;
+
+/// A correction at most this large that no longer decreases has reached the
+/// round-off of the iteration (IRKGL16's stopping rule).
+const STALLED: f64 = 1024.0 * f64::EPSILON;
+
+/// A converged fixed-point solve.
+pub(super) struct Converged<const N: usize, const S: usize, T> {
+    /// The node increments of the step polynomial.
+    pub(super) d: BlockVector<N, S, T>,
+    /// Iterations (gradients of `L` at every point each).
+    pub(super) iterations: usize,
+    /// `max |P_i − ∂L/∂v|` at the last iterate before its correction.
+    pub(super) residual_norm: f64,
+    /// The last correction relative to the largest stage velocity.
+    pub(super) correction_norm: f64,
+}
+
+/// Why a fixed-point solve stopped without converging.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Failed {
+    /// Iterations spent.
+    pub(super) iterations: usize,
+    /// What went wrong: a slow or diverging iteration, a non-finite value, a
+    /// singular `∂²L/∂v²`.
+    pub(super) reason: &'static str,
+}
+
+/// Solves the step of size `h` from `(t0, q0 + e, p0 + pc)` by the fixed-point
+/// iteration on the stage velocities, starting from the node increments
+/// `guess`; fails where an iteration (away from round-off) reduces the
+/// correction by less than the factor `slowest`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    g: &Galerkin<S, R, T>,
+    t0: T,
+    h: T,
+    (q0, e): (&[T; N], &[T; N]),
+    (p0, pc): (&[T; N], &[T; N]),
+    guess: &BlockVector<N, S, T>,
+    slowest: f64,
+) -> Result<Converged<N, S, T>, Failed>
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    let zero = T::zero();
+    let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+    let fail = |iterations, reason| Err(Failed { iterations, reason });
+    // The guess's velocities at the points, the inverse of ∂²L/∂v² there,
+    // and the first iteration's gradients from the same evaluation.
+    let mut v = [[zero; N]; R];
+    let mut m_inv = [[[zero; N]; N]; R];
+    let mut force = [[zero; N]; R];
+    let mut lv = [[zero; N]; R];
+    for j in 0..R {
+        let (t, q, vj) = g.point(t0, h, (q0, e), guess, j);
+        let (lq, lvj, vv) = velocity_hessian(system, t, q, vj);
+        match invert(vv) {
+            Some(inv) => m_inv[j] = inv,
+            None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+        }
+        (v[j], force[j], lv[j]) = (vj, lq, lvj);
+        if forced {
+            let f = generalized_force(system, t, q, vj);
+            for i in 0..N {
+                force[j][i] += f[i];
+            }
+        }
+    }
+    // h a_ij, rounded once and shared by the positions and the momenta.
+    let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
+    let nodes = g.quadrature().nodes();
+    let mut last = f64::INFINITY;
+    for iteration in 1..=MAX_ITERATIONS {
+        if iteration > 1 {
+            for j in 0..R {
+                let q = core::array::from_fn(|i| {
+                    let mut x = e[i];
+                    for (a, vl) in ha[j].iter().zip(&v) {
+                        x += *a * vl[i];
+                    }
+                    q0[i] + x
+                });
+                let t = t0 + nodes[j] * h;
+                let (lq, lvj) = gradient_at(system, t, q, v[j]);
+                (force[j], lv[j]) = (lq, lvj);
+                if forced {
+                    let f = generalized_force(system, t, q, v[j]);
+                    for i in 0..N {
+                        force[j][i] += f[i];
+                    }
+                }
+            }
+        }
+        let (mut correction, mut size, mut residual) = ([[zero; N]; R], 0.0f64, 0.0f64);
+        for i in 0..R {
+            // P_i − ∂L/∂v = (p_k − ∂L/∂v) + (compensation + h Σ_j a_ij G_j).
+            let r: [T; N] = core::array::from_fn(|c| {
+                let mut x = pc[c];
+                for (a, gl) in ha[i].iter().zip(&force) {
+                    x += *a * gl[c];
+                }
+                (p0[c] - lv[i][c]) + x
+            });
+            residual = residual.max(max_abs(&r));
+            for c in 0..N {
+                let mut x = zero;
+                for k in 0..N {
+                    x += m_inv[i][c][k] * r[k];
+                }
+                correction[i][c] = x;
+            }
+            size = size.max(max_abs(&correction[i]));
+        }
+        for (vi, di) in v.iter_mut().zip(&correction) {
+            for (x, d) in vi.iter_mut().zip(di) {
+                *x += *d;
+            }
+        }
+        if !all_finite(v.as_flattened()) {
+            return fail(iteration, "non-finite stage velocities in the fixed-point iteration");
+        }
+        let scale = max_abs(v.as_flattened());
+        let ratio = if size == 0.0 { 0.0 } else { size / scale };
+        // Converged: a correction at round-off; one whose successor, at the
+        // observed contraction `ratio / last`, would be (the iteration
+        // contracts linearly, so the error left is about that successor);
+        // or one near round-off that no longer decreases.
+        let next = if iteration > 1 { ratio * ratio / last } else { f64::INFINITY };
+        if ratio <= ROUND_OFF || next <= ROUND_OFF || (ratio >= last && ratio <= STALLED) {
+            let d = nodes_from(g, h, &v);
+            return Ok(Converged { d, iterations: iteration, residual_norm: residual, correction_norm: ratio });
+        }
+        if iteration >= 2 && ratio > STALLED && ratio > slowest * last {
+            return fail(iteration, "the fixed-point iteration contracts too slowly");
+        }
+        last = ratio;
+    }
+    fail(MAX_ITERATIONS, "the fixed-point iteration did not converge")
+}
+
+/// The node increments `D_m = h Σ_j (∫_0^{τ_m} L_j) V_j` of the polynomial
+/// with velocities `v` at the points.
+#[inline(always)]
+fn nodes_from<const N: usize, const S: usize, const R: usize, T: Real>(
+    g: &Galerkin<S, R, T>,
+    h: T,
+    v: &[[T; N]; R],
+) -> BlockVector<N, S, T> {
+    let mut d = [[T::zero(); N]; S];
+    for (dm, row) in d.iter_mut().zip(&g.node_from_stages) {
+        for (&a, vj) in row.iter().zip(v) {
+            for (x, &y) in dm.iter_mut().zip(vj) {
+                *x += a * y;
+            }
+        }
+        for x in dm.iter_mut() {
+            *x *= h;
+        }
+    }
+    d
+}
+
+/// The inverse of `a` by Gauss–Jordan elimination with partial pivoting;
+/// `None` where it is singular or not finite.
+#[inline(always)]
+fn invert<const N: usize, T: Real>(mut a: [[T; N]; N]) -> Option<[[T; N]; N]> {
+    let mut inv = [[T::zero(); N]; N];
+    for (i, row) in inv.iter_mut().enumerate() {
+        row[i] = T::one();
+    }
+    for col in 0..N {
+        let pivot = (col..N).max_by(|&x, &y| a[x][col].abs().to_f64().total_cmp(&a[y][col].abs().to_f64()))?;
+        let p = a[pivot][col];
+        if p.abs().to_f64() == 0.0 || !p.is_finite() {
+            return None;
+        }
+        a.swap(col, pivot);
+        inv.swap(col, pivot);
+        let r = p.recip();
+        for k in 0..N {
+            a[col][k] *= r;
+            inv[col][k] *= r;
+        }
+        for row in 0..N {
+            if row != col {
+                let f = a[row][col];
+                for k in 0..N {
+                    let (x, y) = (a[col][k], inv[col][k]);
+                    a[row][k] -= f * x;
+                    inv[row][k] -= f * y;
+                }
+            }
+        }
+    }
+    all_finite(inv.as_flattened()).then_some(inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverts_with_pivoting_and_refuses_singular_matrices() {
+        let a = [[0.0, 2.0, 1.0], [1.0, 1.0, 0.0], [3.0, 0.0, 4.0]];
+        let inv = invert(a).unwrap();
+        for i in 0..3 {
+            for k in 0..3 {
+                let x: f64 = (0..3).map(|l| a[i][l] * inv[l][k]).sum();
+                assert!((x - if i == k { 1.0 } else { 0.0 }).abs() < 1e-15, "{i} {k} {x}");
+            }
+        }
+        assert!(invert([[1.0, 2.0], [2.0, 4.0]]).is_none());
+        assert!(invert([[f64::NAN, 0.0], [0.0, 1.0]]).is_none());
+    }
+
+    #[test]
+    fn gauss_tables_are_the_collocation_matrix() {
+        // Two-point Gauss: a = [[1/4, 1/4 − √3/6], [1/4 + √3/6, 1/4]].
+        let g = Galerkin::<2, 2>::gauss();
+        let r = 3f64.sqrt() / 6.0;
+        let expected = [[0.25, 0.25 - r], [0.25 + r, 0.25]];
+        for i in 0..2 {
+            for j in 0..2 {
+                assert!((g.stage_from_stages[i][j] - expected[i][j]).abs() < 1e-15);
+            }
+        }
+        // The last node is the end of the step: its row is the weights.
+        let g = Galerkin::<5, 5>::gauss();
+        for j in 0..5 {
+            assert!((g.node_from_stages[4][j] - g.quadrature().weights()[j]).abs() < 1e-15);
+        }
+        // Gauss: b_i a_ij + b_j a_ji = b_i b_j (symplecticity).
+        let b = g.quadrature().weights();
+        let a = g.stage_from_stages;
+        for i in 0..5 {
+            for j in 0..5 {
+                assert!((b[i] * a[i][j] + b[j] * a[j][i] - b[i] * b[j]).abs() < 1e-15);
+            }
+        }
+    }
+}
