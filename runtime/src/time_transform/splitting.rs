@@ -385,7 +385,8 @@ struct Gradient<T, const N: usize> {
 ///   `|Γ| ≤ ln 2`, and for an autonomous `L` (`p_t = −E0`) it bounds the
 ///   energy error relative to `c − V` at the node;
 /// - [`Error::TimeStepCollapsed`] where the step advances time by less
-///   than [`min_time_step`](Self::min_time_step).
+///   than [`min_time_step`](Self::min_time_step), or would move the
+///   reported time back.
 ///
 /// The bound is far above what a step that follows the orbit reaches. The
 /// splitting keeps a modified `Γ̃ = Γ + O(σ^p)` exactly, up to round-off
@@ -778,7 +779,8 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// argument of `f'` is not finite and positive, where the end state is
     /// not finite, where the step has lost the orbit
     /// ([`Error::OrbitLost`]), and where the step advances time by
-    /// less than [`min_time_step`](Self::min_time_step).
+    /// less than [`min_time_step`](Self::min_time_step) or would move the
+    /// reported time back.
     pub fn step(&mut self) -> Result<State<N>, Error<N>> {
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
@@ -804,8 +806,14 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// readouts.
     fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>) -> Result<(), Error<N>> {
         let dt = ((phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry)).re();
-        if dt.is_nan() || dt < self.floor {
-            return Err(Error::TimeStepCollapsed { state: self.state(), dt, floor: self.floor });
+        // The compensated time advances by `dt`, but its leading part can
+        // round below the time last published (a node's, or a landed
+        // target's) where the step is below the spacing of `t` and a
+        // composition's negative stages move it back and forth: the step
+        // then advances the reported time by less than the floor too.
+        let published = phase.t.re() - self.state().t;
+        if dt.is_nan() || dt < self.floor || published < 0.0 {
+            return Err(Error::TimeStepCollapsed { state: self.state(), dt: dt.min(published), floor: self.floor });
         }
         self.phase = phase;
         self.cached = cached;
