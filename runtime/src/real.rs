@@ -152,6 +152,56 @@ pub(crate) fn is_non_finite(bits: u64) -> bool {
     bits != 0
 }
 
+/// Inverts `a` into `inv` by Gauss–Jordan elimination with partial
+/// pivoting, destroying `a`; `false` where a pivot is NaN or at most
+/// `tiny` times the largest entry of `a` (`tiny = 0`: exactly singular), or
+/// the inverse is not finite. Callers choose the storage: the collocation
+/// iteration's small blocks on the stack, the splitting's mass matrix on
+/// the heap.
+#[inline(always)]
+pub(crate) fn gauss_jordan_into<T: Real, const N: usize>(
+    a: &mut [[T; N]; N],
+    inv: &mut [[T; N]; N],
+    tiny: f64,
+) -> bool {
+    for (i, row) in inv.iter_mut().enumerate() {
+        row.fill(T::zero());
+        row[i] = T::one();
+    }
+    let scale = if tiny > 0.0 { a.iter().flatten().fold(0.0f64, |m, x| m.max(x.re().abs())) } else { 0.0 };
+    if !scale.is_finite() {
+        return false;
+    }
+    for col in 0..N {
+        let Some(pivot) = (col..N).max_by(|&i, &j| a[i][col].re().abs().total_cmp(&a[j][col].re().abs())) else {
+            return false;
+        };
+        let p = a[pivot][col];
+        let size = p.re().abs();
+        if size.is_nan() || size <= tiny * scale || !p.is_finite() {
+            return false;
+        }
+        a.swap(col, pivot);
+        inv.swap(col, pivot);
+        let d = p.recip();
+        for j in 0..N {
+            a[col][j] *= d;
+            inv[col][j] *= d;
+        }
+        for i in 0..N {
+            if i != col {
+                let f = a[i][col];
+                for j in 0..N {
+                    let (aj, ij) = (a[col][j], inv[col][j]);
+                    a[i][j] -= f * aj;
+                    inv[i][j] -= f * ij;
+                }
+            }
+        }
+    }
+    inv.iter().flatten().all(|x| x.is_finite())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -36,7 +36,7 @@
 //! criterion), so the step it returns is converged as far as `f64` allows,
 //! as the Newton iteration's `rtol = 1e-14` is.
 
-use crate::real::{Real, all_finite, max_abs};
+use crate::real::{Real, all_finite, gauss_jordan_into, max_abs};
 use crate::system::{Lagrangian, generalized_force};
 
 use super::linalg::BlockVector;
@@ -222,39 +222,11 @@ fn nodes_from<const N: usize, const S: usize, const R: usize, T: Real>(
     d
 }
 
-/// The inverse of `a` by Gauss–Jordan elimination with partial pivoting;
-/// `None` where it is singular or not finite.
+/// The inverse of `a` (exactly singular or not finite: `None`).
 #[inline(always)]
 fn invert<const N: usize, T: Real>(mut a: [[T; N]; N]) -> Option<[[T; N]; N]> {
     let mut inv = [[T::zero(); N]; N];
-    for (i, row) in inv.iter_mut().enumerate() {
-        row[i] = T::one();
-    }
-    for col in 0..N {
-        let pivot = (col..N).max_by(|&x, &y| a[x][col].abs().to_f64().total_cmp(&a[y][col].abs().to_f64()))?;
-        let p = a[pivot][col];
-        if p.abs().to_f64() == 0.0 || !p.is_finite() {
-            return None;
-        }
-        a.swap(col, pivot);
-        inv.swap(col, pivot);
-        let r = p.recip();
-        for k in 0..N {
-            a[col][k] *= r;
-            inv[col][k] *= r;
-        }
-        for row in 0..N {
-            if row != col {
-                let f = a[row][col];
-                for k in 0..N {
-                    let (x, y) = (a[col][k], inv[col][k]);
-                    a[row][k] -= f * x;
-                    inv[row][k] -= f * y;
-                }
-            }
-        }
-    }
-    all_finite(inv.as_flattened()).then_some(inv)
+    gauss_jordan_into(&mut a, &mut inv, 0.0).then_some(inv)
 }
 
 #[cfg(test)]

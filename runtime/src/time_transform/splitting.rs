@@ -33,7 +33,7 @@
 use crate::error::{Argument, Error};
 use crate::hyperdual::{DualArray, Timed};
 use crate::integrator::Composition;
-use crate::real::{Real, all_finite};
+use crate::real::{Real, all_finite, gauss_jordan_into};
 use crate::state::State;
 use crate::system::Lagrangian;
 use num_dual::HyperDual;
@@ -543,43 +543,12 @@ fn square<T, const N: usize>(rows: Vec<[T; N]>) -> Box<[[T; N]; N]> {
     }
 }
 
-/// Gauss–Jordan with partial pivoting, on the heap; `None` when singular or
-/// not finite.
+/// The inverse of `a` on the heap; `None` where a pivot is at most `1e-13`
+/// of the largest entry, or the inverse is not finite.
 pub(super) fn invert<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<Box<[[T; N]; N]>> {
     let mut a = square(a.to_vec());
     let mut inv = zeroed_square::<T, N>();
-    for (i, row) in inv.iter_mut().enumerate() {
-        row[i] = T::one();
-    }
-    let scale = a.iter().flatten().fold(0.0f64, |m, x| m.max(x.re().abs()));
-    if !(scale.is_finite() && scale > 0.0) {
-        return None;
-    }
-    for col in 0..N {
-        let pivot = (col..N).max_by(|&i, &j| a[i][col].re().abs().total_cmp(&a[j][col].re().abs()))?;
-        let size = a[pivot][col].re().abs();
-        if size.is_nan() || size <= 1e-13 * scale {
-            return None;
-        }
-        a.swap(col, pivot);
-        inv.swap(col, pivot);
-        let d = a[col][col].recip();
-        for j in 0..N {
-            a[col][j] *= d;
-            inv[col][j] *= d;
-        }
-        for i in 0..N {
-            if i != col {
-                let f = a[i][col];
-                for j in 0..N {
-                    let (aj, ij) = (a[col][j], inv[col][j]);
-                    a[i][j] -= f * aj;
-                    inv[i][j] -= f * ij;
-                }
-            }
-        }
-    }
-    inv.iter().flatten().all(|x| x.is_finite()).then_some(inv)
+    gauss_jordan_into(&mut a, &mut inv, 1e-13).then_some(inv)
 }
 
 /// `(T(p), M⁻¹p)`.
