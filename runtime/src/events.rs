@@ -171,86 +171,9 @@ impl<'a, const N: usize> Event<'a, N> {
     }
 }
 
-/// Why a root could not be located.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct NotFinite {
-    pub(crate) t: f64,
-}
-
-/// The zero of `f` in `[a, b]` where `f(a) = fa` and `f(b) = fb` have
-/// opposite signs (or `fb = 0`), by the Illinois method: regula falsi,
-/// halving the value kept at an end that was kept twice in a row. Returns
-/// the end of the final bracket on the side of `b` (where the sign has
-/// changed), within `tol` of the root.
-pub(crate) fn illinois(
-    mut f: impl FnMut(f64) -> f64,
-    (mut a, mut fa): (f64, f64),
-    (mut b, mut fb): (f64, f64),
-    tol: f64,
-) -> Result<f64, NotFinite> {
-    if fb == 0.0 {
-        return Ok(b);
-    }
-    // Which end was replaced last: −1 for a, +1 for b.
-    let mut side = 0;
-    for _ in 0..200 {
-        if (b - a).abs() <= tol {
-            break;
-        }
-        let mut t = (a * fb - b * fa) / (fb - fa);
-        if !(t > a.min(b) && t < a.max(b)) {
-            t = 0.5 * (a + b);
-        }
-        let ft = f(t);
-        if !ft.is_finite() {
-            return Err(NotFinite { t });
-        }
-        if ft == 0.0 {
-            return Ok(t);
-        }
-        if (ft < 0.0) == (fb < 0.0) {
-            b = t;
-            fb = ft;
-            if side == 1 {
-                fa *= 0.5;
-            }
-            side = 1;
-        } else {
-            a = t;
-            fa = ft;
-            if side == -1 {
-                fb *= 0.5;
-            }
-            side = -1;
-        }
-    }
-    Ok(b)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn illinois_brackets_to_the_tolerance() {
-        let mut calls = 0;
-        let root = illinois(
-            |t| {
-                calls += 1;
-                t.cos() - t
-            },
-            (0.0, 1.0),
-            (1.0, 1f64.cos() - 1.0),
-            1e-15,
-        )
-        .unwrap();
-        assert!((root - 0.739_085_133_215_160_6).abs() < 2e-15, "{root}");
-        assert!(calls < 20, "{calls} evaluations");
-        // A flat function where plain regula falsi keeps one end for ever.
-        let root = illinois(|t: f64| t.powi(9) - 1e-9, (0.0, -1e-9), (1.0, 1.0 - 1e-9), 1e-14).unwrap();
-        assert!((root - 0.1).abs() < 1e-13, "{root}");
-        assert_eq!(illinois(|_| f64::NAN, (0.0, -1.0), (1.0, 1.0), 1e-12), Err(NotFinite { t: 0.5 }));
-    }
 
     #[test]
     fn directions_filter_sign_changes() {

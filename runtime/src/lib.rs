@@ -28,6 +28,7 @@ pub mod newton;
 pub mod noether;
 pub mod problem;
 mod real;
+mod root;
 pub mod sensitivity;
 #[cfg(feature = "serde")]
 mod serde_arrays;

@@ -62,9 +62,10 @@
 
 use crate::dense::{DenseStep, Hermite, Node, acceleration};
 use crate::error::Error;
-use crate::events::{Action, Event, EventRecord, illinois};
+use crate::events::{Action, Event, EventRecord};
 use crate::integrator::Stats;
 use crate::mechanics::DiscreteMechanics;
+use crate::root::illinois;
 use crate::state::State;
 use crate::system::Lagrangian;
 

@@ -9,6 +9,7 @@ use crate::error::Error;
 use crate::integrator::Stats;
 use crate::mechanics::{DiscreteMechanics, LegendreFailure};
 use crate::real::{Real, all_finite};
+use crate::root::Bracket;
 use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
@@ -491,16 +492,11 @@ where
             self.landed = Some((self.inner.extended_state().step, t_end));
             return Ok(());
         }
-        // Illinois-modified regula falsi on f(σ') = t(σ') − t_end over (0, σ).
-        let (mut lo, mut f_lo) = (T::zero(), t0 - t_end);
-        let (mut hi, mut f_hi) = (sigma, t_over - t_end);
-        let mut side = 0i8;
+        // f(σ') = t(σ') − t_end over (0, σ), bracketed.
+        let mut bracket = Bracket::new((T::zero(), t0 - t_end), (sigma, t_over - t_end));
         let mut best: Option<(T, I, Option<f64>)> = None;
         for _ in 0..60 {
-            let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
-            if !(above(s, lo) && above(hi, s)) {
-                s = (lo + hi) * 0.5;
-            }
+            let s = bracket.trial();
             let mut trial = self.inner.clone();
             let verified = if trial.set_s_step_size(s).is_err() || trial.s_step().is_err() {
                 None
@@ -509,8 +505,7 @@ where
                 self.verify(&trial, t0, start, None).ok()
             };
             let Some((_, _, rate)) = verified else {
-                // Unsolvable or refused trial: move the upper end down and try again.
-                hi = s;
+                bracket.refuse(s);
                 continue;
             };
             let f = self.inner_time(&trial) - t_end;
@@ -520,19 +515,7 @@ where
             if f.to_f64().abs() <= tol {
                 break;
             }
-            if f.to_f64() > 0.0 {
-                (hi, f_hi) = (s, f);
-                if side == 1 {
-                    f_lo *= 0.5;
-                }
-                side = 1;
-            } else {
-                (lo, f_lo) = (s, f);
-                if side == -1 {
-                    f_hi *= 0.5;
-                }
-                side = -1;
-            }
+            bracket.update(s, f);
         }
         match best {
             Some((f, mut trial, rate)) if f.to_f64().abs() <= 64.0 * tol => {

@@ -34,6 +34,7 @@ use crate::error::{Argument, Error};
 use crate::hyperdual::{DualArray, Timed};
 use crate::integrator::Composition;
 use crate::real::{Real, all_finite, gauss_jordan_into};
+use crate::root::Bracket;
 use crate::state::State;
 use crate::system::Lagrangian;
 use num_dual::HyperDual;
@@ -962,18 +963,13 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             self.landed = Some((self.step, target.re()));
             return Ok(());
         }
-        let (mut lo, mut f_lo) = (T::zero(), t0 - target);
-        let (mut hi, mut f_hi) = (self.sigma, t_over - target);
-        let mut side = 0i8;
+        let mut bracket = Bracket::new((T::zero(), t0 - target), (self.sigma, t_over - target));
         let mut best: Option<(T, Phase<T, N>, Option<Gradient<T, N>>)> = None;
         for _ in 0..100 {
-            let mut s = hi - f_hi * (hi - lo) / (f_hi - f_lo);
-            if !(s.re() > lo.re() && s.re() < hi.re()) {
-                s = (lo + hi) * 0.5;
-            }
+            let s = bracket.trial();
             self.stats.landing_trials += 1;
             let Ok((trial, cached, evaluations)) = self.advance(s) else {
-                hi = s;
+                bracket.refuse(s);
                 continue;
             };
             self.stats.gradient_evaluations += evaluations;
@@ -984,19 +980,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             if f.re().abs() <= tol {
                 break;
             }
-            if f.re() > 0.0 {
-                (hi, f_hi) = (s, f);
-                if side == 1 {
-                    f_lo *= 0.5;
-                }
-                side = 1;
-            } else {
-                (lo, f_lo) = (s, f);
-                if side == -1 {
-                    f_hi *= 0.5;
-                }
-                side = -1;
-            }
+            bracket.update(s, f);
         }
         match best {
             Some((f, trial, cached)) if f.re().abs() <= 64.0 * tol => {
