@@ -47,6 +47,15 @@ pub(crate) fn gradient_q(function: &Function) -> Option<TokenStream> {
     adjoint.function_body(&function.body)
 }
 
+/// The statements of `value_gradient_q(&self, __t, __q, __v, __out) -> f64`:
+/// those of [`gradient_q`], every forward loop kept, then the value of `L`
+/// the forward sweep computed. `None` outside the subset.
+pub(crate) fn value_gradient_q(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.value = true;
+    adjoint.function_body(&function.body)
+}
+
 /// The statements of `gradient_qv(&self, __t, __q, __v, __out, __out_v)`:
 /// `∂L/∂q` into `__out` and `∂L/∂v` into `__out_v`, by the same
 /// transformation with the velocities as leaves too. `None` outside the
@@ -145,12 +154,23 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
             #value
         }
     });
+    // With the value of `L`, which the explicit steps check at the node
+    // they reach: size-known systems (the slice trait has no such method).
+    let valued = n.and_then(|_| value_gradient_q(function)).map(|body| {
+        quote! {
+            #[inline]
+            fn value_gradient_q(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient) -> f64 {
+                #body
+            }
+        }
+    });
     Some(quote! {
         const HAS_GRADIENT: bool = true;
         #[inline]
         fn gradient_q(&#self_token, #t: f64, #q: #state, #v: #state, #out: #gradient) {
             #body
         }
+        #valued
         #both
         #generic
     })

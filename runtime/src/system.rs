@@ -181,6 +181,21 @@ pub trait Lagrangian<const N: usize> {
         }
     }
 
+    /// [`gradient_q`](Self::gradient_q), returning the value of `L` at
+    /// `(t, q, v)` too: an explicit step checks with it that `L` is finite at
+    /// the node it reaches (`L` can be NaN where its gradient is finite, as
+    /// `0·ln(1 − q)` past `q = 1`) without evaluating `L` once more. The
+    /// adjoint code computes `L` in its forward sweep anyway.
+    ///
+    /// The default calls `gradient_q`, then [`lagrangian`](Self::lagrangian).
+    /// `#[lagrangian]` writes it as the same code as `gradient_q`, returning
+    /// the value its forward sweep computes.
+    #[inline(always)]
+    fn value_gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) -> f64 {
+        self.gradient_q(t, q, v, out);
+        self.lagrangian(t, *q, *v)
+    }
+
     /// `true` when [`gradient_qv`](Self::gradient_qv) is plain `f64` code
     /// and [`gradient_qv_scalar`](Self::gradient_qv_scalar) the same code
     /// generic over the scalar, written for this system (set by
@@ -289,6 +304,11 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) {
         (**self).gradient_q(t, q, v, out);
+    }
+
+    #[inline(always)]
+    fn value_gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) -> f64 {
+        (**self).value_gradient_q(t, q, v, out)
     }
 
     const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;

@@ -361,7 +361,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
         }
         let (f0, f1) = cache.forces_at(step);
-        potential_force(&self.system, t1, &q1, f1);
+        let l1 = potential_force(&self.system, t1, &q1, f1);
         let (mut p1, mut pc1) = ([0.0; N], [0.0; N]);
         for j in 0..N {
             if PLAIN {
@@ -373,7 +373,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             }
             bad |= nan_bits(p1[j]);
         }
-        if is_non_finite(bad | nan_bits(t1)) || !node_lagrangian_finite(&self.system, t1, &q1) {
+        if is_non_finite(bad | nan_bits(t1) | nan_bits(l1)) {
             let quantity = non_finite(t1, &q1, &p1).unwrap_or("lagrangian");
             self.stats.failed_steps += 1;
             return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
@@ -661,16 +661,6 @@ pub(super) fn action_finite<S: Lagrangian<N>, M: DiscreteLagrangian, const N: us
     method.fixed_step_action::<S, f64, N>(system, seg.t0, seg.h, seg.q0, seg.dq).is_finite()
 }
 
-/// Whether `L(t, q, 0) = −V(t, q)` is finite at the end node `q` of an
-/// explicit step (a separable system with constant mass): with the start
-/// node's, checked by the step before (or at `start`), it makes the
-/// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
-/// finite where it is not.
-#[inline(always)]
-fn node_lagrangian_finite<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N]) -> bool {
-    system.lagrangian(t, *q, [0.0; N]).is_finite()
-}
-
 /// `true` when the last increment `last_dq`, scaled by `ratio = |h/h_last|`
 /// (sub-steps of a composition can be negative),
 /// already shows that the increment `dq` is no implausible growth: then
@@ -702,19 +692,24 @@ fn explicit_growth_ruled_out(dq_max: f64, q_max: f64, h: f64, h_last: f64, last_
     dq_max <= 1e6 * (1e-6 * q_max) || growth_ruled_out(dq_max, last_dq, (h / h_last).abs())
 }
 
-/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`:
-/// the adjoint code `#[lagrangian]` wrote out where it could
-/// ([`Lagrangian::HAS_GRADIENT`]; it clears `out` itself), else one
-/// first-order array-dual evaluation.
+/// `f(t, q) = ∂L/∂q(t, q, 0) = −∇V(t, q)` for a separable `L`, into `out`,
+/// returning `L(t, q, 0) = −V(t, q)`: the adjoint code `#[lagrangian]` wrote
+/// out where it could ([`Lagrangian::HAS_GRADIENT`]; it clears `out`
+/// itself, and its forward sweep computes the value), else one first-order
+/// array-dual evaluation. With the value of the start node, checked by the
+/// step before (or at `start`), a finite value here makes the trapezoid
+/// action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be finite where
+/// it is not.
 #[inline(always)]
-fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], out: &mut [f64; N]) {
+fn potential_force<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], out: &mut [f64; N]) -> f64 {
     use crate::hyperdual::DualArray;
     if S::HAS_GRADIENT {
-        system.gradient_q(t, q, const { &[0.0; N] }, out);
-        return;
+        return system.value_gradient_q(t, q, const { &[0.0; N] }, out);
     }
     let qd: [DualArray<[f64; N]>; N] = core::array::from_fn(|i| DualArray::variable(q[i], i));
-    *out = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]).eps;
+    let l = system.lagrangian(DualArray::from_re(t), qd, [DualArray::from_re(0.0); N]);
+    *out = l.eps;
+    l.re
 }
 
 /// What the explicit steps keep for the whole run, on the heap (at the sizes
@@ -746,6 +741,7 @@ impl<const N: usize> ExplicitCache<N> {
     #[inline(always)]
     fn node_force<S: Lagrangian<N>>(&mut self, system: &S, step: u64, t: f64, q: &[f64; N]) {
         if self.node != step.wrapping_add(1) {
+            // The node's `L` was checked by the step that reached it.
             potential_force(system, t, q, &mut self.forces[usize::from(step % 2 == 1)]);
             self.node = step.wrapping_add(1);
         }
@@ -889,7 +885,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize, const PLAIN: bool>
     let (f0, f) = split_forces(forces, step);
     let start = SubstepStart { q0, p0, qc, pc, t0, t1, h };
     // The mass matrix is chosen once per step, not per sub-step.
-    let (dq, mut dp, q, closing) = match diagonal {
+    let (dq, mut dp, q, closing, l1) = match diagonal {
         // `M = I`: the product with its ones is exact and skipped.
         Some(_) if *unit => substeps::<S, N, PLAIN>(system, &start, (f0, f), weights, increments, |mv, hi, out| {
             for j in 0..N {
@@ -939,7 +935,7 @@ pub(super) fn explicit_step<S: Lagrangian<N>, const N: usize, const PLAIN: bool>
             return Err(NewtonFailure::Rejected { iterations: 0, reason: IMPLAUSIBLE_GROWTH });
         }
     }
-    if is_non_finite(q_bad | p_bad | nan_bits(t1)) || !node_lagrangian_finite(system, t1, &q) {
+    if is_non_finite(q_bad | p_bad | nan_bits(t1) | nan_bits(l1)) {
         let quantity = super::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite());
         return Err(NewtonFailure::NonFinite { iterations: 0, quantity: quantity.unwrap_or("lagrangian") });
     }
@@ -1244,7 +1240,7 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     weights: &[f64],
     increments: &mut [[f64; N]],
     drift: impl Fn(&[f64; N], f64, &mut [f64; N]),
-) -> ([f64; N], [f64; N], [f64; N], f64) {
+) -> ([f64; N], [f64; N], [f64; N], f64, f64) {
     let SubstepStart { q0, p0, qc, pc, t0, t1, h } = *start;
     // `dp` is `Δp` from the node, or under `PLAIN` the momentum itself.
     let (mut dq, mut dp, mut q) = ([0.0; N], if PLAIN { *p0 } else { [0.0; N] }, *q0);
@@ -1252,6 +1248,9 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
     // Half the last sub-step: its closing kick joins the next opening one.
     let mut half = 0.0;
     let mut elapsed = 0.0;
+    // `L(t, q, 0)` at the last sub-node (`q_{k+1}`); the start node's after
+    // no sub-step, checked by the step that reached it.
+    let mut l_end = 0.0;
     // `increments` has room for every sub-step (`Composition::check`).
     let m = weights.len().min(increments.len());
     let mut mv = [0.0; N];
@@ -1277,14 +1276,14 @@ fn substeps<S: Lagrangian<N>, const N: usize, const PLAIN: bool>(
         }
         elapsed += gamma;
         let ti = if i + 1 == m { t1 } else { t0 + elapsed * h };
-        potential_force(system, ti, &q, &mut f);
+        l_end = potential_force(system, ti, &q, &mut f);
         half = 0.5 * hi;
     }
     *f_end = f;
     if PLAIN {
         dq = core::array::from_fn(|j| q[j] - q0[j]);
     }
-    (dq, dp, q, half)
+    (dq, dp, q, half, l_end)
 }
 
 #[cfg(test)]
