@@ -36,6 +36,7 @@
 
 use crate::Scalar;
 use crate::hyperdual::HyperDualArray;
+use num_dual::{Dual64, HyperDual64};
 
 /// A chunk's value, gradient and one column of its Hessian with respect
 /// to its `K` leaves.
@@ -99,8 +100,24 @@ pub fn columns<const K: usize>(mut column: impl FnMut(usize) -> Column<K>) -> He
 /// system, whatever its number of leaves.
 #[inline(never)]
 pub fn compose<D: Scalar>(previous: D, leaves: &[D], value: f64, gradient: &[f64], hessian: &[f64]) -> D {
-    let k = leaves.len();
-    let delta = |i: usize| leaves[i] - D::from(leaves[i].re());
+    taylor(previous, leaves.len(), |i| leaves[i], value, gradient, hessian)
+}
+
+/// The second-order Taylor polynomial of [`compose`], with leaf `i` read
+/// by `leaf(i)` for `i < k` (no copy of the leaves).
+#[inline(always)]
+fn taylor<D: Scalar>(
+    previous: D,
+    k: usize,
+    leaf: impl Fn(usize) -> D,
+    value: f64,
+    gradient: &[f64],
+    hessian: &[f64],
+) -> D {
+    let delta = |i: usize| {
+        let x = leaf(i);
+        x - D::from(x.re())
+    };
     let mut r = D::from(value) + (previous - D::from(previous.re()));
     for (i, &g) in gradient.iter().enumerate().take(k) {
         if g != 0.0 {
@@ -125,4 +142,101 @@ pub fn compose<D: Scalar>(previous: D, leaves: &[D], value: f64, gradient: &[f64
         }
     }
     r
+}
+
+/// The most leaves a chunk lowered to `f64` reads (the macro's bound):
+/// [`lift`] keeps its gradient and Hessian on the stack.
+pub const MAX_LEAVES: usize = 16;
+
+/// The real parts of a chunk's inputs: the previous partial result (zero
+/// for the first chunk), `t` (zero when the method takes none), `q` and `v`
+/// (`q` again when the method takes no `v`).
+#[derive(Clone, Copy, Debug)]
+pub struct Reals<const N: usize> {
+    /// The previous partial result.
+    pub previous: f64,
+    /// The time.
+    pub t: f64,
+    /// The coordinates.
+    pub q: [f64; N],
+    /// The velocities.
+    pub v: [f64; N],
+}
+
+/// A chunk lowered to `f64`: from the real parts of its inputs it returns
+/// its value (bit for bit that of `f64`), and writes its gradient in its
+/// `k` leaves into the first slice and, when the flag is set, the upper
+/// triangle of its Hessian (row-major, `k × k`) into the second, whose
+/// other entries it leaves alone. The macro prints one per chunk, non
+/// generic: the chunk's body is compiled for [`Dual64`] and
+/// [`HyperDual64`] (one or two directions, the Hessian an entry at a
+/// time, see [`seeded`]) instead of for every scalar type.
+pub type Jet<S, const N: usize> = fn(&S, &Reals<N>, bool, &mut [f64], &mut [f64]) -> f64;
+
+/// `previous + c(leaves)` on `D`, for a chunk lowered to `f64` as `jet`:
+/// leaf `i` is `q[l]` for `l = leaves[i] < N`, `v[l − N]` below `2N` and
+/// `t` at `2N`. The chunk's value, gradient and (for second-order numbers)
+/// Hessian at the real parts, composed by the chain rule as [`compose`]
+/// does.
+///
+/// Not inlined, and generic over the scalar but not over the chunk (which
+/// `jet` is): one copy per scalar type and system serves all its chunks,
+/// so that a chunk adds one small dispatch per scalar type, not a copy of
+/// its body.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+pub fn lift<S, D: Scalar, const N: usize>(
+    system: &S,
+    previous: D,
+    t: D,
+    q: &[D; N],
+    v: &[D; N],
+    leaves: &[usize],
+    jet: Jet<S, N>,
+) -> D {
+    let k = leaves.len().min(MAX_LEAVES);
+    let inputs = Reals { previous: previous.re(), t: t.re(), q: reals(q), v: reals(v) };
+    let (mut gradient, mut hessian) = ([0.0; MAX_LEAVES], [0.0; MAX_LEAVES * MAX_LEAVES]);
+    let second = D::SECOND_ORDER;
+    let value = jet(system, &inputs, second, &mut gradient[..k], &mut hessian[..k * k]);
+    let leaf = |i: usize| match leaves[i] {
+        l if l < N => q[l],
+        l if l < 2 * N => v[l - N],
+        _ => t,
+    };
+    let hessian = if second { &hessian[..k * k] } else { &[] };
+    taylor(previous, k, leaf, value, &gradient[..k], hessian)
+}
+
+/// The inputs of a chunk on [`HyperDual64`] at `x`: every one a constant
+/// but leaf `a` (numbered as in [`lift`]), which carries `ε1`, and leaf
+/// `b`, which carries `ε2`. The chunk's value there has its derivative in
+/// leaf `a` as `ε1` and `∂²c/∂a∂b` as `ε1ε2`: one Hessian entry per
+/// evaluation, on a number of four parts whatever the number of leaves.
+#[inline]
+pub fn seeded<const N: usize>(x: &Reals<N>, a: usize, b: usize) -> (HyperDual64, [HyperDual64; N], [HyperDual64; N]) {
+    let (mut t, mut q, mut v) = (HyperDual64::from(x.t), x.q.map(HyperDual64::from), x.v.map(HyperDual64::from));
+    for (l, second) in [(a, false), (b, true)] {
+        let x = match l {
+            l if l < N => &mut q[l],
+            l if l < 2 * N => &mut v[l - N],
+            _ => &mut t,
+        };
+        if second { x.eps2 = 1.0 } else { x.eps1 = 1.0 }
+    }
+    (t, q, v)
+}
+
+/// The inputs of a chunk on [`Dual64`] at `x`: every one a constant but
+/// leaf `a` (numbered as in [`lift`]), which carries `ε`; the chunk's
+/// value there has its derivative in leaf `a` as `ε`.
+#[inline]
+pub fn seeded_first<const N: usize>(x: &Reals<N>, a: usize) -> (Dual64, [Dual64; N], [Dual64; N]) {
+    let (mut t, mut q, mut v) = (Dual64::from(x.t), x.q.map(Dual64::from), x.v.map(Dual64::from));
+    match a {
+        l if l < N => q[l].eps = 1.0,
+        l if l < 2 * N => v[l - N].eps = 1.0,
+        _ => t.eps = 1.0,
+    }
+    (t, q, v)
 }
