@@ -410,8 +410,9 @@ fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<Tok
 /// result as an argument: the same operations in the same order (the same
 /// bits), and no function longer than one chunk. A chunk that reads `t`,
 /// `q` and `v` only at literal indices is moreover lowered to `f64` (see
-/// [`Chunks::lowered`]), so that its body is compiled for two or three
-/// types instead of about ten.
+/// [`Chunks::lowered`]), so that its body is compiled for three small
+/// types (`f64`, `Dual64`, `HyperDual64`) instead of about ten, some of
+/// them `N²` wide.
 struct Chunks {
     /// The names of the chunk methods, before their index.
     prefix: String,
@@ -443,9 +444,10 @@ enum Leaf {
     State(usize, usize),
 }
 
-/// The most leaves a chunk lowered to `f64` may read: its Hessian has
-/// their square of entries in every intermediate value. A chunk reading
-/// more stays generic.
+/// The most leaves a chunk lowered to `f64` may read: its jet evaluates
+/// its body once per pair of them, and `chunk::lift` keeps their gradient
+/// and Hessian on the stack (`chunk::MAX_LEAVES`, the same bound). A chunk
+/// reading more stays generic.
 const MAX_LEAVES: usize = 16;
 
 impl Chunks {
@@ -628,42 +630,47 @@ impl Chunks {
             }
         };
         // The jet: the body on `Dual64` (gradient) or `HyperDual64`
-        // (Hessian entries), every input a constant but the seeded leaves.
+        // (Hessian entries), every input a constant but the seeded leaves,
+        // through a closure with the signature `chunk::HyperBody` (or
+        // `DualBody`) whatever inputs the body takes.
         let x = Ident::new("__lagrangian_inputs", Span::mixed_site());
-        let (t, q, v) = (
+        let (s, p, t, q, v) = (
+            Ident::new("__lagrangian_system", Span::mixed_site()),
+            Ident::new("__lagrangian_p", Span::mixed_site()),
             Ident::new("__lagrangian_t", Span::mixed_site()),
             Ident::new("__lagrangian_q", Span::mixed_site()),
             Ident::new("__lagrangian_v", Span::mixed_site()),
         );
-        let seeded_args = self.params.iter().map(|(name, ..)| match which(name) {
+        let closure_args = self.params.iter().map(|(name, ..)| match which(name) {
             0 => quote!(#t),
-            1 => quote!(&#q),
-            _ => quote!(&#v),
+            1 => quote!(#q),
+            _ => quote!(#v),
         });
-        let seeded_args: Vec<_> = seeded_args.collect();
+        let closure_args: Vec<_> = closure_args.collect();
+        let closure_previous = previous.map(|_| quote!(#p,));
+        let closure = |ty: TokenStream| {
+            quote! {
+                |#s: &Self, #p: #ty, #t: #ty, #q: &[#ty; #n], #v: &[#ty; #n]| -> #ty {
+                    #s.#body_name(#closure_previous #(#closure_args),*)
+                }
+            }
+        };
+        let hyper = closure(quote!(::lagrangian::num_dual::HyperDual64));
+        let dual = closure(quote!(::lagrangian::num_dual::Dual64));
         let real_args = self.params.iter().map(|(name, ..)| match which(name) {
             0 => quote!(#x.t),
             1 => quote!(&#x.q),
             _ => quote!(&#x.v),
         });
-        let previous_of =
-            |ty: TokenStream| previous.map(|_| quote!(<#ty as ::core::convert::From<f64>>::from(#x.previous),));
-        let previous_dual = previous_of(quote!(::lagrangian::num_dual::Dual64));
-        let previous_hyper = previous_of(quote!(::lagrangian::num_dual::HyperDual64));
         let previous_real = previous.map(|_| quote!(#x.previous,));
         let (second, gradient, hessian) = (
             Ident::new("__lagrangian_second", Span::mixed_site()),
             Ident::new("__lagrangian_gradient", Span::mixed_site()),
             Ident::new("__lagrangian_hessian", Span::mixed_site()),
         );
-        let (a, b, c) = (
-            Ident::new("__lagrangian_a", Span::mixed_site()),
-            Ident::new("__lagrangian_b", Span::mixed_site()),
-            Ident::new("__lagrangian_c", Span::mixed_site()),
-        );
         let leaf_numbers = Ident::new("__lagrangian_leaves", Span::mixed_site());
         let (pairs_a, pairs_b): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
-        let p = pairs.len();
+        let pair_count = pairs.len();
         let jet = quote! {
             #[inline(never)]
             fn #jet_name(
@@ -677,20 +684,10 @@ impl Chunks {
                 if #second {
                     // Only pairs of leaves that one operand reads together:
                     // the other entries of the Hessian of a sum are zero.
-                    const PAIRS: [(usize, usize); #p] = [#((#pairs_a, #pairs_b)),*];
-                    for (#a, #b) in PAIRS {
-                        let (#t, #q, #v) = #chunk::seeded(#x, #leaf_numbers[#a], #leaf_numbers[#b]);
-                        let #c = #self_token.#body_name(#previous_hyper #(#seeded_args),*);
-                        if #a == #b {
-                            #gradient[#a] = #c.eps1;
-                        }
-                        #hessian[#a * #k + #b] = #c.eps1eps2;
-                    }
+                    const PAIRS: [(usize, usize); #pair_count] = [#((#pairs_a, #pairs_b)),*];
+                    #chunk::second_order(#self_token, #x, &#leaf_numbers, &PAIRS, #hyper, #gradient, #hessian);
                 } else {
-                    for #a in 0..#k {
-                        let (#t, #q, #v) = #chunk::seeded_first(#x, #leaf_numbers[#a]);
-                        #gradient[#a] = #self_token.#body_name(#previous_dual #(#seeded_args),*).eps;
-                    }
+                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #dual, #gradient);
                 }
                 #self_token.#body_name(#previous_real #(#real_args),*)
             }

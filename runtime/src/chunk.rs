@@ -8,13 +8,14 @@
 //! variables, and for a system of `N` coordinates the `N`-wide ones carry
 //! `N` or `N²` parts through every operation. The compile time then grows
 //! as terms × types × `N²`. Instead, a chunk reading `k` leaves (`t`, and
-//! `q[i]`, `v[i]` at literal indices) is compiled at one fixed type only,
-//! [`Column<k>`] over plain `f64`: its value, its gradient in the `k`
-//! leaves and one column of its Hessian, whose width grows as `k`, not
-//! `k²` ([`columns`] evaluates it once per column). Every dual number over
-//! `f64` then takes its value from there: [`compose`] is the second-order Taylor polynomial of the chunk at
-//! the real parts of its leaves, composed with the leaves' derivative
-//! parts,
+//! `q[i]`, `v[i]` at literal indices) has a [`Jet`]: a non-generic method
+//! that returns its value, gradient and Hessian in `f64` from its body on
+//! [`Dual64`] (one leaf seeded at a time) and [`HyperDual64`] (one pair
+//! of leaves at a time, [`seeded`]), numbers of two and four parts
+//! whatever `k` and `N`. Every dual number over `f64` then takes its value
+//! from there through [`lift`], one copy per scalar type for all chunks:
+//! the second-order Taylor polynomial of the chunk at the real parts of its
+//! leaves, composed with the leaves' derivative parts,
 //!
 //! ```text
 //! c(x) = c + Σ_i g_i δ_i + ½ Σ_ij H_ij δ_i δ_j,   δ_i = x_i − re(x_i),
@@ -35,16 +36,7 @@
 //! those types.
 
 use crate::Scalar;
-use crate::hyperdual::HyperDualArray;
 use num_dual::{Dual64, HyperDual64};
-
-/// A chunk's value, gradient and one column of its Hessian with respect
-/// to its `K` leaves.
-pub type Column<const K: usize> = HyperDualArray<[f64; K], [f64; 1]>;
-
-/// A chunk's value, gradient (`eps1`) and Hessian (`eps1eps2`) with
-/// respect to its `K` leaves, as [`columns`] assembles them.
-pub type Hessian<const K: usize> = HyperDualArray<[f64; K], [f64; K]>;
 
 /// The real part of `x`.
 #[inline(always)]
@@ -56,39 +48,6 @@ pub fn real<D: Scalar>(x: D) -> f64 {
 #[inline(always)]
 pub fn reals<D: Scalar, const N: usize>(x: &[D; N]) -> [f64; N] {
     x.map(|x| x.re())
-}
-
-/// Every entry of `x` as a constant (zero derivative parts) of `D`.
-#[inline(always)]
-pub fn constants<D: Scalar, const N: usize>(x: &[f64; N]) -> [D; N] {
-    x.map(D::from)
-}
-
-/// Leaf `i` of `K` at the value `x`: `ε1_i` seeded, and `ε2` too when `i`
-/// is the column `column` being evaluated.
-#[inline(always)]
-pub fn leaf<const K: usize>(x: f64, i: usize, column: usize) -> Column<K> {
-    let mut h = Column::from_re(x);
-    h.eps1[i] = 1.0;
-    if i == column {
-        h.eps2[0] = 1.0;
-    }
-    h
-}
-
-/// The value, gradient and Hessian of a chunk from `column(j)`, its
-/// evaluation with the second direction seeded on leaf `j`, for every `j`.
-#[inline(always)]
-pub fn columns<const K: usize>(mut column: impl FnMut(usize) -> Column<K>) -> Hessian<K> {
-    let mut h = Hessian::<K>::from_re(0.0);
-    for j in 0..K {
-        let c = column(j);
-        (h.re, h.eps1) = (c.re, c.eps1);
-        for i in 0..K {
-            h.eps1eps2[i][j] = c.eps1eps2[i][0];
-        }
-    }
-    h
 }
 
 /// `previous + c(leaves)` on `D` from the chunk's value `value` (the
@@ -239,4 +198,59 @@ pub fn seeded_first<const N: usize>(x: &Reals<N>, a: usize) -> (Dual64, [Dual64;
         _ => t.eps = 1.0,
     }
     (t, q, v)
+}
+
+/// A chunk's body on [`HyperDual64`], as its [`Jet`] passes it to
+/// [`second_order`]: the previous partial result, `t`, `q` and `v`.
+pub type HyperBody<S, const N: usize> =
+    fn(&S, HyperDual64, HyperDual64, &[HyperDual64; N], &[HyperDual64; N]) -> HyperDual64;
+
+/// A chunk's body on [`Dual64`], as its [`Jet`] passes it to
+/// [`first_order`].
+pub type DualBody<S, const N: usize> = fn(&S, Dual64, Dual64, &[Dual64; N], &[Dual64; N]) -> Dual64;
+
+/// The gradient and the upper triangle of the Hessian of a chunk in its
+/// `leaves` (numbered as in [`lift`]) at `x`, from `body` evaluated once
+/// per pair `(a, b)` of `pairs` (positions in `leaves`, `a ≤ b`, the
+/// diagonal included): `gradient[a]` from `(a, a)`, `hessian[a·k + b]`
+/// from `(a, b)`. Pairs left out keep their entry.
+///
+/// Not inlined, and one copy per system: a chunk's [`Jet`] is a call,
+/// not a loop the optimiser unrolls over the chunk's pairs.
+#[inline(never)]
+pub fn second_order<S, const N: usize>(
+    system: &S,
+    x: &Reals<N>,
+    leaves: &[usize],
+    pairs: &[(usize, usize)],
+    body: HyperBody<S, N>,
+    gradient: &mut [f64],
+    hessian: &mut [f64],
+) {
+    let k = leaves.len();
+    for &(a, b) in pairs {
+        let (t, q, v) = seeded(x, leaves[a], leaves[b]);
+        let c = body(system, HyperDual64::from(x.previous), t, &q, &v);
+        if a == b {
+            gradient[a] = c.eps1;
+        }
+        hessian[a * k + b] = c.eps1eps2;
+    }
+}
+
+/// The gradient of a chunk in its `leaves` (numbered as in [`lift`]) at
+/// `x`, from `body` evaluated once per leaf. Not inlined, as
+/// [`second_order`].
+#[inline(never)]
+pub fn first_order<S, const N: usize>(
+    system: &S,
+    x: &Reals<N>,
+    leaves: &[usize],
+    body: DualBody<S, N>,
+    gradient: &mut [f64],
+) {
+    for (a, &leaf) in leaves.iter().enumerate() {
+        let (t, q, v) = seeded_first(x, leaf);
+        gradient[a] = body(system, Dual64::from(x.previous), t, &q, &v).eps;
+    }
 }
