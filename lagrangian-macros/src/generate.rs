@@ -353,12 +353,16 @@ fn method(function: &Function, n: Option<&TokenStream>) -> (TokenStream, Vec<Tok
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
     // argument through memory (measured 10% of a double-pendulum step). A
-    // long body is a short list of calls to its chunks by then.
+    // long body is a list of calls to its chunks by then, which LLVM is left
+    // to inline or not: copied into every caller, the calls of an 11-link
+    // pendulum's 135 chunks made up 15 copies of the list.
+    let chunks = chunks.into_items();
+    let inline = if chunks.is_empty() { quote!(#[inline(always)]) } else { quote!(#[inline]) };
     let method = quote! {
-        #[inline(always)]
+        #inline
         fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
     };
-    (method, chunks.into_items())
+    (method, chunks)
 }
 
 /// `StepDensity::density` from the user's `fn step_density(&self, [t,] q)`:
@@ -410,9 +414,9 @@ fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<Tok
 /// result as an argument: the same operations in the same order (the same
 /// bits), and no function longer than one chunk. A chunk that reads `t`,
 /// `q` and `v` only at literal indices is moreover lowered to `f64` (see
-/// [`Chunks::lowered`]), so that its body is compiled for three small
-/// types (`f64`, `Dual64`, `HyperDual64`) instead of about ten, some of
-/// them `N²` wide.
+/// [`Chunks::lowered`]), so that its body is compiled for two small
+/// types (`f64`, `HyperDual64`) instead of about ten, some of them `N²`
+/// wide.
 struct Chunks {
     /// The names of the chunk methods, before their index.
     prefix: String,
@@ -581,11 +585,11 @@ impl Chunks {
     /// A chunk reading `leaves` (of a system of `n` coordinates), as three
     /// methods: its body generic over the scalar; its jet in `f64`
     /// (`lagrangian_runtime::chunk::Jet`: value, gradient and Hessian at
-    /// the real parts of its inputs, from the body on `Dual64` and
-    /// `HyperDual64`, one leaf or one pair of leaves at a time); and the
+    /// the real parts of its inputs, from the body on `HyperDual64`, one
+    /// leaf or one pair of leaves at a time); and the
     /// method the chunk's caller calls, which hands the jet to
     /// `chunk::lift` for dual numbers over `f64` and evaluates the body for
-    /// any other scalar. The body is then compiled for `f64`, `Dual64`,
+    /// any other scalar. The body is then compiled for `f64`,
     /// `HyperDual64` and whatever extended-precision numbers are used,
     /// whatever the number of leaves, and every other scalar type adds a
     /// call, not a copy of the body.
@@ -629,10 +633,10 @@ impl Chunks {
                 2
             }
         };
-        // The jet: the body on `Dual64` (gradient) or `HyperDual64`
-        // (Hessian entries), every input a constant but the seeded leaves,
-        // through a closure with the signature `chunk::HyperBody` (or
-        // `DualBody`) whatever inputs the body takes.
+        // The jet: the body on `HyperDual64` (gradient, Hessian entries),
+        // every input a constant but the seeded leaves, through a closure
+        // with the signature `chunk::HyperBody` whatever inputs the body
+        // takes.
         let x = Ident::new("__lagrangian_inputs", Span::mixed_site());
         let (s, p, t, q, v) = (
             Ident::new("__lagrangian_system", Span::mixed_site()),
@@ -656,7 +660,6 @@ impl Chunks {
             }
         };
         let hyper = closure(quote!(::lagrangian::num_dual::HyperDual64));
-        let dual = closure(quote!(::lagrangian::num_dual::Dual64));
         let real_args = self.params.iter().map(|(name, ..)| match which(name) {
             0 => quote!(#x.t),
             1 => quote!(&#x.q),
@@ -687,7 +690,7 @@ impl Chunks {
                     const PAIRS: [(usize, usize); #pair_count] = [#((#pairs_a, #pairs_b)),*];
                     #chunk::second_order(#self_token, #x, &#leaf_numbers, &PAIRS, #hyper, #gradient, #hessian);
                 } else {
-                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #dual, #gradient);
+                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #hyper, #gradient);
                 }
                 #self_token.#body_name(#previous_real #(#real_args),*)
             }

@@ -10,9 +10,8 @@
 //! as terms × types × `N²`. Instead, a chunk reading `k` leaves (`t`, and
 //! `q[i]`, `v[i]` at literal indices) has a [`Jet`]: a non-generic method
 //! that returns its value, gradient and Hessian in `f64` from its body on
-//! [`Dual64`] (one leaf seeded at a time) and [`HyperDual64`] (one pair
-//! of leaves at a time, [`seeded`]), numbers of two and four parts
-//! whatever `k` and `N`. Every dual number over `f64` then takes its value
+//! [`HyperDual64`] (one leaf or one pair of leaves seeded at a time,
+//! [`seeded`]), a number of four parts whatever `k` and `N`. Every dual number over `f64` then takes its value
 //! from there through [`lift`], one copy per scalar type for all chunks:
 //! the second-order Taylor polynomial of the chunk at the real parts of its
 //! leaves, composed with the leaves' derivative parts,
@@ -36,7 +35,7 @@
 //! those types.
 
 use crate::Scalar;
-use num_dual::{Dual64, HyperDual64};
+use num_dual::HyperDual64;
 
 /// The real part of `x`.
 #[inline(always)]
@@ -127,9 +126,9 @@ pub struct Reals<const N: usize> {
 /// `k` leaves into the first slice and, when the flag is set, the upper
 /// triangle of its Hessian (row-major, `k × k`) into the second, whose
 /// other entries it leaves alone. The macro prints one per chunk, non
-/// generic: the chunk's body is compiled for [`Dual64`] and
-/// [`HyperDual64`] (one or two directions, the Hessian an entry at a
-/// time, see [`seeded`]) instead of for every scalar type.
+/// generic: the chunk's body is compiled for [`HyperDual64`] (one or two
+/// directions, the Hessian an entry at a time, see [`seeded`]) instead of
+/// for every scalar type.
 pub type Jet<S, const N: usize> = fn(&S, &Reals<N>, bool, &mut [f64], &mut [f64]) -> f64;
 
 /// `previous + c(leaves)` on `D`, for a chunk lowered to `f64` as `jet`:
@@ -174,8 +173,15 @@ pub fn lift<S, D: Scalar, const N: usize>(
 /// evaluation, on a number of four parts whatever the number of leaves.
 #[inline]
 pub fn seeded<const N: usize>(x: &Reals<N>, a: usize, b: usize) -> (HyperDual64, [HyperDual64; N], [HyperDual64; N]) {
+    seed(x, a, Some(b))
+}
+
+/// [`seeded`], with `ε2` on leaf `b` when there is one.
+#[inline]
+fn seed<const N: usize>(x: &Reals<N>, a: usize, b: Option<usize>) -> (HyperDual64, [HyperDual64; N], [HyperDual64; N]) {
     let (mut t, mut q, mut v) = (HyperDual64::from(x.t), x.q.map(HyperDual64::from), x.v.map(HyperDual64::from));
-    for (l, second) in [(a, false), (b, true)] {
+    for (l, second) in [(Some(a), false), (b, true)] {
+        let Some(l) = l else { continue };
         let x = match l {
             l if l < N => &mut q[l],
             l if l < 2 * N => &mut v[l - N],
@@ -186,28 +192,10 @@ pub fn seeded<const N: usize>(x: &Reals<N>, a: usize, b: usize) -> (HyperDual64,
     (t, q, v)
 }
 
-/// The inputs of a chunk on [`Dual64`] at `x`: every one a constant but
-/// leaf `a` (numbered as in [`lift`]), which carries `ε`; the chunk's
-/// value there has its derivative in leaf `a` as `ε`.
-#[inline]
-pub fn seeded_first<const N: usize>(x: &Reals<N>, a: usize) -> (Dual64, [Dual64; N], [Dual64; N]) {
-    let (mut t, mut q, mut v) = (Dual64::from(x.t), x.q.map(Dual64::from), x.v.map(Dual64::from));
-    match a {
-        l if l < N => q[l].eps = 1.0,
-        l if l < 2 * N => v[l - N].eps = 1.0,
-        _ => t.eps = 1.0,
-    }
-    (t, q, v)
-}
-
 /// A chunk's body on [`HyperDual64`], as its [`Jet`] passes it to
 /// [`second_order`]: the previous partial result, `t`, `q` and `v`.
 pub type HyperBody<S, const N: usize> =
     fn(&S, HyperDual64, HyperDual64, &[HyperDual64; N], &[HyperDual64; N]) -> HyperDual64;
-
-/// A chunk's body on [`Dual64`], as its [`Jet`] passes it to
-/// [`first_order`].
-pub type DualBody<S, const N: usize> = fn(&S, Dual64, Dual64, &[Dual64; N], &[Dual64; N]) -> Dual64;
 
 /// The gradient and the upper triangle of the Hessian of a chunk in its
 /// `leaves` (numbered as in [`lift`]) at `x`, from `body` evaluated once
@@ -239,18 +227,20 @@ pub fn second_order<S, const N: usize>(
 }
 
 /// The gradient of a chunk in its `leaves` (numbered as in [`lift`]) at
-/// `x`, from `body` evaluated once per leaf. Not inlined, as
+/// `x`, from `body` evaluated once per leaf with only `ε1` seeded (the
+/// body on [`HyperDual64`] serves both orders, so that it is the one
+/// derivative type a chunk is compiled for). Not inlined, as
 /// [`second_order`].
 #[inline(never)]
 pub fn first_order<S, const N: usize>(
     system: &S,
     x: &Reals<N>,
     leaves: &[usize],
-    body: DualBody<S, N>,
+    body: HyperBody<S, N>,
     gradient: &mut [f64],
 ) {
     for (a, &leaf) in leaves.iter().enumerate() {
-        let (t, q, v) = seeded_first(x, leaf);
-        gradient[a] = body(system, Dual64::from(x.previous), t, &q, &v).eps;
+        let (t, q, v) = seed(x, leaf, None);
+        gradient[a] = body(system, HyperDual64::from(x.previous), t, &q, &v).eps1;
     }
 }
