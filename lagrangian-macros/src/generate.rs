@@ -672,6 +672,7 @@ impl Chunks {
             Ident::new("__lagrangian_hessian", Span::mixed_site()),
         );
         let leaf_numbers = Ident::new("__lagrangian_leaves", Span::mixed_site());
+        let body_fn = Ident::new("__lagrangian_body", Span::mixed_site());
         let (pairs_a, pairs_b): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
         let pair_count = pairs.len();
         let jet = quote! {
@@ -684,13 +685,14 @@ impl Chunks {
                 #hessian: &mut [f64]
             ) -> f64 {
                 let #leaf_numbers: [usize; #k] = [#(#numbers),*];
+                let #body_fn: #chunk::HyperBody<Self, #n> = #hyper;
                 if #second {
                     // Only pairs of leaves that one operand reads together:
                     // the other entries of the Hessian of a sum are zero.
                     const PAIRS: [(usize, usize); #pair_count] = [#((#pairs_a, #pairs_b)),*];
-                    #chunk::second_order(#self_token, #x, &#leaf_numbers, &PAIRS, #hyper, #gradient, #hessian);
+                    #chunk::second_order(#self_token, #x, &#leaf_numbers, &PAIRS, #body_fn, #gradient, #hessian);
                 } else {
-                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #hyper, #gradient);
+                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #body_fn, #gradient);
                 }
                 #self_token.#body_name(#previous_real #(#real_args),*)
             }
@@ -711,7 +713,9 @@ impl Chunks {
                 #body
             }
             #jet
-            #[inline(never)]
+            // Inlined: per scalar type, a call to `lift` or to the body,
+            // not one more function for LLVM to compile.
+            #[inline(always)]
             fn #name<#d: #scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
                 if <#d as #scalar>::SECOND_ORDER || <#d as #scalar>::FIRST_ORDER {
                     #chunk::lift(#self_token, #previous_value, #time_value, #q_value, #v_value, &[#(#numbers),*], Self::#jet_name)
