@@ -448,6 +448,10 @@ enum Leaf {
     State(usize, usize),
 }
 
+/// The leaves of a chunk lowered to `f64`, and the pairs of them (by
+/// position) whose Hessian entry its jet evaluates.
+type JetLeaves = (Vec<Leaf>, Vec<(usize, usize)>);
+
 /// The most leaves a chunk lowered to `f64` may read: its jet evaluates
 /// its body once per pair of them, and `chunk::lift` keeps their gradient
 /// and Hessian on the stack (`chunk::MAX_LEAVES`, the same bound). A chunk
@@ -519,7 +523,7 @@ impl Chunks {
     /// of `expr` may be nonzero: for a sum or difference, the pairs some
     /// operand reads together (each leaf with itself included); for
     /// anything else, every pair.
-    fn jet_leaves(expr: &Expr) -> Option<(Vec<Leaf>, Vec<(usize, usize)>)> {
+    fn jet_leaves(expr: &Expr) -> Option<JetLeaves> {
         let leaves = Self::leaves(expr)?;
         let mut operands = Vec::new();
         let mut node = expr;
@@ -556,7 +560,7 @@ impl Chunks {
         partial: &Ident,
         previous: Option<&Ident>,
         body: TokenStream,
-        leaves: Option<(Vec<Leaf>, Vec<(usize, usize)>)>,
+        leaves: Option<JetLeaves>,
     ) -> TokenStream {
         let mut items = self.items.borrow_mut();
         let name = Ident::new(&format!("{}_{}", self.prefix, items.len()), Span::call_site());
