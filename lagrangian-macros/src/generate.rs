@@ -353,12 +353,16 @@ fn method(function: &Function, n: Option<&TokenStream>) -> (TokenStream, Vec<Tok
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
     // argument through memory (measured 10% of a double-pendulum step). A
-    // long body is a short list of calls to its chunks by then.
+    // long body is a list of calls to its chunks by then, which LLVM is left
+    // to inline or not: copied into every caller, the calls of an 11-link
+    // pendulum's 135 chunks made up 15 copies of the list.
+    let chunks = chunks.into_items();
+    let inline = if chunks.is_empty() { quote!(#[inline(always)]) } else { quote!(#[inline]) };
     let method = quote! {
-        #[inline(always)]
+        #inline
         fn #name<#d: ::lagrangian::__private::Scalar>(&#self_token, #params) -> #ret #body
     };
-    (method, chunks.into_items())
+    (method, chunks)
 }
 
 /// `StepDensity::density` from the user's `fn step_density(&self, [t,] q)`:
@@ -410,8 +414,9 @@ fn density_method(function: &Function, n: &TokenStream) -> (TokenStream, Vec<Tok
 /// result as an argument: the same operations in the same order (the same
 /// bits), and no function longer than one chunk. A chunk that reads `t`,
 /// `q` and `v` only at literal indices is moreover lowered to `f64` (see
-/// [`Chunks::lowered`]), so that its body is compiled for two or three
-/// types instead of about ten.
+/// [`Chunks::lowered`]), so that its body is compiled for two small
+/// types (`f64`, `HyperDual64`) instead of about ten, some of them `N²`
+/// wide.
 struct Chunks {
     /// The names of the chunk methods, before their index.
     prefix: String,
@@ -443,9 +448,14 @@ enum Leaf {
     State(usize, usize),
 }
 
-/// The most leaves a chunk lowered to `f64` may read: its Hessian has
-/// their square of entries in every intermediate value. A chunk reading
-/// more stays generic.
+/// The leaves of a chunk lowered to `f64`, and the pairs of them (by
+/// position) whose Hessian entry its jet evaluates.
+type JetLeaves = (Vec<Leaf>, Vec<(usize, usize)>);
+
+/// The most leaves a chunk lowered to `f64` may read: its jet evaluates
+/// its body once per pair of them, and `chunk::lift` keeps their gradient
+/// and Hessian on the stack (`chunk::MAX_LEAVES`, the same bound). A chunk
+/// reading more stays generic.
 const MAX_LEAVES: usize = 16;
 
 impl Chunks {
@@ -508,6 +518,38 @@ impl Chunks {
         (ok && !leaves.is_empty() && leaves.len() <= MAX_LEAVES).then_some(leaves)
     }
 
+    /// The leaves `expr` reads (see [`Chunks::leaves`]) and the pairs of
+    /// them, by position `(a, b)` with `a ≤ b`, whose entry of the Hessian
+    /// of `expr` may be nonzero: for a sum or difference, the pairs some
+    /// operand reads together (each leaf with itself included); for
+    /// anything else, every pair.
+    fn jet_leaves(expr: &Expr) -> Option<JetLeaves> {
+        let leaves = Self::leaves(expr)?;
+        let mut operands = Vec::new();
+        let mut node = expr;
+        while let ExprKind::Binary { lhs, op: BinOp::Add(_) | BinOp::Sub(_), rhs } = &node.kind {
+            operands.push(&**rhs);
+            node = lhs;
+        }
+        operands.push(node);
+        let mut together = vec![false; leaves.len() * leaves.len()];
+        for operand in operands.into_iter().rev() {
+            let read: Vec<usize> = Self::leaves(operand)
+                .unwrap_or_default()
+                .iter()
+                .filter_map(|leaf| leaves.iter().position(|l| l == leaf))
+                .collect();
+            for &a in &read {
+                for &b in &read {
+                    together[a.min(b) * leaves.len() + a.max(b)] = true;
+                }
+            }
+        }
+        let k = leaves.len();
+        let pairs = (0..k).flat_map(|a| (a..k).map(move |b| (a, b))).filter(|&(a, b)| together[a * k + b]).collect();
+        Some((leaves, pairs))
+    }
+
     /// Prints `body` as the next chunk method and returns the statement
     /// `let partial = self.chunk(previous, t, &q, &v);` that calls it.
     /// With `leaves`, the chunk is lowered to `f64` as well (see
@@ -518,7 +560,7 @@ impl Chunks {
         partial: &Ident,
         previous: Option<&Ident>,
         body: TokenStream,
-        leaves: Option<Vec<Leaf>>,
+        leaves: Option<JetLeaves>,
     ) -> TokenStream {
         let mut items = self.items.borrow_mut();
         let name = Ident::new(&format!("{}_{}", self.prefix, items.len()), Span::call_site());
@@ -531,8 +573,8 @@ impl Chunks {
             None => (TokenStream::new(), TokenStream::new()),
         };
         match (leaves, &self.n) {
-            (Some(leaves), Some(n)) => {
-                items.push(self.lowered(&name, previous, body, &leaves, n));
+            (Some((leaves, pairs)), Some(n)) => {
+                items.push(self.lowered(&name, previous, body, &leaves, &pairs, n));
             }
             _ => items.push(quote! {
                 #[inline(never)]
@@ -544,21 +586,24 @@ impl Chunks {
         quote_spanned!(span=> let #partial = #self_token.#name(#previous_arg #(#args),*);)
     }
 
-    /// A chunk reading `leaves` (of a system of `n` coordinates), as four
-    /// methods: its body generic over the scalar; its gradient and its
-    /// Hessian in `f64`, both the body at the one type
-    /// `lagrangian_runtime::chunk::Column` seeded on the leaves (the
-    /// Hessian a column at a time); and the method the chunk's caller
-    /// calls, which lifts those to a dual number over `f64` by the chain
-    /// rule and evaluates the body for any other scalar. Each scalar type
-    /// then compiles a call, not the body: the body is compiled for `f64`,
-    /// `Column` and whatever extended-precision numbers are used.
+    /// A chunk reading `leaves` (of a system of `n` coordinates), as three
+    /// methods: its body generic over the scalar; its jet in `f64`
+    /// (`lagrangian_runtime::chunk::Jet`: value, gradient and Hessian at
+    /// the real parts of its inputs, from the body on `HyperDual64`, one
+    /// leaf or one pair of leaves at a time); and the
+    /// method the chunk's caller calls, which hands the jet to
+    /// `chunk::lift` for dual numbers over `f64` and evaluates the body for
+    /// any other scalar. The body is then compiled for `f64`,
+    /// `HyperDual64` and whatever extended-precision numbers are used,
+    /// whatever the number of leaves, and every other scalar type adds a
+    /// call, not a copy of the body.
     fn lowered(
         &self,
         name: &Ident,
         previous: Option<&Ident>,
         body: TokenStream,
         leaves: &[Leaf],
+        pairs: &[(usize, usize)],
         n: &TokenStream,
     ) -> TokenStream {
         let (d, self_token) = (&self.d, &self.self_token);
@@ -566,112 +611,118 @@ impl Chunks {
         let scalar = quote!(::lagrangian::__private::Scalar);
         let k = leaves.len();
         let suffixed = |suffix: &str| Ident::new(&format!("{name}_{suffix}"), Span::call_site());
-        let (body_name, gradient_name, hessian_name) = (suffixed("body"), suffixed("gradient"), suffixed("hessian"));
+        let (body_name, jet_name) = (suffixed("body"), suffixed("jet"));
         let names: Vec<_> = self.params.iter().map(|(name, ..)| name).collect();
         let types: Vec<_> = self.params.iter().map(|(_, ty, _)| ty).collect();
         let (previous_param, previous_arg) = match previous {
             Some(previous) => (quote!(#previous: #d,), quote!(#previous,)),
             None => (TokenStream::new(), TokenStream::new()),
         };
-        // The `f64` methods take the real parts, under hygienic names.
-        let real = |name: &Ident| Ident::new(&format!("__lagrangian_{name}"), Span::mixed_site());
-        let f64_params = self.params.iter().map(|(name, ty, _)| {
-            let ty = if *d == ty.to_string() { quote!(f64) } else { quote!(&[f64; #n]) };
-            let real = real(name);
-            quote!(#real: #ty)
-        });
-        let f64_params: Vec<_> = f64_params.collect();
-        let previous_f64 = previous.map(|previous| {
-            let real = real(previous);
-            quote!(#real: f64,)
-        });
-        // The leaves' binders and where each is read.
-        let binder = |leaf: &Leaf| match leaf {
-            Leaf::Time => self.binders[0].as_ref(),
-            Leaf::State(which, _) => self.binders[1 + which].as_ref(),
+        // Leaf numbers as `chunk::lift` reads them: `q[i]` is `i`, `v[i]`
+        // is `N + i`, `t` is `2N`.
+        let numbers: Vec<_> = leaves
+            .iter()
+            .map(|leaf| match leaf {
+                Leaf::Time => quote!(2 * (#n)),
+                Leaf::State(0, i) => quote!(#i),
+                Leaf::State(_, i) => quote!((#n) + #i),
+            })
+            .collect();
+        let which = |name: &Ident| {
+            if self.binders[0].as_ref() == Some(name) {
+                0
+            } else if self.binders[1].as_ref() == Some(name) {
+                1
+            } else {
+                2
+            }
         };
-        let at = |name: &Ident, leaf: &Leaf| match leaf {
-            Leaf::Time => quote!(#name),
-            Leaf::State(_, i) => quote!(#name[#i]),
-        };
-        // The body on `chunk::Column`, every input a constant but the
-        // leaves, with the second direction on leaf `column` (none when it
-        // is `k`).
-        let column_type = quote!(#chunk::Column<#k>);
-        let column = |column: TokenStream| {
-            let constants = self.params.iter().map(|(name, ty, _)| {
-                let real = real(name);
-                if *d == ty.to_string() {
-                    quote!(let mut #name = <#d as ::core::convert::From<f64>>::from(#real);)
-                } else {
-                    quote!(let mut #name: [#d; #n] = #chunk::constants(#real);)
-                }
-            });
-            let seeds = leaves.iter().enumerate().filter_map(|(i, leaf)| {
-                let name = binder(leaf)?;
-                let (place, value) = (at(name, leaf), at(&real(name), leaf));
-                Some(quote!(#place = #chunk::leaf(#value, #i, #column);))
-            });
-            let previous = previous.map(|previous| {
-                let real = real(previous);
-                quote!(<#d as ::core::convert::From<f64>>::from(#real),)
-            });
-            let args = self.params.iter().map(|(.., arg)| arg);
+        // The jet: the body on `HyperDual64` (gradient, Hessian entries),
+        // every input a constant but the seeded leaves, through a closure
+        // with the signature `chunk::HyperBody` whatever inputs the body
+        // takes.
+        let x = Ident::new("__lagrangian_inputs", Span::mixed_site());
+        let (s, p, t, q, v) = (
+            Ident::new("__lagrangian_system", Span::mixed_site()),
+            Ident::new("__lagrangian_p", Span::mixed_site()),
+            Ident::new("__lagrangian_t", Span::mixed_site()),
+            Ident::new("__lagrangian_q", Span::mixed_site()),
+            Ident::new("__lagrangian_v", Span::mixed_site()),
+        );
+        let closure_args = self.params.iter().map(|(name, ..)| match which(name) {
+            0 => quote!(#t),
+            1 => quote!(#q),
+            _ => quote!(#v),
+        });
+        let closure_args: Vec<_> = closure_args.collect();
+        let closure_previous = previous.map(|_| quote!(#p,));
+        let closure = |ty: TokenStream| {
             quote! {
-                type #d = #column_type;
-                #(#constants)*
-                #(#seeds)*
-                #self_token.#body_name::<#d>(#previous #(#args),*)
+                |#s: &Self, #p: #ty, #t: #ty, #q: &[#ty; #n], #v: &[#ty; #n]| -> #ty {
+                    #s.#body_name(#closure_previous #(#closure_args),*)
+                }
             }
         };
-        let j = Ident::new("__lagrangian_column", Span::mixed_site());
-        let gradient_body = column(quote!(#k));
-        let hessian_body = column(quote!(#j));
-        let gradient = quote! {
+        let hyper = closure(quote!(::lagrangian::num_dual::HyperDual64));
+        let real_args = self.params.iter().map(|(name, ..)| match which(name) {
+            0 => quote!(#x.t),
+            1 => quote!(&#x.q),
+            _ => quote!(&#x.v),
+        });
+        let previous_real = previous.map(|_| quote!(#x.previous,));
+        let (second, gradient, hessian) = (
+            Ident::new("__lagrangian_second", Span::mixed_site()),
+            Ident::new("__lagrangian_gradient", Span::mixed_site()),
+            Ident::new("__lagrangian_hessian", Span::mixed_site()),
+        );
+        let leaf_numbers = Ident::new("__lagrangian_leaves", Span::mixed_site());
+        let body_fn = Ident::new("__lagrangian_body", Span::mixed_site());
+        let (pairs_a, pairs_b): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+        let pair_count = pairs.len();
+        let jet = quote! {
             #[inline(never)]
-            fn #gradient_name(&#self_token, #previous_f64 #(#f64_params),*) -> #column_type {
-                #gradient_body
-            }
-        };
-        let hessian = quote! {
-            #[inline(never)]
-            fn #hessian_name(&#self_token, #previous_f64 #(#f64_params),*) -> #chunk::Hessian<#k> {
-                #chunk::columns(|#j| { #hessian_body })
+            fn #jet_name(
+                &#self_token,
+                #x: &#chunk::Reals<#n>,
+                #second: bool,
+                #gradient: &mut [f64],
+                #hessian: &mut [f64]
+            ) -> f64 {
+                let #leaf_numbers: [usize; #k] = [#(#numbers),*];
+                let #body_fn: #chunk::HyperBody<Self, #n> = #hyper;
+                if #second {
+                    // Only pairs of leaves that one operand reads together:
+                    // the other entries of the Hessian of a sum are zero.
+                    const PAIRS: [(usize, usize); #pair_count] = [#((#pairs_a, #pairs_b)),*];
+                    #chunk::second_order(#self_token, #x, &#leaf_numbers, &PAIRS, #body_fn, #gradient, #hessian);
+                } else {
+                    #chunk::first_order(#self_token, #x, &#leaf_numbers, #body_fn, #gradient);
+                }
+                #self_token.#body_name(#previous_real #(#real_args),*)
             }
         };
         // The dispatch on the scalar: `if` on a constant, so each type
         // compiles one branch.
-        let reals = self.params.iter().map(|(name, ty, _)| {
-            if *d == ty.to_string() { quote!(#chunk::real(#name)) } else { quote!(&#chunk::reals(#name)) }
-        });
-        let reals = quote!(#(#reals),*);
-        let previous_real = previous.map(|previous| quote!(#chunk::real(#previous),));
-        let previous_value = match previous {
-            Some(previous) => quote!(#previous),
-            None => quote!(<#d as ::core::convert::From<f64>>::from(0.0)),
-        };
-        let leaf_values = leaves.iter().map(|leaf| match binder(leaf) {
-            Some(name) => at(name, leaf),
-            None => quote!(<#d as ::core::convert::From<f64>>::from(0.0)),
-        });
-        let leaf_values = quote!(&[#(#leaf_values),*]);
+        let input =
+            |i: usize| self.params.iter().find(|(name, ..)| which(name) == i).map(|(name, ..)| name.to_token_stream());
+        let zero = quote!(<#d as ::core::convert::From<f64>>::from(0.0));
+        let previous_value = previous.map_or_else(|| zero.clone(), |previous| quote!(#previous));
+        let time_value = input(0).unwrap_or_else(|| zero.clone());
+        let q_value = input(1).unwrap_or_else(|| quote!(&[#zero; #n]));
+        let v_value = input(2).unwrap_or_else(|| q_value.clone());
         let body_args = self.params.iter().map(|(name, ..)| name);
-        let c = Ident::new("__lagrangian_chunk", Span::mixed_site());
         quote! {
             #[inline(never)]
             fn #body_name<#d: #scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
                 #body
             }
-            #gradient
-            #hessian
-            #[inline(never)]
+            #jet
+            // Inlined: per scalar type, a call to `lift` or to the body,
+            // not one more function for LLVM to compile.
+            #[inline(always)]
             fn #name<#d: #scalar>(&#self_token, #previous_param #(#names: #types),*) -> #d {
-                if <#d as #scalar>::SECOND_ORDER {
-                    let #c = #self_token.#hessian_name(#previous_real #reals);
-                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, #c.eps1eps2.as_flattened())
-                } else if <#d as #scalar>::FIRST_ORDER {
-                    let #c = #self_token.#gradient_name(#previous_real #reals);
-                    #chunk::compose(#previous_value, #leaf_values, #c.re, &#c.eps1, &[])
+                if <#d as #scalar>::SECOND_ORDER || <#d as #scalar>::FIRST_ORDER {
+                    #chunk::lift(#self_token, #previous_value, #time_value, #q_value, #v_value, &[#(#numbers),*], Self::#jet_name)
                 } else {
                     #self_token.#body_name(#previous_arg #(#body_args),*)
                 }
@@ -776,7 +827,7 @@ impl Printer<'_> {
             return None;
         }
         let body = self.coerce(init, Class::Active);
-        Some(chunks.call(*span, &partial.name, previous, body, Chunks::leaves(init)))
+        Some(chunks.call(*span, &partial.name, previous, body, Chunks::jet_leaves(init)))
     }
 
     /// Whether `expr` reads nothing a chunk method does not receive: `q`
@@ -1271,22 +1322,18 @@ mod tests {
             crate::chains::CHUNK
         );
         assert!(out.contains(&second), "{out}");
-        // Its one leaf `q[0]` seeded in the `f64` gradient and Hessian
-        // methods, which every dual number over `f64` goes through.
-        for (method, ty, column) in [("gradient", "Column", "1usize"), ("hessian", "Hessian", "__lagrangian_column")] {
-            let lowered = format!(
-                "fn __lagrangian_lagrangian_chunk_1_{method} (& self , __lagrangian___lagrangian_partial : f64 , \
-                 __lagrangian_t : f64 , __lagrangian_q : & [f64 ; 1] , __lagrangian_v : & [f64 ; 1]) \
-                 -> :: lagrangian :: __private :: chunk :: {ty} < 1usize >"
-            );
-            assert!(out.contains(&lowered), "{lowered}\n{out}");
-            let seeded = format!(
-                "q [0usize] = :: lagrangian :: __private :: chunk :: leaf (__lagrangian_q [0usize] , 0usize , {column}) ;"
-            );
-            assert!(out.contains(&seeded), "{seeded}\n{out}");
-        }
-        assert!(out.contains("if < __D as :: lagrangian :: __private :: Scalar > :: SECOND_ORDER {"), "{out}");
-        assert!(out.contains("else if < __D as :: lagrangian :: __private :: Scalar > :: FIRST_ORDER {"), "{out}");
+        // Its jet in `f64`, which every dual number over `f64` reaches
+        // through `chunk::lift`, with its one leaf `q[0]`.
+        let jet = "fn __lagrangian_lagrangian_chunk_1_jet (& self , __lagrangian_inputs : & :: lagrangian :: \
+                   __private :: chunk :: Reals < 1 > , __lagrangian_second : bool , __lagrangian_gradient : \
+                   & mut [f64] , __lagrangian_hessian : & mut [f64]) -> f64 { \
+                   let __lagrangian_leaves : [usize ; 1usize] = [0usize] ;";
+        assert!(out.contains(jet), "{jet}\n{out}");
+        let lift = "if < __D as :: lagrangian :: __private :: Scalar > :: SECOND_ORDER || \
+                    < __D as :: lagrangian :: __private :: Scalar > :: FIRST_ORDER { \
+                    :: lagrangian :: __private :: chunk :: lift (self , __lagrangian_partial , t , q , v , \
+                    & [0usize] , Self :: __lagrangian_lagrangian_chunk_1_jet) }";
+        assert!(out.contains(lift), "{lift}\n{out}");
         assert!(out.contains("# [doc (hidden)] impl P {"), "{out}");
     }
 
@@ -1299,21 +1346,17 @@ mod tests {
         );
         let out = expanded(syn::parse_str(&source).unwrap());
         // The second chunk reads `q[0]`, `v[1]`, `t`, `q[1]`, in that order.
-        let chunk = out.split("fn __lagrangian_lagrangian_chunk_1_hessian").nth(1).expect("a lowered chunk");
+        let chunk = out.split("fn __lagrangian_lagrangian_chunk_1_jet").nth(1).expect("a lowered chunk");
         let chunk = &chunk[..chunk.find("fn ").unwrap()];
-        let leaf = ":: lagrangian :: __private :: chunk :: leaf";
-        for (i, seed) in [
-            format!("q [0usize] = {leaf} (__lagrangian_q [0usize] , 0usize , __lagrangian_column)"),
-            format!("v [1usize] = {leaf} (__lagrangian_v [1usize] , 1usize , __lagrangian_column)"),
-            format!("t = {leaf} (__lagrangian_t , 2usize , __lagrangian_column)"),
-            format!("q [1usize] = {leaf} (__lagrangian_q [1usize] , 3usize , __lagrangian_column)"),
-        ]
-        .iter()
-        .enumerate()
-        {
-            assert!(chunk.contains(seed.as_str()), "leaf {i}: {seed}\n{chunk}");
-        }
-        assert!(chunk.contains("Hessian < 4usize >") && chunk.contains("Column < 4usize >"), "{chunk}");
+        let leaves = "let __lagrangian_leaves : [usize ; 4usize] = [0usize , (2) + 1usize , 2 * (2) , 1usize] ;";
+        assert!(chunk.contains(leaves), "{leaves}\n{chunk}");
+        // Every operand reads `q[0]` or `q[1]` with `v[1]` and `t`: no
+        // operand reads both coordinates, so that pair's Hessian entry is
+        // not evaluated.
+        let pairs = "const PAIRS : [(usize , usize) ; 9usize] = [(0usize , 0usize) , (0usize , 1usize) , \
+                     (0usize , 2usize) , (1usize , 1usize) , (1usize , 2usize) , (1usize , 3usize) , \
+                     (2usize , 2usize) , (2usize , 3usize) , (3usize , 3usize)] ;";
+        assert!(chunk.contains(pairs), "{pairs}\n{chunk}");
 
         // An index the macro cannot read keeps the chunk generic only.
         let chain = (1..crate::chains::LONG).map(|k| format!(" + {k}.0 * q[self.i]")).collect::<String>();
@@ -1322,7 +1365,7 @@ mod tests {
         );
         let out = expanded(syn::parse_str(&source).unwrap());
         assert!(out.contains("fn __lagrangian_lagrangian_chunk_1 <"), "{out}");
-        assert!(!out.contains("_hessian") && !out.contains("SECOND_ORDER"), "{out}");
+        assert!(!out.contains("_jet") && !out.contains("SECOND_ORDER"), "{out}");
     }
 
     #[test]

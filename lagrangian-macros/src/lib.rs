@@ -94,8 +94,12 @@ use proc_macro::TokenStream;
 /// the same result bit for bit. In the generated methods each partial
 /// result is a separate `#[inline(never)]` function, so that the compile
 /// time grows linearly with the length of the chain (`docs/compile-time.md`
-/// has the constant: each function is compiled once per scalar type the
-/// runtime evaluates `L` on). rustc itself overflows its default stack on a
+/// has the constant). A chunk that reads `t`, `q` and `v` at literal
+/// indices only (at most 16 of them) is compiled for `f64` and
+/// `HyperDual64` alone, and dual numbers take its value, gradient and
+/// Hessian from there by the chain rule (`lagrangian_runtime::chunk`);
+/// any other chunk is compiled once per scalar type the runtime evaluates
+/// `L` on. rustc itself overflows its default stack on a
 /// flat sum of about 6000 terms; split, 10 240-term sums and 16 384-factor
 /// products compile, at opt-level 3 too
 /// (`release-tests/long_expressions.rs`). Nesting — parentheses,

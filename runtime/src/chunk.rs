@@ -8,13 +8,13 @@
 //! variables, and for a system of `N` coordinates the `N`-wide ones carry
 //! `N` or `N²` parts through every operation. The compile time then grows
 //! as terms × types × `N²`. Instead, a chunk reading `k` leaves (`t`, and
-//! `q[i]`, `v[i]` at literal indices) is compiled at one fixed type only,
-//! [`Column<k>`] over plain `f64`: its value, its gradient in the `k`
-//! leaves and one column of its Hessian, whose width grows as `k`, not
-//! `k²` ([`columns`] evaluates it once per column). Every dual number over
-//! `f64` then takes its value from there: [`compose`] is the second-order Taylor polynomial of the chunk at
-//! the real parts of its leaves, composed with the leaves' derivative
-//! parts,
+//! `q[i]`, `v[i]` at literal indices) has a [`Jet`]: a non-generic method
+//! that returns its value, gradient and Hessian in `f64` from its body on
+//! [`HyperDual64`] (one leaf or one pair of leaves seeded at a time,
+//! [`seeded`]), a number of four parts whatever `k` and `N`. Every dual number over `f64` then takes its value
+//! from there through [`lift`], one copy per scalar type for all chunks:
+//! the second-order Taylor polynomial of the chunk at the real parts of its
+//! leaves, composed with the leaves' derivative parts,
 //!
 //! ```text
 //! c(x) = c + Σ_i g_i δ_i + ½ Σ_ij H_ij δ_i δ_j,   δ_i = x_i − re(x_i),
@@ -35,15 +35,7 @@
 //! those types.
 
 use crate::Scalar;
-use crate::hyperdual::HyperDualArray;
-
-/// A chunk's value, gradient and one column of its Hessian with respect
-/// to its `K` leaves.
-pub type Column<const K: usize> = HyperDualArray<[f64; K], [f64; 1]>;
-
-/// A chunk's value, gradient (`eps1`) and Hessian (`eps1eps2`) with
-/// respect to its `K` leaves, as [`columns`] assembles them.
-pub type Hessian<const K: usize> = HyperDualArray<[f64; K], [f64; K]>;
+use num_dual::HyperDual64;
 
 /// The real part of `x`.
 #[inline(always)]
@@ -57,39 +49,6 @@ pub fn reals<D: Scalar, const N: usize>(x: &[D; N]) -> [f64; N] {
     x.map(|x| x.re())
 }
 
-/// Every entry of `x` as a constant (zero derivative parts) of `D`.
-#[inline(always)]
-pub fn constants<D: Scalar, const N: usize>(x: &[f64; N]) -> [D; N] {
-    x.map(D::from)
-}
-
-/// Leaf `i` of `K` at the value `x`: `ε1_i` seeded, and `ε2` too when `i`
-/// is the column `column` being evaluated.
-#[inline(always)]
-pub fn leaf<const K: usize>(x: f64, i: usize, column: usize) -> Column<K> {
-    let mut h = Column::from_re(x);
-    h.eps1[i] = 1.0;
-    if i == column {
-        h.eps2[0] = 1.0;
-    }
-    h
-}
-
-/// The value, gradient and Hessian of a chunk from `column(j)`, its
-/// evaluation with the second direction seeded on leaf `j`, for every `j`.
-#[inline(always)]
-pub fn columns<const K: usize>(mut column: impl FnMut(usize) -> Column<K>) -> Hessian<K> {
-    let mut h = Hessian::<K>::from_re(0.0);
-    for j in 0..K {
-        let c = column(j);
-        (h.re, h.eps1) = (c.re, c.eps1);
-        for i in 0..K {
-            h.eps1eps2[i][j] = c.eps1eps2[i][0];
-        }
-    }
-    h
-}
-
 /// `previous + c(leaves)` on `D` from the chunk's value `value` (the
 /// previous partial result included, as `f64`), its gradient and, for
 /// second-order numbers, its Hessian (row-major, `k × k`, or empty), all at
@@ -99,8 +58,24 @@ pub fn columns<const K: usize>(mut column: impl FnMut(usize) -> Column<K>) -> He
 /// system, whatever its number of leaves.
 #[inline(never)]
 pub fn compose<D: Scalar>(previous: D, leaves: &[D], value: f64, gradient: &[f64], hessian: &[f64]) -> D {
-    let k = leaves.len();
-    let delta = |i: usize| leaves[i] - D::from(leaves[i].re());
+    taylor(previous, leaves.len(), |i| leaves[i], value, gradient, hessian)
+}
+
+/// The second-order Taylor polynomial of [`compose`], with leaf `i` read
+/// by `leaf(i)` for `i < k` (no copy of the leaves).
+#[inline(always)]
+fn taylor<D: Scalar>(
+    previous: D,
+    k: usize,
+    leaf: impl Fn(usize) -> D,
+    value: f64,
+    gradient: &[f64],
+    hessian: &[f64],
+) -> D {
+    let delta = |i: usize| {
+        let x = leaf(i);
+        x - D::from(x.re())
+    };
     let mut r = D::from(value) + (previous - D::from(previous.re()));
     for (i, &g) in gradient.iter().enumerate().take(k) {
         if g != 0.0 {
@@ -125,4 +100,147 @@ pub fn compose<D: Scalar>(previous: D, leaves: &[D], value: f64, gradient: &[f64
         }
     }
     r
+}
+
+/// The most leaves a chunk lowered to `f64` reads (the macro's bound):
+/// [`lift`] keeps its gradient and Hessian on the stack.
+pub const MAX_LEAVES: usize = 16;
+
+/// The real parts of a chunk's inputs: the previous partial result (zero
+/// for the first chunk), `t` (zero when the method takes none), `q` and `v`
+/// (`q` again when the method takes no `v`).
+#[derive(Clone, Copy, Debug)]
+pub struct Reals<const N: usize> {
+    /// The previous partial result.
+    pub previous: f64,
+    /// The time.
+    pub t: f64,
+    /// The coordinates.
+    pub q: [f64; N],
+    /// The velocities.
+    pub v: [f64; N],
+}
+
+/// A chunk lowered to `f64`: from the real parts of its inputs it returns
+/// its value (bit for bit that of `f64`), and writes its gradient in its
+/// `k` leaves into the first slice and, when the flag is set, the upper
+/// triangle of its Hessian (row-major, `k × k`) into the second, whose
+/// other entries it leaves alone. The macro prints one per chunk, non
+/// generic: the chunk's body is compiled for [`HyperDual64`] (one or two
+/// directions, the Hessian an entry at a time, see [`seeded`]) instead of
+/// for every scalar type.
+pub type Jet<S, const N: usize> = fn(&S, &Reals<N>, bool, &mut [f64], &mut [f64]) -> f64;
+
+/// `previous + c(leaves)` on `D`, for a chunk lowered to `f64` as `jet`:
+/// leaf `i` is `q[l]` for `l = leaves[i] < N`, `v[l − N]` below `2N` and
+/// `t` at `2N`. The chunk's value, gradient and (for second-order numbers)
+/// Hessian at the real parts, composed by the chain rule as [`compose`]
+/// does.
+///
+/// Not inlined, and generic over the scalar but not over the chunk (which
+/// `jet` is): one copy per scalar type and system serves all its chunks,
+/// so that a chunk adds one small dispatch per scalar type, not a copy of
+/// its body.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+pub fn lift<S, D: Scalar, const N: usize>(
+    system: &S,
+    previous: D,
+    t: D,
+    q: &[D; N],
+    v: &[D; N],
+    leaves: &[usize],
+    jet: Jet<S, N>,
+) -> D {
+    let k = leaves.len().min(MAX_LEAVES);
+    let inputs = Reals { previous: previous.re(), t: t.re(), q: reals(q), v: reals(v) };
+    let (mut gradient, mut hessian) = ([0.0; MAX_LEAVES], [0.0; MAX_LEAVES * MAX_LEAVES]);
+    let second = D::SECOND_ORDER;
+    let value = jet(system, &inputs, second, &mut gradient[..k], &mut hessian[..k * k]);
+    let leaf = |i: usize| match leaves[i] {
+        l if l < N => q[l],
+        l if l < 2 * N => v[l - N],
+        _ => t,
+    };
+    let hessian = if second { &hessian[..k * k] } else { &[] };
+    taylor(previous, k, leaf, value, &gradient[..k], hessian)
+}
+
+/// The inputs of a chunk on [`HyperDual64`] at `x`: every one a constant
+/// but leaf `a` (numbered as in [`lift`]), which carries `ε1`, and leaf
+/// `b`, which carries `ε2`. The chunk's value there has its derivative in
+/// leaf `a` as `ε1` and `∂²c/∂a∂b` as `ε1ε2`: one Hessian entry per
+/// evaluation, on a number of four parts whatever the number of leaves.
+#[inline]
+pub fn seeded<const N: usize>(x: &Reals<N>, a: usize, b: usize) -> (HyperDual64, [HyperDual64; N], [HyperDual64; N]) {
+    seed(x, a, Some(b))
+}
+
+/// [`seeded`], with `ε2` on leaf `b` when there is one.
+#[inline]
+fn seed<const N: usize>(x: &Reals<N>, a: usize, b: Option<usize>) -> (HyperDual64, [HyperDual64; N], [HyperDual64; N]) {
+    let (mut t, mut q, mut v) = (HyperDual64::from(x.t), x.q.map(HyperDual64::from), x.v.map(HyperDual64::from));
+    for (l, second) in [(Some(a), false), (b, true)] {
+        let Some(l) = l else { continue };
+        let x = match l {
+            l if l < N => &mut q[l],
+            l if l < 2 * N => &mut v[l - N],
+            _ => &mut t,
+        };
+        if second { x.eps2 = 1.0 } else { x.eps1 = 1.0 }
+    }
+    (t, q, v)
+}
+
+/// A chunk's body on [`HyperDual64`], as its [`Jet`] passes it to
+/// [`second_order`]: the previous partial result, `t`, `q` and `v`.
+pub type HyperBody<S, const N: usize> =
+    fn(&S, HyperDual64, HyperDual64, &[HyperDual64; N], &[HyperDual64; N]) -> HyperDual64;
+
+/// The gradient and the upper triangle of the Hessian of a chunk in its
+/// `leaves` (numbered as in [`lift`]) at `x`, from `body` evaluated once
+/// per pair `(a, b)` of `pairs` (positions in `leaves`, `a ≤ b`, the
+/// diagonal included): `gradient[a]` from `(a, a)`, `hessian[a·k + b]`
+/// from `(a, b)`. Pairs left out keep their entry.
+///
+/// Not inlined, and one copy per system: a chunk's [`Jet`] is a call,
+/// not a loop the optimiser unrolls over the chunk's pairs.
+#[inline(never)]
+pub fn second_order<S, const N: usize>(
+    system: &S,
+    x: &Reals<N>,
+    leaves: &[usize],
+    pairs: &[(usize, usize)],
+    body: HyperBody<S, N>,
+    gradient: &mut [f64],
+    hessian: &mut [f64],
+) {
+    let k = leaves.len();
+    for &(a, b) in pairs {
+        let (t, q, v) = seeded(x, leaves[a], leaves[b]);
+        let c = body(system, HyperDual64::from(x.previous), t, &q, &v);
+        if a == b {
+            gradient[a] = c.eps1;
+        }
+        hessian[a * k + b] = c.eps1eps2;
+    }
+}
+
+/// The gradient of a chunk in its `leaves` (numbered as in [`lift`]) at
+/// `x`, from `body` evaluated once per leaf with only `ε1` seeded (the
+/// body on [`HyperDual64`] serves both orders, so that it is the one
+/// derivative type a chunk is compiled for). Not inlined, as
+/// [`second_order`].
+#[inline(never)]
+pub fn first_order<S, const N: usize>(
+    system: &S,
+    x: &Reals<N>,
+    leaves: &[usize],
+    body: HyperBody<S, N>,
+    gradient: &mut [f64],
+) {
+    for (a, &leaf) in leaves.iter().enumerate() {
+        let (t, q, v) = seed(x, leaf, None);
+        gradient[a] = body(system, HyperDual64::from(x.previous), t, &q, &v).eps1;
+    }
 }
