@@ -33,7 +33,7 @@ CASES=(
 
 command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
 cargo build --release --example step_profile >&2
-bin=target/release/examples/step_profile
+bin=${CARGO_TARGET_DIR:-target}/release/examples/step_profile
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
