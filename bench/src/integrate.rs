@@ -238,6 +238,7 @@ fn auto<M: Model<N>, const N: usize>(
                 pilot_seconds: est.pilot.seconds,
                 step: est.step,
                 growth: format!("{:?}", est.growth),
+                reason: est.reason.clone(),
             });
             match (sol.error.as_ref(), sol.q.last()) {
                 (None, Some(q)) => Run { q: q.to_vec(), steps, auto, ..Run::default() },

@@ -436,6 +436,9 @@ pub fn auto_table(report: &Report) -> String {
         .filter(|r| r.ratio().is_some_and(|x| x > 1.5))
         .map(|r| format!("{} at {}: {:.1}×, {}", r.problem, e(r.target), r.ratio().unwrap_or(f64::NAN), auto_reason(r)))
         .collect();
+    let measured = ratios.iter().filter(|r| r.ratio().is_some()).count();
+    let within2 = ratios.iter().filter(|r| r.ratio().is_some_and(|x| x <= 2.0)).count();
+    let _ = writeln!(s, "\nAt most 2× the fastest in {within2} of {measured} cases.");
     if above.is_empty() {
         s.push_str("\nNo case above 1.5×.\n");
     } else {

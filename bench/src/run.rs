@@ -43,6 +43,8 @@ pub struct AutoReport {
     pub step: f64,
     /// The error growth the pilot measured.
     pub growth: String,
+    /// Why the method was chosen, in one line.
+    pub reason: String,
 }
 
 impl Run {

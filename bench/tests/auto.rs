@@ -6,7 +6,8 @@
 //!
 //! By default a representative subset runs; `AUTO_GRID=full` runs every
 //! problem at every tolerance `1e-4 … 1e-12` and prints the table
-//! (`AUTO_GRID=full cargo test --release -p lagrangian-bench --test integration auto:: -- --nocapture`).
+//! (`AUTO_GRID=full cargo test --release -p lagrangian-bench --test integration auto:: -- --nocapture`;
+//! `AUTO_PROBLEMS=pendulum,toda` keeps only these problems).
 
 use lagrangian::prelude::*;
 use lagrangian_bench::calibrate::error_of;
@@ -30,15 +31,19 @@ struct Case {
     /// Estimate over the achieved error.
     honesty: f64,
     seconds: f64,
+    /// The pilot's measured growth, its steps, and the final step.
+    detail: String,
 }
 
 fn print(cases: &[Case]) {
-    eprintln!("| problem | rtol | method | error / requested | estimate / error | seconds |");
-    eprintln!("| --- | --- | --- | --- | --- | --- |");
+    eprintln!(
+        "| problem | rtol | method | error / requested | estimate / error | seconds | growth, pilot steps, step |"
+    );
+    eprintln!("| --- | --- | --- | --- | --- | --- | --- |");
     for c in cases {
         eprintln!(
-            "| {} | {:.0e} | {} | {:.2} | {:.2} | {:.3} |",
-            c.problem, c.rtol, c.method, c.achieved, c.honesty, c.seconds
+            "| {} | {:.0e} | {} | {:.2} | {:.2} | {:.3} | {} |",
+            c.problem, c.rtol, c.method, c.achieved, c.honesty, c.seconds, c.detail
         );
     }
 }
@@ -73,6 +78,7 @@ fn report_case(p: &dyn Problem, t_end: f64, rtol: f64, reference: &[f64]) -> Cas
         achieved: error / auto.requested,
         honesty: if error < 100.0 * f64::EPSILON * scale { f64::NAN } else { auto.estimate / error },
         seconds: run.seconds,
+        detail: format!("{}, {} of {}, {:.3e}; {}", auto.growth, auto.pilot_steps, run.steps, auto.step, auto.reason),
     }
 }
 
@@ -96,6 +102,11 @@ fn report_problems() -> Vec<(&'static str, f64)> {
     }
 }
 
+/// `AUTO_PROBLEMS=id,id`: only these problems of the grid.
+fn selected(id: &str) -> bool {
+    std::env::var("AUTO_PROBLEMS").map_or(true, |v| v.split(',').any(|p| p.trim() == id))
+}
+
 fn tolerances() -> Vec<f64> {
     if full() { vec![1e-4, 1e-6, 1e-8, 1e-10, 1e-12] } else { vec![1e-6, 1e-10] }
 }
@@ -104,7 +115,7 @@ fn tolerances() -> Vec<f64> {
 fn the_report_problems_meet_their_tolerances() {
     big_stack(|| {
         let mut cases = Vec::new();
-        for (id, scale) in report_problems() {
+        for (id, scale) in report_problems().into_iter().filter(|(id, _)| selected(id)) {
             let Some(p) = problem::all(scale).into_iter().find(|p| p.id() == id) else {
                 panic!("no problem {id}: {:?}", problem::all(1.0).iter().map(|p| p.id()).collect::<Vec<_>>())
             };
@@ -228,6 +239,7 @@ fn new_case<S: Lagrangian<N> + Clone, const N: usize>(
         achieved: error / est.requested,
         honesty: if error < 100.0 * f64::EPSILON * scale { f64::NAN } else { est.error / error },
         seconds,
+        detail: format!("{:?}, {}, {:.3e}; {}", est.growth, est.pilot.steps, est.step, est.reason),
     }
 }
 
@@ -243,9 +255,15 @@ fn three_new_problems_meet_their_tolerances() {
         let r_spring = dd_reference(SpringPendulum, spring.0, spring.1, t_spring, 4000);
         let r_charge = gyration_exact(charge.0, charge.1, t_charge);
         for rtol in if full() { vec![1e-4, 1e-6, 1e-8, 1e-10, 1e-12] } else { vec![1e-8] } {
-            cases.push(new_case("toda", Toda, toda, t_toda, rtol, r_toda));
-            cases.push(new_case("spring-pendulum", SpringPendulum, spring, t_spring, rtol, r_spring));
-            cases.push(new_case("charge-in-b", Gyration, charge, t_charge, rtol, r_charge));
+            if selected("toda") {
+                cases.push(new_case("toda", Toda, toda, t_toda, rtol, r_toda));
+            }
+            if selected("spring-pendulum") {
+                cases.push(new_case("spring-pendulum", SpringPendulum, spring, t_spring, rtol, r_spring));
+            }
+            if selected("charge-in-b") {
+                cases.push(new_case("charge-in-b", Gyration, charge, t_charge, rtol, r_charge));
+            }
         }
         check(&cases);
     });

@@ -22,8 +22,8 @@
 //! rises steeply enough over the first checkpoints to look exponential).
 //!
 //! The growth of `e` between the checkpoints `Tp/64, …, Tp/2, Tp` decides the
-//! extrapolation to the end `T`: a power `t^k` with `1 ≤ k ≤ 2` as the pilot
-//! measures it, or exponential when the local exponent
+//! extrapolation to the end `T`: a power `t^k` with `1 ≤ k ≤ 2`, the lesser
+//! exponent the last two intervals measure, or exponential when the local exponent
 //! `k = Δln e / Δln t` exceeds 3 over two intervals in a row (an
 //! exponential `e^{λt}` has `k = λt`, growing without bound), with the
 //! measured rate `λ`: the signature of chaos.
@@ -299,13 +299,20 @@ impl Richardson {
         let error = d.last().map_or(0.0, |x| x.1 * factor);
         let mut growth = Growth::Power(1.0);
         // Exponential growth keeps every interval steep; a bend of a power
-        // law (an error rising as a resonance is crossed) makes one.
+        // law (an error rising as a resonance is crossed) makes one. A power
+        // law takes the lesser exponent of the last two intervals: the
+        // running maximum of an oscillation's error rises in jumps when its
+        // peaks grow past the last one, and one interval that holds a jump
+        // (the pendulum's and the outer planets' errors over their first
+        // period) would extrapolate as `t²`, tenfold over a tenth of the span.
         let mut steep_before = false;
+        let mut k_before: Option<f64> = None;
         for i in 1..e.len() {
             let (a, b) = (e[i - 1], e[i]);
             // Above round-off, below saturation, after the first period.
             if times[i - 1] - t0 < 0.99 * settle || a <= 100.0 * noise || b >= 1e-2 * scale {
                 steep_before = false;
+                k_before = None;
                 continue;
             }
             let k = (b / a).ln() / ((times[i] - t0) / (times[i - 1] - t0)).ln();
@@ -315,10 +322,11 @@ impl Richardson {
             } else {
                 match growth {
                     Growth::Exponential(rate) => Growth::Exponential(rate),
-                    Growth::Power(_) => Growth::Power(k.clamp(1.0, 2.0)),
+                    Growth::Power(_) => Growth::Power(k_before.map_or(k, |kb| kb.min(k)).clamp(1.0, 2.0)),
                 }
             };
             steep_before = steep;
+            k_before = Some(k);
         }
         // An error that saturates before two checkpoints show its growth:
         // judged from the first measurable checkpoint to the last.
