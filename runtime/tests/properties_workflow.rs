@@ -826,14 +826,21 @@ fn explicit_one<S: Lagrangian<N> + Copy, const N: usize>(
     drive(&mut sim, &case.ops, conservation, tally)
 }
 
-/// Halvings of σ in [`explicit_convergence`].
+/// Halvings of σ in the first look of [`explicit_convergence`].
 const HALVINGS: usize = 3;
+
+/// Halvings of σ where the first look has not reached the asymptotic regime.
+const MORE_HALVINGS: usize = 6;
+
+/// The largest relative energy error at the finest step that [`converges`]
+/// takes for the asymptotic regime.
+const RESOLVED: f64 = 1e-3;
 
 /// Coarse steps (of the case's σ) in [`explicit_convergence`] at most.
 const CONVERGENCE_STEPS: usize = 400;
 
 /// The largest energy error relative to `c − V`, `|E − E0|/(c − V)`, at the
-/// nodes `s = kσ` of runs with the steps `σ/2^j`, `j = 0..=HALVINGS`, each
+/// nodes `s = kσ` of runs with the steps `σ/2^j`, `j = 0..=halvings`, each
 /// over the same span in `s` (the coarse run's steps up to `horizon` in
 /// physical time, at most [`CONVERGENCE_STEPS`]), and its round-off floor.
 /// `None` where a run stops with a typed error.
@@ -842,8 +849,9 @@ fn relative_energy_errors<S: Lagrangian<N> + Copy, const N: usize>(
     start: &dyn Fn(f64) -> Result<lagrangian_runtime::ExplicitAdaptive<S, f64, N>, Error<N>>,
     sigma: f64,
     horizon: f64,
-) -> Option<([f64; HALVINGS + 1], f64)> {
-    let mut errors = [0.0f64; HALVINGS + 1];
+    halvings: usize,
+) -> Option<(Vec<f64>, f64)> {
+    let mut errors = vec![0.0f64; halvings + 1];
     let mut floor = 0.0f64;
     let mut coarse = 0;
     for (j, error) in errors.iter_mut().enumerate() {
@@ -882,45 +890,52 @@ fn relative_energy_errors<S: Lagrangian<N> + Copy, const N: usize>(
 /// (backward error analysis), and with `p_t = −E0` fixed
 /// `Γ = f(c − V + E − E0) − f(c − V)`, so at a node the energy error relative
 /// to `c − V` is `(E − E0)/(c − V) = σ^p (Γ_p(x0) − Γ_p(x)) (c − V)^{α−1} + …`:
-/// bounded by the truncation error, however large next to a pericentre, and
-/// falling by `2^p` per halving of σ at the same nodes once σ resolves the
-/// orbit. Asserted: the errors fall over the halvings; above `2^p` times the
-/// round-off floor, their fitted order over all halvings is at least `p/2`
-/// (a result that does not converge fails), and the first halving's at most
-/// `p + 2` (a coarse run that errs by more than four times what the finer
-/// runs extrapolate to, as one that lost the orbit at σ and not at σ/2
-/// would, fails). Over the 100 000 cases of the long run, the leapfrog's
-/// fitted orders are within 2 ± 0.5 in every halving; the compositions',
-/// before σ resolves the pericentre, between `p − 2` and `p + 3`.
-fn converges(errors: &[f64; HALVINGS + 1], floor: f64, order: f64) -> Result<&'static str, String> {
+/// bounded by the truncation error, and falling by `2^p` per halving of σ
+/// at the same nodes once σ resolves the orbit. That is all the method
+/// promises; at a σ that does not resolve the orbit (a pendulum's turning
+/// points with `c = 0`, a close approach) the error is anything up to the
+/// lost-orbit check's bound (the clocks' rates within a factor 2, which
+/// the property asserts at every node), and it need not fall in the first
+/// halvings: the long run saw 0.035, 0.19, 0.029, 0.0056 (leapfrog) and a
+/// first halving of fitted order 4.4 (leapfrog) or 11 (Kahan–Li 8).
+///
+/// Asserted: the errors fall overall, and either the finest reaches
+/// `2^p` times the round-off floor, or the last two halvings — the
+/// asymptotic regime — fall at a fitted order of at least `p/2` to a
+/// finest error of at most [`RESOLVED`]. A result that does not converge
+/// fails however fine σ gets; [`explicit_convergence`] halves σ further
+/// (to σ/64) before it reports a case that has not reached the regime.
+fn converges(errors: &[f64], floor: f64, order: f64) -> Result<&'static str, String> {
     let fitted: Vec<f64> = errors.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
     let report =
         || format!("relative energy errors {errors:?} (floor {floor:e}), fitted orders {fitted:?}, order {order}");
     if errors[0] <= floor {
         return Ok("at round-off");
     }
-    let finest = errors[HALVINGS];
+    let n = errors.len() - 1;
+    let finest = errors[n];
     if finest.partial_cmp(&errors[0]) != Some(std::cmp::Ordering::Less) {
         return Err(format!("the energy error does not fall with σ: {}", report()));
     }
     if finest <= floor * 2f64.powf(order) {
         return Ok("falls to round-off");
     }
-    let overall = (errors[0] / finest).log2() / HALVINGS as f64;
-    if overall < 0.5 * order {
+    let tail = (errors[n - 2] / finest).log2() / 2.0;
+    if tail.is_nan() || tail < 0.5 * order {
         return Err(format!("the energy error does not converge at order {order}: {}", report()));
     }
-    if fitted[0] > order + 2.0 {
-        return Err(format!("the coarse run errs beyond the finer runs' extrapolation: {}", report()));
+    if finest > RESOLVED {
+        return Err(format!("the finest step does not resolve the orbit: {}", report()));
     }
     Ok("converges")
 }
 
 /// [`converges`] on the case's configuration from its start, over
-/// `horizon` in physical time: where no energy bound of the start's scale
-/// holds at the nodes (the kick–drift–kick and power-law forms on Kepler,
-/// every form on the pendulum, whose turning points make `c − V` small),
-/// the energy is held by its convergence.
+/// `horizon` in physical time, first over [`HALVINGS`] halvings of σ and,
+/// where those do not reach the asymptotic regime, over
+/// [`MORE_HALVINGS`]: where no energy bound of the start's scale holds at
+/// the nodes (the kick–drift–kick and power-law forms on Kepler, every form
+/// on the pendulum), the energy is held by its convergence.
 fn explicit_convergence<S: Lagrangian<N> + Copy, const N: usize>(
     system: S,
     case: &ExplicitCase,
@@ -940,14 +955,21 @@ fn explicit_convergence<S: Lagrangian<N> + Copy, const N: usize>(
     };
     let order = f64::from(build(case.sigma).1);
     let start = |sigma: f64| build(sigma).0.start(case.t0, q0, v0);
-    let Some((errors, floor)) =
-        guarded(tally, "convergence runs", || relative_energy_errors(&start, case.sigma, horizon))?
-    else {
-        tally.add("convergence: a run stopped typed (not checked)");
-        return Ok(());
-    };
-    match converges(&errors, floor, order) {
-        Ok(how) => tally.add(format!("convergence: {how}")),
+    let mut verdict = Err(String::new());
+    for (halvings, label) in [(HALVINGS, ""), (MORE_HALVINGS, " (to σ/64)")] {
+        let Some((errors, floor)) =
+            guarded(tally, "convergence runs", || relative_energy_errors(&start, case.sigma, horizon, halvings))?
+        else {
+            tally.add(format!("convergence{label}: a run stopped typed (not checked)"));
+            return Ok(());
+        };
+        verdict = converges(&errors, floor, order).map(|how| format!("convergence{label}: {how}"));
+        if verdict.is_ok() {
+            break;
+        }
+    }
+    match verdict {
+        Ok(how) => tally.add(how),
         Err(e) => return Err(TestCaseError::fail(e)),
     }
     Ok(())
@@ -2025,10 +2047,11 @@ fn solve_keeps_each_node_once_around_land_events() {
 }
 
 /// Found by the explicit property in the long run (`LAGRANGIAN_PROP_CASES=100000`):
-/// the separable pendulum from rest at q0 = −1.532 (`V = −0.38`, so the
-/// default shift is `c = 0` and `c − V` stays ≥ 0.38 on the exact flow, 1/26
-/// of the energy scale 9.81), logarithmic time function, σ = 0.0237, one
-/// drift–kick–drift step: `Γ` goes from 0 to 0.114.
+/// the separable pendulum from rest at q0 = −1.532 (`V = −0.38`) with the
+/// shift `c = 0`, so that `c − V` stays ≥ 0.38 on the exact flow, 1/26 of
+/// the energy scale 9.81 (the default for a pendulum is `c = E + m`, see
+/// `ExplicitTimeTransformed::shift`), logarithmic time function, σ = 0.0237,
+/// one drift–kick–drift step: `Γ` goes from 0 to 0.114.
 ///
 /// That is the step's truncation error, not a lost orbit. With `p_t = −E0`
 /// fixed, `Γ = ln((T − E0)/(−V)) = ln(1 + (E − E0) g)`, `g = 1/(c − V)` the
@@ -2046,10 +2069,10 @@ fn explicit_time_transformation_near_a_turning_point_moves_the_extended_hamilton
     // (E − E0, Γ − Γ0, density and clocks' ratio after the step, that ratio at the start)
     let one_step = |sigma: f64| {
         let mut sim = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, sigma)
+            .shift(0.0)
             .start(0.0, [q0], [0.0])
             .unwrap();
         let (e0, g0, k0) = (sim.energy(), sim.extended_hamiltonian(), clock_factor(&sim));
-        assert_eq!(sim.shift(), 0.0);
         sim.step().unwrap();
         (sim.energy() - e0, sim.extended_hamiltonian() - g0, sim.density(), clock_factor(&sim) / k0)
     };
@@ -2200,9 +2223,11 @@ fn explicit_time_transformation_never_publishes_an_earlier_time() {
 /// 1.9 %, and it falls at the same nodes with σ/2, σ/4, σ/8 by fitted orders
 /// 3.9, 6.7 and 11.0 (eighth order, before σ resolves the close approach):
 /// the truncation error, which [`converges`] accepts. A run that does not
-/// converge, or errs at σ far beyond what the finer runs extrapolate to (a
-/// lost orbit at σ only, as the radial infall with `f'(x) = x^{−1/2}` whose
-/// energy went from −1 to 34 706), is refused.
+/// converge is refused; one that errs at σ beyond what the finer runs
+/// extrapolate to but converges once σ resolves the orbit is the truncation
+/// error before the asymptotic regime (a lost orbit, as the radial infall
+/// with `f'(x) = x^{−1/2}` whose energy went from −1 to 34 706, is refused
+/// by the driver's clocks, typed: `lost_orbits.rs`).
 #[test]
 fn explicit_energy_errors_converge_through_a_close_approach() {
     let case = ExplicitCase {
@@ -2231,48 +2256,123 @@ fn explicit_energy_errors_converge_through_a_close_approach() {
     let mut worst = 0.0f64;
     sim.run(21, |s| worst = worst.max((s.energy() - e0).abs())).unwrap();
     assert!(worst > 2.0 * scale, "largest |E − E0| {worst} (T + |V| = {scale})");
-    let (errors, floor) = relative_energy_errors(&start, case.sigma, kepler_period(q0, v0)).unwrap();
+    let (errors, floor) = relative_energy_errors(&start, case.sigma, kepler_period(q0, v0), HALVINGS).unwrap();
     assert!(errors[0] > 0.01 && errors[0] < 0.03, "{errors:?}");
     assert_eq!(converges(&errors, floor, 8.0), Ok("converges"));
     let mut tally = Tally::default();
     explicit_convergence(SepKepler, &case, kepler_period(q0, v0), &mut tally).unwrap();
     assert_eq!(tally.get("convergence: converges"), 1);
-    // Sequences that are not a truncation error: no convergence, a jump at σ.
-    let refused = [[0.3, 0.3, 0.2, 0.3], [0.3, 0.2, 0.15, 0.1], [0.5, 0.01, 0.0025, 0.000625], [0.1, 0.2, 0.05, 0.2]];
+    // Not a truncation error: no fall, a fall slower than order p/2 in the
+    // last halvings, a rise at the finest step.
+    let refused = [[0.3, 0.3, 0.2, 0.3], [0.3, 0.2, 0.15, 0.1], [0.04, 0.01, 0.008, 0.007], [0.1, 0.2, 0.05, 0.2]];
     for errors in refused {
         assert!(converges(&errors, 1e-13, 2.0).is_err(), "{errors:?}");
     }
+    // Not yet resolved: refused at σ/8, for more halvings to decide.
+    assert!(converges(&[0.4, 0.1, 0.025, 0.00625], 1e-13, 2.0).is_err());
     assert_eq!(converges(&[0.04, 0.01, 0.0025, 0.000625], 1e-13, 2.0), Ok("converges"));
+    // A coarse σ that does not resolve the orbit, then order 2.
+    assert_eq!(converges(&[0.5, 0.01, 0.0025, 0.000625], 1e-13, 2.0), Ok("converges"));
 }
 
 /// The long run's pendulum case: logarithmic kick–drift–kick at σ = 0.044
 /// from θ = 1.2 rad with θ' = 2.59 (energy −0.204, scale `S` = 13.2). With
-/// the default shift `c = 0` the time function's argument `c − V = 9.81 cos θ`
-/// falls to `−E` = 0.2 at the turning points (θ = 1.55), where the
+/// the shift `c = 0` the time function's argument `c − V = 9.81 cos θ` falls
+/// to `−E` = 0.2 at the turning points (θ = 1.55), where the
 /// transformation's time steps are long; there the long run saw the energy
 /// at a node move to −3.65 after a landing. From the start the run at σ
 /// stops typed (the clocks' rates drift apart: `OrbitLost`), and the runs at
 /// σ/2, σ/4, σ/8 return with energy errors that fall with σ to 2e-4 of `S`:
-/// the step's truncation error, before σ resolves the turning points. No
-/// bound of the start's scale holds at the nodes; the property holds the
-/// energy by its convergence where the runs return.
+/// the step's truncation error, before σ resolves the turning points. The
+/// default shift `c = E + m` keeps `c − V ≥ m` = 11.0 (`m = |q·∇V|` at the
+/// start): the run at σ itself keeps the energy to 1e-5 of `S`.
 #[test]
 fn explicit_pendulum_energy_errors_fall_with_sigma_through_turning_points() {
     let sigma = 0.044432983336370184;
     let (q0, v0) = ([1.199639940249135], [2.5901050856567465]);
-    let start = |sigma: f64| {
-        ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, sigma)
-            .form(LeapfrogForm::KickDriftKick)
-            .start(0.0, q0, v0)
+    let start = |sigma: f64, shift: Option<f64>| {
+        let b = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, sigma)
+            .form(LeapfrogForm::KickDriftKick);
+        match shift {
+            Some(c) => b.shift(c),
+            None => b,
+        }
+        .start(0.0, q0, v0)
     };
     let (s, _) = pendulum_scales(v0[0]);
-    let mut sim = start(sigma).unwrap();
+    let mut sim = start(sigma, Some(0.0)).unwrap();
     assert!(matches!(sim.run(60, |_| {}), Err(Error::OrbitLost { .. })));
     let mut worst = [0.0f64; 3];
     for (j, worst) in worst.iter_mut().enumerate() {
-        let mut sim = start(sigma / f64::from(2u32 << j)).unwrap();
+        let mut sim = start(sigma / f64::from(2u32 << j), Some(0.0)).unwrap();
         let e0 = sim.energy();
         sim.run(120 << j, |s| *worst = worst.max((s.energy() - e0).abs())).unwrap();
     }
     assert!(worst[0] > 0.05 * s && worst[1] < worst[0] && worst[2] < 1e-3 * s, "{worst:?} (S = {s})");
+    let mut sim = start(sigma, None).unwrap();
+    let (e0, m) = (sim.energy(), (q0[0] * 9.81 * q0[0].sin()));
+    assert!((sim.shift() - (e0 + m)).abs() <= 1e-14 * m, "c = {}, E + m = {}", sim.shift(), e0 + m);
+    let mut worst = 0.0f64;
+    let t_end = 2.0 * std::f64::consts::TAU / pendulum_scales(v0[0]).1;
+    sim.run_until(t_end, |s| worst = worst.max((s.energy() - e0).abs())).unwrap();
+    println!("default shift c = {}: largest |E − E0| {worst:e} (S = {s})", sim.shift());
+    assert!(worst < 1e-5 * s, "{worst:e} (S = {s})");
+}
+
+/// The long run's other pendulum case, logarithmic kick–drift–kick at
+/// σ = 0.0205 from θ = 1.402 rad with θ' = −1.724 (energy −0.160, libration
+/// to 1.554 rad). With `c = 0`, `c − V` ranges over 0.16 … 9.81 along the
+/// orbit, and the energy error relative to it at σ, σ/2, σ/4, σ/8 is 0.82,
+/// 0.27, 0.011, 0.0028 (the long run's exact data gave 0.035, 0.19, 0.029,
+/// 0.0056): not yet the asymptotic regime, which σ/16 … σ/64 reach at order
+/// 2. The default shift keeps `c − V ≥ 13.6` and the errors 7e-7 of it at σ,
+/// falling at order 2 from the first halving.
+#[test]
+fn explicit_pendulum_converges_once_sigma_resolves_the_turning_points() {
+    let case = ExplicitCase {
+        system: 1,
+        function: TimeFunction::Logarithmic,
+        composition: None,
+        kick_drift_kick: true,
+        shift: None,
+        min_time_step: None,
+        sigma: 0.0205,
+        t0: 0.0,
+        q0: [1.402, 0.0],
+        v0: [-1.724, 0.0],
+        ops: vec![],
+    };
+    let horizon = 2.0 * std::f64::consts::TAU / pendulum_scales(case.v0[0]).1;
+    let start = |shift: Option<f64>| {
+        move |sigma: f64| {
+            let b = ExplicitTimeTransformed::new(SepPendulum, TimeFunction::Logarithmic, sigma)
+                .form(LeapfrogForm::KickDriftKick);
+            match shift {
+                Some(c) => b.shift(c),
+                None => b,
+            }
+            .start(0.0, [1.402], [-1.724])
+        }
+    };
+    let at_zero = start(Some(0.0));
+    let (errors, floor) = relative_energy_errors(&at_zero, case.sigma, horizon, HALVINGS).unwrap();
+    println!("c = 0: {errors:?}");
+    assert!(errors[0] > 0.1 && converges(&errors, floor, 2.0).is_err(), "{errors:?}");
+    let (errors, floor) = relative_energy_errors(&at_zero, case.sigma, horizon, MORE_HALVINGS).unwrap();
+    println!("c = 0, to σ/64: {errors:?}");
+    assert_eq!(converges(&errors, floor, 2.0), Ok("converges"));
+    for w in errors[3..].windows(2) {
+        assert!(((w[0] / w[1]).log2() - 2.0).abs() < 0.3, "{errors:?}");
+    }
+    let by_default = start(None);
+    let (errors, floor) = relative_energy_errors(&by_default, case.sigma, horizon, HALVINGS).unwrap();
+    println!("default shift: {errors:?}");
+    assert!(errors[0] < 1e-5, "{errors:?}");
+    for w in errors.windows(2) {
+        assert!(((w[0] / w[1]).log2() - 2.0).abs() < 0.1, "{errors:?}");
+    }
+    assert_eq!(converges(&errors, floor, 2.0), Ok("converges"));
+    let mut tally = Tally::default();
+    explicit_convergence(SepPendulum, &case, horizon, &mut tally).unwrap();
+    assert_eq!(tally.get("convergence: converges"), 1);
 }

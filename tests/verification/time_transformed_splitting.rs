@@ -434,6 +434,63 @@ fn bad_settings_and_initial_data_are_typed_errors() {
 
 use lagrangian::time_transform::Argument;
 
+/// Kepler with the zero of `V` moved: `V = −1/r + ½`.
+#[derive(Debug, Clone, Copy)]
+struct OffsetKepler;
+
+#[lagrangian]
+impl OffsetKepler {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt() - 0.5
+    }
+}
+
+/// The pendulum, `V = −g cos θ`.
+#[derive(Debug, Clone, Copy)]
+struct Pendulum;
+
+#[lagrangian]
+impl Pendulum {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] + 9.81 * q[0].cos()
+    }
+}
+
+/// The default shift: `c = 0` where the start is a bound orbit of a
+/// potential homogeneous of negative degree (Kepler, at every eccentricity
+/// and in double-double too), `c = E + m` with
+/// `m = max(T, |V|, |E|, |q·∇V|)` elsewhere, so `c − V ≥ m` on the energy
+/// shell: the moved zero of an offset Kepler potential (where `c = 0` would
+/// make `c − V = 1/r − ½` vanish at r = 2), a pendulum at rest just below
+/// the horizontal (where `T`, `V` and `E` nearly vanish and `c = 0` gave the
+/// density `1/(9.81 cos θ)` = 1e8 at the start), an unbound Kepler orbit.
+#[test]
+fn the_default_shift_keeps_the_time_function_argument_away_from_zero() {
+    for e in [0.0, 0.5, 0.9, 0.99] {
+        let (q0, v0) = kepler_start(e);
+        let sim = ExplicitTimeTransformed::new(Kepler, LOG, 0.1).start(0.0, q0, v0).unwrap();
+        assert_eq!(sim.shift(), 0.0, "e = {e}");
+        let dd = ExplicitTimeTransformed::new(Kepler, R32, 0.1)
+            .start(DoubleDouble::from(0.0), q0.map(DoubleDouble::from), v0.map(DoubleDouble::from))
+            .unwrap();
+        assert_eq!(dd.shift().to_f64(), 0.0, "e = {e}");
+    }
+    // Offset Kepler from r = 1 with |v| = 0.5: T = 0.125, V = −0.5, E = −0.375, |q·∇V| = 1.
+    let sim = ExplicitTimeTransformed::new(OffsetKepler, LOG, 0.1).start(0.0, [1.0, 0.0], [0.0, 0.5]).unwrap();
+    assert_eq!(sim.shift(), -0.375 + 1.0);
+    let forced = ExplicitTimeTransformed::new(OffsetKepler, LOG, 0.1).shift(0.0).start(0.0, [1.0, 0.0], [0.0, 0.5]);
+    assert_eq!(forced.unwrap().shift(), 0.0);
+    // The pendulum at rest 1e-9 below the horizontal: V = −9.8e-9 = E.
+    let theta = std::f64::consts::FRAC_PI_2 - 1e-9;
+    let sim = ExplicitTimeTransformed::new(Pendulum, LOG, 0.1).start(0.0, [theta], [0.0]).unwrap();
+    let m = 9.81 * theta * theta.sin();
+    assert!((sim.shift() - (sim.energy() + m)).abs() <= 1e-14 * m, "c = {}", sim.shift());
+    assert!((sim.density() * m - 1.0).abs() <= 1e-12, "density {}", sim.density());
+    // Unbound Kepler: c = E + max(T, |V|).
+    let sim = ExplicitTimeTransformed::new(Kepler, LOG, 0.1).start(0.0, [1.0, 0.0], [0.0, 2.0]).unwrap();
+    assert_eq!(sim.shift(), 1.0 + 2.0);
+}
+
 /// A shift that is positive at pericentre (`c − V = −5 + 1/r`) but not
 /// beyond r = 0.2: the step that gets there fails, the state is kept, and
 /// the next attempt fails the same way (no hang, no partial update).
