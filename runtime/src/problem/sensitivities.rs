@@ -174,34 +174,24 @@ where
             piece
         };
         let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
+        // The last Galerkin step a driver kept, as a piece (one arm per
+        // rule: each variant's memory is its own type).
+        macro_rules! kept {
+            ($d:expr) => {{
+                let l = $d.memory.as_ref().ok_or(missing)?;
+                galerkin(l.t0, l.h, l.q0, l.carry, &l.d)
+            }};
+        }
         match &self.driver {
             Driver::Midpoint(_) | Driver::Trapezoid(_) | Driver::AlphaBeta(_) => {
                 out.push(Piece::segment(&Segment::between((from.t, from.q), (to.t, to.q))));
             }
-            Driver::Gauss2(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
-            Driver::Gauss3(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
-            Driver::Gauss4(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
-            Driver::Lobatto2(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
-            Driver::Lobatto3(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
-            Driver::Lobatto4(d) => {
-                let l = d.memory.as_ref().ok_or(missing)?;
-                out.push(galerkin(l.t0, l.h, l.q0, l.carry, &l.d));
-            }
+            Driver::Gauss2(d) => out.push(kept!(d)),
+            Driver::Gauss3(d) => out.push(kept!(d)),
+            Driver::Gauss4(d) => out.push(kept!(d)),
+            Driver::Lobatto2(d) => out.push(kept!(d)),
+            Driver::Lobatto3(d) => out.push(kept!(d)),
+            Driver::Lobatto4(d) => out.push(kept!(d)),
             Driver::Composition(d) => {
                 if d.derivatives.reverse::<N>() {
                     return Err(Error::Unsupported { what: REVERSE_COMPOSITION });
