@@ -153,7 +153,7 @@ fn adaptive(e: f64, sigma: f64) -> Result<Record, Box<dyn Error>> {
     let (q0, v0) = ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()]);
     let g = RadiusPower::new([0, 1], 1.5).ok_or("invalid monitor")?;
     let clock = Instant::now();
-    let mut sim = TimeTransformed::new(Kepler, g).galerkin(Galerkin::<4, 4>::gauss(), sigma).start::<3>(0.0, q0, v0)?;
+    let mut sim = TimeTransformed::new(Kepler, g).galerkin(Galerkin::<4, 4>::gauss(), sigma).start(0.0, q0, v0)?;
     let e0 = sim.energy()?;
     let s0 = sim.state();
     let j0 = s0.q[0] * s0.p[1] - s0.q[1] * s0.p[0];

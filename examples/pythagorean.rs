@@ -67,13 +67,13 @@ struct Record<T> {
 
 fn run<T: Real>(sigma: f64, record: bool) -> Result<Record<T>, Box<dyn Error>> {
     let clock = Instant::now();
-    let mut sim = ExplicitTimeTransformed::new(Pythagorean, TimeFunction::Logarithmic, sigma)
+    let mut sim = ExplicitTimeTransformed::new(Pythagorean, TimeFunction::Logarithmic, T::from(sigma))
         .composition(Composition::KAHAN_LI8)
         .form(LeapfrogForm::DriftKickDrift)
         .start(T::from(0.0), Q0.map(T::from), [T::from(0.0); 6])?;
-    let e0 = sim.energy();
+    let e0 = sim.energy().to_f64();
     let mut rec = Record {
-        end: sim.state_real(),
+        end: sim.state(),
         steps: 0,
         gradients: 0,
         dt_min: f64::INFINITY,
@@ -83,14 +83,14 @@ fn run<T: Real>(sigma: f64, record: bool) -> Result<Record<T>, Box<dyn Error>> {
         dt: Vec::new(),
         energy: Vec::new(),
     };
-    sim.run_until(T_END, |s| {
-        let state = s.state();
-        let dt = s.last_time_step().unwrap_or(f64::NAN);
+    sim.run_until(T::from(T_END), |s| {
+        let state = s.state().to_f64();
+        let dt = s.last_time_step().map_or(f64::NAN, |dt| dt.to_f64());
         // The last (landing) step is partial: not a step size of the method.
         if state.t < T_END {
             rec.dt_min = rec.dt_min.min(dt);
         }
-        let de = ((s.energy() - e0) / e0).abs();
+        let de = ((s.energy().to_f64() - e0) / e0).abs();
         rec.energy_max = rec.energy_max.max(de);
         if record {
             for (b, path) in rec.paths.iter_mut().enumerate() {
@@ -106,7 +106,7 @@ fn run<T: Real>(sigma: f64, record: bool) -> Result<Record<T>, Box<dyn Error>> {
             }
         }
     })?;
-    rec.end = sim.state_real();
+    rec.end = sim.state();
     rec.steps = sim.stats().steps;
     rec.gradients = sim.stats().gradient_evaluations;
     rec.seconds = clock.elapsed().as_secs_f64();

@@ -7,6 +7,7 @@
 //! ```
 //!
 //! Cases: `pendulum` or `double pendulum`; methods: `midpoint`, `trapezoid`,
+//! `problem-midpoint` (`pendulum` only: midpoint chosen as a `Scheme` value through `Problem`),
 //! `ideal` (`pendulum` only: the generated midpoint step's algorithm written out by hand),
 //! `variable` (energy-preserving midpoint, from the start of the bench's
 //! variable-step group), `damped` (double pendulum with joint friction, a
@@ -49,8 +50,8 @@ use compositions::{Composition as Hand, Stepper};
 use handwritten::*;
 use lagrangian::derivatives::step_derivatives;
 use lagrangian::{
-    Composition, Galerkin, GalerkinIntegrator, Integrator, Lagrangian, Midpoint, Segment, StepBounds, Summation,
-    Trapezoid,
+    Composition, Galerkin, GalerkinIntegrator, Integrator, Lagrangian, Midpoint, Problem, Scheme, Segment, StepBounds,
+    Summation, Trapezoid,
 };
 use std::hint::black_box;
 
@@ -350,6 +351,13 @@ fn main() {
             vec![s.q]
         }
         ("pendulum", "midpoint") => run(Integrator::new(Pendulum { ..P }, Midpoint, H).start(0.0, [1.0], [0.0]), n),
+        ("pendulum", "problem-midpoint") => {
+            let mut sim = Problem::new(Pendulum { ..P }, 0.0, [1.0], [0.0]).stepper(&Scheme::MIDPOINT, H).unwrap();
+            for _ in 0..n {
+                black_box(sim.step().unwrap());
+            }
+            sim.state().q.to_vec()
+        }
         ("pendulum", "trapezoid") => run(Integrator::new(Pendulum { ..P }, Trapezoid, H).start(0.0, [1.0], [0.0]), n),
         ("pendulum", "variable") => run(
             Integrator::new(Pendulum { ..P }, Midpoint, H).energy_preserving(StepBounds::around(H)).start(

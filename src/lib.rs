@@ -73,7 +73,7 @@
 //! let (b, _) = first_crossing(Integrator::new(Pendulum, Galerkin::<3, 3>::gauss(), 0.05).start(0.0, q0, v0)?)?;
 //! let (c, _) = first_crossing(Integrator::new(Pendulum, Composition::YOSHIDA6, 0.02).start(0.0, q0, v0)?)?;
 //! let density = Curvature::new(1.0).unwrap();
-//! let (d, _) = first_crossing(TimeTransformed::new(Pendulum, density).rule(Midpoint, 0.005).start::<2>(0.0, q0, v0)?)?;
+//! let (d, _) = first_crossing(TimeTransformed::new(Pendulum, density).rule(Midpoint, 0.005).start(0.0, q0, v0)?)?;
 //! // A quarter of the period of a 1 rad swing: K(sin ½)/√g = 0.534784 s.
 //! for t in [a, b, c, d] {
 //!     assert!((t - 0.534784).abs() < 1e-4, "{t}");
@@ -208,7 +208,7 @@ pub use lagrangian_runtime::{
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use lagrangian_runtime::{
-    auto, constrained, dense, derivatives, discrete, double_double, ensemble, events, forcing, galerkin, guidance,
+    auto, constrained, dense, derivatives, dim, discrete, double_double, ensemble, events, forcing, galerkin, guidance,
     mechanics, newton, noether, problem, sensitivity, solution, structure, symplectic, system, time_transform,
 };
 

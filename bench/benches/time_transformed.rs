@@ -357,7 +357,7 @@ fn main() {
                     &|s| {
                         TimeTransformed::new(KeplerSys, $monitor)
                             .rule($m, s)
-                            .start::<3>(0.0, q0, v0)
+                            .start(0.0, q0, v0)
                             .map_err(|e| e.to_string())
                     },
                     &mut rows,
@@ -372,7 +372,7 @@ fn main() {
                     &|s| {
                         TimeTransformed::new(KeplerSys, $monitor)
                             .galerkin(Galerkin::<$s, $s>::gauss(), s)
-                            .start::<3>(0.0, q0, v0)
+                            .start(0.0, q0, v0)
                             .map_err(|e| e.to_string())
                     },
                     &mut rows,

@@ -280,13 +280,11 @@ fn kepler_tt<G: StepDensity<2>, const S: usize>(
     t_end: f64,
     record: &mut Observer<'_, 2>,
 ) -> Run {
-    let mut sim = match TimeTransformed::new(KeplerSys, density)
-        .galerkin(Galerkin::<S, S>::gauss(), sigma)
-        .start::<3>(0.0, q0, v0)
-    {
-        Ok(sim) => sim,
-        Err(e) => return Run { failure: Some(e.to_string()), ..Run::default() },
-    };
+    let mut sim =
+        match TimeTransformed::new(KeplerSys, density).galerkin(Galerkin::<S, S>::gauss(), sigma).start(0.0, q0, v0) {
+            Ok(sim) => sim,
+            Err(e) => return Run { failure: Some(e.to_string()), ..Run::default() },
+        };
     let result = sim.run_until(t_end, |sim| {
         if let Ok(v) = sim.velocity() {
             record(sim.state().t, &sim.state().q, &v);

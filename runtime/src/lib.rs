@@ -13,6 +13,7 @@ pub mod chunk;
 pub mod constrained;
 pub mod dense;
 pub mod derivatives;
+pub mod dim;
 pub mod discrete;
 pub mod double_double;
 pub mod ensemble;

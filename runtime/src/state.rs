@@ -16,3 +16,10 @@ pub struct State<const N: usize, T = f64> {
     /// `p_k`.
     pub p: [T; N],
 }
+
+impl<const N: usize, T: crate::Real> State<N, T> {
+    /// The state rounded to `f64` (each value's leading part).
+    pub fn to_f64(&self) -> State<N> {
+        State { step: self.step, t: self.t.to_f64(), q: self.q.map(|x| x.to_f64()), p: self.p.map(|x| x.to_f64()) }
+    }
+}

@@ -12,7 +12,6 @@
 use crate::dense::{Hermite, Node};
 use crate::error::Error;
 use crate::integrator::{F64Readouts, Integrator, Stats, StepPolicy};
-use crate::real::Real;
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Lagrangian;
@@ -123,7 +122,7 @@ where
 
 /// The explicit time-transformed splitting: steps of `σ` in `s`, landing
 /// by the partial step in `s` that ends on the physical time asked for.
-impl<Sys: Lagrangian<N>, T: Real, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, T, N> {
+impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f64, N> {
     type System = Sys;
     type Native = Hermite<N>;
 

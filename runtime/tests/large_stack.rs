@@ -13,6 +13,7 @@
 
 use std::fmt::Debug;
 
+use lagrangian_runtime::dim::{Dim, ExtendedSize};
 use lagrangian_runtime::galerkin::Galerkin;
 use lagrangian_runtime::{
     Action, AlphaBeta, Composition, DenseKind, Derivatives, DoubleDouble, Error, Event, ExplicitTimeTransformed,
@@ -111,7 +112,10 @@ enum Needs {
 }
 
 /// Every capability at size `N`; `M = N + 1` for the time-transformed system.
-fn capabilities<const N: usize, const M: usize>() -> Vec<(String, Outcome)> {
+fn capabilities<const N: usize, const M: usize>() -> Vec<(String, Outcome)>
+where
+    Dim<N>: ExtendedSize<M>,
+{
     let h = 0.05;
     let bounds = StepBounds::around(h);
     let mut cases: Vec<(String, Needs, Case)> = Vec::new();

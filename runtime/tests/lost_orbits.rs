@@ -80,7 +80,7 @@ fn a_start_at_the_singularity_names_it() {
 fn implicit_step_errors_carry_the_physical_state() {
     let mut sim = TimeTransformed::new(Kepler, RadiusPower::new([0, 1], 0.5).unwrap())
         .rule(Midpoint, 0.05)
-        .start::<3>(0.0, [1.0, 0.0], [0.0, 0.0])
+        .start(0.0, [1.0, 0.0], [0.0, 0.0])
         .unwrap();
     let err = sim.run_until(2.0, |_| {}).unwrap_err();
     let t = sim.state().t;

@@ -65,6 +65,7 @@
 
 use std::cell::RefCell;
 
+use lagrangian_runtime::dim::{Dim, ExtendedSize};
 use lagrangian_runtime::ensemble::{self, Ensemble, Shard, ShardError};
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::solution::{DenseKind, Plan, SolveError, Status, Stepping};
@@ -1112,6 +1113,7 @@ fn implicit_one<S, G, const N: usize, const M: usize>(
 where
     S: Lagrangian<N> + 'static,
     G: StepDensity<N> + 'static,
+    Dim<N>: ExtendedSize<M>,
 {
     let (q0, v0): ([f64; N], [f64; N]) = (first(case.q0), first(case.v0));
     macro_rules! configure {
@@ -2013,7 +2015,7 @@ fn implicit_time_transformation_rejects_a_spurious_step() {
     let mut sim = TimeTransformed::new(Pendulum, monitor)
         .galerkin(Galerkin::<2, 2>::gauss(), 0.07056106993564934)
         .newton(NewtonOptions::default())
-        .start::<2>(0.0, [-1.5673888557424274], [0.0])
+        .start(0.0, [-1.5673888557424274], [0.0])
         .unwrap();
     let e0 = sim.energy().unwrap();
     let before = (sim.state(), sim.extended_state());

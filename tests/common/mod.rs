@@ -8,7 +8,7 @@ pub mod galerkin_reference;
 pub mod schemes;
 
 /// `L = ½ m l² θ̇² + m g l cos θ`.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Pendulum {
     pub m: f64,
     pub l: f64,

@@ -288,7 +288,7 @@ fn a_256_link_pendulum_runs() {
 
 #[test]
 fn what_reverse_mode_does_not_do_is_refused() {
-    let q0 = chain_start::<64>(0.1);
+    let q0 = chain_start(0.1);
     let unsupported = |r: Result<(), String>| assert!(r.as_ref().is_err_and(|e| e.contains("not supported")), "{r:?}");
     unsupported(
         Integrator::new(Fpu::<64> { beta: 1.0 }, Midpoint, 0.05)

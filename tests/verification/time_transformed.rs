@@ -157,7 +157,7 @@ fn rule<M: DiscreteLagrangian>(
     sigma: f64,
 ) -> Adaptive<Integrator<Tt, M, 3>, Kepler, RadiusPower<2>, 2, 3> {
     let (q0, v0) = kepler_start(e);
-    TimeTransformed::new(Kepler, r32()).rule(method, sigma).start::<3>(0.0, q0, v0).unwrap()
+    TimeTransformed::new(Kepler, r32()).rule(method, sigma).start(0.0, q0, v0).unwrap()
 }
 
 fn galerkin<const S: usize>(
@@ -165,7 +165,7 @@ fn galerkin<const S: usize>(
     sigma: f64,
 ) -> Adaptive<GalerkinIntegrator<Tt, 3, S, S>, Kepler, RadiusPower<2>, 2, 3> {
     let (q0, v0) = kepler_start(e);
-    TimeTransformed::new(Kepler, r32()).galerkin(Galerkin::<S, S>::gauss(), sigma).start::<3>(0.0, q0, v0).unwrap()
+    TimeTransformed::new(Kepler, r32()).galerkin(Galerkin::<S, S>::gauss(), sigma).start(0.0, q0, v0).unwrap()
 }
 
 /// Checks and prints one run against its fixed-step twin; `j_tol` bounds
@@ -274,9 +274,8 @@ fn order_in_the_step() {
         // down to σ = 1e-3 (ratios 2.5, 2.6, 2.8); a larger c shrinks its
         // error constant (docs/time-transformation.md).
         let (q0, v0) = kepler_start(e);
-        let trapezoid = |s: f64| {
-            TimeTransformed::new(Kepler, r32()).rule(Trapezoid, s).penalty(1.0).start::<3>(0.0, q0, v0).unwrap()
-        };
+        let trapezoid =
+            |s: f64| TimeTransformed::new(Kepler, r32()).rule(Trapezoid, s).penalty(1.0).start(0.0, q0, v0).unwrap();
         let trap: Vec<_> = sigmas(0.01).iter().map(|&s| (s, position_error(trapezoid(s), e))).collect();
         let g2: Vec<_> = sigmas(0.2).iter().map(|&s| (s, position_error(galerkin::<2>(e, s), e))).collect();
         let g4: Vec<_> = sigmas4(0.4).iter().map(|&s| (s, position_error(galerkin::<4>(e, s), e))).collect();
@@ -421,12 +420,10 @@ impl StepDensity<1> for Breathing {
 
 #[test]
 fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
-    let err =
-        TimeTransformed::new(Oscillator, Position).rule(Midpoint, 0.1).start::<2>(0.0, [-0.5], [0.0]).unwrap_err();
+    let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, 0.1).start(0.0, [-0.5], [0.0]).unwrap_err();
     assert!(matches!(err, Error::InvalidDensity { value, .. } if value == -0.5), "{err:?}");
     // A g that turns NaN inside a step: that step is refused, the state kept.
-    let mut sim =
-        TimeTransformed::new(Oscillator, NanAfterHalf).rule(Midpoint, 0.07).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut sim = TimeTransformed::new(Oscillator, NanAfterHalf).rule(Midpoint, 0.07).start(0.0, [1.0], [0.0]).unwrap();
     let err = sim.run_until(1.0, |_| {}).unwrap_err();
     let Error::InvalidDensity { state, value } = err else { panic!("{err:?}") };
     assert!(value.is_nan() && state == sim.state() && state.t <= 0.5 && state.t > 0.4, "{state:?}");
@@ -451,8 +448,7 @@ fn collapse_state<const N: usize, T: Real>(err: Error<N, T>) -> State<N, T> {
 
 #[test]
 fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
-    let mut sim =
-        TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut sim = TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
     // As g = (1 − t)² collapses, g'/g grows without bound: the steps either
     // fall below the time-step floor or stop following the flow (the rate
     // t'/g jumps) first; both are refused with the state kept, before t = 1.
@@ -463,7 +459,7 @@ fn collapsing_steps_end_in_a_typed_error_not_a_hang() {
 #[test]
 fn invalid_settings_and_targets_are_typed_errors() {
     let start = |b: lagrangian::time_transform::TimeTransformedBuilder<Oscillator, RadiusPower<1>, _, 1>| {
-        b.start::<2>(0.0, [1.0], [0.0]).map(|_| ())
+        b.start(0.0, [1.0], [0.0]).map(|_| ())
     };
     let g = RadiusPower::new([0], 1.0).unwrap();
     let bad = RadiusPower::new([3], 1.0).unwrap();
@@ -479,10 +475,9 @@ fn invalid_settings_and_targets_are_typed_errors() {
     assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
     let e = start(TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).min_time_step(f64::NAN)).unwrap_err();
     assert!(matches!(e, Error::InvalidSetting { .. }), "{e:?}");
-    let e = TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).start::<2>(0.0, [f64::NAN], [0.0]).unwrap_err();
+    let e = TimeTransformed::new(Oscillator, g).rule(Midpoint, 0.1).start(0.0, [f64::NAN], [0.0]).unwrap_err();
     assert!(matches!(e, Error::InvalidInitialData { .. }), "{e:?}");
-    let mut sim =
-        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut sim = TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
     sim.run_until(1.0, |_| {}).unwrap();
     for target in [0.5, f64::NAN, f64::INFINITY] {
         let before = sim.state();
@@ -508,14 +503,14 @@ fn time_dependent_forces_keep_the_order() {
     let t_end = 2.0;
     let exact = rlc().exact(t_end)[0];
     let err_mid = |s: f64| {
-        let mut sim = TimeTransformed::new(rlc(), Breathing).rule(Midpoint, s).start::<2>(0.0, [0.0], [0.0]).unwrap();
+        let mut sim = TimeTransformed::new(rlc(), Breathing).rule(Midpoint, s).start(0.0, [0.0], [0.0]).unwrap();
         sim.run_until(t_end, |_| {}).unwrap();
         (s, (sim.state().q[0] - exact).abs())
     };
     let err_g2 = |s: f64| {
         let mut sim = TimeTransformed::new(rlc(), Breathing)
             .galerkin(Galerkin::<2, 2>::gauss(), s)
-            .start::<2>(0.0, [0.0], [0.0])
+            .start(0.0, [0.0], [0.0])
             .unwrap();
         sim.run_until(t_end, |_| {}).unwrap();
         (s, (sim.state().q[0] - exact).abs())
@@ -548,7 +543,7 @@ fn double_double_galerkin_in_s_has_order_eight() {
             .galerkin(Galerkin::<4, 4, Dd>::gauss(), span / n as f64)
             .penalty(1.0)
             .newton(newton)
-            .start::<3>(Dd::from(0.0), q0.map(Dd::from), v0.map(Dd::from))
+            .start(Dd::from(0.0), q0.map(Dd::from), v0.map(Dd::from))
             .expect("the transformed system starts in double-double");
         sim.run(n, |_| {}).expect("the steps converge");
         assert!((sim.extended_state().t - span).abs().to_f64() < 1e-30, "s after n steps of span/n");
@@ -597,13 +592,13 @@ fn double_double_driver_keeps_the_orders_below_the_f64_floor() {
     };
     let tt = || TimeTransformed::new(Kepler, r32());
     let mid = |sigma: f64| {
-        let mut sim = tt().rule(Midpoint, Dd::from(sigma)).start::<3>(Dd::from(0.0), q0, v0).unwrap();
+        let mut sim = tt().rule(Midpoint, Dd::from(sigma)).start(Dd::from(0.0), q0, v0).unwrap();
         sim.run_until(t_end, |_| {}).unwrap();
         (sigma, error(sim.state()))
     };
     let g2 = |sigma: f64| {
         let mut sim =
-            tt().galerkin(Galerkin::<2, 2, Dd>::gauss(), Dd::from(sigma)).start::<3>(Dd::from(0.0), q0, v0).unwrap();
+            tt().galerkin(Galerkin::<2, 2, Dd>::gauss(), Dd::from(sigma)).start(Dd::from(0.0), q0, v0).unwrap();
         sim.run_until(t_end, |_| {}).unwrap();
         (sigma, error(sim.state()))
     };
@@ -629,7 +624,7 @@ fn double_double_driver_energy_is_bounded_and_landings_exact() {
     let (q0, v0) = kepler_start_dd(e);
     let mut sim = TimeTransformed::new(Kepler, r32())
         .galerkin(Galerkin::<2, 2, Dd>::gauss(), Dd::from(0.02))
-        .start::<3>(Dd::from(0.0), q0, v0)
+        .start(Dd::from(0.0), q0, v0)
         .unwrap();
     let e0 = sim.energy().unwrap();
     let (pt0, j0) = (sim.time_momentum(), angular_dd(&sim.state()));
@@ -710,12 +705,11 @@ fn step_density_in_the_block_equals_the_runtime_monitor() {
     const { assert!(!<KeplerWithDensity as StepDensity<2>>::TIME_DEPENDENT) };
     const { assert!(<OscillatorWithDensity as StepDensity<1>>::TIME_DEPENDENT) };
     let (q0, v0) = kepler_start(0.9);
-    let mut own =
-        TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
-    let mut lib = TimeTransformed::new(Kepler, r32()).rule(Midpoint, 0.02).start::<3>(0.0, q0, v0).unwrap();
+    let mut own = TimeTransformed::with_own_density(KeplerWithDensity).rule(Midpoint, 0.02).start(0.0, q0, v0).unwrap();
+    let mut lib = TimeTransformed::new(Kepler, r32()).rule(Midpoint, 0.02).start(0.0, q0, v0).unwrap();
     let mut own2 = TimeTransformed::with_own_density(KeplerWithDensity)
         .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
-        .start::<3>(0.0, q0, v0)
+        .start(0.0, q0, v0)
         .unwrap();
     let mut lib2 = galerkin::<2>(0.9, 0.1);
     let (mut worst, mut worst2) = (0.0f64, 0.0f64);
@@ -732,12 +726,9 @@ fn step_density_in_the_block_equals_the_runtime_monitor() {
     println!("step_density against RadiusPower over 300 steps: midpoint {worst:e}, galerkin 2 {worst2:e}");
     // `(x² + y²)^0.75` and RadiusPower's `(x² + y²)^(0.5 · 1.5)` are the same operations.
     assert_eq!((worst, worst2), (0.0, 0.0));
-    let mut own = TimeTransformed::with_own_density(OscillatorWithDensity)
-        .rule(Midpoint, 0.1)
-        .start::<2>(0.0, [1.0], [0.0])
-        .unwrap();
-    let mut lib =
-        TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start::<2>(0.0, [1.0], [0.0]).unwrap();
+    let mut own =
+        TimeTransformed::with_own_density(OscillatorWithDensity).rule(Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
+    let mut lib = TimeTransformed::new(Oscillator, Breathing).rule(Midpoint, 0.1).start(0.0, [1.0], [0.0]).unwrap();
     own.run_until(3.0, |_| {}).unwrap();
     lib.run_until(3.0, |_| {}).unwrap();
     let (a, b) = (own.state(), lib.state());
@@ -751,19 +742,17 @@ fn step_density_in_the_block_equals_the_runtime_monitor() {
 fn double_double_driver_refuses_bad_monitors_with_the_state_kept() {
     type Dd = DoubleDouble;
     let d = Dd::from;
-    let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, d(0.1)).start::<2>(d(0.0), [d(-0.5)], [d(0.0)]);
+    let err = TimeTransformed::new(Oscillator, Position).rule(Midpoint, d(0.1)).start(d(0.0), [d(-0.5)], [d(0.0)]);
     assert!(matches!(err, Err(Error::InvalidDensity { value, .. }) if value == -0.5), "{err:?}");
     let mut sim = TimeTransformed::new(Oscillator, NanAfterHalf)
         .rule(Midpoint, d(0.07))
-        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
+        .start(d(0.0), [d(1.0)], [d(0.0)])
         .unwrap();
     let err = sim.run_until(d(1.0), |_| {}).unwrap_err();
     let Error::InvalidDensity { state, value } = err else { panic!("{err:?}") };
     assert!(value.is_nan() && state == sim.state() && state.t.to_f64() <= 0.5 && state.t.to_f64() > 0.4, "{state:?}");
-    let mut sim = TimeTransformed::new(Oscillator, Collapsing)
-        .rule(Midpoint, d(0.1))
-        .start::<2>(d(0.0), [d(1.0)], [d(0.0)])
-        .unwrap();
+    let mut sim =
+        TimeTransformed::new(Oscillator, Collapsing).rule(Midpoint, d(0.1)).start(d(0.0), [d(1.0)], [d(0.0)]).unwrap();
     let state = collapse_state(sim.run_until(d(2.0), |_| {}).unwrap_err());
     assert!(state == sim.state() && state.t.to_f64() < 1.0 && state.t.to_f64() > 0.9, "{state:?}");
     let e = sim.run_until(d(f64::NAN), |_| {}).unwrap_err();

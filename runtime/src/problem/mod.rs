@@ -27,8 +27,9 @@ mod statement;
 mod stepper;
 mod support;
 
+pub use crate::dim::Dim;
 pub use dynamic::{DynProblem, DynStepper};
-pub use extend::{Dim, Extended, Transformed};
+pub use extend::{Extended, Transformed};
 pub use scheme::{GalerkinQuadrature, OnePoint, Scheme};
 pub use statement::Problem;
 pub use stepper::{Interpolant, Stepper};

@@ -4,13 +4,14 @@
 
 use core::cell::RefCell;
 
-use super::extend::{Dim, Extended};
+use super::extend::Extended;
 use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
 use super::stepper::{Driver, Interpolant, Stepper};
 use super::support::{Capability, Policy};
 use crate::dense::Node;
 use crate::derivatives::Segment;
+use crate::dim::Dim;
 use crate::error::Error;
 use crate::integrator::Stats;
 use crate::sensitivity::Parametric;

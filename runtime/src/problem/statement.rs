@@ -1,11 +1,12 @@
 //! The problem: a system and its initial data, stated once; the method and
 //! the step policy are values given when it is solved or stepped.
 
-use super::extend::{Dim, Extended};
+use super::extend::Extended;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::stepper::{Driver, Stepper};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::auto::Auto;
+use crate::dim::Dim;
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, NodeFamily, Quadrature};

@@ -5,10 +5,11 @@
 //! the pendulum's midpoint rule through [`Stepper`] is the integrator's own
 //! step behind one `match` on the variant.
 
-use super::extend::{Dim, Extended};
+use super::extend::Extended;
 use super::scheme::Scheme;
 use super::support::Policy;
 use crate::dense::{DenseStep, GalerkinPolynomial, Hermite, Node};
+use crate::dim::Dim;
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::Galerkin;

@@ -19,7 +19,7 @@ use crate::integrator::StepBounds;
 /// [`Problem`](super::Problem): the implicit time transformation extends a
 /// system to `N + 1` coordinates, and stable Rust names `N + 1` only for
 /// sizes listed in a table ([`Extended`](super::Extended)).
-pub const MAX_PROBLEM_N: usize = 1024;
+pub const MAX_PROBLEM_N: usize = crate::dim::MAX_SIZE;
 
 /// How the step sizes are chosen: a value apart from the [`Scheme`].
 #[derive(Clone, Copy, Debug, PartialEq)]

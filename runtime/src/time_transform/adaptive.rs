@@ -42,7 +42,7 @@ use super::stepper::SStepper;
 /// let g = RadiusPower::new([0, 1], 1.5).unwrap(); // dt/ds = r^{3/2}
 /// let mut sim = TimeTransformed::new(Kepler, g)
 ///     .rule(Midpoint, 0.02)
-///     .start::<3>(0.0, [1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])?;
+///     .start(0.0, [1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])?;
 /// let e0 = sim.energy()?;
 /// sim.run_until(2.0 * std::f64::consts::PI, |_| {})?; // one orbit
 /// assert_eq!(sim.state().t, 2.0 * std::f64::consts::PI);
@@ -70,7 +70,7 @@ use super::stepper::SStepper;
 /// let (q0, v0) = ([Dd::from(1.0) - e, Dd::from(0.0)], [Dd::from(0.0), ((Dd::from(1.0) + e) / (Dd::from(1.0) - e)).sqrt()]);
 /// let mut sim = TimeTransformed::new(Kepler, RadiusPower::new([0, 1], 1.5).unwrap())
 ///     .galerkin(Galerkin::<4, 4, Dd>::gauss(), Dd::from(0.1))
-///     .start::<3>(Dd::from(0.0), q0, v0)?;
+///     .start(Dd::from(0.0), q0, v0)?;
 /// let e0 = sim.energy()?;
 /// sim.run_until(Dd::from(1.0), |_| {})?;
 /// assert_eq!(sim.state().t, Dd::from(1.0));

@@ -3,6 +3,7 @@
 
 use core::marker::PhantomData;
 
+use crate::dim::{Dim, ExtendedSize};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::galerkin::Galerkin;
@@ -109,8 +110,8 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
 
     /// Starts at `(t0, q0, v0)` (physical time and velocity) with `s = 0`,
     /// `t'(0) = g(t0, q0)` and `q'(0) = g v0`, so that `p_t = −E(t0)`.
-    /// `M` is `N + 1` (checked at compile time): `.start::<3>(…)` for a
-    /// planar problem.
+    /// The extended size `M = N + 1` is inferred from `N` (compile-time
+    /// sizes up to [`MAX_SIZE`](crate::dim::MAX_SIZE)).
     ///
     /// Fails with [`Error::InvalidSetting`] for a step, penalty
     /// or floor that is not finite and positive or a monitor that cannot be
@@ -126,6 +127,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
     ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, Error<N, T>>
     where
         K: SMethod<Sys, G, N, M, T>,
+        Dim<N>: ExtendedSize<M>,
     {
         const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
         if Sys::CONSTRAINTS != 0 {

@@ -41,7 +41,7 @@ use super::density::StepDensity;
 /// // dt/ds = r^{3/2}: steps in t shrink near the pericentre.
 /// let mut sim = TimeTransformed::new(Kepler, RadiusPower::new([0, 1], 1.5).unwrap())
 ///     .galerkin(Galerkin::<2, 2>::gauss(), 0.1)
-///     .start::<3>(0.0, q0, v0)?;
+///     .start(0.0, q0, v0)?;
 /// let e0 = sim.energy()?;
 /// sim.run_until(2.0 * std::f64::consts::PI, |_| {})?;
 /// assert!((sim.state().q[0] - (1.0 - e)).abs() < 1e-4);
@@ -160,7 +160,7 @@ impl<Sys: Lagrangian<N> + StepDensity<N>, const N: usize> TimeTransformed<Sys, S
     ///
     /// let mut sim = TimeTransformed::with_own_density(Kepler)
     ///     .rule(Midpoint, 0.02)
-    ///     .start::<3>(0.0, [0.1, 0.0], [0.0, 19f64.sqrt()])?;
+    ///     .start(0.0, [0.1, 0.0], [0.0, 19f64.sqrt()])?;
     /// sim.run_until(1.0, |_| {})?;
     /// assert_eq!(sim.state().t, 1.0);
     /// # Ok::<(), Box<dyn std::error::Error>>(())

@@ -163,21 +163,23 @@ static LEAPFROG: [f64; 1] = [1.0];
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Clone, Debug)]
-pub struct ExplicitTimeTransformed<Sys, const N: usize> {
+pub struct ExplicitTimeTransformed<Sys, const N: usize, T = f64> {
     system: Sys,
     function: TimeFunction,
-    sigma: f64,
+    sigma: T,
     weights: &'static [f64],
     order: u32,
     form: LeapfrogForm,
-    shift: Option<f64>,
-    min_time_step: Option<f64>,
+    shift: Option<T>,
+    min_time_step: Option<T>,
 }
 
-impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
+impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitTimeTransformed<Sys, N, T> {
     /// The leapfrog (order 2 in `σ`) with time function `function` and step
-    /// `sigma` in `s`.
-    pub fn new(system: Sys, function: TimeFunction, sigma: f64) -> Self {
+    /// `sigma` in `s`. The real type `T` of the run (`f64` or
+    /// [`DoubleDouble`](crate::DoubleDouble)) is that of `sigma`, as for
+    /// every driver.
+    pub fn new(system: Sys, function: TimeFunction, sigma: T) -> Self {
         Self {
             system,
             function,
@@ -224,7 +226,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
     /// with the margin `m = max(T, |V|, |E|, |q·∇V|)` at the start (the
     /// last term is the potential's scale where the others vanish, as at
     /// rest on the level `V = 0`; `m = 1` if all are 0).
-    pub fn shift(mut self, c: f64) -> Self {
+    pub fn shift(mut self, c: T) -> Self {
         self.shift = Some(c);
         self
     }
@@ -232,15 +234,13 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
     /// The smallest physical time a step may advance; a step that advances
     /// less is refused with [`Error::TimeStepCollapsed`]. Default:
     /// `10⁻⁸ σ g(t0, q0)`.
-    pub fn min_time_step(mut self, dt: f64) -> Self {
+    pub fn min_time_step(mut self, dt: T) -> Self {
         self.min_time_step = Some(dt);
         self
     }
 
     /// Starts at `(t0, q0, v0)` (physical time and velocity) with
-    /// `p = M v0` and `p_t = −H(t0, q0, p)`, so that `Γ = 0`. The real type
-    /// `T` (`f64` or [`DoubleDouble`](crate::DoubleDouble)) is that of the
-    /// initial data.
+    /// `p = M v0` and `p_t = −H(t0, q0, p)`, so that `Γ = 0`.
     ///
     /// Refuses, with [`Error::NotSeparable`], a system the macro
     /// has not proven `½ vᵀMv − V(t, q)` with constant `M`
@@ -251,7 +251,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
     /// that is not finite or at a singularity of `L` (`V(t0, q0)` or `M` not
     /// finite); with [`Error::TimeFunctionArgument`] a shift that makes
     /// `c − V(t0, q0)` not positive.
-    pub fn start<T: Real>(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<ExplicitAdaptive<Sys, T, N>, Error<N>> {
+    pub fn start(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<ExplicitAdaptive<Sys, T, N>, Error<N, T>> {
         if Sys::CONSTRAINTS != 0 {
             return Err(Error::Unsupported { what: "time transformation of a system with holonomic constraints" });
         }
@@ -264,7 +264,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
         if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
             return Err(Error::NotSeparable { reason: "the splitting does not take forces or dissipation" });
         }
-        if !(self.sigma.is_finite() && self.sigma > 0.0) {
+        if !(self.sigma.is_finite() && self.sigma.re() > 0.0) {
             return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
         let alpha = self.function.exponent();
@@ -299,7 +299,7 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
         let v = potential(&self.system, t0, q0);
         let energy = kinetic + v;
         let shift = match self.shift {
-            Some(c) if c.is_finite() => T::from(c),
+            Some(c) if c.is_finite() => c,
             Some(_) => return Err(Error::InvalidSetting { reason: "the shift `c` must be finite" }),
             None => default_shift(&self.system, t0, q0, kinetic, v),
         };
@@ -311,14 +311,14 @@ impl<Sys: Lagrangian<N>, const N: usize> ExplicitTimeTransformed<Sys, N> {
         }
         let g0 = self.function.derivative(x);
         let clocks = ClockBounds::new(alpha, kinetic + phase.p_t + shift, x);
-        let floor = self.min_time_step.unwrap_or(1e-8 * self.sigma * g0.re());
-        if !(floor.is_finite() && floor > 0.0) {
+        let floor = self.min_time_step.unwrap_or(self.sigma * g0 * 1e-8);
+        if !(floor.is_finite() && floor.re() > 0.0) {
             return Err(Error::InvalidSetting { reason: "the smallest time step must be finite and positive" });
         }
         Ok(ExplicitAdaptive {
             system: self.system,
             function: self.function,
-            sigma: T::from(self.sigma),
+            sigma: self.sigma,
             weights: self.weights,
             order: self.order,
             form: self.form,
@@ -359,8 +359,8 @@ struct Phase<T, const N: usize> {
 }
 
 impl<T: Real, const N: usize> Phase<T, N> {
-    fn physical(&self, step: u64) -> State<N> {
-        State { step, t: self.t.re(), q: self.q.map(|x| x.re()), p: self.p.map(|x| x.re()) }
+    fn physical(&self, step: u64) -> State<N, T> {
+        State { step, t: self.t, q: self.q, p: self.p }
     }
 }
 
@@ -467,10 +467,10 @@ pub struct ExplicitAdaptive<Sys, T, const N: usize> {
     /// The gradient at the current node (the next step's first kick).
     cached: Option<Gradient<T, N>>,
     stats: SplittingStats,
-    floor: f64,
+    floor: T,
     /// `(step, t_end)` after landing on `t_end`.
-    landed: Option<(u64, f64)>,
-    last_dt: Option<f64>,
+    landed: Option<(u64, T)>,
+    last_dt: Option<T>,
 }
 
 /// The range of `a/b`, the ratio of the drift's argument `a = T + p_t + c`
@@ -670,9 +670,9 @@ fn gradient_by_blocks<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t: 
 }
 
 impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
-    /// The physical state in `f64`; `step` counts steps in `s`, and `t` is
-    /// exactly the target after [`run_until`](Self::run_until).
-    pub fn state(&self) -> State<N> {
+    /// The physical state; `step` counts steps in `s`, and `t` is exactly
+    /// the target after [`run_until`](Self::run_until).
+    pub fn state(&self) -> State<N, T> {
         let mut s = self.phase.physical(self.step);
         if let Some((step, t)) = self.landed
             && step == self.step
@@ -680,11 +680,6 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             s.t = t;
         }
         s
-    }
-
-    /// The physical state in the integrator's real type.
-    pub fn state_real(&self) -> State<N, T> {
-        State { step: self.step, t: self.phase.t, q: self.phase.q, p: self.phase.p }
     }
 
     /// The point of the extended phase space `(q, t; p, p_t)`.
@@ -713,17 +708,17 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     }
 
     /// The step `σ` in `s`.
-    pub fn step_size(&self) -> f64 {
-        self.sigma.re()
+    pub fn step_size(&self) -> T {
+        self.sigma
     }
 
     /// Sets the step in `s` for the following steps; refused unless finite
     /// and positive.
-    pub fn set_step_size(&mut self, sigma: f64) -> Result<(), Error<N>> {
-        if !(sigma.is_finite() && sigma > 0.0) {
+    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<N, T>> {
+        if !(sigma.is_finite() && sigma.re() > 0.0) {
             return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
-        self.sigma = T::from(sigma);
+        self.sigma = sigma;
         Ok(())
     }
 
@@ -733,36 +728,31 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     }
 
     /// The physical time the last step advanced, `None` before the first.
-    pub fn last_time_step(&self) -> Option<f64> {
+    pub fn last_time_step(&self) -> Option<T> {
         self.last_dt
     }
 
     /// The smallest time step allowed.
-    pub fn min_time_step(&self) -> f64 {
+    pub fn min_time_step(&self) -> T {
         self.floor
     }
 
     /// `p_t`, the momentum of time: `−H` on the exact flow, constant for an
     /// autonomous `L` (to round-off: no kick changes it).
-    pub fn time_momentum(&self) -> f64 {
-        self.phase.p_t.re()
+    pub fn time_momentum(&self) -> T {
+        self.phase.p_t
     }
 
     /// The energy `H = ½ pᵀM⁻¹p + V(t, q)`.
-    pub fn energy(&self) -> f64 {
-        self.energy_real().re()
-    }
-
-    /// The energy in the integrator's real type.
-    pub fn energy_real(&self) -> T {
+    pub fn energy(&self) -> T {
         let ph = &self.phase;
         kinetic_energy(&self.inverse_mass, &ph.p).0 + potential(&self.system, ph.t, ph.q)
     }
 
     /// The step density `dt/ds = f'(c − V(t, q))` at the current state.
-    pub fn density(&self) -> f64 {
+    pub fn density(&self) -> T {
         let x = self.shift - potential(&self.system, self.phase.t, self.phase.q);
-        self.function.derivative(x).re()
+        self.function.derivative(x)
     }
 
     /// The extended Hamiltonian `Γ`, zero on the exact flow; for
@@ -776,16 +766,16 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// one leapfrog step moved it by 0.11 with the energy within 0.6 %).
     /// The lost-orbit check bounds the ratio of the rates `f'(T + p_t + c)`
     /// and `f'(c − V)` instead (`exp(−Γ)` for `f = ln`).
-    pub fn extended_hamiltonian(&self) -> f64 {
+    pub fn extended_hamiltonian(&self) -> T {
         let ph = &self.phase;
         let a = kinetic_energy(&self.inverse_mass, &ph.p).0 + ph.p_t + self.shift;
         let b = self.shift - potential(&self.system, ph.t, ph.q);
         let alpha = self.function.exponent();
         if alpha == 1.0 {
-            (a / b).ln().re()
+            (a / b).ln()
         } else {
             let e = 1.0 - alpha;
-            ((a.powf(e) - b.powf(e)) / e).re()
+            (a.powf(e) - b.powf(e)) / e
         }
     }
 
@@ -795,7 +785,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// ([`Error::OrbitLost`]), and where the step advances time by
     /// less than [`min_time_step`](Self::min_time_step) or would move the
     /// reported time back.
-    pub fn step(&mut self) -> Result<State<N>, Error<N>> {
+    pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
         self.commit(phase, cached)?;
@@ -807,7 +797,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// (its Jacobian is symplectic). Errors as in [`step`](Self::step),
     /// except the floor on the time step; the lost-orbit check compares the
     /// end with `point` itself (its ratio of the arguments of `f'`).
-    pub fn map(&self, point: ExtendedPoint<T, N>) -> Result<ExtendedPoint<T, N>, Error<N>> {
+    pub fn map(&self, point: ExtendedPoint<T, N>) -> Result<ExtendedPoint<T, N>, Error<N, T>> {
         let phase = Phase { t: point.t, t_carry: T::zero(), q: point.q, p: point.p, p_t: point.p_t };
         let a = kinetic_energy(&self.inverse_mass, &point.p).0 + point.p_t + self.shift;
         let b = self.shift - potential(&self.system, point.t, point.q);
@@ -818,16 +808,20 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
 
     /// Accepts a computed step: checks the time it advanced and updates the
     /// readouts.
-    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>) -> Result<(), Error<N>> {
-        let dt = ((phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry)).re();
+    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>) -> Result<(), Error<N, T>> {
+        let dt = (phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry);
         // The compensated time advances by `dt`, but its leading part can
         // round below the time last published (a node's, or a landed
         // target's) where the step is below the spacing of `t` and a
         // composition's negative stages move it back and forth: the step
         // then advances the reported time by less than the floor too.
-        let published = phase.t.re() - self.state().t;
-        if dt.is_nan() || dt < self.floor || published < 0.0 {
-            return Err(Error::TimeStepCollapsed { state: self.state(), dt: dt.min(published), floor: self.floor });
+        let published = (phase.t - self.state().t).re();
+        if dt.re().is_nan() || dt.re() < self.floor.re() || published < 0.0 {
+            return Err(Error::TimeStepCollapsed {
+                state: self.state(),
+                dt: dt.re().min(published),
+                floor: self.floor.re(),
+            });
         }
         self.phase = phase;
         self.cached = cached;
@@ -843,7 +837,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// computed. Its errors carry [`state`](Self::state), which after a
     /// landing has the target time rather than that of the phase.
     #[inline]
-    fn advance(&self, h: T) -> Result<Stepped<T, N>, Error<N>> {
+    fn advance(&self, h: T) -> Result<Stepped<T, N>, Error<N, T>> {
         self.advance_with(self.phase, self.cached, h, &self.clocks, || self.state())
     }
 
@@ -856,8 +850,8 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         mut cached: Option<Gradient<T, N>>,
         h: T,
         clocks: &ClockBounds,
-        origin: impl Fn() -> State<N>,
-    ) -> Result<Stepped<T, N>, Error<N>> {
+        origin: impl Fn() -> State<N, T>,
+    ) -> Result<Stepped<T, N>, Error<N, T>> {
         let fail = |fault: Fault<T>| match fault {
             Fault::Argument(which, value) => Error::TimeFunctionArgument { state: origin(), which, value: value.re() },
             Fault::Clocks(factor) => Error::OrbitLost { state: origin(), factor },
@@ -953,7 +947,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     }
 
     /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -967,12 +961,12 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// to within a few units of `T`'s precision; the state then reports
     /// `t = t_end` exactly. `σ` is unchanged afterwards. A target equal to
     /// the current time is a no-op.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
         let now = self.state();
-        if !t_end.is_finite() || t_end < now.t {
-            return Err(Error::InvalidTarget { target: t_end, state: now });
+        if !t_end.is_finite() || (t_end - now.t).re() < 0.0 {
+            return Err(Error::InvalidTarget { target: t_end.re(), state: now });
         }
-        while self.state().t < t_end {
+        while (self.state().t - t_end).re() < 0.0 {
             self.step_toward(t_end)?;
             observe(self);
         }
@@ -982,29 +976,28 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// One step of `σ` in `s`, or, when it would pass `t_end`, the partial
     /// step that ends on it (see [`run_until`](Self::run_until)); a no-op at
     /// or beyond `t_end`.
-    pub(crate) fn step_toward(&mut self, t_end: f64) -> Result<(), Error<N>> {
-        if self.state().t >= t_end {
+    pub(crate) fn step_toward(&mut self, target: T) -> Result<(), Error<N, T>> {
+        if (self.state().t - target).re() >= 0.0 {
             return Ok(());
         }
-        let target = T::from(t_end);
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
         if (phase.t - target).re() <= 0.0 { self.commit(phase, cached) } else { self.land(target, phase.t) }
     }
 
-    /// The physical velocity `v = M⁻¹p` in `f64`.
-    pub fn velocity(&self) -> [f64; N] {
-        kinetic_energy(&self.inverse_mass, &self.phase.p).1.map(|x| x.re())
+    /// The physical velocity `v = M⁻¹p`.
+    pub fn velocity(&self) -> [T; N] {
+        kinetic_energy(&self.inverse_mass, &self.phase.p).1
     }
 
     /// The partial step that ends on `target`, given that the full step
     /// ends at `t_over > target`.
-    fn land(&mut self, target: T, t_over: T) -> Result<(), Error<N>> {
+    fn land(&mut self, target: T, t_over: T) -> Result<(), Error<N, T>> {
         let t0 = self.phase.t;
         let scale = target.re().abs().max(t0.re().abs()).max(f64::MIN_POSITIVE);
         let tol = 4.0 * T::EPSILON * scale;
         if (target - t0).re() <= tol {
-            self.landed = Some((self.step, target.re()));
+            self.landed = Some((self.step, target));
             return Ok(());
         }
         let mut bracket = Bracket::new((T::zero(), t0 - target), (self.sigma, t_over - target));
@@ -1030,11 +1023,11 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             Some((f, trial, cached)) if f.re().abs() <= 64.0 * tol => {
                 let floor = self.floor;
                 // A landing step may be arbitrarily short: no floor.
-                self.floor = 0.0;
+                self.floor = T::zero();
                 let committed = self.commit(trial, cached);
                 self.floor = floor;
                 committed?;
-                self.landed = Some((self.step, target.re()));
+                self.landed = Some((self.step, target));
                 Ok(())
             }
             best => {
