@@ -16,6 +16,7 @@ use super::linear::{self, solve_schur};
 use crate::error::Error;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::NewtonOptions;
+use crate::real::max_abs;
 use crate::state::State;
 use crate::system::Lagrangian;
 
@@ -43,6 +44,11 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
     (state, h, spent): (State<N>, f64, usize),
 ) -> Result<OnCotangent<N>, Error<N>> {
     let jac1t = jac1.transpose();
+    let finish = |v: SVector<f64, N>, mu: SVector<f64, M>, iterations| OnCotangent {
+        velocity: v.into(),
+        momentum: (SVector::from(*end) + jac1t * mu).into(),
+        iterations,
+    };
     let mut v = SVector::<f64, N>::from(v);
     let mut mu = SVector::<f64, M>::zeros();
     let mut iterations = 0;
@@ -52,6 +58,14 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         let p = system.momentum(t1, q1, vv);
         let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
         let r2 = jac1 * v;
+        // Near a turning point `|v|` is far below `|p̂|`, and the round-off
+        // of the momentum residual, `ε|p̂|` through `(∂²L/∂v²)⁻¹`, can exceed
+        // `rtol |v|` for good: a residual at round-off ends the iteration too.
+        let p_scale = max_abs(&p).max(max_abs(end)) + (jac1t * mu).amax();
+        let v_scale = jac1.amax() * v.amax() * N as f64;
+        if iterations > 1 && r1.amax() <= 4.0 * f64::EPSILON * p_scale && r2.amax() <= 4.0 * f64::EPSILON * v_scale {
+            return Ok(finish(v, mu, iterations - 1));
+        }
         let hessian = system.velocity_hessian(t1, q1, vv);
         // The saddle-point form with `−Gᵀ` in the upper right block.
         let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), jac1, &r1, &r2, options.min_rcond) {
@@ -68,8 +82,7 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
             return Err(Error::NonFinite { state, h, iterations: spent + iterations, quantity: "momentum" });
         }
         if norm <= options.rtol * v.amax() + options.atol {
-            let momentum = (SVector::from(*end) + jac1t * mu).into();
-            return Ok(OnCotangent { velocity: v.into(), momentum, iterations });
+            return Ok(finish(v, mu, iterations));
         }
     }
     Err(Error::NewtonDidNotConverge {
