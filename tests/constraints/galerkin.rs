@@ -215,3 +215,67 @@ fn solve_gives_dense_output_of_a_constrained_galerkin_run() {
     let [x, y] = sim.state().q;
     assert!((x * x + y * y - 1.0).abs() < 4e-15);
 }
+
+#[test]
+fn a_galerkin_step_across_a_singular_configuration_fails_typed_with_the_state_kept() {
+    let method = Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss());
+    // Along the line y = x towards the crossing of x² − y² = 0 at the
+    // origin, where G = 0; h = 0.03 does not land on it.
+    let mut sim = Integrator::new(super::Crossing, method, 0.03).start(0.0, [-1.0, -1.0], [1.0, 1.0]).unwrap();
+    let error = loop {
+        let before = sim.clone();
+        match sim.step() {
+            Ok(_) => assert!(sim.state().t < 1.1, "passed the crossing at t = {}", sim.state().t),
+            Err(error) => {
+                assert_eq!(format!("{:?}", sim.state()), format!("{:?}", before.state()));
+                assert_eq!(sim.multipliers(), before.multipliers());
+                break error;
+            }
+        }
+    };
+    assert!(matches!(error, Error::SingularConstraints { .. }), "{error:?}");
+}
+
+#[test]
+fn spherical_pendulum_keeps_its_vertical_angular_momentum_under_galerkin() {
+    // The action and the constraint are invariant under rotations about z:
+    // the discrete Noether theorem on the manifold holds at every node.
+    let (q0, v0) = ([0.6, 0.0, -0.8], [0.0, 1.1, 0.0]);
+    let method = Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss());
+    let mut sim = Integrator::new(super::Spherical, method, 0.05).start(0.0, q0, v0).unwrap();
+    let lz = |s: &State<3>| s.q[0] * s.p[1] - s.q[1] * s.p[0];
+    let l0 = lz(sim.state());
+    let (mut drift, mut g) = (0.0f64, 0.0f64);
+    sim.run(5000, |s| {
+        drift = drift.max((lz(s.state()) - l0).abs() / l0.abs());
+        g = g.max(s.constraint_values()[0].abs());
+    })
+    .unwrap();
+    println!("spherical pendulum, gauss s = 2, 5000 steps: L_z drift {drift:.2e}, max |g| {g:.2e}");
+    assert!(drift < 1e-13 && g <= 4e-15, "relative drift of L_z {drift:e}, max |g| {g:e}");
+}
+
+#[test]
+fn four_bar_under_galerkin_holds_its_constraints_and_energy() {
+    let (q0, v0) = super::four_bar_initial();
+    let method = Constrained::<_, 3>::galerkin(Galerkin::<2, 2>::gauss());
+    let mut sim = Integrator::new(super::FourBar, method, 0.02).start(0.0, q0, v0).unwrap();
+    let e0 = sim.energy().unwrap();
+    let speed = v0.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (mut g, mut gv) = (0.0f64, 0.0f64);
+    let mut energy = Vec::new();
+    sim.run(5000, |s| {
+        g = s.constraint_values().iter().fold(g, |m, x| m.max(x.abs()));
+        gv = s.constraint_velocities().unwrap().iter().fold(gv, |m, x| m.max(x.abs() / speed));
+        energy.push(s.energy().unwrap() - e0);
+    })
+    .unwrap();
+    let half = energy.len() / 2;
+    let first = energy[..half].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let second = energy[half..].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    println!(
+        "four-bar, gauss s = 2, 5000 steps of 0.02: max |g| {g:.2e}, max |G v|/|v| {gv:.2e}, energy error {first:.2e} then {second:.2e}"
+    );
+    assert!(g <= 1e-12 && gv <= 1e-12, "max |g| = {g:e}, max |G v| / |v| = {gv:e}");
+    assert!(second < 1.5 * first, "energy error grows: {first:e} then {second:e}");
+}

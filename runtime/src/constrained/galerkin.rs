@@ -301,8 +301,25 @@ where
     if !converged {
         return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
     }
+    // Consecutive nodes on one branch of the manifold have constraint
+    // normals that agree: `G(Q_m) G(Q_{m−1})ᵀ` has a positive definite
+    // symmetric part (`≈ G Gᵀ` for a small step). Where it has not, the
+    // step crosses a singular configuration (a dead point, `G = 0`) or
+    // jumps to another branch; the one-point step's Schur complement test
+    // in the Euclidean metric.
+    let mut previous = g0;
+    for m in 1..=S {
+        let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
+        let (_, jm) =
+            jacobian::<Sys, N, M>(system, node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
+        let agreement = jm * previous.transpose();
+        if ((agreement + agreement.transpose()) * 0.5).cholesky().is_none() {
+            return Err(Error::SingularConstraints { state, rcond: inverse(agreement).1 });
+        }
+        previous = jm;
+    }
     let q1: [f64; N] = core::array::from_fn(|i| q0[i] + d[S - 1][i]);
-    let (_, jac1) = jacobian::<Sys, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
+    let jac1 = previous;
     let (_, grad) = rule.node_gradient(system, t0, h, *q0, &d);
     let end = grad[S - 1];
     let v_end: [f64; N] = core::array::from_fn(|i| (0..S).map(|m| rule.end_d[m] * d[m][i]).sum::<f64>() / h);
