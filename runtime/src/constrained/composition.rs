@@ -43,8 +43,8 @@ pub struct ConstrainedCompositionMemory<const N: usize, const M: usize> {
 
 impl<const M: usize> Constrained<Composition, M> {
     /// The composition `composition` of constrained trapezoid (RATTLE)
-    /// steps, with `M` constraints held at every sub-step's node (see the
-    /// [`composition`](self) module of the constraints):
+    /// steps, with `M` constraints held at every sub-step's node (the
+    /// sub-steps of either sign; order that of the composition):
     ///
     /// ```
     /// use lagrangian_runtime::{Composition, Constrained, Integrator, Lagrangian, Scalar};

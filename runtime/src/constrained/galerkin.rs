@@ -390,7 +390,7 @@ where
 
 impl<const S: usize, const R: usize, const M: usize> Constrained<Galerkin<S, R>, M> {
     /// The Galerkin rule `rule` with `M` constraints imposed at its control
-    /// nodes (see the [`galerkin`](self) module of the constraints). With
+    /// nodes, the end momentum on the hidden constraint (RATTLE-style). With
     /// Gauss–Lobatto nodes and `S + 1` Lobatto points it is the Lobatto
     /// IIIA–IIIB pair of order `2S`:
     ///
