@@ -247,3 +247,41 @@ fn the_counter_counts() {
     assert_eq!(v.len(), 100);
     assert!(allocations() > before);
 }
+
+/// A pendulum as a point on the unit circle.
+#[derive(Clone, Debug)]
+struct CartesianPendulum;
+
+#[lagrangian]
+impl CartesianPendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
+        [q[0] * q[0] + q[1] * q[1] - 1.0]
+    }
+}
+
+#[test]
+fn constrained_galerkin_and_compositions_do_not_allocate() {
+    let (h, q0) = (0.05, [1f64.sin(), -1f64.cos()]);
+    let galerkin = Constrained::<_, 1>::galerkin(Galerkin::<3, 3>::gauss());
+    let composition = Constrained::<_, 1>::composition(Composition::YOSHIDA6);
+    let cases = [
+        (
+            "Cartesian pendulum, constrained Galerkin s = 3",
+            allocations_while_stepping(
+                Integrator::new(CartesianPendulum, galerkin, h).start(0.0, q0, [0.0; 2]).unwrap(),
+            ),
+        ),
+        (
+            "Cartesian pendulum, Yoshida 6 over RATTLE",
+            allocations_while_stepping(
+                Integrator::new(CartesianPendulum, composition, h).start(0.0, q0, [0.0; 2]).unwrap(),
+            ),
+        ),
+    ];
+    for (name, n) in cases {
+        assert_eq!(n, 0, "{name}: {n} allocations in 500 steps");
+    }
+}

@@ -287,7 +287,7 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
 
 /// Why an integrator refuses a system whose number of holonomic
 /// constraints differs from the method's.
-const CONSTRAINT_COUNT_MISMATCH: &str = "a system whose number of holonomic constraints (`Lagrangian::CONSTRAINTS`) differs from the method's: a constrained system runs under `Constrained::<_, M>::new(rule)` with its own `M` and a one-point rule (midpoint, trapezoid, α-β); compositions, Galerkin rules and double-double runs with constraints are not supported yet";
+const CONSTRAINT_COUNT_MISMATCH: &str = "a system whose number of holonomic constraints (`Lagrangian::CONSTRAINTS`) differs from the method's: a constrained system runs under `Constrained::<_, M>` with its own `M`: `new(rule)` for a one-point rule (midpoint, trapezoid, α-β), `galerkin(rule)` for a Galerkin rule, `composition(composition)` for a composition of RATTLE steps; double-double runs with constraints are not supported yet";
 
 /// [`kahan`] or, under [`Summation::Plain`], `a + b` with a zero
 /// compensation (the compensation `c` of a plain state is zero).

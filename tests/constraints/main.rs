@@ -12,6 +12,9 @@
 use lagrangian::DenseKind;
 use lagrangian::prelude::*;
 
+mod compositions;
+mod galerkin;
+
 /// A pendulum of length 1 under unit gravity, as a point `(x, y)` on a circle.
 #[derive(Clone, Debug)]
 struct Pendulum;

@@ -23,6 +23,9 @@
 //! A rank-deficient `G` (redundant constraints, a dead point) shows as a
 //! singular Schur complement and is a typed error, with the state kept.
 
+mod composition;
+mod cotangent;
+mod galerkin;
 mod linear;
 mod project;
 

@@ -48,6 +48,7 @@ mod stepper;
 
 pub use basis::NodeFamily;
 pub use method::{Galerkin, StageIteration};
+pub(crate) use method::{PointDerivatives, point_gradient};
 pub(crate) use one_point::as_galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};

@@ -1,0 +1,95 @@
+//! The hidden constraint of a step's end node: the momentum moved onto the
+//! cotangent space of the constraint manifold (the second half of RATTLE;
+//! Hairer, Lubich & Wanner, *Geometric Numerical Integration*, §VII.1.4).
+//!
+//! ```text
+//! ∂L/∂v(q_{k+1}, v_{k+1}) = p̂ + G(q_{k+1})ᵀ μ,      G(q_{k+1}) v_{k+1} = 0,
+//! ```
+//!
+//! `p̂` the step's unconstrained end momentum (`∂A/∂q_{k+1}`). Newton on
+//! `(v, μ)` with `∂²L/∂v²` as the upper-left block of the saddle-point
+//! system: one iteration for a quadratic kinetic energy.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::linear::{self, solve_schur};
+use crate::error::Error;
+use crate::mechanics::DiscreteMechanics;
+use crate::newton::NewtonOptions;
+use crate::real::max_abs;
+use crate::state::State;
+use crate::system::Lagrangian;
+
+/// The end node's velocity and momentum on the cotangent space.
+pub(super) struct OnCotangent<const N: usize> {
+    /// `v_{k+1}`, with `G(q_{k+1}) v_{k+1} = 0`.
+    pub(super) velocity: [f64; N],
+    /// `p_{k+1} = p̂ + G(q_{k+1})ᵀ μ`.
+    pub(super) momentum: [f64; N],
+    /// Newton iterations spent.
+    pub(super) iterations: usize,
+}
+
+/// Solves the hidden constraint at `(t1, q1)` with Jacobian `jac1`, from the
+/// velocity guess `v`. `state`, `h` and `spent` (the iterations of the
+/// position solve) go into the errors.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
+    system: &S,
+    (t1, q1): (f64, [f64; N]),
+    end: &[f64; N],
+    jac1: &SMatrix<f64, M, N>,
+    v: [f64; N],
+    options: &NewtonOptions,
+    (state, h, spent): (State<N>, f64, usize),
+) -> Result<OnCotangent<N>, Error<N>> {
+    let jac1t = jac1.transpose();
+    let finish = |v: SVector<f64, N>, mu: SVector<f64, M>, iterations| OnCotangent {
+        velocity: v.into(),
+        momentum: (SVector::from(*end) + jac1t * mu).into(),
+        iterations,
+    };
+    let mut v = SVector::<f64, N>::from(v);
+    let mut mu = SVector::<f64, M>::zeros();
+    let mut iterations = 0;
+    while iterations < options.max_iterations {
+        iterations += 1;
+        let vv: [f64; N] = v.into();
+        let p = system.momentum(t1, q1, vv);
+        let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
+        let r2 = jac1 * v;
+        // Near a turning point `|v|` is far below `|p̂|`, and the round-off
+        // of the momentum residual, `ε|p̂|` through `(∂²L/∂v²)⁻¹`, can exceed
+        // `rtol |v|` for good: a residual at round-off ends the iteration too.
+        let p_scale = max_abs(&p).max(max_abs(end)) + (jac1t * mu).amax();
+        let v_scale = jac1.amax() * v.amax() * N as f64;
+        if iterations > 1 && r1.amax() <= 4.0 * f64::EPSILON * p_scale && r2.amax() <= 4.0 * f64::EPSILON * v_scale {
+            return Ok(finish(v, mu, iterations - 1));
+        }
+        let hessian = system.velocity_hessian(t1, q1, vv);
+        // The saddle-point form with `−Gᵀ` in the upper right block.
+        let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), jac1, &r1, &r2, options.min_rcond) {
+            Ok(x) => x,
+            Err(linear::Singular::Block(rcond)) => {
+                return Err(Error::SingularJacobian { state, h, iterations: spent + iterations, rcond });
+            }
+            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+        };
+        v += dv;
+        mu += dmu;
+        let norm = dv.amax();
+        if !norm.is_finite() {
+            return Err(Error::NonFinite { state, h, iterations: spent + iterations, quantity: "momentum" });
+        }
+        if norm <= options.rtol * v.amax() + options.atol {
+            return Ok(finish(v, mu, iterations));
+        }
+    }
+    Err(Error::NewtonDidNotConverge {
+        state,
+        h,
+        iterations: spent + iterations,
+        residual_norm: f64::NAN,
+        correction_norm: f64::NAN,
+    })
+}

@@ -1,0 +1,571 @@
+//! Holonomic constraints on a Galerkin discrete Lagrangian: the constraint
+//! imposed at every control node of the step polynomial, RATTLE-style at
+//! the ends.
+//!
+//! ```text
+//! unknowns D_m = Q_m − q_k (m = 1 … s), Λ_m (m = 1 … s − 1), λ_k:
+//!     p_k + ∂A/∂Q_0 + G(q_k)ᵀ λ_k = 0
+//!     ∂A/∂Q_m + G(Q_m)ᵀ Λ_m = 0,          m = 1 … s − 1
+//!     g(Q_m) = 0,                          m = 1 … s      (Q_s = q_{k+1})
+//! then p_{k+1} = ∂A/∂Q_s + G(q_{k+1})ᵀ μ_k with G(q_{k+1}) v(q_{k+1}, p_{k+1}) = 0.
+//! ```
+//!
+//! This is the discrete action `A(Q_0, …, Q_s)` of the Galerkin rule
+//! (`docs/theory.md` §5) made stationary over step polynomials whose nodes
+//! lie on the constraint manifold (Marsden & West, *Discrete mechanics and
+//! variational integrators*, Acta Numerica 2001, §3.4: the constrained
+//! discrete Euler–Lagrange equations with a multiplier per constrained
+//! node), written in position–momentum form with the end node's momentum
+//! projected onto the hidden constraint as in RATTLE (`cotangent.rs`). The
+//! map is a constrained variational integrator, hence symplectic on the
+//! constrained cotangent bundle, and `g` and `G v` hold at every node to
+//! Newton's tolerance.
+//!
+//! Order: with Gauss–Lobatto control nodes and the `s + 1`-point
+//! Gauss–Lobatto quadrature the nodes are the quadrature points and the
+//! step is the `s + 1`-stage Lobatto IIIA–IIIB pair for constrained
+//! Hamiltonian systems (Hairer, Lubich & Wanner, *Geometric Numerical
+//! Integration*, §VII.1.5, the method with `0 = g(Q_i)` at every stage and
+//! the hidden constraint at the end; Jay, SIAM J. Numer. Anal. 33, 1996),
+//! of order `2s`. With `s` Gauss–Legendre points the nodes are not
+//! quadrature points; the order is measured, not proved here: `2s` for
+//! `s = 2, 3` on a bead on a circle in a cubic potential and on the
+//! Cartesian double pendulum against minimal coordinates
+//! (`tests/constraints/galerkin.rs`).
+//!
+//! Newton on the `(sN + sM)` saddle-point system, dense, in storage the
+//! memory allocates once, so stepping does not allocate. The Jacobian of
+//! the interior rows leaves out `Σ_a Λ_{m,a} ∇²g_a(Q_m)`: `Λ_m` is an
+//! impulse of size `O(h)` against blocks of size `O(1/h)`, so the iteration
+//! still contracts by `O(h²)` per step and converges to the same root.
+
+use nalgebra::SVector;
+
+use super::cotangent::onto_cotangent;
+use super::linear::{SCHUR_MIN_RCOND, inverse};
+use super::{Constrained, jacobian, values};
+use crate::dense::{Hermite, Node};
+use crate::discrete::Midpoint;
+use crate::error::Error;
+use crate::galerkin::{Galerkin, PointDerivatives, point_gradient};
+use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment};
+use crate::newton::NewtonOptions;
+use crate::real::max_abs;
+use crate::state::State;
+use crate::symplectic::TangentMap;
+use crate::system::Lagrangian;
+
+/// The last step of a constrained Galerkin integrator.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Segment<const N: usize, const S: usize> {
+    pub(super) t0: f64,
+    pub(super) h: f64,
+    pub(super) q0: [f64; N],
+    pub(super) d: [[f64; N]; S],
+}
+
+/// The storage of a step's saddle-point system: the `n × n` matrix by rows,
+/// the right-hand side, `n = s(N + M)`.
+#[derive(Clone, Debug)]
+pub(super) struct Work {
+    n: usize,
+    matrix: Vec<f64>,
+    rhs: Vec<f64>,
+}
+
+impl Work {
+    /// Storage for `n` unknowns (allocated here, once per integrator).
+    pub(super) fn new(n: usize) -> Self {
+        Self { n, matrix: vec![0.0; n * n], rhs: vec![0.0; n] }
+    }
+
+    /// Solves the system in place by Gaussian elimination with partial
+    /// pivoting (Golub & Van Loan, Alg. 3.4.1); the solution replaces `rhs`.
+    /// `Err` with the ratio of the smallest to the largest pivot where it
+    /// is below `min_ratio` (or a pivot is zero or not finite).
+    fn solve(&mut self, min_ratio: f64) -> Result<(), f64> {
+        let (n, a, b) = (self.n, &mut self.matrix, &mut self.rhs);
+        let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
+        for k in 0..n {
+            let (mut p, mut best) = (k, a[k * n + k].abs());
+            for i in k + 1..n {
+                let x = a[i * n + k].abs();
+                if x > best {
+                    (p, best) = (i, x);
+                }
+            }
+            if !(best > 0.0 && best.is_finite()) {
+                return Err(0.0);
+            }
+            (smallest, largest) = (smallest.min(best), largest.max(best));
+            if p != k {
+                for j in 0..n {
+                    a.swap(k * n + j, p * n + j);
+                }
+                b.swap(k, p);
+            }
+            let pivot = a[k * n + k];
+            for i in k + 1..n {
+                let f = a[i * n + k] / pivot;
+                if f != 0.0 {
+                    for j in k + 1..n {
+                        a[i * n + j] -= f * a[k * n + j];
+                    }
+                    b[i] -= f * b[k];
+                }
+            }
+        }
+        if smallest < min_ratio * largest {
+            return Err(smallest / largest);
+        }
+        for k in (0..n).rev() {
+            let mut x = b[k];
+            for j in k + 1..n {
+                x -= a[k * n + j] * b[j];
+            }
+            b[k] = x / a[k * n + k];
+        }
+        Ok(())
+    }
+}
+
+/// The smallest ratio of pivots the dense solve accepts: below it the
+/// saddle-point system is taken as singular.
+const MIN_PIVOT_RATIO: f64 = 1e-14;
+
+/// What a constrained Galerkin method keeps of its last step.
+#[doc(hidden)]
+#[derive(Clone, Debug)]
+pub struct ConstrainedGalerkinMemory<const N: usize, const S: usize, const M: usize> {
+    pub(super) last: Option<Segment<N, S>>,
+    /// `λ_k` of the last step.
+    pub(super) lambda: [f64; M],
+    /// `Λ_1 … Λ_{s−1}` of the last step (the last entry unused).
+    pub(super) interior: [[f64; M]; S],
+    /// The velocity at the current node (the initial one at the start).
+    pub(super) velocity: [f64; N],
+    pub(super) work: Work,
+}
+
+impl<const N: usize, const S: usize, const M: usize> ConstrainedGalerkinMemory<N, S, M> {
+    pub(super) fn new() -> Self {
+        Self { last: None, lambda: [0.0; M], interior: [[0.0; M]; S], velocity: [0.0; N], work: Work::new(S * (N + M)) }
+    }
+}
+
+/// The first guess of a step: node increments and multipliers.
+pub(super) struct Guess<const N: usize, const S: usize, const M: usize> {
+    pub(super) d: [[f64; N]; S],
+    pub(super) lambda: [f64; M],
+    pub(super) interior: [[f64; M]; S],
+}
+
+/// A solved step.
+pub(super) struct Solved<const N: usize, const S: usize, const M: usize> {
+    pub(super) d: [[f64; N]; S],
+    pub(super) lambda: [f64; M],
+    pub(super) interior: [[f64; M]; S],
+    pub(super) velocity: [f64; N],
+    pub(super) momentum: [f64; N],
+    pub(super) iterations: usize,
+}
+
+/// One constrained Galerkin step of size `h` from `(t0, q0, p0)`; `state`
+/// goes into the errors. Writes only `work`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve_step<Sys, const N: usize, const S: usize, const R: usize, const M: usize>(
+    system: &Sys,
+    rule: &Galerkin<S, R>,
+    options: &NewtonOptions,
+    (t0, h, t1): (f64, f64, f64),
+    (q0, p0): (&[f64; N], &[f64; N]),
+    guess: Guess<N, S, M>,
+    work: &mut Work,
+    state: State<N>,
+) -> Result<Solved<N, S, M>, Error<N>>
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    let n = S * (N + M);
+    debug_assert_eq!(work.n, n);
+    let (_, g0) = jacobian::<Sys, N, M>(system, t0, q0).ok_or(Error::NonFiniteConstraints { state })?;
+    let Guess { mut d, mut lambda, mut interior } = guess;
+    let node_time = |m: usize| t0 + rule.control[m] * h;
+    // Column of λ_k and of Λ_m (m = 1 … s − 1); row of g(Q_m) (m = 1 … s).
+    let lambda_at = S * N + (S - 1) * M;
+    let interior_at = |m: usize| S * N + (m - 1) * M;
+    let mut iterations = 0;
+    let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
+    let mut converged = false;
+    while iterations < options.max_iterations {
+        iterations += 1;
+        work.matrix.fill(0.0);
+        work.rhs.fill(0.0);
+        let (a, r) = (&mut work.matrix, &mut work.rhs);
+        // The action's rows and their Jacobian, by the chain rule from the
+        // gradient and Hessian of L at the quadrature points.
+        for j in 0..R {
+            let (t, q, v) = rule.point(t0, h, (q0, &[0.0; N]), &d, j);
+            let pd = PointDerivatives::at(system, t, q, v);
+            let b = rule.quadrature().weights()[j];
+            let w = b * h;
+            for rho in 0..S {
+                let (l, ld) = (rule.row[j][rho], rule.row_d[j][rho]);
+                for i in 0..N {
+                    r[rho * N + i] += w * (l * pd.q[i]) + w * (ld * (pd.v[i] / h));
+                }
+                for nn in 0..S {
+                    let (c, cd) = (rule.col[j][nn], rule.col_d[j][nn]);
+                    for i in 0..N {
+                        let row = (rho * N + i) * n + nn * N;
+                        for k in 0..N {
+                            a[row + k] += b
+                                * (h * l * c * pd.qq[i][k]
+                                    + l * cd * pd.qv[i][k]
+                                    + ld * c * pd.qv[k][i]
+                                    + ld * cd * pd.vv[i][k] / h);
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..N {
+            r[i] += p0[i];
+            for c in 0..M {
+                r[i] += g0[(c, i)] * lambda[c];
+                a[i * n + lambda_at + c] = g0[(c, i)];
+            }
+        }
+        // The constraints at the nodes and their multipliers.
+        let mut singular_nodes = f64::INFINITY;
+        for m in 1..=S {
+            let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
+            let (gm, jm) =
+                jacobian::<Sys, N, M>(system, node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
+            singular_nodes = singular_nodes.min(inverse(jm * jm.transpose()).1);
+            let row = S * N + (m - 1) * M;
+            for c in 0..M {
+                r[row + c] = gm[c];
+                for i in 0..N {
+                    a[(row + c) * n + (m - 1) * N + i] = jm[(c, i)];
+                }
+            }
+            if m < S {
+                for i in 0..N {
+                    for c in 0..M {
+                        r[m * N + i] += jm[(c, i)] * interior[m][c];
+                        a[(m * N + i) * n + interior_at(m) + c] = jm[(c, i)];
+                    }
+                }
+            }
+        }
+        residual_norm = max_abs(r);
+        if !residual_norm.is_finite() || !a.iter().all(|x| x.is_finite()) {
+            return Err(Error::NonFinite { state, h, iterations, quantity: "residual" });
+        }
+        if let Err(ratio) = work.solve(MIN_PIVOT_RATIO.max(options.min_rcond)) {
+            // A rank-deficient constraint Jacobian at a node (redundant
+            // constraints, a dead point) or a singular step block.
+            let (_, rcond0) = inverse(g0 * g0.transpose());
+            let rcond = singular_nodes.min(rcond0);
+            if rcond <= SCHUR_MIN_RCOND {
+                return Err(Error::SingularConstraints { state, rcond });
+            }
+            return Err(Error::SingularJacobian { state, h, iterations, rcond: ratio });
+        }
+        let x = &work.rhs;
+        for m in 0..S {
+            for i in 0..N {
+                d[m][i] -= x[m * N + i];
+            }
+        }
+        for m in 1..S {
+            for c in 0..M {
+                interior[m][c] -= x[interior_at(m) + c];
+            }
+        }
+        for c in 0..M {
+            lambda[c] -= x[lambda_at + c];
+        }
+        correction_norm = max_abs(&x[..S * N]);
+        if !correction_norm.is_finite() {
+            return Err(Error::NonFinite { state, h, iterations, quantity: "correction" });
+        }
+        // No correction below the round-off of `q_k + D_m` is meaningful.
+        let floor = 4.0 * f64::EPSILON * max_abs(q0).max(max_abs(&d[S - 1]));
+        if correction_norm <= options.rtol * max_abs(d.as_flattened()) + options.atol + floor {
+            converged = true;
+            break;
+        }
+    }
+    if !converged {
+        return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
+    }
+    // Consecutive nodes on one branch of the manifold have constraint
+    // normals that agree: `G(Q_m) G(Q_{m−1})ᵀ` has a positive definite
+    // symmetric part (`≈ G Gᵀ` for a small step). Where it has not, the
+    // step crosses a singular configuration (a dead point, `G = 0`) or
+    // jumps to another branch; the one-point step's Schur complement test
+    // in the Euclidean metric.
+    let mut previous = g0;
+    for m in 1..=S {
+        let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
+        let (_, jm) =
+            jacobian::<Sys, N, M>(system, node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
+        let agreement = jm * previous.transpose();
+        if ((agreement + agreement.transpose()) * 0.5).cholesky().is_none() {
+            return Err(Error::SingularConstraints { state, rcond: inverse(agreement).1 });
+        }
+        previous = jm;
+    }
+    let q1: [f64; N] = core::array::from_fn(|i| q0[i] + d[S - 1][i]);
+    let jac1 = previous;
+    let (_, grad) = rule.node_gradient(system, t0, h, *q0, &d);
+    let end = grad[S - 1];
+    let v_end: [f64; N] = core::array::from_fn(|i| (0..S).map(|m| rule.end_d[m] * d[m][i]).sum::<f64>() / h);
+    let on = onto_cotangent(system, (t1, q1), &end, &jac1, v_end, options, (state, h, iterations))?;
+    if !q1.iter().chain(&on.momentum).all(|x| x.is_finite()) {
+        return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
+    }
+    Ok(Solved {
+        d,
+        lambda,
+        interior,
+        velocity: on.velocity,
+        momentum: on.momentum,
+        iterations: iterations + on.iterations,
+    })
+}
+
+/// The first guess of a step of size `h` after `last`: the last step's
+/// polynomial extrapolated where the size is the same, otherwise the
+/// straight line at the velocity `v`; the multipliers of the last step
+/// scaled with the step (they are impulses).
+pub(super) fn predict<const N: usize, const S: usize, const R: usize, const M: usize>(
+    rule: &Galerkin<S, R>,
+    h: f64,
+    memory: &ConstrainedGalerkinMemory<N, S, M>,
+    v: &[f64; N],
+) -> Guess<N, S, M> {
+    match &memory.last {
+        Some(last) if last.h == h => {
+            let mut d = [[0.0; N]; S];
+            for (row, weights) in d.iter_mut().zip(&rule.extrapolate) {
+                for (&w, dn) in weights.iter().zip(&last.d) {
+                    for (x, &y) in row.iter_mut().zip(dn) {
+                        *x += w * y;
+                    }
+                }
+            }
+            Guess { d, lambda: memory.lambda, interior: memory.interior }
+        }
+        last => {
+            let rho = last.map_or(0.0, |l| h / l.h);
+            Guess {
+                d: rule.control.map(|tau| v.map(|v| v * tau * h)),
+                lambda: memory.lambda.map(|x| x * rho),
+                interior: memory.interior.map(|m| m.map(|x| x * rho)),
+            }
+        }
+    }
+}
+
+/// The discrete energy `Σ_j b_j E_L(c_j)` of the step `seg`.
+pub(super) fn step_energy<Sys, const N: usize, const S: usize, const R: usize>(
+    system: &Sys,
+    rule: &Galerkin<S, R>,
+    seg: &Segment<N, S>,
+) -> f64
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    let mut e = 0.0;
+    for j in 0..R {
+        let (t, q, v) = rule.point(seg.t0, seg.h, (&seg.q0, &[0.0; N]), &seg.d, j);
+        let (l, _, lv) = point_gradient(system, t, q, v);
+        e += rule.quadrature().weights()[j] * ((0..N).map(|i| v[i] * lv[i]).sum::<f64>() - l);
+    }
+    e
+}
+
+impl<const S: usize, const R: usize, const M: usize> Constrained<Galerkin<S, R>, M> {
+    /// The Galerkin rule `rule` with `M` constraints imposed at its control
+    /// nodes, the end momentum on the hidden constraint (RATTLE-style). With
+    /// Gauss–Lobatto nodes and `S + 1` Lobatto points it is the Lobatto
+    /// IIIA–IIIB pair of order `2S`:
+    ///
+    /// ```
+    /// use lagrangian_runtime::galerkin::{Galerkin, NodeFamily, Quadrature};
+    /// use lagrangian_runtime::{Constrained, Integrator, Lagrangian, Scalar};
+    ///
+    /// /// A pendulum as a point on a circle of radius 1.
+    /// struct Pendulum;
+    /// impl Lagrangian<2> for Pendulum {
+    ///     const AUTONOMOUS: bool = true;
+    ///     const CYCLIC: [bool; 2] = [false, false];
+    ///     const CONSTRAINTS: usize = 1;
+    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+    ///         (v[0] * v[0] + v[1] * v[1]) * 0.5 - q[1]
+    ///     }
+    ///     fn constraints<D: Scalar>(&self, _t: D, q: &[D; 2], g: &mut [D]) {
+    ///         g[0] = q[0] * q[0] + q[1] * q[1] - 1.0;
+    ///     }
+    /// }
+    ///
+    /// let lobatto = Galerkin::<2, 3>::new(NodeFamily::GaussLobatto, Quadrature::gauss_lobatto());
+    /// let method = Constrained::<_, 1>::galerkin(lobatto);
+    /// let mut sim = Integrator::new(Pendulum, method, 0.05).start(0.0, [1.0, 0.0], [0.0, 0.0])?;
+    /// sim.run(200, |_| {})?;
+    /// let [x, y] = sim.state().q;
+    /// assert!((x * x + y * y - 1.0).abs() < 1e-14);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn galerkin(rule: Galerkin<S, R>) -> Self {
+        Self { rule }
+    }
+}
+
+impl<const S: usize, const R: usize, const M: usize> Sealed for Constrained<Galerkin<S, R>, M> {}
+
+impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained<Galerkin<S, R>, M> {
+    type Memory<const N: usize> = ConstrainedGalerkinMemory<N, S, M>;
+
+    const CONSTRAINTS: usize = M;
+
+    fn method_order(&self) -> u32 {
+        self.rule.order()
+    }
+
+    fn memory<const N: usize>(&self) -> ConstrainedGalerkinMemory<N, S, M> {
+        ConstrainedGalerkinMemory::new()
+    }
+
+    fn check(&self) -> Result<(), &'static str> {
+        self.rule.check()
+    }
+
+    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)
+    }
+
+    fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(
+        &self,
+        reverse: bool,
+        policy: &StepPolicy,
+    ) -> Result<(), Error<N>> {
+        Constrained::<Midpoint, M>::new(Midpoint).supports_derivatives::<Sys, N>(reverse, policy)
+    }
+
+    fn legendre<Sys: Lagrangian<N>, const N: usize>(
+        system: &Sys,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<([f64; N], f64), Error<N>> {
+        <Constrained<Midpoint, M> as Method<f64>>::legendre(system, t0, q0, v0)
+    }
+
+    fn fixed_step<Sys: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<Sys, Self, N>,
+        h: f64,
+        t1: f64,
+    ) -> Result<(), Error<N>> {
+        let State { step, t: t0, q: q0, p: p0 } = it.state;
+        let v = if it.memory.last.is_some() { it.memory.velocity } else { it.v0 };
+        let guess = predict(&it.method.rule, h, &it.memory, &v);
+        let times = (t0, h, t1);
+        let solved = solve_step(
+            &it.system,
+            &it.method.rule,
+            &it.newton,
+            times,
+            (&q0, &p0),
+            guess,
+            &mut it.memory.work,
+            it.state,
+        );
+        let solved = match solved {
+            Ok(s) => s,
+            Err(error) => {
+                it.stats.failed_steps += 1;
+                return Err(error);
+            }
+        };
+        let (q_new, carry) = add_increment(it.summation, &q0, &it.carry, &solved.d[S - 1]);
+        it.state = State { step: step + 1, t: t1, q: q_new, p: solved.momentum };
+        it.carry = carry;
+        it.p_carry = [0.0; N];
+        let memory = &mut it.memory;
+        memory.last = Some(Segment { t0, h, q0, d: solved.d });
+        (memory.lambda, memory.interior, memory.velocity) = (solved.lambda, solved.interior, solved.velocity);
+        it.stats.steps += 1;
+        it.stats.newton_iterations += solved.iterations as u64;
+        Ok(())
+    }
+
+    fn last_step_size<const N: usize>(memory: &ConstrainedGalerkinMemory<N, S, M>) -> Option<f64> {
+        memory.last.map(|last| last.h)
+    }
+
+    fn discrete_energy<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> f64 {
+        // The constraint forces do no work: the energy of the action.
+        match &it.memory.last {
+            Some(seg) => step_energy(&it.system, &it.method.rule, seg),
+            None => it.energy,
+        }
+    }
+}
+
+impl<const S: usize, const R: usize, const M: usize> F64Readouts for Constrained<Galerkin<S, R>, M> {
+    fn velocity_guess<Sys: Lagrangian<N>, const N: usize>(it: &Integrator<Sys, Self, N>) -> [f64; N] {
+        if it.memory.last.is_some() { it.memory.velocity } else { it.v0 }
+    }
+
+    /// Not offered yet: the tangent map of a constrained step lives on the
+    /// constraint manifold's cotangent bundle.
+    fn tangent_map<Sys: Lagrangian<N>, const N: usize>(_: &Integrator<Sys, Self, N>) -> Option<TangentMap<N>> {
+        None
+    }
+
+    /// Forces are refused with constraints: no impulse.
+    fn forcing_impulse<Sys: Lagrangian<N>, const N: usize>(
+        it: &Integrator<Sys, Self, N>,
+        _: &(impl crate::noether::Generator<N> + ?Sized),
+    ) -> Option<f64> {
+        it.memory.last.map(|_| 0.0)
+    }
+
+    type Native<const N: usize> = Hermite<N>;
+
+    fn native<Sys: Lagrangian<N>, const N: usize>(
+        _: &Integrator<Sys, Self, N>,
+        start: &Node<N>,
+        end: &Node<N>,
+    ) -> Hermite<N> {
+        Hermite::cubic(start, end)
+    }
+}
+
+impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, const M: usize>
+    Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>
+{
+    /// The constraint values `g(q_k)` at the current node.
+    pub fn constraint_values(&self) -> [f64; M] {
+        values::<Sys, N, M>(&self.system, self.state.t, &self.state.q)
+    }
+
+    /// The hidden constraint `G(q_k) v_k` at the current node, with `v_k`
+    /// the velocity of the momentum `p_k`.
+    pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
+        let v = self.velocity()?;
+        let (_, jac) = jacobian::<Sys, N, M>(&self.system, self.state.t, &self.state.q)
+            .ok_or(Error::NonFiniteConstraints { state: self.state })?;
+        Ok((jac * SVector::from(v)).into())
+    }
+
+    /// The multiplier `λ_k` of the last step (zero before the first): with
+    /// `G(q_k)ᵀλ_k` it is the constraint impulse on the step's start node.
+    pub fn multipliers(&self) -> [f64; M] {
+        self.memory.lambda
+    }
+}
