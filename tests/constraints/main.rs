@@ -10,6 +10,7 @@
 //! errors measured.
 
 mod forces;
+mod tangent;
 mod time;
 
 use lagrangian::DenseKind;

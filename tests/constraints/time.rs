@@ -35,8 +35,8 @@ impl ShakenPendulum {
 /// A bead on a unit hoop turning at `ω` about the vertical axis, gravity
 /// along `−z`: `|q| = 1` and the hoop's plane `−sin(ωt) x + cos(ωt) y = 0`.
 #[derive(Clone, Debug)]
-struct Hoop {
-    omega: f64,
+pub(crate) struct Hoop {
+    pub(crate) omega: f64,
 }
 
 #[lagrangian]
