@@ -9,6 +9,7 @@
 //! enough that its error (`O(h⁴)`, about 1e-15 here) is far below the
 //! errors measured.
 
+mod chain;
 mod forces;
 mod tangent;
 mod time;
@@ -102,6 +103,17 @@ fn fitted_order(hs: &[f64], errors: &[f64]) -> f64 {
     let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
     let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
     sxy / sxx
+}
+
+/// The least-squares trend of the energy errors `e_k` over the run (the
+/// change of the fitted line from start to end) and their largest size.
+fn trend_and_amplitude(energy: &[f64]) -> (f64, f64) {
+    let n = energy.len() as f64;
+    let xs: Vec<f64> = (0..energy.len()).map(|k| k as f64 / n).collect();
+    let (mx, my) = (xs.iter().sum::<f64>() / n, energy.iter().sum::<f64>() / n);
+    let slope = xs.iter().zip(energy).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
+        / xs.iter().map(|x| (x - mx) * (x - mx)).sum::<f64>();
+    (slope, energy.iter().fold(0.0f64, |m, x| m.max(x.abs())))
 }
 
 /// The pendulum from angle `θ₀ = 1` at rest, to `t = 2`: the Cartesian
@@ -264,12 +276,7 @@ fn four_bar_holds_its_constraints_and_energy_without_drift() {
     assert!(gv <= 1e-12, "max |G v| / |v| = {gv:e}");
     // Bounded without drift: the least-squares trend over the run is far
     // below the oscillation of the energy error.
-    let n = energy.len() as f64;
-    let xs: Vec<f64> = (0..energy.len()).map(|k| k as f64 / n).collect();
-    let (mx, my) = (xs.iter().sum::<f64>() / n, energy.iter().sum::<f64>() / n);
-    let slope = xs.iter().zip(&energy).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>()
-        / xs.iter().map(|x| (x - mx) * (x - mx)).sum::<f64>();
-    let amplitude = energy.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (slope, amplitude) = trend_and_amplitude(&energy);
     println!(
         "four-bar, 2e4 steps: max |g| {g:.2e}, max |G v|/|v| {gv:.2e}, energy error {amplitude:.2e}, trend {slope:.2e}"
     );

@@ -1,4 +1,4 @@
-//! Holonomic constraints `g(q) = 0`: the constrained discrete Euler–Lagrange
+//! Holonomic constraints `g(t, q) = 0`: the constrained discrete Euler–Lagrange
 //! equations of a one-point discrete Lagrangian in position–momentum form
 //! (RATTLE; Marsden & West, *Discrete mechanics and variational
 //! integrators*, Acta Numerica 2001, §3.4; Hairer, Lubich & Wanner,
@@ -9,7 +9,17 @@
 //! p_{k+1} =  D₂A(q_k, q_{k+1}) + G(q_{k+1})ᵀ μ_k,      G(q_{k+1}) v(q_{k+1}, p_{k+1}) = 0,
 //! ```
 //!
-//! with `A = h L_d` the step action and `G = ∂g/∂q`.
+//! with `A = h L_d` the step action and `G = ∂g/∂q`. The first line is
+//! solved for `(q_{k+1}, λ_k)` by Newton's method on the `(N + M)`
+//! saddle-point system, eliminated block-wise: the step Jacobian
+//! `J = ∂²A/∂q_k∂q_{k+1}` is inverted and the `M × M` Schur complement
+//! `G(q_{k+1}) J⁻¹ G(q_k)ᵀ` solved for the multiplier correction. The
+//! second line is solved for `(v_{k+1}, μ_k)` the same way with the Hessian
+//! `∂²L/∂v²` in place of `J` (one iteration for a quadratic kinetic energy).
+//! Both constraints then hold to Newton's tolerance at every node: the
+//! positions on the manifold, the momenta on its cotangent space. The map
+//! is symplectic on the constrained cotangent bundle (its derivative:
+//! `constrained/tangent.rs`).
 //!
 //! Forces and dissipation enter by the discrete Lagrange–d'Alembert
 //! principle ([`forcing`](crate::forcing)): the rule's discrete forces
@@ -20,17 +30,6 @@
 //! the manifold: `G(t_{k+1}, q_{k+1}) v_{k+1} + ∂g/∂t(t_{k+1}, q_{k+1}) = 0`.
 //! A time-dependent Lagrangian needs nothing more: the step action already
 //! carries `t_k`.
-//!
-//! The first line is
-//! solved for `(q_{k+1}, λ_k)` by Newton's method on the `(N + M)`
-//! saddle-point system, eliminated block-wise: the step Jacobian
-//! `J = ∂²A/∂q_k∂q_{k+1}` is inverted and the `M × M` Schur complement
-//! `G(q_{k+1}) J⁻¹ G(q_k)ᵀ` solved for the multiplier correction. The
-//! second line is solved for `(v_{k+1}, μ_k)` the same way with the Hessian
-//! `∂²L/∂v²` in place of `J` (one iteration for a quadratic kinetic energy).
-//! Both constraints then hold to Newton's tolerance at every node: the
-//! positions on the manifold, the momenta on its cotangent space. The map
-//! is symplectic on the constrained cotangent bundle.
 //!
 //! A rank-deficient `G` (redundant constraints, a dead point) shows as a
 //! singular Schur complement and is a typed error, with the state kept.
@@ -295,6 +294,28 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     h: f64,
     t1: f64,
 ) -> Result<(), Error<N>> {
+    let solved = positions(it, h, t1)?;
+    commit(it, solved, t1)
+}
+
+/// The solved position line of a step.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Positions<const N: usize, const M: usize> {
+    /// The step from `q_k` to `q_{k+1}`.
+    seg: Segment<N>,
+    /// The multiplier `λ_k`.
+    lambda: SVector<f64, M>,
+    /// Newton iterations spent.
+    iterations: usize,
+}
+
+/// The position line of a step of size `h` ending at `t1`: `(q_{k+1}, λ_k)`
+/// from `p_k + D₁A + F_k^− + G(q_k)ᵀλ = 0`, `g(t1, q_{k+1}) = 0`.
+pub(super) fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &Integrator<S, Constrained<D, M>, N>,
+    h: f64,
+    t1: f64,
+) -> Result<Positions<N, M>, Error<N>> {
     let State { t: t0, q: q0, p: p0, .. } = it.state;
     let state = it.state;
     let options = it.newton;
@@ -354,7 +375,19 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     if !converged {
         return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
     }
-    let seg = Segment { t0, h, q0, dq };
+    Ok(Positions { seg: Segment { t0, h, q0, dq }, lambda, iterations })
+}
+
+/// Solves the momentum line of the step whose positions are `solved` and
+/// takes the step; on failure nothing in `it` has changed.
+pub(super) fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &mut Integrator<S, Constrained<D, M>, N>,
+    solved: Positions<N, M>,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    let Positions { seg, lambda, iterations } = solved;
+    let (state, options, rule, system) = (it.state, it.newton, it.method.rule, &it.system);
+    let Segment { h, q0, dq, .. } = seg;
     let q1 = seg.q1();
     let (_, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
     let end = forcing::end_momentum(system, &rule, &seg);
@@ -433,7 +466,7 @@ impl<D: DiscreteLagrangian, const M: usize> F64Readouts for Constrained<D, M> {
 
     /// The derivative of the last step's equations in the coordinates of
     /// `(q, p)`: symplectic on the tangent space of the constrained phase
-    /// space (see [`tangent`]).
+    /// space (`constrained/tangent.rs`).
     fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
         let seg = it.memory.previous.as_ref()?;
         tangent::tangent_map(&it.system, &it.method, seg, &it.memory.lambda, &it.state.p, &it.memory.velocity)
@@ -461,7 +494,7 @@ impl<D: DiscreteLagrangian, const M: usize> F64Readouts for Constrained<D, M> {
 }
 
 impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> Integrator<S, Constrained<D, M>, N> {
-    /// The constraint values `g(q_k)` at the current node.
+    /// The constraint values `g(t_k, q_k)` at the current node.
     pub fn constraint_values(&self) -> [f64; M] {
         values::<S, N, M>(&self.system, self.state.t, &self.state.q)
     }
