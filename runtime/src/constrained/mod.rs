@@ -300,7 +300,7 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
 
 /// The solved position line of a step.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Positions<const N: usize, const M: usize> {
+struct Positions<const N: usize, const M: usize> {
     /// The step from `q_k` to `q_{k+1}`.
     seg: Segment<N>,
     /// The multiplier `λ_k`.
@@ -311,7 +311,7 @@ pub(super) struct Positions<const N: usize, const M: usize> {
 
 /// The position line of a step of size `h` ending at `t1`: `(q_{k+1}, λ_k)`
 /// from `p_k + D₁A + F_k^− + G(q_k)ᵀλ = 0`, `g(t1, q_{k+1}) = 0`.
-pub(super) fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
     it: &Integrator<S, Constrained<D, M>, N>,
     h: f64,
     t1: f64,
@@ -380,7 +380,7 @@ pub(super) fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize,
 
 /// Solves the momentum line of the step whose positions are `solved` and
 /// takes the step; on failure nothing in `it` has changed.
-pub(super) fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
     it: &mut Integrator<S, Constrained<D, M>, N>,
     solved: Positions<N, M>,
     t1: f64,
