@@ -476,3 +476,14 @@ fn a_lengthening_pendulum_stays_on_its_growing_circle() {
     .unwrap();
     assert!((sim.state().t - 10.0).abs() < 1e-12);
 }
+
+/// Bench runs found a turning point where the momentum line's relative
+/// tolerance on `v ≈ 0` fell below its round-off: Newton did not converge
+/// at step 545 372 of this run. The tolerance has a round-off floor.
+#[test]
+fn momentum_line_converges_at_a_turning_point() {
+    let q0 = [1f64.sin(), -1f64.cos()];
+    let mut sim = Integrator::new(Pendulum, Constrained::<_, 1>::new(Midpoint), 0.01).start(0.0, q0, [0.0; 2]).unwrap();
+    sim.run(545_380, |_| {}).unwrap();
+    assert!(sim.constraint_values()[0].abs() < 1e-14);
+}

@@ -426,7 +426,13 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
                 quantity: "momentum",
             });
         }
-        if norm <= options.rtol * v.amax() + options.atol {
+        // The momentum equation balances terms of the size of `p` and
+        // `D₂A`: its round-off moves `v` by about ε times their size over the
+        // smallest mass, which near a turning point (`v ≈ 0`) exceeds any
+        // relative tolerance on `v`.
+        let mass = (0..N).map(|i| hessian[(i, i)].abs()).fold(f64::INFINITY, f64::min);
+        let floor = 4.0 * f64::EPSILON * max_abs(&p).max(max_abs(&end)) / mass;
+        if norm <= options.rtol * v.amax() + options.atol + floor {
             momentum_converged = true;
             break;
         }
