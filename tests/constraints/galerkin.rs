@@ -295,3 +295,52 @@ fn four_bar_under_galerkin_over_1e6_steps() {
     assert!(g <= 1e-12 && gv <= 1e-12, "max |g| = {g:e}, max |G v| / |v| = {gv:e}");
     assert!(second < 1.5 * first, "energy error grows: {first:e} then {second:e}");
 }
+
+/// A damped pendulum on a circle, its support moving: what the constrained
+/// Galerkin and composition steps do not carry yet.
+struct Moving {
+    damping: f64,
+    speed: f64,
+}
+
+#[lagrangian]
+impl Moving {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * self.damping * (v[0] * v[0] + v[1] * v[1])
+    }
+
+    fn constraints(&self, t: f64, q: [f64; 2]) -> [f64; 1] {
+        let dy = q[1] - self.speed * t;
+        [q[0] * q[0] + dy * dy - 1.0]
+    }
+}
+
+/// Forces and moving constraints are refused by name at `start` for the
+/// Galerkin and composition families (the one-point rules take them), not
+/// silently dropped.
+#[test]
+fn galerkin_and_compositions_refuse_forces_and_moving_constraints() {
+    let sys = Moving { damping: 0.1, speed: 0.0 };
+    let (q0, v0) = ([0.6, -0.8], [0.0; 2]);
+    let galerkin =
+        Integrator::new(sys, Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss()), 0.01).start(0.0, q0, v0);
+    match galerkin {
+        Err(Error::Unsupported { what }) => assert!(what.contains("forces or dissipation"), "{what}"),
+        other => panic!("expected a refusal, got {:?}", other.map(|s| *s.state())),
+    }
+    let sys = Moving { damping: 0.1, speed: 0.0 };
+    let composition =
+        Integrator::new(sys, Constrained::<_, 1>::composition(Composition::YOSHIDA4), 0.01).start(0.0, q0, v0);
+    match composition {
+        Err(Error::Unsupported { what }) => assert!(what.contains("forces or dissipation"), "{what}"),
+        other => panic!("expected a refusal, got {:?}", other.map(|s| *s.state())),
+    }
+    // The one-point rule takes the same system.
+    let sys = Moving { damping: 0.1, speed: 0.0 };
+    let mut sim = Integrator::new(sys, Constrained::<_, 1>::new(Midpoint), 0.01).start(0.0, q0, v0).unwrap();
+    sim.run(10, |_| {}).unwrap();
+}

@@ -1,4 +1,4 @@
-//! Holonomic constraints `g(q) = 0`: the constrained discrete Euler–Lagrange
+//! Holonomic constraints `g(t, q) = 0`: the constrained discrete Euler–Lagrange
 //! equations of a one-point discrete Lagrangian in position–momentum form
 //! (RATTLE; Marsden & West, *Discrete mechanics and variational
 //! integrators*, Acta Numerica 2001, §3.4; Hairer, Lubich & Wanner,
@@ -18,7 +18,18 @@
 //! `∂²L/∂v²` in place of `J` (one iteration for a quadratic kinetic energy).
 //! Both constraints then hold to Newton's tolerance at every node: the
 //! positions on the manifold, the momenta on its cotangent space. The map
-//! is symplectic on the constrained cotangent bundle.
+//! is symplectic on the constrained cotangent bundle (its derivative:
+//! `constrained/tangent.rs`).
+//!
+//! Forces and dissipation enter by the discrete Lagrange–d'Alembert
+//! principle ([`forcing`](crate::forcing)): the rule's discrete forces
+//! `F_k^−` and `F_k^+` are added to `D₁A` and `D₂A`, the constraint forces
+//! `Gᵀλ`, `Gᵀμ` stay as they are. Time-dependent (rheonomic) constraints
+//! `g(t, q) = 0` are imposed at each node's own time, `g(t_{k+1}, q_{k+1})
+//! = 0` and `G(t_k, q_k)ᵀλ_k`, and their hidden form carries the motion of
+//! the manifold: `G(t_{k+1}, q_{k+1}) v_{k+1} + ∂g/∂t(t_{k+1}, q_{k+1}) = 0`.
+//! A time-dependent Lagrangian needs nothing more: the step action already
+//! carries `t_k`.
 //!
 //! A rank-deficient `G` (redundant constraints, a dead point) shows as a
 //! singular Schur complement and is a typed error, with the state kept.
@@ -28,6 +39,7 @@ mod cotangent;
 mod galerkin;
 mod linear;
 mod project;
+mod tangent;
 
 use nalgebra::{SMatrix, SVector};
 
@@ -35,6 +47,7 @@ use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
+use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
 use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment, predict_into};
 use crate::mechanics::DiscreteMechanics;
@@ -44,6 +57,7 @@ use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
 
 use linear::{inverse, solve_schur};
+use num_dual::Dual64;
 
 /// The relative tolerance within which initial data must satisfy the
 /// constraints and their hidden (velocity-level) form; see
@@ -142,15 +156,34 @@ pub(crate) fn jacobian<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize
     (value.iter().all(|x| x.is_finite()) && jac.iter().all(|x| x.is_finite())).then_some((value, jac))
 }
 
+/// `∂g/∂t(t, q)`, the velocity of a moving constraint manifold, from one
+/// evaluation on a dual number seeded on `t`; zero (and no evaluation) for
+/// constraints that do not depend on time, `None` when not finite.
+pub(crate) fn rate<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
+    system: &S,
+    t: f64,
+    q: &[f64; N],
+) -> Option<[f64; M]> {
+    if S::CONSTRAINTS_AUTONOMOUS {
+        return Some([0.0; M]);
+    }
+    let mut g = [Dual64::from_re(0.0); M];
+    system.constraints(Dual64::new(t, 1.0), &q.map(Dual64::from_re), &mut g);
+    let rate = g.map(|x| x.eps);
+    rate.iter().all(|x| x.is_finite()).then_some(rate)
+}
+
 /// The relative distances of `(q, v)` from the manifold and its tangent
-/// space (see [`Error::InconsistentConstraints`]).
+/// space (see [`Error::InconsistentConstraints`]); `rate` is `∂g/∂t`, so the
+/// velocity condition is the hidden constraint `G v + ∂g/∂t = 0`.
 pub(crate) fn inconsistency<const N: usize, const M: usize>(
     g: &[f64; M],
     jac: &SMatrix<f64, M, N>,
+    rate: &[f64; M],
     q: &[f64; N],
     v: &[f64; N],
 ) -> (f64, f64) {
-    let gv = jac * SVector::from(*v);
+    let gv = jac * SVector::from(*v) + SVector::from(*rate);
     let (mut position, mut velocity) = (0.0f64, 0.0f64);
     for i in 0..M {
         let norm = jac.row(i).norm();
@@ -182,15 +215,6 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         if !matches!(policy, StepPolicy::Fixed) {
             return Err(Error::Unsupported { what: "energy-preserving steps with holonomic constraints" });
         }
-        if S::HAS_FORCE || S::HAS_DISSIPATION {
-            return Err(Error::Unsupported { what: "forces or dissipation with holonomic constraints" });
-        }
-        if !S::CONSTRAINTS_AUTONOMOUS {
-            return Err(Error::Unsupported { what: "time-dependent holonomic constraints (`constraints` taking `t`)" });
-        }
-        if !S::AUTONOMOUS {
-            return Err(Error::Unsupported { what: "a time-dependent Lagrangian with holonomic constraints" });
-        }
         Ok(())
     }
 
@@ -219,7 +243,8 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         if rcond < 1e-12 {
             return Err(Error::SingularConstraints { state, rcond });
         }
-        let (position, velocity) = inconsistency(&g, &jac, &q0, &v0);
+        let rate = rate::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
+        let (position, velocity) = inconsistency(&g, &jac, &rate, &q0, &v0);
         if !(position <= CONSISTENCY_TOLERANCE && velocity <= CONSISTENCY_TOLERANCE) {
             return Err(Error::InconsistentConstraints { position, velocity, tolerance: CONSISTENCY_TOLERANCE });
         }
@@ -272,6 +297,28 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     h: f64,
     t1: f64,
 ) -> Result<(), Error<N>> {
+    let solved = positions(it, h, t1)?;
+    commit(it, solved, t1)
+}
+
+/// The solved position line of a step.
+#[derive(Clone, Copy, Debug)]
+struct Positions<const N: usize, const M: usize> {
+    /// The step from `q_k` to `q_{k+1}`.
+    seg: Segment<N>,
+    /// The multiplier `λ_k`.
+    lambda: SVector<f64, M>,
+    /// Newton iterations spent.
+    iterations: usize,
+}
+
+/// The position line of a step of size `h` ending at `t1`: `(q_{k+1}, λ_k)`
+/// from `p_k + D₁A + F_k^− + G(q_k)ᵀλ = 0`, `g(t1, q_{k+1}) = 0`.
+fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &Integrator<S, Constrained<D, M>, N>,
+    h: f64,
+    t1: f64,
+) -> Result<Positions<N, M>, Error<N>> {
     let State { t: t0, q: q0, p: p0, .. } = it.state;
     let state = it.state;
     let options = it.newton;
@@ -295,7 +342,7 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     while iterations < options.max_iterations {
         iterations += 1;
         let seg = Segment { t0, h, q0, dq };
-        let sd = derivatives::step_derivatives(system, &rule, &seg);
+        let sd = forcing::forced_step_derivatives(system, &rule, &seg);
         let q1 = seg.q1();
         let (g1, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
         let r1 = SVector::<f64, N>::from_fn(|i, _| p0[i] + sd.d_q0[i]) + g0t * lambda;
@@ -331,12 +378,26 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     if !converged {
         return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
     }
-    let seg = Segment { t0, h, q0, dq };
+    Ok(Positions { seg: Segment { t0, h, q0, dq }, lambda, iterations })
+}
+
+/// Solves the momentum line of the step whose positions are `solved` and
+/// takes the step; on failure nothing in `it` has changed.
+fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &mut Integrator<S, Constrained<D, M>, N>,
+    solved: Positions<N, M>,
+    t1: f64,
+) -> Result<(), Error<N>> {
+    let Positions { seg, lambda, iterations } = solved;
+    let (state, options, rule, system) = (it.state, it.newton, it.method.rule, &it.system);
+    let Segment { h, q0, dq, .. } = seg;
     let q1 = seg.q1();
     let (_, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
-    let end = derivatives::end_momentum(system, &rule, &seg);
+    let end = forcing::end_momentum(system, &rule, &seg);
+    let rate1 = SVector::from(rate::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?);
 
-    // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + G(q_{k+1})ᵀμ, G(q_{k+1}) v = 0.
+    // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + F⁺ + G(q_{k+1})ᵀμ,
+    // G(q_{k+1}) v + ∂g/∂t = 0.
     let jac1t = jac1.transpose();
     let mut v = SVector::<f64, N>::from_fn(|i, _| dq[i] / h);
     let mut mu = SVector::<f64, M>::zeros();
@@ -347,7 +408,7 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
         let vv: [f64; N] = v.into();
         let p = system.momentum(t1, q1, vv);
         let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
-        let r2 = jac1 * v;
+        let r2 = jac1 * v + rate1;
         let hessian = system.velocity_hessian(t1, q1, vv);
         // The same saddle-point form with `−Gᵀ` in the upper right block.
         let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), &jac1, &r1, &r2, options.min_rcond) {
@@ -368,7 +429,13 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
                 quantity: "momentum",
             });
         }
-        if norm <= options.rtol * v.amax() + options.atol {
+        // The momentum equation balances terms of the size of `p` and
+        // `D₂A`: its round-off moves `v` by about ε times their size over the
+        // smallest mass, which near a turning point (`v ≈ 0`) exceeds any
+        // relative tolerance on `v`.
+        let mass = (0..N).map(|i| hessian[(i, i)].abs()).fold(f64::INFINITY, f64::min);
+        let floor = 4.0 * f64::EPSILON * max_abs(&p).max(max_abs(&end)) / mass;
+        if norm <= options.rtol * v.amax() + options.atol + floor {
             momentum_converged = true;
             break;
         }
@@ -406,18 +473,22 @@ impl<D: DiscreteLagrangian, const M: usize> F64Readouts for Constrained<D, M> {
         if it.memory.previous.is_some() { it.memory.velocity } else { it.v0 }
     }
 
-    /// Not offered yet: the tangent map of a constrained step lives on the
-    /// constraint manifold's cotangent bundle.
-    fn tangent_map<S: Lagrangian<N>, const N: usize>(_: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
-        None
+    /// The derivative of the last step's equations in the coordinates of
+    /// `(q, p)`: symplectic on the tangent space of the constrained phase
+    /// space (`constrained/tangent.rs`).
+    fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {
+        let seg = it.memory.previous.as_ref()?;
+        tangent::tangent_map(&it.system, &it.method, seg, &it.memory.lambda, &it.state.p, &it.memory.velocity)
     }
 
-    /// Forces are refused with constraints: no impulse.
+    /// The impulse of the discrete forces alone: the constraint forces
+    /// `Gᵀλ`, `Gᵀμ` have no component along a symmetry that the
+    /// constraints respect.
     fn forcing_impulse<S: Lagrangian<N>, const N: usize>(
         it: &Integrator<S, Self, N>,
-        _: &(impl crate::noether::Generator<N> + ?Sized),
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
-        it.memory.previous.map(|_| 0.0)
+        Some(crate::noether::forcing_impulse(&it.system, &it.method.rule, it.memory.previous.as_ref()?, symmetry))
     }
 
     type Native<const N: usize> = Hermite<N>;
@@ -432,18 +503,38 @@ impl<D: DiscreteLagrangian, const M: usize> F64Readouts for Constrained<D, M> {
 }
 
 impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> Integrator<S, Constrained<D, M>, N> {
-    /// The constraint values `g(q_k)` at the current node.
+    /// The constraint values `g(t_k, q_k)` at the current node.
     pub fn constraint_values(&self) -> [f64; M] {
         values::<S, N, M>(&self.system, self.state.t, &self.state.q)
     }
 
-    /// The hidden constraint `G(q_k) v_k` at the current node, with `v_k`
-    /// the velocity of the momentum `p_k`.
+    /// The hidden constraint `G(t_k, q_k) v_k + ∂g/∂t(t_k, q_k)` at the
+    /// current node (`G v` for constraints that do not depend on time), with
+    /// `v_k` the velocity of the momentum `p_k`.
     pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
         let v = self.velocity()?;
-        let (_, jac) = jacobian::<S, N, M>(&self.system, self.state.t, &self.state.q)
-            .ok_or(Error::NonFiniteConstraints { state: self.state })?;
-        Ok((jac * SVector::from(v)).into())
+        let (t, q) = (self.state.t, &self.state.q);
+        let non_finite = Error::NonFiniteConstraints { state: self.state };
+        let (_, jac) = jacobian::<S, N, M>(&self.system, t, q).ok_or(non_finite.clone())?;
+        let rate = rate::<S, N, M>(&self.system, t, q).ok_or(non_finite)?;
+        Ok((jac * SVector::from(v) + SVector::from(rate)).into())
+    }
+
+    /// The discrete forces `(F_k^−, F_k^+)` of the last step
+    /// ([`forcing`](crate::forcing)), or `None` before the first step; zero
+    /// for a system without forces. The constraint forces are not included.
+    pub fn last_forces(&self) -> Option<DiscreteForces<N>> {
+        Some(forcing::discrete_forces(&self.system, &self.method.rule, self.memory.previous.as_ref()?))
+    }
+
+    /// The energy balance `E_{k+1} − E_k = W_k` across the current node,
+    /// between the last two steps ([`forcing`](crate::forcing)), or `None`
+    /// before the second step. The constraint forces do no work on the
+    /// manifold, so the residual is the method's local energy error, `O(h³)`
+    /// per node, as without constraints.
+    pub fn energy_balance(&self) -> Option<EnergyBalance> {
+        let (behind, ahead) = (self.memory.earlier.as_ref()?, self.memory.previous.as_ref()?);
+        Some(forcing::energy_balance(&self.system, &self.method.rule, behind, ahead))
     }
 
     /// The multiplier `λ_k` of the last step (zero before the first): with

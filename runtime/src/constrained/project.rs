@@ -1,11 +1,12 @@
 //! Initial data onto the constraint manifold: the positions by Gauss–Newton
 //! on `g(q) = 0` along the rows of `G` (the nearest point to first order),
-//! the velocities by the orthogonal projection onto `ker G(q)`.
+//! the velocities by the orthogonal projection onto the (affine) space of
+//! velocities with `G(t, q) v + ∂g/∂t(t, q) = 0`.
 
 use nalgebra::SVector;
 
 use super::linear::{SCHUR_MIN_RCOND, inverse};
-use super::{Constrained, jacobian};
+use super::{Constrained, jacobian, rate};
 use crate::error::Error;
 use crate::real::max_abs;
 use crate::state::State;
@@ -17,9 +18,10 @@ const MAX_ITERATIONS: usize = 50;
 impl<D, const M: usize> Constrained<D, M> {
     /// `(q, v)` moved onto the constraint manifold and its tangent space:
     /// `q` to a nearby point with `g(t, q) = 0` (Gauss–Newton steps
-    /// `q ← q − Gᵀ(GGᵀ)⁻¹g`, to round-off), then `v ← v − Gᵀ(GGᵀ)⁻¹Gv`,
-    /// so that `G(q) v = 0`. Data already consistent come back unchanged
-    /// to round-off.
+    /// `q ← q − Gᵀ(GGᵀ)⁻¹g`, to round-off), then
+    /// `v ← v − Gᵀ(GGᵀ)⁻¹(Gv + ∂g/∂t)`, so that `G(t, q) v + ∂g/∂t = 0`
+    /// (`G v = 0` for constraints that do not depend on time). Data already
+    /// consistent come back unchanged to round-off.
     ///
     /// Fails with [`Error::NonFiniteConstraints`] where `g` or `G` is not
     /// finite, [`Error::SingularConstraints`] where `G` is rank-deficient,
@@ -51,9 +53,10 @@ impl<D, const M: usize> Constrained<D, M> {
             if correction <= 1e-15 * x.amax().max(1.0) || (iteration > 1 && correction == 0.0) {
                 let q: [f64; N] = x.into();
                 let (_, jac) = jacobian::<S, N, M>(system, t, &q).ok_or(Error::NonFiniteConstraints { state })?;
+                let rate = SVector::from(rate::<S, N, M>(system, t, &q).ok_or(Error::NonFiniteConstraints { state })?);
                 let (inv, _) = inverse(jac * jac.transpose());
                 let w = SVector::from(v);
-                let v = w - jac.transpose() * (inv * (jac * w));
+                let v = w - jac.transpose() * (inv * (jac * w + rate));
                 return Ok((q, v.into()));
             }
         }
