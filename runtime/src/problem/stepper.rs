@@ -220,8 +220,11 @@ where
 
     /// One step; on failure nothing changes.
     pub fn step(&mut self) -> Result<State<N>, Error<N>> {
-        Stepping::step(self)?;
-        Ok(Stepping::state(self))
+        // One match for the step and the state read after it.
+        each!(&mut self.driver, d => {
+            Stepping::step(d)?;
+            Ok(Stepping::state(d))
+        })
     }
 
     /// `n` steps, calling `observe` after each.
