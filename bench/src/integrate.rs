@@ -7,7 +7,7 @@ use crate::compositions::{Composition, Stepper};
 use crate::invariants::Invariants;
 use crate::methods::{Method, Setting};
 use crate::problems::{Model, Transformed};
-use crate::run::{AutoReport, Run};
+use crate::run::{AUTO_NODES, AutoReport, Run};
 
 /// Runs `method` with `setting` from `(q0, v0)` at `t = 0` to `t_end`; with
 /// `samples > 0` and a conservative model, records the relative energy error
@@ -21,6 +21,8 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     samples: usize,
 ) -> Run {
     assert_eq!(D, 2 * N, "the first-order state has 2N components");
+    // The auto run keeps its nodes when asked, for its error along the run.
+    let keep_nodes = samples > 0;
     // The energy of a time-dependent or forced problem changes by physics: nothing to record.
     let samples = if M::CONSERVATIVE { samples } else { 0 };
     let invariants = Invariants::new(model, &q0, &v0);
@@ -119,7 +121,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
         (Method::TimeTransformedSplit, Setting::Sigma(sigma)) => model
             .time_transformed(Transformed::Splitting, sigma, t_end, &mut record)
             .unwrap_or_else(|| Run::failed("not applicable: no step density for this problem".into(), 0.0)),
-        (Method::Auto, Setting::Tolerance(tol)) => auto(model, (q0, v0), tol, t_end, samples, &mut record),
+        (Method::Auto, Setting::Tolerance(tol)) => auto(model, (q0, v0), tol, t_end, keep_nodes, &mut record),
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
     out.seconds = start.seconds();
@@ -209,21 +211,22 @@ fn galerkin<M: Model<N>, const N: usize, const S: usize>(
 }
 
 /// The tolerance-driven solve with `rtol = tol`, pilot included; with
-/// `samples > 0` every node is kept and recorded (`record` thins them).
+/// `keep_nodes` every node is kept and recorded (`record` thins them), and
+/// [`AUTO_NODES`] of them are reported.
 fn auto<M: Model<N>, const N: usize>(
     model: &M,
     (q0, v0): ([f64; N], [f64; N]),
     tol: f64,
     t_end: f64,
-    samples: usize,
+    keep_nodes: bool,
     record: &mut impl FnMut(f64, &[f64; N], &[f64; N]),
 ) -> Run {
-    // Only the last node unless the energy is sampled.
-    let plan = if samples > 0 { Plan::until(t_end) } else { Plan::until(t_end).every(usize::MAX).without_velocities() };
+    // Only the last node unless the energy or the nodes are sampled.
+    let plan = if keep_nodes { Plan::until(t_end) } else { Plan::until(t_end).every(usize::MAX).without_velocities() };
     match Auto::new(model.system(), 0.0, q0, v0).tolerance(Tolerance::relative(tol)).solve(plan) {
         Ok(solved) => {
             let sol = &solved.solution;
-            if samples > 0 {
+            if keep_nodes {
                 for ((t, q), v) in sol.t.iter().zip(&sol.q).zip(&sol.v) {
                     record(*t, q, v);
                 }
@@ -239,6 +242,12 @@ fn auto<M: Model<N>, const N: usize>(
                 step: est.step,
                 growth: format!("{:?}", est.growth),
                 reason: est.reason.clone(),
+                nodes: if keep_nodes && !sol.t.is_empty() {
+                    let n = sol.t.len() - 1;
+                    (1..=AUTO_NODES).map(|k| n * k / AUTO_NODES).map(|i| (sol.t[i], sol.q[i].to_vec())).collect()
+                } else {
+                    Vec::new()
+                },
             });
             match (sol.error.as_ref(), sol.q.last()) {
                 (None, Some(q)) => Run { q: q.to_vec(), steps, auto, ..Run::default() },

@@ -45,7 +45,14 @@ pub struct AutoReport {
     pub growth: String,
     /// Why the method was chosen, in one line.
     pub reason: String,
+    /// `(t, q)` at [`AUTO_NODES`] nodes evenly spread over the run (the last
+    /// one at the end), when the run kept every node: the error along the
+    /// run, which the estimate bounds.
+    pub nodes: Vec<(f64, Vec<f64>)>,
 }
+
+/// Nodes of an auto run kept in [`AutoReport::nodes`].
+pub const AUTO_NODES: usize = 8;
 
 impl Run {
     pub(crate) fn failed(message: String, seconds: f64) -> Run {
