@@ -9,7 +9,7 @@
 
 use lagrangian::__private::hyperdual::{DualArray, HyperDualArray};
 use lagrangian::__private::tape::{Seeds, Tape, Var};
-use lagrangian::num_dual::{Dual64, DualStruct, HyperDual, HyperDual64};
+use lagrangian::num_dual::{Dual, Dual64, DualStruct, HyperDual, HyperDual64};
 use lagrangian::prelude::*;
 use lagrangian::{Lagrangian, Scalar};
 
@@ -100,9 +100,17 @@ fn scalars_are_sorted_by_what_their_parts_hold() {
     assert_eq!(order::<HyperDual64>(), second);
     assert_eq!(order::<Var>(), second);
     assert_eq!(order::<HyperDualArray<[f64; 2], [f64; 3]>>(), second);
+    // First order over first order: the mixed second derivatives of the
+    // runtime's forward-over-forward Hessian products.
+    assert_eq!(order::<Dual<Dual64>>(), second);
+    assert_eq!(order::<Dual<DualArray<[f64; 3]>>>(), second);
+    // Third derivatives are not in a second-order Taylor polynomial.
+    assert_eq!(order::<Dual<HyperDual64>>(), none);
+    assert_eq!(order::<Dual<Dual<Dual64>>>(), none);
     // Double-double values, with or without derivatives, need the body.
     assert_eq!(order::<DoubleDouble>(), none);
     assert_eq!(order::<HyperDual<DoubleDouble>>(), none);
+    assert_eq!(order::<Dual<Dual<DoubleDouble>>>(), none);
 }
 
 #[test]
@@ -161,6 +169,29 @@ fn gradients_and_hessians_match_the_terms_on_every_dual_number() {
     }
     let (t, q, v) = (Dual64::from_re(T), [Dual64::new(Q[0], 1.0), Dual64::from_re(Q[1])], V.map(Dual64::from_re));
     close(Lagrangian::<2>::lagrangian(s, t, q, v).eps, by_loop(s, t, q, v).eps, 1e-12, "dual");
+    // Forward over forward, as `gradient_qv_scalar` differentiates `L`: the
+    // outer `ε` on `v[1]`, the inner directions on all five inputs. The
+    // values stay those of `f64` bit for bit.
+    type N = Dual<DualArray<[f64; 5]>>;
+    let n = |x: f64, i: usize, outer: bool| {
+        let inner = DualArray::<[f64; 5]>::variable(x, i);
+        N::new(inner, if outer { DualArray::from_re(1.0) } else { DualArray::from_re(0.0) })
+    };
+    let (t, q, v) = (n(T, 0, false), [n(Q[0], 1, false), n(Q[1], 2, false)], [n(V[0], 3, false), n(V[1], 4, true)]);
+    let (a, b) = (Lagrangian::<2>::lagrangian(s, t, q, v), by_loop(s, t, q, v));
+    assert_eq!(a.re.re.to_bits(), Lagrangian::<2>::lagrangian(s, T, Q, V).to_bits());
+    close(a.eps.re, b.eps.re, 1e-12, "nested first derivative");
+    for i in 0..5 {
+        close(a.re.eps[i], b.re.eps[i], 1e-12, "nested gradient");
+        close(a.eps.eps[i], b.eps.eps[i], 1e-12, "nested mixed second derivative");
+    }
+    let n = |x: f64, inner: bool, outer: bool| {
+        Dual::new(Dual64::new(x, f64::from(u8::from(inner))), Dual64::from_re(f64::from(u8::from(outer))))
+    };
+    let (t, q, v) = (n(T, true, false), [n(Q[0], false, true), n(Q[1], true, true)], V.map(|x| n(x, false, false)));
+    let (a, b) = (Lagrangian::<2>::lagrangian(s, t, q, v), by_loop(s, t, q, v));
+    assert_eq!(a.re.re.to_bits(), Lagrangian::<2>::lagrangian(s, T, Q, V).to_bits());
+    close(a.eps.eps, b.eps.eps, 1e-12, "nested scalar mixed second derivative");
 }
 
 #[test]

@@ -28,7 +28,10 @@
 //! and every `δ` term has a zero real part.
 //!
 //! Which scalars go this way is [`Scalar::FIRST_ORDER`] and
-//! [`Scalar::SECOND_ORDER`]; everything else (`f64` itself,
+//! [`Scalar::SECOND_ORDER`]: every number whose parts are all `f64` and
+//! whose derivatives stop at the second order, nested ones included
+//! (`Dual<DualArray<_>>`, on which the runtime takes Hessian-vector
+//! products of `L` forward over forward). Everything else (`f64` itself,
 //! [`DoubleDouble`](crate::DoubleDouble) and dual numbers over it, whose
 //! values need the body at their own precision, and third-order numbers)
 //! evaluates the chunk's generic body, which is then compiled only for

@@ -28,9 +28,10 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy {
     /// `true` for a number over plain `f64` with exact first and second
     /// derivatives ([`HyperDual64`](num_dual::HyperDual64),
     /// [`HyperDualArray`](crate::hyperdual::HyperDualArray),
-    /// [`tape::Var`](crate::tape::Var)): the chunks of a long Lagrangian
-    /// reach it from their gradient and Hessian in `f64`
-    /// ([`chunk`](crate::chunk)).
+    /// [`tape::Var`](crate::tape::Var), and a first-order dual number over
+    /// one, `Dual<Dual64>` or `Dual<DualArray<_>>`, whose `ε·εᵢ` parts are
+    /// mixed second derivatives): the chunks of a long Lagrangian reach it
+    /// from their gradient and Hessian in `f64` ([`chunk`](crate::chunk)).
     const SECOND_ORDER: bool = false;
 }
 
@@ -39,12 +40,16 @@ impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {
     const SECOND_ORDER: bool = T::NDERIV == 2 && over_f64::<T>();
 }
 
-/// Whether the parts of `T` are plain `f64`: its element type has no
-/// derivatives and the size of an `f64` (not a
-/// [`DoubleDouble`](crate::DoubleDouble), whose values a chunk evaluated in
-/// `f64` would round).
+/// Whether every part of `T` is a plain `f64`: nested to any depth, its
+/// innermost element type has no derivatives and the size of an `f64` (not
+/// a [`DoubleDouble`](crate::DoubleDouble), whose values a chunk evaluated
+/// in `f64` would round). A number of derivative order at most two whose
+/// parts are all `f64` is then exactly the second-order Taylor polynomial
+/// `chunk::lift` builds: the product of any three of its parts with a zero
+/// real part vanishes, whether the two orders come from one number
+/// (`HyperDual64`) or from nesting (`Dual<Dual64>`).
 const fn over_f64<T: DualNum>() -> bool {
-    <T::InnerDual as DualNum>::NDERIV == 0 && core::mem::size_of::<T::InnerDual>() == core::mem::size_of::<f64>()
+    if T::NDERIV == 0 { core::mem::size_of::<T>() == core::mem::size_of::<f64>() } else { over_f64::<T::InnerDual>() }
 }
 
 /// A mechanical (or electromechanical) system with `N` degrees of freedom,
