@@ -22,7 +22,7 @@
 //! `constrained/tangent.rs`).
 //!
 //! Forces and dissipation enter by the discrete Lagrange–d'Alembert
-//! principle ([`forcing`](crate::forcing)): the rule's discrete forces
+//! principle ([`forcing`]): the rule's discrete forces
 //! `F_k^−` and `F_k^+` are added to `D₁A` and `D₂A`, the constraint forces
 //! `Gᵀλ`, `Gᵀμ` stay as they are. Time-dependent (rheonomic) constraints
 //! `g(t, q) = 0` are imposed at each node's own time, `g(t_{k+1}, q_{k+1})
