@@ -95,18 +95,11 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)?;
-        // The one-point steps carry forces and moving constraints; these
-        // steps do not (yet): refused rather than silently dropped.
-        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-            return Err(Error::Unsupported { what: "forces or dissipation with constrained compositions" });
-        }
-        if !Sys::CONSTRAINTS_AUTONOMOUS || !Sys::AUTONOMOUS {
-            return Err(Error::Unsupported {
-                what: "time-dependent constraints or a time-dependent Lagrangian with constrained compositions",
-            });
-        }
-        Ok(())
+        super::supports_unforced_autonomous::<Sys, N, M>(
+            policy,
+            "forces or dissipation with constrained compositions",
+            "time-dependent constraints or a time-dependent Lagrangian with constrained compositions",
+        )
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(

@@ -445,18 +445,11 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)?;
-        // The one-point steps carry forces and moving constraints; these
-        // steps do not (yet): refused rather than silently dropped.
-        if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-            return Err(Error::Unsupported { what: "forces or dissipation with constrained Galerkin rules" });
-        }
-        if !Sys::CONSTRAINTS_AUTONOMOUS || !Sys::AUTONOMOUS {
-            return Err(Error::Unsupported {
-                what: "time-dependent constraints or a time-dependent Lagrangian with constrained Galerkin rules",
-            });
-        }
-        Ok(())
+        super::supports_unforced_autonomous::<Sys, N, M>(
+            policy,
+            "forces or dissipation with constrained Galerkin rules",
+            "time-dependent constraints or a time-dependent Lagrangian with constrained Galerkin rules",
+        )
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(
