@@ -69,19 +69,7 @@ pub(crate) fn chain_initial() -> ([f64; 18], [f64; 18]) {
 /// speed, and the energy errors at the nodes.
 pub(crate) fn chain_run(n: usize, h: f64) -> (f64, f64, Vec<f64>) {
     let (q0, v0) = chain_initial();
-    let mut sim = Integrator::new(ClosedChain, Constrained::<_, 10>::new(Midpoint), h).start(0.0, q0, v0).unwrap();
-    let e0 = sim.energy().unwrap();
-    let speed = v0.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let (mut g_worst, mut gv_worst) = (0.0f64, 0.0f64);
-    let mut energy = Vec::with_capacity(n);
-    sim.run(n, |s| {
-        g_worst = s.constraint_values().iter().fold(g_worst, |m, x| m.max(x.abs()));
-        let gv = s.constraint_velocities().unwrap();
-        gv_worst = gv.iter().fold(gv_worst, |m, x| m.max(x.abs() / speed));
-        energy.push(s.energy().unwrap() - e0);
-    })
-    .unwrap();
-    (g_worst, gv_worst, energy)
+    super::watched_run(ClosedChain, Constrained::<_, 10>::new(Midpoint), q0, v0, n, h)
 }
 
 /// Checks and reports one run of the chain: the least-squares trend of the

@@ -252,7 +252,21 @@ pub fn four_bar_initial() -> ([f64; 4], [f64; 4]) {
 /// the energy errors at the nodes.
 pub fn four_bar_run(n: usize, h: f64) -> (f64, f64, Vec<f64>) {
     let (q0, v0) = four_bar_initial();
-    let mut sim = Integrator::new(FourBar, Constrained::<_, 3>::new(Midpoint), h).start(0.0, q0, v0).unwrap();
+    watched_run(FourBar, Constrained::<_, 3>::new(Midpoint), q0, v0, n, h)
+}
+
+/// Runs `system` from `(q0, v0)` `n` steps of size `h` under `method`: the
+/// largest `|g|`, the largest `|G v|` relative to the largest initial speed,
+/// and the energy errors at the nodes.
+pub(crate) fn watched_run<S: Lagrangian<N>, const N: usize, const M: usize>(
+    system: S,
+    method: Constrained<Midpoint, M>,
+    q0: [f64; N],
+    v0: [f64; N],
+    n: usize,
+    h: f64,
+) -> (f64, f64, Vec<f64>) {
+    let mut sim = Integrator::new(system, method, h).start(0.0, q0, v0).unwrap();
     let e0 = sim.energy().unwrap();
     let speed = v0.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let (mut g_worst, mut gv_worst) = (0.0f64, 0.0f64);
