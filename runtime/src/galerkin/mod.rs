@@ -42,6 +42,7 @@ mod linalg;
 mod linear;
 mod method;
 mod one_point;
+mod predictor;
 mod quadratic;
 mod quadrature;
 mod stepper;
