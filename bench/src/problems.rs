@@ -323,6 +323,80 @@ kepler_ids! {
     990 => "kepler-0.99", "Kepler e = 0.99 (10 orbits)";
 }
 
+// ------------------------------------------------- Kepler in polar coordinates
+
+/// `L = ½(ṙ² + r² φ̇²) + 1/r` in `q = (r, φ)`: Kepler's problem with the
+/// configuration-dependent mass matrix `diag(1, r²)` (not separable), which
+/// only the implicit methods and the peers can run.
+#[derive(Debug, Clone, Copy)]
+pub struct KeplerPolarSys;
+
+#[lagrangian]
+impl KeplerPolarSys {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + q[0] * q[0] * v[1] * v[1]) + 1.0 / q[0]
+    }
+}
+
+/// The Kepler orbit with semi-major axis 1 and eccentricity 0.5 in polar
+/// coordinates, from pericentre, over 1000 orbits: a long non-separable run,
+/// where an explicit method's drift of the energy and of `φ` accumulates.
+#[derive(Debug, Clone, Copy)]
+pub struct KeplerPolar {
+    /// Multiplies the horizon.
+    pub scale: f64,
+}
+
+impl KeplerPolar {
+    const ECC: f64 = 0.5;
+}
+
+impl Model<2> for KeplerPolar {
+    type Sys = KeplerPolarSys;
+    const ID: &'static str = "kepler-polar";
+    const TITLE: &'static str = "Kepler e = 0.5 in polar coordinates (1000 orbits)";
+    fn system(&self) -> KeplerPolarSys {
+        KeplerPolarSys
+    }
+    fn initial(&self) -> ([f64; 2], [f64; 2]) {
+        // Pericentre r = 1 − e, speed √((1 + e)/(1 − e)) across the radius.
+        let (q, v) = exact::kepler_start(Self::ECC);
+        ([q[0], 0.0], [0.0, v[1] / q[0]])
+    }
+    fn horizon(&self) -> f64 {
+        1000.0 * self.scale * 2.0 * core::f64::consts::PI
+    }
+    fn coarsest_steps(&self) -> usize {
+        (self.horizon() / (2.0 * core::f64::consts::PI) * 6.0).ceil() as usize
+    }
+    fn time_scale(&self) -> f64 {
+        2.0 * core::f64::consts::PI
+    }
+    fn accel(&self, q: &[f64; 2], v: &[f64; 2]) -> [f64; 2] {
+        // r̈ = r φ̇² − 1/r², d/dt (r² φ̇) = 0.
+        let r = q[0];
+        [r * v[1] * v[1] - 1.0 / (r * r), -2.0 * v[0] * v[1] / r]
+    }
+    fn energy(&self, q: &[f64; 2], v: &[f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + q[0] * q[0] * v[1] * v[1]) - 1.0 / q[0]
+    }
+    fn angular_momentum(&self, q: &[f64; 2], v: &[f64; 2]) -> Option<[f64; 3]> {
+        Some([0.0, 0.0, q[0] * q[0] * v[1]])
+    }
+    fn exact<T: Real>(&self, t: T) -> Option<[T; 2]> {
+        // r = 1 − e cos E, and the true anomaly continuous in E:
+        // φ = E + 2 atan(β sin E / (1 − β cos E)), β = e / (1 + √(1 − e²)).
+        let e = T::one() * Self::ECC;
+        let ea = exact::eccentric_anomaly(e, t);
+        let beta = e / (T::one() + (T::one() - e * e).sqrt());
+        let phi = ea + (beta * ea.sin() / (T::one() - beta * ea.cos())).atan() * 2.0;
+        Some([T::one() - e * ea.cos(), phi])
+    }
+    fn reference_steps(&self, t_end: f64) -> usize {
+        (t_end / 0.01).ceil() as usize
+    }
+}
+
 // ----------------------------------------------------------- Hénon–Heiles
 
 /// `L = ½|q̇|² − ½(x² + y²) − x²y + y³/3`.
