@@ -13,11 +13,12 @@
 #![allow(missing_docs)]
 
 use std::hint::black_box;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
 use lagrangian::{Coupling, Pattern, Separability};
+use lagrangian_bench::clock::Clock;
 
 const H: f64 = 0.01;
 
@@ -175,11 +176,13 @@ fn chain(c: &mut Criterion) {
         g.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
         g.bench_function("DynConstrained midpoint (banded saddle point)", |b| b.iter(&mut run));
         g.finish();
+        // CPU time of this thread, best of the repeats: comparable across
+        // sizes on a busy machine (see `lagrangian_bench::clock`).
         let best = (0..repeats)
             .map(|_| {
-                let t = Instant::now();
+                let clock = Clock::start();
                 run();
-                t.elapsed().as_secs_f64() / STEPS as f64
+                clock.seconds() / STEPS as f64
             })
             .fold(f64::INFINITY, f64::min);
         per_step.push(best);

@@ -231,3 +231,17 @@ fn bad_input_is_a_typed_error_with_the_state_kept() {
     let r = crate::DynIntegrator::new(Chain::new(6), Midpoint, 0.01).start(0.0, &q0, &zero);
     assert!(matches!(r, Err(DynError::Unsupported { .. })), "{r:?}");
 }
+
+/// `LINKS` links, `STEPS` steps (environment variables; 1000 and 10 by
+/// default): what `scripts/constrained-chain-instructions.sh` counts the
+/// instructions of under callgrind, for the cost per step against `N`.
+#[test]
+#[ignore = "a measurement: scripts/constrained-chain-instructions.sh runs it under callgrind"]
+fn steps_of_a_chain_for_callgrind() {
+    let read = |name: &str, default: usize| std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default);
+    let (links, steps) = (read("LINKS", 1000), read("STEPS", 10));
+    let q0 = folded(links, 0.01);
+    let mut sim = DynConstrained::start(Chain::new(links), Midpoint, 1e-3, 0.0, &q0, &vec![0.0; 2 * links]).unwrap();
+    sim.run(steps, |_| {}).unwrap();
+    assert_eq!(sim.state().step, steps as u64);
+}
