@@ -259,7 +259,8 @@ impl Kkt {
     }
 
     /// Whether the interleaved matrix is stored banded (not dense).
-    pub(crate) fn is_banded(&self) -> bool {
+    #[cfg(test)]
+    fn is_banded(&self) -> bool {
         matches!(self.matrix, StepSolver::Banded(_))
     }
 }

@@ -1,7 +1,7 @@
 //! The run-time-sized constrained integrator: the same steps as the
-//! const-size (dense) one, a chain of 10 000 planar links in a 2 MiB
-//! thread with the constraints at round-off, and the typed errors of bad
-//! input.
+//! const-size (dense) one, a saddle-point band that does not grow with the
+//! chain, and the typed errors of bad input. The chain of 10 000 links in a
+//! 2 MiB thread is `tests/constraints/large_chain.rs`.
 
 use super::*;
 use crate::structure::{Coupling, Pattern, Separability};
@@ -139,42 +139,6 @@ fn the_saddle_point_band_does_not_grow_with_the_chain() {
         // multiplier sits within 3 places of its coordinates.
         assert!(sim.saddle_point_bandwidth() <= 3, "{links} links: {}", sim.saddle_point_bandwidth());
     }
-}
-
-/// The chain: 10 000 links (N = 20 000 coordinates, M = 10 000
-/// constraints) stepped in a spawned thread with the default 2 MiB stack;
-/// the constraints and their hidden form at round-off at every node.
-#[test]
-fn a_chain_of_ten_thousand_links_runs_in_a_default_thread() {
-    let run = std::thread::Builder::new()
-        .stack_size(2 << 20)
-        .spawn(|| {
-            let links = 10_000;
-            let q0 = folded(links, 0.01);
-            let mut sim = DynConstrained::start(Chain::new(links), Midpoint, 1e-3, 0.0, &q0, &vec![0.0; 2 * links])
-                .expect("start");
-            let (mut g_worst, mut gv_worst) = (0.0f64, 0.0f64);
-            sim.run(20, |s| {
-                g_worst = s.constraint_values().iter().fold(g_worst, |m, x| m.max(x.abs()));
-                let speed = max_abs(s.velocity());
-                let gv = s.constraint_velocities();
-                gv_worst = gv.iter().fold(gv_worst, |m, x| m.max(x.abs() / speed));
-            })
-            .expect("steps");
-            let q_max = max_abs(&sim.state().q);
-            (g_worst, gv_worst, q_max, sim.saddle_point_bandwidth(), sim.stats().newton_iterations)
-        })
-        .unwrap()
-        .join()
-        .expect("the run in a 2 MiB thread");
-    let (g, gv, q_max, bandwidth, iterations) = run;
-    println!(
-        "10 000 links, 20 steps: max |g| {g:.2e} (positions up to {q_max:.0}), max |G v|/|v| {gv:.2e}, saddle-point bandwidth {bandwidth}, {iterations} newton iterations"
-    );
-    // `g = |Δx|² − 1` from coordinates of size up to 100: round-off is
-    // `ε·|q|` per coordinate, 2.2e-14 here.
-    assert!(g <= 8.0 * f64::EPSILON * q_max, "max |g| = {g:e}");
-    assert!(gv <= 1e-13, "max |G v| / |v| = {gv:e}");
 }
 
 #[test]
