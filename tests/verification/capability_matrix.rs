@@ -192,12 +192,14 @@ fn constraints_table() -> (String, Vec<Vec<bool>>) {
     let mut table = format!("| method | {} |\n|---|{}\n", columns.join(" | "), "---|".repeat(columns.len()));
     let mut cells = Vec::new();
     for (name, outcomes) in &rows {
+        // `|g|` in a cell would end it: markdown needs the bars escaped.
         let text: Vec<String> = outcomes
             .iter()
             .map(|o| match o {
                 Ok(s) => format!("works: {s}"),
                 Err(e) => format!("refused: {e}"),
             })
+            .map(|cell| cell.replace('|', "\\|"))
             .collect();
         table += &format!("| {name} | {} |\n", text.join(" | "));
         cells.push(outcomes.iter().map(Result::is_ok).collect::<Vec<_>>());

@@ -41,7 +41,7 @@ impl Chain {
             let (dx, dy) = (q[2 * r] - x, q[2 * r + 1] - y);
             g[r] = dx * dx + dy * dy - 1.0;
             if q[2 * r + 1].re() > self.nan_above {
-                g[r] = g[r] + (-q[2 * r + 1]).sqrt();
+                g[r] += (-q[2 * r + 1]).sqrt();
             }
             x = q[2 * r];
             y = q[2 * r + 1];
