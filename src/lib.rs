@@ -193,7 +193,6 @@ pub use lagrangian_macros::lagrangian;
 // The public surface, listed: the types a user names, and the modules that
 // are documented extension points. The engine's internals (`tape`, `banded`,
 // `hyperdual`, `chunk`) stay in the runtime crate.
-pub use lagrangian_runtime::Constrained;
 pub use lagrangian_runtime::num_dual;
 pub use lagrangian_runtime::{
     Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives,
@@ -207,6 +206,7 @@ pub use lagrangian_runtime::{
     TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
+pub use lagrangian_runtime::{Constrained, DynConstrained};
 pub use lagrangian_runtime::{
     auto, constrained, dense, derivatives, dim, discrete, double_double, ensemble, events, forcing, galerkin, guidance,
     mechanics, newton, noether, problem, sensitivity, solution, structure, symplectic, system, time_transform,
@@ -215,7 +215,6 @@ pub use lagrangian_runtime::{
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
-    pub use lagrangian_runtime::Constrained;
     pub use lagrangian_runtime::problem::{Capability, GalerkinQuadrature, OnePoint};
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
     pub use lagrangian_runtime::{
@@ -226,6 +225,7 @@ pub mod prelude {
     pub use lagrangian_runtime::{Auto, Estimate, Solved, Tolerance, solve_to};
     pub use lagrangian_runtime::{Checkpoints, Loss, Parametric};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
+    pub use lagrangian_runtime::{Constrained, DynConstrained};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
     pub use lagrangian_runtime::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};

@@ -5,6 +5,11 @@
 //! Run with `cargo bench -p lagrangian-bench --bench constrained`; the
 //! ratio constrained / minimal of each group is the cost of the constraints
 //! (a larger `N`, the multipliers, the projection of the momenta).
+//!
+//! The last group steps a hanging chain of 100 … 10 000 planar links in
+//! Cartesian coordinates (`DynConstrained`: banded saddle-point solves) and
+//! prints the cost per step against the number of links with its fitted
+//! exponent (1 for a cost linear in `N`).
 #![allow(missing_docs)]
 
 use std::hint::black_box;
@@ -12,6 +17,8 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
+use lagrangian::{Coupling, Pattern, Separability};
+use lagrangian_bench::clock::Clock;
 
 const H: f64 = 0.01;
 
@@ -88,5 +95,107 @@ fn double_pendulum(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, pendulum, double_pendulum);
+/// A chain of `links` unit links with unit masses at the joints, hanging
+/// from a pivot at the origin under unit gravity, in Cartesian coordinates
+/// `(x₁, y₁, …, x_n, y_n)`. Written against the trait by hand: the
+/// structure of its constraint Jacobian is found by `DynConstrained`.
+struct Chain(usize);
+
+impl DynLagrangian for Chain {
+    const AUTONOMOUS: bool = true;
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const COUPLING: Coupling = Coupling { q_q: Pattern::Diagonal, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
+
+    fn dimension(&self) -> usize {
+        2 * self.0
+    }
+
+    fn lagrangian<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
+        let mut l = D::zero();
+        for i in 0..self.0 {
+            l += (v[2 * i] * v[2 * i] + v[2 * i + 1] * v[2 * i + 1]) * 0.5 - q[2 * i + 1];
+        }
+        l
+    }
+
+    fn constraint_count(&self) -> usize {
+        self.0
+    }
+
+    fn constraints<D: Scalar>(&self, _: D, q: &[D], g: &mut [D]) {
+        let (mut x, mut y) = (D::zero(), D::zero());
+        for r in 0..self.0 {
+            let (dx, dy) = (q[2 * r] - x, q[2 * r + 1] - y);
+            g[r] = dx * dx + dy * dy - 1.0;
+            x = q[2 * r];
+            y = q[2 * r + 1];
+        }
+    }
+}
+
+/// The chain folded: link `r` goes sideways by `±c` and down by 0.01.
+fn folded(links: usize) -> Vec<f64> {
+    let s = 0.01f64;
+    let c = (1.0 - s * s).sqrt();
+    (0..2 * links)
+        .map(|i| {
+            if i % 2 == 1 {
+                -s * (i / 2 + 1) as f64
+            } else if (i / 2) % 2 == 0 {
+                c
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+fn slope(n: &[f64], t: &[f64]) -> f64 {
+    let x: Vec<f64> = n.iter().map(|v| v.ln()).collect();
+    let y: Vec<f64> = t.iter().map(|v| v.ln()).collect();
+    let (mx, my) = (x.iter().sum::<f64>() / x.len() as f64, y.iter().sum::<f64>() / y.len() as f64);
+    let sxy: f64 = x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let sxx: f64 = x.iter().map(|a| (a - mx) * (a - mx)).sum();
+    sxy / sxx
+}
+
+fn chain(c: &mut Criterion) {
+    const STEPS: usize = 10;
+    // (links, repeats of STEPS steps)
+    let sizes = [(100, 40), (300, 20), (1_000, 10), (3_000, 5), (10_000, 3)];
+    let mut per_step = Vec::new();
+    for &(links, repeats) in &sizes {
+        let q0 = folded(links);
+        let v0 = vec![0.0; 2 * links];
+        let mut sim = DynConstrained::start(Chain(links), Midpoint, 1e-3, 0.0, &q0, &v0).unwrap();
+        let mut run = move || {
+            sim.run(STEPS, |_| {}).unwrap();
+            black_box(sim.state().q[0]);
+        };
+        let mut g = c.benchmark_group(format!("hanging chain, {links} links, {STEPS} steps"));
+        g.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+        g.bench_function("DynConstrained midpoint (banded saddle point)", |b| b.iter(&mut run));
+        g.finish();
+        // CPU time of this thread, best of the repeats: comparable across
+        // sizes on a busy machine (see `lagrangian_bench::clock`).
+        let best = (0..repeats)
+            .map(|_| {
+                let clock = Clock::start();
+                run();
+                clock.seconds() / STEPS as f64
+            })
+            .fold(f64::INFINITY, f64::min);
+        per_step.push(best);
+    }
+    println!(
+        "\nhanging chain in Cartesian coordinates (DynConstrained, midpoint, h = 1e-3), µs per step (best of repeated runs):"
+    );
+    for (&(links, _), t) in sizes.iter().zip(&per_step) {
+        println!("  {links:>6} links (N = {:>6}, M = {links:>6}): {:>10.1} µs", 2 * links, t * 1e6);
+    }
+    let n: Vec<f64> = sizes.iter().map(|s| s.0 as f64).collect();
+    println!("fitted cost exponent in the number of links (100 … 10 000): {:.2}", slope(&n, &per_step));
+}
+
+criterion_group!(benches, pendulum, double_pendulum, chain);
 criterion_main!(benches);

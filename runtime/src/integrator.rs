@@ -33,12 +33,15 @@ mod tape_step;
 mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
+pub(crate) use dynamic::Sliced;
 pub use dynamic::{DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
 pub use sparse::Derivatives;
 pub(crate) use sparse::velocity as reverse_mode_velocity;
+pub(crate) use tape_step::{SparseWork, TapeModel, velocity_derivatives};
+pub(crate) use tape_step::{energy as tape_energy, legendre as tape_legendre};
 pub(crate) use variable_step::root_band;
 pub use variable_step::{EnergyFallback, StepBounds};
 

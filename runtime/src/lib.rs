@@ -45,6 +45,7 @@ pub mod time_transform;
 
 pub use auto::{Auto, Estimate, Solved, Tolerance, solve_to};
 pub use constrained::Constrained;
+pub use constrained::dynamic::DynConstrained;
 pub use dense::Node;
 pub use derivatives::{ActionGradient, ExtendedStepDerivatives, Segment, StepDerivatives};
 pub use discrete::{AlphaBeta, DiscreteLagrangian, Midpoint, Trapezoid};

@@ -375,6 +375,28 @@ pub trait DynLagrangian {
     /// The Lagrangian `L(t, q, v)` with `q.len() == v.len() == self.dimension()`.
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
 
+    /// The number `M` of holonomic constraints `g(t, q) = 0` (see
+    /// [`Lagrangian::CONSTRAINTS`]); 0 (none) by default. A constrained
+    /// run-time-sized system runs only under
+    /// [`DynConstrained`](crate::DynConstrained), which finds
+    /// the structure of `G = ∂g/∂q` by itself and solves the steps of a
+    /// banded one in `O(n)`; [`DynIntegrator`](crate::DynIntegrator)
+    /// refuses it.
+    fn constraint_count(&self) -> usize {
+        0
+    }
+
+    /// `false` when [`constraints`](Self::constraints) depends on time.
+    const CONSTRAINTS_AUTONOMOUS: bool = true;
+
+    /// The constraint values `g(t, q)` written into `g`, of length
+    /// [`constraint_count`](Self::constraint_count); generic over the
+    /// [`Scalar`] so that dual numbers seeded on `q` give `G`. The default
+    /// writes nothing.
+    fn constraints<D: Scalar>(&self, t: D, q: &[D], g: &mut [D]) {
+        let _ = (t, q, g);
+    }
+
     /// `true` when [`gradient_q`](Self::gradient_q) is generated adjoint
     /// code (see [`Lagrangian::HAS_GRADIENT`]).
     const HAS_GRADIENT: bool = false;
@@ -443,6 +465,17 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         (**self).lagrangian(t, q, v)
+    }
+
+    fn constraint_count(&self) -> usize {
+        (**self).constraint_count()
+    }
+
+    const CONSTRAINTS_AUTONOMOUS: bool = S::CONSTRAINTS_AUTONOMOUS;
+
+    #[inline(always)]
+    fn constraints<D: Scalar>(&self, t: D, q: &[D], g: &mut [D]) {
+        (**self).constraints(t, q, g);
     }
 
     const HAS_GRADIENT: bool = S::HAS_GRADIENT;

@@ -663,6 +663,54 @@ impl Tape {
         }
         Ok(())
     }
+
+    /// For each of `outputs` (values computed during the last recording, or
+    /// constants), the smallest and largest input it depends on through the
+    /// recorded operations, `None` for a constant: one forward pass over the
+    /// nodes, each taking the union of its parents' ranges.
+    ///
+    /// The ranges are structural, not numerical: an operation whose partial
+    /// happens to be zero at the recorded point still counts, so the ranges
+    /// hold wherever the function takes the same operations (a body without
+    /// branches on its inputs). This is how the runtime finds the band of a
+    /// constraint Jacobian (`constrained/sparsity.rs`). A `Var` of another
+    /// recording is [`TapeError::Stale`].
+    pub fn input_ranges(&self, outputs: &[Var], ranges: &mut [Option<(usize, usize)>]) -> Result<(), TapeError> {
+        if !self.recorded {
+            return Err(TapeError::NoRecording);
+        }
+        expect_len("ranges", ranges.len(), outputs.len())?;
+        let generation = self.vars.first().map_or(0, |v| v.generation);
+        if outputs
+            .iter()
+            .any(|v| v.index != NONE && (v.generation != generation || v.index as usize >= self.nodes.len()))
+        {
+            return Err(TapeError::Stale);
+        }
+        let mut span: Vec<(u32, u32)> = Vec::new();
+        span.try_reserve_exact(self.nodes.len()).map_err(|_| TapeError::TooLarge)?;
+        for (i, node) in self.nodes.iter().enumerate() {
+            let own = if i < self.inputs {
+                (i as u32, i as u32)
+            } else {
+                let a = span[node.a as usize];
+                if node.b == NONE {
+                    a
+                } else {
+                    let b = span[node.b as usize];
+                    (a.0.min(b.0), a.1.max(b.1))
+                }
+            };
+            span.push(own);
+        }
+        for (range, v) in ranges.iter_mut().zip(outputs) {
+            *range = (v.index != NONE).then(|| {
+                let (lo, hi) = span[v.index as usize];
+                (lo as usize, hi as usize)
+            });
+        }
+        Ok(())
+    }
 }
 
 /// One chunk of directions `first..first + W` of a second-order sweep.

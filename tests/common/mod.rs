@@ -5,6 +5,7 @@ use lagrangian::prelude::*;
 
 pub mod forced;
 pub mod galerkin_reference;
+pub mod links;
 pub mod schemes;
 
 /// `L = ½ m l² θ̇² + m g l cos θ`.

@@ -11,6 +11,7 @@
 
 mod chain;
 mod forces;
+mod large_chain;
 mod tangent;
 mod time;
 

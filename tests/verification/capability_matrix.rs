@@ -25,6 +25,188 @@ impl Pendulum {
 /// What a cell did: a checked number, or the error it was refused with.
 type Outcome = Result<String, String>;
 
+/// A unit pendulum under unit gravity as a point `(x, y)` on the unit circle.
+pub struct CartesianPendulum;
+
+#[lagrangian]
+impl CartesianPendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
+        [q[0] * q[0] + q[1] * q[1] - 1.0]
+    }
+}
+
+/// The same pendulum damped by `R = ½ c |v|²`, c = 0.3.
+pub struct DampedCartesianPendulum;
+
+#[lagrangian]
+impl DampedCartesianPendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.15 * (v[0] * v[0] + v[1] * v[1])
+    }
+    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
+        [q[0] * q[0] + q[1] * q[1] - 1.0]
+    }
+}
+
+/// A pendulum whose length grows as `1 + 0.1 t`: a moving constraint.
+pub struct GrowingPendulum;
+
+#[lagrangian]
+impl GrowingPendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn constraints(&self, t: f64, q: [f64; 2]) -> [f64; 1] {
+        let l = 1.0 + 0.1 * t;
+        [q[0] * q[0] + q[1] * q[1] - l * l]
+    }
+}
+
+/// `|x² + y² − l²|`.
+fn off_circle(q: [f64; 2], l: f64) -> f64 {
+    (q[0] * q[0] + q[1] * q[1] - l * l).abs()
+}
+
+/// The Cartesian pendulum from 1 rad at rest.
+const ON_CIRCLE: [f64; 2] = [0.8414709848078965, -0.5403023058681398];
+
+/// Constrained fixed steps: the largest `|g|` over 1000 steps of `h` (≤ 1e-14).
+fn constrained_fixed<M: Method<f64>>(m: M, h: f64) -> Outcome {
+    let q0 = [1f64.sin(), -1f64.cos()];
+    let mut sim = Integrator::new(CartesianPendulum, m, h).start(0.0, q0, [0.0; 2]).map_err(|e| e.to_string())?;
+    let mut worst = 0.0f64;
+    for _ in 0..1000 {
+        sim.step().map_err(|e| e.to_string())?;
+        worst = worst.max(off_circle(sim.state().q, 1.0));
+    }
+    assert!(worst <= 1e-14, "{worst:e}");
+    Ok(format!("max |g| {worst:.1e}"))
+}
+
+/// Constrained fixed steps of the damped pendulum: the largest `|g|` over
+/// 1000 steps (≤ 1e-14), and the energy lost (> 0).
+fn constrained_forced<M: Method<f64>>(m: M, h: f64) -> Outcome {
+    let q0 = [1f64.sin(), -1f64.cos()];
+    let mut sim = Integrator::new(DampedCartesianPendulum, m, h).start(0.0, q0, [0.0; 2]).map_err(|e| e.to_string())?;
+    // Unit mass: `p = v`, `E = ½|p|² + y`.
+    let energy = |s: &State<2>| 0.5 * (s.p[0] * s.p[0] + s.p[1] * s.p[1]) + s.q[1];
+    let e0 = energy(sim.state());
+    let mut worst = 0.0f64;
+    for _ in 0..1000 {
+        sim.step().map_err(|e| e.to_string())?;
+        worst = worst.max(off_circle(sim.state().q, 1.0));
+    }
+    let lost = e0 - energy(sim.state());
+    assert!(worst <= 1e-14 && lost > 0.0, "{worst:e}, {lost:e}");
+    Ok(format!("max |g| {worst:.1e}, energy lost {lost:.2}"))
+}
+
+/// Constrained fixed steps with a moving constraint: the largest `|g(t, q)|`
+/// over 1000 steps (≤ 1e-13).
+fn constrained_moving<M: Method<f64>>(m: M, h: f64) -> Outcome {
+    let mut sim =
+        Integrator::new(GrowingPendulum, m, h).start(0.0, [0.0, -1.0], [1.0, -0.1]).map_err(|e| e.to_string())?;
+    let mut worst = 0.0f64;
+    for _ in 0..1000 {
+        sim.step().map_err(|e| e.to_string())?;
+        worst = worst.max(off_circle(sim.state().q, 1.0 + 0.1 * sim.state().t));
+    }
+    assert!(worst <= 1e-13, "{worst:e}");
+    Ok(format!("max |g| {worst:.1e}"))
+}
+
+/// Constrained energy-preserving steps: the largest `|g|` over 100 steps, if
+/// they start at all.
+fn constrained_energy_steps<M: Method<f64>>(m: M, h: f64) -> Outcome {
+    let mut sim = Integrator::new(CartesianPendulum, m, h)
+        .energy_preserving(StepBounds::around(h))
+        .start(0.0, ON_CIRCLE, [0.0; 2])
+        .map_err(|e| e.to_string())?;
+    let mut worst = 0.0f64;
+    for _ in 0..100 {
+        sim.step().map_err(|e| e.to_string())?;
+        worst = worst.max(off_circle(sim.state().q, 1.0));
+    }
+    Ok(format!("max |g| {worst:.1e}"))
+}
+
+/// A chain of 10 000 links (N = 20 000) under `DynConstrained`: the
+/// largest `|g|` over 5 steps of 1e-3 (≤ 8ε·max|q|), and the bandwidth of
+/// the saddle-point matrix.
+fn constrained_large<R: DiscreteLagrangian>(rule: R) -> Outcome {
+    let (g, _, q_max, bandwidth) = common::links::run(10_000, rule, 1e-3, 5).map_err(|e| e.to_string())?;
+    assert!(g <= 8.0 * f64::EPSILON * q_max, "{g:e}");
+    Ok(format!("N = 20 000: max |g| {g:.1e}, saddle-point bandwidth {bandwidth}"))
+}
+
+/// The large-`N` cell of a family `DynConstrained` cannot take (its rule
+/// type is not a one-point discrete Lagrangian): no value to refuse.
+const NO_LARGE: &str = "no such integrator: `DynConstrained` takes the one-point rules (midpoint, trapezoid, α-β)";
+
+/// One row of the constraints table: fixed, forces, moving constraints,
+/// energy-preserving steps, large N.
+fn constrained_row<M: Method<f64> + Copy>(m: M, h: f64, large: Outcome) -> [Outcome; 5] {
+    [constrained_fixed(m, h), constrained_forced(m, h), constrained_moving(m, h), constrained_energy_steps(m, h), large]
+}
+
+/// The constraints table: each constrained family × what it is asked to
+/// carry, as markdown, with whether each cell works.
+fn constraints_table() -> (String, Vec<Vec<bool>>) {
+    let ab = AlphaBeta::new(0.3).unwrap();
+    let rows: Vec<(&str, [Outcome; 5])> = vec![
+        (
+            "constrained midpoint",
+            constrained_row(Constrained::<_, 1>::new(Midpoint), 0.01, constrained_large(Midpoint)),
+        ),
+        (
+            "constrained trapezoid",
+            constrained_row(Constrained::<_, 1>::new(Trapezoid), 0.01, constrained_large(Trapezoid)),
+        ),
+        ("constrained α-β (α = 0.3)", constrained_row(Constrained::<_, 1>::new(ab), 0.01, constrained_large(ab))),
+        (
+            "constrained Galerkin s = 2",
+            constrained_row(Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss()), 0.05, Err(NO_LARGE.into())),
+        ),
+        (
+            "constrained Galerkin s = 3",
+            constrained_row(Constrained::<_, 1>::galerkin(Galerkin::<3, 3>::gauss()), 0.05, Err(NO_LARGE.into())),
+        ),
+        (
+            "constrained Yoshida 4",
+            constrained_row(Constrained::<_, 1>::composition(Composition::YOSHIDA4), 0.01, Err(NO_LARGE.into())),
+        ),
+    ];
+    let columns = [
+        "fixed: Cartesian pendulum",
+        "forces: damped pendulum",
+        "moving constraint: growing pendulum",
+        "energy-preserving steps",
+        "large N: chain of 10 000 links, run-time-sized",
+    ];
+    let mut table = format!("| method | {} |\n|---|{}\n", columns.join(" | "), "---|".repeat(columns.len()));
+    let mut cells = Vec::new();
+    for (name, outcomes) in &rows {
+        // `|g|` in a cell would end it: markdown needs the bars escaped.
+        let text: Vec<String> = outcomes
+            .iter()
+            .map(|o| match o {
+                Ok(s) => format!("works: {s}"),
+                Err(e) => format!("refused: {e}"),
+            })
+            .map(|cell| cell.replace('|', "\\|"))
+            .collect();
+        table += &format!("| {name} | {} |\n", text.join(" | "));
+        cells.push(outcomes.iter().map(Result::is_ok).collect::<Vec<_>>());
+    }
+    (table, cells)
+}
+
 fn damped() -> DampedOscillator {
     DampedOscillator { m: 1.0, k: 4.0, c: 0.5 }
 }
@@ -218,9 +400,24 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     print!("{table}");
     let (schemes, defined) = scheme_table();
     print!("{schemes}");
+    let (constraints, constrained_cells) = constraints_table();
+    print!("{constraints}");
     if let Some(page) = std::env::var_os("LAGRANGIAN_CAPABILITIES") {
-        std::fs::write(&page, capabilities_page(&table, &schemes)).expect("the capabilities page is writable");
+        std::fs::write(&page, capabilities_page(&table, &schemes, &constraints))
+            .expect("the capabilities page is writable");
     }
+    // Constraints: fixed steps of every family carry them; forces and
+    // moving constraints the one-point rules only (the Galerkin and
+    // composition steps refuse them by name); no family takes
+    // energy-preserving steps; the run-time-sized chain runs under the
+    // one-point rules.
+    let one_point = vec![true, true, true, false, true];
+    let other = vec![true, false, false, false, false];
+    assert_eq!(
+        constrained_cells,
+        vec![one_point.clone(), one_point.clone(), one_point, other.clone(), other.clone(), other],
+        "constraints table:\n{constraints}"
+    );
     // What `supports` defines: every family with fixed steps at compile-time
     // size; energy steps for the one-point and Galerkin rules (balance
     // steps, of a forced system, for the one-point rules); forces with
@@ -324,7 +521,7 @@ fn scheme_table() -> (String, Vec<[bool; 10]>) {
 
 /// The generated page `docs/capabilities.md`: the matrices with where and
 /// how they were made.
-fn capabilities_page(table: &str, schemes: &str) -> String {
+fn capabilities_page(table: &str, schemes: &str, constraints: &str) -> String {
     let days = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs() / 86_400);
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     format!(
@@ -342,7 +539,15 @@ fn capabilities_page(table: &str, schemes: &str) -> String {
          return at construction, with this text. A defined cell may still be refused by its driver for the \
          values of a system (a mass matrix that is not constant for the splitting; the energy equation without \
          a root, as above). The behaviour test `method_matrix` steps, lands, solves and writes every defined \
-         fixed-step cell.\n\n{schemes}",
+         fixed-step cell.\n\n{schemes}\n\
+         ## Holonomic constraints\n\n\
+         Each constrained family (`Constrained`) on a pendulum written as a point on the unit circle, from 1 rad at \
+         rest: fixed steps (largest `|g|` over 1000 steps), with Rayleigh damping (largest `|g|` and the energy \
+         lost), with a constraint that moves (a length growing as `1 + 0.1 t`), with energy-preserving steps; and a \
+         hanging chain of 10 000 planar links in Cartesian coordinates (N = 20 000, M = 10 000) under the \
+         run-time-sized `DynConstrained`, whose saddle-point systems are banded (largest `|g|` over 5 steps). A \
+         refused cell quotes the typed error; `no such integrator` marks a combination that has no type to \
+         refuse it.\n\n{constraints}",
         civil_date(days as i64),
         std::env::consts::OS,
         std::env::consts::ARCH,

@@ -36,9 +36,12 @@
 
 mod composition;
 mod cotangent;
+pub mod dynamic;
 mod galerkin;
+mod kkt;
 mod linear;
 mod project;
+mod sparsity;
 mod tangent;
 
 use nalgebra::{SMatrix, SVector};

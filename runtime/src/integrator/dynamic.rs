@@ -192,6 +192,37 @@ pub enum DynError {
         /// What is missing.
         what: &'static str,
     },
+    /// Holonomic constraints: initial data off the constraint manifold or
+    /// its tangent space by more than the tolerance (relative; see
+    /// [`Error::InconsistentConstraints`](crate::Error::InconsistentConstraints)).
+    #[error(
+        "initial data inconsistent with the constraints: relative distance {position:e} from the manifold, {velocity:e} from its tangent space (tolerance {tolerance:e})"
+    )]
+    InconsistentConstraints {
+        /// The relative distance from the constraint manifold.
+        position: f64,
+        /// The relative size of the velocity component normal to it.
+        velocity: f64,
+        /// The tolerance both must meet.
+        tolerance: f64,
+    },
+    /// Holonomic constraints: the constraint Jacobian `G = ∂g/∂q` is
+    /// rank-deficient (redundant constraints, a constraint that does not
+    /// depend on `q`, a singular configuration).
+    #[error("rank-deficient constraint jacobian at t = {} (step {}): reciprocal condition number {rcond:e}", .state.t, .state.step)]
+    SingularConstraints {
+        /// The state the integrator holds (the initial data at the start).
+        state: DynState,
+        /// The reciprocal condition number of the saddle-point matrix whose
+        /// upper-left block alone is regular.
+        rcond: f64,
+    },
+    /// Holonomic constraints: `g(q)` or its Jacobian is NaN or infinite.
+    #[error("non-finite constraint value at t = {} (step {})", .state.t, .state.step)]
+    NonFiniteConstraints {
+        /// The state the integrator holds (the initial data at the start).
+        state: DynState,
+    },
     /// The velocity for a momentum could not be found (inverse Legendre transform).
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
     InverseLegendre {
@@ -246,12 +277,17 @@ impl DynError {
 /// both points coincide (midpoint, α-β). Each term is formed with the same
 /// operations as the rule's own `action`, so the const-size and the
 /// run-time-sized integrators record the same tape.
-struct Sliced<'a, S> {
+pub(crate) struct Sliced<'a, S> {
     system: &'a S,
     points: [f64; 2],
 }
 
-impl<S: DynLagrangian> Sliced<'_, S> {
+impl<'a, S: DynLagrangian> Sliced<'a, S> {
+    /// The model of `system` under the rule with quadrature points `points`.
+    pub(crate) fn new(system: &'a S, points: [f64; 2]) -> Self {
+        Self { system, points }
+    }
+
     /// `L(t0 + c h, q0 + c Δq, v)`.
     fn at(&self, c: f64, t0: Var, h: Var, q0: &[Var], dq: &[Var], v: &[Var]) -> Var {
         let (t, q): (Var, Vec<Var>) = if c == 0.0 {
@@ -342,7 +378,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     ///
     /// Fails with [`DynError::Unsupported`] for a discrete Lagrangian
     /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
-    /// or a system so large that the step's buffers cannot be allocated;
+    /// a system with holonomic constraints (stepped by
+    /// [`DynConstrained`](crate::DynConstrained)), or a system so large that
+    /// the step's buffers cannot be allocated;
     /// with [`DynError::InvalidStepSize`] for a step that is not finite and
     /// positive, [`DynError::InvalidNewtonOptions`], [`DynError::WrongLength`]
     /// when `q0` or `v0` does not have `dimension()` entries, and
@@ -358,6 +396,11 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         self.newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
         DynError::check_step(self.h)?;
         let n = self.system.dimension();
+        if self.system.constraint_count() > 0 {
+            return Err(DynError::Unsupported {
+                what: "a system with holonomic constraints under `DynIntegrator`: step it with `DynConstrained`",
+            });
+        }
         if n == 0 {
             return Err(DynError::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
         }

@@ -797,3 +797,33 @@ fn var_is_small_and_prints_its_value() {
     );
     assert!(Var::zero().is_zero() && Var::from(-2.0).is_negative() && Var::from(-2.0) < 1.0 && Var::from(3.0) == 3.0);
 }
+
+/// `input_ranges` follows the operations, not the values: a derivative that
+/// vanishes at the recorded point (`x₁·0` through `x₁ − x₁`) still counts,
+/// a constant output has no range, and a `Var` of another recording is
+/// refused.
+#[test]
+fn input_ranges_are_structural() {
+    let mut tape = Tape::new();
+    let mut outputs = [Var::constant(0.0); 4];
+    tape.record(&[1.0, 2.0, 3.0, 4.0, 5.0], |x: &[Var]| {
+        outputs[0] = x[0] * x[1];
+        outputs[1] = (x[3] - x[1]).sin() + (x[2] - x[2]) * x[1];
+        outputs[2] = Var::constant(7.0) * 2.0;
+        outputs[3] = (x[4] * x[4]).sqrt();
+        outputs[0]
+    })
+    .unwrap();
+    let mut ranges = [None; 4];
+    tape.input_ranges(&outputs, &mut ranges).unwrap();
+    assert_eq!(ranges, [Some((0, 1)), Some((1, 3)), None, Some((4, 4))]);
+    let mut other = Tape::new();
+    let mut stale = Var::constant(0.0);
+    other
+        .record(&[1.0], |x: &[Var]| {
+            stale = x[0] * 2.0;
+            stale
+        })
+        .unwrap();
+    assert_eq!(tape.input_ranges(&[stale], &mut [None]), Err(TapeError::Stale));
+}

@@ -172,6 +172,68 @@ impl SparseWork {
         }
     }
 
+    /// The bandwidth of the step Jacobian the work assembles (`None`:
+    /// general, stored as whole rows).
+    pub(crate) fn step_bandwidth(&self) -> Option<usize> {
+        self.bandwidth
+    }
+
+    /// `∂A/∂q_k|_{q_{k+1}}` at the increment `dq` into `d_q0`, and the step
+    /// Jacobian `J = ∂²A/∂q_k∂q_{k+1}` returned in band storage (row `i`'s
+    /// `2b + 1` entries around the diagonal, whole rows without a band):
+    /// what a constrained step's saddle-point system is assembled from
+    /// (`constrained/dynamic.rs`). From the gradient code on dual lanes when
+    /// the system has it, from the tape otherwise, as in [`solve`](Self::solve).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn linearize_step<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        q0: &[f64],
+        dq: &[f64],
+        d_q0: &mut [f64],
+    ) -> Result<&[f64], Breakdown> {
+        let (n, bandwidth) = (self.n, self.bandwidth);
+        match directional_points(model) {
+            Some(points) => {
+                self.directional.allocate(n, bandwidth, model.autonomous()).map_err(breakdown)?;
+                self.directional.linearize(model, t0, h, points, q0, dq, bandwidth, d_q0, &mut self.mixed);
+            }
+            None => self.tape_linearize(model, t0, h, q0, dq, d_q0, Jacobian::Fresh)?,
+        }
+        Ok(&self.mixed)
+    }
+
+    /// After a constrained step converged: the momentum change at fixed
+    /// increment `∂A/∂q_k|_{Δq}` into `out`, and the step's discrete energy
+    /// `−∂A/∂h`; `Err` when the action is not finite or the tape failed.
+    pub(crate) fn momentum_change<Mo: TapeModel>(
+        &mut self,
+        model: &Mo,
+        t0: f64,
+        h: f64,
+        q0: &[f64],
+        dq: &[f64],
+        out: &mut [f64],
+    ) -> Result<f64, Breakdown> {
+        let n = self.n;
+        let (energy, finite) = match directional_points(model) {
+            Some(points) => {
+                self.directional.allocate_values(n, model.autonomous()).map_err(breakdown)?;
+                self.directional.momentum_and_energy(model, t0, h, points, q0, dq, out)
+            }
+            None => {
+                self.tape_buffers().map_err(breakdown)?;
+                let action = self.record_action(model, t0, h, q0, dq).map_err(tape_breakdown)?;
+                self.tape.gradient(&mut self.gradient).map_err(tape_breakdown)?;
+                out.copy_from_slice(&self.gradient[..n]);
+                (-self.gradient[2 * n], action.is_finite())
+            }
+        };
+        if finite { Ok(energy) } else { Err(Breakdown::NonFinite("lagrangian")) }
+    }
+
     /// The tape's linearisation at the increment `dq`: `∂A/∂q_k|_{q_{k+1}} =
     /// g_{q_k} − g_{Δq}` into `d_q0` and, for a fresh `jacobian`,
     /// `J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq²` into `mixed`, from one recording and one

@@ -80,7 +80,7 @@ pub(super) fn potential_force<Mo: TapeModel>(
 /// given bandwidth, or dense) at `(t, q, v)`: from the system's gradient
 /// code (on `f64`, and by colour classes on dual numbers) when it has it,
 /// else from one second-order sweep of a tape with the inputs `v`.
-pub(super) fn velocity_derivatives<Mo: TapeModel>(
+pub(crate) fn velocity_derivatives<Mo: TapeModel>(
     model: &Mo,
     t: f64,
     q: &[f64],
@@ -111,11 +111,11 @@ pub(super) fn velocity_derivatives<Mo: TapeModel>(
 
 /// A Hessian block read from the tape, ready to be factored.
 #[derive(Clone, Debug)]
-pub(super) struct Assembled {
+pub(crate) struct Assembled {
     pub(super) n: usize,
     pub(super) matrix: StepSolver,
-    pub(super) band: Vec<f64>,
-    pub(super) bandwidth: Option<usize>,
+    pub(crate) band: Vec<f64>,
+    pub(crate) bandwidth: Option<usize>,
 }
 
 impl Assembled {
