@@ -669,6 +669,42 @@ mod tests {
         assert!(Pullback::<LONG, 2>::new::<Chain<true>>(galerkin).is_err());
     }
 
+    /// `q_0 q_1 + p_{N−1}² + β q_5` at the end of the run.
+    struct Ends;
+
+    impl crate::sensitivity::Loss<LONG, 2> for Ends {
+        fn terminal<D: Scalar>(&self, _t: f64, q: [D; LONG], p: [D; LONG], theta: &[D; 2]) -> D {
+            q[0] * q[1] + p[LONG - 1] * p[LONG - 1] + theta[1] * q[5]
+        }
+    }
+
+    /// A whole run above `FORWARD_MAX_N` (the stepper in reverse mode, the
+    /// adjoint on the tape): the gradient against the chain rule through
+    /// the forward sensitivities of the last node.
+    #[test]
+    fn the_adjoint_of_a_long_chain_agrees_with_forward_sensitivities() {
+        use crate::problem::{Problem, Scheme};
+        let system = Chain::<true> { theta: [1.3, 0.7] };
+        let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
+        let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
+        let problem = Problem::new(system, 0.0, q0, v0);
+        let (h, t_end) = (0.05, 0.5);
+        let adjoint = problem.gradient(&Scheme::MIDPOINT, h, t_end, &Ends, crate::Checkpoints::Every(3)).unwrap();
+        let run = problem.solve_with_sensitivities(&Scheme::MIDPOINT, h, crate::Plan::until(t_end)).unwrap();
+        let (jac, x) = (run.jacobians.last().unwrap(), run.solution.q.len() - 1);
+        let (q, p) = (run.solution.q[x], run.solution.p[x]);
+        assert_eq!(adjoint.last.q, q);
+        // ∂ℓ/∂(q, p) and ∂ℓ/∂θ at the last node.
+        let mut g = [0.0; 2 * LONG];
+        (g[0], g[1], g[5], g[2 * LONG - 1]) = (q[1], q[0], 0.7, 2.0 * p[LONG - 1]);
+        let input = |j: usize| (0..2 * LONG).map(|i| g[i] * jac.get(i, j)).sum::<f64>();
+        let want: Vec<f64> = (0..2 * LONG + 2).map(|j| input(j) + if j == 2 * LONG + 1 { q[5] } else { 0.0 }).collect();
+        let got: Vec<f64> = adjoint.q0.iter().chain(&adjoint.v0).chain(&adjoint.theta).copied().collect();
+        let scale = want.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let gap = got.iter().zip(&want).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(gap <= 1e-12 * scale, "gap {gap:e} of {scale:e}");
+    }
+
     #[test]
     fn a_non_finite_newton_matrix_is_none() {
         let mut bad = piece(&[[0.03, -0.01]]);
