@@ -24,6 +24,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use lagrangian::prelude::*;
+use lagrangian::{Coupling, Pattern};
 
 /// The system allocator, counting live and peak bytes.
 struct Counting;
