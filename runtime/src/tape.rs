@@ -54,8 +54,6 @@
 //!   the full block for [`Seeds::dense`]. Rows may be any range of inputs, so
 //!   one product gives the mixed block `∂²A/∂q_k∂q_{k+1}` (rows `0..N`) and
 //!   the block `∂²A/∂q_{k+1}²` (rows `N..2N`) when columns `N..2N` are seeded.
-//! - [`Seeds::Along`] seeds one direction with any weights: `H·w`, the
-//!   Hessian–vector product a discrete adjoint contracts with, in one sweep.
 //!
 //! # Why
 //!
@@ -180,9 +178,9 @@ pub enum TapeError {
         /// The number of directions.
         directions: usize,
     },
-    /// [`Seeds::recover`] was called on [`Seeds::Colours`] or
-    /// [`Seeds::Along`], whose pattern it does not know.
-    #[error("`Seeds::Colours` and `Seeds::Along` have no known pattern to recover a block from")]
+    /// [`Seeds::recover`] was called on [`Seeds::Colours`], whose pattern it
+    /// does not know.
+    #[error("`Seeds::Colours` has no known pattern to recover a block from")]
     NoPattern,
 }
 
@@ -325,9 +323,8 @@ fn fail(rec: &mut Recording, index: usize) {
 }
 
 /// A compact seed matrix `S` (inputs × `K`): input `j` gets the unit vector
-/// of direction `colour(j)`, or no direction; or one direction `w` with any
-/// weights ([`Along`](Seeds::Along)).
-#[derive(Clone, Debug, PartialEq)]
+/// of direction `colour(j)`, or no direction.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Seeds<'a> {
     /// One direction per input of `columns`: `H·S` holds those columns of
     /// the Hessian exactly.
@@ -354,13 +351,6 @@ pub enum Seeds<'a> {
         /// The number of directions `K`; every colour must be below it.
         directions: usize,
     },
-    /// One direction, input `j` weighted `direction[j]`: `H·S` is the
-    /// Hessian–vector product `H·w`. [`recover`](Seeds::recover) does not
-    /// apply.
-    Along {
-        /// `w`, one entry per input.
-        direction: &'a [f64],
-    },
 }
 
 impl Seeds<'static> {
@@ -382,20 +372,18 @@ impl Seeds<'_> {
             Seeds::Dense { columns } => columns.len(),
             Seeds::Banded { columns, bandwidth } => columns.len().min(bandwidth.saturating_mul(2).saturating_add(1)),
             Seeds::Colours { directions, .. } => *directions,
-            Seeds::Along { .. } => 1,
         }
     }
 
-    /// The direction of input `j` and its weight, if seeded.
+    /// The direction of input `j`, if seeded.
     #[inline]
-    fn colour(&self, j: usize) -> Option<(usize, f64)> {
+    fn colour(&self, j: usize) -> Option<usize> {
         match self {
-            Seeds::Dense { columns } => columns.contains(&j).then(|| (j - columns.start, 1.0)),
+            Seeds::Dense { columns } => columns.contains(&j).then(|| j - columns.start),
             Seeds::Banded { columns, bandwidth } => {
-                columns.contains(&j).then(|| ((j - columns.start) % (2 * bandwidth + 1), 1.0))
+                columns.contains(&j).then(|| (j - columns.start) % (2 * bandwidth + 1))
             }
-            Seeds::Colours { colour, .. } => colour[j].map(|c| (c as usize, 1.0)),
-            Seeds::Along { direction } => Some((0, direction[j])),
+            Seeds::Colours { colour, .. } => colour[j].map(|c| c as usize),
         }
     }
 
@@ -414,7 +402,6 @@ impl Seeds<'_> {
                     None => Ok(()),
                 }
             }
-            Seeds::Along { direction } => expect_len("direction", direction.len(), inputs),
         }
     }
 
@@ -429,7 +416,7 @@ impl Seeds<'_> {
     ///   `c = r − b, …, r + b` in order (the band of row `r` around the
     ///   "diagonal" `c = r`); slots with `c` outside the columns are zero. The
     ///   block must vanish outside that band, which is what the seeds assume.
-    /// - [`Seeds::Colours`] and [`Seeds::Along`] fail with [`TapeError::NoPattern`].
+    /// - [`Seeds::Colours`] fails with [`TapeError::NoPattern`].
     pub fn recover(&self, hs: &[f64], rows: Range<usize>, out: &mut [f64]) -> Result<(), TapeError> {
         let k = self.directions();
         // With no directions (no columns) there is nothing to read and no
@@ -464,7 +451,7 @@ impl Seeds<'_> {
                 }
                 Ok(())
             }
-            Seeds::Colours { .. } | Seeds::Along { .. } => Err(TapeError::NoPattern),
+            Seeds::Colours { .. } => Err(TapeError::NoPattern),
         }
     }
 }
@@ -758,10 +745,10 @@ impl Sweep<'_, '_> {
 
         // Forward: the tangent of every node in the W directions.
         for j in 0..n {
-            if let Some((c, weight)) = self.seeds.colour(j)
+            if let Some(c) = self.seeds.colour(j)
                 && (self.first..self.first + W).contains(&c)
             {
-                lane[tan(j)][c - self.first] = weight;
+                lane[tan(j)][c - self.first] = 1.0;
             }
         }
         for i in n..live {
