@@ -15,7 +15,6 @@
 //! | `linear.rs` | Chen, Guo & Wu (finite elements) §2.2: the linear element (`s = 1`) with the potential integrated by a quadrature |
 //! | `quadratic.rs` | Chen, Guo & Wu (finite elements) §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
-//! | `predictor.rs` | the first guess of a step: the last step's polynomial extrapolated and corrected by its interpolation error; the first step's Taylor polynomial |
 //! | `collocation.rs` | Gauss rules as collocation: the step by fixed-point iteration on the velocities at the points, no Jacobian |
 //! | `stepper.rs` | the Galerkin rules as a [`Method`](crate::Method) of the one [`Integrator`](crate::Integrator): the block Newton step (fixed steps, forces), tangent map |
 //! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |

@@ -20,9 +20,8 @@
 //! points ([`Galerkin`](super::Galerkin)), and the correction comes from a
 //! statically sized LU with partial pivoting; nothing is allocated while
 //! stepping. The first guess extrapolates the previous step's polynomial to
-//! the new interval, corrected for Gauss rules by its interpolation error
-//! (`predictor.rs`); the first step starts from the Taylor polynomial
-//! `q_0 + τh v_0 + ½(τh)² a_0`. The iteration is simplified Newton (the
+//! the new interval (error `O(h^{s+1})`); the first step starts from the
+//! straight line `q_0 + τ h v_0`. The iteration is simplified Newton (the
 //! Jacobian of the first guess kept for the whole step); if that fails, full
 //! Newton from the same guess, then from a straight line, and only then a
 //! typed error. Iteration counts include every attempt.
