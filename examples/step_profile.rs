@@ -21,9 +21,6 @@
 //! compensated sums the generated steps keep (`Stepper::step_compensated`); `pendulum galerkin6` and
 //! `kepler galerkin6` (Galerkin s = 6, 6 Gauss points, h = 0.1), `pendulum galerkin8`, `kepler galerkin4`,
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2; `galerkin4-newton`: solved by Newton only);
-//! `galerkin4-auto`, `galerkin7` and `galerkin7-auto` (s = 7, h = 0.05; `-auto`: `StageIteration::Automatic`, the
-//! fixed-point iteration where it contracts); `sensor galerkin3`, `galerkin5` and their `-auto` (the bench's
-//! forced sensor from rest, h = 2/34 and 2/17: its whole run in 34 and 17 steps);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
 //! `dyn-trapezoid` and `dyn-yoshida4` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (Yoshida 4 of explicit sub-steps, fused), and
@@ -48,7 +45,6 @@ mod compositions;
 #[path = "../bench/src/handwritten.rs"]
 mod handwritten;
 
-use common::forced::SENSOR_VARIABLE;
 use common::{DOUBLE_PENDULUM as DP, DoublePendulum, PENDULUM as P, Pendulum};
 use compositions::{Composition as Hand, Stepper};
 use handwritten::*;
@@ -60,9 +56,6 @@ use lagrangian::{
 use std::hint::black_box;
 
 const H: f64 = 0.01;
-
-/// Gauss rules solved by the fixed point where it contracts, Newton elsewhere.
-const AUTO: lagrangian::galerkin::StageIteration = lagrangian::galerkin::StageIteration::Automatic;
 
 /// The double pendulum of the tests with joint friction: a forced (Lagrange–d'Alembert) step.
 struct DampedDoublePendulum {
@@ -406,50 +399,6 @@ fn main() {
                 2.0 / 95.0,
             )
             .start(0.0, [1.0, -0.5], [0.0, 0.5]),
-            n,
-        ),
-        // Solved by the fixed-point iteration where it contracts (`StageIteration::Automatic`).
-        ("double pendulum", "galerkin4-auto") => run(
-            GalerkinIntegrator::new(
-                DoublePendulum { ..DP },
-                Galerkin::<4, 4>::gauss().with_iteration(AUTO),
-                2.0 / 95.0,
-            )
-            .start(0.0, [1.0, -0.5], [0.0, 0.5]),
-            n,
-        ),
-        ("double pendulum", "galerkin7-auto") => run(
-            GalerkinIntegrator::new(DoublePendulum { ..DP }, Galerkin::<7, 7>::gauss().with_iteration(AUTO), 0.05)
-                .start(0.0, [1.0, -0.5], [0.0, 0.5]),
-            n,
-        ),
-        ("double pendulum", "galerkin7") => run(
-            GalerkinIntegrator::new(DoublePendulum { ..DP }, Galerkin::<7, 7>::gauss(), 0.05).start(
-                0.0,
-                [1.0, -0.5],
-                [0.0, 0.5],
-            ),
-            n,
-        ),
-        // The bench's sensor from rest at the report's steps (t ≤ 2 in 34 and 17 steps).
-        ("sensor", "galerkin3") => run(
-            GalerkinIntegrator::new(SENSOR_VARIABLE, Galerkin::<3, 3>::gauss(), 2.0 / 34.0)
-                .start(0.0, [0.0; 2], [0.0; 2]),
-            n,
-        ),
-        ("sensor", "galerkin3-auto") => run(
-            GalerkinIntegrator::new(SENSOR_VARIABLE, Galerkin::<3, 3>::gauss().with_iteration(AUTO), 2.0 / 34.0)
-                .start(0.0, [0.0; 2], [0.0; 2]),
-            n,
-        ),
-        ("sensor", "galerkin5") => run(
-            GalerkinIntegrator::new(SENSOR_VARIABLE, Galerkin::<5, 5>::gauss(), 2.0 / 17.0)
-                .start(0.0, [0.0; 2], [0.0; 2]),
-            n,
-        ),
-        ("sensor", "galerkin5-auto") => run(
-            GalerkinIntegrator::new(SENSOR_VARIABLE, Galerkin::<5, 5>::gauss().with_iteration(AUTO), 2.0 / 17.0)
-                .start(0.0, [0.0; 2], [0.0; 2]),
             n,
         ),
         ("double pendulum", "trapezoid") => {

@@ -231,36 +231,26 @@ mod tests {
         core::array::from_fn(|j| g.point(0.0, h, (&[0.0; N], &[0.0; N]), d, j).2)
     }
 
-    fn miss<const N: usize, const S: usize>(
-        g: &Galerkin<S, S>,
-        h: f64,
-        guess: &[[f64; N]; S],
-        d: &[[f64; N]; S],
-    ) -> f64 {
+    fn miss<const N: usize, const S: usize>(g: &Galerkin<S, S>, h: f64, guess: &[[f64; N]; S], d: &[[f64; N]; S]) -> f64 {
         let (a, b) = (stage_velocities(g, h, guess), stage_velocities(g, h, d));
         let scale = b.as_flattened().iter().fold(0.0f64, |m, x| m.max(x.abs()));
         a.as_flattened().iter().zip(b.as_flattened()).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
     }
 
-    /// Median and largest miss (relative, in the stage velocities) of the
-    /// plain extrapolation and of the corrected one over `steps` steps, and
-    /// the first step's miss from the straight line and from the Taylor
-    /// polynomial.
+    /// Median and largest miss of the extrapolation, with the end-velocity
+    /// correction, and each with the last step's miss added.
     fn survey<Sys: Lagrangian<N>, const N: usize, const S: usize>(
         system: Sys,
         h: f64,
         steps: usize,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> [(f64, f64); 3] {
+    ) -> [(f64, f64); 4] {
         let g = Galerkin::<S, S>::gauss().with_iteration(StageIteration::Newton);
         let mut sim = Integrator::new(system, g, h).start(0.0, q0, v0).unwrap();
-        let line = g.control.map(|tau| v0.map(|v| v * tau * h));
-        let taylor = first_step(&sim.system, &g, (0.0, h), &q0, &v0);
         sim.step().unwrap();
-        let d = sim.memory.as_ref().unwrap().d;
-        let first = (miss(&g, h, &line, &d), miss(&g, h, &taylor, &d));
-        let mut misses: [Vec<f64>; 2] = Default::default();
+        let mut misses: [Vec<f64>; 4] = Default::default();
+        let mut last_miss = [[[0.0; N]; S]; 2];
         for _ in 1..steps {
             let last = sim.memory.as_ref().unwrap().clone();
             let plain = extrapolate(&g, &last.d, None);
@@ -268,42 +258,36 @@ mod tests {
             let defect = end_defect(&sim.system, &g, t1, h, (&q1, &p1), &last.d).unwrap();
             let mut corrected = plain;
             correct(&g, &mut corrected, &defect, None);
+            let mut guesses = [plain, corrected, plain, corrected];
+            for (k, guess) in guesses[2..].iter_mut().enumerate() {
+                for (row, e) in guess.iter_mut().zip(&last_miss[k]) {
+                    for (x, y) in row.iter_mut().zip(e) {
+                        *x += y;
+                    }
+                }
+            }
             sim.step().unwrap();
             let d = sim.memory.as_ref().unwrap().d;
-            misses[0].push(miss(&g, h, &plain, &d));
-            misses[1].push(miss(&g, h, &corrected, &d));
+            for (k, guess) in guesses.iter().enumerate() {
+                misses[k].push(miss(&g, h, guess, &d));
+            }
+            for (k, base) in [plain, corrected].iter().enumerate() {
+                last_miss[k] = core::array::from_fn(|m| core::array::from_fn(|i| d[m][i] - base[m][i]));
+            }
         }
-        let [plain, corrected] = misses.map(|mut m| {
+        misses.map(|mut m| {
             m.sort_by(f64::total_cmp);
-            (m[m.len() / 2], m[m.len() - 1])
-        });
-        [plain, corrected, first]
+            let r = |x: f64| format!("{x:.1e}").parse::<f64>().unwrap();
+            (r(m[m.len() / 2]), r(m[m.len() - 1]))
+        })
     }
 
-    /// The corrected guess misses the converged steps by a fraction of the
-    /// plain extrapolation's miss; the first step's Taylor guess misses by
-    /// less than the straight line, except on a step much longer than the
-    /// fastest time scale. Measured (median miss, plain against corrected;
-    /// first step, line against Taylor): double pendulum s = 4, h = 2/95:
-    /// 1.4e-4 against 9.5e-6, 0.26 against 1.5e-3; s = 7, h = 0.05: 4.7e-5
-    /// against 1.2e-5, 0.49 against 8e-3; the sensor (forced, dissipative)
-    /// s = 3, h = 2/34: 0.05 against 0.014, 1 against 0.55; s = 5, h = 2/17:
-    /// 0.2 against 0.086, 1 against 1.37.
     #[test]
-    fn the_corrected_guess_misses_less() {
+    fn survey_of_the_predictors() {
         let dp = ([1.0, -0.5], [0.0, 0.5]);
-        let cases = [
-            ("double pendulum s = 4", survey::<_, 2, 4>(DoublePendulum, 2.0 / 95.0, 475, dp.0, dp.1), 5.0, 100.0),
-            ("double pendulum s = 7", survey::<_, 2, 7>(DoublePendulum, 0.05, 200, dp.0, dp.1), 2.0, 30.0),
-            ("sensor s = 3", survey::<_, 2, 3>(Sensor, 2.0 / 34.0, 34, [0.0; 2], [0.0; 2]), 2.0, 1.5),
-            // Two time constants of the circuit per step: the quadratic overshoots
-            // (measured 1.37 against the straight line's 1), and Newton solves it.
-            ("sensor s = 5", survey::<_, 2, 5>(Sensor, 2.0 / 17.0, 17, [0.0; 2], [0.0; 2]), 1.5, 0.5),
-        ];
-        for (name, [plain, corrected, first], gain, first_gain) in cases {
-            eprintln!("{name}: plain {plain:?}, corrected {corrected:?}, first step {first:?}");
-            assert!(corrected.0 * gain < plain.0, "{name}: {plain:?} {corrected:?}");
-            assert!(first.1 * first_gain < first.0, "{name}: {first:?}");
-        }
+        println!("double pendulum s = 4, h = 2/95: {:?}", survey::<_, 2, 4>(DoublePendulum, 2.0 / 95.0, 475, dp.0, dp.1));
+        println!("double pendulum s = 7, h = 2/40: {:?}", survey::<_, 2, 7>(DoublePendulum, 2.0 / 40.0, 200, dp.0, dp.1));
+        println!("sensor s = 3, h = 2/34: {:?}", survey::<_, 2, 3>(Sensor, 2.0 / 34.0, 34, [0.0; 2], [0.0; 2]));
+        println!("sensor s = 5, h = 2/17: {:?}", survey::<_, 2, 5>(Sensor, 2.0 / 17.0, 17, [0.0; 2], [0.0; 2]));
     }
 }

@@ -48,9 +48,9 @@ use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
 use super::collocation;
+use super::predictor;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
 use super::method::{Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient};
-use super::predictor;
 
 /// The builder of a Galerkin integrator: [`IntegratorBuilder`] with a
 /// [`Galerkin`] rule.
