@@ -95,10 +95,6 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     /// `ℓ_n(1 + τ_m) − δ_{ns}`, row `m − 1`, column `n − 1`: extrapolates the
     /// increments of one step to the next (same step size).
     pub(crate) extrapolate: [[T; S]; S],
-    /// `∫_1^{1+τ_m} ω / ω(1)` ([`Galerkin::nodal`]): extrapolates the
-    /// interpolation error of the velocity from the end of a step to the
-    /// control nodes of the next (same step size; `predictor.rs`).
-    pub(crate) extrapolate_error: [T; S],
     /// `ℓ_1'(1) … ℓ_s'(1)`: the velocity at the end of a step, `Σ_n ℓ_n'(1) D_n / h`.
     pub(crate) end_d: [T; S],
     /// The Runge–Kutta matrix of the quadrature points, `a_ij = ∫_0^{c_i} L_j`
@@ -159,7 +155,6 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             col_max: [0.0; S],
             col_d_max: [0.0; S],
             extrapolate: [[T::zero(); S]; S],
-            extrapolate_error: [T::zero(); S],
             end_d: [T::zero(); S],
             stage_from_stages: [[T::zero(); R]; R],
             node_from_stages: [[T::zero(); R]; S],
@@ -199,7 +194,6 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
                 let delta = if n + 1 == S { 1.0 } else { 0.0 };
                 g.extrapolate[m][n] = lagrange(&x, n + 1, T::one() + x[m + 1]) - delta;
             }
-            g.extrapolate_error[m] = g.nodal_integral(x[m + 1]) / g.nodal(T::one());
         }
         // ∫_0^τ L_j = τ Σ_k b_k L_j(τ c_k), exact for Gauss–Legendre points
         // (L_j has degree r − 1); only used where the rule is Gauss.
@@ -424,28 +418,6 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             x / h
         });
         (t0 + self.quadrature.nodes()[j] * h, q, v)
-    }
-
-    /// `ω(τ) = Π_j (τ − c_j)` over the quadrature points: the error of
-    /// interpolating at them is a multiple of it.
-    #[inline(always)]
-    pub(crate) fn nodal(&self, tau: T) -> T {
-        let mut w = T::one();
-        for &c in self.quadrature.nodes() {
-            w *= tau - c;
-        }
-        w
-    }
-
-    /// `∫_1^{1+x} ω(σ) dσ` by the rule's own quadrature (exact for Gauss
-    /// points: `ω` has degree `r`, the rule integrates degree `2r − 1`).
-    pub(crate) fn nodal_integral(&self, x: T) -> T {
-        let q = &self.quadrature;
-        let mut sum = T::zero();
-        for (&c, &b) in q.nodes().iter().zip(q.weights()) {
-            sum += b * self.nodal(T::one() + c * x);
-        }
-        sum * x
     }
 
     /// Control node `τ_m`, `m = 0 … s`.

@@ -42,7 +42,6 @@ mod linalg;
 mod linear;
 mod method;
 mod one_point;
-mod predictor;
 mod quadratic;
 mod quadrature;
 mod stepper;

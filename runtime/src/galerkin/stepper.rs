@@ -48,7 +48,6 @@ use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
 use super::collocation;
-use super::predictor;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
 use super::method::{Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient};
 
@@ -84,10 +83,6 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     /// When to try the fixed-point iteration again after it failed to
     /// converge fast enough (`collocation.rs`): the same back-off as the kept block's.
     pub(crate) fixed_point: KeptPolicy,
-    /// `h v̂ − u'(1)`: the miss of the step polynomial's end velocity against
-    /// the velocity of `(q_{k+1}, p_{k+1})`, for the next step's first guess
-    /// (`predictor.rs`); `None` for rules other than Gauss collocation.
-    pub(crate) defect: Option<[T; N]>,
 }
 
 /// Evaluations of the derivatives of `L` at quadrature points, summed over
@@ -256,25 +251,39 @@ where
     /// 12 145 instructions).
     const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 4;
 
-    /// The first guess for the increments of a step of size `h`: the last
-    /// step's polynomial extrapolated, with its interpolation error removed
-    /// where the last step measured it (`predictor.rs`).
+    /// The first guess for the increments of a step of size `h`.
     #[inline]
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
         let g = &self.method;
         match &self.memory {
-            Some(last) => {
-                let rho = (last.h != h).then(|| h / last.h);
-                let mut out = predictor::extrapolate(g, &last.d, rho);
-                if let Some(defect) = &last.defect {
-                    predictor::correct(g, &mut out, defect, rho);
+            Some(last) if last.h == h => {
+                let mut out = [[T::zero(); N]; S];
+                for (row, weights) in out.iter_mut().zip(&g.extrapolate) {
+                    for (&w, dn) in weights.iter().zip(&last.d) {
+                        for (x, &y) in row.iter_mut().zip(dn) {
+                            *x += w * y;
+                        }
+                    }
                 }
                 out
             }
-            None => {
-                let (t0, q0) = (self.state.t, &self.state.q);
-                predictor::first_step(&self.system, g, (t0, h), q0, &self.v0)
+            Some(last) => {
+                // Extrapolate the last polynomial, in its own variable τ ∈ [0, 1],
+                // to the control nodes of the new step, 1 + τ_m h/h_last.
+                let rho = h / last.h;
+                let mut out = [[T::zero(); N]; S];
+                for m in 0..S {
+                    let tau = T::one() + g.control[m] * rho;
+                    for n in 0..S {
+                        let w = g.basis(n + 1, tau) - if n + 1 == S { 1.0 } else { 0.0 };
+                        for i in 0..N {
+                            out[m][i] += w * last.d[n][i];
+                        }
+                    }
+                }
+                out
             }
+            None => g.control.map(|tau| self.v0.map(|v| v * tau * h)),
         }
     }
 
@@ -562,13 +571,6 @@ where
             lagrangian_finite = system.lagrangian(t1, q1, v1).is_finite();
         }
         let quantity = if lagrangian_finite { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
-        // The end velocity's miss, for the next step's first guess (Gauss
-        // rules, whose step polynomial is the collocation polynomial).
-        let defect = if quantity.is_none() && g.is_collocation() {
-            predictor::end_defect(system, g, t1, h, (&q1, &p1), &d)
-        } else {
-            None
-        };
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             self.keep_storage(jacobian, storage);
@@ -576,7 +578,7 @@ where
         }
         match &mut self.memory {
             Some(last) => {
-                (last.t0, last.h, last.q0, last.carry, last.d, last.defect) = (t0, h, q0, e, d, defect);
+                (last.t0, last.h, last.q0, last.carry, last.d) = (t0, h, q0, e, d);
                 match jacobian {
                     // The kept block stays where it is.
                     KeptBlock::Same => last.spare = storage,
@@ -612,7 +614,6 @@ where
                     kept_policy: KeptPolicy::default(),
                     evaluations: PointEvaluations::default(),
                     fixed_point: KeptPolicy::default(),
-                    defect,
                 });
             }
         }
