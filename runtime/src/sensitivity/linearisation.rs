@@ -100,18 +100,33 @@ impl Rule {
         self.degree
     }
 
+    /// The number of distinct quadrature points.
+    pub(super) fn point_count(&self) -> usize {
+        self.points.len()
+    }
+
+    /// `b_j`, the weight of point `j`.
+    pub(super) fn weight(&self, j: usize) -> f64 {
+        self.weights[j]
+    }
+
     /// `ℓ_m(c_j)`.
-    fn l(&self, j: usize, m: usize) -> f64 {
+    pub(super) fn l(&self, j: usize, m: usize) -> f64 {
         self.basis[j * (self.degree + 1) + m]
     }
 
     /// `ℓ_m'(c_j)`.
-    fn dl(&self, j: usize, m: usize) -> f64 {
+    pub(super) fn dl(&self, j: usize, m: usize) -> f64 {
         self.basis_d[j * (self.degree + 1) + m]
     }
 
+    /// The time of point `j` of `piece`.
+    pub(super) fn time<const N: usize>(&self, piece: &Piece<N>, j: usize) -> f64 {
+        piece.t0 + self.points[j] * piece.h
+    }
+
     /// Time, position and velocity at point `j` of `piece`.
-    fn point<const N: usize>(&self, piece: &Piece<N>, j: usize) -> (f64, [f64; N], [f64; N]) {
+    pub(super) fn point<const N: usize>(&self, piece: &Piece<N>, j: usize) -> (f64, [f64; N], [f64; N]) {
         let (s, h) = (self.degree, piece.h);
         let q = core::array::from_fn(|i| {
             let mut x = 0.0;
@@ -127,7 +142,7 @@ impl Rule {
             }
             x / h
         });
-        (piece.t0 + self.points[j] * h, q, v)
+        (self.time(piece, j), q, v)
     }
 
     /// The step action `A` of `piece` at parameters `theta`.
@@ -170,7 +185,7 @@ impl<const N: usize> Piece<N> {
 }
 
 /// `Q − ∂R/∂v` at parameters `theta`.
-fn generalized_force<S, D, const N: usize, const P: usize>(
+pub(super) fn generalized_force<S, D, const N: usize, const P: usize>(
     system: &S,
     theta: &[D; P],
     t: D,
