@@ -3,9 +3,13 @@
 //! with no derivatives), and the peak heap memory of a gradient over 10⁶
 //! steps with `⌈√n⌉` checkpoints, counted by this binary's global allocator.
 //!
-//! `cargo bench -p lagrangian-bench --bench adjoint`
+//! `cargo bench -p lagrangian-bench --bench adjoint [-- CASE [forward|gradient]]`
 //!
-//! Prints a markdown table. Timings are the minimum of several runs of CPU
+//! Prints a markdown table, of the cases whose name contains `CASE` when
+//! one is given (`pendulum-midpoint`, `pendulum-galerkin3`,
+//! `pendulum-kahan-li8`, `chain8` … `chain64`, `chain1000`, `memory`). With `forward` or
+//! `gradient` after it, runs that half of each chosen case once and prints
+//! nothing: what `valgrind --tool=callgrind` counts the instructions of. Timings are the minimum of several runs of CPU
 //! wall time (`Instant`) on an otherwise shared machine; the memory is the
 //! largest number of live heap bytes during the call above the bytes live
 //! before it.
@@ -20,6 +24,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use lagrangian::prelude::*;
+use lagrangian::{Coupling, Pattern};
 
 /// The system allocator, counting live and peak bytes.
 struct Counting;
@@ -69,7 +74,10 @@ impl DoublePendulum {
 }
 
 /// An FPU-β chain with fixed ends, `L = Σ ½ v_i² − Σ (½ k d² + ¼ β d⁴)`,
-/// `d = q_{i+1} − q_i`, with the stiffness `k` and `β` as parameters.
+/// `d = q_{i+1} − q_i`, with the stiffness `k` and `β` as parameters,
+/// written by hand (no gradient code: above `FORWARD_MAX_N` the stepper's
+/// Newton matrix and the adjoint's both come from a tape) with its Hessian
+/// declared tridiagonal, so that both solve in the band.
 #[derive(Clone)]
 struct Chain<const N: usize> {
     theta: [f64; 2],
@@ -78,6 +86,7 @@ struct Chain<const N: usize> {
 impl<const N: usize> Lagrangian<N> for Chain<N> {
     const AUTONOMOUS: bool = true;
     const CYCLIC: [bool; N] = [false; N];
+    const COUPLING: Coupling = Coupling { q_q: Pattern::banded(N, 1), q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
         self.lagrangian_with(&self.theta.map(D::from), t, q, v)
     }
@@ -130,6 +139,17 @@ fn best(reps: usize, mut f: impl FnMut()) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Which halves of a case to run.
+#[derive(Clone, Copy, PartialEq)]
+enum Phase {
+    /// Both, timed, with a row of the table.
+    Timed,
+    /// The forward run once, silently.
+    Forward,
+    /// The gradient once, silently.
+    Gradient,
+}
+
 /// Forward run and gradient of `problem` with `scheme` over `steps` steps
 /// of size `h`: (forward s, gradient s).
 fn costs<S, const N: usize, const P: usize>(
@@ -137,6 +157,7 @@ fn costs<S, const N: usize, const P: usize>(
     scheme: &Scheme,
     h: f64,
     steps: usize,
+    phase: Phase,
 ) -> (f64, f64)
 where
     S: Parametric<N, P>,
@@ -144,46 +165,82 @@ where
 {
     let t_end = steps as f64 * h;
     let checkpoints = Checkpoints::Budget((steps as f64).sqrt().ceil() as usize);
-    let reps = 5;
-    let forward = best(reps, || {
+    let reps = if phase == Phase::Timed { 5 } else { 1 };
+    let forward = || {
         let mut sim = problem.stepper(scheme, h).unwrap();
         sim.run_until(t_end).unwrap();
         black_box(sim.state());
-    });
-    let gradient = best(reps, || {
+    };
+    let gradient = || {
         black_box(problem.gradient(scheme, h, t_end, &Squares, checkpoints).unwrap());
-    });
-    (forward, gradient)
+    };
+    match phase {
+        Phase::Timed => (best(reps, forward), best(reps, gradient)),
+        Phase::Forward => (best(reps, forward), 0.0),
+        Phase::Gradient => (0.0, best(reps, gradient)),
+    }
 }
 
-fn row(what: &str, steps: usize, (forward, gradient): (f64, f64)) {
-    println!("| {what} | {steps} | {:.3} | {:.3} | {:.1} |", forward * 1e3, gradient * 1e3, gradient / forward);
+fn row(what: &str, steps: usize, (forward, gradient): (f64, f64), phase: Phase) {
+    if phase == Phase::Timed {
+        println!("| {what} | {steps} | {:.3} | {:.3} | {:.1} |", forward * 1e3, gradient * 1e3, gradient / forward);
+    }
 }
 
-fn chain<const N: usize>(scheme: &Scheme, steps: usize)
+fn chain<const N: usize>(scheme: &Scheme, steps: usize, phase: Phase)
 where
     lagrangian::problem::Dim<N>: lagrangian::problem::Extended<N>,
 {
     let q0: [f64; N] = core::array::from_fn(|i| 0.1 * ((i as f64 + 1.0) * 0.7).sin());
     let problem = Problem::new(Chain::<N> { theta: [1.0, 0.5] }, 0.0, q0, [0.0; N]);
-    row(&format!("FPU-β chain N = {N}, {}", scheme.name()), steps, costs::<_, N, 2>(&problem, scheme, 0.05, steps));
+    let what = format!("FPU-β chain N = {N}, {}", scheme.name());
+    row(&what, steps, costs::<_, N, 2>(&problem, scheme, 0.05, steps, phase), phase);
 }
 
 fn main() {
+    // `cargo bench` passes `--bench`; the other arguments choose the cases.
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let chosen = |name: &str| args.first().is_none_or(|case| name.contains(case.as_str()));
+    let phase = match args.get(1).map(String::as_str) {
+        Some("forward") => Phase::Forward,
+        Some("gradient") => Phase::Gradient,
+        _ => Phase::Timed,
+    };
     let pendulum = DoublePendulum { m1: 1.0, m2: 0.8, l1: 1.2, l2: 0.9, g: 9.81 };
     let problem = Problem::new(pendulum, 0.0, [0.6, -0.3], [0.2, 0.5]);
-    println!("| system, method | steps | forward run (ms) | gradient (ms) | gradient / forward |");
-    println!("|---|---|---|---|---|");
-    let (h, steps) = (1e-3, 10_000);
-    for scheme in
-        [Scheme::MIDPOINT, Scheme::galerkin(3), Scheme::composition(Composition::KAHAN_LI8, OnePoint::Trapezoid)]
-    {
-        row(&format!("double pendulum, {}", scheme.name()), steps, costs::<_, 2, 3>(&problem, &scheme, h, steps));
+    if phase == Phase::Timed {
+        println!("| system, method | steps | forward run (ms) | gradient (ms) | gradient / forward |");
+        println!("|---|---|---|---|---|");
     }
-    chain::<8>(&Scheme::MIDPOINT, 1000);
-    chain::<16>(&Scheme::MIDPOINT, 1000);
-    chain::<32>(&Scheme::MIDPOINT, 1000);
-    chain::<64>(&Scheme::MIDPOINT, 100);
+    let (h, steps) = (1e-3, 10_000);
+    for (name, scheme) in [
+        ("pendulum-midpoint", Scheme::MIDPOINT),
+        ("pendulum-galerkin3", Scheme::galerkin(3)),
+        ("pendulum-kahan-li8", Scheme::composition(Composition::KAHAN_LI8, OnePoint::Trapezoid)),
+    ] {
+        if chosen(name) {
+            let what = format!("double pendulum, {}", scheme.name());
+            row(&what, steps, costs::<_, 2, 3>(&problem, &scheme, h, steps, phase), phase);
+        }
+    }
+    if chosen("chain8") {
+        chain::<8>(&Scheme::MIDPOINT, 1000, phase);
+    }
+    if chosen("chain16") {
+        chain::<16>(&Scheme::MIDPOINT, 1000, phase);
+    }
+    if chosen("chain32") {
+        chain::<32>(&Scheme::MIDPOINT, 1000, phase);
+    }
+    if chosen("chain64") {
+        chain::<64>(&Scheme::MIDPOINT, 100, phase);
+    }
+    if chosen("chain1000") {
+        chain::<1000>(&Scheme::MIDPOINT, 100, phase);
+    }
+    if !chosen("memory") || phase != Phase::Timed {
+        return;
+    }
 
     // Peak memory over 10⁶ steps with ⌈√n⌉ = 1000 checkpoints.
     let n = 1_000_000;

@@ -192,6 +192,10 @@ pub trait StepMatrix {
     fn factor(&mut self, min_rcond: f64) -> Result<Factorization, LinearSolveError>;
     /// Overwrites `b` with `A⁻¹ b`; needs a successful `factor`.
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError>;
+    /// Overwrites `b` with `A⁻ᵀ b` (the same factors, transposed
+    /// triangular solves: what a discrete adjoint needs); needs a
+    /// successful `factor`.
+    fn solve_transposed(&self, b: &mut [f64]) -> Result<(), LinearSolveError>;
 }
 
 /// Where a matrix is in its assemble–factor–solve cycle.
@@ -314,8 +318,9 @@ fn inverse_norm1<F: Factors>(f: &F, w: &mut Workspace) -> f64 {
     estimate.max(alternative)
 }
 
-/// Checks a right-hand side, solves, and checks the solution.
-fn checked_solve<F: Factors>(f: &F, stage: Stage, b: &mut [f64]) -> Result<(), LinearSolveError> {
+/// Checks a right-hand side, solves with `A` (or `Aᵀ` when `transposed`),
+/// and checks the solution.
+fn checked_solve<F: Factors>(f: &F, stage: Stage, b: &mut [f64], transposed: bool) -> Result<(), LinearSolveError> {
     if stage != Stage::Factored {
         return Err(LinearSolveError::NotFactored);
     }
@@ -325,7 +330,11 @@ fn checked_solve<F: Factors>(f: &F, stage: Stage, b: &mut [f64]) -> Result<(), L
     if !b.iter().all(|v| v.is_finite()) {
         return Err(LinearSolveError::NonFinite { quantity: "right-hand side" });
     }
-    f.solve_plain(b);
+    if transposed {
+        f.solve_transposed(b);
+    } else {
+        f.solve_plain(b);
+    }
     // Finite factors with non-zero pivots can still overflow on a tiny pivot.
     if !b.iter().all(|v| v.is_finite()) {
         return Err(LinearSolveError::NonFinite { quantity: "solution" });
@@ -677,7 +686,11 @@ impl StepMatrix for BandedMatrix {
     }
 
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
-        checked_solve(&self.lu, self.stage, b)
+        checked_solve(&self.lu, self.stage, b, false)
+    }
+
+    fn solve_transposed(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
+        checked_solve(&self.lu, self.stage, b, true)
     }
 }
 
@@ -861,7 +874,11 @@ impl StepMatrix for DenseMatrix {
     }
 
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
-        checked_solve(&self.lu, self.stage, b)
+        checked_solve(&self.lu, self.stage, b, false)
+    }
+
+    fn solve_transposed(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
+        checked_solve(&self.lu, self.stage, b, true)
     }
 }
 
@@ -926,6 +943,10 @@ impl StepMatrix for StepSolver {
 
     fn solve(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
         self.inner().solve(b)
+    }
+
+    fn solve_transposed(&self, b: &mut [f64]) -> Result<(), LinearSolveError> {
+        self.inner().solve_transposed(b)
     }
 }
 

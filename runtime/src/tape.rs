@@ -54,6 +54,8 @@
 //!   the full block for [`Seeds::dense`]. Rows may be any range of inputs, so
 //!   one product gives the mixed block `∂²A/∂q_k∂q_{k+1}` (rows `0..N`) and
 //!   the block `∂²A/∂q_{k+1}²` (rows `N..2N`) when columns `N..2N` are seeded.
+//! - [`Seeds::Along`] seeds one direction with any weights: `H·w`, the
+//!   Hessian–vector product a discrete adjoint contracts with, in one sweep.
 //!
 //! # Why
 //!
@@ -178,9 +180,9 @@ pub enum TapeError {
         /// The number of directions.
         directions: usize,
     },
-    /// [`Seeds::recover`] was called on [`Seeds::Colours`], whose pattern it
-    /// does not know.
-    #[error("`Seeds::Colours` has no known pattern to recover a block from")]
+    /// [`Seeds::recover`] was called on [`Seeds::Colours`] or
+    /// [`Seeds::Along`], whose pattern it does not know.
+    #[error("`Seeds::Colours` and `Seeds::Along` have no known pattern to recover a block from")]
     NoPattern,
 }
 
@@ -323,8 +325,9 @@ fn fail(rec: &mut Recording, index: usize) {
 }
 
 /// A compact seed matrix `S` (inputs × `K`): input `j` gets the unit vector
-/// of direction `colour(j)`, or no direction.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// of direction `colour(j)`, or no direction; or one direction `w` with any
+/// weights ([`Along`](Seeds::Along)).
+#[derive(Clone, Debug, PartialEq)]
 pub enum Seeds<'a> {
     /// One direction per input of `columns`: `H·S` holds those columns of
     /// the Hessian exactly.
@@ -351,6 +354,13 @@ pub enum Seeds<'a> {
         /// The number of directions `K`; every colour must be below it.
         directions: usize,
     },
+    /// One direction, input `j` weighted `direction[j]`: `H·S` is the
+    /// Hessian–vector product `H·w`. [`recover`](Seeds::recover) does not
+    /// apply.
+    Along {
+        /// `w`, one entry per input.
+        direction: &'a [f64],
+    },
 }
 
 impl Seeds<'static> {
@@ -372,18 +382,20 @@ impl Seeds<'_> {
             Seeds::Dense { columns } => columns.len(),
             Seeds::Banded { columns, bandwidth } => columns.len().min(bandwidth.saturating_mul(2).saturating_add(1)),
             Seeds::Colours { directions, .. } => *directions,
+            Seeds::Along { .. } => 1,
         }
     }
 
-    /// The direction of input `j`, if seeded.
+    /// The direction of input `j` and its weight, if seeded.
     #[inline]
-    fn colour(&self, j: usize) -> Option<usize> {
+    fn colour(&self, j: usize) -> Option<(usize, f64)> {
         match self {
-            Seeds::Dense { columns } => columns.contains(&j).then(|| j - columns.start),
+            Seeds::Dense { columns } => columns.contains(&j).then(|| (j - columns.start, 1.0)),
             Seeds::Banded { columns, bandwidth } => {
-                columns.contains(&j).then(|| (j - columns.start) % (2 * bandwidth + 1))
+                columns.contains(&j).then(|| ((j - columns.start) % (2 * bandwidth + 1), 1.0))
             }
-            Seeds::Colours { colour, .. } => colour[j].map(|c| c as usize),
+            Seeds::Colours { colour, .. } => colour[j].map(|c| (c as usize, 1.0)),
+            Seeds::Along { direction } => Some((0, direction[j])),
         }
     }
 
@@ -402,6 +414,7 @@ impl Seeds<'_> {
                     None => Ok(()),
                 }
             }
+            Seeds::Along { direction } => expect_len("direction", direction.len(), inputs),
         }
     }
 
@@ -416,7 +429,7 @@ impl Seeds<'_> {
     ///   `c = r − b, …, r + b` in order (the band of row `r` around the
     ///   "diagonal" `c = r`); slots with `c` outside the columns are zero. The
     ///   block must vanish outside that band, which is what the seeds assume.
-    /// - [`Seeds::Colours`] fails with [`TapeError::NoPattern`].
+    /// - [`Seeds::Colours`] and [`Seeds::Along`] fail with [`TapeError::NoPattern`].
     pub fn recover(&self, hs: &[f64], rows: Range<usize>, out: &mut [f64]) -> Result<(), TapeError> {
         let k = self.directions();
         // With no directions (no columns) there is nothing to read and no
@@ -451,7 +464,7 @@ impl Seeds<'_> {
                 }
                 Ok(())
             }
-            Seeds::Colours { .. } => Err(TapeError::NoPattern),
+            Seeds::Colours { .. } | Seeds::Along { .. } => Err(TapeError::NoPattern),
         }
     }
 }
@@ -745,10 +758,10 @@ impl Sweep<'_, '_> {
 
         // Forward: the tangent of every node in the W directions.
         for j in 0..n {
-            if let Some(c) = self.seeds.colour(j)
+            if let Some((c, weight)) = self.seeds.colour(j)
                 && (self.first..self.first + W).contains(&c)
             {
-                lane[tan(j)][c - self.first] = 1.0;
+                lane[tan(j)][c - self.first] = weight;
             }
         }
         for i in n..live {

@@ -317,6 +317,35 @@ fn dense_solves_match_nalgebra_with_pivoting() {
     }
 }
 
+/// `Aᵀ x = b` from the factors of `A`, banded (with row exchanges) and
+/// dense, against nalgebra's LU of the transpose.
+#[test]
+fn transposed_solves_match_nalgebra() {
+    for (n, kl, ku, seed) in [(1, 1, 1, 7), (9, 2, 1, 8), (40, 1, 3, 9)] {
+        let (mut band, dense) = random_band(n, kl, ku, false, seed);
+        let mut full = DenseMatrix::new(n).unwrap();
+        for j in 0..n {
+            for i in 0..n {
+                full.add(i, j, dense[(i, j)]).unwrap();
+            }
+        }
+        band.factor(0.0).unwrap();
+        full.factor(0.0).unwrap();
+        let b = random_vector(n, seed + 50);
+        let reference = dense.transpose().lu().solve(&DVector::from_column_slice(&b)).unwrap();
+        let (mut x, mut y) = (b.clone(), b.clone());
+        band.solve_transposed(&mut x).unwrap();
+        full.solve_transposed(&mut y).unwrap();
+        for (what, got) in [("banded", &x), ("dense", &y)] {
+            let error = relative_difference(got, reference.as_slice());
+            assert!(error <= 1e-13, "{what}, n = {n}: relative error {error:e}");
+        }
+    }
+    // Before a factorisation there are no factors to solve with.
+    let mut z = vec![1.0; 3];
+    assert_eq!(DenseMatrix::new(3).unwrap().solve_transposed(&mut z), Err(LinearSolveError::NotFactored));
+}
+
 /// Newton on the discrete Bratu problem `−u'' = λ eᵘ`, `u = 0` at both ends,
 /// written once over the trait: the tridiagonal and dense paths agree.
 fn bratu<M: StepMatrix>(m: &mut M) -> Vec<f64> {

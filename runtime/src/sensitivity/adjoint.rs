@@ -15,18 +15,20 @@
 //! nodes: the stepper is deterministic and the copy carries its whole
 //! state, compensation terms included), then walks it backwards. Memory is
 //! `⌈n/m⌉` steppers plus `m + 1` nodes; the work is one extra forward run
-//! plus one linearisation per step.
-
-use nalgebra::SVector;
-use num_dual::Dual64;
+//! plus one transposed linearisation per step (`pullback.rs`:
+//! one transposed solve with the step's Newton matrix and products of second
+//! derivatives with vectors, never `Φ_x` itself).
 
 use super::Parametric;
-use super::linearisation::{InitialMomentum, Rule, StepJacobian};
+use super::linearisation::Rule;
+use super::pullback::{Pullback, large};
 use crate::error::Error;
+use crate::hyperdual::{DualArray, Pair};
 use crate::problem::{Dim, Extended, Stepper};
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Scalar;
+use crate::tape::Tape;
 
 /// A scalar loss of a run: running terms at every node `k = 0..=n` and a
 /// terminal term at the last node, each a function of `(t, q, p)` and the
@@ -106,48 +108,83 @@ pub struct Gradient<const N: usize, const P: usize> {
     pub recomputed_steps: u64,
 }
 
-/// The gradient of `(ℓ, ∂ℓ/∂q, ∂ℓ/∂p, ∂ℓ/∂θ)` of one term.
-type Term<const N: usize, const P: usize> = (f64, SVector<f64, N>, SVector<f64, N>, SVector<f64, P>);
+/// The value of one term and its gradient `(∂ℓ/∂q, ∂ℓ/∂p, ∂ℓ/∂θ)`.
+type Term<const N: usize, const P: usize> = (f64, [f64; N], [f64; N], [f64; P]);
 
-/// Value and gradient of `f` at `(q, p, θ)`, one dual evaluation per input.
-fn term<const N: usize, const P: usize>(
-    state: &State<N>,
-    theta: &[f64; P],
-    f: impl Fn([Dual64; N], [Dual64; N], &[Dual64; P]) -> Dual64,
-) -> Result<Term<N, P>, Error<N>> {
-    let (q, p, th) = (state.q.map(Dual64::from_re), state.p.map(Dual64::from_re), theta.map(Dual64::from_re));
-    let value = f(q, p, &th).re;
-    let (mut dq, mut dp) = (SVector::<f64, N>::zeros(), SVector::<f64, N>::zeros());
-    let mut dth = SVector::<f64, P>::zeros();
-    for i in 0..N {
-        let mut x = q;
-        x[i].eps = 1.0;
-        dq[i] = f(x, p, &th).eps;
-        let mut y = p;
-        y[i].eps = 1.0;
-        dp[i] = f(q, y, &th).eps;
-    }
-    for j in 0..P {
-        let mut x = th;
-        x[j].eps = 1.0;
-        dth[j] = f(q, p, &x).eps;
-    }
-    let finite = value.is_finite() && dq.iter().chain(dp.iter()).chain(dth.iter()).all(|x| x.is_finite());
-    if finite { Ok((value, dq, dp, dth)) } else { Err(Error::NonFiniteLoss { state: *state }) }
+/// The inputs `((q, p), θ)` of a term as the slots of one dual number.
+type Inputs<const N: usize, const P: usize> = Pair<Pair<[f64; N], [f64; N]>, [f64; P]>;
+
+/// A dual number seeded on all `2N + P` inputs of a term.
+type Seeded<const N: usize, const P: usize> = DualArray<Inputs<N, P>>;
+
+/// The gradients of the loss terms: one evaluation on a dual number seeded
+/// on all `2N + P` inputs up to [`FORWARD_MAX_N`](crate::Derivatives::FORWARD_MAX_N)
+/// coordinates, one reverse sweep of a [`Tape`] above (where that number
+/// would hold `2N + P` parts in every value); the tape's buffers are
+/// allocated once.
+struct Terms {
+    tape: Tape,
+    inputs: Vec<f64>,
+    gradient: Vec<f64>,
 }
 
-/// The running term (and, at the last node, the terminal term) at `state`.
-fn loss_at<L: Loss<N, P>, const N: usize, const P: usize>(
+impl Terms {
+    fn new<const N: usize, const P: usize>() -> Self {
+        let len = if large(N) { 2 * N + P } else { 0 };
+        Self { tape: Tape::new(), inputs: vec![0.0; len], gradient: vec![0.0; len] }
+    }
+
+    /// The running term (and, at the last node, the terminal term) at
+    /// `state`, and its gradient.
+    fn at<L: Loss<N, P>, const N: usize, const P: usize>(
+        &mut self,
+        loss: &L,
+        state: &State<N>,
+        theta: &[f64; P],
+        last: bool,
+    ) -> Result<Term<N, P>, Error<N>> {
+        let (k, t) = (state.step, state.t);
+        let (mut dq, mut dp, mut dth) = ([0.0; N], [0.0; N], [0.0; P]);
+        let value = if const { large(N) } {
+            self.inputs[..N].copy_from_slice(&state.q);
+            self.inputs[N..2 * N].copy_from_slice(&state.p);
+            self.inputs[2 * N..].copy_from_slice(theta);
+            let recorded = self.tape.record(&self.inputs, |x| {
+                let (q, p) = (core::array::from_fn(|i| x[i]), core::array::from_fn(|i| x[N + i]));
+                terms(loss, (k, t, last), q, p, &core::array::from_fn(|j| x[2 * N + j]))
+            });
+            // A recording that fails is a loss without a gradient.
+            let value = recorded.unwrap_or(f64::NAN);
+            if value.is_finite() && self.tape.gradient(&mut self.gradient).is_ok() {
+                dq.copy_from_slice(&self.gradient[..N]);
+                dp.copy_from_slice(&self.gradient[N..2 * N]);
+                dth.copy_from_slice(&self.gradient[2 * N..]);
+            }
+            value
+        } else {
+            let q = core::array::from_fn(|i| Seeded::<N, P>::variable(state.q[i], i));
+            let p = core::array::from_fn(|i| Seeded::<N, P>::variable(state.p[i], N + i));
+            let th = core::array::from_fn(|j| Seeded::<N, P>::variable(theta[j], 2 * N + j));
+            let l = terms(loss, (k, t, last), q, p, &th);
+            (dq, dp, dth) = (l.eps.a.a, l.eps.a.b, l.eps.b);
+            l.re
+        };
+        let finite = value.is_finite() && dq.iter().chain(dp.iter()).chain(dth.iter()).all(|x| x.is_finite());
+        if finite { Ok((value, dq, dp, dth)) } else { Err(Error::NonFiniteLoss { state: *state }) }
+    }
+}
+
+/// The running term at node `k` (time `t`) and, at the `last` node, the
+/// terminal term, on any scalar.
+fn terms<L: Loss<N, P>, D: Scalar, const N: usize, const P: usize>(
     loss: &L,
-    state: &State<N>,
-    theta: &[f64; P],
-    last: bool,
-) -> Result<Term<N, P>, Error<N>> {
-    let (k, t) = (state.step, state.t);
-    term(state, theta, |q, p, th| {
-        let running = loss.running(k, t, q, p, th);
-        if last { running + loss.terminal(t, q, p, th) } else { running }
-    })
+    (k, t, last): (u64, f64, bool),
+    q: [D; N],
+    p: [D; N],
+    theta: &[D; P],
+) -> D {
+    let running = loss.running(k, t, q, p, theta);
+    if last { running + loss.terminal(t, q, p, theta) } else { running }
 }
 
 /// The value of the loss terms at `state`, checked finite.
@@ -191,6 +228,8 @@ where
     let m = checkpoints.spacing::<N>(if estimate.is_finite() { estimate as usize } else { usize::MAX })?;
     let system = stepper.system().clone();
     let theta = system.parameters();
+    let mut pullback = Pullback::<N, P>::new::<S>(rule)?;
+    let mut terms = Terms::new::<N, P>();
 
     // Forward: the loss value, a copy every m nodes.
     let mut kept = vec![stepper.clone()];
@@ -207,8 +246,7 @@ where
     }
     let last = stepper.state();
     value += value_at(loss, &last, &theta, true)?;
-    let (_, dq, dp, mut dtheta) = loss_at(loss, &last, &theta, true)?;
-    let (mut lq, mut lp) = (dq, dp);
+    let (_, mut lq, mut lp, mut dtheta) = terms.at(loss, &last, &theta, true)?;
 
     // Reverse: each segment from its copy, backwards. `steps[i]` runs from
     // `nodes[i]` to `nodes[i + 1]` and is made of `pieces[steps[i]]`.
@@ -221,7 +259,7 @@ where
         let first = start.state().step;
         if first == last.step {
             // The copy at the last node starts no segment.
-            costates.push((last, lq.into(), lp.into()));
+            costates.push((last, lq, lp));
             continue;
         }
         let mut sim = start;
@@ -242,23 +280,29 @@ where
         }
         for (i, range) in steps.iter().enumerate().rev() {
             let from = nodes[i];
-            let j = StepJacobian::of_step(&system, &rule, &theta, &pieces[range.clone()]).ok_or(
-                Error::SingularJacobian { state: from, h: nodes[i + 1].t - from.t, iterations: 0, rcond: 0.0 },
+            pullback.step(&system, &theta, &pieces[range.clone()], (&mut lq, &mut lp), &mut dtheta).ok_or_else(
+                || Error::SingularJacobian { state: from, h: nodes[i + 1].t - from.t, iterations: 0, rcond: 0.0 },
             )?;
-            let m = &j.state;
-            dtheta += j.dq_dtheta.transpose() * lq + j.dp_dtheta.transpose() * lp;
-            let (_, gq, gp, gth) = loss_at(loss, &from, &theta, false)?;
-            let nq = gq + m.dq_dq.transpose() * lq + m.dp_dq.transpose() * lp;
-            let np = gp + m.dq_dp.transpose() * lq + m.dp_dp.transpose() * lp;
-            (lq, lp) = (nq, np);
-            dtheta += gth;
+            let (_, gq, gp, gth) = terms.at(loss, &from, &theta, false)?;
+            for i in 0..N {
+                lq[i] += gq[i];
+                lp[i] += gp[i];
+            }
+            for (d, g) in dtheta.iter_mut().zip(gth) {
+                *d += g;
+            }
         }
-        costates.push((nodes[0], lq.into(), lp.into()));
+        costates.push((nodes[0], lq, lp));
     }
     costates.reverse();
-    let p0 = InitialMomentum::at(&system, &theta, initial);
-    let q0 = lq + p0.dq.transpose() * lp;
-    let v0 = p0.dv.transpose() * lp;
-    dtheta += p0.dtheta.transpose() * lp;
-    Ok(Gradient { value, q0: q0.into(), v0: v0.into(), theta: dtheta.into(), last, costates, recomputed_steps })
+    // Through the Legendre transform p_0 = L_v(t_0, q_0, v_0; θ).
+    let (dq0, dv0, dth0) =
+        super::pullback::legendre(&system, &theta, initial, &lp).ok_or(Error::InvalidInitialData {
+            reason: "the second derivatives of the lagrangian are not finite at the initial data",
+        })?;
+    let q0: [f64; N] = core::array::from_fn(|i| lq[i] + dq0[i]);
+    for (d, g) in dtheta.iter_mut().zip(dth0) {
+        *d += g;
+    }
+    Ok(Gradient { value, q0, v0: dv0, theta: dtheta, last, costates, recomputed_steps })
 }

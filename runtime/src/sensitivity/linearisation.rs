@@ -100,18 +100,33 @@ impl Rule {
         self.degree
     }
 
+    /// The number of distinct quadrature points.
+    pub(super) fn point_count(&self) -> usize {
+        self.points.len()
+    }
+
+    /// `b_j`, the weight of point `j`.
+    pub(super) fn weight(&self, j: usize) -> f64 {
+        self.weights[j]
+    }
+
     /// `ℓ_m(c_j)`.
-    fn l(&self, j: usize, m: usize) -> f64 {
+    pub(super) fn l(&self, j: usize, m: usize) -> f64 {
         self.basis[j * (self.degree + 1) + m]
     }
 
     /// `ℓ_m'(c_j)`.
-    fn dl(&self, j: usize, m: usize) -> f64 {
+    pub(super) fn dl(&self, j: usize, m: usize) -> f64 {
         self.basis_d[j * (self.degree + 1) + m]
     }
 
+    /// The time of point `j` of `piece`.
+    pub(super) fn time<const N: usize>(&self, piece: &Piece<N>, j: usize) -> f64 {
+        piece.t0 + self.points[j] * piece.h
+    }
+
     /// Time, position and velocity at point `j` of `piece`.
-    fn point<const N: usize>(&self, piece: &Piece<N>, j: usize) -> (f64, [f64; N], [f64; N]) {
+    pub(super) fn point<const N: usize>(&self, piece: &Piece<N>, j: usize) -> (f64, [f64; N], [f64; N]) {
         let (s, h) = (self.degree, piece.h);
         let q = core::array::from_fn(|i| {
             let mut x = 0.0;
@@ -127,7 +142,7 @@ impl Rule {
             }
             x / h
         });
-        (piece.t0 + self.points[j] * h, q, v)
+        (self.time(piece, j), q, v)
     }
 
     /// The step action `A` of `piece` at parameters `theta`.
@@ -170,7 +185,7 @@ impl<const N: usize> Piece<N> {
 }
 
 /// `Q − ∂R/∂v` at parameters `theta`.
-fn generalized_force<S, D, const N: usize, const P: usize>(
+pub(super) fn generalized_force<S, D, const N: usize, const P: usize>(
     system: &S,
     theta: &[D; P],
     t: D,
@@ -267,15 +282,17 @@ impl<const N: usize, const P: usize> StepJacobian<N, P> {
     pub fn of_piece<S: Parametric<N, P>>(system: &S, rule: &Rule, theta: &[f64; P], piece: &Piece<N>) -> Option<Self> {
         let (s, h) = (rule.degree, piece.h);
         let nx = s * N;
-        // Rows ρ = 0 … s (row s: p_{k+1}); columns the unknowns D_1 … D_s,
-        // and (q_k, θ).
-        let mut g_d = DMatrix::<f64>::zeros(nx + N, nx);
-        let mut g_z = DMatrix::<f64>::zeros(nx + N, N + P);
+        // Rows ρ = 0 … s (row s: p_{k+1}), then the sum Σ_ρ R_ρ of the rows;
+        // columns the unknowns D_1 … D_s, and (q_k, θ).
+        let mut g_d = DMatrix::<f64>::zeros(nx + 2 * N, nx);
+        let mut g_z = DMatrix::<f64>::zeros(nx + 2 * N, N + P);
         for j in 0..rule.points.len() {
             let (a, b) = point_jacobians(system, theta, rule.point(piece, j));
             let w = rule.weights[j] * h;
-            for rho in 0..=s {
-                let (r, rd) = (w * rule.l(j, rho), w * rule.dl(j, rho) / h);
+            for rho in 0..=s + 1 {
+                // Σ_ρ ℓ_ρ = 1 and Σ_ρ ℓ_ρ' = 0: the sum of the rows is
+                // h Σ_j b_j (L_q + F), without the 1/h of each row.
+                let (r, rd) = if rho > s { (w, 0.0) } else { (w * rule.l(j, rho), w * rule.dl(j, rho) / h) };
                 for i in 0..N {
                     let row = rho * N + i;
                     for c in 0..2 * N + P {
@@ -309,16 +326,22 @@ impl<const N: usize, const P: usize> StepJacobian<N, P> {
             rhs[(i, N + i)] = 1.0;
         }
         let dd = -g_d.rows(0, nx).into_owned().lu().solve(&rhs)?;
-        // q_{k+1} = q_k + D_s;  p_{k+1} = row s.
+        // q_{k+1} = q_k + D_s;  p_{k+1} = R_s = p_k + Σ_ρ R_ρ (the rows
+        // ρ < s vanish but for R_0 = −p_k), of order h where R_s is of
+        // order 1/h: differentiated in this form, the increment of p keeps
+        // its relative accuracy.
         let mut dq1 = dd.rows(nx - N, N).into_owned();
         for i in 0..N {
             dq1[(i, i)] += 1.0;
         }
-        let mut dp1 = g_d.rows(nx, N) * &dd;
+        let mut dp1 = g_d.rows(nx + N, N) * &dd;
         let mut top = dp1.view_mut((0, 0), (N, N));
-        top += g_z.view((nx, 0), (N, N));
+        top += g_z.view((nx + N, 0), (N, N));
         let mut tail = dp1.view_mut((0, 2 * N), (N, P));
-        tail += g_z.view((nx, N), (N, P));
+        tail += g_z.view((nx + N, N), (N, P));
+        for i in 0..N {
+            dp1[(i, N + i)] += 1.0;
+        }
         if !dq1.iter().chain(dp1.iter()).all(|x| x.is_finite()) {
             return None;
         }

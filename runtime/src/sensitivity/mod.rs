@@ -11,9 +11,12 @@
 //! `S_{k+1} = Φ_x S_k + Φ_θ`; the discrete adjoint ([`adjoint`]) runs
 //! `λ_k = ∂ℓ_k/∂x_k + Φ_xᵀ λ_{k+1}` backwards and sums `Φ_θᵀ λ_{k+1}`, the
 //! exact gradient of the computed loss, with checkpoints so that memory is
-//! `O(checkpoints + segment)`. Both use the same linearisation of each
-//! step, so they agree to round-off; the pairing `λ_kᵀ S_k` of the two is
-//! conserved by a symplectic step.
+//! `O(checkpoints + segment)`, and forms the products `Φ_xᵀ λ`, `Φ_θᵀ λ`
+//! without `Φ_x` (`pullback.rs`: one transposed solve with the step's
+//! Newton matrix and second derivatives contracted with vectors). Both
+//! differentiate the same equations of each step, so they agree to
+//! round-off; the pairing `λ_kᵀ S_k` of the two is conserved by a
+//! symplectic step.
 //!
 //! The entry points are [`Problem::solve_with_sensitivities`] and
 //! [`Problem::gradient`](crate::Problem::gradient); which combinations
@@ -26,6 +29,7 @@ pub mod adjoint;
 pub mod forward;
 pub mod linearisation;
 mod parametric;
+mod pullback;
 
 pub use adjoint::{Checkpoints, Gradient, Loss};
 pub use forward::{Jacobian, Sensitivities};

@@ -408,6 +408,32 @@ fn random_compositions_agree_with_num_dual() {
     }
 }
 
+/// `Seeds::Along(w)` gives `H·w`: against the dense Hessian times `w`.
+#[test]
+fn a_weighted_direction_gives_the_hessian_vector_product() {
+    let mut p = Points(13);
+    for _ in 0..50 {
+        let x: Vec<f64> = (0..3).map(|_| p.uniform(-1.5, 1.5)).collect();
+        let w: Vec<f64> = (0..3).map(|_| p.uniform(-2.0, 2.0)).collect();
+        let (_, _, h) = tape_derivatives(&x, composition);
+        let mut tape = Tape::new();
+        tape.record(&x, composition).unwrap();
+        let (mut g, mut hw) = (vec![0.0; 3], vec![0.0; 3]);
+        tape.hessian_product(&Seeds::Along { direction: &w }, &mut g, &mut hw).unwrap();
+        let scale = h.iter().fold(0.0f64, |m, x| m.max(x.abs())) * w.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        for i in 0..3 {
+            let want: f64 = (0..3).map(|j| h[i * 3 + j] * w[j]).sum();
+            assert!((hw[i] - want).abs() <= 32.0 * f64::EPSILON * scale, "{x:?}: {} against {want}", hw[i]);
+        }
+        assert_eq!(Seeds::Along { direction: &w }.recover(&hw, 0..3, &mut [0.0; 3]), Err(TapeError::NoPattern));
+    }
+    // A direction of the wrong length is refused.
+    let mut tape = Tape::new();
+    tape.record(&[0.1, 0.2, 0.3], composition).unwrap();
+    let err = tape.hessian_product(&Seeds::Along { direction: &[1.0; 2] }, &mut [0.0; 3], &mut [0.0; 3]);
+    assert!(matches!(err, Err(TapeError::Length { .. })), "{err:?}");
+}
+
 // ---------------------------------------------------------------------------
 // Chains written like a user's Lagrangian, through the `Lagrangian` trait.
 
