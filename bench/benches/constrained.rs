@@ -17,8 +17,12 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
-use lagrangian::{Coupling, Pattern, Separability};
 use lagrangian_bench::clock::Clock;
+
+/// The hanging chain of the constraint tests (`Links`, `folded`).
+#[path = "../../tests/common/links.rs"]
+mod links;
+use links::{Links, folded};
 
 const H: f64 = 0.01;
 
@@ -95,61 +99,6 @@ fn double_pendulum(c: &mut Criterion) {
     g.finish();
 }
 
-/// A chain of `links` unit links with unit masses at the joints, hanging
-/// from a pivot at the origin under unit gravity, in Cartesian coordinates
-/// `(x₁, y₁, …, x_n, y_n)`. Written against the trait by hand: the
-/// structure of its constraint Jacobian is found by `DynConstrained`.
-struct Chain(usize);
-
-impl DynLagrangian for Chain {
-    const AUTONOMOUS: bool = true;
-    const SEPARABILITY: Separability = Separability::ConstantMass;
-    const COUPLING: Coupling = Coupling { q_q: Pattern::Diagonal, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
-
-    fn dimension(&self) -> usize {
-        2 * self.0
-    }
-
-    fn lagrangian<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
-        let mut l = D::zero();
-        for i in 0..self.0 {
-            l += (v[2 * i] * v[2 * i] + v[2 * i + 1] * v[2 * i + 1]) * 0.5 - q[2 * i + 1];
-        }
-        l
-    }
-
-    fn constraint_count(&self) -> usize {
-        self.0
-    }
-
-    fn constraints<D: Scalar>(&self, _: D, q: &[D], g: &mut [D]) {
-        let (mut x, mut y) = (D::zero(), D::zero());
-        for r in 0..self.0 {
-            let (dx, dy) = (q[2 * r] - x, q[2 * r + 1] - y);
-            g[r] = dx * dx + dy * dy - 1.0;
-            x = q[2 * r];
-            y = q[2 * r + 1];
-        }
-    }
-}
-
-/// The chain folded: link `r` goes sideways by `±c` and down by 0.01.
-fn folded(links: usize) -> Vec<f64> {
-    let s = 0.01f64;
-    let c = (1.0 - s * s).sqrt();
-    (0..2 * links)
-        .map(|i| {
-            if i % 2 == 1 {
-                -s * (i / 2 + 1) as f64
-            } else if (i / 2) % 2 == 0 {
-                c
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
 fn slope(n: &[f64], t: &[f64]) -> f64 {
     let x: Vec<f64> = n.iter().map(|v| v.ln()).collect();
     let y: Vec<f64> = t.iter().map(|v| v.ln()).collect();
@@ -165,9 +114,9 @@ fn chain(c: &mut Criterion) {
     let sizes = [(100, 40), (300, 20), (1_000, 10), (3_000, 5), (10_000, 3)];
     let mut per_step = Vec::new();
     for &(links, repeats) in &sizes {
-        let q0 = folded(links);
+        let q0 = folded(links, 0.01);
         let v0 = vec![0.0; 2 * links];
-        let mut sim = DynConstrained::start(Chain(links), Midpoint, 1e-3, 0.0, &q0, &v0).unwrap();
+        let mut sim = DynConstrained::start(Links(links), Midpoint, 1e-3, 0.0, &q0, &v0).unwrap();
         let mut run = move || {
             sim.run(STEPS, |_| {}).unwrap();
             black_box(sim.state().q[0]);
