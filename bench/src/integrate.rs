@@ -1,5 +1,6 @@
 //! How each method of the report is run on a [`Model`].
 
+use lagrangian::galerkin::StageIteration;
 use lagrangian::prelude::*;
 use lagrangian::{Composition as Generated, GalerkinIntegrator, StepBounds};
 
@@ -78,11 +79,15 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
                 ..Run::default()
             }
         }
-        (Method::Galerkin(s), Setting::Steps(n)) => {
+        (Method::Galerkin(s) | Method::GalerkinFixedPoint(s), Setting::Steps(n)) => {
+            let iteration = match method {
+                Method::GalerkinFixedPoint(_) => StageIteration::Automatic,
+                _ => StageIteration::Newton,
+            };
             macro_rules! degree {
                 ($($s:literal)*) => {
                     match s {
-                        $($s => galerkin::<M, N, $s>(model, (q0, v0), n, t_end, samples, &mut record),)*
+                        $($s => galerkin::<M, N, $s>(model, (q0, v0), iteration, n, t_end, samples, &mut record),)*
                         _ => Run::failed(format!("no Galerkin degree {s} in the report (2 to 8)"), 0.0),
                     }
                 };
@@ -179,16 +184,17 @@ fn variational<M: Model<N>, L: F64Readouts, const N: usize>(
 fn galerkin<M: Model<N>, const N: usize, const S: usize>(
     model: &M,
     (q0, v0): ([f64; N], [f64; N]),
+    iteration: StageIteration,
     n: usize,
     t_end: f64,
     samples: usize,
     record: &mut impl FnMut(f64, &[f64; N], &[f64; N]),
 ) -> Run {
-    let mut sim =
-        match GalerkinIntegrator::new(model.system(), Galerkin::<S, S>::gauss(), t_end / n as f64).start(0.0, q0, v0) {
-            Ok(sim) => sim,
-            Err(e) => return Run::failed(e.to_string(), 0.0),
-        };
+    let method = Galerkin::<S, S>::gauss().with_iteration(iteration);
+    let mut sim = match GalerkinIntegrator::new(model.system(), method, t_end / n as f64).start(0.0, q0, v0) {
+        Ok(sim) => sim,
+        Err(e) => return Run::failed(e.to_string(), 0.0),
+    };
     let result = sim.run(n, |sim| {
         if samples > 0 {
             let s = sim.state();

@@ -14,6 +14,10 @@ pub enum Method {
     AlphaBeta,
     /// Project: Galerkin of degree `s` with `s` Gauss points (order `2s`).
     Galerkin(u8),
+    /// Project: as [`Method::Galerkin`], the stages solved by fixed-point
+    /// iteration on the gradient of `L` (`StageIteration::Automatic`: Newton
+    /// only where the iteration contracts slowly).
+    GalerkinFixedPoint(u8),
     /// Project: midpoint with energy-preserving variable steps (`StepBounds::around(h0)`).
     EnergyMidpoint,
     /// Project: Yoshida's order 4 composition of trapezoid steps (`Composition::YOSHIDA4`).
@@ -80,6 +84,7 @@ impl Method {
     pub fn all() -> Vec<Method> {
         let mut m = vec![Method::Midpoint, Method::Trapezoid, Method::AlphaBeta];
         m.extend((2..=8).map(Method::Galerkin));
+        m.extend((2..=8).map(Method::GalerkinFixedPoint));
         m.extend([
             Method::EnergyMidpoint,
             Method::GeneratedYoshida4,
@@ -107,6 +112,7 @@ impl Method {
             Method::Trapezoid => "trapezoid".into(),
             Method::AlphaBeta => "alpha-beta".into(),
             Method::Galerkin(s) => format!("galerkin-{s}"),
+            Method::GalerkinFixedPoint(s) => format!("galerkin-fp-{s}"),
             Method::EnergyMidpoint => "energy-midpoint".into(),
             Method::GeneratedYoshida4 => "composition-yoshida4".into(),
             Method::GeneratedYoshida6 => "composition-yoshida6".into(),
@@ -136,6 +142,7 @@ impl Method {
             | Method::Trapezoid
             | Method::AlphaBeta
             | Method::Galerkin(_)
+            | Method::GalerkinFixedPoint(_)
             | Method::EnergyMidpoint
             | Method::GeneratedYoshida4
             | Method::GeneratedYoshida6
@@ -154,7 +161,10 @@ impl Method {
         match self {
             Method::Midpoint | Method::Trapezoid | Method::EnergyMidpoint | Method::Verlet => 2,
             Method::AlphaBeta => 1,
-            Method::Galerkin(s) | Method::TimeTransformed(s) | Method::TimeTransformedAuto(s) => 2 * s as u32,
+            Method::Galerkin(s)
+            | Method::GalerkinFixedPoint(s)
+            | Method::TimeTransformed(s)
+            | Method::TimeTransformedAuto(s) => 2 * s as u32,
             Method::OdeSolversDop853 | Method::DiffEqDop853 => 8,
             Method::DiffEqGauss6 | Method::Yoshida6 | Method::GeneratedYoshida6 => 6,
             Method::GeneratedYoshida4 => 4,
