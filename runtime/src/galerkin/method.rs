@@ -122,9 +122,10 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
 /// iteration costs gradients of `L` only, where a Newton iteration costs
 /// its Hessian and a solve, so even at about twice the iterations it is
 /// the cheaper step on non-stiff runs (the report's `galerkin-fp-S`
-/// against `galerkin-S`, `--problem double-pendulum,sensor`: 0.57–0.99 of
-/// Newton's time on the double pendulum at s = 2…8, 0.53–0.66 on sensor
-/// runs of 45–304 steps, 1.00–1.10 on sensor runs of 2–16 large steps).
+/// against `galerkin-S`, `--problem double-pendulum,sensor --targets
+/// 1e-4,1e-7,1e-10`, one run: 0.40–0.97 of Newton's time on the double
+/// pendulum and 0.58–0.89 on the sensor, except at s = 2 and 1e-4 (1.45
+/// and 1.25) and the sensor's two-step s = 6 run at 1e-4 (1.73)).
 /// The fixed point stops at `f64` round-off, so other number types
 /// (`DoubleDouble`) always use Newton.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
