@@ -31,8 +31,8 @@
 //! the stepper falls back to Newton (`stepper.rs`).
 //!
 //! Stopping: the iteration runs until its correction is at round-off (a few
-//! ulps of the largest velocity), or the next one would be by the observed
-//! contraction, or it stops decreasing near round-off (IRKGL16's
+//! ulps of the largest velocity), or the next one would be far below it by
+//! the observed contraction, or it stops decreasing near round-off (IRKGL16's
 //! criterion), so the step it returns is converged as far as `f64` allows,
 //! as the Newton iteration's `rtol = 1e-14` is.
 
@@ -57,6 +57,14 @@ pub(super) const SLOWEST_CONTRACTION: f64 = 0.1;
 
 /// A correction (relative to the largest stage velocity) at round-off.
 const ROUND_OFF: f64 = 4.0 * f64::EPSILON;
+
+/// The error a linearly contracting iteration leaves when it stops is on the
+/// same side step after step, so the estimate of that error (the next
+/// correction at the observed contraction) is held to a hundredth of
+/// [`ROUND_OFF`]: at `ROUND_OFF` itself the bias, through the energy, became
+/// a phase drift that lowered the fitted order of s = 6 over 1e5 radians of
+/// the pendulum from 11.91 (Newton) to 11.82.
+const LEFT_OVER: f64 = ROUND_OFF / 100.0;
 
 /// A correction at most this large that no longer decreases has reached the
 /// round-off of the iteration (IRKGL16's stopping rule).
@@ -188,7 +196,7 @@ where
         // contracts linearly, so the error left is about that successor);
         // or one near round-off that no longer decreases.
         let next = if iteration > 1 { ratio * ratio / last } else { f64::INFINITY };
-        if ratio <= ROUND_OFF || next <= ROUND_OFF || (ratio >= last && ratio <= STALLED) {
+        if ratio <= ROUND_OFF || next <= LEFT_OVER || (ratio >= last && ratio <= STALLED) {
             let d = nodes_from(g, h, &v);
             return Ok(Converged { d, iterations: iteration, residual_norm: residual, correction_norm: ratio });
         }

@@ -118,22 +118,28 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
 /// runtime's Galerkin rules. Both iterations converge to the same step, to
 /// round-off. Other quadratures always use Newton.
 ///
-/// The default is Newton: the fixed point does not yet pay for itself
-/// (measured on the double pendulum, s = 4: 5.8 fixed-point against 2.8
-/// Newton iterations per step, about the same time), and it stops at
-/// `f64` round-off, so it runs in `f64` only.
+/// The default is [`Automatic`](StageIteration::Automatic): a fixed-point
+/// iteration costs gradients of `L` only, where a Newton iteration costs
+/// its Hessian and a solve, so even at about twice the iterations it is
+/// the cheaper step on non-stiff runs (the report's `galerkin-fp-S`
+/// against `galerkin-S`, `--problem double-pendulum,sensor --targets
+/// 1e-4,1e-7,1e-10`, one run: 0.40–0.97 of Newton's time on the double
+/// pendulum and 0.58–0.89 on the sensor, except at s = 2 and 1e-4 (1.45
+/// and 1.25) and the sensor's two-step s = 6 run at 1e-4 (1.73)).
+/// The fixed point stops at `f64` round-off, so other number types
+/// (`DoubleDouble`) always use Newton.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum StageIteration {
     /// The fixed-point iteration where it contracts fast enough, Newton on
     /// the steps where it does not (a stiff step, a poor first guess),
     /// chosen per step from the observed contraction.
+    #[default]
     Automatic,
     /// The fixed-point iteration only: a step on which it does not converge
     /// fails with a typed error (for checks; rules without collocation form
     /// use Newton whatever this says).
     FixedPoint,
     /// Newton on the node values (with a kept Jacobian) on every step.
-    #[default]
     Newton,
 }
 
@@ -158,7 +164,7 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             end_d: [T::zero(); S],
             stage_from_stages: [[T::zero(); R]; R],
             node_from_stages: [[T::zero(); R]; S],
-            iteration: StageIteration::Newton,
+            iteration: StageIteration::Automatic,
         };
         if S == 0 {
             return g;
@@ -219,7 +225,7 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
     }
 
     /// The rule with the given way of solving its step equations (the
-    /// default is [`StageIteration::Newton`]).
+    /// default is [`StageIteration::Automatic`]).
     pub fn with_iteration(mut self, iteration: StageIteration) -> Self {
         self.iteration = iteration;
         self
