@@ -340,11 +340,14 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
         S::HAS_GRADIENT_QV
     }
 
-    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+    crate::integrator::tape_step::scalar_methods!();
+}
+
+impl<S: DynLagrangian> Sliced<'_, S> {
+    fn gradient_qv_generic<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
         self.system.gradient_qv_scalar(t, q, v, out_q, out_v);
     }
-
-    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+    fn lagrangian_generic<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         self.system.lagrangian(t, q, v)
     }
 }

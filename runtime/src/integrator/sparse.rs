@@ -171,11 +171,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         S::HAS_GRADIENT_QV
     }
 
-    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+    crate::integrator::tape_step::scalar_methods!();
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Fixed<'_, S, M, N> {
+    fn gradient_qv_generic<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
         self.system.gradient_qv_scalar(t, q, v, out_q, out_v);
     }
-
-    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+    fn lagrangian_generic<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         let (q, v): ([D; N], [D; N]) = (core::array::from_fn(|i| q[i]), core::array::from_fn(|i| v[i]));
         self.system.lagrangian(t, q, v)
     }

@@ -5,15 +5,14 @@
 
 use num_dual::Dual64;
 
-use super::{TapeModel, filled};
+use super::{ModelScalar, TapeModel, filled};
 use crate::banded::LinearSolveError;
 use crate::hyperdual::DualArray;
-use crate::system::Scalar;
 
 /// The quadrature points of the forward-over-reverse Newton path, when
 /// the model takes it: generated gradient code and a rule of the form
 /// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)`.
-pub(super) fn directional_points<Mo: TapeModel>(model: &Mo) -> Option<[f64; 2]> {
+pub(super) fn directional_points(model: &dyn TapeModel) -> Option<[f64; 2]> {
     if model.has_gradient_qv() { model.points() } else { None }
 }
 
@@ -49,7 +48,7 @@ pub(crate) fn point_position(c: f64, q0: f64, dq: f64) -> f64 {
 /// A dual number carrying [`LANES`](Self::LANES) directions at once: one
 /// evaluation of the gradient code on it gives that many Hessian-vector
 /// products, with the same real part as on `f64`.
-pub(super) trait Lanes: Scalar {
+pub(super) trait Lanes: ModelScalar {
     /// How many directions one value carries.
     const LANES: usize;
     /// `re` with `scale` in direction `lane` (none: a constant).
@@ -72,7 +71,10 @@ impl Lanes for Dual64 {
     }
 }
 
-impl<const K: usize> Lanes for DualArray<[f64; K]> {
+impl<const K: usize> Lanes for DualArray<[f64; K]>
+where
+    Self: ModelScalar,
+{
     const LANES: usize = K;
 
     #[inline(always)]
@@ -266,9 +268,9 @@ impl Directional {
     /// diagonal, or whole rows without a band). [`allocate`](Self::allocate)
     /// must have been called with this bandwidth.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn linearize<Mo: TapeModel>(
+    pub(super) fn linearize(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         points: [f64; 2],
@@ -294,9 +296,9 @@ impl Directional {
     /// `f64` gradient code: the real parts of [`linearize`](Self::linearize),
     /// summed in the same order, for the iterations that keep the Jacobian.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn residual<Mo: TapeModel>(
+    pub(super) fn residual(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         points: [f64; 2],
@@ -314,7 +316,7 @@ impl Directional {
             let c = points[j];
             let a_q = w * (h * (1.0 - c));
             let at = &self.at[j * n..(j + 1) * n];
-            model.gradient_qv(point_time(c, t0, h), at, &self.velocity, &mut self.fq, &mut self.fv);
+            ModelScalar::gradient_qv(model, point_time(c, t0, h), at, &self.velocity, &mut self.fq, &mut self.fv);
             for i in 0..n {
                 d_q0[i] += a_q * self.fq[i] - b_v * self.fv[i];
             }
@@ -327,9 +329,9 @@ impl Directional {
     /// depends on time) at the points; with the energy, whether `L` is
     /// finite at every point.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn momentum_and_energy<Mo: TapeModel>(
+    pub(super) fn momentum_and_energy(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         points: [f64; 2],
@@ -349,19 +351,19 @@ impl Directional {
             let c = points[j];
             let t = point_time(c, t0, h);
             let at = &self.at[j * n..(j + 1) * n];
-            model.gradient_qv(t, at, &self.velocity, &mut self.fq, &mut self.fv);
+            ModelScalar::gradient_qv(model, t, at, &self.velocity, &mut self.fq, &mut self.fv);
             let wh = w * h;
             for (g, &f) in g_q0.iter_mut().zip(&self.fq) {
                 *g += wh * f;
             }
             let (l, l_t) = if model.autonomous() {
-                (model.lagrangian_scalar(t, at, &self.velocity), 0.0)
+                (ModelScalar::lagrangian(model, t, at, &self.velocity), 0.0)
             } else {
                 for i in 0..n {
                     self.one.q[i] = Dual64::from(at[i]);
                     self.one.v[i] = Dual64::from(self.velocity[i]);
                 }
-                let l = model.lagrangian_scalar(Dual64::new(t, 1.0), &self.one.q, &self.one.v);
+                let l = ModelScalar::lagrangian(model, Dual64::new(t, 1.0), &self.one.q, &self.one.v);
                 (l.re, l.eps)
             };
             let power: f64 = self.fv.iter().zip(&self.velocity).map(|(p, v)| p * v).sum();
@@ -390,9 +392,9 @@ impl Step<'_> {
     /// The arithmetic of each entry is that of one `Dual64` evaluation per
     /// class (the real part is the `f64` code's), summed over the points in
     /// the same order.
-    pub(super) fn linearize<Mo: TapeModel, D: Lanes>(
+    pub(super) fn linearize<D: Lanes>(
         &self,
-        model: &Mo,
+        model: &dyn TapeModel,
         seeded: &mut Seeded<D>,
         layout: Layout,
         d_q0: &mut [f64],
@@ -425,7 +427,7 @@ impl Step<'_> {
                     }
                 }
                 let t = D::from(point_time(c, self.t0, self.h));
-                model.gradient_qv(t, &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
+                ModelScalar::gradient_qv(model, t, &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
                 for i in 0..n {
                     let (gq, gv) = (&seeded.gq[i], &seeded.gv[i]);
                     let row = &mut band[i * width..(i + 1) * width];
@@ -446,8 +448,8 @@ impl Step<'_> {
 /// duals (`v` seeded, `q` constant) into `band` (the layout's storage).
 /// Allocates its dual buffers (a readout, not a step).
 #[allow(clippy::too_many_arguments)]
-pub(super) fn mass_from_gradient_code<Mo: TapeModel>(
-    model: &Mo,
+pub(super) fn mass_from_gradient_code(
+    model: &dyn TapeModel,
     t: f64,
     q: &[f64],
     v: &[f64],
@@ -457,17 +459,17 @@ pub(super) fn mass_from_gradient_code<Mo: TapeModel>(
 ) -> Result<(), LinearSolveError> {
     let n = layout.n;
     let mut fq = filled(n, 0.0)?;
-    model.gradient_qv(t, q, v, &mut fq, p);
+    ModelScalar::gradient_qv(model, t, q, v, &mut fq, p);
     match Width::for_classes(layout.classes()) {
-        Width::One => mass_lanes::<Mo, Dual64>(model, t, q, v, layout, band),
-        Width::Three => mass_lanes::<Mo, DualArray<[f64; 3]>>(model, t, q, v, layout, band),
-        Width::Five => mass_lanes::<Mo, DualArray<[f64; 5]>>(model, t, q, v, layout, band),
+        Width::One => mass_lanes::<Dual64>(model, t, q, v, layout, band),
+        Width::Three => mass_lanes::<DualArray<[f64; 3]>>(model, t, q, v, layout, band),
+        Width::Five => mass_lanes::<DualArray<[f64; 5]>>(model, t, q, v, layout, band),
     }
 }
 
 /// The mass matrix of [`mass_from_gradient_code`] on the lane type `D`.
-pub(super) fn mass_lanes<Mo: TapeModel, D: Lanes>(
-    model: &Mo,
+pub(super) fn mass_lanes<D: Lanes>(
+    model: &dyn TapeModel,
     t: f64,
     q: &[f64],
     v: &[f64],
@@ -494,7 +496,7 @@ pub(super) fn mass_lanes<Mo: TapeModel, D: Lanes>(
                 class = 0;
             }
         }
-        model.gradient_qv(D::from(t), &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
+        ModelScalar::gradient_qv(model, D::from(t), &seeded.q, &seeded.v, &mut seeded.gq, &mut seeded.gv);
         for i in 0..n {
             let gv = &seeded.gv[i];
             let row = &mut band[i * width..(i + 1) * width];
@@ -509,6 +511,7 @@ mod tests {
     use super::*;
     use crate::integrator::tape_step::TapeModel;
     use crate::structure::Coupling;
+    use crate::system::Scalar;
     use crate::tape::Var;
 
     /// A chain with a position-dependent mass, kinetic coupling of
@@ -547,7 +550,12 @@ mod tests {
         fn has_gradient_qv(&self) -> bool {
             true
         }
-        fn gradient_qv<D: Scalar>(&self, _: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+
+        crate::integrator::tape_step::scalar_methods!();
+    }
+
+    impl Chain {
+        fn gradient_qv_generic<D: Scalar>(&self, _: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
             let n = q.len();
             for i in 0..n {
                 let (s, c) = q[i].sin_cos();
@@ -566,7 +574,7 @@ mod tests {
                 out_q[i + 1] -= e3;
             }
         }
-        fn lagrangian_scalar<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
+        fn lagrangian_generic<D: Scalar>(&self, _: D, q: &[D], v: &[D]) -> D {
             chain_lagrangian(q, v)
         }
     }

@@ -18,9 +18,9 @@ impl SparseWork {
     /// code or one reverse sweep per step, reused at the next node. Clears
     /// [`energy`](Self::energy) on success (a Verlet step's discrete energy is
     /// computed on request); keeps the node force of `node` on failure.
-    pub(crate) fn verlet_step<Mo: TapeModel>(
+    pub(crate) fn verlet_step(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         h: f64,
         t1: f64,
@@ -32,8 +32,8 @@ impl SparseWork {
         let mut taken = self.taken(dq, NewtonReport { iterations: 0, residual_norm: 0.0, correction_norm: 0.0 });
         let mut f1 = self.buffer();
         let outcome = match node.plain {
-            false => self.verlet_into::<_, false>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
-            true => self.verlet_into::<_, true>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
+            false => self.verlet_into::<false>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
+            true => self.verlet_into::<true>(model, node, h, t1, growth, &f0, &mut taken, &mut f1),
         };
         match outcome {
             Ok(()) => {
@@ -55,9 +55,9 @@ impl SparseWork {
     /// (factored at the first one; a singular one is a typed failure) and
     /// the force at `node` (the cached one when it is that node's, which the
     /// caller puts back or replaces).
-    pub(super) fn explicit_node<Mo: TapeModel>(
+    pub(super) fn explicit_node(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         min_rcond: f64,
     ) -> Result<Vec<f64>, NewtonFailure> {
@@ -106,9 +106,9 @@ impl SparseWork {
     /// segment); keeps the node force of `node` on failure, and on success
     /// the end node's force for the next step.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn verlet_composed<Mo: TapeModel>(
+    pub(crate) fn verlet_composed(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         h: f64,
         t1: f64,
@@ -150,9 +150,9 @@ impl SparseWork {
     /// operations in the same order), and `Δq = q_{k+1} − q_k` is formed at
     /// the end for the growth check.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn composed_into<Mo: TapeModel>(
+    pub(super) fn composed_into(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         (h, t1): (f64, f64),
         weights: &[f64],
@@ -315,9 +315,9 @@ impl SparseWork {
     /// `PLAIN` ([`Summation::Plain`](crate::Summation::Plain)): the
     /// compensations are neither read nor written, the sums rounded once.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn verlet_into<Mo: TapeModel, const PLAIN: bool>(
+    pub(super) fn verlet_into<const PLAIN: bool>(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         h: f64,
         t1: f64,

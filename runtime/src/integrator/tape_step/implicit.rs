@@ -16,9 +16,9 @@ use crate::tape::{TapeError, Var};
 impl SparseWork {
     /// Records the action `A(q_k, Δq, h)` at `t_k = t0` on the tape
     /// ([`tape_buffers`](Self::tape_buffers) must have been called).
-    pub(super) fn record_action<Mo: TapeModel>(
+    pub(super) fn record_action(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         q0: &[f64],
@@ -35,9 +35,9 @@ impl SparseWork {
     /// Newton on the DEL with banded or dense solves, then the momentum
     /// change and the step's discrete energy (returned with the step) from
     /// one more reverse sweep.
-    pub(crate) fn newton_step<Mo: TapeModel>(
+    pub(crate) fn newton_step(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         h: f64,
         t1: f64,
@@ -94,9 +94,9 @@ impl SparseWork {
     /// dual numbers (forward over reverse) when the system has it and the
     /// rule has quadrature points, from the tape otherwise. No iteration
     /// allocates: the iterate and the correction are the work's buffers.
-    pub(super) fn solve<Mo: TapeModel>(
+    pub(super) fn solve(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         node: &Node<'_>,
         h: f64,
         guess: &Guess<'_>,
@@ -185,9 +185,9 @@ impl SparseWork {
     /// (`constrained/dynamic.rs`). From the gradient code on dual lanes when
     /// the system has it, from the tape otherwise, as in [`solve`](Self::solve).
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn linearize_step<Mo: TapeModel>(
+    pub(crate) fn linearize_step(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         q0: &[f64],
@@ -208,9 +208,9 @@ impl SparseWork {
     /// After a constrained step converged: the momentum change at fixed
     /// increment `∂A/∂q_k|_{Δq}` into `out`, and the step's discrete energy
     /// `−∂A/∂h`; `Err` when the action is not finite or the tape failed.
-    pub(crate) fn momentum_change<Mo: TapeModel>(
+    pub(crate) fn momentum_change(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         q0: &[f64],
@@ -240,9 +240,9 @@ impl SparseWork {
     /// compressed second-order sweep (a kept one: one reverse sweep, no
     /// second-order products).
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn tape_linearize<Mo: TapeModel>(
+    pub(super) fn tape_linearize(
         &mut self,
-        model: &Mo,
+        model: &dyn TapeModel,
         t0: f64,
         h: f64,
         q0: &[f64],

@@ -4,7 +4,8 @@
 
 use super::directional::{Directional, Layout, directional_points, mass_from_gradient_code};
 use super::{
-    TapeModel, assemble_and_factor, breakdown, filled, mass_bandwidth, seeds, step_matrix, tape_breakdown, zeroed,
+    ModelScalar, TapeModel, assemble_and_factor, breakdown, filled, mass_bandwidth, seeds, step_matrix, tape_breakdown,
+    zeroed,
 };
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::integrator::Stats;
@@ -27,7 +28,7 @@ pub(crate) fn watch_energy_jump(stats: &mut Stats, before: f64, after: f64, t1: 
 /// the system's gradient code at the rule's points when it has it, else from
 /// one reverse sweep (NaN if the tape fails, which the runtime's use cannot
 /// provoke, or if the buffers cannot be allocated).
-pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64], dq: &[f64]) -> f64 {
+pub(crate) fn step_energy(model: &dyn TapeModel, t0: f64, h: f64, q0: &[f64], dq: &[f64]) -> f64 {
     let n = q0.len();
     if let Some(points) = directional_points(model) {
         let mut directional = Directional::default();
@@ -55,14 +56,14 @@ pub(crate) fn step_energy<Mo: TapeModel>(model: &Mo, t0: f64, h: f64, q0: &[f64]
 /// node's, checked by the step before (or at `start`), it makes the
 /// trapezoid action `h/2 (L_k + L_{k+1})` finite, whose derivatives can be
 /// finite where it is not.
-pub(super) fn potential_finite<Mo: TapeModel>(model: &Mo, zero: &[f64], t: f64, q: &[f64]) -> bool {
-    model.lagrangian_scalar(t, q, zero).is_finite()
+pub(super) fn potential_finite(model: &dyn TapeModel, zero: &[f64], t: f64, q: &[f64]) -> bool {
+    ModelScalar::lagrangian(model, t, q, zero).is_finite()
 }
 
 /// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from one reverse
 /// sweep with the inputs `q`.
-pub(super) fn potential_force<Mo: TapeModel>(
-    model: &Mo,
+pub(super) fn potential_force(
+    model: &dyn TapeModel,
     tape: &mut Tape,
     zero: &(Vec<f64>, Vec<Var>),
     t: f64,
@@ -80,8 +81,8 @@ pub(super) fn potential_force<Mo: TapeModel>(
 /// given bandwidth, or dense) at `(t, q, v)`: from the system's gradient
 /// code (on `f64`, and by colour classes on dual numbers) when it has it,
 /// else from one second-order sweep of a tape with the inputs `v`.
-pub(crate) fn velocity_derivatives<Mo: TapeModel>(
-    model: &Mo,
+pub(crate) fn velocity_derivatives(
+    model: &dyn TapeModel,
     t: f64,
     q: &[f64],
     v: &[f64],
@@ -94,7 +95,7 @@ pub(crate) fn velocity_derivatives<Mo: TapeModel>(
     let l = if model.has_gradient_qv() {
         let layout = Layout { n, bandwidth };
         mass_from_gradient_code(model, t, q, v, layout, &mut gradient, &mut band).map_err(breakdown)?;
-        model.lagrangian_scalar(t, q, v)
+        ModelScalar::lagrangian(model, t, q, v)
     } else {
         let seeds = seeds(0..n, bandwidth);
         let mut tape = Tape::new();
@@ -132,12 +133,7 @@ impl Assembled {
 /// The momentum `p = ∂L/∂v` and energy `E = v·p − L` at `(t, q, v)`, with a
 /// check that `∂²L/∂v²` is regular there (its banded or dense LU). `Err`
 /// says why the data cannot start an integration.
-pub(crate) fn legendre<Mo: TapeModel>(
-    model: &Mo,
-    t: f64,
-    q: &[f64],
-    v: &[f64],
-) -> Result<(Vec<f64>, f64), &'static str> {
+pub(crate) fn legendre(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f64]) -> Result<(Vec<f64>, f64), &'static str> {
     let n = q.len();
     let (l, p, mut hessian) = velocity_derivatives(model, t, q, v, mass_bandwidth(model.coupling(), n))
         .map_err(|_| "the lagrangian or its derivatives could not be evaluated at the initial data")?;
@@ -157,13 +153,13 @@ pub(crate) fn legendre<Mo: TapeModel>(
 /// The energy `E = v·∂L/∂v − L` at `(t, q, v)`: `∂L/∂v` from the system's
 /// gradient code when it has it, else from one reverse sweep (NaN if the
 /// tape fails).
-pub(crate) fn energy<Mo: TapeModel>(model: &Mo, t: f64, q: &[f64], v: &[f64]) -> f64 {
+pub(crate) fn energy(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f64]) -> f64 {
     let n = q.len();
     let mut p = vec![0.0; n];
     let swept = if model.has_gradient_qv() {
         let mut fq = vec![0.0; n];
-        model.gradient_qv(t, q, v, &mut fq, &mut p);
-        Ok(model.lagrangian_scalar(t, q, v))
+        ModelScalar::gradient_qv(model, t, q, v, &mut fq, &mut p);
+        Ok(ModelScalar::lagrangian(model, t, q, v))
     } else {
         let mut tape = Tape::new();
         let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
@@ -179,8 +175,8 @@ pub(crate) fn energy<Mo: TapeModel>(model: &Mo, t: f64, q: &[f64], v: &[f64]) ->
 /// The velocity whose momentum `∂L/∂v(t, q, v)` is `p`, by Newton's method
 /// from `guess` with banded or dense solves (the inverse Legendre
 /// transform). `Err` carries `(iterations, residual norm)`.
-pub(crate) fn velocity<Mo: TapeModel>(
-    model: &Mo,
+pub(crate) fn velocity(
+    model: &dyn TapeModel,
     t: f64,
     q: &[f64],
     p: &[f64],

@@ -29,10 +29,12 @@
 
 use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
+use crate::hyperdual::DualArray;
 use crate::newton::{Breakdown, NewtonFailure, NewtonReport};
 use crate::structure::{Coupling, Pattern};
 use crate::system::Scalar;
 use crate::tape::{Seeds, Tape, TapeError, Var};
+use num_dual::Dual64;
 
 mod directional;
 mod explicit;
@@ -68,17 +70,132 @@ pub(crate) trait TapeModel {
     /// `A = (h/2) Σ_j L(t_k + c_j h, q_k + c_j Δq, Δq/h)`, one evaluation
     /// of weight `h` when they coincide. `None` for a rule of another form.
     fn points(&self) -> Option<[f64; 2]>;
-    /// `true` when [`gradient_qv`](Self::gradient_qv) is the system's
-    /// generated adjoint code, generic over the scalar: Newton steps then
-    /// take their derivatives from it instead of the tape.
+    /// `true` when the `gradient_qv_*` methods are the system's generated
+    /// adjoint code: Newton steps then take their derivatives from it
+    /// instead of the tape.
     fn has_gradient_qv(&self) -> bool;
-    /// `∂L/∂q` and `∂L/∂v` at `(t, q, v)` on any scalar (on `Dual64`, the
-    /// Hessian-vector products along the seeded direction). Called only when
-    /// [`has_gradient_qv`](Self::has_gradient_qv).
-    fn gradient_qv<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]);
-    /// `L(t, q, v)` on any scalar.
-    fn lagrangian_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
+    // `∂L/∂q`, `∂L/∂v` (called only when `has_gradient_qv`) and `L` at
+    // `(t, q, v)`, one method per scalar the step code evaluates them on
+    // (on the dual types, derivatives along the seeded directions): with no
+    // generic method the trait is object-safe, so the step code takes
+    // `&dyn TapeModel` and is compiled once, not once for every system and
+    // rule (it was a fifth to a third of the LLVM IR of the test binaries).
+    // Implementors write them with `scalar_methods!`; generic code calls
+    // them through `ModelScalar`.
+    fn gradient_qv_f64(&self, t: f64, q: &[f64], v: &[f64], out_q: &mut [f64], out_v: &mut [f64]);
+    fn gradient_qv_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64], out_q: &mut [Dual64], out_v: &mut [Dual64]);
+    fn gradient_qv_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3], out_q: &mut [Lanes3], out_v: &mut [Lanes3]);
+    fn gradient_qv_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5], out_q: &mut [Lanes5], out_v: &mut [Lanes5]);
+    fn lagrangian_f64(&self, t: f64, q: &[f64], v: &[f64]) -> f64;
+    fn lagrangian_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64]) -> Dual64;
+    fn lagrangian_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3]) -> Lanes3;
+    fn lagrangian_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5]) -> Lanes5;
 }
+
+/// Three directions of derivatives carried at once.
+pub(crate) type Lanes3 = DualArray<[f64; 3]>;
+/// Five directions of derivatives carried at once.
+pub(crate) type Lanes5 = DualArray<[f64; 5]>;
+
+/// A scalar the step code evaluates a [`TapeModel`] on: picks the
+/// model's method for the type.
+pub(crate) trait ModelScalar: Scalar {
+    /// `∂L/∂q` and `∂L/∂v` at `(t, q, v)`.
+    fn gradient_qv(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], out_q: &mut [Self], out_v: &mut [Self]);
+    /// `L(t, q, v)`.
+    fn lagrangian(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self]) -> Self;
+}
+
+macro_rules! model_scalar {
+    ($($ty:ty => $gradient:ident, $lagrangian:ident;)*) => {$(
+        impl ModelScalar for $ty {
+            #[inline(always)]
+            fn gradient_qv(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], out_q: &mut [Self], out_v: &mut [Self]) {
+                model.$gradient(t, q, v, out_q, out_v)
+            }
+
+            #[inline(always)]
+            fn lagrangian(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self]) -> Self {
+                model.$lagrangian(t, q, v)
+            }
+        }
+    )*};
+}
+
+model_scalar! {
+    f64 => gradient_qv_f64, lagrangian_f64;
+    Dual64 => gradient_qv_dual, lagrangian_dual;
+    Lanes3 => gradient_qv_lanes3, lagrangian_lanes3;
+    Lanes5 => gradient_qv_lanes5, lagrangian_lanes5;
+}
+
+/// The per-scalar methods of [`TapeModel`] for an implementor with generic
+/// inherent methods `gradient_qv_generic` and `lagrangian_generic`.
+macro_rules! scalar_methods {
+    () => {
+        fn gradient_qv_f64(&self, t: f64, q: &[f64], v: &[f64], out_q: &mut [f64], out_v: &mut [f64]) {
+            self.gradient_qv_generic(t, q, v, out_q, out_v)
+        }
+        fn gradient_qv_dual(
+            &self,
+            t: num_dual::Dual64,
+            q: &[num_dual::Dual64],
+            v: &[num_dual::Dual64],
+            out_q: &mut [num_dual::Dual64],
+            out_v: &mut [num_dual::Dual64],
+        ) {
+            self.gradient_qv_generic(t, q, v, out_q, out_v)
+        }
+        fn gradient_qv_lanes3(
+            &self,
+            t: $crate::integrator::tape_step::Lanes3,
+            q: &[$crate::integrator::tape_step::Lanes3],
+            v: &[$crate::integrator::tape_step::Lanes3],
+            out_q: &mut [$crate::integrator::tape_step::Lanes3],
+            out_v: &mut [$crate::integrator::tape_step::Lanes3],
+        ) {
+            self.gradient_qv_generic(t, q, v, out_q, out_v)
+        }
+        fn gradient_qv_lanes5(
+            &self,
+            t: $crate::integrator::tape_step::Lanes5,
+            q: &[$crate::integrator::tape_step::Lanes5],
+            v: &[$crate::integrator::tape_step::Lanes5],
+            out_q: &mut [$crate::integrator::tape_step::Lanes5],
+            out_v: &mut [$crate::integrator::tape_step::Lanes5],
+        ) {
+            self.gradient_qv_generic(t, q, v, out_q, out_v)
+        }
+        fn lagrangian_f64(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+            self.lagrangian_generic(t, q, v)
+        }
+        fn lagrangian_dual(
+            &self,
+            t: num_dual::Dual64,
+            q: &[num_dual::Dual64],
+            v: &[num_dual::Dual64],
+        ) -> num_dual::Dual64 {
+            self.lagrangian_generic(t, q, v)
+        }
+        fn lagrangian_lanes3(
+            &self,
+            t: $crate::integrator::tape_step::Lanes3,
+            q: &[$crate::integrator::tape_step::Lanes3],
+            v: &[$crate::integrator::tape_step::Lanes3],
+        ) -> $crate::integrator::tape_step::Lanes3 {
+            self.lagrangian_generic(t, q, v)
+        }
+        fn lagrangian_lanes5(
+            &self,
+            t: $crate::integrator::tape_step::Lanes5,
+            q: &[$crate::integrator::tape_step::Lanes5],
+            v: &[$crate::integrator::tape_step::Lanes5],
+        ) -> $crate::integrator::tape_step::Lanes5 {
+            self.lagrangian_generic(t, q, v)
+        }
+    };
+}
+pub(crate) use scalar_methods;
 
 /// The bandwidth of the step Jacobian `∂²A/∂q_k∂q_{k+1}` (and of `∂²L/∂v²`),
 /// `None` when it is not proven banded: the widest of the three Hessian
