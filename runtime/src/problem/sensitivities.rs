@@ -132,9 +132,17 @@ where
     {
         let policy = Policy::fixed(h);
         self.differentiable(scheme, policy)?;
-        let stepper = self.stepper(scheme, policy)?;
+        let stepper = self.boxed_stepper(scheme, policy)?;
         let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
+    }
+
+    /// [`stepper`](Self::stepper), on the heap. Out of line, so that the
+    /// frame that builds a stepper of any kind (600 kB at `N = 1000`) is
+    /// released before the adjoint's run.
+    #[inline(never)]
+    fn boxed_stepper(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Stepper<S, N>>, Error<N>> {
+        Ok(Box::new(self.stepper(scheme, policy)?))
     }
 }
 

@@ -27,7 +27,7 @@ use crate::hyperdual::{DualArray, Pair};
 use crate::problem::{Dim, Extended, Stepper};
 use crate::solution::Stepping;
 use crate::state::State;
-use crate::system::Scalar;
+use crate::system::{Lagrangian, Scalar};
 use crate::tape::Tape;
 
 /// A scalar loss of a run: running terms at every node `k = 0..=n` and a
@@ -202,10 +202,23 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
 }
 
+/// A copy of `stepper` on the heap. The steppers are kept there, and moved
+/// as boxes, because a stepper of a large system is large (300 kB at
+/// `N = 1000`); and the copy is made out of line because the frame of a
+/// stepper's clone holds room for a copy of each kind of stepper (700 kB),
+/// which is then released before the next step.
+#[inline(never)]
+fn copy<S: Lagrangian<N> + Clone, const N: usize>(stepper: &Stepper<S, N>) -> Box<Stepper<S, N>>
+where
+    Dim<N>: Extended<N>,
+{
+    Box::new(stepper.clone())
+}
+
 /// The run and the reverse sweep (see the [module](self)).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
-    mut stepper: Stepper<S, N>,
+    mut stepper: Box<Stepper<S, N>>,
     rule: Rule,
     initial: (f64, [f64; N], [f64; N]),
     h: f64,
@@ -232,16 +245,16 @@ where
     let mut terms = Terms::new::<N, P>();
 
     // Forward: the loss value, a copy every m nodes.
-    let mut kept = vec![stepper.clone()];
+    let mut kept = vec![copy(&stepper)];
     let mut value = 0.0;
     let mut last_h = None;
     while stepper.state().t < t_end {
         let state = stepper.state();
         value += value_at(loss, &state, &theta, false)?;
-        Stepping::step_toward(&mut stepper, t_end, last_h)?;
+        Stepping::step_toward(&mut *stepper, t_end, last_h)?;
         last_h = Some(stepper.state().t - state.t);
         if stepper.state().step.is_multiple_of(m as u64) {
-            kept.push(stepper.clone());
+            kept.push(copy(&stepper));
         }
     }
     let last = stepper.state();
@@ -270,7 +283,7 @@ where
         let mut last_h = None;
         while sim.state().step < (first + m as u64).min(last.step) {
             let from = sim.state();
-            Stepping::step_toward(&mut sim, t_end, last_h)?;
+            Stepping::step_toward(&mut *sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
             let begin = pieces.len();
             sim.last_pieces(&from, &mut pieces)?;
