@@ -53,7 +53,9 @@
 //! Above [`Derivatives::FORWARD_MAX_N`](crate::Derivatives::FORWARD_MAX_N)
 //! coordinates (where the stepper takes one-point steps without forces in
 //! reverse mode) `K_j` would be a dense `2N × 2N` block: there the action
-//! `a(q_k, D, θ)` of the step is recorded on a [`Tape`] instead. With
+//! `a(q_k, D, θ)` of the step is recorded on a [`Tape`] instead, and so it
+//! is below for a one-point step without forces whose Newton matrix has a
+//! narrow band (`narrow`), where the dense block costs more. With
 //! `R_0 = a_q − a_D` and `R_1 = a_D`, the Newton matrix is
 //! `G_D = a_qD − a_DD`, taken in its band by one compressed second-order
 //! sweep seeded on `D` (the pattern [`Lagrangian::COUPLING`] proves). The
@@ -170,6 +172,21 @@ pub(super) const fn large(n: usize) -> bool {
     n > crate::Derivatives::FORWARD_MAX_N
 }
 
+/// Whether a one-point step without forces takes the tape path below
+/// [`large`] sizes too: where the band of the Newton matrix is at most an
+/// eighth of `n`. The dense path's `K_j` costs `⌈2N/8⌉` evaluations of `L`
+/// on numbers of `O(N)` parts at each point, the tape's `2b + 1`
+/// directions of a second-order sweep: for the FPU-β chain of 32 masses
+/// (`b = 1`), 15.9e6 instructions per reverse step on the dense path,
+/// 0.27e6 on the tape (callgrind, `bench/benches/adjoint.rs`). Smaller chains
+/// (16 masses: 1.6e6 per step, dense) were not measured on the tape.
+const fn narrow(pattern: Pattern, n: usize) -> bool {
+    match pattern.bandwidth() {
+        Some(b) => 8 * (2 * b + 1) <= n,
+        None => false,
+    }
+}
+
 /// The buffers of the tape path, allocated once.
 struct TapeWork {
     tape: Tape,
@@ -209,13 +226,17 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
     /// and the forces; that of a Galerkin step is taken as general.
     pub(crate) fn new<S: Parametric<N, P>>(rule: Rule) -> Result<Self, Error<N>> {
         let s = rule.degree();
-        let pattern = S::COUPLING.overall().union(S::FORCE_COUPLING.overall());
+        // The forces' pattern counts only where there are forces (its
+        // default is general).
+        let forced = S::HAS_FORCE || S::HAS_DISSIPATION;
+        let pattern = S::COUPLING.overall();
+        let pattern = if forced { pattern.union(S::FORCE_COUPLING.overall()) } else { pattern };
         let pattern = if s == 1 { pattern } else { Pattern::General };
         let too_large =
             Error::Unsupported { what: "the buffers of the adjoint of a step of this size cannot be allocated" };
         let matrix = StepSolver::for_pattern(s * N, pattern).map_err(|_| too_large)?;
-        let tape = if large(N) {
-            if s != 1 || S::HAS_FORCE || S::HAS_DISSIPATION {
+        let tape = if large(N) || (s == 1 && !forced && narrow(pattern, N)) {
+            if s != 1 || forced {
                 return Err(Error::Unsupported {
                     what: "the adjoint of Galerkin steps, forces or dissipation above `Derivatives::FORWARD_MAX_N` coordinates",
                 });
@@ -236,7 +257,7 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         } else {
             None
         };
-        let points = if large(N) { 0 } else { rule.point_count() };
+        let points = if tape.is_some() { 0 } else { rule.point_count() };
         Ok(Self {
             jacobians: vec![0.0; points * 4 * N * N],
             omega: vec![0.0; (s + 1) * N],
@@ -261,7 +282,7 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
     ) -> Option<()> {
         let (lq, lp) = lambda;
         for piece in pieces.iter().rev() {
-            if const { large(N) } {
+            if self.tape.is_some() {
                 self.piece_on_tape(system, theta, piece, (lq, lp), dtheta)?;
             } else {
                 self.piece(system, theta, piece, (lq, lp), dtheta)?;
