@@ -27,7 +27,7 @@ use crate::hyperdual::{DualArray, Pair};
 use crate::problem::{Dim, Extended, Stepper};
 use crate::solution::Stepping;
 use crate::state::State;
-use crate::system::{Lagrangian, Scalar};
+use crate::system::Scalar;
 use crate::tape::Tape;
 
 /// A scalar loss of a run: running terms at every node `k = 0..=n` and a
@@ -202,21 +202,9 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
 }
 
-/// A copy of `stepper` on the heap. The steppers are kept there, and moved
-/// as boxes, because a stepper of a large system is large (300 kB at
-/// `N = 1000`); and the copy is made out of line because the frame of a
-/// stepper's clone holds room for a copy of each kind of stepper (700 kB),
-/// which is then released before the next step.
-#[inline(never)]
-fn copy<S: Lagrangian<N> + Clone, const N: usize>(stepper: &Stepper<S, N>) -> Box<Stepper<S, N>>
-where
-    Dim<N>: Extended<N>,
-{
-    Box::new(stepper.clone())
-}
-
-/// The run and the reverse sweep (see the [module](self)).
-#[allow(clippy::too_many_arguments)]
+/// The run and the reverse sweep (see the [module](self)). The stepper
+/// comes boxed: a large system's does not fit the stack beside the rest.
+#[allow(clippy::too_many_arguments, clippy::boxed_local)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
     mut stepper: Box<Stepper<S, N>>,
     rule: Rule,
@@ -245,7 +233,8 @@ where
     let mut terms = Terms::new::<N, P>();
 
     // Forward: the loss value, a copy every m nodes.
-    let mut kept = vec![copy(&stepper)];
+    // In boxes: a stepper of a large system is large (300 kB at N = 1000).
+    let mut kept = vec![stepper.boxed_copy()];
     let mut value = 0.0;
     let mut last_h = None;
     while stepper.state().t < t_end {
@@ -254,7 +243,7 @@ where
         Stepping::step_toward(&mut *stepper, t_end, last_h)?;
         last_h = Some(stepper.state().t - state.t);
         if stepper.state().step.is_multiple_of(m as u64) {
-            kept.push(copy(&stepper));
+            kept.push(stepper.boxed_copy());
         }
     }
     let last = stepper.state();
