@@ -132,9 +132,17 @@ where
     {
         let policy = Policy::fixed(h);
         self.differentiable(scheme, policy)?;
-        let stepper = self.stepper(scheme, policy)?;
+        let stepper = self.boxed_stepper(scheme, policy)?;
         let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
+    }
+
+    /// [`stepper`](Self::stepper), on the heap. Out of line, so that the
+    /// frame that builds a stepper of any kind (600 kB at `N = 1000`) is
+    /// released before the adjoint's run.
+    #[inline(never)]
+    fn boxed_stepper(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Stepper<S, N>>, Error<N>> {
+        Ok(Box::new(self.stepper(scheme, policy)?))
     }
 }
 
@@ -163,6 +171,28 @@ where
                 return Err(Error::Unsupported { what: "sensitivities of a time-transformed scheme" });
             }
         })
+    }
+
+    /// A copy of this stepper on the heap, made by a function of its own for
+    /// its kind of driver: the frame of a stepper's `clone` holds room for
+    /// every kind at once (1.5 MB at `N = 1000` in the tests' profile,
+    /// several times the size of a stepper), that function's for its own
+    /// kind only.
+    pub(crate) fn boxed_copy(&self) -> Box<Self> {
+        match &self.driver {
+            Driver::Midpoint(d) => boxed(self, d, Driver::Midpoint),
+            Driver::Trapezoid(d) => boxed(self, d, Driver::Trapezoid),
+            Driver::AlphaBeta(d) => boxed(self, d, Driver::AlphaBeta),
+            Driver::Gauss2(d) => boxed(self, d, Driver::Gauss2),
+            Driver::Gauss3(d) => boxed(self, d, Driver::Gauss3),
+            Driver::Gauss4(d) => boxed(self, d, Driver::Gauss4),
+            Driver::Lobatto2(d) => boxed(self, d, Driver::Lobatto2),
+            Driver::Lobatto3(d) => boxed(self, d, Driver::Lobatto3),
+            Driver::Lobatto4(d) => boxed(self, d, Driver::Lobatto4),
+            Driver::Composition(d) => boxed(self, d, Driver::Composition),
+            Driver::Transformed(d) => boxed(self, d, Driver::Transformed),
+            Driver::Splitting(d) => boxed(self, d, Driver::Splitting),
+        }
     }
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
@@ -204,6 +234,20 @@ where
         }
         Ok(())
     }
+}
+
+/// `stepper` on the heap with a copy of its driver `driver` of one kind,
+/// wrapped by `wrap` (see [`Stepper::boxed_copy`]).
+#[inline(never)]
+fn boxed<S: Lagrangian<N> + Clone, T: Clone, const N: usize>(
+    stepper: &Stepper<S, N>,
+    driver: &T,
+    wrap: fn(T) -> Driver<S, N>,
+) -> Box<Stepper<S, N>>
+where
+    Dim<N>: Extended<N>,
+{
+    Box::new(Stepper { driver: wrap(driver.clone()), scheme: stepper.scheme.clone(), policy: stepper.policy })
 }
 
 /// A stepper that hands each step it takes to the forward propagation:

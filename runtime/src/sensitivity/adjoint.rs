@@ -202,10 +202,11 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
 }
 
-/// The run and the reverse sweep (see the [module](self)).
-#[allow(clippy::too_many_arguments)]
+/// The run and the reverse sweep (see the [module](self)). The stepper
+/// comes boxed: a large system's does not fit the stack beside the rest.
+#[allow(clippy::too_many_arguments, clippy::boxed_local)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
-    mut stepper: Stepper<S, N>,
+    mut stepper: Box<Stepper<S, N>>,
     rule: Rule,
     initial: (f64, [f64; N], [f64; N]),
     h: f64,
@@ -232,16 +233,17 @@ where
     let mut terms = Terms::new::<N, P>();
 
     // Forward: the loss value, a copy every m nodes.
-    let mut kept = vec![stepper.clone()];
+    // In boxes: a stepper of a large system is large (300 kB at N = 1000).
+    let mut kept = vec![stepper.boxed_copy()];
     let mut value = 0.0;
     let mut last_h = None;
     while stepper.state().t < t_end {
         let state = stepper.state();
         value += value_at(loss, &state, &theta, false)?;
-        Stepping::step_toward(&mut stepper, t_end, last_h)?;
+        Stepping::step_toward(&mut *stepper, t_end, last_h)?;
         last_h = Some(stepper.state().t - state.t);
         if stepper.state().step.is_multiple_of(m as u64) {
-            kept.push(stepper.clone());
+            kept.push(stepper.boxed_copy());
         }
     }
     let last = stepper.state();
@@ -270,7 +272,7 @@ where
         let mut last_h = None;
         while sim.state().step < (first + m as u64).min(last.step) {
             let from = sim.state();
-            Stepping::step_toward(&mut sim, t_end, last_h)?;
+            Stepping::step_toward(&mut *sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
             let begin = pieces.len();
             sim.last_pieces(&from, &mut pieces)?;
