@@ -776,15 +776,16 @@ mod tests {
         x.iter().zip(y).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs())) / scale
     }
 
-    /// A long run above `FORWARD_MAX_N`, `10⁴` midpoint steps of
+    /// A long run above `FORWARD_MAX_N`, 2 000 midpoint steps of
     /// `h = 1e-3`, with the terminal loss [`Ends`]: the pairing `λ_kᵀ S_k`
     /// of the adjoint on the tape and the forward sensitivities (its
     /// `(q_0, v_0)` columns, the gradient in the initial data at every
     /// checkpoint), and the whole gradient against the chain rule through
     /// the last node's sensitivities, both at the project's bound of
-    /// 1e-12 relative. Measured: drift 2.0e-14, gap 1.6e-14 (2.9e-14 and
-    /// 2.3e-14 solving for `μ = −ω_0`: at degree 1 the `O(ε λ_p)` error of
-    /// `μ` is a rounding of the new `λ_p` alone, and `ψ`'s gradient in
+    /// 1e-12 relative. Measured: drift 9.1e-15, gap 7.5e-15; over 10⁴
+    /// steps 2.0e-14 and 1.6e-14 (2.9e-14 and 2.3e-14 solving for
+    /// `μ = −ω_0`: at degree 1 the `O(ε λ_p)` error of `μ` is a rounding
+    /// of the new `λ_p` alone, and `ψ`'s gradient in
     /// `q_k` takes `w_D` only through `a_qD`, of order `h`).
     #[test]
     fn the_tape_adjoint_keeps_the_pairing_over_a_long_run() {
@@ -793,9 +794,11 @@ mod tests {
         let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
         let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
         let problem = Problem::new(system, 0.0, q0, v0);
-        let (h, t_end) = (1e-3, 10.0);
-        let adjoint = problem.gradient(&Scheme::MIDPOINT, h, t_end, &Ends, crate::Checkpoints::Every(500)).unwrap();
-        let plan = crate::Plan::until(t_end).every(500);
+        // 2 000 steps: the forward sensitivities (80 × 82 per step) make
+        // this the runtime's slowest unit test, about 7 ms per step.
+        let (h, t_end) = (1e-3, 2.0);
+        let adjoint = problem.gradient(&Scheme::MIDPOINT, h, t_end, &Ends, crate::Checkpoints::Every(100)).unwrap();
+        let plan = crate::Plan::until(t_end).every(100);
         let run = problem.solve_with_sensitivities(&Scheme::MIDPOINT, h, plan).unwrap();
         let initial: Vec<f64> = adjoint.q0.iter().chain(&adjoint.v0).copied().collect();
         let mut drift = 0.0_f64;
