@@ -24,7 +24,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use lagrangian::prelude::*;
-use lagrangian::{Coupling, Pattern};
+
+#[path = "../../tests/common/parametric_chain.rs"]
+mod parametric_chain;
+use parametric_chain::Chain;
 
 /// The system allocator, counting live and peak bytes.
 struct Counting;
@@ -70,49 +73,6 @@ impl DoublePendulum {
             + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
             + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
         kinetic + (self.m1 + self.m2) * self.g * self.l1 * q[0].cos() + self.m2 * self.g * self.l2 * q[1].cos()
-    }
-}
-
-/// An FPU-β chain with fixed ends, `L = Σ ½ v_i² − Σ (½ k d² + ¼ β d⁴)`,
-/// `d = q_{i+1} − q_i`, with the stiffness `k` and `β` as parameters,
-/// written by hand (no gradient code: above `FORWARD_MAX_N` the stepper's
-/// Newton matrix and the adjoint's both come from a tape) with its Hessian
-/// declared tridiagonal, so that both solve in the band.
-#[derive(Clone)]
-struct Chain<const N: usize> {
-    theta: [f64; 2],
-}
-
-impl<const N: usize> Lagrangian<N> for Chain<N> {
-    const AUTONOMOUS: bool = true;
-    const CYCLIC: [bool; N] = [false; N];
-    const COUPLING: Coupling = Coupling { q_q: Pattern::banded(N, 1), q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
-    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
-        self.lagrangian_with(&self.theta.map(D::from), t, q, v)
-    }
-}
-
-impl<const N: usize> Parametric<N, 2> for Chain<N> {
-    const NAMES: [&'static str; 2] = ["k", "beta"];
-    fn parameters(&self) -> [f64; 2] {
-        self.theta
-    }
-    fn with_parameters(&self, theta: [f64; 2]) -> Self {
-        Self { theta }
-    }
-    fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; N], v: [D; N]) -> D {
-        let [k, beta] = *theta;
-        let mut l = D::zero();
-        for i in 0..=N {
-            let left = if i == 0 { D::zero() } else { q[i - 1] };
-            let right = if i == N { D::zero() } else { q[i] };
-            let d = right - left;
-            l -= k * d * d * 0.5 + beta * d.powi(4) * 0.25;
-            if i < N {
-                l += v[i] * v[i] * 0.5;
-            }
-        }
-        l
     }
 }
 

@@ -6,6 +6,7 @@ use lagrangian::prelude::*;
 pub mod forced;
 pub mod galerkin_reference;
 pub mod links;
+pub mod parametric_chain;
 pub mod schemes;
 
 /// `L = ½ m l² θ̇² + m g l cos θ`.

@@ -11,6 +11,8 @@ use lagrangian::num_dual::{Dual, Dual64};
 use lagrangian::prelude::*;
 use lagrangian::sensitivity::Gradient;
 
+use crate::common::parametric_chain::Chain;
+
 /// A double pendulum with `m1`, `l1` and `g` as parameters.
 #[derive(Clone, Debug)]
 pub struct DoublePendulum {
@@ -474,51 +476,6 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
     }
     let e = problem.gradient(&Scheme::MIDPOINT, 0.01, 0.1, &Kink, Checkpoints::Every(3)).unwrap_err();
     assert!(matches!(e, Error::NonFiniteLoss { state } if state.step == 10), "{e}");
-}
-
-/// An FPU-β chain of unit masses between fixed walls,
-/// `L = Σ ½ v_i² − Σ (½ k d² + ¼ β d⁴)`, `d = q_{i+1} − q_i`, with `k` and
-/// `β` as parameters and its Hessian declared tridiagonal.
-#[derive(Clone)]
-struct Chain<const N: usize> {
-    theta: [f64; 2],
-}
-
-impl<const N: usize> Lagrangian<N> for Chain<N> {
-    const AUTONOMOUS: bool = true;
-    const CYCLIC: [bool; N] = [false; N];
-    const COUPLING: lagrangian::Coupling = lagrangian::Coupling {
-        q_q: lagrangian::Pattern::banded(N, 1),
-        q_v: lagrangian::Pattern::Diagonal,
-        v_v: lagrangian::Pattern::Diagonal,
-    };
-    fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {
-        self.lagrangian_with(&self.theta.map(D::from), t, q, v)
-    }
-}
-
-impl<const N: usize> Parametric<N, 2> for Chain<N> {
-    const NAMES: [&'static str; 2] = ["k", "beta"];
-    fn parameters(&self) -> [f64; 2] {
-        self.theta
-    }
-    fn with_parameters(&self, theta: [f64; 2]) -> Self {
-        Self { theta }
-    }
-    fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; N], v: [D; N]) -> D {
-        let [k, beta] = *theta;
-        let mut l = D::zero();
-        for i in 0..=N {
-            let left = if i == 0 { D::zero() } else { q[i - 1] };
-            let right = if i == N { D::zero() } else { q[i] };
-            let d = right - left;
-            l -= k * d * d * 0.5 + beta * d.powi(4) * 0.25;
-            if i < N {
-                l += v[i] * v[i] * 0.5;
-            }
-        }
-        l
-    }
 }
 
 /// `Σ_k 10⁻³ |q_k|² + q_n·p_n`.
