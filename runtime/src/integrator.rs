@@ -242,6 +242,9 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
         if S::CONSTRAINTS != M::CONSTRAINTS {
             return Err(Error::Unsupported { what: CONSTRAINT_COUNT_MISMATCH });
         }
+        if matches!(self.policy, StepPolicy::EnergyPreserving(_)) && !S::ENERGY_STEPS {
+            return Err(Error::Unsupported { what: NO_ENERGY_STEPS });
+        }
         self.method.supports::<S, N>(&self.policy)?;
         self.derivatives.check::<N, T>()?;
         // `Automatic` is resolved here, once: reverse mode above
@@ -287,6 +290,10 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
         })
     }
 }
+
+/// Why an integrator refuses energy-preserving steps of a system that
+/// cannot take them with any method (`Lagrangian::ENERGY_STEPS`).
+pub(crate) const NO_ENERGY_STEPS: &str = "energy-preserving steps of a time-transformed system: its steps have a fixed `σ`, and the physical time step follows from the step density";
 
 /// Why an integrator refuses a system whose number of holonomic
 /// constraints differs from the method's.

@@ -161,6 +161,14 @@ pub trait Lagrangian<const N: usize> {
         let _ = (t, q, g);
     }
 
+    /// `false` where energy-preserving steps are refused whatever the
+    /// method: the runtime's own time-transformed systems, whose steps have
+    /// a fixed `σ` and whose conserved quantity is not the physical energy.
+    /// As a constant, it keeps the energy-step code of every method out of
+    /// these systems' compiled steps. Nothing else sets it.
+    #[doc(hidden)]
+    const ENERGY_STEPS: bool = true;
+
     /// `true` when [`gradient_q`](Self::gradient_q) is plain `f64` code
     /// written for this system: `#[lagrangian]` sets it when it could
     /// transform the body into reverse-mode (adjoint) code, whose cost is a
@@ -288,6 +296,7 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     const SEPARABILITY: Separability = S::SEPARABILITY;
     const COUPLING: Coupling = S::COUPLING;
     const FORCE_COUPLING: ForceCoupling = S::FORCE_COUPLING;
+    const ENERGY_STEPS: bool = S::ENERGY_STEPS;
 
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: [D; N], v: [D; N]) -> D {

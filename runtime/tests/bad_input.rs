@@ -4,7 +4,8 @@
 
 use lagrangian_runtime::galerkin::{Galerkin, GalerkinIntegrator};
 use lagrangian_runtime::{
-    Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, Trapezoid, symplectic,
+    Curvature, Error, Integrator, Lagrangian, Midpoint, NewtonOptions, Scalar, StepBounds, TimeTransformed, Trapezoid,
+    symplectic,
 };
 use nalgebra::DMatrix;
 
@@ -199,6 +200,20 @@ fn unusable_settings_are_typed_errors() {
     assert_eq!(symplectic::defect(&DMatrix::zeros(3, 3)), None);
     assert_eq!(symplectic::defect(&DMatrix::zeros(2, 4)), None);
     assert_eq!(symplectic::defect(&DMatrix::identity(4, 4)), Some(0.0));
+}
+
+/// A time-transformed system steps with a fixed `σ`: energy-preserving steps
+/// of it are refused at `start`, whatever the method (and their code is not
+/// compiled for it).
+#[test]
+fn energy_steps_of_a_time_transformed_system_are_refused() {
+    let system = || TimeTransformed::new(Pendulum, Curvature::new(0.1).unwrap());
+    let bounds = StepBounds::around(0.01);
+    let (x0, w0) = ([1.0, 0.0], [0.0, 1.0]);
+    let r = Integrator::new(system(), Midpoint, 0.01).energy_preserving(bounds).start(0.0, x0, w0);
+    assert!(matches!(r, Err(Error::Unsupported { .. })), "{:?}", r.err());
+    let r = Integrator::new(system(), Galerkin::<2, 2>::gauss(), 0.01).energy_preserving(bounds).start(0.0, x0, w0);
+    assert!(matches!(r, Err(Error::Unsupported { .. })), "{:?}", r.err());
 }
 
 /// A particle meeting a potential step of height 0.3 at q = 0.5, declared

@@ -12,7 +12,7 @@
 //! ([`DiscreteLagrangian::galerkin_points`]). The `f64` path of these rules
 //! (`integrator/one_point.rs`) stays the direct one.
 
-use super::stepper::{beyond_forward, refused};
+use super::stepper::{beyond_forward, has_energy_steps, no_energy_steps, refused};
 use super::{Galerkin, GalerkinMemory, NodeFamily, Quadrature};
 use crate::DoubleDouble;
 use crate::discrete::DiscreteLagrangian;
@@ -76,11 +76,14 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
+        if const { !has_energy_steps::<S, N>() } {
+            return Err(no_energy_steps());
+        }
         as_galerkin_run(it, |g| g.energy_step_nodes(bounds))
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N, DoubleDouble>) {
-        if const { beyond_forward(N) } {
+        if const { beyond_forward(N) || !has_energy_steps::<S, N>() } {
             return;
         }
         let _ = as_galerkin_run(it, |g| {

@@ -701,11 +701,14 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
+        if const { !has_energy_steps::<Sys, N>() } {
+            return Err(no_energy_steps());
+        }
         it.energy_step_nodes(bounds)
     }
 
     fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N, T>) {
-        if const { beyond_forward(N) } {
+        if const { beyond_forward(N) || !has_energy_steps::<Sys, N>() } {
             return;
         }
         it.reread_node_energy();
@@ -737,6 +740,25 @@ pub(crate) const fn beyond_forward(n: usize) -> bool {
 pub(crate) fn refused<const N: usize, T: Real>() -> Error<N, T> {
     Error::Unsupported {
         what: "galerkin rules above `Derivatives::FORWARD_MAX_N` coordinates: they have forward-mode derivatives only",
+    }
+}
+
+/// Whether a Galerkin rule can take energy-preserving steps of `Sys`: an
+/// autonomous system without forces or dissipation that is not one of the
+/// runtime's time-transformed systems ([`supports_policy`] and `start`
+/// refuse the others). Used as `if const { !has_energy_steps::<Sys, N>() }`
+/// in front of the energy-step paths, so that the energy-step code (a
+/// quarter of a test binary's code) is not compiled for systems that can
+/// never take such a step.
+pub(crate) const fn has_energy_steps<Sys: Lagrangian<N> + ?Sized, const N: usize>() -> bool {
+    Sys::ENERGY_STEPS && Sys::AUTONOMOUS && !Sys::HAS_FORCE && !Sys::HAS_DISSIPATION
+}
+
+/// The error of an energy-step path [`has_energy_steps`] compiles out
+/// (never reached: `start` refuses the policy first).
+pub(crate) fn no_energy_steps<const N: usize, T: Real>() -> Error<N, T> {
+    Error::Unsupported {
+        what: "energy-preserving galerkin steps for a forced, dissipative, time-dependent or time-transformed system",
     }
 }
 

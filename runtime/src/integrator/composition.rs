@@ -274,8 +274,10 @@ impl Method<f64> for Composition {
     ) -> Result<(), Error<N>> {
         // Explicit sub-steps in forward mode are fused (the energy watch of a
         // discontinuous system needs every sub-step's energy: sub-stepped).
-        let fused = Integrator::<S, Trapezoid, N>::EXPLICIT && !S::DISCONTINUOUS;
-        if fused && !super::sparse::too_large_for_forward(N) && !it.derivatives.reverse::<N>() {
+        // As a constant: the fused code is not compiled for other systems.
+        if const { Integrator::<S, Trapezoid, N>::EXPLICIT && !S::DISCONTINUOUS && !super::sparse::too_large_for_forward(N) }
+            && !it.derivatives.reverse::<N>()
+        {
             return fused_step(it, h, t1);
         }
         // `if const` on its own: codegen can skip the sub-integrator below for large N.
@@ -461,8 +463,7 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     h: f64,
     t1: f64,
 ) -> Result<(), Error<N>> {
-    let explicit = Integrator::<S, Trapezoid, N>::EXPLICIT;
-    if explicit && !S::DISCONTINUOUS {
+    if const { Integrator::<S, Trapezoid, N>::EXPLICIT && !S::DISCONTINUOUS } {
         return sparse_fused_step(it, h, t1);
     }
     let before = it.state;
@@ -488,7 +489,7 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
             stats: &mut stats,
             summation: it.summation,
         };
-        if let Err(e) = stepper.step(gamma * h, ti, explicit) {
+        if let Err(e) = stepper.step(gamma * h, ti, Integrator::<S, Trapezoid, N>::EXPLICIT) {
             it.state = before;
             (it.memory.inner.previous, it.memory.inner.earlier) = saved;
             if let Some(work) = it.memory.inner.sparse.as_mut() {

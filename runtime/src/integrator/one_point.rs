@@ -143,6 +143,11 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         if const { super::sparse::too_large_for_forward(N) } {
             return Err(Error::Unsupported { what: "energy-preserving steps with reverse-mode derivatives" });
         }
+        // `start` refuses the policy for these systems: no energy-step code
+        // is compiled for them.
+        if const { !S::ENERGY_STEPS } {
+            return Err(Error::Unsupported { what: super::NO_ENERGY_STEPS });
+        }
         if it.memory.previous.is_some() {
             return it.energy_step(bounds).map(|_| ());
         }
@@ -157,7 +162,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
     }
 
     fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N>) {
-        if const { super::sparse::too_large_for_forward(N) } {
+        if const { super::sparse::too_large_for_forward(N) || !S::ENERGY_STEPS } {
             // Only energy-preserving steps reread the energy; refused here.
             return;
         }
@@ -239,7 +244,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if const { super::sparse::too_large_for_forward(N) } || self.reverse() {
             return self.sparse_step(h, t1, Self::EXPLICIT);
         }
-        if Self::EXPLICIT {
+        if const { Self::EXPLICIT } {
             return match self.summation {
                 Summation::Compensated => self.verlet_step::<false>(h, t1),
                 Summation::Plain => self.verlet_step::<true>(h, t1),

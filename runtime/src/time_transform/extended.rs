@@ -188,6 +188,7 @@ where
     const CYCLIC: [bool; M] = extended_cyclic::<M>(Sys::AUTONOMOUS && !G::TIME_DEPENDENT);
     const DISCONTINUOUS: bool = Sys::DISCONTINUOUS;
     const HAS_FORCE: bool = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+    const ENERGY_STEPS: bool = false;
 
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, _s: D, x: [D; M], w: [D; M]) -> D {
