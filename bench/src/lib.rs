@@ -10,6 +10,8 @@
 pub mod calibrate;
 pub mod clock;
 pub mod compositions;
+pub mod constrained;
+mod constrained_peers;
 pub mod exact;
 pub mod handwritten;
 pub mod integrate;
