@@ -17,8 +17,9 @@ USAGE:
 
 Without options: the default suite, one problem of each family at a fifth of its
 horizon, two targets, every method and peer crate, the stress section at 10⁵
-steps (45 s of CPU time on one thread); a progress line on stderr as each problem
-and method starts, the headline table and the report's path at the end.
+steps (70 s of CPU time on one thread on a 2-core machine at a load average of 3);
+a progress line on stderr as each problem and method starts, the headline table
+and the report's path at the end.
 
 OPTIONS:
     --full                   every problem at its own horizon, three targets, energy runs over
