@@ -1,10 +1,10 @@
 //! The first-order forms the DOP853 peer runs on the Cartesian double
-//! pendulum ([`crate::constrained`]): its angle equations, and the index-1
+//! pendulum (`crate::constrained`): its angle equations, and the index-1
 //! Cartesian equations with Baumgarte stabilisation. Each is a [`Model`], so
 //! [`crate::peers::run`] integrates it like any other problem and samples
 //! its energy and constraint errors.
 
-use crate::constrained::{self as c, CartesianDoublePendulumSys};
+use crate::cartesian::{self as c, CartesianDoublePendulumSys};
 use crate::problems::{DoublePendulum, DoublePendulumSys, Model};
 
 /// The double pendulum in its two angles (the `double-pendulum` problem's

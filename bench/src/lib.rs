@@ -8,6 +8,7 @@
 //! `--help` for the options and [`report`] for the JSON schema.
 
 pub mod calibrate;
+pub mod cartesian;
 pub mod clock;
 pub mod compositions;
 pub mod constrained;

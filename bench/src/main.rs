@@ -45,8 +45,9 @@ or each --readme FILE): each section between
 `<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
 headline, step-cost, galerkin-step-cost, compositions, time-transformed (from a report
 of the suite's own horizons), calibrated-ID (every method's calibrated run on problem
-ID) or calibrated-ID-xK (the same from a report run with `--scale K`) (--section: only
-these). A section the report cannot supply is left as it is.
+ID), calibrated-ID-xK (the same from a report run with `--scale K`) or constraints-ID
+(the constraint and energy drift of each calibrated run on problem ID, a problem with
+constraints) (--section: only these). A section the report cannot supply is left as it is.
 ";
 
 fn main() -> ExitCode {

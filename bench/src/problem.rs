@@ -4,7 +4,8 @@
 use lagrangian::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::constrained::{self, CartesianDoublePendulum};
+use crate::cartesian;
+use crate::constrained::CartesianDoublePendulum;
 use crate::integrate;
 use crate::methods::{Method, Setting};
 use crate::problems::{self as p, Dd, Model};
@@ -234,7 +235,7 @@ impl Problem for CartesianDoublePendulum {
     /// The angle problem's double-double Galerkin run, mapped to Cartesian positions.
     fn double_double_galerkin(&self, t_end: f64, n: usize) -> Result<Vec<f64>, String> {
         let theta = galerkin_dd(&self.angles(), t_end, n)?;
-        Ok(constrained::to_cartesian(&theta, &[Dd::from(0.0); 2]).0.iter().map(|x| x.to_f64()).collect())
+        Ok(cartesian::to_cartesian(&theta, &[Dd::from(0.0); 2]).0.iter().map(|x| x.to_f64()).collect())
     }
     /// The angle problem's reference (double-double Galerkin `s = 8`
     /// against twice the steps), each run mapped to Cartesian positions in
@@ -243,7 +244,7 @@ impl Problem for CartesianDoublePendulum {
         let start = crate::clock::Clock::start();
         let angles = self.angles();
         let n = angles.reference_steps(t_end);
-        let position = |theta: [Dd; 2]| constrained::to_cartesian(&theta, &[Dd::from(0.0); 2]).0;
+        let position = |theta: [Dd; 2]| cartesian::to_cartesian(&theta, &[Dd::from(0.0); 2]).0;
         let coarse = position(galerkin_dd(&angles, t_end, n)?);
         let fine = position(galerkin_dd(&angles, t_end, 2 * n)?);
         let agreement = coarse.iter().zip(&fine).map(|(a, b)| (*a - *b).abs().to_f64()).fold(0.0, f64::max);

@@ -56,7 +56,7 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
     /// For a problem with constraints (or one whose coordinates map to a
     /// constrained form), how far a state is from satisfying them:
     /// `[position error, velocity error]` in the problem's own measure
-    /// (`crate::constrained::constraint_errors`); `None` for the others.
+    /// (`crate::cartesian::constraint_errors`); `None` for the others.
     fn constraint_errors(&self, q: &[f64; N], v: &[f64; N]) -> Option<[f64; 2]> {
         let _ = (q, v);
         None
@@ -575,7 +575,7 @@ pub struct DoublePendulum {
 }
 
 impl DoublePendulum {
-    /// Masses, rods and gravity (also those of `crate::constrained`'s Cartesian form).
+    /// Masses, rods and gravity (also those of the Cartesian form, `crate::cartesian`).
     pub const P: DoublePendulumSys = DoublePendulumSys { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
 }
 
