@@ -6,7 +6,7 @@
 //! RATTLE for the one-point rules, the constraints at the control nodes of
 //! Galerkin rules, compositions of RATTLE trapezoid steps), DOP853 on the
 //! angle equations, and DOP853 on the index-1 Cartesian equations with
-//! Baumgarte stabilisation ([`crate::constrained_peers`]).
+//! Baumgarte stabilisation (`crate::constrained_peers`).
 //!
 //! Its reference is the angle problem's, mapped to Cartesian positions
 //! (`crate::problem`); its runs record, besides the energy, the constraint
