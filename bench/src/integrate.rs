@@ -5,7 +5,7 @@ use lagrangian::prelude::*;
 use lagrangian::{Composition as Generated, GalerkinIntegrator, StepBounds};
 
 use crate::compositions::{Composition, Stepper};
-use crate::invariants::Invariants;
+use crate::invariants::Sampler;
 use crate::methods::{Method, Setting};
 use crate::problems::{Model, Transformed};
 use crate::run::{AUTO_NODES, AutoReport, Run};
@@ -26,28 +26,8 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
     let keep_nodes = samples > 0;
     // The energy of a time-dependent or forced problem changes by physics: nothing to record.
     let samples = if M::CONSERVATIVE { samples } else { 0 };
-    let invariants = Invariants::new(model, &q0, &v0);
-    let every = if samples > 0 { t_end / samples as f64 } else { f64::INFINITY };
-    let mut next = every;
-    let mut energy = Vec::with_capacity(samples + 1);
-    let mut momentum = Vec::new();
-    if samples > 0 {
-        energy.push((0.0, 0.0));
-        if invariants.momentum(&q0, &v0).is_some() {
-            momentum.push((0.0, 0.0));
-        }
-    }
-    let mut record = |t: f64, q: &[f64; N], v: &[f64; N]| {
-        if t >= next * (1.0 - 1e-12) {
-            energy.push((t, invariants.energy(q, v)));
-            if let Some(l) = invariants.momentum(q, v) {
-                momentum.push((t, l));
-            }
-            while next <= t * (1.0 + 1e-12) {
-                next += every;
-            }
-        }
-    };
+    let mut sampler = Sampler::new(model, &q0, &v0, t_end, samples);
+    let mut record = |t: f64, q: &[f64; N], v: &[f64; N]| sampler.record(t, q, v);
     let start = crate::clock::Clock::start();
     let mut out = match (method, setting) {
         (Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6, Setting::Tolerance(tol)) => {
@@ -130,15 +110,7 @@ pub fn run<M: Model<N>, const N: usize, const D: usize>(
         (m, s) => Run::failed(format!("{} cannot be run with {s:?}", m.name()), 0.0),
     };
     out.seconds = start.seconds();
-    if samples > 0 {
-        out.energy.append(&mut energy);
-        out.momentum.append(&mut momentum);
-        for series in [&mut out.energy, &mut out.momentum] {
-            // A run that blew up (its failure says so) would put NaN in the JSON, which has no NaN.
-            series.retain(|s| s.1.is_finite());
-            series.sort_by(|a, b| a.0.total_cmp(&b.0));
-        }
-    }
+    sampler.finish(&mut out);
     out
 }
 

@@ -8,8 +8,11 @@
 //! `--help` for the options and [`report`] for the JSON schema.
 
 pub mod calibrate;
+pub mod cartesian;
 pub mod clock;
 pub mod compositions;
+pub mod constrained;
+mod constrained_peers;
 pub mod exact;
 pub mod handwritten;
 pub mod integrate;

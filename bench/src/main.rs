@@ -17,8 +17,9 @@ USAGE:
 
 Without options: the default suite, one problem of each family at a fifth of its
 horizon, two targets, every method and peer crate, the stress section at 10⁵
-steps (45 s of CPU time on one thread); a progress line on stderr as each problem
-and method starts, the headline table and the report's path at the end.
+steps (70 s of CPU time on one thread on a 2-core machine at a load average of 3);
+a progress line on stderr as each problem and method starts, the headline table
+and the report's path at the end.
 
 OPTIONS:
     --full                   every problem at its own horizon, three targets, energy runs over
@@ -44,8 +45,9 @@ or each --readme FILE): each section between
 `<!-- bench:NAME:begin -->` and `<!-- bench:NAME:end -->` markers, NAME one of
 headline, step-cost, galerkin-step-cost, compositions, time-transformed (from a report
 of the suite's own horizons), calibrated-ID (every method's calibrated run on problem
-ID) or calibrated-ID-xK (the same from a report run with `--scale K`) (--section: only
-these). A section the report cannot supply is left as it is.
+ID), calibrated-ID-xK (the same from a report run with `--scale K`) or constraints-ID
+(the constraint and energy drift of each calibrated run on problem ID, a problem with
+constraints) (--section: only these). A section the report cannot supply is left as it is.
 ";
 
 fn main() -> ExitCode {

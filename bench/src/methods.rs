@@ -3,7 +3,10 @@
 
 use serde::{Deserialize, Serialize};
 
-/// Every method of the report.
+/// Every method of the report. On a problem with holonomic constraints the
+/// project's methods are their constrained forms (`Constrained`: RATTLE for
+/// the one-point rules, the constraints at the control nodes of a Galerkin
+/// rule, compositions of RATTLE trapezoid steps).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub enum Method {
     /// Project: midpoint discrete Lagrangian, fixed steps (order 2).
@@ -32,6 +35,12 @@ pub enum Method {
     DiffEqDop853,
     /// Peer: differential-equations 0.5 adaptive Gauss–Legendre IRK, 3 stages, order 6 (finite-difference Jacobian).
     DiffEqGauss6,
+    /// Peer: ode_solvers 0.6 DOP853 on the minimal-coordinate (angle)
+    /// equations of a problem with constraints (rtol = atol = tol).
+    Dop853Angles,
+    /// Peer: ode_solvers 0.6 DOP853 on the index-1 Cartesian equations of a
+    /// problem with constraints, with Baumgarte stabilisation (rtol = atol = tol).
+    Dop853Baumgarte,
     /// Hand-written: Störmer–Verlet.
     Verlet,
     /// Hand-written: Yoshida's order 6 composition.
@@ -93,6 +102,8 @@ impl Method {
             Method::OdeSolversDop853,
             Method::DiffEqDop853,
             Method::DiffEqGauss6,
+            Method::Dop853Angles,
+            Method::Dop853Baumgarte,
             Method::Verlet,
             Method::Yoshida6,
             Method::KahanLi8,
@@ -120,6 +131,8 @@ impl Method {
             Method::OdeSolversDop853 => "ode_solvers-dop853".into(),
             Method::DiffEqDop853 => "diffeq-dop853".into(),
             Method::DiffEqGauss6 => "diffeq-gauss6".into(),
+            Method::Dop853Angles => "ode_solvers-dop853-angles".into(),
+            Method::Dop853Baumgarte => "ode_solvers-dop853-baumgarte".into(),
             Method::Verlet => "verlet".into(),
             Method::Yoshida6 => "yoshida6".into(),
             Method::KahanLi8 => "kahan-li8".into(),
@@ -151,7 +164,11 @@ impl Method {
             | Method::TimeTransformedAuto(_)
             | Method::TimeTransformedSplit
             | Method::Auto => Family::Project,
-            Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 => Family::Peer,
+            Method::OdeSolversDop853
+            | Method::DiffEqDop853
+            | Method::DiffEqGauss6
+            | Method::Dop853Angles
+            | Method::Dop853Baumgarte => Family::Peer,
             Method::Verlet | Method::Yoshida6 | Method::KahanLi8 => Family::HandWritten,
         }
     }
@@ -165,7 +182,7 @@ impl Method {
             | Method::GalerkinFixedPoint(s)
             | Method::TimeTransformed(s)
             | Method::TimeTransformedAuto(s) => 2 * s as u32,
-            Method::OdeSolversDop853 | Method::DiffEqDop853 => 8,
+            Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::Dop853Angles | Method::Dop853Baumgarte => 8,
             Method::DiffEqGauss6 | Method::Yoshida6 | Method::GeneratedYoshida6 => 6,
             Method::GeneratedYoshida4 => 4,
             Method::KahanLi8 | Method::GeneratedKahanLi8 | Method::TimeTransformedSplit => 8,
@@ -176,7 +193,15 @@ impl Method {
 
     /// `true` when the method is calibrated by a tolerance rather than a step count.
     pub fn adaptive(self) -> bool {
-        matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::DiffEqGauss6 | Method::Auto)
+        matches!(
+            self,
+            Method::OdeSolversDop853
+                | Method::DiffEqDop853
+                | Method::DiffEqGauss6
+                | Method::Dop853Angles
+                | Method::Dop853Baumgarte
+                | Method::Auto
+        )
     }
 
     /// The coarsest `σ` of a time-transformed method's sweep; `None` for the others.
@@ -204,6 +229,12 @@ impl Method {
         self.sigma0().is_some()
     }
 
+    /// `true` for the peers that need a problem with constraints (its angle
+    /// equations, its index-1 Cartesian equations).
+    pub fn needs_constraints(self) -> bool {
+        matches!(self, Method::Dop853Angles | Method::Dop853Baumgarte)
+    }
+
     /// `true` for the hand-written compositions, which need a separable Hamiltonian.
     pub fn needs_separable(self) -> bool {
         self.family() == Family::HandWritten
@@ -224,6 +255,9 @@ impl Method {
 
     /// `true` for symplectic methods (bounded energy error expected).
     pub fn symplectic(self) -> bool {
-        !matches!(self, Method::OdeSolversDop853 | Method::DiffEqDop853)
+        !matches!(
+            self,
+            Method::OdeSolversDop853 | Method::DiffEqDop853 | Method::Dop853Angles | Method::Dop853Baumgarte
+        )
     }
 }

@@ -531,6 +531,31 @@ pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
     s
 }
 
+/// The constraint and energy drift of each calibrated run of a problem with
+/// constraints, per target in the order of `targets`, methods in report order.
+pub fn drift_table(targets: &[f64], p: &ProblemReport) -> String {
+    let mut s = String::from(
+        "| target | method | setting | max \\|E − E0\\|/\\|E0\\| | max rod length error / length | max \\|d(rod length)/dt\\| (m/s) | outcome |\n\
+         | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for &target in targets {
+        for c in p.constraints.iter().filter(|c| c.target == target) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} |",
+                e(target),
+                c.method,
+                setting(&c.setting),
+                c.energy_max_abs.map_or("—".into(), e),
+                c.position_max.map_or("—".into(), e),
+                c.velocity_max.map_or("—".into(), e),
+                c.failure.as_deref().map_or("ok".into(), short)
+            );
+        }
+    }
+    s
+}
+
 /// The step-cost table: ns per step at `h` = 0.01, per system, with the
 /// generated / hand-written ratio of the midpoint rule.
 pub fn step_cost_table(report: &Report) -> String {
@@ -727,6 +752,16 @@ fn document(r: &Report) -> Vec<Block> {
             })
             .collect();
         d.push(Table(header, rows));
+        if !p.constraints.is_empty() {
+            d.push(Para(format!(
+                "Constraints and energy along each calibrated run (the run again at its setting, {} samples evenly \
+                 spread over T; adaptive methods at the first accepted step at or after each): the rods' length errors \
+                 relative to their lengths, the rates of change of their lengths, the energy error.",
+                p.constraints[0].samples
+            )));
+            let (header, rows) = table_of(&drift_table(&r.targets, p));
+            d.push(Table(header, rows));
+        }
         if p.energy.is_empty() {
             d.push(Para(
                 "Energy is not conserved by this problem (time-dependent or forced): no long energy runs.".into(),

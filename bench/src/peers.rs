@@ -40,8 +40,9 @@ impl<M: Model<N>, const N: usize, const D: usize> differential_equations::ode::O
 /// Largest number of steps a peer may take (then it reports its failure).
 const MAX_STEPS: usize = 20_000_000;
 
-/// `(energy, angular momentum)` error samples `(t, error)`.
-type Samples = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+/// `(energy, angular momentum)` error samples `(t, error)`, and constraint
+/// error samples `(t, errors)` of a model with constraints.
+type Samples = (Vec<(f64, f64)>, Vec<(f64, f64)>, Vec<(f64, [f64; 2])>);
 
 /// Runs a peer with `rtol = atol = tol` to `t_end`; `samples > 0` records the
 /// relative energy error at the accepted step at or after each of that many
@@ -59,36 +60,42 @@ pub(crate) fn run<M: Model<N>, const N: usize, const D: usize>(
     let split = |y: &SVector<f64, D>| -> ([f64; N], [f64; N]) {
         (core::array::from_fn(|i| y[i]), core::array::from_fn(|i| y[N + i]))
     };
-    // `(energy, momentum)` samples at the accepted steps `ks`.
+    // `(energy, momentum, constraints)` samples at the accepted steps `ks`.
     let sample = |t: &[f64], y: &[SVector<f64, D>], ks: Vec<usize>| -> Samples {
         let mut energy = Vec::with_capacity(ks.len());
         let mut momentum = Vec::new();
+        let mut constraints = Vec::new();
         for k in ks {
             let (q, v) = split(&y[k]);
             energy.push((t[k], invariants.energy(&q, &v)));
             if let Some(l) = invariants.momentum(&q, &v) {
                 momentum.push((t[k], l));
             }
+            if let Some(c) = invariants.constraints(&q, &v) {
+                constraints.push((t[k], c));
+            }
         }
-        (energy, momentum)
+        (energy, momentum, constraints)
     };
     // The final state from the last output; `energy` the samples.
-    let finish = |y: &[SVector<f64, D>], steps: usize, evaluations: usize, (energy, momentum): Samples| -> Run {
-        let Some(last) = y.last() else {
-            return Run { failure: Some("no output".into()), ..Run::default() };
+    let finish =
+        |y: &[SVector<f64, D>], steps: usize, evaluations: usize, (energy, momentum, constraints): Samples| -> Run {
+            let Some(last) = y.last() else {
+                return Run { failure: Some("no output".into()), ..Run::default() };
+            };
+            let q: Vec<f64> = (0..N).map(|i| last[i]).collect();
+            let finite = q.iter().all(|x| x.is_finite());
+            Run {
+                q: if finite { q } else { Vec::new() },
+                failure: (!finite).then(|| "non-finite state".to_string()),
+                steps: steps as u64,
+                evaluations: Some(evaluations as u64),
+                energy,
+                momentum,
+                constraints,
+                ..Run::default()
+            }
         };
-        let q: Vec<f64> = (0..N).map(|i| last[i]).collect();
-        let finite = q.iter().all(|x| x.is_finite());
-        Run {
-            q: if finite { q } else { Vec::new() },
-            failure: (!finite).then(|| "non-finite state".to_string()),
-            steps: steps as u64,
-            evaluations: Some(evaluations as u64),
-            energy,
-            momentum,
-            ..Run::default()
-        }
-    };
     match method {
         Method::OdeSolversDop853 => {
             // Always sparse output (the accepted steps), also when energy samples are asked for:

@@ -4,6 +4,8 @@
 use lagrangian::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::cartesian;
+use crate::constrained::CartesianDoublePendulum;
 use crate::integrate;
 use crate::methods::{Method, Setting};
 use crate::problems::{self as p, Dd, Model};
@@ -50,9 +52,16 @@ pub trait Problem: Send + Sync {
     fn conservative(&self) -> bool;
     /// Whether the problem has a step density for the time-transformed methods.
     fn time_transform(&self) -> bool;
+    /// Whether the problem has holonomic constraints: its runs then record
+    /// the constraint errors, and the report shows them.
+    fn constrained(&self) -> bool {
+        false
+    }
     /// Whether `method` applies to this problem.
     fn applies(&self, method: Method) -> bool {
-        (!method.needs_separable() || self.separable()) && (!method.needs_time_transform() || self.time_transform())
+        (!method.needs_separable() || self.separable())
+            && (!method.needs_time_transform() || self.time_transform())
+            && (!method.needs_constraints() || self.constrained())
     }
     /// One run (see [`integrate::run`]).
     fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run;
@@ -73,6 +82,18 @@ pub struct Adapter<M, const N: usize, const D: usize>(pub M);
 
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+/// The reference of problem `id` at `t_end` if it passed its check (the
+/// agreement within the accepted difference; NaN fails).
+fn passed(id: &str, t_end: f64, r: Reference) -> Result<Reference, String> {
+    if r.agreement.partial_cmp(&r.accepted).is_none_or(|o| o.is_gt()) {
+        return Err(format!(
+            "reference for {id} at t = {t_end} failed its check ({}): difference {:.3e} > {:.3e}",
+            r.check, r.agreement, r.accepted
+        ));
+    }
+    Ok(r)
 }
 
 fn galerkin_dd<M: Model<N>, const N: usize>(model: &M, t_end: f64, n: usize) -> Result<[Dd; N], String> {
@@ -156,14 +177,85 @@ where
             }
         };
         let accepted = tolerance * scale;
-        // NaN fails too.
-        if agreement.partial_cmp(&accepted).is_none_or(|o| o.is_gt()) {
-            return Err(format!(
-                "reference for {} at t = {t_end} failed its check ({check}): difference {agreement:.3e} > {accepted:.3e}",
-                M::ID
-            ));
-        }
-        Ok(Reference { q, kind: kind.to_string(), check, agreement, accepted, seconds: start.seconds() })
+        passed(
+            M::ID,
+            t_end,
+            Reference { q, kind: kind.to_string(), check, agreement, accepted, seconds: start.seconds() },
+        )
+    }
+}
+
+impl Problem for CartesianDoublePendulum {
+    fn id(&self) -> &'static str {
+        Self::ID
+    }
+    fn title(&self) -> &'static str {
+        Self::TITLE
+    }
+    fn dim(&self) -> usize {
+        4
+    }
+    fn horizon(&self) -> f64 {
+        self.angles().horizon()
+    }
+    fn coarsest_steps(&self) -> usize {
+        self.angles().coarsest_steps()
+    }
+    fn time_scale(&self) -> f64 {
+        self.angles().time_scale()
+    }
+    fn initial(&self) -> (Vec<f64>, Vec<f64>) {
+        let (q, v) = self.initial_state();
+        (q.to_vec(), v.to_vec())
+    }
+    fn separable(&self) -> bool {
+        false
+    }
+    fn conservative(&self) -> bool {
+        true
+    }
+    fn time_transform(&self) -> bool {
+        false
+    }
+    fn constrained(&self) -> bool {
+        true
+    }
+    fn applies(&self, method: Method) -> bool {
+        Self::method_applies(method)
+    }
+    fn run(&self, method: Method, setting: Setting, t_end: f64, samples: usize) -> Run {
+        self.integrate(self.initial_state(), method, setting, t_end, samples)
+    }
+    fn run_from(&self, q0: Vec<f64>, v0: Vec<f64>, method: Method, setting: Setting, t_end: f64) -> Run {
+        let (Ok(q0), Ok(v0)) = (<[f64; 4]>::try_from(q0), <[f64; 4]>::try_from(v0)) else {
+            return Run { failure: Some("initial data must have 4 components".into()), ..Run::default() };
+        };
+        self.integrate((q0, v0), method, setting, t_end, 0)
+    }
+    /// The angle problem's double-double Galerkin run, mapped to Cartesian positions.
+    fn double_double_galerkin(&self, t_end: f64, n: usize) -> Result<Vec<f64>, String> {
+        let theta = galerkin_dd(&self.angles(), t_end, n)?;
+        Ok(cartesian::to_cartesian(&theta, &[Dd::from(0.0); 2]).0.iter().map(|x| x.to_f64()).collect())
+    }
+    /// The angle problem's reference (double-double Galerkin `s = 8`
+    /// against twice the steps), each run mapped to Cartesian positions in
+    /// double-double and compared there.
+    fn reference(&self, t_end: f64, tolerance: f64) -> Result<Reference, String> {
+        let start = crate::clock::Clock::start();
+        let angles = self.angles();
+        let n = angles.reference_steps(t_end);
+        let position = |theta: [Dd; 2]| cartesian::to_cartesian(&theta, &[Dd::from(0.0); 2]).0;
+        let coarse = position(galerkin_dd(&angles, t_end, n)?);
+        let fine = position(galerkin_dd(&angles, t_end, 2 * n)?);
+        let agreement = coarse.iter().zip(&fine).map(|(a, b)| (*a - *b).abs().to_f64()).fold(0.0, f64::max);
+        let q: Vec<f64> = fine.iter().map(|x| x.to_f64()).collect();
+        let accepted = tolerance * q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let check = format!(
+            "double-double Galerkin s = 8 on the angle equations with {n} against {} steps, mapped to Cartesian positions",
+            2 * n
+        );
+        let kind = "double-double galerkin".to_string();
+        passed(Self::ID, t_end, Reference { q, kind, check, agreement, accepted, seconds: start.seconds() })
     }
 }
 
@@ -176,6 +268,7 @@ pub fn all(scale: f64) -> Vec<Box<dyn Problem>> {
         Box::new(Adapter::<_, 2, 4>(p::HenonHeiles { scale })),
         Box::new(Adapter::<_, 18, 36>(p::OuterSolarSystem { scale })),
         Box::new(Adapter::<_, 2, 4>(p::DoublePendulum { scale })),
+        Box::new(CartesianDoublePendulum { scale }),
         Box::new(Adapter::<_, { p::FPU_N }, { 2 * p::FPU_N }>(p::Fpu { scale })),
         Box::new(Adapter::<_, 1, 2>(p::PerturbedPendulum { scale })),
         Box::new(Adapter::<_, 2, 4>(p::Sensor { scale })),

@@ -53,6 +53,14 @@ pub trait Model<const N: usize>: Clone + Send + Sync + 'static {
         let _ = (q, v);
         None
     }
+    /// For a problem with constraints (or one whose coordinates map to a
+    /// constrained form), how far a state is from satisfying them:
+    /// `[position error, velocity error]` in the problem's own measure
+    /// (`crate::cartesian::constraint_errors`); `None` for the others.
+    fn constraint_errors(&self, q: &[f64; N], v: &[f64; N]) -> Option<[f64; 2]> {
+        let _ = (q, v);
+        None
+    }
     /// Diagonal inverse mass when the Hamiltonian is separable with constant mass.
     fn inverse_mass(&self) -> Option<[f64; N]> {
         None
@@ -567,7 +575,8 @@ pub struct DoublePendulum {
 }
 
 impl DoublePendulum {
-    const P: DoublePendulumSys = DoublePendulumSys { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
+    /// Masses, rods and gravity (also those of the Cartesian form, `crate::cartesian`).
+    pub const P: DoublePendulumSys = DoublePendulumSys { m1: 1.0, m2: 1.5, l1: 1.0, l2: 0.7, g: 9.81 };
 }
 
 impl Model<2> for DoublePendulum {

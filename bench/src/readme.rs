@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 use crate::output::{
-    calibrated_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table, twins_table,
+    calibrated_table, drift_table, galerkin_cost_table, headline, load, step_cost_table, time_transformed_table,
+    twins_table,
 };
 use crate::report::{Report, SCHEMA_VERSION};
 
@@ -25,7 +26,7 @@ pub const END: &str = "<!-- bench:headline:end -->";
 pub const PAGES: [&str; 2] = ["README.md", "docs/measurements.md"];
 
 /// The generated sections: `(name, what it holds)`; besides these,
-/// `calibrated-ID` and `calibrated-ID-xK` (see [`named`]).
+/// `calibrated-ID`, `calibrated-ID-xK` and `constraints-ID` (see [`named`]).
 pub const SECTIONS: [(&str, &str); 6] = [
     ("headline", "best project method, peer crate and hand-written composition per problem and target"),
     ("step-cost", "ns per step, generated against hand-written"),
@@ -116,12 +117,35 @@ fn calibrated_name(name: &str) -> Option<(&str, f64)> {
     }
 }
 
+/// `constraints-ID`: the problem id.
+fn constraints_name(name: &str) -> Option<&str> {
+    name.strip_prefix("constraints-")
+}
+
 /// The generated text of section `name`, markers included; `None` for an
 /// unknown name or a section this report cannot supply: the suite-wide
 /// sections need a report of the suite's own horizons (`--scale` 1, not
 /// `--calibration-only`) and step costs, `calibrated-ID-xK` a report of
-/// problem ID run with `--scale K`. `date` is the day the report ran.
+/// problem ID run with `--scale K`, `constraints-ID` a report of problem ID,
+/// a problem with constraints, at its own horizon. `date` is the day the
+/// report ran.
 pub fn named(name: &str, report: &Report, date: Option<&str>) -> Option<String> {
+    if let Some(id) = constraints_name(name) {
+        let p = report.problems.iter().find(|p| p.id == id && !p.constraints.is_empty())?;
+        if report.horizon_scale != 1.0 {
+            return None;
+        }
+        let body = format!(
+            "{}; {}, horizon T = {:.6}; every calibrated run again at its setting with {} samples evenly spread \
+             over T (adaptive methods: the first accepted step at or after each), the largest errors over them.\n\n{}",
+            origin(report, date),
+            p.title,
+            p.horizon,
+            p.constraints[0].samples,
+            drift_table(&report.targets, p)
+        );
+        return Some(format!("{}\n{body}{}", begin(name), end(name)));
+    }
     if let Some((id, scale)) = calibrated_name(name) {
         let p = report.problems.iter().find(|p| p.id == id)?;
         if report.horizon_scale != scale {
@@ -212,7 +236,7 @@ pub fn marked(text: &str) -> Vec<String> {
 }
 
 fn known(name: &str) -> bool {
-    SECTIONS.iter().any(|(s, _)| *s == name) || calibrated_name(name).is_some()
+    SECTIONS.iter().any(|(s, _)| *s == name) || calibrated_name(name).is_some() || constraints_name(name).is_some()
 }
 
 /// [`update_pages`] on one page.
@@ -229,7 +253,7 @@ pub fn update_pages(json: &Path, pages: &[PathBuf], only: &[String]) -> Result<(
     if let Some(unknown) = only.iter().find(|n| !known(n)) {
         let known: Vec<&str> = SECTIONS.iter().map(|(s, _)| *s).collect();
         return Err(format!(
-            "unknown README section `{unknown}` (known: {}, calibrated-ID, calibrated-ID-xK)",
+            "unknown README section `{unknown}` (known: {}, calibrated-ID, calibrated-ID-xK, constraints-ID)",
             known.join(", ")
         ));
     }

@@ -1,5 +1,5 @@
 //! The report's data: one JSON file, `report.json`, with this schema
-//! (`schema_version` 5; fields are never renamed or removed within a version,
+//! (`schema_version` 6; fields are never renamed or removed within a version,
 //! and the deserialising structs below refuse unknown fields, so a file that
 //! parses into [`Report`] matches the schema). Version 2 added `machine`'s
 //! load averages, `problems[].twins` and `step_costs` (absent in a version 1
@@ -9,7 +9,9 @@
 //! ran the integrator (wall-clock before; no field changed); version 5 added
 //! `command` (absent before: read as empty) and renamed the suites: the
 //! default suite of version 4 is `full` from version 5 on, its `full` is
-//! `exhaustive`, and `default` is the short suite that `quick` was.
+//! `exhaustive`, and `default` is the short suite that `quick` was; version
+//! 6 added `problems[].constraints`, for problems with holonomic
+//! constraints (absent for the others and before: read as empty).
 //!
 //! ```text
 //! Report
@@ -37,6 +39,11 @@
 //!     twins: [{ generated, hand_written, target, generated_seconds | null, hand_written_seconds | null,
 //!               generated_steps | null, hand_written_steps | null, ratio | null, per_step_ratio | null }]
 //!                                        a project composition against the hand-written one of the same map
+//!     constraints?: [{ method, target, setting, samples, energy_max_abs | null, position_max | null,
+//!                      velocity_max | null, failure | null }]
+//!                                        problems with constraints only: a run at each calibrated setting,
+//!                                        max over its samples of |E − E0|/|E0|, of the rods' length errors
+//!                                        over their lengths and of the rates of change of their lengths
 //!   step_costs: [{ system, method, h, steps, repeats, ns_per_step, newton_per_step | null }]
 //!                                        ns per step at a fixed h, best of `repeats` runs of `steps` steps
 //!   stress
@@ -59,7 +66,7 @@ use crate::methods::{Family, Setting};
 use crate::problem::Reference;
 
 /// The version of the schema described in the module docs.
-pub const SCHEMA_VERSION: u32 = 5;
+pub const SCHEMA_VERSION: u32 = 6;
 
 /// The whole report.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -189,6 +196,36 @@ pub struct ProblemReport {
     /// Project compositions against their hand-written twins.
     #[serde(default)]
     pub twins: Vec<Twin>,
+    /// The drift of the constraints and the energy at each calibrated
+    /// setting, for problems with constraints (empty, and left out of the
+    /// JSON, for the others).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constraints: Vec<ConstraintDrift>,
+}
+
+/// How well one calibrated run holds the constraints and the energy.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ConstraintDrift {
+    /// Method name.
+    pub method: String,
+    /// The target its setting was calibrated to.
+    pub target: f64,
+    /// The calibrated setting.
+    pub setting: Setting,
+    /// Evenly spaced sampling times over the run (accepted steps of adaptive
+    /// methods: the first at or after each).
+    pub samples: usize,
+    /// `max |E − E0|/|E0|` over the samples.
+    pub energy_max_abs: Option<f64>,
+    /// The largest position error of the constraints over the samples (the
+    /// double pendulum's: `max_i |‖r_i − r_{i−1}‖ − l_i| / l_i`).
+    pub position_max: Option<f64>,
+    /// The largest velocity error over the samples (the rates of change of
+    /// the rods' lengths, `G v` of the constraints written as lengths).
+    pub velocity_max: Option<f64>,
+    /// The failure, if the run stopped.
+    pub failure: Option<String>,
 }
 
 /// The sweep of one method.

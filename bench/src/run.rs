@@ -22,6 +22,10 @@ pub struct Run {
     /// `(t, |L − L0|/|L0|)` samples of the angular momentum `L`, at the same
     /// times, when asked for and the problem conserves it.
     pub momentum: Vec<(f64, f64)>,
+    /// `(t, [position error, velocity error])` samples of the constraint
+    /// errors (`Model::constraint_errors`), at the times
+    /// of `energy`, when asked for and the problem has constraints.
+    pub constraints: Vec<(f64, [f64; 2])>,
     /// What the tolerance-driven solve reported ([`Method::Auto`] only).
     pub auto: Option<AutoReport>,
 }

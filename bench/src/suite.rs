@@ -17,7 +17,8 @@ pub enum Suite {
     Tiny,
     /// The default: one problem of each family ([`DEFAULT_PROBLEMS`]),
     /// horizons ×0.2, two targets, every method and peer, the stress section
-    /// at 10⁵ steps; 45 s of CPU time (one thread) on the 2-core test machine.
+    /// at 10⁵ steps; 70 s of CPU time (one thread) on the 2-core test machine
+    /// at a load average of 3, of which the Cartesian double pendulum takes 6 s.
     Default,
     /// `--full`: every problem at its own horizon, three targets, energy runs
     /// over 100 horizons, 10⁷-step runs.
@@ -28,12 +29,13 @@ pub enum Suite {
 
 /// The problems of the default suite: one of each family (the Kepler orbit
 /// at e = 0.5; e = 0.9 and 0.99 stay in its hard-orbit runs).
-pub const DEFAULT_PROBLEMS: [&str; 8] = [
+pub const DEFAULT_PROBLEMS: [&str; 9] = [
     "pendulum",
     "kepler-0.5",
     "henon-heiles",
     "outer-solar-system",
     "double-pendulum",
+    "double-pendulum-cartesian",
     "fpu-beta",
     "perturbed-pendulum",
     "sensor",
@@ -220,7 +222,9 @@ pub fn run(config: &Config) -> Result<Report, String> {
     let applicable = |p: &dyn Problem| methods.iter().copied().filter(|&m| p.applies(m)).collect::<Vec<Method>>();
     // Per problem: the reference, each method, the twins and energy runs; then the stress section.
     let stress_units = if config.calibration_only { 0 } else { problems.len() + HARD_ORBITS + 3 };
-    let units = problems.iter().map(|p| applicable(&**p).len() + 2).sum::<usize>() + stress_units;
+    // A unit more for the drift runs of a problem with constraints.
+    let units = problems.iter().map(|p| applicable(&**p).len() + 2 + usize::from(p.constrained())).sum::<usize>()
+        + stress_units;
     let progress = Progress::new(config.progress, units);
     let mut reports = Vec::new();
     for (i, p) in problems.iter().enumerate() {
@@ -246,6 +250,12 @@ pub fn run(config: &Config) -> Result<Report, String> {
         ));
         let twins = twins(&**p, &applicable, &calibrated, &targets, t_end, suite.repeats().max(5));
         let recommendations = targets.iter().map(|&t| recommend(&calibrated, t)).collect();
+        let constraints = if p.constrained() {
+            progress.unit(format_args!("{at}: constraint and energy drift at the calibrated settings"));
+            drift(&**p, &calibrated, t_end)
+        } else {
+            Vec::new()
+        };
         let energy = if config.calibration_only {
             Vec::new()
         } else {
@@ -262,6 +272,7 @@ pub fn run(config: &Config) -> Result<Report, String> {
             recommendations,
             energy,
             twins,
+            constraints,
         });
     }
     let references: Vec<&[f64]> = reports.iter().map(|r| r.reference.q.as_slice()).collect();
@@ -411,8 +422,34 @@ fn recommend(calibrated: &[Calibrated], target: f64) -> Recommendation {
     }
 }
 
+/// Samples of the drift runs: the invariants at this many evenly spaced times.
+const DRIFT_SAMPLES: usize = 1000;
+
+/// Each calibrated run again, sampling the energy and the constraint errors
+/// ([`crate::run::Run::constraints`]) at [`DRIFT_SAMPLES`] times.
+fn drift(p: &dyn Problem, calibrated: &[Calibrated], t_end: f64) -> Vec<ConstraintDrift> {
+    calibrated
+        .iter()
+        .filter_map(|c| {
+            let setting = c.setting?;
+            let run = p.run(Method::parse(&c.method)?, setting, t_end, DRIFT_SAMPLES);
+            let component = |i: usize| run.constraints.iter().map(|s| (s.0, s.1[i])).collect::<Vec<_>>();
+            Some(ConstraintDrift {
+                method: c.method.clone(),
+                target: c.target,
+                setting,
+                samples: DRIFT_SAMPLES,
+                energy_max_abs: max_abs(&run.energy),
+                position_max: max_abs(&component(0)),
+                velocity_max: max_abs(&component(1)),
+                failure: run.failure,
+            })
+        })
+        .collect()
+}
+
 /// The methods of the long energy runs (those that apply and were calibrated).
-const LONG_RUN: [Method; 9] = [
+const LONG_RUN: [Method; 11] = [
     Method::Midpoint,
     Method::TimeTransformed(6),
     Method::Galerkin(4),
@@ -422,6 +459,8 @@ const LONG_RUN: [Method; 9] = [
     Method::KahanLi8,
     Method::OdeSolversDop853,
     Method::DiffEqDop853,
+    Method::Dop853Angles,
+    Method::Dop853Baumgarte,
 ];
 
 fn long_energy(

@@ -7,6 +7,7 @@
 
 mod auto;
 mod compositions;
+mod constrained;
 mod handwritten_agreement;
 mod module_graph;
 mod peer_sampling;
