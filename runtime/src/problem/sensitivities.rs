@@ -7,7 +7,7 @@ use core::cell::RefCell;
 use super::extend::Extended;
 use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
-use super::stepper::{Driver, Interpolant, Stepper};
+use super::stepper::{Driver, Interpolant, Stepper, each};
 use super::support::{Capability, Policy};
 use crate::dense::Node;
 use crate::derivatives::Segment;
@@ -179,20 +179,7 @@ where
     /// several times the size of a stepper), that function's for its own
     /// kind only.
     pub(crate) fn boxed_copy(&self) -> Box<Self> {
-        match &self.driver {
-            Driver::Midpoint(d) => boxed(self, d, Driver::Midpoint),
-            Driver::Trapezoid(d) => boxed(self, d, Driver::Trapezoid),
-            Driver::AlphaBeta(d) => boxed(self, d, Driver::AlphaBeta),
-            Driver::Gauss2(d) => boxed(self, d, Driver::Gauss2),
-            Driver::Gauss3(d) => boxed(self, d, Driver::Gauss3),
-            Driver::Gauss4(d) => boxed(self, d, Driver::Gauss4),
-            Driver::Lobatto2(d) => boxed(self, d, Driver::Lobatto2),
-            Driver::Lobatto3(d) => boxed(self, d, Driver::Lobatto3),
-            Driver::Lobatto4(d) => boxed(self, d, Driver::Lobatto4),
-            Driver::Composition(d) => boxed(self, d, Driver::Composition),
-            Driver::Transformed(d) => boxed(self, d, Driver::Transformed),
-            Driver::Splitting(d) => boxed(self, d, Driver::Splitting),
-        }
+        each!(&self.driver, d, variant => boxed(self, d, variant))
     }
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last

@@ -44,7 +44,9 @@ where
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is;
-/// with a constructor `$wrap`, wraps the result back into that variant.
+/// with a constructor `$wrap`, wraps the result back into that variant; with
+/// `$d, $variant =>`, binds `$variant` to that variant's constructor (a
+/// function from its driver to a [`Driver`]) for `$body`.
 macro_rules! each {
     ($x:expr, $d:ident => $body:expr) => {
         match $x {
@@ -78,7 +80,60 @@ macro_rules! each {
             Driver::Splitting($d) => $wrap::Splitting($body),
         }
     };
+    ($x:expr, $d:ident, $variant:ident => $body:expr) => {
+        match $x {
+            Driver::Midpoint($d) => {
+                let $variant = Driver::Midpoint;
+                $body
+            }
+            Driver::Trapezoid($d) => {
+                let $variant = Driver::Trapezoid;
+                $body
+            }
+            Driver::AlphaBeta($d) => {
+                let $variant = Driver::AlphaBeta;
+                $body
+            }
+            Driver::Gauss2($d) => {
+                let $variant = Driver::Gauss2;
+                $body
+            }
+            Driver::Gauss3($d) => {
+                let $variant = Driver::Gauss3;
+                $body
+            }
+            Driver::Gauss4($d) => {
+                let $variant = Driver::Gauss4;
+                $body
+            }
+            Driver::Lobatto2($d) => {
+                let $variant = Driver::Lobatto2;
+                $body
+            }
+            Driver::Lobatto3($d) => {
+                let $variant = Driver::Lobatto3;
+                $body
+            }
+            Driver::Lobatto4($d) => {
+                let $variant = Driver::Lobatto4;
+                $body
+            }
+            Driver::Composition($d) => {
+                let $variant = Driver::Composition;
+                $body
+            }
+            Driver::Transformed($d) => {
+                let $variant = Driver::Transformed;
+                $body
+            }
+            Driver::Splitting($d) => {
+                let $variant = Driver::Splitting;
+                $body
+            }
+        }
+    };
 }
+pub(super) use each;
 
 impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Driver<S, N>
 where
