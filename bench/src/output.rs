@@ -525,7 +525,8 @@ pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
             .map(|c| c.method.as_str())
             .collect();
         if !missed.is_empty() {
-            let _ = writeln!(s, "| {} | not reached: {} | | | | | |", e(target), missed.join(", "));
+            // Eight cells, as the header: target, the methods, six empty.
+            let _ = writeln!(s, "| {} | not reached: {} | | | | | | |", e(target), missed.join(", "));
         }
     }
     s
@@ -763,9 +764,12 @@ fn document(r: &Report) -> Vec<Block> {
             d.push(Table(header, rows));
         }
         if p.energy.is_empty() {
-            d.push(Para(
-                "Energy is not conserved by this problem (time-dependent or forced): no long energy runs.".into(),
-            ));
+            let why = if r.calibration_only {
+                "No long energy runs: a calibration-only report."
+            } else {
+                "Energy is not conserved by this problem (time-dependent or forced): no long energy runs."
+            };
+            d.push(Para(why.into()));
             continue;
         }
         d.push(Image(format!("{}-energy.svg", p.id), format!("{} energy error", p.id)));
