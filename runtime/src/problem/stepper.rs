@@ -44,9 +44,8 @@ where
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is;
-/// with a constructor `$wrap`, wraps the result back into that variant; with
-/// `$d, $variant =>`, binds `$variant` to that variant's constructor (a
-/// function from its driver to a [`Driver`]) for `$body`.
+/// with `$d, $variant =>`, also binds `$variant` to that variant's
+/// constructor (a function from its driver to a [`Driver`]).
 macro_rules! each {
     ($x:expr, $d:ident => $body:expr) => {
         match $x {
@@ -62,22 +61,6 @@ macro_rules! each {
             Driver::Composition($d) => $body,
             Driver::Transformed($d) => $body,
             Driver::Splitting($d) => $body,
-        }
-    };
-    ($x:expr, $d:ident => $body:expr, $wrap:ident) => {
-        match $x {
-            Driver::Midpoint($d) => $wrap::Midpoint($body),
-            Driver::Trapezoid($d) => $wrap::Trapezoid($body),
-            Driver::AlphaBeta($d) => $wrap::AlphaBeta($body),
-            Driver::Gauss2($d) => $wrap::Gauss2($body),
-            Driver::Gauss3($d) => $wrap::Gauss3($body),
-            Driver::Gauss4($d) => $wrap::Gauss4($body),
-            Driver::Lobatto2($d) => $wrap::Lobatto2($body),
-            Driver::Lobatto3($d) => $wrap::Lobatto3($body),
-            Driver::Lobatto4($d) => $wrap::Lobatto4($body),
-            Driver::Composition($d) => $wrap::Composition($body),
-            Driver::Transformed($d) => $wrap::Transformed($body),
-            Driver::Splitting($d) => $wrap::Splitting($body),
         }
     };
     ($x:expr, $d:ident, $variant:ident => $body:expr) => {
@@ -140,7 +123,7 @@ where
     Dim<N>: Extended<N>,
 {
     fn clone(&self) -> Self {
-        each!(self, d => d.clone(), Self)
+        each!(self, d, variant => variant(d.clone()))
     }
 }
 

@@ -741,31 +741,41 @@ mod tests {
         }
     }
 
+    /// The chain of `LONG` masses from its test state, as a problem.
+    fn long_chain() -> crate::problem::Problem<Chain<true>, LONG> {
+        let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
+        let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
+        crate::problem::Problem::new(Chain::<true> { theta: [1.3, 0.7] }, 0.0, q0, v0)
+    }
+
+    /// The gradient of [`Ends`] in `(q_0, v_0, θ)` by the chain rule through
+    /// the forward sensitivities of `run`'s last node, whose position the
+    /// adjoint's run must end at (`last_q`).
+    fn ends_by_chain_rule(run: &crate::sensitivity::forward::Sensitivities<LONG>, last_q: &[f64; LONG]) -> Vec<f64> {
+        let (jac, x) = (run.jacobians.last().unwrap(), run.solution.q.len() - 1);
+        let (q, p) = (run.solution.q[x], run.solution.p[x]);
+        assert_eq!(last_q, &q);
+        // ∂ℓ/∂(q, p) and ∂ℓ/∂θ at the last node.
+        let mut g = [0.0; 2 * LONG];
+        (g[0], g[1], g[5], g[2 * LONG - 1]) = (q[1], q[0], 0.7, 2.0 * p[LONG - 1]);
+        let input = |j: usize| (0..2 * LONG).map(|i| g[i] * jac.get(i, j)).sum::<f64>();
+        (0..2 * LONG + 2).map(|j| input(j) + if j == 2 * LONG + 1 { q[5] } else { 0.0 }).collect()
+    }
+
     /// A whole run above `FORWARD_MAX_N` (the stepper in reverse mode, the
     /// adjoint on the tape): the gradient against the chain rule through
     /// the forward sensitivities of the last node.
     #[test]
     fn the_adjoint_of_a_long_chain_agrees_with_forward_sensitivities() {
-        use crate::problem::{Problem, Scheme};
-        let system = Chain::<true> { theta: [1.3, 0.7] };
-        let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
-        let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
-        let problem = Problem::new(system, 0.0, q0, v0);
+        use crate::problem::Scheme;
+        let problem = long_chain();
         let (h, t_end) = (0.05, 0.5);
         let adjoint = problem.gradient(&Scheme::MIDPOINT, h, t_end, &Ends, crate::Checkpoints::Every(3)).unwrap();
         let run = problem.solve_with_sensitivities(&Scheme::MIDPOINT, h, crate::Plan::until(t_end)).unwrap();
-        let (jac, x) = (run.jacobians.last().unwrap(), run.solution.q.len() - 1);
-        let (q, p) = (run.solution.q[x], run.solution.p[x]);
-        assert_eq!(adjoint.last.q, q);
-        // ∂ℓ/∂(q, p) and ∂ℓ/∂θ at the last node.
-        let mut g = [0.0; 2 * LONG];
-        (g[0], g[1], g[5], g[2 * LONG - 1]) = (q[1], q[0], 0.7, 2.0 * p[LONG - 1]);
-        let input = |j: usize| (0..2 * LONG).map(|i| g[i] * jac.get(i, j)).sum::<f64>();
-        let want: Vec<f64> = (0..2 * LONG + 2).map(|j| input(j) + if j == 2 * LONG + 1 { q[5] } else { 0.0 }).collect();
+        let want = ends_by_chain_rule(&run, &adjoint.last.q);
         let got: Vec<f64> = adjoint.q0.iter().chain(&adjoint.v0).chain(&adjoint.theta).copied().collect();
-        let scale = want.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let gap = got.iter().zip(&want).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
-        assert!(gap <= 1e-12 * scale, "gap {gap:e} of {scale:e}");
+        let gap = relative(&got, &want);
+        assert!(gap <= 1e-12, "gap {gap:e}");
     }
 
     /// `max |x − y| / max |y|`.
@@ -787,11 +797,8 @@ mod tests {
     /// `q_k` takes `w_D` only through `a_qD`, of order `h`).
     #[test]
     fn the_tape_adjoint_keeps_the_pairing_over_a_long_run() {
-        use crate::problem::{Problem, Scheme};
-        let system = Chain::<true> { theta: [1.3, 0.7] };
-        let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
-        let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
-        let problem = Problem::new(system, 0.0, q0, v0);
+        use crate::problem::Scheme;
+        let problem = long_chain();
         // 2 000 steps: the forward sensitivities (80 × 82 per step) make
         // this the runtime's slowest unit test, about 7 ms per step.
         let (h, t_end) = (1e-3, 2.0);
@@ -809,13 +816,7 @@ mod tests {
                 .collect();
             drift = drift.max(relative(&pairing, &initial));
         }
-        let (x, jac) = (run.solution.q.len() - 1, run.jacobians.last().unwrap());
-        let (q, p) = (run.solution.q[x], run.solution.p[x]);
-        assert_eq!(adjoint.last.q, q);
-        let mut g = [0.0; 2 * LONG];
-        (g[0], g[1], g[5], g[2 * LONG - 1]) = (q[1], q[0], 0.7, 2.0 * p[LONG - 1]);
-        let input = |j: usize| (0..2 * LONG).map(|i| g[i] * jac.get(i, j)).sum::<f64>();
-        let want: Vec<f64> = (0..2 * LONG + 2).map(|j| input(j) + if j == 2 * LONG + 1 { q[5] } else { 0.0 }).collect();
+        let want = ends_by_chain_rule(&run, &adjoint.last.q);
         let got: Vec<f64> = initial.iter().chain(&adjoint.theta).copied().collect();
         let gap = relative(&got, &want);
         eprintln!(
