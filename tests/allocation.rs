@@ -18,7 +18,10 @@ use std::cell::Cell;
 
 use common::{DOUBLE_PENDULUM, PENDULUM};
 use lagrangian::prelude::*;
-use lagrangian::{AlphaBeta, Composition, Derivatives, DoubleDouble, GalerkinIntegrator, Method, Summation};
+use lagrangian::{
+    AlphaBeta, Composition, Derivatives, DoubleDouble, Event, GalerkinIntegrator, Method, Plan, Problem, Scheme,
+    Summation,
+};
 
 struct Counting;
 
@@ -236,6 +239,40 @@ fn galerkin_compositions_and_double_double_do_not_allocate() {
     ];
     for (name, n) in cases {
         assert_eq!(n, 0, "{name}: {n} allocations in 500 steps");
+    }
+}
+
+/// Steppers of a `Problem` step without allocating, and `solve` allocates
+/// nothing per step: its copy of the stepper from before each step (kept
+/// for events and failed steps) is made once and refreshed in place. Two
+/// solves of 500 and 1000 steps that keep the same rows (the first and last
+/// nodes, two save times, an event that is never met) allocate the same.
+#[test]
+fn problem_steppers_and_solve_do_not_allocate_per_step() {
+    let h = 0.01;
+    let schemes =
+        [Scheme::MIDPOINT, Scheme::galerkin(2), Scheme::composition(Composition::YOSHIDA4, OnePoint::Trapezoid)];
+    for scheme in schemes {
+        let problem = Problem::new(DOUBLE_PENDULUM, 0.0, [1.0, 0.5], [0.0, 0.0]);
+        let mut sim = problem.stepper(&scheme, h).unwrap();
+        sim.step().unwrap();
+        let before = allocations();
+        sim.run(500, |_| {}).unwrap();
+        assert_eq!(allocations() - before, 0, "{scheme:?}: stepping");
+
+        let solve = |steps: u32| {
+            let plan = Plan::until(f64::from(steps) * h)
+                .every(1 << 20)
+                .save_at(vec![0.5, 1.0])
+                .event(Event::new(|_t, q: &[f64; 2], _v: &[f64; 2]| q[0] + 10.0));
+            let before = allocations();
+            let sol = problem.solve(&scheme, h, plan).unwrap().into_result().unwrap();
+            let n = allocations() - before;
+            assert_eq!((sol.len(), sol.events.len(), sol.stats.steps), (4, 0, u64::from(steps)), "{scheme:?}");
+            n
+        };
+        let (short, long) = (solve(500), solve(1000));
+        assert!(short > 0 && long == short, "{scheme:?}: {short} allocations in 500 steps, {long} in 1000");
     }
 }
 

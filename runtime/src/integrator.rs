@@ -470,7 +470,7 @@ impl<T: Real> Clock<T> {
 /// assert!((sim.state().q[0] - exact).abs() < dd(1e-5));
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct Integrator<S, M: Method<T>, const N: usize, T: Real = f64> {
     pub(crate) system: S,
     pub(crate) method: M,
@@ -506,6 +506,90 @@ pub struct Integrator<S, M: Method<T>, const N: usize, T: Real = f64> {
     /// How increments are added to the state; under [`Summation::Plain`]
     /// `carry` and `p_carry` (and reverse mode's carries) stay zero.
     pub(crate) summation: Summation,
+}
+
+impl<S: Clone, M: Method<T> + Clone, const N: usize, T: Real> Clone for Integrator<S, M, N, T> {
+    fn clone(&self) -> Self {
+        let Self {
+            system,
+            method,
+            h,
+            newton,
+            state,
+            carry,
+            p_carry,
+            policy,
+            fallback,
+            energy,
+            energy_carry,
+            time_error,
+            watched_energy,
+            memory,
+            v0,
+            clock,
+            stats,
+            derivatives,
+            summation,
+        } = self;
+        Self {
+            system: system.clone(),
+            method: method.clone(),
+            h: *h,
+            newton: *newton,
+            state: *state,
+            carry: *carry,
+            p_carry: *p_carry,
+            policy: *policy,
+            fallback: *fallback,
+            energy: *energy,
+            energy_carry: *energy_carry,
+            time_error: *time_error,
+            watched_energy: *watched_energy,
+            memory: memory.clone(),
+            v0: *v0,
+            clock: *clock,
+            stats: *stats,
+            derivatives: *derivatives,
+            summation: *summation,
+        }
+    }
+
+    /// Field by field, the method's memory through its own `clone_from`:
+    /// `solve` copies the integrator before every step, and a memory that
+    /// keeps storage on the heap (a Galerkin rule's factored Newton block)
+    /// copies into the storage it has instead of allocating.
+    fn clone_from(&mut self, source: &Self) {
+        let Self {
+            system,
+            method,
+            h,
+            newton,
+            state,
+            carry,
+            p_carry,
+            policy,
+            fallback,
+            energy,
+            energy_carry,
+            time_error,
+            watched_energy,
+            memory,
+            v0,
+            clock,
+            stats,
+            derivatives,
+            summation,
+        } = self;
+        system.clone_from(&source.system);
+        method.clone_from(&source.method);
+        memory.clone_from(&source.memory);
+        (*h, *newton, *state, *carry, *p_carry) = (source.h, source.newton, source.state, source.carry, source.p_carry);
+        (*policy, *fallback, *energy, *energy_carry) =
+            (source.policy, source.fallback, source.energy, source.energy_carry);
+        (*time_error, *watched_energy, *v0, *clock) =
+            (source.time_error, source.watched_energy, source.v0, source.clock);
+        (*stats, *derivatives, *summation) = (source.stats, source.derivatives, source.summation);
+    }
 }
 
 impl<S, M: Method<T>, T: Real> Integrator<S, M, 0, T> {

@@ -726,22 +726,21 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         if g.is_finite() { Ok(g) } else { Err(SolveError::NonFiniteEvent { event: i, t }) }
     }
 
-    /// Locates the crossings of the events over the step `start → end`.
-    /// Returns the records and the earliest stopping or landing one (index
-    /// into the records), and the event values at `end`.
-    #[allow(clippy::type_complexity)]
+    /// Locates the crossings of the events over the step `start → end`,
+    /// with `g` their values at `start` on entry and at `end` on return (in
+    /// place: no allocation per step). Returns the records and the earliest
+    /// stopping or landing one (index into the records).
     fn crossings(
         &mut self,
         dense: &StepInterpolant<I::Native, N>,
         start: &Node<N>,
         end: &Node<N>,
-        g_start: &[f64],
-    ) -> Result<(Vec<EventRecord<N>>, Option<usize>, Vec<f64>), SolveError<N>> {
+        g: &mut [f64],
+    ) -> Result<(Vec<EventRecord<N>>, Option<usize>), SolveError<N>> {
         let mut found = Vec::new();
-        let mut g_end = Vec::with_capacity(g_start.len());
         for i in 0..self.plan.events.len() {
             let samples = self.plan.events[i].samples;
-            let (mut ta, mut ga) = (start.t, g_start[i]);
+            let (mut ta, mut ga) = (start.t, g[i]);
             let mut stop_found = false;
             for j in 1..=samples {
                 let (tb, qb, vb) = if j == samples {
@@ -774,7 +773,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
                 }
                 (ta, ga) = (tb, gb);
             }
-            g_end.push(ga);
+            g[i] = ga;
         }
         found.sort_by(|a, b| a.t.total_cmp(&b.t));
         let stop = found.iter().position(|r| self.plan.events[r.event].action != Action::Record);
@@ -786,7 +785,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
             let keep = found[k..].iter().take_while(|r| r.t == t).count();
             found.truncate(k + keep);
         }
-        Ok((found, stop, g_end))
+        Ok((found, stop))
     }
 }
 
@@ -876,17 +875,22 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
         || d.plan.observer.is_some()
         || d.plan.dense == DenseKind::Quintic;
     let mut lp = Loop { prev, g_prev, rejoin: None, last_h: None };
+    // The copy is made once, on the heap, and refreshed in place before each
+    // step: no allocation per step, and no frame holds a large integrator.
+    let mut before = (fallible || has_events).then(|| Box::new(d.sim.clone()));
     while lp.prev.node.t < t_end {
-        let mut before = (fallible || has_events).then(|| d.sim.clone());
+        if let Some(before) = before.as_deref_mut() {
+            before.clone_from(d.sim);
+        }
         let mark = (d.sol.len(), d.sol.events.len(), d.next_save);
-        match advance(d, &mut lp, &mut before, dense_needed, v_each_step) {
+        match advance(d, &mut lp, before.as_deref(), dense_needed, v_each_step) {
             Ok(true) => return Ok(()),
             Ok(false) => {}
             Err(e) => {
                 // The step (or what follows it) failed: back to the last
                 // good node, which becomes the solution's last node row.
-                if let Some(before) = before {
-                    *d.sim = before;
+                if let Some(before) = before.as_deref_mut() {
+                    core::mem::swap(d.sim, before);
                 }
                 d.sol.truncate(mark.0, mark.1);
                 d.next_save = mark.2;
@@ -926,7 +930,7 @@ struct Loop<const N: usize> {
 fn advance<I: Stepping<N> + Clone, const N: usize>(
     d: &mut Driver<'_, '_, I, N>,
     lp: &mut Loop<N>,
-    before: &mut Option<I>,
+    before: Option<&I>,
     dense_needed: bool,
     v_each_step: bool,
 ) -> Result<bool, SolveError<N>> {
@@ -945,8 +949,7 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
         let dense = d.interpolant(prev, &mut end)?;
         let mut upto = end.node.t;
         if has_events {
-            let (found, stop, g_end) = d.crossings(&dense, &prev.node, &end.node, &lp.g_prev)?;
-            lp.g_prev = g_end;
+            let (found, stop) = d.crossings(&dense, &prev.node, &end.node, &mut lp.g_prev)?;
             d.sol.events.extend_from_slice(&found);
             if let Some(k) = stop {
                 let record = found[k];
@@ -959,8 +962,8 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
     if let Some((record, t_step_end)) = landed {
         // Redo the step from its start so that it ends on the event (the
         // copy stays: what follows can still fail).
-        if let Some(before) = before.as_ref() {
-            *d.sim = before.clone();
+        if let Some(before) = before {
+            d.sim.clone_from(before);
         }
         d.sim.land(record.t)?;
         d.sol.stats.redone_steps += 1;

@@ -27,7 +27,7 @@ impl Pendulum {
 pub const PENDULUM: Pendulum = Pendulum { m: 1.3, l: 0.8, g: 9.81 };
 
 /// Planar double pendulum, angles from the downward vertical.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct DoublePendulum {
     pub m1: f64,
     pub m2: f64,

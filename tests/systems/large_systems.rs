@@ -20,9 +20,10 @@
 //!   Newton iterations (FPU-β chain, coupled pendula; N = 16 and 64).
 use lagrangian::prelude::*;
 use lagrangian::structure::{Coupling, Separability};
-use lagrangian::{Derivatives, Error};
+use lagrangian::{Action, Derivatives, Direction, Error};
 
 /// An FPU-β chain with fixed ends, unit masses and springs.
+#[derive(Clone)]
 pub struct Fpu<const N: usize> {
     /// Quartic coupling.
     pub beta: f64,
@@ -487,4 +488,37 @@ fn a_failed_reverse_step_changes_nothing() {
     // down, the second (weight −1.70) up past 1.
     check(|| Wall::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (fused)");
     check(|| WallSubstepped::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (sub-stepped)");
+}
+
+/// `Problem::solve` on a chain of 1000 masses in a default thread, with
+/// save times and a stopping event (the paths that keep a copy of the
+/// stepper from before each step and redo a step to end on the event): the
+/// copy lives on the heap, so the run fits a 2 MiB stack. From rest in
+/// mode 100 (`ω = 2 sin(100π/2002) ≈ 0.31`), `q_0` first falls through zero
+/// near a quarter period, `t ≈ 5`; the node the run ends on is one step of
+/// the method from the dense output that located the crossing, so `q_0`
+/// there is within a step's local error, `(ωh)³` of the amplitude.
+#[test]
+fn a_thousand_mass_chain_solves_with_an_event_in_a_default_thread() {
+    const N: usize = 1000;
+    std::thread::spawn(|| {
+        let (h, omega) = (0.05, 2.0 * (100.0 * core::f64::consts::PI / 2002.0).sin());
+        let q0 = chain_mode::<N>(N / 10, 0.3);
+        let problem = Problem::new(Fpu::<N> { beta: 1.0 }, 0.0, q0, [0.0; N]);
+        let yoshida = Scheme::composition(lagrangian::Composition::YOSHIDA4, OnePoint::Trapezoid);
+        for scheme in [Scheme::MIDPOINT, yoshida] {
+            let plan = Plan::until(8.0).every(20).save_at(vec![1.0, 2.0]).event(
+                Event::new(|_t, q: &[f64; N], _v: &[f64; N]| q[0]).direction(Direction::Falling).action(Action::Stop),
+            );
+            let sol = problem.solve(&scheme, h, plan).unwrap().into_result().unwrap();
+            let event = sol.events.first().copied().expect("q_0 changes sign before t = 8");
+            let (t, q) = (*sol.t.last().unwrap(), sol.q.last().unwrap());
+            println!("{scheme:?}: N = {N}, q_0 = 0 at t = {:.6}, {} rows, q_0 there {:.1e}", event.t, sol.len(), q[0]);
+            assert!((4.0..6.0).contains(&event.t) && t == event.t, "{} {t}", event.t);
+            assert!(sol.t.contains(&1.0) && sol.t.contains(&2.0));
+            assert!(q[0].abs() <= (omega * h).powi(3) * q0[0], "{:e}", q[0]);
+        }
+    })
+    .join()
+    .expect("no stack overflow, no panic");
 }

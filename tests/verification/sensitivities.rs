@@ -503,8 +503,7 @@ fn the_adjoint_of_a_thousand_masses_runs_in_a_two_mebibyte_thread() {
     let q0: [f64; N] = core::array::from_fn(|i| 0.1 * ((i as f64 + 1.0) * 0.7).sin());
     let v0: [f64; N] = core::array::from_fn(|i| 0.05 * ((i as f64 + 1.0) * 0.3).cos());
     let run = move || {
-        // The loss of a plain run, stepped node by node (`Problem::solve`
-        // needs more than this thread's stack at this size).
+        // The loss of a plain run, stepped node by node.
         let value = |q0: &[f64; N], v0: &[f64; N], theta: [f64; 2]| -> f64 {
             let mut sim = Problem::new(Chain::<N> { theta }, 0.0, *q0, *v0).stepper(&Scheme::MIDPOINT, h).unwrap();
             let (mut j, mut last_h) = (0.0, None);

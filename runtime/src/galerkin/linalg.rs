@@ -24,9 +24,25 @@ pub(crate) type BlockVector<const N: usize, const S: usize, T = f64> = [[T; N]; 
 /// ordered by `(row node, row coordinate)` on the heap. `a[m][i][n][k]` is
 /// the entry of row `(m, i)` and column `(n, k)`. Empty (no allocation)
 /// until first written through [`Lu::matrix_mut`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub(crate) struct BlockMatrix<const N: usize, const S: usize, T = f64> {
     rows: Box<[[[T; N]; S]]>,
+}
+
+impl<const N: usize, const S: usize, T: Copy> Clone for BlockMatrix<N, S, T> {
+    fn clone(&self) -> Self {
+        Self { rows: self.rows.clone() }
+    }
+
+    /// Into the storage it has when that is of the same size: a copy of an
+    /// integrator made before each step of a `solve` does not allocate.
+    fn clone_from(&mut self, source: &Self) {
+        if self.rows.len() == source.rows.len() {
+            self.rows.copy_from_slice(&source.rows);
+        } else {
+            *self = source.clone();
+        }
+    }
 }
 
 impl<const N: usize, const S: usize, T: Real> BlockMatrix<N, S, T> {
@@ -88,7 +104,7 @@ impl<const N: usize, const S: usize, T> core::ops::IndexMut<usize> for BlockMatr
 }
 
 /// The factors `PA = LU` (unit lower `L` below the diagonal, `U` on and above).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
     lu: BlockMatrix<N, S, T>,
     perm: [[usize; N]; S],
@@ -96,6 +112,20 @@ pub(crate) struct Lu<const N: usize, const S: usize, T = f64> {
     norm1: T,
     /// `lu` holds `A⁻ᵀ` instead of the factors (see [`Lu::invert_in_place`]).
     inverted: bool,
+}
+
+impl<const N: usize, const S: usize, T: Copy> Clone for Lu<N, S, T> {
+    fn clone(&self) -> Self {
+        let Self { lu, perm, norm1, inverted } = self;
+        Self { lu: lu.clone(), perm: *perm, norm1: *norm1, inverted: *inverted }
+    }
+
+    /// The factors into the storage they have (see [`BlockMatrix`]'s).
+    fn clone_from(&mut self, source: &Self) {
+        let Self { lu, perm, norm1, inverted } = self;
+        lu.clone_from(&source.lu);
+        (*perm, *norm1, *inverted) = (source.perm, source.norm1, source.inverted);
+    }
 }
 
 /// Why a factorisation failed.

@@ -57,7 +57,7 @@ pub type GalerkinBuilder<Sys, const S: usize, const R: usize, T = f64> = Integra
 
 /// The last step taken: where it started and its node increments.
 #[doc(hidden)]
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct LastStep<const N: usize, const S: usize, T> {
     pub(crate) t0: T,
     pub(crate) h: T,
@@ -83,6 +83,36 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     /// When to try the fixed-point iteration again after it failed to
     /// converge fast enough (`collocation.rs`): the same back-off as the kept block's.
     pub(crate) fixed_point: KeptPolicy,
+}
+
+impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
+    fn clone(&self) -> Self {
+        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point } = self;
+        Self {
+            t0: *t0,
+            h: *h,
+            q0: *q0,
+            carry: *carry,
+            d: *d,
+            jacobian: *jacobian,
+            block: block.clone(),
+            spare: spare.clone(),
+            kept_policy: *kept_policy,
+            evaluations: *evaluations,
+            fixed_point: *fixed_point,
+        }
+    }
+
+    /// The blocks into the storage they have: a copy of an integrator made
+    /// before each step of a `solve` does not allocate.
+    fn clone_from(&mut self, source: &Self) {
+        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point } = self;
+        block.clone_from(&source.block);
+        spare.clone_from(&source.spare);
+        (*t0, *h, *q0, *carry, *d, *jacobian) =
+            (source.t0, source.h, source.q0, source.carry, source.d, source.jacobian);
+        (*kept_policy, *evaluations, *fixed_point) = (source.kept_policy, source.evaluations, source.fixed_point);
+    }
 }
 
 /// Evaluations of the derivatives of `L` at quadrature points, summed over

@@ -7,7 +7,7 @@ use core::cell::RefCell;
 use super::extend::Extended;
 use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
-use super::stepper::{Driver, Interpolant, Stepper, each};
+use super::stepper::{Driver, Interpolant, Stepper};
 use super::support::{Capability, Policy};
 use crate::dense::Node;
 use crate::derivatives::Segment;
@@ -132,17 +132,9 @@ where
     {
         let policy = Policy::fixed(h);
         self.differentiable(scheme, policy)?;
-        let stepper = self.boxed_stepper(scheme, policy)?;
+        let stepper = self.stepper(scheme, policy)?;
         let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
-    }
-
-    /// [`stepper`](Self::stepper), on the heap. Out of line, so that the
-    /// frame that builds a stepper of any kind (600 kB at `N = 1000`) is
-    /// released before the adjoint's run.
-    #[inline(never)]
-    fn boxed_stepper(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Stepper<S, N>>, Error<N>> {
-        Ok(Box::new(self.stepper(scheme, policy)?))
     }
 }
 
@@ -156,7 +148,7 @@ where
 {
     /// The Galerkin rule every step of this stepper is made of.
     pub(crate) fn rule(&self) -> Result<Rule, Error<N>> {
-        Ok(match &self.driver {
+        Ok(match &*self.driver {
             Driver::Midpoint(_) => Rule::one_point(&OnePoint::Midpoint),
             Driver::Trapezoid(_) | Driver::Composition(_) => Rule::one_point(&OnePoint::Trapezoid),
             Driver::AlphaBeta(d) => Rule::one_point(&OnePoint::AlphaBeta(d.method)),
@@ -171,15 +163,6 @@ where
                 return Err(Error::Unsupported { what: "sensitivities of a time-transformed scheme" });
             }
         })
-    }
-
-    /// A copy of this stepper on the heap, made by a function of its own for
-    /// its kind of driver: the frame of a stepper's `clone` holds room for
-    /// every kind at once (1.5 MB at `N = 1000` in the tests' profile,
-    /// several times the size of a stepper), that function's for its own
-    /// kind only.
-    pub(crate) fn boxed_copy(&self) -> Box<Self> {
-        each!(&self.driver, d, variant => boxed(self, d, variant))
     }
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
@@ -200,7 +183,7 @@ where
                 galerkin(l.t0, l.h, l.q0, l.carry, &l.d)
             }};
         }
-        match &self.driver {
+        match &*self.driver {
             Driver::Midpoint(_) | Driver::Trapezoid(_) | Driver::AlphaBeta(_) => {
                 out.push(Piece::segment(&Segment::between((from.t, from.q), (to.t, to.q))));
             }
@@ -223,20 +206,6 @@ where
     }
 }
 
-/// `stepper` on the heap with a copy of its driver `driver` of one kind,
-/// wrapped by `wrap` (see [`Stepper::boxed_copy`]).
-#[inline(never)]
-fn boxed<S: Lagrangian<N> + Clone, T: Clone, const N: usize>(
-    stepper: &Stepper<S, N>,
-    driver: &T,
-    wrap: fn(T) -> Driver<S, N>,
-) -> Box<Stepper<S, N>>
-where
-    Dim<N>: Extended<N>,
-{
-    Box::new(Stepper { driver: wrap(driver.clone()), scheme: stepper.scheme.clone(), policy: stepper.policy })
-}
-
 /// A stepper that hands each step it takes to the forward propagation:
 /// [`Stepping::solve`] runs it as it runs the stepper itself.
 struct Tracked<'p, 's, S: Parametric<N, P>, const N: usize, const P: usize>
@@ -255,6 +224,12 @@ where
 {
     fn clone(&self) -> Self {
         Self { stepper: self.stepper.clone(), propagation: self.propagation, pieces: Vec::new() }
+    }
+
+    /// The stepper in place: no allocation.
+    fn clone_from(&mut self, source: &Self) {
+        self.stepper.clone_from(&source.stepper);
+        self.propagation = source.propagation;
     }
 }
 

@@ -3,18 +3,18 @@
 
 use super::extend::Extended;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
-use super::stepper::{Driver, Stepper};
+use super::stepper::{Driver, Stepper, boxed};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::auto::Auto;
 use crate::dim::Dim;
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, NodeFamily, Quadrature};
-use crate::integrator::{Integrator, IntegratorBuilder, Method};
+use crate::integrator::{Composition, Integrator, IntegratorBuilder, Method};
 use crate::newton::NewtonOptions;
 use crate::solution::{Plan, Solution, SolveError};
 use crate::system::Lagrangian;
-use crate::time_transform::ExplicitTimeTransformed;
+use crate::time_transform::{Curvature, ExplicitTimeTransformed, TimeFunction};
 
 /// A compile-time-sized system with its initial data `(t0, q0, v0)`; the
 /// end of the run is the [`Plan`]'s.
@@ -154,27 +154,19 @@ where
     }
 
     /// The driver of `scheme`: the one `match` from the value to the
-    /// const-generic kernels.
-    fn driver(&self, scheme: &Scheme, policy: Policy) -> Result<Driver<S, N>, Error<N>> {
-        let (t0, q0, v0) = (self.t0, self.q0, self.v0);
+    /// const-generic kernels. Each kind is started and boxed by a function
+    /// of its own, so that no frame holds room for every kind at once (a
+    /// driver is 300 kB at `N = 1000`).
+    fn driver(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Driver<S, N>>, Error<N>> {
         let h = policy.step();
         match scheme {
-            Scheme::OnePoint(OnePoint::Midpoint) => self.integrator(Midpoint, policy).map(Driver::Midpoint),
-            Scheme::OnePoint(OnePoint::Trapezoid) => self.integrator(Trapezoid, policy).map(Driver::Trapezoid),
-            Scheme::OnePoint(OnePoint::AlphaBeta(m)) => self.integrator(*m, policy).map(Driver::AlphaBeta),
+            Scheme::OnePoint(OnePoint::Midpoint) => self.integrator(Midpoint, policy, Driver::Midpoint),
+            Scheme::OnePoint(OnePoint::Trapezoid) => self.integrator(Trapezoid, policy, Driver::Trapezoid),
+            Scheme::OnePoint(OnePoint::AlphaBeta(m)) => self.integrator(*m, policy, Driver::AlphaBeta),
             Scheme::Galerkin { degree, nodes, quadrature } => self.galerkin(*degree, *nodes, *quadrature, policy),
-            Scheme::Composition { weights, .. } => self.integrator(*weights, policy).map(Driver::Composition),
-            Scheme::TimeTransformed { inner, density } => {
-                <Dim<N> as Extended<N>>::start(self.system.clone(), inner, *density, h, self.newton, t0, q0, v0)
-                    .map(Driver::Transformed)
-            }
-            Scheme::Splitting { function, composition } => {
-                let mut split = ExplicitTimeTransformed::new(self.system.clone(), *function, h);
-                if let Some(c) = composition {
-                    split = split.composition(*c);
-                }
-                split.start(t0, q0, v0).map(Driver::Splitting)
-            }
+            Scheme::Composition { weights, .. } => self.integrator(*weights, policy, Driver::Composition),
+            Scheme::TimeTransformed { inner, density } => self.transformed(inner, *density, h),
+            Scheme::Splitting { function, composition } => self.splitting(*function, *composition, h),
         }
     }
 
@@ -185,33 +177,40 @@ where
         nodes: NodeFamily,
         quadrature: GalerkinQuadrature,
         policy: Policy,
-    ) -> Result<Driver<S, N>, Error<N>> {
+    ) -> Result<Box<Driver<S, N>>, Error<N>> {
         use GalerkinQuadrature::{GaussLegendre as G, GaussLobatto as L};
         match (degree, quadrature) {
             (2, G) => {
-                self.integrator(Galerkin::<2, 2>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss2)
+                self.integrator(Galerkin::<2, 2>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss2)
             }
             (3, G) => {
-                self.integrator(Galerkin::<3, 3>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss3)
+                self.integrator(Galerkin::<3, 3>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss3)
             }
             (4, G) => {
-                self.integrator(Galerkin::<4, 4>::new(nodes, Quadrature::gauss_legendre()), policy).map(Driver::Gauss4)
+                self.integrator(Galerkin::<4, 4>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss4)
             }
             (2, L) => {
-                self.integrator(Galerkin::<2, 3>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto2)
+                self.integrator(Galerkin::<2, 3>::new(nodes, Quadrature::gauss_lobatto()), policy, Driver::Lobatto2)
             }
             (3, L) => {
-                self.integrator(Galerkin::<3, 4>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto3)
+                self.integrator(Galerkin::<3, 4>::new(nodes, Quadrature::gauss_lobatto()), policy, Driver::Lobatto3)
             }
             (4, L) => {
-                self.integrator(Galerkin::<4, 5>::new(nodes, Quadrature::gauss_lobatto()), policy).map(Driver::Lobatto4)
+                self.integrator(Galerkin::<4, 5>::new(nodes, Quadrature::gauss_lobatto()), policy, Driver::Lobatto4)
             }
             _ => Err(Error::Unsupported { what: "a Galerkin degree other than 2, 3 or 4 through `Scheme`" }),
         }
     }
 
-    /// The [`Integrator`] of `method` under `policy` at the initial data.
-    fn integrator<M: Method<f64>>(&self, method: M, policy: Policy) -> Result<Integrator<S, M, N>, Error<N>> {
+    /// The [`Integrator`] of `method` under `policy` at the initial data,
+    /// wrapped by `wrap`.
+    #[inline(never)]
+    fn integrator<M: Method<f64>>(
+        &self,
+        method: M,
+        policy: Policy,
+        wrap: fn(Integrator<S, M, N>) -> Driver<S, N>,
+    ) -> Result<Box<Driver<S, N>>, Error<N>> {
         let mut builder: IntegratorBuilder<S, M> = Integrator::new(self.system.clone(), method, policy.step());
         if let Some(bounds) = policy.bounds() {
             builder = builder.energy_preserving(bounds);
@@ -219,6 +218,31 @@ where
         if let Some(options) = self.newton {
             builder = builder.newton(options);
         }
-        builder.start(self.t0, self.q0, self.v0)
+        builder.start(self.t0, self.q0, self.v0).map(boxed(wrap))
+    }
+
+    /// The implicit time transformation of `inner` with `density`, step `h`
+    /// in `s`.
+    #[inline(never)]
+    fn transformed(&self, inner: &Scheme, density: Curvature, h: f64) -> Result<Box<Driver<S, N>>, Error<N>> {
+        let (t0, q0, v0) = (self.t0, self.q0, self.v0);
+        <Dim<N> as Extended<N>>::start(self.system.clone(), inner, density, h, self.newton, t0, q0, v0)
+            .map(boxed(Driver::Transformed))
+    }
+
+    /// The explicit time-transformed splitting with `function`, composed
+    /// with `composition` if given, step `h` in `s`.
+    #[inline(never)]
+    fn splitting(
+        &self,
+        function: TimeFunction,
+        composition: Option<Composition>,
+        h: f64,
+    ) -> Result<Box<Driver<S, N>>, Error<N>> {
+        let mut split = ExplicitTimeTransformed::new(self.system.clone(), function, h);
+        if let Some(c) = composition {
+            split = split.composition(c);
+        }
+        split.start(self.t0, self.q0, self.v0).map(boxed(Driver::Splitting))
     }
 }

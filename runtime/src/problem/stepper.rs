@@ -1,9 +1,11 @@
 //! One stepper for every [`Scheme`]: an enum over the drivers, each a
 //! const-generic fast path, matched once per call.
 //!
-//! The enum holds the drivers inline (no box, no virtual call): a step of
-//! the pendulum's midpoint rule through [`Stepper`] is the integrator's own
-//! step behind one `match` on the variant.
+//! The enum lives in one box per stepper (no virtual call): a step of the
+//! pendulum's midpoint rule through [`Stepper`] is the integrator's own step
+//! behind one pointer and one `match` on the variant. Copies of a stepper
+//! go through a function of their own per kind of driver, so that no frame
+//! holds room for every kind at once.
 
 use super::extend::Extended;
 use super::scheme::Scheme;
@@ -22,8 +24,8 @@ use crate::time_transform::ExplicitAdaptive;
 
 /// The driver behind a [`Stepper`].
 // The variants differ by their Galerkin tables (the collocation tables grow
-// with `R²`); a stepper holds one driver for a whole run, so boxing would buy
-// nothing but an indirection on every step.
+// with `R²`) and kept sub-steps; a stepper boxes the whole enum once, so
+// boxing each variant as well would buy only a second indirection per step.
 #[allow(clippy::large_enum_variant)]
 pub(super) enum Driver<S: Lagrangian<N> + Clone, const N: usize>
 where
@@ -45,86 +47,69 @@ where
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is;
 /// with `$d, $variant =>`, also binds `$variant` to that variant's
-/// constructor (a function from its driver to a [`Driver`]).
+/// constructor (a function from its driver to a [`Driver`]); with
+/// `($x, $y), $a, $b => $body, else $other`, runs `$body` with both drivers
+/// bound when `$x` and `$y` are the same variant and `$other` when not.
 macro_rules! each {
-    ($x:expr, $d:ident => $body:expr) => {
+    ($($form:tt)*) => {
+        each_of!(($($form)*) Midpoint Trapezoid AlphaBeta Gauss2 Gauss3 Gauss4 Lobatto2 Lobatto3 Lobatto4
+            Composition Transformed Splitting)
+    };
+}
+
+/// [`each!`] over the list of variants it names (the one list of them).
+macro_rules! each_of {
+    (($x:expr, $d:ident => $body:expr) $($v:ident)*) => {
         match $x {
-            Driver::Midpoint($d) => $body,
-            Driver::Trapezoid($d) => $body,
-            Driver::AlphaBeta($d) => $body,
-            Driver::Gauss2($d) => $body,
-            Driver::Gauss3($d) => $body,
-            Driver::Gauss4($d) => $body,
-            Driver::Lobatto2($d) => $body,
-            Driver::Lobatto3($d) => $body,
-            Driver::Lobatto4($d) => $body,
-            Driver::Composition($d) => $body,
-            Driver::Transformed($d) => $body,
-            Driver::Splitting($d) => $body,
+            $(Driver::$v($d) => $body,)*
         }
     };
-    ($x:expr, $d:ident, $variant:ident => $body:expr) => {
+    (($x:expr, $d:ident, $variant:ident => $body:expr) $($v:ident)*) => {
         match $x {
-            Driver::Midpoint($d) => {
-                let $variant = Driver::Midpoint;
+            $(Driver::$v($d) => {
+                let $variant = Driver::$v;
                 $body
-            }
-            Driver::Trapezoid($d) => {
-                let $variant = Driver::Trapezoid;
-                $body
-            }
-            Driver::AlphaBeta($d) => {
-                let $variant = Driver::AlphaBeta;
-                $body
-            }
-            Driver::Gauss2($d) => {
-                let $variant = Driver::Gauss2;
-                $body
-            }
-            Driver::Gauss3($d) => {
-                let $variant = Driver::Gauss3;
-                $body
-            }
-            Driver::Gauss4($d) => {
-                let $variant = Driver::Gauss4;
-                $body
-            }
-            Driver::Lobatto2($d) => {
-                let $variant = Driver::Lobatto2;
-                $body
-            }
-            Driver::Lobatto3($d) => {
-                let $variant = Driver::Lobatto3;
-                $body
-            }
-            Driver::Lobatto4($d) => {
-                let $variant = Driver::Lobatto4;
-                $body
-            }
-            Driver::Composition($d) => {
-                let $variant = Driver::Composition;
-                $body
-            }
-            Driver::Transformed($d) => {
-                let $variant = Driver::Transformed;
-                $body
-            }
-            Driver::Splitting($d) => {
-                let $variant = Driver::Splitting;
-                $body
-            }
+            })*
+        }
+    };
+    ((($x:expr, $y:expr), $a:ident, $b:ident => $body:expr, else $other:expr) $($v:ident)*) => {
+        match ($x, $y) {
+            $((Driver::$v($a), Driver::$v($b)) => $body,)*
+            _ => $other,
         }
     };
 }
-pub(super) use each;
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Driver<S, N>
+/// `wrap(d)` built on the heap (a driver is large: 300 kB at `N = 1000`),
+/// as a function for `Result::map`.
+pub(super) fn boxed<S: Lagrangian<N> + Clone, T, const N: usize>(
+    wrap: fn(T) -> Driver<S, N>,
+) -> impl FnOnce(T) -> Box<Driver<S, N>>
 where
     Dim<N>: Extended<N>,
 {
-    fn clone(&self) -> Self {
-        each!(self, d, variant => variant(d.clone()))
-    }
+    move |d| Box::new(wrap(d))
+}
+
+/// A copy of `d` wrapped by `wrap` on the heap, made by a function of its
+/// own for each kind of driver: a frame that copies any kind holds room for
+/// every kind at once (1 MB at `N = 1000`), this one for its own only.
+#[inline(never)]
+fn boxed_copy<S: Lagrangian<N> + Clone, T: Clone, const N: usize>(
+    d: &T,
+    wrap: fn(T) -> Driver<S, N>,
+) -> Box<Driver<S, N>>
+where
+    Dim<N>: Extended<N>,
+{
+    boxed(wrap)(d.clone())
+}
+
+/// `a` made a copy of `b` in place (a function of its own for each kind of
+/// driver, as [`boxed_copy`]).
+#[inline(never)]
+fn copy_into<T: Clone>(a: &mut T, b: &T) {
+    a.clone_from(b);
 }
 
 /// The interpolant of one step of a [`Stepper`]: the cubic Hermite, or a
@@ -180,7 +165,10 @@ pub struct Stepper<S: Lagrangian<N> + Clone, const N: usize>
 where
     Dim<N>: Extended<N>,
 {
-    pub(super) driver: Driver<S, N>,
+    // On the heap: a driver of a large system is large (300 kB at
+    // `N = 1000`), and `solve` keeps a copy of the stepper from before each
+    // step; one pointer to follow per step costs nothing beside a step.
+    pub(super) driver: Box<Driver<S, N>>,
     pub(super) scheme: Scheme,
     pub(super) policy: Policy,
 }
@@ -190,7 +178,15 @@ where
     Dim<N>: Extended<N>,
 {
     fn clone(&self) -> Self {
-        Self { driver: self.driver.clone(), scheme: self.scheme.clone(), policy: self.policy }
+        let driver = each!(&*self.driver, d, variant => boxed_copy(d, variant));
+        Self { driver, scheme: self.scheme.clone(), policy: self.policy }
+    }
+
+    /// In place when both drivers are of one kind: no allocation.
+    fn clone_from(&mut self, source: &Self) {
+        each!((&mut *self.driver, &*source.driver), a, b => copy_into(a, b), else *self = source.clone());
+        self.scheme.clone_from(&source.scheme);
+        self.policy = source.policy;
     }
 }
 
@@ -259,7 +255,7 @@ where
     /// One step; on failure nothing changes.
     pub fn step(&mut self) -> Result<State<N>, Error<N>> {
         // One match for the step and the state read after it.
-        each!(&mut self.driver, d => {
+        each!(&mut *self.driver, d => {
             Stepping::step(d)?;
             Ok(Stepping::state(d))
         })
@@ -296,36 +292,36 @@ where
     type Native = Interpolant<N>;
 
     fn system(&self) -> &S {
-        each!(&self.driver, d => Stepping::system(d))
+        each!(&*self.driver, d => Stepping::system(d))
     }
 
     fn state(&self) -> State<N> {
-        each!(&self.driver, d => Stepping::state(d))
+        each!(&*self.driver, d => Stepping::state(d))
     }
 
     fn velocity(&self) -> Result<[f64; N], Error<N>> {
-        each!(&self.driver, d => Stepping::velocity(d))
+        each!(&*self.driver, d => Stepping::velocity(d))
     }
 
     fn stats(&self) -> Stats {
-        each!(&self.driver, d => Stepping::stats(d))
+        each!(&*self.driver, d => Stepping::stats(d))
     }
 
     #[inline]
     fn step(&mut self) -> Result<(), Error<N>> {
-        each!(&mut self.driver, d => Stepping::step(d))
+        each!(&mut *self.driver, d => Stepping::step(d))
     }
 
     fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
-        each!(&mut self.driver, d => Stepping::step_toward(d, t_end, last_h))
+        each!(&mut *self.driver, d => Stepping::step_toward(d, t_end, last_h))
     }
 
     fn land(&mut self, t: f64) -> Result<(), Error<N>> {
-        each!(&mut self.driver, d => Stepping::land(d, t))
+        each!(&mut *self.driver, d => Stepping::land(d, t))
     }
 
     fn native(&self, start: &Node<N>, end: &Node<N>) -> Interpolant<N> {
-        match &self.driver {
+        match &*self.driver {
             Driver::Gauss2(d) => Interpolant::Galerkin2(Stepping::native(d, start, end)),
             Driver::Gauss3(d) => Interpolant::Galerkin3(Stepping::native(d, start, end)),
             Driver::Gauss4(d) => Interpolant::Galerkin4(Stepping::native(d, start, end)),

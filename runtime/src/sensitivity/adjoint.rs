@@ -202,11 +202,10 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
 }
 
-/// The run and the reverse sweep (see the [module](self)). The stepper
-/// comes boxed: a large system's does not fit the stack beside the rest.
-#[allow(clippy::too_many_arguments, clippy::boxed_local)]
+/// The run and the reverse sweep (see the [module](self)).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
-    mut stepper: Box<Stepper<S, N>>,
+    mut stepper: Stepper<S, N>,
     rule: Rule,
     initial: (f64, [f64; N], [f64; N]),
     h: f64,
@@ -233,17 +232,16 @@ where
     let mut terms = Terms::new::<N, P>();
 
     // Forward: the loss value, a copy every m nodes.
-    // In boxes: a stepper of a large system is large (300 kB at N = 1000).
-    let mut kept = vec![stepper.boxed_copy()];
+    let mut kept = vec![stepper.clone()];
     let mut value = 0.0;
     let mut last_h = None;
     while stepper.state().t < t_end {
         let state = stepper.state();
         value += value_at(loss, &state, &theta, false)?;
-        Stepping::step_toward(&mut *stepper, t_end, last_h)?;
+        Stepping::step_toward(&mut stepper, t_end, last_h)?;
         last_h = Some(stepper.state().t - state.t);
         if stepper.state().step.is_multiple_of(m as u64) {
-            kept.push(stepper.boxed_copy());
+            kept.push(stepper.clone());
         }
     }
     let last = stepper.state();
@@ -272,7 +270,7 @@ where
         let mut last_h = None;
         while sim.state().step < (first + m as u64).min(last.step) {
             let from = sim.state();
-            Stepping::step_toward(&mut *sim, t_end, last_h)?;
+            Stepping::step_toward(&mut sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
             let begin = pieces.len();
             sim.last_pieces(&from, &mut pieces)?;
