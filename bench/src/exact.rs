@@ -98,6 +98,18 @@ pub fn kepler_position<T: Real>(e: T, t: T) -> [T; 2] {
     [ea.cos() - e, (T::one() - e * e).sqrt() * ea.sin()]
 }
 
+/// The same orbit in polar coordinates `(r, φ)`, with `φ` the true anomaly
+/// counted on from 0 (continuous in `t`, not reduced modulo 2π):
+/// `r = 1 − e cos E`, `φ = E + 2 atan(β sin E / (1 − β cos E))` with
+/// `β = e / (1 + √(1 − e²))` (the half-angle relation
+/// `tan(φ/2) = √((1 + e)/(1 − e)) tan(E/2)` written without its branch cuts).
+pub fn kepler_polar<T: Real>(e: T, t: T) -> [T; 2] {
+    let ea = eccentric_anomaly(e, t);
+    let beta = e / (T::one() + (T::one() - e * e).sqrt());
+    let phi = ea + (beta * ea.sin() / (T::one() - beta * ea.cos())).atan() * 2.0;
+    [T::one() - e * ea.cos(), phi]
+}
+
 /// Initial data `(q0, v0)` of that orbit, at pericentre.
 pub fn kepler_start(e: f64) -> ([f64; 2], [f64; 2]) {
     ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()])

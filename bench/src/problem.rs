@@ -268,6 +268,7 @@ pub fn all(scale: f64) -> Vec<Box<dyn Problem>> {
         Box::new(Adapter::<_, 2, 4>(p::HenonHeiles { scale })),
         Box::new(Adapter::<_, 18, 36>(p::OuterSolarSystem { scale })),
         Box::new(Adapter::<_, 2, 4>(p::DoublePendulum { scale })),
+        Box::new(Adapter::<_, 2, 4>(p::KeplerPolar { scale })),
         Box::new(CartesianDoublePendulum { scale }),
         Box::new(Adapter::<_, { p::FPU_N }, { 2 * p::FPU_N }>(p::Fpu { scale })),
         Box::new(Adapter::<_, 1, 2>(p::PerturbedPendulum { scale })),

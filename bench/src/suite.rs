@@ -29,13 +29,14 @@ pub enum Suite {
 
 /// The problems of the default suite: one of each family (the Kepler orbit
 /// at e = 0.5; e = 0.9 and 0.99 stay in its hard-orbit runs).
-pub const DEFAULT_PROBLEMS: [&str; 9] = [
+pub const DEFAULT_PROBLEMS: [&str; 10] = [
     "pendulum",
     "kepler-0.5",
     "henon-heiles",
     "outer-solar-system",
     "double-pendulum",
     "double-pendulum-cartesian",
+    "kepler-polar",
     "fpu-beta",
     "perturbed-pendulum",
     "sensor",

@@ -490,6 +490,35 @@ impl<const N: usize> Loss<N, 2> for ChainLoss {
     }
 }
 
+/// Forward sensitivities of a system larger than
+/// `FORWARD_SENSITIVITIES_MAX_N` are refused with a typed error that points
+/// to the adjoint, in a thread with a 2 MiB stack (the refusal enters no
+/// frame sized for the dense `N × N` tangent), and the largest size still
+/// runs in that thread (the values are checked by the tests above on
+/// smaller systems).
+#[test]
+fn forward_sensitivities_above_their_size_limit_are_refused_in_a_default_thread() {
+    use lagrangian::problem::FORWARD_SENSITIVITIES_MAX_N;
+    let run = || {
+        let q0 = |i: usize| 0.1 * ((i as f64 + 1.0) * 0.7).sin();
+        let large = Problem::new(Chain::<64> { theta: [1.0, 0.5] }, 0.0, core::array::from_fn(q0), [0.0; 64]);
+        let refused = large.solve_with_sensitivities(&Scheme::MIDPOINT, 0.05, Plan::until(0.5));
+        let message = match refused {
+            Err(SolveError::Step(Error::Unsupported { what })) => what.to_string(),
+            other => panic!("{:?}", other.map(|s| s.jacobians.len())),
+        };
+        const LIMIT: usize = FORWARD_SENSITIVITIES_MAX_N;
+        let largest = Problem::new(Chain::<LIMIT> { theta: [1.0, 0.5] }, 0.0, core::array::from_fn(q0), [0.0; LIMIT]);
+        let run = largest.solve_with_sensitivities(&Scheme::MIDPOINT, 0.05, Plan::until(0.5)).unwrap();
+        let last = run.jacobians.last().unwrap();
+        (message, last.rows, last.cols, last.data.iter().all(|x| x.is_finite()))
+    };
+    let (message, rows, cols, finite) =
+        std::thread::Builder::new().stack_size(2 << 20).spawn(run).unwrap().join().unwrap();
+    assert!(message.contains("Problem::gradient"), "{message}");
+    assert_eq!((rows, cols, finite), (64, 66, true));
+}
+
 /// The gradient of a loss of 10 midpoint steps of an FPU-β chain of 1000
 /// masses (the stepper and the adjoint in reverse mode, on the tape), in a
 /// thread with a 2 MiB stack: against central differences of plain solves

@@ -31,6 +31,7 @@ pub use crate::dim::Dim;
 pub use dynamic::{DynProblem, DynStepper};
 pub use extend::{Extended, Transformed};
 pub use scheme::{GalerkinQuadrature, OnePoint, Scheme};
+pub use sensitivities::FORWARD_SENSITIVITIES_MAX_N;
 pub use statement::Problem;
 pub use stepper::{Interpolant, Stepper};
 pub use support::{Capability, Combination, MAX_PROBLEM_N, Policy, Size, supports};

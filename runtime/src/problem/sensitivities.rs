@@ -22,6 +22,17 @@ use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
 
+/// The largest system whose forward sensitivities
+/// [`Problem::solve_with_sensitivities`] propagates: at this size the
+/// propagation needs about 0.8 MiB of stack (the tangent and a step's
+/// Jacobian are dense `N × N` blocks), at 64 coordinates 3 MiB, more than a
+/// default thread has.
+pub const FORWARD_SENSITIVITIES_MAX_N: usize = 32;
+
+/// Why a large system has no forward sensitivities.
+const LARGE_FORWARD: &str = "forward sensitivities above `FORWARD_SENSITIVITIES_MAX_N` (32) coordinates: the tangent's dense \
+     `N × N` blocks do not fit a thread's stack; the gradient of a loss (`Problem::gradient`, the adjoint) has no such limit";
+
 /// Why a discontinuous Lagrangian has no sensitivities.
 const DISCONTINUOUS: &str =
     "sensitivities of a discontinuous lagrangian: the step is not differentiable where the lagrangian jumps";
@@ -50,7 +61,12 @@ where
     /// the Galerkin rules and the compositions.
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
-    /// called.
+    /// called. Systems of more than [`FORWARD_SENSITIVITIES_MAX_N`]
+    /// coordinates are refused ([`Error::Unsupported`]): the tangent and
+    /// each step's Jacobian are dense `N × N` blocks kept inline, `O(N²)`
+    /// of stack and `O(N³)` of work per step; the gradient of a scalar
+    /// loss ([`gradient`](Self::gradient), the discrete adjoint) has no
+    /// such limit.
     ///
     /// ```
     /// use lagrangian_runtime::problem::{Problem, Scheme};
@@ -100,6 +116,26 @@ where
                 reason: "sensitivities are computed at the nodes: a plan with save times or events has rows between them",
             });
         }
+        // A constant condition: above the limit the propagation is not
+        // compiled at all, so no frame sized for its blocks is entered.
+        if const { N > FORWARD_SENSITIVITIES_MAX_N } {
+            return Err(Error::Unsupported { what: LARGE_FORWARD }.into());
+        }
+        self.propagated(scheme, policy, plan)
+    }
+
+    /// The run of [`solve_with_sensitivities`](Self::solve_with_sensitivities)
+    /// once its arguments are checked.
+    #[inline(never)]
+    fn propagated<const P: usize>(
+        &self,
+        scheme: &Scheme,
+        policy: Policy,
+        plan: Plan<'_, N>,
+    ) -> Result<Sensitivities<N>, SolveError<N>>
+    where
+        S: Parametric<N, P>,
+    {
         let stepper = self.stepper(scheme, policy)?;
         let rule = stepper.rule()?;
         let propagation =
