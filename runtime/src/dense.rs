@@ -210,7 +210,8 @@ impl<const N: usize, const S: usize> DenseStep<N> for GalerkinPolynomial<N, S> {
 ///
 /// One evaluation of `L` on a hyper-dual seeded on `v` (first infinitesimal)
 /// and on `(q, t, v)` (second), plus the force; above 8 coordinates
-/// evaluations on blocks of eight seeds, whose numbers do not grow with `N`.
+/// evaluations on blocks of eight seeds (two above 128 coordinates), whose
+/// numbers do not grow with `N`.
 /// `None` where `∂²L/∂v²` is singular or a value is not finite.
 pub fn acceleration<S: Lagrangian<N> + ?Sized, const N: usize>(
     system: &S,
@@ -218,8 +219,11 @@ pub fn acceleration<S: Lagrangian<N> + ?Sized, const N: usize>(
     q: [f64; N],
     v: [f64; N],
 ) -> Option<[f64; N]> {
+    if const { N > NARROW_ABOVE } {
+        return acceleration_by_blocks::<S, N, 2, 3>(system, t, q, v);
+    }
     if const { N > BLOCKS_ABOVE } {
-        return acceleration_by_blocks(system, t, q, v);
+        return acceleration_by_blocks::<S, N, 8, 9>(system, t, q, v);
     }
     acceleration_at_once(system, t, q, v)
 }
@@ -255,28 +259,33 @@ fn acceleration_at_once<S: Lagrangian<N> + ?Sized, const N: usize>(
 }
 
 /// Above this many coordinates [`acceleration`] evaluates `L` on blocks of
-/// [`LANES`] seeds: the one evaluation's numbers carry `N × (2N + 1)` mixed
+/// eight seeds: the one evaluation's numbers carry `N × (2N + 1)` mixed
 /// parts (16 kB at `N = 32`, 1 MiB at `N = 256`), far more than a thread's
 /// stack holds for the `2N` arguments of `L`.
 const BLOCKS_ABOVE: usize = 8;
 
-/// Seeds per side of the blocked evaluations.
-const LANES: usize = 8;
+/// Above this many coordinates the blocks have two seeds a side: a number
+/// of eight (90 parts, 720 bytes) makes the `2N` arguments of `L` 1.4 MB at
+/// `N = 1000`, of two (12 parts) 190 kB. The work is about the same, `N³`
+/// products of parts, in more evaluations of fewer parts.
+const NARROW_ABOVE: usize = 128;
 
-/// [`acceleration`] by blocks: `∂²L/∂v²` from `⌈N/8⌉²` evaluations seeded
-/// on eight velocities on each side, the last of each row of blocks also
-/// seeded (second infinitesimal) along `(q̇, ṫ) = (v, 1)`, which gives
-/// `∂²L/∂v∂q v + ∂²L/∂v∂t` directly; `∂L/∂q` from `⌈N/8⌉` dual
-/// evaluations. The mass matrix and the solve are on the heap.
-fn acceleration_by_blocks<S: Lagrangian<N> + ?Sized, const N: usize>(
+/// [`acceleration`] by blocks of `L` seeds a side (`L1 = L + 1`):
+/// `∂²L/∂v²` from `⌈N/L⌉²` evaluations seeded on `L` velocities on each
+/// side, the last of each row of blocks also seeded (second infinitesimal)
+/// along `(q̇, ṫ) = (v, 1)`, which gives `∂²L/∂v∂q v + ∂²L/∂v∂t` directly;
+/// `∂L/∂q` from `⌈N/L⌉` dual evaluations. The mass matrix and the solve are
+/// on the heap.
+fn acceleration_by_blocks<S: Lagrangian<N> + ?Sized, const N: usize, const LANES: usize, const L1: usize>(
     system: &S,
     t: f64,
     q: [f64; N],
     v: [f64; N],
 ) -> Option<[f64; N]> {
-    // ε2 lanes: eight velocities, then the direction (v, 1) in `(q, t)`.
-    type H = HyperDualArray<[f64; LANES], [f64; LANES + 1]>;
-    type D = crate::hyperdual::DualArray<[f64; LANES]>;
+    const { assert!(L1 == LANES + 1) };
+    // ε2 lanes: `LANES` velocities, then the direction (v, 1) in `(q, t)`.
+    type H<const L: usize, const L1: usize> = HyperDualArray<[f64; L], [f64; L1]>;
+    type D<const L: usize> = crate::hyperdual::DualArray<[f64; L]>;
     let mut mass = nalgebra::DMatrix::<f64>::zeros(N, N);
     let mut rhs = nalgebra::DVector::<f64>::zeros(N);
     let f = generalized_force(system, t, q, v);
@@ -285,9 +294,9 @@ fn acceleration_by_blocks<S: Lagrangian<N> + ?Sized, const N: usize>(
         for j0 in (0..N).step_by(LANES) {
             let columns = LANES.min(N - j0);
             let last = j0 + LANES >= N;
-            let mut qd = q.map(H::from_re);
-            let mut vd = v.map(H::from_re);
-            let mut td = H::from_re(t);
+            let mut qd = q.map(H::<LANES, L1>::from_re);
+            let mut vd = v.map(H::<LANES, L1>::from_re);
+            let mut td = H::<LANES, L1>::from_re(t);
             for i in 0..rows {
                 vd[i0 + i].eps1[i] = 1.0;
             }
@@ -310,11 +319,11 @@ fn acceleration_by_blocks<S: Lagrangian<N> + ?Sized, const N: usize>(
                 }
             }
         }
-        let mut qd = q.map(D::from_re);
+        let mut qd = q.map(D::<LANES>::from_re);
         for i in 0..rows {
             qd[i0 + i].eps[i] = 1.0;
         }
-        let l = system.lagrangian(D::from_re(t), qd, v.map(D::from_re));
+        let l = system.lagrangian(D::<LANES>::from_re(t), qd, v.map(D::<LANES>::from_re));
         for i in 0..rows {
             rhs[i0 + i] += l.eps[i] + f[i0 + i];
         }
@@ -386,10 +395,14 @@ mod tests {
         let q = core::array::from_fn(|i| 0.37 * i as f64 - 1.3);
         let v = core::array::from_fn(|i| (0.7 * i as f64).sin());
         let one = acceleration_at_once(&Rotors, 0.4, q, v).unwrap();
-        let blocks = acceleration_by_blocks(&Rotors, 0.4, q, v).unwrap();
+        let blocks = acceleration_by_blocks::<_, 11, 8, 9>(&Rotors, 0.4, q, v).unwrap();
+        // Two seeds a side, as above `NARROW_ABOVE` (blocks that straddle
+        // the eight-seed blocks' edges).
+        let narrow = acceleration_by_blocks::<_, 11, 2, 3>(&Rotors, 0.4, q, v).unwrap();
         let scale = one.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         for i in 0..11 {
             assert!((one[i] - blocks[i]).abs() <= 1e-13 * scale, "{i}: {} vs {}", one[i], blocks[i]);
+            assert!((one[i] - narrow[i]).abs() <= 1e-13 * scale, "{i}: {} vs {}", one[i], narrow[i]);
         }
         assert_eq!(acceleration(&Rotors, 0.4, q, v), Some(blocks));
     }
