@@ -46,10 +46,11 @@
 //! kept from one step to the next: a matrix one step old contracts by a few
 //! per cent per iteration from the predictor's error, and the extra
 //! iterations cost more than the matrix they save (callgrind,
-//! `bench/constrained-instructions.sh`, double pendulum at `h = 0.01`:
-//! 102 034 against 88 043 instructions per step at `s = 4`, 33 957 against
-//! 27 677 at `s = 2`, 48 070 against 37 905 for Yoshida's composition of
-//! four RATTLE steps). If the simplified iteration fails, Newton's method
+//! `bench/constrained-instructions.sh` on a build that kept them, double
+//! pendulum at `h = 0.01`: 102 034 against 88 043 instructions per step at
+//! `s = 4`, 33 957 against 27 677 at `s = 2`, 48 070 against 37 905 for
+//! Yoshida's fourth-order composition of three RATTLE steps). If the
+//! simplified iteration fails, Newton's method
 //! from the same guess (a new matrix every iteration) decides the step, so
 //! a kept matrix never turns a step into a failure or hides a singular
 //! configuration. Every iteration evaluates the whole residual at its
