@@ -17,7 +17,8 @@ CASES=(
   "pendulum-angle-midpoint 0.01" "pendulum-midpoint 0.01"
   "double-angle-midpoint 0.01" "double-midpoint 0.01"
   "double-galerkin2 0.01" "double-galerkin4 0.01" "double-galerkin4 0.05"
-  "double-yoshida4 0.01" "double-angle-galerkin4 0.01" "double-angle-galerkin4 0.05"
+  "double-yoshida4 0.01" "double-yoshida6 0.021" "double-kahan-li8 0.021"
+  "double-angle-galerkin4 0.01" "double-angle-galerkin4 0.05"
 )
 
 command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }

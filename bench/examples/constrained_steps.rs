@@ -16,12 +16,14 @@
 //! (`double-pendulum-cartesian`, two constraints) `double-midpoint`
 //! (RATTLE midpoint), `double-galerkin2`, `double-galerkin3`,
 //! `double-galerkin4` (`Constrained::galerkin` of `Galerkin::<s, s>::gauss()`),
-//! `double-yoshida4` (constrained composition of RATTLE trapezoid steps),
+//! `double-yoshida4`, `double-yoshida6`, `double-kahan-li8` (constrained
+//! compositions of RATTLE trapezoid steps),
 //! and the angle equations unconstrained: `double-angle-midpoint`,
 //! `double-angle-galerkin4`. It prints the Newton iterations per step on
 //! standard error.
 #![allow(missing_docs)]
 
+use lagrangian::Composition;
 use lagrangian::prelude::*;
 use lagrangian_bench::cartesian::system;
 use lagrangian_bench::constrained::CartesianDoublePendulum;
@@ -84,9 +86,9 @@ fn main() {
         "double-galerkin2" => run(system(), Constrained::<_, 2>::galerkin(Galerkin::<2, 2>::gauss()), h, double, steps),
         "double-galerkin3" => run(system(), Constrained::<_, 2>::galerkin(Galerkin::<3, 3>::gauss()), h, double, steps),
         "double-galerkin4" => run(system(), Constrained::<_, 2>::galerkin(Galerkin::<4, 4>::gauss()), h, double, steps),
-        "double-yoshida4" => {
-            run(system(), Constrained::<_, 2>::composition(lagrangian::Composition::YOSHIDA4), h, double, steps)
-        }
+        "double-yoshida4" => run(system(), Constrained::<_, 2>::composition(Composition::YOSHIDA4), h, double, steps),
+        "double-yoshida6" => run(system(), Constrained::<_, 2>::composition(Composition::YOSHIDA6), h, double, steps),
+        "double-kahan-li8" => run(system(), Constrained::<_, 2>::composition(Composition::KAHAN_LI8), h, double, steps),
         "double-angle-midpoint" => run(angles.system(), Midpoint, h, angles.initial(), steps),
         "double-angle-galerkin4" => run(angles.system(), Galerkin::<4, 4>::gauss(), h, angles.initial(), steps),
         other => panic!("unknown case {other}; {usage}"),

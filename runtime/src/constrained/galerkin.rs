@@ -102,8 +102,6 @@ pub struct ConstrainedGalerkinMemory<const N: usize, const S: usize, const M: us
     pub(super) lambda: [f64; M],
     /// `Λ_1 … Λ_{s−1}` of the last step (the last entry unused).
     pub(super) interior: [[f64; M]; S],
-    /// The size and the multipliers `λ`, `Λ` of the step before the last.
-    pub(super) before: Option<(f64, [f64; M], [[f64; M]; S])>,
     /// The velocity at the current node (the initial one at the start).
     pub(super) velocity: [f64; N],
     /// The saddle-point storage.
@@ -113,7 +111,7 @@ pub struct ConstrainedGalerkinMemory<const N: usize, const S: usize, const M: us
 impl<const N: usize, const S: usize, const M: usize> ConstrainedGalerkinMemory<N, S, M> {
     pub(super) fn new() -> Self {
         let work = Work::new(S * (N + M));
-        Self { last: None, lambda: [0.0; M], interior: [[0.0; M]; S], before: None, velocity: [0.0; N], work }
+        Self { last: None, lambda: [0.0; M], interior: [[0.0; M]; S], velocity: [0.0; N], work }
     }
 }
 
@@ -453,9 +451,8 @@ where
 
 /// The first guess of a step of size `h` after `last`: the last step's
 /// polynomial extrapolated where the size is the same, otherwise the
-/// straight line at the velocity `v`; the multipliers extrapolated linearly
-/// from the last two steps where all three have the same size, otherwise
-/// the last step's scaled with the step (they are impulses).
+/// straight line at the velocity `v`; the multipliers of the last step
+/// scaled with the step (they are impulses).
 pub(super) fn predict<const N: usize, const S: usize, const R: usize, const M: usize>(
     rule: &Galerkin<S, R>,
     h: f64,
@@ -472,16 +469,7 @@ pub(super) fn predict<const N: usize, const S: usize, const R: usize, const M: u
                     }
                 }
             }
-            match memory.before {
-                Some((before, lambda, interior)) if before == h => Guess {
-                    d,
-                    lambda: core::array::from_fn(|c| 2.0 * memory.lambda[c] - lambda[c]),
-                    interior: core::array::from_fn(|m| {
-                        core::array::from_fn(|c| 2.0 * memory.interior[m][c] - interior[m][c])
-                    }),
-                },
-                _ => Guess { d, lambda: memory.lambda, interior: memory.interior },
-            }
+            Guess { d, lambda: memory.lambda, interior: memory.interior }
         }
         last => {
             let rho = last.map_or(0.0, |l| h / l.h);
@@ -624,7 +612,6 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         it.carry = carry;
         it.p_carry = [0.0; N];
         let memory = &mut it.memory;
-        memory.before = memory.last.map(|last| (last.h, memory.lambda, memory.interior));
         memory.last = Some(Segment { t0, h, q0, d: solved.d });
         (memory.lambda, memory.interior, memory.velocity) = (solved.lambda, solved.interior, solved.velocity);
         it.stats.steps += 1;
