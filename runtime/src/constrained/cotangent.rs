@@ -3,12 +3,14 @@
 //! Hairer, Lubich & Wanner, *Geometric Numerical Integration*, §VII.1.4).
 //!
 //! ```text
-//! ∂L/∂v(q_{k+1}, v_{k+1}) = p̂ + G(q_{k+1})ᵀ μ,      G(q_{k+1}) v_{k+1} = 0,
+//! ∂L/∂v(q_{k+1}, v_{k+1}) = p̂ + G(q_{k+1})ᵀ μ,      G(q_{k+1}) v_{k+1} + ∂g/∂t(t_{k+1}, q_{k+1}) = 0,
 //! ```
 //!
-//! `p̂` the step's unconstrained end momentum (`∂A/∂q_{k+1}`). Newton on
-//! `(v, μ)` with `∂²L/∂v²` as the upper-left block of the saddle-point
-//! system: one iteration for a quadratic kinetic energy.
+//! `p̂` the step's unconstrained end momentum (`∂A/∂q_{k+1}` with the
+//! discrete force `F_k^+`). Newton on `(v, μ)` with `∂²L/∂v²` as the
+//! upper-left block of the saddle-point system: one iteration for a
+//! quadratic kinetic energy, after which the residual at round-off ends the
+//! iteration without another Hessian.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -30,15 +32,16 @@ pub(super) struct OnCotangent<const N: usize> {
     pub(super) iterations: usize,
 }
 
-/// Solves the hidden constraint at `(t1, q1)` with Jacobian `jac1`, from the
-/// velocity guess `v`. `state`, `h` and `spent` (the iterations of the
+/// Solves the hidden constraint at `(t1, q1)` with Jacobian `jac1` and
+/// `∂g/∂t = rate` (zero for constraints that do not depend on time), from
+/// the velocity guess `v`. `state`, `h` and `spent` (the iterations of the
 /// position solve) go into the errors.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
     system: &S,
     (t1, q1): (f64, [f64; N]),
     end: &[f64; N],
-    jac1: &SMatrix<f64, M, N>,
+    (jac1, rate): (&SMatrix<f64, M, N>, &SVector<f64, M>),
     v: [f64; N],
     options: &NewtonOptions,
     (state, h, spent): (State<N>, f64, usize),
@@ -57,12 +60,12 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         let vv: [f64; N] = v.into();
         let p = system.momentum(t1, q1, vv);
         let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
-        let r2 = jac1 * v;
+        let r2 = jac1 * v + rate;
         // Near a turning point `|v|` is far below `|p̂|`, and the round-off
         // of the momentum residual, `ε|p̂|` through `(∂²L/∂v²)⁻¹`, can exceed
         // `rtol |v|` for good: a residual at round-off ends the iteration too.
         let p_scale = max_abs(&p).max(max_abs(end)) + (jac1t * mu).amax();
-        let v_scale = jac1.amax() * v.amax() * N as f64;
+        let v_scale = jac1.amax() * v.amax() * N as f64 + rate.amax();
         if iterations > 1 && r1.amax() <= 4.0 * f64::EPSILON * p_scale && r2.amax() <= 4.0 * f64::EPSILON * v_scale {
             return Ok(finish(v, mu, iterations - 1));
         }
@@ -81,7 +84,11 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         if !norm.is_finite() {
             return Err(Error::NonFinite { state, h, iterations: spent + iterations, quantity: "momentum" });
         }
-        if norm <= options.rtol * v.amax() + options.atol {
+        // The same round-off, `ε|p̂|` over the smallest mass, as a floor
+        // of the correction.
+        let mass = (0..N).map(|i| hessian[(i, i)].abs()).fold(f64::INFINITY, f64::min);
+        let floor = 4.0 * f64::EPSILON * max_abs(&p).max(max_abs(end)) / mass;
+        if norm <= options.rtol * v.amax() + options.atol + floor {
             return Ok(finish(v, mu, iterations));
         }
     }

@@ -33,17 +33,42 @@
 //! Cartesian double pendulum against minimal coordinates
 //! (`tests/constraints/galerkin.rs`).
 //!
-//! Newton on the `(sN + sM)` saddle-point system, dense, in storage the
-//! memory allocates once, so stepping does not allocate. The Jacobian of
-//! the interior rows leaves out `Σ_a Λ_{m,a} ∇²g_a(Q_m)`: `Λ_m` is an
-//! impulse of size `O(h)` against blocks of size `O(1/h)`, so the iteration
-//! still contracts by `O(h²)` per step and converges to the same root.
+//! A simplified Newton iteration on the `(sN + sM)` saddle-point system,
+//! dense, in storage the memory allocates once, so stepping does not
+//! allocate (`saddle.rs`). The matrix — the Hessian blocks of the action by
+//! the chain rule from the Hessian of `L` at the quadrature points, the
+//! constraint Jacobians `G(Q_m)` — is assembled and LU-factored at the first
+//! guess of a step and its factors kept through the step's iterations: an
+//! iteration that reuses them costs the gradient of `L` at the quadrature
+//! points, `g` and `G` at the nodes (the residual) and two triangular
+//! solves. They are refreshed at the current iterate where a correction is
+//! more than `SLOWEST_CONTRACTION` times the one before. Factors are not
+//! kept from one step to the next: a matrix one step old contracts by a few
+//! per cent per iteration from the predictor's error, and the extra
+//! iterations cost more than the matrix they save (callgrind,
+//! `bench/constrained-instructions.sh` on a build that kept them, double
+//! pendulum at `h = 0.01`: 102 034 against 88 043 instructions per step at
+//! `s = 4`, 33 957 against 27 677 at `s = 2`, 48 070 against 37 905 for
+//! Yoshida's fourth-order composition of three RATTLE steps). If the
+//! simplified iteration fails, Newton's method
+//! from the same guess (a new matrix every iteration) decides the step, so
+//! a kept matrix never turns a step into a failure or hides a singular
+//! configuration. Every iteration evaluates the whole residual at its
+//! iterate, and the iteration stops where the correction it solves for —
+//! of the nodes and of the multipliers — is at the tolerance (or
+//! round-off): the residual, in the metric of a matrix whose iteration
+//! contracts, is at the tolerance. The matrix of the interior rows leaves
+//! out `Σ_a Λ_{m,a} ∇²g_a(Q_m)`: `Λ_m` is an impulse of size `O(h)` against
+//! blocks of size `O(1/h)`, so the iteration still contracts by `O(h²)` per
+//! step and converges to the same root.
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 use super::cotangent::onto_cotangent;
 use super::linear::{SCHUR_MIN_RCOND, inverse};
-use super::{Constrained, jacobian, values};
+use super::saddle::Work;
+use super::{Constrained, SLOWEST_CONTRACTION, jacobian, values};
+use crate::banded::{DenseMatrix, StepMatrix};
 use crate::dense::{Hermite, Node};
 use crate::discrete::Midpoint;
 use crate::error::Error;
@@ -64,71 +89,6 @@ pub(super) struct Segment<const N: usize, const S: usize> {
     pub(super) d: [[f64; N]; S],
 }
 
-/// The storage of a step's saddle-point system: the `n × n` matrix by rows,
-/// the right-hand side, `n = s(N + M)`.
-#[derive(Clone, Debug)]
-pub(super) struct Work {
-    n: usize,
-    matrix: Vec<f64>,
-    rhs: Vec<f64>,
-}
-
-impl Work {
-    /// Storage for `n` unknowns (allocated here, once per integrator).
-    pub(super) fn new(n: usize) -> Self {
-        Self { n, matrix: vec![0.0; n * n], rhs: vec![0.0; n] }
-    }
-
-    /// Solves the system in place by Gaussian elimination with partial
-    /// pivoting (Golub & Van Loan, Alg. 3.4.1); the solution replaces `rhs`.
-    /// `Err` with the ratio of the smallest to the largest pivot where it
-    /// is below `min_ratio` (or a pivot is zero or not finite).
-    fn solve(&mut self, min_ratio: f64) -> Result<(), f64> {
-        let (n, a, b) = (self.n, &mut self.matrix, &mut self.rhs);
-        let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
-        for k in 0..n {
-            let (mut p, mut best) = (k, a[k * n + k].abs());
-            for i in k + 1..n {
-                let x = a[i * n + k].abs();
-                if x > best {
-                    (p, best) = (i, x);
-                }
-            }
-            if !(best > 0.0 && best.is_finite()) {
-                return Err(0.0);
-            }
-            (smallest, largest) = (smallest.min(best), largest.max(best));
-            if p != k {
-                for j in 0..n {
-                    a.swap(k * n + j, p * n + j);
-                }
-                b.swap(k, p);
-            }
-            let pivot = a[k * n + k];
-            for i in k + 1..n {
-                let f = a[i * n + k] / pivot;
-                if f != 0.0 {
-                    for j in k + 1..n {
-                        a[i * n + j] -= f * a[k * n + j];
-                    }
-                    b[i] -= f * b[k];
-                }
-            }
-        }
-        if smallest < min_ratio * largest {
-            return Err(smallest / largest);
-        }
-        for k in (0..n).rev() {
-            let mut x = b[k];
-            for j in k + 1..n {
-                x -= a[k * n + j] * b[j];
-            }
-            b[k] = x / a[k * n + k];
-        }
-        Ok(())
-    }
-}
-
 /// The smallest ratio of pivots the dense solve accepts: below it the
 /// saddle-point system is taken as singular.
 const MIN_PIVOT_RATIO: f64 = 1e-14;
@@ -144,16 +104,20 @@ pub struct ConstrainedGalerkinMemory<const N: usize, const S: usize, const M: us
     pub(super) interior: [[f64; M]; S],
     /// The velocity at the current node (the initial one at the start).
     pub(super) velocity: [f64; N],
+    /// The saddle-point storage.
     pub(super) work: Work,
 }
 
 impl<const N: usize, const S: usize, const M: usize> ConstrainedGalerkinMemory<N, S, M> {
     pub(super) fn new() -> Self {
-        Self { last: None, lambda: [0.0; M], interior: [[0.0; M]; S], velocity: [0.0; N], work: Work::new(S * (N + M)) }
+        let work = Work::new(S * (N + M));
+        Self { last: None, lambda: [0.0; M], interior: [[0.0; M]; S], velocity: [0.0; N], work }
     }
 }
 
-/// The first guess of a step: node increments and multipliers.
+/// The unknowns of a step: node increments and multipliers (a first
+/// guess, or an iterate).
+#[derive(Clone, Copy, Debug)]
 pub(super) struct Guess<const N: usize, const S: usize, const M: usize> {
     pub(super) d: [[f64; N]; S],
     pub(super) lambda: [f64; M],
@@ -170,8 +134,30 @@ pub(super) struct Solved<const N: usize, const S: usize, const M: usize> {
     pub(super) iterations: usize,
 }
 
+/// How an attempt at a step linearises its equations.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Linearisation {
+    /// Simplified Newton: the matrix of the first guess, refreshed at the
+    /// current iterate where it contracts slowly.
+    Simplified,
+    /// Newton: the matrix of every iterate.
+    Full,
+}
+
+/// Adds `x` to entry `(i, j)` of a matrix being assembled (in range and
+/// assemblable by construction).
+#[inline(always)]
+fn add(a: &mut DenseMatrix, i: usize, j: usize, x: f64) {
+    let added = a.add(i, j, x);
+    debug_assert!(added.is_ok(), "{added:?}");
+}
+
 /// One constrained Galerkin step of size `h` from `(t0, q0, p0)`; `state`
 /// goes into the errors. Writes only `work`.
+///
+/// Simplified Newton first, then, if that fails for any reason, Newton
+/// from the same guess, whose failure is the step's error: a matrix kept
+/// through the iterations never decides that a step fails.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve_step<Sys, const N: usize, const S: usize, const R: usize, const M: usize>(
     system: &Sys,
@@ -186,121 +172,18 @@ pub(super) fn solve_step<Sys, const N: usize, const S: usize, const R: usize, co
 where
     Sys: Lagrangian<N> + ?Sized,
 {
-    let n = S * (N + M);
-    debug_assert_eq!(work.n, n);
+    debug_assert_eq!(work.n(), S * (N + M));
     let (_, g0) = jacobian::<Sys, N, M>(system, t0, q0).ok_or(Error::NonFiniteConstraints { state })?;
-    let Guess { mut d, mut lambda, mut interior } = guess;
+    let step = Step { system, rule, options, t0, h, q0, p0, g0: &g0, state };
+    let (x, iterations) = match step.attempt(guess, Linearisation::Simplified, work) {
+        Ok(converged) => converged,
+        Err((_, spent)) => match step.attempt(guess, Linearisation::Full, work) {
+            Ok((x, iterations)) => (x, spent + iterations),
+            Err((error, _)) => return Err(error),
+        },
+    };
+    let Guess { d, lambda, interior } = x;
     let node_time = |m: usize| t0 + rule.control[m] * h;
-    // Column of λ_k and of Λ_m (m = 1 … s − 1); row of g(Q_m) (m = 1 … s).
-    let lambda_at = S * N + (S - 1) * M;
-    let interior_at = |m: usize| S * N + (m - 1) * M;
-    let mut iterations = 0;
-    let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
-    let mut converged = false;
-    while iterations < options.max_iterations {
-        iterations += 1;
-        work.matrix.fill(0.0);
-        work.rhs.fill(0.0);
-        let (a, r) = (&mut work.matrix, &mut work.rhs);
-        // The action's rows and their Jacobian, by the chain rule from the
-        // gradient and Hessian of L at the quadrature points.
-        for j in 0..R {
-            let (t, q, v) = rule.point(t0, h, (q0, &[0.0; N]), &d, j);
-            let pd = PointDerivatives::at(system, t, q, v);
-            let b = rule.quadrature().weights()[j];
-            let w = b * h;
-            for rho in 0..S {
-                let (l, ld) = (rule.row[j][rho], rule.row_d[j][rho]);
-                for i in 0..N {
-                    r[rho * N + i] += w * (l * pd.q[i]) + w * (ld * (pd.v[i] / h));
-                }
-                for nn in 0..S {
-                    let (c, cd) = (rule.col[j][nn], rule.col_d[j][nn]);
-                    for i in 0..N {
-                        let row = (rho * N + i) * n + nn * N;
-                        for k in 0..N {
-                            a[row + k] += b
-                                * (h * l * c * pd.qq[i][k]
-                                    + l * cd * pd.qv[i][k]
-                                    + ld * c * pd.qv[k][i]
-                                    + ld * cd * pd.vv[i][k] / h);
-                        }
-                    }
-                }
-            }
-        }
-        for i in 0..N {
-            r[i] += p0[i];
-            for c in 0..M {
-                r[i] += g0[(c, i)] * lambda[c];
-                a[i * n + lambda_at + c] = g0[(c, i)];
-            }
-        }
-        // The constraints at the nodes and their multipliers.
-        let mut singular_nodes = f64::INFINITY;
-        for m in 1..=S {
-            let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
-            let (gm, jm) =
-                jacobian::<Sys, N, M>(system, node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
-            singular_nodes = singular_nodes.min(inverse(jm * jm.transpose()).1);
-            let row = S * N + (m - 1) * M;
-            for c in 0..M {
-                r[row + c] = gm[c];
-                for i in 0..N {
-                    a[(row + c) * n + (m - 1) * N + i] = jm[(c, i)];
-                }
-            }
-            if m < S {
-                for i in 0..N {
-                    for c in 0..M {
-                        r[m * N + i] += jm[(c, i)] * interior[m][c];
-                        a[(m * N + i) * n + interior_at(m) + c] = jm[(c, i)];
-                    }
-                }
-            }
-        }
-        residual_norm = max_abs(r);
-        if !residual_norm.is_finite() || !a.iter().all(|x| x.is_finite()) {
-            return Err(Error::NonFinite { state, h, iterations, quantity: "residual" });
-        }
-        if let Err(ratio) = work.solve(MIN_PIVOT_RATIO.max(options.min_rcond)) {
-            // A rank-deficient constraint Jacobian at a node (redundant
-            // constraints, a dead point) or a singular step block.
-            let (_, rcond0) = inverse(g0 * g0.transpose());
-            let rcond = singular_nodes.min(rcond0);
-            if rcond <= SCHUR_MIN_RCOND {
-                return Err(Error::SingularConstraints { state, rcond });
-            }
-            return Err(Error::SingularJacobian { state, h, iterations, rcond: ratio });
-        }
-        let x = &work.rhs;
-        for m in 0..S {
-            for i in 0..N {
-                d[m][i] -= x[m * N + i];
-            }
-        }
-        for m in 1..S {
-            for c in 0..M {
-                interior[m][c] -= x[interior_at(m) + c];
-            }
-        }
-        for c in 0..M {
-            lambda[c] -= x[lambda_at + c];
-        }
-        correction_norm = max_abs(&x[..S * N]);
-        if !correction_norm.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations, quantity: "correction" });
-        }
-        // No correction below the round-off of `q_k + D_m` is meaningful.
-        let floor = 4.0 * f64::EPSILON * max_abs(q0).max(max_abs(&d[S - 1]));
-        if correction_norm <= options.rtol * max_abs(d.as_flattened()) + options.atol + floor {
-            converged = true;
-            break;
-        }
-    }
-    if !converged {
-        return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
-    }
     // Consecutive nodes on one branch of the manifold have constraint
     // normals that agree: `G(Q_m) G(Q_{m−1})ᵀ` has a positive definite
     // symmetric part (`≈ G Gᵀ` for a small step). Where it has not, the
@@ -323,7 +206,8 @@ where
     let (_, grad) = rule.node_gradient(system, t0, h, *q0, &d);
     let end = grad[S - 1];
     let v_end: [f64; N] = core::array::from_fn(|i| (0..S).map(|m| rule.end_d[m] * d[m][i]).sum::<f64>() / h);
-    let on = onto_cotangent(system, (t1, q1), &end, &jac1, v_end, options, (state, h, iterations))?;
+    let jac = (&jac1, &SVector::zeros());
+    let on = onto_cotangent(system, (t1, q1), &end, jac, v_end, options, (state, h, iterations))?;
     if !q1.iter().chain(&on.momentum).all(|x| x.is_finite()) {
         return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
     }
@@ -335,6 +219,234 @@ where
         momentum: on.momentum,
         iterations: iterations + on.iterations,
     })
+}
+
+/// The data of one step's equations.
+struct Step<'a, Sys: ?Sized, const N: usize, const S: usize, const R: usize, const M: usize> {
+    system: &'a Sys,
+    rule: &'a Galerkin<S, R>,
+    options: &'a NewtonOptions,
+    t0: f64,
+    h: f64,
+    q0: &'a [f64; N],
+    p0: &'a [f64; N],
+    /// `G(q_k)`.
+    g0: &'a SMatrix<f64, M, N>,
+    state: State<N>,
+}
+
+impl<Sys, const N: usize, const S: usize, const R: usize, const M: usize> Step<'_, Sys, N, S, R, M>
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    /// Column of `λ_k`, after the node increments and `Λ_1 … Λ_{s−1}`.
+    const LAMBDA_AT: usize = S * N + (S - 1) * M;
+
+    /// Column of `Λ_m` (`m = 1 … s − 1`); row of `g(Q_m)` is `S N + (m − 1) M`.
+    const fn interior_at(m: usize) -> usize {
+        S * N + (m - 1) * M
+    }
+
+    /// The time of control node `m + 1`.
+    fn node_time(&self, m: usize) -> f64 {
+        self.t0 + self.rule.control[m] * self.h
+    }
+
+    /// One attempt from `x` by `linearisation`: the solution and the
+    /// iterations spent, or the error and the iterations spent.
+    ///
+    /// Every iteration evaluates the whole residual at the iterate — the
+    /// action's rows from the gradient of `L` at the quadrature points
+    /// (with its Hessian only where the matrix is assembled anew), `g` at
+    /// every node, the multiplier terms — and solves for the correction;
+    /// the iteration stops where the correction, node increments and
+    /// multipliers both, is at the tolerance. With a kept matrix that is
+    /// the size of the residual in the metric of a nearby matrix, and the
+    /// iterate after it is within the contraction factor times the
+    /// tolerance of the root.
+    fn attempt(
+        &self,
+        mut x: Guess<N, S, M>,
+        linearisation: Linearisation,
+        work: &mut Work,
+    ) -> Result<(Guess<N, S, M>, usize), (Error<N>, usize)> {
+        let Self { system, rule, options, t0, h, q0, p0, g0, state } = *self;
+        // Whether `work` holds the factors of this attempt's matrix.
+        let mut factored = false;
+        // The last correction with the current factors, to measure their contraction.
+        let mut previous: Option<f64> = None;
+        let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
+        let mut iterations = 0;
+        while iterations < options.max_iterations {
+            iterations += 1;
+            let fresh = !factored;
+            let (mut matrix, r) = if fresh {
+                let (a, r) = work.assemble();
+                (Some(a), r)
+            } else {
+                (None, work.rhs_zeroed())
+            };
+            // The action's rows (and their Jacobian), by the chain rule from
+            // the gradient (and Hessian) of L at the quadrature points.
+            for j in 0..R {
+                let (t, q, v) = rule.point(t0, h, (q0, &[0.0; N]), &x.d, j);
+                let b = rule.quadrature().weights()[j];
+                let w = b * h;
+                let (lq, lv) = match &mut matrix {
+                    Some(a) => {
+                        let pd = PointDerivatives::at(system, t, q, v);
+                        for rho in 0..S {
+                            let (l, ld) = (rule.row[j][rho], rule.row_d[j][rho]);
+                            for nn in 0..S {
+                                let (c, cd) = (rule.col[j][nn], rule.col_d[j][nn]);
+                                for i in 0..N {
+                                    for k in 0..N {
+                                        let entry = b
+                                            * (h * l * c * pd.qq[i][k]
+                                                + l * cd * pd.qv[i][k]
+                                                + ld * c * pd.qv[k][i]
+                                                + ld * cd * pd.vv[i][k] / h);
+                                        add(a, rho * N + i, nn * N + k, entry);
+                                    }
+                                }
+                            }
+                        }
+                        (pd.q, pd.v)
+                    }
+                    None => {
+                        let (_, lq, lv) = point_gradient(system, t, q, v);
+                        (lq, lv)
+                    }
+                };
+                for rho in 0..S {
+                    let (l, ld) = (rule.row[j][rho], rule.row_d[j][rho]);
+                    for i in 0..N {
+                        r[rho * N + i] += w * (l * lq[i]) + w * (ld * (lv[i] / h));
+                    }
+                }
+            }
+            // The size of the terms the multipliers balance, for the
+            // round-off floor of their corrections.
+            let action_scale = max_abs(&r[..S * N]).max(max_abs(p0));
+            for i in 0..N {
+                r[i] += p0[i];
+                for c in 0..M {
+                    r[i] += g0[(c, i)] * x.lambda[c];
+                    if let Some(a) = &mut matrix {
+                        add(a, i, Self::LAMBDA_AT + c, g0[(c, i)]);
+                    }
+                }
+            }
+            // The constraints at the nodes and their multipliers.
+            for m in 1..=S {
+                let qm: [f64; N] = core::array::from_fn(|i| q0[i] + x.d[m - 1][i]);
+                let Some((gm, jm)) = jacobian::<Sys, N, M>(system, self.node_time(m - 1), &qm) else {
+                    return Err((Error::NonFiniteConstraints { state }, iterations));
+                };
+                let row = Self::interior_at(m);
+                for c in 0..M {
+                    r[row + c] = gm[c];
+                    if let Some(a) = &mut matrix {
+                        for i in 0..N {
+                            add(a, row + c, (m - 1) * N + i, jm[(c, i)]);
+                        }
+                    }
+                }
+                if m < S {
+                    for i in 0..N {
+                        for c in 0..M {
+                            r[m * N + i] += jm[(c, i)] * x.interior[m][c];
+                            if let Some(a) = &mut matrix {
+                                add(a, m * N + i, Self::interior_at(m) + c, jm[(c, i)]);
+                            }
+                        }
+                    }
+                }
+            }
+            residual_norm = max_abs(r);
+            if !residual_norm.is_finite() {
+                return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+            }
+            if fresh {
+                match work.factor() {
+                    Ok(ratio) if ratio >= MIN_PIVOT_RATIO.max(options.min_rcond) => {}
+                    Ok(ratio) | Err(Some(ratio)) => return Err((self.singular(&x.d, ratio, iterations), iterations)),
+                    Err(None) => {
+                        return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+                    }
+                }
+                factored = true;
+                previous = None;
+            }
+            if !work.solve() {
+                return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
+            }
+            let dx = &work.rhs;
+            for m in 0..S {
+                for i in 0..N {
+                    x.d[m][i] -= dx[m * N + i];
+                }
+            }
+            for m in 1..S {
+                for c in 0..M {
+                    x.interior[m][c] -= dx[Self::interior_at(m) + c];
+                }
+            }
+            for c in 0..M {
+                x.lambda[c] -= dx[Self::LAMBDA_AT + c];
+            }
+            correction_norm = max_abs(&dx[..S * N]);
+            if !correction_norm.is_finite() {
+                return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
+            }
+            // No correction below the round-off of `q_k + D_m` is meaningful.
+            let floor = 4.0 * f64::EPSILON * max_abs(q0).max(max_abs(&x.d[S - 1]));
+            let mut converged = correction_norm <= options.rtol * max_abs(x.d.as_flattened()) + options.atol + floor;
+            if linearisation == Linearisation::Simplified {
+                // A correction of the nodes at round-off can come with one of
+                // the multipliers that is not: with a matrix of another
+                // iterate the next one would still move the nodes. The
+                // multipliers balance the action's rows, whose round-off is
+                // that of their terms and that of nodes at round-off (the
+                // matrix's norm times the floor of the nodes).
+                let multipliers = max_abs(x.interior.as_flattened()).max(max_abs(&x.lambda));
+                let noise = 16.0 * f64::EPSILON * action_scale + work.norm() * floor;
+                converged &= max_abs(&dx[S * N..]) <= options.rtol * multipliers + options.atol + noise / g0.amax();
+            }
+            if converged {
+                return Ok((x, iterations));
+            }
+            match (linearisation, previous) {
+                (Linearisation::Full, _) => factored = false,
+                (Linearisation::Simplified, Some(last)) if correction_norm > SLOWEST_CONTRACTION * last => {
+                    factored = false;
+                }
+                _ => previous = Some(correction_norm),
+            }
+        }
+        let error = Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm };
+        Err((error, iterations))
+    }
+
+    /// The error of a saddle-point matrix at the nodes `d` whose pivots
+    /// have the ratio `ratio`: a rank-deficient constraint Jacobian at a
+    /// node (redundant constraints, a dead point), else a singular step
+    /// block.
+    fn singular(&self, d: &[[f64; N]; S], ratio: f64, iterations: usize) -> Error<N> {
+        let (state, q0) = (self.state, self.q0);
+        let mut rcond = inverse(self.g0 * self.g0.transpose()).1;
+        for m in 1..=S {
+            let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
+            match jacobian::<Sys, N, M>(self.system, self.node_time(m - 1), &qm) {
+                Some((_, jm)) => rcond = rcond.min(inverse(jm * jm.transpose()).1),
+                None => return Error::NonFiniteConstraints { state },
+            }
+        }
+        if rcond <= SCHUR_MIN_RCOND {
+            return Error::SingularConstraints { state, rcond };
+        }
+        Error::SingularJacobian { state, h: self.h, iterations, rcond: ratio }
+    }
 }
 
 /// The first guess of a step of size `h` after `last`: the last step's

@@ -16,7 +16,7 @@ pub(super) enum Singular {
 }
 
 /// The 1-norm of a matrix: its largest column sum.
-fn norm1<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
+pub(super) fn norm1<const R: usize, const C: usize>(m: &SMatrix<f64, R, C>) -> f64 {
     m.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max)
 }
 
@@ -50,6 +50,20 @@ pub(super) fn solve_schur<const N: usize, const M: usize>(
     if rcond <= min_rcond {
         return Err(Singular::Block(rcond));
     }
+    solve_schur_inverted(&a_inv, b, c, r1, r2, min_rcond)
+}
+
+/// [`solve_schur`] with `A⁻¹` given (the inverse of an earlier iterate's or
+/// step's block, for a simplified iteration): the Schur complement with the
+/// constraint Jacobians `B`, `C` of this iterate is formed and checked anew.
+pub(super) fn solve_schur_inverted<const N: usize, const M: usize>(
+    a_inv: &SMatrix<f64, N, N>,
+    b: &SMatrix<f64, N, M>,
+    c: &SMatrix<f64, M, N>,
+    r1: &SVector<f64, N>,
+    r2: &SVector<f64, M>,
+    min_rcond: f64,
+) -> Result<(SVector<f64, N>, SVector<f64, M>), Singular> {
     let a_inv_b = a_inv * b;
     let a_inv_r1 = a_inv * r1;
     let (s_inv, rcond) = inverse(c * a_inv_b);

@@ -10,12 +10,21 @@
 //! ```
 //!
 //! with `A = h L_d` the step action and `G = ∂g/∂q`. The first line is
-//! solved for `(q_{k+1}, λ_k)` by Newton's method on the `(N + M)`
-//! saddle-point system, eliminated block-wise: the step Jacobian
-//! `J = ∂²A/∂q_k∂q_{k+1}` is inverted and the `M × M` Schur complement
-//! `G(q_{k+1}) J⁻¹ G(q_k)ᵀ` solved for the multiplier correction. The
-//! second line is solved for `(v_{k+1}, μ_k)` the same way with the Hessian
-//! `∂²L/∂v²` in place of `J` (one iteration for a quadratic kinetic energy).
+//! solved for `(q_{k+1}, λ_k)` by a simplified Newton iteration on the
+//! `(N + M)` saddle-point system, eliminated block-wise: the inverse of the
+//! step Jacobian `J = ∂²A/∂q_k∂q_{k+1}` is kept through the iterations and
+//! from one step to the next of the same size, and each iteration evaluates
+//! the residual (the gradient `D₁A`, `g(q_{k+1})`) and `G(q_{k+1})` and
+//! solves the `M × M` Schur complement `G(q_{k+1}) J⁻¹ G(q_k)ᵀ` for the
+//! multiplier correction. `J` is evaluated anew (by hyper-duals) at the
+//! first guess of a step of another size, and at the iterate where a
+//! correction with the kept inverse is more than `SLOWEST_CONTRACTION`
+//! times the one before; if the simplified iteration fails, Newton's method from the
+//! same guess decides. It stops where the corrections of the positions and
+//! of the multiplier are at the tolerance (or round-off), so the positions
+//! are as close to the root as Newton's. The second line is solved for
+//! `(v_{k+1}, μ_k)` by Newton's method with the Hessian `∂²L/∂v²` in place
+//! of `J` (`cotangent.rs`: one iteration for a quadratic kinetic energy).
 //! Both constraints then hold to Newton's tolerance at every node: the
 //! positions on the manifold, the momenta on its cotangent space. The map
 //! is symplectic on the constrained cotangent bundle (its derivative:
@@ -41,8 +50,11 @@ mod galerkin;
 mod kkt;
 mod linear;
 mod project;
+mod saddle;
 mod sparsity;
 mod tangent;
+#[cfg(test)]
+mod tests;
 
 use nalgebra::{SMatrix, SVector};
 
@@ -59,7 +71,8 @@ use crate::state::State;
 use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
 
-use linear::{inverse, solve_schur};
+use cotangent::onto_cotangent;
+use linear::{inverse, solve_schur_inverted};
 use num_dual::Dual64;
 
 /// `supports` of the families built on the constrained Galerkin step
@@ -145,7 +158,15 @@ pub struct ConstrainedMemory<const N: usize, const M: usize> {
     lambda: [f64; M],
     /// The velocity at the current node (the initial one at the start).
     velocity: [f64; N],
+    /// The inverse step Jacobian the last step converged with.
+    kept: Option<KeptInverse<N>>,
 }
+
+/// The largest ratio of successive corrections with which a simplified
+/// iteration keeps its matrix (an inverse step Jacobian, the factors of a
+/// saddle-point system): above it the matrix is refreshed at the next
+/// iterate, from where the iteration converges like Newton's.
+pub(super) const SLOWEST_CONTRACTION: f64 = 0.1;
 
 impl<D: DiscreteLagrangian, const M: usize> Sealed for Constrained<D, M> {}
 
@@ -226,7 +247,7 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
     }
 
     fn memory<const N: usize>(&self) -> ConstrainedMemory<N, M> {
-        ConstrainedMemory { previous: None, earlier: None, lambda: [0.0; M], velocity: [0.0; N] }
+        ConstrainedMemory { previous: None, earlier: None, lambda: [0.0; M], velocity: [0.0; N], kept: None }
     }
 
     fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
@@ -333,24 +354,38 @@ struct Positions<const N: usize, const M: usize> {
     lambda: SVector<f64, M>,
     /// Newton iterations spent.
     iterations: usize,
+    /// The inverse step Jacobian the iteration converged with.
+    kept: KeptInverse<N>,
+}
+
+/// The inverse of the step Jacobian `J = ∂²A/∂q_k∂q_{k+1}` that a step of
+/// size `h` converged with: the simplified iterations of later steps of the
+/// same size start from it.
+#[derive(Clone, Copy, Debug)]
+struct KeptInverse<const N: usize> {
+    h: f64,
+    inverse: SMatrix<f64, N, N>,
+    /// `‖J‖₁`.
+    norm: f64,
 }
 
 /// The position line of a step of size `h` ending at `t1`: `(q_{k+1}, λ_k)`
 /// from `p_k + D₁A + F_k^− + G(q_k)ᵀλ = 0`, `g(t1, q_{k+1}) = 0`.
+///
+/// Simplified Newton first: `J⁻¹` of the last step where it had the same
+/// size (else of the first guess) kept through the iterations, each of
+/// which costs the gradient `D₁A` and `G(q_{k+1})` (the Schur complement is
+/// formed with the iterate's `G`), and refreshed at the iterate where it
+/// contracts slowly. If that fails for any reason, Newton from the same
+/// guess, whose failure is the step's error: a kept inverse never decides
+/// that a step fails.
 fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
     it: &Integrator<S, Constrained<D, M>, N>,
     h: f64,
     t1: f64,
 ) -> Result<Positions<N, M>, Error<N>> {
-    let State { t: t0, q: q0, p: p0, .. } = it.state;
     let state = it.state;
-    let options = it.newton;
-    let rule = it.method.rule;
-    let system = &it.system;
-    let (_, g0) = jacobian::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
-    let g0t = g0.transpose();
-
-    // Positions: (q_{k+1}, λ_k) from p_k + D₁A + G(q_k)ᵀλ = 0, g(q_{k+1}) = 0.
+    let (_, g0) = jacobian::<S, N, M>(&it.system, state.t, &state.q).ok_or(Error::NonFiniteConstraints { state })?;
     let mut dq = [0.0; N];
     {
         let last = it.memory.previous.as_ref().map(|s| (s.h, &s.dq[..]));
@@ -358,50 +393,124 @@ fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: u
         let v = if it.memory.previous.is_some() { &it.memory.velocity } else { &it.v0 };
         predict_into(h, last, earlier, v, &mut dq);
     }
-    let mut lambda = SVector::<f64, M>::from(it.memory.lambda);
+    let lambda = SVector::<f64, M>::from(it.memory.lambda);
+    let kept = it.memory.kept.filter(|k| k.h == h).map(|k| (k.inverse, k.norm));
+    match position_attempt(it, (h, t1), &g0, (dq, lambda), Some(kept)) {
+        Ok(solved) => Ok(solved),
+        Err((_, spent)) => {
+            let mut solved = position_attempt(it, (h, t1), &g0, (dq, lambda), None).map_err(|(error, _)| error)?;
+            solved.iterations += spent;
+            Ok(solved)
+        }
+    }
+}
+
+/// One attempt at the position line from `(dq, λ)` with `G(q_k) = g0`:
+/// simplified Newton from the inverse `kept` and `‖J‖₁` (`Some(None)`:
+/// from the first guess's) or, with `None`, Newton. On failure the error and the
+/// iterations spent.
+#[allow(clippy::type_complexity)]
+fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
+    it: &Integrator<S, Constrained<D, M>, N>,
+    (h, t1): (f64, f64),
+    g0: &SMatrix<f64, M, N>,
+    (mut dq, mut lambda): ([f64; N], SVector<f64, M>),
+    kept: Option<Option<(SMatrix<f64, N, N>, f64)>>,
+) -> Result<Positions<N, M>, (Error<N>, usize)> {
+    let State { t: t0, q: q0, p: p0, .. } = it.state;
+    let state = it.state;
+    let options = it.newton;
+    let rule = it.method.rule;
+    let system = &it.system;
+    let g0t = g0.transpose();
+    let simplified = kept.is_some();
+    let mut kept_inverse = kept.flatten();
+    // The last correction with the current inverse, to measure its contraction.
+    let mut previous: Option<f64> = None;
     let mut iterations = 0;
-    let mut converged = false;
     let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
     while iterations < options.max_iterations {
         iterations += 1;
         let seg = Segment { t0, h, q0, dq };
-        let sd = forcing::forced_step_derivatives(system, &rule, &seg);
         let q1 = seg.q1();
-        let (g1, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
-        let r1 = SVector::<f64, N>::from_fn(|i, _| p0[i] + sd.d_q0[i]) + g0t * lambda;
+        let Some((g1, jac1)) = jacobian::<S, N, M>(system, t1, &q1) else {
+            return Err((Error::NonFiniteConstraints { state }, iterations));
+        };
+        let (d_q0, (a_inv, a_norm)) = match kept_inverse {
+            Some(kept) => {
+                let (mut d_q0, _) = derivatives::start_gradient(system, &rule, &seg);
+                if forcing::is_forced::<S, N>() {
+                    let minus = forcing::discrete_forces(system, &rule, &seg).minus;
+                    for i in 0..N {
+                        d_q0[i] += minus[i];
+                    }
+                }
+                (d_q0, kept)
+            }
+            None => {
+                let sd = forcing::forced_step_derivatives(system, &rule, &seg);
+                if !sd.d2_q0_q1.iter().all(|x| x.is_finite()) {
+                    return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+                }
+                let (a_inv, rcond) = inverse(sd.d2_q0_q1);
+                if rcond <= options.min_rcond {
+                    return Err((Error::SingularJacobian { state, h, iterations, rcond }, iterations));
+                }
+                previous = None;
+                (sd.d_q0, (a_inv, linear::norm1(&sd.d2_q0_q1)))
+            }
+        };
+        let r1 = SVector::<f64, N>::from_fn(|i, _| p0[i] + d_q0[i]) + g0t * lambda;
         let r2 = SVector::<f64, M>::from(g1);
         residual_norm = r1.amax().max(r2.amax());
-        if !residual_norm.is_finite() || !sd.d2_q0_q1.iter().all(|x| x.is_finite()) {
-            return Err(Error::NonFinite { state, h, iterations, quantity: "residual" });
+        if !residual_norm.is_finite() {
+            return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
         }
-        let (ddq, dlambda) = match solve_schur(&sd.d2_q0_q1, &g0t, &jac1, &r1, &r2, options.min_rcond) {
+        let (ddq, dlambda) = match solve_schur_inverted(&a_inv, &g0t, &jac1, &r1, &r2, options.min_rcond) {
             Ok(x) => x,
             Err(linear::Singular::Block(rcond)) => {
-                return Err(Error::SingularJacobian { state, h, iterations, rcond });
+                return Err((Error::SingularJacobian { state, h, iterations, rcond }, iterations));
             }
-            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+            Err(linear::Singular::Schur(rcond)) => {
+                return Err((Error::SingularConstraints { state, rcond }, iterations));
+            }
         };
+        kept_inverse = Some((a_inv, a_norm));
         for i in 0..N {
             dq[i] += ddq[i];
         }
         lambda += dlambda;
         correction_norm = ddq.amax();
         if !correction_norm.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations, quantity: "correction" });
+            return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
         }
         // The constraint is evaluated at `q_k + Δq`, so no correction below
         // the round-off of that sum is meaningful: a step from rest has an
         // increment far smaller than the position.
         let floor = 4.0 * f64::EPSILON * max_abs(&q1).max(max_abs(&q0));
-        if correction_norm <= options.rtol * max_abs(&dq) + options.atol + floor {
-            converged = true;
-            break;
+        let mut converged = correction_norm <= options.rtol * max_abs(&dq) + options.atol + floor;
+        if simplified {
+            // A correction of the positions at round-off can come with one
+            // of the multiplier that is not: with an inverse of another
+            // iterate the next one would still move the positions. The
+            // multiplier balances `p_k + D₁A`, whose round-off is that of
+            // its terms and that of positions at round-off (`‖J‖` times
+            // their floor).
+            let noise = 16.0 * f64::EPSILON * max_abs(&p0).max(max_abs(&d_q0)) + a_norm * floor;
+            converged &= dlambda.amax() <= options.rtol * lambda.amax() + options.atol + noise / g0.amax();
+        }
+        if converged {
+            let kept = KeptInverse { h, inverse: a_inv, norm: a_norm };
+            return Ok(Positions { seg: Segment { t0, h, q0, dq }, lambda, iterations, kept });
+        }
+        match previous {
+            _ if !simplified => kept_inverse = None,
+            Some(last) if correction_norm > SLOWEST_CONTRACTION * last => kept_inverse = None,
+            _ => previous = Some(correction_norm),
         }
     }
-    if !converged {
-        return Err(Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
-    }
-    Ok(Positions { seg: Segment { t0, h, q0, dq }, lambda, iterations })
+    let error = Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm };
+    Err((error, iterations))
 }
 
 /// Solves the momentum line of the step whose positions are `solved` and
@@ -411,7 +520,7 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
     solved: Positions<N, M>,
     t1: f64,
 ) -> Result<(), Error<N>> {
-    let Positions { seg, lambda, iterations } = solved;
+    let Positions { seg, lambda, iterations, kept } = solved;
     let (state, options, rule, system) = (it.state, it.newton, it.method.rule, &it.system);
     let Segment { h, q0, dq, .. } = seg;
     let q1 = seg.q1();
@@ -421,58 +530,9 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
 
     // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + F⁺ + G(q_{k+1})ᵀμ,
     // G(q_{k+1}) v + ∂g/∂t = 0.
-    let jac1t = jac1.transpose();
-    let mut v = SVector::<f64, N>::from_fn(|i, _| dq[i] / h);
-    let mut mu = SVector::<f64, M>::zeros();
-    let mut momentum_converged = false;
-    let mut momentum_iterations = 0;
-    while momentum_iterations < options.max_iterations {
-        momentum_iterations += 1;
-        let vv: [f64; N] = v.into();
-        let p = system.momentum(t1, q1, vv);
-        let r1 = SVector::<f64, N>::from_fn(|i, _| p[i] - end[i]) - jac1t * mu;
-        let r2 = jac1 * v + rate1;
-        let hessian = system.velocity_hessian(t1, q1, vv);
-        // The same saddle-point form with `−Gᵀ` in the upper right block.
-        let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), &jac1, &r1, &r2, options.min_rcond) {
-            Ok(x) => x,
-            Err(linear::Singular::Block(rcond)) => {
-                return Err(Error::SingularJacobian { state, h, iterations: iterations + momentum_iterations, rcond });
-            }
-            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
-        };
-        v += dv;
-        mu += dmu;
-        let norm = dv.amax();
-        if !norm.is_finite() {
-            return Err(Error::NonFinite {
-                state,
-                h,
-                iterations: iterations + momentum_iterations,
-                quantity: "momentum",
-            });
-        }
-        // The momentum equation balances terms of the size of `p` and
-        // `D₂A`: its round-off moves `v` by about ε times their size over the
-        // smallest mass, which near a turning point (`v ≈ 0`) exceeds any
-        // relative tolerance on `v`.
-        let mass = (0..N).map(|i| hessian[(i, i)].abs()).fold(f64::INFINITY, f64::min);
-        let floor = 4.0 * f64::EPSILON * max_abs(&p).max(max_abs(&end)) / mass;
-        if norm <= options.rtol * v.amax() + options.atol + floor {
-            momentum_converged = true;
-            break;
-        }
-    }
-    if !momentum_converged {
-        return Err(Error::NewtonDidNotConverge {
-            state,
-            h,
-            iterations: iterations + momentum_iterations,
-            residual_norm: f64::NAN,
-            correction_norm: f64::NAN,
-        });
-    }
-    let p1: [f64; N] = (SVector::from(end) + jac1t * mu).into();
+    let v = dq.map(|x| x / h);
+    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v, &options, (state, h, iterations))?;
+    let (p1, v, momentum_iterations) = (on.momentum, on.velocity, on.iterations);
     if !q1.iter().chain(&p1).all(|x| x.is_finite()) || !t1.is_finite() {
         return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
     }
@@ -485,7 +545,8 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
     it.memory.earlier = it.memory.previous;
     it.memory.previous = Some(seg);
     it.memory.lambda = lambda.into();
-    it.memory.velocity = v.into();
+    it.memory.velocity = v;
+    it.memory.kept = Some(kept);
     it.stats.steps += 1;
     it.stats.newton_iterations += (iterations + momentum_iterations) as u64;
     Ok(())

@@ -1,0 +1,96 @@
+//! The simplified Newton iterations of the const-size constrained steps:
+//! they converge without falling back on Newton's method on a smooth run,
+//! and hold the constraints at round-off at every node.
+
+use crate::galerkin::Galerkin;
+use crate::integrator::{Composition, F64Readouts};
+use crate::system::{Lagrangian, Scalar};
+use crate::{Constrained, Integrator, Midpoint};
+
+/// A double pendulum with unit masses and rods under unit gravity, in
+/// Cartesian coordinates `(x₁, y₁, x₂, y₂)`.
+#[derive(Clone, Debug)]
+struct DoublePendulum;
+
+impl Lagrangian<4> for DoublePendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 4] = [false; 4];
+    const CONSTRAINTS: usize = 2;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 4], v: [D; 4]) -> D {
+        (v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]) * 0.5 - q[1] - q[3]
+    }
+    fn constraints<D: Scalar>(&self, _t: D, q: &[D; 4], g: &mut [D]) {
+        let (dx, dy) = (q[2] - q[0], q[3] - q[1]);
+        g[0] = q[0] * q[0] + q[1] * q[1] - 1.0;
+        g[1] = dx * dx + dy * dy - 1.0;
+    }
+}
+
+/// Released from rest at the angles 0.8 and −0.4 from the downward vertical.
+fn start() -> [f64; 4] {
+    let (a, b) = (0.8f64, -0.4f64);
+    [a.sin(), -a.cos(), a.sin() + b.sin(), -a.cos() - b.cos()]
+}
+
+/// `steps` steps of size `h`: the Newton iterations per step, and the
+/// largest `|g|` (`values`) over the nodes.
+fn run<M: F64Readouts>(
+    method: M,
+    h: f64,
+    steps: usize,
+    values: impl Fn(&Integrator<DoublePendulum, M, 4>) -> [f64; 2],
+) -> (f64, f64) {
+    let mut sim = Integrator::new(DoublePendulum, method, h).start(0.0, start(), [0.0; 4]).unwrap();
+    let mut g = 0.0f64;
+    for _ in 0..steps {
+        sim.step().unwrap();
+        g = values(&sim).iter().fold(g, |m, x| m.max(x.abs()));
+    }
+    let stats = sim.stats();
+    (stats.newton_iterations as f64 / stats.steps as f64, g)
+}
+
+#[test]
+fn simplified_iterations_converge_without_falling_back() {
+    for h in [0.01, 0.05] {
+        // Iterations per step, position and momentum lines: a simplified
+        // iteration that failed and fell back on Newton's method would add
+        // at least `max_iterations` (25) to its step.
+        let rattle = run(Constrained::<_, 2>::new(Midpoint), h, 400, |s| s.constraint_values());
+        let gauss2 = Constrained::<_, 2>::galerkin(Galerkin::<2, 2>::gauss());
+        let galerkin2 = run(gauss2, h, 400, |s| s.constraint_values());
+        let gauss4 = Constrained::<_, 2>::galerkin(Galerkin::<4, 4>::gauss());
+        let galerkin4 = run(gauss4, h, 400, |s| s.constraint_values());
+        // Three RATTLE trapezoid sub-steps per step.
+        let yoshida = Constrained::<_, 2>::composition(Composition::YOSHIDA4);
+        let composition = run(yoshida, h, 400, |s| s.constraint_values());
+        let cases = [("RATTLE midpoint", rattle, 6.0), ("Galerkin 2", galerkin2, 7.0), ("Galerkin 4", galerkin4, 7.0)];
+        for (name, (iterations, g), most) in cases.into_iter().chain([("Yoshida 4", composition, 20.0)]) {
+            assert!(iterations <= most, "{name}, h = {h}: {iterations} iterations per step");
+            assert!(g <= 4.0 * f64::EPSILON, "{name}, h = {h}: max |g| = {g:e}");
+        }
+    }
+}
+
+/// `CASE` (`midpoint`, `galerkin2`, `galerkin4`, `yoshida4`) for `STEPS`
+/// steps of size `H` (environment variables; `galerkin4`, 1000 and 0.01 by
+/// default): what `valgrind --tool=callgrind` counts the instructions of.
+#[test]
+#[ignore = "a measurement: run it under callgrind"]
+fn steps_for_callgrind() {
+    let case = std::env::var("CASE").unwrap_or_else(|_| "galerkin4".into());
+    let steps = std::env::var("STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(1000);
+    let h = std::env::var("H").ok().and_then(|s| s.parse().ok()).unwrap_or(0.01);
+    let (iterations, _) = match case.as_str() {
+        "midpoint" => run(Constrained::<_, 2>::new(Midpoint), h, steps, |s| s.constraint_values()),
+        "galerkin2" => {
+            run(Constrained::<_, 2>::galerkin(Galerkin::<2, 2>::gauss()), h, steps, |s| s.constraint_values())
+        }
+        "galerkin4" => {
+            run(Constrained::<_, 2>::galerkin(Galerkin::<4, 4>::gauss()), h, steps, |s| s.constraint_values())
+        }
+        "yoshida4" => run(Constrained::<_, 2>::composition(Composition::YOSHIDA4), h, steps, |s| s.constraint_values()),
+        other => panic!("unknown case {other}"),
+    };
+    eprintln!("{case}: {iterations:.2} iterations per step");
+}
