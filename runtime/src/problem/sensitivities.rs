@@ -23,14 +23,14 @@ use crate::state::State;
 use crate::system::Lagrangian;
 
 /// The largest system whose forward sensitivities
-/// [`Problem::solve_with_sensitivities`] propagates: at this size the
-/// propagation needs about 0.8 MiB of stack (the tangent and a step's
-/// Jacobian are dense `N × N` blocks), at 64 coordinates 3 MiB, more than a
-/// default thread has.
-pub const FORWARD_SENSITIVITIES_MAX_N: usize = 32;
+/// [`Problem::solve_with_sensitivities`] propagates. The tangent and a
+/// step's Jacobian are dense `N × N` blocks: the propagation needs about
+/// 0.8 MiB of stack at 32 coordinates, 1.2 MiB at 40 and 3 MiB at 64, more
+/// than a default thread's 2 MiB.
+pub const FORWARD_SENSITIVITIES_MAX_N: usize = 40;
 
 /// Why a large system has no forward sensitivities.
-const LARGE_FORWARD: &str = "forward sensitivities above `FORWARD_SENSITIVITIES_MAX_N` (32) coordinates: the tangent's dense \
+const LARGE_FORWARD: &str = "forward sensitivities above `FORWARD_SENSITIVITIES_MAX_N` (40) coordinates: the tangent's dense \
      `N × N` blocks do not fit a thread's stack; the gradient of a loss (`Problem::gradient`, the adjoint) has no such limit";
 
 /// Why a discontinuous Lagrangian has no sensitivities.
