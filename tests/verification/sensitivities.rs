@@ -516,7 +516,9 @@ fn forward_sensitivities_above_their_size_limit_are_refused_in_a_default_thread(
     let (message, rows, cols, finite) =
         std::thread::Builder::new().stack_size(2 << 20).spawn(run).unwrap().join().unwrap();
     assert!(message.contains("Problem::gradient"), "{message}");
-    assert_eq!((rows, cols, finite), (64, 66, true));
+    // `2N` rows, `2N + P` columns (`P = 2`).
+    let n = lagrangian::problem::FORWARD_SENSITIVITIES_MAX_N;
+    assert_eq!((rows, cols, finite), (2 * n, 2 * n + 2, true));
 }
 
 /// The gradient of a loss of 10 midpoint steps of an FPU-β chain of 1000
