@@ -245,20 +245,12 @@ macro_rules! kepler_ids {
                 record: &mut Observer<'_, 2>,
             ) -> Option<Run> {
                 let start = self.initial();
+                if method == Transformed::Splitting {
+                    return Some(kepler_split(start, sigma, t_end, record));
+                }
                 // `dt/ds = r^{3/2}`: equal steps in the mean anomaly, the classic choice.
                 let r32 = RadiusPower::new([0, 1], 1.5)?;
-                let auto = Curvature::new(1e-3)?;
-                Some(match method {
-                    Transformed::Galerkin(4) => kepler_tt::<_, _, 4>(KeplerSys, r32, start, sigma, t_end, record),
-                    Transformed::Galerkin(6) => kepler_tt::<_, _, 6>(KeplerSys, r32, start, sigma, t_end, record),
-                    Transformed::GalerkinAuto(4) => kepler_tt::<_, _, 4>(KeplerSys, auto, start, sigma, t_end, record),
-                    Transformed::GalerkinAuto(6) => kepler_tt::<_, _, 6>(KeplerSys, auto, start, sigma, t_end, record),
-                    Transformed::Splitting => kepler_split(start, sigma, t_end, record),
-                    Transformed::Galerkin(s) | Transformed::GalerkinAuto(s) => Run {
-                        failure: Some(format!("no time-transformed Galerkin s = {s} in the report")),
-                        ..Run::default()
-                    },
-                })
+                kepler_galerkin(KeplerSys, r32, method, start, sigma, t_end, record)
             }
             fn reference_steps(&self, t_end: f64) -> usize {
                 (t_end / 0.01).ceil() as usize
@@ -278,6 +270,32 @@ pub enum Transformed {
     /// The explicit splitting: logarithmic Hamiltonian, Kahan–Li 8
     /// composition of the drift–kick–drift leapfrog.
     Splitting,
+}
+
+/// The report's time-transformed Galerkin runs of Kepler's problem in the
+/// coordinates of `system`: degree 4 or 6 with `density` (`Galerkin`) or
+/// with the automatic `Curvature` monitor (`GalerkinAuto`); `None` for the
+/// splitting, which each problem runs (or refuses) itself.
+fn kepler_galerkin<Sys: Lagrangian<2> + Clone, G: StepDensity<2>>(
+    system: Sys,
+    density: G,
+    method: Transformed,
+    start: ([f64; 2], [f64; 2]),
+    sigma: f64,
+    t_end: f64,
+    record: &mut Observer<'_, 2>,
+) -> Option<Run> {
+    let auto = Curvature::new(1e-3)?;
+    Some(match method {
+        Transformed::Galerkin(4) => kepler_tt::<_, _, 4>(system, density, start, sigma, t_end, record),
+        Transformed::Galerkin(6) => kepler_tt::<_, _, 6>(system, density, start, sigma, t_end, record),
+        Transformed::GalerkinAuto(4) => kepler_tt::<_, _, 4>(system, auto, start, sigma, t_end, record),
+        Transformed::GalerkinAuto(6) => kepler_tt::<_, _, 6>(system, auto, start, sigma, t_end, record),
+        Transformed::Galerkin(s) | Transformed::GalerkinAuto(s) => {
+            Run { failure: Some(format!("no time-transformed Galerkin s = {s} in the report")), ..Run::default() }
+        }
+        Transformed::Splitting => return None,
+    })
 }
 
 /// A time-transformed Galerkin run of Kepler's problem, in the coordinates
@@ -405,23 +423,13 @@ impl Model<2> for KeplerPolar {
         t_end: f64,
         record: &mut Observer<'_, 2>,
     ) -> Option<Run> {
-        let start = self.initial();
+        if method == Transformed::Splitting {
+            let failure = "not run on the polar form (the explicit splitting needs a constant mass)";
+            return Some(Run { failure: Some(failure.to_string()), ..Run::default() });
+        }
         // `dt/ds = r^{3/2}` with `r = q_0` itself.
         let r32 = RadiusPower::new([0], 1.5)?;
-        let auto = Curvature::new(1e-3)?;
-        let sys = KeplerPolarSys;
-        Some(match method {
-            Transformed::Galerkin(4) => kepler_tt::<_, _, 4>(sys, r32, start, sigma, t_end, record),
-            Transformed::Galerkin(6) => kepler_tt::<_, _, 6>(sys, r32, start, sigma, t_end, record),
-            Transformed::GalerkinAuto(4) => kepler_tt::<_, _, 4>(sys, auto, start, sigma, t_end, record),
-            Transformed::GalerkinAuto(6) => kepler_tt::<_, _, 6>(sys, auto, start, sigma, t_end, record),
-            Transformed::Splitting | Transformed::Galerkin(_) | Transformed::GalerkinAuto(_) => Run {
-                failure: Some(format!(
-                    "{method:?}: not run on the polar form (the explicit splitting needs a constant mass)"
-                )),
-                ..Run::default()
-            },
-        })
+        kepler_galerkin(KeplerPolarSys, r32, method, self.initial(), sigma, t_end, record)
     }
     fn reference_steps(&self, t_end: f64) -> usize {
         (t_end / 0.01).ceil() as usize
