@@ -99,8 +99,8 @@ pub struct CartPole {
 }
 
 #[lagrangian(parameters(
-    u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11, u12, u13, u14, u15, u16, u17, u18, u19, u20, u21, u22, u23,
-    u24, u25, u26, u27, u28, u29, u30
+    u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11, u12, u13, u14, u15, u16, u17, u18, u19, u20, u21, u22, u23, u24,
+    u25, u26, u27, u28, u29, u30
 ))]
 impl CartPole {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
@@ -141,8 +141,12 @@ impl Loss<2, CONTROLS> for Component {
     }
 }
 
-/// `½ |r|² + ½ ρ ∫ u² dt` (the integral of the piecewise-linear control
-/// by the trapezoid rule): the scalar loss whose adjoint gradient the test
+/// `∫ u² dt` of the piecewise-linear control through the values `u`.
+fn effort<D: Scalar>(u: &[D; CONTROLS]) -> D {
+    u.windows(2).fold(D::zero(), |sum, w| sum + (w[0] * w[0] + w[0] * w[1] + w[1] * w[1]) * (DT / 3.0))
+}
+
+/// `½ |r|² + ½ ρ ∫ u² dt`: the scalar loss whose adjoint gradient the test
 /// compares with central differences.
 #[cfg(test)]
 struct Misfit {
@@ -153,11 +157,7 @@ struct Misfit {
 impl Loss<2, CONTROLS> for Misfit {
     fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], u: &[D; CONTROLS]) -> D {
         let misfit = residual(q, p).iter().fold(D::zero(), |sum, &r| sum + r * r * 0.5);
-        let effort = u.iter().enumerate().fold(D::zero(), |sum, (j, &u)| {
-            let w = if j == 0 || j == INTERVALS { 0.5 * DT } else { DT };
-            sum + u * u * w
-        });
-        misfit + effort * (0.5 * self.rho)
+        misfit + effort(u) * (0.5 * self.rho)
     }
 }
 
@@ -193,8 +193,11 @@ fn checkpoints(h: f64) -> Checkpoints {
     Checkpoints::Budget(((T_END / h).sqrt().ceil() as usize).max(1))
 }
 
+/// The terminal residual `r` and its Jacobian `∂r/∂u` (rows).
+type Linearised = ([f64; 4], [[f64; CONTROLS]; 4]);
+
 /// The terminal residual and its Jacobian `∂r/∂u`, one adjoint per row.
-fn jacobian(u: [f64; CONTROLS], h: f64) -> Result<([f64; 4], [[f64; CONTROLS]; 4]), Box<dyn Error>> {
+fn jacobian(u: [f64; CONTROLS], h: f64) -> Result<Linearised, Box<dyn Error>> {
     let (mut r, mut jac) = ([0.0; 4], [[0.0; CONTROLS]; 4]);
     for i in 0..4 {
         let g = problem(u).gradient(&Scheme::MIDPOINT, h, T_END, &Component(i), checkpoints(h))?;
@@ -307,9 +310,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     let r = swing.residual;
     println!("terminal residual (x, φ − π, p_x, p_φ) = ({:.1e}, {:.1e}, {:.1e}, {:.1e})", r[0], r[1], r[2], r[3]);
-    let effort: f64 = swing.controls.iter().map(|u| u * u * DT).sum();
     let peak = swing.controls.iter().fold(0.0f64, |m, u| m.max(u.abs()));
-    println!("control effort ∫u² dt ≈ {effort:.3} N²s, peak |u| = {peak:.2} N");
+    println!("control effort ∫u² dt = {:.3} N²s, peak |u| = {peak:.2} N", effort(&swing.controls));
 
     let sol = trajectory(swing.controls, h)?;
     let angle: Vec<(f64, f64)> = sol.t.iter().zip(&sol.q).map(|(&t, q)| (t, q[1])).collect();
@@ -322,7 +324,9 @@ fn main() -> Result<(), Box<dyn Error>> {
         x_range: (0.0, T_END),
         equal_axes: false,
         panels: vec![
-            Panel { y_label: "pole angle φ [rad]", series: vec![Series { label: "", points: &angle, markers: false }] },
+            Panel {
+                y_label: "pole angle φ [rad]", series: vec![Series { label: "", points: &angle, markers: false }]
+            },
             Panel { y_label: "cart position x [m]", series: vec![Series { label: "", points: &cart, markers: false }] },
             Panel { y_label: "force u [N]", series: vec![Series { label: "", points: &control, markers: true }] },
         ],
@@ -350,8 +354,7 @@ mod tests {
         let g = problem(u).gradient(&Scheme::MIDPOINT, h, T_END, &loss, checkpoints(h)).unwrap();
         let value = |u: [f64; CONTROLS]| {
             let r = terminal(u, h).unwrap();
-            let effort: f64 = (0..CONTROLS).map(|j| u[j] * u[j] * if j == 0 || j == INTERVALS { 0.5 * DT } else { DT }).sum();
-            0.5 * r.iter().map(|r| r * r).sum::<f64>() + 0.5 * loss.rho * effort
+            0.5 * r.iter().map(|r| r * r).sum::<f64>() + 0.5 * loss.rho * effort(&u)
         };
         assert!((g.value - value(u)).abs() <= 1e-12 * g.value);
         let scale = g.theta.iter().fold(0.0f64, |m, x| m.max(x.abs()));
