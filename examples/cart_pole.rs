@@ -280,13 +280,16 @@ pub fn swing_up(start: [f64; CONTROLS], steps: usize) -> Result<SwingUp, Box<dyn
         }
         let rho = if size > POLISH { RHO } else { 0.0 };
         let delta = newton_step(&u, &r, &jac, rho).ok_or("the terminal state's Jacobian is rank deficient")?;
-        // Halve the step until the terminal residual decreases.
+        // Halve the step until the terminal residual decreases (a run that
+        // fails, its Newton iteration diverging, counts as no decrease).
         let mut alpha = 1.0;
         loop {
             let trial: [f64; CONTROLS] = core::array::from_fn(|j| u[j] + alpha * delta[j]);
-            let decreased = terminal(trial, h).is_ok_and(|r| norm(&r) < size);
-            if decreased {
+            if let Ok(r) = terminal(trial, h)
+                && norm(&r) < size
+            {
                 u = trial;
+                history.push(norm(&r));
                 break;
             }
             alpha *= 0.5;
@@ -294,7 +297,6 @@ pub fn swing_up(start: [f64; CONTROLS], steps: usize) -> Result<SwingUp, Box<dyn
                 return Err("no step along the Gauss–Newton direction decreases the terminal residual".into());
             }
         }
-        history.push(norm(&terminal(u, h)?));
     }
     Err("the swing-up did not converge in 100 iterations".into())
 }
