@@ -11,6 +11,12 @@ for example in damped_oscillator rlc_circuit sensor kepler_cartesian; do
     echo "== $example"
     cargo run --quiet --release --example "$example"
 done
+# Derivatives of a run: a fit with forward sensitivities, a swing-up with
+# the adjoint (docs/guide/derivatives.md).
+for example in fit_pendulum cart_pole; do
+    echo "== $example"
+    cargo run --quiet --release --example "$example"
+done
 # Events on dense output and a parallel ensemble: the Hénon–Heiles Poincaré section.
 echo "== henon_heiles_section"
 cargo run --quiet --release --example henon_heiles_section --features rayon
