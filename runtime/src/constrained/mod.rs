@@ -75,26 +75,6 @@ use cotangent::onto_cotangent;
 use linear::{inverse, solve_schur_inverted};
 use num_dual::Dual64;
 
-/// `supports` of the families built on the constrained Galerkin step
-/// (`Constrained::galerkin`, `Constrained::composition`): the one-point
-/// checks, and forces, dissipation, moving constraints and a time-dependent
-/// `L` refused by name (`forces`, `moving`), since those steps do not carry
-/// them: refused rather than silently dropped.
-pub(super) fn supports_unforced_autonomous<S: Lagrangian<N>, const N: usize, const M: usize>(
-    policy: &StepPolicy,
-    forces: &'static str,
-    moving: &'static str,
-) -> Result<(), Error<N>> {
-    Constrained::<crate::discrete::Midpoint, M>::new(crate::discrete::Midpoint).supports::<S, N>(policy)?;
-    if S::HAS_FORCE || S::HAS_DISSIPATION {
-        return Err(Error::Unsupported { what: forces });
-    }
-    if !S::CONSTRAINTS_AUTONOMOUS || !S::AUTONOMOUS {
-        return Err(Error::Unsupported { what: moving });
-    }
-    Ok(())
-}
-
 /// The relative tolerance within which initial data must satisfy the
 /// constraints and their hidden (velocity-level) form; see
 /// [`Error::InconsistentConstraints`].
