@@ -14,6 +14,15 @@
 //! the end node (`galerkin.rs`), which is the constrained trapezoid rule.
 //! Sub-steps of negative size (Yoshida's middle weight) are steps like any
 //! other: the saddle-point system does not depend on the sign of `h`.
+//!
+//! Forces, dissipation, moving constraints and a time-dependent `L` are
+//! those of the sub-step (`galerkin.rs`), each sub-step at its own times.
+//! The forced trapezoid step stays symmetric — its discrete forces
+//! `(h/2) F(t_k, q_k, Δq/h)` and `(h/2) F(t_{k+1}, q_{k+1}, Δq/h)` trade
+//! places under `h → −h` with the ends swapped — so the composition keeps
+//! its order; measured 4.02 for Yoshida's on a damped, driven pendulum
+//! (`tests/constraints/forces.rs`). The map of a forced system is not
+//! symplectic.
 
 use super::galerkin::{ConstrainedGalerkinMemory, Guess, Segment, hidden_constraint, solve_step, step_energy};
 use super::{Constrained, values};

@@ -4,11 +4,26 @@
 //!
 //! ```text
 //! unknowns D_m = Q_m − q_k (m = 1 … s), Λ_m (m = 1 … s − 1), λ_k:
-//!     p_k + ∂A/∂Q_0 + G(q_k)ᵀ λ_k = 0
-//!     ∂A/∂Q_m + G(Q_m)ᵀ Λ_m = 0,          m = 1 … s − 1
-//!     g(Q_m) = 0,                          m = 1 … s      (Q_s = q_{k+1})
-//! then p_{k+1} = ∂A/∂Q_s + G(q_{k+1})ᵀ μ_k with G(q_{k+1}) v(q_{k+1}, p_{k+1}) = 0.
+//!     p_k + ∂A/∂Q_0 + F^0 + G(t_k, q_k)ᵀ λ_k = 0
+//!     ∂A/∂Q_m + F^m + G(t_m, Q_m)ᵀ Λ_m = 0,   m = 1 … s − 1
+//!     g(t_m, Q_m) = 0,                         m = 1 … s      (Q_s = q_{k+1}, t_m = t_k + τ_m h)
+//! then p_{k+1} = ∂A/∂Q_s + F^s + G(t_{k+1}, q_{k+1})ᵀ μ_k
+//! with G(t_{k+1}, q_{k+1}) v(q_{k+1}, p_{k+1}) + ∂g/∂t(t_{k+1}, q_{k+1}) = 0.
 //! ```
+//!
+//! Forces and dissipation enter by the discrete Lagrange–d'Alembert
+//! principle exactly as in the unconstrained Galerkin step: the discrete
+//! forces `F^m = h Σ_j b_j ℓ_m(c_j) F(c_j)` of the stage points
+//! (`galerkin/forces.rs`) are added to the rows `∂A/∂Q_m` (`m = 0 … s − 1`)
+//! and `F^s` to the end momentum, `p_{k+1} = ∂A/∂Q_s + F^s + Gᵀμ_k`.
+//! Time-dependent constraints `g(t, q)` are imposed at each node's own time
+//! `t_k + τ_m h` (the end node at the step's end time), and the end
+//! momentum on their hidden form `G v + ∂g/∂t = 0`; a time-dependent `L`
+//! needs nothing more, the action is already evaluated at the stage times.
+//! The orders below are measured with forces and moving constraints too:
+//! `2s` for `s = 2, 3` on a damped, driven pendulum and on a pendulum on an
+//! oscillating support under a varying gravity, against minimal
+//! coordinates (`tests/constraints/forces.rs`, `tests/constraints/time.rs`).
 //!
 //! This is the discrete action `A(Q_0, …, Q_s)` of the Galerkin rule
 //! (`docs/theory.md` §5) made stationary over step polynomials whose nodes

@@ -38,7 +38,8 @@
 //! = 0` and `G(t_k, q_k)ᵀλ_k`, and their hidden form carries the motion of
 //! the manifold: `G(t_{k+1}, q_{k+1}) v_{k+1} + ∂g/∂t(t_{k+1}, q_{k+1}) = 0`.
 //! A time-dependent Lagrangian needs nothing more: the step action already
-//! carries `t_k`.
+//! carries `t_k`. The constrained Galerkin rules and compositions carry all
+//! three the same way (`galerkin.rs`, `composition.rs`).
 //!
 //! A rank-deficient `G` (redundant constraints, a dead point) shows as a
 //! singular Schur complement and is a typed error, with the state kept.
