@@ -212,3 +212,25 @@ fn damped_driven_cartesian_pendulum_under_yoshida4_over_rattle_has_order_4() {
     let order = damped_order("yoshida 4", yoshida, &[0.1, 0.05, 0.025]);
     assert!((order - 4.0).abs() < 0.15, "fitted order {order}");
 }
+
+#[test]
+fn damped_spherical_pendulum_under_galerkin_loses_angular_momentum_by_the_forces_impulse_alone() {
+    // The interior and end constraint forces G(Q_m)ᵀΛ_m are along Q_m, with
+    // no moment about z: J_{k+1} − J_k = Σ_m F^m·ξ(Q_m) over the step's nodes.
+    let rotation = Symmetry::<3>::rotation(0, 1).unwrap();
+    let method = Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss());
+    let mut sim = Integrator::new(DampedSpherical, method, 0.05).start(0.0, [0.6, 0.0, -0.8], [0.0, 1.1, 0.0]).unwrap();
+    let first = sim.momentum_map(&rotation);
+    let mut worst = 0.0f64;
+    for _ in 0..400 {
+        let before = sim.momentum_map(&rotation);
+        sim.step().unwrap();
+        let after = sim.momentum_map(&rotation);
+        let impulse = sim.forcing_impulse(&rotation).unwrap();
+        worst = worst.max((after - before - impulse).abs() / before.abs());
+    }
+    let last = sim.momentum_map(&rotation);
+    println!("damped spherical pendulum, gauss s = 2: L_z {first:.4} → {last:.4}, worst step balance {worst:.2e}");
+    assert!(last < 0.5 * first, "L_z {first} → {last}");
+    assert!(worst < 1e-14, "J_(k+1) − J_k − impulse, relative: {worst:e}");
+}
