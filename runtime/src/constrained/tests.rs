@@ -72,9 +72,11 @@ fn simplified_iterations_converge_without_falling_back() {
     }
 }
 
-/// `CASE` (`midpoint`, `galerkin2`, `galerkin4`, `yoshida4`) for `STEPS`
-/// steps of size `H` (environment variables; `galerkin4`, 1000 and 0.01 by
-/// default): what `valgrind --tool=callgrind` counts the instructions of.
+/// `CASE` (`midpoint`, `galerkin2`, `galerkin4`, `yoshida4` on the double
+/// pendulum; `shaken-galerkin2`, `shaken-galerkin4`, `shaken-yoshida4` on
+/// the damped one hung from a moving support) for `STEPS` steps of size `H`
+/// (environment variables; `galerkin4`, 1000 and 0.01 by default): what
+/// `valgrind --tool=callgrind` counts the instructions of.
 #[test]
 #[ignore = "a measurement: run it under callgrind"]
 fn steps_for_callgrind() {
@@ -90,6 +92,22 @@ fn steps_for_callgrind() {
             run(Constrained::<_, 2>::galerkin(Galerkin::<4, 4>::gauss()), h, steps, |s| s.constraint_values())
         }
         "yoshida4" => run(Constrained::<_, 2>::composition(Composition::YOSHIDA4), h, steps, |s| s.constraint_values()),
+        // Damped, on a moving support, under a varying gravity.
+        "shaken-galerkin2" => {
+            let method = Constrained::<_, 2>::galerkin(Galerkin::<2, 2>::gauss());
+            let (iterations, ..) = shaken_run(method, h, steps, |s| (s.constraint_values(), [0.0; 2]));
+            (iterations, 0.0)
+        }
+        "shaken-galerkin4" => {
+            let method = Constrained::<_, 2>::galerkin(Galerkin::<4, 4>::gauss());
+            let (iterations, ..) = shaken_run(method, h, steps, |s| (s.constraint_values(), [0.0; 2]));
+            (iterations, 0.0)
+        }
+        "shaken-yoshida4" => {
+            let method = Constrained::<_, 2>::composition(Composition::YOSHIDA4);
+            let (iterations, ..) = shaken_run(method, h, steps, |s| (s.constraint_values(), [0.0; 2]));
+            (iterations, 0.0)
+        }
         other => panic!("unknown case {other}"),
     };
     eprintln!("{case}: {iterations:.2} iterations per step");
