@@ -406,13 +406,11 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
         std::fs::write(&page, capabilities_page(&table, &schemes, &constraints))
             .expect("the capabilities page is writable");
     }
-    // Constraints: fixed steps of every family carry them; forces and
-    // moving constraints the one-point rules only (the Galerkin and
-    // composition steps refuse them by name); no family takes
-    // energy-preserving steps; the run-time-sized chain runs under the
-    // one-point rules.
+    // Constraints: every family carries them with fixed steps, forces and
+    // moving constraints; no family takes energy-preserving steps; the
+    // run-time-sized chain runs under the one-point rules.
     let one_point = vec![true, true, true, false, true];
-    let other = vec![true, false, false, false, false];
+    let other = vec![true, true, true, false, false];
     assert_eq!(
         constrained_cells,
         vec![one_point.clone(), one_point.clone(), one_point, other.clone(), other.clone(), other],

@@ -4,11 +4,26 @@
 //!
 //! ```text
 //! unknowns D_m = Q_m − q_k (m = 1 … s), Λ_m (m = 1 … s − 1), λ_k:
-//!     p_k + ∂A/∂Q_0 + G(q_k)ᵀ λ_k = 0
-//!     ∂A/∂Q_m + G(Q_m)ᵀ Λ_m = 0,          m = 1 … s − 1
-//!     g(Q_m) = 0,                          m = 1 … s      (Q_s = q_{k+1})
-//! then p_{k+1} = ∂A/∂Q_s + G(q_{k+1})ᵀ μ_k with G(q_{k+1}) v(q_{k+1}, p_{k+1}) = 0.
+//!     p_k + ∂A/∂Q_0 + F^0 + G(t_k, q_k)ᵀ λ_k = 0
+//!     ∂A/∂Q_m + F^m + G(t_m, Q_m)ᵀ Λ_m = 0,   m = 1 … s − 1
+//!     g(t_m, Q_m) = 0,                         m = 1 … s      (Q_s = q_{k+1}, t_m = t_k + τ_m h)
+//! then p_{k+1} = ∂A/∂Q_s + F^s + G(t_{k+1}, q_{k+1})ᵀ μ_k
+//! with G(t_{k+1}, q_{k+1}) v(q_{k+1}, p_{k+1}) + ∂g/∂t(t_{k+1}, q_{k+1}) = 0.
 //! ```
+//!
+//! Forces and dissipation enter by the discrete Lagrange–d'Alembert
+//! principle exactly as in the unconstrained Galerkin step: the discrete
+//! forces `F^m = h Σ_j b_j ℓ_m(c_j) F(c_j)` of the stage points
+//! (`galerkin/forces.rs`) are added to the rows `∂A/∂Q_m` (`m = 0 … s − 1`)
+//! and `F^s` to the end momentum, `p_{k+1} = ∂A/∂Q_s + F^s + Gᵀμ_k`.
+//! Time-dependent constraints `g(t, q)` are imposed at each node's own time
+//! `t_k + τ_m h` (the end node at the step's end time), and the end
+//! momentum on their hidden form `G v + ∂g/∂t = 0`; a time-dependent `L`
+//! needs nothing more, the action is already evaluated at the stage times.
+//! The orders below are measured with forces and moving constraints too:
+//! `2s` for `s = 2, 3` on a damped, driven pendulum and on a pendulum on an
+//! oscillating support under a varying gravity, against minimal
+//! coordinates (`tests/constraints/forces.rs`, `tests/constraints/time.rs`).
 //!
 //! This is the discrete action `A(Q_0, …, Q_s)` of the Galerkin rule
 //! (`docs/theory.md` §5) made stationary over step polynomials whose nodes
@@ -67,12 +82,12 @@ use nalgebra::{SMatrix, SVector};
 use super::cotangent::onto_cotangent;
 use super::linear::{SCHUR_MIN_RCOND, inverse};
 use super::saddle::Work;
-use super::{Constrained, SLOWEST_CONTRACTION, jacobian, values};
+use super::{Constrained, SLOWEST_CONTRACTION, jacobian, rate, values};
 use crate::banded::{DenseMatrix, StepMatrix};
 use crate::dense::{Hermite, Node};
 use crate::discrete::Midpoint;
 use crate::error::Error;
-use crate::galerkin::{Galerkin, PointDerivatives, point_gradient};
+use crate::galerkin::{Galerkin, NoJacobian, PointDerivatives, point_gradient};
 use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment};
 use crate::newton::NewtonOptions;
 use crate::real::max_abs;
@@ -174,7 +189,7 @@ where
 {
     debug_assert_eq!(work.n(), S * (N + M));
     let (_, g0) = jacobian::<Sys, N, M>(system, t0, q0).ok_or(Error::NonFiniteConstraints { state })?;
-    let step = Step { system, rule, options, t0, h, q0, p0, g0: &g0, state };
+    let step = Step { system, rule, options, t0, h, t1, q0, p0, g0: &g0, state };
     let (x, iterations) = match step.attempt(guess, Linearisation::Simplified, work) {
         Ok(converged) => converged,
         Err((_, spent)) => match step.attempt(guess, Linearisation::Full, work) {
@@ -183,7 +198,6 @@ where
         },
     };
     let Guess { d, lambda, interior } = x;
-    let node_time = |m: usize| t0 + rule.control[m] * h;
     // Consecutive nodes on one branch of the manifold have constraint
     // normals that agree: `G(Q_m) G(Q_{m−1})ᵀ` has a positive definite
     // symmetric part (`≈ G Gᵀ` for a small step). Where it has not, the
@@ -194,7 +208,7 @@ where
     for m in 1..=S {
         let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
         let (_, jm) =
-            jacobian::<Sys, N, M>(system, node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
+            jacobian::<Sys, N, M>(system, step.node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
         let agreement = jm * previous.transpose();
         if ((agreement + agreement.transpose()) * 0.5).cholesky().is_none() {
             return Err(Error::SingularConstraints { state, rcond: inverse(agreement).1 });
@@ -203,11 +217,14 @@ where
     }
     let q1: [f64; N] = core::array::from_fn(|i| q0[i] + d[S - 1][i]);
     let jac1 = previous;
+    // p_{k+1} = ∂A/∂Q_s + F^s + G(q_{k+1})ᵀμ on the hidden constraint
+    // G(t_{k+1}, q_{k+1}) v + ∂g/∂t(t_{k+1}, q_{k+1}) = 0.
     let (_, grad) = rule.node_gradient(system, t0, h, *q0, &d);
-    let end = grad[S - 1];
+    let (_, end_force) = rule.discrete_forces(system, (t0, h), (q0, &[0.0; N]), &d);
+    let end: [f64; N] = core::array::from_fn(|i| grad[S - 1][i] + end_force[i]);
     let v_end: [f64; N] = core::array::from_fn(|i| (0..S).map(|m| rule.end_d[m] * d[m][i]).sum::<f64>() / h);
-    let jac = (&jac1, &SVector::zeros());
-    let on = onto_cotangent(system, (t1, q1), &end, jac, v_end, options, (state, h, iterations))?;
+    let rate1 = SVector::from(rate::<Sys, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?);
+    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v_end, options, (state, h, iterations))?;
     if !q1.iter().chain(&on.momentum).all(|x| x.is_finite()) {
         return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
     }
@@ -228,6 +245,8 @@ struct Step<'a, Sys: ?Sized, const N: usize, const S: usize, const R: usize, con
     options: &'a NewtonOptions,
     t0: f64,
     h: f64,
+    /// The end time, `t0 + h` up to its rounding: the time of the last node.
+    t1: f64,
     q0: &'a [f64; N],
     p0: &'a [f64; N],
     /// `G(q_k)`.
@@ -247,9 +266,10 @@ where
         S * N + (m - 1) * M
     }
 
-    /// The time of control node `m + 1`.
+    /// The time of control node `m + 1`, at which a moving constraint holds
+    /// there: the step's end time for the end node.
     fn node_time(&self, m: usize) -> f64 {
-        self.t0 + self.rule.control[m] * self.h
+        if m + 1 == S { self.t1 } else { self.t0 + self.rule.control[m] * self.h }
     }
 
     /// One attempt from `x` by `linearisation`: the solution and the
@@ -270,13 +290,14 @@ where
         linearisation: Linearisation,
         work: &mut Work,
     ) -> Result<(Guess<N, S, M>, usize), (Error<N>, usize)> {
-        let Self { system, rule, options, t0, h, q0, p0, g0, state } = *self;
+        let Self { system, rule, options, t0, h, q0, p0, g0, state, .. } = *self;
         // Whether `work` holds the factors of this attempt's matrix.
         let mut factored = false;
         // The last correction with the current factors, to measure their contraction.
         let mut previous: Option<f64> = None;
         let (mut residual_norm, mut correction_norm) = (f64::INFINITY, f64::INFINITY);
         let mut iterations = 0;
+        let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
         while iterations < options.max_iterations {
             iterations += 1;
             let fresh = !factored;
@@ -322,6 +343,28 @@ where
                     let (l, ld) = (rule.row[j][rho], rule.row_d[j][rho]);
                     for i in 0..N {
                         r[rho * N + i] += w * (l * lq[i]) + w * (ld * (lv[i] / h));
+                    }
+                }
+                // Lagrange–d'Alembert: the discrete forces F^0 … F^{s−1} on
+                // the rows' nodes (and their derivatives where the matrix is
+                // assembled), as in the unconstrained step.
+                if forced {
+                    let mut nodes = [[0.0; N]; S];
+                    match &mut matrix {
+                        Some(a) => {
+                            let mut entry = |rho: usize, i: usize, n: usize, k: usize, x: f64| {
+                                add(a, rho * N + i, n * N + k, x);
+                            };
+                            rule.point_forces(system, j, h, (t, q, v), &mut nodes, Some(&mut entry));
+                        }
+                        None => {
+                            rule.point_forces(system, j, h, (t, q, v), &mut nodes, None::<&mut NoJacobian<f64>>);
+                        }
+                    }
+                    for (rho, node) in nodes.iter().enumerate() {
+                        for i in 0..N {
+                            r[rho * N + i] += node[i];
+                        }
                     }
                 }
             }
@@ -482,6 +525,22 @@ pub(super) fn predict<const N: usize, const S: usize, const R: usize, const M: u
     }
 }
 
+/// The hidden constraint `G(t, q) v + ∂g/∂t(t, q)` at the node `state`
+/// with velocity `v`.
+pub(super) fn hidden_constraint<Sys, const N: usize, const M: usize>(
+    system: &Sys,
+    state: &State<N>,
+    v: [f64; N],
+) -> Result<[f64; M], Error<N>>
+where
+    Sys: Lagrangian<N> + ?Sized,
+{
+    let non_finite = || Error::NonFiniteConstraints { state: *state };
+    let (_, jac) = jacobian::<Sys, N, M>(system, state.t, &state.q).ok_or_else(non_finite)?;
+    let rate = rate::<Sys, N, M>(system, state.t, &state.q).ok_or_else(non_finite)?;
+    Ok((jac * SVector::from(v) + SVector::from(rate)).into())
+}
+
 /// The discrete energy `Σ_j b_j E_L(c_j)` of the step `seg`.
 pub(super) fn step_energy<Sys, const N: usize, const S: usize, const R: usize>(
     system: &Sys,
@@ -557,11 +616,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        super::supports_unforced_autonomous::<Sys, N, M>(
-            policy,
-            "forces or dissipation with constrained Galerkin rules",
-            "time-dependent constraints or a time-dependent Lagrangian with constrained Galerkin rules",
-        )
+        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(
@@ -643,12 +698,15 @@ impl<const S: usize, const R: usize, const M: usize> F64Readouts for Constrained
         None
     }
 
-    /// Forces are refused with constraints: no impulse.
+    /// `Σ_m F^m·ξ(Q_m)` over the nodes of the last step, as without
+    /// constraints: the constraint forces `G(Q_m)ᵀΛ_m` have no component
+    /// along a symmetry that the constraints respect (`G ξ = 0`).
     fn forcing_impulse<Sys: Lagrangian<N>, const N: usize>(
         it: &Integrator<Sys, Self, N>,
-        _: &(impl crate::noether::Generator<N> + ?Sized),
+        symmetry: &(impl crate::noether::Generator<N> + ?Sized),
     ) -> Option<f64> {
-        it.memory.last.map(|_| 0.0)
+        let last = it.memory.last.as_ref()?;
+        Some(it.method.rule.forcing_impulse(&it.system, (last.t0, last.h), (&last.q0, &[0.0; N]), &last.d, symmetry))
     }
 
     type Native<const N: usize> = Hermite<N>;
@@ -665,18 +723,16 @@ impl<const S: usize, const R: usize, const M: usize> F64Readouts for Constrained
 impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, const M: usize>
     Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>
 {
-    /// The constraint values `g(q_k)` at the current node.
+    /// The constraint values `g(t_k, q_k)` at the current node.
     pub fn constraint_values(&self) -> [f64; M] {
         values::<Sys, N, M>(&self.system, self.state.t, &self.state.q)
     }
 
-    /// The hidden constraint `G(q_k) v_k` at the current node, with `v_k`
-    /// the velocity of the momentum `p_k`.
+    /// The hidden constraint `G(t_k, q_k) v_k + ∂g/∂t(t_k, q_k)` at the
+    /// current node (`G v` for constraints that do not depend on time), with
+    /// `v_k` the velocity of the momentum `p_k`.
     pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
-        let v = self.velocity()?;
-        let (_, jac) = jacobian::<Sys, N, M>(&self.system, self.state.t, &self.state.q)
-            .ok_or(Error::NonFiniteConstraints { state: self.state })?;
-        Ok((jac * SVector::from(v)).into())
+        hidden_constraint(&self.system, &self.state, self.velocity()?)
     }
 
     /// The multiplier `λ_k` of the last step (zero before the first): with

@@ -38,7 +38,8 @@
 //! = 0` and `G(t_k, q_k)ᵀλ_k`, and their hidden form carries the motion of
 //! the manifold: `G(t_{k+1}, q_{k+1}) v_{k+1} + ∂g/∂t(t_{k+1}, q_{k+1}) = 0`.
 //! A time-dependent Lagrangian needs nothing more: the step action already
-//! carries `t_k`.
+//! carries `t_k`. The constrained Galerkin rules and compositions carry all
+//! three the same way (`galerkin.rs`, `composition.rs`).
 //!
 //! A rank-deficient `G` (redundant constraints, a dead point) shows as a
 //! singular Schur complement and is a typed error, with the state kept.
@@ -74,26 +75,6 @@ use crate::system::Lagrangian;
 use cotangent::onto_cotangent;
 use linear::{inverse, solve_schur_inverted};
 use num_dual::Dual64;
-
-/// `supports` of the families built on the constrained Galerkin step
-/// (`Constrained::galerkin`, `Constrained::composition`): the one-point
-/// checks, and forces, dissipation, moving constraints and a time-dependent
-/// `L` refused by name (`forces`, `moving`), since those steps do not carry
-/// them: refused rather than silently dropped.
-pub(super) fn supports_unforced_autonomous<S: Lagrangian<N>, const N: usize, const M: usize>(
-    policy: &StepPolicy,
-    forces: &'static str,
-    moving: &'static str,
-) -> Result<(), Error<N>> {
-    Constrained::<crate::discrete::Midpoint, M>::new(crate::discrete::Midpoint).supports::<S, N>(policy)?;
-    if S::HAS_FORCE || S::HAS_DISSIPATION {
-        return Err(Error::Unsupported { what: forces });
-    }
-    if !S::CONSTRAINTS_AUTONOMOUS || !S::AUTONOMOUS {
-        return Err(Error::Unsupported { what: moving });
-    }
-    Ok(())
-}
 
 /// The relative tolerance within which initial data must satisfy the
 /// constraints and their hidden (velocity-level) form; see

@@ -16,6 +16,7 @@
 //! | `quadratic.rs` | Chen, Guo & Wu (finite elements) §2.3: the quadratic element (`s = 2`, equispaced, exact for `L = ½ q̇²`) |
 //! | `linalg.rs` | static block LU with partial pivoting and a condition estimate |
 //! | `collocation.rs` | Gauss rules as collocation: the step by fixed-point iteration on the velocities at the points, no Jacobian |
+//! | `forces.rs` | the discrete forces `F^m` of the Lagrange–d'Alembert principle on the nodes, and their derivatives |
 //! | `stepper.rs` | the Galerkin rules as a [`Method`](crate::Method) of the one [`Integrator`](crate::Integrator): the block Newton step (fixed steps, forces), tangent map |
 //! | `energy.rs` | energy-preserving variable steps: the bordered `sN + 1` Newton block |
 //! | `one_point.rs` | the one-point rules in `DoubleDouble`, run as degree-1 Galerkin rules with their own points |
@@ -38,6 +39,7 @@
 mod basis;
 mod collocation;
 mod energy;
+mod forces;
 mod linalg;
 mod linear;
 mod method;
@@ -47,6 +49,7 @@ mod quadrature;
 mod stepper;
 
 pub use basis::NodeFamily;
+pub(crate) use forces::NoJacobian;
 pub use method::{Galerkin, StageIteration};
 pub(crate) use method::{PointDerivatives, point_gradient};
 pub(crate) use one_point::as_galerkin;

@@ -48,6 +48,7 @@ use crate::system::{Lagrangian, generalized_force};
 use nalgebra::SMatrix;
 
 use super::collocation;
+use super::forces::NoJacobian;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
 use super::method::{Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient};
 
@@ -938,29 +939,7 @@ impl<const S: usize, const R: usize> F64Readouts for Galerkin<S, R> {
             return None;
         }
         let last = it.memory.as_ref()?;
-        let g = &it.method;
-        let mut fnode = [[0.0; N]; S];
-        let mut f_end = [0.0; N];
-        for j in 0..R {
-            let (t, q, v) = g.point(last.t0, last.h, (&last.q0, &last.carry), &last.d, j);
-            let f = generalized_force(&it.system, t, q, v);
-            let w = g.quadrature().weights()[j] * last.h;
-            for i in 0..N {
-                for m in 0..S {
-                    fnode[m][i] += w * (g.row[j][m] * f[i]);
-                }
-                f_end[i] += w * (g.col[j][S - 1] * f[i]);
-            }
-        }
-        let node = |m: usize| -> [f64; N] {
-            core::array::from_fn(|i| last.q0[i] + (last.carry[i] + if m == 0 { 0.0 } else { last.d[m - 1][i] }))
-        };
-        let dot = |a: &[f64; N], b: &[f64; N]| (0..N).map(|i| a[i] * b[i]).sum::<f64>();
-        let mut impulse = dot(&f_end, &symmetry.generator(&node(S)));
-        for m in 0..S {
-            impulse += dot(&fnode[m], &symmetry.generator(&node(m)));
-        }
-        Some(impulse)
+        Some(it.method.forcing_impulse(&it.system, (last.t0, last.h), (&last.q0, &last.carry), &last.d, symmetry))
     }
 
     /// The step's polynomial through its nodes (order `s + 1`).
@@ -1084,34 +1063,17 @@ where
         // Lagrange–d'Alembert: the virtual work h Σ_j b_j F_j·δq(c_j) puts
         // h b_j ℓ_m(c_j) F_j on node m (Fu, Dai & Tang's discrete forces, through
         // the basis); with the Jacobian, their derivatives in the unknowns.
-        let force = forced.then(|| match frozen {
-            true => (generalized_force(system, t, q, v), None),
-            false => {
-                let (f, dq, dv) = force_derivatives(system, t, q, v);
-                (f, Some((dq, dv)))
-            }
-        });
-        if let Some((f, df)) = &force {
+        if forced {
+            let f = if frozen {
+                g.point_forces(system, j, h, (t, q, v), &mut fnode, None::<&mut NoJacobian<T>>).0
+            } else {
+                let mut entry = |rho: usize, i: usize, n: usize, k: usize, x: T| jac[rho][i][n][k] += x;
+                g.point_forces(system, j, h, (t, q, v), &mut fnode, Some(&mut entry)).0
+            };
             let w = b * h;
             for m in 0..S {
                 for i in 0..N {
-                    let x = w * (row[m] * f[i]);
-                    fnode[m][i] += x;
-                    let k = m;
-                    scale[k] = f64::max(scale[k], x.abs().to_f64());
-                }
-            }
-            if let Some((dq, dv)) = df {
-                for n in 0..S {
-                    let (c, cd) = (b * h * col[n], b * col_d[n]);
-                    for rho in 0..S {
-                        let l = row[rho];
-                        for i in 0..N {
-                            for k in 0..N {
-                                jac[rho][i][n][k] += l * (c * dq[i][k] + cd * dv[i][k]);
-                            }
-                        }
-                    }
+                    scale[m] = f64::max(scale[m], (w * (row[m] * f[i])).abs().to_f64());
                 }
             }
         }
@@ -1333,44 +1295,6 @@ pub(super) fn with_iterations(failure: NewtonFailure, spent: usize) -> NewtonFai
             NewtonFailure::Rejected { iterations: iterations + spent, reason }
         }
     }
-}
-
-/// The generalised force `F = Q − ∂R/∂v` at one point and its Jacobians
-/// `(∂F_i/∂q_k, ∂F_i/∂v_k)`: `2N` evaluations on duals over `T`.
-#[inline]
-#[allow(clippy::type_complexity)]
-fn force_derivatives<Sys, T, const N: usize>(
-    system: &Sys,
-    t: T,
-    q: [T; N],
-    v: [T; N],
-) -> ([T; N], [[T; N]; N], [[T; N]; N])
-where
-    Sys: Lagrangian<N> + ?Sized,
-    T: Real,
-{
-    use num_dual::Dual;
-    let z = T::zero();
-    let (mut f, mut dq, mut dv) = ([z; N], [[z; N]; N], [[z; N]; N]);
-    for k in 0..2 * N {
-        let mut qd = q.map(Dual::from_re);
-        let mut vd = v.map(Dual::from_re);
-        if k < N {
-            qd[k].eps = T::one();
-        } else {
-            vd[k - N].eps = T::one();
-        }
-        let y = generalized_force(system, Dual::from_re(t), qd, vd);
-        for i in 0..N {
-            f[i] = y[i].re;
-            if k < N {
-                dq[i][k] = y[i].eps;
-            } else {
-                dv[i][k - N] = y[i].eps;
-            }
-        }
-    }
-    (f, dq, dv)
 }
 
 #[cfg(test)]
