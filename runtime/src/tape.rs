@@ -649,7 +649,11 @@ impl Tape {
         expect_len("gradient", gradient.len(), n)?;
         expect_len("hs", hs.len(), n.saturating_mul(k))?;
         gradient.fill(0.0);
-        hs.fill(0.0);
+        // Each sweep writes its directions of the rows of the inputs it
+        // reaches; only an output that precedes some inputs leaves rows out.
+        if live < n {
+            hs.fill(0.0);
+        }
         if live == 0 {
             return Ok(());
         }
@@ -748,16 +752,23 @@ impl Sweep<'_, '_> {
     ) {
         let live = self.nodes.len();
         let n = self.inputs.min(live);
-        lanes.clear();
-        lanes.resize(2 * live * W, 0.0);
+        // Sized, not cleared: the forward pass below writes every node's
+        // tangent and zeroes its second-order adjoint as it goes, in the
+        // cache lines it touches anyway (a separate clear of the lanes was
+        // the largest single cost of a sweep on a long tape).
+        if lanes.len() < 2 * live * W {
+            lanes.resize(2 * live * W, 0.0);
+        }
         adjoint.clear();
         adjoint.resize(live, 0.0);
-        let (lane, _) = lanes.as_chunks_mut::<W>();
+        let (lane, _) = lanes[..2 * live * W].as_chunks_mut::<W>();
         let tan = |i: usize| 2 * i;
         let sec = |i: usize| 2 * i + 1;
 
         // Forward: the tangent of every node in the W directions.
         for j in 0..n {
+            lane[tan(j)] = [0.0; W];
+            lane[sec(j)] = [0.0; W];
             if let Some((c, weight)) = self.seeds.colour(j)
                 && (self.first..self.first + W).contains(&c)
             {
@@ -779,6 +790,7 @@ impl Sweep<'_, '_> {
                 }
             }
             lane[tan(i)] = t;
+            lane[sec(i)] = [0.0; W];
         }
 
         // Reverse: the adjoint and the W second-order adjoints.

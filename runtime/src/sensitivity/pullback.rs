@@ -173,16 +173,15 @@ pub(super) const fn large(n: usize) -> bool {
 }
 
 /// Whether a one-point step without forces takes the tape path below
-/// [`large`] sizes too: where the band of the Newton matrix is at most an
-/// eighth of `n`. The dense path's `K_j` costs `⌈2N/8⌉` evaluations of `L`
+/// [`large`] sizes too: where the band of the Newton matrix is at most a
+/// quarter of `n`. The dense path's `K_j` costs `⌈2N/8⌉` evaluations of `L`
 /// on numbers of `O(N)` parts at each point, the tape's `2b + 1`
-/// directions of a second-order sweep: for the FPU-β chain of 32 masses
-/// (`b = 1`), 15.9e6 instructions per reverse step on the dense path,
-/// 0.27e6 on the tape (callgrind, `bench/benches/adjoint.rs`). Smaller chains
-/// (16 masses: 1.6e6 per step, dense) were not measured on the tape.
+/// directions of a second-order sweep: for the FPU-β chain of 16 masses
+/// (`b = 1`), 1.55e6 instructions per reverse step on the dense path,
+/// 0.10e6 on the tape (callgrind, `bench/benches/adjoint.rs`, `chain16`).
 const fn narrow(pattern: Pattern, n: usize) -> bool {
     match pattern.bandwidth() {
-        Some(b) => 8 * (2 * b + 1) <= n,
+        Some(b) => 4 * (2 * b + 1) <= n,
         None => false,
     }
 }
@@ -207,11 +206,15 @@ struct TapeWork {
 /// transposed linearisation of each step (see the [module](self)).
 pub(crate) struct Pullback<const N: usize, const P: usize> {
     rule: Rule,
-    /// `G_D`, `sN × sN`.
+    /// `G_D` in its band on the tape path (`N × N`; empty otherwise).
     matrix: StepSolver,
+    /// `G_D`, `sN × sN`, on the path of the `K_j` (empty on the tape path).
+    dense: DenseLu,
     /// `K_j` of each point, `2N × 2N` row-major, one after the other
     /// (empty on the tape path).
     jacobians: Vec<f64>,
+    /// `(t, q, v)` at each point of the piece being pulled back.
+    points: Vec<(f64, [f64; N], [f64; N])>,
     /// `ω` by node, `(s + 1) N`.
     omega: Vec<f64>,
     /// The right-hand side `−(e_s λ_q + ∂ψ_λ/∂D)/h`, then `η`: `sN`.
@@ -234,7 +237,6 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         let pattern = if s == 1 { pattern } else { Pattern::General };
         let too_large =
             Error::Unsupported { what: "the buffers of the adjoint of a step of this size cannot be allocated" };
-        let matrix = StepSolver::for_pattern(s * N, pattern).map_err(|_| too_large)?;
         let tape = if large(N) || (s == 1 && !forced && narrow(pattern, N)) {
             if s != 1 || forced {
                 return Err(Error::Unsupported {
@@ -258,7 +260,11 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
             None
         };
         let points = if tape.is_some() { 0 } else { rule.point_count() };
+        let (band, dense) = if tape.is_some() { (s * N, 0) } else { (0, s * N) };
+        let matrix = StepSolver::for_pattern(band, pattern).map_err(|_| too_large)?;
         Ok(Self {
+            dense: DenseLu::new(dense),
+            points: Vec::with_capacity(points),
             jacobians: vec![0.0; points * 4 * N * N],
             omega: vec![0.0; (s + 1) * N],
             rhs: vec![0.0; s * N],
@@ -304,11 +310,13 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         let rule = &self.rule;
         let (s, h) = (rule.degree(), piece.h);
         let block = 4 * N * N;
-        for j in 0..rule.point_count() {
-            point_jacobian(system, theta, rule.point(piece, j), &mut self.jacobians[j * block..(j + 1) * block]);
+        self.points.clear();
+        self.points.extend((0..rule.point_count()).map(|j| rule.point(piece, j)));
+        for (j, &point) in self.points.iter().enumerate() {
+            point_jacobian(system, theta, point, &mut self.jacobians[j * block..(j + 1) * block]);
         }
-        self.assemble(h).ok()?;
-        self.matrix.factor(0.0).ok()?;
+        self.assemble(h);
+        self.dense.factor::<N>()?;
         // ω_ρ = λ_p + h η_ρ (η_s = 0): the part of ψ along ω = (λ_p, …, λ_p)
         // is h Σ_j b_j λ_p·(L_q + F), free of the 1/h of the rows, and the
         // solve is for the differences η, of order λ, not for ω itself.
@@ -324,7 +332,7 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         for x in self.rhs.iter_mut() {
             *x = -*x / h;
         }
-        self.matrix.solve_transposed(&mut self.rhs).ok()?;
+        self.dense.solve_transposed::<N>(&mut self.rhs);
         self.omega.fill(0.0);
         self.omega[..s * N].copy_from_slice(&self.rhs);
         gradient::<N>(&self.rule, &self.jacobians, h, &self.omega, h, &mut dq, None);
@@ -335,7 +343,7 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
                 let wq = core::array::from_fn(|i| lp[i] + h * eq[i]);
                 let wv = ev.map(|x| h * x);
                 let w = rule.weight(j) * h;
-                let g = theta_product(system, theta, rule.point(piece, j), &wq, &wv);
+                let g = theta_product(system, theta, self.points[j], &wq, &wv);
                 for (d, g) in dtheta.iter_mut().zip(g) {
                     *d += w * g;
                 }
@@ -431,32 +439,160 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
     }
 
     /// `G_D` from the `K_j`: row block `ρ < s`, column block `D_m`.
-    fn assemble(&mut self, h: f64) -> Result<(), crate::banded::LinearSolveError> {
+    fn assemble(&mut self, h: f64) {
         let rule = &self.rule;
         let (s, n2) = (rule.degree(), 2 * N);
-        self.matrix.clear();
+        let m = s * N;
+        let a = &mut self.dense.a;
+        a.fill(0.0);
         for j in 0..rule.point_count() {
             let k = &self.jacobians[j * n2 * n2..(j + 1) * n2 * n2];
             let w = rule.weight(j) * h;
             for rho in 0..s {
                 let (r, rd) = (w * rule.l(j, rho), w * rule.dl(j, rho) / h);
-                for m in 1..=s {
-                    let (c, cd) = (rule.l(j, m), rule.dl(j, m) / h);
+                for node in 1..=s {
+                    let (c, cd) = (rule.l(j, node), rule.dl(j, node) / h);
                     for i in 0..N {
-                        let (a, b) = (&k[i * n2..(i + 1) * n2], &k[(N + i) * n2..(N + i + 1) * n2]);
-                        for col in 0..N {
-                            if !self.matrix.may_couple(rho * N + i, (m - 1) * N + col) {
-                                continue;
-                            }
-                            let x = r * (a[col] * c + a[N + col] * cd) + rd * (b[col] * c + b[N + col] * cd);
-                            self.matrix.add(rho * N + i, (m - 1) * N + col, x)?;
+                        let (kq, kv) = (&k[i * n2..(i + 1) * n2], &k[(N + i) * n2..(N + i + 1) * n2]);
+                        let row = &mut a[(rho * N + i) * m + (node - 1) * N..][..N];
+                        for (col, x) in row.iter_mut().enumerate() {
+                            *x += r * (kq[col] * c + kq[N + col] * cd) + rd * (kv[col] * c + kv[N + col] * cd);
                         }
                     }
                 }
             }
         }
-        Ok(())
     }
+}
+
+/// A dense matrix, row-major, and its LU factors by partial pivoting in
+/// the same storage (`P A = L U`, whole rows exchanged). The step matrices
+/// of the adjoint on this path are small (`sN` of a few to a few tens):
+/// plain loops without the bookkeeping of the general solvers, which cost
+/// as much as the rest of a reverse step of a double pendulum.
+struct DenseLu {
+    m: usize,
+    a: Vec<f64>,
+    /// Row `j` was exchanged with row `pivots[j]` at elimination step `j`.
+    pivots: Vec<usize>,
+}
+
+impl DenseLu {
+    fn new(m: usize) -> Self {
+        Self { m, a: vec![0.0; m * m], pivots: vec![0; m] }
+    }
+
+    /// Factors in place; `None` at a zero or non-finite pivot. A matrix of
+    /// `K` rows (the one-point rules' `N × N`) takes loops of constant
+    /// length, unrolled for the few coordinates where this cost shows.
+    fn factor<const K: usize>(&mut self) -> Option<()> {
+        if self.m == K {
+            let (rows, _) = self.a.as_chunks_mut::<K>();
+            return factor_rows::<K>(rows, &mut self.pivots);
+        }
+        let (m, a) = (self.m, &mut self.a);
+        for j in 0..m {
+            let (mut p, mut best) = (j, a[j * m + j].abs());
+            for i in j + 1..m {
+                let x = a[i * m + j].abs();
+                if x > best {
+                    (p, best) = (i, x);
+                }
+            }
+            if !(best > 0.0 && best.is_finite()) {
+                return None;
+            }
+            self.pivots[j] = p;
+            if p != j {
+                for c in 0..m {
+                    a.swap(j * m + c, p * m + c);
+                }
+            }
+            let (upper, lower) = a.split_at_mut((j + 1) * m);
+            let pivot_row = &upper[j * m..];
+            for row in lower.chunks_exact_mut(m) {
+                let l = row[j] / pivot_row[j];
+                row[j] = l;
+                if l != 0.0 {
+                    for (x, u) in row[j + 1..].iter_mut().zip(&pivot_row[j + 1..]) {
+                        *x -= l * u;
+                    }
+                }
+            }
+        }
+        Some(())
+    }
+
+    /// `Aᵀ x = b` in place: `Uᵀ y = b`, `Lᵀ z = y`, `x = Pᵀ z` (loops of
+    /// constant length for `K` rows, as in [`factor`](Self::factor)).
+    fn solve_transposed<const K: usize>(&self, b: &mut [f64]) {
+        if self.m == K {
+            let (rows, _) = self.a.as_chunks::<K>();
+            let b: &mut [f64; K] = (&mut b[..K]).try_into().expect("a right-hand side of the matrix's size");
+            for j in 0..K {
+                let mut x = b[j];
+                for i in 0..j {
+                    x -= rows[i][j] * b[i];
+                }
+                b[j] = x / rows[j][j];
+            }
+            for j in (0..K).rev() {
+                let mut x = b[j];
+                for i in j + 1..K {
+                    x -= rows[i][j] * b[i];
+                }
+                b[j] = x;
+            }
+            for j in (0..K).rev() {
+                b.swap(j, self.pivots[j]);
+            }
+            return;
+        }
+        let (m, a) = (self.m, &self.a);
+        for j in 0..m {
+            let mut x = b[j];
+            for i in 0..j {
+                x -= a[i * m + j] * b[i];
+            }
+            b[j] = x / a[j * m + j];
+        }
+        for j in (0..m).rev() {
+            let mut x = b[j];
+            for i in j + 1..m {
+                x -= a[i * m + j] * b[i];
+            }
+            b[j] = x;
+        }
+        for j in (0..m).rev() {
+            b.swap(j, self.pivots[j]);
+        }
+    }
+}
+
+/// [`DenseLu::factor`] of `K` rows of `K` entries.
+fn factor_rows<const K: usize>(rows: &mut [[f64; K]], pivots: &mut [usize]) -> Option<()> {
+    for j in 0..K {
+        let (mut p, mut best) = (j, rows[j][j].abs());
+        for (i, row) in rows.iter().enumerate().take(K).skip(j + 1) {
+            if row[j].abs() > best {
+                (p, best) = (i, row[j].abs());
+            }
+        }
+        if !(best > 0.0 && best.is_finite()) {
+            return None;
+        }
+        pivots[j] = p;
+        rows.swap(j, p);
+        let pivot_row = rows[j];
+        for row in rows.iter_mut().take(K).skip(j + 1) {
+            let l = row[j] / pivot_row[j];
+            row[j] = l;
+            for c in j + 1..K {
+                row[c] -= l * pivot_row[c];
+            }
+        }
+    }
+    Some(())
 }
 
 /// `scale` times the gradient of `ψ = Σ_ρ ω_ρ·R_ρ` (without its `θ`
