@@ -6,10 +6,11 @@
 //! sees only `g/l` and `c/l²` (`l² q̈ + c q̇ + g l sin q = 0`), so two of the
 //! three can be fitted: here `l` and `c`, with `g` known. Measurements are
 //! the angle every 25 steps of a midpoint run with the true values, plus
-//! Gaussian noise of standard deviation `σ`. Gauss–Newton on the misfit
-//! takes the Jacobian of the residuals from the forward sensitivities
+//! Gaussian noise of standard deviation `σ`. Levenberg–Marquardt (the
+//! `levenberg-marquardt` crate) on the misfit takes the Jacobian of the
+//! residuals from the forward sensitivities
 //! (`Problem::solve_with_sensitivities`, no finite differences), and the
-//! standard errors of the fit from `σ² (JᵀJ)⁻¹`.
+//! standard errors of the fit come from `σ² (JᵀJ)⁻¹`.
 //!
 //! Run with `cargo run --release --example fit_pendulum`; its test
 //! (`cargo test -p lagrangian-examples --example fit_pendulum`) checks that
@@ -18,6 +19,8 @@
 use std::error::Error;
 
 use lagrangian::prelude::*;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra034::{DVector, Dyn, OMatrix, Owned, U2, Vector2};
 
 /// A damped pendulum: length, gravity and damping are parameters.
 #[derive(Clone, Debug)]
@@ -45,15 +48,15 @@ const T_END: f64 = 10.0;
 /// Steps between measurements.
 const EVERY: usize = 25;
 
-/// The fitted `(l, c)`, their standard errors and the Gauss–Newton iterations.
+/// The fitted `(l, c)`, their standard errors and the optimiser's runs of the model.
 #[derive(Clone, Debug)]
 pub struct Fit {
     /// `(l, c)`.
     pub estimate: [f64; 2],
     /// Their standard errors, `σ √diag (JᵀJ)⁻¹`.
     pub standard_error: [f64; 2],
-    /// Gauss–Newton iterations.
-    pub iterations: usize,
+    /// Evaluations of the residuals (runs of the model) the optimiser made.
+    pub evaluations: usize,
 }
 
 /// The angles at the measured nodes and their derivatives in `(l, c)`.
@@ -89,38 +92,68 @@ fn gaussian(seed: u64, n: usize) -> Vec<f64> {
     (0..n).map(|_| (-2.0 * uniform().ln()).sqrt() * (std::f64::consts::TAU * uniform()).cos()).collect()
 }
 
-/// Fits `(l, c)` from `guess` to `measured` by Gauss–Newton; `sigma` is the
+/// The misfit of the angles at `(l, c)` to the measurements, as the
+/// `levenberg-marquardt` crate asks for it: residuals `r = q − y` and their
+/// Jacobian from the forward sensitivities, computed once per point the
+/// optimiser visits.
+struct Misfit<'a> {
+    measured: &'a [f64],
+    theta: Vector2<f64>,
+    /// Angles and their derivatives at `theta`; empty where the run failed.
+    angles: Angles,
+}
+
+impl LeastSquaresProblem<f64, Dyn, U2> for Misfit<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, U2>;
+    type ParameterStorage = Owned<f64, U2>;
+
+    fn set_params(&mut self, x: &Vector2<f64>) {
+        self.theta = *x;
+        // A run that fails (a length or damping the model cannot take)
+        // leaves no residuals: the optimiser then stops with a typed reason.
+        self.angles = angles(x[0], x[1]).unwrap_or_default();
+    }
+
+    fn params(&self) -> Vector2<f64> {
+        self.theta
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let (q, _) = &self.angles;
+        (q.len() == self.measured.len())
+            .then(|| DVector::from_iterator(q.len(), q.iter().zip(self.measured).map(|(q, y)| q - y)))
+    }
+
+    fn jacobian(&self) -> Option<OMatrix<f64, Dyn, U2>> {
+        let (_, dq) = &self.angles;
+        (dq.len() == self.measured.len()).then(|| OMatrix::<f64, Dyn, U2>::from_fn(dq.len(), |i, j| dq[i][j]))
+    }
+}
+
+/// Fits `(l, c)` from `guess` to `measured` by Levenberg–Marquardt (the
+/// `levenberg-marquardt` crate, MINPACK's algorithm); `sigma` is the
 /// noise's standard deviation.
 pub fn fit(measured: &[f64], sigma: f64, guess: [f64; 2]) -> Result<Fit, Box<dyn Error>> {
-    let mut theta = guess;
-    for iterations in 1..=30 {
-        let (q, dq) = angles(theta[0], theta[1])?;
-        // Normal equations JᵀJ δ = −Jᵀr of the residuals r = q − y.
-        let (mut a, mut b) = ([[0.0; 2]; 2], [0.0; 2]);
-        for ((qi, yi), ji) in q.iter().zip(measured).zip(&dq) {
-            let r = qi - yi;
-            for m in 0..2 {
-                b[m] -= ji[m] * r;
-                for n in 0..2 {
-                    a[m][n] += ji[m] * ji[n];
-                }
-            }
-        }
-        let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
-        if !(det.is_finite() && det > 0.0) {
-            return Err("the normal equations are singular: (l, c) are not determined by these measurements".into());
-        }
-        let delta = [(a[1][1] * b[0] - a[0][1] * b[1]) / det, (a[0][0] * b[1] - a[1][0] * b[0]) / det];
-        theta = [theta[0] + delta[0], theta[1] + delta[1]];
-        let converged = delta.iter().zip(&theta).all(|(d, t)| d.abs() <= 1e-12 * t.abs().max(1e-3));
-        if converged {
-            // Covariance σ² (JᵀJ)⁻¹ at the fit (JᵀJ of the last iterate,
-            // which the converged step leaves unchanged to 1e-12).
-            let standard_error = [(sigma * sigma * a[1][1] / det).sqrt(), (sigma * sigma * a[0][0] / det).sqrt()];
-            return Ok(Fit { estimate: theta, standard_error, iterations });
-        }
+    let mut problem = Misfit { measured, theta: Vector2::from(guess), angles: Angles::default() };
+    problem.set_params(&Vector2::from(guess));
+    let (problem, report) = LevenbergMarquardt::new().with_tol(1e-12).minimize(problem);
+    if !report.termination.was_successful() {
+        return Err(format!("levenberg–marquardt stopped: {:?}", report.termination).into());
     }
-    Err("gauss–newton did not converge in 30 iterations".into())
+    let theta = problem.params();
+    // Covariance σ² (JᵀJ)⁻¹ at the fit.
+    let (_, dq) = angles(theta[0], theta[1])?;
+    let j = OMatrix::<f64, Dyn, U2>::from_fn(dq.len(), |i, k| dq[i][k]);
+    let covariance = (j.transpose() * &j)
+        .try_inverse()
+        .ok_or("the normal equations are singular: (l, c) are not determined by these measurements")?
+        * (sigma * sigma);
+    Ok(Fit {
+        estimate: [theta[0], theta[1]],
+        standard_error: [covariance[(0, 0)].sqrt(), covariance[(1, 1)].sqrt()],
+        evaluations: report.number_of_evaluations,
+    })
 }
 
 /// Synthetic measurements with noise `sigma` from `seed`.
@@ -133,7 +166,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let sigma = 0.01;
     let measured = measurements(sigma, 7)?;
     let f = fit(&measured, sigma, [0.85, 0.1])?;
-    println!("{} measurements, noise σ = {sigma} rad, {} Gauss–Newton iterations", measured.len(), f.iterations);
+    println!("{} measurements, noise σ = {sigma} rad, {} runs of the model", measured.len(), f.evaluations);
     for (k, (name, truth)) in [("l", TRUTH.l), ("c", TRUTH.c)].iter().enumerate() {
         let (est, se) = (f.estimate[k], f.standard_error[k]);
         println!("{name}: {est:.6} ± {se:.1e} (truth {truth}, off by {:.2} standard errors)", (est - truth) / se);
@@ -153,7 +186,7 @@ mod tests {
             let f = fit(&measured, sigma, [0.85, 0.1]).unwrap();
             for (k, truth) in [TRUTH.l, TRUTH.c].into_iter().enumerate() {
                 let (est, se) = (f.estimate[k], f.standard_error[k]);
-                eprintln!("seed {seed}: {est} ± {se:.1e} (truth {truth}), {} iterations", f.iterations);
+                eprintln!("seed {seed}: {est} ± {se:.1e} (truth {truth}), {} runs", f.evaluations);
                 assert!(se > 0.0 && se < 0.1 * truth, "seed {seed}: standard error {se} of {truth}");
                 assert!((est - truth).abs() <= 3.0 * se, "seed {seed}: {est} vs {truth} ± {se}");
             }
