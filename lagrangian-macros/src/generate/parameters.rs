@@ -18,7 +18,7 @@
 use super::{Printer, cfgs, scalar_type};
 use crate::attr::{Args, Parameter};
 use crate::ctxt::Ctxt;
-use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, LocalId};
+use crate::ir::{Binder, Block, Class, Expr, ExprKind, Function, Local, LocalId, Math};
 use crate::parse::{Input, Len};
 use proc_macro2::{Ident, Literal, Span, TokenStream, TokenTree};
 use quote::{ToTokens, format_ident, quote, quote_spanned};
@@ -31,8 +31,9 @@ pub(crate) struct Copy {
 }
 
 /// Lowers the methods once more with the parameters active; reports a name
-/// no body reads, a parameter used where the rewrite needs a constant, and
-/// an array length that is a generic parameter of the impl.
+/// no body reads, a scalar parameter a body indexes, a parameter used where
+/// the rewrite needs a constant, and an array length from the impl's
+/// generics.
 pub(crate) fn prepare(cx: &Ctxt, input: &Input<'_>, args: &Args) -> Option<Copy> {
     let (_, parameters) = args.parameters.as_ref()?;
     if !lengths_are_constants(cx, input.item, parameters) {
@@ -46,6 +47,7 @@ pub(crate) fn prepare(cx: &Ctxt, input: &Input<'_>, args: &Args) -> Option<Copy>
     // The errors of the methods themselves were reported by the first lowering.
     let system = crate::validate::validate(&Ctxt::new(), input)?;
     let mut used = vec![false; names.len()];
+    let mut indexed = vec![false; names.len()];
     let mut functions: Vec<Function> =
         std::iter::once(system.lagrangian).chain(system.dissipation).chain(system.force).collect();
     for function in &mut functions {
@@ -59,7 +61,7 @@ pub(crate) fn prepare(cx: &Ctxt, input: &Input<'_>, args: &Args) -> Option<Copy>
                 (id, ident)
             })
             .collect();
-        substitute(&mut function.body, &names, &ids, &mut used);
+        substitute(&mut function.body, &names, &ids, &mut used, &mut indexed);
     }
     for (name, used) in names.iter().zip(&used) {
         if !used {
@@ -68,6 +70,23 @@ pub(crate) fn prepare(cx: &Ctxt, input: &Input<'_>, args: &Args) -> Option<Copy>
                 format!("parameter `{name}` is not read as `self.{name}` in `lagrangian`, `force` or `dissipation`"),
             );
         }
+    }
+    let mut scalar_arrays = false;
+    for (parameter, indexed) in parameters.iter().zip(&indexed) {
+        if *indexed && parameter.len.is_none() {
+            let name = &parameter.name;
+            cx.error_spanned_by(
+                name,
+                format!(
+                    "parameter `{name}` is indexed as an array: declare an array parameter with its type, \
+                     `{name}: [f64; K]`"
+                ),
+            );
+            scalar_arrays = true;
+        }
+    }
+    if scalar_arrays {
+        return None;
     }
     let mut consistent = true;
     for function in &mut functions {
@@ -142,13 +161,23 @@ fn local_name(name: &Ident) -> Ident {
 }
 
 /// Replaces every `self.<parameter>` in `block` by the parameter's local,
-/// marking the parameters it met in `used`.
-fn substitute(block: &mut Block, names: &[Ident], ids: &[(LocalId, Ident)], used: &mut [bool]) {
+/// marking the parameters it met in `used` and those it met indexed or
+/// measured (`self.u[i]`, `self.u.len()`) in `indexed`.
+fn substitute(block: &mut Block, names: &[Ident], ids: &[(LocalId, Ident)], used: &mut [bool], indexed: &mut [bool]) {
+    let parameter = |e: &Expr| match &e.kind {
+        ExprKind::Field { base, member: Member::Named(member) } if matches!(base.kind, ExprKind::SelfValue(_)) => {
+            names.iter().position(|name| name == member)
+        }
+        _ => None,
+    };
     block.visit_mut(&mut |e: &mut Expr| {
-        if let ExprKind::Field { base, member: Member::Named(member) } = &e.kind
-            && matches!(base.kind, ExprKind::SelfValue(_))
-            && let Some(j) = names.iter().position(|name| name == member)
+        if let ExprKind::Index { base: array, .. } | ExprKind::MethodCall { receiver: array, math: Math::Len, .. } =
+            &e.kind
+            && let Some(j) = parameter(array)
         {
+            indexed[j] = true;
+        }
+        if let Some(j) = parameter(e) {
             used[j] = true;
             e.kind = ExprKind::Local(ids[j].0, ids[j].1.clone());
             return false;
@@ -396,6 +425,28 @@ mod tests {
         refused(quote!(parameters(m, u: [f64; _], g)), controlled(), "parameter `u` needs its length");
         refused(quote!(parameters(m, u: Vec<f64>, g)), controlled(), "parameter `u` must be `f64` or an array");
         refused(quote!(parameters(m, u, u: [f64; 3], g)), controlled(), "parameter `u` is named twice");
+    }
+
+    #[test]
+    fn the_length_of_a_field_is_a_constant_of_the_rewrite() {
+        let out = expanded(
+            TokenStream::new(),
+            parse_quote! {
+                impl W {
+                    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+                        0.5 * v[0] * v[0] - self.w[self.w.len() - 1] * q[0]
+                    }
+                }
+            },
+        );
+        assert!(!out.contains("compile_error") && !out.contains("unreachable"), "{out}");
+        assert!(out.contains("const HAS_GRADIENT : bool = true"), "{out}");
+        assert!(out.contains("self) . w) . len ()"), "{out}");
+    }
+
+    #[test]
+    fn an_array_named_without_its_type_is_refused_where_it_is_indexed() {
+        refused(quote!(parameters(m, u, g)), controlled(), "parameter `u` is indexed as an array: declare");
     }
 
     #[test]
