@@ -1,6 +1,7 @@
 //! Swing-up of a cart-pole as discrete mechanics and optimal control: the
 //! force on the cart is a piecewise-linear function of time through 31
-//! values on a fixed grid, declared as parameters of the system, and the
+//! values on a fixed grid, an array field declared as the parameters of the
+//! system (`parameters(u: [f64; CONTROLS])`), and the
 //! controls are chosen so that the discrete trajectory ends with the pole
 //! upright and the cart back at the origin, at rest.
 //!
@@ -61,49 +62,14 @@ const CONTROLS: usize = INTERVALS + 1;
 const DT: f64 = T_END / INTERVALS as f64;
 
 /// A cart-pole whose cart is pushed by `u(t)`, linear between the values
-/// `u0, …, u30` at the nodes of the control grid.
-///
-/// `parameters(...)` takes `f64` fields by name, so the controls are 31
-/// named fields, gathered into an array in `force`.
+/// `u[0], …, u[30]` at the nodes of the control grid: one array parameter,
+/// `θ = u`.
 #[derive(Clone, Debug, Default)]
 pub struct CartPole {
-    u0: f64,
-    u1: f64,
-    u2: f64,
-    u3: f64,
-    u4: f64,
-    u5: f64,
-    u6: f64,
-    u7: f64,
-    u8: f64,
-    u9: f64,
-    u10: f64,
-    u11: f64,
-    u12: f64,
-    u13: f64,
-    u14: f64,
-    u15: f64,
-    u16: f64,
-    u17: f64,
-    u18: f64,
-    u19: f64,
-    u20: f64,
-    u21: f64,
-    u22: f64,
-    u23: f64,
-    u24: f64,
-    u25: f64,
-    u26: f64,
-    u27: f64,
-    u28: f64,
-    u29: f64,
-    u30: f64,
+    u: [f64; CONTROLS],
 }
 
-#[lagrangian(parameters(
-    u0, u1, u2, u3, u4, u5, u6, u7, u8, u9, u10, u11, u12, u13, u14, u15, u16, u17, u18, u19, u20, u21, u22, u23, u24,
-    u25, u26, u27, u28, u29, u30
-))]
+#[lagrangian(parameters(u: [f64; CONTROLS]))]
 impl CartPole {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
         let (c, ml) = (q[1].cos(), M_POLE * LENGTH);
@@ -111,11 +77,7 @@ impl CartPole {
     }
 
     fn force(&self, t: f64, _q: [f64; 2], _v: [f64; 2]) -> [f64; 2] {
-        let u = [
-            self.u0, self.u1, self.u2, self.u3, self.u4, self.u5, self.u6, self.u7, self.u8, self.u9, self.u10,
-            self.u11, self.u12, self.u13, self.u14, self.u15, self.u16, self.u17, self.u18, self.u19, self.u20,
-            self.u21, self.u22, self.u23, self.u24, self.u25, self.u26, self.u27, self.u28, self.u29, self.u30,
-        ];
+        let u = self.u;
         // The grid interval holding `t` (the last one from `T_END` on). The
         // time step divides the grid spacing (`step`), so no step straddles
         // a node and the force is linear in `t` over each step.
@@ -352,6 +314,8 @@ mod tests {
 
     #[test]
     fn the_adjoint_gradient_matches_central_differences_at_the_start() {
+        // θ is the array `u`, entry by entry.
+        assert_eq!((CartPole::NAMES[0], CartPole::NAMES[CONTROLS - 1]), ("u[0]", "u[30]"));
         let h = step(STEPS);
         // A start away from rest, so that the loss sees the nonlinear terms.
         let u: [f64; CONTROLS] = core::array::from_fn(|j| 3.0 * (j as f64 * 0.7).sin());

@@ -235,6 +235,7 @@ pub mod prelude {
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.
 #[doc(hidden)]
 pub mod __private {
+    pub use lagrangian_runtime::sensitivity::names as parameter_names;
     pub use lagrangian_runtime::{
         Coupling, DynLagrangian, ForceCoupling, Lagrangian, Parametric, Pattern, Scalar, Separability, StepDensity,
         Symmetry,

@@ -1472,6 +1472,11 @@ impl<'a> Adjoint<'a> {
             ExprKind::MethodCall { receiver, math: Math::Len, .. } => match receiver.kind {
                 ExprKind::Param(ParamRef::Q, _) => quote!(#q.len()),
                 ExprKind::Param(ParamRef::V, _) => quote!(#v.len()),
+                // `self.u.len()`, a field's.
+                ExprKind::Field { .. } => {
+                    let receiver = self.constant(receiver)?;
+                    quote!(#receiver.len())
+                }
                 _ => return None,
             },
             ExprKind::MethodCall { receiver, method, args, path, .. } => {

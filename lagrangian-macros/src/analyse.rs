@@ -338,8 +338,9 @@ impl<'a> Infer<'a> {
     fn method(&mut self, span: proc_macro2::Span, math: Math, receiver: Class, args: &[Class]) -> Class {
         // `q.len()`: a number of coordinates, not a function of them.
         if math == Math::Len {
-            // On a scalar local, rustc reports it on the user's method.
-            if !receiver.is_array() {
+            // On a scalar local, rustc reports it on the user's method. A
+            // constant may be an array (`self.u`, a local holding it).
+            if !receiver.is_array() && receiver != Class::Const {
                 self.mismatch();
             }
             return Class::Int;

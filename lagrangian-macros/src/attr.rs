@@ -14,16 +14,21 @@
 //! proven (the runtime's `noether::symmetry_defect` measures it).
 //!
 //! `parameters(m, l, g)` names `f64` fields of the system whose derivatives
-//! the runtime's sensitivities and adjoint carry (`generate::parameters`).
-//! The list must be non-empty and name each field once; a name that no body
-//! reads as `self.name` is an error (differentiating with respect to it
-//! would give zero, which is more likely a typo than a wish).
+//! the runtime's sensitivities and adjoint carry (`generate::parameters`);
+//! `parameters(m, u: [f64; K])` adds an array field, each entry a parameter.
+//! The attribute sits on the `impl` block and never sees the struct, so an
+//! array parameter states its type, `K` a literal or a constant; rustc
+//! checks it against the field. The list must be non-empty and name each
+//! field once; a name that no body reads as `self.name` is an error
+//! (differentiating with respect to it would give zero, which is more likely
+//! a typo than a wish).
 
 use crate::ctxt::Ctxt;
-use crate::parse::Len;
+use crate::parse::{Len, is_f64};
 use proc_macro2::TokenStream;
+use syn::parse::{Parse, ParseStream};
 use syn::punctuated::Punctuated;
-use syn::{Expr, ExprCall, ExprLit, Ident, Lit, LitInt, Meta, Token};
+use syn::{Expr, ExprCall, ExprLit, Ident, Lit, LitInt, Meta, Token, Type};
 
 /// The parsed arguments.
 #[derive(Default)]
@@ -35,8 +40,35 @@ pub(crate) struct Args {
     /// The `symmetry` key of every `symmetry = ...`, readable or not: where
     /// a run-time-sized system refuses them.
     pub(crate) symmetry_keys: Vec<syn::Path>,
-    /// The names of `parameters(...)`, in order, and the `parameters` key.
-    pub(crate) parameters: Option<(syn::Path, Vec<Ident>)>,
+    /// The entries of `parameters(...)`, in order, and the `parameters` key.
+    pub(crate) parameters: Option<(syn::Path, Vec<Parameter>)>,
+}
+
+/// One entry of `parameters(...)`: an `f64` field, or an array of them.
+pub(crate) struct Parameter {
+    /// The field.
+    pub(crate) name: Ident,
+    /// `K` of `name: [f64; K]`; `None` for a scalar.
+    pub(crate) len: Option<Len>,
+}
+
+/// An entry as written: `name` or `name: Type`.
+struct Entry {
+    name: Ident,
+    ty: Option<Type>,
+}
+
+impl Parse for Entry {
+    fn parse(input: ParseStream<'_>) -> syn::Result<Self> {
+        let name = input.parse()?;
+        let ty = if input.peek(Token![:]) {
+            input.parse::<Token![:]>()?;
+            Some(input.parse()?)
+        } else {
+            None
+        };
+        Ok(Entry { name, ty })
+    }
 }
 
 /// One declared symmetry.
@@ -56,7 +88,8 @@ const ARGUMENTS: &str = "`discontinuous`, `parameters(a, b, ...)`, `symmetry = t
                          `symmetry = rotation(i, j)` or `symmetry = generator(|q| ...)`";
 
 /// What `parameters` takes.
-const PARAMETERS: &str = "`parameters` takes the names of `f64` fields of the system, as in `parameters(m, l, g)`";
+const PARAMETERS: &str = "`parameters` takes the names of `f64` fields of the system, and of `[f64; K]` fields \
+                          with their type, as in `parameters(m, l, u: [f64; K])`";
 
 /// Parses the attribute's arguments, reporting what it cannot read.
 pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
@@ -101,7 +134,8 @@ pub(crate) fn parse(cx: &Ctxt, attr: TokenStream) -> Args {
     out
 }
 
-/// `parameters(a, b, ...)`: field names, at least one, each once.
+/// `parameters(a, b: [f64; K], ...)`: field names, at least one, each once,
+/// an array with its type.
 fn parameters(cx: &Ctxt, meta: &Meta, out: &mut Args) {
     let Meta::List(list) = meta else {
         cx.error_spanned_by(meta, PARAMETERS);
@@ -111,26 +145,88 @@ fn parameters(cx: &Ctxt, meta: &Meta, out: &mut Args) {
         cx.error_spanned_by(&list.path, "`parameters` is given twice: name every parameter in one list");
         return;
     }
-    let names = match list.parse_args_with(Punctuated::<Ident, Token![,]>::parse_terminated) {
-        Ok(names) => names,
+    let entries = match list.parse_args_with(Punctuated::<Entry, Token![,]>::parse_terminated) {
+        Ok(entries) => entries,
         Err(error) => {
             cx.error_at(error.span(), PARAMETERS);
             return;
         }
     };
-    if names.is_empty() {
+    if entries.is_empty() {
         cx.error_at(list.delimiter.span().join(), format!("`parameters()` names no parameter: {PARAMETERS}"));
         return;
     }
-    let mut seen: Vec<Ident> = Vec::new();
-    for name in names {
-        if seen.contains(&name) {
+    let mut seen: Vec<Parameter> = Vec::new();
+    // After a wrong entry the list is dropped: the bodies would only repeat
+    // the error, reading a field of another shape than the list says.
+    let mut wrong = false;
+    for Entry { name, ty } in entries {
+        if seen.iter().any(|parameter| parameter.name == name) {
             cx.error_spanned_by(&name, format!("parameter `{name}` is named twice"));
-        } else {
-            seen.push(name);
+            wrong = true;
+            continue;
         }
+        let len = match &ty {
+            None => None,
+            Some(ty) => match parameter_type(cx, &name, ty) {
+                Some(len) => len,
+                None => {
+                    wrong = true;
+                    continue;
+                }
+            },
+        };
+        seen.push(Parameter { name, len });
     }
-    out.parameters = Some((list.path.clone(), seen));
+    if !wrong {
+        out.parameters = Some((list.path.clone(), seen));
+    }
+}
+
+/// The length of a parameter of type `ty`: `Some(None)` for `f64`,
+/// `Some(Some(K))` for `[f64; K]`; `None` after reporting any other type.
+fn parameter_type(cx: &Ctxt, name: &Ident, ty: &Type) -> Option<Option<Len>> {
+    if is_f64(ty) {
+        return Some(None);
+    }
+    let Type::Array(array) = ungroup(ty) else {
+        cx.error_spanned_by(ty, format!("parameter `{name}` must be `f64` or an array `[f64; K]`"));
+        return None;
+    };
+    if let Type::Array(_) = ungroup(&array.elem) {
+        cx.error_spanned_by(
+            &array.elem,
+            format!(
+                "parameter `{name}` is a nested array: a parameter array is flat, `[f64; K]`; \
+                 store the entries in one array and index it"
+            ),
+        );
+        return None;
+    }
+    if !is_f64(&array.elem) {
+        cx.error_spanned_by(
+            &array.elem,
+            format!("parameter `{name}` must hold `f64`: the sensitivities are carried by `f64` entries, `[f64; K]`"),
+        );
+        return None;
+    }
+    if let Expr::Infer(_) = array.len {
+        cx.error_spanned_by(
+            &array.len,
+            format!("parameter `{name}` needs its length: write `[f64; K]` with `K` a literal or a `const` item"),
+        );
+        return None;
+    }
+    Some(Some(Len::from_expr(&array.len)))
+}
+
+/// `ty` without invisible groups and parentheses.
+fn ungroup(ty: &Type) -> &Type {
+    match ty {
+        Type::Group(inner) => ungroup(&inner.elem),
+        Type::Paren(inner) => ungroup(&inner.elem),
+        _ => ty,
+    }
 }
 
 /// One `symmetry = <value>`.

@@ -285,7 +285,8 @@ pub(crate) enum Len {
 }
 
 impl Len {
-    fn from_expr(expr: &Expr) -> Self {
+    /// The length written as `expr`.
+    pub(crate) fn from_expr(expr: &Expr) -> Self {
         match expr {
             Expr::Lit(syn::ExprLit { lit: Lit::Int(lit), .. }) => match lit.base10_parse() {
                 Ok(value) => Len::Lit { value, lit: lit.clone() },

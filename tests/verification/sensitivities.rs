@@ -119,11 +119,21 @@ fn term_gradient(f: impl Fn([Dual64; 2], [Dual64; 2], &[Dual64; 3]) -> Dual64, q
 /// dJ/d(q0, v0, θ) from the forward sensitivities of every node:
 /// `Σ_k ∂ℓ_k/∂(q, p) S_k + ∂ℓ_k/∂θ`.
 fn forward_gradient(scheme: &Scheme) -> ([f64; 7], Vec<Jacobian>, Solution<2>) {
-    let run = Problem::new(SYSTEM, 0.0, Q0, V0)
+    forward_gradient_of(SYSTEM, scheme, ["m1", "l1", "g"])
+}
+
+/// [`forward_gradient`] of `system`, whose parameters are `names` and hold
+/// the values of [`SYSTEM`]'s.
+fn forward_gradient_of<S: Parametric<2, 3>>(
+    system: S,
+    scheme: &Scheme,
+    names: [&str; 3],
+) -> ([f64; 7], Vec<Jacobian>, Solution<2>) {
+    let run = Problem::new(system, 0.0, Q0, V0)
         .solve_with_sensitivities(scheme, H, Plan::until(T_END).without_velocities())
         .unwrap();
     assert!(run.error.is_none() && run.solution.is_finished());
-    assert_eq!(run.parameters, ["m1", "l1", "g"]);
+    assert_eq!(run.parameters, names);
     let l = loss();
     let n = run.solution.len() - 1;
     let mut total = [0.0; 7];
@@ -195,6 +205,71 @@ fn galerkin_adjoint_agrees_with_forward_sensitivities_and_finite_differences() {
 #[test]
 fn composition_adjoint_agrees_with_forward_sensitivities_and_finite_differences() {
     adjoint_agrees(&Scheme::composition(Composition::KAHAN_LI8, OnePoint::Trapezoid));
+}
+
+/// Entries of [`ArrayPendulum::first`]: `m1`, `l1`.
+const LINK: usize = 2;
+
+/// [`DoublePendulum`] with `m1` and `l1` in one array parameter: the same
+/// `θ = (m1, l1, g)`, read as `first[0]`, `first[1]`, `g`.
+#[derive(Clone, Debug)]
+pub struct ArrayPendulum {
+    first: [f64; LINK],
+    m2: f64,
+    l2: f64,
+    g: f64,
+}
+
+#[lagrangian(parameters(first: [f64; LINK], g))]
+impl ArrayPendulum {
+    // `DoublePendulum`'s body with `self.m1`, `self.l1` spelt
+    // `self.first[0]`, `self.first[1]`: the same expression tree.
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        let kinetic = 0.5 * (self.first[0] + self.m2) * self.first[1] * self.first[1] * v[0] * v[0]
+            + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
+            + self.m2 * self.first[1] * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
+        let potential =
+            -(self.first[0] + self.m2) * self.g * self.first[1] * q[0].cos() - self.m2 * self.g * self.l2 * q[1].cos();
+        kinetic - potential
+    }
+}
+
+#[test]
+fn an_array_parameter_differentiates_as_the_scalars_it_holds() {
+    let system = ArrayPendulum { first: [SYSTEM.m1, SYSTEM.l1], m2: SYSTEM.m2, l2: SYSTEM.l2, g: SYSTEM.g };
+    assert_eq!(ArrayPendulum::NAMES, ["first[0]", "first[1]", "g"]);
+    assert_eq!(system.parameters(), SYSTEM.parameters());
+    let moved = system.with_parameters([1.5, 0.7, 9.0]);
+    assert_eq!((moved.first, moved.m2, moved.l2, moved.g), ([1.5, 0.7], SYSTEM.m2, SYSTEM.l2, 9.0));
+
+    // The same expression tree as with scalar parameters, evaluated in the
+    // same order: the same numbers, bit for bit.
+    let scheme = Scheme::MIDPOINT;
+    let arrays = Problem::new(system.clone(), 0.0, Q0, V0)
+        .gradient(&scheme, H, T_END, &loss(), Checkpoints::Budget(100))
+        .unwrap();
+    let scalars = adjoint(&scheme, Checkpoints::Budget(100));
+    let (forward_arrays, jacobians_arrays, _) = forward_gradient_of(system, &scheme, ["first[0]", "first[1]", "g"]);
+    let (forward_scalars, jacobians_scalars, _) = forward_gradient(&scheme);
+    let entries = |jacobians: &[Jacobian]| -> Vec<f64> {
+        jacobians.iter().flat_map(|s| (0..4).flat_map(move |i| (0..7).map(move |col| s.get(i, col)))).collect()
+    };
+    let differences = [
+        relative(&components(&arrays), &components(&scalars)),
+        relative(&[arrays.value], &[scalars.value]),
+        relative(&forward_arrays, &forward_scalars),
+        relative(&entries(&jacobians_arrays), &entries(&jacobians_scalars)),
+    ];
+    eprintln!(
+        "array vs scalar parameters (adjoint, value, forward, Jacobians): {:?}",
+        differences.map(|d| format!("{d:.1e}"))
+    );
+    assert_eq!(differences, [0.0; 4]);
+    // And the adjoint of the array system agrees with its forward
+    // sensitivities, as for the scalars.
+    let vs_forward = relative(&components(&arrays), &forward_arrays);
+    eprintln!("array parameters: adjoint vs forward: {vs_forward:.1e}");
+    assert!(vs_forward <= 1e-12, "{vs_forward:e}");
 }
 
 #[test]

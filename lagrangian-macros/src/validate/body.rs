@@ -523,13 +523,15 @@ impl Lower<'_> {
         let args = all(call.args.iter().map(|arg| self.expr(arg)).collect());
         // `q.len()`, `v.len()`: the bound of a loop over a run-time-sized
         // chain (and valid on arrays too), also through a local (`let x =
-        // q;`, a local array).
+        // q;`, a local array) or of an array field (`self.u.len()`, which
+        // a parameter array turns into a local).
         let is_len = method == "len"
             && call.args.is_empty()
-            && matches!(
-                &receiver,
-                Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, _) | ExprKind::Local(..), .. })
-            );
+            && match &receiver {
+                Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, _) | ExprKind::Local(..), .. }) => true,
+                Some(Expr { kind: ExprKind::Field { base, .. }, .. }) => matches!(base.kind, ExprKind::SelfValue(_)),
+                _ => false,
+            };
         let math = match &receiver {
             _ if is_len => Some(Math::Len),
             Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, param), .. }) => {

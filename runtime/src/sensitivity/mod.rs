@@ -28,6 +28,8 @@
 pub mod adjoint;
 pub mod forward;
 pub mod linearisation;
+#[doc(hidden)]
+pub mod names;
 mod parametric;
 mod pullback;
 

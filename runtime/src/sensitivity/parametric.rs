@@ -10,11 +10,14 @@ use crate::system::{Lagrangian, Scalar};
 /// `#[lagrangian(parameters(m, l, g))]` implements it: the parameters are
 /// `f64` fields of the system, read in the bodies as `self.m`; the generated
 /// `*_with` methods are the bodies with every `self.m` replaced by `theta[0]`
-/// (in the order of the list). At `theta = self.parameters()` they are the
-/// [`Lagrangian`] methods. A parametric system is `Clone`, as a
-/// [`Problem`](crate::Problem)'s system is.
+/// (in the order of the list). An array field `parameters(m, u: [f64; K])`
+/// contributes its `K` entries in order, named `u[0]`, `u[1]`, …. At
+/// `theta = self.parameters()` they are the [`Lagrangian`] methods. A
+/// parametric system is `Clone`, as a [`Problem`](crate::Problem)'s system
+/// is.
 pub trait Parametric<const N: usize, const P: usize>: Lagrangian<N> + Clone {
-    /// The parameters' names, in order (the field names).
+    /// The parameters' names, in order: the field names, `u[i]` for the
+    /// entries of an array field.
     const NAMES: [&'static str; P];
 
     /// The parameters' current values.
