@@ -17,6 +17,7 @@ use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
+use lagrangian_bench::cartesian::{AnglePendulum, CartesianPendulum};
 use lagrangian_bench::clock::Clock;
 
 /// The hanging chain of the constraint tests (`Links`, `folded`).
@@ -25,29 +26,6 @@ mod links;
 use links::{Links, folded};
 
 const H: f64 = 0.01;
-
-/// A unit pendulum under unit gravity in its angle.
-struct AnglePendulum;
-
-#[lagrangian]
-impl AnglePendulum {
-    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
-        0.5 * v[0] * v[0] + q[0].cos()
-    }
-}
-
-/// The same pendulum as a point on the unit circle.
-struct CartesianPendulum;
-
-#[lagrangian]
-impl CartesianPendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
-    }
-    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
-        [q[0] * q[0] + q[1] * q[1] - 1.0]
-    }
-}
 
 /// A double pendulum (unit masses, lengths and gravity) in its two angles.
 struct AngleDoublePendulum;

@@ -25,32 +25,9 @@
 
 use lagrangian::Composition;
 use lagrangian::prelude::*;
-use lagrangian_bench::cartesian::system;
+use lagrangian_bench::cartesian::{AnglePendulum, CartesianPendulum, system};
 use lagrangian_bench::constrained::CartesianDoublePendulum;
 use lagrangian_bench::problems::{DoublePendulum, Model};
-
-/// A unit pendulum under unit gravity in its angle.
-struct AnglePendulum;
-
-#[lagrangian]
-impl AnglePendulum {
-    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
-        0.5 * v[0] * v[0] + q[0].cos()
-    }
-}
-
-/// The same pendulum as a point on the unit circle.
-struct CartesianPendulum;
-
-#[lagrangian]
-impl CartesianPendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
-    }
-    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
-        [q[0] * q[0] + q[1] * q[1] - 1.0]
-    }
-}
 
 /// `steps` steps of size `h` from `(q0, v0)`; prints the Newton iterations per step.
 fn run<S: Lagrangian<N>, M: F64Readouts, const N: usize>(

@@ -2,7 +2,10 @@
 //! Cartesian coordinates `(x₁, y₁, x₂, y₂)` with its two rod constraints:
 //! the `#[lagrangian]` system, the maps between its positions and the
 //! angles, its energy, and the measure of how far a state is from the
-//! constraints that the report applies to every method.
+//! constraints that the report applies to every method. Also the single
+//! pendulum in its angle and as a point on the unit circle, the pair whose
+//! step costs `benches/constrained.rs` and `examples/constrained_steps.rs`
+//! compare.
 
 use lagrangian::prelude::*;
 
@@ -101,4 +104,29 @@ pub fn energy(q: &[f64; 4], v: &[f64; 4]) -> f64 {
     0.5 * p.m1 * (v[0] * v[0] + v[1] * v[1])
         + 0.5 * p.m2 * (v[2] * v[2] + v[3] * v[3])
         + p.g * (p.m1 * q[1] + p.m2 * q[3])
+}
+
+/// A unit pendulum under unit gravity in its angle.
+#[derive(Debug, Clone, Copy)]
+pub struct AnglePendulum;
+
+#[lagrangian]
+impl AnglePendulum {
+    fn lagrangian(&self, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] + q[0].cos()
+    }
+}
+
+/// The same pendulum as a point on the unit circle.
+#[derive(Debug, Clone, Copy)]
+pub struct CartesianPendulum;
+
+#[lagrangian]
+impl CartesianPendulum {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) - q[1]
+    }
+    fn constraints(&self, q: [f64; 2]) -> [f64; 1] {
+        [q[0] * q[0] + q[1] * q[1] - 1.0]
+    }
 }
