@@ -84,11 +84,16 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     /// When to try the fixed-point iteration again after it failed to
     /// converge fast enough (`collocation.rs`): the same back-off as the kept block's.
     pub(crate) fixed_point: KeptPolicy,
+    /// The rows of `M⁻¹` of a system whose mass matrix is proven constant,
+    /// for the fixed-point iteration (`collocation::constant_mass_inverse`);
+    /// empty until a step computes it.
+    pub(crate) mass_inverse: Box<[[T; N]]>,
 }
 
 impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
     fn clone(&self) -> Self {
-        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point } = self;
+        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point, mass_inverse } =
+            self;
         Self {
             t0: *t0,
             h: *h,
@@ -101,15 +106,22 @@ impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
             kept_policy: *kept_policy,
             evaluations: *evaluations,
             fixed_point: *fixed_point,
+            mass_inverse: mass_inverse.clone(),
         }
     }
 
     /// The blocks into the storage they have: a copy of an integrator made
     /// before each step of a `solve` does not allocate.
     fn clone_from(&mut self, source: &Self) {
-        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point } = self;
+        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point, mass_inverse } =
+            self;
         block.clone_from(&source.block);
         spare.clone_from(&source.spare);
+        if mass_inverse.len() == source.mass_inverse.len() {
+            mass_inverse.copy_from_slice(&source.mass_inverse);
+        } else {
+            *mass_inverse = source.mass_inverse.clone();
+        }
         (*t0, *h, *q0, *carry, *d, *jacobian) =
             (source.t0, source.h, source.q0, source.carry, source.d, source.jacobian);
         (*kept_policy, *evaluations, *fixed_point) = (source.kept_policy, source.evaluations, source.fixed_point);
@@ -337,6 +349,7 @@ where
                 StageIteration::Automatic => fixed_policy.offers(),
             };
         let mut fixed_spent = 0;
+        let mut velocity_hessians = 0;
         if fixed_offered {
             let p = (&p0, &self.p_carry);
             // Alone, the fixed point is only stopped by divergence.
@@ -344,8 +357,42 @@ where
                 StageIteration::FixedPoint => 1.0,
                 _ => collocation::SLOWEST_CONTRACTION,
             };
-            match collocation::solve(&self.system, &self.method, t0, h, (&q0, &e), p, &predicted, slowest) {
-                Ok(c) => return self.commit_fixed_point(h, t1, c, &predicted),
+            // A constant mass matrix is inverted once per run (kept in the
+            // memory from the first step on).
+            let mut computed = None;
+            if Sys::SEPARABILITY.has_constant_mass()
+                && self.memory.as_ref().is_none_or(|last| last.mass_inverse.is_empty())
+            {
+                computed = collocation::constant_mass_inverse(&self.system, t0, q0, self.v0);
+            }
+            let mass_inverse = match (&computed, &self.memory) {
+                (Some(m), _) => Some(&**m),
+                (None, Some(last)) if !last.mass_inverse.is_empty() => Some(&*last.mass_inverse),
+                _ => None,
+            };
+            let solved =
+                collocation::solve(&self.system, &self.method, t0, h, (&q0, &e), p, &predicted, slowest, mass_inverse);
+            // Hessians in `v` the first iteration evaluated: one for a
+            // constant mass matrix inverted at this step, none for one kept.
+            velocity_hessians = match (&computed, mass_inverse) {
+                (Some(_), _) => 1,
+                (None, Some(_)) => 0,
+                (None, None) => R,
+            };
+            if self.memory.is_some()
+                && let Some(m) = computed.take()
+            {
+                self.keep_mass_inverse(m);
+            }
+            match solved {
+                Ok(c) => {
+                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians)?;
+                    // The first step's memory exists only now.
+                    if let Some(m) = computed {
+                        self.keep_mass_inverse(m);
+                    }
+                    return Ok(());
+                }
                 Err(failure) if iteration == StageIteration::FixedPoint => {
                     let failure = NewtonFailure::Rejected { iterations: failure.iterations, reason: failure.reason };
                     return Err(self.fail(h, failure));
@@ -498,11 +545,18 @@ where
             let fixed_gradients = fixed_spent.saturating_sub(1);
             last.evaluations.gradients += (R * (kept_linearisations + fixed_gradients + 1)) as u64;
             last.evaluations.hessians += (R * new_linearisations) as u64;
-            if fixed_offered {
-                last.evaluations.velocity_hessians += R as u64;
-            }
+            last.evaluations.velocity_hessians += velocity_hessians as u64;
         }
         Ok(())
+    }
+
+    /// Keeps `M⁻¹` of a constant mass matrix for the later steps.
+    fn keep_mass_inverse(&mut self, m: Box<[[T; N]]>) {
+        if let Some(last) = &mut self.memory
+            && last.mass_inverse.is_empty()
+        {
+            last.mass_inverse = m;
+        }
     }
 
     /// Applies a step the fixed-point iteration solved (`converged`, from
@@ -514,6 +568,7 @@ where
         t1: T,
         converged: collocation::Converged<N, S, T>,
         predicted: &BlockVector<N, S, T>,
+        velocity_hessians: usize,
     ) -> Result<(), Error<N, T>> {
         let collocation::Converged { d, iterations, residual_norm, correction_norm } = converged;
         let report = NewtonReport { iterations, residual_norm, correction_norm };
@@ -532,7 +587,7 @@ where
             last.fixed_point = KeptPolicy::default();
             // The first iteration's gradients come with the Hessians in v.
             last.evaluations.gradients += (R * iterations) as u64;
-            last.evaluations.velocity_hessians += R as u64;
+            last.evaluations.velocity_hessians += velocity_hessians as u64;
         }
         Ok(())
     }
@@ -645,6 +700,7 @@ where
                     kept_policy: KeptPolicy::default(),
                     evaluations: PointEvaluations::default(),
                     fixed_point: KeptPolicy::default(),
+                    mass_inverse: Box::new([]),
                 });
             }
         }
@@ -1401,6 +1457,33 @@ mod tests {
         sim.run(200, |_| {}).unwrap();
         let (e, s) = (sim.point_evaluations(), sim.stats());
         assert_eq!(e, PointEvaluations { gradients: 6 * s.newton_iterations, hessians: 0, velocity_hessians: 6 * 200 });
+    }
+
+    /// Kepler with its constant mass matrix declared: `M⁻¹` is kept.
+    struct ConstantMassKepler;
+
+    impl Lagrangian<2> for ConstantMassKepler {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false, false];
+        const SEPARABILITY: crate::Separability = crate::Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
+            Kepler.lagrangian(t, q, v)
+        }
+    }
+
+    /// A constant mass matrix is inverted once per run, and the steps are
+    /// those of the inverse formed at every point, bit for bit.
+    #[test]
+    fn a_constant_mass_matrix_is_inverted_once() {
+        let fixed = Galerkin::<4, 4>::gauss().with_iteration(StageIteration::FixedPoint);
+        let (q0, v0) = ([0.5, 0.0], [0.0, 3f64.sqrt()]);
+        let mut kept = Integrator::new(ConstantMassKepler, fixed, 0.05).start(0.0, q0, v0).unwrap();
+        let mut every = Integrator::new(Kepler, fixed, 0.05).start(0.0, q0, v0).unwrap();
+        kept.run(200, |_| {}).unwrap();
+        every.run(200, |_| {}).unwrap();
+        assert_eq!(kept.state(), every.state());
+        assert_eq!(kept.point_evaluations().velocity_hessians, 1);
+        assert_eq!(every.point_evaluations().velocity_hessians, 4 * 200);
     }
 
     /// `L = ½v² + ln q`, defined for `q > 0` only.
