@@ -616,7 +616,13 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)
+        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(&StepPolicy::Fixed)?;
+        match policy {
+            StepPolicy::Fixed => Ok(()),
+            StepPolicy::EnergyPreserving(_) => Err(Error::Unsupported {
+                what: "energy-preserving steps with holonomic constraints and a galerkin rule: the constrained one-point rules (midpoint, trapezoid, α-β) take them",
+            }),
+        }
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(
