@@ -199,7 +199,9 @@ fn damped_pendulum_energy_balance_steps_lose_exactly_the_dissipated_work() {
     // Σ W_k^δt over the nodes between steps: the discrete work of the
     // dissipation the energy equation carries.
     let (mut work, mut g) = (0.0f64, 0.0f64);
-    sim.run(2000, |s| {
+    // 500 steps, to t ≈ 8: still whirling (slower whirls lose the energy
+    // root as the swings do).
+    sim.run(500, |s| {
         work += s.energy_balance().map_or(0.0, |b| b.variational_work);
         g = g.max(s.constraint_values()[0].abs());
     })
@@ -227,10 +229,13 @@ fn energy_steps_refuse_moving_constraints_and_other_families() {
         .energy_preserving(bounds.with_accuracy(1e-4))
         .start(0.0, q0, v0);
     assert!(matches!(accuracy, Err(Error::Unsupported { .. })), "{accuracy:?}");
-    let galerkin = Integrator::new(Pendulum, Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss()), 0.01)
-        .energy_preserving(bounds)
-        .start(0.0, q0, v0);
-    assert!(matches!(galerkin, Err(Error::Unsupported { .. })), "{galerkin:?}");
+    // Galerkin rules: autonomous and unforced systems only, as without constraints.
+    let gauss = Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss());
+    let moving =
+        Integrator::new(Lengthening, gauss, 0.01).energy_preserving(bounds).start(0.0, [0.0, -1.0], [1.0, -0.1]);
+    assert!(matches!(moving, Err(Error::Unsupported { .. })), "{moving:?}");
+    let damped = Integrator::new(DampedPendulum, gauss, 0.01).energy_preserving(bounds).start(0.0, q0, v0);
+    assert!(matches!(damped, Err(Error::Unsupported { .. })), "{damped:?}");
     let composition = Integrator::new(Pendulum, Constrained::<_, 1>::composition(Composition::YOSHIDA4), 0.01)
         .energy_preserving(bounds)
         .start(0.0, q0, v0);
@@ -273,4 +278,37 @@ fn a_step_without_an_energy_root_fails_typed_with_the_stepper_unchanged() {
         }
     }
     panic!("the swing found an energy root at every step");
+}
+
+#[test]
+fn galerkin_energy_steps_hold_the_energy_and_the_circle() {
+    let (q0, v0) = WHIRL;
+    let method = Constrained::<_, 1>::galerkin(Galerkin::<2, 2>::gauss());
+    let mut sim =
+        Integrator::new(Pendulum, method, 0.05).energy_preserving(StepBounds::around(0.05)).start(0.0, q0, v0).unwrap();
+    sim.step().unwrap();
+    let e1 = sim.discrete_energy();
+    let (mut energy, mut g, mut h_min, mut h_max) = (0.0f64, 0.0f64, f64::INFINITY, 0.0f64);
+    sim.run(5000, |s| {
+        energy = energy.max((s.discrete_energy() - e1).abs() / e1.abs());
+        g = g.max(s.constraint_values()[0].abs());
+        let h = s.last_step_size().unwrap();
+        (h_min, h_max) = (h_min.min(h), h_max.max(h));
+    })
+    .unwrap();
+    let mut fixed = Integrator::new(Pendulum, method, 0.05).start(0.0, q0, v0).unwrap();
+    fixed.step().unwrap();
+    let f1 = fixed.discrete_energy();
+    let mut fixed_energy = 0.0f64;
+    fixed.run(5000, |s| fixed_energy = fixed_energy.max((s.discrete_energy() - f1).abs() / f1.abs())).unwrap();
+    let stats = sim.stats();
+    println!(
+        "whirling pendulum, Gauss s = 2, 5000 energy steps: relative energy error {energy:e} (fixed steps {fixed_energy:e}), \
+         max |g| {g:e}, h in [{h_min}, {h_max}], {:.1} Newton iterations per step",
+        stats.newton_iterations as f64 / stats.steps as f64
+    );
+    assert!(energy <= 1e-13, "relative energy error {energy:e}");
+    assert!(fixed_energy > 1e-8, "fixed steps: relative energy error {fixed_energy:e}");
+    assert!(g <= 1e-15, "max |g| {g:e}");
+    assert!(h_max / h_min > 1.001, "the steps do not vary: [{h_min}, {h_max}]");
 }

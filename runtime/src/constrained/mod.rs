@@ -49,6 +49,7 @@ mod cotangent;
 pub mod dynamic;
 mod energy;
 mod galerkin;
+mod galerkin_energy;
 mod kkt;
 mod linear;
 mod project;

@@ -290,7 +290,9 @@ pub(crate) trait EnergySearch<const N: usize> {
 
     /// Newton on `g`, safeguarded by bisection, inside a sign change
     /// `a.h < b.h` (the classic `rtsafe` scheme: bisect whenever Newton would
-    /// leave the bracket or does not halve the previous correction). A trial
+    /// leave the bracket or does not halve the previous correction); a
+    /// probe without a slope (NaN) takes the secant through the bracket's
+    /// ends instead. A trial
     /// whose DEL fails is replaced by the bisection point; a second failure
     /// in a row ends the search with that error.
     fn root(
@@ -304,10 +306,12 @@ pub(crate) trait EnergySearch<const N: usize> {
         let mut dx = dx_old;
         for _ in 0..200 {
             let (ha, hb) = (a.h, b.h);
-            let newton = x.h - x.g / x.slope;
-            let h = if newton > ha && newton < hb && (2.0 * x.g).abs() <= (dx_old * x.slope).abs() {
+            // Where the probe has no slope, the secant through the bracket's ends.
+            let slope = if x.slope.is_nan() { (b.g - a.g) / (hb - ha) } else { x.slope };
+            let newton = x.h - x.g / slope;
+            let h = if newton > ha && newton < hb && (2.0 * x.g).abs() <= (dx_old * slope).abs() {
                 dx_old = dx;
-                dx = x.g / x.slope;
+                dx = x.g / slope;
                 newton
             } else {
                 dx_old = dx;
