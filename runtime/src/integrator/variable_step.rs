@@ -38,8 +38,9 @@
 //! A step never goes backwards in time and never leaves the bracket.
 //!
 //! The second stage is written once, as [`EnergySearch`]: the constrained
-//! one-point rules (`constrained/energy.rs`) run it with trial steps that
-//! solve the constrained position line.
+//! one-point rules (`constrained/energy.rs`) and Galerkin rules
+//! (`constrained/galerkin_energy.rs`) run it alone, with trial steps that
+//! solve the constrained step.
 
 use nalgebra::SVector;
 
