@@ -696,11 +696,11 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         it: &mut Integrator<Sys, Self, N>,
         bounds: StepBounds,
     ) -> Result<(), Error<N>> {
-        super::galerkin_energy::energy_step(it, bounds)
+        it.constrained_node_energy_step(bounds)
     }
 
     fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N>) {
-        super::galerkin_energy::reread_energy(it);
+        it.reread_constrained_node_energy();
     }
 
     fn last_step_size<const N: usize>(memory: &ConstrainedGalerkinMemory<N, S, M>) -> Option<f64> {

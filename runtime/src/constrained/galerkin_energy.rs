@@ -24,63 +24,58 @@ use crate::integrator::{Clock, EnergyFallback, EnergySearch, Integrator, Method,
 use crate::state::State;
 use crate::system::Lagrangian;
 
-/// One energy-preserving step (the first has the given size); on failure
-/// nothing in `it` has changed but the saddle-point storage.
-pub(super) fn energy_step<Sys, const N: usize, const S: usize, const R: usize, const M: usize>(
-    it: &mut Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>,
-    bounds: StepBounds,
-) -> Result<(), Error<N>>
+impl<Sys, const N: usize, const S: usize, const R: usize, const M: usize>
+    Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>
 where
     Sys: Lagrangian<N>,
 {
-    // `start` refuses these (`supports`); no energy-step code for them.
-    if const { Sys::HAS_FORCE || Sys::HAS_DISSIPATION || !Sys::AUTONOMOUS || !Sys::CONSTRAINTS_AUTONOMOUS } {
-        return Err(Error::Unsupported { what: "energy-preserving galerkin steps for this system" });
-    }
-    let Some(last) = it.memory.last else {
-        let h = it.h;
-        let t1 = it.state.t + h;
-        <Constrained<Galerkin<S, R>, M> as Method<f64>>::fixed_step(it, h, t1)?;
-        reread_energy(it);
-        return Ok(());
-    };
-    let (lo, hi) = bounds.bracket(last.h);
-    let guess = it.h.clamp(lo, hi);
-    match it.bracketed(guess, lo, hi, false, 0) {
-        Ok(((h, solved), report, taken)) => {
-            let t0 = it.state.t;
-            let y = h - it.time_error;
-            let t1 = t0 + y;
-            let mut solved = solved;
-            solved.iterations = report.iterations;
-            commit(it, h, t1, &solved);
-            it.time_error = (t1 - t0) - y;
-            if taken != Taken::Root {
-                // A least-mismatch step changed the energy: conserve its new value.
-                reread_energy(it);
-                it.stats.energy_fallbacks += 1;
+    /// One energy-preserving step (the first has the given size); on
+    /// failure nothing in the integrator has changed but the saddle-point
+    /// storage.
+    pub(super) fn constrained_node_energy_step(&mut self, bounds: StepBounds) -> Result<(), Error<N>> {
+        // `start` refuses these (`supports`); no energy-step code for them.
+        if const { Sys::HAS_FORCE || Sys::HAS_DISSIPATION || !Sys::AUTONOMOUS || !Sys::CONSTRAINTS_AUTONOMOUS } {
+            return Err(Error::Unsupported { what: "energy-preserving galerkin steps for this system" });
+        }
+        let Some(last) = self.memory.last else {
+            let (h, t1) = (self.h, self.state.t + self.h);
+            <Constrained<Galerkin<S, R>, M> as Method<f64>>::fixed_step(self, h, t1)?;
+            self.reread_constrained_node_energy();
+            return Ok(());
+        };
+        let (lo, hi) = bounds.bracket(last.h);
+        let guess = self.h.clamp(lo, hi);
+        match self.bracketed(guess, lo, hi, false, 0) {
+            Ok(((h, mut solved), report, taken)) => {
+                let t0 = self.state.t;
+                let y = h - self.time_error;
+                let t1 = t0 + y;
+                solved.iterations = report.iterations;
+                commit(self, h, t1, &solved);
+                self.time_error = (t1 - t0) - y;
+                if taken != Taken::Root {
+                    // A least-mismatch step changed the energy: conserve its new value.
+                    self.reread_constrained_node_energy();
+                    self.stats.energy_fallbacks += 1;
+                }
+                self.stats.last = report;
+                self.h = h;
+                self.clock = Clock { t: self.state.t, step: self.state.step };
+                Ok(())
             }
-            it.stats.last = report;
-            it.h = h;
-            it.clock = Clock { t: it.state.t, step: it.state.step };
-            Ok(())
-        }
-        Err(error) => {
-            it.stats.failed_steps += 1;
-            Err(error)
+            Err(error) => {
+                self.stats.failed_steps += 1;
+                Err(error)
+            }
         }
     }
-}
 
-/// Sets the energy target to the discrete energy of the last step.
-pub(super) fn reread_energy<Sys, const N: usize, const S: usize, const R: usize, const M: usize>(
-    it: &mut Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>,
-) where
-    Sys: Lagrangian<N>,
-{
-    it.energy_carry = 0.0;
-    if let Some(last) = &it.memory.last {
-        it.energy = step_energy(&it.system, &it.method.rule, last);
+    /// Sets the energy target to the discrete energy of the last step.
+    pub(super) fn reread_constrained_node_energy(&mut self) {
+        self.energy_carry = 0.0;
+        if let Some(last) = &self.memory.last {
+            self.energy = step_energy(&self.system, &self.method.rule, last);
+        }
     }
 }
 
