@@ -42,8 +42,8 @@ pub use sparse::Derivatives;
 pub(crate) use sparse::velocity as reverse_mode_velocity;
 pub(crate) use tape_step::{SparseWork, TapeModel, velocity_derivatives};
 pub(crate) use tape_step::{energy as tape_energy, legendre as tape_legendre};
-pub(crate) use variable_step::root_band;
 pub use variable_step::{EnergyFallback, StepBounds};
+pub(crate) use variable_step::{EnergySearch, Probe, Taken, root_band};
 
 /// Counters of the work an integrator has done.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

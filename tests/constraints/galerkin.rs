@@ -165,15 +165,12 @@ fn a_failed_galerkin_step_keeps_the_state_and_bad_input_is_typed() {
     assert!(matches!(one.step(), Err(Error::NewtonDidNotConverge { .. })));
     assert_eq!(one.state().q, q0);
 
-    // Inconsistent initial data, a wrong count, energy-preserving steps: refused.
+    // Inconsistent initial data, a wrong count: refused.
     let off = Integrator::new(Pendulum, method, 0.01).start(0.0, [0.8, -0.7], [0.0; 2]);
     assert!(matches!(off, Err(Error::InconsistentConstraints { .. })), "{off:?}");
     let wrong = Integrator::new(Pendulum, Constrained::<_, 2>::galerkin(Galerkin::<2, 2>::gauss()), 0.01)
         .start(0.0, q0, [0.0; 2]);
     assert!(matches!(wrong, Err(Error::Unsupported { .. })), "{wrong:?}");
-    let energy =
-        Integrator::new(Pendulum, method, 0.01).energy_preserving(StepBounds::around(0.01)).start(0.0, q0, [0.0; 2]);
-    assert!(matches!(energy, Err(Error::Unsupported { .. })), "{energy:?}");
 }
 
 #[test]

@@ -106,7 +106,9 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)
+        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(&StepPolicy::Fixed)?;
+        // Refused as without constraints.
+        self.rule.supports::<Sys, N>(policy)
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(

@@ -87,8 +87,8 @@ use crate::banded::{DenseMatrix, StepMatrix};
 use crate::dense::{Hermite, Node};
 use crate::discrete::Midpoint;
 use crate::error::Error;
-use crate::galerkin::{Galerkin, NoJacobian, PointDerivatives, point_gradient};
-use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment};
+use crate::galerkin::{Galerkin, NoJacobian, PointDerivatives, point_gradient, supports_policy};
+use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment};
 use crate::newton::NewtonOptions;
 use crate::real::max_abs;
 use crate::state::State;
@@ -140,7 +140,8 @@ pub(super) struct Guess<const N: usize, const S: usize, const M: usize> {
 }
 
 /// A solved step.
-pub(super) struct Solved<const N: usize, const S: usize, const M: usize> {
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Solved<const N: usize, const S: usize, const M: usize> {
     pub(super) d: [[f64; N]; S],
     pub(super) lambda: [f64; M],
     pub(super) interior: [[f64; M]; S],
@@ -559,6 +560,27 @@ where
     e
 }
 
+/// Takes the solved step of size `h` ending at `t1`.
+pub(super) fn commit<Sys, const N: usize, const S: usize, const R: usize, const M: usize>(
+    it: &mut Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>,
+    h: f64,
+    t1: f64,
+    solved: &Solved<N, S, M>,
+) where
+    Sys: Lagrangian<N>,
+{
+    let State { step, t: t0, q: q0, .. } = it.state;
+    let (q_new, carry) = add_increment(it.summation, &q0, &it.carry, &solved.d[S - 1]);
+    it.state = State { step: step + 1, t: t1, q: q_new, p: solved.momentum };
+    it.carry = carry;
+    it.p_carry = [0.0; N];
+    let memory = &mut it.memory;
+    memory.last = Some(Segment { t0, h, q0, d: solved.d });
+    (memory.lambda, memory.interior, memory.velocity) = (solved.lambda, solved.interior, solved.velocity);
+    it.stats.steps += 1;
+    it.stats.newton_iterations += solved.iterations as u64;
+}
+
 impl<const S: usize, const R: usize, const M: usize> Constrained<Galerkin<S, R>, M> {
     /// The Galerkin rule `rule` with `M` constraints imposed at its control
     /// nodes, the end momentum on the hidden constraint (RATTLE-style). With
@@ -616,7 +638,10 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
     }
 
     fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
-        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)
+        // Moving constraints and accuracy bounds as for the one-point rules;
+        // forces and a time-dependent `L` as without constraints.
+        Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)?;
+        supports_policy::<Sys, N, f64>(policy)
     }
 
     fn supports_derivatives<Sys: Lagrangian<N>, const N: usize>(
@@ -641,7 +666,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         h: f64,
         t1: f64,
     ) -> Result<(), Error<N>> {
-        let State { step, t: t0, q: q0, p: p0 } = it.state;
+        let State { t: t0, q: q0, p: p0, .. } = it.state;
         let v = if it.memory.last.is_some() { it.memory.velocity } else { it.v0 };
         let guess = predict(&it.method.rule, h, &it.memory, &v);
         let times = (t0, h, t1);
@@ -655,23 +680,27 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
             &mut it.memory.work,
             it.state,
         );
-        let solved = match solved {
-            Ok(s) => s,
+        match solved {
+            Ok(solved) => {
+                commit(it, h, t1, &solved);
+                Ok(())
+            }
             Err(error) => {
                 it.stats.failed_steps += 1;
-                return Err(error);
+                Err(error)
             }
-        };
-        let (q_new, carry) = add_increment(it.summation, &q0, &it.carry, &solved.d[S - 1]);
-        it.state = State { step: step + 1, t: t1, q: q_new, p: solved.momentum };
-        it.carry = carry;
-        it.p_carry = [0.0; N];
-        let memory = &mut it.memory;
-        memory.last = Some(Segment { t0, h, q0, d: solved.d });
-        (memory.lambda, memory.interior, memory.velocity) = (solved.lambda, solved.interior, solved.velocity);
-        it.stats.steps += 1;
-        it.stats.newton_iterations += solved.iterations as u64;
-        Ok(())
+        }
+    }
+
+    fn energy_step<Sys: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<Sys, Self, N>,
+        bounds: StepBounds,
+    ) -> Result<(), Error<N>> {
+        it.constrained_node_energy_step(bounds)
+    }
+
+    fn reread_energy<Sys: Lagrangian<N>, const N: usize>(it: &mut Integrator<Sys, Self, N>) {
+        it.reread_constrained_node_energy();
     }
 
     fn last_step_size<const N: usize>(memory: &ConstrainedGalerkinMemory<N, S, M>) -> Option<f64> {

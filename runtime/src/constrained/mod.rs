@@ -47,7 +47,9 @@
 mod composition;
 mod cotangent;
 pub mod dynamic;
+mod energy;
 mod galerkin;
+mod galerkin_energy;
 mod kkt;
 mod linear;
 mod project;
@@ -65,7 +67,7 @@ use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
-use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepPolicy, add_increment, predict_into};
+use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment, predict_into};
 use crate::mechanics::DiscreteMechanics;
 use crate::real::max_abs;
 use crate::state::State;
@@ -237,8 +239,13 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
                 reason: "holonomic constraints: the number of constraints M must satisfy 0 < M < N",
             });
         }
-        if !matches!(policy, StepPolicy::Fixed) {
-            return Err(Error::Unsupported { what: "energy-preserving steps with holonomic constraints" });
+        if let StepPolicy::EnergyPreserving(bounds) = policy {
+            if !S::CONSTRAINTS_AUTONOMOUS {
+                return Err(Error::Unsupported { what: energy::MOVING_CONSTRAINTS });
+            }
+            if bounds.accuracy.is_some() {
+                return Err(Error::Unsupported { what: energy::ACCURACY_BOUND });
+            }
         }
         Ok(())
     }
@@ -302,6 +309,17 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         }
     }
 
+    fn energy_step<S: Lagrangian<N>, const N: usize>(
+        it: &mut Integrator<S, Self, N>,
+        bounds: StepBounds,
+    ) -> Result<(), Error<N>> {
+        energy::energy_step(it, bounds)
+    }
+
+    fn reread_energy<S: Lagrangian<N>, const N: usize>(it: &mut Integrator<S, Self, N>) {
+        energy::reread_energy(it);
+    }
+
     fn last_step_size<const N: usize>(memory: &ConstrainedMemory<N, M>) -> Option<f64> {
         memory.previous.map(|last| last.h)
     }
@@ -328,7 +346,7 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
 
 /// The solved position line of a step.
 #[derive(Clone, Copy, Debug)]
-struct Positions<const N: usize, const M: usize> {
+pub(crate) struct Positions<const N: usize, const M: usize> {
     /// The step from `q_k` to `q_{k+1}`.
     seg: Segment<N>,
     /// The multiplier `λ_k`.

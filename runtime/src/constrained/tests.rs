@@ -181,3 +181,30 @@ fn forced_moving_steps_converge_without_falling_back_and_hold_the_constraints() 
         );
     }
 }
+
+/// Energy-preserving constrained midpoint steps of the whirling double
+/// pendulum (both rods turning at rate 5 from hanging straight down): the
+/// discrete energy at round-off, the constraints at round-off, and steps
+/// that vary.
+#[test]
+fn energy_preserving_steps_conserve_the_discrete_energy_on_the_manifold() {
+    use crate::integrator::StepBounds;
+    let method = Constrained::<_, 2>::new(Midpoint);
+    let mut sim = Integrator::new(DoublePendulum, method, 0.005)
+        .energy_preserving(StepBounds::around(0.005))
+        .start(0.0, [0.0, -1.0, 0.0, -2.0], [5.0, 0.0, 10.0, 0.0])
+        .unwrap();
+    sim.step().unwrap();
+    let e0 = sim.discrete_energy();
+    let (mut drift, mut g, mut h_min, mut h_max) = (0.0f64, 0.0f64, f64::INFINITY, 0.0f64);
+    for _ in 0..2000 {
+        sim.step().unwrap();
+        drift = drift.max((sim.discrete_energy() - e0).abs() / e0.abs());
+        g = sim.constraint_values().iter().fold(g, |m, x| m.max(x.abs()));
+        let h = sim.last_step_size().unwrap();
+        (h_min, h_max) = (h_min.min(h), h_max.max(h));
+    }
+    assert!(drift <= 1e-13, "{drift:e}");
+    assert!(g <= 4.0 * f64::EPSILON, "{g:e}");
+    assert!(h_max / h_min > 1.01, "[{h_min}, {h_max}]");
+}

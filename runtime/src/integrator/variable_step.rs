@@ -36,6 +36,11 @@
 //!    (Kane, Marsden & Ortiz's least-squares choice).
 //!
 //! A step never goes backwards in time and never leaves the bracket.
+//!
+//! The second stage is written once, as [`EnergySearch`]: the constrained
+//! one-point rules (`constrained/energy.rs`) and Galerkin rules
+//! (`constrained/galerkin_energy.rs`) run it alone, with trial steps that
+//! solve the constrained step.
 
 use nalgebra::SVector;
 
@@ -146,7 +151,7 @@ pub enum EnergyFallback {
 
 /// How an energy-preserving step was chosen.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Taken {
+pub(crate) enum Taken {
     /// A root of the energy equation.
     Root,
     /// The least mismatch, by [`EnergyFallback::LeastSquares`].
@@ -156,23 +161,251 @@ enum Taken {
     Capped(f64),
 }
 
-/// One evaluation of the energy equation along the DEL solutions.
+/// One evaluation of the energy equation along the solutions of the
+/// step's position equations (the DEL, or its constrained form).
 #[derive(Clone, Copy, Debug)]
-struct Probe<const N: usize> {
-    /// The step, its DEL solved.
-    seg: Segment<N>,
+pub(crate) struct Probe<X> {
+    /// The trial step, its position equations solved.
+    pub(crate) trial: X,
+    /// Its size.
+    pub(crate) h: f64,
     /// `g(h) = ∂A/∂t_k − E_k`.
-    g: f64,
-    /// `g'(h)`, the Schur complement of the bordered Jacobian (NaN where `∂²A/∂q_k∂q_{k+1}` is singular).
-    slope: f64,
+    pub(crate) g: f64,
+    /// `g'(h)` along the solutions, the Schur complement of the bordered
+    /// Jacobian (NaN where it cannot be formed).
+    pub(crate) slope: f64,
     /// The size of the terms that cancel in `g`.
-    scale: f64,
+    pub(crate) scale: f64,
 }
 
-impl<const N: usize> Probe<N> {
+impl<X> Probe<X> {
     /// `g` is round-off of its own terms.
     fn solved(&self) -> bool {
         self.g.abs() <= 8.0 * f64::EPSILON * self.scale
+    }
+
+    /// The report of a step taken at this probe after `iterations` Newton
+    /// iterations in all.
+    fn report(&self, iterations: usize) -> NewtonReport {
+        NewtonReport { iterations, residual_norm: self.g.abs(), correction_norm: 0.0 }
+    }
+}
+
+/// The search over the step size `h` of an energy-preserving step: a
+/// family of steps whose position equations can be solved at any trial `h`
+/// ([`probe`](Self::probe)) gets the bracket search, the safeguarded Newton
+/// iteration on `g(h)` and the least-mismatch fallback written once here.
+pub(crate) trait EnergySearch<const N: usize> {
+    /// A trial step with its position equations solved.
+    type Trial: Copy;
+
+    /// `g(h)` and `g'(h)` with the position equations solved at step `h`;
+    /// the Newton iterations spent go to `spent`. Changes nothing the
+    /// integrator publishes.
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error<N>>;
+
+    /// What to do where no admissible step solves the energy equation.
+    fn fallback(&self) -> EnergyFallback;
+
+    /// [`Error::NoEnergyStep`] for the bracket `[lo, hi]`, whose least
+    /// mismatch is at `best`, after `spent` iterations.
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error<N>;
+
+    /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
+    ///
+    /// A trial step size whose DEL cannot be solved (Newton fails, or `g` is
+    /// not finite there) narrows the bracket to the side of the guess away
+    /// from it, instead of ending the step: a large trial step is the usual
+    /// failure, and the smaller ones may still hold a root or the least
+    /// mismatch. Only when no trial in the bracket solves does the step fail,
+    /// with the error of the last trial. `capped`: the accuracy bound, not
+    /// the step ratio, sets `hi` (see [`least_squares`](Self::least_squares)).
+    fn bracketed(
+        &mut self,
+        guess: f64,
+        mut lo: f64,
+        mut hi: f64,
+        capped: bool,
+        mut spent: usize,
+    ) -> Result<(Self::Trial, NewtonReport, Taken), Error<N>> {
+        let spent = &mut spent;
+        // The first probe that solves: the guess, or halfway down towards `lo`
+        // while trials fail (each failure lowers `hi`).
+        let mut h = guess;
+        let at_guess = loop {
+            match self.probe(h, spent) {
+                Ok(p) => break p,
+                Err(e) => {
+                    hi = h;
+                    let next = lo + 0.5 * (h - lo);
+                    if h <= lo || h - lo <= 1e-9 * h || next >= h {
+                        return Err(e);
+                    }
+                    h = if h - lo <= 1e-3 * h { lo } else { next };
+                }
+            }
+        };
+        if at_guess.solved() {
+            return Ok((at_guess.trial, at_guess.report(*spent), Taken::Root));
+        }
+        let guess = at_guess.h;
+        // Sample the bracket, nearest points first, for a sign change.
+        let mut left = at_guess;
+        let mut right = at_guess;
+        let mut bracket = None;
+        for k in 1..=8 {
+            let f = k as f64 / 8.0;
+            for below in [true, false] {
+                let h = if below { guess - f * (guess - lo) } else { guess + f * (hi - guess) };
+                if h == guess || h == left.h || h == right.h || h < lo || h > hi {
+                    continue;
+                }
+                let Ok(p) = self.probe(h, spent) else {
+                    // Unreachable trial: the bracket ends short of it.
+                    if below {
+                        lo = h;
+                    } else {
+                        hi = h;
+                    }
+                    continue;
+                };
+                if p.solved() {
+                    return Ok((p.trial, p.report(*spent), Taken::Root));
+                }
+                let near = if below { &mut left } else { &mut right };
+                if p.g.signum() != near.g.signum() {
+                    bracket = Some(if below { (p, *near) } else { (*near, p) });
+                    break;
+                }
+                *near = p;
+            }
+            if bracket.is_some() {
+                break;
+            }
+        }
+        match bracket {
+            Some((a, b)) => self.root(a, b, spent).map(|p| (p.trial, p.report(*spent), Taken::Root)),
+            None => self.least_squares(lo, hi, capped, at_guess, spent),
+        }
+    }
+
+    /// Newton on `g`, safeguarded by bisection, inside a sign change
+    /// `a.h < b.h` (the classic `rtsafe` scheme: bisect whenever Newton would
+    /// leave the bracket or does not halve the previous correction); a
+    /// probe without a slope (NaN) takes the secant through the bracket's
+    /// ends instead. A trial
+    /// whose DEL fails is replaced by the bisection point; a second failure
+    /// in a row ends the search with that error.
+    fn root(
+        &mut self,
+        mut a: Probe<Self::Trial>,
+        mut b: Probe<Self::Trial>,
+        spent: &mut usize,
+    ) -> Result<Probe<Self::Trial>, Error<N>> {
+        let mut x = if a.g.abs() < b.g.abs() { a } else { b };
+        let mut dx_old = b.h - a.h;
+        let mut dx = dx_old;
+        for _ in 0..200 {
+            let (ha, hb) = (a.h, b.h);
+            // Where the probe has no slope, the secant through the bracket's ends.
+            let slope = if x.slope.is_nan() { (b.g - a.g) / (hb - ha) } else { x.slope };
+            let newton = x.h - x.g / slope;
+            let h = if newton > ha && newton < hb && (2.0 * x.g).abs() <= (dx_old * slope).abs() {
+                dx_old = dx;
+                dx = x.g / slope;
+                newton
+            } else {
+                dx_old = dx;
+                dx = 0.5 * (hb - ha);
+                ha + dx
+            };
+            if dx.abs() <= 4.0 * f64::EPSILON * h || h <= ha || h >= hb {
+                return Ok(x);
+            }
+            let p = match self.probe(h, spent) {
+                Ok(p) => p,
+                Err(e) => {
+                    let mid = ha + 0.5 * (hb - ha);
+                    if h == mid {
+                        return Err(e);
+                    }
+                    dx = 0.5 * (hb - ha);
+                    self.probe(mid, spent)?
+                }
+            };
+            if p.solved() {
+                return Ok(p);
+            }
+            if p.g.signum() == a.g.signum() {
+                a = p;
+            } else {
+                b = p;
+            }
+            x = p;
+        }
+        Ok(x)
+    }
+
+    /// No sign change found: minimise `|g|` over `[lo, hi]` by golden section,
+    /// then report it or take it, as the fallback says. Trial steps whose DEL
+    /// fails count as infinitely bad.
+    ///
+    /// When the accuracy bound sets `hi` (`capped`), the step of least
+    /// mismatch is taken whatever the fallback: every step that could solve
+    /// the energy equation is longer than the accuracy asked for allows,
+    /// and the accuracy is the stronger demand. The step still solves the
+    /// DEL, the discrete energy takes its new value, and the step is counted
+    /// in [`Stats::accuracy_capped_steps`](super::Stats::accuracy_capped_steps)
+    /// with its relative mismatch in
+    /// [`Stats::largest_capped_energy_defect`](super::Stats::largest_capped_energy_defect).
+    fn least_squares(
+        &mut self,
+        lo: f64,
+        hi: f64,
+        capped: bool,
+        start: Probe<Self::Trial>,
+        spent: &mut usize,
+    ) -> Result<(Self::Trial, NewtonReport, Taken), Error<N>> {
+        const INV_PHI: f64 = 0.618_033_988_749_894_8;
+        let mismatch = |p: &Option<Probe<Self::Trial>>| p.map_or(f64::INFINITY, |p| p.g.abs());
+        let (mut a, mut b) = (lo, hi);
+        let mut c = b - INV_PHI * (b - a);
+        let mut d = a + INV_PHI * (b - a);
+        let mut pc = self.probe(c, spent).ok();
+        let mut pd = self.probe(d, spent).ok();
+        let mut best = start;
+        for _ in 0..60 {
+            for p in [pc, pd].into_iter().flatten() {
+                if p.g.abs() < best.g.abs() {
+                    best = p;
+                }
+                if p.g.signum() != start.g.signum() || p.solved() {
+                    // A root after all, between two roots the sampling stepped over.
+                    let (l, r) = if p.h < start.h { (p, start) } else { (start, p) };
+                    let root = if p.solved() { p } else { self.root(l, r, spent)? };
+                    return Ok((root.trial, root.report(*spent), Taken::Root));
+                }
+            }
+            if b - a <= 1e-9 * b {
+                break;
+            }
+            if mismatch(&pc) < mismatch(&pd) {
+                (b, d, pd) = (d, c, pc);
+                c = b - INV_PHI * (b - a);
+                pc = self.probe(c, spent).ok();
+            } else {
+                (a, c, pc) = (c, d, pd);
+                d = a + INV_PHI * (b - a);
+                pd = self.probe(d, spent).ok();
+            }
+        }
+        if capped {
+            return Ok((best.trial, best.report(*spent), Taken::Capped(best.g.abs() / best.scale)));
+        }
+        match self.fallback() {
+            EnergyFallback::LeastSquares => Ok((best.trial, best.report(*spent), Taken::LeastSquares)),
+            EnergyFallback::Fail => Err(self.no_energy_step(lo, hi, &best, *spent)),
+        }
     }
 }
 
@@ -309,232 +542,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         out.iter().all(|x| x.is_finite()).then_some(out)
     }
 
-    /// `g(h)` and `g'(h)` with the DEL solved at step `h`.
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<N>, Error<N>> {
-        let State { t: t0, q: q0, .. } = self.state;
-        let (dq, report) = self.solve_del(h)?;
-        *spent += report.iterations;
-        let seg = Segment { t0, h, q0, dq };
-        let mut d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
-        if forcing::is_forced::<S, N>() {
-            // As in `coupled`: the forced DEL (solved by `solve_del`) and energy equation.
-            let f = forcing::start_forcing(&self.system, &self.method, &seg);
-            for i in 0..N {
-                d.d2_q0_t1[i] += f.d_minus_t1[i];
-                d.d2_t0_q1[i] -= f.d_work_q1[i];
-            }
-            d.d2_q0_q1 += f.d_minus_q1;
-            d.d_t0 -= f.work;
-            d.d2_t0_t1 -= f.d_work_t1;
-        }
-        let slope = match d.d2_q0_q1.try_inverse() {
-            Some(inv) => d.d2_t0_t1 - d.d2_t0_q1.dot(&(inv * d.d2_q0_t1)),
-            None => f64::NAN,
-        };
-        let target = self.energy_target();
-        let g = d.d_t0 - target;
-        if !g.is_finite() {
-            return Err(Error::NonFinite { state: self.state, h, iterations: *spent, quantity: "energy equation" });
-        }
-        Ok(Probe { seg, g, slope, scale: target.abs().max(d.d_t0.abs()) })
-    }
-
-    /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
-    ///
-    /// A trial step size whose DEL cannot be solved (Newton fails, or `g` is
-    /// not finite there) narrows the bracket to the side of the guess away
-    /// from it, instead of ending the step: a large trial step is the usual
-    /// failure, and the smaller ones may still hold a root or the least
-    /// mismatch. Only when no trial in the bracket solves does the step fail,
-    /// with the error of the last trial. `capped`: the accuracy bound, not
-    /// the step ratio, sets `hi` (see [`least_squares`](Self::least_squares)).
-    fn bracketed(
-        &mut self,
-        guess: f64,
-        mut lo: f64,
-        mut hi: f64,
-        capped: bool,
-        mut spent: usize,
-    ) -> Result<(Segment<N>, NewtonReport, Taken), Error<N>> {
-        let spent = &mut spent;
-        // The first probe that solves: the guess, or halfway down towards `lo`
-        // while trials fail (each failure lowers `hi`).
-        let mut h = guess;
-        let at_guess = loop {
-            match self.probe(h, spent) {
-                Ok(p) => break p,
-                Err(e) => {
-                    hi = h;
-                    let next = lo + 0.5 * (h - lo);
-                    if h <= lo || h - lo <= 1e-9 * h || next >= h {
-                        return Err(e);
-                    }
-                    h = if h - lo <= 1e-3 * h { lo } else { next };
-                }
-            }
-        };
-        if at_guess.solved() {
-            return Ok((at_guess.seg, self.report(&at_guess, *spent), Taken::Root));
-        }
-        let guess = at_guess.seg.h;
-        // Sample the bracket, nearest points first, for a sign change.
-        let mut left = at_guess;
-        let mut right = at_guess;
-        let mut bracket = None;
-        for k in 1..=8 {
-            let f = k as f64 / 8.0;
-            for below in [true, false] {
-                let h = if below { guess - f * (guess - lo) } else { guess + f * (hi - guess) };
-                if h == guess || h == left.seg.h || h == right.seg.h || h < lo || h > hi {
-                    continue;
-                }
-                let Ok(p) = self.probe(h, spent) else {
-                    // Unreachable trial: the bracket ends short of it.
-                    if below {
-                        lo = h;
-                    } else {
-                        hi = h;
-                    }
-                    continue;
-                };
-                if p.solved() {
-                    return Ok((p.seg, self.report(&p, *spent), Taken::Root));
-                }
-                let near = if below { &mut left } else { &mut right };
-                if p.g.signum() != near.g.signum() {
-                    bracket = Some(if below { (p, *near) } else { (*near, p) });
-                    break;
-                }
-                *near = p;
-            }
-            if bracket.is_some() {
-                break;
-            }
-        }
-        match bracket {
-            Some((a, b)) => self.root(a, b, spent).map(|p| (p.seg, self.report(&p, *spent), Taken::Root)),
-            None => self.least_squares(lo, hi, capped, at_guess, spent),
-        }
-    }
-
-    /// Newton on `g`, safeguarded by bisection, inside a sign change
-    /// `a.h < b.h` (the classic `rtsafe` scheme: bisect whenever Newton would
-    /// leave the bracket or does not halve the previous correction). A trial
-    /// whose DEL fails is replaced by the bisection point; a second failure
-    /// in a row ends the search with that error.
-    fn root(&mut self, mut a: Probe<N>, mut b: Probe<N>, spent: &mut usize) -> Result<Probe<N>, Error<N>> {
-        let mut x = if a.g.abs() < b.g.abs() { a } else { b };
-        let mut dx_old = b.seg.h - a.seg.h;
-        let mut dx = dx_old;
-        for _ in 0..200 {
-            let (ha, hb) = (a.seg.h, b.seg.h);
-            let newton = x.seg.h - x.g / x.slope;
-            let h = if newton > ha && newton < hb && (2.0 * x.g).abs() <= (dx_old * x.slope).abs() {
-                dx_old = dx;
-                dx = x.g / x.slope;
-                newton
-            } else {
-                dx_old = dx;
-                dx = 0.5 * (hb - ha);
-                ha + dx
-            };
-            if dx.abs() <= 4.0 * f64::EPSILON * h || h <= ha || h >= hb {
-                return Ok(x);
-            }
-            let p = match self.probe(h, spent) {
-                Ok(p) => p,
-                Err(e) => {
-                    let mid = ha + 0.5 * (hb - ha);
-                    if h == mid {
-                        return Err(e);
-                    }
-                    dx = 0.5 * (hb - ha);
-                    self.probe(mid, spent)?
-                }
-            };
-            if p.solved() {
-                return Ok(p);
-            }
-            if p.g.signum() == a.g.signum() {
-                a = p;
-            } else {
-                b = p;
-            }
-            x = p;
-        }
-        Ok(x)
-    }
-
-    /// No sign change found: minimise `|g|` over `[lo, hi]` by golden section,
-    /// then report it or take it, as the fallback says. Trial steps whose DEL
-    /// fails count as infinitely bad.
-    ///
-    /// When the accuracy bound sets `hi` (`capped`), the step of least
-    /// mismatch is taken whatever the fallback: every step that could solve
-    /// the energy equation is longer than the accuracy asked for allows,
-    /// and the accuracy is the stronger demand. The step still solves the
-    /// DEL, the discrete energy takes its new value, and the step is counted
-    /// in [`Stats::accuracy_capped_steps`](super::Stats::accuracy_capped_steps)
-    /// with its relative mismatch in
-    /// [`Stats::largest_capped_energy_defect`](super::Stats::largest_capped_energy_defect).
-    fn least_squares(
-        &mut self,
-        lo: f64,
-        hi: f64,
-        capped: bool,
-        start: Probe<N>,
-        spent: &mut usize,
-    ) -> Result<(Segment<N>, NewtonReport, Taken), Error<N>> {
-        const INV_PHI: f64 = 0.618_033_988_749_894_8;
-        let mismatch = |p: &Option<Probe<N>>| p.map_or(f64::INFINITY, |p| p.g.abs());
-        let (mut a, mut b) = (lo, hi);
-        let mut c = b - INV_PHI * (b - a);
-        let mut d = a + INV_PHI * (b - a);
-        let mut pc = self.probe(c, spent).ok();
-        let mut pd = self.probe(d, spent).ok();
-        let mut best = start;
-        for _ in 0..60 {
-            for p in [pc, pd].into_iter().flatten() {
-                if p.g.abs() < best.g.abs() {
-                    best = p;
-                }
-                if p.g.signum() != start.g.signum() || p.solved() {
-                    // A root after all, between two roots the sampling stepped over.
-                    let (l, r) = if p.seg.h < start.seg.h { (p, start) } else { (start, p) };
-                    let root = if p.solved() { p } else { self.root(l, r, spent)? };
-                    return Ok((root.seg, self.report(&root, *spent), Taken::Root));
-                }
-            }
-            if b - a <= 1e-9 * b {
-                break;
-            }
-            if mismatch(&pc) < mismatch(&pd) {
-                (b, d, pd) = (d, c, pc);
-                c = b - INV_PHI * (b - a);
-                pc = self.probe(c, spent).ok();
-            } else {
-                (a, c, pc) = (c, d, pd);
-                d = a + INV_PHI * (b - a);
-                pd = self.probe(d, spent).ok();
-            }
-        }
-        if capped {
-            return Ok((best.seg, self.report(&best, *spent), Taken::Capped(best.g.abs() / best.scale)));
-        }
-        match self.fallback {
-            EnergyFallback::LeastSquares => Ok((best.seg, self.report(&best, *spent), Taken::LeastSquares)),
-            EnergyFallback::Fail => Err(Error::NoEnergyStep {
-                state: self.state,
-                h_lo: lo,
-                h_hi: hi,
-                h_best: best.seg.h,
-                mismatch: best.g.abs() / best.scale,
-                iterations: *spent,
-                root_test: self.root_test(),
-            }),
-        }
-    }
-
     /// The local root test `(x, low, high)` of [`Error::NoEnergyStep`] at the
     /// current node, for discrete Lagrangians with a known energy-error
     /// constant `κ` ([`DiscreteLagrangian::energy_error_kappa`]).
@@ -589,10 +596,6 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let a = lvv.try_inverse()? * (lq - lvq * v);
         let a2 = ((1.0 - 12.0 * kappa) * v.dot(&(lqq * v)) - a.dot(&(lvv * a))) / 8.0;
         a2.is_finite().then_some(a2)
-    }
-
-    fn report(&self, p: &Probe<N>, iterations: usize) -> NewtonReport {
-        NewtonReport { iterations, residual_norm: p.g.abs(), correction_norm: 0.0 }
     }
 
     /// The right side of the energy equation `∂A/∂t_k − w_k^− = E_k^−` of
@@ -672,6 +675,56 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         }
         self.stats.last = report;
         Ok(&self.state)
+    }
+}
+
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> for Integrator<S, M, N> {
+    type Trial = Segment<N>;
+
+    /// `g(h)` and `g'(h)` with the DEL solved at step `h`.
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Segment<N>>, Error<N>> {
+        let State { t: t0, q: q0, .. } = self.state;
+        let (dq, report) = self.solve_del(h)?;
+        *spent += report.iterations;
+        let seg = Segment { t0, h, q0, dq };
+        let mut d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
+        if forcing::is_forced::<S, N>() {
+            // As in `coupled`: the forced DEL (solved by `solve_del`) and energy equation.
+            let f = forcing::start_forcing(&self.system, &self.method, &seg);
+            for i in 0..N {
+                d.d2_q0_t1[i] += f.d_minus_t1[i];
+                d.d2_t0_q1[i] -= f.d_work_q1[i];
+            }
+            d.d2_q0_q1 += f.d_minus_q1;
+            d.d_t0 -= f.work;
+            d.d2_t0_t1 -= f.d_work_t1;
+        }
+        let slope = match d.d2_q0_q1.try_inverse() {
+            Some(inv) => d.d2_t0_t1 - d.d2_t0_q1.dot(&(inv * d.d2_q0_t1)),
+            None => f64::NAN,
+        };
+        let target = self.energy_target();
+        let g = d.d_t0 - target;
+        if !g.is_finite() {
+            return Err(Error::NonFinite { state: self.state, h, iterations: *spent, quantity: "energy equation" });
+        }
+        Ok(Probe { trial: seg, h, g, slope, scale: target.abs().max(d.d_t0.abs()) })
+    }
+
+    fn fallback(&self) -> EnergyFallback {
+        self.fallback
+    }
+
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Segment<N>>, spent: usize) -> Error<N> {
+        Error::NoEnergyStep {
+            state: self.state,
+            h_lo: lo,
+            h_hi: hi,
+            h_best: best.h,
+            mismatch: best.g.abs() / best.scale,
+            iterations: spent,
+            root_test: self.root_test(),
+        }
     }
 }
 
