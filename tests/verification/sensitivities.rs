@@ -49,11 +49,11 @@ struct PositionsAndEnergy {
 }
 
 impl Loss<2, 3> for PositionsAndEnergy {
-    fn running<D: Scalar>(&self, _k: u64, _t: f64, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
+    fn running<D: Scalar>(&self, _k: u64, _t: D, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
         (q[0] * q[0] + q[1] * q[1] * 0.5) * self.weight
     }
 
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], theta: &[D; 3]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], p: [D; 2], theta: &[D; 3]) -> D {
         let [m1, l1, g] = *theta;
         let (m2, l2) = (self.system.m2, self.system.l2);
         let a = (m1 + m2) * l1 * l1;
@@ -290,7 +290,7 @@ fn checkpoint_spacing_changes_the_work_not_the_gradient() {
 fn pairing_is_conserved(scheme: &Scheme) {
     struct Terminal;
     impl Loss<2, 3> for Terminal {
-        fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], _theta: &[D; 3]) -> D {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], p: [D; 2], _theta: &[D; 3]) -> D {
             q[0].sin() * p[1] + q[1] * q[1]
         }
     }
@@ -433,7 +433,7 @@ impl Damped {
 /// `q_n² + p_n²`.
 struct Final;
 impl Loss<1, 2> for Final {
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; 1], p: [D; 1], _theta: &[D; 2]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; 1], p: [D; 1], _theta: &[D; 2]) -> D {
         q[0] * q[0] + p[0] * p[0]
     }
 }
@@ -533,8 +533,8 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
     // A loss that is NaN from t = 0.05 on: the node where it first is.
     struct Broken;
     impl Loss<2, 3> for Broken {
-        fn running<D: Scalar>(&self, _k: u64, t: f64, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
-            if t < 0.05 - 1e-9 { q[0] } else { D::from(f64::NAN) }
+        fn running<D: Scalar>(&self, _k: u64, t: D, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
+            if t.re() < 0.05 - 1e-9 { q[0] } else { D::from(f64::NAN) }
         }
     }
     let e = problem.gradient(&Scheme::MIDPOINT, 0.01, 0.1, &Broken, Checkpoints::Every(3)).unwrap_err();
@@ -545,7 +545,7 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
     // A loss whose value is finite but whose gradient is not (√q at q = 0).
     struct Kink;
     impl Loss<2, 3> for Kink {
-        fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], _p: [D; 2], _theta: &[D; 3]) -> D {
             (q[0] - q[0].re()).sqrt()
         }
     }
@@ -557,10 +557,10 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
 struct ChainLoss;
 
 impl<const N: usize> Loss<N, 2> for ChainLoss {
-    fn running<D: Scalar>(&self, _k: u64, _t: f64, q: [D; N], _p: [D; N], _theta: &[D; 2]) -> D {
+    fn running<D: Scalar>(&self, _k: u64, _t: D, q: [D; N], _p: [D; N], _theta: &[D; 2]) -> D {
         q.iter().fold(D::zero(), |s, &x| s + x * x) * 1e-3
     }
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; N], p: [D; N], _theta: &[D; 2]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; N], p: [D; N], _theta: &[D; 2]) -> D {
         q.iter().zip(&p).fold(D::zero(), |s, (&x, &y)| s + x * y)
     }
 }

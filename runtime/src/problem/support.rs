@@ -193,9 +193,9 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
             "sensitivities of a composition above `Derivatives::FORWARD_MAX_N` coordinates: it steps in reverse mode, which keeps only its last sub-step",
         ),
         Scheme::Composition { .. } => Ok(()),
-        Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => Err(
-            "sensitivities of a time-transformed scheme: the step in `s` and its density are not differentiated yet",
-        ),
+        // Fixed steps in `s`; `constant` refuses the rest as for a run.
+        Scheme::TimeTransformed { .. } => Ok(()),
+        Scheme::Splitting { .. } => Err(crate::sensitivity::SPLITTING),
     }
 }
 

@@ -32,7 +32,13 @@ pub mod linearisation;
 pub mod names;
 mod parametric;
 mod pullback;
+#[doc(hidden)]
+pub mod transformed;
 
 pub use adjoint::{Checkpoints, Gradient, Loss};
+
+/// Why the explicit time-transformed splitting has no sensitivities.
+pub(crate) const SPLITTING: &str = "sensitivities of the explicit time-transformed splitting: its sub-steps are the flows of \
+     `f(T + p_t + c)` and `f(c − V)` in the extended phase, not Galerkin steps of `L`, and their linearisation is not written";
 pub use forward::{Jacobian, Sensitivities};
 pub use parametric::Parametric;
