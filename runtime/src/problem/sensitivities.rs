@@ -59,7 +59,9 @@ where
     ///
     /// The combinations are those [`supports`](super::supports) accepts with
     /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
-    /// the Galerkin rules and the compositions.
+    /// the Galerkin rules, the compositions and the implicit time
+    /// transformation (`policy` is then the step `σ` in `s`; the node times
+    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)).
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
     /// called. Systems of more than [`FORWARD_SENSITIVITIES_MAX_N`]
@@ -153,6 +155,9 @@ where
     /// [`Plan::until`] does) with respect to `q_0`, `v_0` and the
     /// parameters: the discrete adjoint, with a copy of the stepper kept as
     /// `checkpoints` says. Memory is the copies plus one segment of nodes.
+    /// Under a time transformation `h` is the step `σ` in `s`, the node
+    /// times move with the inputs (the loss's `∂ℓ/∂t` enters), and the
+    /// landing step's size, solved for `t_end`, is differentiated.
     ///
     /// Errors: the refusal of [`supports`](super::supports) for a
     /// combination without sensitivities, [`Error::InvalidSetting`] for a

@@ -395,9 +395,8 @@ where
     let m_ext = N + 1;
     let system = stepper.system().clone();
     let theta = system.parameters();
-    let start = stepper
-        .extended_start::<P>(initial)?
-        .ok_or(Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" })?;
+    let not_transformed = || Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" };
+    let start = stepper.extended_start::<P>(initial)?.ok_or_else(not_transformed)?;
     let mut terms = Terms::new::<N, P>();
     // A budget's spacing is estimated from `σ` as if `g = 1`; the forward
     // pass widens it where the run takes more steps.
@@ -443,7 +442,7 @@ where
         let mut last_h = None;
         while sim.state().step < (first + m as u64).min(last.step) {
             let from = sim.state();
-            let node = sim.extended_node().unwrap_or_default();
+            let node = sim.extended_node().ok_or_else(not_transformed)?;
             Stepping::step_toward(&mut sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
             steps.push(sim.extended_step::<P>(&node, &from)?);

@@ -18,6 +18,11 @@
 //! round-off; the pairing `λ_kᵀ S_k` of the two is conserved by a
 //! symplectic step.
 //!
+//! A step of the implicit time transformation is a fixed step of the
+//! extended system in `s`; [`transformed`] linearises it in the extended
+//! phase `(q, t, p, p_t)`, so the node times have derivatives too, with the
+//! driver's constant `c` and the landing step on `t_end` differentiated.
+//!
 //! The entry points are [`Problem::solve_with_sensitivities`] and
 //! [`Problem::gradient`](crate::Problem::gradient); which combinations
 //! they take is said by [`supports`](crate::problem::supports) with
