@@ -281,7 +281,7 @@ where
         if stepper.state().step.is_multiple_of(m as u64) {
             kept.push(stepper.clone());
             // The copy of the initial node is not counted against the budget.
-            if kept.len() > budget + 1 {
+            if kept.len() > budget.saturating_add(1) {
                 m *= 2;
                 kept.retain(|s| s.state().step.is_multiple_of(m as u64));
             }
@@ -395,7 +395,8 @@ where
     let m_ext = N + 1;
     let system = stepper.system().clone();
     let theta = system.parameters();
-    let not_transformed = || Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" };
+    let not_transformed =
+        || Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" };
     let start = stepper.extended_start::<P>(initial)?.ok_or_else(not_transformed)?;
     let mut terms = Terms::new::<N, P>();
     // A budget's spacing is estimated from `σ` as if `g = 1`; the forward
