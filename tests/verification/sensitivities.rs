@@ -624,14 +624,14 @@ fn solve3(mut m: [[f64; 3]; 3], mut r: [Dual64; 3]) -> [Dual64; 3] {
             for k in col..3 {
                 m[row][k] -= f * m[col][k];
             }
-            r[row] = r[row] - r[col] * f;
+            r[row] -= r[col] * f;
         }
     }
     let mut out = [Dual64::from_re(0.0); 3];
     for row in (0..3).rev() {
         let mut acc = r[row];
         for k in row + 1..3 {
-            acc = acc - out[k] * m[row][k];
+            acc -= out[k] * m[row][k];
         }
         out[row] = acc / m[row][row];
     }
