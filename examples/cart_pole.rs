@@ -101,7 +101,7 @@ fn residual<D: Scalar>(q: [D; 2], p: [D; 2]) -> [D; 4] {
 struct Component(usize);
 
 impl Loss<2, CONTROLS> for Component {
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], _u: &[D; CONTROLS]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], p: [D; 2], _u: &[D; CONTROLS]) -> D {
         residual(q, p)[self.0]
     }
 }
@@ -120,7 +120,7 @@ struct Misfit {
 
 #[cfg(test)]
 impl Loss<2, CONTROLS> for Misfit {
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], u: &[D; CONTROLS]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], p: [D; 2], u: &[D; CONTROLS]) -> D {
         let misfit = residual(q, p).iter().fold(D::zero(), |sum, &r| sum + r * r * 0.5);
         misfit + effort(u) * (0.5 * self.rho)
     }

@@ -80,10 +80,10 @@ impl DoublePendulum {
 struct Squares;
 
 impl<const N: usize, const P: usize> Loss<N, P> for Squares {
-    fn running<D: Scalar>(&self, _k: u64, _t: f64, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
+    fn running<D: Scalar>(&self, _k: u64, _t: D, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
         q.iter().fold(D::zero(), |s, &x| s + x * x) * 1e-3
     }
-    fn terminal<D: Scalar>(&self, _t: f64, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
+    fn terminal<D: Scalar>(&self, _t: D, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
         q.iter().fold(D::zero(), |s, &x| s + x * x)
     }
 }

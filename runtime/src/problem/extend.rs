@@ -14,16 +14,20 @@ use super::scheme::{OnePoint, Scheme};
 #[cfg(doc)]
 use super::support::MAX_PROBLEM_N;
 use crate::dense::{Hermite, Node};
+use crate::derivatives::Segment;
 use crate::dim::{Dim, ExtendedSize, Sealed};
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, GalerkinIntegrator, Quadrature};
 use crate::integrator::{Integrator, Stats};
 use crate::newton::NewtonOptions;
+use crate::sensitivity::Parametric;
+use crate::sensitivity::linearisation::{Piece, Rule};
+use crate::sensitivity::transformed::{self, Linear, Start};
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Lagrangian;
-use crate::time_transform::{Adaptive, Curvature, TimeTransformed};
+use crate::time_transform::{Adaptive, Curvature, SStepper, TimeTransformed};
 
 /// The transformed system in `s`.
 type Tt<S, const N: usize> = TimeTransformed<S, Curvature, N>;
@@ -118,6 +122,54 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Transformed<S, N, M> {
     }
 }
 
+/// The derivatives of a run: each variant's last step as a Galerkin step
+/// in `s` (`sensitivity/transformed.rs` linearises it).
+impl<S: Lagrangian<N>, const N: usize, const M: usize> Transformed<S, N, M> {
+    /// The transformed system in `s`.
+    fn transformed(&self) -> &Tt<S, N> {
+        each!(self, d => d.inner().transformed())
+    }
+
+    /// The current node in `s`: `[s, x (M), p̃ (M)]`.
+    fn node(&self) -> Vec<f64> {
+        let x = each!(self, d => d.extended_state());
+        core::iter::once(x.t).chain(x.q).chain(x.p).collect()
+    }
+
+    /// The rule in `s` and the last step, from the node `from` (of
+    /// [`node`](Self::node)) to the current one, as a Galerkin step; `None`
+    /// where the step was not kept.
+    fn last_step(&self, from: &[f64]) -> Option<(Rule, Piece<M>)> {
+        let segment = |to: State<M>| {
+            let x0: [f64; M] = core::array::from_fn(|i| from[1 + i]);
+            Piece::segment(&Segment::between((from[0], x0), (to.t, to.q)))
+        };
+        macro_rules! kept {
+            ($d:expr) => {{
+                let it = $d.inner();
+                let l = it.memory.as_ref()?;
+                (Rule::galerkin(&it.method), Piece::kept(l.t0, l.h, l.q0, l.carry, &l.d))
+            }};
+        }
+        Some(match self {
+            Self::Midpoint(d) => (Rule::one_point(&OnePoint::Midpoint), segment(d.extended_state())),
+            Self::Trapezoid(d) => (Rule::one_point(&OnePoint::Trapezoid), segment(d.extended_state())),
+            Self::AlphaBeta(d) => {
+                (Rule::one_point(&OnePoint::AlphaBeta(d.inner().method)), segment(d.extended_state()))
+            }
+            Self::Galerkin2(d) => kept!(d),
+            Self::Galerkin3(d) => kept!(d),
+            Self::Galerkin4(d) => kept!(d),
+        })
+    }
+
+    /// Whether the last step was a landing step (its size solved for its
+    /// end time).
+    fn landed(&self) -> bool {
+        each!(self, d => d.landed_here())
+    }
+}
+
 /// Every variant through the one stepper trait; dense output by the cubic
 /// Hermite in physical time, as each driver's own.
 impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transformed<S, N, M> {
@@ -183,6 +235,23 @@ pub trait Extended<const N: usize>: Sealed {
         q0: [f64; N],
         v0: [f64; N],
     ) -> Result<Self::Transformed<S>, Error<N>>;
+
+    /// The current node in `s` of `d`: `[s, x, p̃]`.
+    #[doc(hidden)]
+    fn node<S: Lagrangian<N> + Clone>(d: &Self::Transformed<S>) -> Vec<f64>;
+
+    /// The linearisation of the last step of `d`, from the node `from`
+    /// (of [`node`](Self::node)); `None` where it was not kept, a Newton
+    /// block is singular or a derivative is not finite.
+    #[doc(hidden)]
+    fn linearise<S: Parametric<N, P>, const P: usize>(d: &Self::Transformed<S>, from: &[f64]) -> Option<Linear>;
+
+    /// The derivatives of the first node in `s` of a run from `initial`.
+    #[doc(hidden)]
+    fn start_tangent<S: Parametric<N, P>, const P: usize>(
+        d: &Self::Transformed<S>,
+        initial: (f64, [f64; N], [f64; N]),
+    ) -> Option<Start>;
 }
 
 /// The table: `impl Extended<n> for Dim<n>` with `M = n + 1`.
@@ -201,6 +270,19 @@ macro_rules! table {
                 v0: [f64; $n],
             ) -> Result<Self::Transformed<S>, Error<$n>> {
                 Transformed::start(system, inner, density, sigma, newton, t0, q0, v0)
+            }
+            fn node<S: Lagrangian<$n> + Clone>(d: &Self::Transformed<S>) -> Vec<f64> {
+                d.node()
+            }
+            fn linearise<S: Parametric<$n, P>, const P: usize>(d: &Self::Transformed<S>, from: &[f64]) -> Option<Linear> {
+                let (rule, piece) = d.last_step(from)?;
+                transformed::linearise::<S, $n, { $n + 1 }, P>(d.transformed(), &rule, &piece, d.landed())
+            }
+            fn start_tangent<S: Parametric<$n, P>, const P: usize>(
+                d: &Self::Transformed<S>,
+                initial: (f64, [f64; $n], [f64; $n]),
+            ) -> Option<Start> {
+                transformed::start::<S, $n, { $n + 1 }, P>(d.transformed(), initial)
             }
         }
     )*};

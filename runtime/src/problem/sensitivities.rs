@@ -14,10 +14,11 @@ use crate::derivatives::Segment;
 use crate::dim::Dim;
 use crate::error::Error;
 use crate::integrator::Stats;
-use crate::sensitivity::Parametric;
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
-use crate::sensitivity::linearisation::{MAX_DEGREE, Piece, Rule};
+use crate::sensitivity::linearisation::{Piece, Rule};
+use crate::sensitivity::transformed::{Linear, Start};
+use crate::sensitivity::{Parametric, SPLITTING};
 use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
@@ -58,7 +59,9 @@ where
     ///
     /// The combinations are those [`supports`](super::supports) accepts with
     /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
-    /// the Galerkin rules and the compositions.
+    /// the Galerkin rules, the compositions and the implicit time
+    /// transformation (`policy` is then the step `σ` in `s`; the node times
+    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)).
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
     /// called. Systems of more than [`FORWARD_SENSITIVITIES_MAX_N`]
@@ -137,9 +140,11 @@ where
         S: Parametric<N, P>,
     {
         let stepper = self.stepper(scheme, policy)?;
-        let rule = stepper.rule()?;
-        let propagation =
-            RefCell::new(Propagation::new(self.system(), rule, self.initial(), plan.kept_every(), &stepper.state()));
+        let (every, node) = (plan.kept_every(), stepper.state());
+        let propagation = RefCell::new(match stepper.extended_start::<P>(self.initial())? {
+            Some(start) => Propagation::extended(self.system(), start, every, &node),
+            None => Propagation::new(self.system(), stepper.rule()?, self.initial(), every, &node),
+        });
         let mut tracked = Tracked { stepper, propagation: &propagation, pieces: Vec::new() };
         let solution = Stepping::solve(&mut tracked, plan)?;
         Ok(propagation.into_inner().finish(solution))
@@ -150,6 +155,9 @@ where
     /// [`Plan::until`] does) with respect to `q_0`, `v_0` and the
     /// parameters: the discrete adjoint, with a copy of the stepper kept as
     /// `checkpoints` says. Memory is the copies plus one segment of nodes.
+    /// Under a time transformation `h` is the step `σ` in `s`, the node
+    /// times move with the inputs (the loss's `∂ℓ/∂t` enters), and the
+    /// landing step's size, solved for `t_end`, is differentiated.
     ///
     /// Errors: the refusal of [`supports`](super::supports) for a
     /// combination without sensitivities, [`Error::InvalidSetting`] for a
@@ -169,6 +177,9 @@ where
         let policy = Policy::fixed(h);
         self.differentiable(scheme, policy)?;
         let stepper = self.stepper(scheme, policy)?;
+        if let Driver::Transformed(_) = &*stepper.driver {
+            return adjoint::gradient_transformed(stepper, self.initial(), h, t_end, loss, checkpoints);
+        }
         let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
     }
@@ -194,29 +205,75 @@ where
             Driver::Lobatto2(d) => Rule::galerkin(&d.method),
             Driver::Lobatto3(d) => Rule::galerkin(&d.method),
             Driver::Lobatto4(d) => Rule::galerkin(&d.method),
-            // `supports` refuses them before a stepper is built.
-            Driver::Transformed(_) | Driver::Splitting(_) => {
-                return Err(Error::Unsupported { what: "sensitivities of a time-transformed scheme" });
+            // Linearised in the extended phase (`extended_step`), not by
+            // one rule in `t`.
+            Driver::Transformed(_) => {
+                return Err(Error::Unsupported { what: "one rule in `t` for the steps of a time transformation" });
             }
+            // `supports` refuses it before a stepper is built.
+            Driver::Splitting(_) => return Err(Error::Unsupported { what: SPLITTING }),
         })
+    }
+
+    /// The current node in `s` of a time-transformed stepper (`None` for
+    /// the others): where its next step starts, for [`extended_step`](Self::extended_step).
+    pub(crate) fn extended_node(&self) -> Option<Vec<f64>> {
+        match &*self.driver {
+            Driver::Transformed(d) => Some(<Dim<N> as Extended<N>>::node(d)),
+            _ => None,
+        }
+    }
+
+    /// The linearisation in the extended phase of the last step of a
+    /// time-transformed stepper, from its node `node` in `s`, which was
+    /// `from` in physical time.
+    pub(crate) fn extended_step<const P: usize>(&self, node: &[f64], from: &State<N>) -> Result<Linear, Error<N>>
+    where
+        S: Parametric<N, P>,
+    {
+        let Driver::Transformed(d) = &*self.driver else {
+            return Err(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" });
+        };
+        let h = Stepping::state(self).t - from.t;
+        <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(Error::SingularJacobian {
+            state: *from,
+            h,
+            iterations: 0,
+            rcond: 0.0,
+        })
+    }
+
+    /// The derivatives of the first node in `s` of a time-transformed
+    /// stepper from the initial data `initial` (`None` for the other
+    /// steppers).
+    pub(crate) fn extended_start<const P: usize>(
+        &self,
+        initial: (f64, [f64; N], [f64; N]),
+    ) -> Result<Option<Start>, Error<N>>
+    where
+        S: Parametric<N, P>,
+    {
+        match &*self.driver {
+            Driver::Transformed(d) => {
+                <Dim<N> as Extended<N>>::start_tangent::<S, P>(d, initial).map(Some).ok_or(Error::InvalidInitialData {
+                    reason: "the derivatives of the time-transformed initial data are not finite",
+                })
+            }
+            _ => Ok(None),
+        }
     }
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
     /// step, from `from` to the current node, was made of.
     pub(crate) fn last_pieces(&self, from: &State<N>, out: &mut Vec<Piece<N>>) -> Result<(), Error<N>> {
         let to = Stepping::state(self);
-        let galerkin = |t0: f64, h: f64, q0: [f64; N], carry: [f64; N], d: &[[f64; N]]| {
-            let mut piece = Piece { t0, h, q0: core::array::from_fn(|i| q0[i] + carry[i]), d: [[0.0; N]; MAX_DEGREE] };
-            piece.d[..d.len()].copy_from_slice(d);
-            piece
-        };
         let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
         // The last Galerkin step a driver kept, as a piece (one arm per
         // rule: each variant's memory is its own type).
         macro_rules! kept {
             ($d:expr) => {{
                 let l = $d.memory.as_ref().ok_or(missing)?;
-                galerkin(l.t0, l.h, l.q0, l.carry, &l.d)
+                Piece::kept(l.t0, l.h, l.q0, l.carry, &l.d)
             }};
         }
         match &*self.driver {
@@ -276,10 +333,20 @@ where
     /// Runs `step` and propagates the tangent through it when it succeeds.
     fn tracked(&mut self, step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error<N>>) -> Result<(), Error<N>> {
         let from = self.stepper.state();
+        let node = self.stepper.extended_node();
         step(&mut self.stepper)?;
+        let to = self.stepper.state();
+        if let Some(node) = node {
+            // A landing that found the node already on its target took no step.
+            if to.step != from.step {
+                let linear = self.stepper.extended_step::<P>(&node, &from);
+                self.propagation.borrow_mut().step_extended(linear, &to);
+            }
+            return Ok(());
+        }
         self.pieces.clear();
         let pieces = self.stepper.last_pieces(&from, &mut self.pieces).map(|()| self.pieces.as_slice());
-        self.propagation.borrow_mut().step(&from, pieces, &self.stepper.state());
+        self.propagation.borrow_mut().step(&from, pieces, &to);
         Ok(())
     }
 }

@@ -105,8 +105,8 @@ pub enum Capability {
     /// dense output, events, and the CSV and JSON files of the solution.
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
-    /// initial data (fixed steps of the one-point rules, the Galerkin rules
-    /// and the compositions): forward sensitivities
+    /// initial data (fixed steps of the one-point rules, the Galerkin rules,
+    /// the compositions and the implicit time transformation): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
     /// and the discrete adjoint ([`Problem::gradient`](super::Problem::gradient)).
     Sensitivities,
@@ -174,8 +174,8 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 }
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
-/// fixed steps of the one-point rules, the Galerkin rules and the
-/// compositions.
+/// fixed steps of the one-point rules, the Galerkin rules, the
+/// compositions and the implicit time transformation (fixed steps in `s`).
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let n = match c.size {
         Size::Dynamic => {
@@ -193,9 +193,9 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
             "sensitivities of a composition above `Derivatives::FORWARD_MAX_N` coordinates: it steps in reverse mode, which keeps only its last sub-step",
         ),
         Scheme::Composition { .. } => Ok(()),
-        Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => Err(
-            "sensitivities of a time-transformed scheme: the step in `s` and its density are not differentiated yet",
-        ),
+        // Fixed steps in `s`; `constant` refuses the rest as for a run.
+        Scheme::TimeTransformed { .. } => Ok(()),
+        Scheme::Splitting { .. } => Err(crate::sensitivity::SPLITTING),
     }
 }
 

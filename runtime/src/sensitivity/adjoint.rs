@@ -19,6 +19,9 @@
 //! one transposed solve with the step's Newton matrix and products of second
 //! derivatives with vectors, never `Φ_x` itself).
 
+use nalgebra::DVector;
+use num_dual::Dual64;
+
 use super::Parametric;
 use super::linearisation::Rule;
 use super::pullback::{Pullback, large};
@@ -27,13 +30,17 @@ use crate::hyperdual::{DualArray, Pair};
 use crate::problem::{Dim, Extended, Stepper};
 use crate::solution::Stepping;
 use crate::state::State;
+use crate::system::Lagrangian;
 use crate::system::Scalar;
-use crate::tape::Tape;
+use crate::tape::{Tape, Var};
 
 /// A scalar loss of a run: running terms at every node `k = 0..=n` and a
 /// terminal term at the last node, each a function of `(t, q, p)` and the
 /// parameters `θ`, written generic over the [`Scalar`] so that the runtime
-/// differentiates them (with dual numbers, exactly).
+/// differentiates them (with dual numbers, exactly). The time is a
+/// [`Scalar`] too: under a time transformation the node times move with
+/// the initial data and the parameters, and `∂ℓ/∂t` enters the gradient
+/// (under fixed steps the node times are constants and it does not).
 ///
 /// ```
 /// use lagrangian_runtime::Scalar;
@@ -42,23 +49,23 @@ use crate::tape::Tape;
 /// /// Σ_k (q_k − 1)² + p_n².
 /// struct Fit;
 /// impl Loss<1, 1> for Fit {
-///     fn running<D: Scalar>(&self, _k: u64, _t: f64, q: [D; 1], _p: [D; 1], _theta: &[D; 1]) -> D {
+///     fn running<D: Scalar>(&self, _k: u64, _t: D, q: [D; 1], _p: [D; 1], _theta: &[D; 1]) -> D {
 ///         (q[0] - 1.0).powi(2)
 ///     }
-///     fn terminal<D: Scalar>(&self, _t: f64, _q: [D; 1], p: [D; 1], _theta: &[D; 1]) -> D {
+///     fn terminal<D: Scalar>(&self, _t: D, _q: [D; 1], p: [D; 1], _theta: &[D; 1]) -> D {
 ///         p[0] * p[0]
 ///     }
 /// }
 /// ```
 pub trait Loss<const N: usize, const P: usize> {
     /// `ℓ_k(t_k, q_k, p_k; θ)` at node `k` (0 for none, the default).
-    fn running<D: Scalar>(&self, k: u64, t: f64, q: [D; N], p: [D; N], theta: &[D; P]) -> D {
+    fn running<D: Scalar>(&self, k: u64, t: D, q: [D; N], p: [D; N], theta: &[D; P]) -> D {
         let _ = (k, t, q, p, theta);
         D::zero()
     }
 
     /// `ℓ_T(t_n, q_n, p_n; θ)` at the last node (0 for none, the default).
-    fn terminal<D: Scalar>(&self, t: f64, q: [D; N], p: [D; N], theta: &[D; P]) -> D {
+    fn terminal<D: Scalar>(&self, t: D, q: [D; N], p: [D; N], theta: &[D; P]) -> D {
         let _ = (t, q, p, theta);
         D::zero()
     }
@@ -104,6 +111,10 @@ pub struct Gradient<const N: usize, const P: usize> {
     /// The costate `λ_k = (∂J/∂q_k, ∂J/∂p_k)` at each checkpoint node, in
     /// time order (the node and `(λ_q, λ_p)`).
     pub costates: Vec<(State<N>, [f64; N], [f64; N])>,
+    /// `(λ_t, λ_{p_t})` at the same checkpoint nodes under a time
+    /// transformation, whose extended phase `(q, t, p, p_t)` has the node
+    /// time and its momentum among its coordinates; empty under fixed steps.
+    pub time_costates: Vec<(f64, f64)>,
     /// Steps run again in the reverse pass.
     pub recomputed_steps: u64,
 }
@@ -151,7 +162,7 @@ impl Terms {
             self.inputs[2 * N..].copy_from_slice(theta);
             let recorded = self.tape.record(&self.inputs, |x| {
                 let (q, p) = (core::array::from_fn(|i| x[i]), core::array::from_fn(|i| x[N + i]));
-                terms(loss, (k, t, last), q, p, &core::array::from_fn(|j| x[2 * N + j]))
+                terms(loss, (k, Var::from(t), last), q, p, &core::array::from_fn(|j| x[2 * N + j]))
             });
             // A recording that fails is a loss without a gradient.
             let value = recorded.unwrap_or(f64::NAN);
@@ -165,7 +176,7 @@ impl Terms {
             let q = core::array::from_fn(|i| Seeded::<N, P>::variable(state.q[i], i));
             let p = core::array::from_fn(|i| Seeded::<N, P>::variable(state.p[i], N + i));
             let th = core::array::from_fn(|j| Seeded::<N, P>::variable(theta[j], 2 * N + j));
-            let l = terms(loss, (k, t, last), q, p, &th);
+            let l = terms(loss, (k, Seeded::<N, P>::from(t), last), q, p, &th);
             (dq, dp, dth) = (l.eps.a.a, l.eps.a.b, l.eps.b);
             l.re
         };
@@ -178,13 +189,32 @@ impl Terms {
 /// terminal term, on any scalar.
 fn terms<L: Loss<N, P>, D: Scalar, const N: usize, const P: usize>(
     loss: &L,
-    (k, t, last): (u64, f64, bool),
+    (k, t, last): (u64, D, bool),
     q: [D; N],
     p: [D; N],
     theta: &[D; P],
 ) -> D {
     let running = loss.running(k, t, q, p, theta);
     if last { running + loss.terminal(t, q, p, theta) } else { running }
+}
+
+/// `∂ℓ/∂t` of the loss terms at `state`, checked finite: one evaluation
+/// on a dual number seeded on the time.
+fn time_derivative<L: Loss<N, P>, const N: usize, const P: usize>(
+    loss: &L,
+    state: &State<N>,
+    theta: &[f64; P],
+    last: bool,
+) -> Result<f64, Error<N>> {
+    let t = Dual64::new(state.t, 1.0);
+    let l = terms(
+        loss,
+        (state.step, t, last),
+        state.q.map(Dual64::from),
+        state.p.map(Dual64::from),
+        &theta.map(Dual64::from),
+    );
+    if l.eps.is_finite() { Ok(l.eps) } else { Err(Error::NonFiniteLoss { state: *state }) }
 }
 
 /// The value of the loss terms at `state`, checked finite.
@@ -194,18 +224,78 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     theta: &[f64; P],
     last: bool,
 ) -> Result<f64, Error<N>> {
-    let (k, t) = (state.step, state.t);
-    let mut value = loss.running(k, t, state.q, state.p, theta);
-    if last {
-        value += loss.terminal(t, state.q, state.p, theta);
-    }
+    let value = terms(loss, (state.step, state.t, last), state.q, state.p, theta);
     if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
+}
+
+/// What the forward pass keeps: the loss, the copies of the stepper (at
+/// the multiples of `m` nodes), and the last node.
+struct Forward<S: Lagrangian<N> + Clone, const N: usize>
+where
+    Dim<N>: Extended<N>,
+{
+    value: f64,
+    kept: Vec<Stepper<S, N>>,
+    m: usize,
+    last: State<N>,
+}
+
+/// The forward pass from `stepper` (at `t0`) to `t_end`: the loss value
+/// and a copy of the stepper every `m` nodes. Under a budget the spacing
+/// is estimated from `h`; where the run takes more steps than that
+/// (the steps in `s` of a time transformation), every other copy is
+/// dropped and the spacing doubled, so that the budget holds.
+fn forward<S, L, const N: usize, const P: usize>(
+    mut stepper: Stepper<S, N>,
+    t0: f64,
+    h: f64,
+    t_end: f64,
+    loss: &L,
+    checkpoints: Checkpoints,
+) -> Result<Forward<S, N>, Error<N>>
+where
+    S: Parametric<N, P>,
+    L: Loss<N, P>,
+    Dim<N>: Extended<N>,
+{
+    if !(t_end.is_finite() && t_end >= t0) {
+        return Err(Error::InvalidTarget { target: t_end, state: stepper.state() });
+    }
+    // The number of steps is known only after the run; the estimate sets
+    // the spacing of a budget.
+    let estimate = ((t_end - t0) / h).ceil();
+    let mut m = checkpoints.spacing::<N>(if estimate.is_finite() { estimate as usize } else { usize::MAX })?;
+    let budget = match checkpoints {
+        Checkpoints::Budget(c) => c,
+        Checkpoints::Every(_) => usize::MAX,
+    };
+    let theta = stepper.system().parameters();
+    let mut kept = vec![stepper.clone()];
+    let mut value = 0.0;
+    let mut last_h = None;
+    while stepper.state().t < t_end {
+        let state = stepper.state();
+        value += value_at(loss, &state, &theta, false)?;
+        Stepping::step_toward(&mut stepper, t_end, last_h)?;
+        last_h = Some(stepper.state().t - state.t);
+        if stepper.state().step.is_multiple_of(m as u64) {
+            kept.push(stepper.clone());
+            // The copy of the initial node is not counted against the budget.
+            if kept.len() > budget.saturating_add(1) {
+                m *= 2;
+                kept.retain(|s| s.state().step.is_multiple_of(m as u64));
+            }
+        }
+    }
+    let last = stepper.state();
+    value += value_at(loss, &last, &theta, true)?;
+    Ok(Forward { value, kept, m, last })
 }
 
 /// The run and the reverse sweep (see the [module](self)).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
-    mut stepper: Stepper<S, N>,
+    stepper: Stepper<S, N>,
     rule: Rule,
     initial: (f64, [f64; N], [f64; N]),
     h: f64,
@@ -218,34 +308,11 @@ where
     L: Loss<N, P>,
     Dim<N>: Extended<N>,
 {
-    let t0 = initial.0;
-    if !(t_end.is_finite() && t_end >= t0) {
-        return Err(Error::InvalidTarget { target: t_end, state: stepper.state() });
-    }
-    // The number of steps is known only after the run; the estimate sets
-    // the spacing of a budget.
-    let estimate = ((t_end - t0) / h).ceil();
-    let m = checkpoints.spacing::<N>(if estimate.is_finite() { estimate as usize } else { usize::MAX })?;
     let system = stepper.system().clone();
     let theta = system.parameters();
     let mut pullback = Pullback::<N, P>::new::<S>(rule)?;
     let mut terms = Terms::new::<N, P>();
-
-    // Forward: the loss value, a copy every m nodes.
-    let mut kept = vec![stepper.clone()];
-    let mut value = 0.0;
-    let mut last_h = None;
-    while stepper.state().t < t_end {
-        let state = stepper.state();
-        value += value_at(loss, &state, &theta, false)?;
-        Stepping::step_toward(&mut stepper, t_end, last_h)?;
-        last_h = Some(stepper.state().t - state.t);
-        if stepper.state().step.is_multiple_of(m as u64) {
-            kept.push(stepper.clone());
-        }
-    }
-    let last = stepper.state();
-    value += value_at(loss, &last, &theta, true)?;
+    let Forward { value, kept, m, last } = forward(stepper, initial.0, h, t_end, loss, checkpoints)?;
     let (_, mut lq, mut lp, mut dtheta) = terms.at(loss, &last, &theta, true)?;
 
     // Reverse: each segment from its copy, backwards. `steps[i]` runs from
@@ -304,5 +371,105 @@ where
     for (d, g) in dtheta.iter_mut().zip(dth0) {
         *d += g;
     }
-    Ok(Gradient { value, q0, v0: dv0, theta: dtheta, last, costates, recomputed_steps })
+    Ok(Gradient { value, q0, v0: dv0, theta: dtheta, last, costates, time_costates: Vec::new(), recomputed_steps })
+}
+
+/// The gradient through a time-transformed run: the same forward pass and
+/// checkpoints, and a reverse sweep in the extended phase `(q, t, p, p_t)`
+/// through the dense step Jacobians of `transformed.rs`
+/// (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`), with the derivatives of the
+/// constant `c` and of the first node in `s` at the end.
+pub(crate) fn gradient_transformed<S, L, const N: usize, const P: usize>(
+    stepper: Stepper<S, N>,
+    initial: (f64, [f64; N], [f64; N]),
+    sigma: f64,
+    t_end: f64,
+    loss: &L,
+    checkpoints: Checkpoints,
+) -> Result<Gradient<N, P>, Error<N>>
+where
+    S: Parametric<N, P>,
+    L: Loss<N, P>,
+    Dim<N>: Extended<N>,
+{
+    let m_ext = N + 1;
+    let system = stepper.system().clone();
+    let theta = system.parameters();
+    let not_transformed =
+        || Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" };
+    let start = stepper.extended_start::<P>(initial)?.ok_or_else(not_transformed)?;
+    let mut terms = Terms::new::<N, P>();
+    // A budget's spacing is estimated from `σ` as if `g = 1`; the forward
+    // pass widens it where the run takes more steps.
+    let Forward { value, kept, m, last } = forward(stepper, initial.0, sigma, t_end, loss, checkpoints)?;
+    // λ in the extended phase: q, t, then p, p_t.
+    let mut lambda = DVector::<f64>::zeros(2 * m_ext);
+    let (mut dtheta, mut dc) = ([0.0; P], 0.0);
+    let mut add_terms = |lambda: &mut DVector<f64>, dtheta: &mut [f64; P], state: &State<N>, last: bool| {
+        let (_, gq, gp, gth) = terms.at(loss, state, &theta, last)?;
+        let gt = time_derivative(loss, state, &theta, last)?;
+        for i in 0..N {
+            lambda[i] += gq[i];
+            lambda[m_ext + i] += gp[i];
+        }
+        lambda[N] += gt;
+        for (d, g) in dtheta.iter_mut().zip(gth) {
+            *d += g;
+        }
+        Ok::<(), Error<N>>(())
+    };
+    add_terms(&mut lambda, &mut dtheta, &last, true)?;
+    let physical = |lambda: &DVector<f64>| -> ([f64; N], [f64; N]) {
+        (core::array::from_fn(|i| lambda[i]), core::array::from_fn(|i| lambda[m_ext + i]))
+    };
+
+    let mut costates = Vec::with_capacity(kept.len());
+    let mut time_costates = Vec::with_capacity(kept.len());
+    let mut recomputed_steps = 0;
+    let mut nodes = Vec::with_capacity(m + 1);
+    let mut steps = Vec::with_capacity(m);
+    for start_copy in kept.into_iter().rev() {
+        let first = start_copy.state().step;
+        if first == last.step {
+            let (lq, lp) = physical(&lambda);
+            costates.push((last, lq, lp));
+            time_costates.push((lambda[N], lambda[2 * m_ext - 1]));
+            continue;
+        }
+        let mut sim = start_copy;
+        nodes.clear();
+        steps.clear();
+        nodes.push(sim.state());
+        let mut last_h = None;
+        while sim.state().step < (first + m as u64).min(last.step) {
+            let from = sim.state();
+            let node = sim.extended_node().ok_or_else(not_transformed)?;
+            Stepping::step_toward(&mut sim, t_end, last_h)?;
+            last_h = Some(sim.state().t - from.t);
+            steps.push(sim.extended_step::<P>(&node, &from)?);
+            nodes.push(sim.state());
+            recomputed_steps += 1;
+        }
+        for (i, linear) in steps.iter().enumerate().rev() {
+            for (j, d) in dtheta.iter_mut().enumerate() {
+                *d += linear.theta.column(j).dot(&lambda);
+            }
+            dc += linear.c.dot(&lambda);
+            lambda = linear.x.tr_mul(&lambda);
+            add_terms(&mut lambda, &mut dtheta, &nodes[i], false)?;
+        }
+        let (lq, lp) = physical(&lambda);
+        costates.push((nodes[0], lq, lp));
+        time_costates.push((lambda[N], lambda[2 * m_ext - 1]));
+    }
+    costates.reverse();
+    time_costates.reverse();
+    // Through the first node in `s` and the constant `c`.
+    let total = start.tangent.tr_mul(&lambda) + start.c.transpose() * dc;
+    let q0 = core::array::from_fn(|i| total[i]);
+    let v0 = core::array::from_fn(|i| total[N + i]);
+    for (j, d) in dtheta.iter_mut().enumerate() {
+        *d += total[2 * N + j];
+    }
+    Ok(Gradient { value, q0, v0, theta: dtheta, last, costates, time_costates, recomputed_steps })
 }

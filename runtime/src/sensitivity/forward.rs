@@ -3,10 +3,11 @@
 //! `S_0 = [[I, 0, 0], [L_vq, L_vv, L_vθ]]` (the initial momentum is the
 //! Legendre transform of `v_0`).
 
-use nalgebra::{DMatrix, SMatrix};
+use nalgebra::{DMatrix, RowDVector, SMatrix};
 
 use super::Parametric;
 use super::linearisation::{InitialMomentum, Piece, Rule, StepJacobian};
+use super::transformed::{Linear, Start};
 use crate::error::Error;
 use crate::solution::Solution;
 use crate::state::State;
@@ -23,6 +24,10 @@ pub struct Jacobian {
     pub cols: usize,
     /// The entries, row after row.
     pub data: Vec<f64>,
+    /// `∂t_k/∂(q_0, v_0, θ)`, `2N + P` entries: zero under fixed steps,
+    /// whose node times are constants; the node times of a time-transformed
+    /// run move with the inputs.
+    pub time: Vec<f64>,
 }
 
 impl Jacobian {
@@ -86,7 +91,7 @@ impl<const N: usize, const P: usize> Tangent<N, P> {
                 data.extend((0..P).map(|j| th[(i, j)]));
             }
         }
-        Jacobian { rows: 2 * N, cols, data }
+        Jacobian { rows: 2 * N, cols, data, time: vec![0.0; cols] }
     }
 }
 
@@ -107,19 +112,43 @@ pub struct Sensitivities<const N: usize> {
     pub error: Option<Error<N>>,
 }
 
+/// The tangent of a run: by blocks for the fixed steps of a rule, dense in
+/// the extended phase `(q, t, p, p_t)` through the time transformation.
+enum Mode<const N: usize, const P: usize> {
+    Fixed { rule: Rule, tangent: Tangent<N, P> },
+    Extended { tangent: DMatrix<f64>, c: RowDVector<f64> },
+}
+
+impl<const N: usize, const P: usize> Mode<N, P> {
+    /// `S_k` as a [`Jacobian`]: the rows of `q` and `p`, and of `t` in
+    /// the extended phase.
+    fn jacobian(&self) -> Jacobian {
+        match self {
+            Self::Fixed { tangent, .. } => tangent.jacobian(),
+            Self::Extended { tangent, .. } => {
+                let (m, cols) = (N + 1, 2 * N + P);
+                let mut data = Vec::with_capacity(2 * N * cols);
+                for i in (0..N).chain(m..m + N) {
+                    data.extend(tangent.row(i).iter());
+                }
+                Jacobian { rows: 2 * N, cols, data, time: tangent.row(N).iter().copied().collect() }
+            }
+        }
+    }
+}
+
 /// Propagates the tangent from node to node as the steps are taken,
 /// keeping the Jacobians of the nodes the plan keeps as rows.
 pub(crate) struct Propagation<'s, S, const N: usize, const P: usize> {
     system: &'s S,
-    rule: Rule,
     theta: [f64; P],
     every: usize,
-    tangent: Tangent<N, P>,
+    mode: Mode<N, P>,
     /// `(k, S_k)` of the nodes `k` with `k % every == 0`.
-    pub(crate) kept: Vec<(u64, Jacobian)>,
-    /// The last node's `(k, S_k)`.
-    pub(crate) last: Option<(u64, Tangent<N, P>)>,
-    pub(crate) error: Option<Error<N>>,
+    kept: Vec<(u64, Jacobian)>,
+    /// The last node's `k` (its tangent is the current one).
+    last: Option<u64>,
+    error: Option<Error<N>>,
 }
 
 impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S, N, P> {
@@ -133,7 +162,18 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
     ) -> Self {
         let theta = system.parameters();
         let tangent = Tangent::initial(&InitialMomentum::at(system, &theta, initial));
-        let mut out = Self { system, rule, theta, every, tangent, kept: Vec::new(), last: None, error: None };
+        Self::with(system, Mode::Fixed { rule, tangent }, every, node)
+    }
+
+    /// From the initial node `node` of a time-transformed run whose first
+    /// node in `s` has the derivatives `start`.
+    pub(crate) fn extended(system: &'s S, start: Start, every: usize, node: &State<N>) -> Self {
+        Self::with(system, Mode::Extended { tangent: start.tangent, c: start.c }, every, node)
+    }
+
+    fn with(system: &'s S, mode: Mode<N, P>, every: usize, node: &State<N>) -> Self {
+        let theta = system.parameters();
+        let mut out = Self { system, theta, every, mode, kept: Vec::new(), last: None, error: None };
         out.keep(node.step);
         out
     }
@@ -144,6 +184,10 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
         if self.error.is_some() {
             return;
         }
+        let Mode::Fixed { rule, tangent } = &mut self.mode else {
+            self.error = Some(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" });
+            return;
+        };
         let pieces = match pieces {
             Ok(pieces) => pieces,
             Err(e) => {
@@ -151,8 +195,8 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
                 return;
             }
         };
-        match StepJacobian::of_step(self.system, &self.rule, &self.theta, pieces) {
-            Some(j) => self.tangent = self.tangent.step(&j),
+        match StepJacobian::of_step(self.system, rule, &self.theta, pieces) {
+            Some(j) => *tangent = tangent.step(&j),
             None => {
                 let h = to.t - from.t;
                 self.error = Some(Error::SingularJacobian { state: *from, h, iterations: 0, rcond: 0.0 });
@@ -162,23 +206,48 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
         self.keep(to.step);
     }
 
+    /// The step to the node `to` of a time-transformed run, with its
+    /// linearisation in the extended phase (or why it has none):
+    /// `S_{k+1} = Φ_x S_k + Φ_θ [0 | 0 | I] + Φ_c ∂c/∂(q_0, v_0, θ)`.
+    pub(crate) fn step_extended(&mut self, linear: Result<Linear, Error<N>>, to: &State<N>) {
+        if self.error.is_some() {
+            return;
+        }
+        let Mode::Extended { tangent, c } = &mut self.mode else {
+            self.error = Some(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" });
+            return;
+        };
+        let linear = match linear {
+            Ok(linear) => linear,
+            Err(e) => {
+                self.error = Some(e);
+                return;
+            }
+        };
+        let mut next = &linear.x * &*tangent + &linear.c * &*c;
+        let mut params = next.columns_mut(2 * N, P);
+        params += &linear.theta;
+        *tangent = next;
+        self.keep(to.step);
+    }
+
     fn keep(&mut self, k: u64) {
         if self.every > 0 && k.is_multiple_of(self.every as u64) {
-            self.kept.push((k, self.tangent.jacobian()));
+            self.kept.push((k, self.mode.jacobian()));
         }
-        self.last = Some((k, self.tangent));
+        self.last = Some(k);
     }
 
     /// The Jacobians of the rows of `solution`.
     pub(crate) fn finish(self, solution: Solution<N>) -> Sensitivities<N> {
-        let Self { kept, last, mut error, .. } = self;
+        let Self { kept, last, mut error, mode, .. } = self;
         let mut jacobians = Vec::with_capacity(solution.len());
         for step in &solution.step {
             let found = step.and_then(|k| {
                 kept.binary_search_by_key(&k, |(i, _)| *i)
                     .ok()
                     .map(|i| kept[i].1.clone())
-                    .or_else(|| last.as_ref().filter(|(i, _)| *i == k).map(|(_, s)| s.jacobian()))
+                    .or_else(|| (last == Some(k)).then(|| mode.jacobian()))
             });
             match found {
                 Some(j) => jacobians.push(j),

@@ -176,6 +176,14 @@ pub struct Piece<const N: usize> {
 }
 
 impl<const N: usize> Piece<N> {
+    /// The Galerkin step a driver kept: from `q_k = q0 + carry` (the
+    /// compensated sum), with the increments `d`.
+    pub(crate) fn kept(t0: f64, h: f64, q0: [f64; N], carry: [f64; N], d: &[[f64; N]]) -> Self {
+        let mut piece = Self { t0, h, q0: core::array::from_fn(|i| q0[i] + carry[i]), d: [[0.0; N]; MAX_DEGREE] };
+        piece.d[..d.len()].copy_from_slice(d);
+        piece
+    }
+
     /// A step of degree 1 over `seg`.
     pub fn segment(seg: &Segment<N>) -> Self {
         let mut d = [[0.0; N]; MAX_DEGREE];

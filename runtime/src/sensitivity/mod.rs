@@ -18,6 +18,11 @@
 //! round-off; the pairing `λ_kᵀ S_k` of the two is conserved by a
 //! symplectic step.
 //!
+//! A step of the implicit time transformation is a fixed step of the
+//! extended system in `s`; [`transformed`] linearises it in the extended
+//! phase `(q, t, p, p_t)`, so the node times have derivatives too, with the
+//! driver's constant `c` and the landing step on `t_end` differentiated.
+//!
 //! The entry points are [`Problem::solve_with_sensitivities`] and
 //! [`Problem::gradient`](crate::Problem::gradient); which combinations
 //! they take is said by [`supports`](crate::problem::supports) with
@@ -32,7 +37,13 @@ pub mod linearisation;
 pub mod names;
 mod parametric;
 mod pullback;
+#[doc(hidden)]
+pub mod transformed;
 
 pub use adjoint::{Checkpoints, Gradient, Loss};
+
+/// Why the explicit time-transformed splitting has no sensitivities.
+pub(crate) const SPLITTING: &str = "sensitivities of the explicit time-transformed splitting: its sub-steps are the flows of \
+     `f(T + p_t + c)` and `f(c − V)` in the extended phase, not Galerkin steps of `L`, and their linearisation is not written";
 pub use forward::{Jacobian, Sensitivities};
 pub use parametric::Parametric;

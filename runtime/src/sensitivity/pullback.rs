@@ -872,7 +872,7 @@ mod tests {
     struct Ends;
 
     impl crate::sensitivity::Loss<LONG, 2> for Ends {
-        fn terminal<D: Scalar>(&self, _t: f64, q: [D; LONG], p: [D; LONG], theta: &[D; 2]) -> D {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; LONG], p: [D; LONG], theta: &[D; 2]) -> D {
             q[0] * q[1] + p[LONG - 1] * p[LONG - 1] + theta[1] * q[5]
         }
     }
@@ -1242,7 +1242,7 @@ mod run_accuracy {
     /// `sin q_0 · p_1 + q_1²` at the last node.
     struct Terminal;
     impl crate::sensitivity::Loss<2, 3> for Terminal {
-        fn terminal<D: Scalar>(&self, _t: f64, q: [D; 2], p: [D; 2], _theta: &[D; 3]) -> D {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; 2], p: [D; 2], _theta: &[D; 3]) -> D {
             q[0].sin() * p[1] + q[1] * q[1]
         }
     }

@@ -269,6 +269,13 @@ where
         self.inner.s_stats()
     }
 
+    /// Whether the current node is the end of a landing step of
+    /// [`run_until`](Self::run_until), whose size in `s` was solved for its
+    /// end time.
+    pub(crate) fn landed_here(&self) -> bool {
+        self.landed.is_some_and(|(step, _)| step == self.inner.extended_state().step)
+    }
+
     /// The physical time the last step advanced, `None` before the first.
     pub fn last_time_step(&self) -> Option<T> {
         self.last_dt

@@ -11,7 +11,7 @@ use crate::mechanics::DiscreteMechanics;
 use crate::newton::NewtonOptions;
 use crate::real::{Real, all_finite};
 use crate::state::State;
-use crate::system::Lagrangian;
+use crate::system::{Lagrangian, Scalar};
 
 use super::adaptive::{Adaptive, physical};
 use super::density::StepDensity;
@@ -63,6 +63,15 @@ pub const DEFAULT_RTOL: f64 = 2e-16;
 /// in `f64`, about two units of `T`'s precision in a wider type.
 pub(super) fn default_rtol<T: Real>() -> f64 {
     if T::EPSILON < f64::EPSILON { 2.0 * T::EPSILON } else { DEFAULT_RTOL }
+}
+
+/// The default constant `c = 1/(|p·v| + |L| + |E|)` from the Lagrangian
+/// `l` and the energy `e` at the initial data (1 where that sum is 0 or
+/// not finite), on any scalar: the sensitivities differentiate it.
+pub(crate) fn default_penalty<D: Scalar>(l: D, e: D) -> D {
+    let scale = (e + l).abs() + l.abs() + e.abs();
+    let re = scale.re();
+    if re.is_finite() && re > 0.0 { scale.recip() } else { D::one() }
 }
 
 /// Configuration of an [`Adaptive`] integrator before its initial state;
@@ -150,15 +159,12 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         let sys = &*self.system.system;
         let (t0f, q0f, v0f) = (t0.to_f64(), q0.map(|x| x.to_f64()), v0.map(|x| x.to_f64()));
         let (l0, e0) = (sys.lagrangian_value(t0f, q0f, v0f), sys.energy(t0f, q0f, v0f));
-        let pv = e0 + l0;
-        let scale = pv.abs() + l0.abs() + e0.abs();
         let penalty = match self.penalty {
             Some(c) if c.is_finite() && c > 0.0 => c,
             Some(_) => {
                 return Err(Error::InvalidSetting { reason: "the penalty must be finite and positive" });
             }
-            None if scale.is_finite() && scale > 0.0 => 1.0 / scale,
-            None => 1.0,
+            None => default_penalty(l0, e0),
         };
         let floor = self.min_time_step.unwrap_or(T::from(1e-8) * self.sigma * g0);
         if !(floor.is_finite() && floor.to_f64() > 0.0) {

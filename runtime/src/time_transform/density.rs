@@ -105,6 +105,20 @@ impl<const N: usize> StepDensity<N> for Curvature {
         S: Lagrangian<N> + ?Sized,
         D: Scalar,
     {
+        self.of(t, q, |t, q, v| system.lagrangian(t, q, v))
+    }
+}
+
+impl Curvature {
+    /// `g(t, q)` of the Lagrangian `lagrangian` (evaluated on hyper-duals):
+    /// the density of [`StepDensity::density`], and of the sensitivities,
+    /// which evaluate it with the Lagrangian at parameters `θ`.
+    pub(crate) fn of<D: Scalar, const N: usize>(
+        &self,
+        t: D,
+        q: &[D; N],
+        lagrangian: impl Fn(HyperDual<D>, [HyperDual<D>; N], [HyperDual<D>; N]) -> HyperDual<D>,
+    ) -> D {
         let mut k2 = D::from(self.floor * self.floor);
         let v = [HyperDual::from_re(D::zero()); N];
         for i in 0..N {
@@ -112,7 +126,7 @@ impl<const N: usize> StepDensity<N> for Curvature {
                 let mut qh = q.map(HyperDual::from_re);
                 qh[i].eps1 = D::one();
                 qh[j].eps2 = D::one();
-                let h = system.lagrangian(HyperDual::from_re(t), qh, v).eps1eps2;
+                let h = lagrangian(HyperDual::from_re(t), qh, v).eps1eps2;
                 k2 += if i == j { h * h } else { h * h * 2.0 };
             }
         }

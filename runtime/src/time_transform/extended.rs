@@ -194,15 +194,8 @@ where
     fn lagrangian<D: Scalar>(&self, _s: D, x: [D; M], w: [D; M]) -> D {
         const { assert!(M == N + 1, "the time-transformed system has N + 1 coordinates (q, t)") };
         let (t, q) = split::<D, N, M>(&x);
-        let tp = w[N];
         let g = self.checked_density(t, &q);
-        let inv = tp.recip();
-        let mut v = [D::zero(); N];
-        for i in 0..N {
-            v[i] = w[i] * inv;
-        }
-        let d = tp - g;
-        tp * self.system.lagrangian(t, q, v) + d * d / (g * (2.0 * self.penalty))
+        extended_lagrangian(&w, g, D::from(self.penalty), |v| self.system.lagrangian(t, q, v))
     }
 
     /// Lagrange–d'Alembert in `s`: the virtual work `∫ F·(δq − v δt) dt`
@@ -210,27 +203,57 @@ where
     #[inline(always)]
     fn force<D: Scalar>(&self, _s: D, x: [D; M], w: [D; M]) -> [D; M] {
         let (t, q) = split::<D, N, M>(&x);
-        let tp = w[N];
-        let inv = tp.recip();
-        let mut v = [D::zero(); N];
-        for i in 0..N {
-            v[i] = w[i] * inv;
-        }
-        let f = generalized_force(&*self.system, t, q, v);
-        let mut out = [D::zero(); M];
-        let mut power = D::zero();
-        for i in 0..N {
-            out[i] = f[i] * tp;
-            power += f[i] * w[i];
-        }
-        out[N] = -power;
-        out
+        extended_force(&w, |v| generalized_force(&*self.system, t, q, v))
     }
+}
+
+/// `L̃ = t' L(t, q, q'/t') + (t' − g)²/(2cg)` from the extended velocity
+/// `w = (q', t')`, the density `g`, the constant `c` and the physical
+/// Lagrangian `lagrangian` as a function of the velocity `v = q'/t'`.
+#[inline(always)]
+pub(crate) fn extended_lagrangian<D: Scalar, const N: usize, const M: usize>(
+    w: &[D; M],
+    g: D,
+    c: D,
+    lagrangian: impl FnOnce([D; N]) -> D,
+) -> D {
+    let tp = w[N];
+    let inv = tp.recip();
+    let mut v = [D::zero(); N];
+    for i in 0..N {
+        v[i] = w[i] * inv;
+    }
+    let d = tp - g;
+    tp * lagrangian(v) + d * d / (g * c * 2.0)
+}
+
+/// The extended force `(t' F, −F·q')` from the extended velocity and the
+/// physical generalized force `force` as a function of `v = q'/t'`.
+#[inline(always)]
+pub(crate) fn extended_force<D: Scalar, const N: usize, const M: usize>(
+    w: &[D; M],
+    force: impl FnOnce([D; N]) -> [D; N],
+) -> [D; M] {
+    let tp = w[N];
+    let inv = tp.recip();
+    let mut v = [D::zero(); N];
+    for i in 0..N {
+        v[i] = w[i] * inv;
+    }
+    let f = force(v);
+    let mut out = [D::zero(); M];
+    let mut power = D::zero();
+    for i in 0..N {
+        out[i] = f[i] * tp;
+        power += f[i] * w[i];
+    }
+    out[N] = -power;
+    out
 }
 
 /// `(t, q)` from `x = (q, t)`.
 #[inline(always)]
-pub(super) fn split<D: Scalar, const N: usize, const M: usize>(x: &[D; M]) -> (D, [D; N]) {
+pub(crate) fn split<D: Scalar, const N: usize, const M: usize>(x: &[D; M]) -> (D, [D; N]) {
     let mut q = [D::zero(); N];
     q.copy_from_slice(&x[..N]);
     (x[N], q)

@@ -48,9 +48,11 @@ mod stepper;
 pub use crate::error::Argument;
 
 pub use adaptive::Adaptive;
+pub(crate) use builder::default_penalty;
 pub use builder::{DEFAULT_RTOL, TimeTransformedBuilder};
 pub use density::{Curvature, RadiusPower, StepDensity};
 pub use extended::TimeTransformed;
+pub(crate) use extended::{extended_force, extended_lagrangian, split};
 pub use splitting::{
     ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingStats, TimeFunction,
 };
