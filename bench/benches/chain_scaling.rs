@@ -24,6 +24,14 @@
 //! and the process's peak resident memory (`VmHWM`). Fewer steps per timed
 //! run at large N keep the bench's run time sensible.
 //!
+//! Before both, a group times the explicit step alone at N = 1000 on the
+//! bench's chain and on the chain as a new user writes it
+//! (`lagrangian_bench::chain`), with the size known at compile time and at
+//! run time, compensated and plain, against the hand-written Verlet: a
+//! table of µs per step and the ratios to the plain hand-written Verlet,
+//! all from one run (instruction counts of the same cases:
+//! `bench/chain-instructions.sh`).
+//!
 //! `cargo bench -p lagrangian-bench --bench chain_scaling`
 #![allow(missing_docs)]
 
@@ -32,120 +40,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use lagrangian::prelude::*;
-
-struct Fpu<const N: usize>;
-
-const BETA: f64 = 1.0;
-
-#[lagrangian]
-impl<const N: usize> Fpu<N> {
-    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
-        let mut kinetic = 0.0;
-        for i in 0..N {
-            kinetic += 0.5 * v[i] * v[i];
-        }
-        let mut d = q[0];
-        let mut potential = 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        for i in 0..N - 1 {
-            d = q[i + 1] - q[i];
-            potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        }
-        d = q[N - 1];
-        potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        kinetic - potential
-    }
-}
-
-/// Mode `N/10` with spring strains of 0.3.
-fn start_q<const N: usize>() -> [f64; N] {
-    let k = N.div_ceil(10);
-    let a = 0.3 * (N + 1) as f64 / (k as f64 * std::f64::consts::PI);
-    core::array::from_fn(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (N + 1) as f64).sin())
-}
-
-/// The chain's force `−∇V` by hand.
-fn force(q: &[f64], f: &mut [f64]) {
-    let n = q.len();
-    let spring = |d: f64| d + BETA * d * d * d;
-    let mut left = spring(q[0]);
-    for i in 0..n {
-        let right = spring(if i + 1 < n { q[i + 1] - q[i] } else { -q[i] });
-        f[i] = right - left;
-        left = right;
-    }
-}
-
-/// Hand-written velocity Verlet, unit masses.
-struct Verlet {
-    q: Vec<f64>,
-    p: Vec<f64>,
-    f: Vec<f64>,
-}
-
-impl Verlet {
-    fn new(q: &[f64]) -> Self {
-        let mut f = vec![0.0; q.len()];
-        force(q, &mut f);
-        Self { q: q.to_vec(), p: vec![0.0; q.len()], f }
-    }
-
-    fn step(&mut self, h: f64) {
-        for i in 0..self.q.len() {
-            self.p[i] += 0.5 * h * self.f[i];
-            self.q[i] += h * self.p[i];
-        }
-        force(&self.q, &mut self.f);
-        for i in 0..self.q.len() {
-            self.p[i] += 0.5 * h * self.f[i];
-        }
-    }
-}
-
-/// Hand-written velocity Verlet, unit masses, with the Kahan-compensated
-/// sums of `q` and `p` the generated steps keep (`q`, its compensation `qc`,
-/// `p`, `pc` updated in place, the forces at both nodes in two buffers
-/// swapped after each step): the fair baseline of the generated explicit
-/// step, which does the same arithmetic.
-struct CompensatedVerlet {
-    q: Vec<f64>,
-    qc: Vec<f64>,
-    p: Vec<f64>,
-    pc: Vec<f64>,
-    f0: Vec<f64>,
-    f1: Vec<f64>,
-}
-
-impl CompensatedVerlet {
-    fn new(q: &[f64]) -> Self {
-        let n = q.len();
-        let mut f0 = vec![0.0; n];
-        force(q, &mut f0);
-        Self { q: q.to_vec(), qc: vec![0.0; n], p: vec![0.0; n], pc: vec![0.0; n], f0, f1: vec![0.0; n] }
-    }
-
-    fn step(&mut self, h: f64) {
-        let kahan = |a: f64, c: f64, b: f64| {
-            let u = c + b;
-            let sum = a + u;
-            (sum, u - (sum - a))
-        };
-        let half = 0.5 * h;
-        let n = self.q.len();
-        // One length for every slice: the loops have no bounds checks.
-        let (q, qc, p, pc) = (&mut self.q[..n], &mut self.qc[..n], &mut self.p[..n], &mut self.pc[..n]);
-        let old = &self.f0[..n];
-        for i in 0..n {
-            let x = ((p[i] + half * old[i]) + pc[i]) * h;
-            (q[i], qc[i]) = kahan(q[i], qc[i], x);
-        }
-        force(q, &mut self.f1);
-        let new = &self.f1[..n];
-        for i in 0..n {
-            (p[i], pc[i]) = kahan(p[i], pc[i], half * (old[i] + new[i]));
-        }
-        core::mem::swap(&mut self.f0, &mut self.f1);
-    }
-}
+use lagrangian_bench::chain::{
+    BETA, CompensatedVerlet, DynFpu, DynUserFpu, Fpu, UserFpu, Verlet, start_array, start_q,
+};
 
 const H: f64 = 0.05;
 const STEPS: usize = 20;
@@ -177,7 +74,7 @@ struct Costs {
 
 /// The [`Costs`] of the const-size chain of `N` masses.
 fn costs<const N: usize>(c: &mut Criterion) -> Costs {
-    let q0 = start_q::<N>();
+    let q0 = start_array::<N>();
     let mut g = c.benchmark_group(format!("FPU-β chain, N = {N}, {STEPS} steps"));
     g.sample_size(10);
     // The integrators keep stepping across iterations: only steps are timed.
@@ -249,34 +146,6 @@ fn scaling(c: &mut Criterion) {
     );
 }
 
-/// The same chain, sized at run time, through `#[lagrangian]` over slices
-/// (the macro writes out its gradient for the explicit path).
-struct DynFpu(usize);
-
-#[lagrangian]
-impl DynFpu {
-    fn dimension(&self) -> usize {
-        self.0
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        let n = q.len();
-        let mut kinetic = 0.0;
-        for i in 0..n {
-            kinetic += 0.5 * v[i] * v[i];
-        }
-        let mut d = q[0];
-        let mut potential = 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        for i in 0..n - 1 {
-            d = q[i + 1] - q[i];
-            potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        }
-        d = q[n - 1];
-        potential += 0.5 * d * d + 0.25 * BETA * d.powi(4);
-        kinetic - potential
-    }
-}
-
 /// The µs per step of each contender and the ratios of the explicit
 /// trapezoid to the plain and the compensated hand-written Verlet.
 fn table(sizes: &[f64], rows: &[Costs]) {
@@ -301,10 +170,7 @@ fn table(sizes: &[f64], rows: &[Costs]) {
 /// The [`Costs`] of the run-time-sized chain of `n` masses, `steps` steps
 /// per timed run.
 fn dyn_costs(c: &mut Criterion, n: usize, steps: usize, repeats: usize) -> Costs {
-    let k = n.div_ceil(10);
-    let a = 0.3 * (n + 1) as f64 / (k as f64 * std::f64::consts::PI);
-    let q0: Vec<f64> =
-        (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (n + 1) as f64).sin()).collect();
+    let q0 = start_q(n);
     let v0 = vec![0.0; n];
     let mut explicit = DynIntegrator::new(DynFpu(n), Trapezoid, H).start(0.0, &q0, &v0).unwrap();
     let mut explicit_plain =
@@ -384,5 +250,85 @@ fn dyn_scaling(c: &mut Criterion) {
     println!("peak resident memory of the bench process (VmHWM): {}", peak_memory().unwrap_or("unavailable".into()));
 }
 
-criterion_group!(benches, scaling, dyn_scaling);
+/// The explicit step at N = 1000 on both chains (the bench's and a new
+/// user's: `lagrangian_bench::chain`), with the size known at compile time
+/// and at run time, each with compensated and plain sums, against the
+/// hand-written Verlet: criterion's timings, then a table of µs per step
+/// (best of repeated runs of 20 steps, all in this run) and each over the
+/// plain hand-written Verlet.
+fn explicit_step(c: &mut Criterion) {
+    const N: usize = 1000;
+    /// `STEPS` steps of one contender.
+    type Run = Box<dyn FnMut()>;
+    fn summation(plain: bool) -> Summation {
+        if plain { Summation::Plain } else { Summation::Compensated }
+    }
+    fn fixed<S: Lagrangian<N> + 'static>(system: S, plain: bool) -> Run {
+        let mut sim = Integrator::new(system, Trapezoid, H)
+            .summation(summation(plain))
+            .start(0.0, start_array::<N>(), [0.0; N])
+            .unwrap();
+        Box::new(move || {
+            sim.run(STEPS, |_| {}).unwrap();
+            black_box(sim.state().q[0]);
+        })
+    }
+    fn dynamic<S: DynLagrangian + 'static>(system: S, plain: bool) -> Run {
+        let n = system.dimension();
+        let mut sim = DynIntegrator::new(system, Trapezoid, H)
+            .summation(summation(plain))
+            .start(0.0, &start_q(n), &vec![0.0; n])
+            .unwrap();
+        Box::new(move || {
+            sim.run(STEPS, |_| {}).unwrap();
+            black_box(sim.state().q[0]);
+        })
+    }
+    let q0 = start_q(N);
+    let mut verlet = Verlet::new(&q0);
+    let mut kahan = CompensatedVerlet::new(&q0);
+    let mut contenders: Vec<(&str, Run)> = vec![
+        (
+            "hand-written Verlet",
+            Box::new(move || {
+                for _ in 0..STEPS {
+                    verlet.step(H);
+                }
+                black_box(verlet.q[0]);
+            }),
+        ),
+        (
+            "hand-written Verlet, compensated sums",
+            Box::new(move || {
+                for _ in 0..STEPS {
+                    kahan.step(H);
+                }
+                black_box(kahan.q[0]);
+            }),
+        ),
+        ("trapezoid, bench's chain", fixed(Fpu::<N>, false)),
+        ("trapezoid, bench's chain, plain sums", fixed(Fpu::<N>, true)),
+        ("trapezoid, user's chain", fixed(UserFpu::<N> { beta: BETA }, false)),
+        ("trapezoid, user's chain, plain sums", fixed(UserFpu::<N> { beta: BETA }, true)),
+        ("run-time size, bench's chain", dynamic(DynFpu(N), false)),
+        ("run-time size, bench's chain, plain sums", dynamic(DynFpu(N), true)),
+        ("run-time size, user's chain", dynamic(DynUserFpu { n: N, beta: BETA }, false)),
+        ("run-time size, user's chain, plain sums", dynamic(DynUserFpu { n: N, beta: BETA }, true)),
+    ];
+    let mut g = c.benchmark_group(format!("explicit FPU-β step, N = {N}, {STEPS} steps"));
+    g.sample_size(20);
+    for (name, run) in &mut contenders {
+        g.bench_function(*name, |b| b.iter(&mut *run));
+    }
+    g.finish();
+    let best: Vec<f64> = contenders.iter_mut().map(|(_, run)| seconds_per_step(50, run)).collect();
+    println!(
+        "\nexplicit FPU-β step, N = {N}, µs per step (best of 50 runs of {STEPS} steps) and over the hand-written Verlet:"
+    );
+    for ((name, _), t) in contenders.iter().zip(&best) {
+        println!("{name:>42} {:>8.3} {:>6.2}", t * 1e6, t / best[0]);
+    }
+}
+
+criterion_group!(benches, explicit_step, scaling, dyn_scaling);
 criterion_main!(benches);

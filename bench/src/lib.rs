@@ -9,6 +9,7 @@
 
 pub mod calibrate;
 pub mod cartesian;
+pub mod chain;
 pub mod clock;
 pub mod compositions;
 pub mod constrained;

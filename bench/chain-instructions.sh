@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Instructions per explicit step of the FPU-β chain at N = 1000 and 1024,
+# counted by valgrind's callgrind (they do not depend on the load of the
+# machine): the hand-written Verlet against the generated trapezoid
+# (Störmer–Verlet) step, on the bench's chain and on the chain as a new user
+# writes it, with the size known at compile time and at run time. Each count
+# is (Ir of STEPS steps − Ir of none) / STEPS, so start-up cancels. The runs
+# are the example `bench/examples/chain_steps.rs` (release build); the last
+# column is the count over the plain hand-written Verlet's.
+#
+#   bench/chain-instructions.sh
+#   BIN=/path/to/chain_steps bench/chain-instructions.sh   # another build of the example
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+STEPS=200
+CASES=(
+  hand hand-compensated
+  trapezoid trapezoid-plain user-trapezoid user-trapezoid-plain
+  dyn-trapezoid dyn-trapezoid-plain dyn-user-trapezoid dyn-user-trapezoid-plain
+)
+
+command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
+if [[ -z "${BIN:-}" ]]; then
+  cargo build --release -p lagrangian-bench --example chain_steps >&2
+fi
+bin=${BIN:-${CARGO_TARGET_DIR:-target}/release/examples/chain_steps}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+count() { # case n steps -> total Ir
+  valgrind --tool=callgrind --callgrind-out-file="$tmp/out" "$bin" "$1" "$2" "$3" >/dev/null 2>"$tmp/err" \
+    || { cat "$tmp/err" >&2; exit 1; }
+  grep -m1 '^summary:' "$tmp/out" | awk '{print $2}'
+}
+
+echo "| N | case | instructions per step | / hand |"
+echo "| --- | --- | --- | --- |"
+for n in 1000 1024; do
+  hand=0
+  for c in "${CASES[@]}"; do
+    per=$(( ($(count "$c" "$n" $STEPS) - $(count "$c" "$n" 0) + STEPS / 2) / STEPS ))
+    [[ $c == hand ]] && hand=$per
+    echo "| $n | $c | $per | $(awk -v a="$per" -v b="$hand" 'BEGIN { printf "%.2f", a / b }') |"
+  done
+done
