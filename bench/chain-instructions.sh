@@ -20,18 +20,14 @@ CASES=(
   dyn-trapezoid dyn-trapezoid-plain dyn-user-trapezoid dyn-user-trapezoid-plain
 )
 
-command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
+source scripts/callgrind.sh
 if [[ -z "${BIN:-}" ]]; then
   cargo build --release -p lagrangian-bench --example chain_steps >&2
 fi
 bin=${BIN:-${CARGO_TARGET_DIR:-target}/release/examples/chain_steps}
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 
 count() { # case n steps -> total Ir
-  valgrind --tool=callgrind --callgrind-out-file="$tmp/out" "$bin" "$1" "$2" "$3" >/dev/null 2>"$tmp/err" \
-    || { cat "$tmp/err" >&2; exit 1; }
-  grep -m1 '^summary:' "$tmp/out" | awk '{print $2}'
+  callgrind_total "$bin" "$1" "$2" "$3"
 }
 
 echo "| N | case | instructions per step | / hand |"

@@ -21,18 +21,14 @@ CASES=(
   "double-angle-galerkin4 0.01" "double-angle-galerkin4 0.05"
 )
 
-command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
+source scripts/callgrind.sh
 if [[ -z "${BIN:-}" ]]; then
   cargo build --release -p lagrangian-bench --example constrained_steps >&2
 fi
 bin=${BIN:-${CARGO_TARGET_DIR:-target}/release/examples/constrained_steps}
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 
 count() { # case h steps -> total Ir
-  valgrind --tool=callgrind --callgrind-out-file="$tmp/out" "$bin" "$1" "$3" "$2" >/dev/null 2>"$tmp/err" \
-    || { cat "$tmp/err" >&2; exit 1; }
-  grep -m1 '^summary:' "$tmp/out" | awk '{print $2}'
+  callgrind_total "$bin" "$1" "$3" "$2"
 }
 
 echo "| case | h | instructions per step | Newton iterations per step |"
@@ -40,7 +36,7 @@ echo "| --- | --- | --- | --- |"
 for c in "${CASES[@]}"; do
   read -r case h <<<"$c"
   full=$(count "$case" "$h" $STEPS)
-  newton=$(grep -o 'per step: [0-9.]*' "$tmp/err" | awk '{print $3}')
+  newton=$(grep -o 'per step: [0-9.]*' "$callgrind_dir/err" | awk '{print $3}')
   none=$(count "$case" "$h" 0)
   echo "| $case | $h | $(( (full - none + STEPS / 2) / STEPS )) | $newton |"
 done

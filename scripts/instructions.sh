@@ -31,16 +31,12 @@ CASES=(
   "kepler|galerkin4" "kepler|galerkin6"
 )
 
-command -v valgrind >/dev/null || { echo "valgrind not found" >&2; exit 1; }
+source scripts/callgrind.sh
 cargo build --release --example step_profile >&2
 bin=${CARGO_TARGET_DIR:-target}/release/examples/step_profile
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 
 count() { # case method steps -> total Ir
-  valgrind --tool=callgrind --callgrind-out-file="$tmp/out" "$bin" "$1" "$2" "$3" >/dev/null 2>"$tmp/err" \
-    || { cat "$tmp/err" >&2; exit 1; }
-  grep -m1 '^summary:' "$tmp/out" | awk '{print $2}'
+  callgrind_total "$bin" "$1" "$2" "$3"
 }
 
 table="| case | method | instructions per step |

@@ -303,6 +303,35 @@ pub(crate) struct StartForcing<const N: usize> {
     pub(crate) d_work_t1: f64,
 }
 
+/// The extended step derivatives of `seg` (`derivatives::extended_step_derivatives`)
+/// with, for a forced system, the discrete Lagrange–d'Alembert terms of time
+/// as a variable: `F_k^−` joins the DEL, and its work `−F_k^−·v̂_k` on
+/// `δt_k` the energy equation (see [`StartForcing`]). What every variable
+/// step of a forced system solves.
+pub(crate) fn extended_step_derivatives<S, M, const N: usize>(
+    system: &S,
+    method: &M,
+    seg: &Segment<N>,
+) -> derivatives::ExtendedStepDerivatives<N>
+where
+    S: Lagrangian<N> + ?Sized,
+    M: DiscreteLagrangian,
+{
+    let mut d = derivatives::extended_step_derivatives(system, method, seg);
+    if is_forced::<S, N>() {
+        let f = start_forcing(system, method, seg);
+        for i in 0..N {
+            d.d_q0[i] += f.minus[i];
+            d.d2_q0_t1[i] += f.d_minus_t1[i];
+            d.d2_t0_q1[i] -= f.d_work_q1[i];
+        }
+        d.d2_q0_q1 += f.d_minus_q1;
+        d.d_t0 -= f.work;
+        d.d2_t0_t1 -= f.d_work_t1;
+    }
+    d
+}
+
 /// [`StartForcing`] of the step `seg`.
 pub(crate) fn start_forcing<S, M, const N: usize>(system: &S, method: &M, seg: &Segment<N>) -> StartForcing<N>
 where

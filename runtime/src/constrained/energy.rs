@@ -106,20 +106,8 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
         *spent += solved.iterations;
         let (system, rule) = (&self.system, &self.method.rule);
         let seg = solved.seg;
-        let mut d = derivatives::extended_step_derivatives(system, rule, &seg);
-        if forcing::is_forced::<S, N>() {
-            // Lagrange–d'Alembert with time as a variable, as without
-            // constraints: F_k^− in the position line, its work on δt_k in
-            // the energy equation.
-            let f = forcing::start_forcing(system, rule, &seg);
-            for i in 0..N {
-                d.d2_q0_t1[i] += f.d_minus_t1[i];
-                d.d2_t0_q1[i] -= f.d_work_q1[i];
-            }
-            d.d2_q0_q1 += f.d_minus_q1;
-            d.d_t0 -= f.work;
-            d.d2_t0_t1 -= f.d_work_t1;
-        }
+        // Lagrange–d'Alembert with time as a variable, as without constraints.
+        let d = forcing::extended_step_derivatives(system, rule, &seg);
         let target = energy_target(self);
         let g = d.d_t0 - target;
         if !g.is_finite() {
@@ -135,15 +123,7 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
     /// Without the local root test: its model of the energy error is that
     /// of the unconstrained flow.
     fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Positions<N, M>>, spent: usize) -> Error<N> {
-        Error::NoEnergyStep {
-            state: self.state,
-            h_lo: lo,
-            h_hi: hi,
-            h_best: best.h,
-            mismatch: best.g.abs() / best.scale,
-            iterations: spent,
-            root_test: None,
-        }
+        best.no_energy_step(self.state, (lo, hi), spent, None)
     }
 }
 

@@ -120,14 +120,6 @@ where
     }
 
     fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error<N> {
-        Error::NoEnergyStep {
-            state: self.state,
-            h_lo: lo,
-            h_hi: hi,
-            h_best: best.h,
-            mismatch: best.g.abs() / best.scale,
-            iterations: spent,
-            root_test: None,
-        }
+        best.no_energy_step(self.state, (lo, hi), spent, None)
     }
 }

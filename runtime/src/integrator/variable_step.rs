@@ -179,6 +179,26 @@ pub(crate) struct Probe<X> {
 }
 
 impl<X> Probe<X> {
+    /// [`Error::NoEnergyStep`] from `state` for the bracket `[lo, hi]`, this
+    /// probe the least mismatch in it, after `spent` iterations.
+    pub(crate) fn no_energy_step<const N: usize>(
+        &self,
+        state: State<N>,
+        (lo, hi): (f64, f64),
+        spent: usize,
+        root_test: Option<(f64, f64, f64)>,
+    ) -> Error<N> {
+        Error::NoEnergyStep {
+            state,
+            h_lo: lo,
+            h_hi: hi,
+            h_best: self.h,
+            mismatch: self.g.abs() / self.scale,
+            iterations: spent,
+            root_test,
+        }
+    }
+
     /// `g` is round-off of its own terms.
     fn solved(&self) -> bool {
         self.g.abs() <= 8.0 * f64::EPSILON * self.scale
@@ -488,20 +508,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                 return Err(Breakdown::Rejected("the energy equation drove the step size to h ≤ 0"));
             }
             let seg = Segment { t0, h: x.t, q0, dq: x.q.into() };
-            let mut d = derivatives::extended_step_derivatives(system, method, &seg);
-            if forcing::is_forced::<S, N>() {
-                // Lagrange–d'Alembert with time as a variable: F_k^− joins the
-                // DEL, and its work −F_k^−·v̂_k on δt_k the energy equation.
-                let f = forcing::start_forcing(system, method, &seg);
-                for i in 0..N {
-                    d.d_q0[i] += f.minus[i];
-                    d.d2_q0_t1[i] += f.d_minus_t1[i];
-                    d.d2_t0_q1[i] -= f.d_work_q1[i];
-                }
-                d.d2_q0_q1 += f.d_minus_q1;
-                d.d_t0 -= f.work;
-                d.d2_t0_t1 -= f.d_work_t1;
-            }
+            let d = forcing::extended_step_derivatives(system, method, &seg);
             let r = SVector::<f64, N>::from_fn(|i, _| (p0[i] + d.d_q0[i]) + pc[i]);
             let r_t = d.d_t0 - e0;
             let ratio_q = r.amax() / max_abs(&p0).max(max_abs(&d.d_q0));
@@ -687,18 +694,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
         let (dq, report) = self.solve_del(h)?;
         *spent += report.iterations;
         let seg = Segment { t0, h, q0, dq };
-        let mut d = derivatives::extended_step_derivatives(&self.system, &self.method, &seg);
-        if forcing::is_forced::<S, N>() {
-            // As in `coupled`: the forced DEL (solved by `solve_del`) and energy equation.
-            let f = forcing::start_forcing(&self.system, &self.method, &seg);
-            for i in 0..N {
-                d.d2_q0_t1[i] += f.d_minus_t1[i];
-                d.d2_t0_q1[i] -= f.d_work_q1[i];
-            }
-            d.d2_q0_q1 += f.d_minus_q1;
-            d.d_t0 -= f.work;
-            d.d2_t0_t1 -= f.d_work_t1;
-        }
+        // The forced DEL (solved by `solve_del`) and energy equation.
+        let d = forcing::extended_step_derivatives(&self.system, &self.method, &seg);
         let slope = match d.d2_q0_q1.try_inverse() {
             Some(inv) => d.d2_t0_t1 - d.d2_t0_q1.dot(&(inv * d.d2_q0_t1)),
             None => f64::NAN,
@@ -716,15 +713,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
     }
 
     fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Segment<N>>, spent: usize) -> Error<N> {
-        Error::NoEnergyStep {
-            state: self.state,
-            h_lo: lo,
-            h_hi: hi,
-            h_best: best.h,
-            mismatch: best.g.abs() / best.scale,
-            iterations: spent,
-            root_test: self.root_test(),
-        }
+        best.no_energy_step(self.state, (lo, hi), spent, self.root_test())
     }
 }
 

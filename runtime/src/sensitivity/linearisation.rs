@@ -217,6 +217,23 @@ where
     f
 }
 
+/// `(q, v, θ)` as dual numbers seeded in direction `c` of `(q, v, θ)`.
+#[allow(clippy::type_complexity)]
+pub(super) fn seeded<const N: usize, const P: usize>(
+    q: &[f64; N],
+    v: &[f64; N],
+    theta: &[f64; P],
+    c: usize,
+) -> ([Dual64; N], [Dual64; N], [Dual64; P]) {
+    let (mut qo, mut vo, mut tho) = (q.map(Dual64::from_re), v.map(Dual64::from_re), theta.map(Dual64::from_re));
+    match c {
+        c if c < N => qo[c].eps = 1.0,
+        c if c < 2 * N => vo[c - N].eps = 1.0,
+        c => tho[c - 2 * N].eps = 1.0,
+    }
+    (qo, vo, tho)
+}
+
 /// `∂(L_q + F)/∂(q, v, θ)` and `∂L_v/∂(q, v, θ)` at one point, each
 /// `N × (2N + P)`: an outer dual seeds the column, an inner one takes the
 /// gradient of `L`.
@@ -229,12 +246,7 @@ fn point_jacobians<S: Parametric<N, P>, const N: usize, const P: usize>(
     let (mut a, mut b) = (DMatrix::zeros(N, k), DMatrix::zeros(N, k));
     let one = Dual64::from_re(1.0);
     for c in 0..k {
-        let (mut qo, mut vo, mut tho) = (q.map(Dual64::from_re), v.map(Dual64::from_re), theta.map(Dual64::from_re));
-        match c {
-            c if c < N => qo[c].eps = 1.0,
-            c if c < 2 * N => vo[c - N].eps = 1.0,
-            c => tho[c - 2 * N].eps = 1.0,
-        }
+        let (qo, vo, tho) = seeded(&q, &v, theta, c);
         let (to, th) = (Dual64::from_re(t), tho.map(Dual::from_re));
         let (qi, vi) = (qo.map(Dual::from_re), vo.map(Dual::from_re));
         for i in 0..N {

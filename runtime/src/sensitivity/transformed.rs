@@ -29,7 +29,7 @@ use nalgebra::{DMatrix, DVector, RowDVector};
 use num_dual::{Dual, Dual64, HyperDual};
 
 use super::Parametric;
-use super::linearisation::{Piece, Rule, StepJacobian, generalized_force};
+use super::linearisation::{Piece, Rule, StepJacobian, generalized_force, seeded};
 use crate::system::{Lagrangian, Scalar};
 use crate::time_transform::{Curvature, TimeTransformed, default_penalty, extended_force, extended_lagrangian, split};
 
@@ -234,12 +234,7 @@ where
     let mut tangent = DMatrix::<f64>::zeros(2 * M, k);
     let mut dc = RowDVector::<f64>::zeros(k);
     for col in 0..k {
-        let (mut q, mut v, mut th) = (q0.map(Dual64::from), v0.map(Dual64::from), theta.map(Dual64::from));
-        match col {
-            col if col < N => q[col].eps = 1.0,
-            col if col < 2 * N => v[col - N].eps = 1.0,
-            col => th[col - 2 * N].eps = 1.0,
-        }
+        let (q, v, th) = seeded(&q0, &v0, &theta, col);
         let t = Dual64::from(t0);
         // c = 1/(|p·v| + |L| + |E|) at the initial data, as the driver sets it.
         let lifted: [Dual<Dual64>; P] = th.map(Dual::from_re);
