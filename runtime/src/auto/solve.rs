@@ -225,6 +225,10 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             let c = first[0].0;
             let fixed_step = c.family != Family::TimeTransformed;
             let mut h = self.initial_step(c, rho, span);
+            // `σ` in the new time: the step in `t` over the density at the start.
+            if !fixed_step && let Some(g) = self.tt_density() {
+                h /= g;
+            }
             if fixed_step {
                 h = h.min((tp - self.t0) / 4.0).min(rho.map_or(f64::INFINITY, |r| COMPOSITION_RHO_H / r));
             }
@@ -232,19 +236,17 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             for _ in 0..3 {
                 let n = ((tp - self.t0) / h).ceil().max(1.0) as usize;
                 let stride = (n / SURVEY_SAMPLES).max(1);
-                // Fixed steps: the nodes of the pilot's first coarse run, which
-                // this run then is.
-                let landings = if fixed_step { self.pilot_times(h, &checkpoints) } else { checkpoints.to_vec() };
-                if let Ok(p) = run_probe(c, &self, h, &landings, fixed_step, stride) {
+                // The pilot's first coarse run, which this run then is: fixed
+                // steps land on its nodes, a time transformation at its end.
+                let landings = if fixed_step { self.pilot_times(h, &checkpoints) } else { vec![tp] };
+                if let Ok(p) = run_probe(c, &self, h, &landings, true, stride) {
                     cost.steps += p.steps;
                     let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
                     if max.is_finite() {
                         rho_max = rho_max.max(max);
                     }
                     density_ratio = choice::density_ratio(&p.rates);
-                    if fixed_step {
-                        survey = Some((c, h, p));
-                    }
+                    survey = Some((c, h, p));
                     break;
                 }
                 h /= 4.0;
@@ -466,6 +468,12 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let p = c.order as i32;
         let mut failures = 0;
         let mut last: Option<((f64, f64), Richardson, f64)> = None;
+        // The finest step piloted whose estimate missed the target: a
+        // round-off-limited finer round does not climb back to it.
+        let mut too_coarse = f64::INFINITY;
+        // The coarsest step piloted whose estimate met the target: a round
+        // that would pilot about it or finer takes it instead.
+        let mut met: Option<((f64, f64), Richardson, f64)> = None;
         // A few coarse steps over the pilot at least.
         let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
@@ -477,6 +485,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     h = r.0;
                 }
             }
+            if let Some(m) = met.as_ref().filter(|m| h <= 1.25 * m.0.0) {
+                return Ok(*m);
+            }
             // Fixed steps: checkpoints on the coarse nodes (two steps from
             // the start at least), so that neither run takes a landing step.
             let times: Vec<f64> = if fixed_step { self.pilot_times(h, checkpoints) } else { checkpoints.to_vec() };
@@ -487,14 +498,22 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             let landings: Vec<f64> = if fixed_step { times.clone() } else { vec![tp] };
             // The survey's run at this step is this round's coarse run (its
             // steps are already counted).
-            let (coarse, reused) = match reuse.take().filter(|r| r.0 == h && fixed_step && self.step.is_none()) {
+            let (coarse, reused) = match reuse.take().filter(|r| r.0 == h && self.step.is_none()) {
                 Some((_, p)) => (Ok(p), true),
                 None => (run_probe(c, self, h, &landings, true, 0), false),
             };
             let fine = match &coarse {
                 Ok(p) if !fixed_step && p.steps < TT_PILOT_STEPS && self.step.is_none() => {
+                    if !reused {
+                        cost.steps += p.steps;
+                    }
+                    // A coarser σ than the pilot resolves, asked for by an
+                    // estimate already measured: that extrapolation is taken
+                    // (a finer round would measure the same ratio again).
+                    if let Some(prev) = last {
+                        return Ok(prev);
+                    }
                     // Too few nodes to compare: a finer σ.
-                    cost.steps += p.steps;
                     h *= p.steps.max(1) as f64 / (2 * TT_PILOT_STEPS) as f64;
                     continue;
                 }
@@ -537,13 +556,20 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 if let Some(prev) = last.filter(|_| roundoff > target) {
                     return Ok(prev);
                 }
-                if fixed_step && h >= h_max {
-                    // As coarse as the pilot resolves and still exact to round-off.
+                if (fixed_step && h >= h_max) || 4.0 * h >= too_coarse {
+                    // As coarse as the pilot resolves (or a coarser step
+                    // already missed) and still exact to round-off.
                     return Ok(((h, at_end.max(roundoff)), rich, scale));
                 }
                 last = Some(((h, at_end.max(roundoff)), rich, scale));
+                if at_end.max(roundoff) <= target {
+                    met = last;
+                }
                 h *= 4.0;
                 continue;
+            }
+            if at_end > target {
+                too_coarse = too_coarse.min(h);
             }
             let ratio = (target / at_end).powf(1.0 / p as f64);
             let ratio = ratio.min(h_cap / h);
