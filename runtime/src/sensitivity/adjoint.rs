@@ -112,8 +112,9 @@ pub struct Gradient<const N: usize, const P: usize> {
     /// time order (the node and `(λ_q, λ_p)`).
     pub costates: Vec<(State<N>, [f64; N], [f64; N])>,
     /// `(λ_t, λ_{p_t})` at the same checkpoint nodes under a time
-    /// transformation, whose extended phase `(q, t, p, p_t)` has the node
-    /// time and its momentum among its coordinates; empty under fixed steps.
+    /// transformation or energy-preserving steps, whose extended phase
+    /// `(q, t, p, p_t)` has the node time and its momentum (`−E` for energy
+    /// steps) among its coordinates; empty under fixed steps.
     pub time_costates: Vec<(f64, f64)>,
     /// Steps run again in the reverse pass.
     pub recomputed_steps: u64,
