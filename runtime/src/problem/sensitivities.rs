@@ -474,3 +474,91 @@ where
         Stepping::native(&self.stepper, start, end)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::EnergyFallback;
+    use crate::system::Scalar;
+
+    /// A pendulum with its length and gravity as parameters (unit mass).
+    #[derive(Clone)]
+    struct Pendulum {
+        theta: [f64; 2],
+    }
+
+    impl Lagrangian<1> for Pendulum {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 1] = [false];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+            self.lagrangian_with(&self.theta.map(D::from), t, q, v)
+        }
+    }
+
+    impl Parametric<1, 2> for Pendulum {
+        const NAMES: [&'static str; 2] = ["l", "g"];
+        fn parameters(&self) -> [f64; 2] {
+            self.theta
+        }
+        fn with_parameters(&self, theta: [f64; 2]) -> Self {
+            Self { theta }
+        }
+        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; 1], v: [D; 1]) -> D {
+            let [l, g] = *theta;
+            l * l * v[0] * v[0] * 0.5 + g * l * q[0].cos()
+        }
+    }
+
+    /// The angle at the end.
+    struct Angle;
+    impl Loss<1, 2> for Angle {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; 1], _p: [D; 1], _theta: &[D; 2]) -> D {
+            q[0]
+        }
+    }
+
+    /// A trapezoid stepper on energy-preserving steps with the least-squares
+    /// fallback: its energy equation loses its root on the pendulum from
+    /// 1 rad (docs/capabilities.md), and the run goes on through
+    /// least-mismatch steps.
+    fn least_squares(problem: &Problem<Pendulum, 1>) -> Stepper<Pendulum, 1> {
+        let mut stepper = problem.stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.02)).unwrap();
+        let Driver::Trapezoid(d) = &mut *stepper.driver else { unreachable!("the trapezoid driver") };
+        d.fallback = EnergyFallback::LeastSquares;
+        stepper
+    }
+
+    #[test]
+    fn a_least_mismatch_energy_step_is_not_differentiated() {
+        let problem = Problem::new(Pendulum { theta: [1.3, 9.81] }, 0.0, [1.0], [0.3]);
+        let stepper = least_squares(&problem);
+        let start = stepper.extended_start::<2>(problem.initial()).unwrap().unwrap();
+        let propagation = RefCell::new(Propagation::extended(problem.system(), start, 1, &stepper.state()));
+        let mut tracked = Tracked { stepper, propagation: &propagation, pieces: Vec::new() };
+        let solution = Stepping::solve(&mut tracked, Plan::until(2.5)).unwrap();
+        let fallbacks = Stepping::stats(&tracked.stepper).energy_fallbacks;
+        assert!(fallbacks > 0, "no least-squares step");
+        // The run is kept whole; its sensitivities stop before the first
+        // least-mismatch step.
+        assert!(solution.is_finished());
+        let sens = propagation.into_inner().finish(solution);
+        let n = sens.jacobians.len();
+        assert!(n >= 2 && n < sens.solution.len(), "{n} of {}", sens.solution.len());
+        match sens.error {
+            Some(Error::NotDifferentiable { state, .. }) => assert_eq!(state.step as usize, n - 1),
+            other => panic!("{other:?}"),
+        }
+        // The adjoint refuses it too.
+        let e = adjoint::gradient_extended(
+            least_squares(&problem),
+            problem.initial(),
+            0.02,
+            2.5,
+            &Angle,
+            Checkpoints::Budget(4),
+        )
+        .unwrap_err();
+        assert!(matches!(e, Error::NotDifferentiable { .. }), "{e}");
+        eprintln!("{fallbacks} least-squares steps; sensitivities of {n} rows of {}: {e}", sens.solution.len());
+    }
+}
