@@ -355,6 +355,17 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// The node.
         state: State<N, T>,
     },
+    /// Sensitivities or an adjoint gradient through a step that is not a
+    /// differentiable function of its inputs: an energy-preserving step
+    /// whose size minimises the energy mismatch (a least-squares fallback,
+    /// an accuracy cap) instead of solving the energy equation.
+    #[error("the step from t = {} (step {}) is not differentiable: {reason}", .state.t, .state.step)]
+    NotDifferentiable {
+        /// The node the step starts from.
+        state: State<N, T>,
+        /// Why.
+        reason: &'static str,
+    },
 }
 
 impl<const N: usize, T: Real> Error<N, T> {
@@ -392,7 +403,8 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::InverseLegendre { state, .. }
             | Error::SingularConstraints { state, .. }
             | Error::NonFiniteConstraints { state }
-            | Error::NonFiniteLoss { state } => *state = at,
+            | Error::NonFiniteLoss { state }
+            | Error::NotDifferentiable { state, .. } => *state = at,
             _ => {}
         }
         self
@@ -442,6 +454,7 @@ impl<const N: usize, T: Real> Error<N, T> {
             Error::SingularConstraints { state, rcond } => Error::SingularConstraints { state: f(state), rcond },
             Error::NonFiniteConstraints { state } => Error::NonFiniteConstraints { state: f(state) },
             Error::NonFiniteLoss { state } => Error::NonFiniteLoss { state: f(state) },
+            Error::NotDifferentiable { state, reason } => Error::NotDifferentiable { state: f(state), reason },
             Error::InverseLegendre { state, iterations, residual_norm } => {
                 Error::InverseLegendre { state: f(state), iterations, residual_norm }
             }

@@ -22,6 +22,7 @@ use crate::galerkin::{Galerkin, GalerkinIntegrator, Quadrature};
 use crate::integrator::{Integrator, Stats};
 use crate::newton::NewtonOptions;
 use crate::sensitivity::Parametric;
+use crate::sensitivity::energy;
 use crate::sensitivity::linearisation::{Piece, Rule};
 use crate::sensitivity::transformed::{self, Linear, Start};
 use crate::solution::Stepping;
@@ -252,6 +253,25 @@ pub trait Extended<const N: usize>: Sealed {
         d: &Self::Transformed<S>,
         initial: (f64, [f64; N], [f64; N]),
     ) -> Option<Start>;
+
+    /// The linearisation in the extended phase `(q, t, p, −E)` of the
+    /// energy-preserving step `seg` of the one-point rule `rule`; `pinned`:
+    /// its end time was given (`sensitivity/energy.rs`).
+    #[doc(hidden)]
+    fn linearise_energy<S: Parametric<N, P>, const P: usize>(
+        system: &S,
+        rule: &Rule,
+        seg: &Segment<N>,
+        pinned: bool,
+    ) -> Option<Linear>;
+
+    /// The derivatives of the first node `(q_0, t_0, p_0, −E_L)` of an
+    /// energy-preserving run from `initial`.
+    #[doc(hidden)]
+    fn energy_start<S: Parametric<N, P>, const P: usize>(
+        system: &S,
+        initial: (f64, [f64; N], [f64; N]),
+    ) -> Option<Start>;
 }
 
 /// The table: `impl Extended<n> for Dim<n>` with `M = n + 1`.
@@ -283,6 +303,20 @@ macro_rules! table {
                 initial: (f64, [f64; $n], [f64; $n]),
             ) -> Option<Start> {
                 transformed::start::<S, $n, { $n + 1 }, P>(d.transformed(), initial)
+            }
+            fn linearise_energy<S: Parametric<$n, P>, const P: usize>(
+                system: &S,
+                rule: &Rule,
+                seg: &Segment<$n>,
+                pinned: bool,
+            ) -> Option<Linear> {
+                energy::linearise::<S, $n, { $n + 1 }, P>(system, rule, seg, pinned)
+            }
+            fn energy_start<S: Parametric<$n, P>, const P: usize>(
+                system: &S,
+                initial: (f64, [f64; $n], [f64; $n]),
+            ) -> Option<Start> {
+                energy::start::<S, $n, { $n + 1 }, P>(system, initial)
             }
         }
     )*};

@@ -12,8 +12,9 @@ use super::support::{Capability, Policy};
 use crate::dense::Node;
 use crate::derivatives::Segment;
 use crate::dim::Dim;
+use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
-use crate::integrator::Stats;
+use crate::integrator::{Integrator, Stats, StepPolicy};
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
 use crate::sensitivity::linearisation::{Piece, Rule};
@@ -61,7 +62,12 @@ where
     /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
     /// the Galerkin rules, the compositions and the implicit time
     /// transformation (`policy` is then the step `σ` in `s`; the node times
-    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)).
+    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)),
+    /// and energy-preserving steps of the one-point rules (the step sizes
+    /// differentiated through the energy equation, the node times moving
+    /// too). A step that took the least-squares fallback of the energy
+    /// equation ends the sensitivities with [`Error::NotDifferentiable`] in
+    /// [`Sensitivities::error`], the solution kept.
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
     /// called. Systems of more than [`FORWARD_SENSITIVITIES_MAX_N`]
@@ -155,18 +161,25 @@ where
     /// [`Plan::until`] does) with respect to `q_0`, `v_0` and the
     /// parameters: the discrete adjoint, with a copy of the stepper kept as
     /// `checkpoints` says. Memory is the copies plus one segment of nodes.
-    /// Under a time transformation `h` is the step `σ` in `s`, the node
-    /// times move with the inputs (the loss's `∂ℓ/∂t` enters), and the
-    /// landing step's size, solved for `t_end`, is differentiated.
+    /// `policy` is a step size (fixed steps) or a [`Policy`]. Under a time
+    /// transformation it is the step `σ` in `s`, the node times move with
+    /// the inputs (the loss's `∂ℓ/∂t` enters), and the landing step's size,
+    /// solved for `t_end`, is differentiated. Under energy-preserving steps
+    /// of a one-point rule the step sizes the energy equation fixes are
+    /// differentiated and the node times move with the inputs too (the
+    /// first step, of the given size, and the landing on `t_end` have their
+    /// end times given).
     ///
     /// Errors: the refusal of [`supports`](super::supports) for a
     /// combination without sensitivities, [`Error::InvalidSetting`] for a
     /// checkpoint budget of zero, [`Error::NonFiniteLoss`] where the loss or
-    /// its gradient is not finite, and the errors of the steps.
+    /// its gradient is not finite, [`Error::NotDifferentiable`] for an
+    /// energy-preserving step that took the least-squares fallback, and the
+    /// errors of the steps.
     pub fn gradient<L: Loss<N, P>, const P: usize>(
         &self,
         scheme: &Scheme,
-        h: f64,
+        policy: impl Into<Policy>,
         t_end: f64,
         loss: &L,
         checkpoints: Checkpoints,
@@ -174,15 +187,31 @@ where
     where
         S: Parametric<N, P>,
     {
-        let policy = Policy::fixed(h);
+        let policy = policy.into();
         self.differentiable(scheme, policy)?;
         let stepper = self.stepper(scheme, policy)?;
-        if let Driver::Transformed(_) = &*stepper.driver {
-            return adjoint::gradient_transformed(stepper, self.initial(), h, t_end, loss, checkpoints);
+        let h = policy.step();
+        if stepper.extended_node().is_some() {
+            return adjoint::gradient_extended(stepper, self.initial(), h, t_end, loss, checkpoints);
         }
         let rule = stepper.rule()?;
         adjoint::gradient(stepper, rule, self.initial(), h, t_end, loss, checkpoints)
     }
+}
+
+/// Why a least-squares energy step has no derivative.
+const LEAST_MISMATCH: &str = "its size minimises the mismatch of the energy equation (the least-squares fallback or \
+     an accuracy cap) instead of solving it, and that minimum is not differentiated";
+
+/// Where the next step of a stepper linearised in the extended phase
+/// starts ([`Stepper::extended_node`]).
+pub(crate) enum ExtendedNode {
+    /// A time-transformed stepper's node in `s`, `[s, x, p̃]`.
+    Transformed(Vec<f64>),
+    /// An energy-preserving stepper's: whether the next step is its first
+    /// (of the given size), and how many of its steps so far minimised the
+    /// energy mismatch instead of solving the energy equation.
+    Energy { first: bool, inexact: u64 },
 }
 
 /// Why a composition stepped in reverse mode has no sensitivities.
@@ -215,37 +244,76 @@ where
         })
     }
 
-    /// The current node in `s` of a time-transformed stepper (`None` for
-    /// the others): where its next step starts, for [`extended_step`](Self::extended_step).
-    pub(crate) fn extended_node(&self) -> Option<Vec<f64>> {
+    /// Where the next step of a stepper linearised in the extended phase
+    /// starts, for [`extended_step`](Self::extended_step): a time-transformed
+    /// stepper's node in `s`, or what an energy-preserving one-point
+    /// stepper's next step depends on; `None` for the other steppers.
+    pub(crate) fn extended_node(&self) -> Option<ExtendedNode> {
+        /// An energy-preserving integrator's node; `None` under fixed steps.
+        fn energy<S: Lagrangian<N>, R: DiscreteLagrangian, const N: usize>(
+            d: &Integrator<S, R, N>,
+        ) -> Option<ExtendedNode> {
+            let StepPolicy::EnergyPreserving(_) = d.policy() else { return None };
+            let stats = d.stats();
+            Some(ExtendedNode::Energy {
+                first: d.last_segment().is_none(),
+                inexact: stats.energy_fallbacks + stats.accuracy_capped_steps,
+            })
+        }
         match &*self.driver {
-            Driver::Transformed(d) => Some(<Dim<N> as Extended<N>>::node(d)),
+            Driver::Transformed(d) => Some(ExtendedNode::Transformed(<Dim<N> as Extended<N>>::node(d))),
+            Driver::Midpoint(d) => energy(d),
+            Driver::Trapezoid(d) => energy(d),
+            Driver::AlphaBeta(d) => energy(d),
             _ => None,
         }
     }
 
-    /// The linearisation in the extended phase of the last step of a
-    /// time-transformed stepper, from its node `node` in `s`, which was
-    /// `from` in physical time.
-    pub(crate) fn extended_step<const P: usize>(&self, node: &[f64], from: &State<N>) -> Result<Linear, Error<N>>
+    /// The linearisation in the extended phase of the last step, from
+    /// `node` (of [`extended_node`](Self::extended_node)), which was `from`
+    /// in physical time; `target`: the time the step was asked to land on,
+    /// if any.
+    pub(crate) fn extended_step<const P: usize>(
+        &self,
+        node: &ExtendedNode,
+        from: &State<N>,
+        target: Option<f64>,
+    ) -> Result<Linear, Error<N>>
     where
         S: Parametric<N, P>,
     {
-        let Driver::Transformed(d) = &*self.driver else {
-            return Err(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" });
-        };
-        let h = Stepping::state(self).t - from.t;
-        <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(Error::SingularJacobian {
-            state: *from,
-            h,
-            iterations: 0,
-            rcond: 0.0,
-        })
+        let to = Stepping::state(self);
+        let singular = Error::SingularJacobian { state: *from, h: to.t - from.t, iterations: 0, rcond: 0.0 };
+        let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
+        match (node, &*self.driver) {
+            (ExtendedNode::Transformed(node), Driver::Transformed(d)) => {
+                <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(singular)
+            }
+            (&ExtendedNode::Energy { first, inexact }, driver) => {
+                let stats = Stepping::stats(self);
+                if stats.energy_fallbacks + stats.accuracy_capped_steps != inexact {
+                    return Err(Error::NotDifferentiable { state: *from, reason: LEAST_MISMATCH });
+                }
+                let seg = match driver {
+                    Driver::Midpoint(d) => d.last_segment(),
+                    Driver::Trapezoid(d) => d.last_segment(),
+                    Driver::AlphaBeta(d) => d.last_segment(),
+                    _ => None,
+                };
+                // The first step has the given size; a landing ends on its
+                // target (no energy step ends there: it would have landed).
+                let pinned = first || target == Some(to.t);
+                let rule = self.rule()?;
+                <Dim<N> as Extended<N>>::linearise_energy::<S, P>(self.system(), &rule, seg.ok_or(missing)?, pinned)
+                    .ok_or(singular)
+            }
+            _ => Err(missing),
+        }
     }
 
-    /// The derivatives of the first node in `s` of a time-transformed
-    /// stepper from the initial data `initial` (`None` for the other
-    /// steppers).
+    /// The derivatives of the first node in the extended phase of a
+    /// time-transformed or energy-preserving stepper from the initial data
+    /// `initial` (`None` for the other steppers).
     pub(crate) fn extended_start<const P: usize>(
         &self,
         initial: (f64, [f64; N], [f64; N]),
@@ -253,14 +321,17 @@ where
     where
         S: Parametric<N, P>,
     {
-        match &*self.driver {
-            Driver::Transformed(d) => {
-                <Dim<N> as Extended<N>>::start_tangent::<S, P>(d, initial).map(Some).ok_or(Error::InvalidInitialData {
-                    reason: "the derivatives of the time-transformed initial data are not finite",
-                })
-            }
-            _ => Ok(None),
-        }
+        let start = match self.extended_node() {
+            None => return Ok(None),
+            Some(ExtendedNode::Transformed(_)) => match &*self.driver {
+                Driver::Transformed(d) => <Dim<N> as Extended<N>>::start_tangent::<S, P>(d, initial),
+                _ => None,
+            },
+            Some(ExtendedNode::Energy { .. }) => <Dim<N> as Extended<N>>::energy_start::<S, P>(self.system(), initial),
+        };
+        start.map(Some).ok_or(Error::InvalidInitialData {
+            reason: "the derivatives of the initial data in the extended phase are not finite",
+        })
     }
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
@@ -330,8 +401,13 @@ impl<S: Parametric<N, P>, const N: usize, const P: usize> Tracked<'_, '_, S, N, 
 where
     Dim<N>: Extended<N>,
 {
-    /// Runs `step` and propagates the tangent through it when it succeeds.
-    fn tracked(&mut self, step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error<N>>) -> Result<(), Error<N>> {
+    /// Runs `step`, asked to land on `target` if any, and propagates the
+    /// tangent through it when it succeeds.
+    fn tracked(
+        &mut self,
+        target: Option<f64>,
+        step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error<N>>,
+    ) -> Result<(), Error<N>> {
         let from = self.stepper.state();
         let node = self.stepper.extended_node();
         step(&mut self.stepper)?;
@@ -339,7 +415,7 @@ where
         if let Some(node) = node {
             // A landing that found the node already on its target took no step.
             if to.step != from.step {
-                let linear = self.stepper.extended_step::<P>(&node, &from);
+                let linear = self.stepper.extended_step::<P>(&node, &from, target);
                 self.propagation.borrow_mut().step_extended(linear, &to);
             }
             return Ok(());
@@ -375,11 +451,11 @@ where
     }
 
     fn step(&mut self) -> Result<(), Error<N>> {
-        self.tracked(Stepping::step)
+        self.tracked(None, Stepping::step)
     }
 
     fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
-        self.tracked(|s| Stepping::step_toward(s, t_end, last_h))
+        self.tracked(Some(t_end), |s| Stepping::step_toward(s, t_end, last_h))
     }
 
     /// One step at a time, so that each is propagated (a plan for
@@ -396,5 +472,93 @@ where
 
     fn native(&self, start: &Node<N>, end: &Node<N>) -> Interpolant<N> {
         Stepping::native(&self.stepper, start, end)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::EnergyFallback;
+    use crate::system::Scalar;
+
+    /// A pendulum with its length and gravity as parameters (unit mass).
+    #[derive(Clone)]
+    struct Pendulum {
+        theta: [f64; 2],
+    }
+
+    impl Lagrangian<1> for Pendulum {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 1] = [false];
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+            self.lagrangian_with(&self.theta.map(D::from), t, q, v)
+        }
+    }
+
+    impl Parametric<1, 2> for Pendulum {
+        const NAMES: [&'static str; 2] = ["l", "g"];
+        fn parameters(&self) -> [f64; 2] {
+            self.theta
+        }
+        fn with_parameters(&self, theta: [f64; 2]) -> Self {
+            Self { theta }
+        }
+        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; 1], v: [D; 1]) -> D {
+            let [l, g] = *theta;
+            l * l * v[0] * v[0] * 0.5 + g * l * q[0].cos()
+        }
+    }
+
+    /// The angle at the end.
+    struct Angle;
+    impl Loss<1, 2> for Angle {
+        fn terminal<D: Scalar>(&self, _t: D, q: [D; 1], _p: [D; 1], _theta: &[D; 2]) -> D {
+            q[0]
+        }
+    }
+
+    /// A trapezoid stepper on energy-preserving steps with the least-squares
+    /// fallback: its energy equation loses its root on the pendulum from
+    /// 1 rad (docs/capabilities.md), and the run goes on through
+    /// least-mismatch steps.
+    fn least_squares(problem: &Problem<Pendulum, 1>) -> Stepper<Pendulum, 1> {
+        let mut stepper = problem.stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.02)).unwrap();
+        let Driver::Trapezoid(d) = &mut *stepper.driver else { unreachable!("the trapezoid driver") };
+        d.fallback = EnergyFallback::LeastSquares;
+        stepper
+    }
+
+    #[test]
+    fn a_least_mismatch_energy_step_is_not_differentiated() {
+        let problem = Problem::new(Pendulum { theta: [1.3, 9.81] }, 0.0, [1.0], [0.3]);
+        let stepper = least_squares(&problem);
+        let start = stepper.extended_start::<2>(problem.initial()).unwrap().unwrap();
+        let propagation = RefCell::new(Propagation::extended(problem.system(), start, 1, &stepper.state()));
+        let mut tracked = Tracked { stepper, propagation: &propagation, pieces: Vec::new() };
+        let solution = Stepping::solve(&mut tracked, Plan::until(2.5)).unwrap();
+        let fallbacks = Stepping::stats(&tracked.stepper).energy_fallbacks;
+        assert!(fallbacks > 0, "no least-squares step");
+        // The run is kept whole; its sensitivities stop before the first
+        // least-mismatch step.
+        assert!(solution.is_finished());
+        let sens = propagation.into_inner().finish(solution);
+        let n = sens.jacobians.len();
+        assert!(n >= 2 && n < sens.solution.len(), "{n} of {}", sens.solution.len());
+        match sens.error {
+            Some(Error::NotDifferentiable { state, .. }) => assert_eq!(state.step as usize, n - 1),
+            other => panic!("{other:?}"),
+        }
+        // The adjoint refuses it too.
+        let e = adjoint::gradient_extended(
+            least_squares(&problem),
+            problem.initial(),
+            0.02,
+            2.5,
+            &Angle,
+            Checkpoints::Budget(4),
+        )
+        .unwrap_err();
+        assert!(matches!(e, Error::NotDifferentiable { .. }), "{e}");
+        eprintln!("{fallbacks} least-squares steps; sensitivities of {n} rows of {}: {e}", sens.solution.len());
     }
 }

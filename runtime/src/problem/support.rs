@@ -106,7 +106,8 @@ pub enum Capability {
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
     /// initial data (fixed steps of the one-point rules, the Galerkin rules,
-    /// the compositions and the implicit time transformation): forward sensitivities
+    /// the compositions and the implicit time transformation, and
+    /// energy-preserving steps of the one-point rules): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
     /// and the discrete adjoint ([`Problem::gradient`](super::Problem::gradient)).
     Sensitivities,
@@ -175,7 +176,8 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
 /// fixed steps of the one-point rules, the Galerkin rules, the
-/// compositions and the implicit time transformation (fixed steps in `s`).
+/// compositions and the implicit time transformation (fixed steps in `s`),
+/// and energy-preserving steps of the one-point rules.
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let n = match c.size {
         Size::Dynamic => {
@@ -186,8 +188,9 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let fixed = matches!(c.policy, Policy::Fixed { .. });
     match c.scheme {
         Scheme::OnePoint(_) | Scheme::Galerkin { .. } if fixed => Ok(()),
-        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => Err(
-            "sensitivities under variable steps: the step size chosen by the energy equation is not differentiated yet",
+        Scheme::OnePoint(_) => energy_sensitivities(c.policy),
+        Scheme::Galerkin { .. } => Err(
+            "sensitivities of a Galerkin rule under energy steps: the step size its energy equation fixes is differentiated for the one-point rules only",
         ),
         Scheme::Composition { .. } if n > crate::Derivatives::FORWARD_MAX_N => Err(
             "sensitivities of a composition above `Derivatives::FORWARD_MAX_N` coordinates: it steps in reverse mode, which keeps only its last sub-step",
@@ -196,6 +199,22 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
         // Fixed steps in `s`; `constant` refuses the rest as for a run.
         Scheme::TimeTransformed { .. } => Ok(()),
         Scheme::Splitting { .. } => Err(crate::sensitivity::SPLITTING),
+    }
+}
+
+/// The variable steps of a one-point rule whose step size the
+/// sensitivities differentiate through the energy equation.
+fn energy_sensitivities(policy: Policy) -> Result<(), &'static str> {
+    match policy {
+        Policy::EnergyPreserving { bounds, .. } | Policy::EnergyBalance { bounds, .. } if bounds.accuracy.is_some() => {
+            Err(
+                "sensitivities of energy steps under an accuracy bound: a capped step minimises the energy mismatch instead of solving the energy equation, and the landing is split in pieces; neither is differentiated",
+            )
+        }
+        Policy::EnergyBalance { .. } => Err(
+            "sensitivities of energy-balance steps of a forced system: the work of the forces in the linearised energy equation is not verified",
+        ),
+        _ => Ok(()),
     }
 }
 

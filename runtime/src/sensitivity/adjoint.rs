@@ -112,8 +112,9 @@ pub struct Gradient<const N: usize, const P: usize> {
     /// time order (the node and `(λ_q, λ_p)`).
     pub costates: Vec<(State<N>, [f64; N], [f64; N])>,
     /// `(λ_t, λ_{p_t})` at the same checkpoint nodes under a time
-    /// transformation, whose extended phase `(q, t, p, p_t)` has the node
-    /// time and its momentum among its coordinates; empty under fixed steps.
+    /// transformation or energy-preserving steps, whose extended phase
+    /// `(q, t, p, p_t)` has the node time and its momentum (`−E` for energy
+    /// steps) among its coordinates; empty under fixed steps.
     pub time_costates: Vec<(f64, f64)>,
     /// Steps run again in the reverse pass.
     pub recomputed_steps: u64,
@@ -374,12 +375,13 @@ where
     Ok(Gradient { value, q0, v0: dv0, theta: dtheta, last, costates, time_costates: Vec::new(), recomputed_steps })
 }
 
-/// The gradient through a time-transformed run: the same forward pass and
-/// checkpoints, and a reverse sweep in the extended phase `(q, t, p, p_t)`
-/// through the dense step Jacobians of `transformed.rs`
-/// (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`), with the derivatives of the
-/// constant `c` and of the first node in `s` at the end.
-pub(crate) fn gradient_transformed<S, L, const N: usize, const P: usize>(
+/// The gradient through a time-transformed or energy-preserving run: the
+/// same forward pass and checkpoints, and a reverse sweep in the extended
+/// phase `(q, t, p, p_t)` through the dense step Jacobians of
+/// `transformed.rs` and `energy.rs` (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`),
+/// with the derivatives of the constant `c` (zero for energy steps) and
+/// of the first extended node at the end.
+pub(crate) fn gradient_extended<S, L, const N: usize, const P: usize>(
     stepper: Stepper<S, N>,
     initial: (f64, [f64; N], [f64; N]),
     sigma: f64,
@@ -395,8 +397,9 @@ where
     let m_ext = N + 1;
     let system = stepper.system().clone();
     let theta = system.parameters();
-    let not_transformed =
-        || Error::Unsupported { what: "the extended adjoint of a stepper without a time transformation" };
+    let not_transformed = || Error::Unsupported {
+        what: "the extended adjoint of a stepper without a time transformation or energy steps",
+    };
     let start = stepper.extended_start::<P>(initial)?.ok_or_else(not_transformed)?;
     let mut terms = Terms::new::<N, P>();
     // A budget's spacing is estimated from `σ` as if `g = 1`; the forward
@@ -446,7 +449,7 @@ where
             let node = sim.extended_node().ok_or_else(not_transformed)?;
             Stepping::step_toward(&mut sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
-            steps.push(sim.extended_step::<P>(&node, &from)?);
+            steps.push(sim.extended_step::<P>(&node, &from, Some(t_end))?);
             nodes.push(sim.state());
             recomputed_steps += 1;
         }

@@ -26,7 +26,7 @@ pub struct Jacobian {
     pub data: Vec<f64>,
     /// `∂t_k/∂(q_0, v_0, θ)`, `2N + P` entries: zero under fixed steps,
     /// whose node times are constants; the node times of a time-transformed
-    /// run move with the inputs.
+    /// run and of energy-preserving steps move with the inputs.
     pub time: Vec<f64>,
 }
 
@@ -113,7 +113,8 @@ pub struct Sensitivities<const N: usize> {
 }
 
 /// The tangent of a run: by blocks for the fixed steps of a rule, dense in
-/// the extended phase `(q, t, p, p_t)` through the time transformation.
+/// the extended phase `(q, t, p, p_t)` through the time transformation and
+/// energy-preserving steps (`p_t = −E`).
 enum Mode<const N: usize, const P: usize> {
     Fixed { rule: Rule, tangent: Tangent<N, P> },
     Extended { tangent: DMatrix<f64>, c: RowDVector<f64> },

@@ -23,6 +23,13 @@
 //! phase `(q, t, p, p_t)`, so the node times have derivatives too, with the
 //! driver's constant `c` and the landing step on `t_end` differentiated.
 //!
+//! An energy-preserving step of a one-point rule is, in the same way, a
+//! fixed step of size 1 of the parametrised motion `t' L(t, q, q'/t')`,
+//! whose momentum is `(p, −E)`; `energy.rs` linearises it in the extended
+//! phase `(q, t, p, −E)` with the same dense Jacobians, so the step size
+//! the energy equation fixes is differentiated and the node times move
+//! with the inputs.
+//!
 //! The entry points are [`Problem::solve_with_sensitivities`] and
 //! [`Problem::gradient`](crate::Problem::gradient); which combinations
 //! they take is said by [`supports`](crate::problem::supports) with
@@ -31,6 +38,7 @@
 //! [`Problem::solve_with_sensitivities`]: crate::Problem::solve_with_sensitivities
 
 pub mod adjoint;
+pub(crate) mod energy;
 pub mod forward;
 pub mod linearisation;
 #[doc(hidden)]

@@ -164,6 +164,39 @@ pub struct Linear {
     pub c: DVector<f64>,
 }
 
+impl Linear {
+    /// `Φ_x` and `Φ_θ` of `j` in the extended phase, with `Φ_c = c`.
+    pub(super) fn of<const M: usize, const P: usize>(j: &StepJacobian<M, P>, c: DVector<f64>) -> Self {
+        let mut theta = DMatrix::<f64>::zeros(2 * M, P);
+        theta.view_mut((0, 0), (M, P)).copy_from(&j.dq_dtheta);
+        theta.view_mut((M, 0), (M, P)).copy_from(&j.dp_dtheta);
+        Self { x: j.state.matrix(), theta, c }
+    }
+
+    /// The step whose end time (row `time`) is given, from the step whose
+    /// end moves with one more input `a = ∂x_{k+1}/∂α`, `α` chosen so that
+    /// the end time is the one given: by the implicit function theorem on
+    /// `t_{k+1}(z, α) = t_end`, `dx_{k+1} = (Φ_z − a (∂t_{k+1}/∂z)/a_t) dz`,
+    /// whose time row vanishes.
+    pub(super) fn pin_time(&mut self, time: usize, a: &DVector<f64>) {
+        let at = a[time];
+        let project = |m: &mut DMatrix<f64>| {
+            let row = m.row(time).into_owned() / at;
+            *m -= a * row;
+        };
+        project(&mut self.x);
+        project(&mut self.theta);
+        let ct = self.c[time] / at;
+        self.c -= a * ct;
+    }
+
+    /// `Some` when every entry is finite.
+    pub(super) fn finite(self) -> Option<Self> {
+        let finite = self.x.iter().chain(self.theta.iter()).chain(self.c.iter()).all(|v| v.is_finite());
+        finite.then_some(self)
+    }
+}
+
 /// The Jacobians `Φ_x`, `Φ_θ`, `Φ_c` of the step of `rule` made of `piece`
 /// (`(s_k, σ, x_k, D)`) of the transformed system `tt`; with `landed`, of
 /// the landing step whose size was solved for its end time (see the
@@ -185,25 +218,11 @@ where
     let stack = |q: &dyn Fn(usize) -> f64, p: &dyn Fn(usize) -> f64| {
         DVector::from_iterator(2 * M, (0..M).map(q).chain((0..M).map(p)))
     };
-    let mut x = j.state.matrix();
-    let mut th = DMatrix::<f64>::zeros(2 * M, P);
-    th.view_mut((0, 0), (M, P)).copy_from(&j.dq_dtheta);
-    th.view_mut((M, 0), (M, P)).copy_from(&j.dp_dtheta);
-    let mut c = stack(&|i| k.dq_dtheta[(i, 0)], &|i| k.dp_dtheta[(i, 0)]);
+    let mut linear = Linear::of(&j, stack(&|i| k.dq_dtheta[(i, 0)], &|i| k.dp_dtheta[(i, 0)]));
     if landed {
-        let a = stack(&|i| k.dq_dtheta[(i, 1)], &|i| k.dp_dtheta[(i, 1)]);
-        let at = a[N];
-        let project = |m: &mut DMatrix<f64>| {
-            let row = m.row(N).into_owned() / at;
-            *m -= &a * row;
-        };
-        project(&mut x);
-        project(&mut th);
-        let ct = c[N] / at;
-        c -= &a * ct;
+        linear.pin_time(N, &stack(&|i| k.dq_dtheta[(i, 1)], &|i| k.dp_dtheta[(i, 1)]));
     }
-    let finite = x.iter().chain(th.iter()).chain(c.iter()).all(|v| v.is_finite());
-    finite.then_some(Linear { x, theta: th, c })
+    linear.finite()
 }
 
 /// The derivatives of the first node in `s` with respect to the inputs

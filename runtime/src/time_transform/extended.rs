@@ -217,14 +217,27 @@ pub(crate) fn extended_lagrangian<D: Scalar, const N: usize, const M: usize>(
     c: D,
     lagrangian: impl FnOnce([D; N]) -> D,
 ) -> D {
+    let d = w[N] - g;
+    homogeneous(w, lagrangian) + d * d / (g * c * 2.0)
+}
+
+/// `t' L(t, q, q'/t')` from the extended velocity `w = (q', t')` and the
+/// physical Lagrangian `lagrangian` as a function of `v = q'/t'`: the
+/// Lagrangian of the parametrised motion `(q(s), t(s))`, homogeneous of
+/// degree one in `w`. A one-point rule applied to it with step 1 is the
+/// rule's step in `t` of size `t_{k+1} − t_k`.
+#[inline(always)]
+pub(crate) fn homogeneous<D: Scalar, const N: usize, const M: usize>(
+    w: &[D; M],
+    lagrangian: impl FnOnce([D; N]) -> D,
+) -> D {
     let tp = w[N];
     let inv = tp.recip();
     let mut v = [D::zero(); N];
     for i in 0..N {
         v[i] = w[i] * inv;
     }
-    let d = tp - g;
-    tp * lagrangian(v) + d * d / (g * c * 2.0)
+    tp * lagrangian(v)
 }
 
 /// The extended force `(t' F, −F·q')` from the extended velocity and the

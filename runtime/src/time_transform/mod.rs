@@ -52,7 +52,7 @@ pub(crate) use builder::default_penalty;
 pub use builder::{DEFAULT_RTOL, TimeTransformedBuilder};
 pub use density::{Curvature, RadiusPower, StepDensity};
 pub use extended::TimeTransformed;
-pub(crate) use extended::{extended_force, extended_lagrangian, split};
+pub(crate) use extended::{extended_force, extended_lagrangian, homogeneous, split};
 pub use splitting::{
     ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingStats, TimeFunction,
 };
