@@ -18,7 +18,7 @@ use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
 use crate::sensitivity::linearisation::{Piece, Rule};
 use crate::sensitivity::transformed::{Linear, Start};
-use crate::sensitivity::{Parametric, SPLITTING};
+use crate::sensitivity::{Parametric, split};
 use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
@@ -59,9 +59,10 @@ where
     ///
     /// The combinations are those [`supports`](super::supports) accepts with
     /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
-    /// the Galerkin rules, the compositions and the implicit time
-    /// transformation (`policy` is then the step `σ` in `s`; the node times
-    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)).
+    /// the Galerkin rules, the compositions, the implicit time
+    /// transformation and the explicit time-transformed splitting (`policy`
+    /// is then the step `σ` in `s`; the node times move with the inputs,
+    /// [`Jacobian::time`](crate::sensitivity::Jacobian::time)).
     /// Rows between nodes (save times, events) are refused
     /// ([`SolveError::InvalidPlan`]); an observer of the plan is still
     /// called. Systems of more than [`FORWARD_SENSITIVITIES_MAX_N`]
@@ -177,7 +178,7 @@ where
         let policy = Policy::fixed(h);
         self.differentiable(scheme, policy)?;
         let stepper = self.stepper(scheme, policy)?;
-        if let Driver::Transformed(_) = &*stepper.driver {
+        if let Driver::Transformed(_) | Driver::Splitting(_) = &*stepper.driver {
             return adjoint::gradient_transformed(stepper, self.initial(), h, t_end, loss, checkpoints);
         }
         let rule = stepper.rule()?;
@@ -207,11 +208,9 @@ where
             Driver::Lobatto4(d) => Rule::galerkin(&d.method),
             // Linearised in the extended phase (`extended_step`), not by
             // one rule in `t`.
-            Driver::Transformed(_) => {
+            Driver::Transformed(_) | Driver::Splitting(_) => {
                 return Err(Error::Unsupported { what: "one rule in `t` for the steps of a time transformation" });
             }
-            // `supports` refuses it before a stepper is built.
-            Driver::Splitting(_) => return Err(Error::Unsupported { what: SPLITTING }),
         })
     }
 
@@ -220,6 +219,7 @@ where
     pub(crate) fn extended_node(&self) -> Option<Vec<f64>> {
         match &*self.driver {
             Driver::Transformed(d) => Some(<Dim<N> as Extended<N>>::node(d)),
+            Driver::Splitting(d) => Some(split::node(d)),
             _ => None,
         }
     }
@@ -231,16 +231,19 @@ where
     where
         S: Parametric<N, P>,
     {
-        let Driver::Transformed(d) = &*self.driver else {
-            return Err(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" });
-        };
         let h = Stepping::state(self).t - from.t;
-        <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(Error::SingularJacobian {
-            state: *from,
-            h,
-            iterations: 0,
-            rcond: 0.0,
-        })
+        match &*self.driver {
+            Driver::Transformed(d) => <Dim<N> as Extended<N>>::linearise::<S, P>(d, node)
+                .ok_or(Error::SingularJacobian { state: *from, h, iterations: 0, rcond: 0.0 }),
+            // No equation is solved: only a derivative can fail.
+            Driver::Splitting(d) => split::linearise::<S, N, P>(d, node).ok_or(Error::NonFinite {
+                state: *from,
+                h,
+                iterations: 0,
+                quantity: "jacobian",
+            }),
+            _ => Err(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" }),
+        }
     }
 
     /// The derivatives of the first node in `s` of a time-transformed
@@ -259,6 +262,9 @@ where
                     reason: "the derivatives of the time-transformed initial data are not finite",
                 })
             }
+            Driver::Splitting(d) => split::start::<S, N, P>(d, initial).map(Some).ok_or(Error::InvalidInitialData {
+                reason: "the derivatives of the time-transformed initial data are not finite",
+            }),
             _ => Ok(None),
         }
     }

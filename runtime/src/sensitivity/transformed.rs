@@ -185,25 +185,44 @@ where
     let stack = |q: &dyn Fn(usize) -> f64, p: &dyn Fn(usize) -> f64| {
         DVector::from_iterator(2 * M, (0..M).map(q).chain((0..M).map(p)))
     };
-    let mut x = j.state.matrix();
+    let x = j.state.matrix();
     let mut th = DMatrix::<f64>::zeros(2 * M, P);
     th.view_mut((0, 0), (M, P)).copy_from(&j.dq_dtheta);
     th.view_mut((M, 0), (M, P)).copy_from(&j.dp_dtheta);
-    let mut c = stack(&|i| k.dq_dtheta[(i, 0)], &|i| k.dp_dtheta[(i, 0)]);
-    if landed {
-        let a = stack(&|i| k.dq_dtheta[(i, 1)], &|i| k.dp_dtheta[(i, 1)]);
-        let at = a[N];
-        let project = |m: &mut DMatrix<f64>| {
-            let row = m.row(N).into_owned() / at;
-            *m -= &a * row;
-        };
-        project(&mut x);
-        project(&mut th);
-        let ct = c[N] / at;
-        c -= &a * ct;
+    let c = stack(&|i| k.dq_dtheta[(i, 0)], &|i| k.dp_dtheta[(i, 0)]);
+    let landing = landed.then(|| stack(&|i| k.dq_dtheta[(i, 1)], &|i| k.dp_dtheta[(i, 1)]));
+    Linear::of_step(x, th, c, landing)
+}
+
+impl Linear {
+    /// The linearisation of a step in the extended phase `(q, t, p, p_t)`
+    /// (`M = N + 1` rows each, the time at row `N`) from its Jacobians in
+    /// the state, `θ` and `c`; for a landing step, with `landing` the
+    /// derivative of the end point in the step's size (in any scale: the
+    /// projection is invariant to it), the size solved so that the end
+    /// time is `t_end`, eliminated by the implicit function theorem (see
+    /// the [module](self)). `None` where an entry is not finite.
+    pub(crate) fn of_step(
+        mut x: DMatrix<f64>,
+        mut theta: DMatrix<f64>,
+        mut c: DVector<f64>,
+        landing: Option<DVector<f64>>,
+    ) -> Option<Self> {
+        if let Some(a) = landing {
+            let time = x.nrows() / 2 - 1;
+            let at = a[time];
+            let project = |m: &mut DMatrix<f64>| {
+                let row = m.row(time).into_owned() / at;
+                *m -= &a * row;
+            };
+            project(&mut x);
+            project(&mut theta);
+            let ct = c[time] / at;
+            c -= &a * ct;
+        }
+        let finite = x.iter().chain(theta.iter()).chain(c.iter()).all(|v| v.is_finite());
+        finite.then_some(Self { x, theta, c })
     }
-    let finite = x.iter().chain(th.iter()).chain(c.iter()).all(|v| v.is_finite());
-    finite.then_some(Linear { x, theta: th, c })
 }
 
 /// The derivatives of the first node in `s` with respect to the inputs

@@ -1,0 +1,485 @@
+//! The linearisation of a step of the explicit time-transformed splitting
+//! ([`ExplicitAdaptive`]) for the sensitivities and the adjoint.
+//!
+//! A step is a fixed sequence of explicit maps of the extended phase
+//! `(q, t, p, p_t)`, the sub-flows of [`stages`]:
+//!
+//! ```text
+//! drift:  q += h f'(T(p) + p_t + c) M⁻¹p,     t += h f'(T(p) + p_t + c)
+//! kick:   p −= h f'(c − V) ∇V,                p_t −= h f'(c − V) ∂_t V
+//! ```
+//!
+//! so its Jacobian is the product of theirs, and no equation is solved. It
+//! is taken column by column: one pass of the step on first-order dual
+//! numbers seeded on one input (a coordinate of the extended state, a
+//! parameter `θ`, which enters `V` and `M`, the shift `c`, or the step's
+//! size in `s`), with `∇V` and `∂_t V` from a nested dual number. The
+//! derivatives are those of the map the driver computes, to round-off.
+//!
+//! The node times, the constant `c` and the landing step on `t_end` are
+//! those of [`transformed`](super::transformed): the same [`Linear`] and
+//! [`Start`], the `c` column carried along the run, and the landing step's
+//! size eliminated by [`Linear::of_step`] from the column of the step size.
+//! The default `c` is differentiated where it depends on the start
+//! (`c = E + m`, [`shift_with_margin`]); the bound start of a gravitating
+//! potential has `c = 0` whatever the inputs.
+
+use nalgebra::{DMatrix, RowDVector};
+use num_dual::{Dual, Dual64, HyperDual};
+
+use super::Parametric;
+use super::linearisation::seeded;
+use super::transformed::{Linear, Start};
+use crate::system::{Lagrangian, Scalar};
+use crate::time_transform::{
+    ExplicitAdaptive, ExtendedPoint, Flow, gravitating_start, kinetic_energy, shift_with_margin, square, stages,
+};
+
+/// `V`, `∇V` and `∂_t V` at `(t, q)` with the parameters `theta`, on any
+/// scalar: one evaluation of `L(t, q, 0)` on a nested dual number per
+/// coordinate (and one for `t` where `L` depends on it).
+fn potential_gradient<Sys, D, const N: usize, const P: usize>(
+    system: &Sys,
+    theta: &[D; P],
+    t: D,
+    q: [D; N],
+) -> (D, [D; N], D)
+where
+    Sys: Parametric<N, P>,
+    D: Scalar,
+{
+    let lifted: [Dual<D>; P] = theta.map(Dual::from_re);
+    let (tl, ql) = (Dual::from_re(t), q.map(Dual::from_re));
+    let rest = [Dual::from_re(D::zero()); N];
+    let mut dv = [D::zero(); N];
+    for (i, slot) in dv.iter_mut().enumerate() {
+        let mut seeded = ql;
+        seeded[i].eps = D::one();
+        *slot = -system.lagrangian_with(&lifted, tl, seeded, rest).eps;
+    }
+    let v = -system.lagrangian_with(theta, t, q, [D::zero(); N]);
+    let dt = if Sys::AUTONOMOUS {
+        D::zero()
+    } else {
+        let mut ts = tl;
+        ts.eps = D::one();
+        -system.lagrangian_with(&lifted, ts, ql, rest).eps
+    };
+    (v, dv, dt)
+}
+
+/// `M = ∂²L/∂v²` with the parameters `theta` (constant in `(t, q, v)` for
+/// the systems the splitting takes), on the heap.
+fn mass<Sys, D, const N: usize, const P: usize>(system: &Sys, theta: &[D; P], t: D, q: [D; N]) -> Box<[[D; N]; N]>
+where
+    Sys: Parametric<N, P>,
+    D: Scalar,
+{
+    let lifted: [HyperDual<D>; P] = theta.map(HyperDual::from_re);
+    let (tl, ql) = (HyperDual::from_re(t), q.map(HyperDual::from_re));
+    let mut m = square(vec![[D::zero(); N]; N]);
+    for i in 0..N {
+        for j in i..N {
+            let mut v = [HyperDual::from_re(D::zero()); N];
+            v[i].eps1 = D::one();
+            v[j].eps2 = D::one();
+            let h = system.lagrangian_with(&lifted, tl, ql, v).eps1eps2;
+            m[i][j] = h;
+            m[j][i] = h;
+        }
+    }
+    m
+}
+
+/// `M(θ)⁻¹` to first order in the dual parts: one Newton–Schulz step
+/// `2A − A M A` from the driver's inverse `A` of the real part, whose
+/// derivative `−A Ṁ A` is that of the inverse (the real part is `A` to
+/// round-off).
+fn inverse_of<D: Scalar, const N: usize>(a: &[[f64; N]; N], m: &[[D; N]; N]) -> Box<[[D; N]; N]> {
+    let mut am = square(vec![[D::zero(); N]; N]);
+    for i in 0..N {
+        for j in 0..N {
+            for k in 0..N {
+                am[i][j] += m[k][j] * a[i][k];
+            }
+        }
+    }
+    let mut out = square(vec![[D::zero(); N]; N]);
+    for i in 0..N {
+        for j in 0..N {
+            let mut x = D::from(2.0 * a[i][j]);
+            for k in 0..N {
+                x -= am[i][k] * a[k][j];
+            }
+            out[i][j] = x;
+        }
+    }
+    out
+}
+
+/// One step of size `h` in `s` of `driver`'s splitting from `x`, with the
+/// parameters `theta`, the inverse mass matrix `inverse` and the shift `c`,
+/// on any scalar: the sub-flows of [`stages`], without the driver's checks
+/// (the step being linearised passed them).
+fn step<Sys, D, const N: usize, const P: usize>(
+    driver: &ExplicitAdaptive<Sys, f64, N>,
+    (theta, inverse, c): (&[D; P], &[[D; N]; N], D),
+    h: D,
+    mut x: ExtendedPoint<D, N>,
+) -> ExtendedPoint<D, N>
+where
+    Sys: Parametric<N, P>,
+    D: Scalar,
+{
+    let (system, f) = (driver.system(), driver.time_function());
+    let done: Result<(), core::convert::Infallible> =
+        stages(driver.leapfrog_form(), driver.weights(), |flow, fraction| {
+            let k = h * fraction;
+            match flow {
+                Flow::Drift => {
+                    let (kinetic, u) = kinetic_energy(inverse, &x.p);
+                    let s = k * f.derivative(kinetic + x.p_t + c);
+                    for (q, u) in x.q.iter_mut().zip(u) {
+                        *q += s * u;
+                    }
+                    x.t += s;
+                }
+                Flow::Kick => {
+                    let (v, dv, dt) = potential_gradient(system, theta, x.t, x.q);
+                    let s = k * f.derivative(c - v);
+                    for (p, d) in x.p.iter_mut().zip(dv) {
+                        *p -= s * d;
+                    }
+                    if !Sys::AUTONOMOUS {
+                        x.p_t -= s * dt;
+                    }
+                }
+            }
+            Ok(())
+        });
+    let Ok(()) = done;
+    x
+}
+
+/// The current node of `driver` in the extended phase, `(q, t, p, p_t)`:
+/// where its next step starts, for [`linearise`].
+pub(crate) fn node<Sys: Lagrangian<N>, const N: usize>(driver: &ExplicitAdaptive<Sys, f64, N>) -> Vec<f64> {
+    let x = driver.extended_point();
+    x.q.into_iter().chain([x.t]).chain(x.p).chain([x.p_t]).collect()
+}
+
+/// The Jacobians `Φ_x`, `Φ_θ`, `Φ_c` of the last step of `driver`, from
+/// the node `from` (of [`node`]), with the landing step's size eliminated
+/// where it landed on its target (see the [module](self)). `None` before
+/// the first step or where a derivative is not finite.
+pub(crate) fn linearise<Sys, const N: usize, const P: usize>(
+    driver: &ExplicitAdaptive<Sys, f64, N>,
+    from: &[f64],
+) -> Option<Linear>
+where
+    Sys: Parametric<N, P>,
+{
+    let m = N + 1;
+    let (states, c_col, h_col) = (2 * m, 2 * m + P, 2 * m + P + 1);
+    let system = driver.system();
+    let theta = system.parameters();
+    let h = driver.last_step_in_s()?;
+    let a = driver.inverse_mass();
+    let plain = square(a.iter().map(|row| row.map(Dual64::from)).collect());
+    let mut jacobian = DMatrix::<f64>::zeros(states, h_col + 1);
+    for col in 0..=h_col {
+        let mut z: Vec<Dual64> = from.iter().map(|&v| Dual64::from(v)).collect();
+        let mut th = theta.map(Dual64::from);
+        let (mut c, mut hs) = (Dual64::from(driver.shift()), Dual64::from(h));
+        match col {
+            col if col < states => z[col].eps = 1.0,
+            col if col < c_col => th[col - states].eps = 1.0,
+            col if col == c_col => c.eps = 1.0,
+            _ => hs.eps = 1.0,
+        }
+        let x = ExtendedPoint {
+            q: core::array::from_fn(|i| z[i]),
+            t: z[N],
+            p: core::array::from_fn(|i| z[m + i]),
+            p_t: z[2 * m - 1],
+        };
+        // M depends on the parameters alone.
+        let corrected;
+        let inverse = if (states..c_col).contains(&col) {
+            corrected = inverse_of(a, &mass(system, &th, x.t, x.q));
+            &corrected
+        } else {
+            &plain
+        };
+        let y = step(driver, (&th, inverse, c), hs, x);
+        for (i, v) in y.q.iter().chain([&y.t]).chain(&y.p).chain([&y.p_t]).enumerate() {
+            jacobian[(i, col)] = v.eps;
+        }
+    }
+    let landing = driver.landed_here().then(|| jacobian.column(h_col).into_owned());
+    Linear::of_step(
+        jacobian.columns(0, states).into_owned(),
+        jacobian.columns(states, P).into_owned(),
+        jacobian.column(c_col).into_owned(),
+        landing,
+    )
+}
+
+/// [`Start`] of `driver` from the initial data `(t0, q0, v0)`: `q = q0`,
+/// `t = t0`, `p = M v0`, `p_t = −H(t0, q0, p)`, and the driver's default
+/// shift `c` (`None` where a derivative is not finite).
+pub(crate) fn start<Sys, const N: usize, const P: usize>(
+    driver: &ExplicitAdaptive<Sys, f64, N>,
+    (t0, q0, v0): (f64, [f64; N], [f64; N]),
+) -> Option<Start>
+where
+    Sys: Parametric<N, P>,
+{
+    let m = N + 1;
+    let system = driver.system();
+    let theta = system.parameters();
+    let k = 2 * N + P;
+    let mut tangent = DMatrix::<f64>::zeros(2 * m, k);
+    let mut dc = RowDVector::<f64>::zeros(k);
+    let mut gravitating = None;
+    for col in 0..k {
+        let (q, v, th) = seeded(&q0, &v0, &theta, col);
+        let t = Dual64::from(t0);
+        let mass = mass(system, &th, t, q);
+        let p: [Dual64; N] = core::array::from_fn(|i| (0..N).map(|j| mass[i][j] * v[j]).sum());
+        let kinetic = p.iter().zip(&v).map(|(&p, &v)| p * v).sum::<Dual64>() * 0.5;
+        let (potential, dv, _) = potential_gradient(system, &th, t, q);
+        let zero = *gravitating.get_or_insert_with(|| gravitating_start(system, t0, q0, kinetic.re, potential.re));
+        let c = if zero {
+            Dual64::from(0.0)
+        } else {
+            let virial = q.iter().zip(&dv).map(|(&q, &d)| q * d).sum();
+            shift_with_margin(kinetic, potential, virial)
+        };
+        dc[col] = c.eps;
+        let p_t = -(kinetic + potential);
+        for i in 0..N {
+            tangent[(i, col)] = q[i].eps;
+            tangent[(m + i, col)] = p[i].eps;
+        }
+        tangent[(2 * m - 1, col)] = p_t.eps;
+    }
+    let finite = tangent.iter().chain(dc.iter()).all(|v| v.is_finite());
+    finite.then_some(Start { tangent, c: dc })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::Composition;
+    use crate::problem::{Dim, Extended, Problem, Scheme};
+    use crate::sensitivity::{Checkpoints, Loss};
+    use crate::solution::Plan;
+    use crate::time_transform::TimeFunction;
+
+    /// Kepler in the plane with the gravitational parameter `μ`.
+    #[derive(Clone)]
+    struct Kepler {
+        mu: f64,
+    }
+
+    impl Lagrangian<2> for Kepler {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false; 2];
+        const SEPARABILITY: crate::Separability = crate::Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
+            self.lagrangian_with(&[D::from(self.mu)], t, q, v)
+        }
+    }
+
+    impl Parametric<2, 1> for Kepler {
+        const NAMES: [&'static str; 1] = ["mu"];
+        fn parameters(&self) -> [f64; 1] {
+            [self.mu]
+        }
+        fn with_parameters(&self, theta: [f64; 1]) -> Self {
+            Self { mu: theta[0] }
+        }
+        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 1], _t: D, q: [D; 2], v: [D; 2]) -> D {
+            (v[0] * v[0] + v[1] * v[1]) * 0.5 + theta[0] / (q[0] * q[0] + q[1] * q[1]).sqrt()
+        }
+    }
+
+    /// A pendulum `L = ½ m l² v² + m g l cos q` with `(m, g)` as
+    /// parameters: not gravitating, so the default `c = E + m` moves with
+    /// the inputs, and `M = m l²` with the parameter `m`.
+    #[derive(Clone)]
+    struct Pendulum {
+        m: f64,
+        g: f64,
+    }
+
+    impl Lagrangian<1> for Pendulum {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 1] = [false];
+        const SEPARABILITY: crate::Separability = crate::Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+            self.lagrangian_with(&[D::from(self.m), D::from(self.g)], t, q, v)
+        }
+    }
+
+    impl Parametric<1, 2> for Pendulum {
+        const NAMES: [&'static str; 2] = ["m", "g"];
+        fn parameters(&self) -> [f64; 2] {
+            [self.m, self.g]
+        }
+        fn with_parameters(&self, theta: [f64; 2]) -> Self {
+            Self { m: theta[0], g: theta[1] }
+        }
+        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; 1], v: [D; 1]) -> D {
+            let l = 0.8;
+            theta[0] * (v[0] * v[0] * (0.5 * l * l) + theta[1] * l * q[0].cos())
+        }
+    }
+
+    /// A loss that reads the node times: running `10⁻² (q_0 sin t + q_{N−1})`,
+    /// terminal `|q|² + θ_0 q_{N−1} p_{N−1} + t`.
+    struct Fit;
+    impl<const N: usize, const P: usize> Loss<N, P> for Fit {
+        fn running<D: Scalar>(&self, _k: u64, t: D, q: [D; N], _p: [D; N], _theta: &[D; P]) -> D {
+            (q[0] * t.sin() + q[N - 1]) * 1e-2
+        }
+        fn terminal<D: Scalar>(&self, t: D, q: [D; N], p: [D; N], theta: &[D; P]) -> D {
+            q.iter().fold(D::zero(), |s, &x| s + x * x) + theta[0] * q[N - 1] * p[N - 1] + t
+        }
+    }
+
+    fn kl8() -> Scheme {
+        Scheme::splitting(TimeFunction::Logarithmic, Some(Composition::KAHAN_LI8))
+    }
+
+    /// The loss of a plain run of `scheme`, step `sigma` in `s`, to `t_end`.
+    fn loss_of<S: Parametric<N, P>, const N: usize, const P: usize>(
+        problem: Problem<S, N>,
+        scheme: &Scheme,
+        sigma: f64,
+        t_end: f64,
+    ) -> f64
+    where
+        Dim<N>: Extended<N>,
+    {
+        let theta = problem.system().parameters();
+        let sol = problem.solve(scheme, sigma, Plan::until(t_end).without_velocities()).unwrap().into_result().unwrap();
+        let n = sol.len() - 1;
+        let mut j = 0.0;
+        for k in 0..=n {
+            j += Fit.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &theta);
+        }
+        j + Fit.terminal(sol.t[n], sol.q[n], sol.p[n], &theta)
+    }
+
+    /// dJ/d(q0, v0, θ) from the forward sensitivities of every node:
+    /// `Σ_k ∂ℓ_k/∂(q, p, t) S_k + ∂ℓ_k/∂θ`.
+    fn forward_gradient<S: Parametric<N, P>, const N: usize, const P: usize>(
+        problem: &Problem<S, N>,
+        scheme: &Scheme,
+        sigma: f64,
+        t_end: f64,
+    ) -> Vec<f64>
+    where
+        Dim<N>: Extended<N>,
+    {
+        let theta = problem.system().parameters();
+        let run = problem.solve_with_sensitivities(scheme, sigma, Plan::until(t_end).without_velocities()).unwrap();
+        assert!(run.error.is_none() && run.solution.is_finished());
+        let n = run.solution.len() - 1;
+        let mut total = vec![0.0; 2 * N + P];
+        for (k, s) in run.jacobians.iter().enumerate() {
+            let (t, q, p) = (run.solution.t[k], run.solution.q[k], run.solution.p[k]);
+            // ∂ℓ_k/∂(q, p, t, θ) by dual numbers, one input at a time.
+            let term = |i: usize| {
+                let mut x: Vec<Dual64> =
+                    q.iter().chain(&p).chain([&t]).chain(&theta).map(|&v| Dual64::from(v)).collect();
+                x[i].eps = 1.0;
+                let (q, p, t): ([Dual64; N], [Dual64; N], Dual64) =
+                    (core::array::from_fn(|j| x[j]), core::array::from_fn(|j| x[N + j]), x[2 * N]);
+                let th: [Dual64; P] = core::array::from_fn(|j| x[2 * N + 1 + j]);
+                let r = Fit.running(k as u64, t, q, p, &th);
+                if k == n { r + Fit.terminal(t, q, p, &th) } else { r }.eps
+            };
+            let g: Vec<f64> = (0..2 * N + 1 + P).map(term).collect();
+            for (col, slot) in total.iter_mut().enumerate() {
+                *slot += (0..2 * N).map(|i| g[i] * s.get(i, col)).sum::<f64>() + g[2 * N] * s.time[col];
+                if col >= 2 * N {
+                    *slot += g[2 * N + 1 + col - 2 * N];
+                }
+            }
+        }
+        total
+    }
+
+    fn relative(a: &[f64], b: &[f64]) -> f64 {
+        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+    }
+
+    /// The adjoint against the forward sensitivities and central
+    /// differences (step `fd_step · max(1, |x|)`) of whole plain runs;
+    /// returns `(vs forward, vs differences)`.
+    fn agreement<S: Parametric<N, P>, const N: usize, const P: usize>(
+        system: S,
+        (q0, v0): ([f64; N], [f64; N]),
+        (sigma, t_end, fd_step): (f64, f64, f64),
+    ) -> (f64, f64)
+    where
+        Dim<N>: Extended<N>,
+    {
+        let scheme = kl8();
+        let problem = Problem::new(system.clone(), 0.0, q0, v0);
+        let g = problem.gradient(&scheme, sigma, t_end, &Fit, Checkpoints::Budget(7)).unwrap();
+        assert_eq!(g.last.t, t_end);
+        let adjoint: Vec<f64> = g.q0.iter().chain(&g.v0).chain(&g.theta).copied().collect();
+        let forward = forward_gradient(&problem, &scheme, sigma, t_end);
+        let value = loss_of(problem, &scheme, sigma, t_end);
+        assert!((g.value - value).abs() <= 1e-13 * value.abs(), "{} vs {value}", g.value);
+        let theta = system.parameters();
+        let base: Vec<f64> = q0.iter().chain(&v0).chain(&theta).copied().collect();
+        let fd: Vec<f64> = (0..base.len())
+            .map(|i| {
+                let step = fd_step * base[i].abs().max(1.0);
+                let at = |s: f64| {
+                    let mut x = base.clone();
+                    x[i] += s;
+                    let th: [f64; P] = core::array::from_fn(|j| x[2 * N + j]);
+                    let p = Problem::new(
+                        system.with_parameters(th),
+                        0.0,
+                        core::array::from_fn(|j| x[j]),
+                        core::array::from_fn(|j| x[N + j]),
+                    );
+                    loss_of(p, &scheme, sigma, t_end)
+                };
+                (at(step) - at(-step)) / (2.0 * step)
+            })
+            .collect();
+        let (vs_forward, vs_fd) = (relative(&adjoint, &forward), relative(&adjoint, &fd));
+        eprintln!(
+            "{} steps: adjoint {adjoint:?}\nforward {forward:?}\ncentral differences {fd:?}\n\
+             adjoint vs forward {vs_forward:.1e}, vs central differences {vs_fd:.1e}",
+            g.last.step
+        );
+        (vs_forward, vs_fd)
+    }
+
+    #[test]
+    fn kepler_adjoint_agrees_with_forward_sensitivities_and_differences() {
+        // e = 0.5 from the pericentre, three orbits (period 2π), c = 0.
+        let e: f64 = 0.5;
+        let start = ([1.0 - e, 0.0], [0.0, ((1.0 + e) / (1.0 - e)).sqrt()]);
+        let (vs_forward, vs_fd) = agreement(Kepler { mu: 1.0 }, start, (0.1, 6.0 * std::f64::consts::PI, 1e-7));
+        assert!(vs_forward <= 1e-12, "{vs_forward:e}");
+        assert!(vs_fd <= 1e-7, "{vs_fd:e}");
+    }
+
+    #[test]
+    fn pendulum_adjoint_differentiates_the_shift_and_the_mass() {
+        let (vs_forward, vs_fd) = agreement(Pendulum { m: 1.3, g: 9.81 }, ([1.0], [0.5]), (0.05, 5.0, 1e-6));
+        assert!(vs_forward <= 1e-12, "{vs_forward:e}");
+        assert!(vs_fd <= 1e-7, "{vs_fd:e}");
+    }
+}
