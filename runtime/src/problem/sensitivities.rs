@@ -4,6 +4,8 @@
 
 use core::cell::RefCell;
 
+use nalgebra::DVector;
+
 use super::extend::Extended;
 use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
@@ -14,11 +16,12 @@ use crate::derivatives::Segment;
 use crate::dim::Dim;
 use crate::error::Error;
 use crate::integrator::Stats;
+use crate::sensitivity::Parametric;
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
 use crate::sensitivity::linearisation::{Piece, Rule};
+use crate::sensitivity::split::{self, Reverse};
 use crate::sensitivity::transformed::{Linear, Start};
-use crate::sensitivity::{Parametric, split};
 use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
@@ -244,6 +247,43 @@ where
             }),
             _ => Err(Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" }),
         }
+    }
+
+    /// The last step of a time-transformed stepper, from its node `node`
+    /// in `s` (`from` in physical time), as the reverse sweep keeps it: the
+    /// splitting's full steps by their start and size, the rest by their
+    /// linearisation.
+    pub(crate) fn extended_reverse<const P: usize>(&self, node: Vec<f64>, from: &State<N>) -> Result<Reverse, Error<N>>
+    where
+        S: Parametric<N, P>,
+    {
+        match &*self.driver {
+            Driver::Splitting(d) => split::reverse::<S, N, P>(d, node).ok_or(Error::NonFinite {
+                state: *from,
+                h: Stepping::state(self).t - from.t,
+                iterations: 0,
+                quantity: "jacobian",
+            }),
+            _ => self.extended_step::<P>(&node, from).map(Reverse::Dense),
+        }
+    }
+
+    /// Pulls the costate `lambda` back through a full step of the
+    /// splitting kept as [`Reverse::Step`] (see [`split::Transpose`],
+    /// made on first use); `None` for another stepper or where a result is
+    /// not finite.
+    pub(crate) fn splitting_pullback<const P: usize>(
+        &self,
+        transpose: &mut Option<split::Transpose<N, P>>,
+        step: (&[f64], f64),
+        lambda: &mut DVector<f64>,
+        (dtheta, dc): (&mut [f64; P], &mut f64),
+    ) -> Option<()>
+    where
+        S: Parametric<N, P>,
+    {
+        let Driver::Splitting(d) = &*self.driver else { return None };
+        transpose.get_or_insert_with(|| split::Transpose::new(d)).step(d, step, lambda, dtheta, dc)
     }
 
     /// The derivatives of the first node in `s` of a time-transformed
