@@ -15,6 +15,9 @@
 //! parameter `θ`, which enters `V` and `M`, the shift `c`, or the step's
 //! size in `s`), with `∇V` and `∂_t V` from a nested dual number. The
 //! derivatives are those of the map the driver computes, to round-off.
+//! The forward sensitivities multiply these Jacobians; the adjoint forms
+//! none for a full step and pulls the costate back through the transposed
+//! sub-flows instead ([`Transpose`]).
 //!
 //! The node times, the constant `c` and the landing step on `t_end` are
 //! those of [`transformed`](super::transformed): the same [`Linear`] and

@@ -153,6 +153,10 @@ pub struct ExtendedPoint<T, const N: usize> {
 /// the number of gradient evaluations it took.
 type Stepped<T, const N: usize> = (Phase<T, N>, Option<Gradient<T, N>>, u64);
 
+/// The best trial of a landing search: its miss `t − target`, end point,
+/// gradient there and size in `s`.
+type Trial<T, const N: usize> = (T, Phase<T, N>, Option<Gradient<T, N>>, T);
+
 /// The one-stage weight list of the plain leapfrog.
 static LEAPFROG: [f64; 1] = [1.0];
 
@@ -1077,7 +1081,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             return Ok(());
         }
         let mut bracket = Bracket::new((T::zero(), t0 - target), (self.sigma, t_over - target));
-        let mut best: Option<(T, Phase<T, N>, Option<Gradient<T, N>>, T)> = None;
+        let mut best: Option<Trial<T, N>> = None;
         for _ in 0..100 {
             let s = bracket.trial();
             self.stats.landing_trials += 1;
