@@ -7,7 +7,8 @@
 //!
 //! Prints a markdown table, of the cases whose name contains `CASE` when
 //! one is given (`pendulum-midpoint`, `pendulum-galerkin3`,
-//! `pendulum-kahan-li8`, `chain8` … `chain64`, `chain1000`, `memory`). With `forward` or
+//! `pendulum-kahan-li8`, `kepler-splitting-kahan-li8`, `chain8` … `chain64`,
+//! `chain1000`, `memory`). With `forward` or
 //! `gradient` after it, runs that half of each chosen case once and prints
 //! nothing: what `valgrind --tool=callgrind` counts the instructions of. Timings are the minimum of several runs of CPU
 //! wall time (`Instant`) on an otherwise shared machine; the memory is the
@@ -73,6 +74,19 @@ impl DoublePendulum {
             + 0.5 * self.m2 * self.l2 * self.l2 * v[1] * v[1]
             + self.m2 * self.l1 * self.l2 * v[0] * v[1] * (q[0] - q[1]).cos();
         kinetic + (self.m1 + self.m2) * self.g * self.l1 * q[0].cos() + self.m2 * self.g * self.l2 * q[1].cos()
+    }
+}
+
+/// Planar Kepler with the gravitational parameter `μ` as a parameter.
+#[derive(Clone)]
+struct Kepler {
+    mu: f64,
+}
+
+#[lagrangian(parameters(mu))]
+impl Kepler {
+    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
+        0.5 * (v[0] * v[0] + v[1] * v[1]) + self.mu / (q[0] * q[0] + q[1] * q[1]).sqrt()
     }
 }
 
@@ -182,6 +196,15 @@ fn main() {
             let what = format!("double pendulum, {}", scheme.name());
             row(&what, steps, costs::<_, 2, 3>(&problem, &scheme, h, steps, phase), phase);
         }
+    }
+    // The explicit time-transformed splitting (logarithmic, drift–kick–drift,
+    // Kahan–Li 8) on Kepler e = 0.5 with μ: σ = 0.1 in `s`, to t = 100
+    // (about 16 orbits, 1003 steps in `s`).
+    if chosen("kepler-splitting-kahan-li8") {
+        let scheme = Scheme::splitting(TimeFunction::Logarithmic, Some(Composition::KAHAN_LI8));
+        let kepler = Problem::new(Kepler { mu: 1.0 }, 0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]);
+        let what = format!("Kepler e = 0.5, {}", scheme.name());
+        row(&what, 1000, costs::<_, 2, 1>(&kepler, &scheme, 0.1, 1000, phase), phase);
     }
     if chosen("chain8") {
         chain::<8>(&Scheme::MIDPOINT, 1000, phase);

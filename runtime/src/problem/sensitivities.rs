@@ -4,6 +4,8 @@
 
 use core::cell::RefCell;
 
+use nalgebra::DVector;
+
 use super::extend::Extended;
 use super::scheme::{OnePoint, Scheme};
 use super::statement::Problem;
@@ -15,11 +17,12 @@ use crate::dim::Dim;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
 use crate::integrator::{Integrator, Stats, StepPolicy};
+use crate::sensitivity::Parametric;
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
 use crate::sensitivity::linearisation::{Piece, Rule};
+use crate::sensitivity::split::{self, Reverse};
 use crate::sensitivity::transformed::{Linear, Start};
-use crate::sensitivity::{Parametric, SPLITTING};
 use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
@@ -60,10 +63,11 @@ where
     ///
     /// The combinations are those [`supports`](super::supports) accepts with
     /// [`Capability::Sensitivities`]: fixed steps of the one-point rules,
-    /// the Galerkin rules, the compositions and the implicit time
-    /// transformation (`policy` is then the step `σ` in `s`; the node times
-    /// move with the inputs, [`Jacobian::time`](crate::sensitivity::Jacobian::time)),
-    /// and energy-preserving steps of the one-point rules (the step sizes
+    /// the Galerkin rules, the compositions, the implicit time
+    /// transformation and the explicit time-transformed splitting (`policy`
+    /// is then the step `σ` in `s`; the node times move with the inputs,
+    /// [`Jacobian::time`](crate::sensitivity::Jacobian::time)), and
+    /// energy-preserving steps of the one-point rules (the step sizes
     /// differentiated through the energy equation, the node times moving
     /// too). A step that took the least-squares fallback of the energy
     /// equation ends the sensitivities with [`Error::NotDifferentiable`] in
@@ -236,11 +240,9 @@ where
             Driver::Lobatto4(d) => Rule::galerkin(&d.method),
             // Linearised in the extended phase (`extended_step`), not by
             // one rule in `t`.
-            Driver::Transformed(_) => {
+            Driver::Transformed(_) | Driver::Splitting(_) => {
                 return Err(Error::Unsupported { what: "one rule in `t` for the steps of a time transformation" });
             }
-            // `supports` refuses it before a stepper is built.
-            Driver::Splitting(_) => return Err(Error::Unsupported { what: SPLITTING }),
         })
     }
 
@@ -262,6 +264,7 @@ where
         }
         match &*self.driver {
             Driver::Transformed(d) => Some(ExtendedNode::Transformed(<Dim<N> as Extended<N>>::node(d))),
+            Driver::Splitting(d) => Some(ExtendedNode::Transformed(split::node(d))),
             Driver::Midpoint(d) => energy(d),
             Driver::Trapezoid(d) => energy(d),
             Driver::AlphaBeta(d) => energy(d),
@@ -289,6 +292,9 @@ where
             (ExtendedNode::Transformed(node), Driver::Transformed(d)) => {
                 <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(singular)
             }
+            // No equation is solved: only a derivative can fail.
+            (ExtendedNode::Transformed(node), Driver::Splitting(d)) => split::linearise::<S, N, P>(d, node)
+                .ok_or(Error::NonFinite { state: *from, h: to.t - from.t, iterations: 0, quantity: "jacobian" }),
             (&ExtendedNode::Energy { first, inexact }, driver) => {
                 let stats = Stepping::stats(self);
                 if stats.energy_fallbacks + stats.accuracy_capped_steps != inexact {
@@ -311,6 +317,51 @@ where
         }
     }
 
+    /// The last step of a stepper linearised in the extended phase, from
+    /// its node `node` (`from` in physical time; `target` as for
+    /// [`extended_step`](Self::extended_step)), as the reverse sweep keeps
+    /// it: the splitting's full steps by their start and size, the rest by
+    /// their linearisation.
+    pub(crate) fn extended_reverse<const P: usize>(
+        &self,
+        node: ExtendedNode,
+        from: &State<N>,
+        target: Option<f64>,
+    ) -> Result<Reverse, Error<N>>
+    where
+        S: Parametric<N, P>,
+    {
+        match (node, &*self.driver) {
+            (ExtendedNode::Transformed(node), Driver::Splitting(d)) => {
+                split::reverse::<S, N, P>(d, node).ok_or(Error::NonFinite {
+                    state: *from,
+                    h: Stepping::state(self).t - from.t,
+                    iterations: 0,
+                    quantity: "jacobian",
+                })
+            }
+            (node, _) => self.extended_step::<P>(&node, from, target).map(Reverse::Dense),
+        }
+    }
+
+    /// Pulls the costate `lambda` back through a full step of the
+    /// splitting kept as [`Reverse::Step`] (see [`split::Transpose`],
+    /// made on first use); `None` for another stepper or where a result is
+    /// not finite.
+    pub(crate) fn splitting_pullback<const P: usize>(
+        &self,
+        transpose: &mut Option<split::Transpose<N, P>>,
+        step: (&[f64], f64),
+        lambda: &mut DVector<f64>,
+        (dtheta, dc): (&mut [f64; P], &mut f64),
+    ) -> Option<()>
+    where
+        S: Parametric<N, P>,
+    {
+        let Driver::Splitting(d) = &*self.driver else { return None };
+        transpose.get_or_insert_with(|| split::Transpose::new(d)).step(d, step, lambda, dtheta, dc)
+    }
+
     /// The derivatives of the first node in the extended phase of a
     /// time-transformed or energy-preserving stepper from the initial data
     /// `initial` (`None` for the other steppers).
@@ -325,6 +376,7 @@ where
             None => return Ok(None),
             Some(ExtendedNode::Transformed(_)) => match &*self.driver {
                 Driver::Transformed(d) => <Dim<N> as Extended<N>>::start_tangent::<S, P>(d, initial),
+                Driver::Splitting(d) => split::start::<S, N, P>(d, initial),
                 _ => None,
             },
             Some(ExtendedNode::Energy { .. }) => <Dim<N> as Extended<N>>::energy_start::<S, P>(self.system(), initial),

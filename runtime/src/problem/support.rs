@@ -176,8 +176,9 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
 /// fixed steps of the one-point rules, the Galerkin rules, the
-/// compositions and the implicit time transformation (fixed steps in `s`),
-/// and energy-preserving steps of the one-point rules.
+/// compositions, the implicit time transformation and the explicit
+/// time-transformed splitting (fixed steps in `s`), and energy-preserving
+/// steps of the one-point rules.
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let n = match c.size {
         Size::Dynamic => {
@@ -197,8 +198,7 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
         ),
         Scheme::Composition { .. } => Ok(()),
         // Fixed steps in `s`; `constant` refuses the rest as for a run.
-        Scheme::TimeTransformed { .. } => Ok(()),
-        Scheme::Splitting { .. } => Err(crate::sensitivity::SPLITTING),
+        Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => Ok(()),
     }
 }
 

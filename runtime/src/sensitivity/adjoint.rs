@@ -25,6 +25,7 @@ use num_dual::Dual64;
 use super::Parametric;
 use super::linearisation::Rule;
 use super::pullback::{Pullback, large};
+use super::split::Reverse;
 use crate::error::Error;
 use crate::hyperdual::{DualArray, Pair};
 use crate::problem::{Dim, Extended, Stepper};
@@ -377,10 +378,11 @@ where
 
 /// The gradient through a time-transformed or energy-preserving run: the
 /// same forward pass and checkpoints, and a reverse sweep in the extended
-/// phase `(q, t, p, p_t)` through the dense step Jacobians of
-/// `transformed.rs` and `energy.rs` (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`),
-/// with the derivatives of the constant `c` (zero for energy steps) and
-/// of the first extended node at the end.
+/// phase `(q, t, p, p_t)` (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`) through
+/// the dense step Jacobians of `transformed.rs` and `energy.rs`, or, for the
+/// splitting's full steps, the transposed sub-flows of `split.rs`, with the
+/// derivatives of the constant `c` (zero for energy steps) and of the first
+/// extended node at the end.
 pub(crate) fn gradient_extended<S, L, const N: usize, const P: usize>(
     stepper: Stepper<S, N>,
     initial: (f64, [f64; N], [f64; N]),
@@ -431,6 +433,7 @@ where
     let mut recomputed_steps = 0;
     let mut nodes = Vec::with_capacity(m + 1);
     let mut steps = Vec::with_capacity(m);
+    let mut transpose = None;
     for start_copy in kept.into_iter().rev() {
         let first = start_copy.state().step;
         if first == last.step {
@@ -449,16 +452,29 @@ where
             let node = sim.extended_node().ok_or_else(not_transformed)?;
             Stepping::step_toward(&mut sim, t_end, last_h)?;
             last_h = Some(sim.state().t - from.t);
-            steps.push(sim.extended_step::<P>(&node, &from, Some(t_end))?);
+            steps.push(sim.extended_reverse::<P>(node, &from, Some(t_end))?);
             nodes.push(sim.state());
             recomputed_steps += 1;
         }
-        for (i, linear) in steps.iter().enumerate().rev() {
-            for (j, d) in dtheta.iter_mut().enumerate() {
-                *d += linear.theta.column(j).dot(&lambda);
+        for (i, step) in steps.iter().enumerate().rev() {
+            match step {
+                Reverse::Dense(linear) => {
+                    for (j, d) in dtheta.iter_mut().enumerate() {
+                        *d += linear.theta.column(j).dot(&lambda);
+                    }
+                    dc += linear.c.dot(&lambda);
+                    lambda = linear.x.tr_mul(&lambda);
+                }
+                Reverse::Step { from, h } => {
+                    sim.splitting_pullback(&mut transpose, (from.as_slice(), *h), &mut lambda, (&mut dtheta, &mut dc))
+                        .ok_or(Error::NonFinite {
+                            state: nodes[i],
+                            h: nodes[i + 1].t - nodes[i].t,
+                            iterations: 0,
+                            quantity: "jacobian",
+                        })?;
+                }
             }
-            dc += linear.c.dot(&lambda);
-            lambda = linear.x.tr_mul(&lambda);
             add_terms(&mut lambda, &mut dtheta, &nodes[i], false)?;
         }
         let (lq, lp) = physical(&lambda);

@@ -22,6 +22,10 @@
 //! extended system in `s`; [`transformed`] linearises it in the extended
 //! phase `(q, t, p, p_t)`, so the node times have derivatives too, with the
 //! driver's constant `c` and the landing step on `t_end` differentiated.
+//! A step of the explicit time-transformed splitting is an explicit map of
+//! the same extended phase, the product of its drifts and kicks; `split.rs`
+//! linearises it with dual numbers and hands the same linearisation to the
+//! same propagation and reverse sweep.
 //!
 //! An energy-preserving step of a one-point rule is, in the same way, a
 //! fixed step of size 1 of the parametrised motion `t' L(t, q, q'/t')`,
@@ -45,13 +49,11 @@ pub mod linearisation;
 pub mod names;
 mod parametric;
 mod pullback;
+pub(crate) mod split;
 #[doc(hidden)]
 pub mod transformed;
 
 pub use adjoint::{Checkpoints, Gradient, Loss};
 
-/// Why the explicit time-transformed splitting has no sensitivities.
-pub(crate) const SPLITTING: &str = "sensitivities of the explicit time-transformed splitting: its sub-steps are the flows of \
-     `f(T + p_t + c)` and `f(c − V)` in the extended phase, not Galerkin steps of `L`, and their linearisation is not written";
 pub use forward::{Jacobian, Sensitivities};
 pub use parametric::Parametric;

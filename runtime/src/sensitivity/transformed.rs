@@ -225,6 +225,28 @@ where
     linear.finite()
 }
 
+impl Linear {
+    /// The linearisation of a step in the extended phase `(q, t, p, p_t)`
+    /// (`M = N + 1` rows each, the time at row `N`) from its Jacobians in
+    /// the state, `θ` and `c`; for a landing step, with `landing` the
+    /// derivative of the end point in the step's size (in any scale: the
+    /// projection is invariant to it), the size solved so that the end
+    /// time is `t_end`, eliminated by [`pin_time`](Self::pin_time). `None`
+    /// where an entry is not finite.
+    pub(crate) fn of_step(
+        x: DMatrix<f64>,
+        theta: DMatrix<f64>,
+        c: DVector<f64>,
+        landing: Option<DVector<f64>>,
+    ) -> Option<Self> {
+        let mut linear = Self { x, theta, c };
+        if let Some(a) = landing {
+            linear.pin_time(linear.x.nrows() / 2 - 1, &a);
+        }
+        linear.finite()
+    }
+}
+
 /// The derivatives of the first node in `s` with respect to the inputs
 /// `(q_0, v_0, θ)`.
 #[doc(hidden)]

@@ -56,4 +56,5 @@ pub(crate) use extended::{extended_force, extended_lagrangian, homogeneous, spli
 pub use splitting::{
     ExplicitAdaptive, ExplicitTimeTransformed, ExtendedPoint, LeapfrogForm, SplittingStats, TimeFunction,
 };
+pub(crate) use splitting::{Flow, gravitating_start, kinetic_energy, shift_with_margin, square, stages};
 pub use stepper::{Rule, SMethod, SStepper};

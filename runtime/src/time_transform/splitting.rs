@@ -36,7 +36,7 @@ use crate::integrator::Composition;
 use crate::real::{Real, all_finite, gauss_jordan_into};
 use crate::root::Bracket;
 use crate::state::State;
-use crate::system::Lagrangian;
+use crate::system::{Lagrangian, Scalar};
 use num_dual::HyperDual;
 use std::sync::Arc;
 
@@ -64,9 +64,10 @@ impl TimeFunction {
     }
 
     /// `f'(x) = x^{−α}` on `x > 0`, with the common exponents computed
-    /// without `powf` (which dominates a step's cost otherwise).
+    /// without `powf` (which dominates a step's cost otherwise); on any
+    /// scalar, so that the linearisation of a step differentiates it.
     #[inline(always)]
-    fn derivative<T: Real>(self, x: T) -> T {
+    pub(crate) fn derivative<T: Scalar>(self, x: T) -> T {
         let alpha = self.exponent();
         if alpha == 1.0 {
             x.recip()
@@ -100,6 +101,41 @@ pub enum LeapfrogForm {
     DriftKickDrift,
 }
 
+/// One of the two exactly solved flows of the splitting.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Flow {
+    /// `q += h f'(T + p_t + c) M⁻¹p`, `t += h f'(T + p_t + c)`.
+    Drift,
+    /// `p −= h f'(c − V) ∇V`, `p_t −= h f'(c − V) ∂_t V`.
+    Kick,
+}
+
+/// The sub-flows of one composed step, in order, as `(flow, fraction of
+/// the step)`: the leapfrog of `form` with the stages `weights`, the
+/// half-flows of consecutive stages merged (for kick–drift–kick the kicks
+/// are `w_1/2, (w_1 + w_2)/2, …, w_m/2` around the drifts `w_i`). The
+/// driver and the linearisation of its step both take them from here.
+#[inline(always)]
+pub(crate) fn stages<E>(
+    form: LeapfrogForm,
+    weights: &[f64],
+    mut flow: impl FnMut(Flow, f64) -> Result<(), E>,
+) -> Result<(), E> {
+    let w = weights;
+    let m = w.len();
+    let half = |i: usize| if i + 1 < m { 0.5 * (w[i] + w[i + 1]) } else { 0.5 * w[i] };
+    let (outer, inner) = match form {
+        LeapfrogForm::KickDriftKick => (Flow::Kick, Flow::Drift),
+        LeapfrogForm::DriftKickDrift => (Flow::Drift, Flow::Kick),
+    };
+    flow(outer, 0.5 * w[0])?;
+    for (i, &wi) in w.iter().enumerate() {
+        flow(inner, wi)?;
+        flow(outer, half(i))?;
+    }
+    Ok(())
+}
+
 /// A point of the extended phase space `(q, t; p, p_t)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExtendedPoint<T, const N: usize> {
@@ -116,6 +152,10 @@ pub struct ExtendedPoint<T, const N: usize> {
 /// A computed step: the end point, the gradient there (if computed) and
 /// the number of gradient evaluations it took.
 type Stepped<T, const N: usize> = (Phase<T, N>, Option<Gradient<T, N>>, u64);
+
+/// The best trial of a landing search: its miss `t − target`, end point,
+/// gradient there and size in `s`.
+type Trial<T, const N: usize> = (T, Phase<T, N>, Option<Gradient<T, N>>, T);
 
 /// The one-stage weight list of the plain leapfrog.
 static LEAPFROG: [f64; 1] = [1.0];
@@ -332,6 +372,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitTimeTransformed<Sys, N
             floor,
             landed: None,
             last_dt: None,
+            last_sigma: None,
         })
     }
 }
@@ -471,6 +512,8 @@ pub struct ExplicitAdaptive<Sys, T, const N: usize> {
     /// `(step, t_end)` after landing on `t_end`.
     landed: Option<(u64, T)>,
     last_dt: Option<T>,
+    /// The size in `s` of the last step (`σ`, or a landing step's own).
+    last_sigma: Option<T>,
 }
 
 /// The range of `a/b`, the ratio of the drift's argument `a = T + p_t + c`
@@ -548,7 +591,7 @@ fn zeroed_square<T: Real, const N: usize>() -> Box<[[T; N]; N]> {
 }
 
 /// The `N` rows as a boxed matrix.
-fn square<T, const N: usize>(rows: Vec<[T; N]>) -> Box<[[T; N]; N]> {
+pub(crate) fn square<T, const N: usize>(rows: Vec<[T; N]>) -> Box<[[T; N]; N]> {
     match rows.into_boxed_slice().try_into() {
         Ok(m) => m,
         Err(_) => unreachable!("a matrix has N rows"),
@@ -563,9 +606,10 @@ pub(super) fn invert<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<Box<[[T
     gauss_jordan_into(&mut a, &mut inv, 1e-13).then_some(inv)
 }
 
-/// `(T(p), M⁻¹p)`.
+/// `(T(p), M⁻¹p)`, on any scalar (the linearisation of a step takes it
+/// on dual numbers).
 #[inline(always)]
-fn kinetic_energy<T: Real, const N: usize>(inverse_mass: &[[T; N]; N], p: &[T; N]) -> (T, [T; N]) {
+pub(crate) fn kinetic_energy<T: Scalar, const N: usize>(inverse_mass: &[[T; N]; N], p: &[T; N]) -> (T, [T; N]) {
     let mut u = [T::zero(); N];
     let mut k = T::zero();
     for i in 0..N {
@@ -580,17 +624,42 @@ fn kinetic_energy<T: Real, const N: usize>(inverse_mass: &[[T; N]; N], p: &[T; N
 /// The default shift `c` of [`ExplicitTimeTransformed::shift`], from the
 /// start's kinetic energy `kinetic` and potential `v = V(t0, q0)`.
 fn default_shift<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t0: T, q0: [T; N], kinetic: T, v: T) -> T {
-    let energy = kinetic + v;
-    if energy.re() < 0.0 && gravitating(system, t0, q0, v) {
+    if gravitating_start(system, t0, q0, kinetic, v) {
         return T::zero();
     }
     let g = gradient(system, t0, q0);
-    let virial = q0.iter().zip(&g.dv).fold(T::zero(), |s, (&q, &d)| s + q * d).re().abs();
-    let scale = [kinetic.re(), v.re().abs(), energy.re().abs(), virial]
+    let virial = q0.iter().zip(&g.dv).fold(T::zero(), |s, (&q, &d)| s + q * d);
+    shift_with_margin(kinetic, v, virial)
+}
+
+/// Whether the default shift is `c = 0`: a bound start (`E < 0`) of a
+/// [`gravitating`] potential.
+pub(crate) fn gravitating_start<S: Lagrangian<N>, T: Real, const N: usize>(
+    system: &S,
+    t0: T,
+    q0: [T; N],
+    kinetic: T,
+    v: T,
+) -> bool {
+    (kinetic + v).re() < 0.0 && gravitating(system, t0, q0, v)
+}
+
+/// The default shift `c = E + m` of a start that is not
+/// [`gravitating_start`], from its kinetic energy, potential and virial
+/// `q·∇V`: the margin `m` is the largest finite one of `T`, `|V|`, `|E|`,
+/// `|q·∇V|` (1 if all are 0). On any scalar: the sensitivities
+/// differentiate `c` with the initial data and the parameters.
+pub(crate) fn shift_with_margin<T: Scalar>(kinetic: T, v: T, virial: T) -> T {
+    let energy = kinetic + v;
+    let margin = [kinetic, v.abs(), energy.abs(), virial.abs()]
         .into_iter()
-        .filter(|x| x.is_finite())
-        .fold(0.0f64, f64::max);
-    energy + T::from(if scale > 0.0 { scale } else { 1.0 })
+        .filter(|x| x.re().is_finite())
+        .fold(None::<T>, |m, x| match m {
+            Some(m) if m.re() >= x.re() => Some(m),
+            _ => Some(x),
+        })
+        .filter(|m| m.re() > 0.0);
+    energy + margin.unwrap_or_else(T::one)
 }
 
 /// Whether `V(t0, ·)`, whose value at `q0` is `v`, is negative and
@@ -788,7 +857,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
-        self.commit(phase, cached)?;
+        self.commit(phase, cached, self.sigma)?;
         Ok(self.state())
     }
 
@@ -806,9 +875,9 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         Ok(ExtendedPoint { t: end.t, q: end.q, p: end.p, p_t: end.p_t })
     }
 
-    /// Accepts a computed step: checks the time it advanced and updates the
-    /// readouts.
-    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>) -> Result<(), Error<N, T>> {
+    /// Accepts a computed step of size `h` in `s`: checks the time it
+    /// advanced and updates the readouts.
+    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>, h: T) -> Result<(), Error<N, T>> {
         let dt = (phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry);
         // The compensated time advances by `dt`, but its leading part can
         // round below the time last published (a node's, or a landed
@@ -829,6 +898,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         self.stats.steps += 1;
         self.landed = None;
         self.last_dt = Some(dt);
+        self.last_sigma = Some(h);
         Ok(())
     }
 
@@ -856,29 +926,12 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             Fault::Argument(which, value) => Error::TimeFunctionArgument { state: origin(), which, value: value.re() },
             Fault::Clocks(factor) => Error::OrbitLost { state: origin(), factor },
         };
-        let w = self.weights;
-        let m = w.len();
         let mut evaluations = 0u64;
-        // The half-flows of consecutive stages merge: for KDK the kicks are
-        // w_1/2, (w_1 + w_2)/2, …, w_m/2 around the drifts w_i.
-        let half = |i: usize| if i + 1 < m { 0.5 * (w[i] + w[i + 1]) } else { 0.5 * w[i] };
-        let err = fail;
-        match self.form {
-            LeapfrogForm::KickDriftKick => {
-                self.kick(&mut phase, &mut cached, h * (0.5 * w[0]), &mut evaluations).map_err(err)?;
-                for i in 0..m {
-                    self.drift(&mut phase, &mut cached, h * w[i]).map_err(err)?;
-                    self.kick(&mut phase, &mut cached, h * half(i), &mut evaluations).map_err(err)?;
-                }
-            }
-            LeapfrogForm::DriftKickDrift => {
-                self.drift(&mut phase, &mut cached, h * (0.5 * w[0])).map_err(err)?;
-                for i in 0..m {
-                    self.kick(&mut phase, &mut cached, h * w[i], &mut evaluations).map_err(err)?;
-                    self.drift(&mut phase, &mut cached, h * half(i)).map_err(err)?;
-                }
-            }
-        }
+        stages(self.form, self.weights, |flow, fraction| match flow {
+            Flow::Kick => self.kick(&mut phase, &mut cached, h * fraction, &mut evaluations),
+            Flow::Drift => self.drift(&mut phase, &mut cached, h * fraction),
+        })
+        .map_err(fail)?;
         if !phase.t.is_finite() || !all_finite(&phase.q) || !all_finite(&phase.p) || !phase.p_t.is_finite() {
             return Err(Error::NonFinite { state: origin(), h: h.to_f64(), iterations: 0, quantity: "state" });
         }
@@ -982,7 +1035,34 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         }
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
-        if (phase.t - target).re() <= 0.0 { self.commit(phase, cached) } else { self.land(target, phase.t) }
+        if (phase.t - target).re() <= 0.0 { self.commit(phase, cached, self.sigma) } else { self.land(target, phase.t) }
+    }
+
+    /// `M⁻¹`, which the drifts apply.
+    pub(crate) fn inverse_mass(&self) -> &[[T; N]; N] {
+        &self.inverse_mass
+    }
+
+    /// The stage weights of the composition (`[1]` for the leapfrog).
+    pub(crate) fn weights(&self) -> &'static [f64] {
+        self.weights
+    }
+
+    /// The order of the sub-flows in a leapfrog.
+    pub(crate) fn leapfrog_form(&self) -> LeapfrogForm {
+        self.form
+    }
+
+    /// The size in `s` of the last step: `σ`, or that of the partial step
+    /// solved to land on a target; `None` before the first.
+    pub(crate) fn last_step_in_s(&self) -> Option<T> {
+        self.last_sigma
+    }
+
+    /// Whether the last step was the partial step of a landing, which
+    /// ended on its target.
+    pub(crate) fn landed_here(&self) -> bool {
+        self.landed.is_some_and(|(step, _)| step == self.step)
     }
 
     /// The physical velocity `v = M⁻¹p`.
@@ -1001,7 +1081,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             return Ok(());
         }
         let mut bracket = Bracket::new((T::zero(), t0 - target), (self.sigma, t_over - target));
-        let mut best: Option<(T, Phase<T, N>, Option<Gradient<T, N>>)> = None;
+        let mut best: Option<Trial<T, N>> = None;
         for _ in 0..100 {
             let s = bracket.trial();
             self.stats.landing_trials += 1;
@@ -1012,7 +1092,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             self.stats.gradient_evaluations += evaluations;
             let f = trial.t - target;
             if best.as_ref().is_none_or(|(b, ..)| f.re().abs() < b.re().abs()) {
-                best = Some((f, trial, cached));
+                best = Some((f, trial, cached, s));
             }
             if f.re().abs() <= tol {
                 break;
@@ -1020,11 +1100,11 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
             bracket.update(s, f);
         }
         match best {
-            Some((f, trial, cached)) if f.re().abs() <= 64.0 * tol => {
+            Some((f, trial, cached, s)) if f.re().abs() <= 64.0 * tol => {
                 let floor = self.floor;
                 // A landing step may be arbitrarily short: no floor.
                 self.floor = T::zero();
-                let committed = self.commit(trial, cached);
+                let committed = self.commit(trial, cached, s);
                 self.floor = floor;
                 committed?;
                 self.landed = Some((self.step, target));
