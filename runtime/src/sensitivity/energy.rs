@@ -168,39 +168,12 @@ mod tests {
     use super::*;
     use crate::error::Error;
     use crate::problem::{OnePoint, Policy, Problem, Scheme};
+    use crate::sensitivity::fixtures::Pendulum;
     use crate::sensitivity::forward::Tangent;
     use crate::sensitivity::linearisation::InitialMomentum;
     use crate::sensitivity::{Checkpoints, Loss};
     use crate::solution::{Plan, Solution, SolveError};
     use num_dual::DualNum;
-
-    /// A pendulum with its length and gravity as parameters (unit mass).
-    #[derive(Clone)]
-    struct Pendulum {
-        theta: [f64; 2],
-    }
-
-    impl Lagrangian<1> for Pendulum {
-        const AUTONOMOUS: bool = true;
-        const CYCLIC: [bool; 1] = [false];
-        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
-            self.lagrangian_with(&self.theta.map(D::from), t, q, v)
-        }
-    }
-
-    impl Parametric<1, 2> for Pendulum {
-        const NAMES: [&'static str; 2] = ["l", "g"];
-        fn parameters(&self) -> [f64; 2] {
-            self.theta
-        }
-        fn with_parameters(&self, theta: [f64; 2]) -> Self {
-            Self { theta }
-        }
-        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 2], _t: D, q: [D; 1], v: [D; 1]) -> D {
-            let [l, g] = *theta;
-            l * l * v[0] * v[0] * 0.5 + g * l * q[0].cos()
-        }
-    }
 
     /// Positions and times at every node, and the final momentum: every
     /// node time enters, so the derivatives of the step sizes do.

@@ -43,6 +43,8 @@
 
 pub mod adjoint;
 pub(crate) mod energy;
+#[cfg(test)]
+pub(crate) mod fixtures;
 pub mod forward;
 pub mod linearisation;
 #[doc(hidden)]
