@@ -613,6 +613,36 @@ mod tests {
         }
     }
 
+    /// A driven oscillator `L = ½ v² − ½ k (1 + 0.3 sin t) q²` with the
+    /// stiffness `k` as a parameter: `V` depends on the time, so the kicks
+    /// move `p_t` and the kick's pullback seeds `t`.
+    #[derive(Clone)]
+    struct Driven {
+        k: f64,
+    }
+
+    impl Lagrangian<1> for Driven {
+        const AUTONOMOUS: bool = false;
+        const CYCLIC: [bool; 1] = [false];
+        const SEPARABILITY: crate::Separability = crate::Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+            self.lagrangian_with(&[D::from(self.k)], t, q, v)
+        }
+    }
+
+    impl Parametric<1, 1> for Driven {
+        const NAMES: [&'static str; 1] = ["k"];
+        fn parameters(&self) -> [f64; 1] {
+            [self.k]
+        }
+        fn with_parameters(&self, theta: [f64; 1]) -> Self {
+            Self { k: theta[0] }
+        }
+        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 1], t: D, q: [D; 1], v: [D; 1]) -> D {
+            (v[0] * v[0] - theta[0] * (t.sin() * 0.3 + 1.0) * q[0] * q[0]) * 0.5
+        }
+    }
+
     /// A loss that reads the node times: running `10⁻² (q_0 sin t + q_{N−1})`,
     /// terminal `|q|² + θ_0 q_{N−1} p_{N−1} + t`.
     struct Fit;
@@ -832,6 +862,15 @@ mod tests {
     #[test]
     fn pendulum_adjoint_differentiates_the_shift_and_the_mass() {
         let (vs_forward, vs_fd) = agreement(Pendulum { m: 1.3, g: 9.81 }, ([1.0], [0.5]), (0.05, 5.0, 1e-6));
+        assert!(vs_forward <= 1e-12, "{vs_forward:e}");
+        assert!(vs_fd <= 1e-7, "{vs_fd:e}");
+    }
+
+    /// The time-dependent branch of the kick's pullback (the slot of `t`,
+    /// `λ_t` and the undone `p_t`).
+    #[test]
+    fn driven_oscillator_adjoint_pulls_back_the_time_of_the_kicks() {
+        let (vs_forward, vs_fd) = agreement(Driven { k: 2.0 }, ([1.0], [0.2]), (0.05, 5.0, 1e-6));
         assert!(vs_forward <= 1e-12, "{vs_forward:e}");
         assert!(vs_fd <= 1e-7, "{vs_fd:e}");
     }
