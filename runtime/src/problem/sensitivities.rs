@@ -26,6 +26,7 @@ use crate::sensitivity::transformed::{Linear, Start};
 use crate::solution::{Plan, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
+use crate::time_transform::ExtendedPoint;
 
 /// The largest system whose forward sensitivities
 /// [`Problem::solve_with_sensitivities`] propagates. The tangent and a
@@ -209,9 +210,11 @@ const LEAST_MISMATCH: &str = "its size minimises the mismatch of the energy equa
 
 /// Where the next step of a stepper linearised in the extended phase
 /// starts ([`Stepper::extended_node`]).
-pub(crate) enum ExtendedNode {
+pub(crate) enum ExtendedNode<const N: usize> {
     /// A time-transformed stepper's node in `s`, `[s, x, p̃]`.
     Transformed(Vec<f64>),
+    /// The splitting's point `(q, t, p, p_t)`.
+    Split(ExtendedPoint<f64, N>),
     /// An energy-preserving stepper's: whether the next step is its first
     /// (of the given size), and how many of its steps so far minimised the
     /// energy mismatch instead of solving the energy equation.
@@ -250,11 +253,11 @@ where
     /// starts, for [`extended_step`](Self::extended_step): a time-transformed
     /// stepper's node in `s`, or what an energy-preserving one-point
     /// stepper's next step depends on; `None` for the other steppers.
-    pub(crate) fn extended_node(&self) -> Option<ExtendedNode> {
+    pub(crate) fn extended_node(&self) -> Option<ExtendedNode<N>> {
         /// An energy-preserving integrator's node; `None` under fixed steps.
         fn energy<S: Lagrangian<N>, R: DiscreteLagrangian, const N: usize>(
             d: &Integrator<S, R, N>,
-        ) -> Option<ExtendedNode> {
+        ) -> Option<ExtendedNode<N>> {
             let StepPolicy::EnergyPreserving(_) = d.policy() else { return None };
             let stats = d.stats();
             Some(ExtendedNode::Energy {
@@ -264,7 +267,7 @@ where
         }
         match &*self.driver {
             Driver::Transformed(d) => Some(ExtendedNode::Transformed(<Dim<N> as Extended<N>>::node(d))),
-            Driver::Splitting(d) => Some(ExtendedNode::Transformed(split::node(d))),
+            Driver::Splitting(d) => Some(ExtendedNode::Split(d.extended_point())),
             Driver::Midpoint(d) => energy(d),
             Driver::Trapezoid(d) => energy(d),
             Driver::AlphaBeta(d) => energy(d),
@@ -278,7 +281,7 @@ where
     /// if any.
     pub(crate) fn extended_step<const P: usize>(
         &self,
-        node: &ExtendedNode,
+        node: &ExtendedNode<N>,
         from: &State<N>,
         target: Option<f64>,
     ) -> Result<Linear, Error<N>>
@@ -293,7 +296,7 @@ where
                 <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(singular)
             }
             // No equation is solved: only a derivative can fail.
-            (ExtendedNode::Transformed(node), Driver::Splitting(d)) => split::linearise::<S, N, P>(d, node)
+            (ExtendedNode::Split(node), Driver::Splitting(d)) => split::linearise::<S, N, P>(d, node)
                 .ok_or(Error::NonFinite { state: *from, h: to.t - from.t, iterations: 0, quantity: "jacobian" }),
             (&ExtendedNode::Energy { first, inexact }, driver) => {
                 let stats = Stepping::stats(self);
@@ -320,20 +323,20 @@ where
     /// The last step of a stepper linearised in the extended phase, from
     /// its node `node` (`from` in physical time; `target` as for
     /// [`extended_step`](Self::extended_step)), as the reverse sweep keeps
-    /// it: the splitting's full steps by their start and size, the rest by
+    /// it: the splitting's full steps by their end point and size, the rest by
     /// their linearisation.
     pub(crate) fn extended_reverse<const P: usize>(
         &self,
-        node: ExtendedNode,
+        node: ExtendedNode<N>,
         from: &State<N>,
         target: Option<f64>,
-    ) -> Result<Reverse, Error<N>>
+    ) -> Result<Reverse<N>, Error<N>>
     where
         S: Parametric<N, P>,
     {
         match (node, &*self.driver) {
-            (ExtendedNode::Transformed(node), Driver::Splitting(d)) => {
-                split::reverse::<S, N, P>(d, node).ok_or(Error::NonFinite {
+            (ExtendedNode::Split(node), Driver::Splitting(d)) => {
+                split::reverse::<S, N, P>(d, &node).ok_or(Error::NonFinite {
                     state: *from,
                     h: Stepping::state(self).t - from.t,
                     iterations: 0,
@@ -351,7 +354,7 @@ where
     pub(crate) fn splitting_pullback<const P: usize>(
         &self,
         transpose: &mut Option<split::Transpose<N, P>>,
-        step: (&[f64], f64),
+        step: (&ExtendedPoint<f64, N>, f64),
         lambda: &mut DVector<f64>,
         (dtheta, dc): (&mut [f64; P], &mut f64),
     ) -> Option<()>
@@ -374,7 +377,7 @@ where
     {
         let start = match self.extended_node() {
             None => return Ok(None),
-            Some(ExtendedNode::Transformed(_)) => match &*self.driver {
+            Some(ExtendedNode::Transformed(_) | ExtendedNode::Split(_)) => match &*self.driver {
                 Driver::Transformed(d) => <Dim<N> as Extended<N>>::start_tangent::<S, P>(d, initial),
                 Driver::Splitting(d) => split::start::<S, N, P>(d, initial),
                 _ => None,

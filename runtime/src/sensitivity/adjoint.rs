@@ -465,14 +465,15 @@ where
                     dc += linear.c.dot(&lambda);
                     lambda = linear.x.tr_mul(&lambda);
                 }
-                Reverse::Step { from, h } => {
-                    sim.splitting_pullback(&mut transpose, (from.as_slice(), *h), &mut lambda, (&mut dtheta, &mut dc))
-                        .ok_or(Error::NonFinite {
+                Reverse::Step { end, h } => {
+                    sim.splitting_pullback(&mut transpose, (end, *h), &mut lambda, (&mut dtheta, &mut dc)).ok_or(
+                        Error::NonFinite {
                             state: nodes[i],
                             h: nodes[i + 1].t - nodes[i].t,
                             iterations: 0,
                             quantity: "jacobian",
-                        })?;
+                        },
+                    )?;
                 }
             }
             add_terms(&mut lambda, &mut dtheta, &nodes[i], false)?;
