@@ -40,7 +40,7 @@ use crate::real::{Real, all_finite, gauss_jordan_into, max_abs};
 use crate::system::{Lagrangian, generalized_force};
 
 use super::linalg::BlockVector;
-use super::method::{Galerkin, gradient_at, velocity_hessian};
+use super::method::{Galerkin, gradient_at, velocity_derivatives, velocity_hessian};
 
 /// Most iterations a step may take before Newton takes over.
 const MAX_ITERATIONS: usize = 20;
@@ -241,7 +241,7 @@ fn nodes_from<const N: usize, const S: usize, const R: usize, T: Real>(
 
 /// The `N` rows of `M⁻¹ = (∂²L/∂v²)⁻¹` of a system whose mass matrix the
 /// macro proves constant ([`Separability::ConstantMass`](crate::Separability)),
-/// from the Hessian at one point, to be kept for the whole run: the
+/// from [`velocity_derivatives`] at one point, to be kept for the whole run: the
 /// fixed-point iteration then costs no Hessian at all. Measured with
 /// callgrind on the FPU-β chain of 16 masses (s = 4, 40 steps of `h = 0.3`
 /// from the start): 241·10⁶ instructions with the Hessian in `v` formed and
@@ -259,9 +259,8 @@ where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
 {
-    let (_, _, vv) = velocity_hessian(system, t, q, v);
+    let (_, _, mut a) = velocity_derivatives(system, t, q, v);
     let mut rows = vec![[T::zero(); N]; N].into_boxed_slice();
-    let mut a = vv;
     let inverse: &mut [[T; N]; N] = (&mut *rows).try_into().ok()?;
     gauss_jordan_into(&mut a, inverse, 0.0).then_some(rows)
 }
