@@ -428,6 +428,19 @@ pub trait DynLagrangian {
         }
     }
 
+    /// [`gradient_q`](Self::gradient_q), returning the value of `L` at
+    /// `(t, q, v)` too, which an explicit step checks at the node it
+    /// reaches (see [`Lagrangian::value_gradient_q`]). The runtime calls
+    /// this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is set.
+    ///
+    /// The default calls `gradient_q`, then [`lagrangian`](Self::lagrangian).
+    /// `#[lagrangian]` writes it as the same code as `gradient_q`, returning
+    /// the value its forward sweep computes.
+    fn value_gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) -> f64 {
+        self.gradient_q(t, q, v, out);
+        self.lagrangian(t, q, v)
+    }
+
     /// `true` when [`gradient_qv_scalar`](Self::gradient_qv_scalar) is
     /// generated adjoint code (see [`Lagrangian::HAS_GRADIENT_QV`]).
     const HAS_GRADIENT_QV: bool = false;
@@ -492,6 +505,11 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
         (**self).gradient_q(t, q, v, out);
+    }
+
+    #[inline(always)]
+    fn value_gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) -> f64 {
+        (**self).value_gradient_q(t, q, v, out)
     }
 
     const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;

@@ -294,6 +294,7 @@ pub(crate) fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo:
         let v: [f64; N] = core::array::from_fn(|_| rng.uniform(-2.0, 2.0));
         let mut generated = [f64::NAN; N];
         system.gradient_q(t, &q, &v, &mut generated);
+        check_value(system, t, &q, &v, &generated);
         let dual = dual_gradient(system, t, &q, &v);
         let scale = dual.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         assert!(scale.is_finite() && scale > 0.0, "a degenerate sample: {dual:?}");
@@ -305,6 +306,23 @@ pub(crate) fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo:
         worst = worst.max(qv_difference(system, t, &q, &v));
     }
     worst
+}
+
+/// How far `value_gradient_q`'s value may be from `L`, relative to
+/// `max(|L|, 1)`: its forward sweep performs the body's operations in the
+/// body's order, so a few ulps at most (a constant moved to the other side
+/// of `+` or `*` is exact).
+const VALUE_TOLERANCE: f64 = 1e-14;
+
+/// `value_gradient_q` against `gradient_q` (`gradient`: the same bits) and
+/// `L` (within [`VALUE_TOLERANCE`]).
+fn check_value<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], v: &[f64; N], gradient: &[f64; N]) {
+    let mut out = [f64::NAN; N];
+    let value = system.value_gradient_q(t, q, v, &mut out);
+    assert_eq!(out.map(f64::to_bits), gradient.map(f64::to_bits), "value_gradient_q's gradient is gradient_q's");
+    let l = system.lagrangian(t, *q, *v);
+    let difference = (value - l).abs() / l.abs().max(1.0);
+    assert!(difference <= VALUE_TOLERANCE, "value {value} against L = {l}");
 }
 
 /// Sums in a different order than the dual path round differently: a few
@@ -408,6 +426,12 @@ fn the_run_time_sized_chain_agrees_with_its_tape_gradient() {
         let v: Vec<f64> = (0..40).map(|_| rng.uniform(-1.0, 1.0)).collect();
         let mut generated = vec![f64::NAN; 40];
         chain.gradient_q(0.0, &q, &v, &mut generated);
+        // With the value: the same gradient, and `L`.
+        let mut valued = vec![f64::NAN; 40];
+        let value = chain.value_gradient_q(0.0, &q, &v, &mut valued);
+        assert_eq!(valued, generated);
+        let l = DynLagrangian::lagrangian(&chain, 0.0, &q, &v);
+        assert!((value - l).abs() <= VALUE_TOLERANCE * l.abs().max(1.0), "value {value} against L = {l}");
         // Forward-mode duals, one direction at a time.
         let vd: Vec<Dual64> = v.iter().map(|&x| Dual64::from(x)).collect();
         let scale = generated.iter().fold(0.0f64, |m, x| m.max(x.abs()));

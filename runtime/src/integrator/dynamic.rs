@@ -328,6 +328,10 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
         S::HAS_GRADIENT
     }
 
+    fn value_gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> Option<f64> {
+        S::HAS_GRADIENT.then(|| self.system.value_gradient_q(t, q, zero, out))
+    }
+
     fn autonomous(&self) -> bool {
         S::AUTONOMOUS
     }

@@ -159,6 +159,18 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         S::HAS_GRADIENT
     }
 
+    fn value_gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> Option<f64> {
+        if !S::HAS_GRADIENT {
+            return None;
+        }
+        let (Ok(q), Ok(zero), Ok(out)) =
+            (<&[f64; N]>::try_from(q), <&[f64; N]>::try_from(zero), <&mut [f64; N]>::try_from(out))
+        else {
+            return None;
+        };
+        Some(self.system.value_gradient_q(t, q, zero, out))
+    }
+
     fn autonomous(&self) -> bool {
         S::AUTONOMOUS
     }

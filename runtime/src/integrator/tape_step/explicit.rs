@@ -2,7 +2,7 @@
 //! Störmer–Verlet (the trapezoid rule's explicit form) and the fused
 //! substeps of compositions, with the mass matrix factored once.
 
-use super::legendre::{Assembled, potential_finite, potential_force, velocity_derivatives};
+use super::legendre::{Assembled, potential_force, potential_force_finite, velocity_derivatives};
 use super::{
     Composed, ComposedScratch, Growth, LastSubstep, Node, SparseWork, TAPE_FAILED, Taken, TapeModel, breakdown,
     mass_bandwidth, zeroed,
@@ -181,6 +181,8 @@ impl SparseWork {
         // Half the last sub-step: its closing kick joins the next opening one.
         let (mut half, mut elapsed) = (0.0, 0.0);
         let (mut t_last, mut h_last) = (node.t, 0.0);
+        // Whether `L` is finite at the end node, from its force's evaluation.
+        let mut end_finite = true;
         let m = weights.len();
         if m == 1 && !plain {
             last_q0.copy_from_slice(q0);
@@ -232,7 +234,11 @@ impl SparseWork {
                 h_last = hi;
             }
             let at: &[f64] = if plain || i + 1 == m { q } else { last_q0 };
-            if potential_force(model, &mut self.tape, &self.zero, ti, at, f).is_err() {
+            let forced = match i + 1 == m {
+                true => potential_force_finite(model, &mut self.tape, &self.zero, ti, at, f).map(|x| end_finite = x),
+                false => potential_force(model, &mut self.tape, &self.zero, ti, at, f),
+            };
+            if forced.is_err() {
                 return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
             }
             half = 0.5 * hi;
@@ -262,7 +268,7 @@ impl SparseWork {
         self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
         let quantity =
             crate::integrator::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite())
-                .or_else(|| (!potential_finite(model, &self.zero.0, t1, &out.q1[..n])).then_some("lagrangian"));
+                .or_else(|| (!end_finite).then_some("lagrangian"));
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok((t_last, h_last)),
@@ -363,9 +369,13 @@ impl SparseWork {
             }
         }
         self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
-        if potential_force(model, &mut self.tape, &self.zero, t1, &out.q1, f1).is_err() {
+        // `L` at the end node from the force's evaluation: finite there and
+        // at the start node (checked by the step before, or at `start`), it
+        // makes the trapezoid action finite, whose derivatives can be finite
+        // where it is not.
+        let Ok(end_finite) = potential_force_finite(model, &mut self.tape, &self.zero, t1, &out.q1, f1) else {
             return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
-        }
+        };
         let (f1, p1, pc1) = (&f1[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
         let mut p_bad = 0;
         if plain {
@@ -383,7 +393,7 @@ impl SparseWork {
         }
         let quantity =
             crate::integrator::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite())
-                .or_else(|| (!potential_finite(model, &self.zero.0, t1, &out.q1[..n])).then_some("lagrangian"));
+                .or_else(|| (!end_finite).then_some("lagrangian"));
         match quantity {
             Some(quantity) => Err(NewtonFailure::NonFinite { iterations: 0, quantity }),
             None => Ok(()),

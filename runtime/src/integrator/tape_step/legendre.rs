@@ -60,8 +60,26 @@ pub(super) fn potential_finite(model: &dyn TapeModel, zero: &[f64], t: f64, q: &
     ModelScalar::lagrangian(model, t, q, zero).is_finite()
 }
 
-/// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from one reverse
-/// sweep with the inputs `q`.
+/// [`potential_force`] into `out`, and whether `L(t, q, 0)` is finite
+/// there ([`potential_finite`]): both from one run of the system's gradient
+/// code when it has it (its value), else a sweep and an evaluation.
+pub(super) fn potential_force_finite(
+    model: &dyn TapeModel,
+    tape: &mut Tape,
+    zero: &(Vec<f64>, Vec<Var>),
+    t: f64,
+    q: &[f64],
+    out: &mut [f64],
+) -> Result<bool, TapeError> {
+    if let Some(l) = model.value_gradient_q(t, q, &zero.0, out) {
+        return Ok(l.is_finite());
+    }
+    potential_force(model, tape, zero, t, q, out)?;
+    Ok(potential_finite(model, &zero.0, t, q))
+}
+
+/// `∂L/∂q(t, q, 0) = −∇V(t, q)` of a separable system, from the system's
+/// gradient code when it has it, else one reverse sweep with the inputs `q`.
 pub(super) fn potential_force(
     model: &dyn TapeModel,
     tape: &mut Tape,

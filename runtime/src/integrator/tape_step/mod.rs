@@ -64,6 +64,12 @@ pub(crate) trait TapeModel {
         let _ = (t, q, zero, out);
         false
     }
+    /// [`gradient_q`](Self::gradient_q), returning `L(t, q, 0)` from the
+    /// same generated code (`None`, nothing written, when it has none).
+    fn value_gradient_q(&self, t: f64, q: &[f64], zero: &[f64], out: &mut [f64]) -> Option<f64> {
+        let _ = (t, q, zero, out);
+        None
+    }
     /// `true` when `L` does not depend explicitly on time.
     fn autonomous(&self) -> bool;
     /// The rule's quadrature points `[c_1, c_2]`:
