@@ -547,39 +547,12 @@ mod tests {
     use super::*;
     use crate::integrator::Composition;
     use crate::problem::{Dim, Extended, Problem, Scheme};
+    use crate::sensitivity::fixtures::Kepler;
     use crate::sensitivity::{Checkpoints, Loss};
     use crate::solution::Plan;
     use crate::system::Lagrangian;
     use crate::time_transform::TimeFunction;
     use num_dual::DualNum;
-
-    /// Kepler in the plane with the gravitational parameter `μ`.
-    #[derive(Clone)]
-    struct Kepler {
-        mu: f64,
-    }
-
-    impl Lagrangian<2> for Kepler {
-        const AUTONOMOUS: bool = true;
-        const CYCLIC: [bool; 2] = [false; 2];
-        const SEPARABILITY: crate::Separability = crate::Separability::ConstantMass;
-        fn lagrangian<D: Scalar>(&self, t: D, q: [D; 2], v: [D; 2]) -> D {
-            self.lagrangian_with(&[D::from(self.mu)], t, q, v)
-        }
-    }
-
-    impl Parametric<2, 1> for Kepler {
-        const NAMES: [&'static str; 1] = ["mu"];
-        fn parameters(&self) -> [f64; 1] {
-            [self.mu]
-        }
-        fn with_parameters(&self, theta: [f64; 1]) -> Self {
-            Self { mu: theta[0] }
-        }
-        fn lagrangian_with<D: Scalar>(&self, theta: &[D; 1], _t: D, q: [D; 2], v: [D; 2]) -> D {
-            (v[0] * v[0] + v[1] * v[1]) * 0.5 + theta[0] / (q[0] * q[0] + q[1] * q[1]).sqrt()
-        }
-    }
 
     /// A pendulum `L = ½ m l² v² + m g l cos q` with `(m, g)` as
     /// parameters: not gravitating, so the default `c = E + m` moves with

@@ -234,9 +234,10 @@ impl SparseWork {
                 h_last = hi;
             }
             let at: &[f64] = if plain || i + 1 == m { q } else { last_q0 };
-            let forced = match i + 1 == m {
-                true => potential_force_finite(model, &mut self.tape, &self.zero, ti, at, f).map(|x| end_finite = x),
-                false => potential_force(model, &mut self.tape, &self.zero, ti, at, f),
+            let forced = if i + 1 == m {
+                potential_force_finite(model, &mut self.tape, &self.zero, ti, at, f).map(|x| end_finite = x)
+            } else {
+                potential_force(model, &mut self.tape, &self.zero, ti, at, f)
             };
             if forced.is_err() {
                 return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED });
