@@ -55,6 +55,7 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Stepping<N> for Integrato
         *Integrator::stats(self)
     }
 
+    #[inline]
     fn step(&mut self) -> Result<(), Error<N>> {
         Integrator::step(self).map(|_| ())
     }

@@ -112,6 +112,16 @@ fn copy_into<T: Clone>(a: &mut T, b: &T) {
     a.clone_from(b);
 }
 
+/// One step of one kind of driver, in a function of its own: the driver's
+/// whole step is inlined into it, as into a loop over a driver named
+/// directly, where inlining every kind into the one `match` of
+/// [`Stepper::step`] would exhaust the inliner's budget and leave parts of
+/// the step out of line.
+#[inline(never)]
+fn step_of<D: Stepping<N>, const N: usize>(d: &mut D) -> Result<(), Error<N>> {
+    d.step()
+}
+
 /// The interpolant of one step of a [`Stepper`]: the cubic Hermite, or a
 /// Galerkin step's own polynomial.
 #[derive(Clone, Debug)]
@@ -253,10 +263,11 @@ where
     }
 
     /// One step; on failure nothing changes.
+    #[inline(always)]
     pub fn step(&mut self) -> Result<State<N>, Error<N>> {
         // One match for the step and the state read after it.
         each!(&mut *self.driver, d => {
-            Stepping::step(d)?;
+            step_of(d)?;
             Ok(Stepping::state(d))
         })
     }
@@ -307,9 +318,9 @@ where
         each!(&*self.driver, d => Stepping::stats(d))
     }
 
-    #[inline]
+    #[inline(always)]
     fn step(&mut self) -> Result<(), Error<N>> {
-        each!(&mut *self.driver, d => Stepping::step(d))
+        each!(&mut *self.driver, d => step_of(d))
     }
 
     fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
