@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 
 N=20000
 CASES=(
-  "pendulum|midpoint" "pendulum|problem-midpoint" "pendulum|hand"
+  "pendulum|midpoint" "pendulum|problem-midpoint" "pendulum|boxed-midpoint" "pendulum|hand"
   "pendulum|trapezoid" "pendulum|verlet"
   "pendulum|variable"
   "double pendulum|midpoint" "double pendulum|hand"
