@@ -430,9 +430,10 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // and `solve` for none; sensitivities and the adjoint for fixed steps of
     // the one-point rules, the Galerkin rules, the compositions and the
     // implicit time transformation, forced or not, for energy-preserving
-    // steps of the one-point rules, and for the splitting, unforced.
+    // steps of the one-point and Galerkin rules, and for the splitting,
+    // unforced.
     let one_point = [true, true, true, true, false, true, false, true, true, true];
-    let galerkin = [true, true, false, true, false, false, false, true, true, false];
+    let galerkin = [true, true, false, true, false, false, false, true, true, true];
     let composition = [true, false, false, true, false, true, false, true, true, false];
     let transformed = [true, false, false, true, false, false, false, true, true, false];
     let splitting = [true, false, false, false, false, false, false, true, false, false];

@@ -16,10 +16,12 @@ use crate::derivatives::Segment;
 use crate::dim::Dim;
 use crate::discrete::DiscreteLagrangian;
 use crate::error::Error;
+use crate::galerkin::Galerkin;
 use crate::integrator::{Integrator, Stats, StepPolicy};
 use crate::sensitivity::Parametric;
 use crate::sensitivity::adjoint::{self, Checkpoints, Gradient, Loss};
 use crate::sensitivity::forward::{Propagation, Sensitivities};
+use crate::sensitivity::galerkin_energy;
 use crate::sensitivity::linearisation::{Piece, Rule};
 use crate::sensitivity::split::{self, Reverse};
 use crate::sensitivity::transformed::{Linear, Start};
@@ -68,9 +70,9 @@ where
     /// transformation and the explicit time-transformed splitting (`policy`
     /// is then the step `σ` in `s`; the node times move with the inputs,
     /// [`Jacobian::time`](crate::sensitivity::Jacobian::time)), and
-    /// energy-preserving steps of the one-point rules (the step sizes
-    /// differentiated through the energy equation, the node times moving
-    /// too). A step that took the least-squares fallback of the energy
+    /// energy-preserving steps of the one-point and Galerkin rules (the step
+    /// sizes differentiated through the energy equation, the node times
+    /// moving too). A step that took the least-squares fallback of the energy
     /// equation ends the sensitivities with [`Error::NotDifferentiable`] in
     /// [`Sensitivities::error`], the solution kept.
     /// Rows between nodes (save times, events) are refused
@@ -170,7 +172,7 @@ where
     /// transformation it is the step `σ` in `s`, the node times move with
     /// the inputs (the loss's `∂ℓ/∂t` enters), and the landing step's size,
     /// solved for `t_end`, is differentiated. Under energy-preserving steps
-    /// of a one-point rule the step sizes the energy equation fixes are
+    /// of a one-point or Galerkin rule the step sizes the energy equation fixes are
     /// differentiated and the node times move with the inputs too (the
     /// first step, of the given size, and the landing on `t_end` have their
     /// end times given).
@@ -265,13 +267,31 @@ where
                 inexact: stats.energy_fallbacks + stats.accuracy_capped_steps,
             })
         }
+        /// An energy-preserving Galerkin integrator's node (its memory is
+        /// its last step); `None` under fixed steps.
+        fn galerkin<S: Lagrangian<N>, const N: usize, const D: usize, const R: usize>(
+            d: &Integrator<S, Galerkin<D, R>, N>,
+        ) -> Option<ExtendedNode<N>> {
+            let StepPolicy::EnergyPreserving(_) = d.policy() else { return None };
+            let stats = d.stats();
+            Some(ExtendedNode::Energy {
+                first: d.memory.is_none(),
+                inexact: stats.energy_fallbacks + stats.accuracy_capped_steps,
+            })
+        }
         match &*self.driver {
             Driver::Transformed(d) => Some(ExtendedNode::Transformed(<Dim<N> as Extended<N>>::node(d))),
             Driver::Splitting(d) => Some(ExtendedNode::Split(d.extended_point())),
             Driver::Midpoint(d) => energy(d),
             Driver::Trapezoid(d) => energy(d),
             Driver::AlphaBeta(d) => energy(d),
-            _ => None,
+            Driver::Gauss2(d) => galerkin(d),
+            Driver::Gauss3(d) => galerkin(d),
+            Driver::Gauss4(d) => galerkin(d),
+            Driver::Lobatto2(d) => galerkin(d),
+            Driver::Lobatto3(d) => galerkin(d),
+            Driver::Lobatto4(d) => galerkin(d),
+            Driver::Composition(_) => None,
         }
     }
 
@@ -303,16 +323,30 @@ where
                 if stats.energy_fallbacks + stats.accuracy_capped_steps != inexact {
                     return Err(Error::NotDifferentiable { state: *from, reason: LEAST_MISMATCH });
                 }
-                let seg = match driver {
-                    Driver::Midpoint(d) => d.last_segment(),
-                    Driver::Trapezoid(d) => d.last_segment(),
-                    Driver::AlphaBeta(d) => d.last_segment(),
-                    _ => None,
-                };
                 // The first step has the given size; a landing ends on its
                 // target (no energy step ends there: it would have landed).
                 let pinned = first || target == Some(to.t);
                 let rule = self.rule()?;
+                // A Galerkin step's nodes and size, as the driver kept them.
+                macro_rules! galerkin {
+                    ($d:expr) => {{
+                        let l = $d.memory.as_ref().ok_or(missing)?;
+                        let piece = Piece::kept(l.t0, l.h, l.q0, l.carry, &l.d);
+                        galerkin_energy::linearise::<S, N, P>(self.system(), &rule, &piece, pinned).ok_or(singular)
+                    }};
+                }
+                let seg = match driver {
+                    Driver::Midpoint(d) => d.last_segment(),
+                    Driver::Trapezoid(d) => d.last_segment(),
+                    Driver::AlphaBeta(d) => d.last_segment(),
+                    Driver::Gauss2(d) => return galerkin!(d),
+                    Driver::Gauss3(d) => return galerkin!(d),
+                    Driver::Gauss4(d) => return galerkin!(d),
+                    Driver::Lobatto2(d) => return galerkin!(d),
+                    Driver::Lobatto3(d) => return galerkin!(d),
+                    Driver::Lobatto4(d) => return galerkin!(d),
+                    _ => None,
+                };
                 <Dim<N> as Extended<N>>::linearise_energy::<S, P>(self.system(), &rule, seg.ok_or(missing)?, pinned)
                     .ok_or(singular)
             }

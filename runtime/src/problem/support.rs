@@ -106,8 +106,9 @@ pub enum Capability {
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
     /// initial data (fixed steps of the one-point rules, the Galerkin rules,
-    /// the compositions and the implicit time transformation, and
-    /// energy-preserving steps of the one-point rules): forward sensitivities
+    /// the compositions, the implicit time transformation and the explicit
+    /// time-transformed splitting, and energy-preserving steps of the
+    /// one-point and Galerkin rules): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
     /// and the discrete adjoint ([`Problem::gradient`](super::Problem::gradient)).
     Sensitivities,
@@ -178,7 +179,7 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 /// fixed steps of the one-point rules, the Galerkin rules, the
 /// compositions, the implicit time transformation and the explicit
 /// time-transformed splitting (fixed steps in `s`), and energy-preserving
-/// steps of the one-point rules.
+/// steps of the one-point and Galerkin rules.
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let n = match c.size {
         Size::Dynamic => {
@@ -189,10 +190,7 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let fixed = matches!(c.policy, Policy::Fixed { .. });
     match c.scheme {
         Scheme::OnePoint(_) | Scheme::Galerkin { .. } if fixed => Ok(()),
-        Scheme::OnePoint(_) => energy_sensitivities(c.policy),
-        Scheme::Galerkin { .. } => Err(
-            "sensitivities of a Galerkin rule under energy steps: the step size its energy equation fixes is differentiated for the one-point rules only",
-        ),
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => energy_sensitivities(c.policy),
         Scheme::Composition { .. } if n > crate::Derivatives::FORWARD_MAX_N => Err(
             "sensitivities of a composition above `Derivatives::FORWARD_MAX_N` coordinates: it steps in reverse mode, which keeps only its last sub-step",
         ),
@@ -202,7 +200,7 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     }
 }
 
-/// The variable steps of a one-point rule whose step size the
+/// The variable steps of a one-point or Galerkin rule whose step size the
 /// sensitivities differentiate through the energy equation.
 fn energy_sensitivities(policy: Policy) -> Result<(), &'static str> {
     match policy {

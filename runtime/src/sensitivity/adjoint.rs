@@ -379,7 +379,8 @@ where
 /// The gradient through a time-transformed or energy-preserving run: the
 /// same forward pass and checkpoints, and a reverse sweep in the extended
 /// phase `(q, t, p, p_t)` (`λ_k = Φ_xᵀ λ_{k+1} + ∂ℓ_k/∂(q, t, p)`) through
-/// the dense step Jacobians of `transformed.rs` and `energy.rs`, or, for the
+/// the dense step Jacobians of `transformed.rs`, `energy.rs` and
+/// `galerkin_energy.rs`, or, for the
 /// splitting's full steps, the transposed sub-flows of `split.rs`, with the
 /// derivatives of the constant `c` (zero for energy steps) and of the first
 /// extended node at the end.

@@ -105,6 +105,11 @@ impl Rule {
         self.points.len()
     }
 
+    /// `c_j`, point `j` in the step's unit interval.
+    pub(super) fn abscissa(&self, j: usize) -> f64 {
+        self.points[j]
+    }
+
     /// `b_j`, the weight of point `j`.
     pub(super) fn weight(&self, j: usize) -> f64 {
         self.weights[j]

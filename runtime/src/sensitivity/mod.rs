@@ -32,7 +32,11 @@
 //! whose momentum is `(p, −E)`; `energy.rs` linearises it in the extended
 //! phase `(q, t, p, −E)` with the same dense Jacobians, so the step size
 //! the energy equation fixes is differentiated and the node times move
-//! with the inputs.
+//! with the inputs. An energy-preserving Galerkin step gives `t` degree 1
+//! where `q` has degree `s`, so it is not such a Galerkin step of the
+//! parametrised motion; `galerkin_energy.rs` linearises the bordered system
+//! in `(interior nodes, end node, h)` that the stepper solves, in the same
+//! extended phase.
 //!
 //! The entry points are [`Problem::solve_with_sensitivities`] and
 //! [`Problem::gradient`](crate::Problem::gradient); which combinations
@@ -46,6 +50,7 @@ pub(crate) mod energy;
 #[cfg(test)]
 pub(crate) mod fixtures;
 pub mod forward;
+pub(crate) mod galerkin_energy;
 pub mod linearisation;
 #[doc(hidden)]
 pub mod names;

@@ -27,8 +27,13 @@
 //! `(w_q, w_v)` and `ε2` on `θ` (the mixed part is `∂/∂θ (∇L·w)`), plus one
 //! first-order evaluation of the forces on `θ`. Per point and step: one
 //! evaluation for `K_j`, one for `θ`; per step one factorisation of `G_D`
-//! and one transposed solve. The buffers are allocated once, by
-//! [`Pullback::new`].
+//! and one transposed solve. A one-point step without forces of a few
+//! coordinates takes `K_j` and `∂(L_q, L_v)/∂θ` from one evaluation instead
+//! (`ε1` on `(q, v)`, `ε2` on `(q, v, θ)`), so that `∂ψ/∂θ` is a product
+//! with that block, and sums over its one or two points in fixed-size
+//! arrays (`one_point_piece`): the reverse step of the composed trapezoid
+//! sub-steps of a double pendulum costs about a third less. The buffers are
+//! allocated once, by [`Pullback::new`].
 //!
 //! The rows `R_ρ` are of order `1/h`, their sum is not
 //! (`Σ_ρ R_ρ = h Σ_j b_j (L_q + F)`), and `ω_ρ` is `λ_p` plus `O(h)`: the
@@ -128,6 +133,80 @@ fn point_jacobian<S: Parametric<N, P>, const N: usize, const P: usize>(
             }
         }
     }
+}
+
+/// The largest system whose one-point steps without forces take the fused
+/// pullback ([`Pullback::one_point_piece`]): its point blocks hold
+/// `2N (2N + P)` mixed derivatives in every value of the evaluation, where
+/// the general path's `K_j` holds `4N²` and its `θ` product `P`.
+const FUSED_MAX_N: usize = 4;
+
+/// The second derivatives of `L` at one point of a one-point step: rows
+/// `L_q` and `L_v`, columns `q`, `v` and `θ` (`qv[i][k] = ∂L_q_i/∂v_k`,
+/// `vq[i][k] = ∂L_v_i/∂q_k`, `qt[i][j] = ∂L_q_i/∂θ_j`).
+#[derive(Clone, Copy)]
+struct PointBlocks<const N: usize, const P: usize> {
+    qq: [[f64; N]; N],
+    qv: [[f64; N]; N],
+    vq: [[f64; N]; N],
+    vv: [[f64; N]; N],
+    qt: [[f64; P]; N],
+    vt: [[f64; P]; N],
+}
+
+impl<const N: usize, const P: usize> PointBlocks<N, P> {
+    const ZERO: Self = Self {
+        qq: [[0.0; N]; N],
+        qv: [[0.0; N]; N],
+        vq: [[0.0; N]; N],
+        vv: [[0.0; N]; N],
+        qt: [[0.0; P]; N],
+        vt: [[0.0; P]; N],
+    };
+}
+
+/// [`PointBlocks`] at `(t, q, v)`: one evaluation of `L_θ` on a hyper-dual
+/// number with `ε1` on `(q, v)` and `ε2` on `(q, v, θ)`.
+#[inline(never)]
+fn point_blocks<S: Parametric<N, P>, const N: usize, const P: usize>(
+    system: &S,
+    theta: &[f64; P],
+    (t, q, v): (f64, [f64; N], [f64; N]),
+) -> PointBlocks<N, P> {
+    type H<const N: usize, const P: usize> =
+        HyperDualArray<Pair<[f64; N], [f64; N]>, Pair<Pair<[f64; N], [f64; N]>, [f64; P]>>;
+    let seeded = |x: f64, slot: usize| {
+        let mut d = H::<N, P>::from_re(x);
+        if slot < N {
+            d.eps1.a[slot] = 1.0;
+            d.eps2.a.a[slot] = 1.0;
+        } else {
+            d.eps1.b[slot - N] = 1.0;
+            d.eps2.a.b[slot - N] = 1.0;
+        }
+        d
+    };
+    let qd = core::array::from_fn(|i| seeded(q[i], i));
+    let vd = core::array::from_fn(|i| seeded(v[i], N + i));
+    let th = core::array::from_fn(|j| {
+        let mut d = H::<N, P>::from_re(theta[j]);
+        d.eps2.b[j] = 1.0;
+        d
+    });
+    let l = system.lagrangian_with(&th, H::<N, P>::from_re(t), qd, vd);
+    let m = &l.eps1eps2;
+    let mut out = PointBlocks::<N, P>::ZERO;
+    for i in 0..N {
+        for k in 0..N {
+            out.qq[i][k] = m.a[i].a.a[k];
+            out.qv[i][k] = m.a[i].a.b[k];
+            out.vq[i][k] = m.b[i].a.a[k];
+            out.vv[i][k] = m.b[i].a.b[k];
+        }
+        out.qt[i] = m.a[i].b;
+        out.vt[i] = m.b[i].b;
+    }
+    out
 }
 
 /// `∂/∂θ (w_q·(L_q + F) + w_v·L_v)` at one point.
@@ -290,6 +369,8 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         for piece in pieces.iter().rev() {
             if self.tape.is_some() {
                 self.piece_on_tape(system, theta, piece, (lq, lp), dtheta)?;
+            } else if Self::fused::<S>(&self.rule) {
+                self.one_point_piece(system, theta, piece, (lq, lp), dtheta)?;
             } else {
                 self.piece(system, theta, piece, (lq, lp), dtheta)?;
             }
@@ -352,6 +433,113 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
         for i in 0..N {
             lq[i] += dq[i];
             lp[i] += h * self.rhs[i];
+        }
+        Some(())
+    }
+
+    /// Whether a step of `rule` takes [`one_point_piece`](Self::one_point_piece):
+    /// a one-point rule (degree 1, at most two points) on a system without
+    /// forces of at most [`FUSED_MAX_N`] coordinates.
+    #[inline(always)]
+    fn fused<S: Parametric<N, P>>(rule: &Rule) -> bool {
+        N <= FUSED_MAX_N && !(S::HAS_FORCE || S::HAS_DISSIPATION) && rule.degree() == 1 && rule.point_count() <= 2
+    }
+
+    /// [`piece`](Self::piece) for a one-point rule without forces: the
+    /// second derivatives of `L` at each point in `(q, v)` and `(q, v) × θ`
+    /// from one evaluation ([`point_blocks`]), so that `∂ψ/∂θ` is a product
+    /// with the blocks instead of one more evaluation per point, and the
+    /// sums over the rule in arrays of the rule's fixed sizes. The same
+    /// algebra as the general path, term for term.
+    fn one_point_piece<S: Parametric<N, P>>(
+        &mut self,
+        system: &S,
+        theta: &[f64; P],
+        piece: &Piece<N>,
+        (lq, lp): (&mut [f64; N], &mut [f64; N]),
+        dtheta: &mut [f64; P],
+    ) -> Option<()> {
+        let rule = &self.rule;
+        let h = piece.h;
+        let count = rule.point_count();
+        let d = &piece.d[0];
+        // Per point: b_j h, ℓ_0, ℓ_0'/h, ℓ_1, ℓ_1'/h, and the blocks.
+        let mut coefficients = [[0.0; 5]; 2];
+        let mut blocks = [PointBlocks::<N, P>::ZERO; 2];
+        for j in 0..count {
+            let (l1, d1) = (rule.l(j, 1), rule.dl(j, 1));
+            coefficients[j] = [rule.weight(j) * h, rule.l(j, 0), rule.dl(j, 0) / h, l1, d1 / h];
+            let q = core::array::from_fn(|i| piece.q0[i] + l1 * d[i]);
+            let v = core::array::from_fn(|i| d1 * d[i] / h);
+            blocks[j] = point_blocks(system, theta, (rule.time(piece, j), q, v));
+        }
+        // G_D = Σ_j b_j h [ℓ_0 (L_qq ℓ_1 + L_qv ℓ_1'/h) + ℓ_0'/h (L_vq ℓ_1 + L_vv ℓ_1'/h)],
+        // and the part of ψ along ω = (λ_p, λ_p): its gradient in q_k into
+        // `dq`, in D into `rhs` (w_q = λ_p, w_v = 0).
+        let a = &mut self.dense.a;
+        a.fill(0.0);
+        let (mut dq, mut rhs) = ([0.0; N], [0.0; N]);
+        for j in 0..count {
+            let [w, l0, d0, l1, d1] = coefficients[j];
+            let k = &blocks[j];
+            let (r, rd) = (w * l0, w * d0);
+            for i in 0..N {
+                let row = &mut a[i * N..(i + 1) * N];
+                for (col, x) in row.iter_mut().enumerate() {
+                    *x += r * (k.qq[i][col] * l1 + k.qv[i][col] * d1) + rd * (k.vq[i][col] * l1 + k.vv[i][col] * d1);
+                }
+            }
+            let (mut uq, mut uv) = ([0.0; N], [0.0; N]);
+            for i in 0..N {
+                for col in 0..N {
+                    uq[col] += k.qq[i][col] * lp[i];
+                    uv[col] += k.qv[i][col] * lp[i];
+                }
+            }
+            let (c, cd) = (w * l1, w * d1);
+            for i in 0..N {
+                dq[i] += w * uq[i];
+                rhs[i] += c * uq[i] + cd * uv[i];
+            }
+        }
+        self.dense.factor::<N>()?;
+        for i in 0..N {
+            rhs[i] = -(rhs[i] + lq[i]) / h;
+        }
+        self.dense.solve_transposed::<N>(&mut rhs);
+        let eta = rhs;
+        // ω = (λ_p + h η, λ_p): at each point w_q = ℓ_0 η, w_v = −ℓ_1'/h η
+        // (times h), and the θ part with w = (λ_p + h w_q, h w_v).
+        for j in 0..count {
+            let [w, _, _, l1, d1] = coefficients[j];
+            let k = &blocks[j];
+            let wq: [f64; N] = core::array::from_fn(|i| eta[i] + l1 * -eta[i]);
+            let wv: [f64; N] = core::array::from_fn(|i| d1 * -eta[i]);
+            let mut uq = [0.0; N];
+            for i in 0..N {
+                for col in 0..N {
+                    uq[col] += k.qq[i][col] * wq[i] + k.vq[i][col] * wv[i];
+                }
+            }
+            for i in 0..N {
+                dq[i] += h * (w * uq[i]);
+            }
+            if P > 0 {
+                let mut g = [0.0; P];
+                for i in 0..N {
+                    let (tq, tv) = (lp[i] + h * wq[i], h * wv[i]);
+                    for (p, g) in g.iter_mut().enumerate() {
+                        *g += k.qt[i][p] * tq + k.vt[i][p] * tv;
+                    }
+                }
+                for (d, g) in dtheta.iter_mut().zip(g) {
+                    *d += w * g;
+                }
+            }
+        }
+        for i in 0..N {
+            lq[i] += dq[i];
+            lp[i] += h * eta[i];
         }
         Some(())
     }
@@ -752,12 +940,17 @@ mod tests {
     /// Jacobians, at nodes that solve no step (the implicit-function
     /// formulas hold at any point).
     fn agrees(rule: Rule, pieces: &[Piece<2>]) {
-        let (theta, degree) = (SYSTEM.parameters(), rule.degree());
-        let j = StepJacobian::of_step(&SYSTEM, &rule, &theta, pieces).unwrap();
+        agrees_on(&SYSTEM, rule, pieces);
+    }
+
+    /// [`agrees`] on `system`.
+    fn agrees_on<S: Parametric<2, 3>>(system: &S, rule: Rule, pieces: &[Piece<2>]) {
+        let (theta, degree) = (system.parameters(), rule.degree());
+        let j = StepJacobian::of_step(system, &rule, &theta, pieces).unwrap();
         let (lq0, lp0) = ([0.7, -1.3], [0.25, 2.1]);
         let (mut lq, mut lp, mut dtheta) = (lq0, lp0, [0.5, -0.5, 1.0]);
-        let mut pullback = Pullback::<2, 3>::new::<Coupled>(rule).unwrap();
-        pullback.step(&SYSTEM, &theta, pieces, (&mut lq, &mut lp), &mut dtheta).unwrap();
+        let mut pullback = Pullback::<2, 3>::new::<S>(rule).unwrap();
+        pullback.step(system, &theta, pieces, (&mut lq, &mut lp), &mut dtheta).unwrap();
         let (a, b) = (nalgebra::SVector::from(lq0), nalgebra::SVector::from(lp0));
         let m = &j.state;
         let want_q = m.dq_dq.transpose() * a + m.dp_dq.transpose() * b;
@@ -784,6 +977,30 @@ mod tests {
         let mut second = piece(&[[-0.02, 0.015]]);
         (second.t0, second.h, second.q0) = (0.75, -0.03, [0.43, -0.21]);
         agrees(Rule::one_point(&OnePoint::Trapezoid), &[one[0], second]);
+    }
+
+    /// One-point steps without forces take the fused pullback (the second
+    /// derivatives in `(q, v)` and `θ` from one evaluation per point): the
+    /// same transposed Jacobian.
+    #[test]
+    fn the_fused_pullback_is_the_transposed_jacobian_of_the_one_point_rules() {
+        use super::accuracy::DoublePendulum;
+        let rules = [
+            Rule::one_point(&OnePoint::Midpoint),
+            Rule::one_point(&OnePoint::Trapezoid),
+            Rule::one_point(&OnePoint::AlphaBeta(AlphaBeta::new(0.3).unwrap())),
+        ];
+        for rule in &rules {
+            assert!(Pullback::<2, 3>::fused::<DoublePendulum>(rule));
+            assert!(!Pullback::<2, 3>::fused::<Coupled>(rule));
+        }
+        let one = [piece(&[[0.03, -0.01]])];
+        let mut second = piece(&[[-0.02, 0.015]]);
+        (second.t0, second.h, second.q0) = (0.75, -0.03, [0.43, -0.21]);
+        for rule in rules {
+            agrees_on(&DoublePendulum, rule.clone(), &one);
+            agrees_on(&DoublePendulum, rule, &[one[0], second]);
+        }
     }
 
     /// An FPU-β chain with fixed ends and `(k, β)` as parameters, its
