@@ -805,7 +805,12 @@ fn split_forces<const N: usize>(forces: &mut [[f64; N]; 2], step: u64) -> (&[f64
 /// The explicit steps' cache of a constant-mass system, made at the first
 /// explicit step: `M⁻¹` (and its diagonal, when it is one); a singular `M`
 /// is a typed failure.
-#[inline]
+// Always inlined, with the making of the cache out of line: that path
+// allocates (the box, the shared `M⁻¹`), and inlined into every explicit
+// step it made the whole function too large to inline, which cost a
+// Kepler step 192 instructions against 166 (callgrind,
+// `examples/step_profile.rs kepler trapezoid`).
+#[inline(always)]
 fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
     system: &S,
     cache: &'a mut Option<Box<ExplicitCache<N>>>,
@@ -814,22 +819,31 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
 ) -> Result<&'a mut ExplicitCache<N>, NewtonFailure> {
     match cache {
         Some(cache) => Ok(cache),
-        empty @ None => {
-            let m = system
-                .velocity_hessian(t0, *q0, [0.0; N])
-                .try_inverse()
-                .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
-            let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
-            let unit = diagonal && (0..N).all(|i| m[(i, i)] == 1.0);
-            Ok(empty.insert(Box::new(ExplicitCache {
-                inverse_mass: Arc::new(m),
-                diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
-                unit,
-                forces: [[0.0; N]; 2],
-                node: 0,
-            })))
-        }
+        empty @ None => Ok(empty.insert(new_explicit_cache(system, t0, q0)?)),
     }
+}
+
+/// [`explicit_cache`]'s first call: `M⁻¹` at the start node.
+#[cold]
+#[inline(never)]
+fn new_explicit_cache<S: Lagrangian<N>, const N: usize>(
+    system: &S,
+    t0: f64,
+    q0: &[f64; N],
+) -> Result<Box<ExplicitCache<N>>, NewtonFailure> {
+    let m = system
+        .velocity_hessian(t0, *q0, [0.0; N])
+        .try_inverse()
+        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
+    let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
+    let unit = diagonal && (0..N).all(|i| m[(i, i)] == 1.0);
+    Ok(Box::new(ExplicitCache {
+        inverse_mass: Arc::new(m),
+        diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
+        unit,
+        forces: [[0.0; N]; 2],
+        node: 0,
+    }))
 }
 
 /// The node an explicit step starts from, borrowed from the integrator.
