@@ -484,6 +484,38 @@ fn auto_reason(r: &AutoRatio) -> String {
     why.join("; ")
 }
 
+/// Iterations and evaluations per step of every method's calibrated run on
+/// problem `p`, one row per method, two columns per target (`—` where a
+/// method has no such count or missed the target).
+pub fn per_step_table(targets: &[f64], p: &ProblemReport) -> String {
+    let mut s = String::from("| method |");
+    for &t in targets {
+        let _ = write!(s, " iterations/step ≤ {} | evaluations/step ≤ {} |", e(t), e(t));
+    }
+    s.push_str("\n| --- |");
+    for _ in targets {
+        s.push_str(" --- | --- |");
+    }
+    s.push('\n');
+    for sweep in &p.sweeps {
+        let _ = write!(s, "| {} |", sweep.method);
+        for &t in targets {
+            let c = p.calibrated.iter().find(|c| c.method == sweep.method && c.target == t);
+            let iterations = c.and_then(|c| c.newton_per_step).map_or("—".into(), |n| format!("{n:.2}"));
+            let steps = c.and_then(|c| {
+                sweep.points.iter().find(|pt| Some(&pt.setting) == c.setting.as_ref()).map(|pt| pt.steps)
+            });
+            let evaluations = match (c.and_then(|c| c.evaluations), steps) {
+                (Some(k), Some(n)) if n > 0 => format!("{:.1}", k as f64 / n as f64),
+                _ => "—".into(),
+            };
+            let _ = write!(s, " {iterations} | {evaluations} |");
+        }
+        s.push('\n');
+    }
+    s
+}
+
 /// Every method's calibrated run on problem `p`, per target, fastest first;
 /// the methods that did not reach a target in one line after.
 pub fn calibrated_table(report: &Report, p: &ProblemReport) -> String {
@@ -734,24 +766,14 @@ fn document(r: &Report) -> Vec<Block> {
             vec!["target".into(), "fastest".into(), "fastest project method".into(), "fastest peer crate".into()],
             rows,
         ));
-        let mut header = vec!["Newton iterations per step".to_string()];
-        header.extend(r.targets.iter().map(|t| format!("≤ {}", e(*t))));
-        let rows = p
-            .sweeps
-            .iter()
-            .filter(|s| s.family == Family::Project)
-            .map(|s| {
-                let mut row = vec![s.method.clone()];
-                row.extend(r.targets.iter().map(|&t| {
-                    p.calibrated
-                        .iter()
-                        .find(|c| c.method == s.method && c.target == t)
-                        .and_then(|c| c.newton_per_step)
-                        .map_or("—".into(), |n| format!("{n:.2}"))
-                }));
-                row
-            })
-            .collect();
+        d.push(Para(
+            "Work per step of each calibrated run: Newton or fixed-point iterations (project methods), and \
+             evaluations — derivatives of L at one quadrature point (gradients, Hessians in v and whole \
+             Hessians alike) for Galerkin rules, right-hand sides for the peers, forces for the compositions \
+             (— where the method does not count them)."
+                .into(),
+        ));
+        let (header, rows) = table_of(&per_step_table(&r.targets, p));
         d.push(Table(header, rows));
         if !p.constraints.is_empty() {
             d.push(Para(format!(

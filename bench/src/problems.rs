@@ -320,9 +320,14 @@ fn kepler_tt<Sys: Lagrangian<2> + Clone, G: StepDensity<2>, const S: usize>(
     });
     let stats = sim.stats();
     let per_step = (stats.steps > 0).then(|| stats.newton_iterations as f64 / stats.steps as f64);
+    // Derivative evaluations of the extended Lagrangian at quadrature points
+    // (as `integrate::galerkin` counts them).
+    let points = sim.inner().point_evaluations();
+    let evaluations = Some(points.gradients + points.hessians + points.velocity_hessians);
+    let steps = stats.steps;
     match result {
-        Ok(()) => Run { q: sim.state().q.to_vec(), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
-        Err(e) => Run { failure: Some(e.to_string()), steps: stats.steps, newton_per_step: per_step, ..Run::default() },
+        Ok(()) => Run { q: sim.state().q.to_vec(), steps, newton_per_step: per_step, evaluations, ..Run::default() },
+        Err(e) => Run { failure: Some(e.to_string()), steps, newton_per_step: per_step, evaluations, ..Run::default() },
     }
 }
 

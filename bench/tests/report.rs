@@ -103,6 +103,20 @@ fn tiny_report_writes_every_file() {
     assert!(report.stress.bad_input.iter().any(|b| b.method == "midpoint" && b.outcome.contains("must be finite")));
     let md = String::from_utf8(read(&out.join("report.md"))).unwrap();
     assert!(md.contains("![pendulum work–precision](pendulum-work-precision.svg)"));
+    // Iterations and evaluations per step of the implicit methods: a Galerkin
+    // rule (Newton and fixed point) and the time-transformed Galerkin on
+    // Kepler have numbers in both columns of the first target.
+    for (problem, method) in
+        [("pendulum", "galerkin-4"), ("pendulum", "galerkin-fp-4"), ("kepler-0.5", "tt-galerkin-4")]
+    {
+        let section = &md[md.find(&format!("{problem}-work-precision.svg")).unwrap()..];
+        let section = &section[section.find("Work per step").unwrap()..];
+        let row =
+            section.lines().find(|l| l.starts_with(&format!("| {method} | "))).unwrap_or_else(|| panic!("{method}"));
+        let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+        let number = |c: &str| c.parse::<f64>().is_ok_and(|x| x > 0.0);
+        assert!(number(cells[1]) && number(cells[2]), "{problem} {method}: {row}");
+    }
     let html = String::from_utf8(read(&out.join("report.html"))).unwrap();
     assert!(html.contains("<img src=\"kepler-0.5-energy.svg\""));
     // Nothing temporary left beside it.
