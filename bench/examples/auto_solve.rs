@@ -12,7 +12,9 @@
 //! `PROBLEM RTOL`: a problem id of the report (`--list` of the report
 //! binary) and the relative tolerance. Prints the method the solve chose,
 //! its reason, the steps of the survey and pilot and of the final run, the
-//! step, the estimated error and the error against the problem's reference.
+//! step and the estimated error; with `CALLGRIND_ERROR=1` also the error
+//! against the problem's reference (computed after the run, in the same
+//! process: leave it unset when counting instructions).
 //!
 //! `PROBLEM METHOD steps=N|sigma=S|tol=T`: the report's method `METHOD` at
 //! that setting (the report's calibrated settings are in its JSON), for the
@@ -79,8 +81,8 @@ fn main() {
         };
         let (Some(method), Some(setting)) = (method, setting) else { return };
         let run = p.run(method, setting, p.horizon(), 0);
-        // The reference only after the counted run is over: `CALLGRIND_ERROR=1`
-        // adds it (outside instruction counts).
+        // The reference costs far more than the run: only on request, and
+        // never while instructions are counted.
         let error = std::env::var("CALLGRIND_ERROR")
             .is_ok_and(|v| v == "1")
             .then(|| p.reference(p.horizon(), 1e-14).ok().and_then(|r| error_of(&run.q, &r.q)))
