@@ -65,17 +65,30 @@ pub(crate) struct Probe<const N: usize> {
     pub rates: Vec<f64>,
     /// Steps taken.
     pub steps: u64,
+    /// Whether the run reached the last checkpoint (a survey stops early
+    /// once its step density is clearly varying: see [`probe`]).
+    pub complete: bool,
 }
 
+/// Samples of `ρ` a survey takes at least before it may stop early.
+const SURVEY_MIN_SAMPLES: usize = 16;
+
 /// Runs `it` through `checkpoints` (increasing), recording every node when
-/// `every_node` (otherwise the checkpoints) and sampling `ρ` at every
-/// `stride`-th node when `stride > 0` (only for `½ vᵀMv − V(q)` with a
-/// constant `M`: see [`Rates`]).
+/// `every_node` (otherwise the checkpoints) and sampling `ρ` with `rates`
+/// at every `stride`-th node when `stride > 0` (only for `½ vᵀMv − V(q)`
+/// with a constant `M`: see [`Rates`]). With `stop_above`, the run stops
+/// once [`SURVEY_MIN_SAMPLES`] samples or more give a
+/// [`density_ratio`](super::choice::density_ratio) above it: uniform steps
+/// through a strongly varying density are what the survey is there to
+/// avoid (on Kepler `e = 0.9` they are 187 steps over an orbit, where the
+/// final run takes 9), and the part of the orbit already seen decides.
 pub(crate) fn probe<I: Stepping<N>, const N: usize>(
     mut it: I,
     checkpoints: &[f64],
     every_node: bool,
     stride: usize,
+    mut rates: Option<&mut Rates<N>>,
+    stop_above: Option<f64>,
 ) -> Result<Probe<N>, Error<N>> {
     let start = it.state();
     let norm = |x: &[f64; N]| x.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -85,10 +98,10 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
         p_scale: norm(&start.p),
         rates: Vec::new(),
         steps: 0,
+        complete: true,
     };
     let mut last_h = None;
     let mut k = 0usize;
-    let mut rates = if stride > 0 { Rates::new(it.system(), start.t, &start.q) } else { None };
     for &tc in checkpoints {
         while it.state().t < tc {
             let t = it.state().t;
@@ -106,9 +119,17 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
             k += 1;
             if stride > 0
                 && k.is_multiple_of(stride)
-                && let Some(rate) = rates.as_mut().and_then(|r| r.at(it.system(), s.t, &s.q, POWER_ITERATIONS))
+                && let Some(rate) = rates.as_deref_mut().and_then(|r| r.at(it.system(), s.t, &s.q, POWER_ITERATIONS))
             {
                 out.rates.push(rate);
+                if let Some(limit) = stop_above
+                    && out.rates.len() >= SURVEY_MIN_SAMPLES
+                    && super::choice::density_ratio(&out.rates).is_some_and(|r| r > limit)
+                {
+                    out.complete = false;
+                    out.steps = it.stats().steps;
+                    return Ok(out);
+                }
             }
         }
     }
@@ -124,19 +145,20 @@ const POWER_ITERATIONS: usize = 3;
 /// `½ vᵀMv − V(q)` with a constant mass matrix `M`, whose rates are the
 /// `√|λ(M⁻¹∇²V)|`: power iteration on central differences of the generated
 /// gradient `∂L/∂q` along a mode carried from one sample to the next, with
-/// `M` factored once. Two gradients per iteration in place of the `4N`
-/// accelerations (each solving for `M` again) and the dense eigenvalue
-/// problem of [`guidance::linearize`](crate::guidance::linearize), which
-/// along a survey of many nodes on 15 coordinates cost 100× a whole
-/// calibrated run.
+/// `M⁻¹` formed once. Two gradients and a product with `M⁻¹` per iteration,
+/// on the stack, in place of the `4N` accelerations (each solving for `M`
+/// again) and the dense eigenvalue problem of
+/// [`guidance::linearize`](crate::guidance::linearize), which along a survey
+/// of many nodes on 15 coordinates cost 100× a whole calibrated run.
 pub(crate) struct Rates<const N: usize> {
-    mass: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    /// `M⁻¹`, row-major.
+    inverse_mass: Vec<f64>,
     mode: [f64; N],
 }
 
 impl<const N: usize> Rates<N> {
-    /// `M = ∂²L/∂v²` from `∂L/∂v = M v` at the unit velocities; `None`
-    /// when it is singular or not finite.
+    /// `M = ∂²L/∂v²` from `∂L/∂v = M v` at the unit velocities, inverted;
+    /// `None` when it is singular or not finite.
     pub(crate) fn new<S: Lagrangian<N> + ?Sized>(system: &S, t: f64, q: &[f64; N]) -> Option<Self> {
         let mut m = nalgebra::DMatrix::<f64>::zeros(N, N);
         let (mut gq, mut gv) = ([0.0; N], [0.0; N]);
@@ -150,8 +172,12 @@ impl<const N: usize> Rates<N> {
         if !m.iter().all(|x| x.is_finite()) {
             return None;
         }
-        let mass = m.lu();
-        mass.is_invertible().then_some(Self { mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) })
+        let inverse = m.lu().try_inverse()?;
+        let inverse_mass: Vec<f64> = (0..N * N).map(|k| inverse[(k / N, k % N)]).collect();
+        inverse_mass
+            .iter()
+            .all(|x| x.is_finite())
+            .then_some(Self { inverse_mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) })
     }
 
     /// `ρ` at `(t, q)` after `iterations` power iterations.
@@ -174,10 +200,12 @@ impl<const N: usize> Rates<N> {
             let u = self.mode.map(|x| x / norm);
             system.gradient_q(t, &core::array::from_fn(|i| q[i] + delta * u[i]), &zero, &mut plus);
             system.gradient_q(t, &core::array::from_fn(|i| q[i] - delta * u[i]), &zero, &mut minus);
-            let force = nalgebra::DVector::from_fn(N, |i, _| (plus[i] - minus[i]) / (2.0 * delta));
-            let x = self.mass.solve(&force)?;
-            self.mode = core::array::from_fn(|i| x[i]);
-            lambda = x.norm();
+            let force: [f64; N] = core::array::from_fn(|i| (plus[i] - minus[i]) / (2.0 * delta));
+            self.mode = core::array::from_fn(|i| {
+                let row = &self.inverse_mass[i * N..(i + 1) * N];
+                row.iter().zip(&force).map(|(a, f)| a * f).sum()
+            });
+            lambda = self.mode.iter().map(|x| x * x).sum::<f64>().sqrt();
         }
         (lambda.is_finite() && lambda > 0.0).then(|| lambda.sqrt())
     }

@@ -23,12 +23,13 @@ const SAFETY: f64 = 0.3;
 /// taken without piloting again: finer steps down to a quarter (the
 /// asymptotic model `e ∝ h^p` holds better at finer steps, and an estimate
 /// from a coarse step still in its pre-asymptotic range errs on the safe
-/// side). A coarser step up to twice the pilot's is not extrapolated to
-/// but replaced by the pilot's own step, whose error is measured: near a
-/// composition's step cap the error at the end is not monotone in `h` (the
-/// pendulum from 1 rad at `rtol = 1e-4`: Kahan–Li 8 piloted at `h = 0.187`
-/// asks for 1.29 times it, where the true error is 12 times smaller than
-/// at `0.187`, not 7.4 times larger, and the estimate 178 times the error).
+/// side). A coarser composition step up to twice the pilot's is not
+/// extrapolated to but replaced by the pilot's own step, whose error is
+/// measured: near a composition's step cap the error at the end is not
+/// monotone in `h` (the pendulum from 1 rad at `rtol = 1e-4`: Kahan–Li 8
+/// piloted at `h = 0.187` asks for 1.29 times it, where the true error is
+/// 12 times smaller than at `0.187`, not 7.4 times larger, and the estimate
+/// 178 times the error).
 const ACCEPT: core::ops::RangeInclusive<f64> = 0.25..=2.0;
 /// The least step ratio [`ACCEPT`] takes from a composition piloted at its
 /// step cap, where the error may not yet be `∝ h^p`.
@@ -37,13 +38,18 @@ const CAPPED_ACCEPT: f64 = 0.5;
 const ROUNDS: usize = 5;
 /// Checkpoints of the pilot, each twice as far from the start as the one before.
 const CHECKPOINTS: usize = 7;
-/// Samples of `ρ` for the step-density survey.
+/// The most samples of `ρ` the step-density survey takes (every k-th node).
 const SURVEY_SAMPLES: usize = 64;
+/// The survey stops early once its density ratio exceeds this multiple of
+/// [`DENSITY_RATIO`](choice::DENSITY_RATIO): the time transformation is
+/// then chosen whatever the rest of the orbit shows.
+const SURVEY_STOP: f64 = 2.0;
 /// Power iterations for `ρ` at the start (from no known mode).
 const START_ITERATIONS: usize = 30;
 /// Coarse steps a time-transformed pilot takes at least: its two runs are
-/// compared node by node.
-const TT_PILOT_STEPS: u64 = 16;
+/// compared node by node. The final runs of the report's Kepler orbits at
+/// `rtol ≥ 1e-4` take 8 to 9 steps per orbit, the pilot's span.
+const TT_PILOT_STEPS: u64 = 8;
 /// The largest `ρ h` of a composition's step, with `ρ` the fastest rate met
 /// at the start and along the survey: Kahan–Li 8 on the report's FPU-β
 /// chain diverges at `ρ h ≈ 4.4` and its Richardson estimate is already
@@ -95,8 +101,11 @@ pub struct Estimate {
     pub reason: String,
     /// The step: `h`, or `σ` in the new time of the time transformation.
     pub step: f64,
-    /// `max ρ / mean ρ` of the linearisation along the survey, when it ran
-    /// (only for systems the time transformation applies to).
+    /// The survey's [`density_ratio`](super::choice::density_ratio) of the
+    /// linearisation's fastest rate, when it ran (only for systems the time
+    /// transformation applies to), over the part of the pilot's span it
+    /// covered (it stops early once the ratio is clearly above the
+    /// threshold).
     pub density_ratio: Option<f64>,
     /// What the pilot cost.
     pub pilot: Cost,
@@ -203,9 +212,10 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let span = t_end - self.t0;
         // `½ vᵀMv − V(q)`: power iteration on the gradient, a fraction of the
         // cost of the dense linearisation on many coordinates.
+        // `M⁻¹` formed once, for the start and the survey.
+        let mut rates = if facts.explicit() { Rates::new(&self.system, self.t0, &self.q0) } else { None };
         let rho = if facts.explicit() {
-            Rates::new(&self.system, self.t0, &self.q0)
-                .and_then(|mut r| r.at(&self.system, self.t0, &self.q0, START_ITERATIONS))
+            rates.as_mut().and_then(|r| r.at(&self.system, self.t0, &self.q0, START_ITERATIONS))
         } else {
             guidance::linearize(&self.system, self.t0, self.q0, self.v0).map(|l| l.fastest).ok()
         }
@@ -235,18 +245,21 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // A step too coarse for the fastest part of the orbit fails: a finer one.
             for _ in 0..3 {
                 let n = ((tp - self.t0) / h).ceil().max(1.0) as usize;
-                let stride = (n / SURVEY_SAMPLES).max(1);
+                // At most `SURVEY_SAMPLES` samples.
+                let stride = n.div_ceil(SURVEY_SAMPLES).max(1);
                 // The pilot's first coarse run, which this run then is: fixed
                 // steps land on its nodes, a time transformation at its end.
                 let landings = if fixed_step { self.pilot_times(h, &checkpoints) } else { vec![tp] };
-                if let Ok(p) = run_probe(c, &self, h, &landings, true, stride) {
+                let stop = Some(SURVEY_STOP * choice::DENSITY_RATIO);
+                if let Ok(p) = run_probe(c, &self, h, &landings, true, stride, rates.as_mut(), stop) {
                     cost.steps += p.steps;
                     let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
                     if max.is_finite() {
                         rho_max = rho_max.max(max);
                     }
                     density_ratio = choice::density_ratio(&p.rates);
-                    survey = Some((c, h, p));
+                    // A survey stopped early is no pilot round.
+                    survey = p.complete.then_some((c, h, p));
                     break;
                 }
                 h /= 4.0;
@@ -263,13 +276,52 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             candidates.insert(0, choice);
         }
         let mut failures = Vec::new();
-        for (candidate, reason) in candidates {
+        for (mut candidate, mut reason) in candidates {
             let h_cap = match candidate.family {
                 Family::Composition if rho_max > 0.0 && self.step.is_none() => COMPOSITION_RHO_H / rho_max,
                 _ => f64::INFINITY,
             };
             let reuse = survey.take().filter(|s| s.0 == candidate).map(|s| (s.1, s.2));
-            match self.pilot(candidate, rho, span, &checkpoints, settle, h_cap, reuse, &mut cost) {
+            let piloted = self.pilot(candidate, rho, span, &checkpoints, settle, h_cap, reuse, &mut cost);
+            // Held to its step cap with accuracy to spare, the order is
+            // wasted: the next lower composition at the same cap costs fewer
+            // stages per step (Yoshida 6 7 against Kahan–Li 8's 15). It is
+            // piloted where the harmonic oscillator's frequency errors,
+            // `C₆ (ρh)⁶` against `C₈ (ρh)⁸` at the cap, predict that it
+            // meets the target there too.
+            let lower_meets = |p: &((f64, f64), Richardson, f64)| {
+                let ratio = choice::YOSHIDA6_CONSTANT / choice::KAHAN_LI8_CONSTANT / COMPOSITION_RHO_H.powi(2);
+                p.0.1 * ratio <= SAFETY * self.tolerance.bound(p.2)
+            };
+            let piloted = match piloted {
+                Ok(p)
+                    if candidate.family == Family::Composition
+                        && candidate.order > 6
+                        && self.fixed.order.is_none()
+                        && self.step.is_none()
+                        && p.0.0 >= 0.99 * h_cap
+                        && lower_meets(&p) =>
+                {
+                    let lower = Candidate { family: Family::Composition, order: 6 };
+                    let stages = |c: Candidate| composition(c.order).weights().len() as f64;
+                    match self.pilot(lower, rho, span, &checkpoints, settle, h_cap, None, &mut cost) {
+                        Ok(q) if stages(lower) / q.0.0 < stages(candidate) / p.0.0 => {
+                            reason = format!(
+                                "{reason}; held to ρh ≤ {COMPOSITION_RHO_H} with accuracy to spare, where {} at step \
+                                 {:.3e} costs {:.2} of its stages",
+                                lower.name(),
+                                q.0.0,
+                                (stages(lower) / q.0.0) / (stages(candidate) / p.0.0)
+                            );
+                            candidate = lower;
+                            Ok(q)
+                        }
+                        _ => Ok(p),
+                    }
+                }
+                other => other,
+            };
+            match piloted {
                 Ok((step, rich, scale)) => {
                     let requested = self.tolerance.bound(scale);
                     let (step, error) = step;
@@ -413,13 +465,26 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let rule = Rule::galerkin_gauss((c.order / 2).max(1));
         let periods = (rho * span).max(1.0);
         let h = rule.omega_h((SAFETY * self.tolerance.rtol / periods).max(1e-300)).min(0.5) / rho;
+        // Every family starts coarser than the harmonic oscillator's phase
+        // error asks (an upper bound: on the report's problems the
+        // calibrated steps are 1.5 to 6 times coarser): a coarse round costs
+        // a fraction of one at the final step, and the step it leads to is
+        // accepted down to a quarter of it (see `ACCEPT`); an estimate from a
+        // step still short of the asymptotic range errs on the safe side.
         match c.family {
-            // Compositions spend `m` sub-steps per step of order `p`, and
-            // start coarse: a coarse round costs a fraction of one at the
-            // final step, and the step it leads to is accepted down to a
-            // quarter of it (see `ACCEPT`).
-            Family::Composition | Family::TimeTransformed => h * 16.0,
-            Family::Galerkin => h,
+            // Compositions spend `m` sub-steps per step of order `p`.
+            Family::Composition => h * 16.0,
+            // The time transformation as coarse as its pilot resolves: a
+            // round of fewer than `TT_PILOT_STEPS` coarse steps runs again
+            // with the `σ` for about that many (on Kepler `e = 0.9` at
+            // `rtol = 1.8e-4` the pilot at 16 times the step measured an
+            // error that asked for 3.4 times its `σ`).
+            Family::TimeTransformed => h * 64.0,
+            // Galerkin four times coarser, at most at `ρh = GALERKIN_RHO_H`,
+            // beyond which Newton needs more iterations (the sensor at
+            // `rtol = 1e-3`: the pilot at the phase error's step measured an
+            // error that asked for 2.3 times it).
+            Family::Galerkin => (4.0 * h).min(choice::GALERKIN_RHO_H / rho).max(h),
         }
     }
 
@@ -500,7 +565,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // steps are already counted).
             let (coarse, reused) = match reuse.take().filter(|r| r.0 == h && self.step.is_none()) {
                 Some((_, p)) => (Ok(p), true),
-                None => (run_probe(c, self, h, &landings, true, 0), false),
+                None => (run_probe(c, self, h, &landings, true, 0, None, None), false),
             };
             let fine = match &coarse {
                 Ok(p) if !fixed_step && p.steps < TT_PILOT_STEPS && self.step.is_none() => {
@@ -513,11 +578,12 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     if let Some(prev) = last {
                         return Ok(prev);
                     }
-                    // Too few nodes to compare: a finer σ.
-                    h *= p.steps.max(1) as f64 / (2 * TT_PILOT_STEPS) as f64;
+                    // Too few nodes to compare: a finer σ, for about a
+                    // quarter more steps than the least.
+                    h *= p.steps.max(1) as f64 / (1.25 * TT_PILOT_STEPS as f64);
                     continue;
                 }
-                Ok(_) => Some(run_probe(c, self, h / 2.0, &landings, true, 0)),
+                Ok(_) => Some(run_probe(c, self, h / 2.0, &landings, true, 0, None, None)),
                 Err(_) => None,
             };
             let (coarse, fine) = match (coarse, fine) {
@@ -573,8 +639,14 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             }
             let ratio = (target / at_end).powf(1.0 / p as f64);
             let ratio = ratio.min(h_cap / h);
-            // Within `ACCEPT`, no coarser than the measured step (see `ACCEPT`).
-            let kept = if ACCEPT.contains(&ratio) { ratio.min(1.0) } else { ratio };
+            // Within `ACCEPT`, a composition's step no coarser than the
+            // measured one (see `ACCEPT`). Galerkin and the time
+            // transformation, which have no such cap, take the coarser step
+            // their estimate asks for: on the Kepler orbits at
+            // `rtol = 1.8e-4` the estimate at the pilot's `σ` is within 10% of
+            // the error of the whole run at that `σ`.
+            let capped_family = c.family == Family::Composition;
+            let kept = if ACCEPT.contains(&ratio) && capped_family { ratio.min(1.0) } else { ratio };
             let h_new = h * kept;
             // The estimate at the step taken: error ∝ h^p.
             let estimate = at_end * kept.powi(p);
@@ -638,6 +710,7 @@ trait Visit<const N: usize> {
     fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out;
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
     c: Candidate,
     auto: &Auto<S, N>,
@@ -645,15 +718,17 @@ fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
     checkpoints: &[f64],
     every_node: bool,
     stride: usize,
+    rates: Option<&mut Rates<N>>,
+    stop_above: Option<f64>,
 ) -> Result<Probe<N>, Error<N>> {
-    struct P<'a>(&'a [f64], bool, usize);
-    impl<const N: usize> Visit<N> for P<'_> {
+    struct P<'a, const N: usize>(&'a [f64], bool, usize, Option<&'a mut Rates<N>>, Option<f64>);
+    impl<const N: usize> Visit<N> for P<'_, N> {
         type Out = Result<Probe<N>, Error<N>>;
         fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out {
-            pilot::probe(it, self.0, self.1, self.2)
+            pilot::probe(it, self.0, self.1, self.2, self.3, self.4)
         }
     }
-    dispatch(c, auto, step, P(checkpoints, every_node, stride))?
+    dispatch(c, auto, step, P(checkpoints, every_node, stride, rates, stop_above))?
 }
 
 fn composition(order: u32) -> Composition {
