@@ -168,7 +168,7 @@ mod tests {
     use super::*;
     use crate::error::Error;
     use crate::problem::{OnePoint, Policy, Problem, Scheme};
-    use crate::sensitivity::fixtures::Pendulum;
+    use crate::sensitivity::fixtures::{Pendulum, central, chained, loss_of, relative};
     use crate::sensitivity::forward::Tangent;
     use crate::sensitivity::linearisation::InitialMomentum;
     use crate::sensitivity::{Checkpoints, Loss};
@@ -213,62 +213,6 @@ mod tests {
             .unwrap()
     }
 
-    fn loss_of(sol: &Solution<1>, theta: [f64; 2]) -> f64 {
-        let n = sol.len() - 1;
-        let mut j = 0.0;
-        for k in 0..=n {
-            j += Fit.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &theta);
-        }
-        j + Fit.terminal(sol.t[n], sol.q[n], sol.p[n], &theta)
-    }
-
-    /// Central differences of `f` over whole runs from inputs moved by
-    /// `ε max(1, |x|)`, `ε = 1e-5`; every run takes `steps` steps.
-    fn central(steps: usize, f: impl Fn(&Solution<1>, [f64; 4]) -> f64) -> [f64; 4] {
-        core::array::from_fn(|i| {
-            let step = 1e-5 * BASE[i].abs().max(1.0);
-            let at = |s: f64| {
-                let mut x = BASE;
-                x[i] += s;
-                let sol = run(x);
-                assert_eq!(sol.len(), steps + 1, "a perturbed run took another number of steps");
-                f(&sol, x)
-            };
-            (at(step) - at(-step)) / (2.0 * step)
-        })
-    }
-
-    fn relative(a: &[f64], b: &[f64]) -> f64 {
-        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
-    }
-
-    /// `dJ/d(q0, v0, l, g)` from the rows of `(t, q, p)` derivatives.
-    fn chained(sol: &Solution<1>, rows: &[[[f64; 4]; 3]]) -> [f64; 4] {
-        let n = sol.len() - 1;
-        let mut out = [0.0; 4];
-        for (k, s) in rows.iter().enumerate() {
-            let (t, q, p) = (sol.t[k], sol.q[k][0], sol.p[k][0]);
-            for (col, slot) in out.iter_mut().enumerate() {
-                let mut x = [t, q, p, THETA[0], THETA[1]].map(Dual64::from);
-                let d = |x: &[Dual64; 5]| {
-                    let r = Fit.running(k as u64, x[0], [x[1]], [x[2]], &[x[3], x[4]]);
-                    if k == n { r + Fit.terminal(x[0], [x[1]], [x[2]], &[x[3], x[4]]) } else { r }
-                };
-                for (i, row) in s.iter().enumerate() {
-                    x[i].eps = 1.0;
-                    *slot += d(&x).eps * row[col];
-                    x[i].eps = 0.0;
-                }
-                if col >= 2 {
-                    x[col + 1].eps = 1.0;
-                    *slot += d(&x).eps;
-                }
-            }
-        }
-        out
-    }
-
     #[test]
     fn energy_steps_adjoint_agrees_with_forward_and_differences() {
         let sens = problem(BASE)
@@ -289,22 +233,22 @@ mod tests {
                 ]
             })
             .collect();
-        let forward = chained(sol, &rows);
+        let forward = chained(&Fit, sol, &THETA, &rows);
         let g = problem(BASE)
             .gradient(&Scheme::MIDPOINT, Policy::energy_preserving(H), T_END, &Fit, Checkpoints::Budget(16))
             .unwrap();
         assert_eq!(g.last.step as usize, n);
         let adjoint = [g.q0[0], g.v0[0], g.theta[0], g.theta[1]];
         let vs_forward = relative(&adjoint, &forward);
-        let value = loss_of(sol, THETA);
-        let fd = central(n, |s, x| loss_of(s, [x[2], x[3]]));
+        let value = loss_of(&Fit, sol, &THETA);
+        let fd = central(BASE, n, run, |s, x| loss_of(&Fit, s, &[x[2], x[3]]));
         let vs_fd = relative(&forward, &fd);
 
         // The node times move: t at the node before the landing, whose step
         // sizes all came from the energy equation; the landed node is t_end.
         let k = n - 1;
         let dt: [f64; 4] = core::array::from_fn(|c| sens.jacobians[k].time[c]);
-        let fd_t = central(n, |s, _| s.t[k]);
+        let fd_t = central(BASE, n, run, |s, _| s.t[k]);
         let vs_fd_t = relative(&dt, &fd_t);
         let landed = sens.jacobians[n].time.iter().fold(0.0f64, |m, x| m.max(x.abs()));
 
@@ -328,7 +272,7 @@ mod tests {
             tangent = tangent.step(&j);
             held[k + 1] = row(&tangent);
         }
-        let vs_fd_held = relative(&chained(sol, &held), &fd);
+        let vs_fd_held = relative(&chained(&Fit, sol, &THETA, &held), &fd);
 
         eprintln!(
             "energy-preserving midpoint, pendulum, {n} steps: J = {value}\n  adjoint {adjoint:?}\n  forward {forward:?}\n  \

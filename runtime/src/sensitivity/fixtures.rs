@@ -1,7 +1,10 @@
-//! Systems the unit tests of the sensitivities share.
+//! Systems and checks the unit tests of the sensitivities share.
 
-use super::Parametric;
+use num_dual::Dual64;
+
+use super::{Loss, Parametric};
 use crate::Separability;
+use crate::solution::Solution;
 use crate::system::{Lagrangian, Scalar};
 
 /// A pendulum with its length and gravity as parameters (unit mass).
@@ -59,4 +62,81 @@ impl Parametric<2, 1> for Kepler {
     fn lagrangian_with<D: Scalar>(&self, theta: &[D; 1], _t: D, q: [D; 2], v: [D; 2]) -> D {
         (v[0] * v[0] + v[1] * v[1]) * 0.5 + theta[0] / (q[0] * q[0] + q[1] * q[1]).sqrt()
     }
+}
+
+/// The loss `J = Σ_k ℓ_k(t_k, q_k, p_k) + terminal` over the nodes of `sol`.
+pub(crate) fn loss_of<F: Loss<N, P>, const N: usize, const P: usize>(
+    loss: &F,
+    sol: &Solution<N>,
+    theta: &[f64; P],
+) -> f64 {
+    let n = sol.len() - 1;
+    let mut j = 0.0;
+    for k in 0..=n {
+        j += loss.running(k as u64, sol.t[k], sol.q[k], sol.p[k], theta);
+    }
+    j + loss.terminal(sol.t[n], sol.q[n], sol.p[n], theta)
+}
+
+/// The largest difference of `a` from `b`, relative to the largest entry of `b`.
+pub(crate) fn relative(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+/// Central differences of `f` over whole runs (`run`) from the inputs
+/// `base` moved by `ε max(1, |x|)`, `ε = 1e-5`; every run must take `steps`
+/// steps.
+pub(crate) fn central<const D: usize>(
+    base: [f64; D],
+    steps: usize,
+    run: impl Fn([f64; D]) -> Solution<1>,
+    f: impl Fn(&Solution<1>, [f64; D]) -> f64,
+) -> [f64; D] {
+    core::array::from_fn(|i| {
+        let step = 1e-5 * base[i].abs().max(1.0);
+        let at = |s: f64| {
+            let mut x = base;
+            x[i] += s;
+            let sol = run(x);
+            assert_eq!(sol.len(), steps + 1, "a perturbed run took another number of steps");
+            f(&sol, x)
+        };
+        (at(step) - at(-step)) / (2.0 * step)
+    })
+}
+
+/// `dJ/d(q0, v0, θ)` of a one-coordinate run (`D = 2 + P` inputs) from the
+/// rows of `(t, q, p)` derivatives at every node: `Σ_k ∂ℓ_k/∂(t, q, p) S_k
+/// + ∂ℓ_k/∂θ`, the partial derivatives by dual numbers.
+pub(crate) fn chained<F: Loss<1, P>, const D: usize, const P: usize>(
+    loss: &F,
+    sol: &Solution<1>,
+    theta: &[f64; P],
+    rows: &[[[f64; D]; 3]],
+) -> [f64; D] {
+    assert_eq!(D, 2 + P, "the inputs are q0, v0 and the parameters");
+    let n = sol.len() - 1;
+    let mut out = [0.0; D];
+    for (k, s) in rows.iter().enumerate() {
+        let node = [sol.t[k], sol.q[k][0], sol.p[k][0]].map(Dual64::from);
+        let d = |x: &[Dual64; 3], th: &[Dual64; P]| {
+            let r = loss.running(k as u64, x[0], [x[1]], [x[2]], th);
+            if k == n { r + loss.terminal(x[0], [x[1]], [x[2]], th) } else { r }
+        };
+        let th = theta.map(Dual64::from);
+        for (col, slot) in out.iter_mut().enumerate() {
+            for (i, row) in s.iter().enumerate() {
+                let mut x = node;
+                x[i].eps = 1.0;
+                *slot += d(&x, &th).eps * row[col];
+            }
+            if col >= 2 {
+                let mut th = th;
+                th[col - 2].eps = 1.0;
+                *slot += d(&node, &th).eps;
+            }
+        }
+    }
+    out
 }

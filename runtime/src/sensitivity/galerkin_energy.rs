@@ -222,9 +222,8 @@ where
 
 #[cfg(test)]
 mod tests {
-    use num_dual::Dual64;
-
     use crate::problem::{Policy, Problem, Scheme};
+    use crate::sensitivity::fixtures::{central, chained, loss_of, relative};
     use crate::sensitivity::{Checkpoints, Loss, Parametric};
     use crate::solution::{Plan, Solution};
     use crate::system::{Lagrangian, Scalar};
@@ -283,69 +282,6 @@ mod tests {
             .unwrap()
     }
 
-    fn loss_of(sol: &Solution<1>, theta: [f64; 3]) -> f64 {
-        let n = sol.len() - 1;
-        let mut j = 0.0;
-        for k in 0..=n {
-            j += Fit.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &theta);
-        }
-        j + Fit.terminal(sol.t[n], sol.q[n], sol.p[n], &theta)
-    }
-
-    /// Central differences of `f` over whole runs from inputs moved by
-    /// `ε max(1, |x|)`, `ε = 1e-5`; every run takes `steps` steps.
-    fn central(
-        scheme: &Scheme,
-        (hh, t_end): (f64, f64),
-        steps: usize,
-        f: impl Fn(&Solution<1>, [f64; 5]) -> f64,
-    ) -> [f64; 5] {
-        core::array::from_fn(|i| {
-            let step = 1e-5 * BASE[i].abs().max(1.0);
-            let at = |s: f64| {
-                let mut x = BASE;
-                x[i] += s;
-                let sol = run(scheme, x, hh, t_end);
-                assert_eq!(sol.len(), steps + 1, "a perturbed run took another number of steps");
-                f(&sol, x)
-            };
-            (at(step) - at(-step)) / (2.0 * step)
-        })
-    }
-
-    fn relative(a: &[f64], b: &[f64]) -> f64 {
-        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
-    }
-
-    /// `dJ/d(q0, v0, m, l, g)` from the rows of `(t, q, p)` derivatives.
-    fn chained(sol: &Solution<1>, rows: &[[[f64; 5]; 3]]) -> [f64; 5] {
-        let n = sol.len() - 1;
-        let theta = [BASE[2], BASE[3], BASE[4]];
-        let mut out = [0.0; 5];
-        for (k, s) in rows.iter().enumerate() {
-            let (t, q, p) = (sol.t[k], sol.q[k][0], sol.p[k][0]);
-            for (col, slot) in out.iter_mut().enumerate() {
-                let mut x = [t, q, p, theta[0], theta[1], theta[2]].map(Dual64::from);
-                let d = |x: &[Dual64; 6]| {
-                    let th = [x[3], x[4], x[5]];
-                    let r = Fit.running(k as u64, x[0], [x[1]], [x[2]], &th);
-                    if k == n { r + Fit.terminal(x[0], [x[1]], [x[2]], &th) } else { r }
-                };
-                for (i, row) in s.iter().enumerate() {
-                    x[i].eps = 1.0;
-                    *slot += d(&x).eps * row[col];
-                    x[i].eps = 0.0;
-                }
-                if col >= 2 {
-                    x[col + 1].eps = 1.0;
-                    *slot += d(&x).eps;
-                }
-            }
-        }
-        out
-    }
-
     /// The adjoint against the forward sensitivities, both against central
     /// differences of whole runs, and the node times against theirs.
     fn check(scheme: &Scheme, hh: f64, t_end: f64) -> (f64, f64, f64, f64) {
@@ -366,21 +302,21 @@ mod tests {
                 ]
             })
             .collect();
-        let forward = chained(sol, &rows);
+        let forward = chained(&Fit, sol, &[BASE[2], BASE[3], BASE[4]], &rows);
         let g =
             problem(BASE).gradient(scheme, Policy::energy_preserving(hh), t_end, &Fit, Checkpoints::Budget(8)).unwrap();
         assert_eq!(g.last.step as usize, n);
-        let value = loss_of(sol, [BASE[2], BASE[3], BASE[4]]);
+        let value = loss_of(&Fit, sol, &[BASE[2], BASE[3], BASE[4]]);
         assert!((g.value - value).abs() <= 1e-13 * value.abs(), "{} vs {value}", g.value);
         let adjoint = [g.q0[0], g.v0[0], g.theta[0], g.theta[1], g.theta[2]];
         let vs_forward = relative(&adjoint, &forward);
-        let fd = central(scheme, (hh, t_end), n, |s, x| loss_of(s, [x[2], x[3], x[4]]));
+        let fd = central(BASE, n, |x| run(scheme, x, hh, t_end), |s, x| loss_of(&Fit, s, &[x[2], x[3], x[4]]));
         let vs_fd = relative(&forward, &fd);
         // The node before the landing: every step size up to it came from
         // the energy equation. The landed node is t_end.
         let k = n - 1;
         let dt: [f64; 5] = core::array::from_fn(|c| sens.jacobians[k].time[c]);
-        let fd_t = central(scheme, (hh, t_end), n, |s, _| s.t[k]);
+        let fd_t = central(BASE, n, |x| run(scheme, x, hh, t_end), |s, _| s.t[k]);
         let vs_fd_t = relative(&dt, &fd_t);
         let landed = sens.jacobians[n].time.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         let landed = landed / dt.iter().fold(0.0f64, |m, x| m.max(x.abs()));

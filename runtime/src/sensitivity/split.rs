@@ -547,7 +547,7 @@ mod tests {
     use super::*;
     use crate::integrator::Composition;
     use crate::problem::{Dim, Extended, Problem, Scheme};
-    use crate::sensitivity::fixtures::Kepler;
+    use crate::sensitivity::fixtures::{Kepler, relative};
     use crate::sensitivity::{Checkpoints, Loss};
     use crate::solution::Plan;
     use crate::system::Lagrangian;
@@ -690,11 +690,6 @@ mod tests {
             }
         }
         total
-    }
-
-    fn relative(a: &[f64], b: &[f64]) -> f64 {
-        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
     }
 
     /// The adjoint against the forward sensitivities and central
