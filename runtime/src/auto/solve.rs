@@ -283,40 +283,15 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             };
             let reuse = survey.take().filter(|s| s.0 == candidate).map(|s| (s.1, s.2));
             let piloted = self.pilot(candidate, rho, span, &checkpoints, settle, h_cap, reuse, &mut cost);
-            // Held to its step cap with accuracy to spare, the order is
-            // wasted: the next lower composition at the same cap costs fewer
-            // stages per step (Yoshida 6 7 against Kahan–Li 8's 15). It is
-            // piloted where the harmonic oscillator's frequency errors,
-            // `C₆ (ρh)⁶` against `C₈ (ρh)⁸` at the cap, predict that it
-            // meets the target there too.
-            let lower_meets = |p: &((f64, f64), Richardson, f64)| {
-                let ratio = choice::YOSHIDA6_CONSTANT / choice::KAHAN_LI8_CONSTANT / COMPOSITION_RHO_H.powi(2);
-                p.0.1 * ratio <= SAFETY * self.tolerance.bound(p.2)
-            };
             let piloted = match piloted {
-                Ok(p)
-                    if candidate.family == Family::Composition
-                        && candidate.order > 6
-                        && self.fixed.order.is_none()
-                        && self.step.is_none()
-                        && p.0.0 >= 0.99 * h_cap
-                        && lower_meets(&p) =>
-                {
-                    let lower = Candidate { family: Family::Composition, order: 6 };
-                    let stages = |c: Candidate| composition(c.order).weights().len() as f64;
-                    match self.pilot(lower, rho, span, &checkpoints, settle, h_cap, None, &mut cost) {
-                        Ok(q) if stages(lower) / q.0.0 < stages(candidate) / p.0.0 => {
-                            reason = format!(
-                                "{reason}; held to ρh ≤ {COMPOSITION_RHO_H} with accuracy to spare, where {} at step \
-                                 {:.3e} costs {:.2} of its stages",
-                                lower.name(),
-                                q.0.0,
-                                (stages(lower) / q.0.0) / (stages(candidate) / p.0.0)
-                            );
+                Ok(p) if candidate.family == Family::Composition && candidate.order > 6 && p.0.0 >= 0.99 * h_cap => {
+                    match self.lower_order_at_cap(candidate, &p, rho, span, &checkpoints, settle, h_cap, &mut cost) {
+                        Some((lower, q, why)) => {
+                            reason = format!("{reason}; {why}");
                             candidate = lower;
                             Ok(q)
                         }
-                        _ => Ok(p),
+                        None => Ok(p),
                     }
                 }
                 other => other,
@@ -506,6 +481,46 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             .ok()
             .map(|it| it.density())
             .filter(|g| g.is_finite() && *g > 0.0)
+    }
+
+    /// A composition held to its step cap `h_cap` with accuracy to spare
+    /// (`piloted`) wastes its order: the next lower composition at the same
+    /// cap costs fewer stages per step (Yoshida 6 7 against Kahan–Li 8's
+    /// 15). It is piloted where the harmonic oscillator's frequency errors,
+    /// `C₆ (ρh)⁶` against `C₈ (ρh)⁸` at the cap, predict that it meets the
+    /// target there too, and taken if it costs fewer stages over the span:
+    /// the lower candidate, its pilot and the reason.
+    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    fn lower_order_at_cap(
+        &self,
+        candidate: Candidate,
+        piloted: &((f64, f64), Richardson, f64),
+        rho: Option<f64>,
+        span: f64,
+        checkpoints: &[f64; CHECKPOINTS],
+        settle: f64,
+        h_cap: f64,
+        cost: &mut Cost,
+    ) -> Option<(Candidate, ((f64, f64), Richardson, f64), String)> {
+        let ((step, error), _, scale) = *piloted;
+        let ratio = choice::YOSHIDA6_CONSTANT / choice::KAHAN_LI8_CONSTANT / COMPOSITION_RHO_H.powi(2);
+        let meets = error * ratio <= SAFETY * self.tolerance.bound(scale);
+        if self.fixed.order.is_some() || self.step.is_some() || !meets {
+            return None;
+        }
+        let lower = Candidate { family: Family::Composition, order: 6 };
+        let stages = |c: Candidate| composition(c.order).weights().len() as f64;
+        let q = self.pilot(lower, rho, span, checkpoints, settle, h_cap, None, cost).ok()?;
+        let relative = (stages(lower) / q.0.0) / (stages(candidate) / step);
+        (stages(lower) / q.0.0 < stages(candidate) / step).then(|| {
+            let why = format!(
+                "held to ρh ≤ {COMPOSITION_RHO_H} with accuracy to spare, where {} at step {:.3e} costs {:.2} of its stages",
+                lower.name(),
+                q.0.0,
+                relative
+            );
+            (lower, q, why)
+        })
     }
 
     /// The pilot of one candidate, its steps at most `h_cap`:
