@@ -1,5 +1,5 @@
-//! The linearisation of an energy-preserving step of a one-point rule for
-//! the sensitivities and the adjoint.
+//! The linearisation of an energy-preserving or energy-balance step of a
+//! one-point rule for the sensitivities and the adjoint.
 //!
 //! An energy-preserving step solves the discrete Euler–Lagrange equation
 //! and the discrete energy equation together for `(q_{k+1}, t_{k+1})`
@@ -520,20 +520,23 @@ mod tests {
     /// last good node is kept, with the sensitivities of every row.
     #[test]
     fn a_step_without_an_energy_root_keeps_the_sensitivities_before_it() {
-        // The trapezoid rule on the pendulum from 1 rad: its energy equation
-        // loses its root (docs/capabilities.md).
-        let sens = pendulum()
-            .problem(BASE)
-            .solve_with_sensitivities(&Scheme::TRAPEZOID, Policy::energy_preserving(0.02), Plan::until(T_END))
-            .unwrap();
-        assert!(sens.error.is_none(), "{:?}", sens.error);
-        assert!(!sens.solution.is_finished());
-        assert!(sens.solution.len() > 2);
-        assert_eq!(sens.jacobians.len(), sens.solution.len());
-        match sens.solution.error {
-            Some(SolveError::Step(Error::NoEnergyStep { .. })) => {}
-            ref other => panic!("{other:?}"),
+        /// The run ends in `NoEnergyStep` with the rows before it and
+        /// their Jacobians.
+        fn keeps_rows<S: Parametric<1, P>, const D: usize, const P: usize>(run: &Run<S, D, P>) {
+            let sens = run.sensitivities();
+            assert!(!sens.solution.is_finished());
+            assert!(sens.solution.len() > 2);
+            assert_eq!(sens.jacobians.len(), sens.solution.len());
+            match sens.solution.error {
+                Some(SolveError::Step(Error::NoEnergyStep { .. })) => {}
+                ref other => panic!("{other:?}"),
+            }
         }
+        // The trapezoid rule on the pendulum from 1 rad and on the damped
+        // oscillator: its energy equation loses its root
+        // (docs/capabilities.md).
+        keeps_rows(&Run { scheme: Scheme::TRAPEZOID, policy: Policy::energy_preserving(0.02), ..pendulum() });
+        keeps_rows(&damped(Scheme::TRAPEZOID, DAMPED, 0.02, 8.0));
     }
 
     /// A damped oscillator (`m`, `k`, `c`) under energy-balance steps: the
