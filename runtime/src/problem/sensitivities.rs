@@ -70,9 +70,10 @@ where
     /// transformation and the explicit time-transformed splitting (`policy`
     /// is then the step `σ` in `s`; the node times move with the inputs,
     /// [`Jacobian::time`](crate::sensitivity::Jacobian::time)), and
-    /// energy-preserving steps of the one-point and Galerkin rules (the step
-    /// sizes differentiated through the energy equation, the node times
-    /// moving too). A step that took the least-squares fallback of the energy
+    /// energy-preserving steps of the one-point and Galerkin rules and
+    /// energy-balance steps of the one-point rules (the step sizes
+    /// differentiated through the energy equation, with the discrete work
+    /// of the forces under energy balance, the node times moving too). A step that took the least-squares fallback of the energy
     /// equation ends the sensitivities with [`Error::NotDifferentiable`] in
     /// [`Sensitivities::error`], the solution kept.
     /// Rows between nodes (save times, events) are refused
@@ -172,8 +173,9 @@ where
     /// transformation it is the step `σ` in `s`, the node times move with
     /// the inputs (the loss's `∂ℓ/∂t` enters), and the landing step's size,
     /// solved for `t_end`, is differentiated. Under energy-preserving steps
-    /// of a one-point or Galerkin rule the step sizes the energy equation fixes are
-    /// differentiated and the node times move with the inputs too (the
+    /// of a one-point or Galerkin rule, and energy-balance steps of a
+    /// one-point rule, the step sizes the energy equation fixes (with the
+    /// discrete work of the forces) are differentiated and the node times move with the inputs too (the
     /// first step, of the given size, and the landing on `t_end` have their
     /// end times given).
     ///

@@ -178,8 +178,10 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 /// The methods whose step the sensitivities and the adjoint differentiate:
 /// fixed steps of the one-point rules, the Galerkin rules, the
 /// compositions, the implicit time transformation and the explicit
-/// time-transformed splitting (fixed steps in `s`), and energy-preserving
-/// steps of the one-point and Galerkin rules.
+/// time-transformed splitting (fixed steps in `s`), energy-preserving
+/// steps of the one-point and Galerkin rules, and energy-balance steps of
+/// the one-point rules (`constant` refuses them for the Galerkin rules as
+/// for a run).
 fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
     let n = match c.size {
         Size::Dynamic => {
@@ -201,7 +203,8 @@ fn sensitivities(c: &Combination<'_>) -> Result<(), &'static str> {
 }
 
 /// The variable steps of a one-point or Galerkin rule whose step size the
-/// sensitivities differentiate through the energy equation.
+/// sensitivities differentiate through the energy equation (with the work
+/// of the forces under energy-balance steps).
 fn energy_sensitivities(policy: Policy) -> Result<(), &'static str> {
     match policy {
         Policy::EnergyPreserving { bounds, .. } | Policy::EnergyBalance { bounds, .. } if bounds.accuracy.is_some() => {
@@ -209,9 +212,6 @@ fn energy_sensitivities(policy: Policy) -> Result<(), &'static str> {
                 "sensitivities of energy steps under an accuracy bound: a capped step minimises the energy mismatch instead of solving the energy equation, and the landing is split in pieces; neither is differentiated",
             )
         }
-        Policy::EnergyBalance { .. } => Err(
-            "sensitivities of energy-balance steps of a forced system: the work of the forces in the linearised energy equation is not verified",
-        ),
         _ => Ok(()),
     }
 }

@@ -35,6 +35,83 @@ impl Parametric<1, 2> for Pendulum {
     }
 }
 
+/// A damped harmonic oscillator with its mass, stiffness and damping
+/// coefficient as parameters: `L = ½ m v² − ½ k q²`, `R = ½ c v²`.
+#[derive(Clone)]
+pub(crate) struct DampedOscillator {
+    pub(crate) theta: [f64; 3],
+}
+
+impl Lagrangian<1> for DampedOscillator {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const HAS_DISSIPATION: bool = true;
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+        self.lagrangian_with(&self.theta.map(D::from), t, q, v)
+    }
+    fn dissipation<D: Scalar>(&self, q: [D; 1], v: [D; 1]) -> D {
+        self.dissipation_with(&self.theta.map(D::from), q, v)
+    }
+}
+
+impl Parametric<1, 3> for DampedOscillator {
+    const NAMES: [&'static str; 3] = ["m", "k", "c"];
+    fn parameters(&self) -> [f64; 3] {
+        self.theta
+    }
+    fn with_parameters(&self, theta: [f64; 3]) -> Self {
+        Self { theta }
+    }
+    fn lagrangian_with<D: Scalar>(&self, theta: &[D; 3], _t: D, q: [D; 1], v: [D; 1]) -> D {
+        let [m, k, _] = *theta;
+        (m * v[0] * v[0] - k * q[0] * q[0]) * 0.5
+    }
+    fn dissipation_with<D: Scalar>(&self, theta: &[D; 3], _q: [D; 1], v: [D; 1]) -> D {
+        theta[2] * v[0] * v[0] * 0.5
+    }
+}
+
+/// A damped pendulum driven by a periodic torque, with its length,
+/// gravity, damping and drive amplitude as parameters (unit mass):
+/// `L = ½ l² v² + g l cos q`, `Q = a cos(ω t) − b v`, `ω` = [`DRIVE`].
+#[derive(Clone)]
+pub(crate) struct ForcedPendulum {
+    pub(crate) theta: [f64; 4],
+}
+
+/// The angular frequency `ω` of the forced pendulum's drive.
+pub(crate) const DRIVE: f64 = 1.7;
+
+impl Lagrangian<1> for ForcedPendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const HAS_FORCE: bool = true;
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> D {
+        self.lagrangian_with(&self.theta.map(D::from), t, q, v)
+    }
+    fn force<D: Scalar>(&self, t: D, q: [D; 1], v: [D; 1]) -> [D; 1] {
+        self.force_with(&self.theta.map(D::from), t, q, v)
+    }
+}
+
+impl Parametric<1, 4> for ForcedPendulum {
+    const NAMES: [&'static str; 4] = ["l", "g", "b", "a"];
+    fn parameters(&self) -> [f64; 4] {
+        self.theta
+    }
+    fn with_parameters(&self, theta: [f64; 4]) -> Self {
+        Self { theta }
+    }
+    fn lagrangian_with<D: Scalar>(&self, theta: &[D; 4], _t: D, q: [D; 1], v: [D; 1]) -> D {
+        let [l, g, _, _] = *theta;
+        l * l * v[0] * v[0] * 0.5 + g * l * q[0].cos()
+    }
+    fn force_with<D: Scalar>(&self, theta: &[D; 4], t: D, _q: [D; 1], v: [D; 1]) -> [D; 1] {
+        let [_, _, b, a] = *theta;
+        [a * (t * DRIVE).cos() - b * v[0]]
+    }
+}
+
 /// Kepler in the plane with the gravitational parameter `μ` (unit mass,
 /// constant mass matrix: the explicit splitting takes it).
 #[derive(Clone)]

@@ -32,7 +32,9 @@
 //! whose momentum is `(p, −E)`; `energy.rs` linearises it in the extended
 //! phase `(q, t, p, −E)` with the same dense Jacobians, so the step size
 //! the energy equation fixes is differentiated and the node times move
-//! with the inputs. An energy-preserving Galerkin step gives `t` degree 1
+//! with the inputs. An energy-balance step of a forced system is that step
+//! with the extended force `(t' F, −F·q')`, whose time component is the
+//! discrete work in the energy equation. An energy-preserving Galerkin step gives `t` degree 1
 //! where `q` has degree `s`, so it is not such a Galerkin step of the
 //! parametrised motion; `galerkin_energy.rs` linearises the bordered system
 //! in `(interior nodes, end node, h)` that the stepper solves, in the same
