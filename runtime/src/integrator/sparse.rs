@@ -265,10 +265,10 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         let outcome = self.advance(&mut work, h, t1, explicit);
         self.memory.sparse = Some(work);
         // The error (which holds the state) is made here, in the returned
-        // value: a `Result<(), Error<N>>` held across the line above is
-        // moved whole, both arrays of the state copied at every successful
-        // step (16 000 instructions of an FPU-β step at `N = 1000`,
-        // callgrind).
+        // value: a `Result<(), Error<N>>` held across the line above would
+        // be moved whole, both arrays of the state copied at every
+        // successful step (16 000 instructions of an explicit FPU-β step
+        // at `N = 1000`, callgrind).
         outcome.map_err(|failure| self.fail(h, failure))
     }
 
