@@ -580,6 +580,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // The fine run of a round whose coarse run left the orbit, with its
         // step and checkpoints: the next round's coarse run.
         let mut halved: Option<(f64, Vec<f64>, Probe<N>)> = None;
+        // Whether the last round halved the step (see below).
+        let mut ladder = false;
         for _ in 0..ROUNDS {
             if fixed_step && self.step.is_none() {
                 h = h.min(h_max);
@@ -709,11 +711,20 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // from its start at rest): half the step, not the sixteenth the
             // model asks for, and this round's fine run is the next one's
             // coarse run.
-            if rich.error > 0.1 * scale {
+            // After such a round, an estimate that asks for less than a
+            // quarter of the step may still be short of the asymptotic
+            // range: half the step again, the same way. The steps of the
+            // rounds down to a quarter of the step that left the orbit are
+            // then those of one round at that quarter (the runs at `h/4`
+            // and `h/8`), which is the least a round after the halving
+            // costs otherwise.
+            if rich.error > 0.1 * scale || (ladder && ratio < *ACCEPT.start()) {
                 h /= 2.0;
                 halved = Some((h, times, fine));
+                ladder = true;
                 continue;
             }
+            ladder = false;
             // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
             h *= ratio.clamp(1.0 / 16.0, 4.0);
         }
