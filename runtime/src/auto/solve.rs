@@ -577,11 +577,6 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // A few coarse steps over the pilot at least.
         let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
-        // The fine run of a round whose coarse run left the orbit, with its
-        // step and checkpoints: the next round's coarse run.
-        let mut halved: Option<(f64, Vec<f64>, Probe<N>)> = None;
-        // Whether the last round halved the step (see below).
-        let mut ladder = false;
         for _ in 0..ROUNDS {
             if fixed_step && self.step.is_none() {
                 h = h.min(h_max);
@@ -595,13 +590,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             }
             // Fixed steps: checkpoints on the coarse nodes (two steps from
             // the start at least), so that neither run takes a landing step.
-            let halved_now = halved.take().filter(|r| r.0 == h);
-            let times: Vec<f64> = match &halved_now {
-                // Coarse nodes of the round before: nodes of this round's too.
-                Some(r) => r.1.clone(),
-                None if fixed_step => self.pilot_times(h, checkpoints),
-                None => checkpoints.to_vec(),
-            };
+            let times: Vec<f64> = if fixed_step { self.pilot_times(h, checkpoints) } else { checkpoints.to_vec() };
             let tp = *times.last().expect("at least one checkpoint");
             // A time transformation's nodes fall at different times in the
             // two runs: they are compared node by node at equal new time, and
@@ -609,9 +598,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             let landings: Vec<f64> = if fixed_step { times.clone() } else { vec![tp] };
             // The survey's run at this step is this round's coarse run (its
             // steps are already counted).
-            let survey = reuse.take().filter(|r| r.0 == h && self.step.is_none()).map(|r| r.1);
-            let (coarse, reused) = match halved_now.map(|r| r.2).or(survey) {
-                Some(p) => (Ok(p), true),
+            let (coarse, reused) = match reuse.take().filter(|r| r.0 == h && self.step.is_none()) {
+                Some((_, p)) => (Ok(p), true),
                 None => (run_probe(c, self, h, &landings, true, 0, None, None), false),
             };
             let fine = match &coarse {
@@ -708,23 +696,12 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             }
             // A difference of the size of the positions is no error estimate
             // (the coarse run left the orbit: the double pendulum at ρh ≈ 1
-            // from its start at rest): half the step, not the sixteenth the
-            // model asks for, and this round's fine run is the next one's
-            // coarse run.
-            // After such a round, an estimate that asks for less than a
-            // quarter of the step may still be short of the asymptotic
-            // range: half the step again, the same way. The steps of the
-            // rounds down to a quarter of the step that left the orbit are
-            // then those of one round at that quarter (the runs at `h/4`
-            // and `h/8`), which is the least a round after the halving
-            // costs otherwise.
-            if rich.error > 0.1 * scale || (ladder && ratio < *ACCEPT.start()) {
-                h /= 2.0;
-                halved = Some((h, times, fine));
-                ladder = true;
+            // from its start at rest): a quarter of the step, not the
+            // sixteenth the model asks for.
+            if rich.error > 0.1 * scale {
+                h /= 4.0;
                 continue;
             }
-            ladder = false;
             // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
             h *= ratio.clamp(1.0 / 16.0, 4.0);
         }
