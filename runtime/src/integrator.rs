@@ -265,10 +265,10 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
                 reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
             });
         }
-        let (p0, energy) = M::legendre(&self.system, t0, q0, v0)?;
+        let (memory, p0, energy) = self.method.start_memory(&self.system, t0, q0, v0)?;
         let zero = T::zero();
         Ok(Integrator {
-            memory: self.method.memory(),
+            memory,
             system: self.system,
             method: self.method,
             h: self.h,

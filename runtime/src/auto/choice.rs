@@ -5,7 +5,7 @@
 //! | system | step density along the pilot | tolerance | first candidate |
 //! | --- | --- | --- | --- |
 //! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies: [`density_ratio`] above [`DENSITY_RATIO`] | any | explicit time-transformed splitting (logarithmic), Kahan–Li 8 |
-//! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | Kahan–Li 8 composition of Störmer–Verlet (Yoshida 6 where Kahan–Li 8 is held to its step cap with accuracy to spare and Yoshida 6 costs fewer stages), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
+//! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | the composition of Störmer–Verlet of fewer predicted stages ([`composition_order`]: Kahan–Li 8, or Yoshida 6 where Kahan–Li 8 would be held to its step cap), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
 //! | forces or dissipation | any | `≥ 1e-5` / `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 2 / 4 / 6 / 8` |
 //! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
 //!
@@ -63,6 +63,42 @@ pub const KAHAN_LI8_CONSTANT: f64 = 4.8e-6;
 /// The same constant of Yoshida 6 (`3.77e-3` up to `ωh = 0.5`, `3.55e-3` at
 /// 1.5), order 6.
 pub const YOSHIDA6_CONSTANT: f64 = 3.8e-3;
+
+/// The largest `ρ h` of a composition's step, with `ρ` the fastest rate met
+/// at the start and along the survey: Kahan–Li 8 on the report's FPU-β
+/// chain diverges at `ρ h ≈ 4.4` and its Richardson estimate is already
+/// five times low at `ρ h ≈ 1.9`.
+pub const COMPOSITION_RHO_H: f64 = 1.5;
+
+/// The fraction of the tolerance the choice and the pilot aim at: the
+/// Richardson estimate is asymptotic, and the error of a fixed-step method
+/// is not monotone in `h`.
+pub const SAFETY: f64 = 0.3;
+
+/// The relative frequency error that spreads `SAFETY · rtol` over the
+/// `rho_span = ρT` radians of the fastest mode (at least one).
+pub fn frequency_error(rtol: f64, rho_span: f64) -> f64 {
+    SAFETY * rtol / rho_span.max(1.0)
+}
+
+/// The stages (trapezoid sub-steps, one force each) a composition of
+/// order `order` spends per step: Yoshida 4, Yoshida 6, Kahan–Li 8.
+pub fn composition_stages(order: u32) -> f64 {
+    match order {
+        4 => 3.0,
+        6 => 7.0,
+        _ => 15.0,
+    }
+}
+
+/// The stages of a composition of `order` (6 or 8) over the span, as
+/// [`predicted_steps`] at [`COMPOSITION_RHO_H`] times its
+/// [`composition_stages`]: the quantity the order is chosen by.
+pub fn composition_cost(order: u32, rtol: f64, rho_span: f64) -> f64 {
+    let constant = if order == 6 { YOSHIDA6_CONSTANT } else { KAHAN_LI8_CONSTANT };
+    let eps = frequency_error(rtol, rho_span);
+    composition_stages(order) * predicted_steps(constant, order, COMPOSITION_RHO_H, eps, rho_span.max(1.0))
+}
 
 /// The largest `ρh` the cost model lets Galerkin take: beyond it Newton
 /// needs more iterations and the nonlinear error terms the linear model
@@ -164,14 +200,20 @@ pub struct Fixed {
 /// The Galerkin degrees the solve carries.
 pub const GALERKIN_DEGREES: [u32; 5] = [2, 3, 4, 6, 8];
 
-/// Kahan–Li 8 at every tolerance: in the report's calibration it is the
-/// fastest project method on the separable problems from `1e-4` to `1e-10`,
-/// and its time-transformed splitting on eccentric Kepler orbits. Where its
-/// pilot finds it held to its step cap with accuracy to spare (the FPU-β
-/// chain at loose tolerances), the solve pilots Yoshida 6 at the same cap
-/// and runs the cheaper.
-fn composition_order(_rtol: f64) -> u32 {
-    8
+/// The composition of fewer stages over the span (see
+/// [`composition_cost`]) among Kahan–Li 8 and Yoshida 6, with
+/// `rho_span = ρT` the radians of the fastest mode at the start; Kahan–Li 8
+/// without it. Unhindered, Kahan–Li 8 needs fewer stages wherever its step
+/// is below [`COMPOSITION_RHO_H`] (from a frequency error of about `1e-4`
+/// down: the report's separable problems at every target); where that cap
+/// holds it, its order buys nothing and Yoshida 6 at the same or a finer
+/// step costs 7 stages against 15 (the FPU-β chain at `rtol = 1e-3`, whose
+/// fastest modes are barely excited).
+pub fn composition_order(rtol: f64, rho_span: Option<f64>) -> u32 {
+    match rho_span.filter(|r| r.is_finite() && *r > 0.0) {
+        Some(r) if composition_cost(6, rtol, r) < composition_cost(8, rtol, r) => 6,
+        _ => 8,
+    }
 }
 
 /// Galerkin `s = 4` for most tolerances: the report's fastest project
@@ -205,10 +247,13 @@ fn check_order<const N: usize>(family: Family, order: u32) -> Result<(), Error<N
 /// The candidates, first choice first, each with its one-line reason.
 /// `density_ratio` is the survey's [`density_ratio`] (`None` before it is
 /// measured).
+/// `rho_span = ρT` (the fastest rate at the start times the span, `None`
+/// where it is not measured) chooses the composition's order.
 pub fn candidates<const N: usize>(
     facts: Facts,
     rtol: f64,
     density_ratio: Option<f64>,
+    rho_span: Option<f64>,
     fixed: Fixed,
 ) -> Result<Vec<(Candidate, String)>, Error<N>> {
     let mut out: Vec<(Candidate, String)> = Vec::new();
@@ -230,8 +275,18 @@ pub fn candidates<const N: usize>(
         _ => {}
     }
     let ratio = density_ratio.unwrap_or(1.0);
+    // The predicted stages behind the order, when the order was chosen.
+    let stages_why = || match rho_span.filter(|_| fixed.order.is_none()) {
+        Some(r) => format!(
+            " (predicted {:.0} stages of Yoshida 6 against {:.0} of Kahan–Li 8 over ρT = {r:.0})",
+            composition_cost(6, rtol, r),
+            composition_cost(8, rtol, r)
+        ),
+        None => String::new(),
+    };
     let tt = || {
-        let order = order_in(Family::TimeTransformed, composition_order(rtol));
+        // Kahan–Li 8: the report's fastest on the eccentric orbits at every target.
+        let order = order_in(Family::TimeTransformed, 8);
         (
             Candidate { family: Family::TimeTransformed, order },
             format!(
@@ -241,17 +296,19 @@ pub fn candidates<const N: usize>(
         )
     };
     let composition = || {
-        let order = order_in(Family::Composition, composition_order(rtol));
+        let order = order_in(Family::Composition, composition_order(rtol, rho_span));
         (
             Candidate { family: Family::Composition, order },
             if facts.explicit() {
                 match density_ratio {
                     Some(r) => format!(
                         "separable with a constant mass matrix and no forces, step density nearly uniform \
-                         (ratio {r:.2} ≤ {DENSITY_RATIO}): explicit composition of order {order} for rtol = {rtol:e}"
+                         (ratio {r:.2} ≤ {DENSITY_RATIO}): explicit composition of order {order} for rtol = {rtol:e}{}",
+                        stages_why()
                     ),
                     None => format!(
-                        "separable with a constant mass matrix and no forces: explicit composition of order {order} for rtol = {rtol:e}"
+                        "separable with a constant mass matrix and no forces: explicit composition of order {order} for rtol = {rtol:e}{}",
+                        stages_why()
                     ),
                 }
             } else {
@@ -320,7 +377,7 @@ mod tests {
     const GENERAL: Facts = Facts { separability: Separability::NotProven, autonomous: true, forced: false };
 
     fn first(facts: Facts, rtol: f64, ratio: Option<f64>) -> Candidate {
-        candidates::<2>(facts, rtol, ratio, Fixed::default()).unwrap()[0].0
+        candidates::<2>(facts, rtol, ratio, None, Fixed::default()).unwrap()[0].0
     }
 
     #[test]
@@ -357,14 +414,43 @@ mod tests {
     }
 
     #[test]
+    fn the_order_follows_the_predicted_stages() {
+        // Unhindered, Kahan–Li 8 needs fewer stages: ρh = (eps/C)^{1/8} below the cap.
+        let (rtol, rho_span) = (1e-8, 100.0);
+        let eps = frequency_error(rtol, rho_span);
+        let kl8 = 15.0 * rho_span / (eps / KAHAN_LI8_CONSTANT).powf(1.0 / 8.0);
+        let y6 = 7.0 * rho_span / (eps / YOSHIDA6_CONSTANT).powf(1.0 / 6.0);
+        assert!((composition_cost(8, rtol, rho_span) - kl8).abs() < 1e-9 * kl8);
+        assert!((composition_cost(6, rtol, rho_span) - y6).abs() < 1e-9 * y6);
+        assert_eq!(composition_order(rtol, Some(rho_span)), 8);
+        // Both held to ρh = 1.5 (frequency error 0.05): 7 stages against 15 per step.
+        assert_eq!(composition_cost(8, 0.5, 3.0), 15.0 * 3.0 / COMPOSITION_RHO_H);
+        assert_eq!(composition_cost(6, 0.5, 3.0), 7.0 * 3.0 / COMPOSITION_RHO_H);
+        // Kahan–Li 8 held to its cap, Yoshida 6 at ρh = 0.96 (frequency error 3e-3).
+        let loose = 0.1;
+        assert_eq!(composition_cost(8, loose, 10.0), 15.0 * 10.0 / COMPOSITION_RHO_H);
+        assert!(composition_cost(6, loose, 10.0) < 0.75 * composition_cost(8, loose, 10.0));
+        assert_eq!(composition_order(loose, Some(10.0)), 6);
+        assert_eq!(composition_order(loose, None), 8);
+        let c = candidates::<2>(KEPLER, loose, Some(1.0), Some(10.0), Fixed::default()).unwrap();
+        assert_eq!(c[0].0, Candidate { family: Family::Composition, order: 6 });
+        // A time transformation stays of order 8.
+        let c = candidates::<2>(KEPLER, loose, Some(20.0), Some(10.0), Fixed::default()).unwrap();
+        assert_eq!(c[0].0, Candidate { family: Family::TimeTransformed, order: 8 });
+        // A fixed order wins.
+        let fixed = Fixed { family: None, order: Some(8) };
+        assert_eq!(candidates::<2>(KEPLER, loose, Some(1.0), Some(10.0), fixed).unwrap()[0].0.order, 8);
+    }
+
+    #[test]
     fn fallbacks_and_fixed_parts() {
-        let c = candidates::<2>(GENERAL, 1e-8, None, Fixed::default()).unwrap();
+        let c = candidates::<2>(GENERAL, 1e-8, None, None, Fixed::default()).unwrap();
         assert_eq!(c.iter().map(|c| c.0.order).collect::<Vec<_>>(), [8, 6]);
         let fixed = Fixed { family: Some(Family::Galerkin), order: Some(12) };
-        assert_eq!(candidates::<2>(KEPLER, 1e-8, None, fixed).unwrap()[0].0.order, 12);
+        assert_eq!(candidates::<2>(KEPLER, 1e-8, None, None, fixed).unwrap()[0].0.order, 12);
         let bad = Fixed { family: Some(Family::Composition), order: Some(5) };
-        assert!(matches!(candidates::<2>(KEPLER, 1e-8, None, bad), Err(Error::InvalidMethod { .. })));
+        assert!(matches!(candidates::<2>(KEPLER, 1e-8, None, None, bad), Err(Error::InvalidMethod { .. })));
         let tt = Fixed { family: Some(Family::TimeTransformed), order: None };
-        assert!(matches!(candidates::<2>(GENERAL, 1e-8, None, tt), Err(Error::NotSeparable { .. })));
+        assert!(matches!(candidates::<2>(GENERAL, 1e-8, None, None, tt), Err(Error::NotSeparable { .. })));
     }
 }

@@ -8,8 +8,10 @@
 //!    (separability, constant mass, forces, time dependence) and, for
 //!    systems the time transformation applies to, a survey of how strongly
 //!    the fastest rate `ρ` of the linearisation varies along a pilot orbit;
-//!    the order from the tolerance (Kahan–Li 8 for the explicit families,
-//!    the report's fastest at every target).
+//!    the order from the tolerance (for a composition the one of fewer
+//!    predicted stages, [`choice::composition_order`]: Kahan–Li 8, the
+//!    report's fastest at every target, or Yoshida 6 where Kahan–Li 8 would
+//!    be held to its step cap).
 //! 2. **Pilot** ([`pilot`]): the candidate runs over the first tenth of the
 //!    span (at least one period of the fastest mode) with `h` and `h/2`;
 //!    Richardson's estimate of the global error, extrapolated to the end

@@ -1,5 +1,7 @@
 //! The tolerance-driven solve: choose, pilot, run.
 
+use core::cell::RefCell;
+
 use crate::Galerkin;
 use crate::error::Error;
 use crate::guidance::{self, Rule};
@@ -8,17 +10,13 @@ use crate::solution::{Plan, Solution, SolveError, Stepping};
 use crate::system::Lagrangian;
 use crate::time_transform::{ExplicitTimeTransformed, TimeFunction};
 
-use super::choice::{self, Candidate, Facts, Family, Fixed};
+use super::choice::{self, COMPOSITION_RHO_H, Candidate, Facts, Family, Fixed, SAFETY};
 use super::pilot::{self, Clock, Cost, Growth, Probe, Rates, Richardson};
 use super::tolerance::Tolerance;
 
 /// The fraction of the span the pilot covers (at least one period of the
 /// fastest mode at the start, at most the whole span).
 const PILOT_FRACTION: f64 = 0.1;
-/// The estimate the step aims at, as a fraction of the tolerance: the
-/// Richardson estimate is asymptotic, and the error of a fixed-step method
-/// is not monotone in `h`.
-const SAFETY: f64 = 0.3;
 /// The step the pilot's estimate leads to, over the pilot's step, that is
 /// taken without piloting again: finer steps down to a quarter (the
 /// asymptotic model `e ∝ h^p` holds better at finer steps, and an estimate
@@ -50,16 +48,22 @@ const START_ITERATIONS: usize = 30;
 /// compared node by node. The final runs of the report's Kepler orbits at
 /// `rtol ≥ 1e-4` take 8 to 9 steps per orbit, the pilot's span.
 const TT_PILOT_STEPS: u64 = 8;
-/// The largest `ρ h` of a composition's step, with `ρ` the fastest rate met
-/// at the start and along the survey: Kahan–Li 8 on the report's FPU-β
-/// chain diverges at `ρ h ≈ 4.4` and its Richardson estimate is already
-/// five times low at `ρ h ≈ 1.9`.
-const COMPOSITION_RHO_H: f64 = 1.5;
 /// The least cost of a Galerkin step in composition steps of Kahan–Li 8 on
-/// the same system, `(s/4)^{-1.7}` times that of `s = 4`: the report's
-/// calibrated runs give 1.9 (`s = 4`, pendulum) to 10 (`s = 4`, outer
-/// solar system) for `s = 4`.
+/// the same system of at most four coordinates, `(s/4)^{-1.7}` times that
+/// of `s = 4`: the report's calibrated runs give 1.9 (`s = 4`, pendulum)
+/// to 10 (`s = 4`, outer solar system) for `s = 4`. See
+/// [`galerkin_min_cost`] for more coordinates.
 const GALERKIN_MIN_COST: f64 = 1.9;
+
+/// [`GALERKIN_MIN_COST`] on `n` coordinates, times `n/4` above four: a
+/// Galerkin step solves for `s·n` unknowns with derivatives in `n`
+/// directions where a composition step takes 15 gradients, and the report's
+/// calibrated runs give 10 composition steps per Galerkin step on the outer
+/// solar system (18 coordinates, bound 8.6) and 10 to 90 on the FPU-β chain
+/// (16, bound 7.6). Below the bound the cost model times nothing.
+fn galerkin_min_cost(n: usize) -> f64 {
+    GALERKIN_MIN_COST * (n as f64 / 4.0).max(1.0)
+}
 /// Steps per timed round of the cost model.
 const TIMED_STEPS: usize = 8;
 /// Timed rounds of the cost model (the least is kept: a round the scheduler
@@ -147,6 +151,12 @@ pub struct Auto<S, const N: usize> {
     tolerance: Tolerance,
     fixed: Fixed,
     step: Option<f64>,
+    /// The last composition started from the initial data: the pilot's
+    /// runs, the cost model's timing and the final run of the same order
+    /// start from a copy of it with their own step, which shares its `M⁻¹`
+    /// (on the FPU-β chain of 16 masses a start costs as much as ten
+    /// Kahan–Li 8 steps, and a solve starts a dozen runs).
+    started: RefCell<Option<Integrator<S, Composition, N>>>,
 }
 
 /// Solves `system` from `(t0, q0, v0)` to `t_end` within `tolerance`,
@@ -165,7 +175,16 @@ pub fn solve_to<S: Lagrangian<N> + Clone, const N: usize>(
 impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// A solve from `(t0, q0, v0)` with the default tolerance `rtol = 1e-8`.
     pub fn new(system: S, t0: f64, q0: [f64; N], v0: [f64; N]) -> Self {
-        Self { system, t0, q0, v0, tolerance: Tolerance::relative(1e-8), fixed: Fixed::default(), step: None }
+        Self {
+            system,
+            t0,
+            q0,
+            v0,
+            tolerance: Tolerance::relative(1e-8),
+            fixed: Fixed::default(),
+            step: None,
+            started: RefCell::new(None),
+        }
     }
 
     /// The tolerance to meet.
@@ -226,7 +245,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             core::array::from_fn(|i| self.t0 + (tp - self.t0) * 0.5f64.powi((CHECKPOINTS - 1 - i) as i32));
         let settle = rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r).min(0.25 * (tp - self.t0));
         let mut cost = Cost::default();
-        let first = choice::candidates::<N>(facts, self.tolerance.rtol, None, self.fixed)?;
+        let rho_span = rho.map(|r| r * span);
+        let first = choice::candidates::<N>(facts, self.tolerance.rtol, None, rho_span, self.fixed)?;
         // The survey: how strongly the needed step density varies along the orbit.
         let mut density_ratio = None;
         let mut survey: Option<(Candidate, f64, Probe<N>)> = None;
@@ -265,13 +285,13 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 h /= 4.0;
             }
         }
-        let mut candidates = choice::candidates::<N>(facts, self.tolerance.rtol, density_ratio, self.fixed)?;
+        let mut candidates = choice::candidates::<N>(facts, self.tolerance.rtol, density_ratio, rho_span, self.fixed)?;
         if facts.explicit()
             && self.fixed == Fixed::default()
             && self.step.is_none()
             && candidates[0].0.family == Family::Composition
             && let Some(rho) = rho
-            && let Some(choice) = self.weigh_galerkin(rho, span)
+            && let Some(choice) = self.weigh_galerkin(candidates[0].0, rho, span)
         {
             candidates.insert(0, choice);
         }
@@ -352,31 +372,30 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         Err(Error::NoMethod { failures }.into())
     }
 
-    /// Galerkin in place of the composition on a separable system, when the
-    /// predicted steps (the harmonic oscillator's frequency error of each
-    /// method for the tolerance spread over `ρT` radians) times the cost of
-    /// a step, timed here on a few steps, make it cheaper: `Some((Galerkin
-    /// s, reason))`, otherwise `None`. Nothing is timed where even the
-    /// largest predicted saving cannot pay for a Galerkin step (at least
-    /// [`GALERKIN_MIN_COST`] composition steps).
-    fn weigh_galerkin(&self, rho: f64, span: f64) -> Option<(Candidate, String)> {
+    /// Galerkin in place of the composition `c` on a separable system, when
+    /// the predicted steps (the harmonic oscillator's frequency error of
+    /// each method for the tolerance spread over `ρT` radians) times the
+    /// cost of a step, timed here on a few steps, make it cheaper:
+    /// `Some((Galerkin s, reason))`, otherwise `None`. Nothing is timed where
+    /// even the largest predicted saving cannot pay for a Galerkin step (at
+    /// least [`galerkin_min_cost`] steps of Kahan–Li 8, in proportion to the
+    /// stages of another composition).
+    fn weigh_galerkin(&self, c: Candidate, rho: f64, span: f64) -> Option<(Candidate, String)> {
         let rho_span = (rho * span).max(1.0);
-        let eps = SAFETY * self.tolerance.rtol / rho_span;
-        let composition = choice::predicted_steps(choice::KAHAN_LI8_CONSTANT, 8, COMPOSITION_RHO_H, eps, rho_span);
+        let eps = choice::frequency_error(self.tolerance.rtol, rho_span);
+        let constant = if c.order == 6 { choice::YOSHIDA6_CONSTANT } else { choice::KAHAN_LI8_CONSTANT };
+        let composition = choice::predicted_steps(constant, c.order, COMPOSITION_RHO_H, eps, rho_span);
         let galerkin = |s: u32| {
             let rule = Rule::galerkin_gauss(s);
             choice::predicted_steps(rule.constant, rule.order, choice::GALERKIN_RHO_H, eps, rho_span)
         };
         let degrees = [4u32, 6, 8];
         let fewest = degrees.iter().map(|&s| galerkin(s) * choice::galerkin_step_cost(s)).fold(f64::INFINITY, f64::min);
-        if composition < GALERKIN_MIN_COST * fewest {
+        let per_kahan_li8 = choice::composition_stages(c.order) / choice::composition_stages(8);
+        if composition * per_kahan_li8 < galerkin_min_cost(N) * fewest {
             return None;
         }
-        let c_composition = self.seconds_per_step(
-            Candidate { family: Family::Composition, order: 8 },
-            rho_span / composition / rho,
-            f64::INFINITY,
-        )?;
+        let c_composition = self.seconds_per_step(c, rho_span / composition / rho, f64::INFINITY)?;
         // Galerkin s = 4 stops timing as soon as it cannot win.
         let budget = c_composition * composition / fewest;
         let c_galerkin = self.seconds_per_step(
@@ -394,11 +413,12 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 Candidate { family: Family::Galerkin, order: 2 * s },
                 format!(
                     "separable with a constant mass matrix and no forces, but Galerkin s = {s} is predicted \
-                     {:.0} steps, {:.2} ms, against {:.0} steps, {:.2} ms of Kahan–Li 8 for rtol = {:e}",
+                     {:.0} steps, {:.2} ms, against {:.0} steps, {:.2} ms of {} for rtol = {:e}",
                     galerkin(s),
                     cost * 1e3,
                     composition,
                     against * 1e3,
+                    c.name(),
                     self.tolerance.rtol
                 ),
             )
@@ -509,7 +529,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             return None;
         }
         let lower = Candidate { family: Family::Composition, order: 6 };
-        let stages = |c: Candidate| composition(c.order).weights().len() as f64;
+        let stages = |c: Candidate| choice::composition_stages(c.order);
         let q = self.pilot(lower, rho, span, checkpoints, settle, h_cap, None, cost).ok()?;
         let relative = (stages(lower) / q.0.0) / (stages(candidate) / step);
         (stages(lower) / q.0.0 < stages(candidate) / step).then(|| {
@@ -771,12 +791,94 @@ fn dispatch<S: Lagrangian<N> + Clone, V: Visit<N>, const N: usize>(
         };
     }
     match c.family {
-        Family::Composition => Ok(v.visit(Integrator::new(sys, composition(c.order), step).start(t0, q0, v0)?)),
+        Family::Composition => {
+            let mut started = auto.started.borrow_mut();
+            let it = match started.as_ref().filter(|it| it.method().order() == c.order) {
+                Some(it) => {
+                    let mut it = it.clone();
+                    it.set_step_size(step)?;
+                    it
+                }
+                None => {
+                    let it = Integrator::new(sys, composition(c.order), step).start(t0, q0, v0)?;
+                    *started = Some(it.clone());
+                    it
+                }
+            };
+            drop(started);
+            Ok(v.visit(it))
+        }
         Family::Galerkin => galerkin!(2 3 4 6 8),
         Family::TimeTransformed => Ok(v.visit(
             ExplicitTimeTransformed::new(sys, TimeFunction::Logarithmic, step)
                 .composition(composition(c.order))
                 .start(t0, q0, v0)?,
         )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Scalar, Separability, Trapezoid};
+
+    /// Two masses on springs, coupled: `M = [[2, 1], [1, 1]]` (or the
+    /// singular `[[1, 1], [1, 1]]`), `V = ½ q₀² + ½ q₁² + ¼ q₀⁴`.
+    #[derive(Clone, Debug)]
+    struct Coupled {
+        m00: f64,
+    }
+
+    impl Lagrangian<2> for Coupled {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false, false];
+        const SEPARABILITY: Separability = Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+            let kinetic = (v[0] * v[0] * self.m00 + v[0] * v[1] * 2.0 + v[1] * v[1]) * 0.5;
+            let potential = (q[0] * q[0] + q[1] * q[1]) * 0.5 + q[0] * q[0] * q[0] * q[0] * 0.25;
+            kinetic - potential
+        }
+    }
+
+    fn probe_of<I: Stepping<2> + Clone>(it: I, times: &[f64]) -> Probe<2> {
+        pilot::probe(it, times, true, 0, None, None).unwrap()
+    }
+
+    #[test]
+    fn a_copy_of_the_started_composition_steps_as_a_fresh_start() {
+        let auto = Auto::new(Coupled { m00: 2.0 }, 0.0, [0.7, -0.2], [0.1, 0.3]);
+        let times = [0.8, 1.6, 3.2];
+        for order in [8, 6, 8] {
+            let c = Candidate { family: Family::Composition, order };
+            for h in [0.2, 0.1, 0.05] {
+                // Through the solve's dispatch: the first call starts, the
+                // following ones copy the started integrator.
+                let copied = run_probe(c, &auto, h, &times, true, 0, None, None).unwrap();
+                let fresh = Integrator::new(auto.system.clone(), composition(order), h).start(0.0, auto.q0, auto.v0);
+                let fresh = probe_of(fresh.unwrap(), &times);
+                assert_eq!(copied.samples.len(), fresh.samples.len());
+                for (a, b) in copied.samples.iter().zip(&fresh.samples) {
+                    assert_eq!(
+                        (a.t.to_bits(), a.q.map(f64::to_bits), a.p.map(f64::to_bits)),
+                        (b.t.to_bits(), b.q.map(f64::to_bits), b.p.map(f64::to_bits))
+                    );
+                }
+                assert_eq!(copied.steps, fresh.steps);
+            }
+            assert_eq!(auto.started.borrow().as_ref().map(|it| it.method().order()), Some(order));
+        }
+    }
+
+    #[test]
+    fn a_singular_constant_mass_matrix_is_refused_at_the_start() {
+        let singular = Coupled { m00: 1.0 };
+        let trapezoid = Integrator::new(singular.clone(), Trapezoid, 0.1).start(0.0, [0.7, -0.2], [0.1, 0.3]);
+        assert!(matches!(trapezoid, Err(Error::InvalidInitialData { .. })), "{trapezoid:?}");
+        let kahan_li8 =
+            Integrator::new(singular.clone(), Composition::KAHAN_LI8, 0.1).start(0.0, [0.7, -0.2], [0.1, 0.3]);
+        assert!(matches!(kahan_li8, Err(Error::InvalidInitialData { .. })), "{kahan_li8:?}");
+        // The solve reports the failed start of every candidate, typed.
+        let solved = Auto::new(singular, 0.0, [0.7, -0.2], [0.1, 0.3]).solve(Plan::until(5.0));
+        assert!(solved.is_err());
     }
 }

@@ -267,6 +267,17 @@ impl Method<f64> for Composition {
         <Trapezoid as Method<f64>>::legendre(system, t0, q0, v0)
     }
 
+    fn start_memory<S: Lagrangian<N>, const N: usize>(
+        &self,
+        system: &S,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<(CompositionMemory<N>, [f64; N], f64), Error<N>> {
+        let (inner, p0, energy) = <Trapezoid as Method<f64>>::start_memory(&Trapezoid, system, t0, q0, v0)?;
+        Ok((CompositionMemory { inner, ..self.memory() }, p0, energy))
+    }
+
     fn fixed_step<S: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<S, Self, N>,
         h: f64,

@@ -107,6 +107,40 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         Ok((p0, energy))
     }
 
+    fn start_memory<S: Lagrangian<N>, const N: usize>(
+        &self,
+        system: &S,
+        t0: f64,
+        q0: [f64; N],
+        v0: [f64; N],
+    ) -> Result<(OnePointMemory<N>, [f64; N], f64), Error<N>> {
+        // Explicit steps: the regularity check's `M⁻¹` is the one the first
+        // step needs (the mass matrix is constant), formed and inverted once
+        // for both (on the FPU-β chain of 16 masses the matrix and its
+        // inverse are most of an integrator's start).
+        if const { !Integrator::<S, M, N>::EXPLICIT || super::sparse::too_large_for_forward(N) } {
+            let (p0, energy) = Self::legendre(system, t0, q0, v0)?;
+            return Ok((<Self as Method<f64>>::memory::<N>(self), p0, energy));
+        }
+        let p0 = system.momentum(t0, q0, v0);
+        if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
+            return Err(Error::InvalidInitialData {
+                reason: "the lagrangian or its momentum is not finite at the initial data",
+            });
+        }
+        let mass = system.velocity_hessian(t0, q0, [0.0; N]);
+        let cache = mass.iter().all(|x| x.is_finite()).then(|| explicit_cache_of(mass)).flatten().ok_or(
+            Error::InvalidInitialData {
+                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+            },
+        )?;
+        let energy = system.energy(t0, q0, v0);
+        if !energy.is_finite() {
+            return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
+        }
+        Ok((OnePointMemory { explicit: Some(cache), ..<Self as Method<f64>>::memory::<N>(self) }, p0, energy))
+    }
+
     fn prefers_reverse<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> bool {
         // The explicit path is cheap in forward mode up to `FORWARD_MAX_N`.
         let explicit = M::EXPLICIT_FOR_CONSTANT_MASS
@@ -823,7 +857,8 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
     }
 }
 
-/// [`explicit_cache`]'s first call: `M⁻¹` at the start node.
+/// [`explicit_cache`]'s first call, where the start did not make the cache:
+/// `M⁻¹` at the start node.
 #[cold]
 #[inline(never)]
 fn new_explicit_cache<S: Lagrangian<N>, const N: usize>(
@@ -831,13 +866,19 @@ fn new_explicit_cache<S: Lagrangian<N>, const N: usize>(
     t0: f64,
     q0: &[f64; N],
 ) -> Result<Box<ExplicitCache<N>>, NewtonFailure> {
-    let m = system
-        .velocity_hessian(t0, *q0, [0.0; N])
-        .try_inverse()
-        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })?;
+    explicit_cache_of(system.velocity_hessian(t0, *q0, [0.0; N]))
+        .ok_or(NewtonFailure::Singular { iterations: 0, rcond: 0.0 })
+}
+
+/// The explicit steps' cache of the constant mass matrix `mass`; `None`
+/// when it is singular.
+#[cold]
+#[inline(never)]
+fn explicit_cache_of<const N: usize>(mass: SMatrix<f64, N, N>) -> Option<Box<ExplicitCache<N>>> {
+    let m = mass.try_inverse()?;
     let diagonal = (0..N).all(|i| (0..N).all(|j| i == j || m[(i, j)] == 0.0));
     let unit = diagonal && (0..N).all(|i| m[(i, i)] == 1.0);
-    Ok(Box::new(ExplicitCache {
+    Some(Box::new(ExplicitCache {
         inverse_mass: Arc::new(m),
         diagonal: diagonal.then(|| core::array::from_fn(|i| m[(i, i)])),
         unit,
