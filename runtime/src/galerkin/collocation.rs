@@ -39,8 +39,9 @@
 use crate::real::{Real, all_finite, gauss_jordan_into, max_abs};
 use crate::system::{Lagrangian, generalized_force};
 
-use super::linalg::BlockVector;
-use super::method::{Galerkin, gradient_at, velocity_derivatives, velocity_hessian};
+use super::forces::force_velocity_jacobian;
+use super::linalg::{BlockMatrix, BlockVector, Lu};
+use super::method::{Galerkin, VelocityDerivatives, gradient_at, velocity_derivatives, velocity_hessian};
 
 /// Most iterations a step may take before Newton takes over.
 const MAX_ITERATIONS: usize = 20;
@@ -98,6 +99,10 @@ pub(super) struct Failed {
 /// correction by less than the factor `slowest`. `mass_inverse`, the `N`
 /// rows of `M⁻¹` of a system whose mass matrix is proven constant, replaces
 /// the Hessian in `v` at every point (see [`constant_mass_inverse`]).
+/// `coupled`, storage for the `sN × sN` iteration matrix `K` with the
+/// first-order coupling (see [`coupled_matrix`]): where given (and `R = S`,
+/// no `mass_inverse`), the iteration solves with `K` instead of the
+/// block-diagonal `M_i`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
@@ -110,6 +115,7 @@ pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
     guess: &BlockVector<N, S, T>,
     slowest: f64,
     mass_inverse: Option<&[[T; N]]>,
+    coupled: Option<&mut Lu<N, S, T>>,
 ) -> Result<Converged<N, S, T>, Failed>
 where
     Sys: Lagrangian<N> + ?Sized,
@@ -118,8 +124,15 @@ where
     let zero = T::zero();
     let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
     let fail = |iterations, reason| Err(Failed { iterations, reason });
-    // The guess's velocities at the points, the inverse of ∂²L/∂v² there,
-    // and the first iteration's gradients from the same evaluation.
+    let mut coupled = coupled.filter(|_| R == S && mass_inverse.is_none());
+    if let Some(lu) = coupled.as_deref_mut() {
+        lu.matrix_mut().fill_zero();
+    }
+    // h a_ij, rounded once and shared by the positions and the momenta.
+    let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
+    // The guess's velocities at the points, the inverse of ∂²L/∂v² there
+    // (or the coupled matrix), and the first iteration's gradients from the
+    // same evaluation.
     let mut v = [[zero; N]; R];
     let mut m_inv = [[[zero; N]; N]; R];
     let mut force = [[zero; N]; R];
@@ -129,12 +142,17 @@ where
         let (lq, lvj) = if mass_inverse.is_some() {
             gradient_at(system, t, q, vj)
         } else {
-            let (lq, lvj, vv) = velocity_hessian(system, t, q, vj);
-            match invert(vv) {
-                Some(inv) => m_inv[j] = inv,
-                None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+            let d = velocity_hessian(system, t, q, vj);
+            if let Some(lu) = coupled.as_deref_mut() {
+                let fv = if forced { force_velocity_jacobian(system, t, q, vj) } else { [[zero; N]; N] };
+                coupled_columns(lu.matrix_mut(), &ha, j, &d, &fv);
+            } else {
+                match invert(d.vv) {
+                    Some(inv) => m_inv[j] = inv,
+                    None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+                }
             }
-            (lq, lvj)
+            (d.q, d.v)
         };
         (v[j], force[j], lv[j]) = (vj, lq, lvj);
         if forced {
@@ -144,8 +162,11 @@ where
             }
         }
     }
-    // h a_ij, rounded once and shared by the positions and the momenta.
-    let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
+    if let Some(lu) = coupled.as_deref_mut()
+        && lu.factor_in_place().is_err()
+    {
+        return fail(1, "the coupled iteration matrix is singular or not finite at the first guess");
+    }
     let nodes = g.quadrature().nodes();
     let mut last = f64::INFINITY;
     for iteration in 1..=MAX_ITERATIONS {
@@ -169,27 +190,37 @@ where
                 }
             }
         }
-        let (mut correction, mut size, mut residual) = ([[zero; N]; R], 0.0f64, 0.0f64);
-        for i in 0..R {
-            // P_i − ∂L/∂v = (p_k − ∂L/∂v) + (compensation + h Σ_j a_ij G_j).
-            let r: [T; N] = core::array::from_fn(|c| {
+        // P_i − ∂L/∂v = (p_k − ∂L/∂v) + (compensation + h Σ_j a_ij G_j).
+        let mut residual = [[zero; N]; R];
+        let mut residual_norm = 0.0f64;
+        for (i, r) in residual.iter_mut().enumerate() {
+            *r = core::array::from_fn(|c| {
                 let mut x = pc[c];
                 for (a, gl) in ha[i].iter().zip(&force) {
                     x += *a * gl[c];
                 }
                 (p0[c] - lv[i][c]) + x
             });
-            residual = residual.max(max_abs(&r));
-            let m: &[[T; N]] = mass_inverse.unwrap_or(&m_inv[i]);
-            for (c, row) in m.iter().enumerate() {
-                let mut x = zero;
-                for (&a, &b) in row.iter().zip(&r) {
-                    x += a * b;
-                }
-                correction[i][c] = x;
-            }
-            size = size.max(max_abs(&correction[i]));
+            residual_norm = residual_norm.max(max_abs(r));
         }
+        let correction: [[T; N]; R] = match coupled.as_deref() {
+            // (`coupled` only where R = S.)
+            Some(lu) => {
+                let x = lu.solve(&core::array::from_fn(|i| residual[i]));
+                core::array::from_fn(|i| x[i])
+            }
+            None => core::array::from_fn(|i| {
+                let m: &[[T; N]] = mass_inverse.unwrap_or(&m_inv[i]);
+                core::array::from_fn(|c| {
+                    let mut x = zero;
+                    for (&a, &b) in m[c].iter().zip(&residual[i]) {
+                        x += a * b;
+                    }
+                    x
+                })
+            }),
+        };
+        let size = max_abs(correction.as_flattened());
         for (vi, di) in v.iter_mut().zip(&correction) {
             for (x, d) in vi.iter_mut().zip(di) {
                 *x += *d;
@@ -207,7 +238,7 @@ where
         let next = if iteration > 1 { ratio * ratio / last } else { f64::INFINITY };
         if ratio <= ROUND_OFF || next <= LEFT_OVER || (ratio >= last && ratio <= STALLED) {
             let d = nodes_from(g, h, &v);
-            return Ok(Converged { d, iterations: iteration, residual_norm: residual, correction_norm: ratio });
+            return Ok(Converged { d, iterations: iteration, residual_norm, correction_norm: ratio });
         }
         if iteration >= 2 && ratio > STALLED && ratio > slowest * last {
             return fail(iteration, "the fixed-point iteration contracts too slowly");
@@ -215,6 +246,55 @@ where
         last = ratio;
     }
     fail(MAX_ITERATIONS, "the fixed-point iteration did not converge")
+}
+
+/// Column block `l` of the coupled iteration matrix, from the derivatives at
+/// point `l` of the first guess (`d`, and `fv = ∂F/∂v` of the generalised
+/// force), into `k` (block `(i, l)` at `k[i][·][l][·]`).
+///
+/// The residual of stage `i` is `r_i = p_k + h Σ_j a_ij G_j − ∂L/∂v(Q_i, V_i)`
+/// with `Q_i = q_k + h Σ_j a_ij V_j`. Its derivative in `V_l`, to first order
+/// in `h`, is `−K_il` with
+///
+/// ```text
+/// K_il = δ_il M_i + h a_il (X_i − Y_l − Φ_l),
+/// M = ∂²L/∂v²,  X = ∂(∂L/∂v)/∂q = Yᵀ,  Y = ∂(∂L/∂q)/∂v,  Φ = ∂F/∂v,
+/// ```
+///
+/// and the iteration `V ← V + K⁻¹ r` at the first guess leaves the `O(h²)`
+/// terms (through `∂G/∂q`) and the change of `K` along the iteration. With
+/// `M_i` alone (the block-diagonal iteration) it contracts like `h`: the
+/// part of `X − Y` that is the same at every point is antisymmetric, the
+/// gyroscopic (Coriolis) coupling `vᵀ ∂M/∂q` of a configuration-dependent
+/// mass matrix, and `Φ` is the damping. With `K` it contracts like `h²`.
+#[inline(always)]
+fn coupled_columns<const N: usize, const S: usize, const R: usize, T: Real>(
+    k: &mut BlockMatrix<N, S, T>,
+    ha: &[[T; R]; R],
+    l: usize,
+    d: &VelocityDerivatives<N, T>,
+    fv: &[[T; N]; N],
+) {
+    // Point l's terms are added (the matrix starts at zero): the column
+    // block `l` takes δ_il M_l − h a_il (Y_l + Φ_l), the row block `l` takes
+    // h a_ln X_l.
+    for i in 0..R {
+        let a = ha[i][l];
+        for r in 0..N {
+            for c in 0..N {
+                let diagonal = if i == l { d.vv[r][c] } else { T::zero() };
+                k[i][r][l][c] += diagonal - a * (d.qv[r][c] + fv[r][c]);
+            }
+        }
+    }
+    for n in 0..R {
+        let a = ha[l][n];
+        for r in 0..N {
+            for c in 0..N {
+                k[l][r][n][c] += a * d.qv[c][r];
+            }
+        }
+    }
 }
 
 /// The node increments `D_m = h Σ_j (∫_0^{τ_m} L_j) V_j` of the polynomial

@@ -294,6 +294,14 @@ where
     /// 12 145 instructions).
     const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 4;
 
+    /// Whether the fixed-point iteration solves with the coupled `sN × sN`
+    /// matrix (`collocation::coupled_columns`: `∂²L/∂v²` with the first-order
+    /// coupling `∂²L/∂q∂v` and the damping) instead of `∂²L/∂v²` point by
+    /// point. Its LU costs `(sN)³/3` per step where the point-by-point
+    /// inverses cost `s N³`, against the rounds it saves; above `sN = 32`
+    /// that is not measured, and the point-by-point iteration stays.
+    const COUPLED_FIXED_POINT: bool = S * N <= 32;
+
     /// The first guess for the increments of a step of size `h`.
     #[inline]
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
@@ -350,6 +358,11 @@ where
             };
         let mut fixed_spent = 0;
         let mut velocity_hessians = 0;
+        // The block storage of the step (none before the first step:
+        // allocated when first written): the fixed point's coupled matrix,
+        // then Newton's own block.
+        let mut storage =
+            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
         if fixed_offered {
             let p = (&p0, &self.p_carry);
             // Alone, the fixed point is only stopped by divergence.
@@ -370,8 +383,19 @@ where
                 (None, Some(last)) if !last.mass_inverse.is_empty() => Some(&*last.mass_inverse),
                 _ => None,
             };
-            let solved =
-                collocation::solve(&self.system, &self.method, t0, h, (&q0, &e), p, &predicted, slowest, mass_inverse);
+            let coupled = if Self::COUPLED_FIXED_POINT { Some(&mut storage) } else { None };
+            let solved = collocation::solve(
+                &self.system,
+                &self.method,
+                t0,
+                h,
+                (&q0, &e),
+                p,
+                &predicted,
+                slowest,
+                mass_inverse,
+                coupled,
+            );
             // Hessians in `v` the first iteration evaluated: one for a
             // constant mass matrix inverted at this step, none for one kept.
             velocity_hessians = match (&computed, mass_inverse) {
@@ -386,7 +410,7 @@ where
             }
             match solved {
                 Ok(c) => {
-                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians)?;
+                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians, storage)?;
                     // The first step's memory exists only now.
                     if let Some(m) = computed {
                         self.keep_mass_inverse(m);
@@ -395,6 +419,7 @@ where
                 }
                 Err(failure) if iteration == StageIteration::FixedPoint => {
                     let failure = NewtonFailure::Rejected { iterations: failure.iterations, reason: failure.reason };
+                    self.keep_storage(KeptBlock::Drop, storage);
                     return Err(self.fail(h, failure));
                 }
                 Err(failure) => fixed_spent = failure.iterations,
@@ -425,10 +450,8 @@ where
         let has_kept =
             Self::KEEPS_JACOBIAN && matches!(&self.memory, Some(LastStep { jacobian: Some(h_lu), .. }) if *h_lu == h);
         let offered = has_kept && policy.offers();
-        // The step's own block goes into the memory's spare storage (none
-        // before the first step: allocated when first assembled).
-        let mut storage =
-            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
+        // The step's own block goes into the memory's spare storage (taken
+        // above).
         if offered && let Some(LastStep { jacobian: Some(_), block, .. }) = &mut self.memory {
             // Kept for a second step: from here on it serves several solves
             // per step, each cheaper as a product with the inverse. (Inverting
@@ -569,6 +592,7 @@ where
         converged: collocation::Converged<N, S, T>,
         predicted: &BlockVector<N, S, T>,
         velocity_hessians: usize,
+        storage: Lu<N, S, T>,
     ) -> Result<(), Error<N, T>> {
         let collocation::Converged { d, iterations, residual_norm, correction_norm } = converged;
         let report = NewtonReport { iterations, residual_norm, correction_norm };
@@ -577,11 +601,10 @@ where
             let rho = (h / last.h).to_f64();
             let reached = f(&last.d[S - 1]).map(|x| x * rho);
             if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&self.state.q)) {
+                self.keep_storage(KeptBlock::Drop, storage);
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH }));
             }
         }
-        let storage =
-            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
         self.commit(h, t1, d, report, KeptBlock::Same, storage)?;
         if let Some(last) = &mut self.memory {
             last.fixed_point = KeptPolicy::default();
