@@ -297,10 +297,16 @@ where
     /// Whether the fixed-point iteration solves with the coupled `sN × sN`
     /// matrix (`collocation::coupled_columns`: `∂²L/∂v²` with the first-order
     /// coupling `∂²L/∂q∂v` and the damping) instead of `∂²L/∂v²` point by
-    /// point. Its LU costs `(sN)³/3` per step where the point-by-point
-    /// inverses cost `s N³`, against the rounds it saves; above `sN = 32`
-    /// that is not measured, and the point-by-point iteration stays.
-    const COUPLED_FIXED_POINT: bool = S * N <= 32;
+    /// point. Each round then costs a solve of `(sN)²` against `s N²`, and
+    /// the step a block factorisation. Measured with callgrind
+    /// (`bench/examples/galerkin_steps.rs`, the report's settings): on the
+    /// double pendulum the coupling takes 5.68 → 3.73 rounds per step at
+    /// s = 4 and 93.7M against 96.1M instructions, but more instructions
+    /// than it saves gradients at s = 5, 6, 8 (+5 %, +13 %, +31 %); on the
+    /// forced and damped sensor it lets the fixed point converge where the
+    /// damping stopped it (s = 5: 94.4M → 67.4M, s = 3 and 4: +3 % and
+    /// +5 %).
+    const COUPLED_FIXED_POINT: bool = S * N <= 8 || Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
 
     /// The first guess for the increments of a step of size `h`.
     #[inline]
@@ -383,7 +389,7 @@ where
                 (None, Some(last)) if !last.mass_inverse.is_empty() => Some(&*last.mass_inverse),
                 _ => None,
             };
-            let coupled = if Self::COUPLED_FIXED_POINT { Some(&mut storage) } else { None };
+            let coupled = if Self::COUPLED_FIXED_POINT { Some(storage.matrix_mut()) } else { None };
             let solved = collocation::solve(
                 &self.system,
                 &self.method,
