@@ -166,9 +166,10 @@ impl Lagrangian<2> for Magnetic {
 #[test]
 fn the_gyroscopic_coupling_is_in_the_iteration_matrix() {
     // b h = 1.5: the coupling h ∂²L/∂q∂v is as large as the mass matrix, so
-    // an iteration with ∂²L/∂v² alone would not contract. With the coupling
-    // in its matrix the first correction solves the linear stage equations,
-    // and the second is at round-off.
+    // an iteration with ∂²L/∂v² alone gains only a factor of about
+    // b h ρ(A) (ρ(A) the spectral radius of the Gauss matrix) per round.
+    // With the coupling in its matrix the first correction solves the
+    // linear stage equations, and the second is at round-off.
     let (system, h, n) = (Magnetic { b: 30.0 }, 0.05, 100);
     let start = ([1.0, 0.0], [0.0, 2.0]);
     let iterations = (StageIteration::FixedPoint, StageIteration::Newton);
