@@ -9,7 +9,8 @@
 //! ```
 //!
 //! `PROBLEM S ITERATION STEPS RUNS`: `RUNS` runs over the report's horizon
-//! (`double-pendulum`: t ≤ 10, `sensor`: t ≤ 2) from the report's initial
+//! (`double-pendulum`: t ≤ 10, `sensor`: t ≤ 2, `kepler-polar`: 1000
+//! orbits) from the report's initial
 //! data, each with `STEPS` fixed steps of Galerkin degree `S` (2 to 8) with
 //! `S` Gauss points, the stages solved by `auto` (`StageIteration::Automatic`,
 //! the report's `galerkin-fp-S`), `fixed-point` or `newton` (the report's
@@ -25,7 +26,7 @@ use lagrangian::GalerkinIntegrator;
 use lagrangian::galerkin::PointEvaluations;
 use lagrangian::galerkin::StageIteration;
 use lagrangian::prelude::*;
-use lagrangian_bench::problems::{DoublePendulum, Model, Sensor};
+use lagrangian_bench::problems::{DoublePendulum, KeplerPolar, Model, Sensor};
 
 /// `runs` runs of `steps` steps; the last run's iterations, evaluations and positions.
 fn runs<M: Model<N>, const N: usize, const S: usize>(
@@ -59,7 +60,7 @@ fn report<const N: usize>(steps: usize, (iterations, e, q): (f64, PointEvaluatio
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: galerkin_steps double-pendulum|sensor S auto|fixed-point|newton STEPS RUNS";
+    let usage = "usage: galerkin_steps double-pendulum|sensor|kepler-polar S auto|fixed-point|newton STEPS RUNS";
     let [problem, s, iteration, steps, n] = &args[..] else { panic!("{usage}") };
     let iteration = match iteration.as_str() {
         "auto" => StageIteration::Automatic,
@@ -79,6 +80,7 @@ fn main() {
     match problem.as_str() {
         "double-pendulum" => degree!(DoublePendulum { scale: 1.0 }, 2 3 4 5 6 7 8),
         "sensor" => degree!(Sensor { scale: 1.0 }, 2 3 4 5 6 7 8),
+        "kepler-polar" => degree!(KeplerPolar { scale: 1.0 }, 2 3 4 5 6 7 8),
         _ => panic!("{usage}"),
     }
 }

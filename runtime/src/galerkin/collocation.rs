@@ -11,8 +11,12 @@
 //! Q_i = q_k + h Σ_j a_ij V_j
 //! G_j = ∂L/∂q(t_j, Q_j, V_j) + F(t_j, Q_j, V_j)        (F = Q − ∂R/∂v, the generalised force)
 //! P_i = p_k + h Σ_j a_ij G_j
-//! V_i ← V_i + M_i⁻¹ (P_i − ∂L/∂v(t_i, Q_i, V_i)),   M_i = ∂²L/∂v² at the first guess
+//! V ← V + K⁻¹ (P − ∂L/∂v(t, Q, V)),   K_il = δ_il M_i + h a_il (X_i − Y_l − Φ_l) at the first guess
 //! ```
+//!
+//! with `M = ∂²L/∂v²`, `X = ∂(∂L/∂v)/∂q`, `Y = Xᵀ`, `Φ = ∂F/∂v`: `−K` is the
+//! Jacobian of the stage residuals to first order in `h` (see
+//! [`coupled_columns`]).
 //!
 //! A fixed point solves the Galerkin equations of `stepper.rs`: testing them
 //! with the degree-`s` polynomial `φ = ∫_0^τ L_i` (so `φ(c_j) = a_ji`,
@@ -22,13 +26,18 @@
 //! step Newton finds, to round-off (`tests/behaviour/galerkin_collocation.rs`).
 //!
 //! This is the iteration of Antoñana, Makazaga & Murua's IRKGL16 (*J. Comput.
-//! Phys.* 2017), with the momentum equation solved in `v` by one Newton step
-//! per stage: exact for `L = ½ vᵀM(q)v + b(q)·v − U(q)` up to the change of
-//! `M` from the first guess to the solution. Each iteration costs one
-//! gradient of `L` (and the force) per point and `s` products by `N × N`
-//! matrices; `M_i` costs one Hessian in `v` per point per step. It contracts
-//! like `h ‖∂f/∂y‖`: where it contracts slowly (a stiff step) or diverges,
-//! the stepper falls back to Newton (`stepper.rs`).
+//! Phys.* 2017), with the momentum equation solved in `v` by a Newton step
+//! whose matrix keeps the terms of first order in `h`. With `M_i` alone
+//! (block-diagonal `K`) it contracts like `h`, through the gyroscopic
+//! (Coriolis) coupling `∂²L/∂q∂v` of a configuration-dependent mass matrix
+//! and through the damping; with `K` it contracts like `h²`, through
+//! `∂G/∂q` only. Each iteration costs one gradient of `L` (and the force)
+//! per point and one solve with the factors of `K`; `K` costs one Hessian in
+//! `v` per point (the mixed block comes from the same evaluation), `N`
+//! derivatives of the force, and an `sN × sN` LU per step. A system whose
+//! mass matrix is proven constant has no coupling in `L` and keeps `M⁻¹`
+//! for the run instead. Where it contracts slowly (a stiff step) or
+//! diverges, the stepper falls back to Newton (`stepper.rs`).
 //!
 //! Stopping: the iteration runs until its correction is at round-off (a few
 //! ulps of the largest velocity), or the next one would be far below it by
@@ -39,8 +48,9 @@
 use crate::real::{Real, all_finite, gauss_jordan_into, max_abs};
 use crate::system::{Lagrangian, generalized_force};
 
-use super::linalg::BlockVector;
-use super::method::{Galerkin, gradient_at, velocity_derivatives, velocity_hessian};
+use super::forces::force_velocity_jacobian;
+use super::linalg::{BlockMatrix, BlockVector};
+use super::method::{Galerkin, VelocityDerivatives, gradient_at, velocity_derivatives, velocity_hessian};
 
 /// Most iterations a step may take before Newton takes over.
 const MAX_ITERATIONS: usize = 20;
@@ -98,6 +108,10 @@ pub(super) struct Failed {
 /// correction by less than the factor `slowest`. `mass_inverse`, the `N`
 /// rows of `M⁻¹` of a system whose mass matrix is proven constant, replaces
 /// the Hessian in `v` at every point (see [`constant_mass_inverse`]).
+/// `coupled`, storage for the `sN × sN` iteration matrix `K` with the
+/// first-order coupling (see [`coupled_matrix`]): where given (and `R = S`,
+/// no `mass_inverse`), the iteration solves with `K` instead of the
+/// block-diagonal `M_i`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
@@ -110,6 +124,7 @@ pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
     guess: &BlockVector<N, S, T>,
     slowest: f64,
     mass_inverse: Option<&[[T; N]]>,
+    coupled: Option<&mut BlockMatrix<N, S, T>>,
 ) -> Result<Converged<N, S, T>, Failed>
 where
     Sys: Lagrangian<N> + ?Sized,
@@ -118,8 +133,15 @@ where
     let zero = T::zero();
     let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
     let fail = |iterations, reason| Err(Failed { iterations, reason });
-    // The guess's velocities at the points, the inverse of ∂²L/∂v² there,
-    // and the first iteration's gradients from the same evaluation.
+    let mut coupled = coupled.filter(|_| R == S && mass_inverse.is_none());
+    if let Some(k) = coupled.as_deref_mut() {
+        k.fill_zero();
+    }
+    // h a_ij, rounded once and shared by the positions and the momenta.
+    let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
+    // The guess's velocities at the points, the inverse of ∂²L/∂v² there
+    // (or the coupled matrix), and the first iteration's gradients from the
+    // same evaluation.
     let mut v = [[zero; N]; R];
     let mut m_inv = [[[zero; N]; N]; R];
     let mut force = [[zero; N]; R];
@@ -129,12 +151,17 @@ where
         let (lq, lvj) = if mass_inverse.is_some() {
             gradient_at(system, t, q, vj)
         } else {
-            let (lq, lvj, vv) = velocity_hessian(system, t, q, vj);
-            match invert(vv) {
-                Some(inv) => m_inv[j] = inv,
-                None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+            let d = velocity_hessian(system, t, q, vj);
+            if let Some(k) = coupled.as_deref_mut() {
+                let fv = if forced { force_velocity_jacobian(system, t, q, vj) } else { [[zero; N]; N] };
+                coupled_columns(k, &ha, j, &d, &fv);
+            } else {
+                match invert(d.vv) {
+                    Some(inv) => m_inv[j] = inv,
+                    None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+                }
             }
-            (lq, lvj)
+            (d.q, d.v)
         };
         (v[j], force[j], lv[j]) = (vj, lq, lvj);
         if forced {
@@ -144,8 +171,11 @@ where
             }
         }
     }
-    // h a_ij, rounded once and shared by the positions and the momenta.
-    let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
+    if let Some(k) = coupled.as_deref_mut()
+        && !factor_blocks::<N, S, R, T>(k)
+    {
+        return fail(1, "the coupled iteration matrix is singular or not finite at the first guess");
+    }
     let nodes = g.quadrature().nodes();
     let mut last = f64::INFINITY;
     for iteration in 1..=MAX_ITERATIONS {
@@ -169,27 +199,34 @@ where
                 }
             }
         }
-        let (mut correction, mut size, mut residual) = ([[zero; N]; R], 0.0f64, 0.0f64);
-        for i in 0..R {
-            // P_i − ∂L/∂v = (p_k − ∂L/∂v) + (compensation + h Σ_j a_ij G_j).
-            let r: [T; N] = core::array::from_fn(|c| {
+        // P_i − ∂L/∂v = (p_k − ∂L/∂v) + (compensation + h Σ_j a_ij G_j).
+        let mut residual = [[zero; N]; R];
+        let mut residual_norm = 0.0f64;
+        for (i, r) in residual.iter_mut().enumerate() {
+            *r = core::array::from_fn(|c| {
                 let mut x = pc[c];
                 for (a, gl) in ha[i].iter().zip(&force) {
                     x += *a * gl[c];
                 }
                 (p0[c] - lv[i][c]) + x
             });
-            residual = residual.max(max_abs(&r));
-            let m: &[[T; N]] = mass_inverse.unwrap_or(&m_inv[i]);
-            for (c, row) in m.iter().enumerate() {
-                let mut x = zero;
-                for (&a, &b) in row.iter().zip(&r) {
-                    x += a * b;
-                }
-                correction[i][c] = x;
-            }
-            size = size.max(max_abs(&correction[i]));
+            residual_norm = residual_norm.max(max_abs(r));
         }
+        let correction: [[T; N]; R] = match coupled.as_deref() {
+            // (`coupled` only where R = S.)
+            Some(k) => solve_blocks(k, &residual),
+            None => core::array::from_fn(|i| {
+                let m: &[[T; N]] = mass_inverse.unwrap_or(&m_inv[i]);
+                core::array::from_fn(|c| {
+                    let mut x = zero;
+                    for (&a, &b) in m[c].iter().zip(&residual[i]) {
+                        x += a * b;
+                    }
+                    x
+                })
+            }),
+        };
+        let size = max_abs(correction.as_flattened());
         for (vi, di) in v.iter_mut().zip(&correction) {
             for (x, d) in vi.iter_mut().zip(di) {
                 *x += *d;
@@ -207,7 +244,7 @@ where
         let next = if iteration > 1 { ratio * ratio / last } else { f64::INFINITY };
         if ratio <= ROUND_OFF || next <= LEFT_OVER || (ratio >= last && ratio <= STALLED) {
             let d = nodes_from(g, h, &v);
-            return Ok(Converged { d, iterations: iteration, residual_norm: residual, correction_norm: ratio });
+            return Ok(Converged { d, iterations: iteration, residual_norm, correction_norm: ratio });
         }
         if iteration >= 2 && ratio > STALLED && ratio > slowest * last {
             return fail(iteration, "the fixed-point iteration contracts too slowly");
@@ -215,6 +252,151 @@ where
         last = ratio;
     }
     fail(MAX_ITERATIONS, "the fixed-point iteration did not converge")
+}
+
+/// Column block `l` of the coupled iteration matrix, from the derivatives at
+/// point `l` of the first guess (`d`, and `fv = ∂F/∂v` of the generalised
+/// force), into `k` (block `(i, l)` at `k[i][·][l][·]`).
+///
+/// The residual of stage `i` is `r_i = p_k + h Σ_j a_ij G_j − ∂L/∂v(Q_i, V_i)`
+/// with `Q_i = q_k + h Σ_j a_ij V_j`. Its derivative in `V_l`, to first order
+/// in `h`, is `−K_il` with
+///
+/// ```text
+/// K_il = δ_il M_i + h a_il (X_i − Y_l − Φ_l),
+/// M = ∂²L/∂v²,  X = ∂(∂L/∂v)/∂q = Yᵀ,  Y = ∂(∂L/∂q)/∂v,  Φ = ∂F/∂v,
+/// ```
+///
+/// and the iteration `V ← V + K⁻¹ r` at the first guess leaves the `O(h²)`
+/// terms (through `∂G/∂q`) and the change of `K` along the iteration. With
+/// `M_i` alone (the block-diagonal iteration) it contracts like `h`: the
+/// part of `X − Y` that is the same at every point is antisymmetric, the
+/// gyroscopic (Coriolis) coupling `vᵀ ∂M/∂q` of a configuration-dependent
+/// mass matrix, and `Φ` is the damping. With `K` it contracts like `h²`.
+#[inline(always)]
+fn coupled_columns<const N: usize, const S: usize, const R: usize, T: Real>(
+    k: &mut BlockMatrix<N, S, T>,
+    ha: &[[T; R]; R],
+    l: usize,
+    d: &VelocityDerivatives<N, T>,
+    fv: &[[T; N]; N],
+) {
+    // Point l's terms are added (the matrix starts at zero): the column
+    // block `l` takes δ_il M_l − h a_il (Y_l + Φ_l), the row block `l` takes
+    // h a_ln X_l.
+    for i in 0..R {
+        let a = ha[i][l];
+        for r in 0..N {
+            for c in 0..N {
+                let diagonal = if i == l { d.vv[r][c] } else { T::zero() };
+                k[i][r][l][c] += diagonal - a * (d.qv[r][c] + fv[r][c]);
+            }
+        }
+    }
+    for n in 0..R {
+        let a = ha[l][n];
+        for r in 0..N {
+            for c in 0..N {
+                k[l][r][n][c] += a * d.qv[c][r];
+            }
+        }
+    }
+}
+
+/// The `N × N` block `(i, l)` of `k`.
+#[inline(always)]
+fn block<const N: usize, const S: usize, T: Real>(k: &BlockMatrix<N, S, T>, i: usize, l: usize) -> [[T; N]; N] {
+    core::array::from_fn(|r| k[i][r][l])
+}
+
+/// Factors the coupled matrix in place by block elimination without
+/// pivoting (`R = S` blocks of `N × N`): the diagonal blocks are replaced by
+/// the inverses of the pivot blocks, the blocks below by the multipliers
+/// `L_ip`, those above by `U_pj`. `K` is `∂²L/∂v²` per point plus terms of
+/// order `h`, so its pivot blocks are those mass matrices perturbed; where
+/// one is singular the factorisation fails (`false`) and so does the
+/// iteration, for Newton to take over. Measured with callgrind on the
+/// report's double pendulum (s = 4, 673 steps): the partially pivoted LU of
+/// the Newton block (`linalg::Lu`) on this `8 × 8` matrix took 2.7k
+/// instructions per step, more than the two rounds the coupling saves.
+#[inline(always)]
+fn factor_blocks<const N: usize, const S: usize, const R: usize, T: Real>(k: &mut BlockMatrix<N, S, T>) -> bool {
+    for p in 0..R {
+        let (mut pivot, mut inverse) = (block(k, p, p), [[T::zero(); N]; N]);
+        if !gauss_jordan_into(&mut pivot, &mut inverse, 0.0) {
+            return false;
+        }
+        for r in 0..N {
+            k[p][r][p] = inverse[r];
+        }
+        for i in p + 1..R {
+            let below = block(k, i, p);
+            let l: [[T; N]; N] = core::array::from_fn(|r| {
+                core::array::from_fn(|c| {
+                    let mut x = T::zero();
+                    for m in 0..N {
+                        x += below[r][m] * inverse[m][c];
+                    }
+                    x
+                })
+            });
+            for r in 0..N {
+                k[i][r][p] = l[r];
+            }
+            for j in p + 1..R {
+                let u = block(k, p, j);
+                for r in 0..N {
+                    for c in 0..N {
+                        let mut x = k[i][r][j][c];
+                        for m in 0..N {
+                            x -= l[r][m] * u[m][c];
+                        }
+                        k[i][r][j][c] = x;
+                    }
+                }
+            }
+        }
+    }
+    true
+}
+
+/// `x` with `K x = b` from the blocks [`factor_blocks`] left in `k`.
+#[inline(always)]
+fn solve_blocks<const N: usize, const S: usize, const R: usize, T: Real>(
+    k: &BlockMatrix<N, S, T>,
+    b: &[[T; N]; R],
+) -> [[T; N]; R] {
+    let mut y = *b;
+    for i in 1..R {
+        for p in 0..i {
+            for r in 0..N {
+                let mut x = y[i][r];
+                for m in 0..N {
+                    x -= k[i][r][p][m] * y[p][m];
+                }
+                y[i][r] = x;
+            }
+        }
+    }
+    let mut out = [[T::zero(); N]; R];
+    for i in (0..R).rev() {
+        let mut z = y[i];
+        for j in i + 1..R {
+            for r in 0..N {
+                for m in 0..N {
+                    z[r] -= k[i][r][j][m] * out[j][m];
+                }
+            }
+        }
+        for r in 0..N {
+            let mut x = T::zero();
+            for m in 0..N {
+                x += k[i][r][i][m] * z[m];
+            }
+            out[i][r] = x;
+        }
+    }
+    out
 }
 
 /// The node increments `D_m = h Σ_j (∫_0^{τ_m} L_j) V_j` of the polynomial
@@ -288,6 +470,33 @@ mod tests {
         }
         assert!(invert([[1.0, 2.0], [2.0, 4.0]]).is_none());
         assert!(invert([[f64::NAN, 0.0], [0.0, 1.0]]).is_none());
+    }
+
+    #[test]
+    fn block_elimination_solves_the_coupled_system() {
+        // A 6 × 6 matrix of 3 × 3 blocks of 2 × 2, mass-matrix-like blocks on
+        // the diagonal and order-one blocks off it, no symmetry.
+        let entry = |i: usize, r: usize, l: usize, c: usize| {
+            let x = ((7 * i + 3 * r + 5 * l + 11 * c) % 13) as f64 / 13.0 - 0.5;
+            if i == l { x + if r == c { 3.0 } else { 0.5 } } else { x }
+        };
+        let a: [[[[f64; 2]; 3]; 2]; 3] = core::array::from_fn(|i| {
+            core::array::from_fn(|r| core::array::from_fn(|l| core::array::from_fn(|c| entry(i, r, l, c))))
+        });
+        let mut k = BlockMatrix::<2, 3>::from_blocks(a);
+        assert!(factor_blocks::<2, 3, 3, f64>(&mut k));
+        let b = [[1.0, -2.0], [0.5, 0.25], [-1.5, 3.0]];
+        let x = solve_blocks(&k, &b);
+        for i in 0..3 {
+            for r in 0..2 {
+                let ax: f64 =
+                    (0..3).flat_map(|l| (0..2).map(move |c| (l, c))).map(|(l, c)| a[i][r][l][c] * x[l][c]).sum();
+                assert!((ax - b[i][r]).abs() < 1e-14, "{i} {r}: {ax} against {}", b[i][r]);
+            }
+        }
+        // A singular pivot block fails.
+        let mut k = BlockMatrix::<2, 3>::from_blocks([[[[0.0; 2]; 3]; 2]; 3]);
+        assert!(!factor_blocks::<2, 3, 3, f64>(&mut k));
     }
 
     #[test]

@@ -175,3 +175,25 @@ where
     }
     (f, dq, dv)
 }
+
+/// `∂F_i/∂v_k` of the generalised force `F = Q − ∂R/∂v` at one point: `N`
+/// evaluations on duals over `T` (the fixed-point iteration's matrix needs
+/// no derivative in `q`).
+#[inline]
+pub(super) fn force_velocity_jacobian<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> [[T; N]; N]
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    use num_dual::Dual;
+    let mut dv = [[T::zero(); N]; N];
+    for k in 0..N {
+        let mut vd = v.map(Dual::from_re);
+        vd[k].eps = T::one();
+        let y = generalized_force(system, Dual::from_re(t), q.map(Dual::from_re), vd);
+        for i in 0..N {
+            dv[i][k] = y[i].eps;
+        }
+    }
+    dv
+}

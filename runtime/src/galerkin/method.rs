@@ -499,18 +499,30 @@ where
     (lq, lv)
 }
 
-/// `(∂L/∂q, ∂L/∂v, ∂²L/∂v²)` at one point: one evaluation of `L` on a
-/// [`HyperDualArray`] with `ε1` seeded on `v` and `ε2` on `(q, v)`
-/// (`1 + 3N + 2N²` components; above `N = ROWS` by the rows of the whole
-/// Hessian, which keep the numbers small).
+/// The derivatives of `L` at one point that carry a velocity: `∂L/∂q`,
+/// `∂L/∂v`, `∂²L/∂v²` and `∂²L/∂q∂v`.
+pub(crate) struct VelocityDerivatives<const N: usize, T> {
+    /// `∂L/∂q_i`.
+    pub(crate) q: [T; N],
+    /// `∂L/∂v_i`.
+    pub(crate) v: [T; N],
+    /// `∂²L/∂v_i∂v_k`.
+    pub(crate) vv: [[T; N]; N],
+    /// `∂²L/∂q_i∂v_k`: the derivative of `∂L/∂q_i` in `v_k`.
+    pub(crate) qv: [[T; N]; N],
+}
+
+/// `∂L/∂q`, `∂L/∂v`, `∂²L/∂v²` and `∂²L/∂q∂v` at one point: one evaluation
+/// of `L` on a [`HyperDualArray`] with `ε1` seeded on `v` and `ε2` on
+/// `(q, v)` (`1 + 3N + 2N²` components; above `N = ROWS` by the rows of the
+/// whole Hessian, which keep the numbers small).
 #[inline(always)]
-#[allow(clippy::type_complexity)]
 pub(crate) fn velocity_hessian<Sys, T, const N: usize>(
     system: &Sys,
     t: T,
     q: [T; N],
     v: [T; N],
-) -> ([T; N], [T; N], [[T; N]; N])
+) -> VelocityDerivatives<N, T>
 where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
@@ -534,12 +546,15 @@ where
         });
         let (mut lq, mut lv) = ([D::<N>::from_re(0.0); N], [D::<N>::from_re(0.0); N]);
         system.gradient_qv_scalar(D::from_re(t.to_f64()), &qd, &vd, &mut lq, &mut lv);
+        // Lane `k` of `∂L/∂q_i` is `∂²L/∂q_i∂v_k`: the coupling the
+        // fixed-point iteration's matrix takes, at no extra cost.
         let vv = core::array::from_fn(|i| lv[i].eps.map(T::from));
-        return (lq.map(|x| T::from(x.re)), lv.map(|x| T::from(x.re)), vv);
+        let qv = core::array::from_fn(|i| lq[i].eps.map(T::from));
+        return VelocityDerivatives { q: lq.map(|x| T::from(x.re)), v: lv.map(|x| T::from(x.re)), vv, qv };
     }
     if N > ROWS {
         let p = PointDerivatives::at(system, t, q, v);
-        return (p.q, p.v, p.vv);
+        return VelocityDerivatives { q: p.q, v: p.v, vv: p.vv, qv: p.qv };
     }
     type D<const N: usize, T> = HyperDualArray<[T; N], Seeds<N, T>, T>;
     let qd = core::array::from_fn(|i| {
@@ -555,7 +570,8 @@ where
     });
     let l = system.lagrangian(D::from_re(t), qd, vd);
     let vv = core::array::from_fn(|i| core::array::from_fn(|k| l.mixed(i, N + k)));
-    (l.eps2.a, l.eps2.b, vv)
+    let qv = core::array::from_fn(|i| core::array::from_fn(|k| l.mixed(k, i)));
+    VelocityDerivatives { q: l.eps2.a, v: l.eps2.b, vv, qv }
 }
 
 /// `(L, ∂L/∂v, ∂²L/∂v²)` at one point, entry for entry those of
@@ -970,7 +986,8 @@ mod tests {
         // The derivatives in `v` alone are those of the whole Hessian, bit
         // for bit (the Legendre transform at the start and the constant mass
         // inverse of the Galerkin steps are formed from them).
-        let (_, _, vv) = velocity_hessian(system, t, q, v);
+        let VelocityDerivatives { vv, qv, .. } = velocity_hessian(system, t, q, v);
+        check("L_qv in v", &flat(&qv), &flat(&want.qv), hessian_scale);
         let (value, lv, mass) = velocity_derivatives(system, t, q, v);
         assert!(value == got.value, "value {value} against {}", got.value);
         for i in 0..N {

@@ -294,6 +294,20 @@ where
     /// 12 145 instructions).
     const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 4;
 
+    /// Whether the fixed-point iteration solves with the coupled `sN × sN`
+    /// matrix (`collocation::coupled_columns`: `∂²L/∂v²` with the first-order
+    /// coupling `∂²L/∂q∂v` and the damping) instead of `∂²L/∂v²` point by
+    /// point. Each round then costs a solve of `(sN)²` against `s N²`, and
+    /// the step a block factorisation. Measured with callgrind
+    /// (`bench/examples/galerkin_steps.rs`, the report's settings): on the
+    /// double pendulum the coupling takes 5.68 → 3.73 rounds per step at
+    /// s = 4 and 93.7M against 96.1M instructions, but more instructions
+    /// than it saves gradients at s = 5, 6, 8 (+5 %, +13 %, +31 %); on the
+    /// forced and damped sensor it lets the fixed point converge where the
+    /// damping stopped it (s = 5: 94.4M → 67.4M, s = 3 and 4: +3 % and
+    /// +5 %).
+    const COUPLED_FIXED_POINT: bool = S * N <= 8 || Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+
     /// The first guess for the increments of a step of size `h`.
     #[inline]
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
@@ -350,6 +364,11 @@ where
             };
         let mut fixed_spent = 0;
         let mut velocity_hessians = 0;
+        // The block storage of the step (none before the first step:
+        // allocated when first written): the fixed point's coupled matrix,
+        // then Newton's own block.
+        let mut storage =
+            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
         if fixed_offered {
             let p = (&p0, &self.p_carry);
             // Alone, the fixed point is only stopped by divergence.
@@ -370,8 +389,19 @@ where
                 (None, Some(last)) if !last.mass_inverse.is_empty() => Some(&*last.mass_inverse),
                 _ => None,
             };
-            let solved =
-                collocation::solve(&self.system, &self.method, t0, h, (&q0, &e), p, &predicted, slowest, mass_inverse);
+            let coupled = if Self::COUPLED_FIXED_POINT { Some(storage.matrix_mut()) } else { None };
+            let solved = collocation::solve(
+                &self.system,
+                &self.method,
+                t0,
+                h,
+                (&q0, &e),
+                p,
+                &predicted,
+                slowest,
+                mass_inverse,
+                coupled,
+            );
             // Hessians in `v` the first iteration evaluated: one for a
             // constant mass matrix inverted at this step, none for one kept.
             velocity_hessians = match (&computed, mass_inverse) {
@@ -386,7 +416,7 @@ where
             }
             match solved {
                 Ok(c) => {
-                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians)?;
+                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians, storage)?;
                     // The first step's memory exists only now.
                     if let Some(m) = computed {
                         self.keep_mass_inverse(m);
@@ -395,6 +425,7 @@ where
                 }
                 Err(failure) if iteration == StageIteration::FixedPoint => {
                     let failure = NewtonFailure::Rejected { iterations: failure.iterations, reason: failure.reason };
+                    self.keep_storage(KeptBlock::Drop, storage);
                     return Err(self.fail(h, failure));
                 }
                 Err(failure) => fixed_spent = failure.iterations,
@@ -425,10 +456,8 @@ where
         let has_kept =
             Self::KEEPS_JACOBIAN && matches!(&self.memory, Some(LastStep { jacobian: Some(h_lu), .. }) if *h_lu == h);
         let offered = has_kept && policy.offers();
-        // The step's own block goes into the memory's spare storage (none
-        // before the first step: allocated when first assembled).
-        let mut storage =
-            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
+        // The step's own block goes into the memory's spare storage (taken
+        // above).
         if offered && let Some(LastStep { jacobian: Some(_), block, .. }) = &mut self.memory {
             // Kept for a second step: from here on it serves several solves
             // per step, each cheaper as a product with the inverse. (Inverting
@@ -569,6 +598,7 @@ where
         converged: collocation::Converged<N, S, T>,
         predicted: &BlockVector<N, S, T>,
         velocity_hessians: usize,
+        storage: Lu<N, S, T>,
     ) -> Result<(), Error<N, T>> {
         let collocation::Converged { d, iterations, residual_norm, correction_norm } = converged;
         let report = NewtonReport { iterations, residual_norm, correction_norm };
@@ -577,11 +607,10 @@ where
             let rho = (h / last.h).to_f64();
             let reached = f(&last.d[S - 1]).map(|x| x * rho);
             if implausible_growth(&f(&d[S - 1]), &f(&predicted[S - 1]), &reached, &f(&self.state.q)) {
+                self.keep_storage(KeptBlock::Drop, storage);
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH }));
             }
         }
-        let storage =
-            self.memory.as_mut().map_or_else(Lu::empty, |last| core::mem::replace(&mut last.spare, Lu::empty()));
         self.commit(h, t1, d, report, KeptBlock::Same, storage)?;
         if let Some(last) = &mut self.memory {
             last.fixed_point = KeptPolicy::default();
