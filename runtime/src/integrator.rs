@@ -265,7 +265,8 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
                 reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
             });
         }
-        let (memory, p0, energy) = self.method.start_memory(&self.system, t0, q0, v0)?;
+        let mut memory = self.method.memory();
+        let (p0, energy) = self.method.start_memory(&self.system, t0, q0, v0, &mut memory)?;
         let zero = T::zero();
         Ok(Integrator {
             memory,

@@ -273,9 +273,9 @@ impl Method<f64> for Composition {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<(CompositionMemory<N>, [f64; N], f64), Error<N>> {
-        let (inner, p0, energy) = <Trapezoid as Method<f64>>::start_memory(&Trapezoid, system, t0, q0, v0)?;
-        Ok((CompositionMemory { inner, ..self.memory() }, p0, energy))
+        memory: &mut CompositionMemory<N>,
+    ) -> Result<([f64; N], f64), Error<N>> {
+        <Trapezoid as Method<f64>>::start_memory(&Trapezoid, system, t0, q0, v0, &mut memory.inner)
     }
 
     fn fixed_step<S: Lagrangian<N>, const N: usize>(

@@ -112,21 +112,24 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         v0: [T; N],
     ) -> Result<([T; N], T), Error<N, T>>;
 
-    /// The memory before the first step, with the momentum and the energy
-    /// of [`legendre`](Self::legendre): a method whose first step would
-    /// compute again what the Legendre transform's regularity check computes
-    /// (the explicit steps' `M⁻¹`) keeps it in the memory instead.
+    /// The momentum and the energy of [`legendre`](Self::legendre), with
+    /// `memory` (fresh from [`memory`](Self::memory)) made ready for the
+    /// first step: a method whose first step would compute again what the
+    /// Legendre transform's regularity check computes (the explicit steps'
+    /// `M⁻¹`) keeps it there instead. The memory is filled in place, not
+    /// returned: a composition's memory of a large system is hundreds of
+    /// kilobytes, and each copy of it on the way to the integrator is stack.
     #[doc(hidden)]
-    #[allow(clippy::type_complexity)]
     fn start_memory<S: Lagrangian<N>, const N: usize>(
         &self,
         system: &S,
         t0: T,
         q0: [T; N],
         v0: [T; N],
-    ) -> Result<(Self::Memory<N>, [T; N], T), Error<N, T>> {
-        let (p0, energy) = Self::legendre(system, t0, q0, v0)?;
-        Ok((self.memory(), p0, energy))
+        memory: &mut Self::Memory<N>,
+    ) -> Result<([T; N], T), Error<N, T>> {
+        let _ = memory;
+        Self::legendre(system, t0, q0, v0)
     }
 
     /// One step of size `h` whose end node is stamped `t1`; on failure the

@@ -113,14 +113,14 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<(OnePointMemory<N>, [f64; N], f64), Error<N>> {
+        memory: &mut OnePointMemory<N>,
+    ) -> Result<([f64; N], f64), Error<N>> {
         // Explicit steps: the regularity check's `M⁻¹` is the one the first
         // step needs (the mass matrix is constant), formed and inverted once
         // for both (on the FPU-β chain of 16 masses the matrix and its
         // inverse are most of an integrator's start).
         if const { !Integrator::<S, M, N>::EXPLICIT || super::sparse::too_large_for_forward(N) } {
-            let (p0, energy) = Self::legendre(system, t0, q0, v0)?;
-            return Ok((<Self as Method<f64>>::memory::<N>(self), p0, energy));
+            return Self::legendre(system, t0, q0, v0);
         }
         let p0 = system.momentum(t0, q0, v0);
         if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
@@ -138,7 +138,8 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         if !energy.is_finite() {
             return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
         }
-        Ok((OnePointMemory { explicit: Some(cache), ..<Self as Method<f64>>::memory::<N>(self) }, p0, energy))
+        memory.explicit = Some(cache);
+        Ok((p0, energy))
     }
 
     fn prefers_reverse<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> bool {
