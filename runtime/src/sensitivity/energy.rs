@@ -179,7 +179,7 @@ mod tests {
     use crate::error::Error;
     use crate::problem::{OnePoint, Policy, Problem, Scheme};
     use crate::sensitivity::fixtures::{
-        DRIVE, DampedOscillator, ForcedPendulum, Pendulum, central, chained, loss_of, relative,
+        DRIVE, DampedOscillator, ForcedPendulum, Pendulum, central, chained, loss_of, node_rows, relative,
     };
     use crate::sensitivity::forward::Tangent;
     use crate::sensitivity::linearisation::InitialMomentum;
@@ -273,17 +273,7 @@ mod tests {
             let n = sol.len() - 1;
             assert!(n >= 20, "{n} steps");
             let theta = Self::theta(&self.base);
-            let rows: Vec<[[f64; D]; 3]> = sens
-                .jacobians
-                .iter()
-                .map(|j| {
-                    [
-                        core::array::from_fn(|c| j.time[c]),
-                        core::array::from_fn(|c| j.get(0, c)),
-                        core::array::from_fn(|c| j.get(1, c)),
-                    ]
-                })
-                .collect();
+            let rows: Vec<[[f64; D]; 3]> = node_rows(&sens.jacobians);
             let forward = chained(&Fit, sol, &theta, &rows);
             let g = self
                 .problem(self.base)

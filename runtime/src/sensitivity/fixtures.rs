@@ -2,6 +2,7 @@
 
 use num_dual::Dual64;
 
+use super::forward::Jacobian;
 use super::{Loss, Parametric};
 use crate::Separability;
 use crate::solution::Solution;
@@ -181,6 +182,21 @@ pub(crate) fn central<const D: usize>(
         };
         (at(step) - at(-step)) / (2.0 * step)
     })
+}
+
+/// The rows of `(t, q, p)` derivatives at every node of a one-coordinate
+/// run, as [`chained`] takes them, from the run's Jacobians.
+pub(crate) fn node_rows<const D: usize>(jacobians: &[Jacobian]) -> Vec<[[f64; D]; 3]> {
+    jacobians
+        .iter()
+        .map(|j| {
+            [
+                core::array::from_fn(|c| j.time[c]),
+                core::array::from_fn(|c| j.get(0, c)),
+                core::array::from_fn(|c| j.get(1, c)),
+            ]
+        })
+        .collect()
 }
 
 /// `dJ/d(q0, v0, θ)` of a one-coordinate run (`D = 2 + P` inputs) from the

@@ -223,7 +223,7 @@ where
 #[cfg(test)]
 mod tests {
     use crate::problem::{Policy, Problem, Scheme};
-    use crate::sensitivity::fixtures::{central, chained, loss_of, relative};
+    use crate::sensitivity::fixtures::{central, chained, loss_of, node_rows, relative};
     use crate::sensitivity::{Checkpoints, Loss, Parametric};
     use crate::solution::{Plan, Solution};
     use crate::system::{Lagrangian, Scalar};
@@ -296,17 +296,7 @@ mod tests {
         let sol = &sens.solution;
         let n = sol.len() - 1;
         assert!(n >= 30, "{n} steps: {:?}", sol.error);
-        let rows: Vec<[[f64; 5]; 3]> = sens
-            .jacobians
-            .iter()
-            .map(|j| {
-                [
-                    core::array::from_fn(|c| j.time[c]),
-                    core::array::from_fn(|c| j.get(0, c)),
-                    core::array::from_fn(|c| j.get(1, c)),
-                ]
-            })
-            .collect();
+        let rows: Vec<[[f64; 5]; 3]> = node_rows(&sens.jacobians);
         let forward = chained(&Fit, sol, &[base[2], base[3], base[4]], &rows);
         let g =
             problem(base).gradient(scheme, Policy::energy_preserving(hh), t_end, &Fit, Checkpoints::Budget(8)).unwrap();
