@@ -88,22 +88,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         if const { super::sparse::too_large_for_forward(N) } {
             return super::sparse::legendre(system, t0, q0, v0);
         }
-        let p0 = system.momentum(t0, q0, v0);
-        if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
-            return Err(Error::InvalidInitialData {
-                reason: "the lagrangian or its momentum is not finite at the initial data",
-            });
-        }
-        let hessian = system.velocity_hessian(t0, q0, v0);
-        if !hessian.iter().all(|x| x.is_finite()) || hessian.try_inverse().is_none() {
-            return Err(Error::InvalidInitialData {
-                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
-            });
-        }
-        let energy = system.energy(t0, q0, v0);
-        if !energy.is_finite() {
-            return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
-        }
+        let (p0, energy, ()) = checked_start(system, t0, q0, v0, v0, |m| m.try_inverse().map(|_| ()))?;
         Ok((p0, energy))
     }
 
@@ -122,22 +107,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         if const { !Integrator::<S, M, N>::EXPLICIT || super::sparse::too_large_for_forward(N) } {
             return Self::legendre(system, t0, q0, v0);
         }
-        let p0 = system.momentum(t0, q0, v0);
-        if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
-            return Err(Error::InvalidInitialData {
-                reason: "the lagrangian or its momentum is not finite at the initial data",
-            });
-        }
-        let mass = system.velocity_hessian(t0, q0, [0.0; N]);
-        let cache = mass.iter().all(|x| x.is_finite()).then(|| explicit_cache_of(mass)).flatten().ok_or(
-            Error::InvalidInitialData {
-                reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
-            },
-        )?;
-        let energy = system.energy(t0, q0, v0);
-        if !energy.is_finite() {
-            return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
-        }
+        let (p0, energy, cache) = checked_start(system, t0, q0, v0, [0.0; N], explicit_cache_of)?;
         memory.explicit = Some(cache);
         Ok((p0, energy))
     }
@@ -856,6 +826,36 @@ fn explicit_cache<'a, S: Lagrangian<N>, const N: usize>(
         Some(cache) => Ok(cache),
         empty @ None => Ok(empty.insert(new_explicit_cache(system, t0, q0)?)),
     }
+}
+
+/// The forward-mode checks of the initial data, in order: `p0` and `L`
+/// finite, `∂²L/∂v²` (taken at velocity `at`) finite and accepted by
+/// `regular` (which returns what it keeps of it, `None` when it is
+/// singular), the energy finite. Returns `(p0, E0, kept)`.
+fn checked_start<S: Lagrangian<N>, const N: usize, X>(
+    system: &S,
+    t0: f64,
+    q0: [f64; N],
+    v0: [f64; N],
+    at: [f64; N],
+    regular: impl FnOnce(SMatrix<f64, N, N>) -> Option<X>,
+) -> Result<([f64; N], f64, X), Error<N>> {
+    let p0 = system.momentum(t0, q0, v0);
+    if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
+        return Err(Error::InvalidInitialData {
+            reason: "the lagrangian or its momentum is not finite at the initial data",
+        });
+    }
+    let hessian = system.velocity_hessian(t0, q0, at);
+    let kept =
+        hessian.iter().all(|x| x.is_finite()).then(|| regular(hessian)).flatten().ok_or(Error::InvalidInitialData {
+            reason: "∂²L/∂v² is singular at the initial data: the legendre transform is not regular",
+        })?;
+    let energy = system.energy(t0, q0, v0);
+    if !energy.is_finite() {
+        return Err(Error::InvalidInitialData { reason: "the energy is not finite at the initial data" });
+    }
+    Ok((p0, energy, kept))
 }
 
 /// [`explicit_cache`]'s first call, where the start did not make the cache:
