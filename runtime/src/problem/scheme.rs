@@ -53,6 +53,7 @@ pub enum GalerkinQuadrature {
 ///     Scheme::MIDPOINT.time_transformed(Curvature::new(1.0).unwrap()),
 /// ];
 /// assert_eq!(methods.iter().map(Scheme::order).collect::<Vec<_>>(), [2, 6, 8, 6, 2]);
+/// assert_eq!(methods[2].name(), "Galerkin s = 4, equispaced nodes, Gauss–Lobatto quadrature");
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -144,7 +145,8 @@ impl Scheme {
         }
     }
 
-    /// A short name for tables and errors.
+    /// A short name for tables and errors; a Galerkin rule names its nodes
+    /// and quadrature where they are not the defaults of [`Scheme::galerkin`].
     pub fn name(&self) -> String {
         let one = |m: &OnePoint| match m {
             OnePoint::Midpoint => "midpoint".to_string(),
@@ -153,7 +155,18 @@ impl Scheme {
         };
         match self {
             Self::OnePoint(m) => one(m),
-            Self::Galerkin { degree, .. } => format!("Galerkin s = {degree}"),
+            Self::Galerkin { degree, nodes, quadrature } => {
+                // The defaults go unnamed: "Galerkin s = 4" is the rule of `Scheme::galerkin(4)`.
+                let nodes = match nodes {
+                    NodeFamily::GaussLobatto => "",
+                    NodeFamily::Equispaced => ", equispaced nodes",
+                };
+                let quadrature = match quadrature {
+                    GalerkinQuadrature::GaussLegendre => "",
+                    GalerkinQuadrature::GaussLobatto => ", Gauss–Lobatto quadrature",
+                };
+                format!("Galerkin s = {degree}{nodes}{quadrature}")
+            }
             Self::Composition { weights, base } => format!("order-{} composition of {}", weights.order(), one(base)),
             Self::TimeTransformed { inner, .. } => format!("time-transformed {}", inner.name()),
             Self::Splitting { composition, .. } => {
