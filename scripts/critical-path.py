@@ -5,7 +5,10 @@ Cargo starts a unit when the last of its dependencies finishes (or, for a
 dependency whose metadata suffices, emits it) and records which unit
 unlocked which. Following the unlocks back from the unit that finished last
 gives the chain of units no number of cores could have overlapped: an idle
-machine with enough cores still takes the sum of their durations.
+machine with enough cores still takes the sum of their durations. With
+fewer jobs than ready units (`-j2` on two cores), a unit may wait for a job
+after its dependencies finish: its start then lies after its unlocker's end,
+and the chain's CPU seconds say more than its wall span.
 
     cargo test --workspace --no-run --timings
     scripts/critical-path.py target/cargo-timings/cargo-timing.html
@@ -54,7 +57,10 @@ def main():
     by_index = {u["i"]: u for u in data}
     unlocker = {}
     for u in data:
-        for j in u.get("unlocked_units", []) + u.get("unlocked_rmeta_units", []):
+        # `unblocked_*` in the reports of newer cargo, `unlocked_*` before.
+        unblocked = u.get("unblocked_units", u.get("unlocked_units", []))
+        unblocked_rmeta = u.get("unblocked_rmeta_units", u.get("unlocked_rmeta_units", []))
+        for j in unblocked + unblocked_rmeta:
             unlocker[j] = u["i"]
     last = max(data, key=lambda u: u["start"] + u["duration"])
     chain = [last]
@@ -64,9 +70,11 @@ def main():
     total_cpu = 0.0
     print(f"{'start s':>8} {'wall s':>8} {'CPU s':>8}  unit")
     for u in chain:
-        name = u["name"].replace("-", "_")
+        # `target` reads ` NAME "KIND"`, with ` (test)` for a test harness
+        # (empty for a package's library).
         target = u.get("target", "").strip()
-        is_test = "test" in target or u.get("mode") == "test"
+        name = target.split()[0] if target else u["name"].replace("-", "_")
+        is_test = '"test"' in target or "(test)" in target
         seconds = cpu.get((name, is_test))
         total_cpu += seconds or 0.0
         shown = f"{seconds:8.1f}" if seconds is not None else f"{'':>8}"
