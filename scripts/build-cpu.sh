@@ -11,7 +11,9 @@
 #
 # Prints the whole build's wall and CPU (cargo and its children), the sum of
 # the rustc processes' CPU, and the largest units: CPU seconds, wall seconds,
-# crate name and kind (`test,` for test harnesses). Needs GNU time.
+# crate name and kind (`test,` for test harnesses). Needs GNU time. Cargo's
+# `--timings` report lands in `$target/cargo-timings/cargo-timing.html`, for
+# `scripts/critical-path.py $target/cargo-timings/cargo-timing.html $target.log`.
 set -euo pipefail
 
 # Called by cargo as the rustc wrapper: run rustc under GNU time, append one
@@ -39,7 +41,7 @@ log="$target.log"
 rm -rf "$target" "$log"
 /usr/bin/time -o "$target.total" -f '%e s wall, %U s user + %S s system CPU' \
   env BUILD_CPU_LOG="$log" RUSTC_WRAPPER="$PWD/scripts/build-cpu.sh" CARGO_TARGET_DIR="$target" \
-  cargo test --workspace --no-run --quiet
+  cargo test --workspace --no-run --timings --quiet
 echo "cold cargo test --workspace --no-run: $(cat "$target.total")"
 # Cargo also runs the wrapper to query rustc (`-vV`, target info): no crate name, no CPU to speak of.
 awk '$4 != "?" { s += $1 + $2 } END { printf "rustc processes: %.1f s CPU\n", s }' "$log"
