@@ -937,6 +937,48 @@ mod tests {
         }
     }
 
+    /// Two uncoupled oscillators, `ω = 1` and `ω = 10`, the fast one at rest.
+    #[derive(Clone, Debug)]
+    struct SlowAndFast;
+
+    impl Lagrangian<2> for SlowAndFast {
+        const AUTONOMOUS: bool = true;
+        const CYCLIC: [bool; 2] = [false, false];
+        const SEPARABILITY: Separability = Separability::ConstantMass;
+        fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+            (v[0] * v[0] + v[1] * v[1] - q[0] * q[0] - q[1] * q[1] * 100.0) * 0.5
+        }
+    }
+
+    #[test]
+    fn yoshida6_runs_beside_kahan_li8_at_its_cap_when_the_fast_mode_is_at_rest() {
+        // The fast mode holds Kahan–Li 8 to `ρh ≤ 1.5` (`h = 0.15`), where
+        // the slow mode's error of Yoshida 6 is far below `rtol = 1e-3`.
+        let (span, rtol) = (50.0, 1e-3);
+        let solved = Auto::new(SlowAndFast, 0.0, [1.0, 0.0], [0.0, 0.0])
+            .tolerance(Tolerance::relative(rtol))
+            .solve(Plan::until(span));
+        let solved = solved.unwrap();
+        let e = &solved.estimate;
+        assert_eq!(e.method, Candidate { family: Family::Composition, order: 6 }, "{}", e.reason);
+        assert!(e.reason.contains("its difference from Kahan–Li 8"), "{}", e.reason);
+        assert!((e.step - span / (span / (COMPOSITION_RHO_H / 10.0)).ceil()).abs() < 1e-12, "step {}", e.step);
+        // No Richardson pair: the survey's run and one of Yoshida 6, as many steps.
+        assert_eq!(e.pilot.steps % 2, 0);
+        let survey = e.pilot.steps / 2;
+        assert!(survey as f64 <= (e.measured_until / e.step).ceil() + 1.0, "pilot {} steps", e.pilot.steps);
+        // The largest error along the run, against `cos t`.
+        let error = solved
+            .solution
+            .t
+            .iter()
+            .zip(&solved.solution.q)
+            .map(|(t, q)| (q[0] - t.cos()).abs().max(q[1].abs()))
+            .fold(0.0f64, f64::max);
+        assert!(error <= e.requested, "error {error:e} against {:e} asked", e.requested);
+        assert!((0.1..=10.0).contains(&(e.error / error)), "estimate {:e} against the error {error:e}", e.error);
+    }
+
     #[test]
     fn a_singular_constant_mass_matrix_is_refused_at_the_start() {
         let singular = Coupled { m00: 1.0 };
