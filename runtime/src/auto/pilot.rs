@@ -28,7 +28,10 @@
 //! exponential `e^{λt}` has `k = λt`, growing without bound), with the
 //! measured rate `λ`: the signature of chaos.
 
+use std::sync::Arc;
 use std::time::Instant;
+
+use nalgebra::SMatrix;
 
 use crate::error::Error;
 use crate::solution::Stepping;
@@ -151,33 +154,15 @@ const POWER_ITERATIONS: usize = 3;
 /// [`guidance::linearize`](crate::guidance::linearize), which along a survey
 /// of many nodes on 15 coordinates cost 100× a whole calibrated run.
 pub(crate) struct Rates<const N: usize> {
-    /// `M⁻¹`, row-major.
-    inverse_mass: Vec<f64>,
+    /// `M⁻¹`, shared with the started integrator that formed it.
+    inverse_mass: Arc<SMatrix<f64, N, N>>,
     mode: [f64; N],
 }
 
 impl<const N: usize> Rates<N> {
-    /// `M = ∂²L/∂v²` from `∂L/∂v = M v` at the unit velocities, inverted;
-    /// `None` when it is singular or not finite.
-    pub(crate) fn new<S: Lagrangian<N> + ?Sized>(system: &S, t: f64, q: &[f64; N]) -> Option<Self> {
-        let mut m = nalgebra::DMatrix::<f64>::zeros(N, N);
-        let (mut gq, mut gv) = ([0.0; N], [0.0; N]);
-        for j in 0..N {
-            let unit: [f64; N] = core::array::from_fn(|i| if i == j { 1.0 } else { 0.0 });
-            system.gradient_qv(t, q, &unit, &mut gq, &mut gv);
-            for i in 0..N {
-                m[(i, j)] = gv[i];
-            }
-        }
-        if !m.iter().all(|x| x.is_finite()) {
-            return None;
-        }
-        let inverse = m.lu().try_inverse()?;
-        let inverse_mass: Vec<f64> = (0..N * N).map(|k| inverse[(k / N, k % N)]).collect();
-        inverse_mass
-            .iter()
-            .all(|x| x.is_finite())
-            .then_some(Self { inverse_mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) })
+    /// From `M⁻¹`, which an explicit integrator forms at its start.
+    pub(crate) fn new(inverse_mass: Arc<SMatrix<f64, N, N>>) -> Self {
+        Self { inverse_mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) }
     }
 
     /// `ρ` at `(t, q)` after `iterations` power iterations.
@@ -201,10 +186,8 @@ impl<const N: usize> Rates<N> {
             system.gradient_q(t, &core::array::from_fn(|i| q[i] + delta * u[i]), &zero, &mut plus);
             system.gradient_q(t, &core::array::from_fn(|i| q[i] - delta * u[i]), &zero, &mut minus);
             let force: [f64; N] = core::array::from_fn(|i| (plus[i] - minus[i]) / (2.0 * delta));
-            self.mode = core::array::from_fn(|i| {
-                let row = &self.inverse_mass[i * N..(i + 1) * N];
-                row.iter().zip(&force).map(|(a, f)| a * f).sum()
-            });
+            let m = &*self.inverse_mass;
+            self.mode = core::array::from_fn(|i| (0..N).map(|j| m[(i, j)] * force[j]).sum());
             lambda = self.mode.iter().map(|x| x * x).sum::<f64>().sqrt();
         }
         (lambda.is_finite() && lambda > 0.0).then(|| lambda.sqrt())
@@ -310,6 +293,33 @@ impl Richardson {
         by_index: bool,
     ) -> Self {
         let factor = 2f64.powi(order as i32) / (2f64.powi(order as i32) - 1.0);
+        Self::scaled(coarse, fine, factor, times, t0, settle, by_index)
+    }
+
+    /// The error of `run` measured against `companion`, a run of a method
+    /// of higher order at the same step whose error is far smaller (fixed
+    /// steps, the same nodes): the difference itself, with its growth
+    /// judged as in [`new`](Self::new).
+    pub(crate) fn companion<const N: usize>(
+        run: &Probe<N>,
+        companion: &Probe<N>,
+        times: &[f64],
+        t0: f64,
+        settle: f64,
+    ) -> Self {
+        Self::scaled(run, companion, 1.0, times, t0, settle, false)
+    }
+
+    /// The difference of `coarse` and `fine` times `factor` as the error of `coarse`.
+    fn scaled<const N: usize>(
+        coarse: &Probe<N>,
+        fine: &Probe<N>,
+        factor: f64,
+        times: &[f64],
+        t0: f64,
+        settle: f64,
+        by_index: bool,
+    ) -> Self {
         let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
         let d = distances(coarse, fine, by_index);
         // The running maximum at each checkpoint: the last shared node not after it.

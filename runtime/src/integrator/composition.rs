@@ -207,6 +207,27 @@ impl<const N: usize> CompositionMemory<N> {
     }
 }
 
+impl<S: Clone, const N: usize> Integrator<S, Composition, N> {
+    /// A copy of this integrator, which has not stepped yet, composed with
+    /// `method`'s weights: the start (the Legendre transform, the checks of
+    /// the initial data and `M⁻¹` of an explicit system) is the trapezoid
+    /// rule's and does not depend on the weights, so a copy serves every
+    /// order without starting again. `None` once it has stepped.
+    pub(crate) fn recomposed(&self, method: Composition) -> Option<Self> {
+        (self.state.step == 0 && self.stats.steps == 0).then(|| {
+            let mut it = self.clone();
+            it.method = method;
+            it
+        })
+    }
+
+    /// `M⁻¹` of the constant mass matrix of an explicit system, formed at
+    /// the start; `None` for other systems.
+    pub(crate) fn inverse_mass(&self) -> Option<std::sync::Arc<nalgebra::SMatrix<f64, N, N>>> {
+        self.memory.inner.explicit.as_ref().map(|cache| cache.inverse_mass.clone())
+    }
+}
+
 impl sealed::Sealed for Composition {}
 
 impl Method<f64> for Composition {
