@@ -172,7 +172,8 @@ fn the_gyroscopic_coupling_is_in_the_iteration_matrix() {
     // linear stage equations, and the second is at round-off. A step that
     // starts block-diagonal switches to the coupled matrix after its second
     // round (four rounds); the next 1, 3, 7, 15, 15, … steps start coupled
-    // (two rounds): 9 of the 100 steps start block-diagonal, 218 rounds.
+    // (two rounds): by that schedule 9 of the 100 steps start block-diagonal
+    // and the run takes 218 rounds.
     let (system, h, n) = (Magnetic { b: 30.0 }, 0.05, 100);
     let start = ([1.0, 0.0], [0.0, 2.0]);
     let iterations = (StageIteration::FixedPoint, StageIteration::Newton);
