@@ -169,7 +169,11 @@ fn the_gyroscopic_coupling_is_in_the_iteration_matrix() {
     // an iteration with ∂²L/∂v² alone gains only a factor of about
     // b h ρ(A) (ρ(A) the spectral radius of the Gauss matrix) per round.
     // With the coupling in its matrix the first correction solves the
-    // linear stage equations, and the second is at round-off.
+    // linear stage equations, and the second is at round-off. A step that
+    // starts block-diagonal switches to the coupled matrix after its second
+    // round (four rounds); the next 1, 3, 7, 15, 15, … steps start coupled
+    // (two rounds): by that schedule 9 of the 100 steps start block-diagonal
+    // and the run takes 218 rounds.
     let (system, h, n) = (Magnetic { b: 30.0 }, 0.05, 100);
     let start = ([1.0, 0.0], [0.0, 2.0]);
     let iterations = (StageIteration::FixedPoint, StageIteration::Newton);
@@ -177,6 +181,6 @@ fn the_gyroscopic_coupling_is_in_the_iteration_matrix() {
     // Measured: 2e-15 (the orbit is a circle; no chaos to grow round-off).
     assert!(worst < 1e-13, "{worst:e}");
     let stats = fixed.stats();
-    assert!(stats.newton_iterations <= 2 * n as u64, "{} iterations in {n} steps", stats.newton_iterations);
+    assert!(stats.newton_iterations <= 5 * n as u64 / 2, "{} iterations in {n} steps", stats.newton_iterations);
     assert_eq!(fixed.point_evaluations().hessians, 0);
 }

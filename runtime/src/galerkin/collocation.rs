@@ -32,12 +32,18 @@
 //! (Coriolis) coupling `∂²L/∂q∂v` of a configuration-dependent mass matrix
 //! and through the damping; with `K` it contracts like `h²`, through
 //! `∂G/∂q` only. Each iteration costs one gradient of `L` (and the force)
-//! per point and one solve with the factors of `K`; `K` costs one Hessian in
-//! `v` per point (the mixed block comes from the same evaluation), `N`
-//! derivatives of the force, and an `sN × sN` LU per step. A system whose
+//! per point and one solve with `M_i⁻¹` or with the factors of `K`; both
+//! come from one Hessian in `v` per point at the first guess (the mixed
+//! block from the same evaluation; `K` also takes `N` derivatives of the
+//! force), `K` with a block elimination of `sN × sN` per step. Which one
+//! is chosen from the observed contraction: a step starts with `M_i`, and
+//! switches to `K` for its remaining rounds when a round gains less than
+//! [`SLOWEST_CONTRACTION`]; the steps after a switch start with `K` for a
+//! while (`stepper.rs`). Systems with forces or dissipation start with `K`
+//! (the damping alone slows the block-diagonal iteration). A system whose
 //! mass matrix is proven constant has no coupling in `L` and keeps `M⁻¹`
-//! for the run instead. Where it contracts slowly (a stiff step) or
-//! diverges, the stepper falls back to Newton (`stepper.rs`).
+//! for the run instead. Where even `K` contracts slowly (a stiff step) or
+//! the iteration diverges, the stepper falls back to Newton.
 //!
 //! Stopping: the iteration runs until its correction is at round-off (a few
 //! ulps of the largest velocity), or the next one would be far below it by
@@ -50,19 +56,21 @@ use crate::system::{Lagrangian, generalized_force};
 
 use super::forces::force_velocity_jacobian;
 use super::linalg::{BlockMatrix, BlockVector};
-use super::method::{Galerkin, VelocityDerivatives, gradient_at, velocity_derivatives, velocity_hessian};
+use super::method::{Galerkin, gradient_at, velocity_derivatives, velocity_hessian};
 
 /// Most iterations a step may take before Newton takes over.
 const MAX_ITERATIONS: usize = 20;
 
-/// The fixed point contracts too slowly where one iteration reduces the
-/// correction by less than this: Newton then takes over. Measured on the
-/// double pendulum (s = 4, h = 2/95, 2000 steps of `examples/step_profile.rs`
-/// under callgrind): 17.3k instructions per step at 6.5 fixed-point
-/// iterations against 17.6k for Newton with a kept Jacobian at 2.9, so a
-/// fixed-point iteration costs about a seventh of a Newton step. It
-/// contracts by 0.01–0.05 per iteration there; one that gains less than a
-/// digit per iteration costs more than Newton.
+/// A round contracts too slowly where it reduces the correction by less
+/// than this: the block-diagonal iteration then switches to the coupled
+/// matrix `K` for the rest of the step, and one with `K` gives the step to
+/// Newton. Measured with callgrind (`bench/examples/galerkin_steps.rs` at
+/// the report's settings): on the double pendulum (s = 4, 673 steps) no
+/// round is that slow, and the block-diagonal iteration takes its 5.68
+/// rounds per step throughout; on Kepler in polar coordinates (s = 6,
+/// 48 000 steps over 1000 orbits), where the block-diagonal iteration gave
+/// 1.75 Hessians per step to Newton, switching instead leaves 0.25 and
+/// takes 690.0M → 546.5M instructions.
 pub(super) const SLOWEST_CONTRACTION: f64 = 0.1;
 
 /// A correction (relative to the largest stage velocity) at round-off.
@@ -81,9 +89,17 @@ const LEFT_OVER: f64 = ROUND_OFF / 100.0;
 const STALLED: f64 = 1024.0 * f64::EPSILON;
 
 /// A converged fixed-point solve.
-pub(super) struct Converged<const N: usize, const S: usize, T> {
+pub(super) struct Converged<const N: usize, const S: usize, const R: usize, T> {
     /// The node increments of the step polynomial.
     pub(super) d: BlockVector<N, S, T>,
+    /// `G_j = ∂L/∂q + F` at the points, from the last iteration's
+    /// evaluation, where its stage velocities are those returned to
+    /// round-off (the last correction at most [`ROUND_OFF`]): the momentum
+    /// update `p_k + h Σ_j b_j G_j` then takes them instead of evaluating
+    /// the gradients again. `None`: the last correction was larger.
+    pub(super) point_forces: Option<[[T; N]; R]>,
+    /// The last rounds solved with the coupled matrix `K`.
+    pub(super) coupled: bool,
     /// Iterations (gradients of `L` at every point each).
     pub(super) iterations: usize,
     /// `max |P_i − ∂L/∂v|` at the last iterate before its correction.
@@ -100,6 +116,8 @@ pub(super) struct Failed {
     /// What went wrong: a slow or diverging iteration, a non-finite value, a
     /// singular `∂²L/∂v²`.
     pub(super) reason: &'static str,
+    /// The last rounds solved with the coupled matrix `K`.
+    pub(super) coupled: bool,
 }
 
 /// Solves the step of size `h` from `(t0, q0 + e, p0 + pc)` by the fixed-point
@@ -109,9 +127,11 @@ pub(super) struct Failed {
 /// rows of `M⁻¹` of a system whose mass matrix is proven constant, replaces
 /// the Hessian in `v` at every point (see [`constant_mass_inverse`]).
 /// `coupled`, storage for the `sN × sN` iteration matrix `K` with the
-/// first-order coupling (see [`coupled_matrix`]): where given (and `R = S`,
-/// no `mass_inverse`), the iteration solves with `K` instead of the
-/// block-diagonal `M_i`.
+/// first-order coupling (see [`coupled_columns`]): where given (and `R = S`,
+/// no `mass_inverse`), the iteration solves with `K` from the first round
+/// if `start_coupled`, and otherwise with the block-diagonal `M_i` until a
+/// round contracts by less than `slowest`, then with `K` (formed from the
+/// first round's derivatives, no evaluation more) for the rest of the step.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
@@ -125,25 +145,28 @@ pub(super) fn solve<Sys, T, const N: usize, const S: usize, const R: usize>(
     slowest: f64,
     mass_inverse: Option<&[[T; N]]>,
     coupled: Option<&mut BlockMatrix<N, S, T>>,
-) -> Result<Converged<N, S, T>, Failed>
+    start_coupled: bool,
+) -> Result<Converged<N, S, R, T>, Failed>
 where
     Sys: Lagrangian<N> + ?Sized,
     T: Real,
 {
     let zero = T::zero();
     let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
-    let fail = |iterations, reason| Err(Failed { iterations, reason });
     let mut coupled = coupled.filter(|_| R == S && mass_inverse.is_none());
-    if let Some(k) = coupled.as_deref_mut() {
-        k.fill_zero();
-    }
+    // Whether the rounds solve with the factors of `K` (else with `M_i⁻¹`).
+    let mut with_k = start_coupled && coupled.is_some();
+    let fail = |iterations, reason, with_k| Err(Failed { iterations, reason, coupled: with_k });
     // h a_ij, rounded once and shared by the positions and the momenta.
     let ha = g.stage_from_stages.map(|row| row.map(|a| a * h));
     // The guess's velocities at the points, the inverse of ∂²L/∂v² there
-    // (or the coupled matrix), and the first iteration's gradients from the
-    // same evaluation.
+    // and the derivatives `K` is formed from, and the first iteration's
+    // gradients from the same evaluation.
     let mut v = [[zero; N]; R];
     let mut m_inv = [[[zero; N]; N]; R];
+    let mut vv = [[[zero; N]; N]; R];
+    let mut qv = [[[zero; N]; N]; R];
+    let mut fv = [[[zero; N]; N]; R];
     let mut force = [[zero; N]; R];
     let mut lv = [[zero; N]; R];
     for j in 0..R {
@@ -152,13 +175,17 @@ where
             gradient_at(system, t, q, vj)
         } else {
             let d = velocity_hessian(system, t, q, vj);
-            if let Some(k) = coupled.as_deref_mut() {
-                let fv = if forced { force_velocity_jacobian(system, t, q, vj) } else { [[zero; N]; N] };
-                coupled_columns(k, &ha, j, &d, &fv);
-            } else {
+            if coupled.is_some() {
+                (vv[j], qv[j]) = (d.vv, d.qv);
+                if forced {
+                    fv[j] = force_velocity_jacobian(system, t, q, vj);
+                }
+            }
+            // The block-diagonal matrix, for rounds before any switch.
+            if !with_k {
                 match invert(d.vv) {
                     Some(inv) => m_inv[j] = inv,
-                    None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess"),
+                    None => return fail(1, "∂²L/∂v² singular or not finite at a point of the first guess", with_k),
                 }
             }
             (d.q, d.v)
@@ -171,10 +198,20 @@ where
             }
         }
     }
-    if let Some(k) = coupled.as_deref_mut()
-        && !factor_blocks::<N, S, R, T>(k)
+    // `K` from the first round's derivatives, factored in the storage.
+    let form_k = |k: &mut BlockMatrix<N, S, T>| {
+        k.fill_zero();
+        let rows = k.rows_mut();
+        for l in 0..R {
+            coupled_columns::<N, S, R, T>(rows, &ha, l, &vv[l], &qv[l], &fv[l]);
+        }
+        factor_blocks::<N, S, R, T>(rows)
+    };
+    if with_k
+        && let Some(k) = coupled.as_deref_mut()
+        && !form_k(k)
     {
-        return fail(1, "the coupled iteration matrix is singular or not finite at the first guess");
+        return fail(1, "the coupled iteration matrix is singular or not finite at the first guess", with_k);
     }
     let nodes = g.quadrature().nodes();
     let mut last = f64::INFINITY;
@@ -214,8 +251,8 @@ where
         }
         let correction: [[T; N]; R] = match coupled.as_deref() {
             // (`coupled` only where R = S.)
-            Some(k) => solve_blocks(k, &residual),
-            None => core::array::from_fn(|i| {
+            Some(k) if with_k => solve_blocks::<N, S, R, T>(k.rows(), &residual),
+            _ => core::array::from_fn(|i| {
                 let m: &[[T; N]] = mass_inverse.unwrap_or(&m_inv[i]);
                 core::array::from_fn(|c| {
                     let mut x = zero;
@@ -233,7 +270,7 @@ where
             }
         }
         if !all_finite(v.as_flattened()) {
-            return fail(iteration, "non-finite stage velocities in the fixed-point iteration");
+            return fail(iteration, "non-finite stage velocities in the fixed-point iteration", with_k);
         }
         let scale = max_abs(v.as_flattened());
         let ratio = if size == 0.0 { 0.0 } else { size / scale };
@@ -244,19 +281,45 @@ where
         let next = if iteration > 1 { ratio * ratio / last } else { f64::INFINITY };
         if ratio <= ROUND_OFF || next <= LEFT_OVER || (ratio >= last && ratio <= STALLED) {
             let d = nodes_from(g, h, &v);
-            return Ok(Converged { d, iterations: iteration, residual_norm, correction_norm: ratio });
+            // The gradients of this iteration were evaluated before its
+            // correction: at the returned velocities to round-off only if
+            // that correction is.
+            let point_forces = (ratio <= ROUND_OFF).then_some(force);
+            return Ok(Converged {
+                d,
+                point_forces,
+                coupled: with_k,
+                iterations: iteration,
+                residual_norm,
+                correction_norm: ratio,
+            });
         }
-        if iteration >= 2 && ratio > STALLED && ratio > slowest * last {
-            return fail(iteration, "the fixed-point iteration contracts too slowly");
+        if iteration >= 2 && ratio > STALLED {
+            match coupled.as_deref_mut() {
+                // The block-diagonal iteration is slow (the coupling through
+                // `∂²L/∂q∂v` is strong at this step): the rest of the step
+                // solves with `K`, whose rounds gain about `h` more each.
+                Some(k) if !with_k && ratio > SLOWEST_CONTRACTION * last => {
+                    with_k = true;
+                    if !form_k(k) {
+                        return fail(iteration, "the coupled iteration matrix is singular or not finite", with_k);
+                    }
+                }
+                _ if ratio > slowest * last => {
+                    return fail(iteration, "the fixed-point iteration contracts too slowly", with_k);
+                }
+                _ => {}
+            }
         }
         last = ratio;
     }
-    fail(MAX_ITERATIONS, "the fixed-point iteration did not converge")
+    fail(MAX_ITERATIONS, "the fixed-point iteration did not converge", with_k)
 }
 
 /// Column block `l` of the coupled iteration matrix, from the derivatives at
-/// point `l` of the first guess (`d`, and `fv = ∂F/∂v` of the generalised
-/// force), into `k` (block `(i, l)` at `k[i][·][l][·]`).
+/// point `l` of the first guess (`vv = ∂²L/∂v²`, `qv = ∂²L/∂q∂v` and
+/// `fv = ∂F/∂v` of the generalised force), into the flattened rows of `K`
+/// (block `(i, l)` in rows `iN … iN + N − 1`, column block `l`).
 ///
 /// The residual of stage `i` is `r_i = p_k + h Σ_j a_ij G_j − ∂L/∂v(Q_i, V_i)`
 /// with `Q_i = q_k + h Σ_j a_ij V_j`. Its derivative in `V_l`, to first order
@@ -275,83 +338,82 @@ where
 /// mass matrix, and `Φ` is the damping. With `K` it contracts like `h²`.
 #[inline(always)]
 fn coupled_columns<const N: usize, const S: usize, const R: usize, T: Real>(
-    k: &mut BlockMatrix<N, S, T>,
+    rows: &mut [[[T; N]; S]],
     ha: &[[T; R]; R],
     l: usize,
-    d: &VelocityDerivatives<N, T>,
+    vv: &[[T; N]; N],
+    qv: &[[T; N]; N],
     fv: &[[T; N]; N],
 ) {
     // Point l's terms are added (the matrix starts at zero): the column
     // block `l` takes δ_il M_l − h a_il (Y_l + Φ_l), the row block `l` takes
-    // h a_ln X_l.
+    // h a_ln X_l. Rows are taken once each from the flattened storage
+    // (indexing block by block through it cost more than the arithmetic).
     for i in 0..R {
         let a = ha[i][l];
-        for r in 0..N {
+        for (r, row) in rows[i * N..(i + 1) * N].iter_mut().enumerate() {
+            let entries = &mut row[l];
             for c in 0..N {
-                let diagonal = if i == l { d.vv[r][c] } else { T::zero() };
-                k[i][r][l][c] += diagonal - a * (d.qv[r][c] + fv[r][c]);
+                let diagonal = if i == l { vv[r][c] } else { T::zero() };
+                entries[c] += diagonal - a * (qv[r][c] + fv[r][c]);
             }
         }
     }
-    for n in 0..R {
-        let a = ha[l][n];
-        for r in 0..N {
+    for (r, row) in rows[l * N..(l + 1) * N].iter_mut().enumerate() {
+        for n in 0..R {
+            let a = ha[l][n];
             for c in 0..N {
-                k[l][r][n][c] += a * d.qv[c][r];
+                row[n][c] += a * qv[c][r];
             }
         }
     }
 }
 
-/// The `N × N` block `(i, l)` of `k`.
+/// Factors the coupled matrix (its `sN` flattened rows) in place by block
+/// elimination without pivoting (`R = S` blocks of `N × N`): the diagonal
+/// blocks are replaced by the inverses of the pivot blocks, the blocks below
+/// by the multipliers `L_ip`, those above by `U_pj`. `K` is `∂²L/∂v²` per
+/// point plus terms of order `h`, so its pivot blocks are those mass
+/// matrices perturbed; where one is singular the factorisation fails
+/// (`false`) and so does the iteration, for Newton to take over. Measured
+/// with callgrind on the report's double pendulum (s = 4, 673 steps): the
+/// partially pivoted LU of the Newton block (`linalg::Lu`) on this `8 × 8`
+/// matrix took 2.7k instructions per step, more than the two rounds the
+/// coupling saves.
 #[inline(always)]
-fn block<const N: usize, const S: usize, T: Real>(k: &BlockMatrix<N, S, T>, i: usize, l: usize) -> [[T; N]; N] {
-    core::array::from_fn(|r| k[i][r][l])
-}
-
-/// Factors the coupled matrix in place by block elimination without
-/// pivoting (`R = S` blocks of `N × N`): the diagonal blocks are replaced by
-/// the inverses of the pivot blocks, the blocks below by the multipliers
-/// `L_ip`, those above by `U_pj`. `K` is `∂²L/∂v²` per point plus terms of
-/// order `h`, so its pivot blocks are those mass matrices perturbed; where
-/// one is singular the factorisation fails (`false`) and so does the
-/// iteration, for Newton to take over. Measured with callgrind on the
-/// report's double pendulum (s = 4, 673 steps): the partially pivoted LU of
-/// the Newton block (`linalg::Lu`) on this `8 × 8` matrix took 2.7k
-/// instructions per step, more than the two rounds the coupling saves.
-#[inline(always)]
-fn factor_blocks<const N: usize, const S: usize, const R: usize, T: Real>(k: &mut BlockMatrix<N, S, T>) -> bool {
+fn factor_blocks<const N: usize, const S: usize, const R: usize, T: Real>(rows: &mut [[[T; N]; S]]) -> bool {
     for p in 0..R {
-        let (mut pivot, mut inverse) = (block(k, p, p), [[T::zero(); N]; N]);
+        // The pivot rows (block row `p`) and the rows below them.
+        let (head, tail) = rows.split_at_mut((p + 1) * N);
+        let pivot_rows = &mut head[p * N..];
+        let mut pivot: [[T; N]; N] = core::array::from_fn(|r| pivot_rows[r][p]);
+        let mut inverse = [[T::zero(); N]; N];
         if !gauss_jordan_into(&mut pivot, &mut inverse, 0.0) {
             return false;
         }
-        for r in 0..N {
-            k[p][r][p] = inverse[r];
+        for (row, inv) in pivot_rows.iter_mut().zip(&inverse) {
+            row[p] = *inv;
         }
-        for i in p + 1..R {
-            let below = block(k, i, p);
+        let pivot_rows = &*pivot_rows;
+        for below in tail.chunks_exact_mut(N).take(R - p - 1) {
             let l: [[T; N]; N] = core::array::from_fn(|r| {
                 core::array::from_fn(|c| {
                     let mut x = T::zero();
                     for m in 0..N {
-                        x += below[r][m] * inverse[m][c];
+                        x += below[r][p][m] * inverse[m][c];
                     }
                     x
                 })
             });
-            for r in 0..N {
-                k[i][r][p] = l[r];
-            }
-            for j in p + 1..R {
-                let u = block(k, p, j);
-                for r in 0..N {
+            for (row, lr) in below.iter_mut().zip(&l) {
+                row[p] = *lr;
+                for j in p + 1..R {
                     for c in 0..N {
-                        let mut x = k[i][r][j][c];
+                        let mut x = row[j][c];
                         for m in 0..N {
-                            x -= l[r][m] * u[m][c];
+                            x -= lr[m] * pivot_rows[m][j][c];
                         }
-                        k[i][r][j][c] = x;
+                        row[j][c] = x;
                     }
                 }
             }
@@ -360,40 +422,43 @@ fn factor_blocks<const N: usize, const S: usize, const R: usize, T: Real>(k: &mu
     true
 }
 
-/// `x` with `K x = b` from the blocks [`factor_blocks`] left in `k`.
+/// `x` with `K x = b` from the factors [`factor_blocks`] left in the
+/// flattened rows of `K`.
 #[inline(always)]
 fn solve_blocks<const N: usize, const S: usize, const R: usize, T: Real>(
-    k: &BlockMatrix<N, S, T>,
+    rows: &[[[T; N]; S]],
     b: &[[T; N]; R],
 ) -> [[T; N]; R] {
     let mut y = *b;
     for i in 1..R {
-        for p in 0..i {
-            for r in 0..N {
-                let mut x = y[i][r];
+        for r in 0..N {
+            let row = &rows[i * N + r];
+            let mut x = y[i][r];
+            for p in 0..i {
                 for m in 0..N {
-                    x -= k[i][r][p][m] * y[p][m];
+                    x -= row[p][m] * y[p][m];
                 }
-                y[i][r] = x;
             }
+            y[i][r] = x;
         }
     }
     let mut out = [[T::zero(); N]; R];
     for i in (0..R).rev() {
+        let block_rows = &rows[i * N..(i + 1) * N];
         let mut z = y[i];
-        for j in i + 1..R {
-            for r in 0..N {
+        for (zr, row) in z.iter_mut().zip(block_rows) {
+            for j in i + 1..R {
                 for m in 0..N {
-                    z[r] -= k[i][r][j][m] * out[j][m];
+                    *zr -= row[j][m] * out[j][m];
                 }
             }
         }
-        for r in 0..N {
+        for (o, row) in out[i].iter_mut().zip(block_rows) {
             let mut x = T::zero();
             for m in 0..N {
-                x += k[i][r][i][m] * z[m];
+                x += row[i][m] * z[m];
             }
-            out[i][r] = x;
+            *o = x;
         }
     }
     out
@@ -484,9 +549,9 @@ mod tests {
             core::array::from_fn(|r| core::array::from_fn(|l| core::array::from_fn(|c| entry(i, r, l, c))))
         });
         let mut k = BlockMatrix::<2, 3>::from_blocks(a);
-        assert!(factor_blocks::<2, 3, 3, f64>(&mut k));
+        assert!(factor_blocks::<2, 3, 3, f64>(k.rows_mut()));
         let b = [[1.0, -2.0], [0.5, 0.25], [-1.5, 3.0]];
-        let x = solve_blocks(&k, &b);
+        let x = solve_blocks::<2, 3, 3, f64>(k.rows(), &b);
         for i in 0..3 {
             for r in 0..2 {
                 let ax: f64 =
@@ -496,7 +561,7 @@ mod tests {
         }
         // A singular pivot block fails.
         let mut k = BlockMatrix::<2, 3>::from_blocks([[[[0.0; 2]; 3]; 2]; 3]);
-        assert!(!factor_blocks::<2, 3, 3, f64>(&mut k));
+        assert!(!factor_blocks::<2, 3, 3, f64>(k.rows_mut()));
     }
 
     #[test]

@@ -244,7 +244,7 @@ where
         let t1 = t0 + y;
         let time_error = (t1 - t0) - y;
         let report = NewtonReport { iterations: spent, residual_norm: mismatch, correction_norm: 0.0 };
-        self.commit(h, t1, d, report, KeptBlock::Drop, storage)?;
+        self.commit(h, t1, d, report, None, KeptBlock::Drop, storage)?;
         self.time_error = time_error;
         self.h = h;
         if fallback {

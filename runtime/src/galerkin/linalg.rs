@@ -70,12 +70,12 @@ impl<const N: usize, const S: usize, T: Real> BlockMatrix<N, S, T> {
     }
 
     /// The `sN` rows.
-    fn rows(&self) -> &[[[T; N]; S]] {
+    pub(crate) fn rows(&self) -> &[[[T; N]; S]] {
         &self.rows
     }
 
     /// The `sN` rows.
-    fn rows_mut(&mut self) -> &mut [[[T; N]; S]] {
+    pub(crate) fn rows_mut(&mut self) -> &mut [[[T; N]; S]] {
         &mut self.rows
     }
 

@@ -84,6 +84,11 @@ pub struct LastStep<const N: usize, const S: usize, T> {
     /// When to try the fixed-point iteration again after it failed to
     /// converge fast enough (`collocation.rs`): the same back-off as the kept block's.
     pub(crate) fixed_point: KeptPolicy,
+    /// When to start the fixed-point iteration with the block-diagonal
+    /// `∂²L/∂v²` again after a step had to switch to the coupled matrix
+    /// (`collocation::solve`): the same back-off, so that a stretch of steps
+    /// where the coupling is strong starts coupled.
+    pub(crate) coupling: KeptPolicy,
     /// The rows of `M⁻¹` of a system whose mass matrix is proven constant,
     /// for the fixed-point iteration (`collocation::constant_mass_inverse`);
     /// empty until a step computes it.
@@ -92,8 +97,21 @@ pub struct LastStep<const N: usize, const S: usize, T> {
 
 impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
     fn clone(&self) -> Self {
-        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point, mass_inverse } =
-            self;
+        let Self {
+            t0,
+            h,
+            q0,
+            carry,
+            d,
+            jacobian,
+            block,
+            spare,
+            kept_policy,
+            evaluations,
+            fixed_point,
+            coupling,
+            mass_inverse,
+        } = self;
         Self {
             t0: *t0,
             h: *h,
@@ -106,6 +124,7 @@ impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
             kept_policy: *kept_policy,
             evaluations: *evaluations,
             fixed_point: *fixed_point,
+            coupling: *coupling,
             mass_inverse: mass_inverse.clone(),
         }
     }
@@ -113,8 +132,21 @@ impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
     /// The blocks into the storage they have: a copy of an integrator made
     /// before each step of a `solve` does not allocate.
     fn clone_from(&mut self, source: &Self) {
-        let Self { t0, h, q0, carry, d, jacobian, block, spare, kept_policy, evaluations, fixed_point, mass_inverse } =
-            self;
+        let Self {
+            t0,
+            h,
+            q0,
+            carry,
+            d,
+            jacobian,
+            block,
+            spare,
+            kept_policy,
+            evaluations,
+            fixed_point,
+            coupling,
+            mass_inverse,
+        } = self;
         block.clone_from(&source.block);
         spare.clone_from(&source.spare);
         if mass_inverse.len() == source.mass_inverse.len() {
@@ -124,7 +156,8 @@ impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
         }
         (*t0, *h, *q0, *carry, *d, *jacobian) =
             (source.t0, source.h, source.q0, source.carry, source.d, source.jacobian);
-        (*kept_policy, *evaluations, *fixed_point) = (source.kept_policy, source.evaluations, source.fixed_point);
+        (*kept_policy, *evaluations, *fixed_point, *coupling) =
+            (source.kept_policy, source.evaluations, source.fixed_point, source.coupling);
     }
 }
 
@@ -136,7 +169,9 @@ impl<const N: usize, const S: usize, T: Copy> Clone for LastStep<N, S, T> {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PointEvaluations {
     /// Gradients `(∂L/∂q, ∂L/∂v)` at one point: `R` per iteration that
-    /// reuses a Jacobian, and `R` per step for the momentum update.
+    /// reuses a Jacobian, and `R` per step for the momentum update (none
+    /// where a fixed-point iteration's last correction is at round-off: the
+    /// update takes that iteration's gradients).
     pub gradients: u64,
     /// Gradients with the Hessian of `L` at one point: `R` per iteration
     /// that assembles a new Jacobian.
@@ -294,20 +329,6 @@ where
     /// 12 145 instructions).
     const KEEPS_JACOBIAN: bool = S >= 2 && S * N >= 4;
 
-    /// Whether the fixed-point iteration solves with the coupled `sN × sN`
-    /// matrix (`collocation::coupled_columns`: `∂²L/∂v²` with the first-order
-    /// coupling `∂²L/∂q∂v` and the damping) instead of `∂²L/∂v²` point by
-    /// point. Each round then costs a solve of `(sN)²` against `s N²`, and
-    /// the step a block factorisation. Measured with callgrind
-    /// (`bench/examples/galerkin_steps.rs`, the report's settings): on the
-    /// double pendulum the coupling takes 5.68 → 3.73 rounds per step at
-    /// s = 4 and 93.7M against 96.1M instructions, but more instructions
-    /// than it saves gradients at s = 5, 6, 8 (+5 %, +13 %, +31 %); on the
-    /// forced and damped sensor it lets the fixed point converge where the
-    /// damping stopped it (s = 5: 94.4M → 67.4M, s = 3 and 4: +3 % and
-    /// +5 %).
-    const COUPLED_FIXED_POINT: bool = S * N <= 8 || Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
-
     /// The first guess for the increments of a step of size `h`.
     #[inline]
     pub(super) fn predict_nodes(&self, h: T) -> BlockVector<N, S, T> {
@@ -355,6 +376,10 @@ where
         // where it contracts slowly or diverges goes on to Newton below,
         // and the next steps skip it for a while (the kept block's back-off).
         let fixed_policy = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.fixed_point);
+        let forced = Sys::HAS_FORCE || Sys::HAS_DISSIPATION;
+        let coupling = self.memory.as_ref().map_or_else(KeptPolicy::default, |last| last.coupling);
+        // The coupling policy after this step, if it goes on.
+        let mut coupling_after = coupling;
         let iteration = self.method.iteration();
         let fixed_offered = self.method.is_collocation()
             && match iteration {
@@ -389,7 +414,11 @@ where
                 (None, Some(last)) if !last.mass_inverse.is_empty() => Some(&*last.mass_inverse),
                 _ => None,
             };
-            let coupled = if Self::COUPLED_FIXED_POINT { Some(storage.matrix_mut()) } else { None };
+            // Forced and damped systems start with the coupled matrix (the
+            // damping stops the block-diagonal iteration); the others start
+            // block-diagonal and switch where a round contracts slowly.
+            let start_coupled = forced || !coupling.offers();
+            let coupled = Some(storage.matrix_mut());
             let solved = collocation::solve(
                 &self.system,
                 &self.method,
@@ -401,6 +430,7 @@ where
                 slowest,
                 mass_inverse,
                 coupled,
+                start_coupled,
             );
             // Hessians in `v` the first iteration evaluated: one for a
             // constant mass matrix inverted at this step, none for one kept.
@@ -414,9 +444,17 @@ where
             {
                 self.keep_mass_inverse(m);
             }
+            let ended_coupled = match &solved {
+                Ok(c) => c.coupled,
+                Err(failure) => failure.coupled,
+            };
+            if !forced {
+                // Offered: started block-diagonal; kept: stayed so.
+                coupling_after = coupling.after(!start_coupled, start_coupled, !ended_coupled);
+            }
             match solved {
                 Ok(c) => {
-                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians, storage)?;
+                    self.commit_fixed_point(h, t1, c, &predicted, velocity_hessians, coupling_after, storage)?;
                     // The first step's memory exists only now.
                     if let Some(m) = computed {
                         self.keep_mass_inverse(m);
@@ -564,11 +602,12 @@ where
             }
         }
         let kept = matches!(jacobian, KeptBlock::Same);
-        self.commit(h, t1, d, report, jacobian, storage)?;
+        self.commit(h, t1, d, report, None, jacobian, storage)?;
         if let Some(last) = &mut self.memory {
             last.kept_policy = policy.after(offered, has_kept && !offered, kept);
             let collocation = self.method.is_collocation() && iteration == StageIteration::Automatic;
             last.fixed_point = fixed_policy.after(fixed_offered, collocation && !fixed_offered, false);
+            last.coupling = coupling_after;
             // Every linearisation of every attempt, the fixed-point
             // iterations before them, and the momentum update.
             let fixed_gradients = fixed_spent.saturating_sub(1);
@@ -590,17 +629,20 @@ where
 
     /// Applies a step the fixed-point iteration solved (`converged`, from
     /// the guess `predicted`), with the checks of a Newton step; the kept
-    /// Newton block stays in the memory for the steps that need it.
+    /// Newton block stays in the memory for the steps that need it, and
+    /// `coupling` becomes the memory's coupling policy.
+    #[allow(clippy::too_many_arguments)]
     fn commit_fixed_point(
         &mut self,
         h: T,
         t1: T,
-        converged: collocation::Converged<N, S, T>,
+        converged: collocation::Converged<N, S, R, T>,
         predicted: &BlockVector<N, S, T>,
         velocity_hessians: usize,
+        coupling: KeptPolicy,
         storage: Lu<N, S, T>,
     ) -> Result<(), Error<N, T>> {
-        let collocation::Converged { d, iterations, residual_norm, correction_norm } = converged;
+        let collocation::Converged { d, point_forces, iterations, residual_norm, correction_norm, .. } = converged;
         let report = NewtonReport { iterations, residual_norm, correction_norm };
         if let Some(last) = &self.memory {
             let f = |x: &[T; N]| x.map(|v| v.to_f64());
@@ -611,11 +653,14 @@ where
                 return Err(self.fail(h, NewtonFailure::Rejected { iterations, reason: IMPLAUSIBLE_GROWTH }));
             }
         }
-        self.commit(h, t1, d, report, KeptBlock::Same, storage)?;
+        self.commit(h, t1, d, report, point_forces.as_ref(), KeptBlock::Same, storage)?;
         if let Some(last) = &mut self.memory {
             last.fixed_point = KeptPolicy::default();
-            // The first iteration's gradients come with the Hessians in v.
-            last.evaluations.gradients += (R * iterations) as u64;
+            last.coupling = coupling;
+            // The first iteration's gradients come with the Hessians in v;
+            // the momentum update's are the last iteration's where reused.
+            let momentum = usize::from(point_forces.is_none());
+            last.evaluations.gradients += (R * (iterations - 1 + momentum)) as u64;
             last.evaluations.velocity_hessians += velocity_hessians as u64;
         }
         Ok(())
@@ -623,9 +668,13 @@ where
 
     /// Applies a step of size `h` (end time `t1`) whose block system is
     /// solved by the increments `d`: the momentum update, the Kahan sums and
-    /// the checks of every published value; `jacobian` the block to keep and
-    /// `storage` the step's other block storage, both for the memory. On
-    /// failure nothing changes but the storage going back to the memory.
+    /// the checks of every published value; `point_forces` the
+    /// `∂L/∂q + F` at the quadrature points where the solve already has them
+    /// at its solution (to round-off; `None`: evaluated here); `jacobian`
+    /// the block to keep and `storage` the step's other block storage, both
+    /// for the memory. On failure nothing changes but the storage going back
+    /// to the memory.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
     pub(super) fn commit(
         &mut self,
@@ -633,6 +682,7 @@ where
         t1: T,
         d: BlockVector<N, S, T>,
         report: NewtonReport,
+        point_forces: Option<&[[T; N]; R]>,
         jacobian: KeptBlock<N, S, T>,
         storage: Lu<N, S, T>,
     ) -> Result<(), Error<N, T>> {
@@ -651,15 +701,23 @@ where
         let mut lagrangian_finite = true;
         for j in 0..R {
             let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
-            let (l, mut lq, _) = point_gradient(system, t, q, v);
-            if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
-                // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on all
-                // s + 1 nodes sum to h Σ_j b_j F_j (the basis sums to one).
-                let f = generalized_force(system, t, q, v);
-                for i in 0..N {
-                    lq[i] += f[i];
+            let (l, lq) = match point_forces {
+                // The force is in them already; L itself is still evaluated
+                // at the point (its finiteness, below).
+                Some(forces) => (system.lagrangian(t, q, v), forces[j]),
+                None => {
+                    let (l, mut lq, _) = point_gradient(system, t, q, v);
+                    if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
+                        // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on
+                        // all s + 1 nodes sum to h Σ_j b_j F_j (the basis sums to one).
+                        let f = generalized_force(system, t, q, v);
+                        for i in 0..N {
+                            lq[i] += f[i];
+                        }
+                    }
+                    (l, lq)
                 }
-            }
+            };
             // The derivatives can be finite where L is not (L = ln(1 − q)
             // past q = 1 has a finite derivative on the wrong branch): the
             // step is only valid where the action itself is.
@@ -729,6 +787,7 @@ where
                     kept_policy: KeptPolicy::default(),
                     evaluations: PointEvaluations::default(),
                     fixed_point: KeptPolicy::default(),
+                    coupling: KeptPolicy::default(),
                     mass_inverse: Box::new([]),
                 });
             }
@@ -1481,12 +1540,18 @@ mod tests {
         assert!(e.hessians >= 6, "{e:?}");
         assert!(e.hessians < 6 * s.steps / 4, "{e:?} {s:?}");
         // The fixed-point iteration: gradients at every point per iteration
-        // (the first with the Hessian in v) and for the momentum update.
+        // (the first with the Hessian in v) and for the momentum update,
+        // except on the steps whose last correction is at round-off (the
+        // update takes that iteration's gradients): some, not all.
         let fixed = Galerkin::<6, 6>::gauss().with_iteration(StageIteration::FixedPoint);
         let mut sim = Integrator::new(Kepler, fixed, 0.05).start(0.0, [0.5, 0.0], [0.0, 3f64.sqrt()]).unwrap();
         sim.run(200, |_| {}).unwrap();
         let (e, s) = (sim.point_evaluations(), sim.stats());
-        assert_eq!(e, PointEvaluations { gradients: 6 * s.newton_iterations, hessians: 0, velocity_hessians: 6 * 200 });
+        assert_eq!((e.hessians, e.velocity_hessians, e.gradients % 6), (0, 6 * 200, 0), "{e:?}");
+        assert!(
+            e.gradients >= 6 * (s.newton_iterations - s.steps) && e.gradients < 6 * s.newton_iterations,
+            "{e:?} {s:?}"
+        );
     }
 
     /// Kepler with its constant mass matrix declared: `M⁻¹` is kept.
