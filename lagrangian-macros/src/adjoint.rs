@@ -2107,7 +2107,7 @@ mod tests {
         cx.check().unwrap();
         let out = add_gradient_q_at_rest(&system.lagrangian).unwrap().to_string();
         // At rest: no velocity is read; `d.powi(4)` as products.
-        assert!(!out.contains("__v"), "{out}");
+        assert!(!out.contains("__v ["), "{out}");
         assert!(out.contains("((__t6 * __t6) * (__t6 * __t6))"), "{out}");
         // Added to, never cleared or assigned.
         assert!(!out.contains("iter_mut"), "{out}");
