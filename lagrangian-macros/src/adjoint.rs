@@ -76,6 +76,8 @@ pub(crate) fn add_gradient_q_at_rest(function: &Function) -> Option<TokenStream>
 /// additions are independent and the compiler vectorises them (two lanes
 /// of `f64` per SSE2 register, twice).
 const PARTIAL_SUMS: usize = 4;
+// The sums are combined pairwise by name, `(s₀ + s₁) + (s₂ + s₃)`.
+const _: () = assert!(PARTIAL_SUMS == 4);
 
 /// The statements of `gradient_qv(&self, __t, __q, __v, __out, __out_v)`:
 /// `∂L/∂q` into `__out` and `∂L/∂v` into `__out_v`, by the same
@@ -831,9 +833,11 @@ impl<'a> Adjoint<'a> {
             let printed = body.stmts.iter().try_for_each(|stmt| self.forward_stmt(stmt, false, &mut inner));
             self.lane = None;
             printed?;
+            // Unsuffixed: the loop variable keeps the type the range gives it.
             let offset = proc_macro2::Literal::usize_unsuffixed(lane);
+            let index = if lane == 0 { quote!(__base) } else { quote!(__base + #offset) };
             lanes.push(quote!({
-                let #var = __base + #offset;
+                let #var = #index;
                 #(#inner)*
             }));
         }
@@ -846,7 +850,7 @@ impl<'a> Adjoint<'a> {
             let (local, [s0, s1, s2, s3]) = (local_name(id, 0), [0, 1, 2, 3].map(|lane| partial_name(id, lane)));
             quote!(#local += (#s0 + #s1) + (#s2 + #s3);)
         });
-        // Unsuffixed: the loop variable keeps the type the range gives it.
+        // Unsuffixed, as the offsets above.
         let width = proc_macro2::Literal::usize_unsuffixed(PARTIAL_SUMS);
         out.push(quote! {
             #(#partials)*
