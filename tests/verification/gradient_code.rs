@@ -325,12 +325,12 @@ fn check_value<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N
     let difference = (value - l).abs() / l.abs().max(1.0);
     assert!(difference <= VALUE_TOLERANCE, "value {value} against L = {l}");
     let mut at_rest = [f64::NAN; N];
-    let value = system.value_gradient_q(t, q, &[0.0; N], &mut at_rest);
+    let value_at_rest = system.value_gradient_q(t, q, &[0.0; N], &mut at_rest);
     let mut added = [0.0; N];
     let finite = system.add_gradient_q_at_rest(t, q, &mut added);
     let mut onto = core::array::from_fn(|i| 1.0 + i as f64);
     system.add_gradient_q_at_rest(t, q, &mut onto);
-    check_added(&added, &onto, &at_rest, finite, value);
+    check_added(&added, &onto, &at_rest, finite, value_at_rest);
 }
 
 /// `add_gradient_q_at_rest` added to zeros (`added`): the gradient's values
@@ -458,15 +458,16 @@ fn the_run_time_sized_chain_agrees_with_its_tape_gradient() {
         let mut valued = vec![f64::NAN; 40];
         let value = chain.value_gradient_q(0.0, &q, &v, &mut valued);
         assert_eq!(valued, generated);
+        let l = DynLagrangian::lagrangian(&chain, 0.0, &q, &v);
+        assert!((value - l).abs() <= VALUE_TOLERANCE * l.abs().max(1.0), "value {value} against L = {l}");
+        // At rest, added: the gradient at `v = 0` and the finiteness of its value.
         let mut at_rest = vec![f64::NAN; 40];
-        let value = chain.value_gradient_q(0.0, &q, &[0.0; 40], &mut at_rest);
+        let value_at_rest = chain.value_gradient_q(0.0, &q, &[0.0; 40], &mut at_rest);
         let mut added = vec![0.0; 40];
         let finite = chain.add_gradient_q_at_rest(0.0, &q, &mut added);
         let mut onto: Vec<f64> = (0..40).map(|i| 1.0 + i as f64).collect();
         chain.add_gradient_q_at_rest(0.0, &q, &mut onto);
-        check_added(&added, &onto, &at_rest, finite, value);
-        let l = DynLagrangian::lagrangian(&chain, 0.0, &q, &v);
-        assert!((value - l).abs() <= VALUE_TOLERANCE * l.abs().max(1.0), "value {value} against L = {l}");
+        check_added(&added, &onto, &at_rest, finite, value_at_rest);
         // Forward-mode duals, one direction at a time.
         let vd: Vec<Dual64> = v.iter().map(|&x| Dual64::from(x)).collect();
         let scale = generated.iter().fold(0.0f64, |m, x| m.max(x.abs()));
