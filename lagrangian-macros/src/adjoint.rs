@@ -1707,7 +1707,7 @@ fn integer_literal(expr: &Expr) -> Option<u32> {
 fn power_by_squaring(x: &TokenStream, k: u32) -> TokenStream {
     match k {
         1 => x.clone(),
-        _ if k % 2 == 0 => {
+        _ if k.is_multiple_of(2) => {
             let half = power_by_squaring(x, k / 2);
             quote!((#half * #half))
         }
