@@ -2,8 +2,8 @@
 //! `benches/chain_scaling.rs` (`lagrangian_bench::chain`), for instruction
 //! counts that do not depend on the load of the machine
 //! (`bench/chain-instructions.sh` runs every case under
-//! `valgrind --tool=callgrind` and prints (instructions of `n` steps − of
-//! none) / `n`):
+//! `valgrind --tool=callgrind` and prints (instructions of `2n` steps − of
+//! `n`) / `n`, the steady step):
 //!
 //! ```text
 //! cargo build --release -p lagrangian-bench --example chain_steps

@@ -56,6 +56,29 @@ pub(crate) fn value_gradient_q(function: &Function) -> Option<TokenStream> {
     adjoint.function_body(&function.body)
 }
 
+/// The statements of `add_gradient_q_at_rest(&self, __t, __q, __out)`,
+/// ending with a value of `L(t, q, 0)` whose only use is its finiteness:
+/// those of [`value_gradient_q`] with every `v[i]` the constant `0.0` (the
+/// terms of the velocities alone then fold away at compile time), `∂L/∂q`
+/// added to `__out` (not cleared first), and the forward loops that only
+/// the value reads summed in [`PARTIAL_SUMS`] interleaved partial sums (see
+/// [`Adjoint::reassociated_loop`]). `None` outside the subset, or where
+/// the body reads `v` other than by index or length.
+pub(crate) fn add_gradient_q_at_rest(function: &Function) -> Option<TokenStream> {
+    let mut adjoint = Adjoint::new(function);
+    adjoint.value = true;
+    adjoint.finite = true;
+    adjoint.function_body(&function.body)
+}
+
+/// How many partial sums a loop [`add_gradient_q_at_rest`] reassociates
+/// keeps: iterations `4c + k` add to sum `k`, so that the four chains of
+/// additions are independent and the compiler vectorises them (two lanes
+/// of `f64` per SSE2 register, twice).
+const PARTIAL_SUMS: usize = 4;
+// The sums are combined pairwise by name, `(s₀ + s₁) + (s₂ + s₃)`.
+const _: () = assert!(PARTIAL_SUMS == 4);
+
 /// The statements of `gradient_qv(&self, __t, __q, __v, __out, __out_v)`:
 /// `∂L/∂q` into `__out` and `∂L/∂v` into `__out_v`, by the same
 /// transformation with the velocities as leaves too. `None` outside the
@@ -169,6 +192,19 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
             }
         }
     });
+    // At rest, added to `out`, with the finiteness of `L`: the force and
+    // the check the explicit steps of large systems need at the node they
+    // reach.
+    let finite = add_gradient_q_at_rest(function).map(|body| {
+        quote! {
+            #[inline]
+            fn add_gradient_q_at_rest(&#self_token, #t: f64, #q: #state, #out: #gradient) -> bool {
+                #reslice
+                let __l: f64 = { #body };
+                __l.is_finite()
+            }
+        }
+    });
     Some(quote! {
         const HAS_GRADIENT: bool = true;
         #[inline]
@@ -177,6 +213,7 @@ pub(crate) fn method(function: &Function, n: Option<&TokenStream>) -> Option<Tok
             #body
         }
         #valued
+        #finite
         #both
         #generic
     })
@@ -224,6 +261,14 @@ struct Adjoint<'a> {
     /// End with the value of `L` (`value_gradient_qv_scalar`): every
     /// forward loop is kept, also where only that value reads its sums.
     value: bool,
+    /// The velocities are zero and only the finiteness of the value is
+    /// read ([`add_gradient_q_at_rest`]): `v[i]` is `0.0`, `__out` is added
+    /// to, and the forward loops whose sums only that value reads are
+    /// reassociated.
+    finite: bool,
+    /// While a reassociated loop's body is printed: the partial sum its
+    /// accumulations go to.
+    lane: Option<usize>,
     /// How many loops the reverse sweep is inside.
     loop_depth: usize,
     /// Straight-line bodies whose `q[i]` (and `v[i]`) are read at integer
@@ -258,6 +303,8 @@ impl<'a> Adjoint<'a> {
             with_v: false,
             generic: false,
             value: false,
+            finite: false,
+            lane: None,
             loop_depth: 0,
             assigned: None,
             constants: Vec::new(),
@@ -328,7 +375,8 @@ impl<'a> Adjoint<'a> {
 
         // The reverse sweep first, so that it says which accumulators the
         // forward sweep must compute.
-        self.assigned = literal_leaves_only(block).then(Vec::new);
+        // Added to `__out`, every contribution is an addition.
+        self.assigned = (!self.finite && literal_leaves_only(block)).then(Vec::new);
         let mut reverse = Vec::new();
         self.declare_adjoints(stmts);
         if tail.class.is_active() && self.depends_on_q(tail) {
@@ -365,11 +413,14 @@ impl<'a> Adjoint<'a> {
                 *__x = #zero;
             })
         });
+        let clear = (!self.finite).then(|| {
+            quote!(for __x in #out.iter_mut() {
+                *__x = #zero;
+            })
+        });
         Some(quote! {
             #(#items)*
-            for __x in #out.iter_mut() {
-                *__x = #zero;
-            }
+            #clear
             #clear_v
             #(#forward)*
             #(#reverse)*
@@ -672,6 +723,9 @@ impl<'a> Adjoint<'a> {
                     if top && !self.value && !self.adds_to_needed(body) {
                         return Some(());
                     }
+                    if top && self.finite && !self.adds_to_needed(body) && reassociable(limits, body) {
+                        return self.reassociated_loop(var.as_ref().map(|(id, _)| *id), start, end, body, out);
+                    }
                     let mut inner = Vec::new();
                     for stmt in &body.stmts {
                         self.forward_stmt(stmt, false, &mut inner)?;
@@ -687,7 +741,11 @@ impl<'a> Adjoint<'a> {
                     match op {
                         Some(op) => {
                             let value = self.forward(value, out)?;
-                            out.push(quote!(#local #op #value;));
+                            let place = match self.lane {
+                                Some(lane) => partial_name(id, lane).into_token_stream(),
+                                None => local.into_token_stream(),
+                            };
+                            out.push(quote!(#place #op #value;));
                         }
                         // A new version of a scratch variable.
                         None => {
@@ -726,6 +784,87 @@ impl<'a> Adjoint<'a> {
             let ty = ty.map(|ty| quote!(: #ty));
             out.push(quote!(let #mutability #name #ty = #value;));
         }
+        Some(())
+    }
+
+    /// The forward code of a top-level loop `for var in start..end` whose
+    /// sums only the value of `L` reads, for [`add_gradient_q_at_rest`]:
+    /// iteration `start + 4c + k` adds to the `k`-th of [`PARTIAL_SUMS`]
+    /// partial sums of each accumulator (the body printed once per sum, so
+    /// that the sums are independent chains the compiler vectorises), the
+    /// remaining iterations to the first, and the accumulator then adds
+    /// `(s₀ + s₁) + (s₂ + s₃)`. Each iteration's terms are the same
+    /// operations as in order; only the order of the additions changes,
+    /// which rounds the sum differently but leaves it finite exactly when
+    /// the ordered one is, but where a partial sum overflows and the
+    /// ordered one does not, or the other way round.
+    fn reassociated_loop(
+        &mut self,
+        var: Option<LocalId>,
+        start: &Expr,
+        end: &Expr,
+        body: &Block,
+        out: &mut Vec<TokenStream>,
+    ) -> Option<()> {
+        let mut accumulators = Vec::new();
+        body.visit(&mut |e: &Expr| {
+            if let ExprKind::Assign { place, op: Some(_), .. } = &e.kind
+                && let ExprKind::Local(id, _) = place.kind
+                && !accumulators.contains(&id)
+            {
+                accumulators.push(id);
+            }
+            true
+        });
+        let var = loop_var(var);
+        let (start, end) = (self.constant(start)?, self.constant(end)?);
+        let (ty, zero) = (self.ty(), self.zero());
+        let mut partials = Vec::new();
+        for &id in &accumulators {
+            for lane in 0..PARTIAL_SUMS {
+                let partial = partial_name(id, lane);
+                partials.push(quote!(let mut #partial: #ty = #zero;));
+            }
+        }
+        let mut lanes = Vec::new();
+        for lane in 0..PARTIAL_SUMS {
+            self.lane = Some(lane);
+            let mut inner = Vec::new();
+            let printed = body.stmts.iter().try_for_each(|stmt| self.forward_stmt(stmt, false, &mut inner));
+            self.lane = None;
+            printed?;
+            // Unsuffixed: the loop variable keeps the type the range gives it.
+            let offset = proc_macro2::Literal::usize_unsuffixed(lane);
+            let index = if lane == 0 { quote!(__base) } else { quote!(__base + #offset) };
+            lanes.push(quote!({
+                let #var = #index;
+                #(#inner)*
+            }));
+        }
+        self.lane = Some(0);
+        let mut rest = Vec::new();
+        let printed = body.stmts.iter().try_for_each(|stmt| self.forward_stmt(stmt, false, &mut rest));
+        self.lane = None;
+        printed?;
+        let totals = accumulators.iter().map(|&id| {
+            let (local, [s0, s1, s2, s3]) = (local_name(id, 0), [0, 1, 2, 3].map(|lane| partial_name(id, lane)));
+            quote!(#local += (#s0 + #s1) + (#s2 + #s3);)
+        });
+        // Unsuffixed, as the offsets above.
+        let width = proc_macro2::Literal::usize_unsuffixed(PARTIAL_SUMS);
+        out.push(quote! {
+            #(#partials)*
+            let (__start, __end) = (#start, #end);
+            let __chunks = if __start < __end { (__end - __start) / #width } else { 0 };
+            for __chunk in 0..__chunks {
+                let __base = __start + __chunk * #width;
+                #(#lanes)*
+            }
+            for #var in __start + __chunks * #width..__end {
+                #(#rest)*
+            }
+            #(#totals)*
+        });
         Some(())
     }
 
@@ -946,7 +1085,11 @@ impl<'a> Adjoint<'a> {
                     _ => return None,
                 };
                 let index = self.constant(index)?;
-                quote!(#param[#index])
+                match base.kind {
+                    // At rest: a constant the compiler folds.
+                    ExprKind::Param(ParamRef::V, _) if self.finite => quote!(0.0f64),
+                    _ => quote!(#param[#index]),
+                }
             }
             ExprKind::Local(id, _) => local_name(*id, self.version(expr)).into_token_stream(),
             ExprKind::Unary { op: UnOp::Neg(_), expr: inner } => {
@@ -992,6 +1135,19 @@ impl<'a> Adjoint<'a> {
                     out.push(quote!(let (#sin, #cos): (#ty, #ty) = #pair;));
                     let value = if matches!(f, Unary::Sin) { sin } else { cos };
                     out.push(quote!(let #temp: #ty = #value;));
+                    return Some(temp.into_token_stream());
+                }
+                // At rest, for the finiteness of the value only: a small
+                // constant power as products, which vectorise (`powi` is
+                // a call the compiler keeps scalar); they round as the
+                // compiler expands `powi`, and overflow where it does but
+                // at the threshold.
+                if self.finite
+                    && method == "powi"
+                    && let Some(k) = args.first().and_then(integer_literal).filter(|k| (1..=16).contains(k))
+                {
+                    let (temp, power) = (self.temp(expr), power_by_squaring(&receiver_value, k));
+                    out.push(quote!(let #temp: f64 = #power;));
                     return Some(temp.into_token_stream());
                 }
                 let method = format_ident!("{}", method.to_string());
@@ -1450,6 +1606,8 @@ impl<'a> Adjoint<'a> {
             ExprKind::Path(path) => path.to_token_stream(),
             ExprKind::SelfValue(token) => token.to_token_stream(),
             ExprKind::Param(ParamRef::Q, _) => name("q").into_token_stream(),
+            // At rest there is no `v` to pass.
+            ExprKind::Param(ParamRef::V, _) if self.finite => return None,
             ExprKind::Param(ParamRef::V, _) => name("v").into_token_stream(),
             ExprKind::Param(ParamRef::Time, _) => return None,
             ExprKind::Local(id, _) => local_name(*id, 0).into_token_stream(),
@@ -1477,6 +1635,8 @@ impl<'a> Adjoint<'a> {
             // `q.len()`: the receiver is an (active) array, the length is not.
             ExprKind::MethodCall { receiver, math: Math::Len, .. } => match receiver.kind {
                 ExprKind::Param(ParamRef::Q, _) => quote!(#q.len()),
+                // At rest `v` is not passed; it is as long as `q`.
+                ExprKind::Param(ParamRef::V, _) if self.finite => quote!(#q.len()),
                 ExprKind::Param(ParamRef::V, _) => quote!(#v.len()),
                 // `self.u.len()`, a field's.
                 ExprKind::Field { .. } => {
@@ -1539,6 +1699,22 @@ fn integer_literal(expr: &Expr) -> Option<u32> {
         ExprKind::Paren(inner) => integer_literal(inner),
         ExprKind::Lit(syn::Lit::Int(int)) => int.base10_parse().ok(),
         _ => None,
+    }
+}
+
+/// `x^k` for `k ≥ 1` as products by squaring: `x^2j = x^j · x^j`,
+/// `x^(2j+1) = x^2j · x` (the repeated `x^j` the compiler computes once).
+fn power_by_squaring(x: &TokenStream, k: u32) -> TokenStream {
+    match k {
+        1 => x.clone(),
+        _ if k.is_multiple_of(2) => {
+            let half = power_by_squaring(x, k / 2);
+            quote!((#half * #half))
+        }
+        _ => {
+            let even = power_by_squaring(x, k - 1);
+            quote!((#even * #x))
+        }
     }
 }
 
@@ -1772,6 +1948,24 @@ fn local_name(id: LocalId, version: usize) -> proc_macro2::Ident {
     format_ident!("__l{}_{}", id.0, version)
 }
 
+/// The name of the `lane`-th partial sum of an accumulator in a
+/// reassociated loop ([`Adjoint::reassociated_loop`]).
+fn partial_name(id: LocalId, lane: usize) -> proc_macro2::Ident {
+    format_ident!("__s{}_{}", id.0, lane)
+}
+
+/// Whether [`Adjoint::reassociated_loop`] can print a loop: a half-open
+/// range and a body of `let`s and accumulations without nested loops (a
+/// nested loop's iterations would be reassociated with the outer ones').
+fn reassociable(limits: &syn::RangeLimits, body: &Block) -> bool {
+    matches!(limits, syn::RangeLimits::HalfOpen(_))
+        && body.stmts.iter().all(|stmt| match stmt {
+            Stmt::Let { .. } => true,
+            Stmt::Expr { expr, .. } => matches!(expr.kind, ExprKind::Assign { .. }),
+            Stmt::Item(_) => false,
+        })
+}
+
 /// The name of the adjoint of one version of a local.
 fn adjoint_name(id: LocalId, version: usize) -> proc_macro2::Ident {
     format_ident!("__a{}_{}", id.0, version)
@@ -1884,6 +2078,67 @@ mod tests {
         assert_eq!(out.matches("for ").count(), 2, "{out}"); // zeroing `out` and the reverse loop
         assert!(out.contains("__out [((__l2_0) + (1))] +="), "{out}");
         assert!(out.contains("f64 :: powi"), "{out}");
+    }
+
+    #[test]
+    fn the_form_at_rest_adds_to_out_and_reassociates_the_sums_only_the_value_reads() {
+        let chain: ItemImpl = parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut kinetic = 0.0;
+                    for i in 0..N {
+                        kinetic += 0.5 * v[i] * v[i];
+                    }
+                    let mut s = 0.0;
+                    for i in 0..N {
+                        s += q[i] * q[i];
+                    }
+                    let mut potential = 0.5 * q[0] * q[0];
+                    for i in 0..N - 1 {
+                        let d = q[i + 1] - q[i];
+                        potential -= 0.25 * d.powi(4);
+                    }
+                    for i in 0..=N - 1 {
+                        potential += q[i];
+                    }
+                    kinetic - potential + s.sqrt()
+                }
+            }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&chain)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let out = add_gradient_q_at_rest(&system.lagrangian).unwrap().to_string();
+        // At rest: no velocity is read; `d.powi(4)` as products.
+        assert!(!out.contains("__v ["), "{out}");
+        assert!(out.contains("((__t6 * __t6) * (__t6 * __t6))"), "{out}");
+        // Added to, never cleared or assigned.
+        assert!(!out.contains("iter_mut"), "{out}");
+        assert!(!out.contains("__out [(0)] ="), "{out}");
+        // The kinetic and the quartic sums in four partial sums each
+        // (`kinetic` is local 0, `potential` local 4); `s` (local 2), which the
+        // reverse sweep reads, and the inclusive range in order.
+        for local in [0, 4] {
+            for lane in 0..4 {
+                assert!(out.contains(&format!("let mut __s{local}_{lane} : f64 = 0.0f64")), "{local} {lane}: {out}");
+            }
+            assert!(
+                out.contains(&format!("__l{local}_0 += (__s{local}_0 + __s{local}_1) + (__s{local}_2 + __s{local}_3)")),
+                "{out}"
+            );
+        }
+        assert!(out.contains("__s4_2 -="), "{out}");
+        assert!(!out.contains("__s2_0"), "{out}");
+        assert!(out.contains("__l2_0 +="), "{out}");
+        assert!(out.contains("..= "), "{out}");
+        // Both reassociated loops: chunks of four, then the rest; the
+        // ordered loops; the reverse sweep's three.
+        assert_eq!(out.matches("for __chunk in").count(), 2, "{out}");
+        assert_eq!(out.matches("for ").count(), 2 * 2 + 2 + 3, "{out}");
+        // The value form of the same body clears `out` and sums in order.
+        let value = value_gradient_q(&system.lagrangian).unwrap().to_string();
+        assert!(value.contains("iter_mut") && !value.contains("__chunk"), "{value}");
     }
 
     #[test]

@@ -209,6 +209,32 @@ pub trait Lagrangian<const N: usize> {
         self.lagrangian(t, *q, *v)
     }
 
+    /// Adds `∂L/∂q(t, q, 0)` to `out` and returns whether `L(t, q, 0)` is
+    /// finite: what the explicit steps of large systems need per step, the
+    /// force `−∇V` of a separable `L` at the node they reach (into a buffer
+    /// they cleared in an earlier pass over the coordinates) and the check
+    /// of `L` there.
+    ///
+    /// The default adds [`value_gradient_q`](Self::value_gradient_q)'s
+    /// gradient at `v = 0` and checks its value. `#[lagrangian]` writes it
+    /// as the same code as `value_gradient_q` with every `v[i]` the constant
+    /// `0.0` (so the compiler folds away the terms of the velocities alone),
+    /// adding instead of clearing `out` first, and with the loops whose sums
+    /// only the value of `L` reads summed in four interleaved partial sums
+    /// (which vectorise). Reassociated, such a sum rounds differently, but it
+    /// is finite exactly when the sum in order is, except at overflow: where
+    /// the ordered sum passes `f64::MAX` on its way and comes back (or a
+    /// partial sum does and the ordered one does not), the two checks differ.
+    #[inline(always)]
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64; N], out: &mut [f64; N]) -> bool {
+        let mut gradient = [0.0; N];
+        let l = self.value_gradient_q(t, q, &[0.0; N], &mut gradient);
+        for (o, g) in out.iter_mut().zip(gradient) {
+            *o += g;
+        }
+        l.is_finite()
+    }
+
     /// `true` when [`gradient_qv`](Self::gradient_qv) is plain `f64` code
     /// and [`gradient_qv_scalar`](Self::gradient_qv_scalar) the same code
     /// generic over the scalar, written for this system (set by
@@ -323,6 +349,11 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
     #[inline(always)]
     fn value_gradient_q(&self, t: f64, q: &[f64; N], v: &[f64; N], out: &mut [f64; N]) -> f64 {
         (**self).value_gradient_q(t, q, v, out)
+    }
+
+    #[inline(always)]
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64; N], out: &mut [f64; N]) -> bool {
+        (**self).add_gradient_q_at_rest(t, q, out)
     }
 
     const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;
@@ -441,6 +472,25 @@ pub trait DynLagrangian {
         self.lagrangian(t, q, v)
     }
 
+    /// Adds `∂L/∂q(t, q, 0)` to `out` and returns whether `L(t, q, 0)` is
+    /// finite (see [`Lagrangian::add_gradient_q_at_rest`]; the runtime calls
+    /// this only when [`HAS_GRADIENT`](Self::HAS_GRADIENT) is set).
+    ///
+    /// The default adds [`value_gradient_q`](Self::value_gradient_q)'s
+    /// gradient at `v = 0`, computed into vectors it allocates, and checks
+    /// its value. `#[lagrangian]` writes it as the same code as
+    /// `value_gradient_q` with every `v[i]` the constant `0.0`, adding
+    /// instead of clearing `out` first, with the loops whose sums only the
+    /// value reads reassociated.
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+        let mut gradient = vec![0.0; out.len()];
+        let l = self.value_gradient_q(t, q, &vec![0.0; q.len()], &mut gradient);
+        for (o, g) in out.iter_mut().zip(gradient) {
+            *o += g;
+        }
+        l.is_finite()
+    }
+
     /// `true` when [`gradient_qv_scalar`](Self::gradient_qv_scalar) is
     /// generated adjoint code (see [`Lagrangian::HAS_GRADIENT_QV`]).
     const HAS_GRADIENT_QV: bool = false;
@@ -510,6 +560,11 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn value_gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) -> f64 {
         (**self).value_gradient_q(t, q, v, out)
+    }
+
+    #[inline(always)]
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
+        (**self).add_gradient_q_at_rest(t, q, out)
     }
 
     const HAS_GRADIENT_QV: bool = S::HAS_GRADIENT_QV;

@@ -522,3 +522,46 @@ fn a_thousand_mass_chain_solves_with_an_event_in_a_default_thread() {
     .join()
     .expect("no stack overflow, no panic");
 }
+
+/// `N` free unit masses in the NaN band of `10⁻³ ln((q − 2)(q − 3))`: `L`
+/// is NaN for `2 < q < 3`, where its derivatives stay finite, and the band's
+/// terms are summed in a loop only the value of `L` reads (which the
+/// explicit step's finiteness check sums reassociated).
+pub struct BandedMasses<const N: usize>;
+
+#[lagrangian]
+impl<const N: usize> BandedMasses<N> {
+    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+        let mut l = 0.0;
+        for i in 0..N {
+            l += 0.5 * v[i] * v[i] + 1e-3 * ((q[i] - 2.0) * (q[i] - 3.0)).ln();
+        }
+        l
+    }
+}
+
+/// The explicit reverse-mode step (Störmer–Verlet from the generated
+/// gradient code, `N = 40`) that would carry the first mass into the NaN
+/// band of [`BandedMasses`] is refused with the typed error, the state as
+/// it was, and no published state lies in the band.
+#[test]
+fn an_explicit_reverse_step_into_a_nan_band_summed_in_a_loop_is_refused() {
+    let (mut q0, mut v0) = ([0.0; 40], [0.0; 40]);
+    (q0[0], v0[0]) = (1.5, 1.0);
+    let mut it = Integrator::new(BandedMasses::<40>, Trapezoid, 0.01).start(0.0, q0, v0).unwrap();
+    let failure = loop {
+        let before = *it.state();
+        match it.step() {
+            Ok(state) => assert!(!(2.0..=3.0).contains(&state.q[0]), "stepped into the band: {}", state.q[0]),
+            Err(failure) => {
+                assert_eq!(*it.state(), before, "a failed step changed the state");
+                break failure;
+            }
+        }
+        assert!(it.state().step < 10_000, "never stopped (q = {})", it.state().q[0]);
+    };
+    println!("refused at q = {} after {} steps: {failure}", it.state().q[0], it.state().step);
+    assert!(matches!(failure, Error::NonFinite { quantity: "lagrangian", .. }), "{failure}");
+    // Explicit steps: no Newton iteration.
+    assert_eq!(it.stats().newton_iterations, 0);
+}

@@ -315,7 +315,8 @@ pub(crate) fn worst_difference<S: Lagrangian<N>, const N: usize>(system: &S, lo:
 const VALUE_TOLERANCE: f64 = 1e-14;
 
 /// `value_gradient_q` against `gradient_q` (`gradient`: the same bits) and
-/// `L` (within [`VALUE_TOLERANCE`]).
+/// `L` (within [`VALUE_TOLERANCE`]); `add_gradient_q_at_rest` against
+/// both at `v = 0` (see [`check_added`]).
 fn check_value<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N], v: &[f64; N], gradient: &[f64; N]) {
     let mut out = [f64::NAN; N];
     let value = system.value_gradient_q(t, q, v, &mut out);
@@ -323,6 +324,33 @@ fn check_value<S: Lagrangian<N>, const N: usize>(system: &S, t: f64, q: &[f64; N
     let l = system.lagrangian(t, *q, *v);
     let difference = (value - l).abs() / l.abs().max(1.0);
     assert!(difference <= VALUE_TOLERANCE, "value {value} against L = {l}");
+    let mut at_rest = [f64::NAN; N];
+    let value_at_rest = system.value_gradient_q(t, q, &[0.0; N], &mut at_rest);
+    let mut added = [0.0; N];
+    let finite = system.add_gradient_q_at_rest(t, q, &mut added);
+    let mut onto = core::array::from_fn(|i| 1.0 + i as f64);
+    system.add_gradient_q_at_rest(t, q, &mut onto);
+    check_added(&added, &onto, &at_rest, finite, value_at_rest);
+}
+
+/// `add_gradient_q_at_rest` added to zeros (`added`): the gradient's values
+/// at `v = 0` (the same additions to a cleared `out`; a first term assigned
+/// instead can differ only in the sign of a zero); added to `1 + i`
+/// (`onto`): that plus the gradient up to the round-off of the few
+/// additions of its terms (within [`TOLERANCE`] of the sum and the largest
+/// component); its finiteness that of `value`, the value of `L` at `v = 0`
+/// computed in order.
+fn check_added(added: &[f64], onto: &[f64], gradient: &[f64], finite: bool, value: f64) {
+    for (i, (&a, &g)) in added.iter().zip(gradient).enumerate() {
+        assert!(a == g || (a.is_nan() && g.is_nan()), "{i}: {a} onto zero against the gradient {g}");
+    }
+    let scale = gradient.iter().fold(0.0f64, |m, g| m.max(g.abs()));
+    for (i, (&x, &g)) in onto.iter().zip(gradient).enumerate() {
+        let expected = 1.0 + i as f64 + g;
+        let close = (x - expected).abs() <= TOLERANCE * (expected.abs() + scale);
+        assert!(close || (x.is_nan() && g.is_nan()), "{i}: {x} against {expected}");
+    }
+    assert_eq!(finite, value.is_finite(), "finite: {finite}, value {value}");
 }
 
 /// Sums in a different order than the dual path round differently: a few
@@ -432,6 +460,14 @@ fn the_run_time_sized_chain_agrees_with_its_tape_gradient() {
         assert_eq!(valued, generated);
         let l = DynLagrangian::lagrangian(&chain, 0.0, &q, &v);
         assert!((value - l).abs() <= VALUE_TOLERANCE * l.abs().max(1.0), "value {value} against L = {l}");
+        // At rest, added: the gradient at `v = 0` and the finiteness of its value.
+        let mut at_rest = vec![f64::NAN; 40];
+        let value_at_rest = chain.value_gradient_q(0.0, &q, &[0.0; 40], &mut at_rest);
+        let mut added = vec![0.0; 40];
+        let finite = chain.add_gradient_q_at_rest(0.0, &q, &mut added);
+        let mut onto: Vec<f64> = (0..40).map(|i| 1.0 + i as f64).collect();
+        chain.add_gradient_q_at_rest(0.0, &q, &mut onto);
+        check_added(&added, &onto, &at_rest, finite, value_at_rest);
         // Forward-mode duals, one direction at a time.
         let vd: Vec<Dual64> = v.iter().map(|&x| Dual64::from(x)).collect();
         let scale = generated.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -332,6 +332,10 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
         S::HAS_GRADIENT.then(|| self.system.value_gradient_q(t, q, zero, out))
     }
 
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> Option<bool> {
+        S::HAS_GRADIENT.then(|| self.system.add_gradient_q_at_rest(t, q, out))
+    }
+
     fn autonomous(&self) -> bool {
         S::AUTONOMOUS
     }

@@ -171,6 +171,16 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> TapeModel for Fixe
         Some(self.system.value_gradient_q(t, q, zero, out))
     }
 
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> Option<bool> {
+        if !S::HAS_GRADIENT {
+            return None;
+        }
+        let (Ok(q), Ok(out)) = (<&[f64; N]>::try_from(q), <&mut [f64; N]>::try_from(out)) else {
+            return None;
+        };
+        Some(self.system.add_gradient_q_at_rest(t, q, out))
+    }
+
     fn autonomous(&self) -> bool {
         S::AUTONOMOUS
     }

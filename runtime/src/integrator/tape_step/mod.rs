@@ -70,6 +70,13 @@ pub(crate) trait TapeModel {
         let _ = (t, q, zero, out);
         None
     }
+    /// Adds `∂L/∂q(t, q, 0)` to `out` and returns whether `L(t, q, 0)` is
+    /// finite, from the system's generated code (`None`, nothing written,
+    /// when it has none).
+    fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> Option<bool> {
+        let _ = (t, q, out);
+        None
+    }
     /// `true` when `L` does not depend explicitly on time.
     fn autonomous(&self) -> bool;
     /// The rule's quadrature points `[c_1, c_2]`:
