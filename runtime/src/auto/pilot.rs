@@ -384,10 +384,16 @@ impl Richardson {
     pub(crate) fn at(&self, t0: f64, tp: f64, t_end: f64) -> f64 {
         self.error * amplification(self.growth, t0, tp, t_end)
     }
+
+    /// The round-off of the difference, grown from `tp` to `t_end` as the
+    /// error is.
+    pub(crate) fn noise_at(&self, t0: f64, tp: f64, t_end: f64) -> f64 {
+        self.noise * amplification(self.growth, t0, tp, t_end)
+    }
 }
 
 /// The factor by which an error at `tp` grows until `t_end`.
-pub(crate) fn amplification(growth: Growth, t0: f64, tp: f64, t_end: f64) -> f64 {
+fn amplification(growth: Growth, t0: f64, tp: f64, t_end: f64) -> f64 {
     match growth {
         Growth::Power(k) => ((t_end - t0) / (tp - t0)).powf(k),
         Growth::Exponential(rate) => (rate * (t_end - tp)).exp(),

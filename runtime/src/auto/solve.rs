@@ -48,6 +48,10 @@ const START_ITERATIONS: usize = 30;
 /// compared node by node. The final runs of the report's Kepler orbits at
 /// `rtol ≥ 1e-4` take 8 to 9 steps per orbit, the pilot's span.
 const TT_PILOT_STEPS: u64 = 8;
+
+/// A candidate's pilot: `(step, estimated error at the end with that step)`,
+/// its Richardson estimate, and the scale of the solution.
+type Piloted = ((f64, f64), Richardson, f64);
 /// The least cost of a Galerkin step in composition steps of Kahan–Li 8 on
 /// the same system of at most four coordinates, `(s/4)^{-1.7}` times that
 /// of `s = 4`: the report's calibrated runs give 1.9 (`s = 4`, pendulum)
@@ -530,7 +534,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// barely excited, has accuracy to spare at the cap). `None` where it
     /// does not apply or misses the target: Kahan–Li 8 is then piloted as
     /// usual, the survey's run its first coarse run.
-    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)]
     fn lower_order_beside(
         &self,
         candidate: Candidate,
@@ -540,7 +544,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         settle: f64,
         h_cap: f64,
         cost: &mut Cost,
-    ) -> Option<(Candidate, ((f64, f64), Richardson, f64), String)> {
+    ) -> Option<(Candidate, Piloted, String)> {
         let (h, ref kahan_li8) = *survey;
         let at_cap = h >= 0.99 * h_cap && h <= h_cap;
         let kl8 = Candidate { family: Family::Composition, order: 8 };
@@ -555,7 +559,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let tp = *times.last()?;
         let scale = run.scale.max(kahan_li8.scale).max(f64::MIN_POSITIVE);
         let rich = Richardson::companion(&run, kahan_li8, &times, self.t0, settle);
-        let roundoff = rich.noise * pilot::amplification(rich.growth, self.t0, tp, self.t0 + span);
+        let roundoff = rich.noise_at(self.t0, tp, self.t0 + span);
         let at_end = rich.at(self.t0, tp, self.t0 + span).max(roundoff);
         let target = SAFETY * self.tolerance.bound(scale);
         if !matches!(rich.growth, Growth::Power(_)) || at_end > target {
@@ -576,18 +580,18 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// `C₆ (ρh)⁶` against `C₈ (ρh)⁸` at the cap, predict that it meets the
     /// target there too, and taken if it costs fewer stages over the span:
     /// the lower candidate, its pilot and the reason.
-    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)]
     fn lower_order_at_cap(
         &self,
         candidate: Candidate,
-        piloted: &((f64, f64), Richardson, f64),
+        piloted: &Piloted,
         rho: Option<f64>,
         span: f64,
         checkpoints: &[f64; CHECKPOINTS],
         settle: f64,
         h_cap: f64,
         cost: &mut Cost,
-    ) -> Option<(Candidate, ((f64, f64), Richardson, f64), String)> {
+    ) -> Option<(Candidate, Piloted, String)> {
         let ((step, error), _, scale) = *piloted;
         let ratio = choice::YOSHIDA6_CONSTANT / choice::KAHAN_LI8_CONSTANT / COMPOSITION_RHO_H.powi(2);
         let meets = error * ratio <= SAFETY * self.tolerance.bound(scale);
@@ -611,7 +615,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
 
     /// The pilot of one candidate, its steps at most `h_cap`:
     /// `Ok((step, estimate at that step, scale))`.
-    #[allow(clippy::type_complexity, clippy::too_many_arguments)]
+    #[allow(clippy::too_many_arguments)]
     fn pilot(
         &self,
         c: Candidate,
@@ -622,7 +626,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         h_cap: f64,
         mut reuse: Option<(f64, Probe<N>)>,
         cost: &mut Cost,
-    ) -> Result<((f64, f64), Richardson, f64), Error<N>> {
+    ) -> Result<Piloted, Error<N>> {
         let mut h = match (self.step, c.family) {
             (Some(h), _) => h,
             (None, Family::TimeTransformed) => {
@@ -633,13 +637,13 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         };
         let p = c.order as i32;
         let mut failures = 0;
-        let mut last: Option<((f64, f64), Richardson, f64)> = None;
+        let mut last: Option<Piloted> = None;
         // The finest step piloted whose estimate missed the target: a
         // round-off-limited finer round does not climb back to it.
         let mut too_coarse = f64::INFINITY;
         // The coarsest step piloted whose estimate met the target: a round
         // that would pilot about it or finer takes it instead.
-        let mut met: Option<((f64, f64), Richardson, f64)> = None;
+        let mut met: Option<Piloted> = None;
         // A few coarse steps over the pilot at least.
         let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
@@ -710,7 +714,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             if let Growth::Exponential(_) = rich.growth {
                 // Round-off amplified over the span already above the
                 // tolerance: no step helps (the caller refuses).
-                let amplified = rich.noise * pilot::amplification(rich.growth, self.t0, tp, self.t0 + span);
+                let amplified = rich.noise_at(self.t0, tp, self.t0 + span);
                 if amplified > target {
                     return Ok(((h, at_end), rich, scale));
                 }
@@ -719,7 +723,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 // The difference is round-off: the method is more accurate
                 // than it can show at this step. A coarser step shows it,
                 // unless round-off alone is already the tolerance.
-                let roundoff = rich.noise * pilot::amplification(rich.growth, self.t0, tp, self.t0 + span);
+                let roundoff = rich.noise_at(self.t0, tp, self.t0 + span);
                 if let Some(prev) = last.filter(|_| roundoff > target) {
                     return Ok(prev);
                 }
