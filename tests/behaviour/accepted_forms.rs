@@ -2,7 +2,7 @@
 //!
 //! They were trybuild `pass` cases; as ordinary tests they compile with the
 //! rest of this binary, and trybuild only has to check the misuses in
-//! `tests/ui` (`cargo check`, no code generation for the dependencies).
+//! `ui-tests/tests/ui` (`cargo check`, no code generation for the dependencies).
 
 /// `#[cfg]` on the whole block, one block per configuration: the trait
 /// implementation follows the block that exists.

@@ -2,7 +2,9 @@
 //!
 //! One test binary for these files (each file is a module): one link and one set
 //! of shared instantiations instead of one per file, which shortens a cold
-//! `cargo test --workspace`. Run one file with `cargo test --test behaviour <file>::`.
+//! `cargo test --workspace`. Run one file with `cargo test --test behaviour <file>::`. The package
+//! `lagrangian-behaviour-tests` (`behaviour-tests/`) builds this binary
+//! unoptimised.
 
 // `pub` items of the test modules are reachable only inside this test crate.
 #![allow(unreachable_pub)]

@@ -7,8 +7,6 @@
 //!   round-off: an FPU-β chain (separable, banded; explicit and Newton
 //!   steps), coupled pendula (non-separable, banded), an N-link pendulum
 //!   (dense, position-dependent mass).
-//! - FPU-β chains from 2 to 1 000 masses run in a thread with the default
-//!   2 MiB stack, with a bounded energy error.
 //! - The energy error of a chain of 1 000 oscillates without drift.
 //! - A 256-link pendulum (dense) runs.
 //! - What reverse mode does not do yet is refused with a typed error.
@@ -20,33 +18,9 @@
 //!   Newton iterations (FPU-β chain, coupled pendula; N = 16 and 64).
 use lagrangian::prelude::*;
 use lagrangian::structure::{Coupling, Separability};
-use lagrangian::{Action, Derivatives, Direction, Error};
+use lagrangian::{Derivatives, Error};
 
-/// An FPU-β chain with fixed ends, unit masses and springs.
-#[derive(Clone)]
-pub struct Fpu<const N: usize> {
-    /// Quartic coupling.
-    pub beta: f64,
-}
-
-#[lagrangian]
-impl<const N: usize> Fpu<N> {
-    fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
-        let mut kinetic = 0.0;
-        for i in 0..N {
-            kinetic += 0.5 * v[i] * v[i];
-        }
-        let mut d = q[0];
-        let mut potential = 0.5 * d * d + 0.25 * self.beta * d.powi(4);
-        for i in 0..N - 1 {
-            d = q[i + 1] - q[i];
-            potential += 0.5 * d * d + 0.25 * self.beta * d.powi(4);
-        }
-        d = q[N - 1];
-        potential += 0.5 * d * d + 0.25 * self.beta * d.powi(4);
-        kinetic - potential
-    }
-}
+use super::chains::{Fpu, chain_energy_error};
 
 /// An FPU-β chain of masses 3 (a diagonal constant mass matrix that is not
 /// the identity, whose inverse is inexact).
@@ -189,72 +163,6 @@ fn reverse_mode_gives_forward_modes_steps() {
     let (d, f, r) = mode_difference(|| NLinkPendulum::<8>, Midpoint, 0.01, chain_start(0.5), 300);
     println!("8-link pendulum, midpoint (dense): {d:.2e} ({f} / {r} Newton iterations)");
     assert!(d <= 1e-12, "{d:e}");
-}
-
-/// Normal mode `k` of a chain with fixed ends, scaled so that the largest
-/// spring strain is `strain` (0.3: well into the quartic regime for β = 1).
-fn chain_mode<const N: usize>(k: usize, strain: f64) -> [f64; N] {
-    let a = strain * (N + 1) as f64 / (k as f64 * core::f64::consts::PI);
-    core::array::from_fn(|i| a * ((i + 1) as f64 * k as f64 * core::f64::consts::PI / (N + 1) as f64).sin())
-}
-
-/// Relative energy error `max |E − E_0| / |E_0|` over `n` steps of a chain
-/// of `N` masses, sampled every `every` steps.
-fn chain_energy_error<M: lagrangian::F64Readouts + Copy, const N: usize>(
-    method: M,
-    h: f64,
-    n: usize,
-    every: usize,
-) -> Vec<f64> {
-    // Mode N/10 (period about 20 for every N): a nonlinear wave.
-    let q0 = chain_mode::<N>(N.div_ceil(10), 0.3);
-    let mut sim = Integrator::new(Fpu::<N> { beta: 1.0 }, method, h).start(0.0, q0, [0.0; N]).unwrap();
-    let e0 = sim.energy().unwrap();
-    let mut errors = Vec::new();
-    for k in 0..n / every {
-        sim.run(every, |_| {}).unwrap();
-        let e = sim.energy().unwrap();
-        assert!(e.is_finite(), "N = {N}: energy at step {}", (k + 1) * every);
-        errors.push((e - e0).abs() / e0.abs());
-    }
-    errors
-}
-
-fn chains_in_a_default_thread<M: lagrangian::F64Readouts + Copy + Send + 'static>(method: M, name: &'static str) {
-    // `std::thread::spawn` gives the default 2 MiB stack.
-    std::thread::spawn(move || {
-        let worst = |e: Vec<f64>| e.into_iter().fold(0.0f64, f64::max);
-        let runs = [
-            (2, worst(chain_energy_error::<M, 2>(method, 0.05, 200, 20))),
-            (100, worst(chain_energy_error::<M, 100>(method, 0.05, 200, 20))),
-            (1000, worst(chain_energy_error::<M, 1000>(method, 0.05, 100, 20))),
-        ];
-        for (n, e) in runs {
-            println!("{name}: FPU-β N = {n}: relative energy error {e:.2e}");
-            // O((ωh)²) for both rules, ω ≤ 2 and h = 0.05; and not zero.
-            assert!(e < 2e-3 && e > 1e-12, "{name} N = {n}: {e:e}");
-        }
-    })
-    .join()
-    .expect("no stack overflow, no panic");
-}
-
-#[test]
-fn chains_up_to_a_thousand_masses_run_in_a_default_thread_explicit() {
-    chains_in_a_default_thread(Trapezoid, "trapezoid (explicit)");
-}
-
-#[test]
-fn chains_up_to_a_thousand_masses_run_in_a_default_thread_newton() {
-    chains_in_a_default_thread(Midpoint, "midpoint (banded Newton)");
-}
-
-/// A composition's integrator keeps the last step's sub-steps (inline, 15
-/// segments) and, in reverse mode, steps the integrator's own fields: a
-/// 1000-mass chain still fits a default thread.
-#[test]
-fn chains_up_to_a_thousand_masses_run_in_a_default_thread_composition() {
-    chains_in_a_default_thread(lagrangian::Composition::YOSHIDA4, "Yoshida 4 (explicit sub-steps)");
 }
 
 #[test]
@@ -488,39 +396,6 @@ fn a_failed_reverse_step_changes_nothing() {
     // down, the second (weight −1.70) up past 1.
     check(|| Wall::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (fused)");
     check(|| WallSubstepped::<8>, Composition::YOSHIDA4, -1.0, "yoshida4 (sub-stepped)");
-}
-
-/// `Problem::solve` on a chain of 1000 masses in a default thread, with
-/// save times and a stopping event (the paths that keep a copy of the
-/// stepper from before each step and redo a step to end on the event): the
-/// copy lives on the heap, so the run fits a 2 MiB stack. From rest in
-/// mode 100 (`ω = 2 sin(100π/2002) ≈ 0.31`), `q_0` first falls through zero
-/// near a quarter period, `t ≈ 5`; the node the run ends on is one step of
-/// the method from the dense output that located the crossing, so `q_0`
-/// there is within a step's local error, `(ωh)³` of the amplitude.
-#[test]
-fn a_thousand_mass_chain_solves_with_an_event_in_a_default_thread() {
-    const N: usize = 1000;
-    std::thread::spawn(|| {
-        let (h, omega) = (0.05, 2.0 * (100.0 * core::f64::consts::PI / 2002.0).sin());
-        let q0 = chain_mode::<N>(N / 10, 0.3);
-        let problem = Problem::new(Fpu::<N> { beta: 1.0 }, 0.0, q0, [0.0; N]);
-        let yoshida = Scheme::composition(lagrangian::Composition::YOSHIDA4, OnePoint::Trapezoid);
-        for scheme in [Scheme::MIDPOINT, yoshida] {
-            let plan = Plan::until(8.0).every(20).save_at(vec![1.0, 2.0]).event(
-                Event::new(|_t, q: &[f64; N], _v: &[f64; N]| q[0]).direction(Direction::Falling).action(Action::Stop),
-            );
-            let sol = problem.solve(&scheme, h, plan).unwrap().into_result().unwrap();
-            let event = sol.events.first().copied().expect("q_0 changes sign before t = 8");
-            let (t, q) = (*sol.t.last().unwrap(), sol.q.last().unwrap());
-            println!("{scheme:?}: N = {N}, q_0 = 0 at t = {:.6}, {} rows, q_0 there {:.1e}", event.t, sol.len(), q[0]);
-            assert!((4.0..6.0).contains(&event.t) && t == event.t, "{} {t}", event.t);
-            assert!(sol.t.contains(&1.0) && sol.t.contains(&2.0));
-            assert!(q[0].abs() <= (omega * h).powi(3) * q0[0], "{:e}", q[0]);
-        }
-    })
-    .join()
-    .expect("no stack overflow, no panic");
 }
 
 /// `N` free unit masses in the NaN band of `10⁻³ ln((q − 2)(q − 3))`: `L`
