@@ -243,8 +243,13 @@ struct Adjoint<'a> {
     /// The version each read of a scratch variable sees, and the version each
     /// assignment creates, by node address.
     versions: HashMap<*const Expr, usize>,
-    /// Accumulators whose value the reverse sweep reads.
+    /// Accumulators whose value the reverse sweep reads, directly or
+    /// through the locals defined from them.
     needed: Vec<bool>,
+    /// The expressions each version of a local is defined by (its `let`
+    /// initialiser, or the value of the assignment that makes the version),
+    /// through which a read of the local reads the accumulators they read.
+    definitions: HashMap<(usize, usize), Vec<&'a Expr>>,
     /// The temporary of each active node, by address (stable: the IR is not
     /// moved while this runs).
     temps: HashMap<*const Expr, usize>,
@@ -266,6 +271,13 @@ struct Adjoint<'a> {
     /// to, and the forward loops whose sums only that value reads are
     /// reassociated.
     finite: bool,
+    /// The loops whose sums their reverse loop carries
+    /// ([`fused_loop`](Self::fused_loop)), by body, with the sum of their
+    /// partial sums.
+    fused: Vec<(*const Block, TokenStream)>,
+    /// The sums of the fused loops the forward sweep skipped, which the
+    /// value adds.
+    witnesses: Vec<TokenStream>,
     /// While a reassociated loop's body is printed: the partial sum its
     /// accumulations go to.
     lane: Option<usize>,
@@ -297,6 +309,7 @@ impl<'a> Adjoint<'a> {
             scratch: vec![false; n],
             versions: HashMap::new(),
             needed: vec![false; n],
+            definitions: HashMap::new(),
             temps: HashMap::new(),
             next_adjoint: 0,
             pending: Vec::new(),
@@ -304,6 +317,8 @@ impl<'a> Adjoint<'a> {
             generic: false,
             value: false,
             finite: false,
+            fused: Vec::new(),
+            witnesses: Vec::new(),
             lane: None,
             loop_depth: 0,
             assigned: None,
@@ -332,7 +347,7 @@ impl<'a> Adjoint<'a> {
         self.active(quote!(0.0f64))
     }
 
-    fn function_body(&mut self, block: &Block) -> Option<TokenStream> {
+    fn function_body(&mut self, block: &'a Block) -> Option<TokenStream> {
         let (stmts, tail) = match block.stmts.split_last() {
             Some((Stmt::Expr { expr, semi: false }, rest)) if !matches!(expr.kind, ExprKind::For { .. }) => {
                 (rest, expr)
@@ -418,6 +433,8 @@ impl<'a> Adjoint<'a> {
                 *__x = #zero;
             })
         });
+        let witnesses = &self.witnesses;
+        let value = value.map(|value| quote!(#value #(+ #witnesses)*));
         Some(quote! {
             #(#items)*
             #clear
@@ -604,7 +621,7 @@ impl<'a> Adjoint<'a> {
     }
 
     /// One pass of the dependence analysis over `stmts`.
-    fn dependence(&mut self, stmts: &[Stmt]) {
+    fn dependence(&mut self, stmts: &'a [Stmt]) {
         for stmt in stmts {
             match stmt {
                 Stmt::Let { bindings, inits, .. } => {
@@ -612,15 +629,20 @@ impl<'a> Adjoint<'a> {
                         if let Some(local) = binding.local {
                             let depends = self.depends_on_q(init);
                             *self.depends.entry((local.0, 0)).or_default() |= depends;
+                            self.define((local.0, 0), init);
                         }
                     }
                 }
                 Stmt::Expr { expr, .. } => match &expr.kind {
                     ExprKind::For { body, .. } => self.dependence(&body.stmts),
-                    ExprKind::Assign { place, value, .. } => {
+                    ExprKind::Assign { place, value, op } => {
                         if let ExprKind::Local(id, _) = place.kind {
                             let depends = self.depends_on_q(value);
                             *self.depends.entry((id.0, self.version(expr))).or_default() |= depends;
+                            // An accumulation is the accumulator's own.
+                            if op.is_none() {
+                                self.define((id.0, self.version(expr)), value);
+                            }
                         }
                     }
                     _ => {}
@@ -628,6 +650,47 @@ impl<'a> Adjoint<'a> {
                 Stmt::Item(_) => {}
             }
         }
+    }
+
+    /// Records `init` as a definition of the version `key` of a local (once:
+    /// [`dependence`](Self::dependence) runs to a fixed point).
+    fn define(&mut self, key: (usize, usize), init: &'a Expr) {
+        let definitions = self.definitions.entry(key).or_default();
+        if !definitions.iter().any(|d| std::ptr::eq(*d, init)) {
+            definitions.push(init);
+        }
+    }
+
+    /// Marks as needed the accumulators `expr` reads, directly or through
+    /// the definitions of the locals it reads (`let e = s; e.exp()` reads
+    /// the value of the accumulator `s`).
+    fn mark_needed(&mut self, expr: &Expr) {
+        let mut reads = Vec::new();
+        self.local_reads(expr, &mut reads);
+        let mut seen = Vec::new();
+        while let Some((id, version)) = reads.pop() {
+            if seen.contains(&(id, version)) {
+                continue;
+            }
+            seen.push((id, version));
+            if self.accumulator[id.0] {
+                self.needed[id.0] = true;
+            } else if let Some(definitions) = self.definitions.get(&(id.0, version)) {
+                for &definition in definitions {
+                    self.local_reads(definition, &mut reads);
+                }
+            }
+        }
+    }
+
+    /// The versions of the locals `expr` reads, pushed to `reads`.
+    fn local_reads(&self, expr: &Expr, reads: &mut Vec<(LocalId, usize)>) {
+        expr.visit(&mut |e: &Expr| {
+            if let ExprKind::Local(id, _) = e.kind {
+                reads.push((id, self.version(e)));
+            }
+            true
+        });
     }
 
     /// Whether `expr` may depend on `q`.
@@ -723,6 +786,15 @@ impl<'a> Adjoint<'a> {
                     if top && !self.value && !self.adds_to_needed(body) {
                         return Some(());
                     }
+                    if top && self.finite && !self.adds_to_needed(body) {
+                        // Carried by its reverse loop (`fused_loop`): the
+                        // value adds the partial sums at the end.
+                        if let Some(k) = self.fused.iter().position(|(b, _)| std::ptr::eq(*b, body)) {
+                            let (_, total) = &self.fused[k];
+                            self.witnesses.push(total.clone());
+                            return Some(());
+                        }
+                    }
                     if top && self.finite && !self.adds_to_needed(body) && reassociable(limits, body) {
                         return self.reassociated_loop(var.as_ref().map(|(id, _)| *id), start, end, body, out);
                     }
@@ -806,16 +878,7 @@ impl<'a> Adjoint<'a> {
         body: &Block,
         out: &mut Vec<TokenStream>,
     ) -> Option<()> {
-        let mut accumulators = Vec::new();
-        body.visit(&mut |e: &Expr| {
-            if let ExprKind::Assign { place, op: Some(_), .. } = &e.kind
-                && let ExprKind::Local(id, _) = place.kind
-                && !accumulators.contains(&id)
-            {
-                accumulators.push(id);
-            }
-            true
-        });
+        let accumulators = self.accumulations(body);
         let var = loop_var(var);
         let (start, end) = (self.constant(start)?, self.constant(end)?);
         let (ty, zero) = (self.ty(), self.zero());
@@ -833,13 +896,7 @@ impl<'a> Adjoint<'a> {
             let printed = body.stmts.iter().try_for_each(|stmt| self.forward_stmt(stmt, false, &mut inner));
             self.lane = None;
             printed?;
-            // Unsuffixed: the loop variable keeps the type the range gives it.
-            let offset = proc_macro2::Literal::usize_unsuffixed(lane);
-            let index = if lane == 0 { quote!(__base) } else { quote!(__base + #offset) };
-            lanes.push(quote!({
-                let #var = #index;
-                #(#inner)*
-            }));
+            lanes.push(quote!(#(#inner)*));
         }
         self.lane = Some(0);
         let mut rest = Vec::new();
@@ -850,22 +907,68 @@ impl<'a> Adjoint<'a> {
             let (local, [s0, s1, s2, s3]) = (local_name(id, 0), [0, 1, 2, 3].map(|lane| partial_name(id, lane)));
             quote!(#local += (#s0 + #s1) + (#s2 + #s3);)
         });
-        // Unsuffixed, as the offsets above.
-        let width = proc_macro2::Literal::usize_unsuffixed(PARTIAL_SUMS);
+        let chunked = chunked_loop(&var, (&start, &end), &lanes, &quote!(#(#rest)*));
         out.push(quote! {
             #(#partials)*
-            let (__start, __end) = (#start, #end);
-            let __chunks = if __start < __end { (__end - __start) / #width } else { 0 };
-            for __chunk in 0..__chunks {
-                let __base = __start + __chunk * #width;
-                #(#lanes)*
-            }
-            for #var in __start + __chunks * #width..__end {
-                #(#rest)*
-            }
+            #chunked
             #(#totals)*
         });
         Some(())
+    }
+
+    /// The reverse loop of a top-level loop whose sums only the value of
+    /// `L` reads, at rest ([`add_gradient_q_at_rest`]): `inner`, the
+    /// iteration's recomputed intermediates and adjoints, which add each
+    /// term of the sums to `__w` instead of to its accumulator, run for
+    /// `start + 4c + k` with `__w` the `k`-th of [`PARTIAL_SUMS`] partial
+    /// sums (the chunk's four iterations in order, so the adjoints are
+    /// added as in the plain loop), the remaining iterations with the
+    /// first. The forward sweep then skips the loop
+    /// ([`forward_stmt`](Self::forward_stmt)) and the value ends with
+    /// `+ (w₀ + w₁) + (w₂ + w₃)`: one pass over the coordinates instead of
+    /// two. The sums enter `L` linearly (the reverse sweep reads no value
+    /// of theirs), so the value so formed is finite exactly when `L` is,
+    /// but where a sum overflows in one order and not in the other.
+    fn fused_loop(
+        &mut self,
+        body: &Block,
+        var: TokenStream,
+        (start, end): (TokenStream, TokenStream),
+        inner: Vec<TokenStream>,
+        out: &mut Vec<TokenStream>,
+    ) {
+        let index = self.fused.len();
+        let partials = (0..PARTIAL_SUMS).map(|lane| format_ident!("__w{}_{}", index, lane)).collect::<Vec<_>>();
+        let into = |partial: &proc_macro2::Ident| {
+            quote! {
+                let mut __w: f64 = #partial;
+                #(#inner)*
+                #partial = __w;
+            }
+        };
+        let lanes = partials.iter().map(into).collect::<Vec<_>>();
+        let chunked = chunked_loop(&var, (&start, &end), &lanes, &into(&partials[0]));
+        out.push(quote! {
+            #(let mut #partials: f64 = 0.0f64;)*
+            #chunked
+        });
+        let [w0, w1, w2, w3] = [0, 1, 2, 3].map(|lane| &partials[lane]);
+        self.fused.push((std::ptr::from_ref(body), quote!(((#w0 + #w1) + (#w2 + #w3)))));
+    }
+
+    /// The accumulators a loop body adds to.
+    fn accumulations(&self, body: &Block) -> Vec<LocalId> {
+        let mut accumulators = Vec::new();
+        body.visit(&mut |e: &Expr| {
+            if let ExprKind::Assign { place, op: Some(_), .. } = &e.kind
+                && let ExprKind::Local(id, _) = place.kind
+                && !accumulators.contains(&id)
+            {
+                accumulators.push(id);
+            }
+            true
+        });
+        accumulators
     }
 
     /// Whether a loop body adds to an accumulator the reverse sweep reads.
@@ -900,6 +1003,17 @@ impl<'a> Adjoint<'a> {
                     if !self.loop_depends_on_q(body) {
                         return Some(());
                     }
+                    // At rest, a loop whose sums only the value of `L` reads
+                    // and enter it (something after the loop reads them)
+                    // carries them here instead of in a forward loop of its
+                    // own (see `fused_loop`).
+                    let fuse = self.finite
+                        && self.loop_depth == 0
+                        && !self.adds_to_needed(body)
+                        && reassociable(limits, body)
+                        && self.accumulations(body).iter().all(|&id| {
+                            self.aliases.iter().any(|(key, _)| *key == (id, 0)) || !self.pending.contains(&(id, 0))
+                        });
                     // Adjoints the loop may add to exist before it, as zero
                     // if nothing contributed yet; the loop's own are pending
                     // in its body.
@@ -932,6 +1046,10 @@ impl<'a> Adjoint<'a> {
                             Stmt::Let { .. } => self.forward_stmt(stmt, false, &mut inner)?,
                             Stmt::Expr { expr, .. } => match &expr.kind {
                                 ExprKind::Assign { op: None, .. } => self.forward_stmt(stmt, false, &mut inner)?,
+                                ExprKind::Assign { value, op: Some(op), .. } if fuse => {
+                                    let value = self.forward(value, &mut inner)?;
+                                    inner.push(quote!(__w #op #value;));
+                                }
                                 ExprKind::Assign { value, .. } => drop(self.forward(value, &mut inner)?),
                                 ExprKind::For { .. } => {}
                                 _ => return None,
@@ -949,7 +1067,11 @@ impl<'a> Adjoint<'a> {
                     self.pending = outer;
                     let var = loop_var(var.as_ref().map(|(id, _)| *id));
                     let (start, end) = (self.constant(start)?, self.constant(end)?);
-                    out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
+                    if fuse {
+                        self.fused_loop(body, var, (start, end), inner, out);
+                    } else {
+                        out.push(quote!(for #var in #start #limits #end { #(#inner)* }));
+                    }
                     Some(())
                 }
                 ExprKind::Assign { place, op: None, value } => {
@@ -1189,14 +1311,7 @@ impl<'a> Adjoint<'a> {
         if !expr.class.is_active() {
             return self.constant(expr);
         }
-        expr.visit(&mut |e: &Expr| {
-            if let ExprKind::Local(id, _) = e.kind
-                && self.accumulator[id.0]
-            {
-                self.needed[id.0] = true;
-            }
-            true
-        });
+        self.mark_needed(expr);
         Some(match &expr.kind {
             ExprKind::Paren(inner) => return self.value(inner),
             ExprKind::Cast { expr: inner, .. } if inner.class.is_active() => return self.value(inner),
@@ -1971,6 +2086,38 @@ fn adjoint_name(id: LocalId, version: usize) -> proc_macro2::Ident {
     format_ident!("__a{}_{}", id.0, version)
 }
 
+/// `for var in start..end { … }` as chunks of [`PARTIAL_SUMS`] iterations,
+/// the `k`-th of a chunk running `lanes[k]` with `var` bound to its index,
+/// then the iterations left over, each running `rest`.
+fn chunked_loop(
+    var: &TokenStream,
+    (start, end): (&TokenStream, &TokenStream),
+    lanes: &[TokenStream],
+    rest: &TokenStream,
+) -> TokenStream {
+    let lanes = lanes.iter().enumerate().map(|(lane, body)| {
+        // Unsuffixed: the loop variable keeps the type the range gives it.
+        let offset = proc_macro2::Literal::usize_unsuffixed(lane);
+        let index = if lane == 0 { quote!(__base) } else { quote!(__base + #offset) };
+        quote!({
+            let #var = #index;
+            #body
+        })
+    });
+    let width = proc_macro2::Literal::usize_unsuffixed(PARTIAL_SUMS);
+    quote! {
+        let (__start, __end) = (#start, #end);
+        let __chunks = if __start < __end { (__end - __start) / #width } else { 0 };
+        for __chunk in 0..__chunks {
+            let __base = __start + __chunk * #width;
+            #(#lanes)*
+        }
+        for #var in __start + __chunks * #width..__end {
+            #rest
+        }
+    }
+}
+
 fn loop_var(id: Option<LocalId>) -> TokenStream {
     match id {
         Some(id) => local_name(id, 0).into_token_stream(),
@@ -2116,29 +2263,76 @@ mod tests {
         // Added to, never cleared or assigned.
         assert!(!out.contains("iter_mut"), "{out}");
         assert!(!out.contains("__out [(0)] ="), "{out}");
-        // The kinetic and the quartic sums in four partial sums each
-        // (`kinetic` is local 0, `potential` local 4); `s` (local 2), which the
-        // reverse sweep reads, and the inclusive range in order.
-        for local in [0, 4] {
-            for lane in 0..4 {
-                assert!(out.contains(&format!("let mut __s{local}_{lane} : f64 = 0.0f64")), "{local} {lane}: {out}");
-            }
-            assert!(
-                out.contains(&format!("__l{local}_0 += (__s{local}_0 + __s{local}_1) + (__s{local}_2 + __s{local}_3)")),
-                "{out}"
-            );
+        // The kinetic sum (`kinetic` is local 0), which no reverse loop
+        // reads, in a forward loop of four partial sums.
+        for lane in 0..4 {
+            assert!(out.contains(&format!("let mut __s0_{lane} : f64 = 0.0f64")), "{lane}: {out}");
         }
-        assert!(out.contains("__s4_2 -="), "{out}");
+        assert!(out.contains("__l0_0 += (__s0_0 + __s0_1) + (__s0_2 + __s0_3)"), "{out}");
+        // The quartic sum (`potential`, local 4) in the reverse loop's four
+        // partial sums, which the value adds at the end; no forward loop.
+        assert!(!out.contains("__s4_"), "{out}");
+        for lane in 0..4 {
+            assert!(out.contains(&format!("let mut __w0_{lane} : f64 = 0.0f64")), "{lane}: {out}");
+            assert!(out.contains(&format!("__w0_{lane} = __w ;")), "{lane}: {out}");
+        }
+        assert_eq!(out.matches("__w -=").count(), 5, "{out}");
+        assert!(out.trim_end().ends_with("__value + ((__w0_0 + __w0_1) + (__w0_2 + __w0_3))"), "{out}");
+        // `s` (local 2), which the reverse sweep reads, and the inclusive
+        // range in order.
         assert!(!out.contains("__s2_0"), "{out}");
         assert!(out.contains("__l2_0 +="), "{out}");
         assert!(out.contains("..= "), "{out}");
-        // Both reassociated loops: chunks of four, then the rest; the
-        // ordered loops; the reverse sweep's three.
+        // The kinetic forward loop and the fused reverse loop: chunks of
+        // four, then the rest; `s` forward and reverse, the inclusive range
+        // forward and reverse.
         assert_eq!(out.matches("for __chunk in").count(), 2, "{out}");
-        assert_eq!(out.matches("for ").count(), 2 * 2 + 2 + 3, "{out}");
+        assert_eq!(out.matches("for ").count(), 2 * 2 + 2 + 2, "{out}");
         // The value form of the same body clears `out` and sums in order.
         let value = value_gradient_q(&system.lagrangian).unwrap().to_string();
         assert!(value.contains("iter_mut") && !value.contains("__chunk"), "{value}");
+    }
+
+    #[test]
+    fn a_sum_read_through_a_local_keeps_its_forward_loop() {
+        // `r`'s derivative reads the value of `s` through `let r = s`.
+        let out = lagrangian(parse_quote!({
+            let mut s = 0.0;
+            for i in 0..3 {
+                s += q[i] * q[i];
+            }
+            let r = s;
+            r.sqrt()
+        }))
+        .unwrap();
+        assert_eq!(out.matches("for ").count(), 3, "{out}");
+        assert!(out.contains("__l0_0 +="), "{out}");
+    }
+
+    #[test]
+    fn a_sum_the_value_does_not_read_is_not_carried_at_rest() {
+        // `unused` enters no term of `L`: its terms, NaN or not, leave the
+        // value as it is.
+        let chain: ItemImpl = parse_quote! {
+            impl<const N: usize> Chain<N> {
+                fn lagrangian(&self, q: [f64; N], v: [f64; N]) -> f64 {
+                    let mut unused = 0.0;
+                    let mut potential = 0.0;
+                    for i in 0..N {
+                        unused += q[i].ln();
+                        potential += q[i] * q[i];
+                    }
+                    0.5 * v[0] * v[0] - potential
+                }
+            }
+        };
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&chain)).unwrap();
+        let _ = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let out = add_gradient_q_at_rest(&system.lagrangian).unwrap().to_string();
+        assert!(!out.contains("__w"), "{out}");
+        assert!(out.contains("__s0_0 +="), "{out}");
     }
 
     #[test]

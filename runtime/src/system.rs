@@ -220,11 +220,15 @@ pub trait Lagrangian<const N: usize> {
     /// as the same code as `value_gradient_q` with every `v[i]` the constant
     /// `0.0` (so the compiler folds away the terms of the velocities alone),
     /// adding instead of clearing `out` first, and with the loops whose sums
-    /// only the value of `L` reads summed in four interleaved partial sums
-    /// (which vectorise). Reassociated, such a sum rounds differently, but it
-    /// is finite exactly when the sum in order is, except at overflow: where
-    /// the ordered sum passes `f64::MAX` on its way and comes back (or a
-    /// partial sum does and the ordered one does not), the two checks differ.
+    /// only the value of `L` reads summed in four interleaved partial sums:
+    /// a loop that also adds to the gradient sums its terms in its reverse
+    /// loop (one pass over the coordinates), whose partial sums the value
+    /// adds at the end; one that does not keeps a forward loop of its own
+    /// (which vectorises). Such sums enter `L` linearly; reassociated, they
+    /// round differently, but the value is finite exactly when `L` summed in
+    /// order is, except at overflow: where the ordered sum passes `f64::MAX`
+    /// on its way and comes back (or a partial sum, or the value's last
+    /// additions, do and the ordered one does not), the two checks differ.
     #[inline(always)]
     fn add_gradient_q_at_rest(&self, t: f64, q: &[f64; N], out: &mut [f64; N]) -> bool {
         let mut gradient = [0.0; N];
@@ -481,7 +485,8 @@ pub trait DynLagrangian {
     /// its value. `#[lagrangian]` writes it as the same code as
     /// `value_gradient_q` with every `v[i]` the constant `0.0`, adding
     /// instead of clearing `out` first, with the loops whose sums only the
-    /// value reads reassociated.
+    /// value reads reassociated (and summed in their reverse loops where
+    /// they have one).
     fn add_gradient_q_at_rest(&self, t: f64, q: &[f64], out: &mut [f64]) -> bool {
         let mut gradient = vec![0.0; out.len()];
         let l = self.value_gradient_q(t, q, &vec![0.0; q.len()], &mut gradient);

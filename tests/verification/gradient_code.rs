@@ -160,6 +160,33 @@ impl Zoo {
     }
 }
 
+/// A loop's sum read through a local (`let r = s`) before a use whose
+/// derivative reads its value, beside a loop whose sum `L` only adds.
+pub struct SumThroughLocal {
+    pub c: f64,
+}
+
+#[lagrangian]
+impl SumThroughLocal {
+    fn lagrangian(&self, q: [f64; 3], v: [f64; 3]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..3 {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut s = 0.0;
+        for i in 0..3 {
+            s += q[i] * q[i];
+        }
+        let r = s;
+        let mut potential = 0.0;
+        for i in 0..2 {
+            let d = q[i + 1] - q[i];
+            potential += self.c * d * d;
+        }
+        kinetic - (1.0 + r).ln() - potential
+    }
+}
+
 /// The chain of `dyn_lagrangian` over slices, with scratch variables
 /// reassigned in the loop (`d = ...`) before they are read.
 pub struct DynChain {
@@ -375,6 +402,7 @@ fn generated_gradients_agree_with_dual_numbers_at_random_states() {
             worst_difference(&CoupledPendula::<12> { m: 1.1, g: 9.81, l: 0.7, k: 3.0 }, -2.0, 2.0, 50),
         ),
         ("method zoo", worst_difference(&Zoo { a: 0.7, p: 1.7, w: [0.3, -1.2, 0.8] }, -1.0, 1.0, 300)),
+        ("a sum read through a local", worst_difference(&SumThroughLocal { c: 0.8 }, -1.5, 1.5, 200)),
     ];
     for (name, worst) in &cases {
         println!("{name}: largest relative difference {worst:.1e}");

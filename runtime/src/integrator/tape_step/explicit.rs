@@ -207,9 +207,16 @@ impl SparseWork {
                 if i + 1 == m {
                     // The last sub-step's start, for the readouts.
                     last_q0.copy_from_slice(q);
-                }
-                for j in 0..n {
-                    q[j] += last_dq[j];
+                    // The end node's force is added to zeros; the last
+                    // sub-node's was read by the kick above.
+                    for j in 0..n {
+                        q[j] += last_dq[j];
+                        f[j] = 0.0;
+                    }
+                } else {
+                    for j in 0..n {
+                        q[j] += last_dq[j];
+                    }
                 }
             } else {
                 let (qc0, pc0) = (&node.q_carry[..n], &node.p_carry[..n]);
@@ -220,10 +227,19 @@ impl SparseWork {
                 self.sub_drift(velocity, p, hi, last_dq)?;
                 // The sub-nodes' positions go to `last_q0`, which then holds
                 // the last sub-step's start; the end node's to `q`.
-                let x: &mut [f64] = if i + 1 == m { &mut *q } else { &mut *last_q0 };
-                for j in 0..n {
-                    dq[j] += last_dq[j];
-                    x[j] = q0[j] + (qc0[j] + dq[j]);
+                if i + 1 == m {
+                    // The end node's force is added to zeros; the last
+                    // sub-node's was read by the kick above.
+                    for j in 0..n {
+                        dq[j] += last_dq[j];
+                        q[j] = q0[j] + (qc0[j] + dq[j]);
+                        f[j] = 0.0;
+                    }
+                } else {
+                    for j in 0..n {
+                        dq[j] += last_dq[j];
+                        last_q0[j] = q0[j] + (qc0[j] + dq[j]);
+                    }
                 }
             }
             elapsed += gamma;
@@ -375,12 +391,9 @@ impl SparseWork {
         // makes the trapezoid action finite, whose derivatives can be finite
         // where it is not. The generated code adds the force to `f1`, which
         // the drift pass cleared.
-        let end_finite = match model.add_gradient_q_at_rest(t1, &out.q1, f1) {
-            Some(finite) => finite,
-            None => match potential_force_finite(model, &mut self.tape, &self.zero, t1, &out.q1, f1) {
-                Ok(finite) => finite,
-                Err(_) => return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED }),
-            },
+        let end_finite = match potential_force_finite(model, &mut self.tape, &self.zero, t1, &out.q1, f1) {
+            Ok(finite) => finite,
+            Err(_) => return Err(NewtonFailure::Rejected { iterations: 0, reason: TAPE_FAILED }),
         };
         let (f1, p1, pc1) = (&f1[..n], &mut out.p1[..n], &mut out.p_carry[..n]);
         let mut p_bad = 0;

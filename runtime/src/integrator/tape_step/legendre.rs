@@ -60,9 +60,12 @@ pub(super) fn potential_finite(model: &dyn TapeModel, zero: &[f64], t: f64, q: &
     ModelScalar::lagrangian(model, t, q, zero).is_finite()
 }
 
-/// [`potential_force`] into `out`, and whether `L(t, q, 0)` is finite
-/// there ([`potential_finite`]): both from one run of the system's gradient
-/// code when it has it (its value), else a sweep and an evaluation.
+/// [`potential_force`] into `out`, which holds zeros, and whether
+/// `L(t, q, 0)` is finite there ([`potential_finite`]): both from one run
+/// of the system's gradient code when it has it, its form at rest
+/// (`add_gradient_q_at_rest`, which adds to the zeros and reads no
+/// velocity) first, else a sweep and an evaluation. The zeros are the
+/// caller's, who clears `out` in a pass over the state it makes anyway.
 pub(super) fn potential_force_finite(
     model: &dyn TapeModel,
     tape: &mut Tape,
@@ -71,6 +74,9 @@ pub(super) fn potential_force_finite(
     q: &[f64],
     out: &mut [f64],
 ) -> Result<bool, TapeError> {
+    if let Some(finite) = model.add_gradient_q_at_rest(t, q, out) {
+        return Ok(finite);
+    }
     if let Some(l) = model.value_gradient_q(t, q, &zero.0, out) {
         return Ok(l.is_finite());
     }
