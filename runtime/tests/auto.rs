@@ -4,7 +4,9 @@
 
 use lagrangian_runtime::auto::choice::DENSITY_RATIO;
 use lagrangian_runtime::auto::{Auto, Family, Growth, Tolerance};
-use lagrangian_runtime::{Composition, Error, Integrator, Lagrangian, Plan, Scalar, Separability, SolveError};
+use lagrangian_runtime::{
+    Composition, Error, Galerkin, Integrator, Lagrangian, Plan, Scalar, Separability, SolveError,
+};
 
 #[derive(Clone)]
 struct Oscillator;
@@ -229,5 +231,93 @@ fn henon_heiles_above_the_escape_energy_of_its_tori_is_refused() {
         Err(SolveError::Step(Error::Chaotic { rate, .. })) => assert!(rate > 0.01, "{rate}"),
         Err(e) => panic!("{e}"),
         Ok(s) => panic!("accepted: {:?}", s.estimate),
+    }
+}
+
+/// A damped oscillator, `L = ½v² − ½q²` with the dissipation `R = ½ c v²`,
+/// `c = 0.3`: `q̈ + c q̇ + q = 0`.
+#[derive(Clone)]
+struct Damped;
+impl Lagrangian<1> for Damped {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1] = [false];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const HAS_DISSIPATION: bool = true;
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+        (v[0] * v[0] - q[0] * q[0]) * 0.5
+    }
+    fn dissipation<D: Scalar>(&self, _q: [D; 1], v: [D; 1]) -> D {
+        v[0] * v[0] * 0.15
+    }
+}
+
+#[test]
+fn a_damped_oscillation_extrapolates_its_error_with_the_growth_it_shows() {
+    // From q = 1 at rest: q = e^{−ct/2} (cos ωt + c/(2ω) sin ωt), ω = √(1 − c²/4).
+    let (c, t_end) = (0.3f64, 20.0);
+    let w = (1.0 - c * c / 4.0).sqrt();
+    let exact = |t: f64| (-c * t / 2.0).exp() * ((w * t).cos() + c / (2.0 * w) * (w * t).sin());
+    for rtol in [1e-4, 1e-6, 1e-8] {
+        let solved = Auto::new(Damped, 0.0, [1.0], [0.0])
+            .tolerance(Tolerance::relative(rtol))
+            .solve(Plan::until(t_end))
+            .unwrap_or_else(|e| panic!("rtol {rtol:e}: {e}"));
+        let est = &solved.estimate;
+        let s = &solved.solution;
+        let largest = s.t.iter().zip(&s.q).map(|(t, q)| (q[0] - exact(*t)).abs()).fold(0.0f64, f64::max);
+        eprintln!(
+            "damped rtol {rtol:e}: largest error {largest:.2e}, estimate {:.2e} of {:.2e}, {:?}, {}",
+            est.error, est.requested, est.growth, est.method_name
+        );
+        // The amplitude decays as e^{−0.15 t}: the error's envelope grows
+        // less than linearly over the pilot's last intervals, and the
+        // extrapolation follows it.
+        assert!(matches!(est.growth, Growth::Power(k) if k < 1.0), "{:?}", est.growth);
+        assert!(largest <= est.requested, "rtol {rtol:e}: error {largest:e}, requested {:e}", est.requested);
+        assert!(
+            est.error / largest < 10.0 && largest / est.error < 10.0,
+            "rtol {rtol:e}: error {largest:e}, estimate {:e}",
+            est.error
+        );
+    }
+}
+
+/// The double pendulum of the report (`m = (1, 1.5)`, `l = (1, 0.7)`, `g = 9.81`).
+#[derive(Clone)]
+struct ReportDoublePendulum;
+impl Lagrangian<2> for ReportDoublePendulum {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 2] = [false, false];
+    fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 2], v: [D; 2]) -> D {
+        let kinetic = v[0] * v[0] * 1.25 + v[1] * v[1] * 0.3675 + v[0] * v[1] * (q[0] - q[1]).cos() * 1.05;
+        kinetic + q[0].cos() * (2.5 * 9.81) + q[1].cos() * (1.05 * 9.81)
+    }
+}
+
+#[test]
+fn a_pilot_run_that_leaves_its_orbit_is_no_estimate() {
+    // From (1, −0.5) rad with q̇ = (0, 0.5) over t = 10, Galerkin s = 4 at
+    // ρh = 1 (ρ from the start) leaves the orbit within a few steps; its
+    // difference from the run at h/2 is no error estimate, whatever step
+    // it asks for (at rtol ≥ 3e-4 one that runs off the orbit as well).
+    let (q0, v0, t_end) = ([1.0, -0.5], [0.0, 0.5], 10.0);
+    let h = t_end / 4000.0;
+    let mut reference = Integrator::new(ReportDoublePendulum, Galerkin::<8, 8>::gauss(), h).start(0.0, q0, v0).unwrap();
+    reference.run(4000, |_| {}).unwrap();
+    let exact = reference.state().q;
+    for rtol in [1e-3, 3e-4] {
+        let solved = Auto::new(ReportDoublePendulum, 0.0, q0, v0)
+            .tolerance(Tolerance::relative(rtol))
+            .solve(Plan::until(t_end).every(usize::MAX))
+            .unwrap_or_else(|e| panic!("rtol {rtol:e}: {e}"));
+        let est = &solved.estimate;
+        let err = end_error(&solved.solution.q, exact);
+        eprintln!(
+            "double pendulum rtol {rtol:e}: error at the end {err:.2e}, estimate {:.2e} of {:.2e}, scale {:.2}, pilot {} steps",
+            est.error, est.requested, est.scale, est.pilot.steps
+        );
+        // The positions stay within a few radians: the scale is the orbit's.
+        assert!(est.scale < 3.0, "scale {}", est.scale);
+        assert!(err <= 10.0 * est.requested, "rtol {rtol:e}: error {err:e}, requested {:e}", est.requested);
     }
 }

@@ -279,7 +279,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 // steps land on its nodes, a time transformation at its end.
                 let landings = if fixed_step { self.pilot_times(h, &checkpoints) } else { vec![tp] };
                 let stop = Some(SURVEY_STOP * choice::DENSITY_RATIO);
-                if let Ok(p) = run_probe(c, &self, h, &landings, true, stride, rates.as_mut(), stop) {
+                if let Ok(p) = run_probe(c, &self, h, &landings, true, stride, rates.as_mut(), stop, false) {
                     cost.steps += p.steps;
                     let max = p.rates.iter().fold(0.0f64, |m, r| m.max(*r));
                     if max.is_finite() {
@@ -554,7 +554,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let lower = Candidate { family: Family::Composition, order: 6 };
         // The survey's checkpoints, on its nodes.
         let times = self.pilot_times(h, checkpoints);
-        let run = run_probe(lower, self, h, &times, true, 0, None, None).ok()?;
+        let run = run_probe(lower, self, h, &times, true, 0, None, None, false).ok()?;
         cost.steps += run.steps;
         let tp = *times.last()?;
         let scale = run.scale.max(kahan_li8.scale).max(f64::MIN_POSITIVE);
@@ -647,6 +647,15 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // A few coarse steps over the pilot at least.
         let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
+        // The energy guard of the coarse runs (see `pilot::probe`): Galerkin
+        // on a conservative autonomous system, whose pilot starts at up to
+        // `ρh = 1` with `ρ` from the start alone (the compositions' steps
+        // are capped by the rates the survey met along the orbit).
+        let guard = c.family == Family::Galerkin
+            && S::AUTONOMOUS
+            && !S::HAS_FORCE
+            && !S::HAS_DISSIPATION
+            && self.step.is_none();
         for _ in 0..ROUNDS {
             if fixed_step && self.step.is_none() {
                 h = h.min(h_max);
@@ -670,9 +679,18 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // steps are already counted).
             let (coarse, reused) = match reuse.take().filter(|r| r.0 == h && self.step.is_none()) {
                 Some((_, p)) => (Ok(p), true),
-                None => (run_probe(c, self, h, &landings, true, 0, None, None), false),
+                None => (run_probe(c, self, h, &landings, true, 0, None, None, guard), false),
             };
             let fine = match &coarse {
+                // The coarse run left its orbit (its energy did): as a round
+                // whose runs differ by a tenth of the positions (below), a
+                // quarter of the step, without the fine run.
+                Ok(p) if p.lost => {
+                    cost.steps += p.steps;
+                    too_coarse = too_coarse.min(h);
+                    h /= 4.0;
+                    continue;
+                }
                 Ok(p) if !fixed_step && p.steps < TT_PILOT_STEPS && self.step.is_none() => {
                     if !reused {
                         cost.steps += p.steps;
@@ -688,7 +706,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     h *= p.steps.max(1) as f64 / (1.25 * TT_PILOT_STEPS as f64);
                     continue;
                 }
-                Ok(_) => Some(run_probe(c, self, h / 2.0, &landings, true, 0, None, None)),
+                Ok(_) => Some(run_probe(c, self, h / 2.0, &landings, true, 0, None, None, false)),
                 Err(_) => None,
             };
             let (coarse, fine) = match (coarse, fine) {
@@ -705,7 +723,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             };
             cost.steps += if reused { fine.steps } else { coarse.steps + fine.steps };
             let scale = coarse.scale.max(fine.scale).max(f64::MIN_POSITIVE);
-            let rich = Richardson::new(&coarse, &fine, c.order, &times, self.t0, settle, !fixed_step);
+            let rich =
+                Richardson::new(&coarse, &fine, c.order, &times, self.t0, settle, !fixed_step, S::HAS_DISSIPATION);
             let target = SAFETY * self.tolerance.bound(scale);
             let at_end = rich.at(self.t0, tp, self.t0 + span);
             if self.step.is_some() {
@@ -744,6 +763,17 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             }
             let ratio = (target / at_end).powf(1.0 / p as f64);
             let ratio = ratio.min(h_cap / h);
+            // A difference of the size of the positions is no error estimate
+            // (the coarse run left the orbit: the double pendulum at ρh ≈ 1
+            // from its start at rest), whatever step it asks for: at
+            // `rtol ≥ 3e-4` the double pendulum's asks for about a quarter
+            // of it, where the final run's Newton fails half-way. A quarter
+            // of the step, not the sixteenth the model asks for at tighter
+            // tolerances.
+            if rich.error > 0.1 * scale {
+                h /= 4.0;
+                continue;
+            }
             // Within `ACCEPT`, a composition's step no coarser than the
             // measured one (see `ACCEPT`). Galerkin and the time
             // transformation, which have no such cap, take the coarser step
@@ -763,14 +793,6 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             let at_cap = fixed_step && h >= 0.99 * h_cap && ratio < CAPPED_ACCEPT;
             if ACCEPT.contains(&ratio) && !at_cap {
                 break;
-            }
-            // A difference of the size of the positions is no error estimate
-            // (the coarse run left the orbit: the double pendulum at ρh ≈ 1
-            // from its start at rest): a quarter of the step, not the
-            // sixteenth the model asks for.
-            if rich.error > 0.1 * scale {
-                h /= 4.0;
-                continue;
             }
             // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
             h *= ratio.clamp(1.0 / 16.0, 4.0);
@@ -842,15 +864,16 @@ fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
     stride: usize,
     rates: Option<&mut Rates<N>>,
     stop_above: Option<f64>,
+    energy_guard: bool,
 ) -> Result<Probe<N>, Error<N>> {
-    struct P<'a, const N: usize>(&'a [f64], bool, usize, Option<&'a mut Rates<N>>, Option<f64>);
+    struct P<'a, const N: usize>(&'a [f64], bool, usize, Option<&'a mut Rates<N>>, Option<f64>, bool);
     impl<const N: usize> Visit<N> for P<'_, N> {
         type Out = Result<Probe<N>, Error<N>>;
         fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out {
-            pilot::probe(it, self.0, self.1, self.2, self.3, self.4)
+            pilot::probe(it, self.0, self.1, self.2, self.3, self.4, self.5)
         }
     }
-    dispatch(c, auto, step, P(checkpoints, every_node, stride, rates, stop_above))?
+    dispatch(c, auto, step, P(checkpoints, every_node, stride, rates, stop_above, energy_guard))?
 }
 
 fn composition(order: u32) -> Composition {
@@ -912,7 +935,7 @@ mod tests {
     }
 
     fn probe_of<I: Stepping<2> + Clone>(it: I, times: &[f64]) -> Probe<2> {
-        pilot::probe(it, times, true, 0, None, None).unwrap()
+        pilot::probe(it, times, true, 0, None, None, false).unwrap()
     }
 
     #[test]
@@ -924,7 +947,7 @@ mod tests {
             for h in [0.2, 0.1, 0.05] {
                 // Through the solve's dispatch: the first call starts, the
                 // following ones copy the started integrator.
-                let copied = run_probe(c, &auto, h, &times, true, 0, None, None).unwrap();
+                let copied = run_probe(c, &auto, h, &times, true, 0, None, None, false).unwrap();
                 let fresh = Integrator::new(auto.system.clone(), composition(order), h).start(0.0, auto.q0, auto.v0);
                 let fresh = probe_of(fresh.unwrap(), &times);
                 assert_eq!(copied.samples.len(), fresh.samples.len());
