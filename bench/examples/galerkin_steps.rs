@@ -10,7 +10,7 @@
 //!
 //! `PROBLEM S ITERATION STEPS RUNS`: `RUNS` runs over the report's horizon
 //! (`double-pendulum`: t ≤ 10, `sensor`: t ≤ 2, `kepler-polar`: 1000
-//! orbits) from the report's initial
+//! orbits, `perturbed-pendulum`: t ≤ 314) from the report's initial
 //! data, each with `STEPS` fixed steps of Galerkin degree `S` (2 to 8) with
 //! `S` Gauss points, the stages solved by `auto` (`StageIteration::Automatic`,
 //! the report's `galerkin-fp-S`), `fixed-point` or `newton` (the report's
@@ -26,7 +26,7 @@ use lagrangian::GalerkinIntegrator;
 use lagrangian::galerkin::PointEvaluations;
 use lagrangian::galerkin::StageIteration;
 use lagrangian::prelude::*;
-use lagrangian_bench::problems::{DoublePendulum, KeplerPolar, Model, Sensor};
+use lagrangian_bench::problems::{DoublePendulum, KeplerPolar, Model, PerturbedPendulum, Sensor};
 
 /// `runs` runs of `steps` steps; the last run's iterations, evaluations and positions.
 fn runs<M: Model<N>, const N: usize, const S: usize>(
@@ -60,7 +60,7 @@ fn report<const N: usize>(steps: usize, (iterations, e, q): (f64, PointEvaluatio
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: galerkin_steps double-pendulum|sensor|kepler-polar S auto|fixed-point|newton STEPS RUNS";
+    let usage = "usage: galerkin_steps double-pendulum|sensor|kepler-polar|perturbed-pendulum S auto|fixed-point|newton STEPS RUNS";
     let [problem, s, iteration, steps, n] = &args[..] else { panic!("{usage}") };
     let iteration = match iteration.as_str() {
         "auto" => StageIteration::Automatic,
@@ -70,17 +70,18 @@ fn main() {
     };
     let (steps, n): (usize, usize) = (steps.parse().expect(usage), n.parse().expect(usage));
     macro_rules! degree {
-        ($model:expr, $($s:literal)*) => {
+        ($model:expr, $n:literal, $($s:literal)*) => {
             match s.as_str() {
-                $(stringify!($s) => report(steps, runs::<_, 2, $s>(&$model, iteration, steps, n)),)*
+                $(stringify!($s) => report(steps, runs::<_, $n, $s>(&$model, iteration, steps, n)),)*
                 _ => panic!("{usage}"),
             }
         };
     }
     match problem.as_str() {
-        "double-pendulum" => degree!(DoublePendulum { scale: 1.0 }, 2 3 4 5 6 7 8),
-        "sensor" => degree!(Sensor { scale: 1.0 }, 2 3 4 5 6 7 8),
-        "kepler-polar" => degree!(KeplerPolar { scale: 1.0 }, 2 3 4 5 6 7 8),
+        "double-pendulum" => degree!(DoublePendulum { scale: 1.0 }, 2, 2 3 4 5 6 7 8),
+        "sensor" => degree!(Sensor { scale: 1.0 }, 2, 2 3 4 5 6 7 8),
+        "kepler-polar" => degree!(KeplerPolar { scale: 1.0 }, 2, 2 3 4 5 6 7 8),
+        "perturbed-pendulum" => degree!(PerturbedPendulum { scale: 1.0 }, 1, 2 3 4 5 6 7 8),
         _ => panic!("{usage}"),
     }
 }
