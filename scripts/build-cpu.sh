@@ -11,7 +11,7 @@
 #
 # Prints the whole build's wall and CPU (cargo and its children), the sum of
 # the rustc processes' CPU, and the largest units: CPU seconds, wall seconds,
-# crate name and kind (`test,` for test harnesses). Needs GNU time. Cargo's
+# crate name, kind (`test,` for test harnesses) and package. Needs GNU time. Cargo's
 # `--timings` report lands in `$target/cargo-timings/cargo-timing.html`, for
 # `scripts/critical-path.py $target/cargo-timings/cargo-timing.html $target.log`.
 set -euo pipefail
@@ -31,7 +31,9 @@ if [[ -n "${BUILD_CPU_LOG:-}" ]]; then
       --crate-type) kind="${kind}${args[$((i + 1))]}," ;;
     esac
   done
-  exec /usr/bin/time -a -o "$BUILD_CPU_LOG" -f "%U %S %e $name $kind" "$rustc" "$@"
+  # The package as the sixth field: two packages may have test targets of
+  # the same name (the facade's and `verification-tests/`' `verification`).
+  exec /usr/bin/time -a -o "$BUILD_CPU_LOG" -f "%U %S %e $name $kind ${CARGO_PKG_NAME:-?}" "$rustc" "$@"
 fi
 
 cd "$(dirname "$0")/.."
@@ -45,5 +47,5 @@ rm -rf "$target" "$log"
 echo "cold cargo test --workspace --no-run: $(cat "$target.total")"
 # Cargo also runs the wrapper to query rustc (`-vV`, target info): no crate name, no CPU to speak of.
 awk '$4 != "?" { s += $1 + $2 } END { printf "rustc processes: %.1f s CPU\n", s }' "$log"
-awk '$4 != "?" { printf "%7.1f %7.1f  %s %s\n", $1 + $2, $3, $4, $5 }' "$log" | sort -rn | head -n "$top" |
-  (echo "    CPU    wall  unit"; cat)
+awk '$4 != "?" { printf "%7.1f %7.1f  %s %s %s\n", $1 + $2, $3, $4, $5, $6 }' "$log" | sort -rn | head -n "$top" |
+  (echo "    CPU    wall  unit kind package"; cat)

@@ -14,7 +14,7 @@ and the chain's CPU seconds say more than its wall span.
     scripts/critical-path.py target/cargo-timings/cargo-timing.html
 
 With the log of `scripts/build-cpu.sh` (one line per rustc process: user and
-system CPU, wall, crate name, kind), each unit of the chain also shows its
+system CPU, wall, crate name, kind, package), each unit of the chain also shows its
 CPU seconds, which do not depend on the machine's load as its wall seconds do:
 
     scripts/critical-path.py target/cargo-timings/cargo-timing.html /tmp/lagrangian-build-cpu.log
@@ -34,18 +34,24 @@ def units(html_path):
 
 
 def cpu_by_name(log_path):
-    """CPU seconds per (crate name, is a test harness); None where a name is ambiguous."""
+    """CPU seconds per (package, crate name, is a test harness), and per (crate
+    name, is a test harness) for logs without the package; None where a key is
+    ambiguous."""
     cpu = {}
     for line in open(log_path, encoding="utf-8"):
         fields = line.split()
-        if len(fields) != 5 or fields[3] == "?":
+        if len(fields) not in (5, 6) or fields[3] == "?":
             continue
         try:
             seconds = float(fields[0]) + float(fields[1])
         except ValueError:
             continue
-        key = (fields[3], "test," in fields[4])
-        cpu[key] = None if key in cpu else seconds
+        is_test = "test," in fields[4]
+        keys = [(fields[3], is_test)]
+        if len(fields) == 6:
+            keys.append((fields[5], fields[3], is_test))
+        for key in keys:
+            cpu[key] = None if key in cpu else seconds
     return cpu
 
 
@@ -75,7 +81,7 @@ def main():
         target = u.get("target", "").strip()
         name = target.split()[0] if target else u["name"].replace("-", "_")
         is_test = '"test"' in target or "(test)" in target
-        seconds = cpu.get((name, is_test))
+        seconds = cpu.get((u["name"], name, is_test), cpu.get((name, is_test)))
         total_cpu += seconds or 0.0
         shown = f"{seconds:8.1f}" if seconds is not None else f"{'':>8}"
         print(f"{u['start']:8.1f} {u['duration']:8.1f} {shown}  {u['name']}{(' ' + target) if target else ''}")
