@@ -45,7 +45,7 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
     v: [f64; N],
     options: &NewtonOptions,
     (state, h, spent): (State<N>, f64, usize),
-) -> Result<OnCotangent<N>, Error<N>> {
+) -> Result<OnCotangent<N>, Error> {
     let jac1t = jac1.transpose();
     let finish = |v: SVector<f64, N>, mu: SVector<f64, M>, iterations| OnCotangent {
         velocity: v.into(),
@@ -74,15 +74,22 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), jac1, &r1, &r2, options.min_rcond) {
             Ok(x) => x,
             Err(linear::Singular::Block(rcond)) => {
-                return Err(Error::SingularJacobian { state, h, iterations: spent + iterations, rcond });
+                return Err(Error::SingularJacobian { state: state.into(), h, iterations: spent + iterations, rcond });
             }
-            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+            Err(linear::Singular::Schur(rcond)) => {
+                return Err(Error::SingularConstraints { state: state.into(), rcond });
+            }
         };
         v += dv;
         mu += dmu;
         let norm = dv.amax();
         if !norm.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations: spent + iterations, quantity: "momentum" });
+            return Err(Error::NonFinite {
+                state: state.into(),
+                h,
+                iterations: spent + iterations,
+                quantity: "momentum",
+            });
         }
         // The same round-off, `ε|p̂|` over the smallest mass, as a floor
         // of the correction.
@@ -93,7 +100,7 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         }
     }
     Err(Error::NewtonDidNotConverge {
-        state,
+        state: state.into(),
         h,
         iterations: spent + iterations,
         residual_norm: f64::NAN,

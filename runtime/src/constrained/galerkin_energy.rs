@@ -32,7 +32,7 @@ where
     /// One energy-preserving step (the first has the given size); on
     /// failure nothing in the integrator has changed but the saddle-point
     /// storage.
-    pub(super) fn constrained_node_energy_step(&mut self, bounds: StepBounds) -> Result<(), Error<N>> {
+    pub(super) fn constrained_node_energy_step(&mut self, bounds: StepBounds) -> Result<(), Error> {
         // `start` refuses these (`supports`); no energy-step code for them.
         if const { Sys::HAS_FORCE || Sys::HAS_DISSIPATION || !Sys::AUTONOMOUS || !Sys::CONSTRAINTS_AUTONOMOUS } {
             return Err(Error::Unsupported { what: "energy-preserving galerkin steps for this system" });
@@ -87,7 +87,7 @@ where
     /// The step size and the solved step.
     type Trial = (f64, Solved<N, S, M>);
 
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error<N>> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error> {
         let state = self.state;
         let State { t: t0, q: q0, p: p0, .. } = state;
         let rule = &self.method.rule;
@@ -101,7 +101,7 @@ where
         let energy = step_energy(&self.system, rule, &seg);
         let g = energy - self.energy;
         if !g.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations: *spent, quantity: "energy equation" });
+            return Err(Error::NonFinite { state: state.into(), h, iterations: *spent, quantity: "energy equation" });
         }
         // The size of the terms whose sum is E: `v·∂L/∂v` and `L` at the
         // quadrature points, with their weights.
@@ -119,7 +119,7 @@ where
         self.fallback
     }
 
-    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error<N> {
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error {
         best.no_energy_step(self.state, (lo, hi), spent, None)
     }
 }
