@@ -503,6 +503,32 @@ impl<T: Real> Error<T> {
     }
 }
 
+/// A failure found inside a step before it is known whether the step
+/// fails: a trial of the energy-step search, or a first Newton attempt that
+/// a second one may repair. It is the [`Error`] without its state (a
+/// [`PhasePoint`] without coordinates, whose empty vectors allocate
+/// nothing), so a step that recovers from it allocates nothing; the step
+/// that gives up places it at the state it started from with [`at`](Self::at).
+#[derive(Debug)]
+pub(crate) struct Unplaced<T: Real = f64>(Error<T>);
+
+impl<T: Real> Unplaced<T> {
+    /// The error `build` makes of a state still to be placed.
+    pub(crate) fn new(build: impl FnOnce(PhasePoint<T>) -> Error<T>) -> Self {
+        Self(build(PhasePoint { step: 0, t: T::ZERO, q: Vec::new(), p: Vec::new() }))
+    }
+
+    /// The failure of a Newton solve of a step of size `h`.
+    pub(crate) fn newton(failure: NewtonFailure, h: f64) -> Self {
+        Self::new(|state| Error::from_newton(failure, state, h))
+    }
+
+    /// The error, placed at `state`: the state the failed step started from.
+    pub(crate) fn at(self, state: impl Into<PhasePoint<T>>) -> Error<T> {
+        self.0.at_state(state)
+    }
+}
+
 /// The const-size state of a [`PhasePoint`] with `N` coordinates;
 /// [`Error::WrongLength`] (naming `q` or `p`) for one of another length.
 impl<const N: usize, T: Real> TryFrom<PhasePoint<T>> for State<N, T> {

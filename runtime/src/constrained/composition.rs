@@ -162,12 +162,12 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
             let d = core::array::from_fn(|i| hs * (v[i] + 0.5 * hs * acceleration[i]));
             let guess = Guess { d: [d], lambda: lambda.map(|x| x * rho), interior: [[0.0; M]] };
             let work = &mut inner.work;
-            let solved = solve_step(&it.system, rule, &it.newton, (t, hs, t_end), (&q, &p), guess, work, state);
+            let solved = solve_step(&it.system, rule, &it.newton, (t, hs, t_end), (&q, &p), guess, work);
             let solved = match solved {
                 Ok(s) => s,
                 Err(error) => {
                     it.stats.failed_steps += 1;
-                    return Err(error);
+                    return Err(error.at(state));
                 }
             };
             last = Some(Segment { t0: t, h: hs, q0: q, d: solved.d });

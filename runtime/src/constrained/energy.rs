@@ -38,7 +38,7 @@ use super::linear::{self, inverse, solve_schur_inverted};
 use super::{Constrained, Positions, commit, jacobian, positions};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing;
 use crate::integrator::{Clock, EnergyFallback, EnergySearch, Integrator, Method, Probe, StepBounds, Taken};
 use crate::newton::NewtonReport;
@@ -100,7 +100,7 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
 {
     type Trial = Positions<N, M>;
 
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Positions<N, M>>, Error> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Positions<N, M>>, Unplaced> {
         let state = self.state;
         let solved = positions(self, h, state.t + h)?;
         *spent += solved.iterations;
@@ -111,9 +111,14 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
         let target = energy_target(self);
         let g = d.d_t0 - target;
         if !g.is_finite() {
-            return Err(Error::NonFinite { state: state.into(), h, iterations: *spent, quantity: "energy equation" });
+            let iterations = *spent;
+            return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "energy equation" }));
         }
         Ok(Probe { trial: solved, h, g, slope: slope(self, &seg, &d), scale: target.abs().max(d.d_t0.abs()) })
+    }
+
+    fn place(&self, failure: Unplaced) -> Error {
+        failure.at(self.state)
     }
 
     fn fallback(&self) -> EnergyFallback {

@@ -64,7 +64,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
 use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment, predict_into};
@@ -342,7 +342,7 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     h: f64,
     t1: f64,
 ) -> Result<(), Error> {
-    let solved = positions(it, h, t1)?;
+    let solved = positions(it, h, t1).map_err(|e| e.at(it.state))?;
     commit(it, solved, t1)
 }
 
@@ -384,10 +384,10 @@ fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: u
     it: &Integrator<S, Constrained<D, M>, N>,
     h: f64,
     t1: f64,
-) -> Result<Positions<N, M>, Error> {
+) -> Result<Positions<N, M>, Unplaced> {
     let state = it.state;
     let (_, g0) = jacobian::<S, N, M>(&it.system, state.t, &state.q)
-        .ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
+        .ok_or_else(|| Unplaced::new(|state| Error::NonFiniteConstraints { state }))?;
     let mut dq = [0.0; N];
     {
         let last = it.memory.previous.as_ref().map(|s| (s.h, &s.dq[..]));
@@ -418,9 +418,8 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
     g0: &SMatrix<f64, M, N>,
     (mut dq, mut lambda): ([f64; N], SVector<f64, M>),
     kept: Option<Option<(SMatrix<f64, N, N>, f64)>>,
-) -> Result<Positions<N, M>, (Error, usize)> {
+) -> Result<Positions<N, M>, (Unplaced, usize)> {
     let State { t: t0, q: q0, p: p0, .. } = it.state;
-    let state = it.state;
     let options = it.newton;
     let rule = it.method.rule;
     let system = &it.system;
@@ -436,7 +435,7 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         let seg = Segment { t0, h, q0, dq };
         let q1 = seg.q1();
         let Some((g1, jac1)) = jacobian::<S, N, M>(system, t1, &q1) else {
-            return Err((Error::NonFiniteConstraints { state: state.into() }, iterations));
+            return Err((Unplaced::new(|state| Error::NonFiniteConstraints { state }), iterations));
         };
         let (d_q0, (a_inv, a_norm)) = match kept_inverse {
             Some(kept) => {
@@ -453,13 +452,16 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
                 let sd = forcing::forced_step_derivatives(system, &rule, &seg);
                 if !sd.d2_q0_q1.iter().all(|x| x.is_finite()) {
                     return Err((
-                        Error::NonFinite { state: state.into(), h, iterations, quantity: "residual" },
+                        Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
                         iterations,
                     ));
                 }
                 let (a_inv, rcond) = inverse(sd.d2_q0_q1);
                 if rcond <= options.min_rcond {
-                    return Err((Error::SingularJacobian { state: state.into(), h, iterations, rcond }, iterations));
+                    return Err((
+                        Unplaced::new(|state| Error::SingularJacobian { state, h, iterations, rcond }),
+                        iterations,
+                    ));
                 }
                 previous = None;
                 (sd.d_q0, (a_inv, linear::norm1(&sd.d2_q0_q1)))
@@ -469,15 +471,21 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         let r2 = SVector::<f64, M>::from(g1);
         residual_norm = r1.amax().max(r2.amax());
         if !residual_norm.is_finite() {
-            return Err((Error::NonFinite { state: state.into(), h, iterations, quantity: "residual" }, iterations));
+            return Err((
+                Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
+                iterations,
+            ));
         }
         let (ddq, dlambda) = match solve_schur_inverted(&a_inv, &g0t, &jac1, &r1, &r2, options.min_rcond) {
             Ok(x) => x,
             Err(linear::Singular::Block(rcond)) => {
-                return Err((Error::SingularJacobian { state: state.into(), h, iterations, rcond }, iterations));
+                return Err((
+                    Unplaced::new(|state| Error::SingularJacobian { state, h, iterations, rcond }),
+                    iterations,
+                ));
             }
             Err(linear::Singular::Schur(rcond)) => {
-                return Err((Error::SingularConstraints { state: state.into(), rcond }, iterations));
+                return Err((Unplaced::new(|state| Error::SingularConstraints { state, rcond }), iterations));
             }
         };
         kept_inverse = Some((a_inv, a_norm));
@@ -487,7 +495,10 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         lambda += dlambda;
         correction_norm = ddq.amax();
         if !correction_norm.is_finite() {
-            return Err((Error::NonFinite { state: state.into(), h, iterations, quantity: "correction" }, iterations));
+            return Err((
+                Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "correction" }),
+                iterations,
+            ));
         }
         // The constraint is evaluated at `q_k + Δq`, so no correction below
         // the round-off of that sum is meaningful: a step from rest has an
@@ -514,7 +525,8 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
             _ => previous = Some(correction_norm),
         }
     }
-    let error = Error::NewtonDidNotConverge { state: state.into(), h, iterations, residual_norm, correction_norm };
+    let error =
+        Unplaced::new(|state| Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
     Err((error, iterations))
 }
 
@@ -539,7 +551,8 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
     // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + F⁺ + G(q_{k+1})ᵀμ,
     // G(q_{k+1}) v + ∂g/∂t = 0.
     let v = dq.map(|x| x / h);
-    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v, &options, (state, h, iterations))?;
+    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v, &options, (h, iterations))
+        .map_err(|e| e.at(state))?;
     let (p1, v, momentum_iterations) = (on.momentum, on.velocity, on.iterations);
     if !q1.iter().chain(&p1).all(|x| x.is_finite()) || !t1.is_finite() {
         return Err(Error::NonFinite { state: state.into(), h, iterations, quantity: "position" });

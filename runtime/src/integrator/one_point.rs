@@ -256,7 +256,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             };
         }
         let State { step, t: t0, q: q0, .. } = self.state;
-        let (dq, report, impulse, lagrangian) = self.solve_del_with_impulse(h)?;
+        let (dq, report, impulse, lagrangian) =
+            self.solve_del_with_impulse(h).map_err(|failure| self.fail(h, failure))?;
         let seg = Segment { t0, h, q0, dq };
         let (q1, p1, carry, p_carry) = self.advance(&seg, impulse);
         // `L` at the rule's points of an iterate near the solution `dq`
@@ -444,9 +445,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
-    /// of a step of size `h` (see `Segment` for why the increment).
+    /// of a step of size `h` (see `Segment` for why the increment). The
+    /// failure is the solve's alone: the caller that gives up on the step
+    /// makes it the step's [`Error`] (an energy step's search may recover).
     #[inline]
-    pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error> {
+    pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), NewtonFailure> {
         self.solve_del_with_impulse(h).map(|(dq, report, _, _)| (dq, report))
     }
 
@@ -468,7 +471,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     pub(super) fn solve_del_with_impulse(
         &mut self,
         h: f64,
-    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>, f64), Error> {
+    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>, f64), NewtonFailure> {
         let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
@@ -496,11 +499,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
                 {
                     let reason = IMPLAUSIBLE_GROWTH;
-                    return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
+                    return Err(NewtonFailure::Rejected { iterations: report.iterations, reason });
                 }
                 Ok((dq, report, impulse.at_solution(&dq, p_scale), impulse.lagrangian))
             }
-            Err(failure) => Err(self.fail(h, failure)),
+            Err(failure) => Err(failure),
         }
     }
 

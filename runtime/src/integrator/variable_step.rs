@@ -47,7 +47,7 @@ use nalgebra::SVector;
 use super::{Integrator, StepPolicy, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
@@ -222,7 +222,11 @@ pub(crate) trait EnergySearch<const N: usize> {
     /// `g(h)` and `g'(h)` with the position equations solved at step `h`;
     /// the Newton iterations spent go to `spent`. Changes nothing the
     /// integrator publishes.
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error>;
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Unplaced>;
+
+    /// The failure of a trial, as the error of the step: at the state the
+    /// step started from (and the integrator still holds).
+    fn place(&self, failure: Unplaced) -> Error;
 
     /// What to do where no admissible step solves the energy equation.
     fn fallback(&self) -> EnergyFallback;
@@ -259,7 +263,7 @@ pub(crate) trait EnergySearch<const N: usize> {
                     hi = h;
                     let next = lo + 0.5 * (h - lo);
                     if h <= lo || h - lo <= 1e-9 * h || next >= h {
-                        return Err(e);
+                        return Err(self.place(e));
                     }
                     h = if h - lo <= 1e-3 * h { lo } else { next };
                 }
@@ -347,10 +351,10 @@ pub(crate) trait EnergySearch<const N: usize> {
                 Err(e) => {
                     let mid = ha + 0.5 * (hb - ha);
                     if h == mid {
-                        return Err(e);
+                        return Err(self.place(e));
                     }
                     dx = 0.5 * (hb - ha);
-                    self.probe(mid, spent)?
+                    self.probe(mid, spent).map_err(|e| self.place(e))?
                 }
             };
             if p.solved() {
@@ -689,9 +693,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
     type Trial = Segment<N>;
 
     /// `g(h)` and `g'(h)` with the DEL solved at step `h`.
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Segment<N>>, Error> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Segment<N>>, Unplaced> {
         let State { t: t0, q: q0, .. } = self.state;
-        let (dq, report) = self.solve_del(h)?;
+        let (dq, report) = self.solve_del(h).map_err(|failure| Unplaced::newton(failure, h))?;
         *spent += report.iterations;
         let seg = Segment { t0, h, q0, dq };
         // The forced DEL (solved by `solve_del`) and energy equation.
@@ -703,14 +707,14 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
         let target = self.energy_target();
         let g = d.d_t0 - target;
         if !g.is_finite() {
-            return Err(Error::NonFinite {
-                state: self.state.into(),
-                h,
-                iterations: *spent,
-                quantity: "energy equation",
-            });
+            let iterations = *spent;
+            return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "energy equation" }));
         }
         Ok(Probe { trial: seg, h, g, slope, scale: target.abs().max(d.d_t0.abs()) })
+    }
+
+    fn place(&self, failure: Unplaced) -> Error {
+        failure.at(self.state)
     }
 
     fn fallback(&self) -> EnergyFallback {

@@ -5,7 +5,7 @@ use core::marker::PhantomData;
 
 use num_dual::HyperDual;
 
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::integrator::Stats;
 use crate::mechanics::{DiscreteMechanics, LegendreFailure};
 use crate::real::{Real, all_finite};
@@ -371,7 +371,7 @@ where
             }
             Err(e) => {
                 self.inner = before;
-                Err(e)
+                Err(e.at(start))
             }
         }
     }
@@ -380,7 +380,8 @@ where
     /// state `start`) to `candidate`'s node: the density there, the time it
     /// advanced (against `floor`, if given), and the rate `t'/g` against the
     /// current node's. Returns the end state, the time step and the rate at
-    /// the end.
+    /// the end; a refusal is placed at `start` by the caller that gives up
+    /// (a landing's trials refuse steps and go on).
     #[allow(clippy::type_complexity)]
     fn verify(
         &self,
@@ -388,23 +389,23 @@ where
         t0: T,
         start: &State<N, T>,
         floor: Option<T>,
-    ) -> Result<(State<N, T>, T, Option<f64>), Error<T>> {
+    ) -> Result<(State<N, T>, T, Option<f64>), Unplaced<T>> {
         let x = candidate.extended_state();
         let end = physical::<T, N, M>(&x);
         let g1 = candidate.transformed().density(end.t, &end.q);
         let dt = end.t - t0;
         if !(g1.is_finite() && g1.to_f64() > 0.0) {
-            return Err(Error::InvalidDensity { state: (*start).into(), value: g1.to_f64() });
+            return Err(Unplaced::new(|state| Error::InvalidDensity { state, value: g1.to_f64() }));
         }
         if let Some(floor) = floor {
             // NaN fails too.
             let margin = (dt - floor).to_f64();
             if margin.is_nan() || margin < 0.0 {
-                return Err(Error::TimeStepCollapsed {
-                    state: (*start).into(),
+                return Err(Unplaced::new(|state| Error::TimeStepCollapsed {
+                    state,
                     dt: dt.to_f64(),
                     floor: floor.to_f64(),
-                });
+                }));
             }
         }
         let guess: [T; N] = core::array::from_fn(|i| (end.q[i] - start.q[i]) / dt);
@@ -413,7 +414,7 @@ where
             // NaN fails too.
             let factor = r1 / r0;
             if !(0.5..=2.0).contains(&factor) {
-                return Err(Error::OrbitLost { state: (*start).into(), factor });
+                return Err(Unplaced::new(|state| Error::OrbitLost { state, factor }));
             }
         }
         Ok((end, dt, rate))
