@@ -771,7 +771,7 @@ fn fnv(values: &[f64]) -> u64 {
 /// `n` steps, then the bits of the state and of every readout (digests of
 /// the arrays), to compare the trajectories of two builds exactly.
 fn digest<S: lagrangian::Lagrangian<N>, M: lagrangian::F64Readouts, const N: usize>(
-    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error<N>>,
+    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error>,
     n: usize,
 ) -> Vec<f64> {
     let mut sim = sim.unwrap();
@@ -842,7 +842,7 @@ fn newton_mode<const N: usize>(mode: lagrangian::Derivatives, n: usize) -> Vec<f
 }
 
 fn run<S: lagrangian::Lagrangian<N>, M: lagrangian::Method<f64>, const N: usize>(
-    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error<N>>,
+    sim: Result<lagrangian::Integrator<S, M, N>, lagrangian::Error>,
     n: usize,
 ) -> Vec<f64> {
     let mut sim = sim.unwrap();

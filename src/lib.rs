@@ -187,7 +187,9 @@
 //! A step that fails (Newton does not converge, the Jacobian is singular, a
 //! value is not finite) returns an [`Error`] carrying the state and the
 //! diagnostics, and leaves the integrator as it was, so the caller can retry
-//! with another step size.
+//! with another step size. `Error` is one type for every driver and every
+//! system size (its state is a run-time-sized [`PhasePoint`]), so the
+//! failures of systems of different sizes gather into one `Result` with `?`.
 
 pub use lagrangian_macros::lagrangian;
 // The public surface, listed: the types a user names, and the modules that
@@ -196,13 +198,13 @@ pub use lagrangian_macros::lagrangian;
 pub use lagrangian_runtime::num_dual;
 pub use lagrangian_runtime::{
     Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives,
-    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, DynError, DynIntegrator,
-    DynIntegratorBuilder, DynLagrangian, DynMethod, DynProblem, DynState, DynStepper, EnergyFallback, Error, Estimate,
-    Event, EventRecord, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling,
+    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, DynIntegrator,
+    DynIntegratorBuilder, DynLagrangian, DynMethod, DynProblem, DynStepper, EnergyFallback, Error, Estimate, Event,
+    EventRecord, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling,
     Galerkin, GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure,
-    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, Pattern, Plan, Policy, Problem, Quadrature,
-    RadiusPower, Real, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State, Stats, Status,
-    StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
+    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, Pattern, PhasePoint, Plan, Policy, Problem,
+    Quadrature, RadiusPower, Real, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State, Stats,
+    Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
     TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
@@ -227,9 +229,9 @@ pub mod prelude {
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{Constrained, DynConstrained};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
-    pub use lagrangian_runtime::{DynError, DynIntegrator, DynMethod, DynState};
+    pub use lagrangian_runtime::{DynIntegrator, DynMethod, PhasePoint};
     pub use lagrangian_runtime::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
-    pub use lagrangian_runtime::{Event, Plan, Solution, Stepping};
+    pub use lagrangian_runtime::{Event, Plan, Solution, SolveError, Stepping};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

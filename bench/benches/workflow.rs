@@ -73,7 +73,7 @@ fn recording(c: &mut Criterion) {
     g.finish();
 }
 
-fn member(_: usize, &(theta0, omega2): &(f64, f64)) -> Result<State<1>, Error<1>> {
+fn member(_: usize, &(theta0, omega2): &(f64, f64)) -> Result<State<1>, Error> {
     let mut sim = Integrator::new(Pendulum { omega2 }, Midpoint, 0.01).start(0.0, [theta0], [0.0])?;
     sim.run(STEPS, |_| {})?;
     Ok(*sim.state())

@@ -40,7 +40,7 @@ pub struct Node {
 }
 
 /// Integrates from `t = 0` until `t_k ≥ t_end` and returns every node with its step.
-pub fn record(t_end: f64) -> Result<Vec<Node>, Error<1>> {
+pub fn record(t_end: f64) -> Result<Vec<Node>, Error> {
     let tau0 = 0.5;
     let mut sim = Integrator::new(PerturbedPendulum, Midpoint, tau0)
         .energy_preserving(StepBounds::around(tau0))

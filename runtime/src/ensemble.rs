@@ -124,7 +124,7 @@ pub fn run_serial<I, O, E>(inputs: &[I], member: impl Fn(usize, &I) -> Result<O,
 ///
 /// // One run per frequency; the last one cannot start.
 /// let omegas = [0.5, 1.0, 2.0, f64::NAN];
-/// let results = ensemble::run(&omegas, |_index, &omega| -> Result<f64, Error<1>> {
+/// let results = ensemble::run(&omegas, |_index, &omega| -> Result<f64, Error> {
 ///     let mut sim = Integrator::new(Oscillator(omega), Midpoint, 0.01).start(0.0, [1.0], [0.0])?;
 ///     sim.run_until(1.0, |_| {})?;
 ///     Ok(sim.state().q[0])

@@ -2,20 +2,50 @@
 
 use crate::newton::NewtonFailure;
 use crate::real::Real;
-use crate::state::State;
+use crate::state::{PhasePoint, State};
 
 /// What went wrong, with the state the integrator was left in and the
-/// diagnostics of the failed solve.
+/// diagnostics of the failed solve: the one error type of stepping, for
+/// every driver and every system size.
 ///
 /// A failed step leaves the integrator exactly as it was before the step, so
 /// `state` is also the state a retry starts from (for example after
-/// [`Integrator::set_step_size`](crate::Integrator::set_step_size)). `T` is
-/// the real type of that state (`f64` but for a
+/// [`Integrator::set_step_size`](crate::Integrator::set_step_size)). The
+/// state is a [`PhasePoint`], sized at run time, so that the errors of
+/// systems with different numbers of coordinates (and of the run-time-sized
+/// drivers) are one type and `?` gathers them into one `Result`;
+/// `State::try_from(state)` gives the const-size [`State`] back. `T` is the
+/// real type of that state (`f64` but for a
 /// [`GalerkinIntegrator`](crate::GalerkinIntegrator) run in extended precision);
 /// diagnostics such as step sizes and residual norms are always `f64`.
+///
+/// ```
+/// # use lagrangian_runtime::{Lagrangian, Scalar};
+/// # #[derive(Clone)]
+/// # struct Oscillator;
+/// # impl Lagrangian<1> for Oscillator {
+/// #     const AUTONOMOUS: bool = true;
+/// #     const CYCLIC: [bool; 1] = [false];
+/// #     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+/// #         (v[0] * v[0] - q[0] * q[0]) * 0.5
+/// #     }
+/// # }
+/// use lagrangian_runtime::{Error, Integrator, Midpoint, State};
+///
+/// let mut sim = Integrator::new(Oscillator, Midpoint, 0.1).start(0.0, [1.0], [0.0])?;
+/// sim.run(10, |_| {})?;
+/// match sim.run_until(f64::NAN, |_| {}) {
+///     Err(Error::InvalidTarget { state, .. }) => {
+///         let state: State<1> = state.try_into()?;
+///         assert_eq!(state, *sim.state());
+///     }
+///     other => panic!("{other:?}"),
+/// }
+/// # Ok::<(), Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum Error<const N: usize, T: Real = f64> {
+pub enum Error<T: Real = f64> {
     /// Newton's method reached its iteration cap, or its corrections grew twice in a row.
     #[error(
         "newton did not converge in the step from t = {} (step {}, h = {h:e}): {iterations} iterations, residual norm {residual_norm:e}, last correction {correction_norm:e}",
@@ -23,7 +53,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     NewtonDidNotConverge {
         /// The state the step started from (and the integrator still holds).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The step size that was tried.
         h: f64,
         /// Newton iterations spent.
@@ -41,7 +71,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     SingularJacobian {
         /// The state the step started from (and the integrator still holds).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The step size that was tried.
         h: f64,
         /// The Newton iteration at which it happened.
@@ -56,7 +86,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     NonFinite {
         /// The state the step started from (and the integrator still holds).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The step size that was tried.
         h: f64,
         /// The Newton iteration at which it happened (0: after convergence).
@@ -73,7 +103,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     StepRejected {
         /// The state the step started from (and the integrator still holds).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The last step size tried.
         h: f64,
         /// Newton iterations spent.
@@ -93,7 +123,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     NoEnergyStep {
         /// The state the step started from (and the integrator still holds).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The smallest admissible step.
         h_lo: f64,
         /// The largest admissible step.
@@ -119,6 +149,17 @@ pub enum Error<const N: usize, T: Real = f64> {
     InvalidStepSize {
         /// The rejected step size.
         h: f64,
+    },
+    /// Initial data (`q0`, `v0`) or a state (`q`, `p`) whose length is not
+    /// the system's number of coordinates.
+    #[error("`{what}` has {found} entries, but the system has {expected} coordinates")]
+    WrongLength {
+        /// Which argument: `q0`, `v0`, `q` or `p`.
+        what: &'static str,
+        /// The number of coordinates of the system.
+        expected: usize,
+        /// The length given.
+        found: usize,
     },
     /// Variable-step bounds that are not finite, not positive, `h_min > h_max`,
     /// a ratio that is not finite and above 1, or an accuracy outside `(0, 1)`.
@@ -153,7 +194,7 @@ pub enum Error<const N: usize, T: Real = f64> {
         /// The rejected target time.
         target: f64,
         /// The current state.
-        state: State<N, T>,
+        state: PhasePoint<T>,
     },
     /// A discrete Lagrangian that cannot define a step: a Galerkin method of
     /// degree 0, or with a quadrature that is invalid or too weak for its degree.
@@ -173,7 +214,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("the step density g = {value} is not finite and positive (step from t = {})", .state.t)]
     InvalidDensity {
         /// The physical state the integrator holds.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The offending value of `g`.
         value: f64,
     },
@@ -182,7 +223,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("the step from t = {} advanced time by {dt:e}, below the floor {floor:e}", .state.t)]
     TimeStepCollapsed {
         /// The physical state the integrator holds.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The time the refused step advanced.
         dt: f64,
         /// The smallest time step allowed.
@@ -211,7 +252,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("the argument {which:?} of f' is {value}, not finite and positive (step from t = {})", .state.t)]
     TimeFunctionArgument {
         /// The physical state the integrator holds.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// Which argument.
         which: Argument,
         /// Its value.
@@ -236,7 +277,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     OrbitLost {
         /// The physical state the integrator holds.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The ratio of the rates at the failing point divided by that at
         /// the start (outside `[1/2, 2]`, or NaN).
         factor: f64,
@@ -305,7 +346,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
     InverseLegendre {
         /// The state whose velocity was sought.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// Newton iterations spent.
         iterations: usize,
         /// `‖∂L/∂v − p‖∞` at the last iterate.
@@ -337,7 +378,7 @@ pub enum Error<const N: usize, T: Real = f64> {
     )]
     SingularConstraints {
         /// The state the integrator holds (the initial data at the start).
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// The reciprocal condition number of `G Gᵀ` (at the start) or of
         /// the step's Schur complement `G(q_{k+1}) A⁻¹ G(q_k)ᵀ`.
         rcond: f64,
@@ -346,14 +387,14 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("non-finite constraint value at t = {} (step {})", .state.t, .state.step)]
     NonFiniteConstraints {
         /// The state the integrator holds (the initial data at the start).
-        state: State<N, T>,
+        state: PhasePoint<T>,
     },
     /// The loss of an adjoint gradient, or its derivative, is NaN or
     /// infinite at a node ([`Problem::gradient`](crate::Problem::gradient)).
     #[error("the loss or its gradient is not finite at t = {} (step {})", .state.t, .state.step)]
     NonFiniteLoss {
         /// The node.
-        state: State<N, T>,
+        state: PhasePoint<T>,
     },
     /// Sensitivities or an adjoint gradient through a step that is not a
     /// differentiable function of its inputs: an energy-preserving step
@@ -362,15 +403,40 @@ pub enum Error<const N: usize, T: Real = f64> {
     #[error("the step from t = {} (step {}) is not differentiable: {reason}", .state.t, .state.step)]
     NotDifferentiable {
         /// The node the step starts from.
-        state: State<N, T>,
+        state: PhasePoint<T>,
         /// Why.
         reason: &'static str,
     },
 }
 
-impl<const N: usize, T: Real> Error<N, T> {
+impl<T: Real> Error<T> {
+    /// The state the error carries: the state the failed step started from
+    /// (and the integrator still holds), or the node where the failure was
+    /// found; `None` for the errors of a setting or of the input.
+    pub fn state(&self) -> Option<&PhasePoint<T>> {
+        match self {
+            Error::NewtonDidNotConverge { state, .. }
+            | Error::SingularJacobian { state, .. }
+            | Error::NonFinite { state, .. }
+            | Error::StepRejected { state, .. }
+            | Error::NoEnergyStep { state, .. }
+            | Error::InvalidTarget { state, .. }
+            | Error::InvalidDensity { state, .. }
+            | Error::TimeStepCollapsed { state, .. }
+            | Error::TimeFunctionArgument { state, .. }
+            | Error::OrbitLost { state, .. }
+            | Error::InverseLegendre { state, .. }
+            | Error::SingularConstraints { state, .. }
+            | Error::NonFiniteConstraints { state }
+            | Error::NonFiniteLoss { state }
+            | Error::NotDifferentiable { state, .. } => Some(state),
+            _ => None,
+        }
+    }
+
     /// The error of a step from `state` with size `h` whose Newton solve failed.
-    pub(crate) fn from_newton(failure: NewtonFailure, state: State<N, T>, h: f64) -> Self {
+    pub(crate) fn from_newton(failure: NewtonFailure, state: impl Into<PhasePoint<T>>, h: f64) -> Self {
+        let state = state.into();
         match failure {
             NewtonFailure::NotConverged(r) => Error::NewtonDidNotConverge {
                 state,
@@ -388,7 +454,14 @@ impl<const N: usize, T: Real> Error<N, T> {
     /// The same error, reported at `at` instead of the state it carries (a
     /// composition's sub-step fails at an intermediate state; the caller's
     /// state is the one kept).
-    pub(crate) fn at_state(mut self, at: State<N, T>) -> Self {
+    pub(crate) fn at_state(self, at: impl Into<PhasePoint<T>>) -> Self {
+        self.map_state(|_| at.into())
+    }
+
+    /// The same error with its state mapped by `f`: a time-transformed
+    /// driver reports the failure of its step in `s`, whose state is the
+    /// extended `(q, t)`, at the physical state.
+    pub(crate) fn map_state(mut self, f: impl FnOnce(PhasePoint<T>) -> PhasePoint<T>) -> Self {
         match &mut self {
             Error::NewtonDidNotConverge { state, .. }
             | Error::SingularJacobian { state, .. }
@@ -404,72 +477,20 @@ impl<const N: usize, T: Real> Error<N, T> {
             | Error::SingularConstraints { state, .. }
             | Error::NonFiniteConstraints { state }
             | Error::NonFiniteLoss { state }
-            | Error::NotDifferentiable { state, .. } => *state = at,
+            | Error::NotDifferentiable { state, .. } => {
+                let empty = PhasePoint { step: state.step, t: T::ZERO, q: Vec::new(), p: Vec::new() };
+                *state = f(core::mem::replace(state, empty));
+            }
             _ => {}
         }
         self
     }
 
-    /// The same error with its state mapped by `f`: a time-transformed
-    /// driver reports the failure of its step in `s`, whose state is the
-    /// extended `(q, t)`, at the physical state.
-    pub(crate) fn map_state<const K: usize>(self, f: impl FnOnce(State<N, T>) -> State<K, T>) -> Error<K, T> {
-        match self {
-            Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm } => {
-                Error::NewtonDidNotConverge { state: f(state), h, iterations, residual_norm, correction_norm }
-            }
-            Error::SingularJacobian { state, h, iterations, rcond } => {
-                Error::SingularJacobian { state: f(state), h, iterations, rcond }
-            }
-            Error::NonFinite { state, h, iterations, quantity } => {
-                Error::NonFinite { state: f(state), h, iterations, quantity }
-            }
-            Error::StepRejected { state, h, iterations, reason } => {
-                Error::StepRejected { state: f(state), h, iterations, reason }
-            }
-            Error::NoEnergyStep { state, h_lo, h_hi, h_best, mismatch, iterations, root_test } => {
-                Error::NoEnergyStep { state: f(state), h_lo, h_hi, h_best, mismatch, iterations, root_test }
-            }
-            Error::InvalidStepSize { h } => Error::InvalidStepSize { h },
-            Error::InvalidStepBounds { h_min, h_max, max_ratio } => {
-                Error::InvalidStepBounds { h_min, h_max, max_ratio }
-            }
-            Error::InvalidInitialData { reason } => Error::InvalidInitialData { reason },
-            Error::InvalidNewtonOptions { reason } => Error::InvalidNewtonOptions { reason },
-            Error::InvalidTarget { target, state } => Error::InvalidTarget { target, state: f(state) },
-            Error::InvalidMethod { reason } => Error::InvalidMethod { reason },
-            Error::Unsupported { what } => Error::Unsupported { what },
-            Error::InvalidDensity { state, value } => Error::InvalidDensity { state: f(state), value },
-            Error::TimeStepCollapsed { state, dt, floor } => Error::TimeStepCollapsed { state: f(state), dt, floor },
-            Error::Landing { target, reached } => Error::Landing { target, reached },
-            Error::InvalidSetting { reason } => Error::InvalidSetting { reason },
-            Error::NotSeparable { reason } => Error::NotSeparable { reason },
-            Error::TimeFunctionArgument { state, which, value } => {
-                Error::TimeFunctionArgument { state: f(state), which, value }
-            }
-            Error::OrbitLost { state, factor } => Error::OrbitLost { state: f(state), factor },
-            Error::InconsistentConstraints { position, velocity, tolerance } => {
-                Error::InconsistentConstraints { position, velocity, tolerance }
-            }
-            Error::SingularConstraints { state, rcond } => Error::SingularConstraints { state: f(state), rcond },
-            Error::NonFiniteConstraints { state } => Error::NonFiniteConstraints { state: f(state) },
-            Error::NonFiniteLoss { state } => Error::NonFiniteLoss { state: f(state) },
-            Error::NotDifferentiable { state, reason } => Error::NotDifferentiable { state: f(state), reason },
-            Error::InverseLegendre { state, iterations, residual_norm } => {
-                Error::InverseLegendre { state: f(state), iterations, residual_norm }
-            }
-            Error::InvalidTolerance { value, reason } => Error::InvalidTolerance { value, reason },
-            Error::InvalidSpan { t0, t_end } => Error::InvalidSpan { t0, t_end },
-            Error::ToleranceUnreachable { requested, floor } => Error::ToleranceUnreachable { requested, floor },
-            Error::Chaotic { requested, floor, rate, t_end } => Error::Chaotic { requested, floor, rate, t_end },
-            Error::NoMethod { failures } => Error::NoMethod { failures },
-        }
-    }
-
-    /// `Ok` for a usable configuration: a finite, positive step size, valid
-    /// Newton options and at least one degree of freedom.
-    pub(crate) fn check_setup(h: f64, newton: &crate::newton::NewtonOptions) -> Result<(), Self> {
-        if N == 0 {
+    /// `Ok` for a usable configuration of a system with `n` coordinates: a
+    /// finite, positive step size, valid Newton options and at least one
+    /// degree of freedom.
+    pub(crate) fn check_setup(n: usize, h: f64, newton: &crate::newton::NewtonOptions) -> Result<(), Self> {
+        if n == 0 {
             return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (N = 0)" });
         }
         newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
@@ -479,6 +500,46 @@ impl<const N: usize, T: Real> Error<N, T> {
     /// `Ok` for a finite, positive step size.
     pub(crate) fn check_step(h: f64) -> Result<(), Self> {
         if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
+    }
+}
+
+/// A failure found inside a step before it is known whether the step
+/// fails: a trial of the energy-step search, or a first Newton attempt that
+/// a second one may repair. It is the [`Error`] without its state (a
+/// [`PhasePoint`] without coordinates, whose empty vectors allocate
+/// nothing), so a step that recovers from it allocates nothing; the step
+/// that gives up places it at the state it started from with [`at`](Self::at).
+#[derive(Debug)]
+pub(crate) struct Unplaced<T: Real = f64>(Error<T>);
+
+impl<T: Real> Unplaced<T> {
+    /// The error `build` makes of a state still to be placed.
+    pub(crate) fn new(build: impl FnOnce(PhasePoint<T>) -> Error<T>) -> Self {
+        Self(build(PhasePoint { step: 0, t: T::ZERO, q: Vec::new(), p: Vec::new() }))
+    }
+
+    /// The failure of a Newton solve of a step of size `h`.
+    pub(crate) fn newton(failure: NewtonFailure, h: f64) -> Self {
+        Self::new(|state| Error::from_newton(failure, state, h))
+    }
+
+    /// The error, placed at `state`: the state the failed step started from.
+    pub(crate) fn at(self, state: impl Into<PhasePoint<T>>) -> Error<T> {
+        self.0.at_state(state)
+    }
+}
+
+/// The const-size state of a [`PhasePoint`] with `N` coordinates;
+/// [`Error::WrongLength`] (naming `q` or `p`) for one of another length.
+impl<const N: usize, T: Real> TryFrom<PhasePoint<T>> for State<N, T> {
+    type Error = Error<T>;
+
+    fn try_from(PhasePoint { step, t, q, p }: PhasePoint<T>) -> Result<Self, Error<T>> {
+        let sized = |what, x: Vec<T>| {
+            let found = x.len();
+            <[T; N]>::try_from(x).map_err(|_| Error::WrongLength { what, expected: N, found })
+        };
+        Ok(State { step, t, q: sized("q", q)?, p: sized("p", p)? })
     }
 }
 

@@ -34,7 +34,7 @@ mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
 pub(crate) use dynamic::Sliced;
-pub use dynamic::{DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState};
+pub use dynamic::{DynIntegrator, DynIntegratorBuilder, DynMethod};
 pub(crate) use method::sealed::Sealed;
 pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
@@ -225,12 +225,12 @@ impl<S, M: Method<T>, T: Real> IntegratorBuilder<S, M, T> {
     /// For a forced system, the one-point rules' variable steps in `f64` are
     /// fixed by the discrete energy balance `E_{k+1} − E_k = W_k`
     /// ([`forcing`](crate::forcing)).
-    pub fn start<const N: usize>(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<Integrator<S, M, N, T>, Error<N, T>>
+    pub fn start<const N: usize>(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<Integrator<S, M, N, T>, Error<T>>
     where
         S: Lagrangian<N>,
     {
         self.method.check().map_err(|reason| Error::InvalidMethod { reason })?;
-        Error::<N, T>::check_setup(self.h.to_f64(), &self.newton)?;
+        Error::<T>::check_setup(N, self.h.to_f64(), &self.newton)?;
         if let StepPolicy::EnergyPreserving(b) = self.policy {
             if !b.valid() {
                 return Err(Error::InvalidStepBounds { h_min: b.h_min, h_max: b.h_max, max_ratio: b.max_ratio });
@@ -669,8 +669,8 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
     ///
     /// Under energy-preserving steps `h` is the next guess and must lie in
     /// `[h_min, h_max]`.
-    pub fn set_step_size(&mut self, h: T) -> Result<(), Error<N, T>> {
-        Error::<N, T>::check_step(h.to_f64())?;
+    pub fn set_step_size(&mut self, h: T) -> Result<(), Error<T>> {
+        Error::<T>::check_step(h.to_f64())?;
         if let StepPolicy::EnergyPreserving(b) = self.policy
             && !(b.h_min..=b.h_max).contains(&h.to_f64())
         {
@@ -689,7 +689,7 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
     /// are those from before the call, and the error carries the state and
     /// the Newton diagnostics.
     #[inline]
-    pub fn step(&mut self) -> Result<&State<N, T>, Error<N, T>> {
+    pub fn step(&mut self) -> Result<&State<N, T>, Error<T>> {
         match self.policy {
             StepPolicy::EnergyPreserving(bounds) => M::energy_step(self, bounds)?,
             StepPolicy::Fixed => {
@@ -703,7 +703,7 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
     /// Takes `n` steps, calling `observe` after each with the integrator.
     ///
     /// Stops at the first failure, with the integrator at the last good state.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -722,9 +722,9 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
     /// last one is a fixed step of the remaining length (the energy equation
     /// is not imposed on it, and its discrete energy is conserved from then
     /// on) and may be shorter than `h_min`.
-    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         if !t_end.is_finite() || t_end < self.state.t {
-            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: self.state });
+            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: self.state.into() });
         }
         loop {
             let remaining = t_end - self.state.t;
@@ -783,7 +783,7 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
     }
 
     /// Counts a failed step and turns its Newton failure into the error.
-    pub(crate) fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<N, T> {
+    pub(crate) fn fail(&mut self, h: T, failure: NewtonFailure) -> Error<T> {
         self.stats.failed_steps += 1;
         Error::from_newton(failure, self.state, h.to_f64())
     }
@@ -792,23 +792,27 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
 /// Readouts that solve in `f64` (the inverse Legendre transform, the tangent map).
 impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Integrator<S, M, N> {
     /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`.
-    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    pub fn velocity(&self) -> Result<[f64; N], Error> {
         use crate::mechanics::DiscreteMechanics;
         let State { t, q, p, .. } = self.state;
         if const { sparse::too_large_for_forward(N) } || self.derivatives.reverse::<N>() {
             return sparse::velocity(&self.system, t, &q, &p, &M::velocity_guess(self)).map_err(
-                |(iterations, residual_norm)| Error::InverseLegendre { state: self.state, iterations, residual_norm },
+                |(iterations, residual_norm)| Error::InverseLegendre {
+                    state: self.state.into(),
+                    iterations,
+                    residual_norm,
+                },
             );
         }
         self.system.velocity(t, q, p, M::velocity_guess(self)).map_err(|f| Error::InverseLegendre {
-            state: self.state,
+            state: self.state.into(),
             iterations: f.iterations,
             residual_norm: f.residual_norm,
         })
     }
 
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
-    pub fn energy(&self) -> Result<f64, Error<N>> {
+    pub fn energy(&self) -> Result<f64, Error> {
         use crate::mechanics::DiscreteMechanics;
         let v = self.velocity()?;
         if const { sparse::too_large_for_forward(N) } || self.derivatives.reverse::<N>() {

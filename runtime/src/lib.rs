@@ -54,8 +54,8 @@ pub use error::Error;
 pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{
-    Composition, Derivatives, DynError, DynIntegrator, DynIntegratorBuilder, DynMethod, DynState, EnergyFallback,
-    F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds, StepPolicy, Summation,
+    Composition, Derivatives, DynIntegrator, DynIntegratorBuilder, DynMethod, EnergyFallback, F64Readouts, Integrator,
+    IntegratorBuilder, Method, Stats, StepBounds, StepPolicy, Summation,
 };
 #[doc(hidden)]
 pub use integrator::{CompositionMemory, OnePointMemory};
@@ -67,7 +67,7 @@ pub use problem::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
 pub use real::Real;
 pub use sensitivity::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use solution::{DenseKind, Plan, Solution, SolveError, Status, Stepping};
-pub use state::State;
+pub use state::{PhasePoint, State};
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;
 pub use system::{DynLagrangian, Lagrangian, Scalar};

@@ -86,24 +86,24 @@ pub trait Stepping<const N: usize> {
     fn state(&self) -> State<N>;
 
     /// The velocity whose momentum is the current `p_k`.
-    fn velocity(&self) -> Result<[f64; N], Error<N>>;
+    fn velocity(&self) -> Result<[f64; N], Error>;
 
     /// Work counters.
     fn stats(&self) -> Stats;
 
     /// One step of the integrator's own size (or, under energy-preserving
     /// steps, the size the energy equation picks).
-    fn step(&mut self) -> Result<(), Error<N>>;
+    fn step(&mut self) -> Result<(), Error>;
 
     /// One step toward `t_end`: the integrator's own step, or, when that
     /// step would reach `t_end` or pass it, the shortened step that ends on
     /// `t_end` exactly; `last_h` is the length of the last step taken
     /// (`None` before the first).
-    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>>;
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error>;
 
     /// Steps to `t` exactly (the integrators' `run_until`); from within one
     /// step of `t`, one shortened step.
-    fn land(&mut self, t: f64) -> Result<(), Error<N>>;
+    fn land(&mut self, t: f64) -> Result<(), Error>;
 
     /// The method's own interpolant of the last step, which ran from `start`
     /// to the current node `end`.
@@ -117,7 +117,7 @@ pub trait Stepping<const N: usize> {
     /// then); a failure during the run ends it with the partial solution,
     /// whose [`status`](Solution::status) and [`error`](Solution::error) say
     /// what failed. The integrator is left at the last node of the solution.
-    fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>>
+    fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError>
     where
         Self: Sized + Clone,
     {
@@ -380,10 +380,10 @@ impl EnergyWatch {
 /// What can go wrong in [`solve`](crate::Integrator::solve).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[non_exhaustive]
-pub enum SolveError<const N: usize> {
+pub enum SolveError {
     /// A step failed (or the velocity of a node could not be found).
     #[error(transparent)]
-    Step(#[from] Error<N>),
+    Step(#[from] Error),
     /// An end time that is not finite or lies behind the current time.
     #[error("invalid end time {t_end}: the integrator is at t = {t}")]
     InvalidEnd {
@@ -502,7 +502,7 @@ pub struct Solution<const N: usize> {
     pub status: Status,
     /// The typed error of a failed run.
     #[cfg_attr(feature = "serde", serde(skip))]
-    pub error: Option<SolveError<N>>,
+    pub error: Option<SolveError>,
 }
 
 /// A run that failed: the partial solution and the error.
@@ -512,7 +512,7 @@ pub struct Failed<const N: usize> {
     /// Everything recorded up to the last good node.
     pub solution: Box<Solution<N>>,
     /// What failed.
-    pub error: SolveError<N>,
+    pub error: SolveError,
 }
 
 impl<const N: usize> Solution<N> {
@@ -616,7 +616,7 @@ impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
 }
 
 impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
-    fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError<N>> {
+    fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError> {
         let s = self.sim.state();
         let mut c =
             Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
@@ -626,7 +626,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         Ok(c)
     }
 
-    fn velocity(&mut self, c: &mut Carried<N>) -> Result<(), SolveError<N>> {
+    fn velocity(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
         if !c.has_v {
             c.node.v = self.sim.velocity()?;
             c.has_v = true;
@@ -635,7 +635,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         Ok(())
     }
 
-    fn accel(&mut self, c: &mut Carried<N>) -> Result<[f64; N], SolveError<N>> {
+    fn accel(&mut self, c: &mut Carried<N>) -> Result<[f64; N], SolveError> {
         if let Some(a) = c.a {
             return Ok(a);
         }
@@ -650,7 +650,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     }
 
     /// Keeps a node row.
-    fn keep_node(&mut self, c: &mut Carried<N>) -> Result<(), SolveError<N>> {
+    fn keep_node(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
         let v = if self.plan.velocities {
             self.velocity(c)?;
             Some((c.node.v, self.energy(c.node.t, c.node.q, c.node.v)))
@@ -690,7 +690,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         }
     }
 
-    fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError<N>> {
+    fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError> {
         let due = match &self.plan.observer {
             Some((n, _)) => force || self.steps.is_multiple_of(*n as u64),
             None => false,
@@ -708,7 +708,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         &mut self,
         start: &mut Carried<N>,
         end: &mut Carried<N>,
-    ) -> Result<StepInterpolant<I::Native, N>, SolveError<N>> {
+    ) -> Result<StepInterpolant<I::Native, N>, SolveError> {
         Ok(match self.plan.dense {
             DenseKind::Native => StepInterpolant::Native(self.sim.native(&start.node, &end.node)),
             DenseKind::Cubic => StepInterpolant::Hermite(Hermite::cubic(&start.node, &end.node)),
@@ -720,7 +720,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         })
     }
 
-    fn g(&mut self, i: usize, t: f64, q: &[f64; N], v: &[f64; N]) -> Result<f64, SolveError<N>> {
+    fn g(&mut self, i: usize, t: f64, q: &[f64; N], v: &[f64; N]) -> Result<f64, SolveError> {
         self.sol.stats.event_evaluations += 1;
         let g = (self.plan.events[i].g)(t, q, v);
         if g.is_finite() { Ok(g) } else { Err(SolveError::NonFiniteEvent { event: i, t }) }
@@ -736,7 +736,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         start: &Node<N>,
         end: &Node<N>,
         g: &mut [f64],
-    ) -> Result<(Vec<EventRecord<N>>, Option<usize>), SolveError<N>> {
+    ) -> Result<(Vec<EventRecord<N>>, Option<usize>), SolveError> {
         let mut found = Vec::new();
         for i in 0..self.plan.events.len() {
             let samples = self.plan.events[i].samples;
@@ -793,7 +793,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
     sim: &mut I,
     plan: Plan<'_, N>,
-) -> Result<Solution<N>, SolveError<N>> {
+) -> Result<Solution<N>, SolveError> {
     let t0 = sim.state().t;
     let t_end = plan.t_end;
     if !t_end.is_finite() || t_end < t0 {
@@ -835,7 +835,7 @@ pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
 }
 
 /// The loop of [`solve`]; an `Err` ends the run with what was recorded.
-fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> Result<(), SolveError<N>> {
+fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> Result<(), SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let dense_needed = has_events || !d.plan.save_at.is_empty();
@@ -933,7 +933,7 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
     before: Option<&I>,
     dense_needed: bool,
     v_each_step: bool,
-) -> Result<bool, SolveError<N>> {
+) -> Result<bool, SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let result = match lp.rejoin.take() {
@@ -1017,7 +1017,7 @@ fn finish_node<I: Stepping<N> + Clone, const N: usize>(
     d: &mut Driver<'_, '_, I, N>,
     end: &mut Carried<N>,
     last: bool,
-) -> Result<(), SolveError<N>> {
+) -> Result<(), SolveError> {
     if d.plan.every > 0 && (last || d.steps.is_multiple_of(d.plan.every as u64)) {
         d.keep_node(end)?;
     }

@@ -47,7 +47,7 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Stepping<N> for Integrato
         *Integrator::state(self)
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         Integrator::velocity(self)
     }
 
@@ -56,15 +56,15 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Stepping<N> for Integrato
     }
 
     #[inline]
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         Integrator::step(self).map(|_| ())
     }
 
-    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
         if reaches(self, t_end) { self.run_until(t_end, |_| {}) } else { Integrator::step(self).map(|_| ()) }
     }
 
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         self.run_until(t, |_| {})
     }
 
@@ -95,7 +95,7 @@ where
         Adaptive::state(self)
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         Adaptive::velocity(self)
     }
 
@@ -103,15 +103,15 @@ where
         Adaptive::stats(self)
     }
 
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         Adaptive::step(self).map(|_| ())
     }
 
-    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
         Adaptive::step_toward(self, t_end)
     }
 
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         self.run_until(t, |_| {})
     }
 
@@ -135,7 +135,7 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
         ExplicitAdaptive::state(self)
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         Ok(ExplicitAdaptive::velocity(self))
     }
 
@@ -145,15 +145,15 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
         Stats { steps: ExplicitAdaptive::stats(self).steps, ..Stats::default() }
     }
 
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         ExplicitAdaptive::step(self).map(|_| ())
     }
 
-    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
         ExplicitAdaptive::step_toward(self, t_end)
     }
 
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         self.run_until(t, |_| {})
     }
 

@@ -475,7 +475,7 @@ impl Lagrangian<1> for Damped {
 /// mismatch is taken and counted, and the run does not stop.
 #[test]
 fn an_accuracy_bound_keeps_energy_balance_steps_resolving_the_motion() {
-    let run = |bounds: StepBounds| -> (Result<(), Error<1>>, f64, f64, Stats) {
+    let run = |bounds: StepBounds| -> (Result<(), Error>, f64, f64, Stats) {
         let mut sim =
             Integrator::new(Damped, Midpoint, 0.01).energy_preserving(bounds).start(0.0, [1.0], [0.0]).unwrap();
         let mut largest = 0.0f64;

@@ -25,7 +25,7 @@ fn inputs() -> Vec<(f64, f64)> {
 }
 
 /// 400 midpoint steps; the final state and the largest energy change.
-fn member(_: usize, &(theta0, omega2): &(f64, f64)) -> Result<(State<1>, f64), Error<1>> {
+fn member(_: usize, &(theta0, omega2): &(f64, f64)) -> Result<(State<1>, f64), Error> {
     let mut sim = Integrator::new(Pendulum { omega2 }, Midpoint, 0.01).start(0.0, [theta0], [0.0])?;
     let e0 = sim.energy()?;
     let mut worst: f64 = 0.0;

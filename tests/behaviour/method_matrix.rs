@@ -23,7 +23,7 @@
 use crate::common::schemes::families;
 use lagrangian::prelude::*;
 use lagrangian::problem::supports;
-use lagrangian::{Action, DynError, Status};
+use lagrangian::{Action, Status};
 
 #[derive(Clone)]
 struct DoublePendulum;
@@ -213,8 +213,8 @@ fn dynamic_row<S: DynLagrangian + Clone>(
     h: f64,
     compiled: [f64; 2],
 ) -> [String; 3] {
-    let refusal = |e: DynError| {
-        let DynError::Unsupported { what } = e else { panic!("not a typed refusal: {e}") };
+    let refusal = |e: Error| {
+        let Error::Unsupported { what } = e else { panic!("not a typed refusal: {e}") };
         format!("refused: {what}")
     };
     let mut sim = match problem.stepper(scheme, h) {

@@ -75,7 +75,7 @@ pub fn run<R: DiscreteLagrangian>(
     rule: R,
     h: f64,
     steps: usize,
-) -> Result<(f64, f64, f64, usize), DynError> {
+) -> Result<(f64, f64, f64, usize), Error> {
     let q0 = folded(links, 0.01);
     let mut sim = DynConstrained::start(Links(links), rule, h, 0.0, &q0, &vec![0.0; 2 * links])?;
     let (mut g_worst, mut gv_worst) = (0.0f64, 0.0f64);

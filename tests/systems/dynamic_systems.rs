@@ -237,8 +237,8 @@ fn run_until_lands_exactly() {
     assert!((sim.last_step_size().unwrap() - 0.01).abs() < 1e-12);
     sim.run_until(1.0, |_| panic!("a no-op")).unwrap();
     let before = sim.state().clone();
-    assert!(matches!(sim.run_until(0.5, |_| {}), Err(DynError::InvalidTarget { target: 0.5, .. })));
-    assert!(matches!(sim.run_until(f64::NAN, |_| {}), Err(DynError::InvalidTarget { .. })));
+    assert!(matches!(sim.run_until(0.5, |_| {}), Err(Error::InvalidTarget { target: 0.5, .. })));
+    assert!(matches!(sim.run_until(f64::NAN, |_| {}), Err(Error::InvalidTarget { .. })));
     assert_eq!(sim.state(), &before);
 }
 
@@ -289,36 +289,33 @@ fn bad_input_is_a_typed_error() {
     let q0 = chain_mode(n, 2, 0.3);
     let zero = vec![0.0; n];
     let start = |h: f64, q: &[f64], v: &[f64]| DynIntegrator::new(fpu(), Midpoint, h).start(0.0, q, v).map(|_| ());
-    assert_eq!(start(0.05, &q0[1..], &zero), Err(DynError::WrongLength { what: "q0", expected: n, found: n - 1 }));
-    assert_eq!(start(0.05, &q0, &[0.0; 3]), Err(DynError::WrongLength { what: "v0", expected: n, found: 3 }));
+    assert_eq!(start(0.05, &q0[1..], &zero), Err(Error::WrongLength { what: "q0", expected: n, found: n - 1 }));
+    assert_eq!(start(0.05, &q0, &[0.0; 3]), Err(Error::WrongLength { what: "v0", expected: n, found: 3 }));
     let mut nan = q0.clone();
     nan[7] = f64::NAN;
-    assert!(matches!(start(0.05, &nan, &zero), Err(DynError::InvalidInitialData { .. })));
+    assert!(matches!(start(0.05, &nan, &zero), Err(Error::InvalidInitialData { .. })));
     for h in [0.0, -0.05, f64::NAN, f64::INFINITY] {
-        assert!(matches!(start(h, &q0, &zero), Err(DynError::InvalidStepSize { .. })), "h = {h}");
+        assert!(matches!(start(h, &q0, &zero), Err(Error::InvalidStepSize { .. })), "h = {h}");
     }
-    assert!(matches!(
-        DynIntegrator::new(fpu(), Opaque, 0.05).start(0.0, &q0, &zero),
-        Err(DynError::Unsupported { .. })
-    ));
+    assert!(matches!(DynIntegrator::new(fpu(), Opaque, 0.05).start(0.0, &q0, &zero), Err(Error::Unsupported { .. })));
     assert!(matches!(
         DynIntegrator::new(MasslessEnd(8), Midpoint, 0.05).start(0.0, &[0.1; 8], &[0.0; 8]),
-        Err(DynError::InvalidInitialData { .. })
+        Err(Error::InvalidInitialData { .. })
     ));
     assert!(matches!(
         DynIntegrator::new(DynFpu { n: 0, beta: 1.0 }, Midpoint, 0.05).start(0.0, &[], &[]),
-        Err(DynError::InvalidInitialData { .. })
+        Err(Error::InvalidInitialData { .. })
     ));
     let bad_newton = NewtonOptions { rtol: -1.0, ..NewtonOptions::default() };
     assert!(matches!(
         DynIntegrator::new(fpu(), Midpoint, 0.05).newton(bad_newton).start(0.0, &q0, &zero),
-        Err(DynError::InvalidNewtonOptions { .. })
+        Err(Error::InvalidNewtonOptions { .. })
     ));
 }
 
 /// An absurd step fails with a typed error carrying the state, changes
 /// nothing, and a retry with the old step continues as if it never failed.
-fn fail_and_retry<M: DynMethod + Copy + core::fmt::Debug>(method: M, absurd: f64, expected: fn(&DynError) -> bool) {
+fn fail_and_retry<M: DynMethod + Copy + core::fmt::Debug>(method: M, absurd: f64, expected: fn(&Error) -> bool) {
     fail_and_retry_with(|| DynFpu { n: 64, beta: 1.0 }, method, absurd, expected);
 }
 
@@ -327,7 +324,7 @@ fn fail_and_retry_with<S: DynLagrangian, M: DynMethod + Copy + core::fmt::Debug>
     system: impl Fn() -> S,
     method: M,
     absurd: f64,
-    expected: fn(&DynError) -> bool,
+    expected: fn(&Error) -> bool,
 ) {
     let n = 64;
     let q0 = chain_mode(n, 5, 0.3);
@@ -335,17 +332,17 @@ fn fail_and_retry_with<S: DynLagrangian, M: DynMethod + Copy + core::fmt::Debug>
     let mut sim = start();
     sim.run(5, |_| {}).unwrap();
     let (before, stats, energy) = (sim.state().clone(), *sim.stats(), sim.discrete_energy());
-    assert!(matches!(sim.set_step_size(0.0), Err(DynError::InvalidStepSize { .. })));
-    assert!(matches!(sim.set_step_size(f64::NAN), Err(DynError::InvalidStepSize { .. })));
+    assert!(matches!(sim.set_step_size(0.0), Err(Error::InvalidStepSize { .. })));
+    assert!(matches!(sim.set_step_size(f64::NAN), Err(Error::InvalidStepSize { .. })));
     sim.set_step_size(absurd).unwrap();
     let failure = sim.step().map(|_| ()).unwrap_err();
     println!("{method:?}: {failure}");
     assert!(expected(&failure), "{failure:?}");
     match &failure {
-        DynError::NewtonDidNotConverge { state, .. }
-        | DynError::SingularJacobian { state, .. }
-        | DynError::NonFinite { state, .. }
-        | DynError::StepRejected { state, .. } => assert_eq!(state, &before),
+        Error::NewtonDidNotConverge { state, .. }
+        | Error::SingularJacobian { state, .. }
+        | Error::NonFinite { state, .. }
+        | Error::StepRejected { state, .. } => assert_eq!(state, &before),
         other => panic!("unexpected error {other:?}"),
     }
     assert_eq!(sim.state(), &before);
@@ -363,24 +360,20 @@ fn fail_and_retry_with<S: DynLagrangian, M: DynMethod + Copy + core::fmt::Debug>
 #[test]
 fn a_failed_step_changes_nothing_and_a_retry_succeeds() {
     // The quartic springs at h = 1000: Newton's corrections stop shrinking.
-    fail_and_retry(
-        Midpoint,
-        1e3,
-        |e| matches!(e, DynError::NewtonDidNotConverge { iterations, .. } if *iterations > 1),
-    );
+    fail_and_retry(Midpoint, 1e3, |e| matches!(e, Error::NewtonDidNotConverge { iterations, .. } if *iterations > 1));
     // The explicit step at h = 1e100: the forces overflow. (At h = 1e12 it
     // still returns a finite state: the quadratic predictor extrapolates as
     // far as the step goes, so the plausibility check does not fire.)
-    fail_and_retry(Trapezoid, 1e100, |e| matches!(e, DynError::NonFinite { quantity: "momentum", .. }));
+    fail_and_retry(Trapezoid, 1e100, |e| matches!(e, Error::NonFinite { quantity: "momentum", .. }));
     // A fused composition: the positions overflow.
-    fail_and_retry(Composition::YOSHIDA4, 1e100, |e| matches!(e, DynError::NonFinite { .. }));
+    fail_and_retry(Composition::YOSHIDA4, 1e100, |e| matches!(e, Error::NonFinite { .. }));
     // Newton sub-steps (coupled pendula, not separable): a sub-step fails
     // after others were taken.
     fail_and_retry_with(
         || DynPendula { n: 64, c: 0.3, k: 0.5 },
         Composition::YOSHIDA4,
         1e3,
-        |e| matches!(e, DynError::NewtonDidNotConverge { .. } | DynError::StepRejected { .. }),
+        |e| matches!(e, Error::NewtonDidNotConverge { .. } | Error::StepRejected { .. }),
     );
 }
 

@@ -548,7 +548,7 @@ fn capabilities_page(table: &str, schemes: &str, constraints: &str) -> String {
          ## One way in: `Problem`, `Scheme` and `Policy`\n\n\
          What `lagrangian::problem::supports` answers for each method family as a `Scheme` value, each step \
          `Policy` and each size (compile-time `N` through `Problem`, run-time through `DynProblem`); a refused \
-         cell is the `Error::Unsupported` (`DynError::Unsupported`) that `Problem::stepper` and `Problem::solve` \
+         cell is the `Error::Unsupported` that `Problem::stepper`, `DynProblem::stepper` and `Problem::solve` \
          return at construction, with this text. A defined cell may still be refused by its driver for the \
          values of a system (a mass matrix that is not constant for the splitting; the energy equation without \
          a root, as above). The behaviour test `method_matrix` steps, lands, solves and writes every defined \

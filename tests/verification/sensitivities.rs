@@ -778,7 +778,7 @@ impl Step {
 fn bad_input_and_undefined_combinations_are_typed_errors() {
     let problem = Problem::new(SYSTEM, 0.0, Q0, V0);
     let plan = || Plan::until(0.1);
-    let refused = |e: Error<2>| match e {
+    let refused = |e: Error| match e {
         Error::Unsupported { what } => what,
         other => panic!("{other}"),
     };
@@ -845,7 +845,7 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
         }
     }
     let e = problem.gradient(&Scheme::MIDPOINT, 0.01, 0.1, &Kink, Checkpoints::Every(3)).unwrap_err();
-    assert!(matches!(e, Error::NonFiniteLoss { state } if state.step == 10), "{e}");
+    assert!(matches!(&e, Error::NonFiniteLoss { state } if state.step == 10), "{e}");
 }
 
 /// `Σ_k 10⁻³ |q_k|² + q_n·p_n`.

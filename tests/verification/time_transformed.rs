@@ -137,7 +137,7 @@ pub fn trend(m: &[f64]) -> f64 {
 fn fixed<M: DiscreteLagrangian>(method: M, e: f64, orbits: usize, steps: u64) -> String {
     let t_end = 2.0 * PI * orbits as f64;
     let (q0, v0) = kepler_start(e);
-    let run = || -> Result<(f64, f64), Error<2>> {
+    let run = || -> Result<(f64, f64), Error> {
         let mut sim = Integrator::new(Kepler, method, t_end / steps as f64).start(0.0, q0, v0)?;
         let e0 = sim.energy()?;
         let mut worst = 0.0f64;
@@ -432,15 +432,15 @@ fn a_density_that_is_not_positive_is_refused_with_the_state_kept() {
 /// The state carried by the error that ends a run whose steps collapse:
 /// either a step fell below the time-step floor or the rate `t'/g` jumped
 /// (a lost orbit) first; both are refusals with the state kept.
-fn collapse_state<const N: usize, T: Real>(err: Error<N, T>) -> State<N, T> {
+fn collapse_state<const N: usize, T: Real>(err: Error<T>) -> State<N, T> {
     match err {
         Error::TimeStepCollapsed { state, dt, floor } => {
             assert!(dt < floor, "{dt} {floor}");
-            state
+            state.try_into().unwrap()
         }
         Error::OrbitLost { state, factor } => {
             assert!(!(0.5..=2.0).contains(&factor), "{factor}");
-            state
+            state.try_into().unwrap()
         }
         _ => panic!("{err:?}"),
     }

@@ -229,7 +229,7 @@ fn galerkin_degree(rtol: f64, forced: bool) -> u32 {
 }
 
 /// `Ok` when `order` exists in `family`.
-fn check_order<const N: usize>(family: Family, order: u32) -> Result<(), Error<N>> {
+fn check_order<const N: usize>(family: Family, order: u32) -> Result<(), Error> {
     let ok = match family {
         Family::Composition | Family::TimeTransformed => matches!(order, 4 | 6 | 8),
         Family::Galerkin => order.is_multiple_of(2) && GALERKIN_DEGREES.contains(&(order / 2)),
@@ -255,7 +255,7 @@ pub fn candidates<const N: usize>(
     density_ratio: Option<f64>,
     rho_span: Option<f64>,
     fixed: Fixed,
-) -> Result<Vec<(Candidate, String)>, Error<N>> {
+) -> Result<Vec<(Candidate, String)>, Error> {
     let mut out: Vec<(Candidate, String)> = Vec::new();
     let varying = density_ratio.is_some_and(|r| r > DENSITY_RATIO);
     let order_in = |family: Family, default: u32| {

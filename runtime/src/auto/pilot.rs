@@ -113,7 +113,7 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
     mut rates: Option<&mut Rates<N>>,
     stop_above: Option<f64>,
     energy_guard: bool,
-) -> Result<Probe<N>, Error<N>> {
+) -> Result<Probe<N>, Error> {
     // `(E_L, |p·v|)` at the current node; `None` where the velocity is not found.
     let energy = |it: &I| {
         let s = it.state();
@@ -141,7 +141,7 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
             it.step_toward(tc, last_h)?;
             let s = it.state();
             if !s.q.iter().chain(&s.p).all(|x| x.is_finite()) {
-                return Err(Error::NonFinite { state: s, h: s.t - t, iterations: 0, quantity: "position" });
+                return Err(Error::NonFinite { state: s.into(), h: s.t - t, iterations: 0, quantity: "position" });
             }
             last_h = Some(s.t - t);
             out.scale = out.scale.max(norm(&s.q));

@@ -172,7 +172,7 @@ pub fn solve_to<S: Lagrangian<N> + Clone, const N: usize>(
     v0: [f64; N],
     t_end: f64,
     tolerance: Tolerance,
-) -> Result<Solved<N>, SolveError<N>> {
+) -> Result<Solved<N>, SolveError> {
     Auto::new(system, t0, q0, v0).tolerance(tolerance).solve(Plan::until(t_end))
 }
 
@@ -221,7 +221,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// [`Error::InvalidSpan`], [`Error::ToleranceUnreachable`],
     /// [`Error::Chaotic`], [`Error::NoMethod`] (every candidate's pilot
     /// failed), all as [`SolveError::Step`].
-    pub fn solve(self, plan: Plan<'_, N>) -> Result<Solved<N>, SolveError<N>> {
+    pub fn solve(self, plan: Plan<'_, N>) -> Result<Solved<N>, SolveError> {
         let clock = Clock::start();
         let t_end = plan.end();
         self.tolerance.validate()?;
@@ -229,7 +229,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             return Err(Error::InvalidSpan { t0: self.t0, t_end }.into());
         }
         if let Some(h) = self.step {
-            Error::<N>::check_step(h)?;
+            Error::check_step(h)?;
         }
         let facts = Facts::of::<S, N>();
         let span = t_end - self.t0;
@@ -626,7 +626,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         h_cap: f64,
         mut reuse: Option<(f64, Probe<N>)>,
         cost: &mut Cost,
-    ) -> Result<Piloted, Error<N>> {
+    ) -> Result<Piloted, Error> {
         let mut h = match (self.step, c.family) {
             (Some(h), _) => h,
             (None, Family::TimeTransformed) => {
@@ -820,7 +820,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// The composition of `order` at step `h` from the start: a copy of the
     /// composition started first (kept in `started`), its weights those
     /// of `order` (the start does not depend on them).
-    fn composition_at(&self, order: u32, h: f64) -> Result<Integrator<S, Composition, N>, Error<N>> {
+    fn composition_at(&self, order: u32, h: f64) -> Result<Integrator<S, Composition, N>, Error> {
         let mut started = self.started.borrow_mut();
         let it = match started.as_ref() {
             Some(it) => it,
@@ -836,10 +836,10 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
 
     /// The final run at `step` (for fixed steps, one that divides the span)
     /// to the end of `plan`.
-    fn run(&self, c: Candidate, step: f64, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>> {
+    fn run(&self, c: Candidate, step: f64, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError> {
         struct Run<'p, const N: usize>(Plan<'p, N>);
         impl<'p, const N: usize> Visit<N> for Run<'p, N> {
-            type Out = Result<Solution<N>, SolveError<N>>;
+            type Out = Result<Solution<N>, SolveError>;
             fn visit<I: Stepping<N> + Clone>(self, mut it: I) -> Self::Out {
                 it.solve(self.0)
             }
@@ -865,10 +865,10 @@ fn run_probe<S: Lagrangian<N> + Clone, const N: usize>(
     rates: Option<&mut Rates<N>>,
     stop_above: Option<f64>,
     energy_guard: bool,
-) -> Result<Probe<N>, Error<N>> {
+) -> Result<Probe<N>, Error> {
     struct P<'a, const N: usize>(&'a [f64], bool, usize, Option<&'a mut Rates<N>>, Option<f64>, bool);
     impl<const N: usize> Visit<N> for P<'_, N> {
-        type Out = Result<Probe<N>, Error<N>>;
+        type Out = Result<Probe<N>, Error>;
         fn visit<I: Stepping<N> + Clone>(self, it: I) -> Self::Out {
             pilot::probe(it, self.0, self.1, self.2, self.3, self.4, self.5)
         }
@@ -890,7 +890,7 @@ fn dispatch<S: Lagrangian<N> + Clone, V: Visit<N>, const N: usize>(
     auto: &Auto<S, N>,
     step: f64,
     v: V,
-) -> Result<V::Out, Error<N>> {
+) -> Result<V::Out, Error> {
     let (sys, t0, q0, v0) = (auto.system.clone(), auto.t0, auto.q0, auto.v0);
     macro_rules! galerkin {
         ($($s:literal)*) => {

@@ -12,7 +12,7 @@ use crate::error::Error;
 ///
 /// let tol = Tolerance::relative(1e-8).absolute(1e-12);
 /// assert_eq!(tol.bound(2.0), 2e-8 + 1e-12);
-/// assert!(Tolerance::relative(f64::NAN).validate::<1>().is_err());
+/// assert!(Tolerance::relative(f64::NAN).validate().is_err());
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tolerance {
@@ -41,7 +41,7 @@ impl Tolerance {
 
     /// `Ok` for `0 < rtol < 1` and a finite `atol ≥ 0`; otherwise
     /// [`Error::InvalidTolerance`] saying which.
-    pub fn validate<const N: usize>(&self) -> Result<(), Error<N>> {
+    pub fn validate(&self) -> Result<(), Error> {
         let invalid = |value, reason| Err(Error::InvalidTolerance { value, reason });
         if self.rtol.is_nan() {
             return invalid(self.rtol, "the relative tolerance is NaN");

@@ -105,7 +105,7 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
         }
     }
 
-    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error> {
         Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(&StepPolicy::Fixed)?;
         // Refused as without constraints.
         self.rule.supports::<Sys, N>(policy)
@@ -115,7 +115,7 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
         &self,
         reverse: bool,
         policy: &StepPolicy,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         Constrained::<Midpoint, M>::new(Midpoint).supports_derivatives::<Sys, N>(reverse, policy)
     }
 
@@ -124,7 +124,7 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         <Constrained<Midpoint, M> as Method<f64>>::legendre(system, t0, q0, v0)
     }
 
@@ -132,7 +132,7 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
         it: &mut Integrator<Sys, Self, N>,
         h: f64,
         t1: f64,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         let state = it.state;
         let memory = &mut it.memory;
         let (rule, inner) = (&memory.rule, &mut memory.inner);
@@ -162,12 +162,12 @@ impl<const M: usize> Method<f64> for Constrained<Composition, M> {
             let d = core::array::from_fn(|i| hs * (v[i] + 0.5 * hs * acceleration[i]));
             let guess = Guess { d: [d], lambda: lambda.map(|x| x * rho), interior: [[0.0; M]] };
             let work = &mut inner.work;
-            let solved = solve_step(&it.system, rule, &it.newton, (t, hs, t_end), (&q, &p), guess, work, state);
+            let solved = solve_step(&it.system, rule, &it.newton, (t, hs, t_end), (&q, &p), guess, work);
             let solved = match solved {
                 Ok(s) => s,
                 Err(error) => {
                     it.stats.failed_steps += 1;
-                    return Err(error);
+                    return Err(error.at(state));
                 }
             };
             last = Some(Segment { t0: t, h: hs, q0: q, d: solved.d });
@@ -244,7 +244,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const M: usize> Integrator<Sys, Constra
     /// The hidden constraint `G(t_k, q_k) v_k + ∂g/∂t(t_k, q_k)` at the
     /// current node (`G v` for constraints that do not depend on time), with
     /// `v_k` the velocity of the momentum `p_k`.
-    pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
+    pub fn constraint_velocities(&self) -> Result<[f64; M], Error> {
         hidden_constraint(&self.system, &self.state, self.velocity()?)
     }
 

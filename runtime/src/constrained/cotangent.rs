@@ -15,11 +15,10 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::linear::{self, solve_schur};
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::NewtonOptions;
 use crate::real::max_abs;
-use crate::state::State;
 use crate::system::Lagrangian;
 
 /// The end node's velocity and momentum on the cotangent space.
@@ -34,8 +33,8 @@ pub(super) struct OnCotangent<const N: usize> {
 
 /// Solves the hidden constraint at `(t1, q1)` with Jacobian `jac1` and
 /// `∂g/∂t = rate` (zero for constraints that do not depend on time), from
-/// the velocity guess `v`. `state`, `h` and `spent` (the iterations of the
-/// position solve) go into the errors.
+/// the velocity guess `v`. `h` and `spent` (the iterations of the position
+/// solve) go into the errors, which the caller places at the step's start.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M: usize>(
     system: &S,
@@ -44,8 +43,8 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
     (jac1, rate): (&SMatrix<f64, M, N>, &SVector<f64, M>),
     v: [f64; N],
     options: &NewtonOptions,
-    (state, h, spent): (State<N>, f64, usize),
-) -> Result<OnCotangent<N>, Error<N>> {
+    (h, spent): (f64, usize),
+) -> Result<OnCotangent<N>, Unplaced> {
     let jac1t = jac1.transpose();
     let finish = |v: SVector<f64, N>, mu: SVector<f64, M>, iterations| OnCotangent {
         velocity: v.into(),
@@ -74,15 +73,27 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
         let (dv, dmu) = match solve_schur(&hessian, &(-jac1t), jac1, &r1, &r2, options.min_rcond) {
             Ok(x) => x,
             Err(linear::Singular::Block(rcond)) => {
-                return Err(Error::SingularJacobian { state, h, iterations: spent + iterations, rcond });
+                return Err(Unplaced::new(|state| Error::SingularJacobian {
+                    state,
+                    h,
+                    iterations: spent + iterations,
+                    rcond,
+                }));
             }
-            Err(linear::Singular::Schur(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
+            Err(linear::Singular::Schur(rcond)) => {
+                return Err(Unplaced::new(|state| Error::SingularConstraints { state, rcond }));
+            }
         };
         v += dv;
         mu += dmu;
         let norm = dv.amax();
         if !norm.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations: spent + iterations, quantity: "momentum" });
+            return Err(Unplaced::new(|state| Error::NonFinite {
+                state,
+                h,
+                iterations: spent + iterations,
+                quantity: "momentum",
+            }));
         }
         // The same round-off, `ε|p̂|` over the smallest mass, as a floor
         // of the correction.
@@ -92,11 +103,11 @@ pub(super) fn onto_cotangent<S: Lagrangian<N> + ?Sized, const N: usize, const M:
             return Ok(finish(v, mu, iterations));
         }
     }
-    Err(Error::NewtonDidNotConverge {
+    Err(Unplaced::new(|state| Error::NewtonDidNotConverge {
         state,
         h,
         iterations: spent + iterations,
         residual_norm: f64::NAN,
         correction_norm: f64::NAN,
-    })
+    }))
 }

@@ -28,10 +28,12 @@ use super::CONSISTENCY_TOLERANCE;
 use super::kkt::{Kkt, KktFailure};
 use super::sparsity::{self, Jacobian, ProbeFailure};
 use crate::discrete::DiscreteLagrangian;
-use crate::integrator::{DynError, DynState, SparseWork, Stats, TapeModel};
+use crate::error::Error;
 use crate::integrator::{Sliced, tape_energy, tape_legendre, velocity_derivatives};
+use crate::integrator::{SparseWork, Stats, TapeModel};
 use crate::newton::{Breakdown, NewtonOptions, NewtonReport};
 use crate::real::{all_finite, max_abs};
+use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
 
 /// A RATTLE integrator for a run-time-sized system with holonomic
@@ -40,7 +42,7 @@ use crate::system::DynLagrangian;
 /// [`Trapezoid`](crate::Trapezoid), [`AlphaBeta`](crate::AlphaBeta)), with
 /// fixed steps. See the [module documentation](self).
 ///
-/// Every failure is a [`DynError`] and leaves the integrator as it was.
+/// Every failure is a [`Error`] and leaves the integrator as it was.
 #[derive(Debug)]
 pub struct DynConstrained<S, R> {
     system: S,
@@ -48,7 +50,7 @@ pub struct DynConstrained<S, R> {
     points: [f64; 2],
     h: f64,
     newton: NewtonOptions,
-    state: DynState,
+    state: PhasePoint,
     /// `v_k`.
     velocity: Vec<f64>,
     /// `λ` of the last step (zero before the first).
@@ -85,17 +87,17 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
     /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`, after
     /// finding the structure of `G` and checking the data.
     ///
-    /// Fails with [`DynError::Unsupported`] for a rule without quadrature
+    /// Fails with [`Error::Unsupported`] for a rule without quadrature
     /// points, `M = 0` or `M ≥ N` constraints, time-dependent constraints or
     /// a size whose buffers cannot be allocated;
-    /// [`DynError::NonFiniteConstraints`] where `g` or `G` is not finite;
-    /// [`DynError::InconsistentConstraints`] for data off the manifold or
+    /// [`Error::NonFiniteConstraints`] where `g` or `G` is not finite;
+    /// [`Error::InconsistentConstraints`] for data off the manifold or
     /// its tangent space by more than [`CONSISTENCY_TOLERANCE`] (relative);
-    /// [`DynError::SingularConstraints`] where `G` is rank-deficient (a
+    /// [`Error::SingularConstraints`] where `G` is rank-deficient (a
     /// constraint that does not depend on `q`, redundant constraints); and
     /// as [`DynIntegrator`](crate::DynIntegrator) for the step size, the
     /// Newton options and the initial data.
-    pub fn start(system: S, rule: R, h: f64, t0: f64, q0: &[f64], v0: &[f64]) -> Result<Self, DynError> {
+    pub fn start(system: S, rule: R, h: f64, t0: f64, q0: &[f64], v0: &[f64]) -> Result<Self, Error> {
         Self::start_with(system, rule, h, NewtonOptions::default(), t0, q0, v0)
     }
 
@@ -108,56 +110,55 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
         t0: f64,
         q0: &[f64],
         v0: &[f64],
-    ) -> Result<Self, DynError> {
+    ) -> Result<Self, Error> {
         let Some((points, _)) = rule.galerkin_points() else {
-            return Err(DynError::Unsupported {
+            return Err(Error::Unsupported {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
-        newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
+        newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         if !(h.is_finite() && h > 0.0) {
-            return Err(DynError::InvalidStepSize { h });
+            return Err(Error::InvalidStepSize { h });
         }
         let n = system.dimension();
         for (what, x) in [("q0", q0), ("v0", v0)] {
             if x.len() != n {
-                return Err(DynError::WrongLength { what, expected: n, found: x.len() });
+                return Err(Error::WrongLength { what, expected: n, found: x.len() });
             }
         }
         if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
-            return Err(DynError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
         let m = system.constraint_count();
         if m == 0 || m >= n {
-            return Err(DynError::Unsupported {
+            return Err(Error::Unsupported {
                 what: "holonomic constraints: the number of constraints M must satisfy 0 < M < N",
             });
         }
         if !S::CONSTRAINTS_AUTONOMOUS {
-            return Err(DynError::Unsupported { what: "time-dependent constraints on a run-time-sized system" });
+            return Err(Error::Unsupported { what: "time-dependent constraints on a run-time-sized system" });
         }
-        let state = DynState { step: 0, t: t0, q: q0.to_vec(), p: vec![0.0; n] };
+        let state = PhasePoint { step: 0, t: t0, q: q0.to_vec(), p: vec![0.0; n] };
         let rows = match sparsity::probe(&system, t0, q0, m) {
             Ok(rows) => rows,
-            Err(ProbeFailure::ConstantRow) => return Err(DynError::SingularConstraints { state, rcond: 0.0 }),
+            Err(ProbeFailure::ConstantRow) => return Err(Error::SingularConstraints { state, rcond: 0.0 }),
             Err(ProbeFailure::Tape) => {
-                return Err(DynError::InvalidInitialData {
+                return Err(Error::InvalidInitialData {
                     reason: "the constraints could not be recorded on the derivative tape",
                 });
             }
         };
         let mut g0 = Jacobian::new(n, rows.clone());
         if !g0.evaluate(&system, t0, q0) {
-            return Err(DynError::NonFiniteConstraints { state });
+            return Err(Error::NonFiniteConstraints { state });
         }
         let (position, velocity) = inconsistency(&g0, q0, v0);
         if !(position <= CONSISTENCY_TOLERANCE && velocity <= CONSISTENCY_TOLERANCE) {
-            return Err(DynError::InconsistentConstraints { position, velocity, tolerance: CONSISTENCY_TOLERANCE });
+            return Err(Error::InconsistentConstraints { position, velocity, tolerance: CONSISTENCY_TOLERANCE });
         }
         let model = Sliced::new(&system, points);
-        let (p0, energy) =
-            tape_legendre(&model, t0, q0, v0).map_err(|reason| DynError::InvalidInitialData { reason })?;
-        let too_large = DynError::Unsupported {
+        let (p0, energy) = tape_legendre(&model, t0, q0, v0).map_err(|reason| Error::InvalidInitialData { reason })?;
+        let too_large = Error::Unsupported {
             what: "a constrained system this large with this coupling: the step matrices cannot be allocated",
         };
         let work = SparseWork::new(n, model.coupling()).map_err(|_| too_large.clone())?;
@@ -165,18 +166,18 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
         // The rank of `G` at the start: `[∂²L/∂v², Gᵀ; G, 0]` is regular
         // exactly when `G` has full rank (for a regular `∂²L/∂v²`).
         let (_, _, mass) = velocity_derivatives(&model, t0, q0, v0, work.step_bandwidth()).map_err(|_| {
-            DynError::InvalidInitialData { reason: "∂²L/∂v² could not be evaluated at the initial data" }
+            Error::InvalidInitialData { reason: "∂²L/∂v² could not be evaluated at the initial data" }
         })?;
         match kkt.factor(&mass.band, 1.0, &g0.entries, &g0.entries, newton.min_rcond) {
             Ok(()) => {}
-            Err(KktFailure::Constraints(rcond)) => return Err(DynError::SingularConstraints { state, rcond }),
+            Err(KktFailure::Constraints(rcond)) => return Err(Error::SingularConstraints { state, rcond }),
             Err(KktFailure::Block(_)) => {
-                return Err(DynError::InvalidInitialData {
+                return Err(Error::InvalidInitialData {
                     reason: "∂²L/∂v² is singular at the initial data: the Legendre transform is not regular",
                 });
             }
-            Err(KktFailure::NonFinite(_)) => return Err(DynError::NonFiniteConstraints { state }),
-            Err(KktFailure::Rejected(reason)) => return Err(DynError::InvalidInitialData { reason }),
+            Err(KktFailure::NonFinite(_)) => return Err(Error::NonFiniteConstraints { state }),
+            Err(KktFailure::Rejected(reason)) => return Err(Error::InvalidInitialData { reason }),
         }
         let g1 = g0.clone();
         let scratch = Scratch {
@@ -195,7 +196,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
             points,
             h,
             newton,
-            state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
+            state: PhasePoint { step: 0, t: t0, q: q0.to_vec(), p: p0 },
             velocity: v0.to_vec(),
             lambda: vec![0.0; m],
             last_dq: None,
@@ -211,7 +212,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
 
     /// One step of size `h`; on failure nothing has changed (but the count
     /// of failed steps).
-    pub fn step(&mut self) -> Result<&DynState, DynError> {
+    pub fn step(&mut self) -> Result<&PhasePoint, Error> {
         match self.try_step() {
             Ok(()) => Ok(&self.state),
             Err(error) => {
@@ -222,7 +223,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
     }
 
     /// `n` steps, calling `observe` after each; stops at the first failure.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<&DynState, DynError> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<&PhasePoint, Error> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -230,22 +231,22 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
         Ok(&self.state)
     }
 
-    fn try_step(&mut self) -> Result<(), DynError> {
+    fn try_step(&mut self) -> Result<(), Error> {
         let Self { system, points, h, newton, state, velocity, lambda, last_dq, work, kkt, g0, g1, scratch, .. } = self;
         let (h, t0) = (*h, state.t);
         let t1 = t0 + h;
         let n = state.q.len();
         let model = Sliced::new(&*system, *points);
         let fail = |b: Breakdown, iterations: usize| match b {
-            Breakdown::Singular(rcond) => DynError::SingularJacobian { state: state.clone(), h, iterations, rcond },
-            Breakdown::NonFinite(quantity) => DynError::NonFinite { state: state.clone(), h, iterations, quantity },
-            Breakdown::Rejected(reason) => DynError::StepRejected { state: state.clone(), h, iterations, reason },
+            Breakdown::Singular(rcond) => Error::SingularJacobian { state: state.clone(), h, iterations, rcond },
+            Breakdown::NonFinite(quantity) => Error::NonFinite { state: state.clone(), h, iterations, quantity },
+            Breakdown::Rejected(reason) => Error::StepRejected { state: state.clone(), h, iterations, reason },
         };
         let kkt_fail = |f: KktFailure, iterations: usize| match f {
-            KktFailure::Block(rcond) => DynError::SingularJacobian { state: state.clone(), h, iterations, rcond },
-            KktFailure::Constraints(rcond) => DynError::SingularConstraints { state: state.clone(), rcond },
-            KktFailure::NonFinite(quantity) => DynError::NonFinite { state: state.clone(), h, iterations, quantity },
-            KktFailure::Rejected(reason) => DynError::StepRejected { state: state.clone(), h, iterations, reason },
+            KktFailure::Block(rcond) => Error::SingularJacobian { state: state.clone(), h, iterations, rcond },
+            KktFailure::Constraints(rcond) => Error::SingularConstraints { state: state.clone(), rcond },
+            KktFailure::NonFinite(quantity) => Error::NonFinite { state: state.clone(), h, iterations, quantity },
+            KktFailure::Rejected(reason) => Error::StepRejected { state: state.clone(), h, iterations, reason },
         };
         let Scratch { dq, lambda: lam, q1, r1, r2, end, v, mu } = scratch;
         let (q0, p0) = (&state.q, &state.p);
@@ -270,7 +271,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
                 q1[i] = q0[i] + dq[i];
             }
             if !g1.evaluate(&*system, t1, q1) {
-                return Err(DynError::NonFiniteConstraints { state: state.clone() });
+                return Err(Error::NonFiniteConstraints { state: state.clone() });
             }
             r2.copy_from_slice(&g1.values);
             residual_norm = max_abs(r1).max(max_abs(r2));
@@ -299,7 +300,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
             }
         }
         if !converged {
-            return Err(DynError::NewtonDidNotConverge {
+            return Err(Error::NewtonDidNotConverge {
                 state: state.clone(),
                 h,
                 iterations,
@@ -311,7 +312,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
             q1[i] = q0[i] + dq[i];
         }
         if !g1.evaluate(&*system, t1, q1) {
-            return Err(DynError::NonFiniteConstraints { state: state.clone() });
+            return Err(Error::NonFiniteConstraints { state: state.clone() });
         }
 
         // The unconstrained end momentum D₂A = ∂A/∂q_k|_{Δq} − D₁A, with
@@ -370,7 +371,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
             }
         }
         if !momentum_converged {
-            return Err(DynError::NewtonDidNotConverge {
+            return Err(Error::NewtonDidNotConverge {
                 state: state.clone(),
                 h,
                 iterations: iterations + momentum_iterations,
@@ -405,7 +406,7 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
     }
 
     /// The state `(k, t_k, q_k, p_k)`.
-    pub fn state(&self) -> &DynState {
+    pub fn state(&self) -> &PhasePoint {
         &self.state
     }
 

@@ -38,7 +38,7 @@ use super::linear::{self, inverse, solve_schur_inverted};
 use super::{Constrained, Positions, commit, jacobian, positions};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing;
 use crate::integrator::{Clock, EnergyFallback, EnergySearch, Integrator, Method, Probe, StepBounds, Taken};
 use crate::newton::NewtonReport;
@@ -57,7 +57,7 @@ pub(super) const ACCURACY_BOUND: &str = "an accuracy bound (`StepBounds::with_ac
 pub(super) fn energy_step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>(
     it: &mut Integrator<S, Constrained<D, M>, N>,
     bounds: StepBounds,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     let Some(last) = it.memory.previous else {
         // As without constraints: E_L(q0, v0) is not the discrete energy of
         // any step, so the first step has the given size and its discrete
@@ -100,7 +100,7 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
 {
     type Trial = Positions<N, M>;
 
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Positions<N, M>>, Error<N>> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Positions<N, M>>, Unplaced> {
         let state = self.state;
         let solved = positions(self, h, state.t + h)?;
         *spent += solved.iterations;
@@ -111,9 +111,14 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
         let target = energy_target(self);
         let g = d.d_t0 - target;
         if !g.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations: *spent, quantity: "energy equation" });
+            let iterations = *spent;
+            return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "energy equation" }));
         }
         Ok(Probe { trial: solved, h, g, slope: slope(self, &seg, &d), scale: target.abs().max(d.d_t0.abs()) })
+    }
+
+    fn place(&self, failure: Unplaced) -> Error {
+        failure.at(self.state)
     }
 
     fn fallback(&self) -> EnergyFallback {
@@ -122,7 +127,7 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> En
 
     /// Without the local root test: its model of the energy error is that
     /// of the unconstrained flow.
-    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Positions<N, M>>, spent: usize) -> Error<N> {
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Positions<N, M>>, spent: usize) -> Error {
         best.no_energy_step(self.state, (lo, hi), spent, None)
     }
 }
@@ -172,13 +177,13 @@ fn accept<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
     mut solved: Positions<N, M>,
     report: NewtonReport,
     taken: Taken,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     let (system, rule) = (&it.system, &it.method.rule);
     let (seg, iterations) = (solved.seg, report.iterations);
     let d_t1 = derivatives::end_time_derivative(system, rule, &seg);
     if !d_t1.is_finite() {
         it.stats.failed_steps += 1;
-        return Err(Error::NonFinite { state: it.state, h: seg.h, iterations, quantity: "energy" });
+        return Err(Error::NonFinite { state: it.state.into(), h: seg.h, iterations, quantity: "energy" });
     }
     // E_{k+1} − E_k: zero for an autonomous, unforced L; the energy
     // evolution −(∂A/∂t_k + ∂A/∂t_{k+1}) of a time-dependent one; the

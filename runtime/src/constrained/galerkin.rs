@@ -86,7 +86,7 @@ use super::{Constrained, SLOWEST_CONTRACTION, jacobian, rate, values};
 use crate::banded::{DenseMatrix, StepMatrix};
 use crate::dense::{Hermite, Node};
 use crate::discrete::Midpoint;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::galerkin::{Galerkin, NoJacobian, PointDerivatives, point_gradient, supports_policy};
 use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment};
 use crate::newton::NewtonOptions;
@@ -168,8 +168,9 @@ fn add(a: &mut DenseMatrix, i: usize, j: usize, x: f64) {
     debug_assert!(added.is_ok(), "{added:?}");
 }
 
-/// One constrained Galerkin step of size `h` from `(t0, q0, p0)`; `state`
-/// goes into the errors. Writes only `work`.
+/// One constrained Galerkin step of size `h` from `(t0, q0, p0)`; its
+/// failure is placed by the caller at the state the step started from.
+/// Writes only `work`.
 ///
 /// Simplified Newton first, then, if that fails for any reason, Newton
 /// from the same guess, whose failure is the step's error: a matrix kept
@@ -183,14 +184,14 @@ pub(super) fn solve_step<Sys, const N: usize, const S: usize, const R: usize, co
     (q0, p0): (&[f64; N], &[f64; N]),
     guess: Guess<N, S, M>,
     work: &mut Work,
-    state: State<N>,
-) -> Result<Solved<N, S, M>, Error<N>>
+) -> Result<Solved<N, S, M>, Unplaced>
 where
     Sys: Lagrangian<N> + ?Sized,
 {
     debug_assert_eq!(work.n(), S * (N + M));
-    let (_, g0) = jacobian::<Sys, N, M>(system, t0, q0).ok_or(Error::NonFiniteConstraints { state })?;
-    let step = Step { system, rule, options, t0, h, t1, q0, p0, g0: &g0, state };
+    let (_, g0) = jacobian::<Sys, N, M>(system, t0, q0)
+        .ok_or_else(|| Unplaced::new(|state| Error::NonFiniteConstraints { state }))?;
+    let step = Step { system, rule, options, t0, h, t1, q0, p0, g0: &g0 };
     let (x, iterations) = match step.attempt(guess, Linearisation::Simplified, work) {
         Ok(converged) => converged,
         Err((_, spent)) => match step.attempt(guess, Linearisation::Full, work) {
@@ -208,11 +209,11 @@ where
     let mut previous = g0;
     for m in 1..=S {
         let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
-        let (_, jm) =
-            jacobian::<Sys, N, M>(system, step.node_time(m - 1), &qm).ok_or(Error::NonFiniteConstraints { state })?;
+        let (_, jm) = jacobian::<Sys, N, M>(system, step.node_time(m - 1), &qm)
+            .ok_or_else(|| Unplaced::new(|state| Error::NonFiniteConstraints { state }))?;
         let agreement = jm * previous.transpose();
         if ((agreement + agreement.transpose()) * 0.5).cholesky().is_none() {
-            return Err(Error::SingularConstraints { state, rcond: inverse(agreement).1 });
+            return Err(Unplaced::new(|state| Error::SingularConstraints { state, rcond: inverse(agreement).1 }));
         }
         previous = jm;
     }
@@ -224,10 +225,13 @@ where
     let (_, end_force) = rule.discrete_forces(system, (t0, h), (q0, &[0.0; N]), &d);
     let end: [f64; N] = core::array::from_fn(|i| grad[S - 1][i] + end_force[i]);
     let v_end: [f64; N] = core::array::from_fn(|i| (0..S).map(|m| rule.end_d[m] * d[m][i]).sum::<f64>() / h);
-    let rate1 = SVector::from(rate::<Sys, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?);
-    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v_end, options, (state, h, iterations))?;
+    let rate1 = SVector::from(
+        rate::<Sys, N, M>(system, t1, &q1)
+            .ok_or_else(|| Unplaced::new(|state| Error::NonFiniteConstraints { state }))?,
+    );
+    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v_end, options, (h, iterations))?;
     if !q1.iter().chain(&on.momentum).all(|x| x.is_finite()) {
-        return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
+        return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "position" }));
     }
     Ok(Solved {
         d,
@@ -252,7 +256,6 @@ struct Step<'a, Sys: ?Sized, const N: usize, const S: usize, const R: usize, con
     p0: &'a [f64; N],
     /// `G(q_k)`.
     g0: &'a SMatrix<f64, M, N>,
-    state: State<N>,
 }
 
 impl<Sys, const N: usize, const S: usize, const R: usize, const M: usize> Step<'_, Sys, N, S, R, M>
@@ -290,8 +293,8 @@ where
         mut x: Guess<N, S, M>,
         linearisation: Linearisation,
         work: &mut Work,
-    ) -> Result<(Guess<N, S, M>, usize), (Error<N>, usize)> {
-        let Self { system, rule, options, t0, h, q0, p0, g0, state, .. } = *self;
+    ) -> Result<(Guess<N, S, M>, usize), (Unplaced, usize)> {
+        let Self { system, rule, options, t0, h, q0, p0, g0, .. } = *self;
         // Whether `work` holds the factors of this attempt's matrix.
         let mut factored = false;
         // The last correction with the current factors, to measure their contraction.
@@ -385,7 +388,7 @@ where
             for m in 1..=S {
                 let qm: [f64; N] = core::array::from_fn(|i| q0[i] + x.d[m - 1][i]);
                 let Some((gm, jm)) = jacobian::<Sys, N, M>(system, self.node_time(m - 1), &qm) else {
-                    return Err((Error::NonFiniteConstraints { state }, iterations));
+                    return Err((Unplaced::new(|state| Error::NonFiniteConstraints { state }), iterations));
                 };
                 let row = Self::interior_at(m);
                 for c in 0..M {
@@ -409,21 +412,30 @@ where
             }
             residual_norm = max_abs(r);
             if !residual_norm.is_finite() {
-                return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+                return Err((
+                    Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
+                    iterations,
+                ));
             }
             if fresh {
                 match work.factor() {
                     Ok(ratio) if ratio >= MIN_PIVOT_RATIO.max(options.min_rcond) => {}
                     Ok(ratio) | Err(Some(ratio)) => return Err((self.singular(&x.d, ratio, iterations), iterations)),
                     Err(None) => {
-                        return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+                        return Err((
+                            Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
+                            iterations,
+                        ));
                     }
                 }
                 factored = true;
                 previous = None;
             }
             if !work.solve() {
-                return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
+                return Err((
+                    Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "correction" }),
+                    iterations,
+                ));
             }
             let dx = &work.rhs;
             for m in 0..S {
@@ -441,7 +453,10 @@ where
             }
             correction_norm = max_abs(&dx[..S * N]);
             if !correction_norm.is_finite() {
-                return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
+                return Err((
+                    Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "correction" }),
+                    iterations,
+                ));
             }
             // No correction below the round-off of `q_k + D_m` is meaningful.
             let floor = 4.0 * f64::EPSILON * max_abs(q0).max(max_abs(&x.d[S - 1]));
@@ -468,7 +483,8 @@ where
                 _ => previous = Some(correction_norm),
             }
         }
-        let error = Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm };
+        let error =
+            Unplaced::new(|state| Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
         Err((error, iterations))
     }
 
@@ -476,20 +492,20 @@ where
     /// have the ratio `ratio`: a rank-deficient constraint Jacobian at a
     /// node (redundant constraints, a dead point), else a singular step
     /// block.
-    fn singular(&self, d: &[[f64; N]; S], ratio: f64, iterations: usize) -> Error<N> {
-        let (state, q0) = (self.state, self.q0);
+    fn singular(&self, d: &[[f64; N]; S], ratio: f64, iterations: usize) -> Unplaced {
+        let q0 = self.q0;
         let mut rcond = inverse(self.g0 * self.g0.transpose()).1;
         for m in 1..=S {
             let qm: [f64; N] = core::array::from_fn(|i| q0[i] + d[m - 1][i]);
             match jacobian::<Sys, N, M>(self.system, self.node_time(m - 1), &qm) {
                 Some((_, jm)) => rcond = rcond.min(inverse(jm * jm.transpose()).1),
-                None => return Error::NonFiniteConstraints { state },
+                None => return Unplaced::new(|state| Error::NonFiniteConstraints { state }),
             }
         }
         if rcond <= SCHUR_MIN_RCOND {
-            return Error::SingularConstraints { state, rcond };
+            return Unplaced::new(|state| Error::SingularConstraints { state, rcond });
         }
-        Error::SingularJacobian { state, h: self.h, iterations, rcond: ratio }
+        Unplaced::new(|state| Error::SingularJacobian { state, h: self.h, iterations, rcond: ratio })
     }
 }
 
@@ -532,11 +548,11 @@ pub(super) fn hidden_constraint<Sys, const N: usize, const M: usize>(
     system: &Sys,
     state: &State<N>,
     v: [f64; N],
-) -> Result<[f64; M], Error<N>>
+) -> Result<[f64; M], Error>
 where
     Sys: Lagrangian<N> + ?Sized,
 {
-    let non_finite = || Error::NonFiniteConstraints { state: *state };
+    let non_finite = || Error::NonFiniteConstraints { state: (*state).into() };
     let (_, jac) = jacobian::<Sys, N, M>(system, state.t, &state.q).ok_or_else(non_finite)?;
     let rate = rate::<Sys, N, M>(system, state.t, &state.q).ok_or_else(non_finite)?;
     Ok((jac * SVector::from(v) + SVector::from(rate)).into())
@@ -637,7 +653,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         self.rule.check()
     }
 
-    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error> {
         // Moving constraints and accuracy bounds as for the one-point rules;
         // forces and a time-dependent `L` as without constraints.
         Constrained::<Midpoint, M>::new(Midpoint).supports::<Sys, N>(policy)?;
@@ -648,7 +664,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         &self,
         reverse: bool,
         policy: &StepPolicy,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         Constrained::<Midpoint, M>::new(Midpoint).supports_derivatives::<Sys, N>(reverse, policy)
     }
 
@@ -657,7 +673,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         <Constrained<Midpoint, M> as Method<f64>>::legendre(system, t0, q0, v0)
     }
 
@@ -665,21 +681,12 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
         it: &mut Integrator<Sys, Self, N>,
         h: f64,
         t1: f64,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         let State { t: t0, q: q0, p: p0, .. } = it.state;
         let v = if it.memory.last.is_some() { it.memory.velocity } else { it.v0 };
         let guess = predict(&it.method.rule, h, &it.memory, &v);
         let times = (t0, h, t1);
-        let solved = solve_step(
-            &it.system,
-            &it.method.rule,
-            &it.newton,
-            times,
-            (&q0, &p0),
-            guess,
-            &mut it.memory.work,
-            it.state,
-        );
+        let solved = solve_step(&it.system, &it.method.rule, &it.newton, times, (&q0, &p0), guess, &mut it.memory.work);
         match solved {
             Ok(solved) => {
                 commit(it, h, t1, &solved);
@@ -687,7 +694,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
             }
             Err(error) => {
                 it.stats.failed_steps += 1;
-                Err(error)
+                Err(error.at(it.state))
             }
         }
     }
@@ -695,7 +702,7 @@ impl<const S: usize, const R: usize, const M: usize> Method<f64> for Constrained
     fn energy_step<Sys: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<Sys, Self, N>,
         bounds: StepBounds,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         it.constrained_node_energy_step(bounds)
     }
 
@@ -760,7 +767,7 @@ impl<Sys: Lagrangian<N>, const N: usize, const S: usize, const R: usize, const M
     /// The hidden constraint `G(t_k, q_k) v_k + ∂g/∂t(t_k, q_k)` at the
     /// current node (`G v` for constraints that do not depend on time), with
     /// `v_k` the velocity of the momentum `p_k`.
-    pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
+    pub fn constraint_velocities(&self) -> Result<[f64; M], Error> {
         hidden_constraint(&self.system, &self.state, self.velocity()?)
     }
 

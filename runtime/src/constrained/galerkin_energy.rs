@@ -18,7 +18,7 @@
 
 use super::Constrained;
 use super::galerkin::{Segment, Solved, commit, predict, solve_step, step_energy};
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::galerkin::{Galerkin, point_gradient};
 use crate::integrator::{Clock, EnergyFallback, EnergySearch, Integrator, Method, Probe, StepBounds, Taken};
 use crate::state::State;
@@ -32,7 +32,7 @@ where
     /// One energy-preserving step (the first has the given size); on
     /// failure nothing in the integrator has changed but the saddle-point
     /// storage.
-    pub(super) fn constrained_node_energy_step(&mut self, bounds: StepBounds) -> Result<(), Error<N>> {
+    pub(super) fn constrained_node_energy_step(&mut self, bounds: StepBounds) -> Result<(), Error> {
         // `start` refuses these (`supports`); no energy-step code for them.
         if const { Sys::HAS_FORCE || Sys::HAS_DISSIPATION || !Sys::AUTONOMOUS || !Sys::CONSTRAINTS_AUTONOMOUS } {
             return Err(Error::Unsupported { what: "energy-preserving galerkin steps for this system" });
@@ -87,21 +87,21 @@ where
     /// The step size and the solved step.
     type Trial = (f64, Solved<N, S, M>);
 
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error<N>> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Unplaced> {
         let state = self.state;
         let State { t: t0, q: q0, p: p0, .. } = state;
         let rule = &self.method.rule;
         let v = if self.memory.last.is_some() { self.memory.velocity } else { self.v0 };
         let guess = predict(rule, h, &self.memory, &v);
         let times = (t0, h, t0 + h);
-        let solved =
-            solve_step(&self.system, rule, &self.newton, times, (&q0, &p0), guess, &mut self.memory.work, state)?;
+        let solved = solve_step(&self.system, rule, &self.newton, times, (&q0, &p0), guess, &mut self.memory.work)?;
         *spent += solved.iterations;
         let seg = Segment { t0, h, q0, d: solved.d };
         let energy = step_energy(&self.system, rule, &seg);
         let g = energy - self.energy;
         if !g.is_finite() {
-            return Err(Error::NonFinite { state, h, iterations: *spent, quantity: "energy equation" });
+            let iterations = *spent;
+            return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "energy equation" }));
         }
         // The size of the terms whose sum is E: `v·∂L/∂v` and `L` at the
         // quadrature points, with their weights.
@@ -115,11 +115,15 @@ where
         Ok(Probe { trial: (h, solved), h, g, slope: f64::NAN, scale })
     }
 
+    fn place(&self, failure: Unplaced) -> Error {
+        failure.at(self.state)
+    }
+
     fn fallback(&self) -> EnergyFallback {
         self.fallback
     }
 
-    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error<N> {
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error {
         best.no_energy_step(self.state, (lo, hi), spent, None)
     }
 }

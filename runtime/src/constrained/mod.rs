@@ -64,7 +64,7 @@ use nalgebra::{SMatrix, SVector};
 use crate::dense::{Hermite, Node};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing::{self, DiscreteForces, EnergyBalance};
 use crate::hyperdual::DualArray;
 use crate::integrator::{F64Readouts, Integrator, Method, Sealed, StepBounds, StepPolicy, add_increment, predict_into};
@@ -233,7 +233,7 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         ConstrainedMemory { previous: None, earlier: None, lambda: [0.0; M], velocity: [0.0; N], kept: None }
     }
 
-    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error> {
         if M == 0 || M >= N {
             return Err(Error::InvalidMethod {
                 reason: "holonomic constraints: the number of constraints M must satisfy 0 < M < N",
@@ -254,7 +254,7 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         &self,
         reverse: bool,
         _: &StepPolicy,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         if reverse {
             return Err(Error::Unsupported {
                 what: "reverse-mode derivatives (systems larger than `Derivatives::FORWARD_MAX_N`) with holonomic constraints",
@@ -268,14 +268,16 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         let state = State { step: 0, t: t0, q: q0, p: [0.0; N] };
-        let (g, jac) = jacobian::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
+        let (g, jac) =
+            jacobian::<S, N, M>(system, t0, &q0).ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
         let (_, rcond) = inverse(jac * jac.transpose());
         if rcond < 1e-12 {
-            return Err(Error::SingularConstraints { state, rcond });
+            return Err(Error::SingularConstraints { state: state.into(), rcond });
         }
-        let rate = rate::<S, N, M>(system, t0, &q0).ok_or(Error::NonFiniteConstraints { state })?;
+        let rate =
+            rate::<S, N, M>(system, t0, &q0).ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
         let (position, velocity) = inconsistency(&g, &jac, &rate, &q0, &v0);
         if !(position <= CONSISTENCY_TOLERANCE && velocity <= CONSISTENCY_TOLERANCE) {
             return Err(Error::InconsistentConstraints { position, velocity, tolerance: CONSISTENCY_TOLERANCE });
@@ -299,7 +301,7 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
         it: &mut Integrator<S, Self, N>,
         h: f64,
         t1: f64,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         match step(it, h, t1) {
             Ok(()) => Ok(()),
             Err(error) => {
@@ -312,7 +314,7 @@ impl<D: DiscreteLagrangian, const M: usize> Method<f64> for Constrained<D, M> {
     fn energy_step<S: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<S, Self, N>,
         bounds: StepBounds,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         energy::energy_step(it, bounds)
     }
 
@@ -339,8 +341,8 @@ fn step<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize>
     it: &mut Integrator<S, Constrained<D, M>, N>,
     h: f64,
     t1: f64,
-) -> Result<(), Error<N>> {
-    let solved = positions(it, h, t1)?;
+) -> Result<(), Error> {
+    let solved = positions(it, h, t1).map_err(|e| e.at(it.state))?;
     commit(it, solved, t1)
 }
 
@@ -382,9 +384,10 @@ fn positions<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: u
     it: &Integrator<S, Constrained<D, M>, N>,
     h: f64,
     t1: f64,
-) -> Result<Positions<N, M>, Error<N>> {
+) -> Result<Positions<N, M>, Unplaced> {
     let state = it.state;
-    let (_, g0) = jacobian::<S, N, M>(&it.system, state.t, &state.q).ok_or(Error::NonFiniteConstraints { state })?;
+    let (_, g0) = jacobian::<S, N, M>(&it.system, state.t, &state.q)
+        .ok_or_else(|| Unplaced::new(|state| Error::NonFiniteConstraints { state }))?;
     let mut dq = [0.0; N];
     {
         let last = it.memory.previous.as_ref().map(|s| (s.h, &s.dq[..]));
@@ -415,9 +418,8 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
     g0: &SMatrix<f64, M, N>,
     (mut dq, mut lambda): ([f64; N], SVector<f64, M>),
     kept: Option<Option<(SMatrix<f64, N, N>, f64)>>,
-) -> Result<Positions<N, M>, (Error<N>, usize)> {
+) -> Result<Positions<N, M>, (Unplaced, usize)> {
     let State { t: t0, q: q0, p: p0, .. } = it.state;
-    let state = it.state;
     let options = it.newton;
     let rule = it.method.rule;
     let system = &it.system;
@@ -433,7 +435,7 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         let seg = Segment { t0, h, q0, dq };
         let q1 = seg.q1();
         let Some((g1, jac1)) = jacobian::<S, N, M>(system, t1, &q1) else {
-            return Err((Error::NonFiniteConstraints { state }, iterations));
+            return Err((Unplaced::new(|state| Error::NonFiniteConstraints { state }), iterations));
         };
         let (d_q0, (a_inv, a_norm)) = match kept_inverse {
             Some(kept) => {
@@ -449,11 +451,17 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
             None => {
                 let sd = forcing::forced_step_derivatives(system, &rule, &seg);
                 if !sd.d2_q0_q1.iter().all(|x| x.is_finite()) {
-                    return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+                    return Err((
+                        Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
+                        iterations,
+                    ));
                 }
                 let (a_inv, rcond) = inverse(sd.d2_q0_q1);
                 if rcond <= options.min_rcond {
-                    return Err((Error::SingularJacobian { state, h, iterations, rcond }, iterations));
+                    return Err((
+                        Unplaced::new(|state| Error::SingularJacobian { state, h, iterations, rcond }),
+                        iterations,
+                    ));
                 }
                 previous = None;
                 (sd.d_q0, (a_inv, linear::norm1(&sd.d2_q0_q1)))
@@ -463,15 +471,21 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         let r2 = SVector::<f64, M>::from(g1);
         residual_norm = r1.amax().max(r2.amax());
         if !residual_norm.is_finite() {
-            return Err((Error::NonFinite { state, h, iterations, quantity: "residual" }, iterations));
+            return Err((
+                Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "residual" }),
+                iterations,
+            ));
         }
         let (ddq, dlambda) = match solve_schur_inverted(&a_inv, &g0t, &jac1, &r1, &r2, options.min_rcond) {
             Ok(x) => x,
             Err(linear::Singular::Block(rcond)) => {
-                return Err((Error::SingularJacobian { state, h, iterations, rcond }, iterations));
+                return Err((
+                    Unplaced::new(|state| Error::SingularJacobian { state, h, iterations, rcond }),
+                    iterations,
+                ));
             }
             Err(linear::Singular::Schur(rcond)) => {
-                return Err((Error::SingularConstraints { state, rcond }, iterations));
+                return Err((Unplaced::new(|state| Error::SingularConstraints { state, rcond }), iterations));
             }
         };
         kept_inverse = Some((a_inv, a_norm));
@@ -481,7 +495,10 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
         lambda += dlambda;
         correction_norm = ddq.amax();
         if !correction_norm.is_finite() {
-            return Err((Error::NonFinite { state, h, iterations, quantity: "correction" }, iterations));
+            return Err((
+                Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "correction" }),
+                iterations,
+            ));
         }
         // The constraint is evaluated at `q_k + Δq`, so no correction below
         // the round-off of that sum is meaningful: a step from rest has an
@@ -508,7 +525,8 @@ fn position_attempt<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, con
             _ => previous = Some(correction_norm),
         }
     }
-    let error = Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm };
+    let error =
+        Unplaced::new(|state| Error::NewtonDidNotConverge { state, h, iterations, residual_norm, correction_norm });
     Err((error, iterations))
 }
 
@@ -518,22 +536,26 @@ fn commit<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usiz
     it: &mut Integrator<S, Constrained<D, M>, N>,
     solved: Positions<N, M>,
     t1: f64,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     let Positions { seg, lambda, iterations, kept } = solved;
     let (state, options, rule, system) = (it.state, it.newton, it.method.rule, &it.system);
     let Segment { h, q0, dq, .. } = seg;
     let q1 = seg.q1();
-    let (_, jac1) = jacobian::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?;
+    let (_, jac1) =
+        jacobian::<S, N, M>(system, t1, &q1).ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
     let end = forcing::end_momentum(system, &rule, &seg);
-    let rate1 = SVector::from(rate::<S, N, M>(system, t1, &q1).ok_or(Error::NonFiniteConstraints { state })?);
+    let rate1 = SVector::from(
+        rate::<S, N, M>(system, t1, &q1).ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?,
+    );
 
     // Momenta: (v_{k+1}, μ_k) from ∂L/∂v(q_{k+1}, v) = D₂A + F⁺ + G(q_{k+1})ᵀμ,
     // G(q_{k+1}) v + ∂g/∂t = 0.
     let v = dq.map(|x| x / h);
-    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v, &options, (state, h, iterations))?;
+    let on = onto_cotangent(system, (t1, q1), &end, (&jac1, &rate1), v, &options, (h, iterations))
+        .map_err(|e| e.at(state))?;
     let (p1, v, momentum_iterations) = (on.momentum, on.velocity, on.iterations);
     if !q1.iter().chain(&p1).all(|x| x.is_finite()) || !t1.is_finite() {
-        return Err(Error::NonFinite { state, h, iterations, quantity: "position" });
+        return Err(Error::NonFinite { state: state.into(), h, iterations, quantity: "position" });
     }
 
     // Commit.
@@ -594,12 +616,12 @@ impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> In
     /// The hidden constraint `G(t_k, q_k) v_k + ∂g/∂t(t_k, q_k)` at the
     /// current node (`G v` for constraints that do not depend on time), with
     /// `v_k` the velocity of the momentum `p_k`.
-    pub fn constraint_velocities(&self) -> Result<[f64; M], Error<N>> {
+    pub fn constraint_velocities(&self) -> Result<[f64; M], Error> {
         let v = self.velocity()?;
         let (t, q) = (self.state.t, &self.state.q);
-        let non_finite = Error::NonFiniteConstraints { state: self.state };
-        let (_, jac) = jacobian::<S, N, M>(&self.system, t, q).ok_or(non_finite.clone())?;
-        let rate = rate::<S, N, M>(&self.system, t, q).ok_or(non_finite)?;
+        let non_finite = || Error::NonFiniteConstraints { state: self.state.into() };
+        let (_, jac) = jacobian::<S, N, M>(&self.system, t, q).ok_or_else(non_finite)?;
+        let rate = rate::<S, N, M>(&self.system, t, q).ok_or_else(non_finite)?;
         Ok((jac * SVector::from(v) + SVector::from(rate)).into())
     }
 

@@ -34,26 +34,31 @@ impl<D, const M: usize> Constrained<D, M> {
         t: f64,
         q: [f64; N],
         v: [f64; N],
-    ) -> Result<([f64; N], [f64; N]), Error<N>> {
+    ) -> Result<([f64; N], [f64; N]), Error> {
         let state = State { step: 0, t, q, p: [0.0; N] };
         let mut x = SVector::<f64, N>::from(q);
         let mut correction = f64::INFINITY;
         for iteration in 1..=MAX_ITERATIONS {
-            let (g, jac) = jacobian::<S, N, M>(system, t, &x.into()).ok_or(Error::NonFiniteConstraints { state })?;
+            let (g, jac) = jacobian::<S, N, M>(system, t, &x.into())
+                .ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
             let (inv, rcond) = inverse(jac * jac.transpose());
             if rcond <= SCHUR_MIN_RCOND {
-                return Err(Error::SingularConstraints { state, rcond });
+                return Err(Error::SingularConstraints { state: state.into(), rcond });
             }
             let dx = jac.transpose() * (inv * SVector::from(g));
             x -= dx;
             correction = dx.amax();
             if !correction.is_finite() {
-                return Err(Error::NonFiniteConstraints { state });
+                return Err(Error::NonFiniteConstraints { state: state.into() });
             }
             if correction <= 1e-15 * x.amax().max(1.0) || (iteration > 1 && correction == 0.0) {
                 let q: [f64; N] = x.into();
-                let (_, jac) = jacobian::<S, N, M>(system, t, &q).ok_or(Error::NonFiniteConstraints { state })?;
-                let rate = SVector::from(rate::<S, N, M>(system, t, &q).ok_or(Error::NonFiniteConstraints { state })?);
+                let (_, jac) = jacobian::<S, N, M>(system, t, &q)
+                    .ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?;
+                let rate = SVector::from(
+                    rate::<S, N, M>(system, t, &q)
+                        .ok_or_else(|| Error::NonFiniteConstraints { state: state.into() })?,
+                );
                 let (inv, _) = inverse(jac * jac.transpose());
                 let w = SVector::from(v);
                 let v = w - jac.transpose() * (inv * (jac * w + rate));
@@ -61,7 +66,7 @@ impl<D, const M: usize> Constrained<D, M> {
             }
         }
         Err(Error::NewtonDidNotConverge {
-            state,
+            state: state.into(),
             h: 0.0,
             iterations: MAX_ITERATIONS,
             residual_norm: f64::NAN,

@@ -150,7 +150,7 @@ where
     }
 
     /// One energy-preserving step after the first (see the module documentation).
-    pub(crate) fn energy_step_nodes(&mut self, bounds: StepBounds) -> Result<(), Error<N, T>> {
+    pub(crate) fn energy_step_nodes(&mut self, bounds: StepBounds) -> Result<(), Error<T>> {
         let Some(last) = self.memory.as_ref().map(|l| l.h) else {
             return self.first_node_energy_step();
         };
@@ -230,7 +230,7 @@ where
             self.stats.failed_steps += 1;
             self.keep_storage(KeptBlock::Drop, storage);
             return Err(Error::NoEnergyStep {
-                state: self.state,
+                state: self.state.into(),
                 h_lo: lo,
                 h_hi: hi,
                 h_best: h.to_f64(),
@@ -381,7 +381,7 @@ where
 
     /// The first energy-preserving step: a step of the given size, whose
     /// discrete energy becomes the one conserved.
-    fn first_node_energy_step(&mut self) -> Result<(), Error<N, T>> {
+    fn first_node_energy_step(&mut self) -> Result<(), Error<T>> {
         let h = self.h;
         let t1 = self.state.t + h;
         self.step_nodes(h, t1)?;

@@ -42,7 +42,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         as_galerkin::<M, DoubleDouble>(self).check()
     }
 
-    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, DoubleDouble>> {
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<DoubleDouble>> {
         super::supports_policy::<S, N, DoubleDouble>(policy)
     }
 
@@ -51,7 +51,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         t0: DoubleDouble,
         q0: [DoubleDouble; N],
         v0: [DoubleDouble; N],
-    ) -> Result<([DoubleDouble; N], DoubleDouble), Error<N, DoubleDouble>> {
+    ) -> Result<([DoubleDouble; N], DoubleDouble), Error<DoubleDouble>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -62,7 +62,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
         it: &mut Integrator<S, Self, N, DoubleDouble>,
         h: DoubleDouble,
         t1: DoubleDouble,
-    ) -> Result<(), Error<N, DoubleDouble>> {
+    ) -> Result<(), Error<DoubleDouble>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -72,7 +72,7 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
     fn energy_step<S: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<S, Self, N, DoubleDouble>,
         bounds: StepBounds,
-    ) -> Result<(), Error<N, DoubleDouble>> {
+    ) -> Result<(), Error<DoubleDouble>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -109,10 +109,8 @@ impl<M: DiscreteLagrangian> Method<DoubleDouble> for M {
 /// it was.
 fn as_galerkin_run<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize>(
     it: &mut Integrator<S, M, N, DoubleDouble>,
-    op: impl FnOnce(
-        &mut Integrator<&S, Galerkin<1, 2, DoubleDouble>, N, DoubleDouble>,
-    ) -> Result<(), Error<N, DoubleDouble>>,
-) -> Result<(), Error<N, DoubleDouble>> {
+    op: impl FnOnce(&mut Integrator<&S, Galerkin<1, 2, DoubleDouble>, N, DoubleDouble>) -> Result<(), Error<DoubleDouble>>,
+) -> Result<(), Error<DoubleDouble>> {
     let mut g = Integrator {
         system: &it.system,
         method: it.memory.0,

@@ -367,7 +367,7 @@ where
 
     /// One step of size `h` stamped with end time `t1`.
     #[inline]
-    pub(crate) fn step_nodes(&mut self, h: T, t1: T) -> Result<(), Error<N, T>> {
+    pub(crate) fn step_nodes(&mut self, h: T, t1: T) -> Result<(), Error<T>> {
         let State { t: t0, q: q0, p: p0, .. } = self.state;
         let e = self.carry;
         let predicted = self.predict_nodes(h);
@@ -641,7 +641,7 @@ where
         velocity_hessians: usize,
         coupling: KeptPolicy,
         storage: Lu<N, S, T>,
-    ) -> Result<(), Error<N, T>> {
+    ) -> Result<(), Error<T>> {
         let collocation::Converged { d, point_forces, iterations, residual_norm, correction_norm, .. } = converged;
         let report = NewtonReport { iterations, residual_norm, correction_norm };
         if let Some(last) = &self.memory {
@@ -685,7 +685,7 @@ where
         point_forces: Option<&[[T; N]; R]>,
         jacobian: KeptBlock<N, S, T>,
         storage: Lu<N, S, T>,
-    ) -> Result<(), Error<N, T>> {
+    ) -> Result<(), Error<T>> {
         let State { step, t: t0, q: q0, p: p0 } = self.state;
         let e = self.carry;
         let (system, g) = (&self.system, &self.method);
@@ -747,7 +747,12 @@ where
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
             self.keep_storage(jacobian, storage);
-            return Err(Error::NonFinite { state: self.state, h: h.to_f64(), iterations: report.iterations, quantity });
+            return Err(Error::NonFinite {
+                state: self.state.into(),
+                h: h.to_f64(),
+                iterations: report.iterations,
+                quantity,
+            });
         }
         match &mut self.memory {
             Some(last) => {
@@ -841,7 +846,7 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         Galerkin::check(self)
     }
 
-    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, T>> {
+    fn supports<Sys: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<T>> {
         supports_policy::<Sys, N, T>(policy)
     }
 
@@ -850,7 +855,7 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         t0: T,
         q0: [T; N],
         v0: [T; N],
-    ) -> Result<([T; N], T), Error<N, T>> {
+    ) -> Result<([T; N], T), Error<T>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -862,7 +867,7 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
         it: &mut Integrator<Sys, Self, N, T>,
         h: T,
         t1: T,
-    ) -> Result<(), Error<N, T>> {
+    ) -> Result<(), Error<T>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -872,7 +877,7 @@ impl<const S: usize, const R: usize, T: Real> Method<T> for Galerkin<S, R, T> {
     fn energy_step<Sys: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<Sys, Self, N, T>,
         bounds: StepBounds,
-    ) -> Result<(), Error<N, T>> {
+    ) -> Result<(), Error<T>> {
         if const { beyond_forward(N) } {
             return Err(refused());
         }
@@ -912,7 +917,7 @@ pub(crate) const fn beyond_forward(n: usize) -> bool {
 
 /// The error of a step path [`beyond_forward`] compiles out (never reached:
 /// `start` refuses first).
-pub(crate) fn refused<const N: usize, T: Real>() -> Error<N, T> {
+pub(crate) fn refused<T: Real>() -> Error<T> {
     Error::Unsupported {
         what: "galerkin rules above `Derivatives::FORWARD_MAX_N` coordinates: they have forward-mode derivatives only",
     }
@@ -931,7 +936,7 @@ pub(crate) const fn has_energy_steps<Sys: Lagrangian<N> + ?Sized, const N: usize
 
 /// The error of an energy-step path [`has_energy_steps`] compiles out
 /// (never reached: `start` refuses the policy first).
-pub(crate) fn no_energy_steps<const N: usize, T: Real>() -> Error<N, T> {
+pub(crate) fn no_energy_steps<T: Real>() -> Error<T> {
     Error::Unsupported {
         what: "energy-preserving galerkin steps for a forced, dissipative, time-dependent or time-transformed system",
     }
@@ -940,7 +945,7 @@ pub(crate) fn no_energy_steps<const N: usize, T: Real>() -> Error<N, T> {
 /// The policies a Galerkin rule supports for the system `Sys`.
 pub(crate) fn supports_policy<Sys: Lagrangian<N>, const N: usize, T: Real>(
     policy: &StepPolicy,
-) -> Result<(), Error<N, T>> {
+) -> Result<(), Error<T>> {
     if matches!(policy, StepPolicy::EnergyPreserving(_)) && (Sys::HAS_FORCE || Sys::HAS_DISSIPATION) {
         return Err(Error::Unsupported {
             what: "energy-balance steps for a system with `force` or `dissipation` with a galerkin rule (and \
@@ -966,7 +971,7 @@ pub(crate) fn legendre<Sys: Lagrangian<N>, const N: usize, T: Real>(
     t0: T,
     q0: [T; N],
     v0: [T; N],
-) -> Result<([T; N], T), Error<N, T>> {
+) -> Result<([T; N], T), Error<T>> {
     // Only the derivatives in `v`: the whole Hessian in `(q, v)` would cost
     // four times as much on 16 coordinates, for blocks nobody reads here.
     let (value, p0, vv) = velocity_derivatives(system, t0, q0, v0);

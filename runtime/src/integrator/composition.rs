@@ -258,7 +258,7 @@ impl Method<f64> for Composition {
         Ok(())
     }
 
-    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N>> {
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error> {
         match policy {
             StepPolicy::Fixed => Ok(()),
             StepPolicy::EnergyPreserving(_) => Err(Error::Unsupported {
@@ -275,7 +275,7 @@ impl Method<f64> for Composition {
         &self,
         reverse: bool,
         policy: &StepPolicy,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         <Trapezoid as Method<f64>>::supports_derivatives::<S, N>(&Trapezoid, reverse, policy)
     }
 
@@ -284,7 +284,7 @@ impl Method<f64> for Composition {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         <Trapezoid as Method<f64>>::legendre(system, t0, q0, v0)
     }
 
@@ -295,7 +295,7 @@ impl Method<f64> for Composition {
         q0: [f64; N],
         v0: [f64; N],
         memory: &mut CompositionMemory<N>,
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         <Trapezoid as Method<f64>>::start_memory(&Trapezoid, system, t0, q0, v0, &mut memory.inner)
     }
 
@@ -303,7 +303,7 @@ impl Method<f64> for Composition {
         it: &mut Integrator<S, Self, N>,
         h: f64,
         t1: f64,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         // Explicit sub-steps in forward mode are fused (the energy watch of a
         // discontinuous system needs every sub-step's energy: sub-stepped).
         // As a constant: the fused code is not compiled for other systems.
@@ -494,7 +494,7 @@ fn sparse_step<S: Lagrangian<N>, const N: usize>(
     it: &mut Integrator<S, Composition, N>,
     h: f64,
     t1: f64,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     if const { Integrator::<S, Trapezoid, N>::EXPLICIT && !S::DISCONTINUOUS } {
         return sparse_fused_step(it, h, t1);
     }
@@ -560,7 +560,7 @@ fn sparse_fused_step<S: Lagrangian<N>, const N: usize>(
     it: &mut Integrator<S, Composition, N>,
     h: f64,
     t1: f64,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     let weights = it.method.weights;
     let mut stepper = Stepper {
         system: &it.system,
@@ -587,7 +587,7 @@ fn fused_step<S: Lagrangian<N>, const N: usize>(
     it: &mut Integrator<S, Composition, N>,
     h: f64,
     t1: f64,
-) -> Result<(), Error<N>> {
+) -> Result<(), Error> {
     let weights = it.method.weights;
     let spare = 1 - it.memory.fused_last;
     let fused = it.memory.fused.get_or_insert_with(|| {

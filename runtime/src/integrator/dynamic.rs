@@ -15,8 +15,10 @@ use super::method::sealed;
 use super::tape_step::{self, Composed, Growth, Guess, LastSubstep, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
-use crate::newton::{NewtonFailure, NewtonOptions};
+use crate::error::Error;
+use crate::newton::NewtonOptions;
 use crate::real::all_finite;
+use crate::state::PhasePoint;
 use crate::structure::Coupling;
 use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
@@ -65,210 +67,17 @@ impl DynMethod for Composition {
     const EXPLICIT_FOR_CONSTANT_MASS: bool = <Trapezoid as DiscreteLagrangian>::EXPLICIT_FOR_CONSTANT_MASS;
 }
 
-/// The state of a [`DynIntegrator`] at node `k`: time, position and discrete
-/// momentum `p_k = ∂A(x_{k−1}, x_k)/∂q_k`, on the heap.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct DynState {
-    /// Node index `k` (0 at the start).
-    pub step: u64,
-    /// `t_k`.
-    pub t: f64,
-    /// `q_k`.
-    pub q: Vec<f64>,
-    /// `p_k`.
-    pub p: Vec<f64>,
-}
-
-/// What went wrong in a [`DynIntegrator`]: every failure is a value, never a
-/// panic. The variants mirror [`Error`](crate::Error)'s; those of a failed
-/// step carry the state the step started from, which is also the state the
-/// integrator still holds (a failed step changes nothing), so a retry with a
-/// smaller step ([`DynIntegrator::set_step_size`]) starts from it.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[non_exhaustive]
-pub enum DynError {
-    /// Newton's method reached its iteration cap, or its corrections grew twice in a row.
-    #[error(
-        "newton did not converge in the step from t = {} (step {}, h = {h:e}): {iterations} iterations, residual norm {residual_norm:e}, last correction {correction_norm:e}",
-        .state.t, .state.step
-    )]
-    NewtonDidNotConverge {
-        /// The state the step started from (and the integrator still holds).
-        state: DynState,
-        /// The step size that was tried.
-        h: f64,
-        /// Newton iterations spent.
-        iterations: usize,
-        /// `‖R‖∞` at the last iterate.
-        residual_norm: f64,
-        /// `‖Δ‖∞` of the last correction, relative.
-        correction_norm: f64,
-    },
-    /// The Newton matrix (or the constant mass matrix of the explicit path)
-    /// is singular or too ill-conditioned to solve with.
-    #[error(
-        "singular or ill-conditioned jacobian in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}: reciprocal condition number {rcond:e}",
-        .state.t, .state.step
-    )]
-    SingularJacobian {
-        /// The state the step started from (and the integrator still holds).
-        state: DynState,
-        /// The step size that was tried.
-        h: f64,
-        /// The Newton iteration at which it happened.
-        iterations: usize,
-        /// Estimated reciprocal condition number in the 1-norm (0 if exactly singular).
-        rcond: f64,
-    },
-    /// A NaN or an infinity appeared.
-    #[error(
-        "non-finite {quantity} in the step from t = {} (step {}, h = {h:e}) at iteration {iterations}",
-        .state.t, .state.step
-    )]
-    NonFinite {
-        /// The state the step started from (and the integrator still holds).
-        state: DynState,
-        /// The step size that was tried.
-        h: f64,
-        /// The Newton iteration at which it happened (0: after convergence).
-        iterations: usize,
-        /// Which value: `residual`, `jacobian`, `correction`, `position` or `momentum`.
-        quantity: &'static str,
-    },
-    /// The step was refused (a root far from the trajectory, a failed tape).
-    #[error(
-        "step rejected from t = {} (step {}, h = {h:e}) after {iterations} iterations: {reason}",
-        .state.t, .state.step
-    )]
-    StepRejected {
-        /// The state the step started from (and the integrator still holds).
-        state: DynState,
-        /// The step size that was tried.
-        h: f64,
-        /// Newton iterations spent.
-        iterations: usize,
-        /// Why.
-        reason: &'static str,
-    },
-    /// A step size that is zero, negative or not finite.
-    #[error("invalid step size h = {h}: it must be finite and positive")]
-    InvalidStepSize {
-        /// The rejected step size.
-        h: f64,
-    },
-    /// `q0` or `v0` whose length is not the system's `dimension()`.
-    #[error("`{what}` has {found} entries, but the system has {expected} coordinates")]
-    WrongLength {
-        /// Which argument: `q0` or `v0`.
-        what: &'static str,
-        /// `dimension()` of the system.
-        expected: usize,
-        /// The length given.
-        found: usize,
-    },
-    /// Initial data that cannot start an integration.
-    #[error("invalid initial data: {reason}")]
-    InvalidInitialData {
-        /// What is wrong with it.
-        reason: &'static str,
-    },
-    /// Newton settings that cannot work (see [`NewtonOptions::validate`]).
-    #[error("invalid newton options: {reason}")]
-    InvalidNewtonOptions {
-        /// What is wrong with them.
-        reason: &'static str,
-    },
-    /// A target time behind the current time, or not finite.
-    #[error("invalid target time {target}: the integrator is at t = {}", .state.t)]
-    InvalidTarget {
-        /// The rejected target time.
-        target: f64,
-        /// The current state.
-        state: DynState,
-    },
-    /// A method or a size the run-time-sized integrator does not support.
-    #[error("not supported yet: {what}")]
-    Unsupported {
-        /// What is missing.
-        what: &'static str,
-    },
-    /// Holonomic constraints: initial data off the constraint manifold or
-    /// its tangent space by more than the tolerance (relative; see
-    /// [`Error::InconsistentConstraints`](crate::Error::InconsistentConstraints)).
-    #[error(
-        "initial data inconsistent with the constraints: relative distance {position:e} from the manifold, {velocity:e} from its tangent space (tolerance {tolerance:e})"
-    )]
-    InconsistentConstraints {
-        /// The relative distance from the constraint manifold.
-        position: f64,
-        /// The relative size of the velocity component normal to it.
-        velocity: f64,
-        /// The tolerance both must meet.
-        tolerance: f64,
-    },
-    /// Holonomic constraints: the constraint Jacobian `G = ∂g/∂q` is
-    /// rank-deficient (redundant constraints, a constraint that does not
-    /// depend on `q`, a singular configuration).
-    #[error("rank-deficient constraint jacobian at t = {} (step {}): reciprocal condition number {rcond:e}", .state.t, .state.step)]
-    SingularConstraints {
-        /// The state the integrator holds (the initial data at the start).
-        state: DynState,
-        /// The reciprocal condition number of the saddle-point matrix whose
-        /// upper-left block alone is regular.
-        rcond: f64,
-    },
-    /// Holonomic constraints: `g(q)` or its Jacobian is NaN or infinite.
-    #[error("non-finite constraint value at t = {} (step {})", .state.t, .state.step)]
-    NonFiniteConstraints {
-        /// The state the integrator holds (the initial data at the start).
-        state: DynState,
-    },
-    /// The velocity for a momentum could not be found (inverse Legendre transform).
-    #[error("no velocity found for the momentum at t = {} (step {}): {iterations} newton iterations, residual norm {residual_norm:e}", .state.t, .state.step)]
-    InverseLegendre {
-        /// The state whose velocity was sought.
-        state: DynState,
-        /// Newton iterations spent.
-        iterations: usize,
-        /// `‖∂L/∂v − p‖∞` at the last iterate.
-        residual_norm: f64,
-    },
-}
-
-impl DynError {
-    /// The error of a step from `state` with size `h` that failed.
-    fn from_newton(failure: NewtonFailure, state: DynState, h: f64) -> Self {
-        match failure {
-            NewtonFailure::NotConverged(r) => DynError::NewtonDidNotConverge {
-                state,
-                h,
-                iterations: r.iterations,
-                residual_norm: r.residual_norm,
-                correction_norm: r.correction_norm,
-            },
-            NewtonFailure::Singular { iterations, rcond } => DynError::SingularJacobian { state, h, iterations, rcond },
-            NewtonFailure::NonFinite { iterations, quantity } => DynError::NonFinite { state, h, iterations, quantity },
-            NewtonFailure::Rejected { iterations, reason } => DynError::StepRejected { state, h, iterations, reason },
-        }
+/// The error of a sub-step, as the composed step's: with the state that
+/// step started from (and the integrator holds again) and its size.
+fn at_composed(mut error: Error, from: PhasePoint, size: f64) -> Error {
+    match &mut error {
+        Error::NewtonDidNotConverge { state, h, .. }
+        | Error::SingularJacobian { state, h, .. }
+        | Error::NonFinite { state, h, .. }
+        | Error::StepRejected { state, h, .. } => (*state, *h) = (from, size),
+        _ => {}
     }
-
-    /// The error of a sub-step, as the composed step's: with the state that
-    /// step started from (and the integrator holds again) and its size.
-    fn at_composed(mut self, from: DynState, size: f64) -> Self {
-        match &mut self {
-            DynError::NewtonDidNotConverge { state, h, .. }
-            | DynError::SingularJacobian { state, h, .. }
-            | DynError::NonFinite { state, h, .. }
-            | DynError::StepRejected { state, h, .. } => (*state, *h) = (from, size),
-            _ => {}
-        }
-        self
-    }
-
-    /// `Ok` for a finite, positive step size.
-    fn check_step(h: f64) -> Result<(), Self> {
-        if h.is_finite() && h > 0.0 { Ok(()) } else { Err(DynError::InvalidStepSize { h }) }
-    }
+    error
 }
 
 /// A run-time-sized system and a one-point rule as the reverse-mode core
@@ -387,46 +196,46 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
 
     /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
     ///
-    /// Fails with [`DynError::Unsupported`] for a discrete Lagrangian
+    /// Fails with [`Error::Unsupported`] for a discrete Lagrangian
     /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
     /// a system with holonomic constraints (stepped by
     /// [`DynConstrained`](crate::DynConstrained)), or a system so large that
     /// the step's buffers cannot be allocated;
-    /// with [`DynError::InvalidStepSize`] for a step that is not finite and
-    /// positive, [`DynError::InvalidNewtonOptions`], [`DynError::WrongLength`]
+    /// with [`Error::InvalidStepSize`] for a step that is not finite and
+    /// positive, [`Error::InvalidNewtonOptions`], [`Error::WrongLength`]
     /// when `q0` or `v0` does not have `dimension()` entries, and
-    /// [`DynError::InvalidInitialData`] for a system without coordinates,
+    /// [`Error::InvalidInitialData`] for a system without coordinates,
     /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
     /// transform is not regular).
-    pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, DynError> {
+    pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, Error> {
         let Some(points) = self.method.points() else {
-            return Err(DynError::Unsupported {
+            return Err(Error::Unsupported {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
-        self.newton.validate().map_err(|reason| DynError::InvalidNewtonOptions { reason })?;
-        DynError::check_step(self.h)?;
+        self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
+        Error::check_step(self.h)?;
         let n = self.system.dimension();
         if self.system.constraint_count() > 0 {
-            return Err(DynError::Unsupported {
+            return Err(Error::Unsupported {
                 what: "a system with holonomic constraints under `DynIntegrator`: step it with `DynConstrained`",
             });
         }
         if n == 0 {
-            return Err(DynError::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
+            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
         }
         for (what, x) in [("q0", q0), ("v0", v0)] {
             if x.len() != n {
-                return Err(DynError::WrongLength { what, expected: n, found: x.len() });
+                return Err(Error::WrongLength { what, expected: n, found: x.len() });
             }
         }
         if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
-            return Err(DynError::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
         }
         let model = Sliced { system: &self.system, points };
         let (p0, energy) =
-            tape_step::legendre(&model, t0, q0, v0).map_err(|reason| DynError::InvalidInitialData { reason })?;
-        let work = SparseWork::new(n, S::COUPLING).map_err(|_| DynError::Unsupported {
+            tape_step::legendre(&model, t0, q0, v0).map_err(|reason| Error::InvalidInitialData { reason })?;
+        let work = SparseWork::new(n, S::COUPLING).map_err(|_| Error::Unsupported {
             what: "a system this large with this coupling: the step matrix cannot be allocated",
         })?;
         Ok(DynIntegrator {
@@ -436,7 +245,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             h: self.h,
             newton: self.newton,
             summation: self.summation,
-            state: DynState { step: 0, t: t0, q: q0.to_vec(), p: p0 },
+            state: PhasePoint { step: 0, t: t0, q: q0.to_vec(), p: p0 },
             carry: vec![0.0; n],
             p_carry: vec![0.0; n],
             energy,
@@ -516,7 +325,7 @@ pub struct DynIntegrator<S, M> {
     /// How increments are added to the state; under [`Summation::Plain`]
     /// `carry` and `p_carry` stay zero.
     summation: Summation,
-    state: DynState,
+    state: PhasePoint,
     /// Kahan compensation of the position: it is `state.q + carry`.
     carry: Vec<f64>,
     /// Kahan compensation of the momentum: it is `state.p + p_carry`.
@@ -549,8 +358,8 @@ impl<S, M> DynIntegrator<S, M> {
 
 /// The node a step of a run-time-sized integrator starts from: its state,
 /// the compensations `(carry, p_carry)` and how the step sums.
-fn node_at<'a>(state: &'a DynState, (q_carry, p_carry): (&'a [f64], &'a [f64]), summation: Summation) -> Node<'a> {
-    let DynState { step, t, q, p } = state;
+fn node_at<'a>(state: &'a PhasePoint, (q_carry, p_carry): (&'a [f64], &'a [f64]), summation: Summation) -> Node<'a> {
+    let PhasePoint { step, t, q, p } = state;
     Node { step: *step, t: *t, q, p, q_carry, p_carry, plain: summation.is_plain() }
 }
 
@@ -560,7 +369,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     const EXPLICIT: bool = M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass();
 
     /// The current state `(k, t_k, q_k, p_k)`.
-    pub fn state(&self) -> &DynState {
+    pub fn state(&self) -> &PhasePoint {
         &self.state
     }
 
@@ -603,8 +412,8 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// Changes the step size for the following steps (for example to retry a
     /// failed step with a smaller one). The integrator stays variational: the
     /// DEL equations hold with the step sizes actually taken.
-    pub fn set_step_size(&mut self, h: f64) -> Result<(), DynError> {
-        DynError::check_step(h)?;
+    pub fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        Error::check_step(h)?;
         self.clock = Clock { t: self.state.t, step: self.state.step };
         self.h = h;
         Ok(())
@@ -615,7 +424,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// On failure nothing changes: the state, the step size and the
     /// predictor are those from before the call, and the error carries the
     /// state and the Newton diagnostics.
-    pub fn step(&mut self) -> Result<&DynState, DynError> {
+    pub fn step(&mut self) -> Result<&PhasePoint, Error> {
         let t1 = self.clock.at(self.state.step + 1, self.h);
         self.step_by(self.h, t1)?;
         Ok(&self.state)
@@ -624,7 +433,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// Takes `n` steps, calling `observe` after each with the integrator.
     ///
     /// Stops at the first failure, with the integrator at the last good state.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), DynError> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -637,9 +446,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// would end within `10⁻⁹ h` of it is stretched by that much instead),
     /// and the step size is then restored. A target equal to the current
     /// time is a no-op.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), DynError> {
+    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
         if !t_end.is_finite() || t_end < self.state.t {
-            return Err(DynError::InvalidTarget { target: t_end, state: self.state.clone() });
+            return Err(Error::InvalidTarget { target: t_end, state: self.state.clone() });
         }
         loop {
             let remaining = t_end - self.state.t;
@@ -658,7 +467,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     }
 
     /// One step of size `h` whose end node is stamped with time `t1`.
-    fn step_by(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
+    fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         match self.method.weights() {
             // Explicit sub-steps are fused, unless a discontinuous system's
             // energy watch needs each one.
@@ -673,7 +482,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// `γ_i h`, then the node counted once. A failed sub-step puts back the
     /// state, the compensations, the last two segments and the counters
     /// from before the composed step.
-    fn substeps(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), DynError> {
+    fn substeps(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), Error> {
         let saved = (self.state.clone(), self.carry.clone(), self.p_carry.clone());
         let memory = (self.previous.clone(), self.earlier.clone(), self.work.energy, self.stats);
         let (start, mut elapsed) = (self.state.t, 0.0);
@@ -690,7 +499,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
                 self.work.energy = energy;
                 self.stats = stats;
                 self.stats.failed_steps += 1;
-                return Err(e.at_composed(self.state.clone(), h));
+                return Err(at_composed(e, self.state.clone(), h));
             }
         }
         let (before, stats) = (saved.0.step, memory.3.steps);
@@ -703,7 +512,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// A composed step of explicit sub-steps, fused
     /// ([`SparseWork::verlet_composed`]).
-    fn fused_step(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), DynError> {
+    fn fused_step(&mut self, weights: &[f64], h: f64, t1: f64) -> Result<(), Error> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
@@ -716,7 +525,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             Ok(composed) => composed,
             Err(failure) => {
                 self.stats.failed_steps += 1;
-                return Err(DynError::from_newton(failure, self.state.clone(), h));
+                return Err(Error::from_newton(failure, self.state.clone(), h));
             }
         };
         self.commit(taken, h, t1);
@@ -730,7 +539,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// One step of the rule (a sub-step of a composition: the trapezoid
     /// rule's) of size `h` ending at `t1`.
-    fn single_step(&mut self, h: f64, t1: f64) -> Result<(), DynError> {
+    fn single_step(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let model = Sliced { system: &self.system, points: self.points };
@@ -755,7 +564,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             Ok(x) => x,
             Err(failure) => {
                 self.stats.failed_steps += 1;
-                return Err(DynError::from_newton(failure, self.state.clone(), h));
+                return Err(Error::from_newton(failure, self.state.clone(), h));
             }
         };
         // An explicit step computes no energy; a discontinuous system's watch
@@ -826,7 +635,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`
     /// (Newton from the last secant velocity, with banded or dense solves).
-    pub fn velocity(&self) -> Result<Vec<f64>, DynError> {
+    pub fn velocity(&self) -> Result<Vec<f64>, Error> {
         // The last (sub-)step's secant velocity.
         let last = match &self.last_substep {
             Some(sub) => Some((sub.h, &sub.dq)),
@@ -837,8 +646,8 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             None => self.v0.clone(),
         };
         let model = Sliced { system: &self.system, points: self.points };
-        let DynState { t, q, p, .. } = &self.state;
-        tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| DynError::InverseLegendre {
+        let PhasePoint { t, q, p, .. } = &self.state;
+        tape_step::velocity(&model, *t, q, p, &guess).map_err(|(iterations, residual_norm)| Error::InverseLegendre {
             state: self.state.clone(),
             iterations,
             residual_norm,
@@ -846,7 +655,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     }
 
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.
-    pub fn energy(&self) -> Result<f64, DynError> {
+    pub fn energy(&self) -> Result<f64, Error> {
         let v = self.velocity()?;
         let model = Sliced { system: &self.system, points: self.points };
         Ok(tape_step::energy(&model, self.state.t, &self.state.q, &v))

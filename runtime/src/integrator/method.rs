@@ -66,7 +66,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
     /// `Err` for a combination of system and policy the method does not
     /// support, with the reason.
     #[doc(hidden)]
-    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<N, T>> {
+    fn supports<S: Lagrangian<N>, const N: usize>(&self, policy: &StepPolicy) -> Result<(), Error<T>> {
         let _ = policy;
         Ok(())
     }
@@ -80,7 +80,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         &self,
         reverse: bool,
         policy: &StepPolicy,
-    ) -> Result<(), Error<N, T>> {
+    ) -> Result<(), Error<T>> {
         let _ = policy;
         if reverse {
             return Err(Error::Unsupported {
@@ -110,7 +110,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         t0: T,
         q0: [T; N],
         v0: [T; N],
-    ) -> Result<([T; N], T), Error<N, T>>;
+    ) -> Result<([T; N], T), Error<T>>;
 
     /// The momentum and the energy of [`legendre`](Self::legendre), with
     /// `memory` (fresh from [`memory`](Self::memory)) made ready for the
@@ -127,7 +127,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         q0: [T; N],
         v0: [T; N],
         memory: &mut Self::Memory<N>,
-    ) -> Result<([T; N], T), Error<N, T>> {
+    ) -> Result<([T; N], T), Error<T>> {
         let _ = memory;
         Self::legendre(system, t0, q0, v0)
     }
@@ -139,7 +139,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
         it: &mut Integrator<S, Self, N, T>,
         h: T,
         t1: T,
-    ) -> Result<(), Error<N, T>>
+    ) -> Result<(), Error<T>>
     where
         Self: Sized;
 
@@ -150,7 +150,7 @@ pub trait Method<T: Real>: Clone + core::fmt::Debug + sealed::Sealed {
     fn energy_step<S: Lagrangian<N>, const N: usize>(
         _it: &mut Integrator<S, Self, N, T>,
         _bounds: StepBounds,
-    ) -> Result<(), Error<N, T>>
+    ) -> Result<(), Error<T>>
     where
         Self: Sized,
     {

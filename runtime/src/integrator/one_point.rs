@@ -83,7 +83,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         // `if const`: codegen can skip the forward-mode code below for large N.
         if const { super::sparse::too_large_for_forward(N) } {
             return super::sparse::legendre(system, t0, q0, v0);
@@ -99,7 +99,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         q0: [f64; N],
         v0: [f64; N],
         memory: &mut OnePointMemory<N>,
-    ) -> Result<([f64; N], f64), Error<N>> {
+    ) -> Result<([f64; N], f64), Error> {
         // Explicit steps: the regularity check's `M⁻¹` is the one the first
         // step needs (the mass matrix is constant), formed and inverted once
         // for both (on the FPU-β chain of 16 masses the matrix and its
@@ -125,7 +125,7 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         &self,
         reverse: bool,
         policy: &StepPolicy,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         match super::sparse::unsupported::<S, N>(policy) {
             Some(what) if reverse => Err(Error::Unsupported { what }),
             _ => Ok(()),
@@ -137,14 +137,14 @@ impl<M: DiscreteLagrangian> Method<f64> for M {
         it: &mut Integrator<S, Self, N>,
         h: f64,
         t1: f64,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         it.step_by(h, t1)
     }
 
     fn energy_step<S: Lagrangian<N>, const N: usize>(
         it: &mut Integrator<S, Self, N>,
         bounds: StepBounds,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         if const { super::sparse::too_large_for_forward(N) } {
             return Err(Error::Unsupported { what: "energy-preserving steps with reverse-mode derivatives" });
         }
@@ -245,7 +245,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// One step of size `h`, whose end node is stamped with time `t1`
     /// (`t_k + h` up to the round-off the clock avoids accumulating).
     #[inline]
-    pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+    pub(super) fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         if const { super::sparse::too_large_for_forward(N) } || self.reverse() {
             return self.sparse_step(h, t1, Self::EXPLICIT);
         }
@@ -256,7 +256,8 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
             };
         }
         let State { step, t: t0, q: q0, .. } = self.state;
-        let (dq, report, impulse, lagrangian) = self.solve_del_with_impulse(h)?;
+        let (dq, report, impulse, lagrangian) =
+            self.solve_del_with_impulse(h).map_err(|failure| self.fail(h, failure))?;
         let seg = Segment { t0, h, q0, dq };
         let (q1, p1, carry, p_carry) = self.advance(&seg, impulse);
         // `L` at the rule's points of an iterate near the solution `dq`
@@ -266,7 +267,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         let quantity = if lagrangian.is_finite() { non_finite(t1, &q1, &p1) } else { Some("lagrangian") };
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+            return Err(Error::NonFinite { state: self.state.into(), h, iterations: report.iterations, quantity });
         }
         self.carry = carry;
         self.p_carry = p_carry;
@@ -304,7 +305,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// ([`Summation::Plain`]): `q_k + Δq` and `p_k + Δp` rounded once, the
     /// compensations (zero) neither read nor written.
     #[inline]
-    fn verlet_step<const PLAIN: bool>(&mut self, h: f64, t1: f64) -> Result<(), Error<N>> {
+    fn verlet_step<const PLAIN: bool>(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         // One stage written out rather than run through `explicit_step`'s
         // sub-step loop: measured 39.6 against 48.1 ns per Kepler step
         // (`--bench step -- explicit`, one run each, load ≈ 3.5).
@@ -388,7 +389,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         if is_non_finite(bad | nan_bits(t1) | nan_bits(l1)) {
             let quantity = non_finite(t1, &q1, &p1).unwrap_or("lagrangian");
             self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: 0, quantity });
+            return Err(Error::NonFinite { state: self.state.into(), h, iterations: 0, quantity });
         }
         if S::DISCONTINUOUS {
             self.watch_energy(&Segment { t0, h, q0: *q0, dq }, t1);
@@ -444,9 +445,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// Solves the DEL `p_k + ∂A/∂q_k = 0` for the increment `dq = q_{k+1} − q_k`
-    /// of a step of size `h` (see `Segment` for why the increment).
+    /// of a step of size `h` (see `Segment` for why the increment). The
+    /// failure is the solve's alone: the caller that gives up on the step
+    /// makes it the step's [`Error`] (an energy step's search may recover).
     #[inline]
-    pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), Error<N>> {
+    pub(super) fn solve_del(&mut self, h: f64) -> Result<([f64; N], NewtonReport), NewtonFailure> {
         self.solve_del_with_impulse(h).map(|(dq, report, _, _)| (dq, report))
     }
 
@@ -468,7 +471,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     pub(super) fn solve_del_with_impulse(
         &mut self,
         h: f64,
-    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>, f64), Error<N>> {
+    ) -> Result<([f64; N], NewtonReport, Option<[f64; N]>, f64), NewtonFailure> {
         let State { q: q0, p: p0, .. } = self.state;
         let predictor = self.predict(h);
         let p_scale = max_abs(&p0);
@@ -496,11 +499,11 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
                     && implausible_growth(&dq, &predictor, &last.dq.map(|x| x * (h / last.h)), &q0)
                 {
                     let reason = IMPLAUSIBLE_GROWTH;
-                    return Err(self.fail(h, NewtonFailure::Rejected { iterations: report.iterations, reason }));
+                    return Err(NewtonFailure::Rejected { iterations: report.iterations, reason });
                 }
                 Ok((dq, report, impulse.at_solution(&dq, p_scale), impulse.lagrangian))
             }
-            Err(failure) => Err(self.fail(h, failure)),
+            Err(failure) => Err(failure),
         }
     }
 
@@ -839,7 +842,7 @@ fn checked_start<S: Lagrangian<N>, const N: usize, X>(
     v0: [f64; N],
     at: [f64; N],
     regular: impl FnOnce(SMatrix<f64, N, N>) -> Option<X>,
-) -> Result<([f64; N], f64, X), Error<N>> {
+) -> Result<([f64; N], f64, X), Error> {
     let p0 = system.momentum(t0, q0, v0);
     if !crate::real::all_finite(&p0) || !system.lagrangian_value(t0, q0, v0).is_finite() {
         return Err(Error::InvalidInitialData {

@@ -87,7 +87,7 @@ impl Derivatives {
     }
 
     /// Refuses forward mode for systems too large for it.
-    pub(crate) fn check<const N: usize, T: crate::real::Real>(self) -> Result<(), Error<N, T>> {
+    pub(crate) fn check<const N: usize, T: crate::real::Real>(self) -> Result<(), Error<T>> {
         if self == Derivatives::Forward && N > Self::FORWARD_MAX_N {
             return Err(Error::Unsupported {
                 what: "forward-mode derivatives above `Derivatives::FORWARD_MAX_N` coordinates (their N×N parts would overflow the stack); use `Derivatives::Automatic` or `Reverse`",
@@ -221,7 +221,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     /// One fixed step in reverse mode: the Newton step of the shared core
     /// (`tape_step.rs`), or its explicit Störmer–Verlet step when `explicit`.
     /// A failed step leaves the integrator as it was.
-    pub(super) fn sparse_step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
+    pub(super) fn sparse_step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error> {
         let mut stepper = Stepper {
             system: &self.system,
             method: &self.method,
@@ -270,12 +270,12 @@ pub(super) struct Stepper<'a, S, M, const N: usize> {
 impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, N> {
     /// One fixed step (see `Integrator::sparse_step`); a failed one changes
     /// nothing but the failure count.
-    pub(super) fn step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error<N>> {
+    pub(super) fn step(&mut self, h: f64, t1: f64, explicit: bool) -> Result<(), Error> {
         let mut work = self.work(h)?;
         let outcome = self.advance(&mut work, h, t1, explicit);
         self.memory.sparse = Some(work);
         // The error (which holds the state) is made here, in the returned
-        // value: a `Result<(), Error<N>>` held across the line above would
+        // value: a `Result<(), Error>` held across the line above would
         // be moved whole, both arrays of the state copied at every
         // successful step (16 000 instructions of an explicit FPU-β step
         // at `N = 1000`, callgrind).
@@ -284,7 +284,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
 
     /// The reverse-mode work, taken out of the memory (made at the first
     /// step); the caller puts it back.
-    fn work(&mut self, h: f64) -> Result<Box<SparseWork>, Error<N>> {
+    fn work(&mut self, h: f64) -> Result<Box<SparseWork>, Error> {
         match self.memory.sparse.take() {
             Some(work) => Ok(work),
             None => match SparseWork::new(N, S::COUPLING) {
@@ -309,7 +309,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
         t1: f64,
         weights: &[f64],
         last_substep: &mut Option<LastSubstep>,
-    ) -> Result<(), Error<N>> {
+    ) -> Result<(), Error> {
         let mut work = self.work(h)?;
         let [q_carry, p_carry] = core::mem::take(&mut work.carries);
         let outcome = {
@@ -459,7 +459,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Stepper<'_, S, M, 
     }
 
     /// Counts a failed step and turns its failure into the error.
-    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error<N> {
+    fn fail(&mut self, h: f64, failure: NewtonFailure) -> Error {
         self.stats.failed_steps += 1;
         Error::from_newton(failure, *self.state, h)
     }
@@ -495,7 +495,7 @@ pub(crate) fn legendre<S: Lagrangian<N>, const N: usize>(
     t: f64,
     q: [f64; N],
     v: [f64; N],
-) -> Result<([f64; N], f64), Error<N>> {
+) -> Result<([f64; N], f64), Error> {
     // The rule is not used by the readouts of `L`; any one will do.
     let model = Fixed { system, method: &crate::Midpoint };
     let (p, energy) = tape_step::legendre(&model, t, &q, &v).map_err(|reason| Error::InvalidInitialData { reason })?;

@@ -47,7 +47,7 @@ use nalgebra::SVector;
 use super::{Integrator, StepPolicy, non_finite};
 use crate::derivatives::{self, Segment};
 use crate::discrete::DiscreteLagrangian;
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::forcing;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
@@ -187,9 +187,9 @@ impl<X> Probe<X> {
         (lo, hi): (f64, f64),
         spent: usize,
         root_test: Option<(f64, f64, f64)>,
-    ) -> Error<N> {
+    ) -> Error {
         Error::NoEnergyStep {
-            state,
+            state: state.into(),
             h_lo: lo,
             h_hi: hi,
             h_best: self.h,
@@ -222,14 +222,18 @@ pub(crate) trait EnergySearch<const N: usize> {
     /// `g(h)` and `g'(h)` with the position equations solved at step `h`;
     /// the Newton iterations spent go to `spent`. Changes nothing the
     /// integrator publishes.
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Error<N>>;
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Self::Trial>, Unplaced>;
+
+    /// The failure of a trial, as the error of the step: at the state the
+    /// step started from (and the integrator still holds).
+    fn place(&self, failure: Unplaced) -> Error;
 
     /// What to do where no admissible step solves the energy equation.
     fn fallback(&self) -> EnergyFallback;
 
     /// [`Error::NoEnergyStep`] for the bracket `[lo, hi]`, whose least
     /// mismatch is at `best`, after `spent` iterations.
-    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error<N>;
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error;
 
     /// Stage 2: the safeguarded solve of `g(h) = 0` on `[lo, hi]`.
     ///
@@ -247,7 +251,7 @@ pub(crate) trait EnergySearch<const N: usize> {
         mut hi: f64,
         capped: bool,
         mut spent: usize,
-    ) -> Result<(Self::Trial, NewtonReport, Taken), Error<N>> {
+    ) -> Result<(Self::Trial, NewtonReport, Taken), Error> {
         let spent = &mut spent;
         // The first probe that solves: the guess, or halfway down towards `lo`
         // while trials fail (each failure lowers `hi`).
@@ -259,7 +263,7 @@ pub(crate) trait EnergySearch<const N: usize> {
                     hi = h;
                     let next = lo + 0.5 * (h - lo);
                     if h <= lo || h - lo <= 1e-9 * h || next >= h {
-                        return Err(e);
+                        return Err(self.place(e));
                     }
                     h = if h - lo <= 1e-3 * h { lo } else { next };
                 }
@@ -321,7 +325,7 @@ pub(crate) trait EnergySearch<const N: usize> {
         mut a: Probe<Self::Trial>,
         mut b: Probe<Self::Trial>,
         spent: &mut usize,
-    ) -> Result<Probe<Self::Trial>, Error<N>> {
+    ) -> Result<Probe<Self::Trial>, Error> {
         let mut x = if a.g.abs() < b.g.abs() { a } else { b };
         let mut dx_old = b.h - a.h;
         let mut dx = dx_old;
@@ -347,10 +351,10 @@ pub(crate) trait EnergySearch<const N: usize> {
                 Err(e) => {
                     let mid = ha + 0.5 * (hb - ha);
                     if h == mid {
-                        return Err(e);
+                        return Err(self.place(e));
                     }
                     dx = 0.5 * (hb - ha);
-                    self.probe(mid, spent)?
+                    self.probe(mid, spent).map_err(|e| self.place(e))?
                 }
             };
             if p.solved() {
@@ -385,7 +389,7 @@ pub(crate) trait EnergySearch<const N: usize> {
         capped: bool,
         start: Probe<Self::Trial>,
         spent: &mut usize,
-    ) -> Result<(Self::Trial, NewtonReport, Taken), Error<N>> {
+    ) -> Result<(Self::Trial, NewtonReport, Taken), Error> {
         const INV_PHI: f64 = 0.618_033_988_749_894_8;
         let mismatch = |p: &Option<Probe<Self::Trial>>| p.map_or(f64::INFINITY, |p| p.g.abs());
         let (mut a, mut b) = (lo, hi);
@@ -431,7 +435,7 @@ pub(crate) trait EnergySearch<const N: usize> {
 
 impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N> {
     /// One energy-preserving step after the first.
-    pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error<N>> {
+    pub(super) fn energy_step(&mut self, bounds: StepBounds) -> Result<&State<N>, Error> {
         let h_prev = self.memory.previous.map_or(self.h, |last| last.h);
         let (mut lo, mut hi) = bounds.bracket(h_prev);
         let mut capped = false;
@@ -619,7 +623,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 
     /// Applies a solved step: `p_{k+1}`, `E_{k+1}`, the Kahan-summed time.
-    fn accept(&mut self, seg: Segment<N>, report: NewtonReport, taken: Taken) -> Result<&State<N>, Error<N>> {
+    fn accept(&mut self, seg: Segment<N>, report: NewtonReport, taken: Taken) -> Result<&State<N>, Error> {
         let State { step, t: t0, .. } = self.state;
         let h = seg.h;
         // E_{k+1} alone: the momentum comes from `advance` as an increment.
@@ -637,7 +641,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
         };
         if let Some(quantity) = quantity {
             self.stats.failed_steps += 1;
-            return Err(Error::NonFinite { state: self.state, h, iterations: report.iterations, quantity });
+            return Err(Error::NonFinite { state: self.state.into(), h, iterations: report.iterations, quantity });
         }
         self.time_error = (t1 - t0) - y;
         self.carry = carry;
@@ -689,9 +693,9 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
     type Trial = Segment<N>;
 
     /// `g(h)` and `g'(h)` with the DEL solved at step `h`.
-    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Segment<N>>, Error<N>> {
+    fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<Segment<N>>, Unplaced> {
         let State { t: t0, q: q0, .. } = self.state;
-        let (dq, report) = self.solve_del(h)?;
+        let (dq, report) = self.solve_del(h).map_err(|failure| Unplaced::newton(failure, h))?;
         *spent += report.iterations;
         let seg = Segment { t0, h, q0, dq };
         // The forced DEL (solved by `solve_del`) and energy equation.
@@ -703,16 +707,21 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> fo
         let target = self.energy_target();
         let g = d.d_t0 - target;
         if !g.is_finite() {
-            return Err(Error::NonFinite { state: self.state, h, iterations: *spent, quantity: "energy equation" });
+            let iterations = *spent;
+            return Err(Unplaced::new(|state| Error::NonFinite { state, h, iterations, quantity: "energy equation" }));
         }
         Ok(Probe { trial: seg, h, g, slope, scale: target.abs().max(d.d_t0.abs()) })
+    }
+
+    fn place(&self, failure: Unplaced) -> Error {
+        failure.at(self.state)
     }
 
     fn fallback(&self) -> EnergyFallback {
         self.fallback
     }
 
-    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Segment<N>>, spent: usize) -> Error<N> {
+    fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Segment<N>>, spent: usize) -> Error {
         best.no_energy_step(self.state, (lo, hi), spent, self.root_test())
     }
 }

@@ -1,13 +1,15 @@
 //! The run-time-sized problem: the same [`Scheme`] and [`Policy`] values on
 //! a [`DynLagrangian`], stepped by the reverse-mode [`DynIntegrator`]; what
 //! that driver does not have is refused by [`supports`](super::supports)
-//! with [`DynError::Unsupported`].
+//! with [`Error::Unsupported`].
 
 use super::scheme::{OnePoint, Scheme};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
-use crate::integrator::{Composition, DynError, DynIntegrator, DynMethod, DynState, Stats};
+use crate::error::Error;
+use crate::integrator::{Composition, DynIntegrator, DynMethod, Stats};
 use crate::newton::NewtonOptions;
+use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
 
 /// A system whose number of coordinates is known at run time, with its
@@ -85,9 +87,9 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
     }
 
     /// `Ok` when `scheme` under `policy` can do `capability` on a
-    /// run-time-sized system; otherwise [`DynError::Unsupported`] naming
+    /// run-time-sized system; otherwise [`Error::Unsupported`] naming
     /// the combination.
-    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), DynError> {
+    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), Error> {
         let combination = Combination {
             scheme,
             policy: policy.into(),
@@ -96,13 +98,13 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
             constraints: 0,
             capability,
         };
-        supports(&combination).map_err(|what| DynError::Unsupported { what })
+        supports(&combination).map_err(|what| Error::Unsupported { what })
     }
 
-    /// A stepper of `scheme` under `policy`; [`DynError::Unsupported`] for
+    /// A stepper of `scheme` under `policy`; [`Error::Unsupported`] for
     /// what [`supports`](super::supports) refuses, else the driver's own
     /// errors of `start`.
-    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<DynStepper<S>, DynError> {
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<DynStepper<S>, Error> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Step)?;
         let driver = match scheme {
@@ -110,12 +112,12 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
             Scheme::OnePoint(OnePoint::Trapezoid) => DynDriver::Trapezoid(self.start(Trapezoid, policy)?),
             Scheme::OnePoint(OnePoint::AlphaBeta(m)) => DynDriver::AlphaBeta(self.start(*m, policy)?),
             Scheme::Composition { weights, .. } => DynDriver::Composition(self.start(*weights, policy)?),
-            _ => return Err(DynError::Unsupported { what: "this scheme on a run-time-sized system" }),
+            _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
         Ok(DynStepper { driver, scheme: scheme.clone() })
     }
 
-    fn start<M: DynMethod>(&self, method: M, policy: Policy) -> Result<DynIntegrator<S, M>, DynError> {
+    fn start<M: DynMethod>(&self, method: M, policy: Policy) -> Result<DynIntegrator<S, M>, Error> {
         let mut builder = DynIntegrator::new(self.system.clone(), method, policy.step());
         if let Some(options) = self.newton {
             builder = builder.newton(options);
@@ -139,7 +141,7 @@ impl<S: DynLagrangian> DynStepper<S> {
     }
 
     /// The state at the current node.
-    pub fn state(&self) -> &DynState {
+    pub fn state(&self) -> &PhasePoint {
         each!(&self.driver, d => d.state())
     }
 
@@ -149,12 +151,12 @@ impl<S: DynLagrangian> DynStepper<S> {
     }
 
     /// The velocity whose momentum is `p_k`.
-    pub fn velocity(&self) -> Result<Vec<f64>, DynError> {
+    pub fn velocity(&self) -> Result<Vec<f64>, Error> {
         each!(&self.driver, d => d.velocity())
     }
 
     /// The energy `E_L(t_k, q_k, v_k)` at the current node.
-    pub fn energy(&self) -> Result<f64, DynError> {
+    pub fn energy(&self) -> Result<f64, Error> {
         each!(&self.driver, d => d.energy())
     }
 
@@ -164,18 +166,18 @@ impl<S: DynLagrangian> DynStepper<S> {
     }
 
     /// One step; on failure nothing changes.
-    pub fn step(&mut self) -> Result<&DynState, DynError> {
+    pub fn step(&mut self) -> Result<&PhasePoint, Error> {
         each!(&mut self.driver, d => d.step().map(|_| ()))?;
         Ok(self.state())
     }
 
     /// `n` steps.
-    pub fn run(&mut self, n: usize) -> Result<(), DynError> {
+    pub fn run(&mut self, n: usize) -> Result<(), Error> {
         each!(&mut self.driver, d => d.run(n, |_| {}))
     }
 
     /// Steps to `t_end` exactly (the last step shortened).
-    pub fn run_until(&mut self, t_end: f64) -> Result<(), DynError> {
+    pub fn run_until(&mut self, t_end: f64) -> Result<(), Error> {
         each!(&mut self.driver, d => d.run_until(t_end, |_| {}))
     }
 }

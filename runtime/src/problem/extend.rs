@@ -90,7 +90,7 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Transformed<S, N, M> {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<Self, Error<N>>
+    ) -> Result<Self, Error>
     where
         Dim<N>: ExtendedSize<M>,
     {
@@ -185,7 +185,7 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transform
         each!(self, d => Stepping::state(d))
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         each!(self, d => Stepping::velocity(d))
     }
 
@@ -193,15 +193,15 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transform
         each!(self, d => Stepping::stats(d))
     }
 
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         each!(self, d => Stepping::step(d))
     }
 
-    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error> {
         each!(self, d => Stepping::step_toward(d, t_end, last_h))
     }
 
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         each!(self, d => Stepping::land(d, t))
     }
 
@@ -235,7 +235,7 @@ pub trait Extended<const N: usize>: Sealed {
         t0: f64,
         q0: [f64; N],
         v0: [f64; N],
-    ) -> Result<Self::Transformed<S>, Error<N>>;
+    ) -> Result<Self::Transformed<S>, Error>;
 
     /// The current node in `s` of `d`: `[s, x, p̃]`.
     #[doc(hidden)]
@@ -288,7 +288,7 @@ macro_rules! table {
                 t0: f64,
                 q0: [f64; $n],
                 v0: [f64; $n],
-            ) -> Result<Self::Transformed<S>, Error<$n>> {
+            ) -> Result<Self::Transformed<S>, Error> {
                 Transformed::start(system, inner, density, sigma, newton, t0, q0, v0)
             }
             fn node<S: Lagrangian<$n> + Clone>(d: &Self::Transformed<S>) -> Vec<f64> {

@@ -51,7 +51,7 @@ where
 {
     /// Asks [`supports`](super::supports) whether `scheme` under `policy`
     /// has sensitivities (and refuses a discontinuous Lagrangian).
-    fn differentiable(&self, scheme: &Scheme, policy: Policy) -> Result<(), Error<N>> {
+    fn differentiable(&self, scheme: &Scheme, policy: Policy) -> Result<(), Error> {
         self.supports(scheme, policy, Capability::Sensitivities)?;
         if S::DISCONTINUOUS {
             return Err(Error::Unsupported { what: DISCONTINUOUS });
@@ -122,7 +122,7 @@ where
         scheme: &Scheme,
         policy: impl Into<Policy>,
         plan: Plan<'_, N>,
-    ) -> Result<Sensitivities<N>, SolveError<N>>
+    ) -> Result<Sensitivities<N>, SolveError>
     where
         S: Parametric<N, P>,
     {
@@ -149,7 +149,7 @@ where
         scheme: &Scheme,
         policy: Policy,
         plan: Plan<'_, N>,
-    ) -> Result<Sensitivities<N>, SolveError<N>>
+    ) -> Result<Sensitivities<N>, SolveError>
     where
         S: Parametric<N, P>,
     {
@@ -192,7 +192,7 @@ where
         t_end: f64,
         loss: &L,
         checkpoints: Checkpoints,
-    ) -> Result<Gradient<N, P>, Error<N>>
+    ) -> Result<Gradient<N, P>, Error>
     where
         S: Parametric<N, P>,
     {
@@ -234,7 +234,7 @@ where
     Dim<N>: Extended<N>,
 {
     /// The Galerkin rule every step of this stepper is made of.
-    pub(crate) fn rule(&self) -> Result<Rule, Error<N>> {
+    pub(crate) fn rule(&self) -> Result<Rule, Error> {
         Ok(match &*self.driver {
             Driver::Midpoint(_) => Rule::one_point(&OnePoint::Midpoint),
             Driver::Trapezoid(_) | Driver::Composition(_) => Rule::one_point(&OnePoint::Trapezoid),
@@ -306,24 +306,31 @@ where
         node: &ExtendedNode<N>,
         from: &State<N>,
         target: Option<f64>,
-    ) -> Result<Linear, Error<N>>
+    ) -> Result<Linear, Error>
     where
         S: Parametric<N, P>,
     {
         let to = Stepping::state(self);
-        let singular = Error::SingularJacobian { state: *from, h: to.t - from.t, iterations: 0, rcond: 0.0 };
+        let singular =
+            || Error::SingularJacobian { state: (*from).into(), h: to.t - from.t, iterations: 0, rcond: 0.0 };
         let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
         match (node, &*self.driver) {
             (ExtendedNode::Transformed(node), Driver::Transformed(d)) => {
-                <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or(singular)
+                <Dim<N> as Extended<N>>::linearise::<S, P>(d, node).ok_or_else(singular)
             }
             // No equation is solved: only a derivative can fail.
-            (ExtendedNode::Split(node), Driver::Splitting(d)) => split::linearise::<S, N, P>(d, node)
-                .ok_or(Error::NonFinite { state: *from, h: to.t - from.t, iterations: 0, quantity: "jacobian" }),
+            (ExtendedNode::Split(node), Driver::Splitting(d)) => {
+                split::linearise::<S, N, P>(d, node).ok_or_else(|| Error::NonFinite {
+                    state: (*from).into(),
+                    h: to.t - from.t,
+                    iterations: 0,
+                    quantity: "jacobian",
+                })
+            }
             (&ExtendedNode::Energy { first, inexact }, driver) => {
                 let stats = Stepping::stats(self);
                 if stats.energy_fallbacks + stats.accuracy_capped_steps != inexact {
-                    return Err(Error::NotDifferentiable { state: *from, reason: LEAST_MISMATCH });
+                    return Err(Error::NotDifferentiable { state: (*from).into(), reason: LEAST_MISMATCH });
                 }
                 // The first step has the given size; a landing ends on its
                 // target (no energy step ends there: it would have landed).
@@ -334,7 +341,7 @@ where
                     ($d:expr) => {{
                         let l = $d.memory.as_ref().ok_or(missing)?;
                         let piece = Piece::kept(l.t0, l.h, l.q0, l.carry, &l.d);
-                        galerkin_energy::linearise::<S, N, P>(self.system(), &rule, &piece, pinned).ok_or(singular)
+                        galerkin_energy::linearise::<S, N, P>(self.system(), &rule, &piece, pinned).ok_or_else(singular)
                     }};
                 }
                 let seg = match driver {
@@ -350,7 +357,7 @@ where
                     _ => None,
                 };
                 <Dim<N> as Extended<N>>::linearise_energy::<S, P>(self.system(), &rule, seg.ok_or(missing)?, pinned)
-                    .ok_or(singular)
+                    .ok_or_else(singular)
             }
             _ => Err(missing),
         }
@@ -366,14 +373,14 @@ where
         node: ExtendedNode<N>,
         from: &State<N>,
         target: Option<f64>,
-    ) -> Result<Reverse<N>, Error<N>>
+    ) -> Result<Reverse<N>, Error>
     where
         S: Parametric<N, P>,
     {
         match (node, &*self.driver) {
             (ExtendedNode::Split(node), Driver::Splitting(d)) => {
-                split::reverse::<S, N, P>(d, &node).ok_or(Error::NonFinite {
-                    state: *from,
+                split::reverse::<S, N, P>(d, &node).ok_or_else(|| Error::NonFinite {
+                    state: (*from).into(),
                     h: Stepping::state(self).t - from.t,
                     iterations: 0,
                     quantity: "jacobian",
@@ -407,7 +414,7 @@ where
     pub(crate) fn extended_start<const P: usize>(
         &self,
         initial: (f64, [f64; N], [f64; N]),
-    ) -> Result<Option<Start>, Error<N>>
+    ) -> Result<Option<Start>, Error>
     where
         S: Parametric<N, P>,
     {
@@ -427,7 +434,7 @@ where
 
     /// Appends to `out` the Galerkin steps of [`rule`](Self::rule) the last
     /// step, from `from` to the current node, was made of.
-    pub(crate) fn last_pieces(&self, from: &State<N>, out: &mut Vec<Piece<N>>) -> Result<(), Error<N>> {
+    pub(crate) fn last_pieces(&self, from: &State<N>, out: &mut Vec<Piece<N>>) -> Result<(), Error> {
         let to = Stepping::state(self);
         let missing = Error::Unsupported { what: "sensitivities of a step whose nodes were not kept" };
         // The last Galerkin step a driver kept, as a piece (one arm per
@@ -497,8 +504,8 @@ where
     fn tracked(
         &mut self,
         target: Option<f64>,
-        step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error<N>>,
-    ) -> Result<(), Error<N>> {
+        step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error>,
+    ) -> Result<(), Error> {
         let from = self.stepper.state();
         let node = self.stepper.extended_node();
         step(&mut self.stepper)?;
@@ -533,7 +540,7 @@ where
         Stepping::state(&self.stepper)
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         Stepping::velocity(&self.stepper)
     }
 
@@ -541,17 +548,17 @@ where
         Stepping::stats(&self.stepper)
     }
 
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         self.tracked(None, Stepping::step)
     }
 
-    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error> {
         self.tracked(Some(t_end), |s| Stepping::step_toward(s, t_end, last_h))
     }
 
     /// One step at a time, so that each is propagated (a plan for
     /// sensitivities lands only on its end, one step away).
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         let mut last_h = None;
         while Stepping::state(&self.stepper).t < t {
             let t0 = Stepping::state(&self.stepper).t;

@@ -109,7 +109,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
     /// `Ok` when `scheme` under `policy` can do `capability` on this
     /// problem; otherwise [`Error::Unsupported`] naming the combination
     /// (see [`supports`](super::supports)).
-    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), Error<N>> {
+    pub fn supports(&self, scheme: &Scheme, policy: impl Into<Policy>, capability: Capability) -> Result<(), Error> {
         let combination = Combination {
             scheme,
             policy: policy.into(),
@@ -132,7 +132,7 @@ where
     /// [`supports`](super::supports) refuses, and otherwise with the
     /// driver's own errors of `start` (invalid step, initial data or
     /// settings; a system the splitting cannot take).
-    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, N>, Error<N>> {
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, N>, Error> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Step)?;
         let driver = self.driver(scheme, policy)?;
@@ -147,7 +147,7 @@ where
         scheme: &Scheme,
         policy: impl Into<Policy>,
         plan: Plan<'_, N>,
-    ) -> Result<Solution<N>, SolveError<N>> {
+    ) -> Result<Solution<N>, SolveError> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Solve)?;
         self.stepper(scheme, policy)?.solve(plan)
@@ -157,7 +157,7 @@ where
     /// const-generic kernels. Each kind is started and boxed by a function
     /// of its own, so that no frame holds room for every kind at once (a
     /// driver is 300 kB at `N = 1000`).
-    fn driver(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Driver<S, N>>, Error<N>> {
+    fn driver(&self, scheme: &Scheme, policy: Policy) -> Result<Box<Driver<S, N>>, Error> {
         let h = policy.step();
         match scheme {
             Scheme::OnePoint(OnePoint::Midpoint) => self.integrator(Midpoint, policy, Driver::Midpoint),
@@ -177,7 +177,7 @@ where
         nodes: NodeFamily,
         quadrature: GalerkinQuadrature,
         policy: Policy,
-    ) -> Result<Box<Driver<S, N>>, Error<N>> {
+    ) -> Result<Box<Driver<S, N>>, Error> {
         use GalerkinQuadrature::{GaussLegendre as G, GaussLobatto as L};
         match (degree, quadrature) {
             (2, G) => {
@@ -210,7 +210,7 @@ where
         method: M,
         policy: Policy,
         wrap: fn(Integrator<S, M, N>) -> Driver<S, N>,
-    ) -> Result<Box<Driver<S, N>>, Error<N>> {
+    ) -> Result<Box<Driver<S, N>>, Error> {
         let mut builder: IntegratorBuilder<S, M> = Integrator::new(self.system.clone(), method, policy.step());
         if let Some(bounds) = policy.bounds() {
             builder = builder.energy_preserving(bounds);
@@ -224,7 +224,7 @@ where
     /// The implicit time transformation of `inner` with `density`, step `h`
     /// in `s`.
     #[inline(never)]
-    fn transformed(&self, inner: &Scheme, density: Curvature, h: f64) -> Result<Box<Driver<S, N>>, Error<N>> {
+    fn transformed(&self, inner: &Scheme, density: Curvature, h: f64) -> Result<Box<Driver<S, N>>, Error> {
         let (t0, q0, v0) = (self.t0, self.q0, self.v0);
         <Dim<N> as Extended<N>>::start(self.system.clone(), inner, density, h, self.newton, t0, q0, v0)
             .map(boxed(Driver::Transformed))
@@ -238,7 +238,7 @@ where
         function: TimeFunction,
         composition: Option<Composition>,
         h: f64,
-    ) -> Result<Box<Driver<S, N>>, Error<N>> {
+    ) -> Result<Box<Driver<S, N>>, Error> {
         let mut split = ExplicitTimeTransformed::new(self.system.clone(), function, h);
         if let Some(c) = composition {
             split = split.composition(c);

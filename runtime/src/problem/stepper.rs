@@ -118,7 +118,7 @@ fn copy_into<T: Clone>(a: &mut T, b: &T) {
 /// [`Stepper::step`] would exhaust the inliner's budget and leave parts of
 /// the step out of line.
 #[inline(never)]
-fn step_of<D: Stepping<N>, const N: usize>(d: &mut D) -> Result<(), Error<N>> {
+fn step_of<D: Stepping<N>, const N: usize>(d: &mut D) -> Result<(), Error> {
     d.step()
 }
 
@@ -240,13 +240,13 @@ where
     }
 
     /// The velocity whose momentum is `p_k`.
-    pub fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    pub fn velocity(&self) -> Result<[f64; N], Error> {
         Stepping::velocity(self)
     }
 
     /// The energy `E_L(t_k, q_k, v_k)` at the current node, with `v_k` the
     /// velocity of `p_k`: one meaning for every scheme.
-    pub fn energy(&self) -> Result<f64, Error<N>> {
+    pub fn energy(&self) -> Result<f64, Error> {
         let s = Stepping::state(self);
         let v = Stepping::velocity(self)?;
         Ok(Stepping::system(self).energy(s.t, s.q, v))
@@ -264,7 +264,7 @@ where
 
     /// One step; on failure nothing changes.
     #[inline(always)]
-    pub fn step(&mut self) -> Result<State<N>, Error<N>> {
+    pub fn step(&mut self) -> Result<State<N>, Error> {
         // One match for the step and the state read after it.
         each!(&mut *self.driver, d => {
             step_of(d)?;
@@ -273,7 +273,7 @@ where
     }
 
     /// `n` steps, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
         for _ in 0..n {
             Stepping::step(self)?;
             observe(self);
@@ -284,13 +284,13 @@ where
     /// Steps to `t_end` exactly: the last step is shortened (or, for the
     /// time-transformed schemes, a partial step in `s` is solved for) so
     /// that the node's time is `t_end`.
-    pub fn run_until(&mut self, t_end: f64) -> Result<(), Error<N>> {
+    pub fn run_until(&mut self, t_end: f64) -> Result<(), Error> {
         Stepping::land(self, t_end)
     }
 
     /// Integrates as `plan` says: [`Stepping::solve`], named here so that
     /// the trait need not be in scope.
-    pub fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError<N>> {
+    pub fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError> {
         Stepping::solve(self, plan)
     }
 }
@@ -310,7 +310,7 @@ where
         each!(&*self.driver, d => Stepping::state(d))
     }
 
-    fn velocity(&self) -> Result<[f64; N], Error<N>> {
+    fn velocity(&self) -> Result<[f64; N], Error> {
         each!(&*self.driver, d => Stepping::velocity(d))
     }
 
@@ -319,15 +319,15 @@ where
     }
 
     #[inline(always)]
-    fn step(&mut self) -> Result<(), Error<N>> {
+    fn step(&mut self) -> Result<(), Error> {
         each!(&mut *self.driver, d => step_of(d))
     }
 
-    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error<N>> {
+    fn step_toward(&mut self, t_end: f64, last_h: Option<f64>) -> Result<(), Error> {
         each!(&mut *self.driver, d => Stepping::step_toward(d, t_end, last_h))
     }
 
-    fn land(&mut self, t: f64) -> Result<(), Error<N>> {
+    fn land(&mut self, t: f64) -> Result<(), Error> {
         each!(&mut *self.driver, d => Stepping::land(d, t))
     }
 

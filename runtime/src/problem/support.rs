@@ -5,8 +5,7 @@
 //! [`DynProblem::stepper`](super::DynProblem::stepper) and the capability
 //! page ask [`supports`] before they build anything, so a combination that
 //! is not defined is an [`Error::Unsupported`](crate::Error::Unsupported)
-//! (or [`DynError::Unsupported`](crate::DynError::Unsupported)) at
-//! construction, with the text returned here. What only a driver can judge
+//! at construction, whatever the size of the system, with the text returned here. What only a driver can judge
 //! from the system's values (a mass matrix that is not constant for the
 //! splitting, a singular Legendre transform) it still refuses at `start`,
 //! also typed.

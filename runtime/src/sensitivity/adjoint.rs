@@ -84,7 +84,7 @@ pub enum Checkpoints {
 
 impl Checkpoints {
     /// The spacing `m` for a run of about `steps` steps.
-    fn spacing<const N: usize>(self, steps: usize) -> Result<usize, Error<N>> {
+    fn spacing<const N: usize>(self, steps: usize) -> Result<usize, Error> {
         match self {
             Self::Every(0) | Self::Budget(0) => {
                 Err(Error::InvalidSetting { reason: "a checkpoint budget of zero: at least one state must be kept" })
@@ -155,7 +155,7 @@ impl Terms {
         state: &State<N>,
         theta: &[f64; P],
         last: bool,
-    ) -> Result<Term<N, P>, Error<N>> {
+    ) -> Result<Term<N, P>, Error> {
         let (k, t) = (state.step, state.t);
         let (mut dq, mut dp, mut dth) = ([0.0; N], [0.0; N], [0.0; P]);
         let value = if const { large(N) } {
@@ -183,7 +183,7 @@ impl Terms {
             l.re
         };
         let finite = value.is_finite() && dq.iter().chain(dp.iter()).chain(dth.iter()).all(|x| x.is_finite());
-        if finite { Ok((value, dq, dp, dth)) } else { Err(Error::NonFiniteLoss { state: *state }) }
+        if finite { Ok((value, dq, dp, dth)) } else { Err(Error::NonFiniteLoss { state: (*state).into() }) }
     }
 }
 
@@ -207,7 +207,7 @@ fn time_derivative<L: Loss<N, P>, const N: usize, const P: usize>(
     state: &State<N>,
     theta: &[f64; P],
     last: bool,
-) -> Result<f64, Error<N>> {
+) -> Result<f64, Error> {
     let t = Dual64::new(state.t, 1.0);
     let l = terms(
         loss,
@@ -216,7 +216,7 @@ fn time_derivative<L: Loss<N, P>, const N: usize, const P: usize>(
         state.p.map(Dual64::from),
         &theta.map(Dual64::from),
     );
-    if l.eps.is_finite() { Ok(l.eps) } else { Err(Error::NonFiniteLoss { state: *state }) }
+    if l.eps.is_finite() { Ok(l.eps) } else { Err(Error::NonFiniteLoss { state: (*state).into() }) }
 }
 
 /// The value of the loss terms at `state`, checked finite.
@@ -225,9 +225,9 @@ fn value_at<L: Loss<N, P>, const N: usize, const P: usize>(
     state: &State<N>,
     theta: &[f64; P],
     last: bool,
-) -> Result<f64, Error<N>> {
+) -> Result<f64, Error> {
     let value = terms(loss, (state.step, state.t, last), state.q, state.p, theta);
-    if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: *state }) }
+    if value.is_finite() { Ok(value) } else { Err(Error::NonFiniteLoss { state: (*state).into() }) }
 }
 
 /// What the forward pass keeps: the loss, the copies of the stepper (at
@@ -254,14 +254,14 @@ fn forward<S, L, const N: usize, const P: usize>(
     t_end: f64,
     loss: &L,
     checkpoints: Checkpoints,
-) -> Result<Forward<S, N>, Error<N>>
+) -> Result<Forward<S, N>, Error>
 where
     S: Parametric<N, P>,
     L: Loss<N, P>,
     Dim<N>: Extended<N>,
 {
     if !(t_end.is_finite() && t_end >= t0) {
-        return Err(Error::InvalidTarget { target: t_end, state: stepper.state() });
+        return Err(Error::InvalidTarget { target: t_end, state: stepper.state().into() });
     }
     // The number of steps is known only after the run; the estimate sets
     // the spacing of a budget.
@@ -304,7 +304,7 @@ pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
     t_end: f64,
     loss: &L,
     checkpoints: Checkpoints,
-) -> Result<Gradient<N, P>, Error<N>>
+) -> Result<Gradient<N, P>, Error>
 where
     S: Parametric<N, P>,
     L: Loss<N, P>,
@@ -350,7 +350,12 @@ where
         for (i, range) in steps.iter().enumerate().rev() {
             let from = nodes[i];
             pullback.step(&system, &theta, &pieces[range.clone()], (&mut lq, &mut lp), &mut dtheta).ok_or_else(
-                || Error::SingularJacobian { state: from, h: nodes[i + 1].t - from.t, iterations: 0, rcond: 0.0 },
+                || Error::SingularJacobian {
+                    state: from.into(),
+                    h: nodes[i + 1].t - from.t,
+                    iterations: 0,
+                    rcond: 0.0,
+                },
             )?;
             let (_, gq, gp, gth) = terms.at(loss, &from, &theta, false)?;
             for i in 0..N {
@@ -391,7 +396,7 @@ pub(crate) fn gradient_extended<S, L, const N: usize, const P: usize>(
     t_end: f64,
     loss: &L,
     checkpoints: Checkpoints,
-) -> Result<Gradient<N, P>, Error<N>>
+) -> Result<Gradient<N, P>, Error>
 where
     S: Parametric<N, P>,
     L: Loss<N, P>,
@@ -422,7 +427,7 @@ where
         for (d, g) in dtheta.iter_mut().zip(gth) {
             *d += g;
         }
-        Ok::<(), Error<N>>(())
+        Ok::<(), Error>(())
     };
     add_terms(&mut lambda, &mut dtheta, &last, true)?;
     let physical = |lambda: &DVector<f64>| -> ([f64; N], [f64; N]) {
@@ -467,9 +472,9 @@ where
                     lambda = linear.x.tr_mul(&lambda);
                 }
                 Reverse::Step { end, h } => {
-                    sim.splitting_pullback(&mut transpose, (end, *h), &mut lambda, (&mut dtheta, &mut dc)).ok_or(
-                        Error::NonFinite {
-                            state: nodes[i],
+                    sim.splitting_pullback(&mut transpose, (end, *h), &mut lambda, (&mut dtheta, &mut dc)).ok_or_else(
+                        || Error::NonFinite {
+                            state: nodes[i].into(),
                             h: nodes[i + 1].t - nodes[i].t,
                             iterations: 0,
                             quantity: "jacobian",

@@ -109,7 +109,7 @@ pub struct Sensitivities<const N: usize> {
     /// Why the sensitivities stop before the solution's last row: a step
     /// whose linearisation is singular or not finite.
     #[cfg_attr(feature = "serde", serde(skip))]
-    pub error: Option<Error<N>>,
+    pub error: Option<Error>,
 }
 
 /// The tangent of a run: by blocks for the fixed steps of a rule, dense in
@@ -149,7 +149,7 @@ pub(crate) struct Propagation<'s, S, const N: usize, const P: usize> {
     kept: Vec<(u64, Jacobian)>,
     /// The last node's `k` (its tangent is the current one).
     last: Option<u64>,
-    error: Option<Error<N>>,
+    error: Option<Error>,
 }
 
 impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S, N, P> {
@@ -181,7 +181,7 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
 
     /// The step from `from`, made of `pieces` (or why they are not known),
     /// to the node `to`.
-    pub(crate) fn step(&mut self, from: &State<N>, pieces: Result<&[Piece<N>], Error<N>>, to: &State<N>) {
+    pub(crate) fn step(&mut self, from: &State<N>, pieces: Result<&[Piece<N>], Error>, to: &State<N>) {
         if self.error.is_some() {
             return;
         }
@@ -200,7 +200,7 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
             Some(j) => *tangent = tangent.step(&j),
             None => {
                 let h = to.t - from.t;
-                self.error = Some(Error::SingularJacobian { state: *from, h, iterations: 0, rcond: 0.0 });
+                self.error = Some(Error::SingularJacobian { state: (*from).into(), h, iterations: 0, rcond: 0.0 });
                 return;
             }
         }
@@ -210,7 +210,7 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
     /// The step to the node `to` of a time-transformed run, with its
     /// linearisation in the extended phase (or why it has none):
     /// `S_{k+1} = Φ_x S_k + Φ_θ [0 | 0 | I] + Φ_c ∂c/∂(q_0, v_0, θ)`.
-    pub(crate) fn step_extended(&mut self, linear: Result<Linear, Error<N>>, to: &State<N>) {
+    pub(crate) fn step_extended(&mut self, linear: Result<Linear, Error>, to: &State<N>) {
         if self.error.is_some() {
             return;
         }

@@ -306,7 +306,7 @@ impl<const N: usize, const P: usize> Pullback<N, P> {
     /// The buffers for steps of `rule` on systems of type `S`. The Newton
     /// matrix of a one-point rule has the pattern of the coupling of `L`
     /// and the forces; that of a Galerkin step is taken as general.
-    pub(crate) fn new<S: Parametric<N, P>>(rule: Rule) -> Result<Self, Error<N>> {
+    pub(crate) fn new<S: Parametric<N, P>>(rule: Rule) -> Result<Self, Error> {
         let s = rule.degree();
         // The forces' pattern counts only where there are forces (its
         // default is general).

@@ -5,12 +5,12 @@ use core::marker::PhantomData;
 
 use num_dual::HyperDual;
 
-use crate::error::Error;
+use crate::error::{Error, Unplaced};
 use crate::integrator::Stats;
 use crate::mechanics::{DiscreteMechanics, LegendreFailure};
 use crate::real::{Real, all_finite};
 use crate::root::Bracket;
-use crate::state::State;
+use crate::state::{PhasePoint, State};
 use crate::symplectic::TangentMap;
 use crate::system::Lagrangian;
 
@@ -102,6 +102,16 @@ impl<I: Clone, Sys, G, const N: usize, const M: usize, T: Copy> Clone for Adapti
 /// inverse Legendre transform in that type.
 pub(super) fn wider_than_f64<T: Real>() -> bool {
     T::EPSILON < f64::EPSILON
+}
+
+/// The physical state of an extended [`PhasePoint`] (an error's state):
+/// its last coordinate is the time.
+pub(super) fn physical_point<T: Real>(mut x: PhasePoint<T>) -> PhasePoint<T> {
+    if let Some(t) = x.q.pop() {
+        x.t = t;
+        x.p.truncate(x.q.len());
+    }
+    x
 }
 
 /// The physical state in an extended one.
@@ -307,25 +317,25 @@ where
 
     /// The physical velocity `v` with `∂L/∂v(t, q, v) = p`: Newton in `f64`,
     /// refined in `T` when `T` is wider.
-    pub fn velocity(&self) -> Result<[T; N], Error<N, T>> {
+    pub fn velocity(&self) -> Result<[T; N], Error<T>> {
         let s = self.state();
         velocity_in(self.system(), (s.t, s.q, s.p), self.v_guess).map_err(|f| Error::InverseLegendre {
-            state: s,
+            state: s.into(),
             iterations: f.iterations,
             residual_norm: f.residual_norm,
         })
     }
 
     /// The physical energy `E_L(t, q, v)` at the current state, in `T`.
-    pub fn energy(&self) -> Result<T, Error<N, T>> {
+    pub fn energy(&self) -> Result<T, Error<T>> {
         let v = self.velocity()?;
         let s = self.state();
         Ok(energy_in(self.system(), s.t, s.q, v))
     }
 
     /// Sets the step in `s` for the following steps.
-    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<N, T>> {
-        self.inner.set_s_step_size(sigma).map_err(|e| e.map_state(|x| physical::<T, N, M>(&x)))
+    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<T>> {
+        self.inner.set_s_step_size(sigma).map_err(|e| e.map_state(physical_point))
     }
 
     /// One step of `σ` in `s`. Refused, with the state kept, where `g` is
@@ -334,12 +344,12 @@ where
     /// and where it has lost the orbit ([`Error::OrbitLost`]: the rate
     /// `t'/g = 1 + c·u`, `u = p_t + E`, changed by more than a factor 2,
     /// which a spurious root of the step's Newton solve does).
-    pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
+    pub fn step(&mut self) -> Result<State<N, T>, Error<T>> {
         let before = self.inner.clone();
         self.try_step(before)
     }
 
-    fn try_step(&mut self, before: I) -> Result<State<N, T>, Error<N, T>> {
+    fn try_step(&mut self, before: I) -> Result<State<N, T>, Error<T>> {
         let start = self.state();
         self.inner.transformed().invalid.set(None);
         if let Err(e) = self.inner.s_step() {
@@ -349,8 +359,8 @@ where
             // The step in `s` starts from the state the driver reports (its
             // time is the landed one after `run_until`).
             return Err(match invalid {
-                Some(value) => Error::InvalidDensity { state: start, value },
-                None => e.map_state(|_| start),
+                Some(value) => Error::InvalidDensity { state: start.into(), value },
+                None => e.at_state(start),
             });
         }
         let t0 = self.inner_time(&before);
@@ -361,7 +371,7 @@ where
             }
             Err(e) => {
                 self.inner = before;
-                Err(e)
+                Err(e.at(start))
             }
         }
     }
@@ -370,7 +380,8 @@ where
     /// state `start`) to `candidate`'s node: the density there, the time it
     /// advanced (against `floor`, if given), and the rate `t'/g` against the
     /// current node's. Returns the end state, the time step and the rate at
-    /// the end.
+    /// the end; a refusal is placed at `start` by the caller that gives up
+    /// (a landing's trials refuse steps and go on).
     #[allow(clippy::type_complexity)]
     fn verify(
         &self,
@@ -378,19 +389,23 @@ where
         t0: T,
         start: &State<N, T>,
         floor: Option<T>,
-    ) -> Result<(State<N, T>, T, Option<f64>), Error<N, T>> {
+    ) -> Result<(State<N, T>, T, Option<f64>), Unplaced<T>> {
         let x = candidate.extended_state();
         let end = physical::<T, N, M>(&x);
         let g1 = candidate.transformed().density(end.t, &end.q);
         let dt = end.t - t0;
         if !(g1.is_finite() && g1.to_f64() > 0.0) {
-            return Err(Error::InvalidDensity { state: *start, value: g1.to_f64() });
+            return Err(Unplaced::new(|state| Error::InvalidDensity { state, value: g1.to_f64() }));
         }
         if let Some(floor) = floor {
             // NaN fails too.
             let margin = (dt - floor).to_f64();
             if margin.is_nan() || margin < 0.0 {
-                return Err(Error::TimeStepCollapsed { state: *start, dt: dt.to_f64(), floor: floor.to_f64() });
+                return Err(Unplaced::new(|state| Error::TimeStepCollapsed {
+                    state,
+                    dt: dt.to_f64(),
+                    floor: floor.to_f64(),
+                }));
             }
         }
         let guess: [T; N] = core::array::from_fn(|i| (end.q[i] - start.q[i]) / dt);
@@ -399,7 +414,7 @@ where
             // NaN fails too.
             let factor = r1 / r0;
             if !(0.5..=2.0).contains(&factor) {
-                return Err(Error::OrbitLost { state: *start, factor });
+                return Err(Unplaced::new(|state| Error::OrbitLost { state, factor }));
             }
         }
         Ok((end, dt, rate))
@@ -444,7 +459,7 @@ where
     }
 
     /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -459,10 +474,10 @@ where
     /// `t = t_end` exactly (the coordinate `t` of the state in `s` keeps that
     /// last unit). The step `σ` is unchanged afterwards. A target equal to
     /// the current time is a no-op.
-    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         let now = self.state();
         if !t_end.is_finite() || above(now.t, t_end) {
-            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: now });
+            return Err(Error::InvalidTarget { target: t_end.to_f64(), state: now.into() });
         }
         while above(t_end, self.state().t) {
             self.step_toward(t_end)?;
@@ -474,7 +489,7 @@ where
     /// One step of `σ` in `s`, or, when it would pass the physical time
     /// `t_end`, the partial step that ends on it (see
     /// [`run_until`](Self::run_until)); a no-op at or beyond `t_end`.
-    pub(crate) fn step_toward(&mut self, t_end: T) -> Result<(), Error<N, T>> {
+    pub(crate) fn step_toward(&mut self, t_end: T) -> Result<(), Error<T>> {
         let start = self.state();
         if !above(t_end, start.t) {
             return Ok(());
@@ -491,7 +506,7 @@ where
 
     /// The partial step in `s` from the current state that ends on `t_end`,
     /// given that the full step ends at `t_over > t_end`.
-    fn land(&mut self, t_end: T, t_over: T, start: &State<N, T>) -> Result<(), Error<N, T>> {
+    fn land(&mut self, t_end: T, t_over: T, start: &State<N, T>) -> Result<(), Error<T>> {
         let sigma = self.inner.s_step_size();
         let t0 = self.inner_time(&self.inner);
         let tol = 4.0 * T::EPSILON * t_end.to_f64().abs().max(t0.to_f64().abs()).max(f64::MIN_POSITIVE);

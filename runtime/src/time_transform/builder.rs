@@ -13,7 +13,7 @@ use crate::real::{Real, all_finite};
 use crate::state::State;
 use crate::system::{Lagrangian, Scalar};
 
-use super::adaptive::{Adaptive, physical};
+use super::adaptive::{Adaptive, physical_point};
 use super::density::StepDensity;
 use super::extended::TimeTransformed;
 use super::stepper::{Rule, SMethod, SStepper};
@@ -133,7 +133,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         t0: T,
         q0: [T; N],
         v0: [T; N],
-    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, Error<N, T>>
+    ) -> Result<Adaptive<K::Stepper, Sys, G, N, M, T>, Error<T>>
     where
         K: SMethod<Sys, G, N, M, T>,
         Dim<N>: ExtendedSize<M>,
@@ -153,7 +153,7 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         let state = State { step: 0, t: t0, q: q0, p: [T::from(f64::NAN); N] };
         let g0 = self.system.density(t0, &q0);
         if !(g0.is_finite() && g0.to_f64() > 0.0) {
-            return Err(Error::InvalidDensity { state, value: g0.to_f64() });
+            return Err(Error::InvalidDensity { state: state.into(), value: g0.to_f64() });
         }
         // The constant c is part of the method, not of the state: f64 in every type.
         let sys = &*self.system.system;
@@ -180,10 +180,8 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         }
         x0[N] = t0;
         w0[N] = g0;
-        let inner = self
-            .method
-            .start_s(system, self.sigma, self.newton, x0, w0)
-            .map_err(|e| e.map_state(|x| physical::<T, N, M>(&x)))?;
+        let inner =
+            self.method.start_s(system, self.sigma, self.newton, x0, w0).map_err(|e| e.map_state(physical_point))?;
         let mut adaptive =
             Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None, rate: None };
         adaptive.rate = adaptive.rate_at(&adaptive.inner.extended_state(), v0);

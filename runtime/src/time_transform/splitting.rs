@@ -291,7 +291,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitTimeTransformed<Sys, N
     /// that is not finite or at a singularity of `L` (`V(t0, q0)` or `M` not
     /// finite); with [`Error::TimeFunctionArgument`] a shift that makes
     /// `c − V(t0, q0)` not positive.
-    pub fn start(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<ExplicitAdaptive<Sys, T, N>, Error<N, T>> {
+    pub fn start(self, t0: T, q0: [T; N], v0: [T; N]) -> Result<ExplicitAdaptive<Sys, T, N>, Error<T>> {
         if Sys::CONSTRAINTS != 0 {
             return Err(Error::Unsupported { what: "time transformation of a system with holonomic constraints" });
         }
@@ -347,7 +347,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitTimeTransformed<Sys, N
         let state = phase.physical(0);
         let x = shift - v;
         if !(x.is_finite() && x.re() > 0.0) {
-            return Err(Error::TimeFunctionArgument { state, which: Argument::Potential, value: x.re() });
+            return Err(Error::TimeFunctionArgument { state: state.into(), which: Argument::Potential, value: x.re() });
         }
         let g0 = self.function.derivative(x);
         let clocks = ClockBounds::new(alpha, kinetic + phase.p_t + shift, x);
@@ -783,7 +783,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
 
     /// Sets the step in `s` for the following steps; refused unless finite
     /// and positive.
-    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<N, T>> {
+    pub fn set_step_size(&mut self, sigma: T) -> Result<(), Error<T>> {
         if !(sigma.is_finite() && sigma.re() > 0.0) {
             return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
@@ -854,7 +854,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// ([`Error::OrbitLost`]), and where the step advances time by
     /// less than [`min_time_step`](Self::min_time_step) or would move the
     /// reported time back.
-    pub fn step(&mut self) -> Result<State<N, T>, Error<N, T>> {
+    pub fn step(&mut self) -> Result<State<N, T>, Error<T>> {
         let (phase, cached, evaluations) = self.advance(self.sigma)?;
         self.stats.gradient_evaluations += evaluations;
         self.commit(phase, cached, self.sigma)?;
@@ -866,7 +866,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// (its Jacobian is symplectic). Errors as in [`step`](Self::step),
     /// except the floor on the time step; the lost-orbit check compares the
     /// end with `point` itself (its ratio of the arguments of `f'`).
-    pub fn map(&self, point: ExtendedPoint<T, N>) -> Result<ExtendedPoint<T, N>, Error<N, T>> {
+    pub fn map(&self, point: ExtendedPoint<T, N>) -> Result<ExtendedPoint<T, N>, Error<T>> {
         let phase = Phase { t: point.t, t_carry: T::zero(), q: point.q, p: point.p, p_t: point.p_t };
         let a = kinetic_energy(&self.inverse_mass, &point.p).0 + point.p_t + self.shift;
         let b = self.shift - potential(&self.system, point.t, point.q);
@@ -877,7 +877,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
 
     /// Accepts a computed step of size `h` in `s`: checks the time it
     /// advanced and updates the readouts.
-    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>, h: T) -> Result<(), Error<N, T>> {
+    fn commit(&mut self, phase: Phase<T, N>, cached: Option<Gradient<T, N>>, h: T) -> Result<(), Error<T>> {
         let dt = (phase.t - self.phase.t) - (phase.t_carry - self.phase.t_carry);
         // The compensated time advances by `dt`, but its leading part can
         // round below the time last published (a node's, or a landed
@@ -887,7 +887,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         let published = (phase.t - self.state().t).re();
         if dt.re().is_nan() || dt.re() < self.floor.re() || published < 0.0 {
             return Err(Error::TimeStepCollapsed {
-                state: self.state(),
+                state: self.state().into(),
                 dt: dt.re().min(published),
                 floor: self.floor.re(),
             });
@@ -907,7 +907,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// computed. Its errors carry [`state`](Self::state), which after a
     /// landing has the target time rather than that of the phase.
     #[inline]
-    fn advance(&self, h: T) -> Result<Stepped<T, N>, Error<N, T>> {
+    fn advance(&self, h: T) -> Result<Stepped<T, N>, Error<T>> {
         self.advance_with(self.phase, self.cached, h, &self.clocks, || self.state())
     }
 
@@ -921,10 +921,12 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         h: T,
         clocks: &ClockBounds,
         origin: impl Fn() -> State<N, T>,
-    ) -> Result<Stepped<T, N>, Error<N, T>> {
+    ) -> Result<Stepped<T, N>, Error<T>> {
         let fail = |fault: Fault<T>| match fault {
-            Fault::Argument(which, value) => Error::TimeFunctionArgument { state: origin(), which, value: value.re() },
-            Fault::Clocks(factor) => Error::OrbitLost { state: origin(), factor },
+            Fault::Argument(which, value) => {
+                Error::TimeFunctionArgument { state: origin().into(), which, value: value.re() }
+            }
+            Fault::Clocks(factor) => Error::OrbitLost { state: origin().into(), factor },
         };
         let mut evaluations = 0u64;
         stages(self.form, self.weights, |flow, fraction| match flow {
@@ -933,7 +935,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
         })
         .map_err(fail)?;
         if !phase.t.is_finite() || !all_finite(&phase.q) || !all_finite(&phase.p) || !phase.p_t.is_finite() {
-            return Err(Error::NonFinite { state: origin(), h: h.to_f64(), iterations: 0, quantity: "state" });
+            return Err(Error::NonFinite { state: origin().into(), h: h.to_f64(), iterations: 0, quantity: "state" });
         }
         // The end node's arguments of f' (the potential from the last
         // kick's gradient for kick–drift–kick, evaluated for drift–kick–drift).
@@ -1000,7 +1002,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     }
 
     /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         for _ in 0..n {
             self.step()?;
             observe(self);
@@ -1014,10 +1016,10 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// to within a few units of `T`'s precision; the state then reports
     /// `t = t_end` exactly. `σ` is unchanged afterwards. A target equal to
     /// the current time is a no-op.
-    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<N, T>> {
+    pub fn run_until(&mut self, t_end: T, mut observe: impl FnMut(&Self)) -> Result<(), Error<T>> {
         let now = self.state();
         if !t_end.is_finite() || (t_end - now.t).re() < 0.0 {
-            return Err(Error::InvalidTarget { target: t_end.re(), state: now });
+            return Err(Error::InvalidTarget { target: t_end.re(), state: now.into() });
         }
         while (self.state().t - t_end).re() < 0.0 {
             self.step_toward(t_end)?;
@@ -1029,7 +1031,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
     /// One step of `σ` in `s`, or, when it would pass `t_end`, the partial
     /// step that ends on it (see [`run_until`](Self::run_until)); a no-op at
     /// or beyond `t_end`.
-    pub(crate) fn step_toward(&mut self, target: T) -> Result<(), Error<N, T>> {
+    pub(crate) fn step_toward(&mut self, target: T) -> Result<(), Error<T>> {
         if (self.state().t - target).re() >= 0.0 {
             return Ok(());
         }
@@ -1072,7 +1074,7 @@ impl<Sys: Lagrangian<N>, T: Real, const N: usize> ExplicitAdaptive<Sys, T, N> {
 
     /// The partial step that ends on `target`, given that the full step
     /// ends at `t_over > target`.
-    fn land(&mut self, target: T, t_over: T) -> Result<(), Error<N, T>> {
+    fn land(&mut self, target: T, t_over: T) -> Result<(), Error<T>> {
         let t0 = self.phase.t;
         let scale = target.re().abs().max(t0.re().abs()).max(f64::MIN_POSITIVE);
         let tol = 4.0 * T::EPSILON * scale;

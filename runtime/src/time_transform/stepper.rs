@@ -28,9 +28,9 @@ pub trait SStepper<const M: usize, T: Real = f64>: Clone {
     /// The step in `s`.
     fn s_step_size(&self) -> T;
     /// Sets the step in `s`.
-    fn set_s_step_size(&mut self, sigma: T) -> Result<(), Error<M, T>>;
+    fn set_s_step_size(&mut self, sigma: T) -> Result<(), Error<T>>;
     /// One step in `s`; on failure nothing changes.
-    fn s_step(&mut self) -> Result<(), Error<M, T>>;
+    fn s_step(&mut self) -> Result<(), Error<T>>;
     /// Work counters of the integrator in `s`.
     fn s_stats(&self) -> Stats;
     /// The tangent map of the last step in `(q, t, p, p_t)`; `None` in a
@@ -54,10 +54,10 @@ where
     fn s_step_size(&self) -> f64 {
         self.step_size()
     }
-    fn set_s_step_size(&mut self, sigma: f64) -> Result<(), Error<M>> {
+    fn set_s_step_size(&mut self, sigma: f64) -> Result<(), Error> {
         self.set_step_size(sigma)
     }
-    fn s_step(&mut self) -> Result<(), Error<M>> {
+    fn s_step(&mut self) -> Result<(), Error> {
         self.step().map(|_| ())
     }
     fn s_stats(&self) -> Stats {
@@ -85,10 +85,10 @@ where
     fn s_step_size(&self) -> DoubleDouble {
         self.step_size()
     }
-    fn set_s_step_size(&mut self, sigma: DoubleDouble) -> Result<(), Error<M, DoubleDouble>> {
+    fn set_s_step_size(&mut self, sigma: DoubleDouble) -> Result<(), Error<DoubleDouble>> {
         self.set_step_size(sigma)
     }
-    fn s_step(&mut self) -> Result<(), Error<M, DoubleDouble>> {
+    fn s_step(&mut self) -> Result<(), Error<DoubleDouble>> {
         self.step().map(|_| ())
     }
     fn s_stats(&self) -> Stats {
@@ -116,7 +116,7 @@ pub trait SMethod<Sys, G, const N: usize, const M: usize, T: Real = f64> {
         newton: NewtonOptions,
         x0: [T; M],
         w0: [T; M],
-    ) -> Result<Self::Stepper, Error<M, T>>;
+    ) -> Result<Self::Stepper, Error<T>>;
 }
 
 impl<Sys, G, Mth, T, const N: usize, const M: usize> SMethod<Sys, G, N, M, T> for Rule<Mth>
@@ -135,7 +135,7 @@ where
         newton: NewtonOptions,
         x0: [T; M],
         w0: [T; M],
-    ) -> Result<Self::Stepper, Error<M, T>> {
+    ) -> Result<Self::Stepper, Error<T>> {
         Integrator::new(system, self.0, sigma).newton(newton).start(T::zero(), x0, w0)
     }
 }
@@ -156,7 +156,7 @@ where
         newton: NewtonOptions,
         x0: [T; M],
         w0: [T; M],
-    ) -> Result<Self::Stepper, Error<M, T>> {
+    ) -> Result<Self::Stepper, Error<T>> {
         GalerkinIntegrator::new(system, self, sigma).newton(newton).start(T::zero(), x0, w0)
     }
 }

@@ -151,7 +151,7 @@ fn a_fixed_family_is_kept() {
     assert!(end_error(&solved.solution.q, [10f64.cos()]) < 1e-5);
 }
 
-fn refusal<const N: usize>(r: Result<impl Sized, SolveError<N>>) -> Error<N> {
+fn refusal(r: Result<impl Sized, SolveError>) -> Error {
     match r {
         Err(SolveError::Step(e)) => e,
         Err(e) => panic!("not a step error: {e}"),

@@ -312,7 +312,7 @@ fn stops_before_the_undefined_lagrangian<S: Lagrangian<1>, M: lagrangian_runtime
     mut sim: Integrator<S, M, 1>,
     defined: impl Fn(f64) -> bool,
     name: &str,
-) -> Error<1> {
+) -> Error {
     let mut last = *sim.state();
     let err = loop {
         let before = *sim.state();

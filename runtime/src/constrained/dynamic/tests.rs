@@ -149,24 +149,24 @@ fn bad_input_is_a_typed_error_with_the_state_kept() {
     // start.
     let redundant = Chain { redundant: true, ..Chain::new(6) };
     let r = DynConstrained::start(redundant, Midpoint, 0.01, 0.0, &q0, &zero);
-    assert!(matches!(r, Err(DynError::SingularConstraints { rcond, .. }) if rcond < 1e-13), "{r:?}");
+    assert!(matches!(r, Err(Error::SingularConstraints { rcond, .. }) if rcond < 1e-13), "{r:?}");
     // Inconsistent data.
     let mut off = q0.clone();
     off[3] += 0.1;
     let r = DynConstrained::start(Chain::new(6), Midpoint, 0.01, 0.0, &off, &zero);
-    assert!(matches!(r, Err(DynError::InconsistentConstraints { position, .. }) if position > 1e-3), "{r:?}");
+    assert!(matches!(r, Err(Error::InconsistentConstraints { position, .. }) if position > 1e-3), "{r:?}");
     // Newton failure: state kept.
     let options = NewtonOptions { max_iterations: 1, ..NewtonOptions::default() };
     let mut sim = DynConstrained::start_with(Chain::new(6), Midpoint, 0.1, options, 0.0, &q0, &zero).unwrap();
     let before = sim.state().clone();
     let r = sim.step();
-    assert!(matches!(r, Err(DynError::NewtonDidNotConverge { .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::NewtonDidNotConverge { .. })), "{r:?}");
     assert_eq!(sim.state(), &before);
     assert_eq!(sim.stats().failed_steps, 1);
     // NaN constraints above y = −0.5, reached by a joint thrown upwards.
     let nan = Chain { nan_above: -0.5, ..Chain::new(1) };
     let r = DynConstrained::start(nan.clone(), Midpoint, 0.05, 0.0, &[0.0, 1.0], &[1.0, 0.0]);
-    assert!(matches!(r, Err(DynError::NonFiniteConstraints { .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::NonFiniteConstraints { .. })), "{r:?}");
     let mut sim = DynConstrained::start(
         Chain { links: 2, count: 2, ..nan },
         Midpoint,
@@ -186,14 +186,14 @@ fn bad_input_is_a_typed_error_with_the_state_kept() {
             }
         }
     };
-    assert!(matches!(error, DynError::NonFiniteConstraints { .. }), "{error:?}");
+    assert!(matches!(error, Error::NonFiniteConstraints { .. }), "{error:?}");
     // M = 0 or M ≥ N, and the unconstrained integrator: refused.
     for count in [0, 12] {
         let r = DynConstrained::start(Chain { count, ..Chain::new(6) }, Midpoint, 0.01, 0.0, &q0, &zero);
-        assert!(matches!(r, Err(DynError::Unsupported { .. })), "M = {count}: {r:?}");
+        assert!(matches!(r, Err(Error::Unsupported { .. })), "M = {count}: {r:?}");
     }
     let r = crate::DynIntegrator::new(Chain::new(6), Midpoint, 0.01).start(0.0, &q0, &zero);
-    assert!(matches!(r, Err(DynError::Unsupported { .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::Unsupported { .. })), "{r:?}");
 }
 
 /// `LINKS` links, `STEPS` steps (environment variables; 1000 and 10 by
