@@ -2088,7 +2088,12 @@ fn adjoint_name(id: LocalId, version: usize) -> proc_macro2::Ident {
 
 /// `for var in start..end { … }` as chunks of [`PARTIAL_SUMS`] iterations,
 /// the `k`-th of a chunk running `lanes[k]` with `var` bound to its index,
-/// then the iterations left over, each running `rest`.
+/// then the iterations left over, each running `rest`. A chunk runs while
+/// `end − base ≥ 4`: the compiler reads that condition and drops the bounds
+/// checks of `q[i + 1]` in the chunk at a run-time size `end = q.len() − 1`,
+/// which it could not from a count of chunks `(end − start) / 4` (the FPU-β
+/// chain's force at `N = 1000`, on slices: 23 800 instructions with the
+/// checks, 13 600 without, as many as on arrays).
 fn chunked_loop(
     var: &TokenStream,
     (start, end): (&TokenStream, &TokenStream),
@@ -2107,12 +2112,12 @@ fn chunked_loop(
     let width = proc_macro2::Literal::usize_unsuffixed(PARTIAL_SUMS);
     quote! {
         let (__start, __end) = (#start, #end);
-        let __chunks = if __start < __end { (__end - __start) / #width } else { 0 };
-        for __chunk in 0..__chunks {
-            let __base = __start + __chunk * #width;
+        let mut __base = __start;
+        while __base < __end && __end - __base >= #width {
             #(#lanes)*
+            __base += #width;
         }
-        for #var in __start + __chunks * #width..__end {
+        for #var in __base..__end {
             #rest
         }
     }
@@ -2286,11 +2291,11 @@ mod tests {
         // The kinetic forward loop and the fused reverse loop: chunks of
         // four, then the rest; `s` forward and reverse, the inclusive range
         // forward and reverse.
-        assert_eq!(out.matches("for __chunk in").count(), 2, "{out}");
-        assert_eq!(out.matches("for ").count(), 2 * 2 + 2 + 2, "{out}");
+        assert_eq!(out.matches("while __base < __end && __end - __base >= 4").count(), 2, "{out}");
+        assert_eq!(out.matches("for ").count(), 2 + 2 + 2, "{out}");
         // The value form of the same body clears `out` and sums in order.
         let value = value_gradient_q(&system.lagrangian).unwrap().to_string();
-        assert!(value.contains("iter_mut") && !value.contains("__chunk"), "{value}");
+        assert!(value.contains("iter_mut") && !value.contains("__base"), "{value}");
     }
 
     #[test]

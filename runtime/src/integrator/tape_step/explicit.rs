@@ -9,7 +9,7 @@ use super::{
 };
 use crate::banded::{LinearSolveError, StepSolver};
 use crate::newton::{NewtonFailure, NewtonReport};
-use crate::real::{fold_max_abs, is_non_finite, kahan_add as kahan, nan_bits};
+use crate::real::{is_non_finite, kahan_add as kahan, nan_bits};
 
 impl SparseWork {
     /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
@@ -101,7 +101,9 @@ impl SparseWork {
     ///
     /// then `Δp ← Δp + h_m/2 · f_{m+1}` and `q_{k+1}`, `p_{k+1}` as Kahan
     /// sums of `Δq`, `Δp` with the node's compensations. The growth check
-    /// compares `Δq` with the last (composed) step's increment. Returns the
+    /// compares `Δq` with the last (composed) step's increment, its early
+    /// bound decided in the last pass as in
+    /// [`verlet_into`](Self::verlet_into). Returns the
     /// composed step and its last sub-step `(t, h_m, q, δq_m)` (the readouts'
     /// segment); keeps the node force of `node` on failure, and on success
     /// the end node's force for the next step.
@@ -260,10 +262,14 @@ impl SparseWork {
             }
             half = 0.5 * hi;
         }
-        let (mut q_bad, mut p_bad) = (0, 0);
+        let (mut q_bad, mut p_bad, mut beyond) = (0, 0, 0);
+        // The growth check's early bound, decided in the last pass (see
+        // `verlet_into`).
+        let bound = self.growth_bound(growth, q0);
         if plain {
             for j in 0..n {
                 dq[j] = q[j] - q0[j];
+                beyond |= beyond_bits(bound, dq[j]);
                 q_bad |= nan_bits(q[j]);
                 p[j] += half * f[j];
                 p_bad |= nan_bits(p[j]);
@@ -272,6 +278,7 @@ impl SparseWork {
             let (qc0, pc0) = (&node.q_carry[..n], &node.p_carry[..n]);
             let (qc1, pc1) = (&mut out.q_carry[..n], &mut out.p_carry[..n]);
             for j in 0..n {
+                beyond |= beyond_bits(bound, dq[j]);
                 // `q` holds `q_k + (c_q + Δq)`: the Kahan sum's new value.
                 qc1[j] = (qc0[j] + dq[j]) - (q[j] - q0[j]);
                 q_bad |= nan_bits(q[j]);
@@ -282,7 +289,9 @@ impl SparseWork {
                 p_bad |= nan_bits(sum);
             }
         }
-        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
+        if beyond_bound(beyond) {
+            self.growth_check_at(growth, &out.dq, node.q)?;
+        }
         let quantity =
             crate::integrator::first_non_finite(!is_non_finite(q_bad), !is_non_finite(p_bad), t1.is_finite())
                 .or_else(|| (!end_finite).then_some("lagrangian"));
@@ -332,8 +341,11 @@ impl SparseWork {
     /// the drift in one pass when `M` is diagonal, the other half kick in
     /// one more, each with its Kahan sum. The finiteness checks are ORs of
     /// [`nan_bits`] in those passes (branch-free, so the passes vectorise);
-    /// which value failed is found again only on failure. The maxima of the
-    /// growth check take one more pass over `Δq` and `q_k`.
+    /// which value failed is found again only on failure. The drift pass
+    /// also compares every `|Δq_i|` with the growth check's early bound at a
+    /// lower bound of `max|q_k|` ([`growth_bound`](Self::growth_bound)):
+    /// only an increment beyond it takes the passes over `Δq` and `q_k` of
+    /// the maxima.
     ///
     /// `PLAIN` ([`Summation::Plain`](crate::Summation::Plain)): the
     /// compensations are neither read nor written, the sums rounded once.
@@ -368,7 +380,11 @@ impl SparseWork {
                 mass.assembled.solve(dq).map_err(|e| breakdown(e).at(0))?;
             }
         }
-        let q_bad = drift_pass::<PLAIN>((h, half), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1), &mut f1[..n]);
+        // The growth check's early bound, decided in the drift pass against
+        // a lower bound of `max|q_k|` (see `SparseWork::growth_bound`).
+        let bound = self.growth_bound(growth, q0);
+        let (q_bad, beyond) =
+            drift_pass::<PLAIN>((h, half, bound), [p0, f0, pc0], velocity, (q0, qc0), (dq, q1, qc1), &mut f1[..n]);
         if is_non_finite(q_bad) && !matches!(velocity, Velocity::Solved) {
             // What the banded solve's checks would refuse, as it would
             // (found again only on failure).
@@ -385,7 +401,9 @@ impl SparseWork {
                 return Err(breakdown(LinearSolveError::NonFinite { quantity }).at(0));
             }
         }
-        self.growth_check(growth, &out.dq, node.q, fold_max_abs(&out.dq), fold_max_abs(node.q))?;
+        if beyond_bound(beyond) {
+            self.growth_check_at(growth, &out.dq, node.q)?;
+        }
         // `L` at the end node from the force's evaluation: finite there and
         // at the start node (checked by the step before, or at `start`), it
         // makes the trapezoid action finite, whose derivatives can be finite
@@ -462,23 +480,45 @@ impl Mass {
 /// `qc0`; `cleared` (the buffer the end node's force is added to) set to
 /// zero on the way: as a pass of its own, a `memset` of 8 kB at `N = 1000`,
 /// it counted 8 000 instructions per step under callgrind, a store per
-/// two entries here. Returns the OR of the [`nan_bits`] of `q_{k+1}`.
-/// `PLAIN` ([`Summation::Plain`](crate::Summation::Plain)): `c_p`, `qc0`
-/// are not read, `qc1` not written, and `q_{k+1} = q_k + Δq` is rounded once.
+/// two entries here. Returns the OR of the [`nan_bits`] of `q_{k+1}`, and
+/// the OR of the bits of `bound − |Δq_i|`, whose sign bit
+/// ([`beyond_bound`]) is set where some `|Δq_i|` exceeds `bound` (an OR of
+/// bits vectorises where a running maximum, a compare and select on
+/// floats, does not; as two passes of their own the maxima counted 5 300
+/// instructions per step at `N = 1000`). `PLAIN`
+/// ([`Summation::Plain`](crate::Summation::Plain)): `c_p`, `qc0` are not
+/// read, `qc1` not written, and `q_{k+1} = q_k + Δq` is rounded once.
 #[inline(always)]
 pub(super) fn drift_pass<const PLAIN: bool>(
-    (h, half): (f64, f64),
+    (h, half, bound): (f64, f64, f64),
     momentum: [&[f64]; 3],
     velocity: Velocity<'_>,
     (q0, qc0): (&[f64], &[f64]),
     (dq, q1, qc1): (&mut [f64], &mut [f64], &mut [f64]),
     cleared: &mut [f64],
-) -> u64 {
+) -> (u64, u64) {
+    let step = (h, half, bound);
     match velocity {
-        Velocity::Unit => drift_loop::<0, PLAIN>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1), cleared),
-        Velocity::Diagonal(d) => drift_loop::<1, PLAIN>((h, half), momentum, d, (q0, qc0), (dq, q1, qc1), cleared),
-        Velocity::Solved => drift_loop::<2, PLAIN>((h, half), momentum, &[], (q0, qc0), (dq, q1, qc1), cleared),
+        Velocity::Unit => drift_loop::<0, PLAIN>(step, momentum, &[], (q0, qc0), (dq, q1, qc1), cleared),
+        Velocity::Diagonal(d) => drift_loop::<1, PLAIN>(step, momentum, d, (q0, qc0), (dq, q1, qc1), cleared),
+        Velocity::Solved => drift_loop::<2, PLAIN>(step, momentum, &[], (q0, qc0), (dq, q1, qc1), cleared),
     }
+}
+
+/// Whether the OR of the bits of `bound − |Δq_i|` that [`drift_pass`]
+/// returns has its sign bit: some `|Δq_i| > bound` (or a NaN with its sign
+/// bit, which the full check then decides). `bound − |x|` is negative
+/// exactly when `|x| > bound` (a difference of finite numbers is zero only
+/// between equal ones, `+0` then).
+#[inline(always)]
+pub(super) fn beyond_bound(bits: u64) -> bool {
+    bits >> 63 != 0
+}
+
+/// The bits of `bound − |x|`, OR-ed over an increment for [`beyond_bound`].
+#[inline(always)]
+pub(super) fn beyond_bits(bound: f64, x: f64) -> u64 {
+    (bound - x.abs()).to_bits()
 }
 
 /// How the drift's velocity comes from its momentum `(p_k + (h/2) f_k) + c_p`.
@@ -498,19 +538,19 @@ pub(super) enum Velocity<'a> {
 /// vectorises.
 #[inline(always)]
 pub(super) fn drift_loop<const KIND: u8, const PLAIN: bool>(
-    (h, half): (f64, f64),
+    (h, half, bound): (f64, f64, f64),
     [p0, f0, pc0]: [&[f64]; 3],
     d: &[f64],
     (q0, qc0): (&[f64], &[f64]),
     (dq, q1, qc1): (&mut [f64], &mut [f64], &mut [f64]),
     cleared: &mut [f64],
-) -> u64 {
+) -> (u64, u64) {
     let n = q0.len();
     // One length for every slice, so that the loop has no bounds checks.
     let d = if KIND == 1 { &d[..n] } else { q0 };
     let (p0, f0, pc0, qc0) = (&p0[..n], &f0[..n], &pc0[..n], &qc0[..n]);
     let (dq, q1, qc1, cleared) = (&mut dq[..n], &mut q1[..n], &mut qc1[..n], &mut cleared[..n]);
-    let mut bad = 0;
+    let (mut bad, mut beyond) = (0, 0);
     for i in 0..n {
         cleared[i] = 0.0;
         // The momentum `(p_k + (h/2) f_k) + c_p`.
@@ -531,6 +571,7 @@ pub(super) fn drift_loop<const KIND: u8, const PLAIN: bool>(
         };
         q1[i] = sum;
         bad |= nan_bits(sum);
+        beyond |= beyond_bits(bound, x);
     }
-    bad
+    (bad, beyond)
 }

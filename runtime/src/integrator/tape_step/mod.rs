@@ -31,6 +31,7 @@ use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::hyperdual::DualArray;
 use crate::newton::{Breakdown, NewtonFailure, NewtonReport};
+use crate::real::fold_max_abs;
 use crate::structure::{Coupling, Pattern};
 use crate::system::Scalar;
 use crate::tape::{Seeds, Tape, TapeError, Var};
@@ -430,6 +431,11 @@ pub(crate) struct SparseWork {
     /// [`carries`](Self::carries) as [`save_carries`](Self::save_carries)
     /// found them, for a composed step to restore on failure.
     saved_carries: Option<[Vec<f64>; 2]>,
+    /// The coordinate of the largest `|q|` when the growth check last took
+    /// the maxima: its `|q_k|` is the lower bound of `max|q_k|` of
+    /// [`growth_bound`](Self::growth_bound) (a hint: any coordinate gives a
+    /// bound that decides the same verdict).
+    growth_index: usize,
 }
 
 /// How many spare buffers [`SparseWork`] keeps: a step takes at most eight,
@@ -456,6 +462,7 @@ impl Clone for SparseWork {
             directional: Directional::default(),
             carries: self.carries.clone(),
             saved_carries: self.saved_carries.clone(),
+            growth_index: self.growth_index,
         }
     }
 }
@@ -487,6 +494,7 @@ impl SparseWork {
             directional: Directional::default(),
             carries: [zeroed(Some(n), n)?, zeroed(Some(n), n)?],
             saved_carries: None,
+            growth_index: 0,
         })
     }
 
@@ -580,6 +588,38 @@ impl SparseWork {
         Taken { dq, q1, q_carry, p1, p_carry, report }
     }
 
+    /// The growth check's early bound `1e6·(1e-6·|q_j|)` at the coordinate
+    /// `j` of the largest `|q|` when the maxima were last taken (`+∞` when
+    /// there is no last increment and nothing is checked): rounding is
+    /// monotone and `|q_j| ≤ max|q|`, so an increment whose every `|Δq_i|`
+    /// is at most this bound passes [`growth_check`](Self::growth_check)'s
+    /// early bound, and the maxima are taken
+    /// ([`growth_check_at`](Self::growth_check_at)) only for one beyond it.
+    /// A NaN bound is `−∞`, beyond which every increment is.
+    fn growth_bound(&self, growth: &Growth<'_>, q: &[f64]) -> f64 {
+        if growth.last.is_none() {
+            return f64::INFINITY;
+        }
+        let bound = q.get(self.growth_index).map_or(0.0, |x| 1e6 * (1e-6 * x.abs()));
+        if bound.is_nan() { f64::NEG_INFINITY } else { bound }
+    }
+
+    /// [`growth_check`](Self::growth_check) of the increment `dq` from `q`
+    /// with the maxima taken here, keeping the coordinate of the largest
+    /// `|q|` for the next [`growth_bound`](Self::growth_bound).
+    fn growth_check_at(&mut self, growth: &Growth<'_>, dq: &[f64], q: &[f64]) -> Result<(), NewtonFailure> {
+        // The first largest `|q_i|`, NaN ignored: the maximum
+        // `fold_max_abs` returns.
+        let (mut index, mut q_max) = (0, 0.0);
+        for (i, x) in q.iter().enumerate() {
+            if x.abs() > q_max {
+                (index, q_max) = (i, x.abs());
+            }
+        }
+        self.growth_index = index;
+        self.growth_check(growth, dq, q, fold_max_abs(dq), q_max)
+    }
+
     /// [`implausible_growth`] of the increment `dq` from `q`, whose largest
     /// magnitudes are `dq_max` and `q_max`. Rounding is monotone, so the
     /// check's threshold `1e6·max(scale, 1e-6·max|q|)` is at least
@@ -662,5 +702,58 @@ mod tests {
         }
         // Both verdicts occur, so the comparison tested something.
         assert!(rejected > 100 && passed > 100, "{rejected} rejected, {passed} passed");
+    }
+
+    /// An increment the drift pass finds within the bound at any
+    /// coordinate's `|q|` passes the early bound of the full check, so that
+    /// skipping the maxima never changes a verdict; and the full check with
+    /// the maxima taken agrees with `implausible_growth`.
+    #[test]
+    fn an_increment_within_the_drift_bound_passes_the_growth_check() {
+        use explicit::{beyond_bits, beyond_bound};
+        let n = 5;
+        let mut work = SparseWork::new(n, Coupling::GENERAL).unwrap();
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (mut within, mut beyond) = (0, 0);
+        for case in 0..4000 {
+            let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
+            let mut q: Vec<f64> = (0..n).map(|_| scale * next()).collect();
+            if case % 7 == 0 {
+                q[case % n] = f64::NAN;
+            }
+            let last: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let predicted: Vec<f64> = (0..n).map(|_| 1e-6 * next()).collect();
+            let size = scale * 10f64.powf(2.0 * next());
+            let mut dq: Vec<f64> = (0..n).map(|_| size * next()).collect();
+            if case % 11 == 0 {
+                dq[case % n] = [f64::NAN, f64::INFINITY, -0.0][case % 3];
+            }
+            let factor = 1.0 + next();
+            let scaled: Vec<f64> = last.iter().map(|x| x * factor).collect();
+            let predict = |out: &mut [f64]| out.copy_from_slice(&predicted);
+            let growth = Growth { last: Some((&last, factor)), predict: &predict };
+            work.growth_index = case % n;
+            let bound = work.growth_bound(&growth, &q);
+            let bits = dq.iter().fold(0, |bits, &x| bits | beyond_bits(bound, x));
+            if beyond_bound(bits) {
+                beyond += 1;
+                let full = work.growth_check_at(&growth, &dq, &q).is_err();
+                assert_eq!(full, implausible_growth(&dq, &predicted, &scaled, &q), "case {case}");
+                assert!(q[work.growth_index].is_nan() || q[work.growth_index].abs() == max_abs(&q), "case {case}");
+            } else {
+                within += 1;
+                assert!(max_abs(&dq) <= 1e6 * (1e-6 * max_abs(&q)), "case {case}");
+                assert!(work.growth_check(&growth, &dq, &q, max_abs(&dq), max_abs(&q)).is_ok(), "case {case}");
+            }
+            let first = Growth { last: None, predict: &predict };
+            assert!(work.growth_check_at(&first, &dq, &q).is_ok(), "case {case}");
+        }
+        assert!(within > 100 && beyond > 100, "{within} within, {beyond} beyond");
     }
 }
