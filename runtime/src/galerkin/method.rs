@@ -488,6 +488,28 @@ where
     (l.re, l.eps.a, l.eps.b)
 }
 
+/// `(L, L_q, L_v)` at one point where `L` is read only for its finiteness
+/// (the checks of a step's action): in `f64` with the adjoint code
+/// `#[lagrangian]` wrote, the value comes from that code's own forward
+/// sweep, where [`point_gradient`] calls `L` again and repeats its
+/// transcendental calls (the double pendulum's three cosines). The value
+/// may differ from `L`'s in the last bits (the sweep's order of
+/// operations), never in finiteness but at overflow.
+#[inline(always)]
+pub(crate) fn value_gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> (T, [T; N], [T; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
+        let (mut lq, mut lv) = ([0.0; N], [0.0; N]);
+        let (qf, vf) = (q.map(|x| x.to_f64()), v.map(|x| x.to_f64()));
+        let l = system.value_gradient_qv_scalar(t.to_f64(), &qf, &vf, &mut lq, &mut lv);
+        return (T::from(l), lq.map(T::from), lv.map(T::from));
+    }
+    point_gradient(system, t, q, v)
+}
+
 /// `(L_q, L_v)` at one point (see [`point_gradient`]).
 #[inline(always)]
 pub(crate) fn gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [T; N])
