@@ -197,3 +197,25 @@ where
     }
     dv
 }
+
+/// `∂F_i/∂q_k` of the generalised force `F = Q − ∂R/∂v` at one point: `N`
+/// evaluations on duals over `T` (the second-order term of the fixed-point
+/// iteration's coupled matrix).
+#[inline]
+pub(super) fn force_position_jacobian<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> [[T; N]; N]
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    use num_dual::Dual;
+    let mut dq = [[T::zero(); N]; N];
+    for k in 0..N {
+        let mut qd = q.map(Dual::from_re);
+        qd[k].eps = T::one();
+        let y = generalized_force(system, Dual::from_re(t), qd, v.map(Dual::from_re));
+        for i in 0..N {
+            dq[i][k] = y[i].eps;
+        }
+    }
+    dq
+}

@@ -488,6 +488,54 @@ where
     (l.re, l.eps.a, l.eps.b)
 }
 
+/// `(L, L_q, L_v)` at one point where `L` is read only for its finiteness
+/// (the checks of a step's action): in `f64` with the adjoint code
+/// `#[lagrangian]` wrote, the value comes from that code's own forward
+/// sweep, where [`point_gradient`] calls `L` again and repeats its
+/// transcendental calls (the double pendulum's three cosines). The value
+/// may differ from `L`'s in the last bits (the sweep's order of
+/// operations), never in finiteness but at overflow.
+#[inline(always)]
+pub(crate) fn value_gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> (T, [T; N], [T; N])
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
+        let (mut lq, mut lv) = ([0.0; N], [0.0; N]);
+        let (qf, vf) = (q.map(|x| x.to_f64()), v.map(|x| x.to_f64()));
+        let l = system.value_gradient_qv_scalar(t.to_f64(), &qf, &vf, &mut lq, &mut lv);
+        return (T::from(l), lq.map(T::from), lv.map(T::from));
+    }
+    point_gradient(system, t, q, v)
+}
+
+/// `∂²L/∂q_i∂q_k` at one point, for the second-order term of the
+/// fixed-point iteration's coupled matrix: in `f64` with the adjoint code
+/// `#[lagrangian]` wrote, forward over reverse with one lane per position
+/// (as [`velocity_hessian`] has one per velocity); otherwise from the
+/// whole Hessian.
+#[inline(always)]
+pub(crate) fn position_hessian<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> [[T; N]; N]
+where
+    Sys: Lagrangian<N> + ?Sized,
+    T: Real,
+{
+    if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
+        type D<const N: usize> = DualArray<[f64; N]>;
+        let vd = v.map(|x| D::<N>::from_re(x.to_f64()));
+        let qd: [D<N>; N] = core::array::from_fn(|i| {
+            let mut x = D::<N>::from_re(q[i].to_f64());
+            x.eps[i] = 1.0;
+            x
+        });
+        let (mut lq, mut lv) = ([D::<N>::from_re(0.0); N], [D::<N>::from_re(0.0); N]);
+        system.gradient_qv_scalar(D::from_re(t.to_f64()), &qd, &vd, &mut lq, &mut lv);
+        return core::array::from_fn(|i| lq[i].eps.map(T::from));
+    }
+    PointDerivatives::at(system, t, q, v).qq
+}
+
 /// `(L_q, L_v)` at one point (see [`point_gradient`]).
 #[inline(always)]
 pub(crate) fn gradient_at<Sys, T, const N: usize>(system: &Sys, t: T, q: [T; N], v: [T; N]) -> ([T; N], [T; N])

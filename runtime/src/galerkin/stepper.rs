@@ -50,7 +50,9 @@ use nalgebra::SMatrix;
 use super::collocation;
 use super::forces::NoJacobian;
 use super::linalg::{BlockMatrix, BlockVector, Lu, LuFailure};
-use super::method::{Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient, velocity_derivatives};
+use super::method::{
+    Galerkin, PointDerivatives, StageIteration, gradient_at, point_gradient, value_gradient_at, velocity_derivatives,
+};
 
 /// The builder of a Galerkin integrator: [`IntegratorBuilder`] with a
 /// [`Galerkin`] rule.
@@ -700,13 +702,19 @@ where
         let mut dp = [T::zero(); N];
         let mut lagrangian_finite = true;
         for j in 0..R {
-            let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
-            let (l, lq) = match point_forces {
-                // The force is in them already; L itself is still evaluated
-                // at the point (its finiteness, below).
-                Some(forces) => (system.lagrangian(t, q, v), forces[j]),
+            // The derivatives can be finite where L is not (L = ln(1 − q)
+            // past q = 1 has a finite derivative on the wrong branch): the
+            // step is only valid where the action itself is.
+            let lq = match point_forces {
+                // The force is in them already; L itself is evaluated.
+                Some(forces) => {
+                    let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
+                    lagrangian_finite &= system.lagrangian(t, q, v).is_finite();
+                    forces[j]
+                }
                 None => {
-                    let (l, mut lq, _) = point_gradient(system, t, q, v);
+                    let (t, q, v) = g.point(t0, h, (&q0, &e), &d, j);
+                    let (l, mut lq, _) = value_gradient_at(system, t, q, v);
                     if Sys::HAS_FORCE || Sys::HAS_DISSIPATION {
                         // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on
                         // all s + 1 nodes sum to h Σ_j b_j F_j (the basis sums to one).
@@ -715,13 +723,10 @@ where
                             lq[i] += f[i];
                         }
                     }
-                    (l, lq)
+                    lagrangian_finite &= l.is_finite();
+                    lq
                 }
             };
-            // The derivatives can be finite where L is not (L = ln(1 − q)
-            // past q = 1 has a finite derivative on the wrong branch): the
-            // step is only valid where the action itself is.
-            lagrangian_finite &= l.is_finite();
             let w = g.quadrature().weights()[j] * h;
             for i in 0..N {
                 dp[i] += w * lq[i];
