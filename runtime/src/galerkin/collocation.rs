@@ -35,7 +35,7 @@
 //! the terms of second order, `− h² Σ_j a_ij a_jl W_j` with `W = ∂G/∂q`
 //! ([`second_order_terms`]), so that it contracts with the change of the
 //! stage Jacobian along the step (a stiff spring that the step resolves
-//! coarsely no longer slows it). Each iteration costs one gradient of `L`
+//! coarsely does not slow it). Each iteration costs one gradient of `L`
 //! (and the force) per point and one solve with `M_i⁻¹` or with the
 //! factors of `K`; both come from one Hessian in `v` per point at the first
 //! guess (the mixed block from the same evaluation; `K` also takes `N`
