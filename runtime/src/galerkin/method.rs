@@ -523,17 +523,23 @@ where
 {
     if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
         type D<const N: usize> = DualArray<[f64; N]>;
-        let vd = v.map(|x| D::<N>::from_re(x.to_f64()));
-        let qd: [D<N>; N] = core::array::from_fn(|i| {
-            let mut x = D::<N>::from_re(q[i].to_f64());
-            x.eps[i] = 1.0;
-            x
-        });
+        let (qd, vd) = (seeded(q), v.map(|x| D::<N>::from_re(x.to_f64())));
         let (mut lq, mut lv) = ([D::<N>::from_re(0.0); N], [D::<N>::from_re(0.0); N]);
         system.gradient_qv_scalar(D::from_re(t.to_f64()), &qd, &vd, &mut lq, &mut lv);
         return core::array::from_fn(|i| lq[i].eps.map(T::from));
     }
     PointDerivatives::at(system, t, q, v).qq
+}
+
+/// `x` in `f64` duals with one lane per coordinate, lane `i` of `x_i` set:
+/// the seed of a forward-over-reverse Hessian row by row.
+#[inline(always)]
+fn seeded<T: Real, const N: usize>(x: [T; N]) -> [DualArray<[f64; N]>; N] {
+    core::array::from_fn(|i| {
+        let mut d = DualArray::<[f64; N]>::from_re(x[i].to_f64());
+        d.eps[i] = 1.0;
+        d
+    })
 }
 
 /// `(L_q, L_v)` at one point (see [`point_gradient`]).
@@ -586,12 +592,7 @@ where
     // from it, so no converged step changes beyond round-off.
     if Sys::HAS_GRADIENT_QV && T::EPSILON == f64::EPSILON {
         type D<const N: usize> = DualArray<[f64; N]>;
-        let qd = q.map(|x| D::<N>::from_re(x.to_f64()));
-        let vd: [D<N>; N] = core::array::from_fn(|i| {
-            let mut x = D::<N>::from_re(v[i].to_f64());
-            x.eps[i] = 1.0;
-            x
-        });
+        let (qd, vd) = (q.map(|x| D::<N>::from_re(x.to_f64())), seeded(v));
         let (mut lq, mut lv) = ([D::<N>::from_re(0.0); N], [D::<N>::from_re(0.0); N]);
         system.gradient_qv_scalar(D::from_re(t.to_f64()), &qd, &vd, &mut lq, &mut lv);
         // Lane `k` of `∂L/∂q_i` is `∂²L/∂q_i∂v_k`: the coupling the
