@@ -409,29 +409,38 @@ pub enum Error<T: Real = f64> {
     },
 }
 
+/// Matches `$error` against every variant that carries the state a failed
+/// step started from, binding it to `$state` (by reference, as `$error` is
+/// borrowed): the one list of those variants.
+macro_rules! carried_state {
+    ($error:expr, $state:ident => $some:expr, $none:expr) => {
+        match $error {
+            Error::NewtonDidNotConverge { state: $state, .. }
+            | Error::SingularJacobian { state: $state, .. }
+            | Error::NonFinite { state: $state, .. }
+            | Error::StepRejected { state: $state, .. }
+            | Error::NoEnergyStep { state: $state, .. }
+            | Error::InvalidTarget { state: $state, .. }
+            | Error::InvalidDensity { state: $state, .. }
+            | Error::TimeStepCollapsed { state: $state, .. }
+            | Error::TimeFunctionArgument { state: $state, .. }
+            | Error::OrbitLost { state: $state, .. }
+            | Error::InverseLegendre { state: $state, .. }
+            | Error::SingularConstraints { state: $state, .. }
+            | Error::NonFiniteConstraints { state: $state }
+            | Error::NonFiniteLoss { state: $state }
+            | Error::NotDifferentiable { state: $state, .. } => $some,
+            _ => $none,
+        }
+    };
+}
+
 impl<T: Real> Error<T> {
     /// The state the error carries: the state the failed step started from
     /// (and the integrator still holds), or the node where the failure was
     /// found; `None` for the errors of a setting or of the input.
     pub fn state(&self) -> Option<&PhasePoint<T>> {
-        match self {
-            Error::NewtonDidNotConverge { state, .. }
-            | Error::SingularJacobian { state, .. }
-            | Error::NonFinite { state, .. }
-            | Error::StepRejected { state, .. }
-            | Error::NoEnergyStep { state, .. }
-            | Error::InvalidTarget { state, .. }
-            | Error::InvalidDensity { state, .. }
-            | Error::TimeStepCollapsed { state, .. }
-            | Error::TimeFunctionArgument { state, .. }
-            | Error::OrbitLost { state, .. }
-            | Error::InverseLegendre { state, .. }
-            | Error::SingularConstraints { state, .. }
-            | Error::NonFiniteConstraints { state }
-            | Error::NonFiniteLoss { state }
-            | Error::NotDifferentiable { state, .. } => Some(state),
-            _ => None,
-        }
+        carried_state!(self, state => Some(state), None)
     }
 
     /// The error of a step from `state` with size `h` whose Newton solve failed.
@@ -462,27 +471,10 @@ impl<T: Real> Error<T> {
     /// driver reports the failure of its step in `s`, whose state is the
     /// extended `(q, t)`, at the physical state.
     pub(crate) fn map_state(mut self, f: impl FnOnce(PhasePoint<T>) -> PhasePoint<T>) -> Self {
-        match &mut self {
-            Error::NewtonDidNotConverge { state, .. }
-            | Error::SingularJacobian { state, .. }
-            | Error::NonFinite { state, .. }
-            | Error::StepRejected { state, .. }
-            | Error::NoEnergyStep { state, .. }
-            | Error::InvalidTarget { state, .. }
-            | Error::InvalidDensity { state, .. }
-            | Error::TimeStepCollapsed { state, .. }
-            | Error::TimeFunctionArgument { state, .. }
-            | Error::OrbitLost { state, .. }
-            | Error::InverseLegendre { state, .. }
-            | Error::SingularConstraints { state, .. }
-            | Error::NonFiniteConstraints { state }
-            | Error::NonFiniteLoss { state }
-            | Error::NotDifferentiable { state, .. } => {
-                let empty = PhasePoint { step: state.step, t: T::ZERO, q: Vec::new(), p: Vec::new() };
-                *state = f(core::mem::replace(state, empty));
-            }
-            _ => {}
-        }
+        carried_state!(&mut self, state => {
+            let empty = PhasePoint { step: state.step, t: T::ZERO, q: Vec::new(), p: Vec::new() };
+            *state = f(core::mem::replace(state, empty));
+        }, ());
         self
     }
 
