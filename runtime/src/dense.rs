@@ -38,6 +38,28 @@ pub struct Node<const N: usize> {
     pub v: [f64; N],
 }
 
+impl<const N: usize> Node<N> {
+    /// The node as a [`NodeView`].
+    pub fn view(&self) -> NodeView<'_> {
+        NodeView { t: self.t, q: &self.q, p: &self.p, v: &self.v }
+    }
+}
+
+/// A node seen through slices, whatever the system's size (compile-time or
+/// run-time): what [`Plan::observe_every`](crate::Plan::observe_every)'s
+/// observer is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeView<'a> {
+    /// `t_k`.
+    pub t: f64,
+    /// `q_k`.
+    pub q: &'a [f64],
+    /// `p_k`, the integrator's momentum.
+    pub p: &'a [f64],
+    /// `v_k` with `∂L/∂v(t_k, q_k, v_k) = p_k`.
+    pub v: &'a [f64],
+}
+
 /// The interpolant of one step `[t0, t1]`.
 pub trait DenseStep<const N: usize> {
     /// The start of the step.
