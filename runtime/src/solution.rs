@@ -68,7 +68,7 @@ mod rows;
 
 pub use rows::{RowIter, Rows};
 
-use crate::dense::{DenseStep, Hermite, Node, NodeView, acceleration};
+use crate::dense::{Coordinates, DenseStep, Hermite, Interpolant, Node, NodeView, Point, acceleration};
 use crate::error::Error;
 use crate::events::{Action, Event, EventRecord};
 use crate::integrator::Stats;
@@ -129,7 +129,7 @@ pub trait Stepping<const N: usize> {
     where
         Self: Sized + Clone,
     {
-        solve(self, plan)
+        solve::<ConstSize<Self, N>>(self, plan)
     }
 }
 
@@ -595,31 +595,148 @@ impl Solution {
     }
 }
 
+/// What [`solve`] drives, at either size: the stepper (`Sim`), the
+/// coordinates it carries (`[f64; N]` at a compile-time size, `Vec<f64>` at
+/// a run-time size) and how its nodes, velocities and interpolants are
+/// read. [`ConstSize`] implements it for every const-size driver through
+/// [`Stepping`]; the run-time-sized integrator implements it in
+/// `integrator/dynamic.rs`. One driver, so both sizes keep the same rows,
+/// events and failures.
+pub(crate) trait Solvable {
+    /// The stepper.
+    type Sim: Clone;
+    /// The coordinates of a node.
+    type Vector: Coordinates;
+    /// The method's own interpolant of one step.
+    type Native: Interpolant<Self::Vector>;
+    /// The Hermite interpolant of one step (cubic or quintic).
+    type Hermite: Interpolant<Self::Vector>;
+    /// `false` where no acceleration is computed (quintic dense output is
+    /// then refused before the run).
+    const ACCELERATION: bool;
+
+    /// The number of coordinates.
+    fn width(sim: &Self::Sim) -> usize;
+    /// The current time.
+    fn time(sim: &Self::Sim) -> f64;
+    /// `(k, t_k, q_k, p_k)` at the current node.
+    fn node(sim: &Self::Sim) -> (u64, f64, Self::Vector, Self::Vector);
+    /// The velocity whose momentum is the current `p_k`.
+    fn velocity(sim: &Self::Sim) -> Result<Self::Vector, Error>;
+    /// Work counters.
+    fn stats(sim: &Self::Sim) -> Stats;
+    /// One step toward `t_end` (see [`Stepping::step_toward`]).
+    fn step_toward(sim: &mut Self::Sim, t_end: f64, last_h: Option<f64>) -> Result<(), Error>;
+    /// Steps to `t` exactly (see [`Stepping::land`]).
+    fn land(sim: &mut Self::Sim, t: f64) -> Result<(), Error>;
+    /// The method's own interpolant of the last step, `start → end`.
+    fn native(sim: &Self::Sim, start: &Point<Self::Vector>, end: &Point<Self::Vector>) -> Self::Native;
+    /// The cubic Hermite of `start → end`, or the quintic with the
+    /// accelerations `a` at both ends.
+    fn hermite(
+        start: &Point<Self::Vector>,
+        end: &Point<Self::Vector>,
+        a: Option<(&Self::Vector, &Self::Vector)>,
+    ) -> Self::Hermite;
+    /// `E_L(t, q, v)`.
+    fn energy(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> f64;
+    /// `∂L/∂v(t, q, v)`.
+    fn momentum(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> Self::Vector;
+    /// The acceleration of the equations of motion at `(t, q, v)`.
+    fn acceleration(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> Option<Self::Vector>;
+}
+
+/// [`Solvable`] for a const-size driver `I` (through its [`Stepping`]):
+/// the driver carries `[f64; N]`, as the stepper does.
+pub(crate) struct ConstSize<I, const N: usize>(core::marker::PhantomData<I>);
+
+impl<I: Stepping<N> + Clone, const N: usize> Solvable for ConstSize<I, N> {
+    type Sim = I;
+    type Vector = [f64; N];
+    type Native = I::Native;
+    type Hermite = Hermite<N>;
+    const ACCELERATION: bool = true;
+
+    fn width(_sim: &I) -> usize {
+        N
+    }
+
+    fn time(sim: &I) -> f64 {
+        sim.state().t
+    }
+
+    fn node(sim: &I) -> (u64, f64, [f64; N], [f64; N]) {
+        let s = sim.state();
+        (s.step, s.t, s.q, s.p)
+    }
+
+    fn velocity(sim: &I) -> Result<[f64; N], Error> {
+        sim.velocity()
+    }
+
+    fn stats(sim: &I) -> Stats {
+        sim.stats()
+    }
+
+    #[inline]
+    fn step_toward(sim: &mut I, t_end: f64, last_h: Option<f64>) -> Result<(), Error> {
+        sim.step_toward(t_end, last_h)
+    }
+
+    fn land(sim: &mut I, t: f64) -> Result<(), Error> {
+        sim.land(t)
+    }
+
+    fn native(sim: &I, start: &Point<[f64; N]>, end: &Point<[f64; N]>) -> I::Native {
+        sim.native(&start.into(), &end.into())
+    }
+
+    fn hermite(start: &Point<[f64; N]>, end: &Point<[f64; N]>, a: Option<(&[f64; N], &[f64; N])>) -> Hermite<N> {
+        let (start, end) = (Node::from(start), Node::from(end));
+        match a {
+            None => Hermite::cubic(&start, &end),
+            Some((a0, a1)) => Hermite::quintic(&start, *a0, &end, *a1),
+        }
+    }
+
+    fn energy(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> f64 {
+        sim.system().energy(t, *q, *v)
+    }
+
+    fn momentum(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> [f64; N] {
+        sim.system().momentum(t, *q, *v)
+    }
+
+    fn acceleration(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> Option<[f64; N]> {
+        acceleration(sim.system(), t, *q, *v)
+    }
+}
+
 /// A node as the driver carries it: the velocity only once it was needed.
-#[derive(Clone, Copy)]
-struct Carried<const N: usize> {
-    node: Node<N>,
+#[derive(Clone)]
+struct Carried<V> {
+    node: Point<V>,
     step: u64,
     has_v: bool,
-    a: Option<[f64; N]>,
+    a: Option<V>,
 }
 
 /// The state of one run of [`solve`].
-struct Driver<'s, 'a, I, const N: usize> {
-    sim: &'s mut I,
+struct Driver<'s, 'a, K: Solvable> {
+    sim: &'s mut K::Sim,
     plan: Plan<'a>,
     sol: Solution,
     next_save: usize,
     steps: u64,
 }
 
-enum StepInterpolant<Nat, const N: usize> {
-    Native(Nat),
-    Hermite(Hermite<N>),
+enum StepInterpolant<K: Solvable> {
+    Native(K::Native),
+    Hermite(K::Hermite),
 }
 
-impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
-    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+impl<K: Solvable> StepInterpolant<K> {
+    fn eval(&self, t: f64) -> (K::Vector, K::Vector) {
         match self {
             Self::Native(d) => d.eval(t),
             Self::Hermite(d) => d.eval(t),
@@ -627,50 +744,50 @@ impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
     }
 }
 
-impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
-    fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError> {
-        let s = self.sim.state();
-        let mut c =
-            Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
+impl<K: Solvable> Driver<'_, '_, K> {
+    fn node(&mut self, with_v: bool) -> Result<Carried<K::Vector>, SolveError> {
+        let (step, t, q, p) = K::node(self.sim);
+        let v = K::Vector::filled(K::width(self.sim), f64::NAN);
+        let mut c = Carried { node: Point { t, q, p, v }, step, has_v: false, a: None };
         if with_v {
             self.velocity(&mut c)?;
         }
         Ok(c)
     }
 
-    fn velocity(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
+    fn velocity(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
         if !c.has_v {
-            c.node.v = self.sim.velocity()?;
+            c.node.v = K::velocity(self.sim)?;
             c.has_v = true;
             self.sol.stats.velocity_solves += 1;
         }
         Ok(())
     }
 
-    fn accel(&mut self, c: &mut Carried<N>) -> Result<[f64; N], SolveError> {
-        if let Some(a) = c.a {
-            return Ok(a);
+    /// Computes the acceleration at `c` once.
+    fn accel(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
+        if c.a.is_none() {
+            let n = &c.node;
+            let a = K::acceleration(self.sim, n.t, &n.q, &n.v).ok_or(SolveError::NoAcceleration { t: n.t })?;
+            c.a = Some(a);
         }
-        let n = &c.node;
-        let a = acceleration(self.sim.system(), n.t, n.q, n.v).ok_or(SolveError::NoAcceleration { t: n.t })?;
-        c.a = Some(a);
-        Ok(a)
+        Ok(())
     }
 
-    fn energy(&self, t: f64, q: [f64; N], v: [f64; N]) -> f64 {
-        self.sim.system().energy(t, q, v)
+    fn energy(&self, t: f64, q: &K::Vector, v: &K::Vector) -> f64 {
+        K::energy(self.sim, t, q, v)
     }
 
     /// Keeps a node row.
-    fn keep_node(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
-        let v = if self.plan.velocities {
+    fn keep_node(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
+        let e = if self.plan.velocities {
             self.velocity(c)?;
-            Some((c.node.v, self.energy(c.node.t, c.node.q, c.node.v)))
+            Some(self.energy(c.node.t, &c.node.q, &c.node.v))
         } else {
             None
         };
         let n = &c.node;
-        self.sol.push(Some(c.step), n.t, &n.q, &n.p, v.as_ref().map(|(v, e)| (&v[..], *e)));
+        self.sol.push(Some(c.step), n.t, n.q.as_ref(), n.p.as_ref(), e.map(|e| (n.v.as_ref(), e)));
         Ok(())
     }
 
@@ -678,33 +795,33 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     /// step) the last node row, unless it is one already or the plan keeps
     /// no nodes. Its velocity and energy are NaN when its velocity cannot be
     /// found.
-    fn keep_last_good(&mut self, c: &mut Carried<N>) {
+    fn keep_last_good(&mut self, c: &mut Carried<K::Vector>) {
         let last_node = self.sol.step.iter().rev().find_map(|&k| k);
         if self.plan.every == 0 || last_node == Some(c.step) {
             return;
         }
         if self.keep_node(c).is_err() {
-            let nan = [f64::NAN; N];
-            let nan = self.plan.velocities.then_some((&nan[..], f64::NAN));
-            self.sol.push(Some(c.step), c.node.t, &c.node.q, &c.node.p, nan);
+            let nan = K::Vector::filled(K::width(self.sim), f64::NAN);
+            let nan = self.plan.velocities.then_some((nan.as_ref(), f64::NAN));
+            self.sol.push(Some(c.step), c.node.t, c.node.q.as_ref(), c.node.p.as_ref(), nan);
         }
     }
 
     /// Keeps the save times in `(after, upto]`, by `dense`.
-    fn keep_saved(&mut self, dense: &StepInterpolant<I::Native, N>, after: f64, upto: f64) {
+    fn keep_saved(&mut self, dense: &StepInterpolant<K>, after: f64, upto: f64) {
         while let Some(&t) = self.plan.save_at.get(self.next_save) {
             if t > upto || t <= after {
                 break;
             }
             let (q, v) = dense.eval(t);
-            let p = self.sim.system().momentum(t, q, v);
-            let e = self.plan.velocities.then(|| self.energy(t, q, v));
-            self.sol.push(None, t, &q, &p, e.map(|e| (&v[..], e)));
+            let p = K::momentum(self.sim, t, &q, &v);
+            let e = self.plan.velocities.then(|| self.energy(t, &q, &v));
+            self.sol.push(None, t, q.as_ref(), p.as_ref(), e.map(|e| (v.as_ref(), e)));
             self.next_save += 1;
         }
     }
 
-    fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError> {
+    fn observe(&mut self, c: &mut Carried<K::Vector>, force: bool) -> Result<(), SolveError> {
         let due = match &self.plan.observer {
             Some((n, _)) => force || self.steps.is_multiple_of(*n as u64),
             None => false,
@@ -720,16 +837,19 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 
     fn interpolant(
         &mut self,
-        start: &mut Carried<N>,
-        end: &mut Carried<N>,
-    ) -> Result<StepInterpolant<I::Native, N>, SolveError> {
+        start: &mut Carried<K::Vector>,
+        end: &mut Carried<K::Vector>,
+    ) -> Result<StepInterpolant<K>, SolveError> {
         Ok(match self.plan.dense {
-            DenseKind::Native => StepInterpolant::Native(self.sim.native(&start.node, &end.node)),
-            DenseKind::Cubic => StepInterpolant::Hermite(Hermite::cubic(&start.node, &end.node)),
+            DenseKind::Native => StepInterpolant::Native(K::native(self.sim, &start.node, &end.node)),
+            DenseKind::Cubic => StepInterpolant::Hermite(K::hermite(&start.node, &end.node, None)),
             DenseKind::Quintic => {
-                let a0 = self.accel(start)?;
-                let a1 = self.accel(end)?;
-                StepInterpolant::Hermite(Hermite::quintic(&start.node, a0, &end.node, a1))
+                self.accel(start)?;
+                self.accel(end)?;
+                let (Some(a0), Some(a1)) = (&start.a, &end.a) else {
+                    return Err(SolveError::NoAcceleration { t: start.node.t });
+                };
+                StepInterpolant::Hermite(K::hermite(&start.node, &end.node, Some((a0, a1))))
             }
         })
     }
@@ -746,9 +866,9 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     /// stopping or landing one (index into the records).
     fn crossings(
         &mut self,
-        dense: &StepInterpolant<I::Native, N>,
-        start: &Node<N>,
-        end: &Node<N>,
+        dense: &StepInterpolant<K>,
+        start: &Point<K::Vector>,
+        end: &Point<K::Vector>,
         g: &mut [f64],
     ) -> Result<(Vec<EventRecord>, Option<usize>), SolveError> {
         let mut found = Vec::new();
@@ -757,14 +877,13 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
             let (mut ta, mut ga) = (start.t, g[i]);
             let mut stop_found = false;
             for j in 1..=samples {
-                let (tb, qb, vb) = if j == samples {
-                    (end.t, end.q, end.v)
+                let (tb, gb) = if j == samples {
+                    (end.t, self.g(i, end.t, end.q.as_ref(), end.v.as_ref())?)
                 } else {
                     let tb = start.t + (end.t - start.t) * (j as f64 / samples as f64);
                     let (q, v) = dense.eval(tb);
-                    (tb, q, v)
+                    (tb, self.g(i, tb, q.as_ref(), v.as_ref())?)
                 };
-                let gb = self.g(i, tb, &qb, &vb)?;
                 if !stop_found && self.plan.events[i].crosses(ga, gb) {
                     let tol = self.plan.events[i].tolerance * tb.abs().max(1.0) + 4.0 * f64::EPSILON * tb.abs();
                     let mut evals = 0;
@@ -773,7 +892,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
                         |t| {
                             evals += 1;
                             let (q, v) = dense.eval(t);
-                            (event.g)(t, &q, &v)
+                            (event.g)(t, q.as_ref(), v.as_ref())
                         },
                         (ta, ga),
                         (tb, gb),
@@ -782,7 +901,13 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
                     self.sol.stats.event_evaluations += evals;
                     let t = root.map_err(|e| SolveError::NonFiniteEvent { event: i, t: e.t })?;
                     let (q, v) = dense.eval(t);
-                    found.push(EventRecord { event: i, t, q: q.to_vec(), v: v.to_vec(), rising: ga < 0.0 });
+                    found.push(EventRecord {
+                        event: i,
+                        t,
+                        q: q.as_ref().to_vec(),
+                        v: v.as_ref().to_vec(),
+                        rising: ga < 0.0,
+                    });
                     stop_found = self.plan.events[i].action != Action::Record;
                 }
                 (ta, ga) = (tb, gb);
@@ -804,11 +929,8 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 }
 
 /// Integrates `sim` as `plan` says (see the [module docs](self)).
-pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
-    sim: &mut I,
-    plan: Plan<'_>,
-) -> Result<Solution, SolveError> {
-    let t0 = sim.state().t;
+pub(crate) fn solve<K: Solvable>(sim: &mut K::Sim, plan: Plan<'_>) -> Result<Solution, SolveError> {
+    let t0 = K::time(sim);
     let t_end = plan.t_end;
     if !t_end.is_finite() || t_end < t0 {
         return Err(SolveError::InvalidEnd { t_end, t: t0 });
@@ -834,10 +956,17 @@ pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
     if plan.energy_tolerance.is_some_and(|tol| !(tol.is_finite() && tol > 0.0)) {
         return Err(SolveError::InvalidPlan { reason: "the energy tolerance must be finite and positive" });
     }
-    let mut d = Driver { sim, plan, sol: Solution::empty(N), next_save: 0, steps: 0 };
+    if plan.dense == DenseKind::Quintic && !K::ACCELERATION {
+        return Err(SolveError::InvalidPlan {
+            reason: "quintic dense output needs the acceleration, which a run-time-sized system does not compute: \
+                     use `DenseKind::Native` or `DenseKind::Cubic`",
+        });
+    }
+    let width = K::width(sim);
+    let mut d = Driver::<K> { sim, plan, sol: Solution::empty(width), next_save: 0, steps: 0 };
     let error = run(&mut d).err();
     let mut sol = d.sol;
-    let stats = d.sim.stats();
+    let stats = K::stats(d.sim);
     sol.stats.steps = stats.steps;
     sol.stats.newton_iterations = stats.newton_iterations;
     sol.stats.failed_steps = stats.failed_steps;
@@ -849,27 +978,27 @@ pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
 }
 
 /// The loop of [`solve`]; an `Err` ends the run with what was recorded.
-fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> Result<(), SolveError> {
+fn run<K: Solvable>(d: &mut Driver<'_, '_, K>) -> Result<(), SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let dense_needed = has_events || !d.plan.save_at.is_empty();
     let v_each_step = dense_needed || d.plan.energy_tolerance.is_some();
     #[cfg(feature = "progress")]
-    let bar = d.plan.progress.then(|| progress_bar(t_end - d.sim.state().t));
+    let bar = d.plan.progress.then(|| progress_bar(t_end - K::time(d.sim)));
 
     let mut prev = d.node(v_each_step)?;
     let t0 = prev.node.t;
     if let Some(tolerance) = d.plan.energy_tolerance {
         d.velocity(&mut prev)?;
-        let initial = d.energy(t0, prev.node.q, prev.node.v);
+        let initial = d.energy(t0, &prev.node.q, &prev.node.v);
         d.sol.energy_watch = Some(EnergyWatch { tolerance, initial, largest: 0.0, largest_at: t0, exceeded_at: None });
     }
     // Save times at t0 come before the first node row.
     while d.plan.save_at.get(d.next_save) == Some(&t0) {
         d.velocity(&mut prev)?;
-        let n = prev.node;
-        let e = d.plan.velocities.then(|| d.energy(t0, n.q, n.v));
-        d.sol.push(None, t0, &n.q, &n.p, e.map(|e| (&n.v[..], e)));
+        let n = &prev.node;
+        let e = d.plan.velocities.then(|| d.energy(t0, &n.q, &n.v));
+        d.sol.push(None, t0, n.q.as_ref(), n.p.as_ref(), e.map(|e| (n.v.as_ref(), e)));
         d.next_save += 1;
     }
     if d.plan.every > 0 {
@@ -878,8 +1007,8 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
     d.observe(&mut prev, true)?;
     let mut g_prev = Vec::with_capacity(d.plan.events.len());
     for i in 0..d.plan.events.len() {
-        let n = prev.node;
-        g_prev.push(d.g(i, n.t, &n.q, &n.v)?);
+        let n = &prev.node;
+        g_prev.push(d.g(i, n.t, n.q.as_ref(), n.v.as_ref())?);
     }
     // Everything after a step that can fail (velocity solves, accelerations,
     // event functions, the landing step) needs the integrator as it was
@@ -927,9 +1056,9 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
 }
 
 /// What the loop of [`run`] carries from one step to the next.
-struct Loop<const N: usize> {
+struct Loop<V> {
     /// The last node.
-    prev: Carried<N>,
+    prev: Carried<V>,
     /// The event values there.
     g_prev: Vec<f64>,
     /// The end of a step interrupted by a landing event.
@@ -941,18 +1070,18 @@ struct Loop<const N: usize> {
 /// One step of [`run`] with everything it records; `Ok(true)` when a stop
 /// event ended the run. `before` is the integrator before the step (when
 /// something after the step can fail or an event can stop or land).
-fn advance<I: Stepping<N> + Clone, const N: usize>(
-    d: &mut Driver<'_, '_, I, N>,
-    lp: &mut Loop<N>,
-    before: Option<&I>,
+fn advance<K: Solvable>(
+    d: &mut Driver<'_, '_, K>,
+    lp: &mut Loop<K::Vector>,
+    before: Option<&K::Sim>,
     dense_needed: bool,
     v_each_step: bool,
 ) -> Result<bool, SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let result = match lp.rejoin.take() {
-        Some(t) => d.sim.land(t),
-        None => d.sim.step_toward(t_end, lp.last_h),
+        Some(t) => K::land(d.sim, t),
+        None => K::step_toward(d.sim, t_end, lp.last_h),
     };
     result?;
     d.steps += 1;
@@ -978,7 +1107,7 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
         if let Some(before) = before {
             d.sim.clone_from(before);
         }
-        d.sim.land(record.t)?;
+        K::land(d.sim, record.t)?;
         d.sol.stats.redone_steps += 1;
         end = d.node(true)?;
         // An event at the step's start (to the clock's resolution) lands on
@@ -992,8 +1121,8 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
                 // must not count as a second crossing.
                 d.g(i, record.t, &record.q, &record.v)?
             } else {
-                let n = end.node;
-                d.g(i, n.t, &n.q, &n.v)?
+                let n = &end.node;
+                d.g(i, n.t, n.q.as_ref(), n.v.as_ref())?
             };
         }
         match d.plan.events[record.event].action {
@@ -1025,9 +1154,9 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
 }
 
 /// Node rows, observer and energy watch after a step.
-fn finish_node<I: Stepping<N> + Clone, const N: usize>(
-    d: &mut Driver<'_, '_, I, N>,
-    end: &mut Carried<N>,
+fn finish_node<K: Solvable>(
+    d: &mut Driver<'_, '_, K>,
+    end: &mut Carried<K::Vector>,
     last: bool,
 ) -> Result<(), SolveError> {
     if d.plan.every > 0 && (last || d.steps.is_multiple_of(d.plan.every as u64)) {
@@ -1036,7 +1165,7 @@ fn finish_node<I: Stepping<N> + Clone, const N: usize>(
     d.observe(end, false)?;
     if d.sol.energy_watch.is_some() {
         d.velocity(end)?;
-        let e = d.energy(end.node.t, end.node.q, end.node.v);
+        let e = d.energy(end.node.t, &end.node.q, &end.node.v);
         if let Some(w) = &mut d.sol.energy_watch {
             w.observe(end.node.t, e);
         }
