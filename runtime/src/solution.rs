@@ -572,6 +572,7 @@ impl Solution {
         self.q.width()
     }
 
+    #[inline]
     fn push(&mut self, step: Option<u64>, t: f64, q: &[f64], p: &[f64], v: Option<(&[f64], f64)>) {
         self.t.push(t);
         self.step.push(step);

@@ -38,21 +38,25 @@ impl Rows {
     }
 
     /// The number of values of a row.
+    #[inline]
     pub fn width(&self) -> usize {
         self.width
     }
 
     /// The number of rows.
+    #[inline]
     pub fn len(&self) -> usize {
         self.rows
     }
 
     /// `true` without rows.
+    #[inline]
     pub fn is_empty(&self) -> bool {
         self.rows == 0
     }
 
     /// Row `i`, if there is one.
+    #[inline]
     pub fn get(&self, i: usize) -> Option<&[f64]> {
         (i < self.rows).then(|| &self.values[i * self.width..(i + 1) * self.width])
     }
@@ -88,6 +92,7 @@ impl Rows {
     /// # Panics
     /// If `row` does not have [`width`](Self::width) values: a table holds
     /// rows of one width.
+    #[inline]
     pub fn push(&mut self, row: &[f64]) {
         assert_eq!(row.len(), self.width, "a row of {} values in a table of width {}", row.len(), self.width);
         self.values.extend_from_slice(row);
@@ -132,6 +137,7 @@ impl core::ops::Index<usize> for Rows {
     ///
     /// # Panics
     /// If there is no row `i`.
+    #[inline]
     fn index(&self, i: usize) -> &[f64] {
         assert!(i < self.rows, "row {i} of a table of {} rows", self.rows);
         &self.values[i * self.width..(i + 1) * self.width]
