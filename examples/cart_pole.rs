@@ -138,7 +138,7 @@ fn step(steps: usize) -> f64 {
 }
 
 /// The run with controls `u` at time step `h`.
-fn trajectory(u: [f64; CONTROLS], h: f64) -> Result<Solution<2>, Box<dyn Error>> {
+fn trajectory(u: [f64; CONTROLS], h: f64) -> Result<Solution, Box<dyn Error>> {
     let sol = problem(u).solve(&Scheme::MIDPOINT, h, Plan::until(T_END))?;
     if let Some(e) = sol.error {
         return Err(e.into());
@@ -150,7 +150,7 @@ fn trajectory(u: [f64; CONTROLS], h: f64) -> Result<Solution<2>, Box<dyn Error>>
 fn terminal(u: [f64; CONTROLS], h: f64) -> Result<[f64; 4], Box<dyn Error>> {
     let sol = trajectory(u, h)?;
     let last = sol.len() - 1;
-    Ok(residual(sol.q[last], sol.p[last]))
+    Ok(residual(sol.q[last].try_into()?, sol.p[last].try_into()?))
 }
 
 /// The checkpoints of an adjoint over `T_END` at step `h`: about `√n`.

@@ -41,7 +41,7 @@ fn start(y: f64, vy: f64) -> Option<([f64; 2], [f64; 2])> {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let inputs: Vec<(f64, f64)> = (0..12).map(|i| (-0.25 + 0.06 * i as f64, 0.0)).collect();
     let clock = std::time::Instant::now();
-    let runs = ensemble::run(&inputs, |_, &(y, vy)| -> Result<Vec<EventRecord<2>>, String> {
+    let runs = ensemble::run(&inputs, |_, &(y, vy)| -> Result<Vec<EventRecord>, String> {
         let (q, v) = start(y, vy).ok_or("outside the energy surface")?;
         let mut sim = GalerkinIntegrator::new(HenonHeiles, Galerkin::<3, 3>::gauss(), 0.1)
             .start(0.0, q, v)
@@ -69,7 +69,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (i, events) in runs.successes() {
         for e in events {
             worst_x = worst_x.max(e.q[0].abs());
-            worst_e = worst_e.max((HenonHeiles.energy(e.t, e.q, e.v) - ENERGY).abs());
+            let (q, v): ([f64; 2], [f64; 2]) = (e.q.as_slice().try_into()?, e.v.as_slice().try_into()?);
+            worst_e = worst_e.max((HenonHeiles.energy(e.t, q, v) - ENERGY).abs());
             csv.push_str(&format!("{i},{},{},{}\n", e.t, e.q[1], e.v[1]));
             count += 1;
         }
@@ -94,7 +95,7 @@ fn tick(x: &f64) -> String {
 
 fn draw<B: DrawingBackend>(
     root: DrawingArea<B, plotters::coord::Shift>,
-    runs: &ensemble::Ensemble<Vec<EventRecord<2>>, String>,
+    runs: &ensemble::Ensemble<Vec<EventRecord>, String>,
 ) -> Result<(), Box<dyn std::error::Error>>
 where
     B::ErrorType: 'static,

@@ -61,7 +61,7 @@
 //! }
 //!
 //! /// The first time the pendulum passes through the bottom, and the solution.
-//! fn first_crossing(mut sim: impl Stepping<1> + Clone) -> Result<(f64, Solution<1>), Box<dyn std::error::Error>> {
+//! fn first_crossing(mut sim: impl Stepping<1> + Clone) -> Result<(f64, Solution), Box<dyn std::error::Error>> {
 //!     let plan = Plan::until(5.0).every(10).event(Event::new(|_, q, _| q[0]));
 //!     let sol = sim.solve(plan)?.into_result()?;
 //!     Ok((sol.events[0].t, sol))
@@ -202,10 +202,10 @@ pub use lagrangian_runtime::{
     DynIntegratorBuilder, DynLagrangian, DynMethod, DynProblem, DynStepper, EnergyFallback, Error, Estimate, Event,
     EventRecord, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling,
     Galerkin, GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure,
-    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, Pattern, PhasePoint, Plan, Policy, Problem,
-    Quadrature, RadiusPower, Real, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State, Stats,
-    Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
-    TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
+    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, NodeView, Pattern, PhasePoint, Plan, Policy,
+    Problem, Quadrature, RadiusPower, Real, Rows, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved,
+    State, Stats, Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry,
+    TangentMap, TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use lagrangian_runtime::{Constrained, DynConstrained};
@@ -231,7 +231,7 @@ pub mod prelude {
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynIntegrator, DynMethod, PhasePoint};
     pub use lagrangian_runtime::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
-    pub use lagrangian_runtime::{Event, Plan, Solution, SolveError, Stepping};
+    pub use lagrangian_runtime::{Event, NodeView, Plan, Rows, Solution, SolveError, Stepping};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

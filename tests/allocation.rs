@@ -264,7 +264,7 @@ fn problem_steppers_and_solve_do_not_allocate_per_step() {
             let plan = Plan::until(f64::from(steps) * h)
                 .every(1 << 20)
                 .save_at(vec![0.5, 1.0])
-                .event(Event::new(|_t, q: &[f64; 2], _v: &[f64; 2]| q[0] + 10.0));
+                .event(Event::new(|_t, q: &[f64], _v: &[f64]| q[0] + 10.0));
             let before = allocations();
             let sol = problem.solve(&scheme, h, plan).unwrap().into_result().unwrap();
             let n = allocations() - before;

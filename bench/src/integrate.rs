@@ -206,7 +206,9 @@ fn auto<M: Model<N>, const N: usize>(
             let sol = &solved.solution;
             if keep_nodes {
                 for ((t, q), v) in sol.t.iter().zip(&sol.q).zip(&sol.v) {
-                    record(*t, q, v);
+                    if let (Ok(q), Ok(v)) = (q.try_into(), v.try_into()) {
+                        record(*t, q, v);
+                    }
                 }
             }
             let est = &solved.estimate;

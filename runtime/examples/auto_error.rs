@@ -81,7 +81,7 @@ fn report<S: Lagrangian<2> + Clone>(name: &str, system: S, q0: [f64; 2], v0: [f6
     };
     let n = s.t.len() - 1;
     let error = |k: usize| {
-        let (a, b) = (s.q[k], reference.q[(k * fine).min(reference.q.len() - 1)]);
+        let (a, b) = (&s.q[k], &reference.q[(k * fine).min(reference.q.len() - 1)]);
         (a[0] - b[0]).abs().max((a[1] - b[1]).abs())
     };
     let largest = (1..=n).map(error).fold(0.0f64, f64::max);

@@ -38,6 +38,28 @@ pub struct Node<const N: usize> {
     pub v: [f64; N],
 }
 
+impl<const N: usize> Node<N> {
+    /// The node as a [`NodeView`].
+    pub fn view(&self) -> NodeView<'_> {
+        NodeView { t: self.t, q: &self.q, p: &self.p, v: &self.v }
+    }
+}
+
+/// A node seen through slices, whatever the system's size (compile-time or
+/// run-time): what [`Plan::observe_every`](crate::Plan::observe_every)'s
+/// observer is given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeView<'a> {
+    /// `t_k`.
+    pub t: f64,
+    /// `q_k`.
+    pub q: &'a [f64],
+    /// `p_k`, the integrator's momentum.
+    pub p: &'a [f64],
+    /// `v_k` with `∂L/∂v(t_k, q_k, v_k) = p_k`.
+    pub v: &'a [f64],
+}
+
 /// The interpolant of one step `[t0, t1]`.
 pub trait DenseStep<const N: usize> {
     /// The start of the step.
@@ -112,33 +134,146 @@ impl<const N: usize> DenseStep<N> for Hermite<N> {
     }
 
     fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
-        let h = self.h;
-        let s = (t - self.t0) / h;
         let mut q = [0.0; N];
         let mut v = [0.0; N];
-        let mut add = |c: &[f64; 6], x: &[f64; N], scale: f64| {
-            let (b, db) = poly(c, s);
-            for i in 0..N {
-                q[i] += b * scale * x[i];
-                v[i] += db * scale * x[i] / h;
-            }
-        };
-        match &self.a {
-            None => {
-                add(&CUBIC[0], &self.q[0], 1.0);
-                add(&CUBIC[1], &self.v[0], h);
-                add(&CUBIC[2], &self.q[1], 1.0);
-                add(&CUBIC[3], &self.v[1], h);
-            }
-            Some(a) => {
-                add(&QUINTIC[0], &self.q[0], 1.0);
-                add(&QUINTIC[1], &self.v[0], h);
-                add(&QUINTIC[2], &a[0], h * h);
-                add(&QUINTIC[3], &self.q[1], 1.0);
-                add(&QUINTIC[4], &self.v[1], h);
-                add(&QUINTIC[5], &a[1], h * h);
-            }
+        let a = self.a.as_ref().map(|a| [&a[0][..], &a[1][..]]);
+        hermite_into(self.t0, self.h, [&self.q[0], &self.q[1]], [&self.v[0], &self.v[1]], a, t, &mut q, &mut v);
+        (q, v)
+    }
+}
+
+/// The Hermite interpolant of one step at `t`, added into `q_out` and
+/// `v_out` (zero on entry): the cubic through `q, v` at both nodes, or with
+/// the accelerations `a` the quintic. One function for both sizes, so that
+/// [`Hermite`] and [`HermiteRows`] give the same bits from the same nodes.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn hermite_into(
+    t0: f64,
+    h: f64,
+    q: [&[f64]; 2],
+    v: [&[f64]; 2],
+    a: Option<[&[f64]; 2]>,
+    t: f64,
+    q_out: &mut [f64],
+    v_out: &mut [f64],
+) {
+    let s = (t - t0) / h;
+    let mut add = |c: &[f64; 6], x: &[f64], scale: f64| {
+        let (b, db) = poly(c, s);
+        for ((q, v), x) in q_out.iter_mut().zip(v_out.iter_mut()).zip(x) {
+            *q += b * scale * x;
+            *v += db * scale * x / h;
         }
+    };
+    match a {
+        None => {
+            add(&CUBIC[0], q[0], 1.0);
+            add(&CUBIC[1], v[0], h);
+            add(&CUBIC[2], q[1], 1.0);
+            add(&CUBIC[3], v[1], h);
+        }
+        Some(a) => {
+            add(&QUINTIC[0], q[0], 1.0);
+            add(&QUINTIC[1], v[0], h);
+            add(&QUINTIC[2], a[0], h * h);
+            add(&QUINTIC[3], q[1], 1.0);
+            add(&QUINTIC[4], v[1], h);
+            add(&QUINTIC[5], a[1], h * h);
+        }
+    }
+}
+
+/// The coordinates of a node as the solution driver carries them: an
+/// array at a compile-time size, a vector at a run-time size.
+pub(crate) trait Coordinates: Clone + AsRef<[f64]> + AsMut<[f64]> {
+    /// `width` values `x` (the width is the array's own at a compile-time size).
+    fn filled(width: usize, x: f64) -> Self;
+}
+
+impl<const N: usize> Coordinates for [f64; N] {
+    fn filled(_width: usize, x: f64) -> Self {
+        [x; N]
+    }
+}
+
+impl Coordinates for Vec<f64> {
+    fn filled(width: usize, x: f64) -> Self {
+        vec![x; width]
+    }
+}
+
+/// A node with coordinates `V` ([`Coordinates`]): [`Node`] at either size.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Point<V> {
+    /// `t_k`.
+    pub(crate) t: f64,
+    /// `q_k`.
+    pub(crate) q: V,
+    /// `p_k`.
+    pub(crate) p: V,
+    /// `v_k` with `∂L/∂v(t_k, q_k, v_k) = p_k`.
+    pub(crate) v: V,
+}
+
+impl<V: Coordinates> Point<V> {
+    /// The node as slices.
+    pub(crate) fn view(&self) -> NodeView<'_> {
+        NodeView { t: self.t, q: self.q.as_ref(), p: self.p.as_ref(), v: self.v.as_ref() }
+    }
+}
+
+impl<const N: usize> From<&Point<[f64; N]>> for Node<N> {
+    fn from(x: &Point<[f64; N]>) -> Self {
+        Node { t: x.t, q: x.q, p: x.p, v: x.v }
+    }
+}
+
+/// The interpolant of one step with coordinates `V`, at either size.
+pub(crate) trait Interpolant<V> {
+    /// Position and velocity at `t`.
+    fn eval(&self, t: f64) -> (V, V);
+}
+
+impl<D: DenseStep<N>, const N: usize> Interpolant<[f64; N]> for D {
+    #[inline]
+    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+        DenseStep::eval(self, t)
+    }
+}
+
+/// [`Hermite`] at a run-time size: the same interpolant of one step, its
+/// nodes on the heap.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct HermiteRows {
+    t0: f64,
+    h: f64,
+    q: [Vec<f64>; 2],
+    v: [Vec<f64>; 2],
+    /// `None`: the cubic.
+    a: Option<[Vec<f64>; 2]>,
+}
+
+impl HermiteRows {
+    /// The cubic through `(q, v)` at `start` and `end`, or with
+    /// accelerations `a = (a0, a1)` the quintic.
+    pub(crate) fn new(start: &Point<Vec<f64>>, end: &Point<Vec<f64>>, a: Option<(&Vec<f64>, &Vec<f64>)>) -> Self {
+        Self {
+            t0: start.t,
+            h: end.t - start.t,
+            q: [start.q.clone(), end.q.clone()],
+            v: [start.v.clone(), end.v.clone()],
+            a: a.map(|(a0, a1)| [a0.clone(), a1.clone()]),
+        }
+    }
+}
+
+impl Interpolant<Vec<f64>> for HermiteRows {
+    fn eval(&self, t: f64) -> (Vec<f64>, Vec<f64>) {
+        let n = self.q[0].len();
+        let (mut q, mut v) = (vec![0.0; n], vec![0.0; n]);
+        let a = self.a.as_ref().map(|a| [&a[0][..], &a[1][..]]);
+        hermite_into(self.t0, self.h, [&self.q[0], &self.q[1]], [&self.v[0], &self.v[1]], a, t, &mut q, &mut v);
         (q, v)
     }
 }
@@ -413,7 +548,7 @@ mod tests {
         let end = Node { t: 1.5, q: [0.1], p: [0.0], v: [0.4] };
         for dense in [Hermite::cubic(&start, &end), Hermite::quintic(&start, [0.7], &end, [-1.3])] {
             for node in [&start, &end] {
-                let (q, v) = dense.eval(node.t);
+                let (q, v) = DenseStep::eval(&dense, node.t);
                 assert!((q[0] - node.q[0]).abs() < 1e-15 && (v[0] - node.v[0]).abs() < 1e-14);
             }
         }
@@ -422,13 +557,13 @@ mod tests {
         let node = |t: f64| Node { t, q: [f(t).0], p: [0.0], v: [f(t).1] };
         let (a, b) = (node(1.0), node(1.5));
         for dense in [Hermite::cubic(&a, &b), Hermite::quintic(&a, [f(1.0).2], &b, [f(1.5).2])] {
-            let (q, v) = dense.eval(1.2);
+            let (q, v) = DenseStep::eval(&dense, 1.2);
             assert!((q[0] - f(1.2).0).abs() < 1e-14 && (v[0] - f(1.2).1).abs() < 1e-13);
         }
         // The Galerkin polynomial through a quadratic.
         let g = |t: f64| 2.0 * t * t - t;
         let poly = GalerkinPolynomial::new(1.0, 0.5, [0.5, 1.0], [g(1.0)], [[g(1.25)], [g(1.5)]]);
-        let (q, v) = poly.eval(1.1);
+        let (q, v) = DenseStep::eval(&poly, 1.1);
         assert!((q[0] - g(1.1)).abs() < 1e-14 && (v[0] - (4.0 * 1.1 - 1.0)).abs() < 1e-13);
     }
 }

@@ -54,26 +54,27 @@ pub enum Action {
 }
 
 /// A located event.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct EventRecord<const N: usize> {
+pub struct EventRecord {
     /// Which event (its index in the plan).
     pub event: usize,
     /// The time of the crossing.
     #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::float"))]
     pub t: f64,
     /// The position there, by dense output.
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
-    pub q: [f64; N],
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
+    pub q: Vec<f64>,
     /// The velocity there, by dense output.
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::array"))]
-    pub v: [f64; N],
+    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
+    pub v: Vec<f64>,
     /// `true` when `g` was rising through zero.
     pub rising: bool,
 }
 
-/// The event function's type: `g(t, q, v)`.
-pub type EventFn<'a, const N: usize> = Box<dyn FnMut(f64, &[f64; N], &[f64; N]) -> f64 + 'a>;
+/// The event function's type: `g(t, q, v)`, with `q` and `v` slices of the
+/// system's size (compile-time or run-time).
+pub type EventFn<'a> = Box<dyn FnMut(f64, &[f64], &[f64]) -> f64 + 'a>;
 
 /// An event function with its direction, action and tolerance.
 ///
@@ -106,15 +107,15 @@ pub type EventFn<'a, const N: usize> = Box<dyn FnMut(f64, &[f64; N], &[f64; N]) 
 /// assert!((zeros[0] - pi / 2.0).abs() < 1e-8 && (zeros[1] - 5.0 * pi / 2.0).abs() < 1e-8);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub struct Event<'a, const N: usize> {
-    pub(crate) g: EventFn<'a, N>,
+pub struct Event<'a> {
+    pub(crate) g: EventFn<'a>,
     pub(crate) direction: Direction,
     pub(crate) action: Action,
     pub(crate) tolerance: f64,
     pub(crate) samples: usize,
 }
 
-impl<const N: usize> core::fmt::Debug for Event<'_, N> {
+impl core::fmt::Debug for Event<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Event")
             .field("direction", &self.direction)
@@ -125,10 +126,10 @@ impl<const N: usize> core::fmt::Debug for Event<'_, N> {
     }
 }
 
-impl<'a, const N: usize> Event<'a, N> {
+impl<'a> Event<'a> {
     /// An event at the zeros of `g(t, q, v)`: recorded, in either direction,
     /// located to a time tolerance of `1e-14 · max(1, |t|)`.
-    pub fn new(g: impl FnMut(f64, &[f64; N], &[f64; N]) -> f64 + 'a) -> Self {
+    pub fn new(g: impl FnMut(f64, &[f64], &[f64]) -> f64 + 'a) -> Self {
         Self { g: Box::new(g), direction: Direction::Either, action: Action::Record, tolerance: 1e-14, samples: 1 }
     }
 
@@ -177,12 +178,12 @@ mod tests {
 
     #[test]
     fn directions_filter_sign_changes() {
-        let e = Event::<1>::new(|_, q, _| q[0]);
+        let e = Event::new(|_, q, _| q[0]);
         assert!(e.crosses(-1.0, 1.0) && e.crosses(1.0, -1.0) && e.crosses(-1.0, 0.0));
         assert!(!e.crosses(0.0, 1.0) && !e.crosses(1.0, 2.0));
-        let rising = Event::<1>::new(|_, q, _| q[0]).direction(Direction::Rising);
+        let rising = Event::new(|_, q, _| q[0]).direction(Direction::Rising);
         assert!(rising.crosses(-1.0, 1.0) && !rising.crosses(1.0, -1.0));
-        let falling = Event::<1>::new(|_, q, _| q[0]).direction(Direction::Falling);
+        let falling = Event::new(|_, q, _| q[0]).direction(Direction::Falling);
         assert!(!falling.crosses(-1.0, 1.0) && falling.crosses(1.0, -1.0));
     }
 }

@@ -1,6 +1,6 @@
-//! Serde for the `f64` values of solutions: single numbers, `Option<f64>`,
-//! `[f64; N]` and `Vec<[f64; N]>` with any `N` (serde implements arrays only
-//! up to a fixed length), with every `f64` kept bit for bit.
+//! Serde for the `f64` values of solutions: single numbers, `Option<f64>`
+//! and sequences of them (the columns, and the rows of
+//! [`Rows`](crate::Rows)), with every `f64` kept bit for bit.
 //!
 //! In human-readable formats (JSON, CSV) a finite number is written as a
 //! number and a non-finite one as a string (JSON has no literal for them,
@@ -159,40 +159,5 @@ pub(crate) mod column {
 
     pub(crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
         Ok(Vec::<Float>::deserialize(d)?.into_iter().map(|x| x.0).collect())
-    }
-}
-
-/// `Vec<[f64; N]>` as a sequence of sequences of `N` values.
-pub(crate) mod rows {
-    use super::{Float, Seq, array};
-    use serde::{Deserialize, Deserializer, Serializer};
-
-    pub(crate) fn serialize<S: Serializer, const N: usize>(rows: &[[f64; N]], s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(rows.iter().map(|r| Seq(r)))
-    }
-
-    pub(crate) fn deserialize<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<Vec<[f64; N]>, D::Error> {
-        Vec::<Vec<Float>>::deserialize(d)?.into_iter().map(array::from_vec::<D::Error, N>).collect()
-    }
-}
-
-/// `[f64; N]` as a sequence of `N` values.
-pub(crate) mod array {
-    use super::{Float, Seq};
-    use serde::{Deserialize, Deserializer, Serialize, Serializer, de::Error};
-
-    pub(crate) fn serialize<S: Serializer, const N: usize>(x: &[f64; N], s: S) -> Result<S::Ok, S::Error> {
-        Seq(x).serialize(s)
-    }
-
-    pub(crate) fn deserialize<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
-        from_vec(Vec::<Float>::deserialize(d)?)
-    }
-
-    /// The array of exactly `N` values.
-    pub(super) fn from_vec<E: Error, const N: usize>(x: Vec<Float>) -> Result<[f64; N], E> {
-        let n = x.len();
-        let x: [Float; N] = x.try_into().map_err(|_| E::invalid_length(n, &format!("N = {N} values").as_str()))?;
-        Ok(x.map(|x| x.0))
     }
 }

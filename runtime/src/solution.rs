@@ -58,9 +58,17 @@
 //! `NaN:0x…` (the bits of any other NaN), which neither format has a number
 //! for. The writers refuse a solution whose columns differ in length, and
 //! the readers refuse, with a `TableError` that says what is wrong and
-//! where, anything that is not the table of a solution with `N` coordinates.
+//! where, anything that is not the table of a solution; the number of
+//! coordinates comes from the table (the CSV header, the JSON rows).
+//!
+//! The rows of `q`, `p` and `v` are [`Rows`]: one flat buffer per column,
+//! whatever the system's size, indexed as `solution.q[i][j]`.
 
-use crate::dense::{DenseStep, Hermite, Node, acceleration};
+mod rows;
+
+pub use rows::{RowIter, Rows};
+
+use crate::dense::{Coordinates, DenseStep, Hermite, Interpolant, Node, NodeView, Point, acceleration};
 use crate::error::Error;
 use crate::events::{Action, Event, EventRecord};
 use crate::integrator::Stats;
@@ -117,11 +125,11 @@ pub trait Stepping<const N: usize> {
     /// then); a failure during the run ends it with the partial solution,
     /// whose [`status`](Solution::status) and [`error`](Solution::error) say
     /// what failed. The integrator is left at the last node of the solution.
-    fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError>
+    fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError>
     where
         Self: Sized + Clone,
     {
-        solve(self, plan)
+        solve::<ConstSize<Self, N>>(self, plan)
     }
 }
 
@@ -139,8 +147,8 @@ pub enum DenseKind {
     Quintic,
 }
 
-/// An observer called at nodes: `(node, k)`.
-type Observer<'a, const N: usize> = Box<dyn FnMut(&Node<N>) + 'a>;
+/// An observer called at nodes.
+type Observer<'a> = Box<dyn FnMut(NodeView<'_>) + 'a>;
 
 /// What [`solve`](Stepping::solve) does: how far, what it keeps,
 /// which events it watches.
@@ -177,20 +185,20 @@ type Observer<'a, const N: usize> = Box<dyn FnMut(&Node<N>) + 'a>;
 /// assert!(nodes >= 1000);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-pub struct Plan<'a, const N: usize> {
+pub struct Plan<'a> {
     t_end: f64,
     every: usize,
     save_at: Vec<f64>,
     dense: DenseKind,
-    events: Vec<Event<'a, N>>,
+    events: Vec<Event<'a>>,
     velocities: bool,
-    observer: Option<(usize, Observer<'a, N>)>,
+    observer: Option<(usize, Observer<'a>)>,
     energy_tolerance: Option<f64>,
     #[cfg(feature = "progress")]
     progress: bool,
 }
 
-impl<const N: usize> core::fmt::Debug for Plan<'_, N> {
+impl core::fmt::Debug for Plan<'_> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Plan")
             .field("t_end", &self.t_end)
@@ -204,7 +212,7 @@ impl<const N: usize> core::fmt::Debug for Plan<'_, N> {
     }
 }
 
-impl<'a, const N: usize> Plan<'a, N> {
+impl<'a> Plan<'a> {
     /// Integrate to `t_end` (landing on it exactly) keeping every node.
     pub fn until(t_end: f64) -> Self {
         Self {
@@ -257,7 +265,7 @@ impl<'a, const N: usize> Plan<'a, N> {
     }
 
     /// Watch an event.
-    pub fn event(mut self, event: Event<'a, N>) -> Self {
+    pub fn event(mut self, event: Event<'a>) -> Self {
         self.events.push(event);
         self
     }
@@ -269,8 +277,9 @@ impl<'a, const N: usize> Plan<'a, N> {
         self
     }
 
-    /// Call `observe` at the start and after every `n`-th step (`n ≥ 1`).
-    pub fn observe_every(mut self, n: usize, observe: impl FnMut(&Node<N>) + 'a) -> Self {
+    /// Call `observe` at the start and after every `n`-th step (`n ≥ 1`),
+    /// with the node as slices (the same for every system size).
+    pub fn observe_every(mut self, n: usize, observe: impl FnMut(NodeView<'_>) + 'a) -> Self {
         self.observer = Some((n, Box::new(observe)));
         self
     }
@@ -474,26 +483,23 @@ pub enum SolveError {
 /// ```
 #[derive(Clone, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-pub struct Solution<const N: usize> {
+pub struct Solution {
     /// Times.
     #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
     pub t: Vec<f64>,
     /// The node index `k` of a node row, `None` for an interpolated one.
     pub step: Vec<Option<u64>>,
-    /// Positions.
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
-    pub q: Vec<[f64; N]>,
+    /// Positions, one row of the system's size per time.
+    pub q: Rows,
     /// Momenta (`p_k` at nodes; `∂L/∂v` of the interpolated `q, v` between them).
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
-    pub p: Vec<[f64; N]>,
+    pub p: Rows,
     /// Velocities (empty under [`Plan::without_velocities`]).
-    #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::rows"))]
-    pub v: Vec<[f64; N]>,
+    pub v: Rows,
     /// The energy `E_L(t, q, v)` (empty under [`Plan::without_velocities`]).
     #[cfg_attr(feature = "serde", serde(with = "crate::serde_arrays::column"))]
     pub energy: Vec<f64>,
     /// Located events, in time order.
-    pub events: Vec<EventRecord<N>>,
+    pub events: Vec<EventRecord>,
     /// Counters.
     pub stats: RunStats,
     /// The energy watch, if the plan asked for one.
@@ -508,21 +514,22 @@ pub struct Solution<const N: usize> {
 /// A run that failed: the partial solution and the error.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{error} (the partial solution ends at t = {})", .solution.t.last().copied().unwrap_or(f64::NAN))]
-pub struct Failed<const N: usize> {
+pub struct Failed {
     /// Everything recorded up to the last good node.
-    pub solution: Box<Solution<N>>,
+    pub solution: Box<Solution>,
     /// What failed.
     pub error: SolveError,
 }
 
-impl<const N: usize> Solution<N> {
-    fn empty() -> Self {
+impl Solution {
+    /// A solution without rows for a system of `width` coordinates.
+    fn empty(width: usize) -> Self {
         Self {
             t: Vec::new(),
             step: Vec::new(),
-            q: Vec::new(),
-            p: Vec::new(),
-            v: Vec::new(),
+            q: Rows::new(width),
+            p: Rows::new(width),
+            v: Rows::new(width),
             energy: Vec::new(),
             events: Vec::new(),
             stats: RunStats::default(),
@@ -548,7 +555,7 @@ impl<const N: usize> Solution<N> {
     }
 
     /// `Ok(self)` unless the run failed.
-    pub fn into_result(mut self) -> Result<Self, Failed<N>> {
+    pub fn into_result(mut self) -> Result<Self, Failed> {
         match self.error.take() {
             None => Ok(self),
             Some(error) => Err(Failed { solution: Box::new(self), error }),
@@ -560,7 +567,13 @@ impl<const N: usize> Solution<N> {
         self.energy_watch.as_ref()?.warning()
     }
 
-    fn push(&mut self, step: Option<u64>, t: f64, q: [f64; N], p: [f64; N], v: Option<([f64; N], f64)>) {
+    /// The number of coordinates of a row of `q`, `p` and `v`.
+    pub fn width(&self) -> usize {
+        self.q.width()
+    }
+
+    #[inline]
+    fn push(&mut self, step: Option<u64>, t: f64, q: &[f64], p: &[f64], v: Option<(&[f64], f64)>) {
         self.t.push(t);
         self.step.push(step);
         self.q.push(q);
@@ -583,31 +596,148 @@ impl<const N: usize> Solution<N> {
     }
 }
 
+/// What [`solve`] drives, at either size: the stepper (`Sim`), the
+/// coordinates it carries (`[f64; N]` at a compile-time size, `Vec<f64>` at
+/// a run-time size) and how its nodes, velocities and interpolants are
+/// read. [`ConstSize`] implements it for every const-size driver through
+/// [`Stepping`]; the run-time-sized integrator implements it in
+/// `integrator/dynamic.rs`. One driver, so both sizes keep the same rows,
+/// events and failures.
+pub(crate) trait Solvable {
+    /// The stepper.
+    type Sim: Clone;
+    /// The coordinates of a node.
+    type Vector: Coordinates;
+    /// The method's own interpolant of one step.
+    type Native: Interpolant<Self::Vector>;
+    /// The Hermite interpolant of one step (cubic or quintic).
+    type Hermite: Interpolant<Self::Vector>;
+    /// `false` where no acceleration is computed (quintic dense output is
+    /// then refused before the run).
+    const ACCELERATION: bool;
+
+    /// The number of coordinates.
+    fn width(sim: &Self::Sim) -> usize;
+    /// The current time.
+    fn time(sim: &Self::Sim) -> f64;
+    /// `(k, t_k, q_k, p_k)` at the current node.
+    fn node(sim: &Self::Sim) -> (u64, f64, Self::Vector, Self::Vector);
+    /// The velocity whose momentum is the current `p_k`.
+    fn velocity(sim: &Self::Sim) -> Result<Self::Vector, Error>;
+    /// Work counters.
+    fn stats(sim: &Self::Sim) -> Stats;
+    /// One step toward `t_end` (see [`Stepping::step_toward`]).
+    fn step_toward(sim: &mut Self::Sim, t_end: f64, last_h: Option<f64>) -> Result<(), Error>;
+    /// Steps to `t` exactly (see [`Stepping::land`]).
+    fn land(sim: &mut Self::Sim, t: f64) -> Result<(), Error>;
+    /// The method's own interpolant of the last step, `start → end`.
+    fn native(sim: &Self::Sim, start: &Point<Self::Vector>, end: &Point<Self::Vector>) -> Self::Native;
+    /// The cubic Hermite of `start → end`, or the quintic with the
+    /// accelerations `a` at both ends.
+    fn hermite(
+        start: &Point<Self::Vector>,
+        end: &Point<Self::Vector>,
+        a: Option<(&Self::Vector, &Self::Vector)>,
+    ) -> Self::Hermite;
+    /// `E_L(t, q, v)`.
+    fn energy(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> f64;
+    /// `∂L/∂v(t, q, v)`.
+    fn momentum(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> Self::Vector;
+    /// The acceleration of the equations of motion at `(t, q, v)`.
+    fn acceleration(sim: &Self::Sim, t: f64, q: &Self::Vector, v: &Self::Vector) -> Option<Self::Vector>;
+}
+
+/// [`Solvable`] for a const-size driver `I` (through its [`Stepping`]):
+/// the driver carries `[f64; N]`, as the stepper does.
+pub(crate) struct ConstSize<I, const N: usize>(core::marker::PhantomData<I>);
+
+impl<I: Stepping<N> + Clone, const N: usize> Solvable for ConstSize<I, N> {
+    type Sim = I;
+    type Vector = [f64; N];
+    type Native = I::Native;
+    type Hermite = Hermite<N>;
+    const ACCELERATION: bool = true;
+
+    fn width(_sim: &I) -> usize {
+        N
+    }
+
+    fn time(sim: &I) -> f64 {
+        sim.state().t
+    }
+
+    fn node(sim: &I) -> (u64, f64, [f64; N], [f64; N]) {
+        let s = sim.state();
+        (s.step, s.t, s.q, s.p)
+    }
+
+    fn velocity(sim: &I) -> Result<[f64; N], Error> {
+        sim.velocity()
+    }
+
+    fn stats(sim: &I) -> Stats {
+        sim.stats()
+    }
+
+    #[inline]
+    fn step_toward(sim: &mut I, t_end: f64, last_h: Option<f64>) -> Result<(), Error> {
+        sim.step_toward(t_end, last_h)
+    }
+
+    fn land(sim: &mut I, t: f64) -> Result<(), Error> {
+        sim.land(t)
+    }
+
+    fn native(sim: &I, start: &Point<[f64; N]>, end: &Point<[f64; N]>) -> I::Native {
+        sim.native(&start.into(), &end.into())
+    }
+
+    fn hermite(start: &Point<[f64; N]>, end: &Point<[f64; N]>, a: Option<(&[f64; N], &[f64; N])>) -> Hermite<N> {
+        let (start, end) = (Node::from(start), Node::from(end));
+        match a {
+            None => Hermite::cubic(&start, &end),
+            Some((a0, a1)) => Hermite::quintic(&start, *a0, &end, *a1),
+        }
+    }
+
+    fn energy(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> f64 {
+        sim.system().energy(t, *q, *v)
+    }
+
+    fn momentum(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> [f64; N] {
+        sim.system().momentum(t, *q, *v)
+    }
+
+    fn acceleration(sim: &I, t: f64, q: &[f64; N], v: &[f64; N]) -> Option<[f64; N]> {
+        acceleration(sim.system(), t, *q, *v)
+    }
+}
+
 /// A node as the driver carries it: the velocity only once it was needed.
-#[derive(Clone, Copy)]
-struct Carried<const N: usize> {
-    node: Node<N>,
+#[derive(Clone)]
+struct Carried<V> {
+    node: Point<V>,
     step: u64,
     has_v: bool,
-    a: Option<[f64; N]>,
+    a: Option<V>,
 }
 
 /// The state of one run of [`solve`].
-struct Driver<'s, 'a, I, const N: usize> {
-    sim: &'s mut I,
-    plan: Plan<'a, N>,
-    sol: Solution<N>,
+struct Driver<'s, 'a, K: Solvable> {
+    sim: &'s mut K::Sim,
+    plan: Plan<'a>,
+    sol: Solution,
     next_save: usize,
     steps: u64,
 }
 
-enum StepInterpolant<Nat, const N: usize> {
-    Native(Nat),
-    Hermite(Hermite<N>),
+enum StepInterpolant<K: Solvable> {
+    Native(K::Native),
+    Hermite(K::Hermite),
 }
 
-impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
-    fn eval(&self, t: f64) -> ([f64; N], [f64; N]) {
+impl<K: Solvable> StepInterpolant<K> {
+    fn eval(&self, t: f64) -> (K::Vector, K::Vector) {
         match self {
             Self::Native(d) => d.eval(t),
             Self::Hermite(d) => d.eval(t),
@@ -615,49 +745,50 @@ impl<Nat: DenseStep<N>, const N: usize> StepInterpolant<Nat, N> {
     }
 }
 
-impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
-    fn node(&mut self, with_v: bool) -> Result<Carried<N>, SolveError> {
-        let s = self.sim.state();
-        let mut c =
-            Carried { node: Node { t: s.t, q: s.q, p: s.p, v: [f64::NAN; N] }, step: s.step, has_v: false, a: None };
+impl<K: Solvable> Driver<'_, '_, K> {
+    fn node(&mut self, with_v: bool) -> Result<Carried<K::Vector>, SolveError> {
+        let (step, t, q, p) = K::node(self.sim);
+        let v = K::Vector::filled(K::width(self.sim), f64::NAN);
+        let mut c = Carried { node: Point { t, q, p, v }, step, has_v: false, a: None };
         if with_v {
             self.velocity(&mut c)?;
         }
         Ok(c)
     }
 
-    fn velocity(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
+    fn velocity(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
         if !c.has_v {
-            c.node.v = self.sim.velocity()?;
+            c.node.v = K::velocity(self.sim)?;
             c.has_v = true;
             self.sol.stats.velocity_solves += 1;
         }
         Ok(())
     }
 
-    fn accel(&mut self, c: &mut Carried<N>) -> Result<[f64; N], SolveError> {
-        if let Some(a) = c.a {
-            return Ok(a);
+    /// Computes the acceleration at `c` once.
+    fn accel(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
+        if c.a.is_none() {
+            let n = &c.node;
+            let a = K::acceleration(self.sim, n.t, &n.q, &n.v).ok_or(SolveError::NoAcceleration { t: n.t })?;
+            c.a = Some(a);
         }
-        let n = &c.node;
-        let a = acceleration(self.sim.system(), n.t, n.q, n.v).ok_or(SolveError::NoAcceleration { t: n.t })?;
-        c.a = Some(a);
-        Ok(a)
+        Ok(())
     }
 
-    fn energy(&self, t: f64, q: [f64; N], v: [f64; N]) -> f64 {
-        self.sim.system().energy(t, q, v)
+    fn energy(&self, t: f64, q: &K::Vector, v: &K::Vector) -> f64 {
+        K::energy(self.sim, t, q, v)
     }
 
     /// Keeps a node row.
-    fn keep_node(&mut self, c: &mut Carried<N>) -> Result<(), SolveError> {
-        let v = if self.plan.velocities {
+    fn keep_node(&mut self, c: &mut Carried<K::Vector>) -> Result<(), SolveError> {
+        let e = if self.plan.velocities {
             self.velocity(c)?;
-            Some((c.node.v, self.energy(c.node.t, c.node.q, c.node.v)))
+            Some(self.energy(c.node.t, &c.node.q, &c.node.v))
         } else {
             None
         };
-        self.sol.push(Some(c.step), c.node.t, c.node.q, c.node.p, v);
+        let n = &c.node;
+        self.sol.push(Some(c.step), n.t, n.q.as_ref(), n.p.as_ref(), e.map(|e| (n.v.as_ref(), e)));
         Ok(())
     }
 
@@ -665,32 +796,33 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     /// step) the last node row, unless it is one already or the plan keeps
     /// no nodes. Its velocity and energy are NaN when its velocity cannot be
     /// found.
-    fn keep_last_good(&mut self, c: &mut Carried<N>) {
+    fn keep_last_good(&mut self, c: &mut Carried<K::Vector>) {
         let last_node = self.sol.step.iter().rev().find_map(|&k| k);
         if self.plan.every == 0 || last_node == Some(c.step) {
             return;
         }
         if self.keep_node(c).is_err() {
-            let nan = self.plan.velocities.then_some(([f64::NAN; N], f64::NAN));
-            self.sol.push(Some(c.step), c.node.t, c.node.q, c.node.p, nan);
+            let nan = K::Vector::filled(K::width(self.sim), f64::NAN);
+            let nan = self.plan.velocities.then_some((nan.as_ref(), f64::NAN));
+            self.sol.push(Some(c.step), c.node.t, c.node.q.as_ref(), c.node.p.as_ref(), nan);
         }
     }
 
     /// Keeps the save times in `(after, upto]`, by `dense`.
-    fn keep_saved(&mut self, dense: &StepInterpolant<I::Native, N>, after: f64, upto: f64) {
+    fn keep_saved(&mut self, dense: &StepInterpolant<K>, after: f64, upto: f64) {
         while let Some(&t) = self.plan.save_at.get(self.next_save) {
             if t > upto || t <= after {
                 break;
             }
             let (q, v) = dense.eval(t);
-            let p = self.sim.system().momentum(t, q, v);
-            let e = self.plan.velocities.then(|| (v, self.energy(t, q, v)));
-            self.sol.push(None, t, q, p, e);
+            let p = K::momentum(self.sim, t, &q, &v);
+            let e = self.plan.velocities.then(|| self.energy(t, &q, &v));
+            self.sol.push(None, t, q.as_ref(), p.as_ref(), e.map(|e| (v.as_ref(), e)));
             self.next_save += 1;
         }
     }
 
-    fn observe(&mut self, c: &mut Carried<N>, force: bool) -> Result<(), SolveError> {
+    fn observe(&mut self, c: &mut Carried<K::Vector>, force: bool) -> Result<(), SolveError> {
         let due = match &self.plan.observer {
             Some((n, _)) => force || self.steps.is_multiple_of(*n as u64),
             None => false,
@@ -698,7 +830,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
         if due {
             self.velocity(c)?;
             if let Some((_, f)) = &mut self.plan.observer {
-                f(&c.node);
+                f(c.node.view());
             }
         }
         Ok(())
@@ -706,21 +838,24 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 
     fn interpolant(
         &mut self,
-        start: &mut Carried<N>,
-        end: &mut Carried<N>,
-    ) -> Result<StepInterpolant<I::Native, N>, SolveError> {
+        start: &mut Carried<K::Vector>,
+        end: &mut Carried<K::Vector>,
+    ) -> Result<StepInterpolant<K>, SolveError> {
         Ok(match self.plan.dense {
-            DenseKind::Native => StepInterpolant::Native(self.sim.native(&start.node, &end.node)),
-            DenseKind::Cubic => StepInterpolant::Hermite(Hermite::cubic(&start.node, &end.node)),
+            DenseKind::Native => StepInterpolant::Native(K::native(self.sim, &start.node, &end.node)),
+            DenseKind::Cubic => StepInterpolant::Hermite(K::hermite(&start.node, &end.node, None)),
             DenseKind::Quintic => {
-                let a0 = self.accel(start)?;
-                let a1 = self.accel(end)?;
-                StepInterpolant::Hermite(Hermite::quintic(&start.node, a0, &end.node, a1))
+                self.accel(start)?;
+                self.accel(end)?;
+                let (Some(a0), Some(a1)) = (&start.a, &end.a) else {
+                    return Err(SolveError::NoAcceleration { t: start.node.t });
+                };
+                StepInterpolant::Hermite(K::hermite(&start.node, &end.node, Some((a0, a1))))
             }
         })
     }
 
-    fn g(&mut self, i: usize, t: f64, q: &[f64; N], v: &[f64; N]) -> Result<f64, SolveError> {
+    fn g(&mut self, i: usize, t: f64, q: &[f64], v: &[f64]) -> Result<f64, SolveError> {
         self.sol.stats.event_evaluations += 1;
         let g = (self.plan.events[i].g)(t, q, v);
         if g.is_finite() { Ok(g) } else { Err(SolveError::NonFiniteEvent { event: i, t }) }
@@ -732,25 +867,24 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
     /// stopping or landing one (index into the records).
     fn crossings(
         &mut self,
-        dense: &StepInterpolant<I::Native, N>,
-        start: &Node<N>,
-        end: &Node<N>,
+        dense: &StepInterpolant<K>,
+        start: &Point<K::Vector>,
+        end: &Point<K::Vector>,
         g: &mut [f64],
-    ) -> Result<(Vec<EventRecord<N>>, Option<usize>), SolveError> {
+    ) -> Result<(Vec<EventRecord>, Option<usize>), SolveError> {
         let mut found = Vec::new();
         for i in 0..self.plan.events.len() {
             let samples = self.plan.events[i].samples;
             let (mut ta, mut ga) = (start.t, g[i]);
             let mut stop_found = false;
             for j in 1..=samples {
-                let (tb, qb, vb) = if j == samples {
-                    (end.t, end.q, end.v)
+                let (tb, gb) = if j == samples {
+                    (end.t, self.g(i, end.t, end.q.as_ref(), end.v.as_ref())?)
                 } else {
                     let tb = start.t + (end.t - start.t) * (j as f64 / samples as f64);
                     let (q, v) = dense.eval(tb);
-                    (tb, q, v)
+                    (tb, self.g(i, tb, q.as_ref(), v.as_ref())?)
                 };
-                let gb = self.g(i, tb, &qb, &vb)?;
                 if !stop_found && self.plan.events[i].crosses(ga, gb) {
                     let tol = self.plan.events[i].tolerance * tb.abs().max(1.0) + 4.0 * f64::EPSILON * tb.abs();
                     let mut evals = 0;
@@ -759,7 +893,7 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
                         |t| {
                             evals += 1;
                             let (q, v) = dense.eval(t);
-                            (event.g)(t, &q, &v)
+                            (event.g)(t, q.as_ref(), v.as_ref())
                         },
                         (ta, ga),
                         (tb, gb),
@@ -768,7 +902,13 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
                     self.sol.stats.event_evaluations += evals;
                     let t = root.map_err(|e| SolveError::NonFiniteEvent { event: i, t: e.t })?;
                     let (q, v) = dense.eval(t);
-                    found.push(EventRecord { event: i, t, q, v, rising: ga < 0.0 });
+                    found.push(EventRecord {
+                        event: i,
+                        t,
+                        q: q.as_ref().to_vec(),
+                        v: v.as_ref().to_vec(),
+                        rising: ga < 0.0,
+                    });
                     stop_found = self.plan.events[i].action != Action::Record;
                 }
                 (ta, ga) = (tb, gb);
@@ -790,11 +930,8 @@ impl<I: Stepping<N> + Clone, const N: usize> Driver<'_, '_, I, N> {
 }
 
 /// Integrates `sim` as `plan` says (see the [module docs](self)).
-pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
-    sim: &mut I,
-    plan: Plan<'_, N>,
-) -> Result<Solution<N>, SolveError> {
-    let t0 = sim.state().t;
+pub(crate) fn solve<K: Solvable>(sim: &mut K::Sim, plan: Plan<'_>) -> Result<Solution, SolveError> {
+    let t0 = K::time(sim);
     let t_end = plan.t_end;
     if !t_end.is_finite() || t_end < t0 {
         return Err(SolveError::InvalidEnd { t_end, t: t0 });
@@ -820,10 +957,17 @@ pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
     if plan.energy_tolerance.is_some_and(|tol| !(tol.is_finite() && tol > 0.0)) {
         return Err(SolveError::InvalidPlan { reason: "the energy tolerance must be finite and positive" });
     }
-    let mut d = Driver { sim, plan, sol: Solution::empty(), next_save: 0, steps: 0 };
+    if plan.dense == DenseKind::Quintic && !K::ACCELERATION {
+        return Err(SolveError::InvalidPlan {
+            reason: "quintic dense output needs the acceleration, which a run-time-sized system does not compute: \
+                     use `DenseKind::Native` or `DenseKind::Cubic`",
+        });
+    }
+    let width = K::width(sim);
+    let mut d = Driver::<K> { sim, plan, sol: Solution::empty(width), next_save: 0, steps: 0 };
     let error = run(&mut d).err();
     let mut sol = d.sol;
-    let stats = d.sim.stats();
+    let stats = K::stats(d.sim);
     sol.stats.steps = stats.steps;
     sol.stats.newton_iterations = stats.newton_iterations;
     sol.stats.failed_steps = stats.failed_steps;
@@ -835,27 +979,27 @@ pub(crate) fn solve<I: Stepping<N> + Clone, const N: usize>(
 }
 
 /// The loop of [`solve`]; an `Err` ends the run with what was recorded.
-fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> Result<(), SolveError> {
+fn run<K: Solvable>(d: &mut Driver<'_, '_, K>) -> Result<(), SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let dense_needed = has_events || !d.plan.save_at.is_empty();
     let v_each_step = dense_needed || d.plan.energy_tolerance.is_some();
     #[cfg(feature = "progress")]
-    let bar = d.plan.progress.then(|| progress_bar(t_end - d.sim.state().t));
+    let bar = d.plan.progress.then(|| progress_bar(t_end - K::time(d.sim)));
 
     let mut prev = d.node(v_each_step)?;
     let t0 = prev.node.t;
     if let Some(tolerance) = d.plan.energy_tolerance {
         d.velocity(&mut prev)?;
-        let initial = d.energy(t0, prev.node.q, prev.node.v);
+        let initial = d.energy(t0, &prev.node.q, &prev.node.v);
         d.sol.energy_watch = Some(EnergyWatch { tolerance, initial, largest: 0.0, largest_at: t0, exceeded_at: None });
     }
     // Save times at t0 come before the first node row.
     while d.plan.save_at.get(d.next_save) == Some(&t0) {
         d.velocity(&mut prev)?;
-        let n = prev.node;
-        let e = d.plan.velocities.then(|| (n.v, d.energy(t0, n.q, n.v)));
-        d.sol.push(None, t0, n.q, n.p, e);
+        let n = &prev.node;
+        let e = d.plan.velocities.then(|| d.energy(t0, &n.q, &n.v));
+        d.sol.push(None, t0, n.q.as_ref(), n.p.as_ref(), e.map(|e| (n.v.as_ref(), e)));
         d.next_save += 1;
     }
     if d.plan.every > 0 {
@@ -864,8 +1008,8 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
     d.observe(&mut prev, true)?;
     let mut g_prev = Vec::with_capacity(d.plan.events.len());
     for i in 0..d.plan.events.len() {
-        let n = prev.node;
-        g_prev.push(d.g(i, n.t, &n.q, &n.v)?);
+        let n = &prev.node;
+        g_prev.push(d.g(i, n.t, n.q.as_ref(), n.v.as_ref())?);
     }
     // Everything after a step that can fail (velocity solves, accelerations,
     // event functions, the landing step) needs the integrator as it was
@@ -913,9 +1057,9 @@ fn run<I: Stepping<N> + Clone, const N: usize>(d: &mut Driver<'_, '_, I, N>) -> 
 }
 
 /// What the loop of [`run`] carries from one step to the next.
-struct Loop<const N: usize> {
+struct Loop<V> {
     /// The last node.
-    prev: Carried<N>,
+    prev: Carried<V>,
     /// The event values there.
     g_prev: Vec<f64>,
     /// The end of a step interrupted by a landing event.
@@ -927,18 +1071,18 @@ struct Loop<const N: usize> {
 /// One step of [`run`] with everything it records; `Ok(true)` when a stop
 /// event ended the run. `before` is the integrator before the step (when
 /// something after the step can fail or an event can stop or land).
-fn advance<I: Stepping<N> + Clone, const N: usize>(
-    d: &mut Driver<'_, '_, I, N>,
-    lp: &mut Loop<N>,
-    before: Option<&I>,
+fn advance<K: Solvable>(
+    d: &mut Driver<'_, '_, K>,
+    lp: &mut Loop<K::Vector>,
+    before: Option<&K::Sim>,
     dense_needed: bool,
     v_each_step: bool,
 ) -> Result<bool, SolveError> {
     let t_end = d.plan.t_end;
     let has_events = !d.plan.events.is_empty();
     let result = match lp.rejoin.take() {
-        Some(t) => d.sim.land(t),
-        None => d.sim.step_toward(t_end, lp.last_h),
+        Some(t) => K::land(d.sim, t),
+        None => K::step_toward(d.sim, t_end, lp.last_h),
     };
     result?;
     d.steps += 1;
@@ -950,12 +1094,11 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
         let mut upto = end.node.t;
         if has_events {
             let (found, stop) = d.crossings(&dense, &prev.node, &end.node, &mut lp.g_prev)?;
-            d.sol.events.extend_from_slice(&found);
             if let Some(k) = stop {
-                let record = found[k];
-                upto = record.t;
-                landed = Some((record, end.node.t));
+                upto = found[k].t;
+                landed = Some((found[k].clone(), end.node.t));
             }
+            d.sol.events.extend(found);
         }
         d.keep_saved(&dense, prev.node.t, upto);
     }
@@ -965,7 +1108,7 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
         if let Some(before) = before {
             d.sim.clone_from(before);
         }
-        d.sim.land(record.t)?;
+        K::land(d.sim, record.t)?;
         d.sol.stats.redone_steps += 1;
         end = d.node(true)?;
         // An event at the step's start (to the clock's resolution) lands on
@@ -977,11 +1120,10 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
                 // The side the crossing left g on: the node at t* can
                 // differ from the dense output by the local error, and
                 // must not count as a second crossing.
-                let (q, v) = (record.q, record.v);
-                d.g(i, record.t, &q, &v)?
+                d.g(i, record.t, &record.q, &record.v)?
             } else {
-                let n = end.node;
-                d.g(i, n.t, &n.q, &n.v)?
+                let n = &end.node;
+                d.g(i, n.t, n.q.as_ref(), n.v.as_ref())?
             };
         }
         match d.plan.events[record.event].action {
@@ -1013,9 +1155,9 @@ fn advance<I: Stepping<N> + Clone, const N: usize>(
 }
 
 /// Node rows, observer and energy watch after a step.
-fn finish_node<I: Stepping<N> + Clone, const N: usize>(
-    d: &mut Driver<'_, '_, I, N>,
-    end: &mut Carried<N>,
+fn finish_node<K: Solvable>(
+    d: &mut Driver<'_, '_, K>,
+    end: &mut Carried<K::Vector>,
     last: bool,
 ) -> Result<(), SolveError> {
     if d.plan.every > 0 && (last || d.steps.is_multiple_of(d.plan.every as u64)) {
@@ -1024,7 +1166,7 @@ fn finish_node<I: Stepping<N> + Clone, const N: usize>(
     d.observe(end, false)?;
     if d.sol.energy_watch.is_some() {
         d.velocity(end)?;
-        let e = d.energy(end.node.t, end.node.q, end.node.v);
+        let e = d.energy(end.node.t, &end.node.q, &end.node.v);
         if let Some(w) = &mut d.sol.energy_watch {
             w.observe(end.node.t, e);
         }
@@ -1059,9 +1201,9 @@ pub enum TableError {
     /// UTF-8).
     #[error("csv: {0}")]
     Csv(#[from] csv::Error),
-    /// From the JSON reader or writer: malformed JSON, a missing field, a row
-    /// of `q`, `p` or `v` without exactly `N` values, or a value that is
-    /// neither a number nor one of the texts of non-finite values (the
+    /// From the JSON reader or writer: malformed JSON, a missing field, a
+    /// column `q`, `p` or `v` whose rows differ in length, or a value that
+    /// is neither a number nor one of the texts of non-finite values (the
     /// message gives the line and column).
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
@@ -1079,23 +1221,28 @@ pub enum TableError {
         /// The length of that column.
         expected: usize,
     },
-    /// A CSV table whose number of columns fits neither layout of a solution
-    /// with `N` coordinates.
-    #[error(
-        "csv: {found} columns fit no solution with N = {n}, which has {without} without velocities and {with} with them"
-    )]
+    /// Columns `q`, `p` and `v` whose rows differ in width (possible for a
+    /// solution built by hand: the fields are public).
+    #[error("column `{column}` has rows of {width} values, `q` has rows of {expected}")]
+    Width {
+        /// The column whose width is wrong (`"p"` or `"v"`).
+        column: &'static str,
+        /// Its width.
+        width: usize,
+        /// The width of `q`.
+        expected: usize,
+    },
+    /// A CSV table whose number of columns fits neither layout of a
+    /// solution of `N` coordinates: `2 + 2N` columns without velocities
+    /// (`t, step, q…, p…`), `3 + 3N` with them (`t, step, q…, p…, v…, energy`).
+    #[error("csv: {found} columns fit no solution, which has 2 + 2N without velocities and 3 + 3N with them")]
     Columns {
         /// The number of columns of the header.
         found: usize,
-        /// The number of coordinates `N`.
-        n: usize,
-        /// `2 + 2N`: `t, step, q…, p…`.
-        without: usize,
-        /// `3 + 3N`: `t, step, q…, p…, v…, energy`.
-        with: usize,
     },
     /// A CSV header whose name at `column` is not the one
-    /// [`write_csv`](Solution::write_csv) writes there for `N` coordinates.
+    /// [`write_csv`](Solution::write_csv) writes there for the table's
+    /// number of coordinates.
     #[error("csv: header column {column} is `{found}`, expected `{expected}`")]
     Header {
         /// The index of the column.
@@ -1132,14 +1279,14 @@ pub enum TableError {
 }
 
 #[cfg(feature = "serde")]
-impl<const N: usize> Solution<N> {
-    /// The CSV header: `t, step, q0 …, p0 …` and, with velocities,
-    /// `v0 …, energy`.
-    fn header(velocities: bool) -> Vec<String> {
+impl Solution {
+    /// The CSV header of `n` coordinates: `t, step, q0 …, p0 …` and, with
+    /// velocities, `v0 …, energy`.
+    fn header(n: usize, velocities: bool) -> Vec<String> {
         let mut h = vec!["t".to_string(), "step".to_string()];
         let names: &[&str] = if velocities { &["q", "p", "v"] } else { &["q", "p"] };
         for name in names {
-            h.extend((0..N).map(|i| format!("{name}{i}")));
+            h.extend((0..n).map(|i| format!("{name}{i}")));
         }
         if velocities {
             h.push("energy".to_string());
@@ -1148,7 +1295,9 @@ impl<const N: usize> Solution<N> {
     }
 
     /// Checks that the columns have the lengths of one table (see
-    /// [`TableError::Length`]); `true` when the table has velocities.
+    /// [`TableError::Length`]) and that the rows of `p` and `v` are as wide
+    /// as those of `q` ([`TableError::Width`]); `true` when the table has
+    /// velocities.
     fn check_columns(&self) -> Result<bool, TableError> {
         let rows = self.t.len();
         let length = |column, len, reference, expected| {
@@ -1162,6 +1311,12 @@ impl<const N: usize> Solution<N> {
             length("v", self.v.len(), "t", rows)?;
         }
         length("energy", self.energy.len(), "v", self.v.len())?;
+        let expected = self.q.width();
+        for (column, rows) in [("p", &self.p), ("v", &self.v)] {
+            if !rows.is_empty() && rows.width() != expected && !self.q.is_empty() {
+                return Err(TableError::Width { column, width: rows.width(), expected });
+            }
+        }
         Ok(velocities)
     }
 
@@ -1176,14 +1331,15 @@ impl<const N: usize> Solution<N> {
     /// back bit for bit. Events, statistics and status are not part of the
     /// table (see [`write_json`](Self::write_json)).
     ///
-    /// A solution whose columns differ in length (possible for one built by
-    /// hand: the fields are public) is refused with
-    /// [`TableError::Length`] before anything is written.
+    /// A solution whose columns differ in length or width (possible for one
+    /// built by hand: the fields are public) is refused with
+    /// [`TableError::Length`] or [`TableError::Width`] before anything is
+    /// written.
     pub fn write_csv<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
         use crate::serde_arrays::{Float, Seq};
         let velocities = self.check_columns()?;
         let mut out = csv::Writer::from_writer(w);
-        out.write_record(Self::header(velocities))?;
+        out.write_record(Self::header(self.width(), velocities))?;
         for i in 0..self.len() {
             let (t, step, q, p) = (Float(self.t[i]), self.step[i], Seq(&self.q[i]), Seq(&self.p[i]));
             if velocities {
@@ -1199,29 +1355,40 @@ impl<const N: usize> Solution<N> {
     /// Reads a table written by [`write_csv`](Self::write_csv) (status
     /// `Finished`, no events, zero statistics: the table holds only rows).
     ///
-    /// The header must be the one `write_csv` writes for `N` coordinates,
-    /// with or without velocities (else [`TableError::Columns`] or
-    /// [`TableError::Header`]); every row must have as many fields as the
-    /// header ([`TableError::Fields`]); every value must be a finite number
-    /// or one of the texts `write_csv` writes for non-finite values, and a
-    /// `step` a node index or empty ([`TableError::Value`], with the row and
-    /// the column).
+    /// The number of coordinates `N` comes from the header: `2 + 2N`
+    /// columns without velocities, `3 + 3N` with them (where both fit, the
+    /// table has velocities when its last column is named `energy`; a
+    /// number of columns that fits neither is [`TableError::Columns`]). The header must be the one
+    /// `write_csv` writes for `N` coordinates ([`TableError::Header`]);
+    /// every row must have as many fields as the header
+    /// ([`TableError::Fields`]: no ragged rows); every value must be a
+    /// finite number or one of the texts `write_csv` writes for non-finite
+    /// values, and a `step` a node index or empty ([`TableError::Value`],
+    /// with the row and the column).
     pub fn read_csv<R: std::io::Read>(r: R) -> Result<Self, TableError> {
         let mut input = csv::ReaderBuilder::new().flexible(true).from_reader(r);
         let header = input.headers()?.clone();
-        let (without, with) = (2 + 2 * N, 3 + 3 * N);
-        let velocities = match header.len() {
-            c if c == without => false,
-            c if c == with => true,
-            found => return Err(TableError::Columns { found, n: N, without, with }),
+        let found = header.len();
+        let with = found >= 3 && (found - 3).is_multiple_of(3);
+        let without = found >= 2 && (found - 2).is_multiple_of(2);
+        // Where both layouts fit (6, 12, … columns) the last name decides.
+        let velocities = match (with, without) {
+            (true, true) => header.iter().next_back() == Some("energy"),
+            (with, false) => with,
+            (false, true) => false,
         };
-        let names = Self::header(velocities);
+        if !(with || without) {
+            return Err(TableError::Columns { found });
+        }
+        let n = if velocities { (found - 3) / 3 } else { (found - 2) / 2 };
+        let names = Self::header(n, velocities);
         for (column, (found, expected)) in header.iter().zip(&names).enumerate() {
             if found != expected {
                 return Err(TableError::Header { column, found: found.to_string(), expected: expected.clone() });
             }
         }
-        let mut sol = Self::empty();
+        let mut sol = Self::empty(n);
+        let (mut q, mut p, mut v) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         for (row, record) in input.records().enumerate() {
             let record = record?;
             if record.len() != names.len() {
@@ -1235,21 +1402,26 @@ impl<const N: usize> Solution<N> {
             };
             let value =
                 |column: usize| crate::serde_arrays::parse(&record[column]).ok_or_else(|| wrong(column, "a number"));
-            let values = |first: usize| -> Result<[f64; N], TableError> {
-                let mut x = [0.0; N];
+            let values = |first: usize, x: &mut [f64]| -> Result<(), TableError> {
                 for (i, x) in x.iter_mut().enumerate() {
                     *x = value(first + i)?;
                 }
-                Ok(x)
+                Ok(())
             };
             let t = value(0)?;
             let step = match &record[1] {
                 "" => None,
                 text => Some(text.parse::<u64>().map_err(|_| wrong(1, "a node index or empty"))?),
             };
-            let (q, p) = (values(2)?, values(2 + N)?);
-            let v = if velocities { Some((values(2 + 2 * N)?, value(2 + 3 * N)?)) } else { None };
-            sol.push(step, t, q, p, v);
+            values(2, &mut q)?;
+            values(2 + n, &mut p)?;
+            let energy = if velocities {
+                values(2 + 2 * n, &mut v)?;
+                Some(value(2 + 3 * n)?)
+            } else {
+                None
+            };
+            sol.push(step, t, &q, &p, energy.map(|e| (&v[..], e)));
         }
         Ok(sol)
     }
@@ -1264,9 +1436,10 @@ impl<const N: usize> Solution<N> {
     /// same holds for the solution's `Serialize` in any human-readable serde
     /// format; binary formats carry the `f64` itself.
     ///
-    /// A solution whose columns differ in length (possible for one built by
-    /// hand: the fields are public) is refused with
-    /// [`TableError::Length`] before anything is written.
+    /// A solution whose columns differ in length or width (possible for one
+    /// built by hand: the fields are public) is refused with
+    /// [`TableError::Length`] or [`TableError::Width`] before anything is
+    /// written.
     pub fn write_json<W: std::io::Write>(&self, w: W) -> Result<(), TableError> {
         self.check_columns()?;
         Ok(serde_json::to_writer(w, self)?)
@@ -1277,9 +1450,11 @@ impl<const N: usize> Solution<N> {
     /// (its message is in the status).
     ///
     /// Values must be numbers or the strings `write_json` writes for
-    /// non-finite values, and rows of `q`, `p` and `v` must have `N` values
-    /// ([`TableError::Json`]); the columns must have the lengths of one
-    /// table ([`TableError::Length`]).
+    /// non-finite values, and the rows of each of `q`, `p` and `v` must
+    /// have one length ([`TableError::Json`]: no ragged rows); the columns
+    /// must have the lengths of one table ([`TableError::Length`]), and `p`
+    /// and `v` rows as wide as `q`'s ([`TableError::Width`]). The number of
+    /// coordinates is the width of the rows read.
     pub fn read_json<R: std::io::Read>(r: R) -> Result<Self, TableError> {
         let sol: Self = serde_json::from_reader(r)?;
         sol.check_columns()?;

@@ -2,19 +2,23 @@
 //! ensembles, progress) meet the integrators.
 //!
 //! [`Stepping`] (defined in [`crate::solution`]) is what `solve` needs from
-//! an integrator: one step, a landing step, the state and velocity at the
+//! a const-size integrator: one step, a landing step, the state and velocity at the
 //! node, and the method's own interpolant of the last step. It is implemented here once for
 //! the one [`Integrator`] in `f64`, for every method (one-point rules,
 //! Galerkin, compositions: they differ only in their own interpolant, which
 //! the method brings), using only its public accessors; `solve` is the
-//! trait's provided method.
+//! trait's provided method. The run-time-sized [`DynIntegrator`] is driven
+//! by the same `solve` through the size-free [`Solvable`], implemented here
+//! too: its nodes are `Vec<f64>` and its dense output the cubic Hermite of
+//! the nodes (the one-point rules' and compositions' own at a compile-time
+//! size as well).
 
-use crate::dense::{Hermite, Node};
+use crate::dense::{Hermite, HermiteRows, Node, Point};
 use crate::error::Error;
-use crate::integrator::{F64Readouts, Integrator, Stats, StepPolicy};
-use crate::solution::Stepping;
+use crate::integrator::{DynIntegrator, DynMethod, F64Readouts, Integrator, Stats, StepPolicy};
+use crate::solution::{Plan, Solution, Solvable, SolveError, Stepping, solve};
 use crate::state::State;
-use crate::system::Lagrangian;
+use crate::system::{DynLagrangian, Lagrangian};
 use crate::time_transform::{Adaptive, ExplicitAdaptive, SStepper, StepDensity, TimeTransformed};
 
 /// `true` when a fixed step of size `h` from `t` ends within `10⁻⁹ h` of
@@ -160,5 +164,113 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
     /// The cubic Hermite through both nodes in physical time.
     fn native(&self, start: &Node<N>, end: &Node<N>) -> Hermite<N> {
         Hermite::cubic(start, end)
+    }
+}
+
+/// `solve` on a run-time-sized integrator: the nodes as `Vec<f64>`, dense
+/// output by the cubic Hermite of the nodes (the one-point rules' and
+/// compositions' own interpolant at a compile-time size too), momenta and
+/// energies between nodes by the integrator's reverse sweeps. No
+/// acceleration: quintic dense output is refused before the run.
+pub(crate) struct RunTimeSize<S, M>(core::marker::PhantomData<(S, M)>);
+
+impl<S: DynLagrangian + Clone, M: DynMethod + Clone> Solvable for RunTimeSize<S, M> {
+    type Sim = DynIntegrator<S, M>;
+    type Vector = Vec<f64>;
+    type Native = HermiteRows;
+    type Hermite = HermiteRows;
+    const ACCELERATION: bool = false;
+
+    fn width(sim: &Self::Sim) -> usize {
+        sim.dimension()
+    }
+
+    fn time(sim: &Self::Sim) -> f64 {
+        sim.state().t
+    }
+
+    fn node(sim: &Self::Sim) -> (u64, f64, Vec<f64>, Vec<f64>) {
+        let s = sim.state();
+        (s.step, s.t, s.q.clone(), s.p.clone())
+    }
+
+    fn velocity(sim: &Self::Sim) -> Result<Vec<f64>, Error> {
+        sim.velocity()
+    }
+
+    fn stats(sim: &Self::Sim) -> Stats {
+        *sim.stats()
+    }
+
+    fn step_toward(sim: &mut Self::Sim, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
+        if sim.lands(t_end) { sim.run_until(t_end, |_| {}) } else { sim.step().map(|_| ()) }
+    }
+
+    fn land(sim: &mut Self::Sim, t: f64) -> Result<(), Error> {
+        sim.run_until(t, |_| {})
+    }
+
+    fn native(_sim: &Self::Sim, start: &Point<Vec<f64>>, end: &Point<Vec<f64>>) -> HermiteRows {
+        HermiteRows::new(start, end, None)
+    }
+
+    fn hermite(start: &Point<Vec<f64>>, end: &Point<Vec<f64>>, a: Option<(&Vec<f64>, &Vec<f64>)>) -> HermiteRows {
+        HermiteRows::new(start, end, a)
+    }
+
+    fn energy(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> f64 {
+        sim.energy_at(t, q, v)
+    }
+
+    fn momentum(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> Vec<f64> {
+        sim.momentum_at(t, q, v)
+    }
+
+    fn acceleration(_sim: &Self::Sim, _t: f64, _q: &Vec<f64>, _v: &Vec<f64>) -> Option<Vec<f64>> {
+        None
+    }
+}
+
+impl<S: DynLagrangian + Clone, M: DynMethod + Clone> DynIntegrator<S, M> {
+    /// Integrates as `plan` says and returns the [`Solution`], as
+    /// [`Stepping::solve`] does for a const-size integrator: the same
+    /// driver, rows, events and failures. Dense output (save times, events)
+    /// is the cubic Hermite of the nodes, the one-point rules' and
+    /// compositions' own at a compile-time size too;
+    /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
+    /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
+    /// run-time size.
+    ///
+    /// ```
+    /// use lagrangian_runtime::{DynIntegrator, DynLagrangian, Event, Midpoint, Plan, Scalar};
+    ///
+    /// /// Uncoupled oscillators, as many as `n`.
+    /// #[derive(Clone)]
+    /// struct Oscillators { n: usize }
+    /// impl DynLagrangian for Oscillators {
+    ///     const AUTONOMOUS: bool = true;
+    ///     fn dimension(&self) -> usize { self.n }
+    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+    ///         let mut l = D::from(0.0);
+    ///         for i in 0..q.len() {
+    ///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
+    ///         }
+    ///         l
+    ///     }
+    /// }
+    ///
+    /// let mut sim = DynIntegrator::new(Oscillators { n: 3 }, Midpoint, 0.01).start(0.0, &[1.0; 3], &[0.0; 3])?;
+    /// let plan = Plan::until(2.0).every(10).save_at(vec![0.125]).event(Event::new(|_t, q, _v| q[0]));
+    /// let solution = sim.solve(plan)?.into_result()?;
+    /// assert_eq!(solution.width(), 3);
+    /// // Nodes 0 and 10, then the save time, interpolated.
+    /// assert_eq!((solution.t[2], solution.step[2]), (0.125, None));
+    /// assert!((solution.q[2][2] - 0.125f64.cos()).abs() < 1e-4);
+    /// // cos t crosses zero at π/2.
+    /// assert!((solution.events[0].t - std::f64::consts::FRAC_PI_2).abs() < 1e-4);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
+        solve::<RunTimeSize<S, M>>(self, plan)
     }
 }

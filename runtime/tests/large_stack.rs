@@ -434,8 +434,8 @@ fn solve_with_events<I: Stepping<N> + Clone, const N: usize>(
     let plan = Plan::until(t0 + 2.0 * h)
         .every(1)
         .dense(dense)
-        .event(Event::new(move |t, q: &[f64; N], _| t - (t0 + 0.3 * h) + 0.0 * q[0]).action(Action::Record))
-        .event(Event::new(move |t, _, v: &[f64; N]| t - (t0 + 1.4 * h) + 0.0 * v[0]).action(Action::Land));
+        .event(Event::new(move |t, q: &[f64], _| t - (t0 + 0.3 * h) + 0.0 * q[0]).action(Action::Record))
+        .event(Event::new(move |t, _, v: &[f64]| t - (t0 + 1.4 * h) + 0.0 * v[0]).action(Action::Land));
     let solution = sim.solve(plan)?;
     assert_eq!(solution.status, Status::Finished);
     assert_eq!(solution.events.len(), 2, "{:?}", solution.events.iter().map(|e| e.t).collect::<Vec<_>>());

@@ -68,7 +68,7 @@ fn failing_members_are_reported_with_their_index() {
 #[test]
 fn sharded_ensembles_serialise_and_merge() {
     let inputs: Vec<(f64, f64)> = inputs().into_iter().step_by(50).collect();
-    let solve = |_: usize, &(theta0, omega2): &(f64, f64)| -> Result<Solution<1>, String> {
+    let solve = |_: usize, &(theta0, omega2): &(f64, f64)| -> Result<Solution, String> {
         let mut sim = Integrator::new(Pendulum { omega2 }, Midpoint, 0.01)
             .start(0.0, [theta0], [0.0])
             .map_err(|e| e.to_string())?;
@@ -82,9 +82,8 @@ fn sharded_ensembles_serialise_and_merge() {
         let shard = Shard { start: range.start, results: ensemble::run(&inputs[range], solve) };
         files.push(serde_json::to_string(&shard).unwrap());
     }
-    let shards: Vec<Shard<Solution<1>, String>> =
-        files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
-    let merged: Ensemble<Solution<1>, String> = ensemble::merge(shards, inputs.len()).unwrap();
+    let shards: Vec<Shard<Solution, String>> = files.iter().rev().map(|f| serde_json::from_str(f).unwrap()).collect();
+    let merged: Ensemble<Solution, String> = ensemble::merge(shards, inputs.len()).unwrap();
     assert_eq!(merged, whole);
     assert_eq!(merged.len(), 20);
 }

@@ -73,7 +73,7 @@ fn a_terminal_event_stops_exactly_at_the_crossing() {
         sim.solve(plan).unwrap()
     };
     let sol = stop(&mut sim);
-    let first = sol.events[0];
+    let first = &sol.events[0];
     assert_eq!(sol.status, Status::Stopped { event: 0, t: first.t });
     assert_eq!(sim.state().t, first.t);
     assert_eq!(*sol.t.last().unwrap(), first.t);

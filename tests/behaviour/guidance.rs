@@ -95,7 +95,7 @@ fn the_suggested_step_gives_the_requested_frequency_error() {
 }
 
 /// The mean period from the first to the last zero crossing.
-fn measured_period(sol: lagrangian::Solution<1>) -> f64 {
+fn measured_period(sol: lagrangian::Solution) -> f64 {
     let (first, last) = (sol.events[0].t, sol.events.last().unwrap().t);
     2.0 * (last - first) / (sol.events.len() - 1) as f64
 }

@@ -21,4 +21,5 @@ mod galerkin_errors;
 mod guidance;
 mod macro_rewrite;
 mod method_matrix;
+mod run_time_solve;
 mod solution;

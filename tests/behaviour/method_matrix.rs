@@ -15,6 +15,10 @@
 //!   accuracy, the run ends on the stop time with the stepper there;
 //! - `files`: the solution written as CSV and JSON and read back bit for bit.
 //!
+//! At run time `solve` and `files` are the same checks, and the rows are
+//! also those of the compile-time solution to round-off (the same times and
+//! nodes, the values within `1e-10`).
+//!
 //! A cell that is not defined is the typed refusal of
 //! `lagrangian::problem::supports`, checked to be exactly that text (the
 //! capability page lists them). `cargo test --test behaviour method_matrix
@@ -102,7 +106,7 @@ fn reference<S: Lagrangian<2> + Clone>(system: S, q0: [f64; 2], v0: [f64; 2]) ->
     let mut sim = GalerkinIntegrator::new(system, Galerkin::<6, 6>::gauss(), 0.01).start(0.0, q0, v0).unwrap();
     let plan = Plan::until(T_STOP).every(0).save_at(SAVE.to_vec()).event(Event::new(|_, q, _| q[0]));
     let sol = sim.solve(plan).unwrap();
-    let rows = (0..sol.len()).filter(|&i| sol.step[i].is_none()).map(|i| sol.q[i]).collect();
+    let rows = (0..sol.len()).filter(|&i| sol.step[i].is_none()).map(|i| sol.q.array(i).unwrap()).collect();
     Reference { rows, crossings: sol.events.iter().map(|e| e.t).collect() }
 }
 
@@ -112,6 +116,8 @@ struct Row {
     land: String,
     solve: String,
     files: String,
+    /// The solution of the `solve` column.
+    solution: Solution,
 }
 
 /// Runs the three columns for one method, `start` giving a fresh integrator
@@ -131,21 +137,36 @@ fn row<I: Stepping<2> + Clone>(
         assert_eq!(sim.state().t.to_bits(), target.to_bits(), "{name}: target {i}");
     }
     let land = format!("100/100 exact, {} steps", sim.stats().steps);
+    let mut sim = start();
+    let (solve, files, solution) = solve_cells(name, reference, tolerance, |plan| {
+        let sol = sim.solve(plan).unwrap();
+        (sol, sim.state().t, sim.state().q.to_vec())
+    });
+    Row { name, land, solve, files, solution }
+}
 
+/// The `solve` and `files` cells of one method at either size: `solve`
+/// runs the plan and returns the solution and where its stepper ended
+/// (`t`, `q`). Returns the two cells and the solution.
+fn solve_cells(
+    name: &str,
+    reference: &Reference,
+    tolerance: f64,
+    solve: impl FnOnce(Plan<'static>) -> (Solution, f64, Vec<f64>),
+) -> (String, String, Solution) {
     // Solve with thinning, save times, a record and a stop event.
     let Reference { rows: reference, crossings } = reference;
-    let mut sim = start();
     let plan = Plan::until(T_END)
         .every(5)
         .save_at(SAVE.to_vec())
         .event(Event::new(|_, q, _| q[0]))
         .event(Event::new(|t, _, _| t - T_STOP).action(Action::Stop));
-    let sol = sim.solve(plan).unwrap();
+    let (sol, t_sim, q_sim) = solve(plan);
     assert!(matches!(sol.status, Status::Stopped { event: 1, .. }), "{name}: {:?}", sol.status);
     let end = *sol.t.last().unwrap();
     assert!((end - T_STOP).abs() <= 1e-13, "{name}: the stop event ends the run ({end})");
-    assert_eq!(sim.state().t, end, "{name}: the integrator is at the stop");
-    assert_eq!(sol.q.last().unwrap(), &sim.state().q, "{name}: the last row is its node");
+    assert_eq!(t_sim, end, "{name}: the integrator is at the stop");
+    assert_eq!(sol.q.last().unwrap(), &q_sim[..], "{name}: the last row is its node");
     let saved: Vec<usize> = (0..sol.len()).filter(|&i| sol.step[i].is_none()).collect();
     assert_eq!(saved.iter().map(|&i| sol.t[i]).collect::<Vec<_>>(), SAVE, "{name}: save times");
     let nodes: Vec<u64> = sol.step.iter().flatten().copied().collect();
@@ -154,7 +175,7 @@ fn row<I: Stepping<2> + Clone>(
         .iter()
         .zip(reference)
         .flat_map(|(&i, r)| {
-            let q = sol.q[i];
+            let q = &sol.q[i];
             (0..2).map(move |j| (q[j] - r[j]).abs())
         })
         .fold(0.0, f64::max);
@@ -167,23 +188,22 @@ fn row<I: Stepping<2> + Clone>(
     let solve = format!("dense {dense_error:.0e}, event {event_error:.0e}, {} rows", sol.len());
 
     // CSV and JSON, bit for bit.
-    let bits = |s: &Solution<2>| {
-        let rows = |a: &[[f64; 2]]| a.iter().flat_map(|r| r.map(f64::to_bits)).collect::<Vec<_>>();
+    let bits = |s: &Solution| {
+        let rows = |a: &Rows| a.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
         let t: Vec<u64> = s.t.iter().map(|x| x.to_bits()).collect();
         let e: Vec<u64> = s.energy.iter().map(|x| x.to_bits()).collect();
         (t, s.step.clone(), rows(&s.q), rows(&s.p), rows(&s.v), e)
     };
     let mut csv = Vec::new();
     sol.write_csv(&mut csv).unwrap();
-    assert_eq!(bits(&Solution::<2>::read_csv(csv.as_slice()).unwrap()), bits(&sol), "{name}: csv");
+    assert_eq!(bits(&Solution::read_csv(csv.as_slice()).unwrap()), bits(&sol), "{name}: csv");
     let mut json = Vec::new();
     sol.write_json(&mut json).unwrap();
-    let back = Solution::<2>::read_json(json.as_slice()).unwrap();
+    let back = Solution::read_json(json.as_slice()).unwrap();
     assert_eq!(bits(&back), bits(&sol), "{name}: json");
     assert_eq!(back.events, sol.events, "{name}: json events");
     let files = format!("csv {} B, json {} B", csv.len(), json.len());
-
-    Row { name, land, solve, files }
+    (solve, files, sol)
 }
 
 /// Step size and dense-output tolerance of each family, in the order of
@@ -205,13 +225,15 @@ const STEPS: [(f64, f64); 12] = [
 
 /// The run-time-sized cells of one family: landing on the same 100 targets
 /// as the compile-time run (agreeing with its final `q` to `1e-10`), and
-/// the typed refusal of `solve` and of the files; or, for a family the
+/// `solve` and the files as at compile time, with the rows of the
+/// compile-time solution `compiled_rows` to round-off; or, for a family the
 /// run-time driver does not have, its refusal in every cell.
 fn dynamic_row<S: DynLagrangian + Clone>(
     problem: &DynProblem<S>,
-    scheme: &Scheme,
-    h: f64,
+    (scheme, h, tolerance): (&Scheme, f64, f64),
+    reference: &Reference,
     compiled: [f64; 2],
+    compiled_rows: &Row,
 ) -> [String; 3] {
     let refusal = |e: Error| {
         let Error::Unsupported { what } = e else { panic!("not a typed refusal: {e}") };
@@ -231,8 +253,25 @@ fn dynamic_row<S: DynLagrangian + Clone>(
     }
     let gap = (0..2).map(|j| (sim.state().q[j] - compiled[j]).abs()).fold(0.0, f64::max);
     assert!(gap <= 1e-10, "run-time and compile-time runs differ by {gap:e}");
-    let solve = refusal(problem.supports(scheme, h, Capability::Solve).unwrap_err());
-    [format!("100/100 exact, {} steps, Δq {gap:.0e} to compile-time", sim.stats().steps), solve.clone(), solve]
+    let land = format!("100/100 exact, {} steps, Δq {gap:.0e} to compile-time", sim.stats().steps);
+    let name = compiled_rows.name;
+    let mut sim = problem.stepper(scheme, h).unwrap();
+    let (solve, files, sol) = solve_cells(name, reference, tolerance, |plan| {
+        let sol = sim.solve(plan).unwrap();
+        (sol, sim.state().t, sim.state().q.clone())
+    });
+    // The rows of the compile-time solution: the same nodes and times, the
+    // values to round-off.
+    let compiled = &compiled_rows.solution;
+    assert_eq!((sol.width(), &sol.step), (2, &compiled.step), "{name}: the same rows at both sizes");
+    let gap = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let times = gap(&sol.t, &compiled.t);
+    let values = [(&sol.q, &compiled.q), (&sol.p, &compiled.p), (&sol.v, &compiled.v)]
+        .iter()
+        .map(|(a, b)| gap(a.as_flat(), b.as_flat()))
+        .fold(0.0, f64::max);
+    assert!(times <= 1e-13 && values <= 1e-10, "{name}: rows differ from compile-time by {times:e} (t), {values:e}");
+    [land, format!("{solve}, Δ {values:.0e} to compile-time"), files]
 }
 
 #[test]
@@ -254,21 +293,21 @@ fn every_method_through_one_problem() {
             (r, land_all(&mut sim))
         };
         let runtime = if separable {
-            dynamic_row(&kepler_dyn, &scheme, h, last_q)
+            dynamic_row(&kepler_dyn, (&scheme, h, tolerance), &references[1], last_q, &compiled)
         } else {
-            dynamic_row(&pendulum_dyn, &scheme, h, last_q)
+            dynamic_row(&pendulum_dyn, (&scheme, h, tolerance), &references[0], last_q, &compiled)
         };
         table.push((compiled, runtime));
     }
     println!("{:<36} | {:<26} | {:<34} | {:<26} | run-time N", "method", "land", "solve", "files");
     for (r, d) in &table {
         let runtime =
-            if d[0] == d[1] { "refused (every cell)".to_string() } else { format!("{}; solve, files refused", d[0]) };
+            if d[0] == d[1] { "refused (every cell)".to_string() } else { format!("{}; {}; {}", d[0], d[1], d[2]) };
         println!("{:<36} | {:<26} | {:<34} | {:<26} | {runtime}", r.name, r.land, r.solve, r.files);
     }
     // What the run-time-sized driver has: the one-point rules and the
-    // compositions step and land; the rest, and `solve` for all, are refused
-    // with exactly the text of `supports`.
+    // compositions step, land and solve; the rest are refused with exactly
+    // the text of `supports`.
     let stepping: Vec<bool> = table.iter().map(|(_, d)| !d[0].starts_with("refused")).collect();
     let expected = [true, true, true, false, false, false, true, true, true, false, false, false];
     assert_eq!(stepping, expected);
@@ -281,8 +320,10 @@ fn every_method_through_one_problem() {
             constraints: 0,
             capability,
         };
-        let solve = supports(&query(Capability::Solve)).unwrap_err();
-        assert_eq!(d[1], format!("refused: {solve}"));
+        match supports(&query(Capability::Solve)) {
+            Err(solve) => assert_eq!(d[1], format!("refused: {solve}")),
+            Ok(()) => assert!(!d[1].starts_with("refused") && !d[2].starts_with("refused")),
+        }
         if let Err(step) = supports(&query(Capability::Step)) {
             assert_eq!(d[0], format!("refused: {step}"));
         }

@@ -71,11 +71,12 @@ fn a_thousand_mass_chain_solves_with_an_event_in_a_default_thread() {
         let problem = Problem::new(Fpu::<N> { beta: 1.0 }, 0.0, q0, [0.0; N]);
         let yoshida = Scheme::composition(lagrangian::Composition::YOSHIDA4, OnePoint::Trapezoid);
         for scheme in [Scheme::MIDPOINT, yoshida] {
-            let plan = Plan::until(8.0).every(20).save_at(vec![1.0, 2.0]).event(
-                Event::new(|_t, q: &[f64; N], _v: &[f64; N]| q[0]).direction(Direction::Falling).action(Action::Stop),
-            );
+            let plan = Plan::until(8.0)
+                .every(20)
+                .save_at(vec![1.0, 2.0])
+                .event(Event::new(|_t, q: &[f64], _v: &[f64]| q[0]).direction(Direction::Falling).action(Action::Stop));
             let sol = problem.solve(&scheme, h, plan).unwrap().into_result().unwrap();
-            let event = sol.events.first().copied().expect("q_0 changes sign before t = 8");
+            let event = sol.events.first().cloned().expect("q_0 changes sign before t = 8");
             let (t, q) = (*sol.t.last().unwrap(), sol.q.last().unwrap());
             println!("{scheme:?}: N = {N}, q_0 = 0 at t = {:.6}, {} rows, q_0 there {:.1e}", event.t, sol.len(), q[0]);
             assert!((4.0..6.0).contains(&event.t) && t == event.t, "{} {t}", event.t);

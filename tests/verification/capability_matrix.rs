@@ -426,15 +426,15 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // size; energy steps for the one-point and Galerkin rules (balance
     // steps, of a forced system, for the one-point rules); forces with
     // fixed steps but for the splitting; no compile-time size above 1024;
-    // at run-time size fixed steps of the one-point rules and compositions,
-    // and `solve` for none; sensitivities and the adjoint for fixed steps of
+    // at run-time size fixed steps and `solve` of the one-point rules and
+    // compositions; sensitivities and the adjoint for fixed steps of
     // the one-point rules, the Galerkin rules, the compositions and the
     // implicit time transformation, forced or not, for energy-preserving
     // steps of the one-point and Galerkin rules, for energy-balance steps
     // of the one-point rules, and for the splitting, unforced.
-    let one_point = [true, true, true, true, false, true, false, true, true, true, true];
+    let one_point = [true, true, true, true, false, true, true, true, true, true, true];
     let galerkin = [true, true, false, true, false, false, false, true, true, true, false];
-    let composition = [true, false, false, true, false, true, false, true, true, false, false];
+    let composition = [true, false, false, true, false, true, true, true, true, false, false];
     let transformed = [true, false, false, true, false, false, false, true, true, false, false];
     let splitting = [true, false, false, false, false, false, false, true, false, false, false];
     let expected = [
@@ -548,7 +548,7 @@ fn capabilities_page(table: &str, schemes: &str, constraints: &str) -> String {
          ## One way in: `Problem`, `Scheme` and `Policy`\n\n\
          What `lagrangian::problem::supports` answers for each method family as a `Scheme` value, each step \
          `Policy` and each size (compile-time `N` through `Problem`, run-time through `DynProblem`); a refused \
-         cell is the `Error::Unsupported` that `Problem::stepper`, `DynProblem::stepper` and `Problem::solve` \
+         cell is the `Error::Unsupported` that `Problem::stepper`, `DynProblem::stepper`, `Problem::solve` and `DynProblem::solve` \
          return at construction, with this text. A defined cell may still be refused by its driver for the \
          values of a system (a mass matrix that is not constant for the splitting; the energy equation without \
          a root, as above). The behaviour test `method_matrix` steps, lands, solves and writes every defined \

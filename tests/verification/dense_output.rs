@@ -83,7 +83,7 @@ fn slope(h: &[f64], e: &[f64]) -> f64 {
 /// from the exact state at `T_A`.
 fn mid_step_error<I: Stepping<1>>(
     start: impl Fn(f64, [f64; 1], [f64; 1]) -> I,
-    solve: impl Fn(&mut I, Plan<'static, 1>) -> lagrangian::Solution<1>,
+    solve: impl Fn(&mut I, Plan<'static>) -> lagrangian::Solution,
     exact: fn(f64) -> (f64, f64),
     kind: DenseKind,
     h: f64,

@@ -84,9 +84,9 @@ fn loss_of_run(scheme: &Scheme, q0: [f64; 2], v0: [f64; 2], theta: [f64; 3]) -> 
     let n = sol.len() - 1;
     let mut j = 0.0;
     for k in 0..=n {
-        j += l.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &theta);
+        j += l.running(k as u64, sol.t[k], sol.q.array(k).unwrap(), sol.p.array(k).unwrap(), &theta);
     }
-    j + l.terminal(sol.t[n], sol.q[n], sol.p[n], &theta)
+    j + l.terminal(sol.t[n], sol.q.array(n).unwrap(), sol.p.array(n).unwrap(), &theta)
 }
 
 fn adjoint(scheme: &Scheme, checkpoints: Checkpoints) -> Gradient<2, 3> {
@@ -118,7 +118,7 @@ fn term_gradient(f: impl Fn([Dual64; 2], [Dual64; 2], &[Dual64; 3]) -> Dual64, q
 
 /// dJ/d(q0, v0, θ) from the forward sensitivities of every node:
 /// `Σ_k ∂ℓ_k/∂(q, p) S_k + ∂ℓ_k/∂θ`.
-fn forward_gradient(scheme: &Scheme) -> ([f64; 7], Vec<Jacobian>, Solution<2>) {
+fn forward_gradient(scheme: &Scheme) -> ([f64; 7], Vec<Jacobian>, Solution) {
     forward_gradient_of(SYSTEM, scheme, ["m1", "l1", "g"])
 }
 
@@ -128,7 +128,7 @@ fn forward_gradient_of<S: Parametric<2, 3>>(
     system: S,
     scheme: &Scheme,
     names: [&str; 3],
-) -> ([f64; 7], Vec<Jacobian>, Solution<2>) {
+) -> ([f64; 7], Vec<Jacobian>, Solution) {
     let run = Problem::new(system, 0.0, Q0, V0)
         .solve_with_sensitivities(scheme, H, Plan::until(T_END).without_velocities())
         .unwrap();
@@ -138,7 +138,7 @@ fn forward_gradient_of<S: Parametric<2, 3>>(
     let n = run.solution.len() - 1;
     let mut total = [0.0; 7];
     for (k, s) in run.jacobians.iter().enumerate() {
-        let (q, p, t) = (run.solution.q[k], run.solution.p[k], run.solution.t[k]);
+        let (q, p, t) = (run.solution.q.array(k).unwrap(), run.solution.p.array(k).unwrap(), run.solution.t[k]);
         let g = term_gradient(
             |q, p, th| {
                 let t = Dual64::from_re(t);
@@ -398,7 +398,7 @@ fn dual_numbers_through_a_short_run_agree_with_the_sensitivities() {
         }
         let dual = [q[0].eps, q[1].eps, p[0].eps, p[1].eps];
         let n = run.solution.len() - 1;
-        let (sq, sp) = (run.solution.q[n], run.solution.p[n]);
+        let (sq, sp) = (&run.solution.q[n], &run.solution.p[n]);
         state_gap = state_gap.max(relative(&[q[0].re, q[1].re, p[0].re, p[1].re], &[sq[0], sq[1], sp[0], sp[1]]));
         let sens: Vec<f64> = (0..4).map(|i| last.get(i, 4 + j)).collect();
         worst = worst.max(relative(&sens, &dual));
@@ -464,14 +464,14 @@ fn kepler_loss_of_run(scheme: &Scheme, q0: [f64; 2], v0: [f64; 2], mu: f64) -> f
     let n = sol.len() - 1;
     let mut j = 0.0;
     for k in 0..=n {
-        j += Tracking.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &[mu]);
+        j += Tracking.running(k as u64, sol.t[k], sol.q.array(k).unwrap(), sol.p.array(k).unwrap(), &[mu]);
     }
-    j + Tracking.terminal(sol.t[n], sol.q[n], sol.p[n], &[mu])
+    j + Tracking.terminal(sol.t[n], sol.q.array(n).unwrap(), sol.p.array(n).unwrap(), &[mu])
 }
 
 /// dJ/d(q0, v0, μ) from the forward sensitivities of every node,
 /// `Σ_k ∂ℓ_k/∂(q, p, t) S_k + ∂ℓ_k/∂μ`, with the node times' rows.
-fn kepler_forward_gradient(scheme: &Scheme) -> ([f64; 5], Vec<Jacobian>, Solution<2>) {
+fn kepler_forward_gradient(scheme: &Scheme) -> ([f64; 5], Vec<Jacobian>, Solution) {
     let run = Problem::new(KEPLER, 0.0, KEPLER_Q0, KEPLER_V0)
         .solve_with_sensitivities(scheme, SIGMA, Plan::until(KEPLER_T_END).without_velocities())
         .unwrap();
@@ -479,7 +479,7 @@ fn kepler_forward_gradient(scheme: &Scheme) -> ([f64; 5], Vec<Jacobian>, Solutio
     let n = run.solution.len() - 1;
     let mut total = [0.0; 5];
     for (k, s) in run.jacobians.iter().enumerate() {
-        let (t, q, p) = (run.solution.t[k], run.solution.q[k], run.solution.p[k]);
+        let (t, q, p) = (run.solution.t[k], &run.solution.q[k], &run.solution.p[k]);
         // The gradient of the node's terms in (q, p, t, μ) by dual numbers.
         let term = |i: usize| {
             let mut x = [q[0], q[1], p[0], p[1], t, 1.0].map(Dual64::from_re);
@@ -679,7 +679,7 @@ fn dual_numbers_through_a_short_time_transformed_run_agree_with_the_sensitivitie
         for _ in 0..steps {
             (x, p) = dual_extended_midpoint_step(mu, c, x, p);
         }
-        let (sq, sp, st) = (run.solution.q[steps], run.solution.p[steps], run.solution.t[steps]);
+        let (sq, sp, st) = (&run.solution.q[steps], &run.solution.p[steps], run.solution.t[steps]);
         state_gap =
             state_gap.max(relative(&[x[0].re, x[1].re, x[2].re, p[0].re, p[1].re], &[sq[0], sq[1], st, sp[0], sp[1]]));
         let dual = [x[0].eps, x[1].eps, x[2].eps, p[0].eps, p[1].eps];

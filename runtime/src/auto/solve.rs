@@ -79,7 +79,7 @@ const TIMED_ROUNDS: usize = 2;
 #[derive(Clone, Debug, PartialEq)]
 pub struct Solved<const N: usize> {
     /// The final run, as any [`Stepping::solve`] returns it.
-    pub solution: Solution<N>,
+    pub solution: Solution,
     /// The error estimate, the method and why, and the pilot's cost.
     pub estimate: Estimate,
 }
@@ -221,7 +221,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     /// [`Error::InvalidSpan`], [`Error::ToleranceUnreachable`],
     /// [`Error::Chaotic`], [`Error::NoMethod`] (every candidate's pilot
     /// failed), all as [`SolveError::Step`].
-    pub fn solve(self, plan: Plan<'_, N>) -> Result<Solved<N>, SolveError> {
+    pub fn solve(self, plan: Plan<'_>) -> Result<Solved<N>, SolveError> {
         let clock = Clock::start();
         let t_end = plan.end();
         self.tolerance.validate()?;
@@ -839,10 +839,10 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
 
     /// The final run at `step` (for fixed steps, one that divides the span)
     /// to the end of `plan`.
-    fn run(&self, c: Candidate, step: f64, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError> {
-        struct Run<'p, const N: usize>(Plan<'p, N>);
+    fn run(&self, c: Candidate, step: f64, plan: Plan<'_>) -> Result<Solution, SolveError> {
+        struct Run<'p, const N: usize>(Plan<'p>);
         impl<'p, const N: usize> Visit<N> for Run<'p, N> {
-            type Out = Result<Solution<N>, SolveError>;
+            type Out = Result<Solution, SolveError>;
             fn visit<I: Stepping<N> + Clone>(self, mut it: I) -> Self::Out {
                 it.solve(self.0)
             }

@@ -455,7 +455,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             if remaining <= 0.0 {
                 return Ok(());
             }
-            if self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9 {
+            if self.lands(t_end) {
                 self.step_by(remaining, t_end)?;
                 self.clock = Clock { t: self.state.t, step: self.state.step };
                 observe(self);
@@ -464,6 +464,13 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             self.step()?;
             observe(self);
         }
+    }
+
+    /// `true` when the next step of [`run_until(t_end)`](Self::run_until)
+    /// is its landing step: a whole step would reach `t_end` or come within
+    /// `10⁻⁹ h` of it.
+    pub(crate) fn lands(&self, t_end: f64) -> bool {
+        self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9
     }
 
     /// One step of size `h` whose end node is stamped with time `t1`.
@@ -652,6 +659,24 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             iterations,
             residual_norm,
         })
+    }
+
+    /// The momentum `∂L/∂v(t, q, v)` of the system at any `(t, q, v)` (NaN
+    /// where its reverse sweep fails).
+    pub(crate) fn momentum_at(&self, t: f64, q: &[f64], v: &[f64]) -> Vec<f64> {
+        let model = Sliced { system: &self.system, points: self.points };
+        let mut p = vec![0.0; q.len()];
+        if tape_step::momentum(&model, t, q, v, &mut p).is_none() {
+            p.fill(f64::NAN);
+        }
+        p
+    }
+
+    /// The energy `E_L(t, q, v)` of the system at any `(t, q, v)` (NaN where
+    /// its reverse sweep fails).
+    pub(crate) fn energy_at(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+        let model = Sliced { system: &self.system, points: self.points };
+        tape_step::energy(&model, t, q, v)
     }
 
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.

@@ -9,6 +9,7 @@ use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::integrator::{Composition, DynIntegrator, DynMethod, Stats};
 use crate::newton::NewtonOptions;
+use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
 
@@ -17,7 +18,7 @@ use crate::system::DynLagrangian;
 ///
 /// ```
 /// use lagrangian_runtime::problem::{Capability, DynProblem, Scheme};
-/// use lagrangian_runtime::{Composition, DynLagrangian, Scalar};
+/// use lagrangian_runtime::{Composition, DynLagrangian, Plan, Scalar};
 ///
 /// /// Uncoupled oscillators, as many as `n`.
 /// #[derive(Clone)]
@@ -41,7 +42,11 @@ use crate::system::DynLagrangian;
 /// assert!((sim.state().q[2] - 1f64.cos()).abs() < 1e-4);
 /// // Galerkin rules are not defined on run-time-sized systems: a typed refusal.
 /// assert!(problem.stepper(&Scheme::galerkin(2), 0.1).is_err());
-/// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_err());
+/// // `solve(Plan)` gives the same `Solution` as at a compile-time size.
+/// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_ok());
+/// let solution = problem.solve(&Scheme::MIDPOINT, 0.01, Plan::until(1.0).every(10))?;
+/// assert_eq!((solution.len(), solution.width()), (11, 3));
+/// assert_eq!(solution.q.last(), Some(&sim.state().q[..]));
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Clone, Debug)]
@@ -117,6 +122,16 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
         Ok(DynStepper { driver, scheme: scheme.clone() })
     }
 
+    /// Integrates with `scheme` under `policy` as `plan` says: the same
+    /// [`Solution`] and [`SolveError`] as [`Problem::solve`](super::Problem::solve)
+    /// at a compile-time size (see [`DynStepper::solve`]). A refused
+    /// combination or a failed start is `SolveError::Step`.
+    pub fn solve(&self, scheme: &Scheme, policy: impl Into<Policy>, plan: Plan<'_>) -> Result<Solution, SolveError> {
+        let policy = policy.into();
+        self.supports(scheme, policy, Capability::Solve)?;
+        self.stepper(scheme, policy)?.solve(plan)
+    }
+
     fn start<M: DynMethod>(&self, method: M, policy: Policy) -> Result<DynIntegrator<S, M>, Error> {
         let mut builder = DynIntegrator::new(self.system.clone(), method, policy.step());
         if let Some(options) = self.newton {
@@ -132,6 +147,20 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
 pub struct DynStepper<S> {
     driver: DynDriver<S>,
     scheme: Scheme,
+}
+
+impl<S: DynLagrangian + Clone> DynStepper<S> {
+    /// Integrates as `plan` says: the same driver, [`Solution`] and
+    /// [`SolveError`] as [`Stepper::solve`](super::Stepper::solve) at a
+    /// compile-time size. Dense output (save times, events) is the cubic
+    /// Hermite of the nodes, the one-point rules' and compositions' own at
+    /// a compile-time size too;
+    /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
+    /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
+    /// run-time size. The stepper is left at the last node of the solution.
+    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
+        each!(&mut self.driver, d => d.solve(plan))
+    }
 }
 
 impl<S: DynLagrangian> DynStepper<S> {

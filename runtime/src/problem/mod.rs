@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! Problem::new(system, t0, q0, v0)          DynProblem::new(system, t0, q0, v0)   (run-time size)
-//!   .solve(&scheme, policy, plan) -> Solution<N>       (the same for every Scheme)
+//!   .solve(&scheme, policy, plan) -> Solution       (the same for every Scheme)
 //!   .stepper(&scheme, policy)     -> Stepper<S, N>     (step, run, run_until, solve, state, energy, …)
 //!   .solve_with_sensitivities(&scheme, policy, plan) -> Sensitivities<N>   (S: Parametric)
 //!   .gradient(&scheme, h, t_end, &loss, checkpoints) -> Gradient<N, P>     (S: Parametric)

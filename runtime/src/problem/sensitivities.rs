@@ -121,7 +121,7 @@ where
         &self,
         scheme: &Scheme,
         policy: impl Into<Policy>,
-        plan: Plan<'_, N>,
+        plan: Plan<'_>,
     ) -> Result<Sensitivities<N>, SolveError>
     where
         S: Parametric<N, P>,
@@ -148,7 +148,7 @@ where
         &self,
         scheme: &Scheme,
         policy: Policy,
-        plan: Plan<'_, N>,
+        plan: Plan<'_>,
     ) -> Result<Sensitivities<N>, SolveError>
     where
         S: Parametric<N, P>,

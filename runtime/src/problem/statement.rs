@@ -142,12 +142,7 @@ where
     /// Integrates with `scheme` under `policy` as `plan` says: the same
     /// [`Solution`] and [`SolveError`] as [`Stepping::solve`](crate::Stepping::solve) on any driver.
     /// A refused combination or a failed start is `SolveError::Step`.
-    pub fn solve(
-        &self,
-        scheme: &Scheme,
-        policy: impl Into<Policy>,
-        plan: Plan<'_, N>,
-    ) -> Result<Solution<N>, SolveError> {
+    pub fn solve(&self, scheme: &Scheme, policy: impl Into<Policy>, plan: Plan<'_>) -> Result<Solution, SolveError> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Solve)?;
         self.stepper(scheme, policy)?.solve(plan)

@@ -290,7 +290,7 @@ where
 
     /// Integrates as `plan` says: [`Stepping::solve`], named here so that
     /// the trait need not be in scope.
-    pub fn solve(&mut self, plan: Plan<'_, N>) -> Result<Solution<N>, SolveError> {
+    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
         Stepping::solve(self, plan)
     }
 }

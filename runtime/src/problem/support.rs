@@ -304,11 +304,8 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
         return Err("forces on a run-time-sized system: `DynLagrangian` has no `force` or `dissipation`");
     }
     match c.capability {
-        Capability::Step => Ok(()),
+        Capability::Step | Capability::Solve => Ok(()),
         // Refused by `sensitivities` before the size is looked at.
         Capability::Sensitivities => Err("sensitivities of a run-time-sized system"),
-        Capability::Solve => Err(
-            "`solve(Plan)` on a run-time-sized system: `Solution` has compile-time-sized rows; step it and record what you need",
-        ),
     }
 }

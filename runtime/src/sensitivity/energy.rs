@@ -247,7 +247,7 @@ mod tests {
             Problem::new((self.system)(Self::theta(&x)), 0.0, [x[0]], [x[1]])
         }
 
-        fn solve(&self, x: [f64; D]) -> Solution<1> {
+        fn solve(&self, x: [f64; D]) -> Solution {
             self.problem(x)
                 .solve(&self.scheme, self.policy, Plan::until(self.t_end).without_velocities())
                 .unwrap()
@@ -358,7 +358,8 @@ mod tests {
         };
         held[0] = row(&tangent);
         for k in 0..n {
-            let seg = Segment::between((sol.t[k], sol.q[k]), (sol.t[k + 1], sol.q[k + 1]));
+            let seg =
+                Segment::between((sol.t[k], sol.q.array(k).unwrap()), (sol.t[k + 1], sol.q.array(k + 1).unwrap()));
             let j = StepJacobian::of_piece(&Pendulum { theta: THETA }, &rule, &THETA, &Piece::segment(&seg)).unwrap();
             tangent = tangent.step(&j);
             held[k + 1] = row(&tangent);

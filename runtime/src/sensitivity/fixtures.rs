@@ -145,15 +145,15 @@ impl Parametric<2, 1> for Kepler {
 /// The loss `J = Σ_k ℓ_k(t_k, q_k, p_k) + terminal` over the nodes of `sol`.
 pub(crate) fn loss_of<F: Loss<N, P>, const N: usize, const P: usize>(
     loss: &F,
-    sol: &Solution<N>,
+    sol: &Solution,
     theta: &[f64; P],
 ) -> f64 {
     let n = sol.len() - 1;
     let mut j = 0.0;
     for k in 0..=n {
-        j += loss.running(k as u64, sol.t[k], sol.q[k], sol.p[k], theta);
+        j += loss.running(k as u64, sol.t[k], sol.q.array(k).unwrap(), sol.p.array(k).unwrap(), theta);
     }
-    j + loss.terminal(sol.t[n], sol.q[n], sol.p[n], theta)
+    j + loss.terminal(sol.t[n], sol.q.array(n).unwrap(), sol.p.array(n).unwrap(), theta)
 }
 
 /// The largest difference of `a` from `b`, relative to the largest entry of `b`.
@@ -168,8 +168,8 @@ pub(crate) fn relative(a: &[f64], b: &[f64]) -> f64 {
 pub(crate) fn central<const D: usize>(
     base: [f64; D],
     steps: usize,
-    run: impl Fn([f64; D]) -> Solution<1>,
-    f: impl Fn(&Solution<1>, [f64; D]) -> f64,
+    run: impl Fn([f64; D]) -> Solution,
+    f: impl Fn(&Solution, [f64; D]) -> f64,
 ) -> [f64; D] {
     core::array::from_fn(|i| {
         let step = 1e-5 * base[i].abs().max(1.0);
@@ -204,7 +204,7 @@ pub(crate) fn node_rows<const D: usize>(jacobians: &[Jacobian]) -> Vec<[[f64; D]
 /// + ∂ℓ_k/∂θ`, the partial derivatives by dual numbers.
 pub(crate) fn chained<F: Loss<1, P>, const D: usize, const P: usize>(
     loss: &F,
-    sol: &Solution<1>,
+    sol: &Solution,
     theta: &[f64; P],
     rows: &[[[f64; D]; 3]],
 ) -> [f64; D] {

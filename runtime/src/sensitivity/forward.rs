@@ -100,7 +100,7 @@ impl<const N: usize, const P: usize> Tangent<N, P> {
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Sensitivities<const N: usize> {
     /// The run, as [`Problem::solve`](crate::Problem::solve) returns it.
-    pub solution: Solution<N>,
+    pub solution: Solution,
     /// The names of the parameters (the last columns of each Jacobian).
     pub parameters: Vec<String>,
     /// `∂(q, p)/∂(q_0, v_0, θ)` at each row of the solution, in order; shorter
@@ -240,7 +240,7 @@ impl<'s, S: Parametric<N, P>, const N: usize, const P: usize> Propagation<'s, S,
     }
 
     /// The Jacobians of the rows of `solution`.
-    pub(crate) fn finish(self, solution: Solution<N>) -> Sensitivities<N> {
+    pub(crate) fn finish(self, solution: Solution) -> Sensitivities<N> {
         let Self { kept, last, mut error, mode, .. } = self;
         let mut jacobians = Vec::with_capacity(solution.len());
         for step in &solution.step {

@@ -274,7 +274,7 @@ mod tests {
         Problem::new(Pendulum { theta: [x[2], x[3], x[4]] }, 0.0, [x[0]], [x[1]])
     }
 
-    fn run(scheme: &Scheme, x: [f64; 5], hh: f64, t_end: f64) -> Solution<1> {
+    fn run(scheme: &Scheme, x: [f64; 5], hh: f64, t_end: f64) -> Solution {
         problem(x)
             .solve(scheme, Policy::energy_preserving(hh), Plan::until(t_end).without_velocities())
             .unwrap()

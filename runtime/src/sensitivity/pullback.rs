@@ -1106,7 +1106,7 @@ mod tests {
     /// adjoint's run must end at (`last_q`).
     fn ends_by_chain_rule(run: &crate::sensitivity::forward::Sensitivities<LONG>, last_q: &[f64; LONG]) -> Vec<f64> {
         let (jac, x) = (run.jacobians.last().unwrap(), run.solution.q.len() - 1);
-        let (q, p) = (run.solution.q[x], run.solution.p[x]);
+        let (q, p) = (&run.solution.q[x], &run.solution.p[x]);
         assert_eq!(last_q, &q);
         // ∂ℓ/∂(q, p) and ∂ℓ/∂θ at the last node.
         let mut g = [0.0; 2 * LONG];
@@ -1489,7 +1489,7 @@ mod run_accuracy {
             drift = drift.max(relative(&pairing([lq[0], lq[1], lp[0], lp[1]], k)[..4], &initial));
         }
         let n = run.solution.q.len() - 1;
-        let (q, p) = (run.solution.q[n], run.solution.p[n]);
+        let (q, p) = (&run.solution.q[n], &run.solution.p[n]);
         let want = pairing([q[0].cos() * p[1], 2.0 * q[1], 0.0, q[0].sin()], n);
         let got: Vec<f64> = initial.iter().chain(&adjoint.theta).copied().collect();
         (drift, relative(&got, &want))

@@ -647,9 +647,9 @@ mod tests {
         let n = sol.len() - 1;
         let mut j = 0.0;
         for k in 0..=n {
-            j += Fit.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &theta);
+            j += Fit.running(k as u64, sol.t[k], sol.q.array::<N>(k).unwrap(), sol.p.array::<N>(k).unwrap(), &theta);
         }
-        j + Fit.terminal(sol.t[n], sol.q[n], sol.p[n], &theta)
+        j + Fit.terminal(sol.t[n], sol.q.array::<N>(n).unwrap(), sol.p.array::<N>(n).unwrap(), &theta)
     }
 
     /// dJ/d(q0, v0, θ) from the forward sensitivities of every node:
@@ -669,7 +669,8 @@ mod tests {
         let n = run.solution.len() - 1;
         let mut total = vec![0.0; 2 * N + P];
         for (k, s) in run.jacobians.iter().enumerate() {
-            let (t, q, p) = (run.solution.t[k], run.solution.q[k], run.solution.p[k]);
+            let (t, q, p) =
+                (run.solution.t[k], run.solution.q.array::<N>(k).unwrap(), run.solution.p.array::<N>(k).unwrap());
             // ∂ℓ_k/∂(q, p, t, θ) by dual numbers, one input at a time.
             let term = |i: usize| {
                 let mut x: Vec<Dual64> =
@@ -810,7 +811,7 @@ mod tests {
                 dual_kepler_step(mu, sigma, &mut x);
             }
             let (q, t, p, _) = x;
-            let (sq, sp, st) = (run.solution.q[steps], run.solution.p[steps], run.solution.t[steps]);
+            let (sq, sp, st) = (&run.solution.q[steps], &run.solution.p[steps], run.solution.t[steps]);
             state_gap =
                 state_gap.max(relative(&[q[0].re, q[1].re, t.re, p[0].re, p[1].re], &[sq[0], sq[1], st, sp[0], sp[1]]));
             let dual = [q[0].eps, q[1].eps, t.eps, p[0].eps, p[1].eps];

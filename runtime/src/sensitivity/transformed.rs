@@ -357,9 +357,9 @@ mod tests {
         let n = sol.len() - 1;
         let mut j = 0.0;
         for k in 0..=n {
-            j += Fit.running(k as u64, sol.t[k], sol.q[k], sol.p[k], &[mu]);
+            j += Fit.running(k as u64, sol.t[k], sol.q.array(k).unwrap(), sol.p.array(k).unwrap(), &[mu]);
         }
-        j + Fit.terminal(sol.t[n], sol.q[n], sol.p[n], &[mu])
+        j + Fit.terminal(sol.t[n], sol.q.array(n).unwrap(), sol.p.array(n).unwrap(), &[mu])
     }
 
     #[test]
@@ -376,7 +376,7 @@ mod tests {
         let n = run.solution.len() - 1;
         let mut forward = [0.0; 5];
         for (k, s) in run.jacobians.iter().enumerate() {
-            let (t, q, p) = (run.solution.t[k], run.solution.q[k], run.solution.p[k]);
+            let (t, q, p) = (run.solution.t[k], &run.solution.q[k], &run.solution.p[k]);
             for (col, slot) in forward.iter_mut().enumerate() {
                 let mut x = [t, q[0], q[1], p[0], p[1], mu].map(Dual64::from);
                 let d = |x: &[Dual64; 6]| {

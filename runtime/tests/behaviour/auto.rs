@@ -77,7 +77,7 @@ impl Lagrangian<2> for HenonHeiles {
     }
 }
 
-fn end_error<const N: usize>(q: &[[f64; N]], exact: [f64; N]) -> f64 {
+fn end_error<const N: usize>(q: &lagrangian_runtime::Rows, exact: [f64; N]) -> f64 {
     let last = q.last().unwrap();
     last.iter().zip(exact).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
 }

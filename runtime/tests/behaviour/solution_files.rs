@@ -1,11 +1,12 @@
 //! Solutions on disk: the CSV and JSON writers refuse solutions whose
 //! columns differ in length, the readers refuse what is not the table of a
-//! solution with `N` coordinates (typed errors with row and column), and
+//! solution (typed errors with row and column; the number of coordinates
+//! comes from the table), and
 //! every `f64` (±0, subnormals, ±∞, NaN with its sign and payload)
 //! round-trips bit for bit in both formats.
 
 use lagrangian_runtime::solution::{EnergyWatch, RunStats, Status, TableError};
-use lagrangian_runtime::{EventRecord, Integrator, Lagrangian, Midpoint, Scalar, Solution, Stepping};
+use lagrangian_runtime::{EventRecord, Integrator, Lagrangian, Midpoint, Rows, Scalar, Solution, Stepping};
 
 /// A solution of `N` coordinates from its columns, without events.
 fn table<const N: usize>(
@@ -15,13 +16,13 @@ fn table<const N: usize>(
     p: Vec<[f64; N]>,
     v: Vec<[f64; N]>,
     energy: Vec<f64>,
-) -> Solution<N> {
+) -> Solution {
     Solution {
         t,
         step,
-        q,
-        p,
-        v,
+        q: Rows::from_rows(q).unwrap(),
+        p: Rows::from_rows(p).unwrap(),
+        v: Rows::from_rows(v).unwrap(),
         energy,
         events: Vec::new(),
         stats: RunStats::default(),
@@ -32,7 +33,7 @@ fn table<const N: usize>(
 }
 
 /// Three rows of an `N = 1` solution with velocities.
-fn three_rows() -> Solution<1> {
+fn three_rows() -> Solution {
     table(
         vec![0.0, 0.5, 1.0],
         vec![Some(0), None, Some(1)],
@@ -81,12 +82,12 @@ fn the_json_template_is_what_write_json_writes() {
     let mut out = Vec::new();
     three_rows().write_json(&mut out).unwrap();
     assert_eq!(String::from_utf8(out).unwrap(), json(T, STEP, Q, P, P, ENERGY));
-    assert_eq!(Solution::<1>::read_json(json(T, STEP, Q, P, P, ENERGY).as_bytes()).unwrap(), three_rows());
+    assert_eq!(Solution::read_json(json(T, STEP, Q, P, P, ENERGY).as_bytes()).unwrap(), three_rows());
 }
 
 #[test]
 fn read_json_refuses_columns_of_unequal_length() {
-    let read = |text: String| length_error(Solution::<1>::read_json(text.as_bytes()).unwrap_err());
+    let read = |text: String| length_error(Solution::read_json(text.as_bytes()).unwrap_err());
     // `t` one row longer than `q` (and `p`).
     let long_t = "[0.0,0.5,1.0,1.5]";
     assert_eq!(read(json(long_t, "[0,null,1,2]", Q, P, P, ENERGY)), ("q", 3, "t", 4));
@@ -99,7 +100,7 @@ fn read_json_refuses_columns_of_unequal_length() {
     assert_eq!(read(json(T, STEP, Q, P, "[]", ENERGY)), ("energy", 3, "v", 0));
     // `v` neither empty nor one per row.
     assert_eq!(read(json(T, STEP, Q, P, "[[0.0]]", "[0.5]")), ("v", 1, "t", 3));
-    let e = Solution::<1>::read_json(json(T, "[0,null]", Q, P, P, ENERGY).as_bytes()).unwrap_err();
+    let e = Solution::read_json(json(T, "[0,null]", Q, P, P, ENERGY).as_bytes()).unwrap_err();
     assert_eq!(e.to_string(), "column `step` has 2 rows, `t` has 3");
 }
 
@@ -114,9 +115,9 @@ fn the_writers_refuse_columns_of_unequal_length() {
     let mut no_energy = three_rows();
     no_energy.energy.clear();
     let mut no_v = three_rows();
-    no_v.v.clear();
+    no_v.v = Rows::new(1);
     let mut short_v = three_rows();
-    short_v.v.pop();
+    short_v.v.truncate(2);
     short_v.energy.pop();
     let cases = [
         (long_t, ("step", 3, "t", 4)),
@@ -158,7 +159,7 @@ fn awkward_values() -> Vec<f64> {
 
 /// A solution of two coordinates whose every `f64` is one of
 /// [`awkward_values`] (each value in each column).
-fn awkward() -> Solution<2> {
+fn awkward() -> Solution {
     let x = awkward_values();
     let n = x.len();
     let at = |i: usize| x[i % n];
@@ -178,8 +179,8 @@ fn awkward() -> Solution<2> {
         .map(|i| EventRecord {
             event: i,
             t: event_t(i),
-            q: [at(i + 2), at(i + 4)],
-            v: [at(i + 6), at(i + 8)],
+            q: vec![at(i + 2), at(i + 4)],
+            v: vec![at(i + 6), at(i + 8)],
             rising: i % 2 == 0,
         })
         .collect();
@@ -195,8 +196,8 @@ fn awkward() -> Solution<2> {
 }
 
 /// Every value of the columns as bits.
-fn column_bits<const N: usize>(sol: &Solution<N>) -> Vec<Vec<u64>> {
-    let flat = |rows: &[[f64; N]]| rows.iter().flatten().map(|x| x.to_bits()).collect();
+fn column_bits(sol: &Solution) -> Vec<Vec<u64>> {
+    let flat = |rows: &Rows| rows.iter().flatten().map(|x| x.to_bits()).collect();
     vec![
         sol.t.iter().map(|x| x.to_bits()).collect(),
         flat(&sol.q),
@@ -207,7 +208,7 @@ fn column_bits<const N: usize>(sol: &Solution<N>) -> Vec<Vec<u64>> {
 }
 
 /// Everything else that holds an `f64`, as bits.
-fn other_bits<const N: usize>(sol: &Solution<N>) -> Vec<u64> {
+fn other_bits(sol: &Solution) -> Vec<u64> {
     let mut bits = Vec::new();
     for e in &sol.events {
         bits.extend([e.t, e.q[0], e.q[1], e.v[0], e.v[1]].map(f64::to_bits));
@@ -239,7 +240,7 @@ fn csv_round_trips_every_value_bit_for_bit() {
     );
     assert_eq!(&t[..2], ["0.0", "-0.0"]);
 
-    let back = Solution::<2>::read_csv(out.as_slice()).unwrap();
+    let back = Solution::read_csv(out.as_slice()).unwrap();
     assert_eq!(column_bits(&back), column_bits(&sol));
     assert_eq!(back.step, sol.step);
 }
@@ -256,11 +257,11 @@ fn json_round_trips_every_value_bit_for_bit() {
     assert!(text.starts_with(r#"{"t":[0.0,-0.0,5e-324,"#), "{}", &text[..40]);
     assert!(text.contains(r#""inf","-inf","NaN","-NaN","NaN:0x7ff0000000000001","NaN:0xfff40000000000ab""#));
 
-    let back = Solution::<2>::read_json(out.as_slice()).unwrap();
+    let back = Solution::read_json(out.as_slice()).unwrap();
     assert_eq!(column_bits(&back), column_bits(&sol));
     assert_eq!(other_bits(&back), other_bits(&sol));
     assert_eq!(back.step, sol.step);
-    let tags = |s: &Solution<2>| s.events.iter().map(|e| (e.event, e.rising)).collect::<Vec<_>>();
+    let tags = |s: &Solution| s.events.iter().map(|e| (e.event, e.rising)).collect::<Vec<_>>();
     assert_eq!(tags(&back), tags(&sol));
     assert!(matches!(back.status, Status::Stopped { event: 3, .. }));
 }
@@ -289,46 +290,48 @@ fn a_run_stopped_by_an_overflowing_lagrangian_round_trips() {
 
     let mut json = Vec::new();
     sol.write_json(&mut json).unwrap();
-    let back = Solution::<1>::read_json(json.as_slice()).unwrap();
+    let back = Solution::read_json(json.as_slice()).unwrap();
     assert_eq!(column_bits(&back), column_bits(&sol));
     let mut csv = Vec::new();
     sol.write_csv(&mut csv).unwrap();
-    let back = Solution::<1>::read_csv(csv.as_slice()).unwrap();
+    let back = Solution::read_csv(csv.as_slice()).unwrap();
     assert_eq!(column_bits(&back), column_bits(&sol));
 }
 
-fn csv_error<const N: usize>(text: &str) -> TableError {
-    Solution::<N>::read_csv(text.as_bytes()).unwrap_err()
+fn csv_error(text: &str) -> TableError {
+    Solution::read_csv(text.as_bytes()).unwrap_err()
 }
 
 /// The CSV of an `N = 1` solution with velocities has as many columns as
-/// that of an `N = 2` solution without: the header tells them apart.
+/// that of an `N = 2` solution without: the last column's name tells them
+/// apart, and the others must then be those of that layout.
 #[test]
 fn read_csv_checks_the_header_names() {
     let mut out = Vec::new();
     three_rows().write_csv(&mut out).unwrap();
     assert!(out.starts_with(b"t,step,q0,p0,v0,energy\n"));
-    match Solution::<2>::read_csv(out.as_slice()).unwrap_err() {
+    assert_eq!(Solution::read_csv(out.as_slice()).unwrap(), three_rows());
+    match csv_error("t,step,q0,p0,v0,e\n") {
         TableError::Header { column, found, expected } => {
             assert_eq!((column, found.as_str(), expected.as_str()), (3, "p0", "q1"));
         }
         e => panic!("{e:?}"),
     }
-    assert_eq!(Solution::<1>::read_csv(out.as_slice()).unwrap(), three_rows());
 
-    match csv_error::<1>("a,b,c,d\n1,2,3,4\n") {
+    match csv_error("a,b,c,d\n1,2,3,4\n") {
         TableError::Header { column, found, expected } => {
             assert_eq!((column, found, expected), (0, "a".into(), "t".into()))
         }
         e => panic!("{e:?}"),
     }
-    let e = csv_error::<1>("t,step,q0,p0,v0,E\n");
-    assert_eq!(e.to_string(), "csv: header column 5 is `E`, expected `energy`");
-    match csv_error::<2>("t,step,q0,p0\n") {
-        TableError::Columns { found, n, without, with } => assert_eq!((found, n, without, with), (4, 2, 6, 9)),
+    // Nine columns fit only `N = 2` with velocities.
+    let e = csv_error("t,step,q0,q1,p0,p1,v0,v1,E\n");
+    assert_eq!(e.to_string(), "csv: header column 8 is `E`, expected `energy`");
+    match csv_error("t,step,q0,p0,x\n") {
+        TableError::Columns { found } => assert_eq!(found, 5),
         e => panic!("{e:?}"),
     }
-    assert!(matches!(csv_error::<1>(""), TableError::Columns { found: 0, .. }));
+    assert!(matches!(csv_error(""), TableError::Columns { found: 0 }));
 }
 
 #[test]
@@ -338,30 +341,27 @@ fn read_csv_names_the_row_and_column_of_a_bad_field() {
         e => panic!("expected a value error, got {e:?}"),
     };
     let head = "t,step,q0,p0\n0.0,0,1.0,0.0\n";
-    assert_eq!(value(csv_error::<1>(&format!("{head}0.5,,abc,0.0\n"))), (1, "q0".into(), "abc".into(), "a number"));
+    assert_eq!(value(csv_error(&format!("{head}0.5,,abc,0.0\n"))), (1, "q0".into(), "abc".into(), "a number"));
     // Other spellings of NaN and infinity, and numbers that overflow, are not the documented texts.
     for text in ["nan", "NAN", "+NaN", "infinity", "Inf", "1e400", "NaN:0x7ff0000000000000", "NaN:0x7ff8", ""] {
-        assert_eq!(
-            value(csv_error::<1>(&format!("{head}0.5,,1.0,{text}\n"))),
-            (1, "p0".into(), text.into(), "a number")
-        );
+        assert_eq!(value(csv_error(&format!("{head}0.5,,1.0,{text}\n"))), (1, "p0".into(), text.into(), "a number"));
     }
     for text in ["-1", "1.0", "x", " 1"] {
-        let e = value(csv_error::<1>(&format!("{head}0.5,{text},1.0,0.0\n")));
+        let e = value(csv_error(&format!("{head}0.5,{text},1.0,0.0\n")));
         assert_eq!(e, (1, "step".into(), text.into(), "a node index or empty"));
     }
-    let e = csv_error::<1>(&format!("{head}0.5,,abc,0.0\n"));
+    let e = csv_error(&format!("{head}0.5,,abc,0.0\n"));
     assert_eq!(e.to_string(), "csv: row 1, column `q0`: `abc` is not a number");
-    match csv_error::<1>(&format!("{head}0.5,,1.0\n")) {
+    match csv_error(&format!("{head}0.5,,1.0\n")) {
         TableError::Fields { row, fields, expected } => assert_eq!((row, fields, expected), (1, 3, 4)),
         e => panic!("{e:?}"),
     }
-    match csv_error::<1>(&format!("{head}0.5,,1.0,0.0,7\n")) {
+    match csv_error(&format!("{head}0.5,,1.0,0.0,7\n")) {
         TableError::Fields { row, fields, expected } => assert_eq!((row, fields, expected), (1, 5, 4)),
         e => panic!("{e:?}"),
     }
     // The reader's own numbers: an interpolated row, `-0.0` and a subnormal.
-    let sol = Solution::<1>::read_csv(format!("{head}0.5,,-0.0,5e-324\n").as_bytes()).unwrap();
+    let sol = Solution::read_csv(format!("{head}0.5,,-0.0,5e-324\n").as_bytes()).unwrap();
     assert_eq!((sol.step[1], sol.q[1][0].to_bits(), sol.p[1][0].to_bits()), (None, (-0.0f64).to_bits(), 1));
 }
 
@@ -369,14 +369,20 @@ fn read_csv_names_the_row_and_column_of_a_bad_field() {
 fn read_json_refuses_values_that_are_not_numbers_or_the_documented_texts() {
     for bad in ["null", r#""nan""#, r#""Infinity""#, r#""1.5""#, r#""NaN:0x7ff0000000000000""#, "true"] {
         let text = json(&format!("[0.0,{bad},1.0]"), STEP, Q, P, P, ENERGY);
-        assert!(matches!(Solution::<1>::read_json(text.as_bytes()), Err(TableError::Json(_))), "{bad}");
+        assert!(matches!(Solution::read_json(text.as_bytes()), Err(TableError::Json(_))), "{bad}");
     }
-    // A row of `q` with two values where `N = 1`.
+    // A row of `q` with two values where the others have one (ragged rows).
     let text = json(T, STEP, "[[1.0],[0.875,0.0],[0.5]]", P, P, ENERGY);
-    let e = Solution::<1>::read_json(text.as_bytes()).unwrap_err();
-    assert!(matches!(e, TableError::Json(_)) && e.to_string().contains("expected N = 1 values"), "{e}");
+    let e = Solution::read_json(text.as_bytes()).unwrap_err();
+    assert!(matches!(e, TableError::Json(_)) && e.to_string().contains("1 values in row 1, as in row 0"), "{e}");
+    // Rows of `p` wider than those of `q`.
+    let text = json(T, STEP, Q, "[[0.0,1.0],[-0.5,1.0],[-0.75,1.0]]", P, ENERGY);
+    match Solution::read_json(text.as_bytes()).unwrap_err() {
+        TableError::Width { column, width, expected } => assert_eq!((column, width, expected), ("p", 2, 1)),
+        e => panic!("{e:?}"),
+    }
     // Integers are numbers.
-    let sol = Solution::<1>::read_json(json("[0,1,2]", STEP, Q, P, P, ENERGY).as_bytes()).unwrap();
+    let sol = Solution::read_json(json("[0,1,2]", STEP, Q, P, P, ENERGY).as_bytes()).unwrap();
     assert_eq!(sol.t, [0.0, 1.0, 2.0]);
 }
 
@@ -405,12 +411,12 @@ fn any_bits_round_trip_in_both_formats() {
             );
             let mut csv = Vec::new();
             sol.write_csv(&mut csv).unwrap();
-            let back = Solution::<2>::read_csv(csv.as_slice()).unwrap();
+            let back = Solution::read_csv(csv.as_slice()).unwrap();
             prop_assert_eq!(column_bits(&back), column_bits(&sol));
             prop_assert_eq!(&back.step, &sol.step);
             let mut json = Vec::new();
             sol.write_json(&mut json).unwrap();
-            let back = Solution::<2>::read_json(json.as_slice()).unwrap();
+            let back = Solution::read_json(json.as_slice()).unwrap();
             prop_assert_eq!(column_bits(&back), column_bits(&sol));
             prop_assert_eq!(&back.step, &sol.step);
             Ok(())
@@ -445,11 +451,7 @@ fn damaged_files_are_errors_or_consistent_solutions() {
                     _ => file.truncate(at),
                 }
             }
-            let read = if use_csv {
-                Solution::<1>::read_csv(file.as_slice())
-            } else {
-                Solution::<1>::read_json(file.as_slice())
-            };
+            let read = if use_csv { Solution::read_csv(file.as_slice()) } else { Solution::read_json(file.as_slice()) };
             match read {
                 Ok(sol) => {
                     sol.write_csv(Vec::new()).unwrap();

@@ -18,8 +18,8 @@ impl Lagrangian<1> for Oscillator {
 }
 
 /// An event function that is fine up to t = 1 and NaN after it.
-fn nan_after_one<'a>() -> Event<'a, 1> {
-    Event::new(|t, q: &[f64; 1], _| if t > 1.0 { f64::NAN } else { q[0] - 2.0 })
+fn nan_after_one<'a>() -> Event<'a> {
+    Event::new(|t, q: &[f64], _| if t > 1.0 { f64::NAN } else { q[0] - 2.0 })
 }
 
 /// Asserts that `sim` failed on the first step past t = 1 and is at the
@@ -66,7 +66,7 @@ fn the_last_good_node_is_kept_between_every_nth_node() {
     let build = || Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0]).unwrap();
     let mut sim = build();
     // q ≈ cos t crosses 0.5361 near t = 1.005, inside the step that fails.
-    let record = Event::new(|_, q: &[f64; 1], _| q[0] - 0.5361);
+    let record = Event::new(|_, q: &[f64], _| q[0] - 0.5361);
     let plan = Plan::until(2.0).every(7).save_at(vec![0.5, 1.005, 1.5]).event(nan_after_one()).event(record);
     let solution = sim.solve(plan).unwrap();
     assert_left_at_last_node!(&sim, build(), &solution);
@@ -84,8 +84,8 @@ fn a_failure_after_a_stop_landing_leaves_the_step_start() {
     let build = || Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0]).unwrap();
     let mut sim = build();
     // q ≈ cos t = 0.5361 near t = 1.005: stop there.
-    let stop = Event::new(|_, q: &[f64; 1], _| q[0] - 0.5361).action(Action::Stop);
-    let window = Event::new(|t, _: &[f64; 1], _| if t > 1.003 && t < 1.007 { f64::NAN } else { 1.0 });
+    let stop = Event::new(|_, q: &[f64], _| q[0] - 0.5361).action(Action::Stop);
+    let window = Event::new(|t, _: &[f64], _| if t > 1.003 && t < 1.007 { f64::NAN } else { 1.0 });
     let solution = sim.solve(Plan::until(2.0).event(stop).event(window)).unwrap();
     assert!(matches!(solution.error, Some(SolveError::NonFiniteEvent { event: 1, .. })), "{:?}", solution.error);
     let state = *sim.state();
@@ -105,7 +105,7 @@ fn a_failure_after_a_stop_landing_leaves_the_step_start() {
 #[test]
 fn identical_stop_events_each_get_their_record() {
     let mut sim = Integrator::new(Oscillator, Midpoint, 0.01).start(0.0, [1.0], [0.0]).unwrap();
-    let zero = || Event::new(|_, q: &[f64; 1], _| q[0]);
+    let zero = || Event::new(|_, q: &[f64], _| q[0]);
     let plan = Plan::until(10.0).event(zero().action(Action::Stop)).event(zero().action(Action::Stop)).event(zero());
     let solution = sim.solve(plan).unwrap();
     let t = solution.events[0].t;

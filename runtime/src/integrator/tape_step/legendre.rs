@@ -180,19 +180,26 @@ pub(crate) fn legendre(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f64]) -> R
 pub(crate) fn energy(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f64]) -> f64 {
     let n = q.len();
     let mut p = vec![0.0; n];
-    let swept = if model.has_gradient_qv() {
-        let mut fq = vec![0.0; n];
-        ModelScalar::gradient_qv(model, t, q, v, &mut fq, &mut p);
-        Ok(ModelScalar::lagrangian(model, t, q, v))
+    match momentum(model, t, q, v, &mut p) {
+        Some(l) => (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l,
+        None => f64::NAN,
+    }
+}
+
+/// The momentum `p = ∂L/∂v(t, q, v)` written into `p`, and `L` there:
+/// from the system's gradient code when it has it, else from one reverse
+/// sweep (`None` if the tape fails).
+pub(crate) fn momentum(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f64], p: &mut [f64]) -> Option<f64> {
+    if model.has_gradient_qv() {
+        let mut fq = vec![0.0; q.len()];
+        ModelScalar::gradient_qv(model, t, q, v, &mut fq, p);
+        Some(ModelScalar::lagrangian(model, t, q, v))
     } else {
         let mut tape = Tape::new();
         let qc: Vec<Var> = q.iter().map(|&x| Var::constant(x)).collect();
         tape.record(v, |x: &[Var]| model.lagrangian(Var::constant(t), &qc, x))
-            .and_then(|l| tape.gradient(&mut p).map(|_| l))
-    };
-    match swept {
-        Ok(l) => (0..n).map(|i| v[i] * p[i]).sum::<f64>() - l,
-        Err(_) => f64::NAN,
+            .and_then(|l| tape.gradient(p).map(|_| l))
+            .ok()
     }
 }
 

@@ -46,7 +46,7 @@ use directional::Directional;
 use explicit::Mass;
 
 pub(crate) use directional::{distinct, point_position, point_time};
-pub(crate) use legendre::{energy, legendre, step_energy, velocity, velocity_derivatives, watch_energy_jump};
+pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
 
 /// What the reverse-mode step functions need of a system and its discrete
 /// Lagrangian: `L` and the step action evaluated on tape numbers.

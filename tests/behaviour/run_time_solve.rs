@@ -1,0 +1,184 @@
+//! `solve(Plan)` on a run-time-sized system: a chain of eight oscillators
+//! between fixed walls, started in its third normal mode, whose frequency
+//! is `ω₃ = 2 sin(3π/18) = 1`, so that `q_i(t) = sin(πi/3) cos t`
+//! (`i = 1 … 8`). Thinning, save times by dense output (the cubic Hermite of
+//! the nodes) against that solution, a `Record` and a `Stop` event against
+//! their analytic times, CSV and JSON bit for bit, and the rows of the same
+//! chain at a compile-time size.
+
+use lagrangian::prelude::*;
+use lagrangian::{Action, DenseKind, Direction, Status};
+
+/// The chain with its size known at compile time: `L = Σ ½v_i² − ½q_1² −
+/// ½q_8² − Σ ½(q_{i+1} − q_i)²`.
+#[derive(Clone)]
+struct Chain;
+
+#[lagrangian]
+impl Chain {
+    fn lagrangian(&self, q: [f64; 8], v: [f64; 8]) -> f64 {
+        let mut kinetic = 0.0;
+        for i in 0..8 {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut potential = 0.5 * (q[0] * q[0] + q[7] * q[7]);
+        for i in 0..7 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d;
+        }
+        kinetic - potential
+    }
+}
+
+/// The same chain with its size known at run time.
+#[derive(Clone)]
+struct ChainDyn {
+    n: usize,
+}
+
+#[lagrangian]
+impl ChainDyn {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut potential = 0.5 * (q[0] * q[0] + q[n - 1] * q[n - 1]);
+        for i in 0..n - 1 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d;
+        }
+        kinetic - potential
+    }
+}
+
+const H: f64 = 0.01;
+const T_END: f64 = 8.0;
+const SAVE: [f64; 4] = [0.3, 1.234, 2.5, 4.0];
+
+/// The mode's shape `sin(πi/3)`, `i = 1 … 8`.
+fn shape() -> [f64; 8] {
+    core::array::from_fn(|i| (std::f64::consts::PI * (i + 1) as f64 / 3.0).sin())
+}
+
+/// Thinning, save times, a `Record` event at the zeros of `q_1` and a
+/// `Stop` where `q_1 / sin(π/3) = cos t` rises through `1/2` (`t = 5π/3`).
+fn plan() -> Plan<'static> {
+    let amplitude = shape()[0];
+    Plan::until(T_END)
+        .every(20)
+        .save_at(SAVE.to_vec())
+        .event(Event::new(|_t, q, _v| q[0]))
+        .event(Event::new(move |_t, q, _v| q[0] / amplitude - 0.5).direction(Direction::Rising).action(Action::Stop))
+}
+
+fn scheme_cases() -> [(&'static str, Scheme); 3] {
+    [
+        ("midpoint", Scheme::MIDPOINT),
+        ("trapezoid", Scheme::TRAPEZOID),
+        ("yoshida 4", Scheme::composition(lagrangian::Composition::YOSHIDA4, OnePoint::Trapezoid)),
+    ]
+}
+
+/// Every value of the table as bits.
+fn bits(s: &Solution) -> Vec<u64> {
+    let mut b: Vec<u64> = s.t.iter().chain(&s.energy).map(|x| x.to_bits()).collect();
+    b.extend(s.step.iter().map(|k| k.map_or(u64::MAX, |k| k)));
+    for rows in [&s.q, &s.p, &s.v] {
+        b.extend(rows.as_flat().iter().map(|x| x.to_bits()));
+    }
+    b
+}
+
+#[test]
+fn a_run_time_sized_chain_solves_as_a_compile_time_sized_one() {
+    let pi = std::f64::consts::PI;
+    let shape = shape();
+    let dynamic = DynProblem::new(ChainDyn { n: 8 }, 0.0, shape.to_vec(), vec![0.0; 8]);
+    let compiled = Problem::new(Chain, 0.0, shape, [0.0; 8]);
+    for (name, scheme) in scheme_cases() {
+        let mut sim = dynamic.stepper(&scheme, H).unwrap();
+        let sol = sim.solve(plan()).unwrap().into_result().unwrap();
+        assert_eq!(sol.width(), 8);
+
+        // The stop at 5π/3, where the stepper is, on a node of its own.
+        let t_stop = 5.0 * pi / 3.0;
+        assert_eq!(sol.status, Status::Stopped { event: 1, t: *sol.t.last().unwrap() }, "{name}");
+        assert!((sol.t.last().unwrap() - t_stop).abs() < 1e-4, "{name}: stop at {}", sol.t.last().unwrap());
+        assert_eq!(sim.state().t, *sol.t.last().unwrap(), "{name}");
+        assert_eq!(sol.q.last().unwrap(), &sim.state().q[..], "{name}: the last row is the stepper's node");
+
+        // The records at π/2 and 3π/2, then the stop.
+        let records: Vec<f64> = sol.events.iter().filter(|e| e.event == 0).map(|e| e.t).collect();
+        assert_eq!(records.len(), 2, "{name}: {records:?}");
+        for (t, exact) in records.iter().zip([pi / 2.0, 1.5 * pi]) {
+            assert!((t - exact).abs() < 1e-4, "{name}: record at {t} against {exact}");
+        }
+        assert_eq!(sol.events.last().map(|e| e.event), Some(1));
+        assert!(sol.events[0].q[0].abs() < 1e-12, "{name}: g = 0 on the dense output at the record");
+
+        // Every 20th node, the save times interpolated, against q_i = sin(πi/3) cos t.
+        let nodes: Vec<u64> = sol.step.iter().flatten().copied().collect();
+        assert!(nodes[..nodes.len() - 1].iter().all(|k| k % 20 == 0), "{name}: {nodes:?}");
+        let saved: Vec<usize> = (0..sol.len()).filter(|&i| sol.step[i].is_none()).collect();
+        let times: Vec<f64> = saved.iter().map(|&i| sol.t[i]).collect();
+        assert_eq!(times, SAVE, "{name}: the save times before the stop");
+        let mut error = 0.0f64;
+        for &i in &saved {
+            let t = sol.t[i];
+            for j in 0..8 {
+                error = error.max((sol.q[i][j] - shape[j] * t.cos()).abs());
+                error = error.max((sol.v[i][j] + shape[j] * t.sin()).abs());
+                // ∂L/∂v = v for this chain.
+                error = error.max((sol.p[i][j] - sol.v[i][j]).abs());
+            }
+        }
+        assert!(error < 1e-4, "{name}: dense output error {error:e}");
+        let energy = 0.5 * shape.iter().map(|x| x * x).sum::<f64>();
+        assert!(sol.energy.iter().all(|e| (e - energy).abs() < 1e-4), "{name}: E_L is the mode's energy");
+
+        // CSV and JSON bit for bit.
+        let mut csv = Vec::new();
+        sol.write_csv(&mut csv).unwrap();
+        let back = Solution::read_csv(csv.as_slice()).unwrap();
+        assert_eq!((back.width(), bits(&back)), (8, bits(&sol)), "{name}: csv");
+        let mut json = Vec::new();
+        sol.write_json(&mut json).unwrap();
+        let back = Solution::read_json(json.as_slice()).unwrap();
+        assert_eq!(bits(&back), bits(&sol), "{name}: json");
+        assert_eq!(back.events, sol.events, "{name}: json events");
+
+        // The same rows at a compile-time size, to round-off.
+        let same = compiled.solve(&scheme, H, plan()).unwrap().into_result().unwrap();
+        assert_eq!(same.step, sol.step, "{name}: the same nodes at both sizes");
+        let largest = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let gap = [(&same.q, &sol.q), (&same.p, &sol.p), (&same.v, &sol.v)]
+            .iter()
+            .map(|(a, b)| largest(a.as_flat(), b.as_flat()))
+            .fold(largest(&same.t, &sol.t), f64::max);
+        assert!(gap < 1e-12, "{name}: compile-time and run-time rows differ by {gap:e}");
+        assert_eq!(same.events.len(), sol.events.len());
+        println!("{name}: {} rows, dense output error {error:.1e}, rows within {gap:.1e} of compile-time", sol.len());
+    }
+}
+
+/// What the run-time size does not have is refused before the run, and a
+/// failed plan leaves the stepper where it was.
+#[test]
+fn quintic_dense_output_is_refused_at_a_run_time_size() {
+    let problem = DynProblem::new(ChainDyn { n: 8 }, 0.0, shape().to_vec(), vec![0.0; 8]);
+    let mut sim = problem.stepper(&Scheme::MIDPOINT, H).unwrap();
+    let err = sim.solve(Plan::until(1.0).save_at(vec![0.5]).dense(DenseKind::Quintic)).unwrap_err();
+    assert!(matches!(err, SolveError::InvalidPlan { .. }), "{err}");
+    assert_eq!(sim.state().step, 0);
+    let err = sim.solve(Plan::until(-1.0)).unwrap_err();
+    assert!(matches!(err, SolveError::InvalidEnd { .. }), "{err}");
+    // The cubic is the run-time size's own.
+    let sol = sim.solve(Plan::until(1.0).every(0).save_at(vec![0.5]).dense(DenseKind::Cubic)).unwrap();
+    assert_eq!((sol.len(), sol.t[0]), (1, 0.5));
+}
