@@ -189,8 +189,9 @@ impl DoubleEndedIterator for RowIter<'_> {
 
 impl ExactSizeIterator for RowIter<'_> {}
 
-/// A sequence of rows, each a sequence of numbers written as
-/// [`crate::serde_arrays`] writes them (every `f64` bit for bit).
+/// A sequence of rows, each a sequence of numbers written as the solution's
+/// other columns are (every `f64` bit for bit, the non-finite ones as
+/// texts).
 #[cfg(feature = "serde")]
 impl serde::Serialize for Rows {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
