@@ -128,10 +128,13 @@ fn a_stiff_step_falls_back_to_newton() {
     let (worst, auto, _) = compare::<_, 3>(Stiff, start, 0.05, 20, (StageIteration::Automatic, StageIteration::Newton));
     assert!(worst < 1e-12, "{worst:e}");
     // Newton solved the steps (Jacobians assembled), after the fixed point
-    // was tried on the first and then paused.
+    // was tried on the first and then paused (offered again after pauses of
+    // 1, 3 and 7 steps); each step is finished by the fixed point from
+    // Newton's root (Hessians in v at its first round, and a round or two).
     let e = auto.point_evaluations();
     assert!(e.hessians > 0 && e.velocity_hessians > 0, "{e:?}");
-    assert!(e.velocity_hessians < 3 * 20 / 2, "{e:?}");
+    assert!(e.velocity_hessians <= 3 * (20 + 4), "{e:?}");
+    assert!(auto.stats().newton_iterations <= 20 * 6, "{:?}", auto.stats());
     // The fixed point alone fails with a typed error and keeps the state.
     let mut sim =
         GalerkinIntegrator::new(Stiff, Galerkin::<3, 3>::gauss().with_iteration(StageIteration::FixedPoint), 0.05)

@@ -104,6 +104,14 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
     /// `∫_0^{τ_m} L_j`, row `m − 1`: the node increments `D_m = h Σ_j (·) V_j`
     /// of the step polynomial whose velocities at the points are `V_j`.
     pub(crate) node_from_stages: [[T; R]; S],
+    /// `μ_ij = a_ij / b_j` with `μ_ij + μ_ji = 1` exactly in `T` (`μ_ii = ½`):
+    /// the collocation step takes `a_ij = μ_ij (h b_j)` and `b_j = (h b_j)`
+    /// with `h b_j` rounded once, so that the coefficients it computes with
+    /// satisfy `b_i a_ij + b_j a_ji = b_i b_j` exactly and the map is
+    /// symplectic to the rounding of its arithmetic, not only to the
+    /// rounding of its coefficients (Antoñana, Makazaga & Murua, *Numer.
+    /// Algorithms* 2017; see `collocation.rs`).
+    pub(crate) stage_ratio: [[T; R]; R],
     /// How the step equations are solved ([`StageIteration`]).
     iteration: StageIteration,
 }
@@ -132,7 +140,10 @@ pub struct Galerkin<const S: usize, const R: usize, T = f64> {
 pub enum StageIteration {
     /// The fixed-point iteration where it contracts fast enough, Newton on
     /// the steps where it does not (a stiff step, a poor first guess),
-    /// chosen per step from the observed contraction.
+    /// chosen per step from the observed contraction. A step Newton solves
+    /// is finished by the fixed point from Newton's root (a round or two),
+    /// so that every step ends with the same round-off (see the
+    /// `collocation` module).
     #[default]
     Automatic,
     /// The fixed-point iteration only: a step on which it does not converge
@@ -164,6 +175,7 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
             end_d: [T::zero(); S],
             stage_from_stages: [[T::zero(); R]; R],
             node_from_stages: [[T::zero(); R]; S],
+            stage_ratio: [[T::zero(); R]; R],
             iteration: StageIteration::Automatic,
         };
         if S == 0 {
@@ -219,6 +231,21 @@ impl<const S: usize, const R: usize, T: Real> Galerkin<S, R, T> {
         for m in 0..S {
             for j in 0..R {
                 g.node_from_stages[m][j] = integral(x[m + 1], j);
+            }
+        }
+        // Of each pair the ratio at least ½ is rounded, the other is `1 − μ`,
+        // exact (Sterbenz) where the rounded one is at most 2, and exact for
+        // the Gauss rules tabulated (the unit test checks the sums).
+        let b = quadrature.weights();
+        for i in 0..R {
+            g.stage_ratio[i][i] = T::from(0.5);
+            for j in 0..i {
+                let (upper, lower) = (g.stage_from_stages[i][j] / b[j], g.stage_from_stages[j][i] / b[i]);
+                if upper.to_f64() >= lower.to_f64() {
+                    (g.stage_ratio[i][j], g.stage_ratio[j][i]) = (upper, T::one() - upper);
+                } else {
+                    (g.stage_ratio[i][j], g.stage_ratio[j][i]) = (T::one() - lower, lower);
+                }
             }
         }
         g
