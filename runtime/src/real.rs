@@ -202,6 +202,18 @@ pub(crate) fn gauss_jordan_into<T: Real, const N: usize>(
     inv.iter().flatten().all(|x| x.is_finite())
 }
 
+/// A xorshift stream of uniform numbers in `[−0.5, 0.5)` from `seed`, for
+/// the randomised agreement tests of the step checks.
+#[cfg(test)]
+pub(crate) fn uniform_stream(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

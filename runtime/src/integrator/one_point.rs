@@ -1368,13 +1368,7 @@ mod tests {
     /// `implausible_growth` would refuse, and both verdicts occur.
     #[test]
     fn the_explicit_growth_shortcut_agrees_with_the_full_check() {
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = crate::real::uniform_stream(0x2545_f491_4f6c_dd1d_u64);
         let (mut refused, mut shortcut) = (0, 0);
         for case in 0..20_000 {
             let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];

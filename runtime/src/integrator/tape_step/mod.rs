@@ -671,13 +671,7 @@ mod tests {
     fn the_growth_bound_agrees_with_the_full_check() {
         let n = 5;
         let mut work = SparseWork::new(n, Coupling::GENERAL).unwrap();
-        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = crate::real::uniform_stream(0x2545_f491_4f6c_dd1d_u64);
         let (mut rejected, mut passed) = (0, 0);
         for case in 0..4000 {
             let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
@@ -713,13 +707,7 @@ mod tests {
         use explicit::{beyond_bits, beyond_bound};
         let n = 5;
         let mut work = SparseWork::new(n, Coupling::GENERAL).unwrap();
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = crate::real::uniform_stream(0x9e37_79b9_7f4a_7c15_u64);
         let (mut within, mut beyond) = (0, 0);
         for case in 0..4000 {
             let scale = [0.0, 1e-9, 1e-3, 1.0][case % 4];
