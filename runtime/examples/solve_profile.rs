@@ -5,11 +5,20 @@
 //! Per step: (instructions of `STEPS` steps − of none) / `STEPS` under
 //! `valgrind --tool=callgrind`.
 //!
+//! The `dyn-` kinds take explicit trapezoid (Störmer–Verlet) steps of a
+//! run-time-sized FPU-β chain of 1 000 masses (`h = 0.05`): `dyn-run`
+//! without `solve`, `dyn-thin` through `solve` with a row every 100 steps,
+//! and `dyn-event` the same with an event function that does not fire, for
+//! which the driver refreshes a copy of the integrator before every step.
+//!
 //! ```text
 //! cargo build --release -p lagrangian-runtime --example solve_profile
 //! valgrind --tool=callgrind target/release/examples/solve_profile rows 20000
 //! ```
-use lagrangian_runtime::{Integrator, Lagrangian, Midpoint, Plan, Scalar, Stepping};
+use lagrangian_runtime::{
+    Coupling, DynIntegrator, DynLagrangian, Event, Integrator, Lagrangian, Midpoint, Pattern, Plan, Scalar,
+    Separability, Stepping, Trapezoid,
+};
 
 /// `L = ½v² + g cos q`.
 #[derive(Clone)]
@@ -22,11 +31,66 @@ impl Lagrangian<1> for Pendulum {
     }
 }
 
+/// The FPU-β chain with fixed ends, `L = ½|v|² − Σ (½r² + ¼β r⁴)` over the
+/// bonds `r`, written by hand over slices (`β = 1`).
+#[derive(Clone)]
+struct Chain(usize);
+impl DynLagrangian for Chain {
+    const AUTONOMOUS: bool = true;
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const COUPLING: Coupling =
+        Coupling { q_q: Pattern::Banded { bandwidth: 1 }, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
+    fn dimension(&self) -> usize {
+        self.0
+    }
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        let bond = |r: D| r * r * 0.5 + r * r * r * r * 0.25;
+        let n = q.len();
+        let mut l = -bond(q[0]) - bond(-q[n - 1]);
+        for i in 0..n {
+            l += v[i] * v[i] * 0.5;
+        }
+        for i in 0..n - 1 {
+            l -= bond(q[i + 1] - q[i]);
+        }
+        l
+    }
+}
+
+/// `STEPS` explicit steps of the run-time chain, through `solve` unless `kind`
+/// is `dyn-run`.
+fn chain(kind: &str, steps: usize) {
+    let (n, h) = (1000, 0.05);
+    let q0: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64 * 0.01).sin()).collect();
+    let mut sim = DynIntegrator::new(Chain(n), Trapezoid, h).start(0.0, &q0, &vec![0.0; n]).unwrap();
+    let t_end = h * steps as f64 + 0.5 * h;
+    let last = match kind {
+        "dyn-run" => {
+            sim.run(steps, |_| {}).unwrap();
+            sim.state().q[0]
+        }
+        "dyn-thin" | "dyn-event" => {
+            let mut plan = Plan::until(t_end).every(100).without_velocities();
+            if kind == "dyn-event" {
+                plan = plan.event(Event::new(|_t, q, _v| q[0] + 1e3));
+            }
+            let sol = sim.solve(plan).unwrap();
+            sol.q.last().map_or(0.0, |q| q[0])
+        }
+        _ => panic!("dyn-run | dyn-thin | dyn-event"),
+    };
+    println!("{last}");
+}
+
 /// Runs the plan `KIND` for `STEPS` steps and prints the rows and the last `q`.
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let plan_kind = args[1].as_str();
     let steps: usize = args[2].parse().unwrap();
+    if plan_kind.starts_with("dyn-") {
+        chain(plan_kind, steps);
+        return;
+    }
     let h = 0.01;
     let mut sim = Integrator::new(Pendulum, Midpoint, h).start(0.0, [1.0], [0.0]).unwrap();
     let t_end = h * steps as f64 + 0.5 * h;
@@ -34,7 +98,7 @@ fn main() {
         "rows" => Plan::until(t_end),
         "thin" => Plan::until(t_end).every(100).without_velocities(),
         "save" => Plan::until(t_end).every(0).save_at((0..steps / 10).map(|k| k as f64 * 10.0 * h + 0.003).collect()),
-        _ => panic!("rows | thin | save"),
+        _ => panic!("rows | thin | save | dyn-run | dyn-thin | dyn-event"),
     };
     let sol = sim.solve(plan).unwrap();
     println!("{} {}", sol.len(), sol.q.last().map_or(0.0, |q| q[0]));

@@ -47,7 +47,7 @@ impl<const N: usize, T: crate::Real> State<N, T> {
 /// assert_eq!(back, state);
 /// # Ok::<(), lagrangian_runtime::Error>(())
 /// ```
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct PhasePoint<T = f64> {
     /// Node index `k` (0 at the start).
     pub step: u64,
@@ -57,6 +57,20 @@ pub struct PhasePoint<T = f64> {
     pub q: Vec<T>,
     /// `p_k`.
     pub p: Vec<T>,
+}
+
+/// `clone_from` reuses the target's `q` and `p` buffers.
+impl<T: Clone> Clone for PhasePoint<T> {
+    fn clone(&self) -> Self {
+        Self { step: self.step, t: self.t.clone(), q: self.q.clone(), p: self.p.clone() }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.step = source.step;
+        self.t.clone_from(&source.t);
+        self.q.clone_from(&source.q);
+        self.p.clone_from(&source.p);
+    }
 }
 
 impl<T: crate::Real> PhasePoint<T> {

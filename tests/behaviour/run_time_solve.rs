@@ -182,3 +182,96 @@ fn quintic_dense_output_is_refused_at_a_run_time_size() {
     let sol = sim.solve(Plan::until(1.0).every(0).save_at(vec![0.5]).dense(DenseKind::Cubic)).unwrap();
     assert_eq!((sol.len(), sol.t[0]), (1, 0.5));
 }
+
+/// A chain whose masses are coupled, `T = Σ ½v_i² + μ Σ v_i v_{i+1}`: a
+/// constant, tridiagonal mass matrix, so the velocity of a node is a banded
+/// solve with the factored `M`.
+#[derive(Clone)]
+struct CoupledMasses {
+    n: usize,
+}
+
+/// The velocity coupling `μ` of [`CoupledMasses`] (`M` stays positive
+/// definite for `|μ| < ½`).
+const MU: f64 = 0.2;
+
+#[lagrangian]
+impl CoupledMasses {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        for i in 0..n - 1 {
+            kinetic += MU * v[i] * v[i + 1];
+        }
+        let mut potential = 0.0;
+        for i in 0..n {
+            potential += 0.5 * q[i] * q[i] + 0.25 * q[i] * q[i] * q[i] * q[i];
+        }
+        kinetic - potential
+    }
+}
+
+/// The velocity of a node on a system with a constant mass matrix (the
+/// explicit path's factored `M`, at unit masses and coupled ones): its
+/// momentum `M v` is the node's `p` to round-off, and the chain's velocity
+/// is what the same chain gives at a compile-time size.
+#[test]
+fn the_velocity_of_a_constant_mass_system_inverts_its_momentum() {
+    let n = 12;
+    let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.7 * i as f64).sin()).collect();
+    let mut sim = DynIntegrator::new(CoupledMasses { n }, Trapezoid, 0.05).start(0.0, &q0, &vec![0.1; n]).unwrap();
+    sim.run(40, |_| {}).unwrap();
+    let v = sim.velocity().unwrap();
+    let p = &sim.state().p;
+    for i in 0..n {
+        let left = if i > 0 { v[i - 1] } else { 0.0 };
+        let right = if i + 1 < n { v[i + 1] } else { 0.0 };
+        let momentum = v[i] + MU * (left + right);
+        assert!(
+            (momentum - p[i]).abs() <= 1e-15 * (1.0 + p[i].abs()),
+            "coordinate {i}: M v = {momentum}, p = {}",
+            p[i]
+        );
+    }
+
+    let shape = shape();
+    let mut compiled = Integrator::new(Chain, Trapezoid, H).start(0.0, shape, [0.0; 8]).unwrap();
+    let mut dynamic = DynIntegrator::new(ChainDyn { n: 8 }, Trapezoid, H).start(0.0, &shape, &[0.0; 8]).unwrap();
+    compiled.run(100, |_| {}).unwrap();
+    dynamic.run(100, |_| {}).unwrap();
+    let (a, b) = (compiled.velocity().unwrap(), dynamic.velocity().unwrap());
+    let gap = a.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(gap <= 1e-15, "velocities at both sizes differ by {gap:e}");
+}
+
+/// `clone_from` into an integrator that has taken other steps makes it the
+/// source's twin: both then take bit-identical steps (the copy that `solve`
+/// refreshes before every step when it may have to go back).
+#[test]
+fn clone_from_makes_a_run_time_integrator_its_sources_twin() {
+    let n = 12;
+    let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.7 * i as f64).sin()).collect();
+    for plain in [false, true] {
+        let summation = if plain { Summation::Plain } else { Summation::Compensated };
+        let start = |h: f64| {
+            DynIntegrator::new(CoupledMasses { n }, Trapezoid, h).summation(summation).start(0.0, &q0, &vec![0.1; n])
+        };
+        let mut source = start(0.05).unwrap();
+        source.run(25, |_| {}).unwrap();
+        let mut twin = start(0.01).unwrap();
+        twin.run(7, |_| {}).unwrap();
+        twin.clone_from(&source);
+        source.run(30, |_| {}).unwrap();
+        twin.run(30, |_| {}).unwrap();
+        assert_eq!(source.state(), twin.state(), "plain sums: {plain}");
+        assert_eq!(source.velocity().unwrap(), twin.velocity().unwrap());
+        assert_eq!(source.discrete_energy().to_bits(), twin.discrete_energy().to_bits());
+    }
+}

@@ -262,12 +262,24 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
 }
 
 /// The last step: `(t_k, h, q_k, Δq)`.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct DynSegment {
     t0: f64,
     h: f64,
     q0: Vec<f64>,
     dq: Vec<f64>,
+}
+
+impl Clone for DynSegment {
+    fn clone(&self) -> Self {
+        Self { t0: self.t0, h: self.h, q0: self.q0.clone(), dq: self.dq.clone() }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        (self.t0, self.h) = (source.t0, source.h);
+        self.q0.clone_from(&source.q0);
+        self.dq.clone_from(&source.dq);
+    }
 }
 
 /// A variational integrator for a system whose size is known only at run
@@ -314,7 +326,7 @@ struct DynSegment {
 /// assert!((sim.state().q[2] - 6.28f64.cos()).abs() < 1e-4);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct DynIntegrator<S, M> {
     system: S,
     method: M,
@@ -345,6 +357,83 @@ pub struct DynIntegrator<S, M> {
     clock: Clock<f64>,
     stats: Stats,
     work: Box<SparseWork>,
+}
+
+/// A copy owns buffers of its own. `clone_from` refills the buffers the
+/// target already has (the step's scratch is not copied): `solve`, when it
+/// may have to go back to a node, refreshes its copy of the integrator
+/// before every step this way, without allocating.
+impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
+    fn clone(&self) -> Self {
+        Self {
+            system: self.system.clone(),
+            method: self.method.clone(),
+            points: self.points,
+            h: self.h,
+            newton: self.newton,
+            summation: self.summation,
+            state: self.state.clone(),
+            carry: self.carry.clone(),
+            p_carry: self.p_carry.clone(),
+            energy: self.energy,
+            v0: self.v0.clone(),
+            previous: self.previous.clone(),
+            earlier: self.earlier.clone(),
+            last_substep: self.last_substep.clone(),
+            composed_h: self.composed_h,
+            clock: self.clock,
+            stats: self.stats,
+            work: self.work.clone(),
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        // Every field by name, so that a new one cannot be forgotten.
+        let Self {
+            system,
+            method,
+            points,
+            h,
+            newton,
+            summation,
+            state,
+            carry,
+            p_carry,
+            energy,
+            v0,
+            previous,
+            earlier,
+            last_substep,
+            composed_h,
+            clock,
+            stats,
+            work,
+        } = self;
+        system.clone_from(&source.system);
+        method.clone_from(&source.method);
+        *points = source.points;
+        *h = source.h;
+        *newton = source.newton;
+        *summation = source.summation;
+        state.clone_from(&source.state);
+        carry.clone_from(&source.carry);
+        p_carry.clone_from(&source.p_carry);
+        *energy = source.energy;
+        v0.clone_from(&source.v0);
+        previous.clone_from(&source.previous);
+        match (earlier, &source.earlier) {
+            (Some((h, dq)), Some((source_h, source_dq))) => {
+                *h = *source_h;
+                dq.clone_from(source_dq);
+            }
+            (to, from) => to.clone_from(from),
+        }
+        last_substep.clone_from(&source.last_substep);
+        *composed_h = source.composed_h;
+        *clock = source.clock;
+        *stats = source.stats;
+        work.as_mut().clone_from(&source.work);
+    }
 }
 
 impl<S, M> DynIntegrator<S, M> {
@@ -640,9 +729,16 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         }
     }
 
-    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`
-    /// (Newton from the last secant velocity, with banded or dense solves).
+    /// The velocity `v_k` whose momentum `∂L/∂v(t_k, q_k, v_k)` is `p_k`:
+    /// `M⁻¹ p_k` with the factored mass matrix of the explicit path on a
+    /// system with [`Separability::ConstantMass`](crate::Separability), else
+    /// Newton from the last secant velocity, with banded or dense solves.
     pub fn velocity(&self) -> Result<Vec<f64>, Error> {
+        if S::SEPARABILITY.has_constant_mass()
+            && let Some(v) = self.work.constant_mass_velocity(&self.state.p)
+        {
+            return Ok(v);
+        }
         // The last (sub-)step's secant velocity.
         let last = match &self.last_substep {
             Some(sub) => Some((sub.h, &sub.dq)),

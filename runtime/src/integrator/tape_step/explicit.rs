@@ -10,8 +10,27 @@ use super::{
 use crate::banded::{LinearSolveError, StepSolver};
 use crate::newton::{NewtonFailure, NewtonReport};
 use crate::real::{is_non_finite, kahan_add as kahan, nan_bits};
+use std::sync::Arc;
 
 impl SparseWork {
+    /// The velocity `M⁻¹ p` of the momentum `p` with the factored constant
+    /// mass matrix of the explicit path, as its drift applies it; `None`
+    /// before the first explicit step has factored `M` (or if the solve
+    /// fails). For `L = ½ vᵀMv − V(t, q)` this is the inverse Legendre map
+    /// exactly, without the Newton iteration and the second-order sweep
+    /// that a general `L` needs at every node (three quarters of a `solve`
+    /// with an event on a chain of 1 000 masses).
+    pub(crate) fn constant_mass_velocity(&self, p: &[f64]) -> Option<Vec<f64>> {
+        let mass = self.mass.as_deref()?;
+        let mut v = p.to_vec();
+        match mass.velocity() {
+            Velocity::Unit => {}
+            Velocity::Diagonal(d) => v.iter_mut().zip(d).for_each(|(v, d)| *v *= d),
+            Velocity::Solved => mass.assembled.solve(&mut v).ok()?,
+        }
+        Some(v)
+    }
+
     /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
     /// separable system with constant mass: `M` factored once (banded when
     /// proven, a division when diagonal), `∂L/∂q` from the system's adjoint
@@ -68,7 +87,7 @@ impl SparseWork {
                 velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
                     .map_err(|b| b.at(0))?;
             mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
-            self.mass = Some(Mass::new(mass));
+            self.mass = Some(Arc::new(Mass::new(mass)));
         }
         match self.node_force.take() {
             Some((k, f)) if k == node.step => Ok(f),
@@ -179,7 +198,7 @@ impl SparseWork {
             dq.fill(0.0);
             dp.fill(0.0);
         }
-        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
+        let velocity = self.mass.as_deref().map_or(Velocity::Solved, Mass::velocity);
         // Half the last sub-step: its closing kick joins the next opening one.
         let (mut half, mut elapsed) = (0.0, 0.0);
         let (mut t_last, mut h_last) = (node.t, 0.0);
@@ -371,7 +390,7 @@ impl SparseWork {
         let (dq, q1, qc1) = (&mut out.dq[..n], &mut out.q1[..n], &mut out.q_carry[..n]);
         // The drift's momentum `(p_k + (h/2) f_k) + c_p`, before `M⁻¹`.
         let rhs = |i: usize| if plain { p0[i] + half * f0[i] } else { (p0[i] + half * f0[i]) + pc0[i] };
-        let velocity = self.mass.as_ref().map_or(Velocity::Solved, Mass::velocity);
+        let velocity = self.mass.as_deref().map_or(Velocity::Solved, Mass::velocity);
         if let Velocity::Solved = velocity {
             for i in 0..n {
                 dq[i] = rhs(i);

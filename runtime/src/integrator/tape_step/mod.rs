@@ -36,6 +36,7 @@ use crate::structure::{Coupling, Pattern};
 use crate::system::Scalar;
 use crate::tape::{Seeds, Tape, TapeError, Var};
 use num_dual::Dual64;
+use std::sync::Arc;
 
 mod directional;
 mod explicit;
@@ -373,12 +374,24 @@ pub(crate) struct Composed {
 
 /// The last sub-step `(t, h, q, δq)` of a fused composed step, on the heap
 /// (its buffers are handed over by the step, not copied).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub(crate) struct LastSubstep {
     pub(crate) t0: f64,
     pub(crate) h: f64,
     pub(crate) q0: Vec<f64>,
     pub(crate) dq: Vec<f64>,
+}
+
+impl Clone for LastSubstep {
+    fn clone(&self) -> Self {
+        Self { t0: self.t0, h: self.h, q0: self.q0.clone(), dq: self.dq.clone() }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        (self.t0, self.h) = (source.t0, source.h);
+        self.q0.clone_from(&source.q0);
+        self.dq.clone_from(&source.dq);
+    }
 }
 
 /// The buffers of [`SparseWork::composed_into`] besides the step's own: the
@@ -410,8 +423,10 @@ pub(crate) struct SparseWork {
     jacobian: StepSolver,
     /// `E_{k+1} = −∂A/∂t_{k+1}` of the last step, when it was computed.
     pub(crate) energy: Option<f64>,
-    /// Explicit path: the factored constant mass matrix.
-    mass: Option<Mass>,
+    /// Explicit path: the factored constant mass matrix, shared by clones
+    /// (it never changes once factored, and a `solve` refreshes a copy of
+    /// the integrator before every step).
+    mass: Option<Arc<Mass>>,
     /// Explicit path: `(k, ∂L/∂q(t_k, q_k, 0))`.
     node_force: Option<(u64, Vec<f64>)>,
     /// Explicit path: the zero velocity of `∂L/∂q(t, q, 0)`, for the
@@ -464,6 +479,40 @@ impl Clone for SparseWork {
             saved_carries: self.saved_carries.clone(),
             growth_index: self.growth_index,
         }
+    }
+
+    /// Copies what persists between steps into the buffers `self` already
+    /// has, and leaves its scratch (the tape, the step matrix, the spare
+    /// and directional buffers: filled afresh by every step) as it is: a
+    /// `solve` that may have to go back refreshes its copy of the
+    /// integrator this way before every step, without allocating.
+    fn clone_from(&mut self, source: &Self) {
+        if (self.n, self.bandwidth) != (source.n, source.bandwidth) {
+            *self = source.clone();
+            return;
+        }
+        self.inputs.clone_from(&source.inputs);
+        self.gradient.clone_from(&source.gradient);
+        self.products.clone_from(&source.products);
+        self.mixed.clone_from(&source.mixed);
+        self.end.clone_from(&source.end);
+        self.energy = source.energy;
+        self.mass.clone_from(&source.mass);
+        match (&mut self.node_force, &source.node_force) {
+            (Some((k, f)), Some((source_k, source_f))) => {
+                *k = *source_k;
+                f.clone_from(source_f);
+            }
+            (to, from) => to.clone_from(from),
+        }
+        self.zero.0.clone_from(&source.zero.0);
+        self.zero.1.clone_from(&source.zero.1);
+        self.carries.clone_from(&source.carries);
+        match (&mut self.saved_carries, &source.saved_carries) {
+            (Some(to), Some(from)) => to.clone_from(from),
+            (to, from) => to.clone_from(from),
+        }
+        self.growth_index = source.growth_index;
     }
 }
 
