@@ -10,14 +10,16 @@
 //! without `solve`, `dyn-thin` through `solve` with a row every 100 steps,
 //! and `dyn-event` the same with an event function that does not fire, for
 //! which the driver refreshes a copy of the integrator before every step.
+//! `const-run` and `const-event` take the same steps with the size known at
+//! compile time, in reverse mode.
 //!
 //! ```text
 //! cargo build --release -p lagrangian-runtime --example solve_profile
 //! valgrind --tool=callgrind target/release/examples/solve_profile rows 20000
 //! ```
 use lagrangian_runtime::{
-    Coupling, DynIntegrator, DynLagrangian, Event, Integrator, Lagrangian, Midpoint, Pattern, Plan, Scalar,
-    Separability, Stepping, Trapezoid,
+    Coupling, Derivatives, DynIntegrator, DynLagrangian, Event, Integrator, Lagrangian, Midpoint, Pattern, Plan,
+    Scalar, Separability, Stepping, Trapezoid,
 };
 
 /// `L = ½v² + g cos q`.
@@ -57,6 +59,20 @@ impl DynLagrangian for Chain {
     }
 }
 
+/// [`Chain`] with its size known at compile time.
+#[derive(Clone)]
+struct ConstChain;
+impl Lagrangian<1000> for ConstChain {
+    const AUTONOMOUS: bool = true;
+    const CYCLIC: [bool; 1000] = [false; 1000];
+    const SEPARABILITY: Separability = Separability::ConstantMass;
+    const COUPLING: Coupling =
+        Coupling { q_q: Pattern::Banded { bandwidth: 1 }, q_v: Pattern::Diagonal, v_v: Pattern::Diagonal };
+    fn lagrangian<D: Scalar>(&self, t: D, q: [D; 1000], v: [D; 1000]) -> D {
+        Chain(1000).lagrangian(t, &q, &v)
+    }
+}
+
 /// `STEPS` explicit steps of the run-time chain, through `solve` unless `kind`
 /// is `dyn-run`.
 fn chain(kind: &str, steps: usize) {
@@ -77,7 +93,23 @@ fn chain(kind: &str, steps: usize) {
             let sol = sim.solve(plan).unwrap();
             sol.q.last().map_or(0.0, |q| q[0])
         }
-        _ => panic!("dyn-run | dyn-thin | dyn-event"),
+        "const-run" | "const-event" => {
+            let mut q = [0.0; 1000];
+            q.copy_from_slice(&q0);
+            let mut sim = Integrator::new(ConstChain, Trapezoid, h)
+                .derivatives(Derivatives::Reverse)
+                .start(0.0, q, [0.0; 1000])
+                .unwrap();
+            if kind == "const-run" {
+                sim.run(steps, |_| {}).unwrap();
+                sim.state().q[0]
+            } else {
+                let plan = Plan::until(t_end).every(100).without_velocities().event(Event::new(|_t, q, _v| q[0] + 1e3));
+                let sol = sim.solve(plan).unwrap();
+                sol.q.last().map_or(0.0, |q| q[0])
+            }
+        }
+        _ => panic!("dyn-run | dyn-thin | dyn-event | const-run | const-event"),
     };
     println!("{last}");
 }
@@ -87,7 +119,7 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let plan_kind = args[1].as_str();
     let steps: usize = args[2].parse().unwrap();
-    if plan_kind.starts_with("dyn-") {
+    if plan_kind.starts_with("dyn-") || plan_kind.starts_with("const-") {
         chain(plan_kind, steps);
         return;
     }
@@ -98,7 +130,7 @@ fn main() {
         "rows" => Plan::until(t_end),
         "thin" => Plan::until(t_end).every(100).without_velocities(),
         "save" => Plan::until(t_end).every(0).save_at((0..steps / 10).map(|k| k as f64 * 10.0 * h + 0.003).collect()),
-        _ => panic!("rows | thin | save | dyn-run | dyn-thin | dyn-event"),
+        _ => panic!("rows | thin | save | dyn-run | dyn-thin | dyn-event | const-run | const-event"),
     };
     let sol = sim.solve(plan).unwrap();
     println!("{} {}", sol.len(), sol.q.last().map_or(0.0, |q| q[0]));

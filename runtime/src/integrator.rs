@@ -796,6 +796,11 @@ impl<S: Lagrangian<N>, M: F64Readouts, const N: usize> Integrator<S, M, N> {
         use crate::mechanics::DiscreteMechanics;
         let State { t, q, p, .. } = self.state;
         if const { sparse::too_large_for_forward(N) } || self.derivatives.reverse::<N>() {
+            if S::SEPARABILITY.has_constant_mass()
+                && let Some(v) = M::constant_mass_velocity(self)
+            {
+                return Ok(v);
+            }
             return sparse::velocity(&self.system, t, &q, &p, &M::velocity_guess(self)).map_err(
                 |(iterations, residual_norm)| Error::InverseLegendre {
                     state: self.state.into(),

@@ -7,7 +7,7 @@
 //! chain at a compile-time size.
 
 use lagrangian::prelude::*;
-use lagrangian::{Action, DenseKind, Direction, Status};
+use lagrangian::{Action, DenseKind, Derivatives, Direction, Status};
 
 /// The chain with its size known at compile time: `L = Σ ½v_i² − ½q_1² −
 /// ½q_8² − Σ ½(q_{i+1} − q_i)²`.
@@ -241,14 +241,22 @@ fn the_velocity_of_a_constant_mass_system_inverts_its_momentum() {
         );
     }
 
+    // At both sizes, and at a compile-time size in both modes (reverse mode
+    // keeps the factored mass matrix; forward mode inverts by Newton).
     let shape = shape();
-    let mut compiled = Integrator::new(Chain, Trapezoid, H).start(0.0, shape, [0.0; 8]).unwrap();
     let mut dynamic = DynIntegrator::new(ChainDyn { n: 8 }, Trapezoid, H).start(0.0, &shape, &[0.0; 8]).unwrap();
-    compiled.run(100, |_| {}).unwrap();
     dynamic.run(100, |_| {}).unwrap();
-    let (a, b) = (compiled.velocity().unwrap(), dynamic.velocity().unwrap());
-    let gap = a.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-    assert!(gap <= 1e-15, "velocities at both sizes differ by {gap:e}");
+    let b = dynamic.velocity().unwrap();
+    for derivatives in [Derivatives::Forward, Derivatives::Reverse] {
+        let mut compiled =
+            Integrator::new(Chain, Trapezoid, H).derivatives(derivatives).start(0.0, shape, [0.0; 8]).unwrap();
+        compiled.run(100, |_| {}).unwrap();
+        let a = compiled.velocity().unwrap();
+        let gap = a.iter().zip(&b).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(gap <= 1e-15, "{derivatives:?}: velocities at both sizes differ by {gap:e}");
+        let momentum = compiled.state().p;
+        assert_eq!(a, momentum, "{derivatives:?}: unit masses, v = p");
+    }
 }
 
 /// `clone_from` into an integrator that has taken other steps makes it the

@@ -130,7 +130,7 @@ impl Composition {
 
 /// What a composition keeps: the trapezoid sub-steps' memory and the
 /// sub-steps of the last composed step.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct CompositionMemory<const N: usize> {
     /// Sub-stepped compositions: the last sub-step's memory. Fused explicit
     /// ones: the composed step as one segment `(t_k, h, q_k, Δq)` (the growth
@@ -154,6 +154,33 @@ pub struct CompositionMemory<const N: usize> {
     /// Fused explicit steps in reverse mode: the last sub-step of the last
     /// step (the readouts' segment; `inner` holds whole steps), on the heap.
     pub(crate) last_fused: Option<LastSubstep>,
+}
+
+impl<const N: usize> Clone for CompositionMemory<N> {
+    fn clone(&self) -> Self {
+        Self {
+            inner: self.inner.clone(),
+            substeps: self.substeps,
+            stages: self.stages,
+            last_h: self.last_h,
+            fused: self.fused.clone(),
+            fused_last: self.fused_last,
+            last_fused: self.last_fused.clone(),
+        }
+    }
+
+    /// Field by field into the storage `self` has (see
+    /// [`OnePointMemory`]'s `clone_from`).
+    fn clone_from(&mut self, source: &Self) {
+        let Self { inner, substeps, stages, last_h, fused, fused_last, last_fused } = self;
+        inner.clone_from(&source.inner);
+        *substeps = source.substeps;
+        *stages = source.stages;
+        *last_h = source.last_h;
+        fused.clone_from(&source.fused);
+        *fused_last = source.fused_last;
+        last_fused.clone_from(&source.last_fused);
+    }
 }
 
 /// The sub-steps of a fused explicit step: with the composed step's start
@@ -418,6 +445,11 @@ impl Method<f64> for Composition {
 }
 
 impl F64Readouts for Composition {
+    fn constant_mass_velocity<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<[f64; N]> {
+        let mut v = [0.0; N];
+        it.memory.inner.sparse.as_ref()?.constant_mass_velocity(&it.state.p, &mut v).then_some(v)
+    }
+
     fn velocity_guess<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> [f64; N] {
         if const { super::sparse::too_large_for_forward(N) } || it.derivatives.reverse::<N>() {
             return match it.memory.last_substep_in_place() {

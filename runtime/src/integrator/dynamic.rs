@@ -734,10 +734,11 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// system with [`Separability::ConstantMass`](crate::Separability), else
     /// Newton from the last secant velocity, with banded or dense solves.
     pub fn velocity(&self) -> Result<Vec<f64>, Error> {
-        if S::SEPARABILITY.has_constant_mass()
-            && let Some(v) = self.work.constant_mass_velocity(&self.state.p)
-        {
-            return Ok(v);
+        if S::SEPARABILITY.has_constant_mass() {
+            let mut v = vec![0.0; self.state.p.len()];
+            if self.work.constant_mass_velocity(&self.state.p, &mut v) {
+                return Ok(v);
+            }
         }
         // The last (sub-)step's secant velocity.
         let last = match &self.last_substep {

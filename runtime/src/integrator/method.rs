@@ -186,6 +186,17 @@ pub trait F64Readouts: Method<f64> {
     where
         Self: Sized;
 
+    /// The velocity `M⁻¹ p_k` of the current node from the factored
+    /// constant mass matrix that the reverse-mode explicit path keeps, when
+    /// it has one (`None` otherwise: Newton then inverts the Legendre map).
+    #[doc(hidden)]
+    fn constant_mass_velocity<S: Lagrangian<N>, const N: usize>(_it: &Integrator<S, Self, N, f64>) -> Option<[f64; N]>
+    where
+        Self: Sized,
+    {
+        None
+    }
+
     /// The tangent map of the last step.
     #[doc(hidden)]
     fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N, f64>) -> Option<TangentMap<N>>

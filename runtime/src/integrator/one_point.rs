@@ -38,7 +38,7 @@ use crate::symplectic::{self, TangentMap};
 use crate::system::Lagrangian;
 
 /// What a one-point rule keeps of its last two steps.
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct OnePointMemory<const N: usize> {
     /// The last step, from node `k − 1` to node `k`; `None` at the start.
     pub(crate) previous: Option<Segment<N>>,
@@ -50,6 +50,28 @@ pub struct OnePointMemory<const N: usize> {
     /// Reverse-mode steps: the tape, its buffers and the factored matrices
     /// (see [`Derivatives`](crate::Derivatives)); `None` in forward mode.
     pub(crate) sparse: Option<Box<super::tape_step::SparseWork>>,
+}
+
+impl<const N: usize> Clone for OnePointMemory<N> {
+    fn clone(&self) -> Self {
+        Self {
+            previous: self.previous,
+            earlier: self.earlier,
+            explicit: self.explicit.clone(),
+            sparse: self.sparse.clone(),
+        }
+    }
+
+    /// Field by field into the boxes `self` has: reverse mode's work copies
+    /// into its own buffers (see `SparseWork::clone_from`) instead of
+    /// allocating a tape and buffers at every step of a `solve`.
+    fn clone_from(&mut self, source: &Self) {
+        let Self { previous, earlier, explicit, sparse } = self;
+        *previous = source.previous;
+        *earlier = source.earlier;
+        explicit.clone_from(&source.explicit);
+        sparse.clone_from(&source.sparse);
+    }
 }
 
 impl<const N: usize> OnePointMemory<N> {
@@ -201,6 +223,11 @@ impl<M: DiscreteLagrangian> F64Readouts for M {
             Some(last) => last.dq.map(|x| x / last.h),
             None => it.v0,
         }
+    }
+
+    fn constant_mass_velocity<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<[f64; N]> {
+        let mut v = [0.0; N];
+        it.memory.sparse.as_ref()?.constant_mass_velocity(&it.state.p, &mut v).then_some(v)
     }
 
     fn tangent_map<S: Lagrangian<N>, const N: usize>(it: &Integrator<S, Self, N>) -> Option<TangentMap<N>> {

@@ -14,21 +14,24 @@ use std::sync::Arc;
 
 impl SparseWork {
     /// The velocity `M⁻¹ p` of the momentum `p` with the factored constant
-    /// mass matrix of the explicit path, as its drift applies it; `None`
-    /// before the first explicit step has factored `M` (or if the solve
-    /// fails). For `L = ½ vᵀMv − V(t, q)` this is the inverse Legendre map
-    /// exactly, without the Newton iteration and the second-order sweep
-    /// that a general `L` needs at every node (three quarters of a `solve`
-    /// with an event on a chain of 1 000 masses).
-    pub(crate) fn constant_mass_velocity(&self, p: &[f64]) -> Option<Vec<f64>> {
-        let mass = self.mass.as_deref()?;
-        let mut v = p.to_vec();
+    /// mass matrix of the explicit path, as its drift applies it, written
+    /// into `v`; `false` (and `v` unspecified) before the first explicit
+    /// step has factored `M`, or if the solve fails. For
+    /// `L = ½ vᵀMv − V(t, q)` this is the inverse Legendre map exactly,
+    /// without the Newton iteration and the second-order sweep that a
+    /// general `L` needs at every node (three quarters of a `solve` with an
+    /// event on a chain of 1 000 masses).
+    pub(crate) fn constant_mass_velocity(&self, p: &[f64], v: &mut [f64]) -> bool {
+        let Some(mass) = self.mass.as_deref() else { return false };
+        v.copy_from_slice(p);
         match mass.velocity() {
-            Velocity::Unit => {}
-            Velocity::Diagonal(d) => v.iter_mut().zip(d).for_each(|(v, d)| *v *= d),
-            Velocity::Solved => mass.assembled.solve(&mut v).ok()?,
+            Velocity::Unit => true,
+            Velocity::Diagonal(d) => {
+                v.iter_mut().zip(d).for_each(|(v, d)| *v *= d);
+                true
+            }
+            Velocity::Solved => mass.assembled.solve(v).is_ok(),
         }
-        Some(v)
     }
 
     /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
