@@ -153,3 +153,276 @@ fn a_forced_run_time_chain_steps_as_the_compile_time_one() {
         assert!((sa.q[0] - q0[0]).abs() > 1e-2, "{name}");
     }
 }
+
+/// A linearly damped chain between walls, `R = ½γ Σ v_i²`, its size known
+/// at run time (the macro's rewrite of both bodies over slices).
+#[derive(Clone)]
+struct Damped {
+    n: usize,
+    gamma: f64,
+}
+
+#[lagrangian]
+impl Damped {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut kinetic = 0.0;
+        for i in 0..n {
+            kinetic += 0.5 * v[i] * v[i];
+        }
+        let mut potential = 0.5 * (q[0] * q[0] + q[n - 1] * q[n - 1]);
+        for i in 0..n - 1 {
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d;
+        }
+        kinetic - potential
+    }
+
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        let mut r = 0.0;
+        for i in 0..v.len() {
+            r += 0.5 * self.gamma * v[i] * v[i];
+        }
+        r
+    }
+}
+
+/// The slope of `log error` against `log h` between successive halvings.
+fn orders(errors: &[f64]) -> Vec<f64> {
+    errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect()
+}
+
+/// The third mode of the damped chain is a damped oscillator
+/// `a'' + γa' + a = 0`: `q_i = sin(πi/3) a(t)`, `a = e^{−γt/2}(cos ω t +
+/// γ/(2ω) sin ω t)`, `ω = √(1 − γ²/4)`, and its energy
+/// `E = ½|s|²(a'² + a²)` falls by the work of the dissipation. Both, and
+/// the states, converge at order 2 for the second-order rules.
+#[test]
+fn a_damped_run_time_chain_loses_the_work_of_its_dissipation() {
+    let gamma: f64 = 0.2;
+    let s = shape();
+    let norm2: f64 = s.iter().map(|x| x * x).sum();
+    let omega = (1.0 - gamma * gamma / 4.0).sqrt();
+    let t_end = 10.0;
+    let decay = (-gamma * t_end / 2.0).exp();
+    let a = decay * ((omega * t_end).cos() + gamma / (2.0 * omega) * (omega * t_end).sin());
+    let da = -decay / omega * (omega * t_end).sin();
+    let energy_exact = 0.5 * norm2 * (da * da + a * a);
+    let problem = DynProblem::new(Damped { n: 8, gamma }, 0.0, s.to_vec(), vec![0.0; 8]);
+    for (name, scheme) in schemes() {
+        if name == "alpha-beta" {
+            continue;
+        }
+        let (mut state_errors, mut energy_errors) = (Vec::new(), Vec::new());
+        for h in [0.04, 0.02, 0.01] {
+            let mut sim = problem.stepper(&scheme, h).unwrap();
+            sim.run_until(t_end).unwrap();
+            let q = &sim.state().q;
+            state_errors.push((0..8).map(|i| (q[i] - s[i] * a).abs()).fold(0.0, f64::max));
+            let e0 = 0.5 * norm2;
+            // The energy lost against the work the dissipation did.
+            energy_errors.push(((sim.energy().unwrap() - e0) - (energy_exact - e0)).abs());
+        }
+        let expected = if name == "yoshida 4" { 4.0 } else { 2.0 };
+        for (what, errors) in [("state", &state_errors), ("energy", &energy_errors)] {
+            for order in orders(errors) {
+                assert!((order - expected).abs() < 0.15, "{name}: {what} order {order} from {errors:?}");
+            }
+        }
+    }
+}
+
+/// A chain driven in its third mode, `Q_i = sin(πi/3) F cos Ωt`, with
+/// `R = ½γ Σ v_i²`: started on the periodic response `a = A cos Ωt +
+/// B sin Ωt` (`A = F(1 − Ω²)/D`, `B = FγΩ/D`, `D = (1 − Ω²)² + γ²Ω²`), it
+/// stays on it.
+#[derive(Clone, Debug)]
+struct Driven {
+    shape: Vec<f64>,
+    gamma: f64,
+    amplitude: f64,
+    frequency: f64,
+}
+
+impl DynLagrangian for Driven {
+    const AUTONOMOUS: bool = true;
+    const FORCE_COUPLING: ForceCoupling = ForceCoupling::NONE;
+    const HAS_DISSIPATION: bool = true;
+    const HAS_FORCE: bool = true;
+
+    fn dimension(&self) -> usize {
+        self.shape.len()
+    }
+
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        chain_lagrangian(q, v, true)
+    }
+
+    fn dissipation<D: Scalar>(&self, _q: &[D], v: &[D]) -> D {
+        v.iter().fold(D::from(0.0), |r, &x| r + x * x * (0.5 * self.gamma))
+    }
+
+    fn force<D: Scalar>(&self, t: D, _q: &[D], _v: &[D], f: &mut [D]) {
+        let drive = (t * self.frequency).cos() * self.amplitude;
+        for (f, s) in f.iter_mut().zip(&self.shape) {
+            *f = drive * *s;
+        }
+    }
+}
+
+#[test]
+fn a_driven_run_time_chain_follows_its_periodic_response() {
+    let (gamma, amplitude, frequency): (f64, f64, f64) = (0.1, 0.5, 0.7);
+    let d = (1.0 - frequency * frequency).powi(2) + (gamma * frequency).powi(2);
+    let (a, b) = (amplitude * (1.0 - frequency * frequency) / d, amplitude * gamma * frequency / d);
+    let response = |t: f64| a * (frequency * t).cos() + b * (frequency * t).sin();
+    let s = shape();
+    let system = Driven { shape: s.to_vec(), gamma, amplitude, frequency };
+    let q0: Vec<f64> = s.iter().map(|x| x * a).collect();
+    let v0: Vec<f64> = s.iter().map(|x| x * b * frequency).collect();
+    let problem = DynProblem::new(system, 0.0, q0, v0);
+    let t_end = 12.0;
+    for (name, scheme) in schemes() {
+        if name == "alpha-beta" {
+            continue;
+        }
+        let mut errors = Vec::new();
+        for h in [0.04, 0.02, 0.01] {
+            let mut sim = problem.stepper(&scheme, h).unwrap();
+            sim.run_until(t_end).unwrap();
+            let q = &sim.state().q;
+            errors.push((0..8).map(|i| (q[i] - s[i] * response(t_end)).abs()).fold(0.0, f64::max));
+        }
+        let expected = if name == "yoshida 4" { 4.0 } else { 2.0 };
+        for order in orders(&errors) {
+            assert!((order - expected).abs() < 0.2, "{name}: order {order} from {errors:?}");
+        }
+    }
+}
+
+/// A free chain (no walls) with internal forces only: a damper between
+/// neighbours `R = ½κ Σ (v_{i+1} − v_i)²` and a pair force
+/// `g = μ sin(q_{i+1} − q_i)(v_{i+1} − v_i)`, `+g` on `i`, `−g` on `i + 1`.
+/// Neither moves the centre of mass: `Σ p` is conserved.
+#[derive(Clone, Debug)]
+struct Internal {
+    n: usize,
+}
+
+impl DynLagrangian for Internal {
+    const AUTONOMOUS: bool = true;
+    const FORCE_COUPLING: ForceCoupling =
+        ForceCoupling { q: Pattern::Banded { bandwidth: 1 }, v: Pattern::Banded { bandwidth: 1 } };
+    const HAS_DISSIPATION: bool = true;
+    const HAS_FORCE: bool = true;
+
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        let mut l = chain_lagrangian(q, v, false);
+        for i in 0..q.len() - 1 {
+            l -= (q[i + 1] - q[i]).powi(4) * 0.25;
+        }
+        l
+    }
+
+    fn dissipation<D: Scalar>(&self, _q: &[D], v: &[D]) -> D {
+        let mut r = D::from(0.0);
+        for i in 0..v.len() - 1 {
+            let d = v[i + 1] - v[i];
+            r += d * d * 0.05;
+        }
+        r
+    }
+
+    fn force<D: Scalar>(&self, _t: D, q: &[D], v: &[D], f: &mut [D]) {
+        for i in 0..q.len() - 1 {
+            let g = (q[i + 1] - q[i]).sin() * (v[i + 1] - v[i]) * 0.3;
+            f[i] += g;
+            f[i + 1] -= g;
+        }
+    }
+}
+
+#[test]
+fn internal_forces_conserve_the_momentum_of_a_run_time_chain() {
+    let n = 16;
+    let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.9 * i as f64).sin()).collect();
+    let v0: Vec<f64> = (0..n).map(|i| 0.5 + 0.4 * (1.7 * i as f64).cos()).collect();
+    let problem = DynProblem::new(Internal { n }, 0.0, q0, v0.clone());
+    let total: f64 = v0.iter().sum();
+    for (name, scheme) in schemes() {
+        let mut sim = problem.stepper(&scheme, 0.05).unwrap();
+        sim.run(400).unwrap();
+        let p: f64 = sim.momenta().iter().sum();
+        // 400 steps of sums of 16 terms of order 1.
+        assert!((p - total).abs() < 1e-12, "{name}: Σp {p} against {total}");
+        // The dampers worked: the relative velocities are smaller.
+        let v = sim.velocity().unwrap();
+        let spread = v.iter().map(|x| (x - total / n as f64).abs()).fold(0.0, f64::max);
+        assert!(spread < 0.4, "{name}: spread {spread}");
+    }
+}
+
+/// An oscillator whose force is not finite beyond `q_0 = 0.3`.
+#[derive(Clone, Debug)]
+struct Breaking;
+
+impl DynLagrangian for Breaking {
+    const AUTONOMOUS: bool = true;
+    const FORCE_COUPLING: ForceCoupling = ForceCoupling::NONE;
+    const HAS_FORCE: bool = true;
+
+    fn dimension(&self) -> usize {
+        2
+    }
+
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        chain_lagrangian(q, v, true)
+    }
+
+    fn force<D: Scalar>(&self, _t: D, q: &[D], v: &[D], f: &mut [D]) {
+        f[0] = (-q[0] + 0.3).sqrt() * 0.0 - v[0] * 0.01;
+    }
+}
+
+#[test]
+fn a_force_that_is_not_finite_is_a_typed_error_and_changes_nothing() {
+    for (name, scheme) in schemes() {
+        let problem = DynProblem::new(Breaking, 0.0, vec![0.0, 0.0], vec![1.0, 0.0]);
+        let mut sim = problem.stepper(&scheme, 0.05).unwrap();
+        let failure = loop {
+            let before = sim.clone();
+            match sim.step() {
+                Ok(_) => assert!(sim.state().t < 2.0, "{name}: never failed"),
+                Err(error) => break (before, error),
+            }
+        };
+        let (before, error) = failure;
+        match &error {
+            lagrangian::Error::NonFinite { state, quantity, .. } => {
+                assert_eq!(*quantity, "force", "{name}");
+                assert_eq!(state, before.state(), "{name}: the error carries the state the step started from");
+            }
+            other => panic!("{name}: {other:?}"),
+        }
+        let bits = |s: &PhasePoint| {
+            let mut b: Vec<u64> = s.q.iter().chain(&s.p).map(|x| x.to_bits()).collect();
+            b.extend([s.t.to_bits(), s.step]);
+            b
+        };
+        assert_eq!(bits(sim.state()), bits(before.state()), "{name}: the stepper is unchanged");
+        // And again: the same failure from the same state.
+        let again = sim.step().unwrap_err();
+        assert_eq!(format!("{again:?}"), format!("{error:?}"), "{name}");
+    }
+    // At the initial data: refused at the start.
+    let problem = DynProblem::new(Breaking, 0.0, vec![0.5, 0.0], vec![0.0, 0.0]);
+    assert!(matches!(problem.stepper(&Scheme::MIDPOINT, 0.05), Err(lagrangian::Error::InvalidInitialData { .. })));
+}
