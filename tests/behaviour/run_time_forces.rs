@@ -236,6 +236,37 @@ fn a_damped_run_time_chain_loses_the_work_of_its_dissipation() {
     }
 }
 
+/// The discrete energy balance of the midpoint rule (docs/theory.md §6):
+/// for a quadratic `L` under fixed steps the energy of the step ahead of
+/// node `k` is that of the step behind it plus the work
+/// `W_k = (F_{k−1}^+ + F_k^−)·(v̂_{k−1} + v̂_k)/2` of the forces at the
+/// node, to round-off and Newton's tolerance. With `F = −γ v̂`,
+/// `F^− = F^+ = (h/2) F`: `W_k = −(hγ/4) |v̂_{k−1} + v̂_k|²`.
+#[test]
+fn midpoint_balances_the_energy_of_a_damped_run_time_chain_at_every_node() {
+    let (n, gamma, h) = (8, 0.2, 0.05);
+    let mut sim = DynIntegrator::new(Damped { n, gamma }, Midpoint, h).start(0.0, &shape(), &[0.0; 8]).unwrap();
+    let (mut q, mut e) = (vec![sim.state().q.clone()], vec![sim.discrete_energy()]);
+    for _ in 0..200 {
+        sim.step().unwrap();
+        q.push(sim.state().q.clone());
+        e.push(sim.discrete_energy());
+    }
+    let mut largest = 0.0f64;
+    for k in 1..200 {
+        let work: f64 = (0..n)
+            .map(|i| {
+                let sum = (q[k][i] - q[k - 1][i]) / h + (q[k + 1][i] - q[k][i]) / h;
+                -(h * gamma / 4.0) * sum * sum
+            })
+            .sum();
+        largest = largest.max((e[k + 1] - e[k] - work).abs());
+    }
+    assert!(largest < 1e-13, "largest residual of the balance {largest:e}");
+    // The balance is not empty: the chain lost most of its energy.
+    assert!(e[200] < 0.5 * e[1], "{} against {}", e[200], e[1]);
+}
+
 /// A chain driven in its third mode, `Q_i = sin(πi/3) F cos Ωt`, with
 /// `R = ½γ Σ v_i²`: started on the periodic response `a = A cos Ωt +
 /// B sin Ωt` (`A = F(1 − Ω²)/D`, `B = FγΩ/D`, `D = (1 − Ω²)² + γ²Ω²`), it
