@@ -305,3 +305,156 @@ pub(crate) fn generalized_force(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::tape_step::{Lanes3, Lanes5};
+    use crate::structure::Coupling;
+    use crate::system::Scalar;
+
+    /// A chain's force and dissipation, both depending on `q` and `v` with
+    /// bandwidth 1: `Q_i = −v_i³ q_{i+1} + sin(t) q_i`, `R = Σ ½(1 + q_i²) v_i²
+    /// + ½ (v_{i+1} − v_i)² cos q_i`.
+    struct Forced;
+
+    fn force<D: Scalar>(t: D, q: &[D], v: &[D], f: &mut [D]) {
+        let n = q.len();
+        for i in 0..n {
+            f[i] = q[i] * t.sin();
+            if i + 1 < n {
+                f[i] -= v[i] * v[i] * v[i] * q[i + 1];
+            }
+        }
+    }
+
+    fn dissipation<D: Scalar>(q: &[D], v: &[D]) -> D {
+        let mut r = D::from(0.0);
+        for i in 0..q.len() {
+            r += (q[i] * q[i] + 1.0) * v[i] * v[i] * 0.5;
+            if i + 1 < q.len() {
+                let d = v[i + 1] - v[i];
+                r += d * d * q[i].cos() * 0.5;
+            }
+        }
+        r
+    }
+
+    impl TapeModel for Forced {
+        fn coupling(&self) -> Coupling {
+            Coupling::GENERAL
+        }
+        fn lagrangian(&self, _: Var, _: &[Var], _: &[Var]) -> Var {
+            unreachable!("the test records no action")
+        }
+        fn action(&self, _: Var, _: Var, _: &[Var], _: &[Var]) -> Var {
+            unreachable!("the test records no action")
+        }
+        fn autonomous(&self) -> bool {
+            false
+        }
+        fn points(&self) -> Option<[f64; 2]> {
+            None
+        }
+        fn has_gradient_qv(&self) -> bool {
+            false
+        }
+        crate::integrator::tape_step::scalar_methods!();
+        fn has_force(&self) -> bool {
+            true
+        }
+        fn has_dissipation(&self) -> bool {
+            true
+        }
+        fn dissipation(&self, q: &[Var], v: &[Var]) -> Var {
+            dissipation(q, v)
+        }
+        fn force_f64(&self, t: f64, q: &[f64], v: &[f64], f: &mut [f64]) {
+            force(t, q, v, f);
+        }
+        fn force_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64], f: &mut [Dual64]) {
+            force(t, q, v, f);
+        }
+        fn force_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3], f: &mut [Lanes3]) {
+            force(t, q, v, f);
+        }
+        fn force_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5], f: &mut [Lanes5]) {
+            force(t, q, v, f);
+        }
+    }
+
+    impl Forced {
+        fn gradient_qv_generic<D: Scalar>(&self, _: D, _: &[D], _: &[D], _: &mut [D], _: &mut [D]) {
+            unreachable!("the test evaluates no gradient of L")
+        }
+        fn lagrangian_generic<D: Scalar>(&self, _: D, _: &[D], _: &[D]) -> D {
+            unreachable!("the test evaluates no L")
+        }
+    }
+
+    /// `∂F_k^−/∂Δq` from the lanes and the tape against central differences
+    /// of `F_k^−`, for bands of width 3, 5 and 7 (compressed) and the dense
+    /// pattern, one and two quadrature points; and `F_k^±` split as the
+    /// rules split them (`F_k^− + F_k^+` is `h` times the mean force).
+    #[test]
+    fn the_force_jacobian_is_the_derivative_of_the_start_force() {
+        let n = 13;
+        let q0: Vec<f64> = (0..n).map(|i| 0.4 * (0.7 * i as f64).sin()).collect();
+        let dq: Vec<f64> = (0..n).map(|i| 0.03 * (1.3 * i as f64 + 0.2).cos()).collect();
+        let (t0, h) = (0.3, 0.05);
+        for bandwidth in [Some(1), Some(2), Some(3), None] {
+            for points in [[0.5, 0.5], [0.0, 1.0], [0.3, 0.3]] {
+                let case = format!("bandwidth {bandwidth:?}, points {points:?}");
+                let layout = Layout { n, bandwidth };
+                let width = layout.width();
+                let mut forcing = Forcing::default();
+                let (mut minus, mut plus) = (vec![0.0; n], vec![0.0; n]);
+                let mut band = vec![0.0; n * width];
+                let step = (t0, h, points);
+                forcing.forces(&Forced, step, &q0, &dq, &mut minus, &mut plus, Some((layout, &mut band))).unwrap();
+                // Values alone: the same bits.
+                let (mut m2, mut p2) = (vec![0.0; n], vec![0.0; n]);
+                forcing.forces(&Forced, step, &q0, &dq, &mut m2, &mut p2, None).unwrap();
+                assert_eq!((&minus, &plus), (&m2, &p2), "{case}");
+                // The impulse against the rule's quadrature of F.
+                let v: Vec<f64> = dq.iter().map(|d| d * h.recip()).collect();
+                let (evaluated, w) = distinct(points);
+                let mut impulse = vec![0.0; n];
+                for &j in evaluated {
+                    let c = points[j];
+                    let q: Vec<f64> = (0..n).map(|i| q0[i] + c * dq[i]).collect();
+                    let mut f = vec![0.0; n];
+                    generalized_force(&Forced, t0 + c * h, &q, &v, &mut f);
+                    impulse.iter_mut().zip(&f).for_each(|(x, f)| *x += w * h * f);
+                }
+                for i in 0..n {
+                    assert!((minus[i] + plus[i] - impulse[i]).abs() < 1e-15, "{case}: impulse {i}");
+                }
+                let mut largest = 0.0f64;
+                let mut scale = 0.0f64;
+                for j in 0..n {
+                    let eps = 1e-6;
+                    let mut x = dq.clone();
+                    x[j] += eps;
+                    forcing.forces(&Forced, step, &q0, &x, &mut m2, &mut p2, None).unwrap();
+                    let up = m2.clone();
+                    x[j] -= 2.0 * eps;
+                    forcing.forces(&Forced, step, &q0, &x, &mut m2, &mut p2, None).unwrap();
+                    for i in 0..n {
+                        let fd = (up[i] - m2[i]) / (2.0 * eps);
+                        let entry = match bandwidth {
+                            Some(b) if i.abs_diff(j) > b => 0.0,
+                            Some(b) => band[i * width + j + b - i],
+                            None => band[i * n + j],
+                        };
+                        largest = largest.max((fd - entry).abs());
+                        scale = scale.max(entry.abs());
+                    }
+                }
+                // Entries are O(1) (h times derivatives of O(1/h)); central
+                // differences of step 1e-6 are good to ~1e-9.
+                assert!(scale > 0.1 && largest < 1e-7, "{case}: {largest:e} of {scale:e}");
+            }
+        }
+    }
+}
