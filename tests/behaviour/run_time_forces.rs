@@ -457,3 +457,44 @@ fn a_force_that_is_not_finite_is_a_typed_error_and_changes_nothing() {
     let problem = DynProblem::new(Breaking, 0.0, vec![0.5, 0.0], vec![0.0, 0.0]);
     assert!(matches!(problem.stepper(&Scheme::MIDPOINT, 0.05), Err(lagrangian::Error::InvalidInitialData { .. })));
 }
+
+/// A damped pendulum as a point on the unit circle, sized at run time.
+#[derive(Clone, Debug)]
+struct DampedCircle;
+
+impl DynLagrangian for DampedCircle {
+    const AUTONOMOUS: bool = true;
+    const HAS_DISSIPATION: bool = true;
+
+    fn dimension(&self) -> usize {
+        2
+    }
+
+    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+        (v[0] * v[0] + v[1] * v[1]) * 0.5 - q[1]
+    }
+
+    fn dissipation<D: Scalar>(&self, _q: &[D], v: &[D]) -> D {
+        (v[0] * v[0] + v[1] * v[1]) * 0.05
+    }
+
+    fn constraint_count(&self) -> usize {
+        1
+    }
+
+    fn constraints<D: Scalar>(&self, _t: D, q: &[D], g: &mut [D]) {
+        g[0] = q[0] * q[0] + q[1] * q[1] - 1.0;
+    }
+}
+
+/// `DynConstrained`'s saddle-point steps carry no forces: a forced system
+/// is refused at the start, not stepped without its forces.
+#[test]
+fn constrained_run_time_steps_refuse_forces() {
+    let started = DynConstrained::start(DampedCircle, Midpoint, 0.01, 0.0, &[1.0, 0.0], &[0.0, 0.0]);
+    assert!(
+        matches!(&started, Err(lagrangian::Error::Unsupported { what }) if what.contains("forces or dissipation")),
+        "{:?}",
+        started.err()
+    );
+}
