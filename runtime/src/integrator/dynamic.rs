@@ -251,8 +251,8 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// positive, [`Error::InvalidNewtonOptions`], [`Error::WrongLength`]
     /// when `q0` or `v0` does not have `dimension()` entries, and
     /// [`Error::InvalidInitialData`] for a system without coordinates,
-    /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
-    /// transform is not regular).
+    /// non-finite data, a force `Q − ∂R/∂v` that is not finite there, or
+    /// where `∂²L/∂v²` is singular (the Legendre transform is not regular).
     pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, Error> {
         let Some(points) = self.method.points() else {
             return Err(Error::Unsupported {
@@ -330,7 +330,9 @@ struct DynSegment {
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
 /// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of trapezoid
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
-/// one), and fixed steps.
+/// one), and fixed steps; with the system's forces and dissipation
+/// ([`DynLagrangian::force`], [`DynLagrangian::dissipation`]) by the
+/// discrete Lagrange–d'Alembert principle, every step then a Newton step.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
