@@ -95,9 +95,10 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
 }
 
 /// The user's block followed by `DynLagrangian`: the run-time-sized form,
-/// whose `lagrangian` takes slices. `validate` refused what the trait does
-/// not carry (forces, dissipation, symmetries), so only the Lagrangian and
-/// the structure constants are printed; `dimension` calls the user's method.
+/// whose `lagrangian` (and `dissipation`) take slices. `validate` refused
+/// what is not written over slices (forces, symmetries), so only the
+/// Lagrangian, the dissipation function and the structure constants are
+/// printed; `dimension` calls the user's method.
 fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
     let user_impl = user_impl(item, None);
     let cfgs = cfgs(item);
@@ -110,7 +111,18 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
     let structure = structure(&quote!(::core::primitive::usize::MAX), &analysis.structure);
     let (separability, coupling) = (&structure.separability, &structure.coupling);
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
-    let (lagrangian, chunks) = method(&system.lagrangian, None);
+    let (lagrangian, mut chunks) = method(&system.lagrangian, None);
+    // The Rayleigh function over slices, and the pattern of its force.
+    let dissipation = system.dissipation.as_ref().map(|function| {
+        let (dissipation, dissipation_chunks) = method(function, None);
+        chunks.extend(dissipation_chunks);
+        let force_coupling = &structure.force_coupling;
+        quote! {
+            const HAS_DISSIPATION: bool = true;
+            #force_coupling
+            #dissipation
+        }
+    });
     let chunk_impl = chunk_impl(item, chunks);
     let gradient = crate::adjoint::method(&system.lagrangian, None);
     quote! {
@@ -132,6 +144,7 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
             }
             #lagrangian
             #gradient
+            #dissipation
         }
 
         #chunk_impl
@@ -309,8 +322,8 @@ fn structure(n: &TokenStream, structure: &Structure) -> StructureItems {
     }
 }
 
-/// The structure constants, one item each (`DynLagrangian` has no
-/// `FORCE_COUPLING`).
+/// The structure constants, one item each (`DynLagrangian` prints
+/// `FORCE_COUPLING` only with a dissipation function).
 struct StructureItems {
     separability: TokenStream,
     coupling: TokenStream,

@@ -52,19 +52,26 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
     let expected = n.as_ref().and_then(Dim::len);
     let optional = |method: &Option<Method<'_>>| {
         method.as_ref().map(|method| {
-            if dynamic {
-                // `DynLagrangian` carries no forces: refused, not lowered.
+            if dynamic && method.kind != MethodKind::Dissipation {
+                // What `DynLagrangian` does not carry (or the rewrite does
+                // not write over slices): refused, not lowered.
+                cx.error_spanned_by(&method.func.sig.ident, dynamic_refusal(method.kind));
+                return None;
+            }
+            let signature = check_signature(cx, method, &item.self_ty, expected);
+            if dynamic && !signature.n.as_ref().is_none_or(Dim::is_dynamic) {
+                // Arrays beside a slice Lagrangian.
                 cx.error_spanned_by(
                     &method.func.sig.ident,
                     format!(
-                        "`{}` is not supported for run-time-sized systems (`q: &[f64]`): \
-                         `DynLagrangian` has no forces; use `q: [f64; N]`",
+                        "`{}` of a run-time-sized system takes slices like `lagrangian`: \
+                         write `fn {}(&self, q: &[f64], v: &[f64]) -> f64`",
+                        method.kind.name(),
                         method.kind.name()
                     ),
                 );
                 return None;
             }
-            let signature = check_signature(cx, method, &item.self_ty, expected);
             lower(method, &signature)
         })
     };
@@ -86,6 +93,21 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         step_density: step_density.map_or(Some(None), |f| f.map(Some))?,
         constraints: constraints.map_or(Some(None), |f| f.map(Some))?,
     })
+}
+
+/// Why `kind` is refused in a run-time-sized system (`q: &[f64]`).
+fn dynamic_refusal(kind: MethodKind) -> String {
+    let name = kind.name();
+    match kind {
+        MethodKind::Force => "`force` is not supported by `#[lagrangian]` for run-time-sized systems (`q: &[f64]`): \
+             the rewrite returns arrays of a size known at compile time; implement `DynLagrangian` by hand \
+             (`fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D])`), or use `q: [f64; N]`"
+            .to_owned(),
+        _ => format!(
+            "`{name}` is not supported for run-time-sized systems (`q: &[f64]`): \
+             `DynLagrangian` has no `{name}`; use `q: [f64; N]`"
+        ),
+    }
 }
 
 /// Checks `fn dimension(&self) -> usize`, which a run-time-sized system
@@ -331,9 +353,12 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
 
     let q_name = display(&signature.q, "q");
     let v_name = display(&signature.v, "v");
-    // Only the Lagrangian chooses between arrays and slices; the optional
-    // methods follow it (and exist for arrays only).
-    let slices = method.kind == MethodKind::Lagrangian;
+    // The Lagrangian chooses between arrays and slices; the dissipation
+    // function of a Lagrangian without a compile-time `N` may take slices
+    // too (the caller checks it takes them), the other optional methods
+    // take arrays only.
+    let slices =
+        method.kind == MethodKind::Lagrangian || (method.kind == MethodKind::Dissipation && expected.is_none());
     let q_form = form(q, slices);
     // Without a velocity, `q` alone decides.
     let v_form = v.map_or(q_form, |v| form(v, slices));
@@ -679,20 +704,50 @@ mod tests {
         let item: ItemImpl = parse_quote! {
             impl C {
                 fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
-                fn dissipation(&self, q: &[f64], v: &[f64]) -> f64 { v[0] }
+                fn dissipation(&self, q: [f64; 2], v: [f64; 2]) -> f64 { v[0] }
                 fn force(&self, q: &[f64], v: &[f64]) -> Vec<f64> { vec![] }
+                fn step_density(&self, q: &[f64]) -> f64 { 1.0 }
             }
         };
         assert_eq!(
             errors(&item),
             [
-                "`dissipation` is not supported for run-time-sized systems (`q: &[f64]`): \
-                 `DynLagrangian` has no forces; use `q: [f64; N]`",
-                "`force` is not supported for run-time-sized systems (`q: &[f64]`): \
-                 `DynLagrangian` has no forces; use `q: [f64; N]`",
+                "`dissipation` of a run-time-sized system takes slices like `lagrangian`: \
+                 write `fn dissipation(&self, q: &[f64], v: &[f64]) -> f64`",
+                "`force` is not supported by `#[lagrangian]` for run-time-sized systems (`q: &[f64]`): \
+                 the rewrite returns arrays of a size known at compile time; implement `DynLagrangian` by hand \
+                 (`fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D])`), or use `q: [f64; N]`",
+                "`step_density` is not supported for run-time-sized systems (`q: &[f64]`): \
+                 `DynLagrangian` has no `step_density`; use `q: [f64; N]`",
                 "a `lagrangian` taking slices (`q: &[f64]`) needs `fn dimension(&self) -> usize` in the same \
                  impl block: the number of coordinates is known only at run time",
             ]
+        );
+    }
+
+    #[test]
+    fn a_run_time_sized_system_takes_a_dissipation_function_over_slices() {
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+                fn dissipation(&self, q: &[f64], v: &[f64]) -> f64 { 0.5 * v[0] * v[0] * q[q.len() - 1] }
+            }
+        };
+        let cx = Ctxt::new();
+        let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+        cx.check().unwrap();
+        assert!(system.n.is_dynamic() && system.dissipation.is_some());
+        // Slices beside an array Lagrangian are refused as before.
+        let item: ItemImpl = parse_quote! {
+            impl C {
+                fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 { q[0] * v[0] }
+                fn dissipation(&self, q: &[f64], v: &[f64]) -> f64 { v[0] }
+            }
+        };
+        assert_eq!(
+            errors(&item),
+            ["`q` in `dissipation` must be `[f64; N]`", "`v` in `dissipation` must be `[f64; N]`"]
         );
     }
 

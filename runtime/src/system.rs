@@ -392,8 +392,8 @@ impl<S: Lagrangian<N> + ?Sized, const N: usize> Lagrangian<N> for &S {
 /// compiled body for every size.
 ///
 /// What is not here: `CYCLIC` (a slice system's cyclic coordinates would be
-/// a run-time set), declared symmetries, forces and dissipation. Such systems
-/// are stepped in reverse mode only (docs/large-systems.md).
+/// a run-time set) and declared symmetries. Such systems are stepped in
+/// reverse mode only (docs/large-systems.md).
 pub trait DynLagrangian {
     /// `true` when `L` does not depend explicitly on time (see
     /// [`Lagrangian::AUTONOMOUS`]).
@@ -412,12 +412,48 @@ pub trait DynLagrangian {
     /// dimension: offsets `q[i + c]` bound it.
     const COUPLING: Coupling = Coupling::GENERAL;
 
+    /// The coupling pattern of the Jacobian in `q` and in `v` of the
+    /// generalised force `Q − ∂R/∂v` of [`force`](Self::force) and
+    /// [`dissipation`](Self::dissipation) (see
+    /// [`Lagrangian::FORCE_COUPLING`]): the step's Newton matrix is banded
+    /// with the wider of this band and that of [`COUPLING`](Self::COUPLING),
+    /// and the force's Jacobian is taken in `2b + 1` compressed directions.
+    /// General by default.
+    const FORCE_COUPLING: ForceCoupling = ForceCoupling::GENERAL;
+
     /// The number of coordinates `n`: `q` and `v` passed to
     /// [`lagrangian`](Self::lagrangian) have this length.
     fn dimension(&self) -> usize;
 
     /// The Lagrangian `L(t, q, v)` with `q.len() == v.len() == self.dimension()`.
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D;
+
+    /// `true` when [`dissipation`](Self::dissipation) is provided.
+    const HAS_DISSIPATION: bool = false;
+
+    /// The Rayleigh dissipation function `R(q, v)`, with `q.len() == v.len()
+    /// == self.dimension()`; the force it exerts is `−∂R/∂v`. The runtime
+    /// records it on its tape (one reverse sweep gives the force, a
+    /// compressed second-order sweep its Jacobian), so a banded `R` costs
+    /// `O(n)` per step. Zero by default.
+    fn dissipation<D: Scalar>(&self, q: &[D], v: &[D]) -> D {
+        let _ = (q, v);
+        D::zero()
+    }
+
+    /// `true` when [`force`](Self::force) is provided.
+    const HAS_FORCE: bool = false;
+
+    /// The applied generalised forces `Q(t, q, v)` written into `f`, which
+    /// arrives filled with zeros; all three slices have
+    /// `self.dimension()` entries. Generic over the [`Scalar`]: the runtime
+    /// takes the force's Jacobian by evaluating it on dual numbers seeded
+    /// in `2b + 1` compressed directions for a force whose
+    /// [`FORCE_COUPLING`](Self::FORCE_COUPLING) is banded (`n` otherwise).
+    /// The default writes nothing.
+    fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D]) {
+        let _ = (t, q, v, f);
+    }
 
     /// The number `M` of holonomic constraints `g(t, q) = 0` (see
     /// [`Lagrangian::CONSTRAINTS`]); 0 (none) by default. A constrained
@@ -533,6 +569,9 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     const DISCONTINUOUS: bool = S::DISCONTINUOUS;
     const SEPARABILITY: Separability = S::SEPARABILITY;
     const COUPLING: Coupling = S::COUPLING;
+    const FORCE_COUPLING: ForceCoupling = S::FORCE_COUPLING;
+    const HAS_DISSIPATION: bool = S::HAS_DISSIPATION;
+    const HAS_FORCE: bool = S::HAS_FORCE;
 
     #[inline(always)]
     fn dimension(&self) -> usize {
@@ -542,6 +581,16 @@ impl<S: DynLagrangian + ?Sized> DynLagrangian for &S {
     #[inline(always)]
     fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         (**self).lagrangian(t, q, v)
+    }
+
+    #[inline(always)]
+    fn dissipation<D: Scalar>(&self, q: &[D], v: &[D]) -> D {
+        (**self).dissipation(q, v)
+    }
+
+    #[inline(always)]
+    fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D]) {
+        (**self).force(t, q, v, f);
     }
 
     fn constraint_count(&self) -> usize {

@@ -330,6 +330,72 @@ fn every_method_through_one_problem() {
     }
 }
 
+/// The damped oscillator of `common::forced` (`m = k = 1`, `c = 0.1`) with
+/// its size known at run time.
+#[derive(Clone)]
+struct DampedDyn;
+
+#[lagrangian]
+impl DampedDyn {
+    fn dimension(&self) -> usize {
+        1
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * q[0] * q[0]
+    }
+
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        0.05 * v[0] * v[0]
+    }
+}
+
+/// The forced run-time-sized cells: every family that steps at run-time
+/// size steps and solves a damped oscillator (against its analytic
+/// solution, and the same oscillator at compile-time size to round-off);
+/// the others are refused with exactly the text of `supports`.
+#[test]
+fn forced_run_time_cells() {
+    use crate::common::forced::DampedOscillator;
+    let oscillator = DampedOscillator { m: 1.0, k: 1.0, c: 0.1 };
+    let dynamic = DynProblem::new(DampedDyn, 0.0, vec![1.0], vec![0.0]);
+    let compiled = Problem::new(DampedOscillator { m: 1.0, k: 1.0, c: 0.1 }, 0.0, [1.0], [0.0]);
+    let (h, t_end) = (0.01, 4.0);
+    let mut stepping = Vec::new();
+    for (name, scheme, _) in families() {
+        let query = lagrangian::problem::Combination {
+            scheme: &scheme,
+            policy: Policy::fixed(h),
+            size: lagrangian::problem::Size::Dynamic,
+            forced: true,
+            constraints: 0,
+            capability: Capability::Solve,
+        };
+        let mut sim = match dynamic.stepper(&scheme, h) {
+            Ok(sim) => sim,
+            Err(Error::Unsupported { what }) => {
+                assert_eq!(supports(&query), Err(what), "{name}");
+                stepping.push(false);
+                continue;
+            }
+            Err(e) => panic!("{name}: not a typed refusal: {e}"),
+        };
+        assert_eq!(supports(&query), Ok(()), "{name}");
+        let sol = sim.solve(Plan::until(t_end).every(10)).unwrap().into_result().unwrap();
+        let exact = oscillator.exact(1.0, t_end);
+        let (q, v) = (sol.q.last().unwrap()[0], sol.v.last().unwrap()[0]);
+        assert!((q - exact[0]).abs() < 1e-4 && (v - exact[1]).abs() < 1e-4, "{name}: {q} {v} against {exact:?}");
+        let mut reference = compiled.stepper(&scheme, h).unwrap();
+        reference.run_until(t_end).unwrap();
+        let gap = (q - reference.state().q[0]).abs().max((sol.p.last().unwrap()[0] - reference.state().p[0]).abs());
+        assert!(gap < 1e-13, "{name}: {gap:e} from the compile-time size");
+        println!("{name:<36} | forced, run-time N: Δq {:.0e} to exact, {gap:.0e} to compile-time", q - exact[0]);
+        stepping.push(true);
+    }
+    let expected = [true, true, true, false, false, false, true, true, true, false, false, false];
+    assert_eq!(stepping, expected);
+}
+
 /// Lands on the 100 targets of the matrix and returns the final `q`.
 fn land_all<I: Stepping<2>>(sim: &mut I) -> [f64; 2] {
     for i in 1..=100 {

@@ -4,7 +4,7 @@
 use lagrangian::prelude::*;
 
 /// `m q̈ + c q̇ + k q = 0`: `L = ½ m q̇² − ½ k q²`, `R = ½ c q̇²`.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct DampedOscillator {
     pub m: f64,
     pub k: f64,

@@ -88,8 +88,8 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
     /// finding the structure of `G` and checking the data.
     ///
     /// Fails with [`Error::Unsupported`] for a rule without quadrature
-    /// points, `M = 0` or `M ≥ N` constraints, time-dependent constraints or
-    /// a size whose buffers cannot be allocated;
+    /// points, `M = 0` or `M ≥ N` constraints, time-dependent constraints,
+    /// forces or dissipation, or a size whose buffers cannot be allocated;
     /// [`Error::NonFiniteConstraints`] where `g` or `G` is not finite;
     /// [`Error::InconsistentConstraints`] for data off the manifold or
     /// its tangent space by more than [`CONSISTENCY_TOLERANCE`] (relative);
@@ -137,6 +137,12 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
         }
         if !S::CONSTRAINTS_AUTONOMOUS {
             return Err(Error::Unsupported { what: "time-dependent constraints on a run-time-sized system" });
+        }
+        // Its saddle-point steps carry no discrete forces.
+        if S::HAS_FORCE || S::HAS_DISSIPATION {
+            return Err(Error::Unsupported {
+                what: "forces or dissipation with holonomic constraints on a run-time-sized system",
+            });
         }
         let state = PhasePoint { step: 0, t: t0, q: q0.to_vec(), p: vec![0.0; n] };
         let rows = match sparsity::probe(&system, t0, q0, m) {

@@ -12,7 +12,9 @@
 
 use super::composition::Composition;
 use super::method::sealed;
-use super::tape_step::{self, Composed, Growth, Guess, LastSubstep, Node, SparseWork, Taken, TapeModel};
+use super::tape_step::{
+    self, Composed, Growth, Guess, Lanes3, Lanes5, LastSubstep, Node, SparseWork, Taken, TapeModel,
+};
 use super::{Clock, Stats, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::error::Error;
@@ -22,7 +24,7 @@ use crate::state::PhasePoint;
 use crate::structure::Coupling;
 use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
-use num_dual::DualNum;
+use num_dual::{Dual64, DualNum};
 
 /// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
@@ -158,6 +160,34 @@ impl<S: DynLagrangian> TapeModel for Sliced<'_, S> {
     }
 
     crate::integrator::tape_step::scalar_methods!();
+
+    fn has_force(&self) -> bool {
+        S::HAS_FORCE
+    }
+
+    fn has_dissipation(&self) -> bool {
+        S::HAS_DISSIPATION
+    }
+
+    fn dissipation(&self, q: &[Var], v: &[Var]) -> Var {
+        self.system.dissipation(q, v)
+    }
+
+    fn force_f64(&self, t: f64, q: &[f64], v: &[f64], f: &mut [f64]) {
+        self.system.force(t, q, v, f);
+    }
+
+    fn force_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64], f: &mut [Dual64]) {
+        self.system.force(t, q, v, f);
+    }
+
+    fn force_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3], f: &mut [Lanes3]) {
+        self.system.force(t, q, v, f);
+    }
+
+    fn force_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5], f: &mut [Lanes5]) {
+        self.system.force(t, q, v, f);
+    }
 }
 
 impl<S: DynLagrangian> Sliced<'_, S> {
@@ -166,6 +196,22 @@ impl<S: DynLagrangian> Sliced<'_, S> {
     }
     fn lagrangian_generic<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
         self.system.lagrangian(t, q, v)
+    }
+}
+
+/// Whether the system has a force or a dissipation function.
+const fn is_forced<S: DynLagrangian>() -> bool {
+    S::HAS_FORCE || S::HAS_DISSIPATION
+}
+
+/// The coupling the step matrix is laid out for: that of `L`, widened by
+/// the force's (`∂F_k^−/∂Δq` joins the step's Jacobian).
+fn step_coupling<S: DynLagrangian>() -> Coupling {
+    let coupling = S::COUPLING;
+    if is_forced::<S>() {
+        Coupling { q_v: coupling.q_v.union(S::FORCE_COUPLING.overall()), ..coupling }
+    } else {
+        coupling
     }
 }
 
@@ -205,8 +251,8 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// positive, [`Error::InvalidNewtonOptions`], [`Error::WrongLength`]
     /// when `q0` or `v0` does not have `dimension()` entries, and
     /// [`Error::InvalidInitialData`] for a system without coordinates,
-    /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
-    /// transform is not regular).
+    /// non-finite data, a force `Q − ∂R/∂v` that is not finite there, or
+    /// where `∂²L/∂v²` is singular (the Legendre transform is not regular).
     pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, Error> {
         let Some(points) = self.method.points() else {
             return Err(Error::Unsupported {
@@ -235,7 +281,16 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         let model = Sliced { system: &self.system, points };
         let (p0, energy) =
             tape_step::legendre(&model, t0, q0, v0).map_err(|reason| Error::InvalidInitialData { reason })?;
-        let work = SparseWork::new(n, S::COUPLING).map_err(|_| Error::Unsupported {
+        if is_forced::<S>() {
+            let mut force = vec![0.0; n];
+            tape_step::generalized_force(&model, t0, q0, v0, &mut force);
+            if !all_finite(&force) {
+                return Err(Error::InvalidInitialData {
+                    reason: "the force `force − ∂(dissipation)/∂v` is not finite at the initial data",
+                });
+            }
+        }
+        let work = SparseWork::new(n, step_coupling::<S>()).map_err(|_| Error::Unsupported {
             what: "a system this large with this coupling: the step matrix cannot be allocated",
         })?;
         Ok(DynIntegrator {
@@ -287,7 +342,9 @@ impl Clone for DynSegment {
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
 /// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of trapezoid
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
-/// one), and fixed steps.
+/// one), and fixed steps; with the system's forces and dissipation
+/// ([`DynLagrangian::force`], [`DynLagrangian::dissipation`]) by the
+/// discrete Lagrange–d'Alembert principle, every step then a Newton step.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
@@ -455,7 +512,9 @@ fn node_at<'a>(state: &'a PhasePoint, (q_carry, p_carry): (&'a [f64], &'a [f64])
 impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// The rule's DEL is explicit for this system (see
     /// [`DiscreteLagrangian::EXPLICIT_FOR_CONSTANT_MASS`]).
-    const EXPLICIT: bool = M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass();
+    /// A force (which may depend on `v`) makes every step implicit, as at a
+    /// compile-time size.
+    const EXPLICIT: bool = M::EXPLICIT_FOR_CONSTANT_MASS && S::SEPARABILITY.has_constant_mass() && !is_forced::<S>();
 
     /// The current state `(k, t_k, q_k, p_k)`.
     pub fn state(&self) -> &PhasePoint {

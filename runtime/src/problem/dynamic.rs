@@ -99,7 +99,7 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
             scheme,
             policy: policy.into(),
             size: Size::Dynamic,
-            forced: false,
+            forced: S::HAS_FORCE || S::HAS_DISSIPATION,
             constraints: 0,
             capability,
         };

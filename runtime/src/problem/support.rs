@@ -300,9 +300,6 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
     if !matches!(c.policy, Policy::Fixed { .. }) {
         return Err("variable steps on a run-time-sized system: its steps are fixed");
     }
-    if c.forced {
-        return Err("forces on a run-time-sized system: `DynLagrangian` has no `force` or `dissipation`");
-    }
     match c.capability {
         Capability::Step | Capability::Solve => Ok(()),
         // Refused by `sensitivities` before the size is looked at.

@@ -96,10 +96,10 @@ where
 /// the lane type `D`, and the gradients it returns.
 #[derive(Clone, Debug)]
 pub(super) struct Seeded<D> {
-    q: Vec<D>,
-    v: Vec<D>,
-    gq: Vec<D>,
-    gv: Vec<D>,
+    pub(super) q: Vec<D>,
+    pub(super) v: Vec<D>,
+    pub(super) gq: Vec<D>,
+    pub(super) gv: Vec<D>,
 }
 
 impl<D> Default for Seeded<D> {

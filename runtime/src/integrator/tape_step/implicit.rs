@@ -4,7 +4,7 @@
 
 use core::cell::RefCell;
 
-use super::directional::directional_points;
+use super::directional::{Layout, directional_points};
 use super::{
     Guess, Node, SparseWork, TAPE_FAILED, Taken, TapeModel, assemble_and_factor, breakdown, seeds, tape_breakdown,
 };
@@ -46,6 +46,30 @@ impl SparseWork {
     ) -> Result<(Taken, f64), NewtonFailure> {
         let (dq, report) = self.solve(model, node, h, guess, options)?;
         let n = self.n;
+        // The impulse `F_k^− + F_k^+` of the forces at the solved increment.
+        let impulse = match forced_points(model) {
+            Ok(Some(points)) => {
+                let (mut minus, mut plus) = (self.buffer(), self.buffer());
+                let forces = self.forcing.forces(model, (node.t, h, points), node.q, &dq, &mut minus, &mut plus, None);
+                for (m, p) in minus.iter_mut().zip(&plus) {
+                    *m += p;
+                }
+                self.recycle(plus);
+                match forces {
+                    Ok(()) => Some(minus),
+                    Err(failure) => {
+                        self.recycle(minus);
+                        self.recycle(dq);
+                        return Err(failure.at(report.iterations));
+                    }
+                }
+            }
+            Ok(None) => None,
+            Err(failure) => {
+                self.recycle(dq);
+                return Err(failure.at(report.iterations));
+            }
+        };
         // The momentum change at fixed increment, the step's energy and
         // whether its action is finite.
         let (energy, action_finite) = match directional_points(model) {
@@ -68,7 +92,14 @@ impl SparseWork {
         };
         if !action_finite {
             self.recycle(dq);
+            impulse.into_iter().for_each(|b| self.recycle(b));
             return Err(NewtonFailure::NonFinite { iterations: report.iterations, quantity: "lagrangian" });
+        }
+        if let Some(impulse) = impulse {
+            for (g, f) in self.gradient[..n].iter_mut().zip(&impulse) {
+                *g += f;
+            }
+            self.recycle(impulse);
         }
         let mut taken = self.taken(dq, report);
         if node.plain {
@@ -112,6 +143,9 @@ impl SparseWork {
         if points.is_some() {
             self.directional.allocate(n, bandwidth, model.autonomous()).map_err(|e| breakdown(e).at(0))?;
         }
+        // `F_k^−` and `F_k^+` of a forced system, for its rule's points.
+        let forced = forced_points(model).map_err(|b| b.at(0))?;
+        let mut forces = forced.map(|_| (self.buffer(), self.buffer()));
         let mut x = self.buffer();
         x.copy_from_slice(&guess.predictor[..n]);
         let (x, correction) = (RefCell::new(x), RefCell::new(self.buffer()));
@@ -133,6 +167,16 @@ impl SparseWork {
                     self.directional.linearize(model, node.t, h, points, q0, &x, bandwidth, &mut r, &mut self.mixed)
                 }
                 None => self.tape_linearize(model, node.t, h, q0, &x, &mut r, jacobian)?,
+            }
+            // The forced DEL: `p_k + ∂A/∂q_k + F_k^− = 0`, with `∂F_k^−/∂Δq`
+            // in the Jacobian.
+            if let (Some(points), Some((minus, plus))) = (forced, forces.as_mut()) {
+                let layout = Layout { n, bandwidth };
+                let band = (jacobian == Jacobian::Fresh).then_some((layout, &mut self.mixed[..]));
+                self.forcing.forces(model, (node.t, h, points), q0, &x, minus, plus, band)?;
+                for (r, f) in r.iter_mut().zip(minus.iter()) {
+                    *r += f;
+                }
             }
             let mut scale = max_abs(p0);
             for i in 0..n {
@@ -160,6 +204,9 @@ impl SparseWork {
             Ok(if jacobian == Jacobian::Kept { lin.kept() } else { lin })
         };
         let solved = newton::solve(Slot(&x), options, linearize).map(|(_, report)| report);
+        for buffer in forces.into_iter().flat_map(|(minus, plus)| [minus, plus]) {
+            self.recycle(buffer);
+        }
         self.recycle(correction.into_inner());
         let dq = x.into_inner();
         let checked = solved.and_then(|report| guess.check(&dq, q0, report.iterations).map(|()| report));
@@ -274,6 +321,15 @@ impl SparseWork {
         }
         Ok(())
     }
+}
+
+/// The rule's quadrature points when the model has forces (`None`
+/// without); a forced model whose rule has none is refused.
+fn forced_points(model: &dyn TapeModel) -> Result<Option<[f64; 2]>, Breakdown> {
+    if !(model.has_force() || model.has_dissipation()) {
+        return Ok(None);
+    }
+    model.points().map(Some).ok_or(Breakdown::Rejected("forces with a rule without quadrature points"))
 }
 
 /// Newton's unknown (and correction) on the heap without an allocation per

@@ -40,13 +40,16 @@ use std::sync::Arc;
 
 mod directional;
 mod explicit;
+mod forcing;
 mod implicit;
 mod legendre;
 
 use directional::Directional;
 use explicit::Mass;
+use forcing::Forcing;
 
 pub(crate) use directional::{distinct, point_position, point_time};
+pub(crate) use forcing::generalized_force;
 pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
 
 /// What the reverse-mode step functions need of a system and its discrete
@@ -105,6 +108,37 @@ pub(crate) trait TapeModel {
     fn lagrangian_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64]) -> Dual64;
     fn lagrangian_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3]) -> Lanes3;
     fn lagrangian_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5]) -> Lanes5;
+    /// `true` when the system has applied forces `Q(t, q, v)`
+    /// (`force_*`); none by default.
+    fn has_force(&self) -> bool {
+        false
+    }
+    /// `true` when the system has a Rayleigh function `R(q, v)`
+    /// ([`dissipation`](Self::dissipation)); none by default.
+    fn has_dissipation(&self) -> bool {
+        false
+    }
+    /// `R(q, v)` on tape numbers (called only when
+    /// [`has_dissipation`](Self::has_dissipation)).
+    fn dissipation(&self, q: &[Var], v: &[Var]) -> Var {
+        let _ = (q, v);
+        Var::constant(0.0)
+    }
+    // `Q(t, q, v)` into `f` (zeros on entry), one method per scalar as for
+    // `L`, called only when `has_force`; generic code calls them through
+    // `ModelScalar::force`.
+    fn force_f64(&self, t: f64, q: &[f64], v: &[f64], f: &mut [f64]) {
+        let _ = (t, q, v, f);
+    }
+    fn force_dual(&self, t: Dual64, q: &[Dual64], v: &[Dual64], f: &mut [Dual64]) {
+        let _ = (t, q, v, f);
+    }
+    fn force_lanes3(&self, t: Lanes3, q: &[Lanes3], v: &[Lanes3], f: &mut [Lanes3]) {
+        let _ = (t, q, v, f);
+    }
+    fn force_lanes5(&self, t: Lanes5, q: &[Lanes5], v: &[Lanes5], f: &mut [Lanes5]) {
+        let _ = (t, q, v, f);
+    }
 }
 
 /// Three directions of derivatives carried at once.
@@ -119,11 +153,18 @@ pub(crate) trait ModelScalar: Scalar {
     fn gradient_qv(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], out_q: &mut [Self], out_v: &mut [Self]);
     /// `L(t, q, v)`.
     fn lagrangian(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self]) -> Self;
+    /// `Q(t, q, v)` into `f` (zeros on entry).
+    fn force(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], f: &mut [Self]);
 }
 
 macro_rules! model_scalar {
-    ($($ty:ty => $gradient:ident, $lagrangian:ident;)*) => {$(
+    ($($ty:ty => $gradient:ident, $lagrangian:ident, $force:ident;)*) => {$(
         impl ModelScalar for $ty {
+            #[inline(always)]
+            fn force(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], f: &mut [Self]) {
+                model.$force(t, q, v, f)
+            }
+
             #[inline(always)]
             fn gradient_qv(model: &dyn TapeModel, t: Self, q: &[Self], v: &[Self], out_q: &mut [Self], out_v: &mut [Self]) {
                 model.$gradient(t, q, v, out_q, out_v)
@@ -138,10 +179,10 @@ macro_rules! model_scalar {
 }
 
 model_scalar! {
-    f64 => gradient_qv_f64, lagrangian_f64;
-    Dual64 => gradient_qv_dual, lagrangian_dual;
-    Lanes3 => gradient_qv_lanes3, lagrangian_lanes3;
-    Lanes5 => gradient_qv_lanes5, lagrangian_lanes5;
+    f64 => gradient_qv_f64, lagrangian_f64, force_f64;
+    Dual64 => gradient_qv_dual, lagrangian_dual, force_dual;
+    Lanes3 => gradient_qv_lanes3, lagrangian_lanes3, force_lanes3;
+    Lanes5 => gradient_qv_lanes5, lagrangian_lanes5, force_lanes5;
 }
 
 /// The per-scalar methods of [`TapeModel`] for an implementor with generic
@@ -438,6 +479,8 @@ pub(crate) struct SparseWork {
     /// The buffers of Newton steps from the generated gradient code (empty
     /// until the first such step).
     directional: Directional,
+    /// The buffers of the discrete forces (empty until the first forced step).
+    forcing: Forcing,
     /// A const-size integrator's Kahan compensations of `q_k` and `p_k` in
     /// reverse mode (its inline `carry` and `p_carry` stay zero): on the
     /// heap, a step's new ones are swapped in, not copied (see
@@ -475,6 +518,7 @@ impl Clone for SparseWork {
             zero: self.zero.clone(),
             spare: Vec::new(),
             directional: Directional::default(),
+            forcing: Forcing::default(),
             carries: self.carries.clone(),
             saved_carries: self.saved_carries.clone(),
             growth_index: self.growth_index,
@@ -541,6 +585,7 @@ impl SparseWork {
             zero: (vec![0.0; n], vec![Var::constant(0.0); n]),
             spare: Vec::new(),
             directional: Directional::default(),
+            forcing: Forcing::default(),
             carries: [zeroed(Some(n), n)?, zeroed(Some(n), n)?],
             saved_carries: None,
             growth_index: 0,

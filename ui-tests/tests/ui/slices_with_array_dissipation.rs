@@ -15,7 +15,7 @@ impl Chain {
         0.5 * v[0] * v[0] - q[0].cos()
     }
 
-    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+    fn dissipation(&self, _q: [f64; 2], v: [f64; 2]) -> f64 {
         0.5 * self.c * v[0] * v[0]
     }
 }
