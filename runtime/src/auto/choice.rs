@@ -4,15 +4,17 @@
 //!
 //! | system | step density along the pilot | tolerance | first candidate |
 //! | --- | --- | --- | --- |
-//! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies: [`density_ratio`] above [`DENSITY_RATIO`] | any | explicit time-transformed splitting (logarithmic), Kahan–Li 8 |
+//! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies moderately: [`density_ratio`] above [`DENSITY_RATIO`], below [`UNIFORM_RATIO`] | `< 1e-8` ([`UNIFORM_RTOL`]) | Galerkin `s = 6` with uniform steps, then the time-transformed splitting |
+//! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies: [`density_ratio`] above [`DENSITY_RATIO`] | any (other than above) | explicit time-transformed splitting (logarithmic), Kahan–Li 8 |
 //! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | the composition of Störmer–Verlet of fewer predicted stages ([`composition_order`]: Kahan–Li 8, or Yoshida 6 where Kahan–Li 8 would be held to its step cap), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
 //! | forces or dissipation | any | `≥ 1e-5` / `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 2 / 4 / 6 / 8` |
-//! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
+//! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-8` ([`HIGHER_DEGREE_RTOL`]) / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
 //!
 //! The orders follow the report's calibration: Kahan–Li 8 is the fastest
 //! composition on the separable problems at every target, Galerkin `s = 4`
-//! on the double pendulum; a lower order is faster only where the run is a
-//! few dozen steps anyway. Between the composition and Galerkin on a
+//! on the double pendulum down to `rtol = 1e-8` and `s = 6` below, pilot
+//! included; a lower order is faster only where the run is a few dozen
+//! steps anyway. Between the composition and Galerkin on a
 //! separable system the solve weighs predicted steps ([`predicted_steps`],
 //! the harmonic oscillator's frequency error of each method at the
 //! tolerance) by the cost of a step it times (high-order Galerkin wins on
@@ -40,6 +42,34 @@ use crate::system::Lagrangian;
 /// faster. The survey finds 1.00–1.03 on the pendulum, Hénon–Heiles, the
 /// FPU chain and the outer solar system.
 pub const DENSITY_RATIO: f64 = 1.25;
+
+/// The density ratio ([`density_ratio`]) below which, at tolerances below
+/// [`UNIFORM_RTOL`], Galerkin `s = 6` with uniform steps is tried before
+/// the time transformation: its order 12 pays for the uniform steps where
+/// the density varies only moderately. The report's Kepler orbits: at
+/// `e = 0.5` (survey ratio 2.0) `galerkin-fp-6` is the fastest at 1e-10
+/// (404 steps, 0.146 ms, against 445 steps of the splitting, a Galerkin step
+/// running in 0.36 µs against the splitting's 0.53 µs), while at `e = 0.9`
+/// (3.9) the splitting is the fastest at every target.
+pub const UNIFORM_RATIO: f64 = 3.0;
+
+/// The relative tolerance below which [`UNIFORM_RATIO`] applies: on Kepler
+/// `e = 0.5` the splitting is the fastest at the report's targets 1e-4 and
+/// 1e-7 (calibrated `rtol ≥ 1.8e-7`), Galerkin `s = 6` at 1e-10.
+pub const UNIFORM_RTOL: f64 = 1e-8;
+
+/// The Galerkin degree of [`UNIFORM_RATIO`]: `s = 6` (order 12). `s = 8`
+/// piloted from `ρh ≤ 1` ends 13 to 100 times off its estimate on Kepler
+/// `e = 0.5` at `rtol ≤ 1e-9` (its coarse steps are short of the
+/// asymptotic range).
+pub const UNIFORM_GALERKIN_DEGREE: u32 = 6;
+
+/// Whether Galerkin with uniform steps is tried before the time
+/// transformation: a moderately varying density (`ratio` below
+/// [`UNIFORM_RATIO`]) at a tolerance below [`UNIFORM_RTOL`].
+pub fn uniform_galerkin(rtol: f64, ratio: f64) -> bool {
+    rtol < UNIFORM_RTOL && ratio < UNIFORM_RATIO
+}
 
 /// `(mean ρ⁹)^{1/8} / (mean ρ)^{9/8}` of rates sampled uniformly in time
 /// (see [`DENSITY_RATIO`]); `None` without positive finite samples.
@@ -216,17 +246,33 @@ pub fn composition_order(rtol: f64, rho_span: Option<f64>) -> u32 {
     }
 }
 
-/// Galerkin `s = 4` for most tolerances: the report's fastest project
-/// method on the double pendulum from `1e-4` to `1e-10`; with forces
-/// `s = 2` at coarse tolerances (the sensor's fastest at `1e-4`).
+/// Galerkin `s = 4` down to [`HIGHER_DEGREE_RTOL`] and `s = 6` below it
+/// without forces (with forces `s = 4` down to `1e-11`, and `s = 2` at
+/// coarse tolerances, the sensor's fastest at `1e-4`); `s = 6` down to
+/// `1e-13`, `s = 8` below.
 fn galerkin_degree(rtol: f64, forced: bool) -> u32 {
     match (forced, rtol) {
         (true, r) if r >= 1e-5 => 2,
-        (_, r) if r >= 1e-11 => 4,
+        (true, r) if r >= 1e-11 => 4,
+        (false, r) if r >= HIGHER_DEGREE_RTOL => 4,
         (_, r) if r >= 1e-13 => 6,
         (_, _) => 8,
     }
 }
+
+/// The relative tolerance below which an unforced system not proven
+/// separable runs Galerkin `s = 6` rather than `s = 4`. Above it `s = 4`
+/// is faster, pilot included (the double pendulum at the target 1e-7,
+/// `rtol = 1e-6`: 7.95 M instructions against 19.15 M with `s = 6`, whose
+/// pilot there takes 435 steps). Below it `s = 6` is: the double pendulum
+/// at the target 1e-10 takes a 77-step pilot (from `ρh ≤ 1`) and 400 steps
+/// at `rtol = 5.6e-10` (12.8 M against 18.5 M of `s = 4` at its calibrated
+/// `rtol = 3.2e-9`, 611 + 601 steps), Kepler in polar coordinates at the
+/// target 1e-7 46 000 to 48 000 with its pilot where `s = 4` takes 115 000.
+/// `s = 8` pilots as cheaply on the double pendulum but ends 15 to 60
+/// times off its estimate on Kepler in polar coordinates, whose coarse
+/// pilot steps are short of the asymptotic range.
+pub const HIGHER_DEGREE_RTOL: f64 = 1e-8;
 
 /// `Ok` when `order` exists in `family`.
 fn check_order<const N: usize>(family: Family, order: u32) -> Result<(), Error> {
@@ -342,6 +388,16 @@ pub fn candidates<const N: usize>(
         }
         None => {
             if facts.transformable() && varying {
+                if uniform_galerkin(rtol, ratio) && fixed.order.is_none() {
+                    out.push(galerkin(
+                        2 * UNIFORM_GALERKIN_DEGREE,
+                        &format!(
+                            "separable, autonomous and unforced, the step density varying only moderately (uniform \
+                             steps need {ratio:.1}× those of steps ∝ 1/ρ for order 8, < {UNIFORM_RATIO}) and a tight \
+                             tolerance (< {UNIFORM_RTOL:e}): uniform steps of order 12"
+                        ),
+                    ));
+                }
                 out.push(tt());
             }
             if facts.explicit() {
@@ -385,7 +441,15 @@ mod tests {
         assert_eq!(first(KEPLER, 1e-10, Some(1.2)), Candidate { family: Family::Composition, order: 8 });
         assert_eq!(first(KEPLER, 1e-5, Some(1.2)), Candidate { family: Family::Composition, order: 8 });
         assert_eq!(first(KEPLER, 1e-10, Some(20.0)), Candidate { family: Family::TimeTransformed, order: 8 });
+        // A moderately varying density at a tight tolerance: uniform Galerkin s = 6 first.
+        assert_eq!(first(KEPLER, 1e-10, Some(2.0)), Candidate { family: Family::Galerkin, order: 12 });
+        assert_eq!(first(KEPLER, 1e-10, Some(3.9)), Candidate { family: Family::TimeTransformed, order: 8 });
+        assert_eq!(first(KEPLER, 1e-7, Some(2.0)), Candidate { family: Family::TimeTransformed, order: 8 });
+        let c = candidates::<2>(KEPLER, 1e-10, Some(2.0), None, Fixed::default()).unwrap();
+        assert_eq!(c[1].0, Candidate { family: Family::TimeTransformed, order: 8 });
         assert_eq!(first(GENERAL, 1e-8, None), Candidate { family: Family::Galerkin, order: 8 });
+        assert_eq!(first(GENERAL, 1e-9, None), Candidate { family: Family::Galerkin, order: 12 });
+        assert_eq!(first(FORCED, 1e-9, None), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-12, None), Candidate { family: Family::Galerkin, order: 12 });
         assert_eq!(first(GENERAL, 1e-14, None), Candidate { family: Family::Galerkin, order: 16 });
         assert_eq!(first(FORCED, 1e-4, Some(20.0)), Candidate { family: Family::Galerkin, order: 4 });
