@@ -8,10 +8,14 @@
 //! Legendre map and the energy). What differs is only where the state lives
 //! (`Vec<f64>` here, `[f64; N]` there) and how the step action is formed:
 //! here from the rule's quadrature points
-//! ([`DiscreteLagrangian::galerkin_points`]), over slices.
+//! ([`DiscreteLagrangian::galerkin_points`]), over slices. The Galerkin
+//! rules of any degree ([`Galerkin`](crate::Galerkin), `dynamic/galerkin.rs`) record the
+//! action of their step polynomial instead and solve its `sN` node
+//! equations.
 
 use super::composition::Composition;
 use super::method::sealed;
+use super::tape_step::GalerkinWork;
 use super::tape_step::{self, Composed, Growth, Guess, LastSubstep, Node, SparseWork, Taken, TapeModel};
 use super::{Clock, Stats, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
@@ -24,13 +28,17 @@ use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
 use num_dual::DualNum;
 
+mod galerkin;
+
+pub(crate) use galerkin::RunTimeGalerkin;
+
 /// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
 /// [`AlphaBeta`](crate::AlphaBeta), or a rule of one's own with quadrature
-/// points), or a [`Composition`] of trapezoid steps (fused when its
+/// points), a [`Composition`] of trapezoid steps (fused when its
 /// sub-steps are explicit, on a system with
 /// [`Separability::ConstantMass`](crate::Separability); one by one
-/// otherwise).
+/// otherwise), or a Galerkin rule of any degree ([`Galerkin`](crate::Galerkin)).
 pub trait DynMethod: sealed::Sealed {
     /// The quadrature points `[c_1, c_2]` of the (sub-)step's rule; `None`
     /// for a rule of another form (refused at `start`).
@@ -39,6 +47,12 @@ pub trait DynMethod: sealed::Sealed {
     /// The sub-step weights `γ_1 … γ_m` of a composition; `None` for one
     /// step of the rule.
     fn weights(&self) -> Option<&'static [f64]> {
+        None
+    }
+
+    /// The Galerkin rule's degree, nodes and quadrature; `None` for the
+    /// one-point rules and compositions.
+    fn galerkin(&self) -> Option<RunTimeGalerkin> {
         None
     }
 
@@ -208,11 +222,17 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// non-finite data, or where `∂²L/∂v²` is singular (the Legendre
     /// transform is not regular).
     pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, Error> {
-        let Some(points) = self.method.points() else {
+        // A Galerkin rule's model serves `L` at a point (the Legendre map,
+        // the readouts), never a one-point action: its points are unused.
+        let galerkin = self.method.galerkin();
+        let Some(points) = self.method.points().or(galerkin.map(|_| [0.5, 0.5])) else {
             return Err(Error::Unsupported {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
+        if let Some(rule) = &galerkin {
+            rule.rule()?;
+        }
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
         let n = self.system.dimension();
@@ -238,6 +258,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         let work = SparseWork::new(n, S::COUPLING).map_err(|_| Error::Unsupported {
             what: "a system this large with this coupling: the step matrix cannot be allocated",
         })?;
+        let galerkin = galerkin.map(|rule| galerkin::work(&rule, n, S::COUPLING)).transpose()?;
         Ok(DynIntegrator {
             system: self.system,
             method: self.method,
@@ -257,6 +278,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
             work: Box::new(work),
+            galerkin,
         })
     }
 }
@@ -345,6 +367,8 @@ pub struct DynIntegrator<S, M> {
     clock: Clock<f64>,
     stats: Stats,
     work: Box<SparseWork>,
+    /// The work of a Galerkin rule's steps; `None` for the other methods.
+    galerkin: Option<Box<GalerkinWork>>,
 }
 
 impl<S, M> DynIntegrator<S, M> {
@@ -475,6 +499,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// One step of size `h` whose end node is stamped with time `t1`.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
+        if self.galerkin.is_some() {
+            return self.galerkin_step(h, t1);
+        }
         match self.method.weights() {
             // Explicit sub-steps are fused, unless a discontinuous system's
             // energy watch needs each one.

@@ -278,7 +278,7 @@ impl SparseWork {
 
 /// Newton's unknown (and correction) on the heap without an allocation per
 /// iteration: a buffer of the step, borrowed for the solve.
-pub(super) struct Slot<'a>(&'a RefCell<Vec<f64>>);
+pub(super) struct Slot<'a>(pub(super) &'a RefCell<Vec<f64>>);
 
 impl Unknown for Slot<'_> {
     #[inline]
