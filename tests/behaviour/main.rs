@@ -21,5 +21,6 @@ mod galerkin_errors;
 mod guidance;
 mod macro_rewrite;
 mod method_matrix;
+mod run_time_galerkin_errors;
 mod run_time_solve;
 mod solution;

@@ -152,3 +152,105 @@ fn compile_time_and_run_time_sizes_take_the_same_galerkin_steps() {
         assert!(d <= 1e-13, "{name}: {d:e}");
     }
 }
+
+/// `q` at `t_end` of the coupled pendula at a run-time size, from the
+/// initial data of [`initial`], under `scheme` with step `h`.
+fn run_time_end(scheme: &Scheme, n: usize, h: f64, t_end: f64) -> Vec<f64> {
+    let (q0, v0) = initial(n);
+    let problem = DynProblem::new(DynPendula { n }, 0.0, q0, v0);
+    let mut sim = problem.stepper(scheme, h).unwrap();
+    sim.run_until(t_end).unwrap();
+    sim.state().q.clone()
+}
+
+/// The reference of the order fits: the pendula at a compile-time size,
+/// Galerkin s = 8 (order 16) at `h = 0.02`.
+fn reference<const N: usize>(t_end: f64) -> [f64; N] {
+    let (q0, v0) = initial(N);
+    let mut sim = GalerkinIntegrator::new(Fixed::<_, N>(DynPendula { n: N }), Galerkin::<8, 8>::gauss(), 0.02)
+        .start(0.0, core::array::from_fn(|i| q0[i]), core::array::from_fn(|i| v0[i]))
+        .unwrap();
+    sim.run_until(t_end, |_| {}).unwrap();
+    sim.state().q
+}
+
+/// The least-squares slope of `log e` against `log h`.
+fn fitted_order(points: &[(f64, f64)]) -> f64 {
+    let xs: Vec<f64> = points.iter().map(|(h, _)| h.ln()).collect();
+    let ys: Vec<f64> = points.iter().map(|(_, e)| e.ln()).collect();
+    let (mx, my) = (xs.iter().sum::<f64>() / xs.len() as f64, ys.iter().sum::<f64>() / ys.len() as f64);
+    let sxy: f64 = xs.iter().zip(&ys).map(|(x, y)| (x - mx) * (y - my)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx) * (x - mx)).sum();
+    sxy / sxx
+}
+
+#[test]
+fn the_fitted_order_at_a_run_time_size_is_2s() {
+    const N: usize = 4;
+    let t_end = 4.0;
+    let reference = reference::<N>(t_end);
+    for (s, steps) in [(2, [0.2, 0.1, 0.05]), (3, [0.4, 0.2, 0.1]), (4, [0.5, 0.25, 0.125])] {
+        let points: Vec<(f64, f64)> = steps
+            .iter()
+            .map(|&h| {
+                let q = run_time_end(&Scheme::galerkin(s), N, h, t_end);
+                (h, q.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max))
+            })
+            .collect();
+        let order = fitted_order(&points);
+        let errors: Vec<String> = points.iter().map(|(h, e)| format!("{e:.2e} at h = {h}")).collect();
+        println!("Galerkin s = {s} at a run-time size: errors {}, fitted order {order:.2}", errors.join(", "));
+        assert!((order - 2.0 * s as f64).abs() <= 0.3, "s = {s}: order {order}");
+    }
+}
+
+#[test]
+fn every_degree_up_to_eight_halves_its_error_by_two_to_the_2s() {
+    const N: usize = 4;
+    let t_end = 4.0;
+    let reference = reference::<N>(t_end);
+    for s in 1..=8 {
+        // A step where the error is well above round-off and in the asymptotic range.
+        let h = [0.05, 0.2, 0.4, 0.5, 0.8, 1.0, 1.0, 1.0][s - 1];
+        let error = |h: f64| {
+            let q = run_time_end(&Scheme::galerkin(s), N, h, t_end);
+            q.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        };
+        let (coarse, fine) = (error(h), error(h / 2.0));
+        let order = (coarse / fine).log2();
+        println!("Galerkin s = {s}: errors {coarse:.2e}, {fine:.2e} at h = {h}, {}: order {order:.2}", h / 2.0);
+        assert!((order - 2.0 * s as f64).abs() <= 0.6 && fine > 1e-13, "s = {s}: order {order}, error {fine:e}");
+    }
+}
+
+#[test]
+fn a_free_chain_keeps_its_energy_bounded_and_its_momentum() {
+    let n = 32;
+    let (q0, v0) = initial(n);
+    let problem = DynProblem::new(DynFpu { n, beta: 1.0, walls: false }, 0.0, q0, v0);
+    let mut sim = problem.stepper(&Scheme::galerkin(2), 0.1).unwrap();
+    let momentum = |p: &[f64]| p.iter().sum::<f64>();
+    let (e0, p0) = (sim.energy().unwrap(), momentum(sim.momenta()));
+    let scale = sim.momenta().iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (mut first, mut last, mut drift) = (0.0f64, 0.0f64, 0.0f64);
+    let steps = 20_000;
+    for k in 1..=steps {
+        sim.step().unwrap();
+        drift = drift.max((momentum(sim.momenta()) - p0).abs());
+        if k % 50 == 0 {
+            let e = (sim.energy().unwrap() - e0).abs() / e0.abs();
+            if k <= steps / 10 {
+                first = first.max(e);
+            }
+            if k > steps - steps / 10 {
+                last = last.max(e);
+            }
+        }
+    }
+    println!(
+        "free FPU-β chain, N = {n}, Galerkin s = 2, h = 0.1, {steps} steps: energy error {first:.2e} (first tenth), {last:.2e} (last tenth); momentum drift {drift:.2e} (largest |p| {scale:.2})"
+    );
+    // Bounded: O(h⁴) for order 4 and not growing; momentum at round-off.
+    assert!(first < 1e-4 && last < 2.0 * first, "energy {first:e} → {last:e}");
+    assert!(drift <= 1e-12 * scale.max(1.0), "momentum drift {drift:e}");
+}

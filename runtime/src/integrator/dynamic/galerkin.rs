@@ -130,4 +130,13 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         self.commit(taken, h, t1);
         Ok(())
     }
+
+    /// The last Galerkin step's size, control-node increments `D_1 … D_s`
+    /// (coordinate `i`'s at `i·s + m − 1`) and control nodes
+    /// `τ_0 = 0 … τ_s`; `None` before the first step or for another method.
+    pub(crate) fn galerkin_nodes(&self) -> Option<(f64, &[f64], &[f64])> {
+        let galerkin = self.galerkin.as_ref()?;
+        let (h, d) = galerkin.last_nodes()?;
+        Some((h, d, galerkin.rule().nodes()))
+    }
 }

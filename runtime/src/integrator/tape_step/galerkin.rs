@@ -67,14 +67,9 @@ impl Rule {
         Self { s, tau, points, weights, col, col_d }
     }
 
-    /// The degree `s`.
-    pub(crate) fn degree(&self) -> usize {
-        self.s
-    }
-
-    /// The control nodes `τ_1 … τ_s`.
-    pub(crate) fn control_nodes(&self) -> &[f64] {
-        &self.tau[1..]
+    /// The control nodes `τ_0 = 0, τ_1, …, τ_s = 1`.
+    pub(crate) fn nodes(&self) -> &[f64] {
+        &self.tau
     }
 
     /// `ℓ_m(τ)` for `m = 0 … s`.
