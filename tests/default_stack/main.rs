@@ -102,14 +102,15 @@ impl DynFpu {
 
     fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
         let n = q.len();
-        let spring = |d: f64| 0.5 * d * d + 0.25 * d * d * d * d;
         let mut kinetic = 0.0;
         for i in 0..n {
             kinetic += 0.5 * v[i] * v[i];
         }
-        let mut potential = spring(q[0]) + spring(q[n - 1]);
+        let (first, last) = (q[0], q[n - 1]);
+        let mut potential = 0.5 * first * first + 0.25 * first.powi(4) + 0.5 * last * last + 0.25 * last.powi(4);
         for i in 0..n - 1 {
-            potential += spring(q[i + 1] - q[i]);
+            let d = q[i + 1] - q[i];
+            potential += 0.5 * d * d + 0.25 * d.powi(4);
         }
         kinetic - potential
     }
