@@ -295,9 +295,11 @@ struct DynSegment {
 /// A variational integrator for a system whose size is known only at run
 /// time ([`DynLagrangian`]), with a one-point discrete Lagrangian `M`
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
-/// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of trapezoid
+/// [`AlphaBeta`](crate::AlphaBeta)), a [`Composition`] of trapezoid
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
-/// one), and fixed steps.
+/// one) or a Galerkin rule ([`Galerkin`](crate::Galerkin), any degree: its
+/// `sN` node unknowns in one banded or dense Newton block), and fixed
+/// steps.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:

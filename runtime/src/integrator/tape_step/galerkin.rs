@@ -109,6 +109,8 @@ pub(crate) struct GalerkinWork {
     trial: Vec<f64>,
     /// Newton's residual and correction.
     correction: Vec<f64>,
+    /// The extrapolation weights of the last step's polynomial, `s × s`.
+    extrapolation: Vec<f64>,
 }
 
 impl Clone for GalerkinWork {
@@ -130,6 +132,7 @@ impl Clone for GalerkinWork {
             last: self.last.clone(),
             trial: self.trial.clone(),
             correction: self.correction.clone(),
+            extrapolation: self.extrapolation.clone(),
         }
     }
 }
@@ -176,6 +179,7 @@ impl GalerkinWork {
             last: None,
             trial: zeroed(Some(unknowns), n)?,
             correction: zeroed(Some(unknowns), n)?,
+            extrapolation: vec![0.0; s * s],
         })
     }
 
@@ -203,13 +207,13 @@ impl GalerkinWork {
     /// the last step's polynomial extrapolated to this step's control nodes
     /// (error `O(h^{s+1})`), or at the first step the straight line
     /// `τ_m h v_0`.
-    fn predict(&self, h: f64, v0: &[f64], out: &mut [f64]) {
+    fn predict(&mut self, h: f64, v0: &[f64], out: &mut [f64]) {
         let (n, s) = (self.n, self.rule.s);
+        let w = &mut self.extrapolation;
         match &self.last {
             Some((h_last, d)) => {
                 let rho = h / h_last;
                 // In the last step's variable: 1 + τ_m h/h_last.
-                let mut w = vec![0.0; s * s];
                 for m in 0..s {
                     let tau = 1.0 + self.rule.tau[m + 1] * rho;
                     for k in 0..s {
@@ -259,8 +263,8 @@ impl GalerkinWork {
                     let mut acc = if e != 0.0 { Var::constant(e) + d[0] * col[0] } else { d[0] * col[0] };
                     let mut slope = d[0] * col_d[0];
                     for m in 1..s {
-                        acc = acc + d[m] * col[m];
-                        slope = slope + d[m] * col_d[m];
+                        acc += d[m] * col[m];
+                        slope += d[m] * col_d[m];
                     }
                     q[i] = x[i * stride] + acc;
                     // Divided, not multiplied by a rounded 1/h, as at a compile-time size.
@@ -318,6 +322,9 @@ impl GalerkinWork {
             Some(b) => (2 * b + 1, b),
             None => (unknowns, 0),
         };
+        // Row `e`'s entry in column `u`, in band or whole-row storage.
+        let banded = self.block_bandwidth.is_some();
+        let slot = |e: usize, u: usize| if banded { e * width + u + offset - e } else { e * width + u };
         let mut band = core::mem::take(&mut self.band);
         band.fill(0.0);
         for i in 0..n {
@@ -335,13 +342,10 @@ impl GalerkinWork {
                         let entry = self.hessian_at(i * stride + k, column);
                         interior += entry;
                         if k < s {
-                            let e = i * s + k;
-                            band[e * width + (u + offset - if self.block_bandwidth.is_some() { e } else { 0 })] = entry;
+                            band[slot(i * s + k, u)] = entry;
                         }
                     }
-                    let e = i * s;
-                    band[e * width + (u + offset - if self.block_bandwidth.is_some() { e } else { 0 })] =
-                        self.hessian_at(i * stride, column) - interior;
+                    band[slot(i * s, u)] = self.hessian_at(i * stride, column) - interior;
                 }
             }
         }
@@ -350,6 +354,7 @@ impl GalerkinWork {
 
     /// The residual (into `r`, returning the scale of its terms) at the
     /// unknowns `x`, and for a fresh `jacobian` the Newton block, factored.
+    #[allow(clippy::too_many_arguments)]
     fn linearize(
         &mut self,
         model: &dyn TapeModel,
@@ -406,11 +411,15 @@ impl GalerkinWork {
         for i in 0..n {
             predicted[i] = x[i * s + s - 1];
         }
-        let last = self.last.as_ref().map(|(h_last, d)| {
-            for i in 0..n {
-                scaled[i] = d[i * s + s - 1] * (h / h_last);
+        let has_last = match &self.last {
+            Some((h_last, d)) => {
+                for i in 0..n {
+                    scaled[i] = d[i * s + s - 1] * (h / h_last);
+                }
+                true
             }
-        });
+            None => false,
+        };
         let q_floor = 4.0 * f64::EPSILON * max_abs(node.q);
         let min_rcond = options.min_rcond;
         let unknowns = n * s;
@@ -443,7 +452,7 @@ impl GalerkinWork {
         for i in 0..n {
             dq[i] = x[i * s + s - 1];
         }
-        let guess = Guess { predictor: &predicted, last: last.map(|()| &scaled[..]) };
+        let guess = Guess { predictor: &predicted, last: has_last.then_some(&scaled[..]) };
         let checked = solved.and_then(|report| guess.check(&dq, node.q, report.iterations).map(|()| report));
         spare.recycle(predicted);
         spare.recycle(scaled);
