@@ -33,6 +33,7 @@ mod tape_step;
 mod variable_step;
 
 pub use composition::{Composition, CompositionMemory};
+pub(crate) use dynamic::RunTimeGalerkin;
 pub(crate) use dynamic::Sliced;
 pub use dynamic::{DynIntegrator, DynIntegratorBuilder, DynMethod};
 pub(crate) use method::sealed::Sealed;

@@ -22,5 +22,6 @@ mod guidance;
 mod macro_rewrite;
 mod method_matrix;
 mod run_time_forces;
+mod run_time_galerkin_errors;
 mod run_time_solve;
 mod solution;

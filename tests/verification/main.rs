@@ -21,6 +21,7 @@ mod galerkin_order_extended;
 mod galerkin_structure;
 mod noether;
 mod perturbed_pendulum;
+mod run_time_galerkin;
 mod sensitivities;
 mod structure;
 mod time_transformed;

@@ -49,10 +49,12 @@ mod quadrature;
 mod stepper;
 
 pub use basis::NodeFamily;
+pub(crate) use basis::{lagrange, lagrange_derivative};
 pub(crate) use forces::NoJacobian;
 pub use method::{Galerkin, StageIteration};
 pub(crate) use method::{PointDerivatives, point_gradient};
 pub(crate) use one_point::as_galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
+pub(crate) use quadrature::{gauss_legendre_into, gauss_lobatto_into};
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};
 pub(crate) use stepper::{GalerkinMemory, discrete_energy_of, legendre, supports_policy};

@@ -150,7 +150,7 @@ impl Quadrature<3> {
 }
 
 /// Fills `nodes` and `weights` with the Gauss–Legendre rule of their length.
-fn gauss_legendre_into<T: Real>(nodes: &mut [T], weights: &mut [T]) {
+pub(crate) fn gauss_legendre_into<T: Real>(nodes: &mut [T], weights: &mut [T]) {
     let r = nodes.len();
     let one = T::one();
     for i in 0..r / 2 {

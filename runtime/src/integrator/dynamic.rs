@@ -8,12 +8,15 @@
 //! Legendre map and the energy). What differs is only where the state lives
 //! (`Vec<f64>` here, `[f64; N]` there) and how the step action is formed:
 //! here from the rule's quadrature points
-//! ([`DiscreteLagrangian::galerkin_points`]), over slices.
+//! ([`DiscreteLagrangian::galerkin_points`]), over slices. The Galerkin
+//! rules of any degree ([`Galerkin`](crate::Galerkin), `dynamic/galerkin.rs`) record the
+//! action of their step polynomial instead and solve its `sN` node
+//! equations.
 
 use super::composition::Composition;
 use super::method::sealed;
 use super::tape_step::{
-    self, Composed, Growth, Guess, Lanes3, Lanes5, LastSubstep, Node, SparseWork, Taken, TapeModel,
+    self, Composed, GalerkinWork, Growth, Guess, Lanes3, Lanes5, LastSubstep, Node, SparseWork, Taken, TapeModel,
 };
 use super::{Clock, Stats, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
@@ -26,13 +29,17 @@ use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
 use num_dual::{Dual64, DualNum};
 
+mod galerkin;
+
+pub(crate) use galerkin::RunTimeGalerkin;
+
 /// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
 /// [`AlphaBeta`](crate::AlphaBeta), or a rule of one's own with quadrature
-/// points), or a [`Composition`] of trapezoid steps (fused when its
+/// points), a [`Composition`] of trapezoid steps (fused when its
 /// sub-steps are explicit, on a system with
 /// [`Separability::ConstantMass`](crate::Separability); one by one
-/// otherwise).
+/// otherwise), or a Galerkin rule of any degree ([`Galerkin`](crate::Galerkin)).
 pub trait DynMethod: sealed::Sealed {
     /// The quadrature points `[c_1, c_2]` of the (sub-)step's rule; `None`
     /// for a rule of another form (refused at `start`).
@@ -41,6 +48,12 @@ pub trait DynMethod: sealed::Sealed {
     /// The sub-step weights `γ_1 … γ_m` of a composition; `None` for one
     /// step of the rule.
     fn weights(&self) -> Option<&'static [f64]> {
+        None
+    }
+
+    /// The Galerkin rule's degree, nodes and quadrature; `None` for the
+    /// one-point rules and compositions.
+    fn galerkin(&self) -> Option<RunTimeGalerkin> {
         None
     }
 
@@ -254,11 +267,22 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// non-finite data, a force `Q − ∂R/∂v` that is not finite there, or
     /// where `∂²L/∂v²` is singular (the Legendre transform is not regular).
     pub fn start(self, t0: f64, q0: &[f64], v0: &[f64]) -> Result<DynIntegrator<S, M>, Error> {
-        let Some(points) = self.method.points() else {
+        // A Galerkin rule's model serves `L` at a point (the Legendre map,
+        // the readouts), never a one-point action: its points are unused.
+        let galerkin = self.method.galerkin();
+        let Some(points) = self.method.points().or(galerkin.map(|_| [0.5, 0.5])) else {
             return Err(Error::Unsupported {
                 what: "a discrete lagrangian without quadrature points (`galerkin_points`) on a run-time-sized system",
             });
         };
+        if let Some(rule) = &galerkin {
+            rule.rule()?;
+            if is_forced::<S>() {
+                return Err(Error::Unsupported {
+                    what: "forces with a Galerkin rule on a run-time-sized system: its node equations carry no discrete forces",
+                });
+            }
+        }
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
         let n = self.system.dimension();
@@ -293,6 +317,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         let work = SparseWork::new(n, step_coupling::<S>()).map_err(|_| Error::Unsupported {
             what: "a system this large with this coupling: the step matrix cannot be allocated",
         })?;
+        let galerkin = galerkin.map(|rule| galerkin::work(&rule, n, S::COUPLING)).transpose()?;
         Ok(DynIntegrator {
             system: self.system,
             method: self.method,
@@ -312,6 +337,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             clock: Clock { t: t0, step: 0 },
             stats: Stats::default(),
             work: Box::new(work),
+            galerkin,
         })
     }
 }
@@ -340,11 +366,14 @@ impl Clone for DynSegment {
 /// A variational integrator for a system whose size is known only at run
 /// time ([`DynLagrangian`]), with a one-point discrete Lagrangian `M`
 /// ([`Midpoint`](crate::Midpoint), [`Trapezoid`](crate::Trapezoid),
-/// [`AlphaBeta`](crate::AlphaBeta)) or a [`Composition`] of trapezoid
+/// [`AlphaBeta`](crate::AlphaBeta)), a [`Composition`] of trapezoid
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
-/// one), and fixed steps; with the system's forces and dissipation
-/// ([`DynLagrangian::force`], [`DynLagrangian::dissipation`]) by the
-/// discrete Lagrange–d'Alembert principle, every step then a Newton step.
+/// one) or a Galerkin rule ([`Galerkin`](crate::Galerkin), any degree: its
+/// `sN` node unknowns in one banded or dense Newton block), and fixed
+/// steps; the one-point rules and compositions with the system's forces
+/// and dissipation ([`DynLagrangian::force`], [`DynLagrangian::dissipation`])
+/// by the discrete Lagrange–d'Alembert principle, every step then a Newton
+/// step.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:
@@ -414,6 +443,8 @@ pub struct DynIntegrator<S, M> {
     clock: Clock<f64>,
     stats: Stats,
     work: Box<SparseWork>,
+    /// The work of a Galerkin rule's steps; `None` for the other methods.
+    galerkin: Option<Box<GalerkinWork>>,
 }
 
 /// A copy owns buffers of its own. `clone_from` refills the buffers the
@@ -441,6 +472,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
             clock: self.clock,
             stats: self.stats,
             work: self.work.clone(),
+            galerkin: self.galerkin.clone(),
         }
     }
 
@@ -465,6 +497,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
             clock,
             stats,
             work,
+            galerkin,
         } = self;
         system.clone_from(&source.system);
         method.clone_from(&source.method);
@@ -490,6 +523,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
         *clock = source.clock;
         *stats = source.stats;
         work.as_mut().clone_from(&source.work);
+        galerkin.clone_from(&source.galerkin);
     }
 }
 
@@ -623,6 +657,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// One step of size `h` whose end node is stamped with time `t1`.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
+        if self.galerkin.is_some() {
+            return self.galerkin_step(h, t1);
+        }
         match self.method.weights() {
             // Explicit sub-steps are fused, unless a discontinuous system's
             // energy watch needs each one.

@@ -3,11 +3,12 @@
 //! that driver does not have is refused by [`supports`](super::supports)
 //! with [`Error::Unsupported`].
 
-use super::scheme::{OnePoint, Scheme};
+use super::galerkin_rows::solve_galerkin;
+use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
-use crate::integrator::{Composition, DynIntegrator, DynMethod, Stats};
+use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, Stats};
 use crate::newton::NewtonOptions;
 use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
@@ -40,8 +41,13 @@ use crate::system::DynLagrangian;
 /// sim.run_until(1.0)?;
 /// assert_eq!(sim.state().t, 1.0);
 /// assert!((sim.state().q[2] - 1f64.cos()).abs() < 1e-4);
-/// // Galerkin rules are not defined on run-time-sized systems: a typed refusal.
-/// assert!(problem.stepper(&Scheme::galerkin(2), 0.1).is_err());
+/// // A Galerkin rule of degree 3 (order 6): the same oscillators to 1e-9.
+/// let mut galerkin = problem.stepper(&Scheme::galerkin(3), 0.1)?;
+/// galerkin.run_until(1.0)?;
+/// assert!((galerkin.state().q[2] - 1f64.cos()).abs() < 1e-8);
+/// // The implicit time transformation is not defined at a run-time size: a typed refusal.
+/// let curvature = lagrangian_runtime::Curvature::new(1.0).unwrap();
+/// assert!(problem.stepper(&Scheme::MIDPOINT.time_transformed(curvature), 0.1).is_err());
 /// // `solve(Plan)` gives the same `Solution` as at a compile-time size.
 /// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_ok());
 /// let solution = problem.solve(&Scheme::MIDPOINT, 0.01, Plan::until(1.0).every(10))?;
@@ -65,6 +71,7 @@ enum DynDriver<S> {
     Trapezoid(DynIntegrator<S, Trapezoid>),
     AlphaBeta(DynIntegrator<S, AlphaBeta>),
     Composition(DynIntegrator<S, Composition>),
+    Galerkin(DynIntegrator<S, RunTimeGalerkin>),
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
@@ -75,6 +82,7 @@ macro_rules! each {
             DynDriver::Trapezoid($d) => $body,
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
+            DynDriver::Galerkin($d) => $body,
         }
     };
 }
@@ -117,6 +125,10 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
             Scheme::OnePoint(OnePoint::Trapezoid) => DynDriver::Trapezoid(self.start(Trapezoid, policy)?),
             Scheme::OnePoint(OnePoint::AlphaBeta(m)) => DynDriver::AlphaBeta(self.start(*m, policy)?),
             Scheme::Composition { weights, .. } => DynDriver::Composition(self.start(*weights, policy)?),
+            Scheme::Galerkin { degree, nodes, quadrature } => {
+                let lobatto = *quadrature == GalerkinQuadrature::GaussLobatto;
+                DynDriver::Galerkin(self.start(RunTimeGalerkin::new(*degree, *nodes, lobatto), policy)?)
+            }
             _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
         Ok(DynStepper { driver, scheme: scheme.clone() })
@@ -154,12 +166,16 @@ impl<S: DynLagrangian + Clone> DynStepper<S> {
     /// [`SolveError`] as [`Stepper::solve`](super::Stepper::solve) at a
     /// compile-time size. Dense output (save times, events) is the cubic
     /// Hermite of the nodes, the one-point rules' and compositions' own at
-    /// a compile-time size too;
+    /// a compile-time size too, and for a Galerkin rule its step
+    /// polynomial, as at a compile-time size;
     /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
     /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
     /// run-time size. The stepper is left at the last node of the solution.
     pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
-        each!(&mut self.driver, d => d.solve(plan))
+        match &mut self.driver {
+            DynDriver::Galerkin(d) => solve_galerkin(d, plan),
+            driver => each!(driver, d => d.solve(plan)),
+        }
     }
 }
 

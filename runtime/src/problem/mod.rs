@@ -21,6 +21,7 @@
 
 mod dynamic;
 mod extend;
+mod galerkin_rows;
 mod scheme;
 mod sensitivities;
 mod statement;

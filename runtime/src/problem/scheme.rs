@@ -60,8 +60,10 @@ pub enum GalerkinQuadrature {
 pub enum Scheme {
     /// One step of a one-point rule.
     OnePoint(OnePoint),
-    /// The continuous Galerkin rule of degree `s` (`degree` 2, 3 or 4 here;
-    /// the const-generic [`Galerkin`](crate::Galerkin) has every degree).
+    /// The continuous Galerkin rule of degree `s` (`degree` 2, 3 or 4 on a
+    /// compile-time-sized [`Problem`](super::Problem), where the
+    /// const-generic [`Galerkin`](crate::Galerkin) has every degree; 1 to 16
+    /// on a run-time-sized [`DynProblem`](super::DynProblem)).
     Galerkin {
         /// The degree `s` of the step polynomial.
         degree: usize,

@@ -20,6 +20,9 @@ use crate::integrator::StepBounds;
 /// sizes listed in a table ([`Extended`](super::Extended)).
 pub const MAX_PROBLEM_N: usize = crate::dim::MAX_SIZE;
 
+/// The highest Galerkin degree on a run-time-sized system.
+const MAX_RUN_TIME_GALERKIN_DEGREE: usize = crate::integrator::RunTimeGalerkin::MAX_DEGREE;
+
 /// How the step sizes are chosen: a value apart from the [`Scheme`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Policy {
@@ -147,18 +150,13 @@ pub struct Combination<'a> {
 /// };
 /// assert!(supports(&query).is_ok());
 /// query.size = Size::Dynamic;
+/// assert!(supports(&query).is_ok());
+/// query.policy = Policy::energy_preserving(0.1);
 /// assert!(supports(&query).unwrap_err().contains("run-time-sized"));
 /// ```
 pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     if c.constraints != 0 {
         return Err("a system with holonomic constraints through `Problem`: step it with `Constrained`");
-    }
-    if let Scheme::Galerkin { degree, .. } = c.scheme
-        && !(2..=4).contains(degree)
-    {
-        return Err(
-            "a Galerkin degree other than 2, 3 or 4 through `Scheme`: the const-generic `Galerkin::<S, R>` has every degree",
-        );
     }
     if let Scheme::Composition { base, .. } = c.scheme
         && *base != OnePoint::Trapezoid
@@ -221,6 +219,13 @@ fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
         return Err("a compile-time size above 1024 through `Problem`: use `DynProblem` or a driver directly");
     }
     let fixed = matches!(c.policy, Policy::Fixed { .. });
+    if let Scheme::Galerkin { degree, .. } = c.scheme
+        && !(2..=4).contains(degree)
+    {
+        return Err(
+            "a Galerkin degree other than 2, 3 or 4 through `Scheme`: the const-generic `Galerkin::<S, R>` has every degree",
+        );
+    }
     match c.scheme {
         Scheme::OnePoint(_) | Scheme::Galerkin { .. } => variable_steps(c),
         Scheme::Composition { .. } if fixed => Ok(()),
@@ -283,9 +288,10 @@ fn variable_steps(c: &Combination<'_>) -> Result<(), &'static str> {
 fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
     match c.scheme {
         Scheme::OnePoint(_) | Scheme::Composition { .. } => {}
-        Scheme::Galerkin { .. } => {
-            return Err("a Galerkin rule on a run-time-sized system: its steps are one-point rules and compositions");
+        Scheme::Galerkin { degree, .. } if !(1..=MAX_RUN_TIME_GALERKIN_DEGREE).contains(degree) => {
+            return Err("a Galerkin degree other than 1 to 16 on a run-time-sized system");
         }
+        Scheme::Galerkin { .. } => {}
         Scheme::TimeTransformed { .. } => {
             return Err(
                 "the implicit time transformation of a run-time-sized system: its extended system is compile-time-sized",
@@ -299,6 +305,9 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
     }
     if !matches!(c.policy, Policy::Fixed { .. }) {
         return Err("variable steps on a run-time-sized system: its steps are fixed");
+    }
+    if c.forced && matches!(c.scheme, Scheme::Galerkin { .. }) {
+        return Err("forces with a Galerkin rule on a run-time-sized system: its node equations carry no discrete forces");
     }
     match c.capability {
         Capability::Step | Capability::Solve => Ok(()),

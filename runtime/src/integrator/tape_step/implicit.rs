@@ -334,7 +334,7 @@ fn forced_points(model: &dyn TapeModel) -> Result<Option<[f64; 2]>, Breakdown> {
 
 /// Newton's unknown (and correction) on the heap without an allocation per
 /// iteration: a buffer of the step, borrowed for the solve.
-pub(super) struct Slot<'a>(&'a RefCell<Vec<f64>>);
+pub(super) struct Slot<'a>(pub(super) &'a RefCell<Vec<f64>>);
 
 impl Unknown for Slot<'_> {
     #[inline]

@@ -24,7 +24,8 @@
 //! (Störmer–Verlet and the fused substeps of compositions for separable
 //! systems), `directional.rs` (derivatives at the rule's points by seeded
 //! dual lanes), `legendre.rs` (momentum, energy and velocity at a node, the
-//! potential force, the discrete energy of a step); this file holds the
+//! potential force, the discrete energy of a step), `galerkin.rs` (the
+//! Galerkin rules' step at a run-time size); this file holds the
 //! buffers they share and the growth check.
 
 use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
@@ -41,6 +42,7 @@ use std::sync::Arc;
 mod directional;
 mod explicit;
 mod forcing;
+mod galerkin;
 mod implicit;
 mod legendre;
 
@@ -50,6 +52,7 @@ use forcing::Forcing;
 
 pub(crate) use directional::{distinct, point_position, point_time};
 pub(crate) use forcing::generalized_force;
+pub(crate) use galerkin::{GalerkinWork, Rule};
 pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
 
 /// What the reverse-mode step functions need of a system and its discrete
