@@ -40,7 +40,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         return None;
     };
 
-    let signature = check_signature(cx, lagrangian, &item.self_ty, None);
+    let signature = check_signature(cx, lagrangian, &item.self_ty, None, false);
     let n = signature.n.clone();
     let dynamic = n.as_ref().is_some_and(Dim::is_dynamic);
     // A body written to return another type (`Ok(x)` for `Result<f64, _>`)
@@ -66,7 +66,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
                 cx.error_spanned_by(&method.func.sig.ident, dynamic_refusal(method.kind));
                 return None;
             }
-            let signature = check_signature(cx, method, &item.self_ty, expected);
+            let signature = check_signature(cx, method, &item.self_ty, expected, dynamic);
             if dynamic && !signature.n.as_ref().is_none_or(Dim::is_dynamic) {
                 // Arrays beside a slice Lagrangian.
                 cx.error_spanned_by(
@@ -276,14 +276,21 @@ pub(crate) struct Signature {
 
 /// Checks the signature of `method`. `expected` is the Lagrangian's `N`, which
 /// the optional methods must share; `None` when checking the Lagrangian.
-fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected: Option<&Len>) -> Signature {
+/// `dynamic` tells that the Lagrangian takes slices.
+fn check_signature(
+    cx: &Ctxt,
+    method: &Method<'_>,
+    self_ty: &syn::Type,
+    expected: Option<&Len>,
+    dynamic: bool,
+) -> Signature {
     let name = method.kind.name();
     let sig = &method.func.sig;
     let mut signature =
         Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None, returns: false, out: None };
     // A run-time-sized system's force writes into a last parameter
     // `f: &mut [f64]` instead of returning an array of unknown size.
-    let dynamic_force = method.kind == MethodKind::Force && expected.is_none();
+    let dynamic_force = method.kind == MethodKind::Force && dynamic;
 
     if sig.generics.lt_token.is_some() || sig.generics.where_clause.is_some() {
         cx.error_spanned_by(
@@ -400,10 +407,11 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
     let v_name = display(&signature.v, "v");
     // The Lagrangian chooses between arrays and slices; the dissipation
     // function of a Lagrangian without a compile-time `N` may take slices
-    // too (the caller checks it takes them), the other optional methods
-    // take arrays only.
+    // too (the caller checks it takes them), the force of a Lagrangian
+    // over slices takes them, the other optional methods take arrays only.
     let slices = method.kind == MethodKind::Lagrangian
-        || (matches!(method.kind, MethodKind::Dissipation | MethodKind::Force) && expected.is_none());
+        || (method.kind == MethodKind::Dissipation && expected.is_none())
+        || dynamic_force;
     let q_form = form(q, slices);
     // Without a velocity, `q` alone decides.
     let v_form = v.map_or(q_form, |v| form(v, slices));

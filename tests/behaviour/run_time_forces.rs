@@ -1,8 +1,9 @@
 //! Forces and Rayleigh dissipation on run-time-sized systems (the discrete
 //! Lagrange–d'Alembert principle of docs/theory.md §6 on the reverse-mode
-//! driver): the same states as at a compile-time size, the damped and the
-//! driven chain against their analytic solutions with the order fitted,
-//! momentum under internal forces, and a force that is not finite.
+//! driver): the same states as at a compile-time size, the macro's force
+//! over slices against one written by hand, the damped and the driven
+//! chain against their analytic solutions with the order fitted, momentum
+//! under internal forces, and a force that is not finite.
 
 use lagrangian::prelude::*;
 use lagrangian::{DynLagrangian, ForceCoupling, Pattern, Scalar};
