@@ -115,6 +115,8 @@ impl<'a> Infer<'a> {
     /// Checks a value returned from the function.
     fn returns(&mut self, class: Class) {
         let fits = match self.ret {
+            // A force written into its out-parameter returns nothing.
+            Class::Unit => class == Class::Unit,
             Class::ActiveArray => matches!(class, Class::Unit | Class::Const | Class::ConstArray | Class::ActiveArray),
             _ => matches!(class, Class::Unit | Class::Const | Class::Active),
         };
@@ -525,6 +527,51 @@ mod tests {
             }
         });
         assert_eq!(system.force.unwrap().locals[0].class, Class::ActiveArray);
+    }
+
+    #[test]
+    fn a_force_over_slices_writes_active_entries_and_returns_nothing() {
+        let force = |body: syn::Block| {
+            analysed(&parse_quote! {
+                impl P {
+                    fn dimension(&self) -> usize { 2 }
+                    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { 0.0 }
+                    fn force(&self, q: &[f64], v: &[f64], f: &mut [f64]) #body
+                }
+            })
+        };
+        let (system, analysis) = force(parse_quote!({
+            f[0] = 1.0;
+        }));
+        assert!(analysis.consistent);
+        assert_eq!(system.force.unwrap().locals[0].class, Class::ActiveArray);
+        // A value where none is returned: rustc reports it on the user's
+        // method, so nothing is generated.
+        assert!(
+            !force(parse_quote!({
+                f[0] = 1.0;
+                0.0
+            }))
+            .1
+            .consistent
+        );
+        assert!(
+            !force(parse_quote!({
+                return q[0];
+            }))
+            .1
+            .consistent
+        );
+        assert!(
+            force(parse_quote!({
+                if q[0] > 0.0 {
+                    return;
+                }
+                f[1] = v[0];
+            }))
+            .1
+            .consistent
+        );
     }
 
     #[test]

@@ -95,10 +95,11 @@ pub(crate) fn expand(item: &ItemImpl, system: &System, analysis: &Analysis, args
 }
 
 /// The user's block followed by `DynLagrangian`: the run-time-sized form,
-/// whose `lagrangian` (and `dissipation`) take slices. `validate` refused
-/// what is not written over slices (forces, symmetries), so only the
-/// Lagrangian, the dissipation function and the structure constants are
-/// printed; `dimension` calls the user's method.
+/// whose `lagrangian` (and `dissipation`, `force`) take slices. `validate`
+/// refused what `DynLagrangian` does not carry (symmetries, step
+/// densities, constraints), so only the Lagrangian, the dissipation
+/// function, the force and the structure constants are printed; `dimension`
+/// calls the user's method.
 fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &Args) -> TokenStream {
     let user_impl = user_impl(item, None);
     let cfgs = cfgs(item);
@@ -112,17 +113,25 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
     let (separability, coupling) = (&structure.separability, &structure.coupling);
     let discontinuous = args.discontinuous.then(|| quote! { const DISCONTINUOUS: bool = true; });
     let (lagrangian, mut chunks) = method(&system.lagrangian, None);
-    // The Rayleigh function over slices, and the pattern of its force.
+    // The Rayleigh function and the applied force over slices, and the
+    // pattern of the Jacobian of their sum.
     let dissipation = system.dissipation.as_ref().map(|function| {
         let (dissipation, dissipation_chunks) = method(function, None);
         chunks.extend(dissipation_chunks);
-        let force_coupling = &structure.force_coupling;
         quote! {
             const HAS_DISSIPATION: bool = true;
-            #force_coupling
             #dissipation
         }
     });
+    let force = system.force.as_ref().map(|function| {
+        let (force, force_chunks) = method(function, None);
+        chunks.extend(force_chunks);
+        quote! {
+            const HAS_FORCE: bool = true;
+            #force
+        }
+    });
+    let force_coupling = (system.dissipation.is_some() || system.force.is_some()).then_some(&structure.force_coupling);
     let chunk_impl = chunk_impl(item, chunks);
     let gradient = crate::adjoint::method(&system.lagrangian, None);
     quote! {
@@ -144,7 +153,9 @@ fn expand_dynamic(item: &ItemImpl, system: &System, analysis: &Analysis, args: &
             }
             #lagrangian
             #gradient
+            #force_coupling
             #dissipation
+            #force
         }
 
         #chunk_impl
@@ -323,7 +334,7 @@ fn structure(n: &TokenStream, structure: &Structure) -> StructureItems {
 }
 
 /// The structure constants, one item each (`DynLagrangian` prints
-/// `FORCE_COUPLING` only with a dissipation function).
+/// `FORCE_COUPLING` only with a dissipation function or a force).
 struct StructureItems {
     separability: TokenStream,
     coupling: TokenStream,
@@ -350,18 +361,27 @@ fn method(function: &Function, n: Option<&TokenStream>) -> (TokenStream, Vec<Tok
         Some(n) => quote!([#d; #n]),
         None => quote!(&[#d]),
     };
-    let params = if function.kind.takes_time() {
+    let mut params = if function.kind.takes_time() {
         let t = function.time.as_ref().map_or_else(|| quote!(_), binder);
         quote!(#t: #d, #q: #state, #v: #state)
     } else {
         quote!(#q: #state, #v: #state)
     };
-    let ret = if function.kind.returns_array() { quote!([#d; #n]) } else { quote!(#d) };
+    // A force over slices writes into its out-parameter and returns nothing.
+    let ret = match &function.out {
+        Some(out) => {
+            let f = binder(&out.name);
+            params.extend(quote!(, #f: &mut [#d]));
+            quote!(())
+        }
+        None if function.kind.returns_array() => quote!([#d; #n]),
+        None => quote!(#d),
+    };
     let time = function.time.as_ref().filter(|_| function.kind.takes_time());
     let chunks = Chunks::new(function, time, Some(&function.v), n);
     let printer =
         Printer { locals: &function.locals, ret: function.return_class(), d: d.clone(), chunks: Some(&chunks) };
-    let body = printer.block(&function.body, Some(function.return_class()));
+    let body = printer.block(&function.body, function.out.is_none().then(|| function.return_class()));
     let self_token = syn::Token![self](function.self_span);
     // `inline(always)`: evaluated on the runtime's array hyper-duals, the body
     // is large enough that LLVM keeps it out of line and passes every dual
@@ -1607,6 +1627,46 @@ mod tests {
         assert!(out.starts_with("impl Chain"), "{out}");
         assert!(out.ends_with(&expected.to_string()), "{out}");
         assert!(!out.contains("CYCLIC") && !out.contains("FORCE_COUPLING") && !out.contains("Lagrangian <"), "{out}");
+    }
+
+    #[test]
+    fn a_force_over_slices_writes_into_a_slice_of_duals() {
+        let item: ItemImpl = parse_quote! {
+            impl Chain {
+                fn dimension(&self) -> usize { self.n }
+                fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { v[0] * v[0] - q[0] * q[0] }
+                fn force(&self, t: f64, q: &[f64], _: &[f64], f: &mut [f64]) {
+                    for i in 0..q.len() - 1 {
+                        f[i] = 1.0;
+                        f[i + 1] -= self.k * (q[i + 1] - q[i]) * t;
+                    }
+                }
+            }
+        };
+        let private = quote!(::lagrangian::__private);
+        let max = quote!(::core::primitive::usize::MAX);
+        let expected = quote! {
+            const FORCE_COUPLING: #private::ForceCoupling = #private::ForceCoupling {
+                q: #private::Pattern::banded(#max, 1usize),
+                v: #private::Pattern::banded(#max, 0usize)
+            };
+            const HAS_FORCE: bool = true;
+            #[inline(always)]
+            fn force<__D: #private::Scalar>(&self, t: __D, q: &[__D], _: &[__D], f: &mut [__D]) -> () {
+                for i in 0..q.len() - 1 {
+                    f[i] = __D::from(1.0);
+                    f[i + 1] -= (q[i + 1] - q[i]) * self.k * t;
+                }
+            }
+        };
+        // After the gradient, which `generated` cuts off.
+        let cx = Ctxt::new();
+        let mut system = crate::validate::validate(&cx, &Input::from_syn(&item)).unwrap();
+        let analysis = crate::analyse::analyse(&cx, &mut system);
+        cx.check().unwrap();
+        let out = expand(&item, &system, &analysis, &Args::default()).to_string();
+        assert!(out.contains(&expected.to_string()), "{out}");
+        assert!(!out.contains("HAS_DISSIPATION"), "{out}");
     }
 
     #[test]

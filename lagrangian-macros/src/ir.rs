@@ -54,6 +54,10 @@ pub(crate) struct Function {
     pub(crate) q: Binder,
     /// The velocity parameter (`None` also for `step_density`, which has none).
     pub(crate) v: Binder,
+    /// The out-parameter of a run-time-sized system's `force`, `f: &mut
+    /// [f64]`, which the body writes into instead of returning an array;
+    /// `None` for the other methods.
+    pub(crate) out: Option<Out>,
     /// The body.
     pub(crate) body: Block,
     /// Every `let` and loop variable of the body, indexed by [`LocalId`].
@@ -62,10 +66,27 @@ pub(crate) struct Function {
 
 impl Function {
     /// The class the body's value must be coerced to: the trait returns `D`
-    /// or `[D; N]` whatever the body computes.
+    /// or `[D; N]` whatever the body computes, and nothing when it writes
+    /// into an out-parameter.
     pub(crate) fn return_class(&self) -> Class {
-        if self.kind.returns_array() { Class::ActiveArray } else { Class::Active }
+        match (&self.out, self.kind.returns_array()) {
+            (Some(_), _) => Class::Unit,
+            (None, true) => Class::ActiveArray,
+            (None, false) => Class::Active,
+        }
     }
+}
+
+/// The out-parameter `f: &mut [f64]` of a run-time-sized system's `force`.
+///
+/// The body reads and writes it like a `let mut` local array of class
+/// [`Class::ActiveArray`], so it is one: the first local of the function,
+/// declared before the body's own.
+pub(crate) struct Out {
+    /// Its name as written.
+    pub(crate) name: Binder,
+    /// The local standing for it; `None` for `_`, which the body cannot use.
+    pub(crate) local: Option<LocalId>,
 }
 
 /// A parameter name as written: an identifier, or `None` for `_`.

@@ -53,8 +53,12 @@ use proc_macro::TokenStream;
 /// the stack) take slices instead: `fn lagrangian(&self, [t: f64,] q:
 /// &[f64], v: &[f64]) -> f64`, with `fn dimension(&self) -> usize` in the
 /// same block. The macro then implements `lagrangian::DynLagrangian`, with
-/// the same checks of the body; `force`, `dissipation` and
-/// declared symmetries, which that trait does not carry, are refused
+/// the same checks of the body. `fn dissipation(&self, q: &[f64], v:
+/// &[f64]) -> f64` takes slices too, and the force is written into a last
+/// parameter, `fn force(&self, [t: f64,] q: &[f64], v: &[f64], f: &mut
+/// [f64])`: `f` arrives filled with zeros, the body sets or adds to `f[i]`
+/// and returns nothing. Step densities, constraints and declared
+/// symmetries, which that trait does not carry, are refused
 /// (docs/structure.md, "Run-time-sized systems").
 ///
 /// The bodies may use: literals, `self` fields, constants, `q[i]` and `v[i]`,

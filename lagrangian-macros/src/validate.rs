@@ -40,7 +40,7 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
         return None;
     };
 
-    let signature = check_signature(cx, lagrangian, &item.self_ty, None);
+    let signature = check_signature(cx, lagrangian, &item.self_ty, None, false);
     let n = signature.n.clone();
     let dynamic = n.as_ref().is_some_and(Dim::is_dynamic);
     // A body written to return another type (`Ok(x)` for `Result<f64, _>`)
@@ -52,13 +52,21 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
     let expected = n.as_ref().and_then(Dim::len);
     let optional = |method: &Option<Method<'_>>| {
         method.as_ref().map(|method| {
-            if dynamic && method.kind != MethodKind::Dissipation {
+            if dynamic && method.kind == MethodKind::Force && takes_arrays(method) {
+                // The const form beside a slice Lagrangian.
+                cx.error_spanned_by(
+                    &method.func.sig.ident,
+                    format!("`force` of a run-time-sized system takes slices like `lagrangian`: write {DYN_FORCE}"),
+                );
+                return None;
+            }
+            if dynamic && !matches!(method.kind, MethodKind::Dissipation | MethodKind::Force) {
                 // What `DynLagrangian` does not carry (or the rewrite does
                 // not write over slices): refused, not lowered.
                 cx.error_spanned_by(&method.func.sig.ident, dynamic_refusal(method.kind));
                 return None;
             }
-            let signature = check_signature(cx, method, &item.self_ty, expected);
+            let signature = check_signature(cx, method, &item.self_ty, expected, dynamic);
             if dynamic && !signature.n.as_ref().is_none_or(Dim::is_dynamic) {
                 // Arrays beside a slice Lagrangian.
                 cx.error_spanned_by(
@@ -95,19 +103,22 @@ pub(crate) fn validate(cx: &Ctxt, input: &Input<'_>) -> Option<System> {
     })
 }
 
+/// The force of a run-time-sized system, for messages.
+const DYN_FORCE: &str = "`fn force(&self, [t: f64,] q: &[f64], v: &[f64], f: &mut [f64])`";
+
 /// Why `kind` is refused in a run-time-sized system (`q: &[f64]`).
 fn dynamic_refusal(kind: MethodKind) -> String {
     let name = kind.name();
-    match kind {
-        MethodKind::Force => "`force` is not supported by `#[lagrangian]` for run-time-sized systems (`q: &[f64]`): \
-             the rewrite returns arrays of a size known at compile time; implement `DynLagrangian` by hand \
-             (`fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D])`), or use `q: [f64; N]`"
-            .to_owned(),
-        _ => format!(
-            "`{name}` is not supported for run-time-sized systems (`q: &[f64]`): \
-             `DynLagrangian` has no `{name}`; use `q: [f64; N]`"
-        ),
-    }
+    format!(
+        "`{name}` is not supported for run-time-sized systems (`q: &[f64]`): \
+         `DynLagrangian` has no `{name}`; use `q: [f64; N]`"
+    )
+}
+
+/// Whether `method` is written in the const form, some parameter an array
+/// `[f64; N]`.
+fn takes_arrays(method: &Method<'_>) -> bool {
+    method.params.iter().any(|param| matches!(param.shape, Shape::Array { .. }))
 }
 
 /// Checks `fn dimension(&self) -> usize`, which a run-time-sized system
@@ -258,14 +269,28 @@ pub(crate) struct Signature {
     pub(crate) n: Option<Dim>,
     /// Whether the return type is the right one.
     pub(crate) returns: bool,
+    /// The out-parameter `f: &mut [f64]` of a run-time-sized system's
+    /// `force`; `None` for the other methods.
+    pub(crate) out: Option<Binder>,
 }
 
 /// Checks the signature of `method`. `expected` is the Lagrangian's `N`, which
 /// the optional methods must share; `None` when checking the Lagrangian.
-fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected: Option<&Len>) -> Signature {
+/// `dynamic` tells that the Lagrangian takes slices.
+fn check_signature(
+    cx: &Ctxt,
+    method: &Method<'_>,
+    self_ty: &syn::Type,
+    expected: Option<&Len>,
+    dynamic: bool,
+) -> Signature {
     let name = method.kind.name();
     let sig = &method.func.sig;
-    let mut signature = Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None, returns: false };
+    let mut signature =
+        Signature { name: sig.ident.clone(), time: None, q: None, v: None, n: None, returns: false, out: None };
+    // A run-time-sized system's force writes into a last parameter
+    // `f: &mut [f64]` instead of returning an array of unknown size.
+    let dynamic_force = method.kind == MethodKind::Force && dynamic;
 
     if sig.generics.lt_token.is_some() || sig.generics.where_clause.is_some() {
         cx.error_spanned_by(
@@ -294,8 +319,35 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
         Some(_) => {}
     }
 
+    let params = match method.params.as_slice() {
+        // `(t, q, v, f)`, or `(q, v, f)` unless it reads as `(t, q, v)`.
+        [params @ .., out]
+            if dynamic_force
+                && (params.len() == 3
+                    || (params.len() == 2
+                        && (matches!(out.shape, Shape::Slice { mutable: true, .. })
+                            || !matches!(params[0].shape, Shape::F64)))) =>
+        {
+            signature.out = Some(check_out(cx, out));
+            params
+        }
+        params if dynamic_force => {
+            let found = params.len();
+            cx.error_at(
+                sig.paren_token.span.join(),
+                format!(
+                    "`force` of a run-time-sized system takes {DYN_FORCE}, found {found} parameter{} \
+                     besides `&self`",
+                    if found == 1 { "" } else { "s" }
+                ),
+            );
+            signature.returns = check_no_return(cx, method, None);
+            return signature;
+        }
+        params => params,
+    };
     let (time, q, v) = if method.kind.takes_velocity() {
-        match (method.params.as_slice(), method.kind.takes_time()) {
+        match (params, method.kind.takes_time()) {
             ([q, v], _) => (None, q, Some(v)),
             ([t, q, v], true) => (Some(t), q, Some(v)),
             // A time argument where none is taken: say so at that argument.
@@ -327,7 +379,7 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
             };
             cx.error_spanned_by(quote::quote!(#pat: #ty), message);
         };
-        match method.params.as_slice() {
+        match params {
             [q] => (None, q, None),
             [t, q] if !matches!(t.shape, Shape::Array { .. }) => (Some(t), q, None),
             [q, v] => {
@@ -355,10 +407,11 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
     let v_name = display(&signature.v, "v");
     // The Lagrangian chooses between arrays and slices; the dissipation
     // function of a Lagrangian without a compile-time `N` may take slices
-    // too (the caller checks it takes them), the other optional methods
-    // take arrays only.
-    let slices =
-        method.kind == MethodKind::Lagrangian || (method.kind == MethodKind::Dissipation && expected.is_none());
+    // too (the caller checks it takes them), the force of a Lagrangian
+    // over slices takes them, the other optional methods take arrays only.
+    let slices = method.kind == MethodKind::Lagrangian
+        || (method.kind == MethodKind::Dissipation && expected.is_none())
+        || dynamic_force;
     let q_form = form(q, slices);
     // Without a velocity, `q` alone decides.
     let v_form = v.map_or(q_form, |v| form(v, slices));
@@ -414,8 +467,52 @@ fn check_signature(cx: &Ctxt, method: &Method<'_>, self_ty: &syn::Type, expected
             }
         }
     }
-    signature.returns = check_return(cx, method, expected.or(signature.n.as_ref().and_then(Dim::len)));
+    signature.returns = if dynamic_force {
+        check_no_return(cx, method, signature.out.as_ref())
+    } else {
+        check_return(cx, method, expected.or(signature.n.as_ref().and_then(Dim::len)))
+    };
     signature
+}
+
+/// Checks the out-parameter of a run-time-sized system's force, which must
+/// be `&mut [f64]`, and reads its name.
+fn check_out(cx: &Ctxt, out: &Param<'_>) -> Binder {
+    let binder = binder(cx, out);
+    let role = display(&binder, "f");
+    match out.shape {
+        Shape::Slice { of_f64: true, mutable: true } => {}
+        Shape::Slice { of_f64: true, mutable: false } => cx.error_spanned_by(
+            out.ty,
+            format!("`{role}` in `force` must be `&mut [f64]`: the force is written into it"),
+        ),
+        _ => cx.error_spanned_by(
+            out.ty,
+            format!(
+                "`{role}` in `force` must be `&mut [f64]`: a run-time-sized system's force is written \
+                 into its last parameter, {DYN_FORCE}"
+            ),
+        ),
+    }
+    binder
+}
+
+/// Checks that a run-time-sized system's force returns nothing: it writes
+/// into its out-parameter. `false` if it was reported.
+fn check_no_return(cx: &Ctxt, method: &Method<'_>, out: Option<&Binder>) -> bool {
+    let Some((ty, _)) = &method.output else { return true };
+    if matches!(ty, syn::Type::Tuple(unit) if unit.elems.is_empty()) {
+        return true;
+    }
+    let role = out.map_or_else(|| "f".to_owned(), |out| display(out, "f"));
+    cx.error_spanned_by(
+        ty,
+        format!(
+            "`force` of a run-time-sized system returns nothing: it writes the force into \
+             `{role}: &mut [f64]`, which arrives filled with zeros; remove the return type"
+        ),
+    );
+    false
 }
 
 /// What a `q` or `v` parameter declares, as far as it is usable.
@@ -714,9 +811,10 @@ mod tests {
             [
                 "`dissipation` of a run-time-sized system takes slices like `lagrangian`: \
                  write `fn dissipation(&self, q: &[f64], v: &[f64]) -> f64`",
-                "`force` is not supported by `#[lagrangian]` for run-time-sized systems (`q: &[f64]`): \
-                 the rewrite returns arrays of a size known at compile time; implement `DynLagrangian` by hand \
-                 (`fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D])`), or use `q: [f64; N]`",
+                "`force` of a run-time-sized system takes \
+                 `fn force(&self, [t: f64,] q: &[f64], v: &[f64], f: &mut [f64])`, found 2 parameters besides `&self`",
+                "`force` of a run-time-sized system returns nothing: it writes the force into `f: &mut [f64]`, \
+                 which arrives filled with zeros; remove the return type",
                 "`step_density` is not supported for run-time-sized systems (`q: &[f64]`): \
                  `DynLagrangian` has no `step_density`; use `q: [f64; N]`",
                 "a `lagrangian` taking slices (`q: &[f64]`) needs `fn dimension(&self) -> usize` in the same \
@@ -748,6 +846,100 @@ mod tests {
         assert_eq!(
             errors(&item),
             ["`q` in `dissipation` must be `[f64; N]`", "`v` in `dissipation` must be `[f64; N]`"]
+        );
+    }
+
+    #[test]
+    fn a_run_time_sized_system_takes_a_force_written_into_a_slice() {
+        for force in [
+            quote::quote!(
+                fn force(&self, t: f64, q: &[f64], v: &[f64], f: &mut [f64]) {
+                    f[0] = q[0] * v[0] + t;
+                }
+            ),
+            quote::quote!(
+                fn force(&self, q: &[f64], _: &[f64], out: &mut [f64]) -> () {
+                    out[0] -= q[0];
+                }
+            ),
+            quote::quote!(
+                fn force(&self, _: f64, _: &[f64], _: &[f64], _: &mut [f64]) {}
+            ),
+        ] {
+            let item: ItemImpl = parse_quote! {
+                impl C {
+                    fn dimension(&self) -> usize { self.n }
+                    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { q[0] * v[0] }
+                    #force
+                }
+            };
+            let cx = Ctxt::new();
+            let system = validate(&cx, &Input::from_syn(&item)).unwrap();
+            cx.check().unwrap();
+            let force = system.force.unwrap();
+            assert!(force.out.is_some() && force.return_class() == crate::ir::Class::Unit);
+        }
+    }
+
+    #[test]
+    fn reports_wrong_forces_over_slices_saying_what_is_expected() {
+        let force = |force: proc_macro2::TokenStream| -> Vec<String> {
+            let item: ItemImpl = parse_quote! {
+                impl C {
+                    fn dimension(&self) -> usize { 2 }
+                    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { 0.0 }
+                    #force
+                }
+            };
+            errors(&item)
+        };
+        let expected = "`fn force(&self, [t: f64,] q: &[f64], v: &[f64], f: &mut [f64])`";
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, q: [f64; N], v: [f64; N]) -> [f64; N] {
+                    q
+                }
+            )),
+            [format!("`force` of a run-time-sized system takes slices like `lagrangian`: write {expected}")]
+        );
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, q: &[f64], v: &[f64], f: &mut [f64]) -> Vec<f64> {
+                    vec![]
+                }
+            )),
+            ["`force` of a run-time-sized system returns nothing: it writes the force into `f: &mut [f64]`, \
+              which arrives filled with zeros; remove the return type"]
+        );
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, q: &[f64], v: &[f64], f: &[f64]) {}
+            )),
+            ["`f` in `force` must be `&mut [f64]`: the force is written into it"]
+        );
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, t: f64, q: &[f64], v: &[f64], f: Vec<f64>) {}
+            )),
+            [format!(
+                "`f` in `force` must be `&mut [f64]`: a run-time-sized system's force is written into its \
+                 last parameter, {expected}"
+            )]
+        );
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, t: f64, q: &[f64], v: &[f64]) {}
+            )),
+            [format!("`force` of a run-time-sized system takes {expected}, found 3 parameters besides `&self`")]
+        );
+        assert_eq!(
+            force(quote::quote!(
+                fn force(&self, t: f32, q: &mut [f64], v: &[f64], f: &mut [f64]) {}
+            )),
+            [
+                "the time parameter of `force` must be `f64`",
+                "`q` in `force` must be `&[f64]`, not `&mut`: `force` only reads the state",
+            ]
         );
     }
 

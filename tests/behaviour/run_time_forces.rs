@@ -1,8 +1,9 @@
 //! Forces and Rayleigh dissipation on run-time-sized systems (the discrete
 //! Lagrange–d'Alembert principle of docs/theory.md §6 on the reverse-mode
-//! driver): the same states as at a compile-time size, the damped and the
-//! driven chain against their analytic solutions with the order fitted,
-//! momentum under internal forces, and a force that is not finite.
+//! driver): the same states as at a compile-time size, the macro's force
+//! over slices against one written by hand, the damped and the driven
+//! chain against their analytic solutions with the order fitted, momentum
+//! under internal forces, and a force that is not finite.
 
 use lagrangian::prelude::*;
 use lagrangian::{DynLagrangian, ForceCoupling, Pattern, Scalar};
@@ -113,6 +114,54 @@ impl DynLagrangian for ForcedDyn {
     }
 }
 
+/// The same chain written with `#[lagrangian]` over slices, the force
+/// written into `f`: the macro proves the bands of `ForcedDyn`'s
+/// hand-written `FORCE_COUPLING`.
+#[derive(Clone, Debug)]
+struct ForcedMacro {
+    n: usize,
+}
+
+#[lagrangian]
+impl ForcedMacro {
+    fn dimension(&self) -> usize {
+        self.n
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut l = 0.0;
+        for i in 0..n {
+            l += v[i] * v[i] * 0.5;
+        }
+        l -= (q[0] * q[0] + q[n - 1] * q[n - 1]) * 0.5;
+        for i in 0..n - 1 {
+            let d = q[i + 1] - q[i];
+            l -= d * d * 0.5;
+        }
+        l
+    }
+
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        let mut r = 0.0;
+        for i in 0..v.len() {
+            r += v[i] * v[i] * (0.5 * GAMMA);
+        }
+        for i in 0..v.len() - 1 {
+            let d = v[i + 1] - v[i];
+            r += d * d * (0.5 * KAPPA);
+        }
+        r
+    }
+
+    fn force(&self, t: f64, _q: &[f64], v: &[f64], f: &mut [f64]) {
+        for i in 0..f.len() {
+            f[i] = -(v[i] * v[i] * v[i] * MU);
+        }
+        f[0] += (t * OMEGA).cos() * DRIVE;
+    }
+}
+
 const H: f64 = 0.02;
 
 /// The third normal mode's shape `sin(πi/3)`, `i = 1 … 8` (`ω₃ = 1`).
@@ -150,6 +199,90 @@ fn a_forced_run_time_chain_steps_as_the_compile_time_one() {
         // different orders.
         assert!(largest < 1e-12, "{name}: {largest:e}");
         // The motion is damped and driven: far from the start.
+        assert!((sa.q[0] - q0[0]).abs() > 1e-2, "{name}");
+    }
+}
+
+/// [`ForcedMacro`]'s generated Lagrangian, gradient code and dissipation,
+/// and [`ForcedDyn`]'s force written by hand: what differs from
+/// `ForcedMacro` is the force alone.
+#[derive(Clone, Debug)]
+struct ForcedByHand(ForcedMacro);
+
+impl DynLagrangian for ForcedByHand {
+    const AUTONOMOUS: bool = <ForcedMacro as DynLagrangian>::AUTONOMOUS;
+    const SEPARABILITY: lagrangian::Separability = <ForcedMacro as DynLagrangian>::SEPARABILITY;
+    const COUPLING: lagrangian::Coupling = <ForcedMacro as DynLagrangian>::COUPLING;
+    const FORCE_COUPLING: ForceCoupling = <ForcedDyn as DynLagrangian>::FORCE_COUPLING;
+    const HAS_DISSIPATION: bool = true;
+    const HAS_FORCE: bool = true;
+    const HAS_GRADIENT: bool = <ForcedMacro as DynLagrangian>::HAS_GRADIENT;
+    const HAS_GRADIENT_QV: bool = <ForcedMacro as DynLagrangian>::HAS_GRADIENT_QV;
+
+    fn dimension(&self) -> usize {
+        self.0.n
+    }
+
+    fn lagrangian<D: Scalar>(&self, t: D, q: &[D], v: &[D]) -> D {
+        DynLagrangian::lagrangian(&self.0, t, q, v)
+    }
+
+    fn gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        self.0.gradient_q(t, q, v, out);
+    }
+
+    fn value_gradient_q(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) -> f64 {
+        self.0.value_gradient_q(t, q, v, out)
+    }
+
+    fn gradient_qv_scalar<D: Scalar>(&self, t: D, q: &[D], v: &[D], out_q: &mut [D], out_v: &mut [D]) {
+        self.0.gradient_qv_scalar(t, q, v, out_q, out_v);
+    }
+
+    fn dissipation<D: Scalar>(&self, q: &[D], v: &[D]) -> D {
+        DynLagrangian::dissipation(&self.0, q, v)
+    }
+
+    fn force<D: Scalar>(&self, t: D, q: &[D], v: &[D], f: &mut [D]) {
+        DynLagrangian::force(&ForcedDyn { n: self.0.n }, t, q, v, f);
+    }
+}
+
+/// The macro's force over slices steps as the hand-written one: the same
+/// operations in the same order, so the same force and, over the same
+/// Lagrangian, the same states bit for bit; against the hand-written
+/// Lagrangian too to round-off (the macro writes the gradient of `L` as
+/// adjoint code, which sums in another order than the tape). The bands
+/// proven are those written by hand.
+#[test]
+fn the_macros_force_over_slices_steps_as_the_hand_written_one() {
+    assert_eq!(<ForcedMacro as DynLagrangian>::FORCE_COUPLING, <ForcedDyn as DynLagrangian>::FORCE_COUPLING);
+    const { assert!(<ForcedMacro as DynLagrangian>::HAS_FORCE && <ForcedMacro as DynLagrangian>::HAS_DISSIPATION) };
+    let q0 = shape();
+    let v0: Vec<f64> = (0..8).map(|i| 0.1 * (i as f64 - 3.5)).collect();
+    let by_hand = DynProblem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.clone());
+    let force_by_hand = DynProblem::new(ForcedByHand(ForcedMacro { n: 8 }), 0.0, q0.to_vec(), v0.clone());
+    let by_macro = DynProblem::new(ForcedMacro { n: 8 }, 0.0, q0.to_vec(), v0);
+    // The force alone, at a state and a time: bit for bit.
+    let (t, q, v) = (0.7, q0.to_vec(), (0..8).map(|i| 0.2 * i as f64 - 0.5).collect::<Vec<f64>>());
+    let (mut a, mut b) = (vec![0.0; 8], vec![0.0; 8]);
+    <ForcedDyn as DynLagrangian>::force(&ForcedDyn { n: 8 }, t, &q, &v, &mut a);
+    <ForcedMacro as DynLagrangian>::force(&ForcedMacro { n: 8 }, t, &q, &v, &mut b);
+    assert_eq!(a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), b.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+    let bits = |s: &PhasePoint| -> Vec<u64> { s.q.iter().chain(&s.p).map(|x| x.to_bits()).collect() };
+    for (name, scheme) in schemes() {
+        let mut a = by_hand.stepper(&scheme, H).unwrap();
+        let mut b = by_macro.stepper(&scheme, H).unwrap();
+        let mut c = force_by_hand.stepper(&scheme, H).unwrap();
+        a.run(300).unwrap();
+        b.run(300).unwrap();
+        c.run(300).unwrap();
+        let (sa, sb, sc) = (a.state(), b.state(), c.state());
+        assert_eq!(bits(sb), bits(sc), "{name}");
+        assert_eq!(sa.t, sb.t, "{name}");
+        // Measured: 1–2 ulps of the largest entries.
+        let largest = (0..8).map(|i| (sa.q[i] - sb.q[i]).abs().max((sa.p[i] - sb.p[i]).abs())).fold(0.0, f64::max);
+        assert!(largest < 1e-14, "{name}: {largest:e}");
         assert!((sa.q[0] - q0[0]).abs() > 1e-2, "{name}");
     }
 }
@@ -270,7 +403,7 @@ fn midpoint_balances_the_energy_of_a_damped_run_time_chain_at_every_node() {
 /// A chain driven in its third mode, `Q_i = sin(πi/3) F cos Ωt`, with
 /// `R = ½γ Σ v_i²`: started on the periodic response `a = A cos Ωt +
 /// B sin Ωt` (`A = F(1 − Ω²)/D`, `B = FγΩ/D`, `D = (1 − Ω²)² + γ²Ω²`), it
-/// stays on it.
+/// stays on it. Written with the macro, the force depending on `t`.
 #[derive(Clone, Debug)]
 struct Driven {
     shape: Vec<f64>,
@@ -279,28 +412,38 @@ struct Driven {
     frequency: f64,
 }
 
-impl DynLagrangian for Driven {
-    const AUTONOMOUS: bool = true;
-    const FORCE_COUPLING: ForceCoupling = ForceCoupling::NONE;
-    const HAS_DISSIPATION: bool = true;
-    const HAS_FORCE: bool = true;
-
+#[lagrangian]
+impl Driven {
     fn dimension(&self) -> usize {
         self.shape.len()
     }
 
-    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
-        chain_lagrangian(q, v, true)
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut l = 0.0;
+        for i in 0..n {
+            l += 0.5 * v[i] * v[i];
+        }
+        l -= 0.5 * (q[0] * q[0] + q[n - 1] * q[n - 1]);
+        for i in 0..n - 1 {
+            let d = q[i + 1] - q[i];
+            l -= 0.5 * d * d;
+        }
+        l
     }
 
-    fn dissipation<D: Scalar>(&self, _q: &[D], v: &[D]) -> D {
-        v.iter().fold(D::from(0.0), |r, &x| r + x * x * (0.5 * self.gamma))
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        let mut r = 0.0;
+        for i in 0..v.len() {
+            r += 0.5 * self.gamma * v[i] * v[i];
+        }
+        r
     }
 
-    fn force<D: Scalar>(&self, t: D, _q: &[D], _v: &[D], f: &mut [D]) {
-        let drive = (t * self.frequency).cos() * self.amplitude;
-        for (f, s) in f.iter_mut().zip(&self.shape) {
-            *f = drive * *s;
+    fn force(&self, t: f64, _q: &[f64], _v: &[f64], f: &mut [f64]) {
+        let drive = self.amplitude * (self.frequency * t).cos();
+        for i in 0..f.len() {
+            f[i] = drive * self.shape[i];
         }
     }
 }
@@ -315,6 +458,9 @@ fn a_driven_run_time_chain_follows_its_periodic_response() {
     let system = Driven { shape: s.to_vec(), gamma, amplitude, frequency };
     let q0: Vec<f64> = s.iter().map(|x| x * a).collect();
     let v0: Vec<f64> = s.iter().map(|x| x * b * frequency).collect();
+    // Neither the force nor the dissipation couples two masses.
+    let diagonal = ForceCoupling { q: Pattern::Diagonal, v: Pattern::Diagonal };
+    assert_eq!(<Driven as DynLagrangian>::FORCE_COUPLING, diagonal);
     let problem = DynProblem::new(system, 0.0, q0, v0);
     let t_end = 12.0;
     for (name, scheme) in schemes() {
@@ -344,37 +490,37 @@ struct Internal {
     n: usize,
 }
 
-impl DynLagrangian for Internal {
-    const AUTONOMOUS: bool = true;
-    const FORCE_COUPLING: ForceCoupling =
-        ForceCoupling { q: Pattern::Banded { bandwidth: 1 }, v: Pattern::Banded { bandwidth: 1 } };
-    const HAS_DISSIPATION: bool = true;
-    const HAS_FORCE: bool = true;
-
+#[lagrangian]
+impl Internal {
     fn dimension(&self) -> usize {
         self.n
     }
 
-    fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
-        let mut l = chain_lagrangian(q, v, false);
-        for i in 0..q.len() - 1 {
-            l -= (q[i + 1] - q[i]).powi(4) * 0.25;
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let n = q.len();
+        let mut l = 0.0;
+        for i in 0..n {
+            l += 0.5 * v[i] * v[i];
+        }
+        for i in 0..n - 1 {
+            let d = q[i + 1] - q[i];
+            l -= 0.5 * d * d + 0.25 * d.powi(4);
         }
         l
     }
 
-    fn dissipation<D: Scalar>(&self, _q: &[D], v: &[D]) -> D {
-        let mut r = D::from(0.0);
+    fn dissipation(&self, _q: &[f64], v: &[f64]) -> f64 {
+        let mut r = 0.0;
         for i in 0..v.len() - 1 {
             let d = v[i + 1] - v[i];
-            r += d * d * 0.05;
+            r += 0.05 * d * d;
         }
         r
     }
 
-    fn force<D: Scalar>(&self, _t: D, q: &[D], v: &[D], f: &mut [D]) {
+    fn force(&self, _t: f64, q: &[f64], v: &[f64], f: &mut [f64]) {
         for i in 0..q.len() - 1 {
-            let g = (q[i + 1] - q[i]).sin() * (v[i + 1] - v[i]) * 0.3;
+            let g = 0.3 * (q[i + 1] - q[i]).sin() * (v[i + 1] - v[i]);
             f[i] += g;
             f[i + 1] -= g;
         }
@@ -383,6 +529,9 @@ impl DynLagrangian for Internal {
 
 #[test]
 fn internal_forces_conserve_the_momentum_of_a_run_time_chain() {
+    // The macro proves the pair force and the dampers banded: `O(N)` steps.
+    let band = Pattern::Banded { bandwidth: 1 };
+    assert_eq!(<Internal as DynLagrangian>::FORCE_COUPLING, ForceCoupling { q: band, v: band });
     let n = 16;
     let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.9 * i as f64).sin()).collect();
     let v0: Vec<f64> = (0..n).map(|i| 0.5 + 0.4 * (1.7 * i as f64).cos()).collect();

@@ -23,7 +23,7 @@
 //! a branch on `t`, `q` or `v`, a cast of such a value to an integer — makes
 //! it give up on that function: everything general, nothing proven.
 
-use crate::ir::{Block, Class, Expr, ExprKind, Function, Math, ParamRef, Stmt, System};
+use crate::ir::{Block, Class, Expr, ExprKind, Function, LocalId, Math, ParamRef, Stmt, System};
 use std::collections::BTreeSet;
 use syn::{BinOp, Type, UnOp};
 
@@ -108,11 +108,16 @@ pub(crate) fn structure(system: &System) -> Structure {
         force = join2(force, [pairs.0[QV], pairs.0[VV]]);
     }
     if let Some(function) = &system.force {
-        let out = match Interp::run(function) {
-            Some(Abs::Array { out, .. }) => out,
-            _ => [Reach::General; 2],
+        let out = match &function.out {
+            // Written into `f: &mut [f64]`: the pattern is that of `f` at
+            // the end of the body.
+            Some(out) => out.local.map_or(Some([Reach::None; 2]), |local| Interp::run_out(function, local)),
+            None => match Interp::run(function) {
+                Some(Abs::Array { out, .. }) => Some(out),
+                _ => None,
+            },
         };
-        force = join2(force, out);
+        force = join2(force, out.unwrap_or([Reach::General; 2]));
     }
     Structure { separability, coupling, force: ForceCoupling { q: force[0].band(), v: force[1].band() } }
 }
@@ -571,6 +576,35 @@ impl Interp {
         let ret = std::mem::replace(&mut interp.ret, Abs::Unit);
         let value = interp.join(&value.escape(None), &ret);
         (!interp.gave_up).then_some(value)
+    }
+
+    /// How far the entries of the out-parameter `local` of `function` depend
+    /// on `q` and `v` from their own positions once the body has run, from
+    /// zeros; `None` if the analysis gave up. A `return` leaves the body
+    /// with a state the analysis does not keep, so it gives up on one.
+    fn run_out(function: &Function, local: LocalId) -> Option<[Reach; 2]> {
+        let mut returns = false;
+        function.body.visit(&mut |expr| {
+            returns |= matches!(expr.kind, ExprKind::Return(_));
+            !returns
+        });
+        if returns {
+            return None;
+        }
+        let mut interp = Interp {
+            consts: Vec::new(),
+            paths_fixed: !declares_items(&function.body),
+            ret: Abs::Unit,
+            jumps: Vec::new(),
+            gave_up: false,
+        };
+        let mut env: Env = vec![None; function.locals.len()];
+        env[local.0] = Some(Abs::Array { elems: Val::constant(), out: [Reach::None; 2] });
+        interp.block(&function.body, &mut env);
+        match env[local.0].take() {
+            Some(Abs::Array { out, .. }) if !interp.gave_up => Some(out),
+            _ => None,
+        }
     }
 
     /// The number of the constant named `key`.
@@ -1426,6 +1460,61 @@ mod tests {
         // Every element the same function of `q[0]`.
         assert_eq!(force(parse_quote!({ [q[0].sin(); N] })), ForceCoupling { q: G, v: W0 });
         assert_eq!(force(parse_quote!({ q })), ForceCoupling { q: W0, v: W0 });
+    }
+
+    #[test]
+    fn forces_written_into_a_slice() {
+        let force = |body: syn::Block| {
+            analysed(&parse_quote! {
+                impl P {
+                    fn dimension(&self) -> usize { self.n }
+                    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 { v[0] * v[0] }
+                    fn force(&self, t: f64, q: &[f64], v: &[f64], f: &mut [f64]) #body
+                }
+            })
+            .force
+        };
+        // A pair force between neighbours, and a drive on the first mass.
+        assert_eq!(
+            force(parse_quote!({
+                for i in 0..q.len() - 1 {
+                    let g = (q[i + 1] - q[i]).sin() * (v[i + 1] - v[i]);
+                    f[i] += g;
+                    f[i + 1] -= g;
+                }
+                f[0] += t.cos();
+            })),
+            ForceCoupling { q: W1, v: W1 }
+        );
+        // Nothing written: a zero Jacobian.
+        assert_eq!(force(parse_quote!({})), ForceCoupling { q: W0, v: W0 });
+        assert_eq!(
+            force(parse_quote!({
+                f[q.len() - 1] = -v[q.len() - 1];
+            })),
+            ForceCoupling { q: W0, v: W0 }
+        );
+        // Each entry reads the previous one: general.
+        assert_eq!(
+            force(parse_quote!({
+                f[0] = q[0];
+                for i in 1..f.len() {
+                    f[i] = f[i - 1] + q[i];
+                }
+            })),
+            ForceCoupling { q: G, v: W0 }
+        );
+        // An early `return` leaves a state the analysis does not keep.
+        assert_eq!(
+            force(parse_quote!({
+                f[0] = v[0];
+                if t.sin() > 0.0 {
+                    return;
+                }
+                f[1] = v[1];
+            })),
+            ForceCoupling { q: G, v: G }
+        );
     }
 
     #[test]

@@ -7,7 +7,7 @@
 
 use super::Signature;
 use crate::ctxt::Ctxt;
-use crate::ir::{Block, Expr, ExprKind, Function, LetBinding, Local, LocalId, Math, ParamRef, Stmt};
+use crate::ir::{Block, Expr, ExprKind, Function, LetBinding, Local, LocalId, Math, Out, ParamRef, Stmt};
 use crate::parse::{Dim, Len, Method, MethodKind, is_f64};
 use quote::{ToTokens, quote};
 use syn::spanned::Spanned;
@@ -82,9 +82,24 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
         params,
         scopes: Vec::new(),
         locals: Vec::new(),
+        out: None,
         failed: Vec::new(),
     };
-    let body = lower.block(&method.func.block)?;
+    // The out-parameter is a `let mut` local array of active values
+    // declared before the body: the first local, in a scope of its own.
+    lower.scopes.push(Vec::new());
+    let out = signature.out.as_ref().map(|name| {
+        let local = name.as_ref().map(|ident| {
+            let local = lower.declare(ident);
+            lower.locals[local.0].class = crate::ir::Class::ActiveArray;
+            lower.out = Some(local);
+            local
+        });
+        Out { name: name.clone(), local }
+    });
+    let body = lower.block(&method.func.block);
+    lower.scopes.pop();
+    let body = body?;
     Some(Function {
         kind: method.kind,
         name: signature.name.clone(),
@@ -92,6 +107,7 @@ pub(super) fn lower(cx: &Ctxt, method: &Method<'_>, signature: &Signature) -> Op
         time: signature.time.clone(),
         q: signature.q.clone(),
         v: signature.v.clone(),
+        out,
         body,
         locals: lower.locals,
     })
@@ -109,6 +125,8 @@ struct Lower<'a> {
     scopes: Vec<Vec<(Ident, LocalId)>>,
     /// Every local declared so far.
     locals: Vec<Local>,
+    /// The local standing for the out-parameter of a force over slices.
+    out: Option<LocalId>,
     /// Locals whose initializer was reported (`let f = |x| ...;`): their
     /// uses are not reported again.
     failed: Vec<LocalId>,
@@ -534,6 +552,16 @@ impl Lower<'_> {
             };
         let math = match &receiver {
             _ if is_len => Some(Math::Len),
+            Some(Expr { kind: ExprKind::Local(local, out), .. }) if Some(*local) == self.out => {
+                self.error(
+                    method,
+                    format!(
+                        "the method `{method}` is not supported on `{out}` in `{name}`: \
+                         write its entries (`{out}[i] = ...`, `{out}[i] += ...`) or take its length (`{out}.len()`)"
+                    ),
+                );
+                None
+            }
             Some(Expr { kind: ExprKind::Param(ParamRef::Q | ParamRef::V, param), .. }) => {
                 self.error(
                     method,
