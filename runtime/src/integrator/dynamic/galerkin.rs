@@ -81,7 +81,7 @@ impl DynMethod for RunTimeGalerkin {
 
 /// The const-generic rule at a run-time size: the same degree, control
 /// nodes and quadrature, its node equations always solved by Newton (its
-/// [`StageIteration`](crate::StageIteration) is a compile-time-size
+/// [`StageIteration`](crate::galerkin::StageIteration) is a compile-time-size
 /// setting).
 impl<const S: usize, const R: usize> DynMethod for Galerkin<S, R> {
     fn points(&self) -> Option<[f64; 2]> {
