@@ -242,6 +242,64 @@ impl<D: DenseStep<N>, const N: usize> Interpolant<[f64; N]> for D {
     }
 }
 
+/// A Galerkin step's polynomial `q(t_0 + τh) = q_0 + Σ_m ℓ_m(τ) D_m`
+/// through its `s + 1` control nodes, at a run-time size.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct StepPolynomial {
+    pub(crate) t0: f64,
+    pub(crate) h: f64,
+    /// `τ_0 = 0, τ_1, …, τ_s`.
+    pub(crate) tau: Vec<f64>,
+    pub(crate) q0: Vec<f64>,
+    /// `D_m = Q_m − q_0`, coordinate `i`'s at `i·s + m − 1`.
+    pub(crate) d: Vec<f64>,
+}
+
+impl Interpolant<Vec<f64>> for StepPolynomial {
+    fn eval(&self, t: f64) -> (Vec<f64>, Vec<f64>) {
+        let s = self.tau.len() - 1;
+        let x = (t - self.t0) / self.h;
+        let mut q = self.q0.clone();
+        let mut v = vec![0.0; q.len()];
+        // ℓ_m and ℓ_m' for m = 1 … s (ℓ_0 multiplies Q_0 − Q_0 = 0), in the
+        // order of the compile-time size's polynomial.
+        for m in 1..=s {
+            let (mut value, mut slope) = (1.0, 0.0);
+            for k in (0..=s).filter(|&k| k != m) {
+                let w = 1.0 / (self.tau[m] - self.tau[k]);
+                slope = slope * (x - self.tau[k]) * w + value * w;
+                value *= (x - self.tau[k]) * w;
+            }
+            for (i, (q, v)) in q.iter_mut().zip(v.iter_mut()).enumerate() {
+                let d = self.d[i * s + m - 1];
+                *q += value * d;
+                *v += slope * d / self.h;
+            }
+        }
+        (q, v)
+    }
+}
+
+/// The dense output of one step at a run-time size: a Galerkin rule's step
+/// polynomial, or the cubic (quintic) Hermite of the nodes for the other
+/// methods.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum RunTimeStep {
+    /// A Galerkin rule's own interpolant, as at a compile-time size.
+    Polynomial(StepPolynomial),
+    /// The Hermite of the step's nodes.
+    Hermite(HermiteRows),
+}
+
+impl Interpolant<Vec<f64>> for RunTimeStep {
+    fn eval(&self, t: f64) -> (Vec<f64>, Vec<f64>) {
+        match self {
+            RunTimeStep::Polynomial(p) => p.eval(t),
+            RunTimeStep::Hermite(h) => h.eval(t),
+        }
+    }
+}
+
 /// [`Hermite`] at a run-time size: the same interpolant of one step, its
 /// nodes on the heap.
 #[derive(Clone, Debug, PartialEq)]

@@ -13,7 +13,7 @@
 //! the nodes (the one-point rules' and compositions' own at a compile-time
 //! size as well).
 
-use crate::dense::{Hermite, HermiteRows, Node, Point};
+use crate::dense::{Hermite, HermiteRows, Node, Point, RunTimeStep, StepPolynomial};
 use crate::error::Error;
 use crate::integrator::{DynIntegrator, DynMethod, F64Readouts, Integrator, Stats, StepPolicy};
 use crate::solution::{Plan, Solution, Solvable, SolveError, Stepping, solve};
@@ -168,16 +168,16 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
 }
 
 /// `solve` on a run-time-sized integrator: the nodes as `Vec<f64>`, dense
-/// output by the cubic Hermite of the nodes (the one-point rules' and
-/// compositions' own interpolant at a compile-time size too), momenta and
-/// energies between nodes by the integrator's reverse sweeps. No
+/// output by a Galerkin rule's step polynomial or the cubic Hermite of the
+/// nodes (each method's own interpolant at a compile-time size too), momenta
+/// and energies between nodes by the integrator's reverse sweeps. No
 /// acceleration: quintic dense output is refused before the run.
 pub(crate) struct RunTimeSize<S, M>(core::marker::PhantomData<(S, M)>);
 
 impl<S: DynLagrangian + Clone, M: DynMethod + Clone> Solvable for RunTimeSize<S, M> {
     type Sim = DynIntegrator<S, M>;
     type Vector = Vec<f64>;
-    type Native = HermiteRows;
+    type Native = RunTimeStep;
     type Hermite = HermiteRows;
     const ACCELERATION: bool = false;
 
@@ -210,8 +210,19 @@ impl<S: DynLagrangian + Clone, M: DynMethod + Clone> Solvable for RunTimeSize<S,
         sim.run_until(t, |_| {})
     }
 
-    fn native(_sim: &Self::Sim, start: &Point<Vec<f64>>, end: &Point<Vec<f64>>) -> HermiteRows {
-        HermiteRows::new(start, end, None)
+    /// A Galerkin rule's step polynomial (the step just taken, `start →
+    /// end`), the cubic Hermite of the nodes for the other methods.
+    fn native(sim: &Self::Sim, start: &Point<Vec<f64>>, end: &Point<Vec<f64>>) -> RunTimeStep {
+        match sim.galerkin_nodes() {
+            Some((h, d, tau)) => RunTimeStep::Polynomial(StepPolynomial {
+                t0: start.t,
+                h,
+                tau: tau.to_vec(),
+                q0: start.q.clone(),
+                d: d.to_vec(),
+            }),
+            None => RunTimeStep::Hermite(HermiteRows::new(start, end, None)),
+        }
     }
 
     fn hermite(start: &Point<Vec<f64>>, end: &Point<Vec<f64>>, a: Option<(&Vec<f64>, &Vec<f64>)>) -> HermiteRows {
@@ -235,8 +246,9 @@ impl<S: DynLagrangian + Clone, M: DynMethod + Clone> DynIntegrator<S, M> {
     /// Integrates as `plan` says and returns the [`Solution`], as
     /// [`Stepping::solve`] does for a const-size integrator: the same
     /// driver, rows, events and failures. Dense output (save times, events)
-    /// is the cubic Hermite of the nodes, the one-point rules' and
-    /// compositions' own at a compile-time size too;
+    /// is a Galerkin rule's step polynomial, and the cubic Hermite of the
+    /// nodes for the one-point rules and compositions (each method's own at a
+    /// compile-time size too);
     /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
     /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
     /// run-time size.

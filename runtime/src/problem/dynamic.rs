@@ -3,7 +3,6 @@
 //! that driver does not have is refused by [`supports`](super::supports)
 //! with [`Error::Unsupported`].
 
-use super::galerkin_rows::solve_galerkin;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
@@ -172,10 +171,7 @@ impl<S: DynLagrangian + Clone> DynStepper<S> {
     /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
     /// run-time size. The stepper is left at the last node of the solution.
     pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
-        match &mut self.driver {
-            DynDriver::Galerkin(d) => solve_galerkin(d, plan),
-            driver => each!(driver, d => d.solve(plan)),
-        }
+        each!(&mut self.driver, d => d.solve(plan))
     }
 }
 

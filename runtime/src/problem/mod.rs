@@ -21,7 +21,6 @@
 
 mod dynamic;
 mod extend;
-mod galerkin_rows;
 mod scheme;
 mod sensitivities;
 mod statement;
