@@ -135,6 +135,28 @@ impl Clone for GalerkinWork {
             extrapolation: self.extrapolation.clone(),
         }
     }
+
+    /// Copies what persists between steps (the last step's nodes and the
+    /// unknowns' buffer) into the buffers `self` has, and leaves its scratch
+    /// (tape, Hessian, Newton block, extrapolation weights: filled afresh by
+    /// every step) as it is, as `SparseWork::clone_from` does: a `solve` that
+    /// may have to go back refreshes its copy of the integrator before every
+    /// step without allocating.
+    fn clone_from(&mut self, source: &Self) {
+        let shape = |w: &Self| (w.n, w.hessian_bandwidth, w.block_bandwidth, w.coupling_bandwidth);
+        if shape(self) != shape(source) || self.rule != source.rule {
+            *self = source.clone();
+            return;
+        }
+        match (&mut self.last, &source.last) {
+            (Some((h, d)), Some((source_h, source_d))) => {
+                *h = *source_h;
+                d.clone_from(source_d);
+            }
+            (to, from) => to.clone_from(from),
+        }
+        self.trial.clone_from(&source.trial);
+    }
 }
 
 impl GalerkinWork {
