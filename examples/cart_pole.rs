@@ -127,7 +127,7 @@ impl Loss<2, CONTROLS> for Misfit {
 }
 
 /// The problem with controls `u`: from rest, hanging down.
-fn problem(u: [f64; CONTROLS]) -> Problem<CartPole, 2> {
+fn problem(u: [f64; CONTROLS]) -> Problem<CartPole, Dim<2>> {
     Problem::new(CartPole::default().with_parameters(u), 0.0, [0.0, 0.0], [0.0, 0.0])
 }
 

@@ -197,14 +197,14 @@ pub use lagrangian_macros::lagrangian;
 // `hyperdual`, `chunk`) stay in the runtime crate.
 pub use lagrangian_runtime::num_dual;
 pub use lagrangian_runtime::{
-    Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives,
-    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, DynIntegrator,
-    DynIntegratorBuilder, DynLagrangian, DynMethod, DynProblem, DynStepper, EnergyFallback, Error, Estimate, Event,
-    EventRecord, ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling,
-    Galerkin, GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure,
-    Method, Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, NodeView, Pattern, PhasePoint, Plan, Policy,
-    Problem, Quadrature, RadiusPower, Real, Rows, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved,
-    State, Stats, Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry,
+    Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives, Dim,
+    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, Dyn, DynIntegrator,
+    DynIntegratorBuilder, DynLagrangian, DynMethod, EnergyFallback, Error, Estimate, Event, EventRecord,
+    ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling, Galerkin,
+    GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure, Method,
+    Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, NodeView, Pattern, PhasePoint, Plan, Policy, Problem,
+    Quadrature, RadiusPower, Real, Rows, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State,
+    Stats, Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry,
     TangentMap, TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
@@ -228,9 +228,9 @@ pub mod prelude {
     pub use lagrangian_runtime::{Checkpoints, Loss, Parametric};
     pub use lagrangian_runtime::{Composition, ExplicitAdaptive, ExplicitTimeTransformed, LeapfrogForm, TimeFunction};
     pub use lagrangian_runtime::{Constrained, DynConstrained};
+    pub use lagrangian_runtime::{Dim, Dyn, Policy, Problem, Scheme, Stepper};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
     pub use lagrangian_runtime::{DynIntegrator, DynMethod, PhasePoint};
-    pub use lagrangian_runtime::{DynProblem, DynStepper, Policy, Problem, Scheme, Stepper};
     pub use lagrangian_runtime::{Event, NodeView, Plan, Rows, Solution, SolveError, Stepping};
 }
 

@@ -127,7 +127,7 @@ enum Phase {
 /// Forward run and gradient of `problem` with `scheme` over `steps` steps
 /// of size `h`: (forward s, gradient s).
 fn costs<S, const N: usize, const P: usize>(
-    problem: &Problem<S, N>,
+    problem: &Problem<S, lagrangian::Dim<N>>,
     scheme: &Scheme,
     h: f64,
     steps: usize,
@@ -233,7 +233,7 @@ fn main() {
     let g = problem.gradient(&Scheme::MIDPOINT, h, n as f64 * h, &Squares, Checkpoints::Budget(1000)).unwrap();
     let seconds = start.elapsed().as_secs_f64();
     let peak = PEAK.load(Ordering::Relaxed) - before;
-    let stepper = std::mem::size_of::<lagrangian::problem::Stepper<DoublePendulum, 2>>();
+    let stepper = std::mem::size_of::<lagrangian::problem::Stepper<DoublePendulum, lagrangian::Dim<2>>>();
     println!(
         "\npeak heap of the double-pendulum midpoint gradient over {} steps, Checkpoints::Budget(1000): {:.2} MB \
          ({} checkpoint costates; a stepper is {stepper} bytes inline), {seconds:.1} s",

@@ -25,11 +25,11 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let parse = |i: usize, default: usize| args.get(i).and_then(|a| a.parse().ok()).unwrap_or(default);
     let (s, n, steps) = (parse(1, 2), parse(2, 1000), parse(3, 5));
-    let problem = DynProblem::new(DynFpu(n), 0.0, start_q(n), vec![0.0; n]);
+    let problem = Problem::new(DynFpu(n), 0.0, start_q(n), vec![0.0; n]);
     let mut sim = problem.stepper(&Scheme::galerkin(s), 0.05).expect("start");
     sim.step().expect("first step");
     let start = Instant::now();
-    sim.run(steps).expect("steps");
+    sim.run(steps, |_| {}).expect("steps");
     let per_step = start.elapsed().as_secs_f64() / steps as f64;
     let iterations = sim.stats().newton_iterations as f64 / sim.stats().steps as f64;
     println!("Galerkin s = {s}, N = {n}: {per_step:.3e} s per step, {iterations:.2} Newton iterations per step");

@@ -1,7 +1,12 @@
-//! Compile-time sizes as types: `Dim<N>` names `N + 1` for every `N` from
-//! 1 to [`MAX_SIZE`], so that drivers on an extended system (the implicit
-//! time transformation, `N` physical coordinates and time) infer the
-//! extended size instead of asking the user to type it.
+//! Sizes as types: [`Dim<N>`] for a number of coordinates known at compile
+//! time and [`Dyn`] for one known at run time, both [`Dimension`]s, so that
+//! one [`Problem`](crate::Problem) and one [`Stepper`](crate::Stepper)
+//! serve both, as `nalgebra`'s `Const`/`Dyn` do for matrices.
+//!
+//! `Dim<N>` also names `N + 1` for every `N` from 1 to [`MAX_SIZE`], so
+//! that drivers on an extended system (the implicit time transformation,
+//! `N` physical coordinates and time) infer the extended size instead of
+//! asking the user to type it.
 //!
 //! Stable Rust cannot write `{ N + 1 }` for a generic `N` (that needs
 //! `generic_const_exprs`). A table of impls `ExtendedSize<{ n + 1 }> for
@@ -13,6 +18,63 @@
 /// `N` as a type; see the [module documentation](self).
 #[derive(Clone, Copy, Debug)]
 pub struct Dim<const N: usize>;
+
+/// A number of coordinates known only at run time (the size of a
+/// [`DynLagrangian`](crate::DynLagrangian)'s slices).
+#[derive(Clone, Copy, Debug)]
+pub struct Dyn;
+
+/// The size of a configuration space as a type, [`Dim<N>`] or [`Dyn`], with
+/// the storage of one vector of coordinates at that size: one
+/// [`Problem`](crate::Problem) and one [`Stepper`](crate::Stepper) serve
+/// both, with arrays on the stack for `Dim<N>` and vectors on the heap for
+/// `Dyn`.
+pub trait Dimension: Copy + core::fmt::Debug {
+    /// A vector of coordinates (or momenta, or velocities): `[f64; N]` or
+    /// `Vec<f64>`.
+    type Vector: Clone + core::fmt::Debug + PartialEq + AsRef<[f64]>;
+}
+
+impl<const N: usize> Dimension for Dim<N> {
+    type Vector = [f64; N];
+}
+
+impl Dimension for Dyn {
+    type Vector = Vec<f64>;
+}
+
+/// Initial coordinates that name their size: an array `[f64; N]` states a
+/// compile-time-sized problem ([`Dim<N>`]), a `Vec<f64>` or a slice a
+/// run-time-sized one ([`Dyn`]). [`Problem::new`](crate::Problem::new)
+/// infers the size from them.
+pub trait Coordinates {
+    /// The size the coordinates state.
+    type Dimension: Dimension;
+
+    /// The coordinates in the storage of their size.
+    fn into_vector(self) -> <Self::Dimension as Dimension>::Vector;
+}
+
+impl<const N: usize> Coordinates for [f64; N] {
+    type Dimension = Dim<N>;
+    fn into_vector(self) -> [f64; N] {
+        self
+    }
+}
+
+impl Coordinates for Vec<f64> {
+    type Dimension = Dyn;
+    fn into_vector(self) -> Vec<f64> {
+        self
+    }
+}
+
+impl Coordinates for &[f64] {
+    type Dimension = Dyn;
+    fn into_vector(self) -> Vec<f64> {
+        self.to_vec()
+    }
+}
 
 /// The largest `N` the size table lists.
 pub const MAX_SIZE: usize = 1024;

@@ -229,7 +229,7 @@ const STEPS: [(f64, f64); 12] = [
 /// compile-time solution `compiled_rows` to round-off; or, for a family the
 /// run-time driver does not have, its refusal in every cell.
 fn dynamic_row<S: DynLagrangian + Clone>(
-    problem: &DynProblem<S>,
+    problem: &Problem<S, Dyn>,
     (scheme, h, tolerance): (&Scheme, f64, f64),
     reference: &Reference,
     compiled: [f64; 2],
@@ -279,8 +279,8 @@ fn every_method_through_one_problem() {
     let references = [reference(DoublePendulum, Q0, V0), reference(Kepler, KEPLER_Q0, KEPLER_V0)];
     let pendulum = Problem::new(DoublePendulum, 0.0, Q0, V0);
     let kepler = Problem::new(Kepler, 0.0, KEPLER_Q0, KEPLER_V0);
-    let pendulum_dyn = DynProblem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec());
-    let kepler_dyn = DynProblem::new(KeplerDyn, 0.0, KEPLER_Q0.to_vec(), KEPLER_V0.to_vec());
+    let pendulum_dyn = Problem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec());
+    let kepler_dyn = Problem::new(KeplerDyn, 0.0, KEPLER_Q0.to_vec(), KEPLER_V0.to_vec());
     let mut table = Vec::new();
     for ((name, scheme, separable), (h, tolerance)) in families().into_iter().zip(STEPS) {
         let (compiled, last_q) = if separable {
@@ -358,7 +358,7 @@ impl DampedDyn {
 fn forced_run_time_cells() {
     use crate::common::forced::DampedOscillator;
     let oscillator = DampedOscillator { m: 1.0, k: 1.0, c: 0.1 };
-    let dynamic = DynProblem::new(DampedDyn, 0.0, vec![1.0], vec![0.0]);
+    let dynamic = Problem::new(DampedDyn, 0.0, vec![1.0], vec![0.0]);
     let compiled = Problem::new(DampedOscillator { m: 1.0, k: 1.0, c: 0.1 }, 0.0, [1.0], [0.0]);
     let (h, t_end) = (0.01, 4.0);
     let mut stepping = Vec::new();

@@ -182,12 +182,12 @@ fn schemes() -> [(&'static str, Scheme); 4] {
 fn a_forced_run_time_chain_steps_as_the_compile_time_one() {
     let q0 = shape();
     let v0: [f64; 8] = core::array::from_fn(|i| 0.1 * (i as f64 - 3.5));
-    let dynamic = DynProblem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.to_vec());
+    let dynamic = Problem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.to_vec());
     let compiled = Problem::new(Forced, 0.0, q0, v0);
     for (name, scheme) in schemes() {
         let mut a = dynamic.stepper(&scheme, H).unwrap();
         let mut b = compiled.stepper(&scheme, H).unwrap();
-        a.run(300).unwrap();
+        a.run(300, |_| {}).unwrap();
         b.run(300, |_| {}).unwrap();
         let (sa, sb) = (a.state(), b.state());
         assert_eq!(sa.t, sb.t, "{name}");
@@ -260,9 +260,9 @@ fn the_macros_force_over_slices_steps_as_the_hand_written_one() {
     const { assert!(<ForcedMacro as DynLagrangian>::HAS_FORCE && <ForcedMacro as DynLagrangian>::HAS_DISSIPATION) };
     let q0 = shape();
     let v0: Vec<f64> = (0..8).map(|i| 0.1 * (i as f64 - 3.5)).collect();
-    let by_hand = DynProblem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.clone());
-    let force_by_hand = DynProblem::new(ForcedByHand(ForcedMacro { n: 8 }), 0.0, q0.to_vec(), v0.clone());
-    let by_macro = DynProblem::new(ForcedMacro { n: 8 }, 0.0, q0.to_vec(), v0);
+    let by_hand = Problem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.clone());
+    let force_by_hand = Problem::new(ForcedByHand(ForcedMacro { n: 8 }), 0.0, q0.to_vec(), v0.clone());
+    let by_macro = Problem::new(ForcedMacro { n: 8 }, 0.0, q0.to_vec(), v0);
     // The force alone, at a state and a time: bit for bit.
     let (t, q, v) = (0.7, q0.to_vec(), (0..8).map(|i| 0.2 * i as f64 - 0.5).collect::<Vec<f64>>());
     let (mut a, mut b) = (vec![0.0; 8], vec![0.0; 8]);
@@ -274,9 +274,9 @@ fn the_macros_force_over_slices_steps_as_the_hand_written_one() {
         let mut a = by_hand.stepper(&scheme, H).unwrap();
         let mut b = by_macro.stepper(&scheme, H).unwrap();
         let mut c = force_by_hand.stepper(&scheme, H).unwrap();
-        a.run(300).unwrap();
-        b.run(300).unwrap();
-        c.run(300).unwrap();
+        a.run(300, |_| {}).unwrap();
+        b.run(300, |_| {}).unwrap();
+        c.run(300, |_| {}).unwrap();
         let (sa, sb, sc) = (a.state(), b.state(), c.state());
         assert_eq!(bits(sb), bits(sc), "{name}");
         assert_eq!(sa.t, sb.t, "{name}");
@@ -345,7 +345,7 @@ fn a_damped_run_time_chain_loses_the_work_of_its_dissipation() {
     let a = decay * ((omega * t_end).cos() + gamma / (2.0 * omega) * (omega * t_end).sin());
     let da = -decay / omega * (omega * t_end).sin();
     let energy_exact = 0.5 * norm2 * (da * da + a * a);
-    let problem = DynProblem::new(Damped { n: 8, gamma }, 0.0, s.to_vec(), vec![0.0; 8]);
+    let problem = Problem::new(Damped { n: 8, gamma }, 0.0, s.to_vec(), vec![0.0; 8]);
     for (name, scheme) in schemes() {
         if name == "alpha-beta" {
             continue;
@@ -461,7 +461,7 @@ fn a_driven_run_time_chain_follows_its_periodic_response() {
     // Neither the force nor the dissipation couples two masses.
     let diagonal = ForceCoupling { q: Pattern::Diagonal, v: Pattern::Diagonal };
     assert_eq!(<Driven as DynLagrangian>::FORCE_COUPLING, diagonal);
-    let problem = DynProblem::new(system, 0.0, q0, v0);
+    let problem = Problem::new(system, 0.0, q0, v0);
     let t_end = 12.0;
     for (name, scheme) in schemes() {
         if name == "alpha-beta" {
@@ -535,11 +535,11 @@ fn internal_forces_conserve_the_momentum_of_a_run_time_chain() {
     let n = 16;
     let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.9 * i as f64).sin()).collect();
     let v0: Vec<f64> = (0..n).map(|i| 0.5 + 0.4 * (1.7 * i as f64).cos()).collect();
-    let problem = DynProblem::new(Internal { n }, 0.0, q0, v0.clone());
+    let problem = Problem::new(Internal { n }, 0.0, q0, v0.clone());
     let total: f64 = v0.iter().sum();
     for (name, scheme) in schemes() {
         let mut sim = problem.stepper(&scheme, 0.05).unwrap();
-        sim.run(400).unwrap();
+        sim.run(400, |_| {}).unwrap();
         let p: f64 = sim.momenta().iter().sum();
         // 400 steps of sums of 16 terms of order 1.
         assert!((p - total).abs() < 1e-12, "{name}: Σp {p} against {total}");
@@ -575,7 +575,7 @@ impl DynLagrangian for Breaking {
 #[test]
 fn a_force_that_is_not_finite_is_a_typed_error_and_changes_nothing() {
     for (name, scheme) in schemes() {
-        let problem = DynProblem::new(Breaking, 0.0, vec![0.0, 0.0], vec![1.0, 0.0]);
+        let problem = Problem::new(Breaking, 0.0, vec![0.0, 0.0], vec![1.0, 0.0]);
         let mut sim = problem.stepper(&scheme, 0.05).unwrap();
         let failure = loop {
             let before = sim.clone();
@@ -603,7 +603,7 @@ fn a_force_that_is_not_finite_is_a_typed_error_and_changes_nothing() {
         assert_eq!(format!("{again:?}"), format!("{error:?}"), "{name}");
     }
     // At the initial data: refused at the start.
-    let problem = DynProblem::new(Breaking, 0.0, vec![0.5, 0.0], vec![0.0, 0.0]);
+    let problem = Problem::new(Breaking, 0.0, vec![0.5, 0.0], vec![0.0, 0.0]);
     assert!(matches!(problem.stepper(&Scheme::MIDPOINT, 0.05), Err(lagrangian::Error::InvalidInitialData { .. })));
 }
 

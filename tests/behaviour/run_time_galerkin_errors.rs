@@ -69,7 +69,7 @@ fn a_failed_galerkin_step_at_a_run_time_size_changes_nothing() {
 #[test]
 fn a_failed_step_through_the_problem_is_the_typed_error_with_the_state() {
     let options = NewtonOptions { max_iterations: 2, ..NewtonOptions::default() };
-    let problem = DynProblem::new(Pendulum, 0.0, vec![3.0], vec![4.0]).newton(options);
+    let problem = Problem::new(Pendulum, 0.0, vec![3.0], vec![4.0]).newton(options);
     let mut sim = problem.stepper(&Scheme::galerkin(4), 4.0).unwrap();
     let before = bits(sim.state());
     let err = sim.step().unwrap_err();
@@ -88,7 +88,7 @@ fn a_failed_step_through_the_problem_is_the_typed_error_with_the_state() {
 
 #[test]
 fn degrees_and_quadratures_not_offered_are_refused() {
-    let problem = DynProblem::new(Pendulum, 0.0, vec![1.0], vec![0.0]);
+    let problem = Problem::new(Pendulum, 0.0, vec![1.0], vec![0.0]);
     for degree in [0, 17] {
         let scheme = Scheme::galerkin(degree);
         let Err(Error::Unsupported { what }) = problem.stepper(&scheme, 0.1) else { panic!("degree {degree}") };

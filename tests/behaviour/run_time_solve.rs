@@ -99,7 +99,7 @@ fn bits(s: &Solution) -> Vec<u64> {
 fn a_run_time_sized_chain_solves_as_a_compile_time_sized_one() {
     let pi = std::f64::consts::PI;
     let shape = shape();
-    let dynamic = DynProblem::new(ChainDyn { n: 8 }, 0.0, shape.to_vec(), vec![0.0; 8]);
+    let dynamic = Problem::new(ChainDyn { n: 8 }, 0.0, shape.to_vec(), vec![0.0; 8]);
     let compiled = Problem::new(Chain, 0.0, shape, [0.0; 8]);
     for (name, scheme) in scheme_cases() {
         let mut sim = dynamic.stepper(&scheme, H).unwrap();
@@ -171,7 +171,7 @@ fn a_run_time_sized_chain_solves_as_a_compile_time_sized_one() {
 /// failed plan leaves the stepper where it was.
 #[test]
 fn quintic_dense_output_is_refused_at_a_run_time_size() {
-    let problem = DynProblem::new(ChainDyn { n: 8 }, 0.0, shape().to_vec(), vec![0.0; 8]);
+    let problem = Problem::new(ChainDyn { n: 8 }, 0.0, shape().to_vec(), vec![0.0; 8]);
     let mut sim = problem.stepper(&Scheme::MIDPOINT, H).unwrap();
     let err = sim.solve(Plan::until(1.0).save_at(vec![0.5]).dense(DenseKind::Quintic)).unwrap_err();
     assert!(matches!(err, SolveError::InvalidPlan { .. }), "{err}");

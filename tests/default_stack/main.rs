@@ -128,10 +128,10 @@ fn a_run_time_sized_chain_of_100_000_takes_galerkin_steps_in_a_default_thread() 
         let a = 0.3 * (n + 1) as f64 / (k as f64 * core::f64::consts::PI);
         let q0: Vec<f64> =
             (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * core::f64::consts::PI / (n + 1) as f64).sin()).collect();
-        let problem = DynProblem::new(DynFpu { n }, 0.0, q0, vec![0.0; n]);
+        let problem = Problem::new(DynFpu { n }, 0.0, q0, vec![0.0; n]);
         let mut sim = problem.stepper(&Scheme::galerkin(2), 0.05).unwrap();
         let e0 = sim.energy().unwrap();
-        sim.run(3).unwrap();
+        sim.run(3, |_| {}).unwrap();
         let error = (sim.energy().unwrap() - e0).abs() / e0;
         let state = sim.state();
         println!("FPU-β N = 100 000, Galerkin s = 2, 3 steps: relative energy error {error:.2e}");

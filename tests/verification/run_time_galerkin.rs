@@ -159,7 +159,7 @@ fn compile_time_and_run_time_sizes_take_the_same_galerkin_steps() {
 /// initial data of [`initial`], under `scheme` with step `h`.
 fn run_time_end(scheme: &Scheme, n: usize, h: f64, t_end: f64) -> Vec<f64> {
     let (q0, v0) = initial(n);
-    let problem = DynProblem::new(DynPendula { n }, 0.0, q0, v0);
+    let problem = Problem::new(DynPendula { n }, 0.0, q0, v0);
     let mut sim = problem.stepper(scheme, h).unwrap();
     sim.run_until(t_end).unwrap();
     sim.state().q.clone()
@@ -230,7 +230,7 @@ fn degrees_up_to_eight_take_the_compile_time_steps() {
 /// largest drift of the total momentum, with the largest `|p_0|`.
 fn free_chain(n: usize, h: f64, t_end: f64, sample: usize) -> (f64, f64, f64, f64) {
     let (q0, v0) = initial(n);
-    let problem = DynProblem::new(DynFpu { n, beta: 1.0, walls: false }, 0.0, q0, v0);
+    let problem = Problem::new(DynFpu { n, beta: 1.0, walls: false }, 0.0, q0, v0);
     let mut sim = problem.stepper(&Scheme::galerkin(2), h).unwrap();
     let momentum = |p: &[f64]| p.iter().sum::<f64>();
     let (e0, p0) = (sim.energy().unwrap(), momentum(sim.momenta()));

@@ -1,71 +1,23 @@
-//! The run-time-sized problem: the same [`Scheme`] and [`Policy`] values on
-//! a [`DynLagrangian`], stepped by the reverse-mode [`DynIntegrator`]; what
-//! that driver does not have is refused by [`supports`](super::supports)
-//! with [`Error::Unsupported`].
+//! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
+//! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
+//! [`DynIntegrator`]; what that driver does not have is refused by
+//! [`supports`](super::supports) with [`Error::Unsupported`].
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
+use super::statement::Problem;
+use super::stepper::{Steppable, Stepper};
 use super::support::{Capability, Combination, Policy, Size, supports};
+use crate::dim::Dyn;
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, Stats};
-use crate::newton::NewtonOptions;
 use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
 
-/// A system whose number of coordinates is known at run time, with its
-/// initial data.
-///
-/// ```
-/// use lagrangian_runtime::problem::{Capability, DynProblem, Scheme};
-/// use lagrangian_runtime::{Composition, DynLagrangian, Plan, Scalar};
-///
-/// /// Uncoupled oscillators, as many as `n`.
-/// #[derive(Clone)]
-/// struct Oscillators { n: usize }
-/// impl DynLagrangian for Oscillators {
-///     const AUTONOMOUS: bool = true;
-///     fn dimension(&self) -> usize { self.n }
-///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
-///         let mut l = D::from(0.0);
-///         for i in 0..q.len() {
-///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
-///         }
-///         l
-///     }
-/// }
-///
-/// let problem = DynProblem::new(Oscillators { n: 3 }, 0.0, vec![1.0; 3], vec![0.0; 3]);
-/// let mut sim = problem.stepper(&Scheme::MIDPOINT, 0.01)?;
-/// sim.run_until(1.0)?;
-/// assert_eq!(sim.state().t, 1.0);
-/// assert!((sim.state().q[2] - 1f64.cos()).abs() < 1e-4);
-/// // A Galerkin rule of degree 3 (order 6): the same oscillators to 1e-9.
-/// let mut galerkin = problem.stepper(&Scheme::galerkin(3), 0.1)?;
-/// galerkin.run_until(1.0)?;
-/// assert!((galerkin.state().q[2] - 1f64.cos()).abs() < 1e-8);
-/// // The implicit time transformation is not defined at a run-time size: a typed refusal.
-/// let curvature = lagrangian_runtime::Curvature::new(1.0).unwrap();
-/// assert!(problem.stepper(&Scheme::MIDPOINT.time_transformed(curvature), 0.1).is_err());
-/// // `solve(Plan)` gives the same `Solution` as at a compile-time size.
-/// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_ok());
-/// let solution = problem.solve(&Scheme::MIDPOINT, 0.01, Plan::until(1.0).every(10))?;
-/// assert_eq!((solution.len(), solution.width()), (11, 3));
-/// assert_eq!(solution.q.last(), Some(&sim.state().q[..]));
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
+/// The driver of a run-time-sized [`Stepper`].
 #[derive(Clone, Debug)]
-pub struct DynProblem<S> {
-    system: S,
-    t0: f64,
-    q0: Vec<f64>,
-    v0: Vec<f64>,
-    newton: Option<NewtonOptions>,
-}
-
-/// The driver behind a [`DynStepper`].
-#[derive(Clone, Debug)]
-enum DynDriver<S> {
+pub enum DynDriver<S> {
     Midpoint(DynIntegrator<S, Midpoint>),
     Trapezoid(DynIntegrator<S, Trapezoid>),
     AlphaBeta(DynIntegrator<S, AlphaBeta>),
@@ -86,16 +38,56 @@ macro_rules! each {
     };
 }
 
-impl<S: DynLagrangian + Clone> DynProblem<S> {
-    /// `system` from `(t0, q0, v0)`.
-    pub fn new(system: S, t0: f64, q0: Vec<f64>, v0: Vec<f64>) -> Self {
-        Self { system, t0, q0, v0, newton: None }
-    }
+impl<S: DynLagrangian + Clone> Steppable<Dyn> for S {
+    type Driver = DynDriver<S>;
+}
 
-    /// Newton settings (default: the driver's own).
-    pub fn newton(mut self, options: NewtonOptions) -> Self {
-        self.newton = Some(options);
-        self
+/// A system whose number of coordinates is known at run time, with its
+/// initial data: stated by `Vec<f64>` coordinates, stepped in reverse mode
+/// on a tape ([`DynIntegrator`]).
+///
+/// ```
+/// use lagrangian_runtime::problem::{Capability, Problem, Scheme};
+/// use lagrangian_runtime::{Composition, DynLagrangian, Plan, Scalar};
+///
+/// /// Uncoupled oscillators, as many as `n`.
+/// #[derive(Clone)]
+/// struct Oscillators { n: usize }
+/// impl DynLagrangian for Oscillators {
+///     const AUTONOMOUS: bool = true;
+///     fn dimension(&self) -> usize { self.n }
+///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+///         let mut l = D::from(0.0);
+///         for i in 0..q.len() {
+///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
+///         }
+///         l
+///     }
+/// }
+///
+/// let problem = Problem::new(Oscillators { n: 3 }, 0.0, vec![1.0; 3], vec![0.0; 3]);
+/// let mut sim = problem.stepper(&Scheme::MIDPOINT, 0.01)?;
+/// sim.run_until(1.0)?;
+/// assert_eq!(sim.state().t, 1.0);
+/// assert!((sim.state().q[2] - 1f64.cos()).abs() < 1e-4);
+/// // A Galerkin rule of degree 3 (order 6): the same oscillators to 1e-9.
+/// let mut galerkin = problem.stepper(&Scheme::galerkin(3), 0.1)?;
+/// galerkin.run_until(1.0)?;
+/// assert!((galerkin.state().q[2] - 1f64.cos()).abs() < 1e-8);
+/// // The implicit time transformation is not defined at a run-time size: a typed refusal.
+/// let curvature = lagrangian_runtime::Curvature::new(1.0).unwrap();
+/// assert!(problem.stepper(&Scheme::MIDPOINT.time_transformed(curvature), 0.1).is_err());
+/// // `solve(Plan)` gives the same `Solution` as at a compile-time size.
+/// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_ok());
+/// let solution = problem.solve(&Scheme::MIDPOINT, 0.01, Plan::until(1.0).every(10))?;
+/// assert_eq!((solution.len(), solution.width()), (11, 3));
+/// assert_eq!(solution.q.last(), Some(&sim.state().q[..]));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
+    /// The initial data `(t0, q0, v0)`.
+    pub fn initial(&self) -> (f64, &[f64], &[f64]) {
+        (self.t0, &self.q0, &self.v0)
     }
 
     /// `Ok` when `scheme` under `policy` can do `capability` on a
@@ -116,7 +108,7 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
     /// A stepper of `scheme` under `policy`; [`Error::Unsupported`] for
     /// what [`supports`](super::supports) refuses, else the driver's own
     /// errors of `start`.
-    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<DynStepper<S>, Error> {
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, Dyn>, Error> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Step)?;
         let driver = match scheme {
@@ -130,12 +122,12 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
             }
             _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
-        Ok(DynStepper { driver, scheme: scheme.clone() })
+        Ok(Stepper { driver, scheme: scheme.clone(), policy })
     }
 
     /// Integrates with `scheme` under `policy` as `plan` says: the same
-    /// [`Solution`] and [`SolveError`] as [`Problem::solve`](super::Problem::solve)
-    /// at a compile-time size (see [`DynStepper::solve`]). A refused
+    /// [`Solution`] and [`SolveError`] as at a compile-time size (see
+    /// [`Stepper::solve`]). A refused
     /// combination or a failed start is `SolveError::Step`.
     pub fn solve(&self, scheme: &Scheme, policy: impl Into<Policy>, plan: Plan<'_>) -> Result<Solution, SolveError> {
         let policy = policy.into();
@@ -152,18 +144,9 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
     }
 }
 
-/// A running integration of a [`DynProblem`]: the stepping half of
-/// [`Stepper`](super::Stepper) on the heap-backed state.
-#[derive(Clone, Debug)]
-pub struct DynStepper<S> {
-    driver: DynDriver<S>,
-    scheme: Scheme,
-}
-
-impl<S: DynLagrangian + Clone> DynStepper<S> {
+impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
     /// Integrates as `plan` says: the same driver, [`Solution`] and
-    /// [`SolveError`] as [`Stepper::solve`](super::Stepper::solve) at a
-    /// compile-time size. Dense output (save times, events) is the cubic
+    /// [`SolveError`] as at a compile-time size. Dense output (save times, events) is the cubic
     /// Hermite of the nodes, the one-point rules' and compositions' own at
     /// a compile-time size too, and for a Galerkin rule its step
     /// polynomial, as at a compile-time size;
@@ -172,13 +155,6 @@ impl<S: DynLagrangian + Clone> DynStepper<S> {
     /// run-time size. The stepper is left at the last node of the solution.
     pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
         each!(&mut self.driver, d => d.solve(plan))
-    }
-}
-
-impl<S: DynLagrangian> DynStepper<S> {
-    /// The method.
-    pub fn scheme(&self) -> &Scheme {
-        &self.scheme
     }
 
     /// The state at the current node.
@@ -206,15 +182,24 @@ impl<S: DynLagrangian> DynStepper<S> {
         each!(&self.driver, d => *d.stats())
     }
 
+    /// The system.
+    pub fn system(&self) -> &S {
+        each!(&self.driver, d => d.system())
+    }
+
     /// One step; on failure nothing changes.
     pub fn step(&mut self) -> Result<&PhasePoint, Error> {
         each!(&mut self.driver, d => d.step().map(|_| ()))?;
         Ok(self.state())
     }
 
-    /// `n` steps.
-    pub fn run(&mut self, n: usize) -> Result<(), Error> {
-        each!(&mut self.driver, d => d.run(n, |_| {}))
+    /// `n` steps, calling `observe` after each.
+    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
+        for _ in 0..n {
+            self.step()?;
+            observe(self);
+        }
+        Ok(())
     }
 
     /// Steps to `t_end` exactly (the last step shortened).

@@ -7,8 +7,8 @@
 //! for every size (each arm a whole integrator, refused at compile time
 //! where `M ≠ N + 1`); through the table only the sizes a program uses are
 //! instantiated, and for each only when its scheme is matched. A larger
-//! compile-time size is a compile error naming
-//! [`DynProblem`](super::DynProblem) and the drivers.
+//! compile-time size is a compile error naming the run-time size and the
+//! drivers.
 
 use super::scheme::{OnePoint, Scheme};
 #[cfg(doc)]
@@ -216,7 +216,7 @@ impl<S: Lagrangian<N>, const N: usize, const M: usize> Stepping<N> for Transform
 /// `Dim<N>`, so a program with a literal size never names it.
 #[diagnostic::on_unimplemented(
     message = "`Problem` steps compile-time sizes up to 1024, not {N}",
-    note = "use `DynProblem` (run-time size) or a driver (`Integrator`, `TimeTransformed`) directly"
+    note = "state the problem with `Vec<f64>` coordinates (run-time size) or use a driver (`Integrator`, `TimeTransformed`) directly"
 )]
 pub trait Extended<const N: usize>: Sealed {
     /// The driver, with `M = N + 1`.

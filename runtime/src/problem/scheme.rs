@@ -63,7 +63,7 @@ pub enum Scheme {
     /// The continuous Galerkin rule of degree `s` (`degree` 2, 3 or 4 on a
     /// compile-time-sized [`Problem`](super::Problem), where the
     /// const-generic [`Galerkin`](crate::Galerkin) has every degree; 1 to 16
-    /// on a run-time-sized [`DynProblem`](super::DynProblem)).
+    /// on a run-time-sized `Problem<S, Dyn>`).
     Galerkin {
         /// The degree `s` of the step polynomial.
         degree: usize,

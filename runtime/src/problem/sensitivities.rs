@@ -45,7 +45,7 @@ const LARGE_FORWARD: &str = "forward sensitivities above `FORWARD_SENSITIVITIES_
 const DISCONTINUOUS: &str =
     "sensitivities of a discontinuous lagrangian: the step is not differentiable where the lagrangian jumps";
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N>
+impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, Dim<N>>
 where
     Dim<N>: Extended<N>,
 {
@@ -229,7 +229,7 @@ pub(crate) enum ExtendedNode<const N: usize> {
 const REVERSE_COMPOSITION: &str = "sensitivities of a composition stepped in reverse mode (above \
      `Derivatives::FORWARD_MAX_N` coordinates): its sub-steps are not kept";
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, N>
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, Dim<N>>
 where
     Dim<N>: Extended<N>,
 {
@@ -474,7 +474,7 @@ struct Tracked<'p, 's, S: Parametric<N, P>, const N: usize, const P: usize>
 where
     Dim<N>: Extended<N>,
 {
-    stepper: Stepper<S, N>,
+    stepper: Stepper<S, Dim<N>>,
     propagation: &'p RefCell<Propagation<'s, S, N, P>>,
     /// The pieces of the last step (storage reused from step to step).
     pieces: Vec<Piece<N>>,
@@ -504,7 +504,7 @@ where
     fn tracked(
         &mut self,
         target: Option<f64>,
-        step: impl FnOnce(&mut Stepper<S, N>) -> Result<(), Error>,
+        step: impl FnOnce(&mut Stepper<S, Dim<N>>) -> Result<(), Error>,
     ) -> Result<(), Error> {
         let from = self.stepper.state();
         let node = self.stepper.extended_node();
@@ -592,7 +592,7 @@ mod tests {
     /// fallback: its energy equation loses its root on the pendulum from
     /// 1 rad (docs/capabilities.md), and the run goes on through
     /// least-mismatch steps.
-    fn least_squares(problem: &Problem<Pendulum, 1>) -> Stepper<Pendulum, 1> {
+    fn least_squares(problem: &Problem<Pendulum, Dim<1>>) -> Stepper<Pendulum, Dim<1>> {
         let mut stepper = problem.stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.02)).unwrap();
         let Driver::Trapezoid(d) = &mut *stepper.driver else { unreachable!("the trapezoid driver") };
         d.fallback = EnergyFallback::LeastSquares;

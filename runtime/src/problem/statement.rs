@@ -3,10 +3,10 @@
 
 use super::extend::Extended;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
-use super::stepper::{Driver, Stepper, boxed};
+use super::stepper::{Driver, DriverBox, Stepper, boxed};
 use super::support::{Capability, Combination, Policy, Size, supports};
 use crate::auto::Auto;
-use crate::dim::Dim;
+use crate::dim::{Coordinates, Dim, Dimension};
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, NodeFamily, Quadrature};
@@ -16,8 +16,16 @@ use crate::solution::{Plan, Solution, SolveError};
 use crate::system::Lagrangian;
 use crate::time_transform::{Curvature, ExplicitTimeTransformed, TimeFunction};
 
-/// A compile-time-sized system with its initial data `(t0, q0, v0)`; the
-/// end of the run is the [`Plan`]'s.
+/// A system with its initial data `(t0, q0, v0)`; the end of the run is the
+/// [`Plan`]'s.
+///
+/// The coordinates state the size: arrays `[f64; N]` a compile-time-sized
+/// [`Lagrangian<N>`] (`Problem<S, Dim<N>>`, stepped by the const-generic
+/// drivers), a `Vec<f64>` a run-time-sized
+/// [`DynLagrangian`](crate::DynLagrangian) (`Problem<S, Dyn>`, stepped in
+/// reverse mode on a tape, for large systems). The methods are the same at
+/// both sizes; what a size cannot do is refused by
+/// [`supports`](super::supports).
 ///
 /// [`solve`](Self::solve) and [`stepper`](Self::stepper) take the method as
 /// a [`Scheme`] value and the step sizes as a [`Policy`] (or just `h`), and
@@ -48,18 +56,19 @@ use crate::time_transform::{Curvature, ExplicitTimeTransformed, TimeFunction};
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 #[derive(Clone, Debug)]
-pub struct Problem<S, const N: usize> {
-    system: S,
-    t0: f64,
-    q0: [f64; N],
-    v0: [f64; N],
-    newton: Option<NewtonOptions>,
+pub struct Problem<S, Z: Dimension> {
+    pub(super) system: S,
+    pub(super) t0: f64,
+    pub(super) q0: Z::Vector,
+    pub(super) v0: Z::Vector,
+    pub(super) newton: Option<NewtonOptions>,
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
-    /// `system` from `(t0, q0, v0)`.
-    pub fn new(system: S, t0: f64, q0: [f64; N], v0: [f64; N]) -> Self {
-        Self { system, t0, q0, v0, newton: None }
+impl<S, Z: Dimension> Problem<S, Z> {
+    /// `system` from `(t0, q0, v0)`; the coordinates' type states the size
+    /// (see [`Coordinates`]).
+    pub fn new<C: Coordinates<Dimension = Z>>(system: S, t0: f64, q0: C, v0: C) -> Self {
+        Self { system, t0, q0: q0.into_vector(), v0: v0.into_vector(), newton: None }
     }
 
     /// Newton settings for the implicit schemes (default: each driver's own).
@@ -72,7 +81,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
     pub fn system(&self) -> &S {
         &self.system
     }
+}
 
+impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, Dim<N>> {
     /// The initial data `(t0, q0, v0)`.
     pub fn initial(&self) -> (f64, [f64; N], [f64; N]) {
         (self.t0, self.q0, self.v0)
@@ -122,7 +133,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N> {
     }
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, N>
+impl<S: Lagrangian<N> + Clone, const N: usize> Problem<S, Dim<N>>
 where
     Dim<N>: Extended<N>,
 {
@@ -132,10 +143,10 @@ where
     /// [`supports`](super::supports) refuses, and otherwise with the
     /// driver's own errors of `start` (invalid step, initial data or
     /// settings; a system the splitting cannot take).
-    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, N>, Error> {
+    pub fn stepper(&self, scheme: &Scheme, policy: impl Into<Policy>) -> Result<Stepper<S, Dim<N>>, Error> {
         let policy = policy.into();
         self.supports(scheme, policy, Capability::Step)?;
-        let driver = self.driver(scheme, policy)?;
+        let driver = DriverBox(self.driver(scheme, policy)?);
         Ok(Stepper { driver, scheme: scheme.clone(), policy })
     }
 

@@ -11,7 +11,7 @@ use super::extend::Extended;
 use super::scheme::Scheme;
 use super::support::Policy;
 use crate::dense::{DenseStep, GalerkinPolynomial, Hermite, Node};
-use crate::dim::Dim;
+use crate::dim::{Dim, Dimension};
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::Galerkin;
@@ -27,7 +27,7 @@ use crate::time_transform::ExplicitAdaptive;
 // with `R²`) and kept sub-steps; a stepper boxes the whole enum once, so
 // boxing each variant as well would buy only a second indirection per step.
 #[allow(clippy::large_enum_variant)]
-pub(super) enum Driver<S: Lagrangian<N> + Clone, const N: usize>
+pub enum Driver<S: Lagrangian<N> + Clone, const N: usize>
 where
     Dim<N>: Extended<N>,
 {
@@ -165,58 +165,117 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
     }
 }
 
-/// A running integration of a [`Problem`](super::Problem) with any
-/// [`Scheme`]: step by step, to exact targets, or to a [`Solution`] by
-/// [`solve`](Stepping::solve), with one error type, [`Error`].
-///
-/// A failed step leaves the stepper as it was (each driver's own
-/// guarantee), so a retry starts from the state the error carries.
-pub struct Stepper<S: Lagrangian<N> + Clone, const N: usize>
+/// A system at a size, with the driver that steps it there: implemented
+/// for every [`Lagrangian<N>`] at [`Dim<N>`] (the const-generic drivers)
+/// and every [`DynLagrangian`](crate::DynLagrangian) at
+/// [`Dyn`](crate::dim::Dyn) (the reverse-mode driver on a tape). It is what
+/// lets one [`Stepper`] type serve both sizes; users never implement it.
+pub trait Steppable<Z: Dimension> {
+    /// The driver behind a [`Stepper`] at this size.
+    type Driver: Clone;
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Steppable<Dim<N>> for S
 where
     Dim<N>: Extended<N>,
 {
-    // On the heap: a driver of a large system is large (300 kB at
-    // `N = 1000`), and `solve` keeps a copy of the stepper from before each
-    // step; one pointer to follow per step costs nothing beside a step.
-    pub(super) driver: Box<Driver<S, N>>,
-    pub(super) scheme: Scheme,
-    pub(super) policy: Policy,
+    type Driver = DriverBox<S, N>;
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Stepper<S, N>
+/// The compile-time-sized driver on the heap: a driver of a large system is
+/// large (300 kB at `N = 1000`), and `solve` keeps a copy of the stepper
+/// from before each step; one pointer to follow per step costs nothing
+/// beside a step.
+pub struct DriverBox<S: Lagrangian<N> + Clone, const N: usize>(pub(super) Box<Driver<S, N>>)
+where
+    Dim<N>: Extended<N>;
+
+impl<S: Lagrangian<N> + Clone, const N: usize> core::ops::Deref for DriverBox<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    type Target = Driver<S, N>;
+    #[inline(always)]
+    fn deref(&self) -> &Driver<S, N> {
+        &self.0
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> core::ops::DerefMut for DriverBox<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    #[inline(always)]
+    fn deref_mut(&mut self) -> &mut Driver<S, N> {
+        &mut self.0
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> Clone for DriverBox<S, N>
 where
     Dim<N>: Extended<N>,
 {
     fn clone(&self) -> Self {
-        let driver = each!(&*self.driver, d, variant => boxed_copy(d, variant));
-        Self { driver, scheme: self.scheme.clone(), policy: self.policy }
+        Self(each!(&*self.0, d, variant => boxed_copy(d, variant)))
     }
 
     /// In place when both drivers are of one kind: no allocation.
     fn clone_from(&mut self, source: &Self) {
-        each!((&mut *self.driver, &*source.driver), a, b => copy_into(a, b), else *self = source.clone());
+        each!((&mut *self.0, &*source.0), a, b => copy_into(a, b), else *self = source.clone());
+    }
+}
+
+impl<S: Lagrangian<N> + Clone, const N: usize> core::fmt::Debug for DriverBox<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Driver").field("state", &each!(&*self.0, d => Stepping::state(d))).finish()
+    }
+}
+
+/// A running integration of a [`Problem`](super::Problem) with any
+/// [`Scheme`]: step by step, to exact targets, or to a [`Solution`] by
+/// [`solve`](Self::solve), with one error type, [`Error`]. One type for
+/// both sizes: `Stepper<S, Dim<N>>` of a compile-time-sized system, whose
+/// state is arrays, and `Stepper<S, Dyn>` of a run-time-sized one, whose
+/// state is vectors; the methods are the same.
+///
+/// A failed step leaves the stepper as it was (each driver's own
+/// guarantee), so a retry starts from the state the error carries.
+pub struct Stepper<S: Steppable<Z>, Z: Dimension> {
+    pub(super) driver: S::Driver,
+    pub(super) scheme: Scheme,
+    pub(super) policy: Policy,
+}
+
+impl<S: Steppable<Z>, Z: Dimension> Clone for Stepper<S, Z> {
+    fn clone(&self) -> Self {
+        Self { driver: self.driver.clone(), scheme: self.scheme.clone(), policy: self.policy }
+    }
+
+    /// In place where the driver copies in place.
+    fn clone_from(&mut self, source: &Self) {
+        self.driver.clone_from(&source.driver);
         self.scheme.clone_from(&source.scheme);
         self.policy = source.policy;
     }
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> core::fmt::Debug for Stepper<S, N>
+impl<S: Steppable<Z>, Z: Dimension> core::fmt::Debug for Stepper<S, Z>
 where
-    Dim<N>: Extended<N>,
+    S::Driver: core::fmt::Debug,
 {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Stepper")
             .field("scheme", &self.scheme)
             .field("policy", &self.policy)
-            .field("state", &Stepping::state(self))
+            .field("driver", &self.driver)
             .finish()
     }
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, N>
-where
-    Dim<N>: Extended<N>,
-{
+impl<S: Steppable<Z>, Z: Dimension> Stepper<S, Z> {
     /// The method.
     pub fn scheme(&self) -> &Scheme {
         &self.scheme
@@ -226,7 +285,12 @@ where
     pub fn policy(&self) -> Policy {
         self.policy
     }
+}
 
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, Dim<N>>
+where
+    Dim<N>: Extended<N>,
+{
     /// The state `(k, t_k, q_k, p_k)` at the current node (physical time
     /// and momenta for the time-transformed schemes; `k` counts their steps
     /// in `s`).
@@ -295,7 +359,7 @@ where
     }
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Stepping<N> for Stepper<S, N>
+impl<S: Lagrangian<N> + Clone, const N: usize> Stepping<N> for Stepper<S, Dim<N>>
 where
     Dim<N>: Extended<N>,
 {

@@ -1,9 +1,8 @@
 //! The one place that says whether a combination of method, step policy,
 //! system and workflow is defined, and the refusal that names it.
 //!
-//! [`Problem::stepper`](super::Problem::stepper),
-//! [`DynProblem::stepper`](super::DynProblem::stepper) and the capability
-//! page ask [`supports`] before they build anything, so a combination that
+//! `Problem::stepper` and `Problem::solve` (at either size) and the
+//! capability page ask [`supports`] before they build anything, so a combination that
 //! is not defined is an [`Error::Unsupported`](crate::Error::Unsupported)
 //! at construction, whatever the size of the system, with the text returned here. What only a driver can judge
 //! from the system's values (a mass matrix that is not constant for the
@@ -94,7 +93,7 @@ impl From<f64> for Policy {
 pub enum Size {
     /// `N` known at compile time ([`Problem`](super::Problem)).
     Const(usize),
-    /// Known at run time ([`DynProblem`](super::DynProblem)).
+    /// Known at run time (`Problem<S, Dyn>`).
     Dynamic,
 }
 
@@ -216,7 +215,9 @@ fn energy_sensitivities(policy: Policy) -> Result<(), &'static str> {
 /// The rules for a compile-time-sized system.
 fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
     if n > MAX_PROBLEM_N {
-        return Err("a compile-time size above 1024 through `Problem`: use `DynProblem` or a driver directly");
+        return Err(
+            "a compile-time size above 1024 through `Problem`: state it with `Vec<f64>` coordinates (a run-time size) or use a driver directly",
+        );
     }
     let fixed = matches!(c.policy, Policy::Fixed { .. });
     if let Scheme::Galerkin { degree, .. } = c.scheme

@@ -237,7 +237,7 @@ where
     Dim<N>: Extended<N>,
 {
     value: f64,
-    kept: Vec<Stepper<S, N>>,
+    kept: Vec<Stepper<S, Dim<N>>>,
     m: usize,
     last: State<N>,
 }
@@ -248,7 +248,7 @@ where
 /// (the steps in `s` of a time transformation), every other copy is
 /// dropped and the spacing doubled, so that the budget holds.
 fn forward<S, L, const N: usize, const P: usize>(
-    mut stepper: Stepper<S, N>,
+    mut stepper: Stepper<S, Dim<N>>,
     t0: f64,
     h: f64,
     t_end: f64,
@@ -297,7 +297,7 @@ where
 /// The run and the reverse sweep (see the [module](self)).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gradient<S, L, const N: usize, const P: usize>(
-    stepper: Stepper<S, N>,
+    stepper: Stepper<S, Dim<N>>,
     rule: Rule,
     initial: (f64, [f64; N], [f64; N]),
     h: f64,
@@ -390,7 +390,7 @@ where
 /// derivatives of the constant `c` (zero for energy steps) and of the first
 /// extended node at the end.
 pub(crate) fn gradient_extended<S, L, const N: usize, const P: usize>(
-    stepper: Stepper<S, N>,
+    stepper: Stepper<S, Dim<N>>,
     initial: (f64, [f64; N], [f64; N]),
     sigma: f64,
     t_end: f64,

@@ -243,7 +243,7 @@ mod tests {
             core::array::from_fn(|i| x[2 + i])
         }
 
-        fn problem(&self, x: [f64; D]) -> Problem<S, 1> {
+        fn problem(&self, x: [f64; D]) -> Problem<S, crate::dim::Dim<1>> {
             Problem::new((self.system)(Self::theta(&x)), 0.0, [x[0]], [x[1]])
         }
 

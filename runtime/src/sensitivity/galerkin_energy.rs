@@ -270,7 +270,7 @@ mod tests {
 
     /// `(q0, v0, m, l, g)`.
     const BASE: [f64; 5] = [0.5, 0.3, 0.7, 1.3, 9.81];
-    fn problem(x: [f64; 5]) -> Problem<Pendulum, 1> {
+    fn problem(x: [f64; 5]) -> Problem<Pendulum, crate::dim::Dim<1>> {
         Problem::new(Pendulum { theta: [x[2], x[3], x[4]] }, 0.0, [x[0]], [x[1]])
     }
 

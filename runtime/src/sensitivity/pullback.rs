@@ -1095,7 +1095,7 @@ mod tests {
     }
 
     /// The chain of `LONG` masses from its test state, as a problem.
-    fn long_chain() -> crate::problem::Problem<Chain<true>, LONG> {
+    fn long_chain() -> crate::problem::Problem<Chain<true>, crate::dim::Dim<LONG>> {
         let q0: [f64; LONG] = core::array::from_fn(|i| 0.3 * (i as f64 * 0.9).sin());
         let v0: [f64; LONG] = core::array::from_fn(|i| 0.2 * (i as f64 * 0.5).cos());
         crate::problem::Problem::new(Chain::<true> { theta: [1.3, 0.7] }, 0.0, q0, v0)

@@ -634,7 +634,7 @@ mod tests {
 
     /// The loss of a plain run of `scheme`, step `sigma` in `s`, to `t_end`.
     fn loss_of<S: Parametric<N, P>, const N: usize, const P: usize>(
-        problem: Problem<S, N>,
+        problem: Problem<S, Dim<N>>,
         scheme: &Scheme,
         sigma: f64,
         t_end: f64,
@@ -655,7 +655,7 @@ mod tests {
     /// dJ/d(q0, v0, θ) from the forward sensitivities of every node:
     /// `Σ_k ∂ℓ_k/∂(q, p, t) S_k + ∂ℓ_k/∂θ`.
     fn forward_gradient<S: Parametric<N, P>, const N: usize, const P: usize>(
-        problem: &Problem<S, N>,
+        problem: &Problem<S, Dim<N>>,
         scheme: &Scheme,
         sigma: f64,
         t_end: f64,

@@ -336,7 +336,7 @@ mod tests {
     const SIGMA: f64 = 0.05;
     const T_END: f64 = 3.0;
 
-    fn initial(q0: [f64; 2], v0: [f64; 2], mu: f64) -> Problem<Kepler, 2> {
+    fn initial(q0: [f64; 2], v0: [f64; 2], mu: f64) -> Problem<Kepler, crate::dim::Dim<2>> {
         Problem::new(Kepler { mu }, 0.0, q0, v0)
     }
 
