@@ -6,7 +6,7 @@
 //! method solves its step by Newton; the time-transformed ones with the
 //! curvature monitor), and the explicit time-transformed splitting on
 //! Kepler (e = 0.5), which needs a separable system; each column is one
-//! workflow, for `Problem` (compile-time `N`) and `DynProblem` (run-time):
+//! workflow, for `Problem` at a compile-time `N` and at a run-time size:
 //! - `land`: 100 targets reached exactly (the node's time is the target's
 //!   bits); at run time also the agreement with the compile-time run;
 //! - `solve`: nodes every 5 steps, 7 save times by dense output, a `Record`

@@ -504,8 +504,8 @@ const SCHEME_COLUMNS: [Column; 12] = [
     ),
 ];
 
-/// Every method family × step policy × size through `Problem` (or
-/// `DynProblem`): what `lagrangian::problem::supports` answers, the
+/// Every method family × step policy × size through `Problem` (arrays or
+/// vectors): what `lagrangian::problem::supports` answers, the
 /// markdown table and whether each cell is defined.
 fn scheme_table() -> (String, Vec<[bool; 12]>) {
     let names: Vec<&str> = SCHEME_COLUMNS.iter().map(|c| c.0).collect();
@@ -549,8 +549,8 @@ fn capabilities_page(table: &str, schemes: &str, constraints: &str) -> String {
          quoted. The test fails when a cell changes.\n\n{table}\n\
          ## One way in: `Problem`, `Scheme` and `Policy`\n\n\
          What `lagrangian::problem::supports` answers for each method family as a `Scheme` value, each step \
-         `Policy` and each size (compile-time `N` through `Problem`, run-time through `DynProblem`); a refused \
-         cell is the `Error::Unsupported` that `Problem::stepper`, `DynProblem::stepper`, `Problem::solve` and `DynProblem::solve` \
+         `Policy` and each size (compile-time `N`, `Problem<S, Dim<N>>` stated with arrays, and run-time, `Problem<S, Dyn>` stated \
+         with vectors); a refused cell is the `Error::Unsupported` that `Problem::stepper` and `Problem::solve` \
          return at construction, with this text. A defined cell may still be refused by its driver for the \
          values of a system (a mass matrix that is not constant for the splitting; the energy equation without \
          a root, as above). The behaviour test `method_matrix` steps, lands, solves and writes every defined \

@@ -1,5 +1,6 @@
 //! Galerkin rules on run-time-sized systems ([`Galerkin`] through
-//! [`DynIntegrator`], and `Scheme::Galerkin` through [`DynProblem`]).
+//! [`DynIntegrator`], and `Scheme::Galerkin` through [`Problem`] with
+//! vectors).
 //!
 //! - The same system at a compile-time and a run-time size takes the same
 //!   steps to round-off, s = 1, 2, 4: an FPU-β chain (banded, separable) and
