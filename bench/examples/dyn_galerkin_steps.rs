@@ -1,6 +1,6 @@
 //! Steps of a Galerkin rule on the bench's FPU-β chain with its size known
 //! at run time (`lagrangian_bench::chain::DynFpu`, `h = 0.05`), through
-//! `DynProblem` and `Scheme::Galerkin`: the cost of a step against `N`.
+//! `Problem` with vectors and `Scheme::Galerkin`: the cost of a step against `N`.
 //!
 //! ```text
 //! cargo build --release -p lagrangian-bench --example dyn_galerkin_steps
