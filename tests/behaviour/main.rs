@@ -23,5 +23,6 @@ mod macro_rewrite;
 mod method_matrix;
 mod run_time_forces;
 mod run_time_galerkin_errors;
+mod run_time_galerkin_forces;
 mod run_time_solve;
 mod solution;

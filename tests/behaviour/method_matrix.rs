@@ -392,7 +392,7 @@ fn forced_run_time_cells() {
         println!("{name:<36} | forced, run-time N: Δq {:.0e} to exact, {gap:.0e} to compile-time", q - exact[0]);
         stepping.push(true);
     }
-    let expected = [true, true, true, false, false, false, true, true, true, false, false, false];
+    let expected = [true, true, true, true, true, true, true, true, true, false, false, false];
     assert_eq!(stepping, expected);
 }
 

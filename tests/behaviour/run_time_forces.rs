@@ -12,7 +12,7 @@ use lagrangian::{DynLagrangian, ForceCoupling, Pattern, Scalar};
 /// v_i)²`) and driven (`Q_0 = a cos Ωt`, a cubic friction `−μ v_i³` on every
 /// mass), with their size known at compile time.
 #[derive(Clone)]
-struct Forced;
+pub(super) struct Forced;
 
 const GAMMA: f64 = 0.05;
 const KAPPA: f64 = 0.02;
@@ -60,8 +60,8 @@ impl Forced {
 /// The same chain with its size known at run time, written by hand over
 /// slices (force and dissipation banded: bandwidth 0 and 1).
 #[derive(Clone, Debug)]
-struct ForcedDyn {
-    n: usize,
+pub(super) struct ForcedDyn {
+    pub(super) n: usize,
 }
 
 fn chain_lagrangian<D: Scalar>(q: &[D], v: &[D], walls: bool) -> D {
@@ -165,7 +165,7 @@ impl ForcedMacro {
 const H: f64 = 0.02;
 
 /// The third normal mode's shape `sin(πi/3)`, `i = 1 … 8` (`ω₃ = 1`).
-fn shape() -> [f64; 8] {
+pub(super) fn shape() -> [f64; 8] {
     core::array::from_fn(|i| (std::f64::consts::PI * (i + 1) as f64 / 3.0).sin())
 }
 
@@ -290,9 +290,9 @@ fn the_macros_force_over_slices_steps_as_the_hand_written_one() {
 /// A linearly damped chain between walls, `R = ½γ Σ v_i²`, its size known
 /// at run time (the macro's rewrite of both bodies over slices).
 #[derive(Clone)]
-struct Damped {
-    n: usize,
-    gamma: f64,
+pub(super) struct Damped {
+    pub(super) n: usize,
+    pub(super) gamma: f64,
 }
 
 #[lagrangian]
@@ -325,7 +325,7 @@ impl Damped {
 }
 
 /// The slope of `log error` against `log h` between successive halvings.
-fn orders(errors: &[f64]) -> Vec<f64> {
+pub(super) fn orders(errors: &[f64]) -> Vec<f64> {
     errors.windows(2).map(|e| (e[0] / e[1]).log2()).collect()
 }
 
@@ -405,11 +405,11 @@ fn midpoint_balances_the_energy_of_a_damped_run_time_chain_at_every_node() {
 /// B sin Ωt` (`A = F(1 − Ω²)/D`, `B = FγΩ/D`, `D = (1 − Ω²)² + γ²Ω²`), it
 /// stays on it. Written with the macro, the force depending on `t`.
 #[derive(Clone, Debug)]
-struct Driven {
-    shape: Vec<f64>,
-    gamma: f64,
-    amplitude: f64,
-    frequency: f64,
+pub(super) struct Driven {
+    pub(super) shape: Vec<f64>,
+    pub(super) gamma: f64,
+    pub(super) amplitude: f64,
+    pub(super) frequency: f64,
 }
 
 #[lagrangian]
@@ -486,8 +486,8 @@ fn a_driven_run_time_chain_follows_its_periodic_response() {
 /// `g = μ sin(q_{i+1} − q_i)(v_{i+1} − v_i)`, `+g` on `i`, `−g` on `i + 1`.
 /// Neither moves the centre of mass: `Σ p` is conserved.
 #[derive(Clone, Debug)]
-struct Internal {
-    n: usize,
+pub(super) struct Internal {
+    pub(super) n: usize,
 }
 
 #[lagrangian]
@@ -552,7 +552,7 @@ fn internal_forces_conserve_the_momentum_of_a_run_time_chain() {
 
 /// An oscillator whose force is not finite beyond `q_0 = 0.3`.
 #[derive(Clone, Debug)]
-struct Breaking;
+pub(super) struct Breaking;
 
 impl DynLagrangian for Breaking {
     const AUTONOMOUS: bool = true;

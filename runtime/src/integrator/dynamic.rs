@@ -277,11 +277,6 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         };
         if let Some(rule) = &galerkin {
             rule.rule()?;
-            if is_forced::<S>() {
-                return Err(Error::Unsupported {
-                    what: "forces with a Galerkin rule on a run-time-sized system: its node equations carry no discrete forces",
-                });
-            }
         }
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
@@ -317,7 +312,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         let work = SparseWork::new(n, step_coupling::<S>()).map_err(|_| Error::Unsupported {
             what: "a system this large with this coupling: the step matrix cannot be allocated",
         })?;
-        let galerkin = galerkin.map(|rule| galerkin::work(&rule, n, S::COUPLING)).transpose()?;
+        let galerkin = galerkin.map(|rule| galerkin::work(&rule, n, step_coupling::<S>())).transpose()?;
         Ok(DynIntegrator {
             system: self.system,
             method: self.method,
@@ -370,10 +365,9 @@ impl Clone for DynSegment {
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
 /// one) or a Galerkin rule ([`Galerkin`](crate::Galerkin), any degree: its
 /// `sN` node unknowns in one banded or dense Newton block), and fixed
-/// steps; the one-point rules and compositions with the system's forces
-/// and dissipation ([`DynLagrangian::force`], [`DynLagrangian::dissipation`])
-/// by the discrete Lagrange–d'Alembert principle, every step then a Newton
-/// step.
+/// steps; every method with the system's forces and dissipation
+/// ([`DynLagrangian::force`], [`DynLagrangian::dissipation`]) by the
+/// discrete Lagrange–d'Alembert principle, every step then a Newton step.
 ///
 /// It mirrors [`Integrator`](crate::Integrator) in reverse mode
 /// ([`Derivatives::Reverse`](crate::Derivatives)) and takes the same steps:

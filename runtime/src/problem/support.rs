@@ -307,11 +307,6 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
     if !matches!(c.policy, Policy::Fixed { .. }) {
         return Err("variable steps on a run-time-sized system: its steps are fixed");
     }
-    if c.forced && matches!(c.scheme, Scheme::Galerkin { .. }) {
-        return Err(
-            "forces with a Galerkin rule on a run-time-sized system: its node equations carry no discrete forces",
-        );
-    }
     match c.capability {
         Capability::Step | Capability::Solve => Ok(()),
         // Refused by `sensitivities` before the size is looked at.

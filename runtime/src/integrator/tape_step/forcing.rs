@@ -32,7 +32,7 @@ use super::{ModelScalar, TapeModel, filled, seeds, tape_breakdown};
 use crate::banded::LinearSolveError;
 use crate::hyperdual::DualArray;
 use crate::newton::Breakdown;
-use crate::tape::{Tape, Var};
+use crate::tape::{Seeds, Tape, Var};
 
 /// The buffers of the forces of a step (empty until the first forced step).
 #[derive(Debug, Default)]
@@ -57,6 +57,11 @@ pub(super) struct Forcing {
     rows: Vec<f64>,
     /// The tape's positions and velocities of one point.
     vars: (Vec<Var>, Vec<Var>),
+    /// The colours of the inputs `(y, w)` of [`point_force`](Self::point_force)'s
+    /// tape: `y_i` in class `i mod K`, `w_i` in `K + i mod K`.
+    colours: Vec<Option<u32>>,
+    /// The `K` the colours are for.
+    colour_classes: usize,
 }
 
 impl Clone for Forcing {
@@ -167,6 +172,125 @@ impl Forcing {
         Ok(())
     }
 
+    /// The generalised force `F = Q − ∂R/∂v` at one point `(t, q, v)` into
+    /// `out`, and with `jacobians` its derivatives `∂F/∂q` and `∂F/∂v` into
+    /// the two buffers (overwritten, the layout's storage): `Q` on dual
+    /// lanes per colour class ([`applied_directional`]), `R` recorded as
+    /// `R(q + y, v + w)` at zero offsets `y`, `w`, whose gradient in `w` is
+    /// `∂R/∂v` and whose second-order sweep, seeded in the colour classes of
+    /// `y` and of `w` at once, gives the rows of both Jacobians. A force
+    /// that is not finite is [`Breakdown::NonFinite`] (`"force"`).
+    pub(super) fn point_force(
+        &mut self,
+        model: &dyn TapeModel,
+        (t, q, v): (f64, &[f64], &[f64]),
+        out: &mut [f64],
+        jacobians: Option<(Layout, &mut [f64], &mut [f64])>,
+    ) -> Result<(), Breakdown> {
+        let n = q.len();
+        self.allocate(n).map_err(super::breakdown)?;
+        out.fill(0.0);
+        if model.has_force() {
+            ModelScalar::force(model, t, q, v, out);
+        }
+        let layout = jacobians.as_ref().map(|(layout, ..)| *layout);
+        if model.has_dissipation() {
+            self.point_dissipation(model, q, v, layout)?;
+            for (f, r) in out.iter_mut().zip(&self.resistive[..n]) {
+                *f -= r;
+            }
+        }
+        if !out.iter().all(|x| x.is_finite()) {
+            return Err(Breakdown::NonFinite("force"));
+        }
+        let Some((layout, dq, dv)) = jacobians else {
+            return Ok(());
+        };
+        let width = layout.width();
+        dq.fill(0.0);
+        dv.fill(0.0);
+        if model.has_force() {
+            for (scale, into) in [((1.0, 0.0), &mut *dq), ((0.0, 1.0), &mut *dv)] {
+                let add = |i: usize, slot: usize, part: f64| into[i * width + slot] += part;
+                let point = (t, q, v);
+                match Width::for_classes(layout.classes()) {
+                    Width::One => applied_directional(model, &mut self.one, point, scale, layout, add),
+                    Width::Three => applied_directional(model, &mut self.three, point, scale, layout, add),
+                    Width::Five => applied_directional(model, &mut self.five, point, scale, layout, add),
+                }
+                .map_err(super::breakdown)?;
+            }
+        }
+        if model.has_dissipation() {
+            let classes = layout.classes();
+            let directions = 2 * classes;
+            for i in 0..n {
+                let row = &self.products[(n + i) * directions..(n + i + 1) * directions];
+                for slot in 0..width {
+                    // The column of the slot, and its class.
+                    let column = match layout.bandwidth {
+                        Some(b) => (i + slot).checked_sub(b).filter(|&c| c < n),
+                        None => Some(slot),
+                    };
+                    if let Some(c) = column {
+                        dq[i * width + slot] -= row[c % classes];
+                        dv[i * width + slot] -= row[classes + c % classes];
+                    }
+                }
+            }
+        }
+        if !dq.iter().chain(dv.iter()).all(|x| x.is_finite()) {
+            return Err(Breakdown::NonFinite("force jacobian"));
+        }
+        Ok(())
+    }
+
+    /// Records `R(q + y, v + w)` at `y = w = 0` and sweeps it: `∂R/∂v` into
+    /// `resistive[..n]`, and with a `layout`, `H·S` seeded in the colour
+    /// classes of `y` and `w` (`2K` directions) into `products`.
+    fn point_dissipation(
+        &mut self,
+        model: &dyn TapeModel,
+        q: &[f64],
+        v: &[f64],
+        layout: Option<Layout>,
+    ) -> Result<(), Breakdown> {
+        let n = q.len();
+        let inputs = 2 * n;
+        self.inputs[..inputs].fill(0.0);
+        let (qs, vs) = (&mut self.vars.0, &mut self.vars.1);
+        self.tape
+            .record(&self.inputs[..inputs], |x: &[Var]| {
+                for i in 0..n {
+                    qs[i] = x[i] + q[i];
+                    vs[i] = x[n + i] + v[i];
+                }
+                model.dissipation(qs, vs)
+            })
+            .map_err(tape_breakdown)?;
+        let gradient = &mut self.gradient[..inputs];
+        match layout {
+            Some(layout) => {
+                let classes = layout.classes();
+                if self.colours.len() != inputs || self.colour_classes != classes {
+                    let class = |i: usize| u32::try_from(i % classes).ok();
+                    let offset = |i: usize| u32::try_from(classes + i % classes).ok();
+                    self.colours = (0..n).map(class).chain((0..n).map(offset)).collect();
+                    self.colour_classes = classes;
+                }
+                let seeds = Seeds::Colours { colour: &self.colours, directions: 2 * classes };
+                let len = inputs.checked_mul(2 * classes);
+                if self.products.len() != len.unwrap_or(usize::MAX) {
+                    self.products = super::zeroed(len, n).map_err(super::breakdown)?;
+                }
+                self.tape.hessian_product(&seeds, gradient, &mut self.products).map_err(tape_breakdown)?;
+            }
+            None => self.tape.gradient(gradient).map_err(tape_breakdown)?,
+        }
+        self.resistive[..n].copy_from_slice(&gradient[n..]);
+        Ok(())
+    }
+
     /// Records `Σ_j R(q_k + c_j Δq, Δq·h⁻¹ + z_j)` at `z = 0` and sweeps it:
     /// `∂R/∂v` at each evaluated point into `resistive`, and with a
     /// `layout`, `H·S` seeded on `Δq` into `products`.
@@ -237,10 +361,9 @@ struct Point<'a> {
 }
 
 impl Point<'_> {
-    /// Adds `∂F_k^−/∂Δq` of the applied force `Q` into `band`: per chunk of
-    /// `D::LANES` colour classes, one evaluation of `Q` per point on dual
-    /// numbers, `q` seeded by `c_j` and `v` by `h⁻¹` in the lane of each
-    /// coordinate's class. `at` is scratch of `n` entries.
+    /// Adds `∂F_k^−/∂Δq` of the applied force `Q` into `band`: per point,
+    /// [`applied_directional`] with `q` seeded by `c_j` and `v` by `h⁻¹`.
+    /// `at` is scratch of `n` entries.
     fn applied_jacobian<D: Lanes>(
         &self,
         model: &dyn TapeModel,
@@ -249,39 +372,59 @@ impl Point<'_> {
         layout: Layout,
         band: &mut [f64],
     ) -> Result<(), LinearSolveError> {
-        let n = layout.n;
-        seeded.allocate(n)?;
         let width = layout.width();
-        let classes = layout.classes();
         let (evaluated, w) = distinct(self.points);
         let wh = w * self.h;
-        for first in (0..classes).step_by(D::LANES) {
-            let lanes = D::LANES.min(classes - first);
-            for &j in evaluated {
-                let c = self.points[j];
-                let mut class: usize = 0;
-                for i in 0..n {
-                    at[i] = point_position(c, self.q0[i], self.dq[i]);
-                    let lane = class.checked_sub(first).filter(|&l| l < lanes);
-                    seeded.q[i] = D::seed(at[i], lane, c);
-                    seeded.v[i] = D::seed(self.velocity[i], lane, self.inv_h);
-                    seeded.gq[i] = D::from(0.0);
-                    class += 1;
-                    if class == classes {
-                        class = 0;
-                    }
-                }
-                let t = D::from(point_time(c, self.t0, self.h));
-                ModelScalar::force(model, t, &seeded.q, &seeded.v, &mut seeded.gq);
-                for i in 0..n {
-                    let f = &seeded.gq[i];
-                    let row = &mut band[i * width..(i + 1) * width];
-                    layout.row(i, first, lanes, |slot, lane| row[slot] += (f.part(lane) * wh) * (1.0 - c));
-                }
+        for &j in evaluated {
+            let c = self.points[j];
+            for (i, x) in at.iter_mut().enumerate() {
+                *x = point_position(c, self.q0[i], self.dq[i]);
             }
+            let point = (point_time(c, self.t0, self.h), &*at, self.velocity);
+            applied_directional(model, seeded, point, (c, self.inv_h), layout, |i, slot, part| {
+                band[i * width + slot] += (part * wh) * (1.0 - c);
+            })?;
         }
         Ok(())
     }
+}
+
+/// The derivative of the applied force `Q` at `(t, q, v)` along `q` seeded
+/// by `scale.0` and `v` by `scale.1` in the lane of each coordinate's colour
+/// class: per chunk of `D::LANES` classes one evaluation of `Q` on dual
+/// numbers, each entry handed to `add(row, slot, value)` (the layout's
+/// storage). Each slot of a row is reached once.
+pub(super) fn applied_directional<D: Lanes>(
+    model: &dyn TapeModel,
+    seeded: &mut Seeded<D>,
+    (t, q, v): (f64, &[f64], &[f64]),
+    scale: (f64, f64),
+    layout: Layout,
+    mut add: impl FnMut(usize, usize, f64),
+) -> Result<(), LinearSolveError> {
+    let n = layout.n;
+    seeded.allocate(n)?;
+    let classes = layout.classes();
+    for first in (0..classes).step_by(D::LANES) {
+        let lanes = D::LANES.min(classes - first);
+        let mut class: usize = 0;
+        for i in 0..n {
+            let lane = class.checked_sub(first).filter(|&l| l < lanes);
+            seeded.q[i] = D::seed(q[i], lane, scale.0);
+            seeded.v[i] = D::seed(v[i], lane, scale.1);
+            seeded.gq[i] = D::from(0.0);
+            class += 1;
+            if class == classes {
+                class = 0;
+            }
+        }
+        ModelScalar::force(model, D::from(t), &seeded.q, &seeded.v, &mut seeded.gq);
+        for i in 0..n {
+            let f = &seeded.gq[i];
+            layout.row(i, first, lanes, |slot, lane| add(i, slot, f.part(lane)));
+        }
+    }
+    Ok(())
 }
 
 /// The generalised force `Q − ∂R/∂v` at `(t, q, v)` into `out` (a readout
@@ -307,7 +450,7 @@ pub(crate) fn generalized_force(model: &dyn TapeModel, t: f64, q: &[f64], v: &[f
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::integrator::tape_step::{Lanes3, Lanes5};
     use crate::structure::Coupling;
@@ -316,7 +459,7 @@ mod tests {
     /// A chain's force and dissipation, both depending on `q` and `v` with
     /// bandwidth 1: `Q_i = −v_i³ q_{i+1} + sin(t) q_i`, `R = Σ ½(1 + q_i²) v_i²
     /// + ½ (v_{i+1} − v_i)² cos q_i`.
-    struct Forced;
+    pub(in crate::integrator::tape_step) struct Forced;
 
     fn force<D: Scalar>(t: D, q: &[D], v: &[D], f: &mut [D]) {
         let n = q.len();

@@ -11,6 +11,10 @@
 //! q_{k+1} = q_k + D_s,   p_{k+1} = ∂A/∂Q_s = p_k + g_{q_k},   E_{k+1} = −g_h
 //! ```
 //!
+//! A forced or dissipative system's node equations gain the discrete
+//! Lagrange–d'Alembert forces `F^ρ` and the momentum change their impulse
+//! (`galerkin_forces.rs`).
+//!
 //! The variables of coordinate `i` sit next to each other, so an `L` whose
 //! Hessian has bandwidth `b` gives an action Hessian of bandwidth
 //! `b(s + 1) + s` (the seeds of one second-order sweep: `2b(s + 1) + 2s + 1`
@@ -20,6 +24,7 @@
 
 use core::cell::RefCell;
 
+use super::galerkin_forces::GalerkinForcing;
 use super::implicit::Slot;
 use super::{Guess, Node, SparseWork, TAPE_FAILED, Taken, TapeModel, assemble_and_factor, breakdown, filled, zeroed};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
@@ -76,6 +81,53 @@ impl Rule {
     pub(crate) fn basis(&self, m: usize, tau: f64) -> f64 {
         lagrange(&self.tau, m, tau)
     }
+
+    /// The degree `s`.
+    pub(super) fn degree(&self) -> usize {
+        self.s
+    }
+
+    /// The quadrature points `c_j`.
+    pub(super) fn points(&self) -> &[f64] {
+        &self.points
+    }
+
+    /// The quadrature weights `b_j`.
+    pub(super) fn weights(&self) -> &[f64] {
+        &self.weights
+    }
+
+    /// `(ℓ_m(c_j), ℓ_m'(c_j))` for `m = 1 … s`, at `m − 1`.
+    pub(super) fn columns(&self, j: usize) -> (&[f64], &[f64]) {
+        let s = self.s;
+        (&self.col[j * s..(j + 1) * s], &self.col_d[j * s..(j + 1) * s])
+    }
+}
+
+/// Where entry `(e, u)` of the Newton block sits in its storage: band
+/// storage of bandwidth `offset` (row `e`'s `2·offset + 1` entries around the
+/// diagonal) or whole rows.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BlockLayout {
+    width: usize,
+    offset: usize,
+    banded: bool,
+}
+
+impl BlockLayout {
+    /// The storage of `unknowns` unknowns with bandwidth `bandwidth` (`None`: dense).
+    pub(super) fn new(unknowns: usize, bandwidth: Option<usize>) -> Self {
+        match bandwidth {
+            Some(b) => Self { width: 2 * b + 1, offset: b, banded: true },
+            None => Self { width: unknowns, offset: 0, banded: false },
+        }
+    }
+
+    /// The index of entry `(e, u)`.
+    #[inline(always)]
+    pub(super) fn slot(self, e: usize, u: usize) -> usize {
+        if self.banded { e * self.width + u + self.offset - e } else { e * self.width + u }
+    }
 }
 
 /// The work of Galerkin steps on the tape for one system size and rule:
@@ -111,6 +163,9 @@ pub(crate) struct GalerkinWork {
     correction: Vec<f64>,
     /// The extrapolation weights of the last step's polynomial, `s × s`.
     extrapolation: Vec<f64>,
+    /// The discrete forces' buffers, made at the first step of a forced
+    /// system.
+    forcing: Option<Box<GalerkinForcing>>,
 }
 
 impl Clone for GalerkinWork {
@@ -133,6 +188,7 @@ impl Clone for GalerkinWork {
             trial: self.trial.clone(),
             correction: self.correction.clone(),
             extrapolation: self.extrapolation.clone(),
+            forcing: None,
         }
     }
 
@@ -202,6 +258,7 @@ impl GalerkinWork {
             trial: zeroed(Some(unknowns), n)?,
             correction: zeroed(Some(unknowns), n)?,
             extrapolation: vec![0.0; s * s],
+            forcing: None,
         })
     }
 
@@ -339,14 +396,8 @@ impl GalerkinWork {
     fn assemble(&mut self) {
         let (n, s) = (self.n, self.rule.s);
         let stride = s + 1;
-        let unknowns = n * s;
-        let (width, offset) = match self.block_bandwidth {
-            Some(b) => (2 * b + 1, b),
-            None => (unknowns, 0),
-        };
-        // Row `e`'s entry in column `u`, in band or whole-row storage.
-        let banded = self.block_bandwidth.is_some();
-        let slot = |e: usize, u: usize| if banded { e * width + u + offset - e } else { e * width + u };
+        let layout = BlockLayout::new(n * s, self.block_bandwidth);
+        let slot = |e: usize, u: usize| layout.slot(e, u);
         let mut band = core::mem::take(&mut self.band);
         band.fill(0.0);
         for i in 0..n {
@@ -394,12 +445,21 @@ impl GalerkinWork {
             Jacobian::Fresh => self.tape.hessian_product(&seeds, &mut self.gradient, &mut self.products),
         }
         .map_err(super::tape_breakdown)?;
-        let scale = self.residual(node, r);
-        if jacobian == Jacobian::Fresh {
+        let mut scale = self.residual(node, r);
+        let fresh = jacobian == Jacobian::Fresh;
+        if fresh {
             let nodes = self.n * (self.rule.s + 1);
             seeds.recover(&self.products, 0..nodes, &mut self.hessian).map_err(super::tape_breakdown)?;
             self.assemble();
-            let unknowns = self.n * self.rule.s;
+        }
+        let unknowns = self.n * self.rule.s;
+        if let Some(forcing) = self.forcing.as_deref_mut() {
+            // The discrete forces on the nodes, and their derivatives in the block.
+            let block = fresh.then_some((BlockLayout::new(unknowns, self.block_bandwidth), &mut self.band[..]));
+            let forces = forcing.add(model, &self.rule, node, h, x, Some(r), None, block)?;
+            scale = scale.max(forces);
+        }
+        if fresh {
             assemble_and_factor(&mut self.jacobian, unknowns, self.block_bandwidth, &self.band, min_rcond)?;
         }
         Ok(scale)
@@ -424,6 +484,14 @@ impl GalerkinWork {
         spare: &mut SparseWork,
     ) -> Result<(Taken, f64), NewtonFailure> {
         let (n, s) = (self.n, self.rule.s);
+        if self.forcing.is_none() && (model.has_force() || model.has_dissipation()) {
+            let forcing =
+                GalerkinForcing::new(n, self.coupling_bandwidth, &self.rule).map_err(|_| NewtonFailure::Rejected {
+                    iterations: 0,
+                    reason: "the buffers of the discrete forces cannot be allocated",
+                })?;
+            self.forcing = Some(Box::new(forcing));
+        }
         let mut x = core::mem::take(&mut self.trial);
         self.predict(h, v0, &mut x);
         // The growth check compares the end increment with the predicted and
@@ -524,6 +592,15 @@ impl GalerkinWork {
         let mut dp = spare.buffer();
         for i in 0..n {
             dp[i] = self.gradient[i * stride];
+        }
+        if let Some(forcing) = self.forcing.as_deref_mut() {
+            // p_{k+1} − p_k = h Σ_j b_j (∂L/∂q + F)(c_j): the forces on all
+            // s + 1 nodes sum to the impulse h Σ_j b_j F_j.
+            if let Err(failure) = forcing.add(model, &self.rule, node, h, x, None, Some(&mut dp), None) {
+                spare.recycle(dq);
+                spare.recycle(dp);
+                return Err(failure.at(report.iterations));
+            }
         }
         let mut taken = spare.taken(dq, report);
         if node.plain {

@@ -25,8 +25,10 @@
 //! systems), `directional.rs` (derivatives at the rule's points by seeded
 //! dual lanes), `legendre.rs` (momentum, energy and velocity at a node, the
 //! potential force, the discrete energy of a step), `galerkin.rs` (the
-//! Galerkin rules' step at a run-time size); this file holds the
-//! buffers they share and the growth check.
+//! Galerkin rules' step at a run-time size), `forcing.rs` and
+//! `galerkin_forces.rs` (the discrete forces of the one-point rules and of
+//! the Galerkin rules); this file holds the buffers they share and the
+//! growth check.
 
 use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
@@ -43,6 +45,7 @@ mod directional;
 mod explicit;
 mod forcing;
 mod galerkin;
+mod galerkin_forces;
 mod implicit;
 mod legendre;
 
