@@ -148,6 +148,9 @@ impl<S: DynLagrangian + Clone> DynProblem<S> {
         if let Some(options) = self.newton {
             builder = builder.newton(options);
         }
+        if let Some(bounds) = policy.bounds() {
+            builder = builder.energy_preserving(bounds);
+        }
         builder.start(self.t0, &self.q0, &self.v0)
     }
 }

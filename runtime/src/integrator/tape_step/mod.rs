@@ -40,6 +40,7 @@ use num_dual::Dual64;
 use std::sync::Arc;
 
 mod directional;
+mod energy;
 mod explicit;
 mod forcing;
 mod galerkin;
@@ -51,6 +52,7 @@ use explicit::Mass;
 use forcing::Forcing;
 
 pub(crate) use directional::{distinct, point_position, point_time};
+pub(crate) use energy::{EnergyBuffers, EnergyTerms};
 pub(crate) use forcing::generalized_force;
 pub(crate) use galerkin::{GalerkinWork, Rule};
 pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
