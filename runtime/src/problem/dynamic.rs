@@ -204,6 +204,13 @@ impl<S: DynLagrangian> DynStepper<S> {
         each!(&self.driver, d => d.energy())
     }
 
+    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
+    /// the energy that [`Policy::EnergyPreserving`] steps conserve (at
+    /// `k = 0`, the energy of the initial data).
+    pub fn discrete_energy(&self) -> f64 {
+        each!(&self.driver, d => d.discrete_energy())
+    }
+
     /// Work counters.
     pub fn stats(&self) -> Stats {
         each!(&self.driver, d => *d.stats())

@@ -49,10 +49,26 @@ pub(super) struct EnergySteps {
     /// Kahan compensation of the time: the times are exact sums of the steps.
     time_error: f64,
     buffers: EnergyBuffers,
-    /// The increment and energy terms of the latest probe, with its number.
-    latest: Option<(u64, Vec<f64>, EnergyTerms)>,
+    /// The latest probe.
+    latest: Option<Latest>,
     /// The number of the latest probe.
     serial: u64,
+    /// `dΔq/dh = −J⁻¹c` along the solutions of the DEL at the latest probe
+    /// (scratch; valid where its slope is finite).
+    tangent: Vec<f64>,
+    /// Stage 1: a probe starts its Newton iteration from the latest probe's
+    /// increment moved along the tangent, the increment of the bordered
+    /// Newton step on `(Δq, h)`.
+    warm: bool,
+}
+
+/// A probe: its number, size, increment and energy terms.
+#[derive(Debug)]
+struct Latest {
+    serial: u64,
+    h: f64,
+    dq: Vec<f64>,
+    terms: EnergyTerms,
 }
 
 impl EnergySteps {
@@ -67,6 +83,8 @@ impl EnergySteps {
             buffers: EnergyBuffers::default(),
             latest: None,
             serial: 0,
+            tangent: Vec::new(),
+            warm: false,
         }
     }
 }
@@ -84,6 +102,8 @@ impl Clone for EnergySteps {
             buffers: EnergyBuffers::default(),
             latest: None,
             serial: self.serial,
+            tangent: Vec::new(),
+            warm: false,
         }
     }
 
@@ -135,10 +155,23 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// `Err` carries the Newton iterations spent when it fails, stalls or
     /// leaves `[lo, hi]`.
     fn newton_in_h(&mut self, start: f64, lo: f64, hi: f64) -> Result<((f64, u64), NewtonReport, Taken), usize> {
+        let outcome = self.warm_newton_in_h(start, lo, hi);
+        if let Some(steps) = self.variable.as_deref_mut() {
+            steps.warm = false;
+        }
+        outcome
+    }
+
+    /// [`newton_in_h`](Self::newton_in_h), each probe after the first
+    /// started from the last one along its tangent.
+    fn warm_newton_in_h(&mut self, start: f64, lo: f64, hi: f64) -> Result<((f64, u64), NewtonReport, Taken), usize> {
         let mut spent = 0;
         let mut h = start;
         for _ in 0..NEWTON_PROBES {
             let Ok(p) = self.probe(h, &mut spent) else { return Err(spent) };
+            if let Some(steps) = self.variable.as_deref_mut() {
+                steps.warm = p.slope.is_finite();
+            }
             if p.solved() {
                 return Ok((p.trial, p.report(spent), Taken::Root));
             }
@@ -163,15 +196,15 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     fn accept(&mut self, (h, serial): (f64, u64), report: NewtonReport, taken: Taken) -> Result<(), Error> {
         let latest = self.variable.as_deref_mut().and_then(|steps| steps.latest.take());
         let (dq, terms) = match latest {
-            Some((number, dq, terms)) if number == serial => (dq, terms),
+            Some(latest) if latest.serial == serial => (latest.dq, latest.terms),
             other => {
-                if let Some((_, dq, _)) = other {
-                    self.work.recycle(dq);
+                if let Some(latest) = other {
+                    self.work.recycle(latest.dq);
                 }
                 let mut spent = 0;
                 self.probe(h, &mut spent).map_err(|e| self.place(e))?;
                 match self.variable.as_deref_mut().and_then(|steps| steps.latest.take()) {
-                    Some((_, dq, terms)) => (dq, terms),
+                    Some(latest) => (latest.dq, latest.terms),
                     None => {
                         return Err(Error::Unsupported { what: "energy steps without their state (internal error)" });
                     }
@@ -234,7 +267,14 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
         let mut predictor = vec![0.0; n];
-        crate::integrator::predict_into(h, last, earlier, &self.v0, &mut predictor);
+        match self.variable.as_deref() {
+            Some(EnergySteps { warm: true, latest: Some(from), tangent, .. }) => {
+                for ((x, d), t) in predictor.iter_mut().zip(&from.dq).zip(tangent) {
+                    *x = d + (h - from.h) * t;
+                }
+            }
+            _ => crate::integrator::predict_into(h, last, earlier, &self.v0, &mut predictor),
+        }
         let scaled: Option<Vec<f64>> =
             self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
         let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
@@ -251,8 +291,13 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
         let target = steps.energy;
         let g = terms.d_t0 - target;
         steps.serial += 1;
-        if let Some((_, old, _)) = steps.latest.replace((steps.serial, dq, terms)) {
-            self.work.recycle(old);
+        if terms.slope.is_finite() {
+            steps.tangent.clear();
+            steps.tangent.extend(steps.buffers.tangent().iter().map(|y| -y));
+        }
+        let latest = Latest { serial: steps.serial, h, dq, terms };
+        if let Some(old) = steps.latest.replace(latest) {
+            self.work.recycle(old.dq);
         }
         if !g.is_finite() {
             let iterations = *spent;

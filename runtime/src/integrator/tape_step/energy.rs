@@ -11,12 +11,14 @@
 //! g'(h) = d − r·J⁻¹c                            (the Schur complement of the bordered Jacobian)
 //! ```
 //!
-//! One recording, one sweep with the banded seeds of the step Jacobian and
-//! one with the seeds on `h` (and on `t_k` for a time-dependent `L`), one
-//! factorisation and one solve: `O(N)` for a banded `L`, like a Newton
-//! iteration of the step itself.
+//! One recording, one second-order sweep with the seeds on `h` (and on
+//! `t_k` for a time-dependent `L`) and one solve with the factors of `J`
+//! that the DEL's Newton iteration has just formed (at its last fresh
+//! iterate, within the Newton tolerance of the solution: the slope only
+//! steers the search, the root is that of `g`): `O(N)` for a banded `L`,
+//! less than a Newton iteration of the step itself.
 
-use super::{Guess, Node, SparseWork, TapeModel, assemble_and_factor, breakdown, seeds, tape_breakdown, zeroed};
+use super::{Guess, Node, SparseWork, TapeModel, breakdown, tape_breakdown, zeroed};
 use crate::banded::StepMatrix;
 use crate::newton::{Breakdown, NewtonFailure, NewtonOptions, NewtonReport};
 use crate::tape::{Seeds, Var};
@@ -41,12 +43,18 @@ pub(crate) struct EnergyBuffers {
     /// `(q_k, Δq, h, t_k)`.
     inputs: Vec<f64>,
     gradient: Vec<f64>,
-    /// `H·S` of the banded seeds on `Δq`.
-    products: Vec<f64>,
     /// `H·S` of the seeds on `h` (and `t_k`).
     columns: Vec<f64>,
     /// `J⁻¹c`.
     column: Vec<f64>,
+}
+
+impl EnergyBuffers {
+    /// `J⁻¹c` of the last probe whose slope is finite: `−dΔq/dh` along the
+    /// solutions of the DEL.
+    pub(crate) fn tangent(&self) -> &[f64] {
+        &self.column
+    }
 }
 
 impl Clone for EnergyBuffers {
@@ -72,7 +80,7 @@ impl SparseWork {
         options: &NewtonOptions,
     ) -> Result<(Vec<f64>, NewtonReport, EnergyTerms), NewtonFailure> {
         let (dq, report) = self.solve(model, node, h, guess, options)?;
-        match self.energy_terms(buffers, model, node, h, &dq, options.min_rcond) {
+        match self.energy_terms(buffers, model, node, h, &dq) {
             Ok(terms) => Ok((dq, report, terms)),
             Err(failure) => {
                 self.recycle(dq);
@@ -81,7 +89,9 @@ impl SparseWork {
         }
     }
 
-    /// [`EnergyTerms`] at the increment `dq` of a step of size `h` from `node`.
+    /// [`EnergyTerms`] at the increment `dq` of a step of size `h` from
+    /// `node`, with the factors of the step Jacobian the DEL's Newton
+    /// iteration left.
     fn energy_terms(
         &mut self,
         buffers: &mut EnergyBuffers,
@@ -89,26 +99,20 @@ impl SparseWork {
         node: &Node<'_>,
         h: f64,
         dq: &[f64],
-        min_rcond: f64,
     ) -> Result<EnergyTerms, Breakdown> {
         let n = self.n;
         let (at_h, at_t) = (2 * n, 2 * n + 1);
-        let banded = seeds(n..2 * n, self.bandwidth);
         // The seed on `t_k` only where `L` depends on time.
         let timed = Seeds::dense(at_h..if model.autonomous() { at_h + 1 } else { at_t + 1 });
         let k = timed.directions();
         if buffers.inputs.len() != 2 * n + 2 {
             let inputs = n.checked_mul(2).and_then(|x| x.checked_add(2));
-            let products = inputs.and_then(|i| i.checked_mul(banded.directions()));
             buffers.inputs = zeroed(inputs, n).map_err(breakdown)?;
             buffers.gradient = zeroed(inputs, n).map_err(breakdown)?;
-            buffers.products = zeroed(products, n).map_err(breakdown)?;
             buffers.columns = zeroed(inputs.and_then(|i| i.checked_mul(2)), n).map_err(breakdown)?;
             buffers.column = zeroed(Some(n), n).map_err(breakdown)?;
         }
-        // The band blocks of the step Jacobian go to the work's own buffers.
-        self.tape_buffers().map_err(breakdown)?;
-        let EnergyBuffers { inputs, gradient, products, columns, column } = buffers;
+        let EnergyBuffers { inputs, gradient, columns, column } = buffers;
         let columns = &mut columns[..(2 * n + 2) * k];
         inputs[..n].copy_from_slice(node.q);
         inputs[n..2 * n].copy_from_slice(dq);
@@ -120,14 +124,7 @@ impl SparseWork {
         if !action.is_finite() {
             return Err(Breakdown::NonFinite("lagrangian"));
         }
-        // J = ∂²A/∂q_k∂Δq − ∂²A/∂Δq², as the step's own linearisation forms it.
-        self.tape.hessian_product(&banded, gradient, products).map_err(tape_breakdown)?;
-        banded.recover(products, 0..n, &mut self.mixed).map_err(tape_breakdown)?;
-        banded.recover(products, n..2 * n, &mut self.end).map_err(tape_breakdown)?;
-        for (a, b) in self.mixed.iter_mut().zip(&self.end) {
-            *a -= b;
-        }
-        // The gradient again, with the columns of `h` and `t_k`.
+        // The gradient, with the columns of `h` and `t_k`.
         self.tape.hessian_product(&timed, gradient, columns).map_err(tape_breakdown)?;
         let (g_h, g_t) = (gradient[at_h], if model.autonomous() { 0.0 } else { gradient[at_t] });
         let d_t0 = g_t - g_h;
@@ -138,8 +135,8 @@ impl SparseWork {
         }
         let (hh, ht) = at(at_h);
         let d = ht - hh;
-        let slope = match assemble_and_factor(&mut self.jacobian, n, self.bandwidth, &self.mixed, min_rcond) {
-            Ok(()) if self.jacobian.solve(column).is_ok() => {
+        let slope = match self.jacobian.solve(column) {
+            Ok(()) => {
                 let mut r_y = 0.0;
                 for (j, y) in column.iter().enumerate() {
                     let (dh, dt) = at(n + j);
