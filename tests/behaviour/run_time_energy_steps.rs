@@ -86,6 +86,33 @@ impl DoublePendulumDyn {
     }
 }
 
+/// An oscillator whose stiffness depends on time: its discrete energy
+/// changes by `−(∂A/∂t_k + ∂A/∂t_{k+1})` at each step.
+#[derive(Clone)]
+struct Pumped;
+
+#[lagrangian]
+impl Pumped {
+    fn lagrangian(&self, t: f64, q: [f64; 1], v: [f64; 1]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * (1.0 + 0.2 * t.sin()) * q[0] * q[0]
+    }
+}
+
+/// The same oscillator over slices.
+#[derive(Clone)]
+struct PumpedDyn;
+
+#[lagrangian]
+impl PumpedDyn {
+    fn dimension(&self) -> usize {
+        1
+    }
+
+    fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+        0.5 * v[0] * v[0] - 0.5 * (1.0 + 0.2 * t.sin()) * q[0] * q[0]
+    }
+}
+
 /// A pendulum over slices: trapezoid energy steps from rest lose the root
 /// of the energy equation within a swing.
 #[derive(Clone)]
@@ -153,6 +180,14 @@ fn a_chain_takes_the_same_energy_steps_at_both_sizes() {
 #[test]
 fn a_double_pendulum_takes_the_same_energy_steps_at_both_sizes() {
     let worst = both_sizes(DoublePendulum, DoublePendulumDyn, ([0.5, 0.3], [0.0, 0.0]), 0.01, 400);
+    assert!(worst < 2.0, "{worst}");
+}
+
+/// A time-dependent `L`: the energy equation is the discrete energy
+/// balance of de León & Martín de Diego, with the seed on `t_k`.
+#[test]
+fn a_time_dependent_oscillator_takes_the_same_energy_steps_at_both_sizes() {
+    let worst = both_sizes(Pumped, PumpedDyn, ([1.0], [0.3]), 0.05, 400);
     assert!(worst < 2.0, "{worst}");
 }
 
