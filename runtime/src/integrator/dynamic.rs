@@ -439,7 +439,9 @@ impl Clone for DynSegment {
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
 /// one) or a Galerkin rule ([`Galerkin`](crate::Galerkin), any degree: its
 /// `sN` node unknowns in one banded or dense Newton block), and fixed
-/// steps; the one-point rules and compositions with the system's forces
+/// steps, or for the one-point rules energy-preserving ones
+/// ([`DynIntegratorBuilder::energy_preserving`], `dynamic/energy.rs`);
+/// the one-point rules and compositions with the system's forces
 /// and dissipation ([`DynLagrangian::force`], [`DynLagrangian::dissipation`])
 /// by the discrete Lagrange–d'Alembert principle, every step then a Newton
 /// step.

@@ -25,7 +25,9 @@
 //! systems), `directional.rs` (derivatives at the rule's points by seeded
 //! dual lanes), `legendre.rs` (momentum, energy and velocity at a node, the
 //! potential force, the discrete energy of a step), `galerkin.rs` (the
-//! Galerkin rules' step at a run-time size); this file holds the
+//! Galerkin rules' step at a run-time size), `energy.rs` (the energy
+//! equation of a trial step and its slope, for energy-preserving steps at
+//! a run-time size); this file holds the
 //! buffers they share and the growth check.
 
 use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
