@@ -427,16 +427,18 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // steps, of a forced system, for the one-point rules); forces with
     // fixed steps but for the splitting; no compile-time size above 1024;
     // at run-time size fixed steps and `solve` of the one-point rules, the
-    // Galerkin rules and the compositions, forced or not; sensitivities and the adjoint for fixed steps of
+    // Galerkin rules and the compositions, forced or not, and
+    // energy-preserving steps of the one-point rules (no energy-balance
+    // steps); sensitivities and the adjoint for fixed steps of
     // the one-point rules, the Galerkin rules, the compositions and the
     // implicit time transformation, forced or not, for energy-preserving
     // steps of the one-point and Galerkin rules, for energy-balance steps
     // of the one-point rules, and for the splitting, unforced.
-    let one_point = [true, true, true, true, false, true, true, true, true, true, true, true];
-    let galerkin = [true, true, false, true, false, true, true, true, true, true, true, false];
-    let composition = [true, false, false, true, false, true, true, true, true, true, false, false];
-    let transformed = [true, false, false, true, false, false, false, false, true, true, false, false];
-    let splitting = [true, false, false, false, false, false, false, false, true, false, false, false];
+    let one_point = [true, true, true, true, false, true, true, true, true, false, true, true, true, true];
+    let galerkin = [true, true, false, true, false, true, true, true, false, false, true, true, true, false];
+    let composition = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
+    let transformed = [true, false, false, true, false, false, false, false, false, false, true, true, false, false];
+    let splitting = [true, false, false, false, false, false, false, false, false, false, true, false, false, false];
     let expected = [
         one_point,
         one_point,
@@ -476,7 +478,7 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
 type Column = (&'static str, fn(f64) -> Policy, Size, bool, Capability);
 
 /// The columns of the scheme table.
-const SCHEME_COLUMNS: [Column; 12] = [
+const SCHEME_COLUMNS: [Column; 14] = [
     ("fixed, N = 2", Policy::fixed, Size::Const(2), false, Capability::Solve),
     ("energy-preserving, N = 2", Policy::energy_preserving, Size::Const(2), false, Capability::Solve),
     ("energy-balance, forced, N = 2", Policy::energy_balance, Size::Const(2), true, Capability::Solve),
@@ -485,6 +487,14 @@ const SCHEME_COLUMNS: [Column; 12] = [
     ("fixed, run-time N: step, `run_until`", Policy::fixed, Size::Dynamic, false, Capability::Step),
     ("fixed, run-time N: `solve`, files", Policy::fixed, Size::Dynamic, false, Capability::Solve),
     ("fixed, forced, run-time N: step, `solve`", Policy::fixed, Size::Dynamic, true, Capability::Solve),
+    (
+        "energy-preserving, run-time N: step, `solve`",
+        Policy::energy_preserving,
+        Size::Dynamic,
+        false,
+        Capability::Solve,
+    ),
+    ("energy-balance, forced, run-time N", Policy::energy_balance, Size::Dynamic, true, Capability::Solve),
     ("sensitivities, adjoint: fixed, N = 2", Policy::fixed, Size::Const(2), false, Capability::Sensitivities),
     ("sensitivities, adjoint: fixed, forced, N = 2", Policy::fixed, Size::Const(2), true, Capability::Sensitivities),
     (
@@ -506,12 +516,12 @@ const SCHEME_COLUMNS: [Column; 12] = [
 /// Every method family × step policy × size through `Problem` (arrays or
 /// vectors): what `lagrangian::problem::supports` answers, the
 /// markdown table and whether each cell is defined.
-fn scheme_table() -> (String, Vec<[bool; 12]>) {
+fn scheme_table() -> (String, Vec<[bool; 14]>) {
     let names: Vec<&str> = SCHEME_COLUMNS.iter().map(|c| c.0).collect();
     let mut table = format!("| scheme | {} |\n|---|{}\n", names.join(" | "), "---|".repeat(names.len()));
     let mut defined = Vec::new();
     for (name, scheme, _) in families() {
-        let mut row = [false; 12];
+        let mut row = [false; 14];
         let cells: Vec<String> = SCHEME_COLUMNS
             .iter()
             .zip(&mut row)

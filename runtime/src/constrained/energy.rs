@@ -95,7 +95,7 @@ pub(super) fn reread_energy<S: Lagrangian<N>, D: DiscreteLagrangian, const N: us
     }
 }
 
-impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> EnergySearch<N>
+impl<S: Lagrangian<N>, D: DiscreteLagrangian, const N: usize, const M: usize> EnergySearch
     for Integrator<S, Constrained<D, M>, N>
 {
     type Trial = Positions<N, M>;

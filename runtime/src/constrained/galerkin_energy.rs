@@ -79,7 +79,7 @@ where
     }
 }
 
-impl<Sys, const N: usize, const S: usize, const R: usize, const M: usize> EnergySearch<N>
+impl<Sys, const N: usize, const S: usize, const R: usize, const M: usize> EnergySearch
     for Integrator<Sys, Constrained<Galerkin<S, R>, M>, N>
 where
     Sys: Lagrangian<N>,

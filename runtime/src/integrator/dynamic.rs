@@ -18,7 +18,7 @@ use super::method::sealed;
 use super::tape_step::{
     self, Composed, GalerkinWork, Growth, Guess, Lanes3, Lanes5, LastSubstep, Node, SparseWork, Taken, TapeModel,
 };
-use super::{Clock, Stats, Summation};
+use super::{Clock, EnergyFallback, Stats, StepBounds, Summation};
 use crate::discrete::{DiscreteLagrangian, Trapezoid};
 use crate::error::Error;
 use crate::newton::NewtonOptions;
@@ -29,8 +29,10 @@ use crate::system::{DynLagrangian, Scalar};
 use crate::tape::Var;
 use num_dual::{Dual64, DualNum};
 
+mod energy;
 mod galerkin;
 
+use energy::EnergySteps;
 pub(crate) use galerkin::RunTimeGalerkin;
 
 /// What a [`DynIntegrator`] steps with: a one-point discrete Lagrangian
@@ -237,9 +239,35 @@ pub struct DynIntegratorBuilder<S, M> {
     h: f64,
     newton: NewtonOptions,
     summation: Summation,
+    /// The bounds of energy-preserving steps; `None`: fixed steps.
+    energy_steps: Option<StepBounds>,
+    fallback: EnergyFallback,
 }
 
 impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
+    /// Energy-preserving variable steps within `bounds`, starting from the
+    /// guess `h` given to [`DynIntegrator::new`], for the one-point rules
+    /// on a system without forces, as
+    /// [`IntegratorBuilder::energy_preserving`](crate::IntegratorBuilder::energy_preserving)
+    /// at a compile-time size: each step size solves the discrete energy
+    /// equation `E_{k+1} = E_k` (for a time-dependent `L`, the discrete
+    /// energy balance of de León & Martín de Diego) with the DEL, by
+    /// banded solves where `L` is banded (`O(N)` per step). The first step
+    /// has the size `h`.
+    pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
+        self.energy_steps = Some(bounds);
+        self
+    }
+
+    /// What energy-preserving steps do where no admissible step size
+    /// satisfies the energy equation (default: [`EnergyFallback::Fail`]; with
+    /// [`EnergyFallback::LeastSquares`] the step of least energy mismatch is
+    /// taken and counted in [`Stats::energy_fallbacks`]).
+    pub fn energy_fallback(mut self, fallback: EnergyFallback) -> Self {
+        self.fallback = fallback;
+        self
+    }
+
     /// Replaces the Newton settings.
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = options;
@@ -254,6 +282,15 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     }
 
     /// Starts at `(t0, q0, v0)` with `p0 = ∂L/∂v(t0, q0, v0)`.
+    ///
+    /// Under [`energy_preserving`](Self::energy_preserving) steps, fails
+    /// with [`Error::InvalidStepBounds`] for unusable bounds,
+    /// [`Error::InvalidStepSize`] for an `h` outside them, and
+    /// [`Error::Unsupported`] for a Galerkin rule or a composition (their
+    /// energy steps are written for a compile-time size, or their steps are
+    /// fixed), a system with forces or dissipation (energy-balance steps are
+    /// written for a compile-time size) and an
+    /// [`accuracy`](StepBounds::accuracy) bound.
     ///
     /// Fails with [`Error::Unsupported`] for a discrete Lagrangian
     /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
@@ -280,6 +317,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         }
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
+        if let Some(bounds) = self.energy_steps {
+            energy_steps_defined::<S, M>(&self.method, bounds, self.h)?;
+        }
         let n = self.system.dimension();
         if self.system.constraint_count() > 0 {
             return Err(Error::Unsupported {
@@ -333,8 +373,37 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
             stats: Stats::default(),
             work: Box::new(work),
             galerkin,
+            variable: self.energy_steps.map(|bounds| Box::new(EnergySteps::new(bounds, self.fallback, energy))),
         })
     }
+}
+
+/// `Ok` when energy-preserving steps within `bounds` from the guess `h` are
+/// defined for `method` on the system `S`; the typed refusal otherwise.
+fn energy_steps_defined<S: DynLagrangian, M: DynMethod>(method: &M, bounds: StepBounds, h: f64) -> Result<(), Error> {
+    if !bounds.valid() {
+        return Err(Error::InvalidStepBounds { h_min: bounds.h_min, h_max: bounds.h_max, max_ratio: bounds.max_ratio });
+    }
+    if !(bounds.h_min..=bounds.h_max).contains(&h) {
+        return Err(Error::InvalidStepSize { h });
+    }
+    if bounds.accuracy.is_some() {
+        return Err(Error::Unsupported { what: energy::NO_ACCURACY_BOUND });
+    }
+    if method.galerkin().is_some() {
+        return Err(Error::Unsupported {
+            what: "energy-preserving steps with a Galerkin rule on a run-time-sized system: they are written for the compile-time size",
+        });
+    }
+    if method.weights().is_some() {
+        return Err(Error::Unsupported { what: "variable steps with a composition: its steps are fixed" });
+    }
+    if is_forced::<S>() {
+        return Err(Error::Unsupported {
+            what: "energy-balance steps of a forced run-time-sized system: the discrete work of the forces is written for the compile-time size",
+        });
+    }
+    Ok(())
 }
 
 /// The last step: `(t_k, h, q_k, Δq)`.
@@ -365,7 +434,9 @@ impl Clone for DynSegment {
 /// sub-steps ([`DynMethod`]; explicit ones fused, Newton ones taken one by
 /// one) or a Galerkin rule ([`Galerkin`](crate::Galerkin), any degree: its
 /// `sN` node unknowns in one banded or dense Newton block), and fixed
-/// steps; every method with the system's forces and dissipation
+/// steps, or for the one-point rules energy-preserving ones
+/// ([`DynIntegratorBuilder::energy_preserving`], `dynamic/energy.rs`);
+/// every method with the system's forces and dissipation
 /// ([`DynLagrangian::force`], [`DynLagrangian::dissipation`]) by the
 /// discrete Lagrange–d'Alembert principle, every step then a Newton step.
 ///
@@ -439,6 +510,8 @@ pub struct DynIntegrator<S, M> {
     work: Box<SparseWork>,
     /// The work of a Galerkin rule's steps; `None` for the other methods.
     galerkin: Option<Box<GalerkinWork>>,
+    /// Energy-preserving steps; `None`: fixed steps.
+    variable: Option<Box<EnergySteps>>,
 }
 
 /// A copy owns buffers of its own. `clone_from` refills the buffers the
@@ -467,6 +540,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
             stats: self.stats,
             work: self.work.clone(),
             galerkin: self.galerkin.clone(),
+            variable: self.variable.clone(),
         }
     }
 
@@ -492,6 +566,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
             stats,
             work,
             galerkin,
+            variable,
         } = self;
         system.clone_from(&source.system);
         method.clone_from(&source.method);
@@ -518,6 +593,7 @@ impl<S: Clone, M: Clone> Clone for DynIntegrator<S, M> {
         *stats = source.stats;
         work.as_mut().clone_from(&source.work);
         galerkin.clone_from(&source.galerkin);
+        variable.clone_from(&source.variable);
     }
 }
 
@@ -526,7 +602,15 @@ impl<S, M> DynIntegrator<S, M> {
     /// `method` and step `h`; continue with [`DynIntegratorBuilder::start`].
     #[allow(clippy::new_ret_no_self)]
     pub fn new(system: S, method: M, h: f64) -> DynIntegratorBuilder<S, M> {
-        DynIntegratorBuilder { system, method, h, newton: NewtonOptions::default(), summation: Summation::Compensated }
+        DynIntegratorBuilder {
+            system,
+            method,
+            h,
+            newton: NewtonOptions::default(),
+            summation: Summation::Compensated,
+            energy_steps: None,
+            fallback: EnergyFallback::Fail,
+        }
     }
 }
 
@@ -588,19 +672,33 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// Changes the step size for the following steps (for example to retry a
     /// failed step with a smaller one). The integrator stays variational: the
     /// DEL equations hold with the step sizes actually taken.
+    ///
+    /// Under energy-preserving steps `h` is the next guess and must lie in
+    /// `[h_min, h_max]`.
     pub fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
         Error::check_step(h)?;
+        if let Some(steps) = &self.variable
+            && !(steps.bounds.h_min..=steps.bounds.h_max).contains(&h)
+        {
+            return Err(Error::InvalidStepSize { h });
+        }
         self.clock = Clock { t: self.state.t, step: self.state.step };
         self.h = h;
         Ok(())
     }
 
-    /// Takes one step of size [`step_size`](Self::step_size).
+    /// Takes one step: of size [`step_size`](Self::step_size) under fixed
+    /// steps, of the size the energy equation fixes under
+    /// [`energy-preserving`](DynIntegratorBuilder::energy_preserving) steps.
     ///
     /// On failure nothing changes: the state, the step size and the
     /// predictor are those from before the call, and the error carries the
     /// state and the Newton diagnostics.
     pub fn step(&mut self) -> Result<&PhasePoint, Error> {
+        if self.variable.is_some() {
+            self.energy_step()?;
+            return Ok(&self.state);
+        }
         let t1 = self.clock.at(self.state.step + 1, self.h);
         self.step_by(self.h, t1)?;
         Ok(&self.state)
@@ -622,6 +720,12 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// would end within `10⁻⁹ h` of it is stretched by that much instead),
     /// and the step size is then restored. A target equal to the current
     /// time is a no-op.
+    ///
+    /// Under energy-preserving steps every step, the last included, is at
+    /// most the largest admissible step `min(h_max, max_ratio·h_{k−1})`; the
+    /// last one is a fixed step of the remaining length (the energy equation
+    /// is not imposed on it, and its discrete energy is conserved from then
+    /// on) and may be shorter than `h_min`.
     pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
         if !t_end.is_finite() || t_end < self.state.t {
             return Err(Error::InvalidTarget { target: t_end, state: self.state.clone() });
@@ -634,6 +738,10 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             if self.lands(t_end) {
                 self.step_by(remaining, t_end)?;
                 self.clock = Clock { t: self.state.t, step: self.state.step };
+                if self.variable.is_some() {
+                    // A fixed landing step: its energy is conserved from here on.
+                    self.reread_energy();
+                }
                 observe(self);
                 return Ok(());
             }
@@ -644,9 +752,14 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
 
     /// `true` when the next step of [`run_until(t_end)`](Self::run_until)
     /// is its landing step: a whole step would reach `t_end` or come within
-    /// `10⁻⁹ h` of it.
+    /// `10⁻⁹ h` of it; under energy-preserving steps, the largest
+    /// admissible step would reach it.
     pub(crate) fn lands(&self, t_end: f64) -> bool {
-        self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9
+        match (&self.variable, &self.previous) {
+            (None, _) => self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9,
+            (Some(steps), Some(last)) => t_end - self.state.t <= steps.bounds.bracket(last.h).1,
+            (Some(_), None) => t_end - self.state.t <= self.h,
+        }
     }
 
     /// One step of size `h` whose end node is stamped with time `t1`.

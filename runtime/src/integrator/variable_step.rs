@@ -52,7 +52,7 @@ use crate::forcing;
 use crate::mechanics::DiscreteMechanics;
 use crate::newton::{self, Breakdown, Extended, NewtonReport};
 use crate::real::max_abs;
-use crate::state::State;
+use crate::state::{PhasePoint, State};
 use crate::system::Lagrangian;
 
 /// Limits on the step sizes of
@@ -181,9 +181,9 @@ pub(crate) struct Probe<X> {
 impl<X> Probe<X> {
     /// [`Error::NoEnergyStep`] from `state` for the bracket `[lo, hi]`, this
     /// probe the least mismatch in it, after `spent` iterations.
-    pub(crate) fn no_energy_step<const N: usize>(
+    pub(crate) fn no_energy_step(
         &self,
-        state: State<N>,
+        state: impl Into<PhasePoint>,
         (lo, hi): (f64, f64),
         spent: usize,
         root_test: Option<(f64, f64, f64)>,
@@ -200,13 +200,13 @@ impl<X> Probe<X> {
     }
 
     /// `g` is round-off of its own terms.
-    fn solved(&self) -> bool {
+    pub(crate) fn solved(&self) -> bool {
         self.g.abs() <= 8.0 * f64::EPSILON * self.scale
     }
 
     /// The report of a step taken at this probe after `iterations` Newton
     /// iterations in all.
-    fn report(&self, iterations: usize) -> NewtonReport {
+    pub(crate) fn report(&self, iterations: usize) -> NewtonReport {
         NewtonReport { iterations, residual_norm: self.g.abs(), correction_norm: 0.0 }
     }
 }
@@ -214,8 +214,9 @@ impl<X> Probe<X> {
 /// The search over the step size `h` of an energy-preserving step: a
 /// family of steps whose position equations can be solved at any trial `h`
 /// ([`probe`](Self::probe)) gets the bracket search, the safeguarded Newton
-/// iteration on `g(h)` and the least-mismatch fallback written once here.
-pub(crate) trait EnergySearch<const N: usize> {
+/// iteration on `g(h)` and the least-mismatch fallback written once here,
+/// whatever the size of the system (the error's state is a [`PhasePoint`]).
+pub(crate) trait EnergySearch {
     /// A trial step with its position equations solved.
     type Trial: Copy;
 
@@ -689,7 +690,7 @@ impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> Integrator<S, M, N
     }
 }
 
-impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch<N> for Integrator<S, M, N> {
+impl<S: Lagrangian<N>, M: DiscreteLagrangian, const N: usize> EnergySearch for Integrator<S, M, N> {
     type Trial = Segment<N>;
 
     /// `g(h)` and `g'(h)` with the DEL solved at step `h`.

@@ -140,6 +140,9 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
         if let Some(options) = self.newton {
             builder = builder.newton(options);
         }
+        if let Some(bounds) = policy.bounds() {
+            builder = builder.energy_preserving(bounds);
+        }
         builder.start(self.t0, &self.q0, &self.v0)
     }
 }
@@ -175,6 +178,13 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
     /// The energy `E_L(t_k, q_k, v_k)` at the current node.
     pub fn energy(&self) -> Result<f64, Error> {
         each!(&self.driver, d => d.energy())
+    }
+
+    /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
+    /// the energy that [`Policy::EnergyPreserving`] steps conserve (at
+    /// `k = 0`, the energy of the initial data).
+    pub fn discrete_energy(&self) -> f64 {
+        each!(&self.driver, d => d.discrete_energy())
     }
 
     /// Work counters.

@@ -150,8 +150,12 @@ pub struct Combination<'a> {
 /// assert!(supports(&query).is_ok());
 /// query.size = Size::Dynamic;
 /// assert!(supports(&query).is_ok());
+/// // Energy-preserving steps at a run-time size: the one-point rules.
 /// query.policy = Policy::energy_preserving(0.1);
 /// assert!(supports(&query).unwrap_err().contains("run-time-sized"));
+/// let midpoint = Scheme::MIDPOINT;
+/// query.scheme = &midpoint;
+/// assert!(supports(&query).is_ok());
 /// ```
 pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     if c.constraints != 0 {
@@ -304,8 +308,27 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
             );
         }
     }
-    if !matches!(c.policy, Policy::Fixed { .. }) {
-        return Err("variable steps on a run-time-sized system: its steps are fixed");
+    match c.scheme {
+        Scheme::OnePoint(_) => variable_steps(c)?,
+        Scheme::Composition { .. } if !matches!(c.policy, Policy::Fixed { .. }) => {
+            return Err("variable steps with a composition: its steps are fixed");
+        }
+        Scheme::Galerkin { .. } if !matches!(c.policy, Policy::Fixed { .. }) => {
+            return Err(
+                "energy steps with a Galerkin rule on a run-time-sized system: they are written for the compile-time size",
+            );
+        }
+        _ => {}
+    }
+    if let Policy::EnergyBalance { .. } = c.policy {
+        return Err(
+            "energy-balance steps of a forced run-time-sized system: the discrete work of the forces is written for the compile-time size",
+        );
+    }
+    if c.policy.bounds().is_some_and(|b| b.accuracy.is_some()) {
+        return Err(
+            "an accuracy bound on energy steps of a run-time-sized system: the fastest mode of the linearisation is a dense eigenproblem of the size of the system",
+        );
     }
     match c.capability {
         Capability::Step | Capability::Solve => Ok(()),

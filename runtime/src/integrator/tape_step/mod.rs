@@ -27,8 +27,9 @@
 //! potential force, the discrete energy of a step), `galerkin.rs` (the
 //! Galerkin rules' step at a run-time size), `forcing.rs` and
 //! `galerkin_forces.rs` (the discrete forces of the one-point rules and of
-//! the Galerkin rules); this file holds the buffers they share and the
-//! growth check.
+//! the Galerkin rules), `energy.rs` (the energy equation of a trial step
+//! and its slope, for energy-preserving steps at a run-time size); this
+//! file holds the buffers they share and the growth check.
 
 use super::{IMPLAUSIBLE_GROWTH, implausible_growth};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
@@ -42,6 +43,7 @@ use num_dual::Dual64;
 use std::sync::Arc;
 
 mod directional;
+mod energy;
 mod explicit;
 mod forcing;
 mod galerkin;
@@ -54,6 +56,7 @@ use explicit::Mass;
 use forcing::Forcing;
 
 pub(crate) use directional::{distinct, point_position, point_time};
+pub(crate) use energy::{EnergyBuffers, EnergyTerms};
 pub(crate) use forcing::generalized_force;
 pub(crate) use galerkin::{GalerkinWork, Rule};
 pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
