@@ -375,21 +375,16 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     if requested < floor {
                         return Err(refusal(floor).into());
                     }
-                    // An estimate above the request is no answer: where the
-                    // pilot's difference was round-off, no step of `f64`
-                    // shows the method meeting it (refused as the floor is);
-                    // otherwise the pilot ran out of steps that meet it
-                    // (a composition at its cap), and the next candidate runs.
-                    // A step the user fixed runs, its estimate reported.
+                    // An estimate above the request is no answer, refused as
+                    // the floor is. A pilot whose step follows its estimate
+                    // ends at or below the target: only round-off (a
+                    // difference of the pilot's runs at its level,
+                    // extrapolated) or an exponential growth leaves it above,
+                    // where no step of `f64` is shown to meet the request,
+                    // whatever the method. A step the user fixed runs, its
+                    // estimate reported.
                     if error > requested && self.step.is_none() {
-                        if rich.is_roundoff() {
-                            return Err(refusal(error).into());
-                        }
-                        failures.push(format!(
-                            "{}: estimated error {error:.2e} above the {requested:.2e} asked",
-                            candidate.name()
-                        ));
-                        continue;
+                        return Err(refusal(error).into());
                     }
                     cost.seconds = clock.seconds();
                     let estimate = Estimate {
