@@ -182,8 +182,8 @@ fn bad_requests_are_typed_errors() {
 /// round-off alone, extrapolated above the request) the solve refuses with
 /// the error that suggests `DoubleDouble`, as below the floor of the final
 /// run. (Which family runs at the tightest tolerances follows the cost
-/// model's timing; below `1e-13` Galerkin `s = 8` ends up to 36 times its
-/// estimate here, a round-off the `√N` model does not follow.)
+/// model's timing; at `3e-14` Galerkin `s = 8` ends 36 times its estimate
+/// here, a round-off the `√N` model does not follow.)
 #[test]
 fn no_answer_estimates_more_than_was_asked() {
     let mut refused = Vec::new();
