@@ -29,6 +29,21 @@ const PILOT_FRACTION: f64 = 0.1;
 /// 12 times smaller than at `0.187`, not 7.4 times larger, and the estimate
 /// 178 times the error).
 const ACCEPT: core::ops::RangeInclusive<f64> = 0.25..=2.0;
+/// The least step ratio below [`ACCEPT`] from which the time
+/// transformation pilots again by halving its `σ`: the round's fine run at
+/// `σ/2` is the next round's coarse run, and only a run at `σ/4` is new. In
+/// units of a coarse run over the pilot, a halving costs 4 and a new pair at
+/// `r σ` costs `3/r`; `k` halvings reach `r ≥ 1/4` for about `1/r`. Kepler
+/// `e = 0.9` at `rtol = 1e-10` pilots 120 steps where a new pair took 228,
+/// to the same final `σ` (within 0.5%) and error. Below, a pair at the
+/// clamped `σ/16` (48) costs less than the four halvings (60). Galerkin and
+/// the compositions pilot a new pair: halved from a coarse step, their
+/// estimates are 11 to 22 times their largest error on the double pendulum
+/// (Galerkin `s = 4` from `h = 0.047`, whose error falls faster than `h⁸`
+/// below it), and the pendulum's Kahan–Li 8 at `rtol = 1e-7` estimated
+/// 3.0e-8 for a run that ended 1.4e-7 from the reference (the compositions'
+/// error is not monotone in `h` near their cap, see [`ACCEPT`]).
+const HALVE_FROM: f64 = 1.0 / 32.0;
 /// The least step ratio [`ACCEPT`] takes from a composition piloted at its
 /// step cap, where the error may not yet be `∝ h^p`.
 const CAPPED_ACCEPT: f64 = 0.5;
@@ -68,17 +83,6 @@ const GALERKIN_MIN_COST: f64 = 1.9;
 fn galerkin_min_cost(n: usize) -> f64 {
     GALERKIN_MIN_COST * (n as f64 / 4.0).max(1.0)
 }
-/// The round-off floor of a final run of `N` steps is
-/// `ROUNDOFF · ε · Q · √N` (a random walk of the rounding, `Q` the scale of
-/// the positions), amplified like the error where it grows exponentially.
-/// The root mean square of the errors the fixed-point Galerkin steps
-/// measure where their truncation error is far below (`CALLGRIND_ERROR=1
-/// auto_solve PROBLEM galerkin-fp-S steps=N`): Kepler in polar coordinates
-/// over 1 000 orbits (`Q = 628` over the pilot) 2.1 for `s = 6` at 68 k to
-/// 543 k steps (single runs 0.06 to 6.8) and 1.4 for `s = 8` at 48 k to
-/// 160 k (at most 2.7); the pendulum and Kepler `e = 0.5` at most 0.65 and
-/// 0.32 at 128 k steps, where the errors no longer grow with `N`.
-const ROUNDOFF: f64 = 2.0;
 
 /// Steps per timed round of the cost model.
 const TIMED_STEPS: usize = 8;
@@ -363,20 +367,24 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                     };
                     // The round-off of the final run, amplified like the error.
                     let steps = self.final_steps(candidate, step, span, rho);
-                    let floor = ROUNDOFF
-                        * f64::EPSILON
-                        * scale
-                        * steps.sqrt()
-                        * match rich.growth {
-                            Growth::Exponential(rate) => (rate * span).exp(),
-                            Growth::Power(_) => 1.0,
-                        };
+                    let floor = pilot::roundoff(scale, steps, rich.growth, span);
+                    let refusal = |floor| match rich.growth {
+                        Growth::Exponential(rate) => Error::Chaotic { requested, floor, rate, t_end },
+                        Growth::Power(_) => Error::ToleranceUnreachable { requested, floor },
+                    };
                     if requested < floor {
-                        return Err(match rich.growth {
-                            Growth::Exponential(rate) => Error::Chaotic { requested, floor, rate, t_end },
-                            Growth::Power(_) => Error::ToleranceUnreachable { requested, floor },
-                        }
-                        .into());
+                        return Err(refusal(floor).into());
+                    }
+                    // An estimate above the request is no answer, refused as
+                    // the floor is. A pilot whose step follows its estimate
+                    // ends at or below the target: only round-off (a
+                    // difference of the pilot's runs at its level,
+                    // extrapolated) or an exponential growth leaves it above,
+                    // where no step of `f64` is shown to meet the request,
+                    // whatever the method. A step the user fixed runs, its
+                    // estimate reported.
+                    if error > requested && self.step.is_none() {
+                        return Err(refusal(error).into());
                     }
                     cost.seconds = clock.seconds();
                     let estimate = Estimate {
@@ -574,7 +582,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         let tp = *times.last()?;
         let scale = run.scale.max(kahan_li8.scale).max(f64::MIN_POSITIVE);
         let rich = Richardson::companion(&run, kahan_li8, &times, self.t0, settle);
-        let roundoff = rich.noise_at(self.t0, tp, self.t0 + span);
+        let roundoff = pilot::roundoff(scale, (span / h).ceil(), rich.growth, span);
         let at_end = rich.at(self.t0, tp, self.t0 + span).max(roundoff);
         let target = SAFETY * self.tolerance.bound(scale);
         if !matches!(rich.growth, Growth::Power(_)) || at_end > target {
@@ -659,6 +667,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // The coarsest step piloted whose estimate met the target: a round
         // that would pilot about it or finer takes it instead.
         let mut met: Option<Piloted> = None;
+        // The checkpoints of a round whose fine run is the next round's
+        // coarse run (see `HALVE_FROM`): on the nodes of both.
+        let mut halved: Option<Vec<f64>> = None;
         // A few coarse steps over the pilot at least.
         let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
         let fixed_step = c.family != Family::TimeTransformed;
@@ -684,7 +695,11 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             }
             // Fixed steps: checkpoints on the coarse nodes (two steps from
             // the start at least), so that neither run takes a landing step.
-            let times: Vec<f64> = if fixed_step { self.pilot_times(h, checkpoints) } else { checkpoints.to_vec() };
+            let times: Vec<f64> = match halved.take() {
+                Some(times) => times,
+                None if fixed_step => self.pilot_times(h, checkpoints),
+                None => checkpoints.to_vec(),
+            };
             let tp = *times.last().expect("at least one checkpoint");
             // A time transformation's nodes fall at different times in the
             // two runs: they are compared node by node at equal new time, and
@@ -745,19 +760,20 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             if self.step.is_some() {
                 return Ok(((h, at_end), rich, scale));
             }
+            // The round-off of a final run at this step (as many steps over
+            // the span as the coarse run takes over the pilot).
+            let roundoff = pilot::roundoff(scale, coarse.steps as f64 * span / (tp - self.t0), rich.growth, span);
             if let Growth::Exponential(_) = rich.growth {
                 // Round-off amplified over the span already above the
                 // tolerance: no step helps (the caller refuses).
-                let amplified = rich.noise_at(self.t0, tp, self.t0 + span);
-                if amplified > target {
+                if roundoff > target {
                     return Ok(((h, at_end), rich, scale));
                 }
             }
-            if rich.error <= 100.0 * rich.noise {
+            if rich.is_roundoff() {
                 // The difference is round-off: the method is more accurate
                 // than it can show at this step. A coarser step shows it,
                 // unless round-off alone is already the tolerance.
-                let roundoff = rich.noise_at(self.t0, tp, self.t0 + span);
                 if let Some(prev) = last.filter(|_| roundoff > target) {
                     return Ok(prev);
                 }
@@ -809,7 +825,16 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             if ACCEPT.contains(&ratio) && !at_cap {
                 break;
             }
-            // Far from the pilot's step the asymptotic model is not trusted: pilot again nearer.
+            // Far from the pilot's step the asymptotic model is not trusted:
+            // pilot again nearer. The time transformation, asked for a finer
+            // `σ` from `HALVE_FROM` up, halves it, the fine run the next
+            // round's coarse run.
+            if c.family == Family::TimeTransformed && (HALVE_FROM..1.0).contains(&ratio) {
+                h /= 2.0;
+                reuse = Some((h, fine));
+                halved = Some(times);
+                continue;
+            }
             h *= ratio.clamp(1.0 / 16.0, 4.0);
         }
         last.ok_or(Error::InvalidSetting { reason: "no pilot round completed" })
