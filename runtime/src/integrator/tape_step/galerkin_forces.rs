@@ -24,7 +24,7 @@
 use super::Node;
 use super::directional::Layout;
 use super::forcing::Forcing;
-use super::galerkin::{BlockLayout, Rule};
+use super::galerkin_rule::{BlockLayout, Rule};
 use super::{TapeModel, filled, zeroed};
 use crate::banded::LinearSolveError;
 use crate::newton::Breakdown;

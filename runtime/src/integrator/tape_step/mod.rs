@@ -48,6 +48,7 @@ mod explicit;
 mod forcing;
 mod galerkin;
 mod galerkin_forces;
+mod galerkin_rule;
 mod implicit;
 mod legendre;
 
