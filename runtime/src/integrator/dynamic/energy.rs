@@ -60,6 +60,10 @@ pub(super) struct EnergySteps {
     /// increment moved along the tangent, the increment of the bordered
     /// Newton step on `(Δq, h)`.
     warm: bool,
+    /// A probe's starting increment and the last step's increment scaled to
+    /// its size (scratch, so that a probe does not allocate).
+    start: Vec<f64>,
+    scaled: Vec<f64>,
 }
 
 /// A probe: its number, size, increment and energy terms.
@@ -85,6 +89,8 @@ impl EnergySteps {
             serial: 0,
             tangent: Vec::new(),
             warm: false,
+            start: Vec::new(),
+            scaled: Vec::new(),
         }
     }
 }
@@ -104,6 +110,8 @@ impl Clone for EnergySteps {
             serial: self.serial,
             tangent: Vec::new(),
             warm: false,
+            start: Vec::new(),
+            scaled: Vec::new(),
         }
     }
 
@@ -266,7 +274,12 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
         let n = self.state.q.len();
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
-        let mut predictor = vec![0.0; n];
+        let (mut predictor, mut scaled) = match self.variable.as_deref_mut() {
+            Some(steps) => (core::mem::take(&mut steps.start), core::mem::take(&mut steps.scaled)),
+            None => Default::default(),
+        };
+        predictor.clear();
+        predictor.resize(n, 0.0);
         match self.variable.as_deref() {
             Some(EnergySteps { warm: true, latest: Some(from), tangent, .. }) => {
                 for ((x, d), t) in predictor.iter_mut().zip(&from.dq).zip(tangent) {
@@ -275,18 +288,19 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
             }
             _ => crate::integrator::predict_into(h, last, earlier, &self.v0, &mut predictor),
         }
-        let scaled: Option<Vec<f64>> =
-            self.previous.as_ref().map(|last| last.dq.iter().map(|x| x * (h / last.h)).collect());
-        let guess = Guess { predictor: &predictor, last: scaled.as_deref() };
+        scaled.clear();
+        if let Some(last) = self.previous.as_ref() {
+            scaled.extend(last.dq.iter().map(|x| x * (h / last.h)));
+        }
+        let guess = Guess { predictor: &predictor, last: self.previous.is_some().then_some(&scaled[..]) };
         let model = Sliced { system: &self.system, points: self.points };
         let node = node_at(&self.state, (&self.carry, &self.p_carry), self.summation);
         let Some(steps) = self.variable.as_deref_mut() else {
             return Err(Unplaced::new(|_| Error::Unsupported { what: "energy steps under fixed steps" }));
         };
-        let (dq, report, terms) = self
-            .work
-            .energy_probe(&mut steps.buffers, &model, &node, h, &guess, &self.newton)
-            .map_err(|failure| Unplaced::newton(failure, h))?;
+        let probed = self.work.energy_probe(&mut steps.buffers, &model, &node, h, &guess, &self.newton);
+        (steps.start, steps.scaled) = (predictor, scaled);
+        let (dq, report, terms) = probed.map_err(|failure| Unplaced::newton(failure, h))?;
         *spent += report.iterations;
         let target = steps.energy;
         let g = terms.d_t0 - target;
