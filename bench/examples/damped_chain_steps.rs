@@ -14,7 +14,9 @@
 //! macro's Rayleigh function `½γ Σ v_i² + ½κ Σ (v_{i+1} − v_i)²` over
 //! slices), `driven` (the same and a force `Q_i = −μ v_i³`, `Q_0 += a cos
 //! Ωt`, written by hand over the macro's chain: bandwidth 0 in `q`, 1 in
-//! `v` with the dissipation).
+//! `v` with the dissipation), and `damped-balance`, `driven-balance`: the
+//! same systems under energy-balance steps from `h` (the first step of
+//! the given size among the `s`).
 #![allow(missing_docs)]
 
 use std::hint::black_box;
@@ -114,9 +116,14 @@ impl DynLagrangian for DrivenFpu {
     }
 }
 
-/// `steps` midpoint steps of `system` from the bench chain's start.
-fn run<S: DynLagrangian>(system: S, n: usize, steps: usize) {
-    let mut sim = DynIntegrator::new(system, Midpoint, H).start(0.0, &start_q(n), &vec![0.0; n]).expect("start");
+/// `steps` midpoint steps of `system` from the bench chain's start, fixed
+/// or energy-balance steps.
+fn run<S: DynLagrangian>(system: S, n: usize, steps: usize, balance: bool) {
+    let mut builder = DynIntegrator::new(system, Midpoint, H);
+    if balance {
+        builder = builder.energy_preserving(lagrangian::StepBounds::around(H));
+    }
+    let mut sim = builder.start(0.0, &start_q(n), &vec![0.0; n]).expect("start");
     sim.run(steps, |_| {}).expect("steps");
     black_box(sim.state().q[0]);
     eprintln!("{} Newton iterations in {} steps", sim.stats().newton_iterations, sim.stats().steps);
@@ -125,15 +132,17 @@ fn run<S: DynLagrangian>(system: S, n: usize, steps: usize) {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let [_, case, n, steps] = &args[..] else {
-        panic!("usage: damped_chain_steps undamped|damped|driven N STEPS");
+        panic!("usage: damped_chain_steps undamped|damped|driven|damped-balance|driven-balance N STEPS");
     };
     let (case, n, steps) = (case.clone(), n.parse::<usize>().expect("N"), steps.parse::<usize>().expect("STEPS"));
     // The default 2 MiB stack of a spawned thread.
     std::thread::spawn(move || match case.as_str() {
         // The same chain through a Rayleigh function of zero.
-        "undamped" => run(lagrangian_bench::chain::DynFpu(n), n, steps),
-        "damped" => run(DampedFpu { n }, n, steps),
-        "driven" => run(DrivenFpu(DampedFpu { n }), n, steps),
+        "undamped" => run(lagrangian_bench::chain::DynFpu(n), n, steps, false),
+        "damped" => run(DampedFpu { n }, n, steps, false),
+        "driven" => run(DrivenFpu(DampedFpu { n }), n, steps, false),
+        "damped-balance" => run(DampedFpu { n }, n, steps, true),
+        "driven-balance" => run(DrivenFpu(DampedFpu { n }), n, steps, true),
         _ => panic!("unknown case {case}"),
     })
     .join()

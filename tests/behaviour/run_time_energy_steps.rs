@@ -341,8 +341,9 @@ fn no_energy_step_leaves_the_stepper_bit_identical() {
     panic!("the swing found an energy root at every step");
 }
 
+/// Energy-balance steps are for forced systems.
 #[test]
-fn energy_balance_steps_are_refused_with_their_reason() {
+fn energy_balance_steps_without_forces_are_refused_with_their_reason() {
     let problem = Problem::new(Chain { n: 4, walls: true }, 0.0, vec![0.1; 4], vec![0.0; 4]);
     let Err(Error::Unsupported { what }) = problem.stepper(&Scheme::MIDPOINT, Policy::energy_balance(0.1)) else {
         panic!("energy balance without forces accepted")

@@ -246,14 +246,16 @@ pub struct DynIntegratorBuilder<S, M> {
 
 impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// Energy-preserving variable steps within `bounds`, starting from the
-    /// guess `h` given to [`DynIntegrator::new`], for the one-point rules
-    /// on a system without forces, as
+    /// guess `h` given to [`DynIntegrator::new`], for the one-point rules,
+    /// as
     /// [`IntegratorBuilder::energy_preserving`](crate::IntegratorBuilder::energy_preserving)
     /// at a compile-time size: each step size solves the discrete energy
     /// equation `E_{k+1} = E_k` (for a time-dependent `L`, the discrete
-    /// energy balance of de León & Martín de Diego) with the DEL, by
-    /// banded solves where `L` is banded (`O(N)` per step). The first step
-    /// has the size `h`.
+    /// energy balance of de León & Martín de Diego; for a system with a
+    /// force or a dissipation function, the energy balance
+    /// `E_{k+1} = E_k + W_k` with the discrete work of the forces) with the
+    /// DEL, by banded solves where `L` is banded (`O(N)` per step). The
+    /// first step has the size `h`.
     pub fn energy_preserving(mut self, bounds: StepBounds) -> Self {
         self.energy_steps = Some(bounds);
         self
@@ -288,9 +290,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// [`Error::InvalidStepSize`] for an `h` outside them, and
     /// [`Error::Unsupported`] for a Galerkin rule or a composition (their
     /// energy steps are written for a compile-time size, or their steps are
-    /// fixed), a system with forces or dissipation (energy-balance steps are
-    /// written for a compile-time size) and an
-    /// [`accuracy`](StepBounds::accuracy) bound.
+    /// fixed) and an [`accuracy`](StepBounds::accuracy) bound.
     ///
     /// Fails with [`Error::Unsupported`] for a discrete Lagrangian
     /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
@@ -318,7 +318,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
         if let Some(bounds) = self.energy_steps {
-            energy_steps_defined::<S, M>(&self.method, bounds, self.h)?;
+            energy_steps_defined(&self.method, bounds, self.h)?;
         }
         let n = self.system.dimension();
         if self.system.constraint_count() > 0 {
@@ -380,7 +380,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
 
 /// `Ok` when energy-preserving steps within `bounds` from the guess `h` are
 /// defined for `method` on the system `S`; the typed refusal otherwise.
-fn energy_steps_defined<S: DynLagrangian, M: DynMethod>(method: &M, bounds: StepBounds, h: f64) -> Result<(), Error> {
+fn energy_steps_defined<M: DynMethod>(method: &M, bounds: StepBounds, h: f64) -> Result<(), Error> {
     if !bounds.valid() {
         return Err(Error::InvalidStepBounds { h_min: bounds.h_min, h_max: bounds.h_max, max_ratio: bounds.max_ratio });
     }
@@ -397,11 +397,6 @@ fn energy_steps_defined<S: DynLagrangian, M: DynMethod>(method: &M, bounds: Step
     }
     if method.weights().is_some() {
         return Err(Error::Unsupported { what: "variable steps with a composition: its steps are fixed" });
-    }
-    if is_forced::<S>() {
-        return Err(Error::Unsupported {
-            what: "energy-balance steps of a forced run-time-sized system: the discrete work of the forces is written for the compile-time size",
-        });
     }
     Ok(())
 }

@@ -320,11 +320,6 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
         }
         _ => {}
     }
-    if let Policy::EnergyBalance { .. } = c.policy {
-        return Err(
-            "energy-balance steps of a forced run-time-sized system: the discrete work of the forces is written for the compile-time size",
-        );
-    }
     if c.policy.bounds().is_some_and(|b| b.accuracy.is_some()) {
         return Err(
             "an accuracy bound on energy steps of a run-time-sized system: the fastest mode of the linearisation is a dense eigenproblem of the size of the system",

@@ -21,8 +21,13 @@
 //!
 //! The first step has the given size, and so has the landing step of
 //! `run_until`; the energy conserved from each is its discrete energy.
+//!
+//! A forced system takes energy-balance steps: the DEL carries `F_k^−`
+//! and the energy equation the work of the forces on the time variations,
+//! `∂A/∂t_k − w_k^− = E_k + w_{k−1}^+`, so that `E_{k+1} − E_k = W_k =
+//! w_{k−1}^+ + w_k^−` (docs/theory.md §6), as at a compile-time size.
 
-use super::{DynIntegrator, DynMethod, Sliced, node_at};
+use super::{DynIntegrator, DynMethod, Sliced, is_forced, node_at};
 use crate::error::{Error, Unplaced};
 use crate::integrator::tape_step::{EnergyBuffers, EnergyTerms, Guess};
 use crate::integrator::{Clock, EnergyFallback, EnergySearch, Probe, StepBounds, Taken};
@@ -44,8 +49,13 @@ pub(super) struct EnergySteps {
     fallback: EnergyFallback,
     /// `E_k`: the right side of the next step's energy equation.
     energy: f64,
-    /// Kahan compensation of `energy` (a time-dependent `L` changes it).
+    /// Kahan compensation of `energy` (a time-dependent `L` or forces
+    /// change it).
     energy_carry: f64,
+    /// `w_{k−1}^+`: the work of the last step's end force on a variation of
+    /// its end time, which the next step's energy equation carries (zero
+    /// without forces).
+    behind: f64,
     /// Kahan compensation of the time: the times are exact sums of the steps.
     time_error: f64,
     buffers: EnergyBuffers,
@@ -83,6 +93,7 @@ impl EnergySteps {
             fallback,
             energy,
             energy_carry: 0.0,
+            behind: 0.0,
             time_error: 0.0,
             buffers: EnergyBuffers::default(),
             latest: None,
@@ -104,6 +115,7 @@ impl Clone for EnergySteps {
             fallback: self.fallback,
             energy: self.energy,
             energy_carry: self.energy_carry,
+            behind: self.behind,
             time_error: self.time_error,
             buffers: EnergyBuffers::default(),
             latest: None,
@@ -118,6 +130,7 @@ impl Clone for EnergySteps {
     fn clone_from(&mut self, source: &Self) {
         (self.bounds, self.fallback, self.energy) = (source.bounds, source.fallback, source.energy);
         (self.energy_carry, self.time_error, self.serial) = (source.energy_carry, source.time_error, source.serial);
+        self.behind = source.behind;
     }
 }
 
@@ -136,6 +149,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             self.reread_energy();
             return Ok(());
         };
+        if is_forced::<S>() {
+            self.work_behind()?;
+        }
         let (lo, hi) = bounds.bracket(h_prev);
         let guess = self.h.clamp(lo, hi);
         // With two steps of history, Newton starts from the extrapolated step.
@@ -156,6 +172,24 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let energy = self.discrete_energy();
         if let Some(steps) = self.variable.as_deref_mut() {
             (steps.energy, steps.energy_carry, steps.time_error) = (energy, 0.0, 0.0);
+        }
+    }
+
+    /// `w_{k−1}^+` of the last step, for the energy equation of the next.
+    fn work_behind(&mut self) -> Result<(), Error> {
+        let Some(last) = self.previous.as_ref() else { return Ok(()) };
+        let model = Sliced { system: &self.system, points: self.points };
+        let work = self.work.end_work(&model, (last.t0, last.h), &last.q0, &last.dq);
+        match (work, self.variable.as_deref_mut()) {
+            (Ok(work), Some(steps)) => {
+                steps.behind = work;
+                Ok(())
+            }
+            (Ok(_), None) => Ok(()),
+            (Err(failure), _) => {
+                self.stats.failed_steps += 1;
+                Err(Error::from_newton(failure.at(0), self.state.clone(), self.h))
+            }
         }
     }
 
@@ -240,10 +274,15 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         };
         steps.time_error = (t1 - t0) - y;
         if taken == Taken::Root {
-            // E_{k+1} = E_k − (∂A/∂t_k + ∂A/∂t_{k+1}), Kahan-summed; the
-            // target is not re-read from the step (its residual has one sign).
-            if !S::AUTONOMOUS {
-                let y = -terms.time_shift - steps.energy_carry;
+            // E_{k+1} = E_k − (∂A/∂t_k + ∂A/∂t_{k+1}) + w_{k−1}^+ + w_k^−,
+            // Kahan-summed; the target is not re-read from the step (its
+            // residual has one sign).
+            let mut change = if S::AUTONOMOUS { 0.0 } else { -terms.time_shift };
+            if is_forced::<S>() {
+                change += steps.behind + terms.work;
+            }
+            if change != 0.0 {
+                let y = change - steps.energy_carry;
                 let e = steps.energy + y;
                 steps.energy_carry = (e - steps.energy) - y;
                 steps.energy = e;
@@ -302,7 +341,7 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
         (steps.start, steps.scaled) = (predictor, scaled);
         let (dq, report, terms) = probed.map_err(|failure| Unplaced::newton(failure, h))?;
         *spent += report.iterations;
-        let target = steps.energy;
+        let target = steps.energy + steps.behind;
         let g = terms.d_t0 - target;
         steps.serial += 1;
         if terms.slope.is_finite() {

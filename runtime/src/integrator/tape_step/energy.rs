@@ -17,11 +17,34 @@
 //! iterate, within the Newton tolerance of the solution: the slope only
 //! steers the search, the root is that of `g`): `O(N)` for a banded `L`,
 //! less than a Newton iteration of the step itself.
+//!
+//! A forced system (energy-balance steps, docs/theory.md §6) adds the
+//! discrete Lagrange–d'Alembert terms of time as a variable: `F_k^−` joins
+//! the DEL (and `∂F_k^−/∂Δq` the `J` its Newton iteration factored), and
+//! the work `w_k^− = F_k^−·Δq/h` of the start force on `δt_k` the energy
+//! equation:
+//!
+//! ```text
+//! ∂A/∂t_k − w_k^− = E_k + w_{k−1}^+      c += ∂F_k^−/∂h,   r −= ∂w_k^−/∂Δq,   d −= ∂w_k^−/∂h
+//! ```
+//!
+//! `∂F_k^−/∂h`, `∂w_k^−/∂h` and `(∂w_k^−/∂Δq)·J⁻¹c` are central differences
+//! of the forces' values (four more evaluations of the forces, `O(N)`):
+//! they enter the slope alone, which steers the search to the root of the
+//! exact `g`, and at a relative step of `2⁻¹⁷` they are good to about
+//! `1e-10`, far below what the search needs.
 
+use super::implicit::forced_points;
 use super::{Guess, Node, SparseWork, TapeModel, breakdown, tape_breakdown, zeroed};
 use crate::banded::StepMatrix;
 use crate::newton::{Breakdown, NewtonFailure, NewtonOptions, NewtonReport};
+use crate::real::max_abs;
 use crate::tape::{Seeds, Var};
+
+/// The relative step of the central differences of the forces in `h` and
+/// along `J⁻¹c`: `2⁻¹⁷` balances their truncation (`~δ²`) against their
+/// rounding (`~ε/δ`) at about `1e-10`.
+const STEP_FRACTION: f64 = 1.0 / 131_072.0;
 
 /// The step's energy terms at a solved trial step.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +57,10 @@ pub(crate) struct EnergyTerms {
     /// `g'(h)` along the solutions of the DEL (NaN where the step Jacobian
     /// cannot be factored).
     pub(crate) slope: f64,
+    /// `w_k^− = F_k^−·Δq/h`, the work of the start force on a variation of
+    /// `t_k` (zero without forces): it is already in `d_t0`, and joins the
+    /// energy balance `E_{k+1} = E_k + w_{k−1}^+ + w_k^−` of the step.
+    pub(crate) work: f64,
 }
 
 /// The buffers of [`SparseWork::energy_probe`]: scratch, filled afresh by
@@ -47,6 +74,13 @@ pub(crate) struct EnergyBuffers {
     columns: Vec<f64>,
     /// `J⁻¹c`.
     column: Vec<f64>,
+    /// The forces of a forced system: `F_k^−` at `h ± δ`, `F_k^+` (unused),
+    /// `∂F_k^−/∂h` and the increment `Δq ± ε J⁻¹c`.
+    ahead: Vec<f64>,
+    behind: Vec<f64>,
+    plus: Vec<f64>,
+    d_minus_h: Vec<f64>,
+    moved: Vec<f64>,
 }
 
 impl EnergyBuffers {
@@ -112,7 +146,15 @@ impl SparseWork {
             buffers.columns = zeroed(inputs.and_then(|i| i.checked_mul(2)), n).map_err(breakdown)?;
             buffers.column = zeroed(Some(n), n).map_err(breakdown)?;
         }
-        let EnergyBuffers { inputs, gradient, columns, column } = buffers;
+        let forced = forced_points(model)?;
+        if forced.is_some() && buffers.moved.len() != n {
+            for b in
+                [&mut buffers.ahead, &mut buffers.behind, &mut buffers.plus, &mut buffers.d_minus_h, &mut buffers.moved]
+            {
+                *b = zeroed(Some(n), n).map_err(breakdown)?;
+            }
+        }
+        let EnergyBuffers { inputs, gradient, columns, column, ahead, behind, plus, d_minus_h, moved } = buffers;
         let columns = &mut columns[..(2 * n + 2) * k];
         inputs[..n].copy_from_slice(node.q);
         inputs[n..2 * n].copy_from_slice(dq);
@@ -127,20 +169,53 @@ impl SparseWork {
         // The gradient, with the columns of `h` and `t_k`.
         self.tape.hessian_product(&timed, gradient, columns).map_err(tape_breakdown)?;
         let (g_h, g_t) = (gradient[at_h], if model.autonomous() { 0.0 } else { gradient[at_t] });
-        let d_t0 = g_t - g_h;
+        let mut d_t0 = g_t - g_h;
         // H[i, h] and H[i, t_k] (zero for an autonomous `L`).
         let at = |i: usize| (columns[i * k], if k == 2 { columns[i * k + 1] } else { 0.0 });
         for (i, c) in column.iter_mut().enumerate() {
             *c = at(i).0 - at(n + i).0;
         }
         let (hh, ht) = at(at_h);
-        let d = ht - hh;
+        let mut d = ht - hh;
+        let mut work = 0.0;
+        if let Some(points) = forced {
+            // w_k^− and, by central differences in `h`, ∂F_k^−/∂h and ∂w_k^−/∂h.
+            let step = (node.t, h, points);
+            work = self.start_work(model, step, node.q, dq, ahead, plus)?;
+            let delta = h * STEP_FRACTION;
+            let w_ahead = self.start_work(model, (node.t, h + delta, points), node.q, dq, ahead, plus)?;
+            let w_behind = self.start_work(model, (node.t, h - delta, points), node.q, dq, behind, plus)?;
+            let scale = (2.0 * delta).recip();
+            for ((x, a), b) in d_minus_h.iter_mut().zip(ahead.iter()).zip(behind.iter()) {
+                *x = (a - b) * scale;
+            }
+            for (c, x) in column.iter_mut().zip(d_minus_h.iter()) {
+                *c += x;
+            }
+            d -= (w_ahead - w_behind) * scale;
+            d_t0 -= work;
+        }
         let slope = match self.jacobian.solve(column) {
             Ok(()) => {
                 let mut r_y = 0.0;
                 for (j, y) in column.iter().enumerate() {
                     let (dh, dt) = at(n + j);
                     r_y += (dt - dh) * y;
+                }
+                if let Some(points) = forced {
+                    // (∂w_k^−/∂Δq)·J⁻¹c, a central difference along J⁻¹c.
+                    let (size, length) = (max_abs(dq), max_abs(column));
+                    if length > 0.0 {
+                        let epsilon = STEP_FRACTION * size.max(f64::MIN_POSITIVE) / length;
+                        let mut along = |sign: f64, moved: &mut [f64]| {
+                            for ((m, x), y) in moved.iter_mut().zip(dq).zip(column.iter()) {
+                                *m = x + sign * epsilon * y;
+                            }
+                            self.start_work(model, (node.t, h, points), node.q, moved, ahead, plus)
+                        };
+                        let (w_ahead, w_behind) = (along(1.0, moved)?, along(-1.0, moved)?);
+                        r_y -= (w_ahead - w_behind) / (2.0 * epsilon);
+                    }
                 }
                 d - r_y
             }
@@ -149,6 +224,42 @@ impl SparseWork {
         if !d_t0.is_finite() {
             return Err(Breakdown::NonFinite("energy equation"));
         }
-        Ok(EnergyTerms { d_t0, time_shift: g_t, slope })
+        Ok(EnergyTerms { d_t0, time_shift: g_t, slope, work })
+    }
+
+    /// The work `F_k^−·Δq/h` of the start force of the step `(t_k, h)` from
+    /// `q0` by `dq` on a variation of `t_k`, with `F_k^−` left in `minus`.
+    fn start_work(
+        &mut self,
+        model: &dyn TapeModel,
+        step: (f64, f64, [f64; 2]),
+        q0: &[f64],
+        dq: &[f64],
+        minus: &mut [f64],
+        plus: &mut [f64],
+    ) -> Result<f64, Breakdown> {
+        self.forcing.forces(model, step, q0, dq, minus, plus, None)?;
+        let inv_h = step.1.recip();
+        Ok(minus.iter().zip(dq).map(|(f, x)| f * (x * inv_h)).sum())
+    }
+
+    /// `w_k^+ = F_k^+·Δq/h`: the work of the end force of the step `(t_k,
+    /// h)` from `q0` by `dq` on a variation of its end time, the term the
+    /// next step's energy equation carries (zero without forces).
+    pub(crate) fn end_work(
+        &mut self,
+        model: &dyn TapeModel,
+        (t0, h): (f64, f64),
+        q0: &[f64],
+        dq: &[f64],
+    ) -> Result<f64, Breakdown> {
+        let Some(points) = forced_points(model)? else { return Ok(0.0) };
+        let (mut minus, mut plus) = (self.buffer(), self.buffer());
+        let forces = self.forcing.forces(model, (t0, h, points), q0, dq, &mut minus, &mut plus, None);
+        let inv_h = h.recip();
+        let work = plus.iter().zip(dq).map(|(f, x)| f * (x * inv_h)).sum();
+        self.recycle(minus);
+        self.recycle(plus);
+        forces.map(|()| work)
     }
 }

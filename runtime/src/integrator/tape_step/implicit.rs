@@ -325,7 +325,7 @@ impl SparseWork {
 
 /// The rule's quadrature points when the model has forces (`None`
 /// without); a forced model whose rule has none is refused.
-fn forced_points(model: &dyn TapeModel) -> Result<Option<[f64; 2]>, Breakdown> {
+pub(super) fn forced_points(model: &dyn TapeModel) -> Result<Option<[f64; 2]>, Breakdown> {
     if !(model.has_force() || model.has_dissipation()) {
         return Ok(None);
     }
