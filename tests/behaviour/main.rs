@@ -27,4 +27,5 @@ mod run_time_forces;
 mod run_time_galerkin_errors;
 mod run_time_galerkin_forces;
 mod run_time_solve;
+mod run_time_time_transform;
 mod solution;

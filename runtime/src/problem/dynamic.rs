@@ -1,6 +1,8 @@
 //! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
 //! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
-//! [`DynIntegrator`]; what that driver does not have is refused by
+//! [`DynIntegrator`] (the implicit time transformation: in `s`, on the
+//! extended system of `n + 1` coordinates, by
+//! [`RunTimeAdaptive`]); what that driver does not have is refused by
 //! [`supports`](super::supports) with [`Error::Unsupported`].
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
@@ -14,6 +16,7 @@ use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, 
 use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
+use crate::time_transform::{RuleInS, RunTimeAdaptive};
 
 /// The driver of a run-time-sized [`Stepper`].
 #[derive(Clone, Debug)]
@@ -23,6 +26,8 @@ pub enum DynDriver<S> {
     AlphaBeta(DynIntegrator<S, AlphaBeta>),
     Composition(DynIntegrator<S, Composition>),
     Galerkin(DynIntegrator<S, RunTimeGalerkin>),
+    // Boxed: the driver in `s` and its copy from before the step.
+    TimeTransformed(Box<RunTimeAdaptive<S>>),
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
@@ -34,6 +39,7 @@ macro_rules! each {
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
+            DynDriver::TimeTransformed($d) => $body,
         }
     };
 }
@@ -74,9 +80,12 @@ impl<S: DynLagrangian + Clone> Steppable<Dyn> for S {
 /// let mut galerkin = problem.stepper(&Scheme::galerkin(3), 0.1)?;
 /// galerkin.run_until(1.0)?;
 /// assert!((galerkin.state().q[2] - 1f64.cos()).abs() < 1e-8);
-/// // The implicit time transformation is not defined at a run-time size: a typed refusal.
+/// // The implicit time transformation: fixed steps in `s`, landing exactly in `t`.
 /// let curvature = lagrangian_runtime::Curvature::new(1.0).unwrap();
-/// assert!(problem.stepper(&Scheme::MIDPOINT.time_transformed(curvature), 0.1).is_err());
+/// let mut adaptive = problem.stepper(&Scheme::MIDPOINT.time_transformed(curvature), 0.01)?;
+/// adaptive.run_until(1.0)?;
+/// assert_eq!(adaptive.state().t, 1.0);
+/// assert!((adaptive.state().q[2] - 1f64.cos()).abs() < 1e-4);
 /// // `solve(Plan)` gives the same `Solution` as at a compile-time size.
 /// assert!(problem.supports(&Scheme::MIDPOINT, 0.01, Capability::Solve).is_ok());
 /// let solution = problem.solve(&Scheme::MIDPOINT, 0.01, Plan::until(1.0).every(10))?;
@@ -120,6 +129,16 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
                 let lobatto = *quadrature == GalerkinQuadrature::GaussLobatto;
                 DynDriver::Galerkin(self.start(RunTimeGalerkin::new(*degree, *nodes, lobatto), policy)?)
             }
+            Scheme::TimeTransformed { inner, density } => DynDriver::TimeTransformed(Box::new(RunTimeAdaptive::start(
+                self.system.clone(),
+                rule_in_s(inner)?,
+                *density,
+                policy.step(),
+                self.newton,
+                self.t0,
+                &self.q0,
+                &self.v0,
+            )?)),
             _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
         Ok(Stepper { driver, scheme: scheme.clone(), policy })
@@ -145,6 +164,22 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
         }
         builder.start(self.t0, &self.q0, &self.v0)
     }
+}
+
+/// The method in `s` of a time transformation at a run-time size (the
+/// schemes [`supports`] accepts there).
+fn rule_in_s(inner: &Scheme) -> Result<RuleInS, Error> {
+    let rule = match inner {
+        Scheme::OnePoint(OnePoint::Midpoint) => RuleInS::one_point(&Midpoint),
+        Scheme::OnePoint(OnePoint::Trapezoid) => RuleInS::one_point(&Trapezoid),
+        Scheme::OnePoint(OnePoint::AlphaBeta(m)) => RuleInS::one_point(m),
+        Scheme::Galerkin { degree, nodes, quadrature } => {
+            let lobatto = *quadrature == GalerkinQuadrature::GaussLobatto;
+            Some(RuleInS::Galerkin(RunTimeGalerkin::new(*degree, *nodes, lobatto)))
+        }
+        _ => None,
+    };
+    rule.ok_or(Error::Unsupported { what: "this method in `s` under the time transformation" })
 }
 
 impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
@@ -182,7 +217,9 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
     /// the energy that [`Policy::EnergyPreserving`] steps conserve (at
-    /// `k = 0`, the energy of the initial data).
+    /// `k = 0`, the energy of the initial data). Under the time
+    /// transformation, `−p_t`: the momentum of time, which its steps in `s`
+    /// conserve for an autonomous system.
     pub fn discrete_energy(&self) -> f64 {
         each!(&self.driver, d => d.discrete_energy())
     }

@@ -297,10 +297,25 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
             return Err("a Galerkin degree other than 1 to 16 on a run-time-sized system");
         }
         Scheme::Galerkin { .. } => {}
-        Scheme::TimeTransformed { .. } => {
-            return Err(
-                "the implicit time transformation of a run-time-sized system: its extended system is compile-time-sized",
-            );
+        // The extended system of `n + 1` coordinates is run-time-sized too.
+        Scheme::TimeTransformed { inner, .. } => {
+            match inner.as_ref() {
+                Scheme::OnePoint(_) => {}
+                Scheme::Galerkin { degree, .. } if !(1..=MAX_RUN_TIME_GALERKIN_DEGREE).contains(degree) => {
+                    return Err("a Galerkin degree other than 1 to 16 on a run-time-sized system");
+                }
+                Scheme::Galerkin { .. } => {}
+                _ => {
+                    return Err(
+                        "time transformation around a composition, the splitting or another time transformation: the method in `s` is a one-point or Galerkin rule",
+                    );
+                }
+            }
+            if !matches!(c.policy, Policy::Fixed { .. }) {
+                return Err(
+                    "variable steps under a time transformation: its steps in `s` are fixed, the density varies them in t",
+                );
+            }
         }
         Scheme::Splitting { .. } => {
             return Err(

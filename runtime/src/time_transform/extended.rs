@@ -217,8 +217,15 @@ pub(crate) fn extended_lagrangian<D: Scalar, const N: usize, const M: usize>(
     c: D,
     lagrangian: impl FnOnce([D; N]) -> D,
 ) -> D {
-    let d = w[N] - g;
-    homogeneous(w, lagrangian) + d * d / (g * c * 2.0)
+    homogeneous(w, lagrangian) + penalty_term(w[N], g, c)
+}
+
+/// The term `(t' − g)²/(2cg)` of `L̃` that makes `t'` an ordinary velocity
+/// (both sizes form it here, so that they agree to the bit).
+#[inline(always)]
+pub(crate) fn penalty_term<D: Scalar>(time_rate: D, g: D, c: D) -> D {
+    let d = time_rate - g;
+    d * d / (g * c * 2.0)
 }
 
 /// `t' L(t, q, q'/t')` from the extended velocity `w = (q', t')` and the
@@ -231,13 +238,23 @@ pub(crate) fn homogeneous<D: Scalar, const N: usize, const M: usize>(
     w: &[D; M],
     lagrangian: impl FnOnce([D; N]) -> D,
 ) -> D {
-    let tp = w[N];
-    let inv = tp.recip();
     let mut v = [D::zero(); N];
-    for i in 0..N {
+    let tp = physical_velocity(w, &mut v);
+    tp * lagrangian(v)
+}
+
+/// `t'` of the extended velocity `w = (q', t')`, with `v = q'/t'` written
+/// into `v` (`w` has one entry more than `v`): the slice form that both
+/// sizes share.
+#[inline(always)]
+pub(crate) fn physical_velocity<D: Scalar>(w: &[D], v: &mut [D]) -> D {
+    let n = v.len();
+    let tp = w[n];
+    let inv = tp.recip();
+    for i in 0..n {
         v[i] = w[i] * inv;
     }
-    tp * lagrangian(v)
+    tp
 }
 
 /// The extended force `(t' F, −F·q')` from the extended velocity and the
@@ -247,21 +264,27 @@ pub(crate) fn extended_force<D: Scalar, const N: usize, const M: usize>(
     w: &[D; M],
     force: impl FnOnce([D; N]) -> [D; N],
 ) -> [D; M] {
-    let tp = w[N];
-    let inv = tp.recip();
     let mut v = [D::zero(); N];
-    for i in 0..N {
-        v[i] = w[i] * inv;
-    }
+    physical_velocity(w, &mut v);
     let f = force(v);
     let mut out = [D::zero(); M];
+    extended_force_of(w, &f, &mut out);
+    out
+}
+
+/// The extended force `(t' F, −F·q')` into `out` from the extended velocity
+/// `w = (q', t')` and the physical generalized force `f` (one entry fewer):
+/// the slice form that both sizes share.
+#[inline(always)]
+pub(crate) fn extended_force_of<D: Scalar>(w: &[D], f: &[D], out: &mut [D]) {
+    let n = f.len();
+    let tp = w[n];
     let mut power = D::zero();
-    for i in 0..N {
+    for i in 0..n {
         out[i] = f[i] * tp;
         power += f[i] * w[i];
     }
-    out[N] = -power;
-    out
+    out[n] = -power;
 }
 
 /// `(t, q)` from `x = (q, t)`.
