@@ -41,8 +41,8 @@ pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
 pub use sparse::Derivatives;
 pub(crate) use sparse::velocity as reverse_mode_velocity;
-pub(crate) use tape_step::{SparseWork, TapeModel, velocity_derivatives};
-pub(crate) use tape_step::{energy as tape_energy, legendre as tape_legendre};
+pub(crate) use tape_step::{Mass as ConstantMass, SparseWork, TapeModel, velocity_derivatives};
+pub(crate) use tape_step::{energy as tape_energy, legendre as tape_legendre, momentum as tape_momentum};
 pub use variable_step::{EnergyFallback, StepBounds};
 pub(crate) use variable_step::{EnergySearch, Probe, Taken, root_band};
 

@@ -26,4 +26,5 @@ mod run_time_forces;
 mod run_time_galerkin_errors;
 mod run_time_galerkin_forces;
 mod run_time_solve;
+mod run_time_splitting;
 mod solution;

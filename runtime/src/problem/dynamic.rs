@@ -14,6 +14,7 @@ use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, 
 use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
+use crate::time_transform::RunTimeSplitting;
 
 /// The driver of a run-time-sized [`Stepper`].
 #[derive(Clone, Debug)]
@@ -23,6 +24,9 @@ pub enum DynDriver<S> {
     AlphaBeta(DynIntegrator<S, AlphaBeta>),
     Composition(DynIntegrator<S, Composition>),
     Galerkin(DynIntegrator<S, RunTimeGalerkin>),
+    /// Boxed: its trial points and buffers make it several times the
+    /// size of the other drivers.
+    Splitting(Box<RunTimeSplitting<S>>),
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
@@ -34,6 +38,7 @@ macro_rules! each {
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
+            DynDriver::Splitting($d) => $body,
         }
     };
 }
@@ -119,6 +124,11 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
             Scheme::Galerkin { degree, nodes, quadrature } => {
                 let lobatto = *quadrature == GalerkinQuadrature::GaussLobatto;
                 DynDriver::Galerkin(self.start(RunTimeGalerkin::new(*degree, *nodes, lobatto), policy)?)
+            }
+            Scheme::Splitting { function, composition } => {
+                let data = (self.t0, &self.q0[..], &self.v0[..]);
+                let split = RunTimeSplitting::start(self.system.clone(), *function, *composition, policy.step(), data)?;
+                DynDriver::Splitting(Box::new(split))
             }
             _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };

@@ -41,6 +41,7 @@
 mod adaptive;
 mod builder;
 mod density;
+mod dynamic_splitting;
 mod extended;
 mod splitting;
 mod stepper;
@@ -51,6 +52,7 @@ pub use adaptive::Adaptive;
 pub(crate) use builder::default_penalty;
 pub use builder::{DEFAULT_RTOL, TimeTransformedBuilder};
 pub use density::{Curvature, RadiusPower, StepDensity};
+pub use dynamic_splitting::RunTimeSplitting;
 pub use extended::TimeTransformed;
 pub(crate) use extended::{extended_force, extended_lagrangian, homogeneous, split};
 pub use splitting::{
