@@ -1,6 +1,7 @@
 //! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
 //! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
-//! [`DynIntegrator`]; what that driver does not have is refused by
+//! [`DynIntegrator`] (and the explicit time-transformed splitting by
+//! [`RunTimeSplitting`]); what those drivers do not have is refused by
 //! [`supports`](super::supports) with [`Error::Unsupported`].
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
@@ -192,7 +193,8 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
     /// the energy that [`Policy::EnergyPreserving`] steps conserve (at
-    /// `k = 0`, the energy of the initial data).
+    /// `k = 0`, the energy of the initial data). For the explicit
+    /// time-transformed splitting, `−p_t`, the energy its steps keep.
     pub fn discrete_energy(&self) -> f64 {
         each!(&self.driver, d => d.discrete_energy())
     }
