@@ -41,7 +41,7 @@ pub use method::{F64Readouts, Method};
 pub use one_point::OnePointMemory;
 pub use sparse::Derivatives;
 pub(crate) use sparse::velocity as reverse_mode_velocity;
-pub(crate) use tape_step::{SparseWork, TapeModel, velocity_derivatives};
+pub(crate) use tape_step::{Mass as ConstantMass, SparseWork, TapeModel, velocity_derivatives};
 pub(crate) use tape_step::{energy as tape_energy, legendre as tape_legendre};
 pub(crate) use tape_step::{momentum as tape_momentum, velocity as tape_velocity};
 pub use variable_step::{EnergyFallback, StepBounds};

@@ -28,4 +28,5 @@ mod run_time_galerkin_errors;
 mod run_time_galerkin_forces;
 mod run_time_solve;
 mod run_time_time_transform;
+mod run_time_splitting;
 mod solution;

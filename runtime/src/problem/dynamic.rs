@@ -1,8 +1,9 @@
 //! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
 //! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
 //! [`DynIntegrator`] (the implicit time transformation: in `s`, on the
-//! extended system of `n + 1` coordinates, by
-//! [`RunTimeAdaptive`]); what that driver does not have is refused by
+//! extended system of `n + 1` coordinates, by [`RunTimeAdaptive`]; the
+//! explicit time-transformed splitting by [`RunTimeSplitting`]); what those
+//! drivers do not have is refused by
 //! [`supports`](super::supports) with [`Error::Unsupported`].
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
@@ -16,7 +17,7 @@ use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, 
 use crate::solution::{Plan, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
-use crate::time_transform::{RuleInS, RunTimeAdaptive};
+use crate::time_transform::{RuleInS, RunTimeAdaptive, RunTimeSplitting};
 
 /// The driver of a run-time-sized [`Stepper`].
 #[derive(Clone, Debug)]
@@ -28,6 +29,9 @@ pub enum DynDriver<S> {
     Galerkin(DynIntegrator<S, RunTimeGalerkin>),
     // Boxed: the driver in `s` and its copy from before the step.
     TimeTransformed(Box<RunTimeAdaptive<S>>),
+    /// Boxed: its trial points and buffers make it several times the
+    /// size of the other drivers.
+    Splitting(Box<RunTimeSplitting<S>>),
 }
 
 /// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
@@ -40,6 +44,7 @@ macro_rules! each {
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
             DynDriver::TimeTransformed($d) => $body,
+            DynDriver::Splitting($d) => $body,
         }
     };
 }
@@ -139,6 +144,11 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
                 &self.q0,
                 &self.v0,
             )?)),
+            Scheme::Splitting { function, composition } => {
+                let data = (self.t0, &self.q0[..], &self.v0[..]);
+                let split = RunTimeSplitting::start(self.system.clone(), *function, *composition, policy.step(), data)?;
+                DynDriver::Splitting(Box::new(split))
+            }
             _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
         Ok(Stepper { driver, scheme: scheme.clone(), policy })
@@ -217,9 +227,9 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
     /// the energy that [`Policy::EnergyPreserving`] steps conserve (at
-    /// `k = 0`, the energy of the initial data). Under the time
-    /// transformation, `−p_t`: the momentum of time, which its steps in `s`
-    /// conserve for an autonomous system.
+    /// `k = 0`, the energy of the initial data). Under the implicit time
+    /// transformation and the explicit splitting, `−p_t`: the momentum of
+    /// time, which their steps in `s` conserve for an autonomous system.
     pub fn discrete_energy(&self) -> f64 {
         each!(&self.driver, d => d.discrete_energy())
     }

@@ -317,11 +317,15 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
                 );
             }
         }
-        Scheme::Splitting { .. } => {
+        Scheme::Splitting { .. } if c.forced => {
             return Err(
-                "the explicit time-transformed splitting of a run-time-sized system: its phase is compile-time-sized",
+                "the explicit time-transformed splitting of a forced system: its flows are those of `T(p)` and `V(q)` alone",
             );
         }
+        Scheme::Splitting { .. } if !matches!(c.policy, Policy::Fixed { .. }) => {
+            return Err("variable steps with the explicit splitting: its steps in `s` are fixed");
+        }
+        Scheme::Splitting { .. } => {}
     }
     match c.scheme {
         Scheme::OnePoint(_) => variable_steps(c)?,

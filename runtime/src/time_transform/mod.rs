@@ -42,6 +42,7 @@ mod adaptive;
 mod builder;
 mod density;
 mod dynamic;
+mod dynamic_splitting;
 mod extended;
 mod splitting;
 mod stepper;
@@ -53,6 +54,7 @@ pub(crate) use builder::default_penalty;
 pub use builder::{DEFAULT_RTOL, TimeTransformedBuilder};
 pub use density::{Curvature, RadiusPower, StepDensity};
 pub(crate) use dynamic::{RuleInS, RunTimeAdaptive};
+pub use dynamic_splitting::RunTimeSplitting;
 pub use extended::TimeTransformed;
 pub(crate) use extended::{extended_force, extended_lagrangian, homogeneous, split};
 pub use splitting::{

@@ -158,7 +158,7 @@ type Stepped<T, const N: usize> = (Phase<T, N>, Option<Gradient<T, N>>, u64);
 type Trial<T, const N: usize> = (T, Phase<T, N>, Option<Gradient<T, N>>, T);
 
 /// The one-stage weight list of the plain leapfrog.
-static LEAPFROG: [f64; 1] = [1.0];
+pub(crate) static LEAPFROG: [f64; 1] = [1.0];
 
 /// Configuration of an [`ExplicitAdaptive`] integrator before its initial
 /// state: `ExplicitTimeTransformed::new(system, f, σ)`, optionally
@@ -534,7 +534,7 @@ pub struct ExplicitAdaptive<Sys, T, const N: usize> {
 /// `f'(x) = x^{−1/2}`, which the splitting cannot pass, jumps to
 /// `|ln(a/b)| = 3.9 … 24` in one step.
 #[derive(Clone, Copy, Debug)]
-struct ClockBounds {
+pub(crate) struct ClockBounds {
     alpha: f64,
     reference: f64,
     lo: f64,
@@ -543,7 +543,7 @@ struct ClockBounds {
 
 impl ClockBounds {
     /// The bounds around the ratio `a/b` (1 where it is not finite and positive).
-    fn new<T: Real>(alpha: f64, a: T, b: T) -> Self {
+    pub(crate) fn new<T: Real>(alpha: f64, a: T, b: T) -> Self {
         let ratio = (a / b).re();
         let reference = if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 };
         let spread = 2f64.powf(alpha.recip());
@@ -553,14 +553,14 @@ impl ClockBounds {
     /// `Err(factor)` when `a/b` is out of range: the ratio of the rates
     /// `f'(a)/f'(b)` over its reference value.
     #[inline(always)]
-    fn check<T: Real>(&self, a: T, b: T) -> Result<(), f64> {
+    pub(crate) fn check<T: Real>(&self, a: T, b: T) -> Result<(), f64> {
         let (a, b) = (a.re(), b.re());
         if a >= self.lo * b && a <= self.hi * b { Ok(()) } else { Err((self.reference * b / a).powf(self.alpha)) }
     }
 }
 
 /// Why a sub-flow cannot be taken.
-enum Fault<T> {
+pub(crate) enum Fault<T> {
     /// An argument of `f'` that is not finite and positive.
     Argument(Argument, T),
     /// The ratio of the rates left its range ([`ClockBounds`]).
@@ -670,12 +670,18 @@ pub(crate) fn shift_with_margin<T: Scalar>(kinetic: T, v: T, virial: T) -> T {
 /// passes to round-off; one with an offset, a softening or a bounded range
 /// (a pendulum's `−g cos θ`) does not.
 fn gravitating<S: Lagrangian<N>, T: Real, const N: usize>(system: &S, t0: T, q0: [T; N], v: T) -> bool {
-    let v = v.re();
+    homogeneous_attraction(v.re(), |scale| potential(system, t0, q0.map(|x| x * scale)).re())
+}
+
+/// [`gravitating`] from `v = V(t0, q0)` and `scaled(s) = V(t0, s q0)`
+/// (asked for `s = 2` and `s = ½` only where `v < 0`): the test of both
+/// system sizes.
+pub(crate) fn homogeneous_attraction(v: f64, scaled: impl Fn(f64) -> f64) -> bool {
     if v.is_nan() || v >= 0.0 {
         return false;
     }
-    let outer = potential(system, t0, q0.map(|x| x * 2.0)).re() / v;
-    let inner = v / potential(system, t0, q0.map(|x| x * 0.5)).re();
+    let outer = scaled(2.0) / v;
+    let inner = v / scaled(0.5);
     outer > 0.0 && outer < 1.0 && (outer - inner).abs() <= 1e-9 * outer
 }
 

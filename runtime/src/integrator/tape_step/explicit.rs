@@ -8,7 +8,7 @@ use super::{
     mass_bandwidth, zeroed,
 };
 use crate::banded::{LinearSolveError, StepSolver};
-use crate::newton::{NewtonFailure, NewtonReport};
+use crate::newton::{Breakdown, NewtonFailure, NewtonReport};
 use crate::real::{is_non_finite, kahan_add as kahan, nan_bits};
 use std::sync::Arc;
 
@@ -22,16 +22,7 @@ impl SparseWork {
     /// general `L` needs at every node (three quarters of a `solve` with an
     /// event on a chain of 1 000 masses).
     pub(crate) fn constant_mass_velocity(&self, p: &[f64], v: &mut [f64]) -> bool {
-        let Some(mass) = self.mass.as_deref() else { return false };
-        v.copy_from_slice(p);
-        match mass.velocity() {
-            Velocity::Unit => true,
-            Velocity::Diagonal(d) => {
-                v.iter_mut().zip(d).for_each(|(v, d)| *v *= d);
-                true
-            }
-            Velocity::Solved => mass.assembled.solve(v).is_ok(),
-        }
+        self.mass.as_deref().is_some_and(|mass| mass.velocity_into(p, v).is_ok())
     }
 
     /// The explicit (Störmer–Verlet) step of the trapezoid rule on a
@@ -85,12 +76,8 @@ impl SparseWork {
     ) -> Result<Vec<f64>, NewtonFailure> {
         let n = self.n;
         if self.mass.is_none() {
-            let zero = zeroed(Some(n), n).map_err(|e| breakdown(e).at(0))?;
-            let (_, _, mut mass) =
-                velocity_derivatives(model, node.t, node.q, &zero, mass_bandwidth(model.coupling(), n))
-                    .map_err(|b| b.at(0))?;
-            mass.factor_in_place(min_rcond).map_err(|b| b.at(0))?;
-            self.mass = Some(Arc::new(Mass::new(mass)));
+            let mass = Mass::factored(model, node.t, &node.q[..n], min_rcond).map_err(|b| b.at(0))?;
+            self.mass = Some(Arc::new(mass));
         }
         match self.node_force.take() {
             Some((k, f)) if k == node.step => Ok(f),
@@ -464,7 +451,7 @@ impl SparseWork {
 /// reciprocals of its diagonal when it is a banded matrix of bandwidth 0:
 /// the solve is then one product per entry, done in the step's own loop.
 #[derive(Clone, Debug)]
-pub(super) struct Mass {
+pub(crate) struct Mass {
     assembled: Assembled,
     inverse_diagonal: Option<Vec<f64>>,
     /// `M = I` (the diagonal is all ones): the drift skips the product.
@@ -482,6 +469,33 @@ impl Mass {
         let inverse_diagonal = inverse_diagonal.filter(|d| d.iter().all(|x| x.is_finite()));
         let unit = inverse_diagonal.as_ref().is_some_and(|d| d.iter().all(|&x| x == 1.0));
         Self { assembled, inverse_diagonal, unit }
+    }
+
+    /// The constant mass matrix `M = ∂²L/∂v²` of `model` at `(t, q)` (at
+    /// rest), assembled banded where the coupling proves a band, and
+    /// factored; a singular or badly conditioned one (reciprocal condition
+    /// below `min_rcond`) is refused. The explicit time-transformed
+    /// splitting at a run-time size applies `M⁻¹` in its drifts by it.
+    pub(crate) fn factored(model: &dyn TapeModel, t: f64, q: &[f64], min_rcond: f64) -> Result<Self, Breakdown> {
+        let n = q.len();
+        let zero = zeroed(Some(n), n).map_err(breakdown)?;
+        let (_, _, mut mass) = velocity_derivatives(model, t, q, &zero, mass_bandwidth(model.coupling(), n))?;
+        mass.factor_in_place(min_rcond)?;
+        Ok(Self::new(mass))
+    }
+
+    /// The velocity `v = M⁻¹p`: a copy for `M = I`, products with the
+    /// reciprocals of a diagonal, else the banded or dense solve.
+    pub(crate) fn velocity_into(&self, p: &[f64], v: &mut [f64]) -> Result<(), LinearSolveError> {
+        v.copy_from_slice(p);
+        match self.velocity() {
+            Velocity::Unit => Ok(()),
+            Velocity::Diagonal(d) => {
+                v.iter_mut().zip(d).for_each(|(v, d)| *v *= d);
+                Ok(())
+            }
+            Velocity::Solved => self.assembled.solve(v),
+        }
     }
 
     /// How a drift applies `M⁻¹`: skipped for `M = I`, products with the

@@ -53,11 +53,11 @@ mod implicit;
 mod legendre;
 
 use directional::Directional;
-use explicit::Mass;
 use forcing::Forcing;
 
 pub(crate) use directional::{distinct, point_position, point_time};
 pub(crate) use energy::{EnergyBuffers, EnergyTerms};
+pub(crate) use explicit::Mass;
 pub(crate) use forcing::generalized_force;
 pub(crate) use galerkin::{GalerkinWork, Rule};
 pub(crate) use legendre::{energy, legendre, momentum, step_energy, velocity, velocity_derivatives, watch_energy_jump};
