@@ -149,7 +149,6 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
                 let split = RunTimeSplitting::start(self.system.clone(), *function, *composition, policy.step(), data)?;
                 DynDriver::Splitting(Box::new(split))
             }
-            _ => return Err(Error::Unsupported { what: "this scheme on a run-time-sized system" }),
         };
         Ok(Stepper { driver, scheme: scheme.clone(), policy })
     }
