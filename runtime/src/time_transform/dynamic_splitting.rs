@@ -49,6 +49,8 @@ struct Point {
     force: Vec<f64>,
     /// `(V, ∂_t V)` at `(t, q)`, when computed.
     potential: Option<(f64, f64)>,
+    /// `T(p)`, when a drift has computed it (a drift leaves `p` as it is).
+    kinetic: Option<f64>,
 }
 
 /// `clone_from` reuses the buffers: a step copies its start into a trial
@@ -62,14 +64,18 @@ impl Clone for Point {
             p_t: self.p_t,
             force: self.force.clone(),
             potential: self.potential,
+            kinetic: self.kinetic,
         }
     }
 
     fn clone_from(&mut self, source: &Self) {
         self.state.clone_from(&source.state);
         (self.t, self.t_carry, self.p_t) = (source.t, source.t_carry, source.p_t);
-        self.force.clone_from(&source.force);
-        self.potential = source.potential;
+        // `∇V` is read only where `V` is known.
+        if source.potential.is_some() {
+            self.force.clone_from(&source.force);
+        }
+        (self.potential, self.kinetic) = (source.potential, source.kinetic);
     }
 }
 
@@ -242,6 +248,7 @@ impl<S: DynLagrangian + Clone> RunTimeSplitting<S> {
             p_t: -energy,
             force: vec![0.0; n],
             potential: None,
+            kinetic: None,
         };
         let gravitating = energy < 0.0
             && homogeneous_attraction(v, |scale| {
@@ -535,8 +542,11 @@ impl<S: DynLagrangian> Flows<'_, S> {
         }
         // The end node's arguments of f' (the potential from the last
         // kick's gradient for kick–drift–kick, evaluated for drift–kick–drift).
-        let kinetic = kinetic_energy(self.mass, &point.state.p, &mut scratch.velocity)
-            .ok_or(Fault::Argument(Argument::Kinetic, f64::NAN))?;
+        let kinetic = match point.kinetic {
+            Some(kinetic) => kinetic,
+            None => kinetic_energy(self.mass, &point.state.p, &mut scratch.velocity)
+                .ok_or(Fault::Argument(Argument::Kinetic, f64::NAN))?,
+        };
         let a = kinetic + point.p_t + self.shift;
         let v = match point.potential {
             Some((v, _)) => v,
@@ -573,6 +583,7 @@ impl<S: DynLagrangian> Flows<'_, S> {
         if !S::AUTONOMOUS {
             point.p_t -= k * dt;
         }
+        point.kinetic = None;
         Ok(())
     }
 
@@ -586,7 +597,9 @@ impl<S: DynLagrangian> Flows<'_, S> {
         }
         let k = h * self.function.derivative(x);
         let n = scratch.velocity.len();
-        let (q, u) = (&mut point.state.q[..n], &scratch.velocity[..n]);
+        // `M⁻¹p = p` for `M = I`: not copied.
+        let u = if self.mass.is_unit() { &point.state.p[..n] } else { &scratch.velocity[..n] };
+        let q = &mut point.state.q[..n];
         for i in 0..n {
             q[i] += k * u[i];
         }
@@ -596,16 +609,23 @@ impl<S: DynLagrangian> Flows<'_, S> {
         point.t_carry = (t - point.t) - y;
         point.t = t;
         point.potential = None;
+        point.kinetic = Some(kinetic);
         Ok(())
     }
 }
 
-/// `T(p) = ½ p·M⁻¹p`, with `M⁻¹p` left in `velocity`; `None` where the
-/// solve refuses `p` (not finite).
+/// `T(p) = ½ p·M⁻¹p`, with `M⁻¹p` left in `velocity` (but for `M = I`);
+/// `None` where `p` is not finite.
 fn kinetic_energy(mass: &ConstantMass, p: &[f64], velocity: &mut [f64]) -> Option<f64> {
-    mass.velocity_into(p, velocity).ok()?;
     let n = velocity.len();
-    let (p, u) = (&p[..n], &velocity[..n]);
+    let u = if mass.is_unit() {
+        // `M⁻¹p = p`, which the drift reads in place.
+        &p[..n]
+    } else {
+        mass.velocity_into(p, velocity).ok()?;
+        &velocity[..n]
+    };
+    let p = &p[..n];
     let mut k = 0.0;
     for i in 0..n {
         k += p[i] * u[i];
