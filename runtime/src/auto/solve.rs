@@ -323,6 +323,14 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         for (mut candidate, mut reason) in candidates {
             let h_cap = match candidate.family {
                 Family::Composition if rho_max > 0.0 && self.step.is_none() => COMPOSITION_RHO_H / rho_max,
+                // A high degree where no survey measured `ρ` along the
+                // orbit: no round and no final run beyond the step whose
+                // error a pilot from the start sees.
+                Family::Galerkin
+                    if candidate.order >= 12 && !facts.explicit() && rho_max > 0.0 && self.step.is_none() =>
+                {
+                    choice::HIGH_DEGREE_RHO_H / rho_max
+                }
                 _ => f64::INFINITY,
             };
             let reuse = survey.take().filter(|s| s.0 == candidate).map(|s| (s.1, s.2));
@@ -821,7 +829,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // asymptotic range, where the error falls faster than `h^p`: a
             // step below half of it is piloted again rather than
             // extrapolated that far.
-            let at_cap = fixed_step && h >= 0.99 * h_cap && ratio < CAPPED_ACCEPT;
+            let at_cap = capped_family && fixed_step && h >= 0.99 * h_cap && ratio < CAPPED_ACCEPT;
             if ACCEPT.contains(&ratio) && !at_cap {
                 break;
             }
