@@ -678,9 +678,22 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // The checkpoints of a round whose fine run is the next round's
         // coarse run (see `HALVE_FROM`): on the nodes of both.
         let mut halved: Option<Vec<f64>> = None;
+        // A Galerkin cap (`s ≥ 6` without a survey, `ρh ≤ HIGH_DEGREE_RHO_H`)
+        // bounds the first round and the step taken; a round whose runs
+        // agree to round-off at it measures again at up to `ρh =
+        // GALERKIN_RHO_H`, the bound of every Galerkin pilot (Kepler in polar
+        // coordinates over 1 000 orbits at `rtol = 1.8e-12`: its runs at
+        // `ρh = 0.7` differ by round-off alone).
+        let measure_cap = match c.family {
+            Family::Galerkin if h_cap.is_finite() => h_cap * choice::GALERKIN_RHO_H / choice::HIGH_DEGREE_RHO_H,
+            _ => h_cap,
+        };
         // A few coarse steps over the pilot at least.
-        let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
+        let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(measure_cap);
         let fixed_step = c.family != Family::TimeTransformed;
+        if fixed_step && self.step.is_none() {
+            h = h.min(h_cap);
+        }
         // The energy guard of the coarse runs (see `pilot::probe`): Galerkin
         // on a conservative autonomous system, whose pilot starts at up to
         // `ρh = 1` with `ρ` from the start alone (the compositions' steps
@@ -788,9 +801,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 if (fixed_step && h >= h_max) || 4.0 * h >= too_coarse {
                     // As coarse as the pilot resolves (or a coarser step
                     // already missed) and still exact to round-off.
-                    return Ok(((h, at_end.max(roundoff)), rich, scale));
+                    return Ok(((h.min(h_cap), at_end.max(roundoff)), rich, scale));
                 }
-                last = Some(((h, at_end.max(roundoff)), rich, scale));
+                last = Some(((h.min(h_cap), at_end.max(roundoff)), rich, scale));
                 if at_end.max(roundoff) <= target {
                     met = last;
                 }
