@@ -28,6 +28,9 @@
 //! suite the coarsest that, with the next two finer ones, meets it), one
 //! line `target rtol error` per target, for the runs above.
 //!
+//! `HORIZON=F` scales every problem's horizon by `F` (the accuracy grid's
+//! spans, `bench/tests/auto.rs`).
+//!
 //! Every run keeps only its last node, as the report's timed runs do.
 #![allow(missing_docs)]
 
@@ -38,6 +41,12 @@ use lagrangian_bench::problem;
 fn usage() -> ! {
     eprintln!("usage: auto_solve PROBLEM RTOL | PROBLEM METHOD steps=N|sigma=S|tol=T | PROBLEM none");
     std::process::exit(2);
+}
+
+/// `HORIZON=F`: the problems at `F` times the report's horizon (the
+/// accuracy grid of `bench/tests/auto.rs` runs some at 0.01 to 0.5).
+fn horizon_scale() -> f64 {
+    std::env::var("HORIZON").ok().and_then(|v| v.parse().ok()).filter(|f: &f64| *f > 0.0).unwrap_or(1.0)
 }
 
 /// `steps=N`, `sigma=S` or `tol=T`.
@@ -75,7 +84,7 @@ fn main() {
     };
     // Double-double Galerkin blocks of the larger problems want a large stack.
     let worker = std::thread::Builder::new().stack_size(256 << 20).spawn(move || {
-        let Some(p) = problem::all(1.0).into_iter().find(|p| p.id() == id) else {
+        let Some(p) = problem::all(horizon_scale()).into_iter().find(|p| p.id() == id) else {
             eprintln!("no problem {id}");
             std::process::exit(2);
         };
@@ -112,7 +121,7 @@ fn main() {
 /// The calibrated tolerance of `auto` at each target of the full suite.
 fn calibrate_auto(id: &str) {
     const TARGETS: [f64; 3] = [1e-4, 1e-7, 1e-10];
-    let Some(p) = problem::all(1.0).into_iter().find(|p| p.id() == id) else {
+    let Some(p) = problem::all(horizon_scale()).into_iter().find(|p| p.id() == id) else {
         eprintln!("no problem {id}");
         std::process::exit(2);
     };
