@@ -493,6 +493,24 @@ impl<T: Real> Error<T> {
     pub(crate) fn check_step(h: f64) -> Result<(), Self> {
         if h.is_finite() && h > 0.0 { Ok(()) } else { Err(Error::InvalidStepSize { h }) }
     }
+
+    /// `Ok` for the initial data `(t0, q0, v0)` of a run-time-sized system
+    /// with `n` coordinates: at least one, `q0` and `v0` of that length, all
+    /// finite.
+    pub(crate) fn check_run_time_data(n: usize, t0: f64, q0: &[f64], v0: &[f64]) -> Result<(), Self> {
+        if n == 0 {
+            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
+        }
+        for (what, x) in [("q0", q0), ("v0", v0)] {
+            if x.len() != n {
+                return Err(Error::WrongLength { what, expected: n, found: x.len() });
+            }
+        }
+        if !t0.is_finite() || !crate::real::all_finite(q0) || !crate::real::all_finite(v0) {
+            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
+        }
+        Ok(())
+    }
 }
 
 /// A failure found inside a step before it is known whether the step

@@ -326,17 +326,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
                 what: "a system with holonomic constraints under `DynIntegrator`: step it with `DynConstrained`",
             });
         }
-        if n == 0 {
-            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
-        }
-        for (what, x) in [("q0", q0), ("v0", v0)] {
-            if x.len() != n {
-                return Err(Error::WrongLength { what, expected: n, found: x.len() });
-            }
-        }
-        if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
-            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
-        }
+        Error::check_run_time_data(n, t0, q0, v0)?;
         let model = Sliced { system: &self.system, points };
         let (p0, energy) =
             tape_step::legendre(&model, t0, q0, v0).map_err(|reason| Error::InvalidInitialData { reason })?;

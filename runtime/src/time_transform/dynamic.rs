@@ -38,7 +38,6 @@ use crate::integrator::{
     DynIntegrator, DynMethod, RunTimeGalerkin, Sealed, Sliced, Stats, tape_energy, tape_momentum, tape_velocity,
 };
 use crate::newton::NewtonOptions;
-use crate::real::all_finite;
 use crate::root::Bracket;
 use crate::solution::{Plan, Solution, Solvable, SolveError, solve};
 use crate::state::PhasePoint;
@@ -308,17 +307,7 @@ impl<S: DynLagrangian> RunTimeAdaptive<S> {
             return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
         let n = system.dimension();
-        if n == 0 {
-            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
-        }
-        for (what, x) in [("q0", q0), ("v0", v0)] {
-            if x.len() != n {
-                return Err(Error::WrongLength { what, expected: n, found: x.len() });
-            }
-        }
-        if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
-            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
-        }
+        Error::check_run_time_data(n, t0, q0, v0)?;
         let g0 = curvature(density.floor, &system, t0, q0);
         if !(g0.is_finite() && g0 > 0.0) {
             let state = PhasePoint { step: 0, t: t0, q: q0.to_vec(), p: vec![f64::NAN; n] };

@@ -206,17 +206,7 @@ impl<S: DynLagrangian + Clone> RunTimeSplitting<S> {
             return Err(Error::InvalidSetting { reason: "the exponent α must be finite and positive" });
         }
         let n = system.dimension();
-        if n == 0 {
-            return Err(Error::InvalidInitialData { reason: "the system has no degrees of freedom (dimension 0)" });
-        }
-        for (what, x) in [("q0", q0), ("v0", v0)] {
-            if x.len() != n {
-                return Err(Error::WrongLength { what, expected: n, found: x.len() });
-            }
-        }
-        if !t0.is_finite() || !all_finite(q0) || !all_finite(v0) {
-            return Err(Error::InvalidInitialData { reason: "t0, q0 and v0 must be finite" });
-        }
+        Error::check_run_time_data(n, t0, q0, v0)?;
         let mut scratch = Scratch::new(n);
         let v = -system.lagrangian(t0, q0, &scratch.zero);
         if !v.is_finite() {
