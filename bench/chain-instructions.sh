@@ -21,6 +21,7 @@ CASES=(
   hand hand-compensated
   trapezoid trapezoid-plain user-trapezoid user-trapezoid-plain
   dyn-trapezoid dyn-trapezoid-plain dyn-user-trapezoid dyn-user-trapezoid-plain
+  stepper-trapezoid stepper-user-trapezoid
 )
 
 source scripts/callgrind.sh

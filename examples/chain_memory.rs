@@ -1,6 +1,6 @@
 //! Peak memory of a run-time-sized FPU-β chain: `N` masses (default
 //! 100 000, or the first argument), 3 midpoint steps (banded Newton) and 10
-//! explicit trapezoid steps through `DynIntegrator`, printing the energy
+//! explicit trapezoid steps through `Problem`/`Stepper`, printing the energy
 //! error, the time per step and the process's peak resident memory
 //! (`VmHWM`, Linux) after each stage.
 //!
@@ -17,6 +17,7 @@ use lagrangian::prelude::*;
 use lagrangian::{Coupling, Pattern, Separability};
 
 /// The FPU-β chain (β = 1) through the macro.
+#[derive(Clone)]
 struct Generated(usize);
 
 #[lagrangian]
@@ -44,6 +45,7 @@ impl Generated {
 }
 
 /// An FPU-β chain (β = 1) with fixed ends, unit masses and springs, by hand.
+#[derive(Clone)]
 struct Fpu(usize);
 
 impl DynLagrangian for Fpu {
@@ -92,7 +94,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 /// The stages on the chain `system(n)`.
-fn run<S: DynLagrangian>(n: usize, system: fn(usize) -> S) -> Result<(), Box<dyn std::error::Error>> {
+fn run<S: DynLagrangian + Clone>(n: usize, system: fn(usize) -> S) -> Result<(), Box<dyn std::error::Error>> {
     let which = if S::HAS_GRADIENT_QV { "generated gradient code" } else { "tape" };
     // Mode N/10 with spring strains of 0.3.
     let k = n.div_ceil(10);
@@ -101,7 +103,7 @@ fn run<S: DynLagrangian>(n: usize, system: fn(usize) -> S) -> Result<(), Box<dyn
         (0..n).map(|i| a * ((i + 1) as f64 * k as f64 * std::f64::consts::PI / (n + 1) as f64).sin()).collect();
     let v0 = vec![0.0; n];
     println!("FPU-β chain, N = {n} ({which}); peak memory after the initial data: {}", peak_memory());
-    let mut midpoint = DynIntegrator::new(system(n), Midpoint, 0.05).start(0.0, &q0, &v0)?;
+    let mut midpoint = Problem::new(system(n), 0.0, q0.clone(), v0.clone()).stepper(&Scheme::MIDPOINT, 0.05)?;
     println!("after `start` (Legendre map): peak memory {}", peak_memory());
     let e0 = midpoint.energy()?;
     let clock = Instant::now();
@@ -116,7 +118,7 @@ fn run<S: DynLagrangian>(n: usize, system: fn(usize) -> S) -> Result<(), Box<dyn
         peak_memory()
     );
     drop(midpoint);
-    let mut trapezoid = DynIntegrator::new(system(n), Trapezoid, 0.05).start(0.0, &q0, &v0)?;
+    let mut trapezoid = Problem::new(system(n), 0.0, q0, v0).stepper(&Scheme::TRAPEZOID, 0.05)?;
     trapezoid.run(10, |_| {})?;
     let e = trapezoid.energy()?;
     println!(

@@ -16,9 +16,9 @@
 //!    total energy stays within the method's `O(h²)` band. Plot:
 //!    `modes_n32.png`.
 //! 2. N = 10 000, a chain whose length is a run-time value (`q: &[f64]`,
-//!    `fn dimension`: `#[lagrangian]` implements `DynLagrangian`, and
-//!    `DynIntegrator` keeps the state, the tape and the banded matrices on
-//!    the heap, so it runs in an ordinary thread), mode 1000 excited with
+//!    `fn dimension`: `#[lagrangian]` implements `DynLagrangian`, and the
+//!    `Problem` stated by vectors keeps the state, the tape and the banded
+//!    matrices on the heap, so it runs in an ordinary thread), mode 1000 excited with
 //!    spring strains of about 1 (well into the quartic regime): the energy
 //!    of modes 1000, 3000 and 5000 and the total energy error over 5 000
 //!    explicit steps, and 20 steps of the implicit midpoint rule with banded
@@ -228,10 +228,10 @@ fn main() -> Result<(), Box<dyn Error>> {
     let chain = Chain { n, beta };
     let q0 = mode(n, excited, amplitude);
     let (steps, every) = (5_000, 50);
-    let mut sim = DynIntegrator::new(chain, Trapezoid, h).start(0.0, &q0, &vec![0.0; n])?;
+    let mut sim = Problem::new(chain, 0.0, q0.clone(), vec![0.0; n]).stepper(&Scheme::TRAPEZOID, h)?;
     let e_total = sim.energy()?;
     let mut big = Run { modes: vec![Vec::new(); modes.len()], energy_error: Vec::new(), seconds: 0.0, steps };
-    let record = |sim: &DynIntegrator<Chain, Trapezoid>, out: &mut Run| -> Result<(), Box<dyn Error>> {
+    let record = |sim: &Stepper<Chain, Dyn>, out: &mut Run| -> Result<(), Box<dyn Error>> {
         let s = sim.state();
         for (series, &k) in out.modes.iter_mut().zip(&modes) {
             series.push((s.t, mode_energy(&s.q, &s.p, k)));
@@ -248,7 +248,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     }
     assert_eq!(sim.stats().newton_iterations, 0, "the explicit path takes no Newton iteration");
     // The implicit midpoint rule with banded Newton solves, for its cost.
-    let mut implicit = DynIntegrator::new(Chain { n, beta }, Midpoint, h).start(0.0, &q0, &vec![0.0; n])?;
+    let mut implicit = Problem::new(Chain { n, beta }, 0.0, q0.clone(), vec![0.0; n]).stepper(&Scheme::MIDPOINT, h)?;
     let start = Instant::now();
     implicit.run(20, |_| {})?;
     let midpoint_step = start.elapsed().as_secs_f64() / 20.0;

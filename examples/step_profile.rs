@@ -24,7 +24,7 @@
 //! `double pendulum galerkin4` (s = 4, h = 2/95: the report's step for 1e-8 over t ≤ 2; `galerkin4-newton`: solved by Newton only);
 //! `galerkin6-tight` (s = 6 with Newton's `rtol` at 1e-17, a reference for the round-off of the others);
 //! `chain1000` with `trapezoid` or `verlet` (the FPU-β chain of `chain_scaling.rs`, N = 1000, reverse mode),
-//! `dyn-trapezoid` and `dyn-yoshida4` (the same chain sized at run time, `DynIntegrator`), `midpoint` (reverse-mode Newton steps), `yoshida4` (Yoshida 4 of explicit sub-steps, fused), and
+//! `dyn-trapezoid` and `dyn-yoshida4` (the same chain sized at run time, `Stepper<S, Dyn>`), `midpoint` (reverse-mode Newton steps), `yoshida4` (Yoshida 4 of explicit sub-steps, fused), and
 //! `verlet-compensated-inplace` (a hand-written compensated Verlet on slices in place: the fair baseline
 //! of the generated explicit step); `digest-trapezoid`, `digest-midpoint`, `digest-yoshida4` print the bits
 //! of the state and of every readout after `n` steps, to compare two builds.
@@ -201,7 +201,8 @@ impl<const N: usize> Chain<N> {
     }
 }
 
-/// The same chain sized at run time (`DynIntegrator`, as in `chain_scaling.rs`).
+/// The same chain sized at run time (`Problem<S, Dyn>`, as in `chain_scaling.rs`).
+#[derive(Clone)]
 struct DynChain(usize);
 
 #[lagrangian::lagrangian]
@@ -346,6 +347,12 @@ const HH_V0: [f64; 2] = [0.4, 0.0];
 
 fn fpu_q0() -> [f64; FPU_N] {
     core::array::from_fn(|i| 2.0 * (std::f64::consts::PI * (i + 1) as f64 / (FPU_N + 1) as f64).sin())
+}
+
+/// The run-time-sized chain of `CHAIN_N` masses stepped by `scheme`, `h = 0.05`.
+fn dyn_chain(scheme: Scheme) -> lagrangian::Stepper<DynChain, lagrangian::Dyn> {
+    let q0 = chain_q0::<CHAIN_N>().to_vec();
+    Problem::new(DynChain(CHAIN_N), 0.0, q0, vec![0.0; CHAIN_N]).stepper(&scheme, 0.05).unwrap()
 }
 
 fn main() {
@@ -545,9 +552,7 @@ fn main() {
         }
         ("chain1000", "verlet") => hand_verlet(chain_force, &[1.0], 0.05, chain_q0(), [0.0; CHAIN_N], n),
         ("chain1000", "dyn-trapezoid") => {
-            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)
-                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
-                .unwrap();
+            let mut sim = dyn_chain(Scheme::TRAPEZOID);
             for _ in 0..n {
                 black_box(sim.step().unwrap());
             }
@@ -575,16 +580,6 @@ fn main() {
         ("chain24", "midpoint-reverse") => newton_mode::<24>(lagrangian::Derivatives::Reverse, n),
         ("chain32", "midpoint-forward") => newton_mode::<32>(lagrangian::Derivatives::Forward, n),
         ("chain32", "midpoint-reverse") => newton_mode::<32>(lagrangian::Derivatives::Reverse, n),
-        ("chain1000", "dyn-trapezoid-plain") => {
-            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Trapezoid, 0.05)
-                .summation(Summation::Plain)
-                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
-                .unwrap();
-            for _ in 0..n {
-                black_box(sim.step().unwrap());
-            }
-            sim.state().q.clone()
-        }
         ("chain1000", "trapezoid-plain") => run(
             Integrator::new(Chain::<CHAIN_N>, Trapezoid, 0.05).summation(Summation::Plain).start(
                 0.0,
@@ -594,9 +589,8 @@ fn main() {
             n,
         ),
         ("chain1000", "dyn-yoshida4") => {
-            let mut sim = lagrangian::DynIntegrator::new(DynChain(CHAIN_N), Composition::YOSHIDA4, 0.05)
-                .start(0.0, &chain_q0::<CHAIN_N>(), &[0.0; CHAIN_N])
-                .unwrap();
+            let mut sim =
+                dyn_chain(Scheme::composition(Composition::YOSHIDA4, lagrangian::problem::OnePoint::Trapezoid));
             for _ in 0..n {
                 black_box(sim.step().unwrap());
             }

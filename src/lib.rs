@@ -198,14 +198,14 @@ pub use lagrangian_macros::lagrangian;
 pub use lagrangian_runtime::num_dual;
 pub use lagrangian_runtime::{
     Action, ActionGradient, Adaptive, AlphaBeta, Auto, Composition, Coupling, Curvature, DenseKind, Derivatives, Dim,
-    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, Dyn, DynIntegrator,
-    DynIntegratorBuilder, DynLagrangian, DynMethod, EnergyFallback, Error, Estimate, Event, EventRecord,
-    ExplicitAdaptive, ExplicitTimeTransformed, ExtendedStepDerivatives, F64Readouts, ForceCoupling, Galerkin,
-    GalerkinIntegrator, Generator, Integrator, IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure, Method,
-    Midpoint, NewtonOptions, NewtonReport, Node, NodeFamily, NodeView, Pattern, PhasePoint, Plan, Policy, Problem,
-    Quadrature, RadiusPower, Real, Rows, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State,
-    Stats, Status, StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry,
-    TangentMap, TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
+    Direction, DiscreteLagrangian, DiscreteMechanics, DiscretePartials, DoubleDouble, Dyn, DynLagrangian,
+    EnergyFallback, Error, Estimate, Event, EventRecord, ExplicitAdaptive, ExplicitTimeTransformed,
+    ExtendedStepDerivatives, F64Readouts, ForceCoupling, Galerkin, GalerkinIntegrator, Generator, Integrator,
+    IntegratorBuilder, Lagrangian, LeapfrogForm, LegendreFailure, Method, Midpoint, NewtonOptions, NewtonReport, Node,
+    NodeFamily, NodeView, Pattern, PhasePoint, Plan, Policy, Problem, Quadrature, RadiusPower, Real, Rows,
+    RunTimeStepping, Scalar, Scheme, Segment, Separability, Solution, SolveError, Solved, State, Stats, Status,
+    StepBounds, StepDensity, StepDerivatives, StepPolicy, Stepper, Stepping, Summation, Symmetry, TangentMap,
+    TimeFunction, TimeTransformed, Tolerance, Trapezoid, solve_to,
 };
 pub use lagrangian_runtime::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
 pub use lagrangian_runtime::{Constrained, DynConstrained};
@@ -217,6 +217,7 @@ pub use lagrangian_runtime::{
 /// Everything a typical user needs: `use lagrangian::prelude::*;`.
 pub mod prelude {
     pub use lagrangian_macros::lagrangian;
+    pub use lagrangian_runtime::PhasePoint;
     pub use lagrangian_runtime::problem::{Capability, GalerkinQuadrature, OnePoint};
     pub use lagrangian_runtime::{Adaptive, Curvature, RadiusPower, StepDensity, TimeTransformed};
     pub use lagrangian_runtime::{
@@ -230,8 +231,7 @@ pub mod prelude {
     pub use lagrangian_runtime::{Constrained, DynConstrained};
     pub use lagrangian_runtime::{Dim, Dyn, Policy, Problem, Scheme, Stepper};
     pub use lagrangian_runtime::{DoubleDouble, Galerkin, GalerkinIntegrator, NodeFamily, Quadrature, Real};
-    pub use lagrangian_runtime::{DynIntegrator, DynMethod, PhasePoint};
-    pub use lagrangian_runtime::{Event, NodeView, Plan, Rows, Solution, SolveError, Stepping};
+    pub use lagrangian_runtime::{Event, NodeView, Plan, Rows, RunTimeStepping, Solution, SolveError, Stepping};
 }
 
 /// Paths named by code that `#[lagrangian]` generates. Not a public API.

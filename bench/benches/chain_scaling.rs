@@ -43,6 +43,7 @@ use lagrangian::prelude::*;
 use lagrangian_bench::chain::{
     BETA, CompensatedVerlet, DynFpu, DynUserFpu, Fpu, UserFpu, Verlet, start_array, start_q,
 };
+use lagrangian_runtime::DynIntegrator;
 
 const H: f64 = 0.05;
 const STEPS: usize = 20;

@@ -17,7 +17,12 @@
 //! chain (`trapezoid`) and on the chain as a new user writes it
 //! (`user-trapezoid`), and with the size known at run time (`dyn-trapezoid`,
 //! `dyn-user-trapezoid`); each of the four with `-plain` appended runs under
-//! `Summation::Plain`.
+//! `Summation::Plain`. `stepper-trapezoid` and `stepper-user-trapezoid` take
+//! the run-time-sized steps through `Problem`/`Stepper<S, Dyn>` (compensated
+//! sums), the user's way in: against `dyn-trapezoid` and
+//! `dyn-user-trapezoid`, the driver named directly (a hidden item of the
+//! runtime crate, kept for this comparison), they give the cost of the
+//! stepper's dispatch.
 #![allow(missing_docs)]
 
 use std::hint::black_box;
@@ -26,6 +31,7 @@ use lagrangian::prelude::*;
 use lagrangian_bench::chain::{
     BETA, CompensatedVerlet, DynFpu, DynUserFpu, Fpu, UserFpu, Verlet, start_array, start_q,
 };
+use lagrangian_runtime::DynIntegrator;
 
 const H: f64 = 0.05;
 
@@ -39,6 +45,14 @@ fn fixed<S: Lagrangian<N>, const N: usize>(system: S, plain: bool, steps: usize)
         .summation(summation(plain))
         .start(0.0, start_array::<N>(), [0.0; N])
         .expect("start");
+    sim.run(steps, |_| {}).expect("steps");
+    black_box(sim.state().q[0]);
+}
+
+/// `steps` explicit steps of the run-time-sized system `system` through
+/// the stepper.
+fn stepper<S: DynLagrangian + Clone>(system: S, n: usize, steps: usize) {
+    let mut sim = Problem::new(system, 0.0, start_q(n), vec![0.0; n]).stepper(&Scheme::TRAPEZOID, H).expect("start");
     sim.run(steps, |_| {}).expect("steps");
     black_box(sim.state().q[0]);
 }
@@ -77,6 +91,8 @@ fn case<const N: usize>(case: &str, steps: usize) {
         "user-trapezoid" => fixed(UserFpu::<N> { beta: BETA }, plain, steps),
         "dyn-trapezoid" => dynamic(DynFpu(N), N, plain, steps),
         "dyn-user-trapezoid" => dynamic(DynUserFpu { n: N, beta: BETA }, N, plain, steps),
+        "stepper-trapezoid" if !plain => stepper(DynFpu(N), N, steps),
+        "stepper-user-trapezoid" if !plain => stepper(DynUserFpu { n: N, beta: BETA }, N, steps),
         _ => panic!("unknown case {case}"),
     }
 }

@@ -24,6 +24,7 @@ use std::hint::black_box;
 use lagrangian::prelude::*;
 use lagrangian::{Coupling, ForceCoupling, Pattern, Scalar, Separability};
 use lagrangian_bench::chain::{BETA, start_q};
+use lagrangian_runtime::DynIntegrator;
 
 const H: f64 = 0.05;
 

@@ -69,7 +69,7 @@ impl<const N: usize> UserFpu<N> {
     }
 }
 
-/// [`Fpu`] sized at run time (`DynIntegrator`).
+/// [`Fpu`] sized at run time.
 #[derive(Clone, Copy, Debug)]
 pub struct DynFpu(pub usize);
 
@@ -97,7 +97,7 @@ impl DynFpu {
     }
 }
 
-/// [`UserFpu`] sized at run time (`DynIntegrator`).
+/// [`UserFpu`] sized at run time.
 #[derive(Clone, Copy, Debug)]
 pub struct DynUserFpu {
     /// The number of masses.

@@ -19,7 +19,7 @@
 //! ```
 use lagrangian_runtime::{
     Coupling, Derivatives, DynIntegrator, DynLagrangian, Event, Integrator, Lagrangian, Midpoint, Pattern, Plan,
-    Scalar, Separability, Stepping, Trapezoid,
+    RunTimeStepping, Scalar, Separability, Stepping, Trapezoid,
 };
 
 /// `L = ½v² + g cos q`.

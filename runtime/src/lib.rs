@@ -55,11 +55,18 @@ pub use error::Error;
 pub use events::{Action, Direction, Event, EventRecord};
 pub use galerkin::{Galerkin, GalerkinIntegrator, NodeFamily, Quadrature};
 pub use integrator::{
-    Composition, Derivatives, DynIntegrator, DynIntegratorBuilder, DynMethod, EnergyFallback, F64Readouts, Integrator,
-    IntegratorBuilder, Method, Stats, StepBounds, StepPolicy, Summation,
+    Composition, Derivatives, EnergyFallback, F64Readouts, Integrator, IntegratorBuilder, Method, Stats, StepBounds,
+    StepPolicy, Summation,
 };
+// The run-time-sized driver without the dispatch of `Stepper<S, Dyn>`:
+// users go through `Problem`/`Stepper`; the bench measures the driver on
+// its own (and under `Summation::Plain`, which `Problem` does not offer)
+// against the stepper, and tests of the driver's internals (summation,
+// energy fallback, rules of one's own) name it.
 #[doc(hidden)]
 pub use integrator::{CompositionMemory, OnePointMemory};
+#[doc(hidden)]
+pub use integrator::{DynIntegrator, DynIntegratorBuilder, DynMethod};
 pub use mechanics::{DiscreteMechanics, DiscretePartials, LegendreFailure};
 pub use newton::{NewtonOptions, NewtonReport};
 pub use noether::{Generator, Symmetry};
@@ -67,7 +74,7 @@ pub use num_dual;
 pub use problem::{Policy, Problem, Scheme, Stepper};
 pub use real::Real;
 pub use sensitivity::{Checkpoints, Gradient, Jacobian, Loss, Parametric, Sensitivities};
-pub use solution::{DenseKind, Plan, RowIter, Rows, Solution, SolveError, Status, Stepping};
+pub use solution::{DenseKind, Plan, RowIter, Rows, RunTimeStepping, Solution, SolveError, Status, Stepping};
 pub use state::{PhasePoint, State};
 pub use structure::{Coupling, ForceCoupling, Pattern, Separability};
 pub use symplectic::TangentMap;

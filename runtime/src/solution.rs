@@ -65,8 +65,10 @@
 //! whatever the system's size, indexed as `solution.q[i][j]`.
 
 mod rows;
+mod run_time;
 
 pub use rows::{RowIter, Rows};
+pub use run_time::RunTimeStepping;
 
 use crate::dense::{Coordinates, DenseStep, Hermite, Interpolant, Node, NodeView, Point, acceleration};
 use crate::error::Error;
@@ -600,9 +602,9 @@ impl Solution {
 /// coordinates it carries (`[f64; N]` at a compile-time size, `Vec<f64>` at
 /// a run-time size) and how its nodes, velocities and interpolants are
 /// read. [`ConstSize`] implements it for every const-size driver through
-/// [`Stepping`]; the run-time-sized integrator implements it in
-/// `integrator/dynamic.rs`. One driver, so both sizes keep the same rows,
-/// events and failures.
+/// [`Stepping`], `RunTimeSize` (`solution/run_time.rs`) for every
+/// run-time-sized one through [`RunTimeStepping`]. One driver, so both
+/// sizes keep the same rows, events and failures.
 pub(crate) trait Solvable {
     /// The stepper.
     type Sim: Clone;

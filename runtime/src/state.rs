@@ -29,8 +29,8 @@ impl<const N: usize, T: crate::Real> State<N, T> {
 /// `p_k` on the heap.
 ///
 /// It is the state a run-time-sized driver
-/// ([`DynIntegrator`](crate::DynIntegrator), [`Stepper<S, Dyn>`](crate::Stepper),
-/// [`DynConstrained`](crate::DynConstrained)) holds, and the state an
+/// ([`Stepper<S, Dyn>`](crate::Stepper), [`DynConstrained`](crate::DynConstrained))
+/// holds, and the state an
 /// [`Error`](crate::Error) carries whatever the size of the system that
 /// failed, so that errors of systems of different sizes are one type. A
 /// [`State`] converts into it with `From`, and back with `TryFrom` (which

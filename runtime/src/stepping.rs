@@ -7,17 +7,17 @@
 //! the one [`Integrator`] in `f64`, for every method (one-point rules,
 //! Galerkin, compositions: they differ only in their own interpolant, which
 //! the method brings), using only its public accessors; `solve` is the
-//! trait's provided method. The run-time-sized [`DynIntegrator`] is driven
-//! by the same `solve` through the size-free [`Solvable`], implemented here
-//! too: its nodes are `Vec<f64>` and its dense output the cubic Hermite of
-//! the nodes (the one-point rules' and compositions' own at a compile-time
-//! size as well).
+//! trait's provided method. The run-time-sized [`DynIntegrator`] implements
+//! its run-time counterpart, [`RunTimeStepping`], here too: its nodes are
+//! `Vec<f64>` and its dense output a Galerkin rule's step polynomial or the
+//! cubic Hermite of the nodes (each method's own at a compile-time size as
+//! well).
 
-use crate::dense::{Hermite, HermiteRows, Node, Point, RunTimeStep, StepPolynomial};
+use crate::dense::{Hermite, Node};
 use crate::error::Error;
 use crate::integrator::{DynIntegrator, DynMethod, F64Readouts, Integrator, Stats, StepPolicy};
-use crate::solution::{Plan, Solution, Solvable, SolveError, Stepping, solve};
-use crate::state::State;
+use crate::solution::{RunTimeStepping, Stepping};
+use crate::state::{PhasePoint, State};
 use crate::system::{DynLagrangian, Lagrangian};
 use crate::time_transform::{Adaptive, ExplicitAdaptive, SStepper, StepDensity, TimeTransformed};
 
@@ -167,122 +167,58 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
     }
 }
 
-/// `solve` on a run-time-sized integrator: the nodes as `Vec<f64>`, dense
-/// output by a Galerkin rule's step polynomial or the cubic Hermite of the
-/// nodes (each method's own interpolant at a compile-time size too), momenta
-/// and energies between nodes by the integrator's reverse sweeps. No
-/// acceleration: quintic dense output is refused before the run.
-pub(crate) struct RunTimeSize<S, M>(core::marker::PhantomData<(S, M)>);
+/// The run-time-sized integrator: fixed steps of `h` (or energy-preserving
+/// ones), the landing step shortened to end on the target.
+impl<S: DynLagrangian + Clone, M: DynMethod + Clone> RunTimeStepping for DynIntegrator<S, M> {
+    type System = S;
 
-impl<S: DynLagrangian + Clone, M: DynMethod + Clone> Solvable for RunTimeSize<S, M> {
-    type Sim = DynIntegrator<S, M>;
-    type Vector = Vec<f64>;
-    type Native = RunTimeStep;
-    type Hermite = HermiteRows;
-    const ACCELERATION: bool = false;
-
-    fn width(sim: &Self::Sim) -> usize {
-        sim.dimension()
+    fn system(&self) -> &S {
+        DynIntegrator::system(self)
     }
 
-    fn time(sim: &Self::Sim) -> f64 {
-        sim.state().t
+    fn state(&self) -> &PhasePoint {
+        DynIntegrator::state(self)
     }
 
-    fn node(sim: &Self::Sim) -> (u64, f64, Vec<f64>, Vec<f64>) {
-        let s = sim.state();
-        (s.step, s.t, s.q.clone(), s.p.clone())
+    fn velocity(&self) -> Result<Vec<f64>, Error> {
+        DynIntegrator::velocity(self)
     }
 
-    fn velocity(sim: &Self::Sim) -> Result<Vec<f64>, Error> {
-        sim.velocity()
+    fn energy(&self) -> Result<f64, Error> {
+        DynIntegrator::energy(self)
     }
 
-    fn stats(sim: &Self::Sim) -> Stats {
-        *sim.stats()
+    fn discrete_energy(&self) -> f64 {
+        DynIntegrator::discrete_energy(self)
     }
 
-    fn step_toward(sim: &mut Self::Sim, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
-        if sim.lands(t_end) { sim.run_until(t_end, |_| {}) } else { sim.step().map(|_| ()) }
+    fn stats(&self) -> Stats {
+        *DynIntegrator::stats(self)
     }
 
-    fn land(sim: &mut Self::Sim, t: f64) -> Result<(), Error> {
-        sim.run_until(t, |_| {})
+    #[inline]
+    fn step(&mut self) -> Result<(), Error> {
+        DynIntegrator::step(self).map(|_| ())
     }
 
-    /// A Galerkin rule's step polynomial (the step just taken, `start →
-    /// end`), the cubic Hermite of the nodes for the other methods.
-    fn native(sim: &Self::Sim, start: &Point<Vec<f64>>, end: &Point<Vec<f64>>) -> RunTimeStep {
-        match sim.galerkin_nodes() {
-            Some((h, d, tau)) => RunTimeStep::Polynomial(StepPolynomial {
-                t0: start.t,
-                h,
-                tau: tau.to_vec(),
-                q0: start.q.clone(),
-                d: d.to_vec(),
-            }),
-            None => RunTimeStep::Hermite(HermiteRows::new(start, end, None)),
-        }
+    fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        DynIntegrator::step_toward(self, t_end)
     }
 
-    fn hermite(start: &Point<Vec<f64>>, end: &Point<Vec<f64>>, a: Option<(&Vec<f64>, &Vec<f64>)>) -> HermiteRows {
-        HermiteRows::new(start, end, a)
+    fn step_size(&self) -> f64 {
+        DynIntegrator::step_size(self)
     }
 
-    fn energy(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> f64 {
-        sim.energy_at(t, q, v)
+    fn last_step_size(&self) -> Option<f64> {
+        DynIntegrator::last_step_size(self)
     }
 
-    fn momentum(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> Vec<f64> {
-        sim.momentum_at(t, q, v)
+    fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        DynIntegrator::set_step_size(self, h)
     }
 
-    fn acceleration(_sim: &Self::Sim, _t: f64, _q: &Vec<f64>, _v: &Vec<f64>) -> Option<Vec<f64>> {
-        None
-    }
-}
-
-impl<S: DynLagrangian + Clone, M: DynMethod + Clone> DynIntegrator<S, M> {
-    /// Integrates as `plan` says and returns the [`Solution`], as
-    /// [`Stepping::solve`] does for a const-size integrator: the same
-    /// driver, rows, events and failures. Dense output (save times, events)
-    /// is a Galerkin rule's step polynomial, and the cubic Hermite of the
-    /// nodes for the one-point rules and compositions (each method's own at a
-    /// compile-time size too);
-    /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
-    /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
-    /// run-time size.
-    ///
-    /// ```
-    /// use lagrangian_runtime::{DynIntegrator, DynLagrangian, Event, Midpoint, Plan, Scalar};
-    ///
-    /// /// Uncoupled oscillators, as many as `n`.
-    /// #[derive(Clone)]
-    /// struct Oscillators { n: usize }
-    /// impl DynLagrangian for Oscillators {
-    ///     const AUTONOMOUS: bool = true;
-    ///     fn dimension(&self) -> usize { self.n }
-    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
-    ///         let mut l = D::from(0.0);
-    ///         for i in 0..q.len() {
-    ///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
-    ///         }
-    ///         l
-    ///     }
-    /// }
-    ///
-    /// let mut sim = DynIntegrator::new(Oscillators { n: 3 }, Midpoint, 0.01).start(0.0, &[1.0; 3], &[0.0; 3])?;
-    /// let plan = Plan::until(2.0).every(10).save_at(vec![0.125]).event(Event::new(|_t, q, _v| q[0]));
-    /// let solution = sim.solve(plan)?.into_result()?;
-    /// assert_eq!(solution.width(), 3);
-    /// // Nodes 0 and 10, then the save time, interpolated.
-    /// assert_eq!((solution.t[2], solution.step[2]), (0.125, None));
-    /// assert!((solution.q[2][2] - 0.125f64.cos()).abs() < 1e-4);
-    /// // cos t crosses zero at π/2.
-    /// assert!((solution.events[0].t - std::f64::consts::FRAC_PI_2).abs() < 1e-4);
-    /// # Ok::<(), Box<dyn std::error::Error>>(())
-    /// ```
-    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
-        solve::<RunTimeSize<S, M>>(self, plan)
+    /// A Galerkin rule's step polynomial.
+    fn step_polynomial(&self) -> Option<(f64, &[f64], &[f64])> {
+        self.galerkin_nodes()
     }
 }

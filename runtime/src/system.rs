@@ -460,7 +460,7 @@ pub trait DynLagrangian {
     /// run-time-sized system runs only under
     /// [`DynConstrained`](crate::DynConstrained), which finds
     /// the structure of `G = ∂g/∂q` by itself and solves the steps of a
-    /// banded one in `O(n)`; [`DynIntegrator`](crate::DynIntegrator)
+    /// banded one in `O(n)`; [`Problem`](crate::Problem) at a run-time size
     /// refuses it.
     fn constraint_count(&self) -> usize {
         0

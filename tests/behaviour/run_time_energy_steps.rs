@@ -147,11 +147,12 @@ fn difference<const N: usize>(a: &State<N>, a_h: f64, b: &PhasePoint, b_h: f64) 
 fn both_sizes<S, D, const N: usize>(fixed: S, dynamic: D, (q0, v0): ([f64; N], [f64; N]), h: f64, steps: usize) -> f64
 where
     S: Lagrangian<N>,
-    D: DynLagrangian,
+    D: DynLagrangian + Clone,
 {
     let bounds = StepBounds::around(h);
     let mut a = Integrator::new(fixed, Midpoint, h).energy_preserving(bounds).start(0.0, q0, v0).unwrap();
-    let mut b = DynIntegrator::new(dynamic, Midpoint, h).energy_preserving(bounds).start(0.0, &q0, &v0).unwrap();
+    let problem = Problem::new(dynamic, 0.0, q0.to_vec(), v0.to_vec());
+    let mut b = problem.stepper(&Scheme::MIDPOINT, Policy::EnergyPreserving { h, bounds }).unwrap();
     let (mut worst, mut smallest, mut largest) = (0.0f64, f64::INFINITY, 0.0f64);
     for _ in 0..steps {
         a.step().unwrap();
@@ -200,10 +201,8 @@ fn a_free_chain_conserves_its_discrete_energy_to_round_off() {
     let q0: Vec<f64> = (0..n).map(|i| 0.4 * (2.0 * core::f64::consts::PI * i as f64 / n as f64).sin()).collect();
     let v0: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64 * 0.7).cos()).collect();
     let h = 0.05;
-    let mut sim = DynIntegrator::new(Chain { n, walls: false }, Midpoint, h)
-        .energy_preserving(StepBounds::around(h))
-        .start(0.0, &q0, &v0)
-        .unwrap();
+    let policy = Policy::EnergyPreserving { h, bounds: StepBounds::around(h) };
+    let mut sim = Problem::new(Chain { n, walls: false }, 0.0, q0, v0).stepper(&Scheme::MIDPOINT, policy).unwrap();
     sim.step().unwrap();
     let e1 = sim.discrete_energy();
     let steps = 1000;
@@ -257,8 +256,9 @@ fn energy_steps_land_on_targets_through_the_problem() {
 fn bad_bounds_and_undefined_combinations_are_typed_errors() {
     let chain = Chain { n: 4, walls: true };
     let (q0, v0) = ([0.1; 4], [0.0; 4]);
+    let problem = Problem::new(chain.clone(), 0.0, q0.to_vec(), v0.to_vec());
     let start = |bounds: StepBounds, h: f64| {
-        DynIntegrator::new(chain.clone(), Midpoint, h).energy_preserving(bounds).start(0.0, &q0, &v0).map(|_| ())
+        problem.stepper(&Scheme::MIDPOINT, Policy::EnergyPreserving { h, bounds }).map(|_| ())
     };
     let good = StepBounds::around(0.1);
     for bounds in [
@@ -271,12 +271,14 @@ fn bad_bounds_and_undefined_combinations_are_typed_errors() {
     }
     assert!(matches!(start(good, 1e3), Err(Error::InvalidStepSize { .. })));
     assert!(matches!(start(good.with_accuracy(1e-3), 0.1), Err(Error::Unsupported { .. })));
+    // The driver's own refusals (named directly: the problem refuses
+    // these combinations before the driver is built, below).
+    use lagrangian_runtime::DynIntegrator;
     let galerkin = DynIntegrator::new(chain.clone(), Galerkin::<2, 2>::gauss(), 0.1).energy_preserving(good);
     assert!(matches!(galerkin.start(0.0, &q0, &v0), Err(Error::Unsupported { .. })));
     let composition = DynIntegrator::new(chain.clone(), Composition::YOSHIDA4, 0.1).energy_preserving(good);
     assert!(matches!(composition.start(0.0, &q0, &v0), Err(Error::Unsupported { .. })));
     // Through the problem: Galerkin and compositions refused by name.
-    let problem = Problem::new(chain, 0.0, q0.to_vec(), v0.to_vec());
     let policy = Policy::energy_preserving(0.1);
     for scheme in
         [Scheme::galerkin(2), Scheme::composition(Composition::YOSHIDA4, lagrangian::problem::OnePoint::Trapezoid)]
@@ -285,15 +287,12 @@ fn bad_bounds_and_undefined_combinations_are_typed_errors() {
         assert!(what.contains("Galerkin") || what.contains("composition"), "{what}");
     }
     // A guess outside the bounds of a stepper that takes energy steps.
-    let mut sim = DynIntegrator::new(Chain { n: 4, walls: true }, Midpoint, 0.1)
-        .energy_preserving(good)
-        .start(0.0, &q0, &v0)
-        .unwrap();
+    let mut sim = problem.stepper(&Scheme::MIDPOINT, Policy::EnergyPreserving { h: 0.1, bounds: good }).unwrap();
     assert!(matches!(sim.set_step_size(1e3), Err(Error::InvalidStepSize { .. })));
 }
 
 /// The bits of everything a step may change.
-fn bits(sim: &DynIntegrator<Pendulum, Trapezoid>) -> Vec<u64> {
+fn bits(sim: &impl RunTimeStepping) -> Vec<u64> {
     let PhasePoint { step, t, q, p } = sim.state();
     let mut out = vec![*step, t.to_bits(), sim.discrete_energy().to_bits(), sim.step_size().to_bits()];
     out.extend(q.iter().chain(p).map(|x| x.to_bits()));
@@ -307,17 +306,19 @@ fn bits(sim: &DynIntegrator<Pendulum, Trapezoid>) -> Vec<u64> {
 /// the least-squares fallback.
 #[test]
 fn no_energy_step_leaves_the_stepper_bit_identical() {
+    let problem = Problem::new(Pendulum, 0.0, vec![1.0], vec![0.0]);
+    let mut sim = problem.stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.05)).unwrap();
+    // The fallback is the driver's setting (named directly: `Policy` has none).
     let start = |fallback| {
-        DynIntegrator::new(Pendulum, Trapezoid, 0.05)
+        lagrangian_runtime::DynIntegrator::new(Pendulum, Trapezoid, 0.05)
             .energy_preserving(StepBounds::around(0.05))
             .energy_fallback(fallback)
             .start(0.0, &[1.0], &[0.0])
             .unwrap()
     };
-    let mut sim = start(EnergyFallback::Fail);
     for _ in 0..1000 {
         let before = bits(&sim);
-        let stats = *sim.stats();
+        let stats = sim.stats();
         match sim.step() {
             Ok(_) => continue,
             Err(Error::NoEnergyStep { state, h_lo, h_hi, h_best, mismatch, .. }) => {

@@ -378,7 +378,8 @@ fn a_damped_run_time_chain_loses_the_work_of_its_dissipation() {
 #[test]
 fn midpoint_balances_the_energy_of_a_damped_run_time_chain_at_every_node() {
     let (n, gamma, h) = (8, 0.2, 0.05);
-    let mut sim = DynIntegrator::new(Damped { n, gamma }, Midpoint, h).start(0.0, &shape(), &[0.0; 8]).unwrap();
+    let mut sim =
+        Problem::new(Damped { n, gamma }, 0.0, shape().to_vec(), vec![0.0; 8]).stepper(&Scheme::MIDPOINT, h).unwrap();
     let (mut q, mut e) = (vec![sim.state().q.clone()], vec![sim.discrete_energy()]);
     for _ in 0..200 {
         sim.step().unwrap();

@@ -31,17 +31,13 @@ fn bits(state: &PhasePoint) -> (u64, u64, Vec<u64>, Vec<u64>) {
 #[test]
 fn a_failed_galerkin_step_at_a_run_time_size_changes_nothing() {
     let options = NewtonOptions { max_iterations: 3, ..NewtonOptions::default() };
-    let start = || {
-        DynIntegrator::new(Pendulum, Galerkin::<3, 3>::gauss(), 0.05)
-            .newton(options)
-            .start(0.0, &[3.0], &[4.0])
-            .unwrap()
-    };
+    let problem = Problem::new(Pendulum, 0.0, vec![3.0], vec![4.0]).newton(options);
+    let start = || problem.stepper(&Scheme::galerkin(3), 0.05).unwrap();
     let (mut sim, mut clean) = (start(), start());
     sim.run(10, |_| {}).unwrap();
     clean.run(10, |_| {}).unwrap();
     let before = bits(sim.state());
-    let (stats, energy) = (*sim.stats(), sim.discrete_energy());
+    let (stats, energy) = (sim.stats(), sim.discrete_energy());
     sim.set_step_size(4.0).unwrap();
     let err = sim.step().unwrap_err();
     match &err {
@@ -108,8 +104,9 @@ fn degrees_and_quadratures_not_offered_are_refused() {
     // Variable steps stay refused at a run-time size.
     let refused = problem.stepper(&Scheme::galerkin(2), Policy::energy_preserving(0.1));
     assert!(matches!(refused, Err(Error::Unsupported { .. })));
-    // The const-generic rule at a run-time size: a quadrature too weak for the degree.
+    // The const-generic rule at a run-time size (the driver named directly:
+    // `Scheme` has no such rule): a quadrature too weak for the degree.
     let weak = Galerkin::<3, 1>::new(NodeFamily::GaussLobatto, Quadrature::gauss_legendre());
-    let err = DynIntegrator::new(Pendulum, weak, 0.1).start(0.0, &[1.0], &[0.0]).unwrap_err();
+    let err = lagrangian_runtime::DynIntegrator::new(Pendulum, weak, 0.1).start(0.0, &[1.0], &[0.0]).unwrap_err();
     assert!(matches!(err, Error::InvalidMethod { .. }), "{err}");
 }

@@ -20,7 +20,7 @@ fn path_difference<const S: usize>(h: f64, steps: usize) -> f64 {
     let rule = Galerkin::<S, S>::gauss().with_iteration(StageIteration::Newton);
     let mut fixed = GalerkinIntegrator::new(Forced, rule, h).start(0.0, q0, v0).unwrap();
     let mut dynamic =
-        DynIntegrator::new(ForcedDyn { n: 8 }, Galerkin::<S, S>::gauss(), h).start(0.0, &q0, &v0).unwrap();
+        Problem::new(ForcedDyn { n: 8 }, 0.0, q0.to_vec(), v0.to_vec()).stepper(&Scheme::galerkin(S), h).unwrap();
     fixed.run(steps, |_| {}).unwrap();
     dynamic.run(steps, |_| {}).unwrap();
     let (a, b) = (fixed.state(), dynamic.state());
@@ -117,9 +117,9 @@ fn a_driven_run_time_chain_converges_at_order_2s() {
 #[test]
 fn degree_one_balances_the_energy_of_a_damped_run_time_chain_as_the_midpoint_does() {
     let (n, gamma, h) = (8, 0.2, 0.05);
-    let galerkin = DynIntegrator::new(Damped { n, gamma }, Galerkin::<1, 1>::gauss(), h);
-    let mut sim = galerkin.start(0.0, &shape(), &[0.0; 8]).unwrap();
-    let mut midpoint = DynIntegrator::new(Damped { n, gamma }, Midpoint, h).start(0.0, &shape(), &[0.0; 8]).unwrap();
+    let problem = Problem::new(Damped { n, gamma }, 0.0, shape().to_vec(), vec![0.0; 8]);
+    let mut sim = problem.stepper(&Scheme::galerkin(1), h).unwrap();
+    let mut midpoint = problem.stepper(&Scheme::MIDPOINT, h).unwrap();
     let (mut q, mut e) = (vec![sim.state().q.clone()], vec![sim.discrete_energy()]);
     let mut gap = 0.0f64;
     for _ in 0..200 {

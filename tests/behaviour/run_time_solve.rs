@@ -226,7 +226,8 @@ impl CoupledMasses {
 fn the_velocity_of_a_constant_mass_system_inverts_its_momentum() {
     let n = 12;
     let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.7 * i as f64).sin()).collect();
-    let mut sim = DynIntegrator::new(CoupledMasses { n }, Trapezoid, 0.05).start(0.0, &q0, &vec![0.1; n]).unwrap();
+    let problem = Problem::new(CoupledMasses { n }, 0.0, q0.clone(), vec![0.1; n]);
+    let mut sim = problem.stepper(&Scheme::TRAPEZOID, 0.05).unwrap();
     sim.run(40, |_| {}).unwrap();
     let v = sim.velocity().unwrap();
     let p = &sim.state().p;
@@ -244,7 +245,8 @@ fn the_velocity_of_a_constant_mass_system_inverts_its_momentum() {
     // At both sizes, and at a compile-time size in both modes (reverse mode
     // keeps the factored mass matrix; forward mode inverts by Newton).
     let shape = shape();
-    let mut dynamic = DynIntegrator::new(ChainDyn { n: 8 }, Trapezoid, H).start(0.0, &shape, &[0.0; 8]).unwrap();
+    let mut dynamic =
+        Problem::new(ChainDyn { n: 8 }, 0.0, shape.to_vec(), vec![0.0; 8]).stepper(&Scheme::TRAPEZOID, H).unwrap();
     dynamic.run(100, |_| {}).unwrap();
     let b = dynamic.velocity().unwrap();
     for derivatives in [Derivatives::Forward, Derivatives::Reverse] {
@@ -261,9 +263,11 @@ fn the_velocity_of_a_constant_mass_system_inverts_its_momentum() {
 
 /// `clone_from` into an integrator that has taken other steps makes it the
 /// source's twin: both then take bit-identical steps (the copy that `solve`
-/// refreshes before every step when it may have to go back).
+/// refreshes before every step when it may have to go back). The driver's
+/// own `clone_from`, under both summations, so it is named directly.
 #[test]
 fn clone_from_makes_a_run_time_integrator_its_sources_twin() {
+    use lagrangian_runtime::DynIntegrator;
     let n = 12;
     let q0: Vec<f64> = (0..n).map(|i| 0.3 * (0.7 * i as f64).sin()).collect();
     for plain in [false, true] {

@@ -16,6 +16,9 @@
 use super::dynamic_systems::TapeOnly;
 use lagrangian::Separability;
 use lagrangian::prelude::*;
+// The run-time-sized driver named directly: its derivative paths (lanes
+// against the tape) are compared on one rule at a time.
+use lagrangian_runtime::DynIntegrator;
 
 /// Oscillators with a position-dependent mass and no coupling: bandwidth 0
 /// (one colour class, the plain `Dual64` evaluation).

@@ -1,6 +1,5 @@
-//! Galerkin rules on run-time-sized systems ([`Galerkin`] through
-//! [`DynIntegrator`], and `Scheme::Galerkin` through [`Problem`] with
-//! vectors).
+//! Galerkin rules on run-time-sized systems (`Scheme::Galerkin` through
+//! [`Problem`] with vectors).
 //!
 //! - The same system at a compile-time and a run-time size takes the same
 //!   steps to round-off, s = 1, 2, 4: an FPU-β chain (banded, separable) and
@@ -121,7 +120,7 @@ fn path_difference<Sys: DynLagrangian + Clone, const N: usize, const S: usize>(
     let mut fixed = GalerkinIntegrator::new(Fixed::<Sys, N>(system.clone()), rule, h)
         .start(0.0, core::array::from_fn(|i| q0[i]), core::array::from_fn(|i| v0[i]))
         .unwrap();
-    let mut dynamic = DynIntegrator::new(system, Galerkin::<S, S>::gauss(), h).start(0.0, &q0, &v0).unwrap();
+    let mut dynamic = Problem::new(system, 0.0, q0, v0).stepper(&Scheme::galerkin(S), h).unwrap();
     let mut worst: f64 = 0.0;
     for _ in 0..steps {
         fixed.step().unwrap();

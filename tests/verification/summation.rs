@@ -13,6 +13,9 @@
 //! step leaves no trace.
 use lagrangian::prelude::*;
 use lagrangian::{Composition, Derivatives, Summation};
+// The run-time-sized driver named directly: `Summation::Plain` is its
+// setting (`Problem` keeps the compensated sums).
+use lagrangian_runtime::{DynIntegrator, DynMethod};
 
 /// The field's strengths: a drop of 50 and 100 over `t = 1000`.
 const G: [f64; 2] = [1e-4, 2e-4];

@@ -95,8 +95,8 @@ impl<S: DynLagrangian, R: DiscreteLagrangian> DynConstrained<S, R> {
     /// its tangent space by more than [`CONSISTENCY_TOLERANCE`] (relative);
     /// [`Error::SingularConstraints`] where `G` is rank-deficient (a
     /// constraint that does not depend on `q`, redundant constraints); and
-    /// as [`DynIntegrator`](crate::DynIntegrator) for the step size, the
-    /// Newton options and the initial data.
+    /// as [`Problem::stepper`](crate::Problem::stepper) at a run-time size
+    /// for the step size, the Newton options and the initial data.
     pub fn start(system: S, rule: R, h: f64, t0: f64, q0: &[f64], v0: &[f64]) -> Result<Self, Error> {
         Self::start_with(system, rule, h, NewtonOptions::default(), t0, q0, v0)
     }

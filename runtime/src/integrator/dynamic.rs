@@ -440,7 +440,7 @@ impl Clone for DynSegment {
 /// ([`set_step_size`](Self::set_step_size)) starts there.
 ///
 /// ```
-/// use lagrangian_runtime::{DynIntegrator, DynLagrangian, Midpoint, Scalar};
+/// use lagrangian_runtime::{DynIntegrator, DynLagrangian, Midpoint, RunTimeStepping, Scalar};
 ///
 /// /// Uncoupled oscillators, as many as `n`.
 /// struct Oscillators { n: usize }
@@ -689,57 +689,39 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         Ok(&self.state)
     }
 
-    /// Takes `n` steps, calling `observe` after each with the integrator.
-    ///
-    /// Stops at the first failure, with the integrator at the last good state.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        for _ in 0..n {
-            self.step()?;
-            observe(self);
-        }
-        Ok(())
-    }
-
-    /// Steps until `t_end`, calling `observe` after each step, and stops at
-    /// `t_end` exactly: the last step is shortened to land on it (a step that
-    /// would end within `10⁻⁹ h` of it is stretched by that much instead),
-    /// and the step size is then restored. A target equal to the current
-    /// time is a no-op.
+    /// One step toward `t_end` (see
+    /// [`RunTimeStepping::step_toward`](crate::RunTimeStepping::step_toward)):
+    /// the landing step is shortened to end on `t_end` exactly (a step
+    /// that would end within `10⁻⁹ h` of it is stretched by that much
+    /// instead), and the step size is then restored; a no-op at or beyond
+    /// `t_end`.
     ///
     /// Under energy-preserving steps every step, the last included, is at
     /// most the largest admissible step `min(h_max, max_ratio·h_{k−1})`; the
     /// last one is a fixed step of the remaining length (the energy equation
     /// is not imposed on it, and its discrete energy is conserved from then
     /// on) and may be shorter than `h_min`.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        if !t_end.is_finite() || t_end < self.state.t {
-            return Err(Error::InvalidTarget { target: t_end, state: self.state.clone() });
+    pub(crate) fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        let remaining = t_end - self.state.t;
+        if remaining.is_nan() || remaining <= 0.0 {
+            return Ok(());
         }
-        loop {
-            let remaining = t_end - self.state.t;
-            if remaining <= 0.0 {
-                return Ok(());
-            }
-            if self.lands(t_end) {
-                self.step_by(remaining, t_end)?;
-                self.clock = Clock { t: self.state.t, step: self.state.step };
-                if self.variable.is_some() {
-                    // A fixed landing step: its energy is conserved from here on.
-                    self.reread_energy();
-                }
-                observe(self);
-                return Ok(());
-            }
-            self.step()?;
-            observe(self);
+        if !self.lands(t_end) {
+            return self.step().map(|_| ());
         }
+        self.step_by(remaining, t_end)?;
+        self.clock = Clock { t: self.state.t, step: self.state.step };
+        if self.variable.is_some() {
+            // A fixed landing step: its energy is conserved from here on.
+            self.reread_energy();
+        }
+        Ok(())
     }
 
-    /// `true` when the next step of [`run_until(t_end)`](Self::run_until)
-    /// is its landing step: a whole step would reach `t_end` or come within
-    /// `10⁻⁹ h` of it; under energy-preserving steps, the largest
-    /// admissible step would reach it.
-    pub(crate) fn lands(&self, t_end: f64) -> bool {
+    /// `true` when the next step toward `t_end` is its landing step: a
+    /// whole step would reach `t_end` or come within `10⁻⁹ h` of it; under
+    /// energy-preserving steps, the largest admissible step would reach it.
+    fn lands(&self, t_end: f64) -> bool {
         match (&self.variable, &self.previous) {
             (None, _) => self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9,
             (Some(steps), Some(last)) => t_end - self.state.t <= steps.bounds.bracket(last.h).1,
@@ -944,24 +926,6 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             iterations,
             residual_norm,
         })
-    }
-
-    /// The momentum `∂L/∂v(t, q, v)` of the system at any `(t, q, v)` (NaN
-    /// where its reverse sweep fails).
-    pub(crate) fn momentum_at(&self, t: f64, q: &[f64], v: &[f64]) -> Vec<f64> {
-        let model = Sliced { system: &self.system, points: self.points };
-        let mut p = vec![0.0; q.len()];
-        if tape_step::momentum(&model, t, q, v, &mut p).is_none() {
-            p.fill(f64::NAN);
-        }
-        p
-    }
-
-    /// The energy `E_L(t, q, v)` of the system at any `(t, q, v)` (NaN where
-    /// its reverse sweep fails).
-    pub(crate) fn energy_at(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
-        let model = Sliced { system: &self.system, points: self.points };
-        tape_step::energy(&model, t, q, v)
     }
 
     /// The continuous energy `E_L(t_k, q_k, v_k)` at the velocity of the current momentum.

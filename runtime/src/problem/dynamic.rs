@@ -4,7 +4,9 @@
 //! extended system of `n + 1` coordinates, by [`RunTimeAdaptive`]; the
 //! explicit time-transformed splitting by [`RunTimeSplitting`]); what those
 //! drivers do not have is refused by
-//! [`supports`](super::supports) with [`Error::Unsupported`].
+//! [`supports`](super::supports) with [`Error::Unsupported`]. The three
+//! drivers are [`RunTimeStepping`]s, and so is the stepper: one `match` on
+//! the driver per call.
 
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::statement::Problem;
@@ -14,10 +16,10 @@ use crate::dim::Dyn;
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::integrator::{Composition, DynIntegrator, DynMethod, RunTimeGalerkin, Stats};
-use crate::solution::{Plan, Solution, SolveError};
+use crate::solution::{Plan, RunTimeStepping, Solution, SolveError};
 use crate::state::PhasePoint;
 use crate::system::DynLagrangian;
-use crate::time_transform::{RuleInS, RunTimeAdaptive, RunTimeSplitting};
+use crate::time_transform::{RuleInS, RunTimeAdaptive, RunTimeSplitting, SplittingStats};
 
 /// The driver of a run-time-sized [`Stepper`].
 #[derive(Clone, Debug)]
@@ -34,17 +36,41 @@ pub enum DynDriver<S> {
     Splitting(Box<RunTimeSplitting<S>>),
 }
 
-/// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is.
+/// Runs `$body` with `$d` bound to the driver of whichever variant `$x` is
+/// (`ref`: shared, `mut`: exclusive; the boxed ones unboxed).
 macro_rules! each {
-    ($x:expr, $d:ident => $body:expr) => {
+    (ref $x:expr, $d:ident => $body:expr) => {
         match $x {
             DynDriver::Midpoint($d) => $body,
             DynDriver::Trapezoid($d) => $body,
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
-            DynDriver::TimeTransformed($d) => $body,
-            DynDriver::Splitting($d) => $body,
+            DynDriver::TimeTransformed($d) => {
+                let $d = &**$d;
+                $body
+            }
+            DynDriver::Splitting($d) => {
+                let $d = &**$d;
+                $body
+            }
+        }
+    };
+    (mut $x:expr, $d:ident => $body:expr) => {
+        match $x {
+            DynDriver::Midpoint($d) => $body,
+            DynDriver::Trapezoid($d) => $body,
+            DynDriver::AlphaBeta($d) => $body,
+            DynDriver::Composition($d) => $body,
+            DynDriver::Galerkin($d) => $body,
+            DynDriver::TimeTransformed($d) => {
+                let $d = &mut **$d;
+                $body
+            }
+            DynDriver::Splitting($d) => {
+                let $d = &mut **$d;
+                $body
+            }
         }
     };
 }
@@ -55,7 +81,7 @@ impl<S: DynLagrangian + Clone> Steppable<Dyn> for S {
 
 /// A system whose number of coordinates is known at run time, with its
 /// initial data: stated by `Vec<f64>` coordinates, stepped in reverse mode
-/// on a tape ([`DynIntegrator`]).
+/// on a tape.
 ///
 /// ```
 /// use lagrangian_runtime::problem::{Capability, Problem, Scheme};
@@ -191,22 +217,16 @@ fn rule_in_s(inner: &Scheme) -> Result<RuleInS, Error> {
     rule.ok_or(Error::Unsupported { what: "this method in `s` under the time transformation" })
 }
 
+/// The inherent names of [`RunTimeStepping`], so that the trait need not
+/// be in scope (as `Stepper<S, Dim<N>>` has those of
+/// [`Stepping`](crate::Stepping)), and what one driver has alone.
 impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
-    /// Integrates as `plan` says: the same driver, [`Solution`] and
-    /// [`SolveError`] as at a compile-time size. Dense output (save times, events) is the cubic
-    /// Hermite of the nodes, the one-point rules' and compositions' own at
-    /// a compile-time size too, and for a Galerkin rule its step
-    /// polynomial, as at a compile-time size;
-    /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
-    /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
-    /// run-time size. The stepper is left at the last node of the solution.
-    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
-        each!(&mut self.driver, d => d.solve(plan))
-    }
-
-    /// The state at the current node.
+    /// The state `(k, t_k, q_k, p_k)` at the current node: physical time
+    /// and momenta for every scheme, `k` counting steps (in `s` for the
+    /// time-transformed ones); vectors, where `Stepper<S, Dim<N>>` has
+    /// arrays.
     pub fn state(&self) -> &PhasePoint {
-        each!(&self.driver, d => d.state())
+        RunTimeStepping::state(self)
     }
 
     /// The momenta `p_k` at the current node.
@@ -216,12 +236,12 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
 
     /// The velocity whose momentum is `p_k`.
     pub fn velocity(&self) -> Result<Vec<f64>, Error> {
-        each!(&self.driver, d => d.velocity())
+        RunTimeStepping::velocity(self)
     }
 
     /// The energy `E_L(t_k, q_k, v_k)` at the current node.
     pub fn energy(&self) -> Result<f64, Error> {
-        each!(&self.driver, d => d.energy())
+        RunTimeStepping::energy(self)
     }
 
     /// The discrete energy `E_k = −∂A(x_{k−1}, x_k)/∂t_k` of the last step:
@@ -230,36 +250,123 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
     /// transformation and the explicit splitting, `−p_t`: the momentum of
     /// time, which their steps in `s` conserve for an autonomous system.
     pub fn discrete_energy(&self) -> f64 {
-        each!(&self.driver, d => d.discrete_energy())
+        RunTimeStepping::discrete_energy(self)
     }
 
-    /// Work counters.
+    /// Work counters (steps; Newton iterations and the last step's
+    /// [`NewtonReport`](crate::NewtonReport) of the implicit schemes).
     pub fn stats(&self) -> Stats {
-        each!(&self.driver, d => *d.stats())
+        RunTimeStepping::stats(self)
     }
 
     /// The system.
     pub fn system(&self) -> &S {
-        each!(&self.driver, d => d.system())
+        RunTimeStepping::system(self)
+    }
+
+    /// The size of the next step: `h` in `t` (under energy-preserving
+    /// steps, the guess of the next one), `σ` in `s` for the
+    /// time-transformed schemes.
+    pub fn step_size(&self) -> f64 {
+        RunTimeStepping::step_size(self)
+    }
+
+    /// The physical time the last step advanced; `None` before the first.
+    pub fn last_step_size(&self) -> Option<f64> {
+        RunTimeStepping::last_step_size(self)
+    }
+
+    /// Changes the size of the following steps (`h`, or `σ` in `s`), for
+    /// example to retry a failed step with a smaller one; a size that is
+    /// not finite and positive, or outside the bounds of energy-preserving
+    /// steps, is refused and nothing changes.
+    pub fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        RunTimeStepping::set_step_size(self, h)
+    }
+
+    /// The explicit splitting's own counters (gradient evaluations, landing
+    /// trials); `None` for the other schemes.
+    pub fn splitting_stats(&self) -> Option<SplittingStats> {
+        match &self.driver {
+            DynDriver::Splitting(d) => Some(d.splitting_stats()),
+            _ => None,
+        }
     }
 
     /// One step; on failure nothing changes.
     pub fn step(&mut self) -> Result<&PhasePoint, Error> {
-        each!(&mut self.driver, d => d.step().map(|_| ()))?;
+        RunTimeStepping::step(self)?;
         Ok(self.state())
     }
 
     /// `n` steps, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        for _ in 0..n {
-            self.step()?;
-            observe(self);
-        }
-        Ok(())
+    pub fn run(&mut self, n: usize, observe: impl FnMut(&Self)) -> Result<(), Error> {
+        RunTimeStepping::run(self, n, observe)
     }
 
-    /// Steps to `t_end` exactly (the last step shortened).
+    /// Steps to `t_end` exactly (see [`RunTimeStepping::run_until`]).
     pub fn run_until(&mut self, t_end: f64) -> Result<(), Error> {
-        each!(&mut self.driver, d => d.run_until(t_end, |_| {}))
+        RunTimeStepping::run_until(self, t_end)
+    }
+
+    /// Integrates as `plan` says (see [`RunTimeStepping::solve`]): the same
+    /// [`Solution`] and [`SolveError`] as at a compile-time size. The
+    /// stepper is left at the last node of the solution.
+    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
+        RunTimeStepping::solve(self, plan)
+    }
+}
+
+/// Each call is one `match` on the driver.
+impl<S: DynLagrangian + Clone> RunTimeStepping for Stepper<S, Dyn> {
+    type System = S;
+
+    fn system(&self) -> &S {
+        each!(ref &self.driver, d => RunTimeStepping::system(d))
+    }
+
+    fn state(&self) -> &PhasePoint {
+        each!(ref &self.driver, d => RunTimeStepping::state(d))
+    }
+
+    fn velocity(&self) -> Result<Vec<f64>, Error> {
+        each!(ref &self.driver, d => RunTimeStepping::velocity(d))
+    }
+
+    fn energy(&self) -> Result<f64, Error> {
+        each!(ref &self.driver, d => RunTimeStepping::energy(d))
+    }
+
+    fn discrete_energy(&self) -> f64 {
+        each!(ref &self.driver, d => RunTimeStepping::discrete_energy(d))
+    }
+
+    fn stats(&self) -> Stats {
+        each!(ref &self.driver, d => RunTimeStepping::stats(d))
+    }
+
+    #[inline]
+    fn step(&mut self) -> Result<(), Error> {
+        each!(mut &mut self.driver, d => RunTimeStepping::step(d))
+    }
+
+    fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        each!(mut &mut self.driver, d => RunTimeStepping::step_toward(d, t_end))
+    }
+
+    fn step_size(&self) -> f64 {
+        each!(ref &self.driver, d => RunTimeStepping::step_size(d))
+    }
+
+    fn last_step_size(&self) -> Option<f64> {
+        each!(ref &self.driver, d => RunTimeStepping::last_step_size(d))
+    }
+
+    fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        each!(mut &mut self.driver, d => RunTimeStepping::set_step_size(d, h))
+    }
+
+    fn step_polynomial(&self) -> Option<(f64, &[f64], &[f64])> {
+        each!(ref &self.driver, d => RunTimeStepping::step_polynomial(d))
     }
 }

@@ -16,8 +16,10 @@
 //! or a composition, the implicit time-transformed
 //! [`Adaptive`](crate::Adaptive) or the explicit
 //! [`ExplicitAdaptive`](crate::ExplicitAdaptive); at a run-time size the
-//! reverse-mode [`DynIntegrator`](crate::DynIntegrator). Every call of the
-//! stepper is one `match` on the variant into that driver. Which
+//! reverse-mode integrator on a tape, its implicit time transformation or
+//! its explicit splitting ([`RunTimeStepping`](crate::RunTimeStepping)).
+//! Every call of the stepper is one `match` on the variant into that
+//! driver. Which
 //! combinations exist is said by [`supports`] alone; the capability page
 //! of the documentation is generated from it.
 

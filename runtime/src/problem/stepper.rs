@@ -20,7 +20,7 @@ use crate::mechanics::DiscreteMechanics;
 use crate::solution::{Plan, Solution, SolveError, Stepping};
 use crate::state::State;
 use crate::system::Lagrangian;
-use crate::time_transform::ExplicitAdaptive;
+use crate::time_transform::{ExplicitAdaptive, SplittingStats};
 
 /// The driver behind a [`Stepper`].
 // The variants differ by their Galerkin tables (the collocation tables grow
@@ -237,9 +237,17 @@ where
 /// A running integration of a [`Problem`](super::Problem) with any
 /// [`Scheme`]: step by step, to exact targets, or to a [`Solution`] by
 /// [`solve`](Self::solve), with one error type, [`Error`]. One type for
-/// both sizes: `Stepper<S, Dim<N>>` of a compile-time-sized system, whose
-/// state is arrays, and `Stepper<S, Dyn>` of a run-time-sized one, whose
-/// state is vectors; the methods are the same.
+/// both sizes, with the same methods and meanings: `Stepper<S, Dim<N>>` of
+/// a compile-time-sized system, a [`Stepping<N>`], and `Stepper<S, Dyn>` of
+/// a run-time-sized one, a [`RunTimeStepping`](crate::RunTimeStepping).
+/// The storage follows the size, as `nalgebra`'s types do: arrays
+/// `[f64; N]` on the stack at `Dim<N>` ([`State<N>`] by value), vectors
+/// on the heap at `Dyn` ([`PhasePoint`](crate::PhasePoint) by reference).
+///
+/// `state()` has one meaning for every scheme at both sizes: the node
+/// `(k, t_k, q_k, p_k)` in physical time with the physical momenta, `k`
+/// counting steps (in `s` for the time-transformed schemes, whose
+/// `t_k` is the target exactly after a landing).
 ///
 /// A failed step leaves the stepper as it was (each driver's own
 /// guarantee), so a retry starts from the state the error carries.
@@ -324,6 +332,15 @@ where
     /// The system.
     pub fn system(&self) -> &S {
         Stepping::system(self)
+    }
+
+    /// The explicit splitting's own counters (gradient evaluations, landing
+    /// trials); `None` for the other schemes.
+    pub fn splitting_stats(&self) -> Option<SplittingStats> {
+        match &*self.driver {
+            Driver::Splitting(d) => Some(d.stats()),
+            _ => None,
+        }
     }
 
     /// One step; on failure nothing changes.

@@ -2,7 +2,7 @@
 //!
 //! The extended system `x = (q, t)` of `n + 1` coordinates is another
 //! run-time-sized system ([`DynTimeTransformed`], a [`DynLagrangian`]),
-//! stepped in `s` by the reverse-mode [`DynIntegrator`] with a one-point or
+//! stepped in `s` by the reverse-mode `DynIntegrator` with a one-point or
 //! Galerkin rule ([`RuleInS`]). [`RunTimeAdaptive`] reads its steps as
 //! adaptive steps in physical time, as [`Adaptive`](super::Adaptive) does at
 //! a compile-time size: the physical state, velocity and energy, landing on
@@ -31,15 +31,12 @@ use super::adaptive::physical_point;
 use super::builder::{DEFAULT_RTOL, default_penalty};
 use super::density::Curvature;
 use super::extended::{extended_force_of, penalty_term, physical_velocity};
-use crate::dense::{HermiteRows, Point};
 use crate::discrete::DiscreteLagrangian;
 use crate::error::{Error, Unplaced};
-use crate::integrator::{
-    DynIntegrator, DynMethod, RunTimeGalerkin, Sealed, Sliced, Stats, tape_energy, tape_momentum, tape_velocity,
-};
+use crate::integrator::{DynIntegrator, DynMethod, RunTimeGalerkin, Sealed, Sliced, Stats, tape_energy, tape_velocity};
 use crate::newton::NewtonOptions;
 use crate::root::Bracket;
-use crate::solution::{Plan, Solution, Solvable, SolveError, solve};
+use crate::solution::RunTimeStepping;
 use crate::state::PhasePoint;
 use crate::system::{DynLagrangian, Scalar};
 
@@ -222,7 +219,7 @@ struct Memory {
 
 /// The adaptive driver in physical time of a run-time-sized system: fixed
 /// steps `σ` in `s` of its [`DynTimeTransformed`] system by a
-/// [`DynIntegrator`] (see the [module](self)). A failed step leaves it as
+/// `DynIntegrator` (see the [module](self)). A failed step leaves it as
 /// it was, and the error carries the physical state.
 #[derive(Debug)]
 pub struct RunTimeAdaptive<S> {
@@ -380,11 +377,6 @@ impl<S: DynLagrangian> RunTimeAdaptive<S> {
         self.inner.stats()
     }
 
-    /// The physical time the last step advanced, `None` before the first.
-    pub fn last_time_step(&self) -> Option<f64> {
-        self.memory.last_dt
-    }
-
     /// The physical velocity `v` with `∂L/∂v(t, q, v) = p` (Newton on the
     /// tape from the last step's secant velocity).
     pub fn velocity(&self) -> Result<Vec<f64>, Error> {
@@ -415,31 +407,6 @@ impl<S: DynLagrangian> RunTimeAdaptive<S> {
     pub fn step(&mut self) -> Result<&PhasePoint, Error> {
         self.try_step()?;
         Ok(&self.physical)
-    }
-
-    /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        for _ in 0..n {
-            self.step()?;
-            observe(self);
-        }
-        Ok(())
-    }
-
-    /// Steps until the physical time `t_end` and stops there: the step that
-    /// would pass it is replaced by a partial step in `s` whose size is
-    /// solved (secant on the bracket `(0, σ)`) so that it ends on `t_end`,
-    /// and the state then reports `t = t_end` exactly. The step `σ` is
-    /// unchanged afterwards; a target equal to the current time is a no-op.
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        if !t_end.is_finite() || self.physical.t > t_end {
-            return Err(Error::InvalidTarget { target: t_end, state: self.physical.clone() });
-        }
-        while t_end > self.physical.t {
-            self.step_toward(t_end)?;
-            observe(self);
-        }
-        Ok(())
     }
 
     /// One step of `σ` in `s`, or, when it would pass `t_end`, the partial
@@ -619,14 +586,6 @@ impl<S: DynLagrangian> RunTimeAdaptive<S> {
             best => Err(Error::Landing { target: t_end, reached: best.map_or(t0, |(f, ..)| t_end + f) }),
         }
     }
-
-    /// Integrates as `plan` says and returns the [`Solution`]: the same
-    /// driver, rows, events and failures as every other stepper; dense
-    /// output (save times, events) by the cubic Hermite of the nodes in
-    /// physical time, as at a compile-time size.
-    pub fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError> {
-        solve::<RunTimeTransformed<S>>(self, plan)
-    }
 }
 
 /// The time coordinate, the last, of an integrator in `s`.
@@ -634,67 +593,61 @@ fn time_of<S: DynLagrangian>(inner: &InS<S>) -> f64 {
     *inner.state().q.last().unwrap_or(&f64::NAN)
 }
 
-/// `solve` on the run-time-sized time transformation: nodes in physical
-/// time, dense output by the cubic Hermite of the nodes, no acceleration.
-pub(crate) struct RunTimeTransformed<S>(core::marker::PhantomData<S>);
+/// Steps of `σ` in `s` read in physical time; landing by the partial step
+/// in `s` that ends on the target.
+impl<S: DynLagrangian> RunTimeStepping for RunTimeAdaptive<S>
+where
+    InS<S>: Clone,
+{
+    type System = S;
 
-impl<S: DynLagrangian> Solvable for RunTimeTransformed<S> {
-    type Sim = RunTimeAdaptive<S>;
-    type Vector = Vec<f64>;
-    type Native = HermiteRows;
-    type Hermite = HermiteRows;
-    const ACCELERATION: bool = false;
-
-    fn width(sim: &Self::Sim) -> usize {
-        sim.physical.q.len()
+    fn system(&self) -> &S {
+        RunTimeAdaptive::system(self)
     }
 
-    fn time(sim: &Self::Sim) -> f64 {
-        sim.physical.t
+    fn state(&self) -> &PhasePoint {
+        &self.physical
     }
 
-    fn node(sim: &Self::Sim) -> (u64, f64, Vec<f64>, Vec<f64>) {
-        let s = &sim.physical;
-        (s.step, s.t, s.q.clone(), s.p.clone())
+    fn velocity(&self) -> Result<Vec<f64>, Error> {
+        RunTimeAdaptive::velocity(self)
     }
 
-    fn velocity(sim: &Self::Sim) -> Result<Vec<f64>, Error> {
-        sim.velocity()
+    fn energy(&self) -> Result<f64, Error> {
+        RunTimeAdaptive::energy(self)
     }
 
-    fn stats(sim: &Self::Sim) -> Stats {
-        *sim.stats()
+    fn discrete_energy(&self) -> f64 {
+        RunTimeAdaptive::discrete_energy(self)
     }
 
-    fn step_toward(sim: &mut Self::Sim, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
-        sim.step_toward(t_end)
+    /// Work counters of the steps in `s` (landing trials not counted).
+    fn stats(&self) -> Stats {
+        *RunTimeAdaptive::stats(self)
     }
 
-    fn land(sim: &mut Self::Sim, t: f64) -> Result<(), Error> {
-        sim.run_until(t, |_| {})
+    fn step(&mut self) -> Result<(), Error> {
+        self.try_step()
     }
 
-    fn native(_sim: &Self::Sim, start: &Point<Vec<f64>>, end: &Point<Vec<f64>>) -> HermiteRows {
-        HermiteRows::new(start, end, None)
+    fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        RunTimeAdaptive::step_toward(self, t_end)
     }
 
-    fn hermite(start: &Point<Vec<f64>>, end: &Point<Vec<f64>>, a: Option<(&Vec<f64>, &Vec<f64>)>) -> HermiteRows {
-        HermiteRows::new(start, end, a)
+    /// `σ`, the step in `s`.
+    fn step_size(&self) -> f64 {
+        self.inner.step_size()
     }
 
-    fn energy(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> f64 {
-        sim.energy_at(t, q, v)
+    fn last_step_size(&self) -> Option<f64> {
+        self.memory.last_dt
     }
 
-    fn momentum(sim: &Self::Sim, t: f64, q: &Vec<f64>, v: &Vec<f64>) -> Vec<f64> {
-        let mut p = vec![0.0; q.len()];
-        if tape_momentum(&Sliced::new(sim.system(), READOUT_POINTS), t, q, v, &mut p).is_none() {
-            p.fill(f64::NAN);
+    /// A new `σ`; the floor on the time step stays that of the start.
+    fn set_step_size(&mut self, sigma: f64) -> Result<(), Error> {
+        if !(sigma.is_finite() && sigma > 0.0) {
+            return Err(Error::InvalidSetting { reason: "the step in `s` must be finite and positive" });
         }
-        p
-    }
-
-    fn acceleration(_sim: &Self::Sim, _t: f64, _q: &Vec<f64>, _v: &Vec<f64>) -> Option<Vec<f64>> {
-        None
+        self.inner.set_step_size(sigma)
     }
 }

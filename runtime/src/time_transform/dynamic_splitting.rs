@@ -31,7 +31,7 @@ use crate::tape::{Tape, Var};
 use num_dual::Dual64;
 use std::sync::Arc;
 
-mod solve;
+mod stepping;
 
 /// A point of the extended phase space `(q, t; p, p_t)` on the heap, with
 /// `V`, `∇V` and `∂_t V` there once a kick has computed them.
@@ -293,7 +293,7 @@ impl<S: DynLagrangian + Clone> RunTimeSplitting<S> {
     }
 
     /// The physical state at the current node: `step` counts steps in `s`,
-    /// and `t` is exactly the target after [`run_until`](Self::run_until).
+    /// and `t` is exactly the target after a landing.
     pub fn state(&self) -> &PhasePoint {
         &self.node.state
     }
@@ -322,11 +322,6 @@ impl<S: DynLagrangian + Clone> RunTimeSplitting<S> {
     /// The shift `c`.
     pub fn shift(&self) -> f64 {
         self.shift
-    }
-
-    /// The physical time the last step advanced, `None` before the first.
-    pub fn last_time_step(&self) -> Option<f64> {
-        self.last_dt
     }
 
     /// `p_t`, the momentum of time: `−H` on the exact flow, constant for an
@@ -366,30 +361,6 @@ impl<S: DynLagrangian + Clone> RunTimeSplitting<S> {
         self.split.gradient_evaluations += evaluations;
         self.commit(false)?;
         Ok(&self.node.state)
-    }
-
-    /// Takes `n` steps in `s`, calling `observe` after each.
-    pub fn run(&mut self, n: usize, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        for _ in 0..n {
-            self.step()?;
-            observe(self);
-        }
-        Ok(())
-    }
-
-    /// Steps until the physical time `t_end` and stops there, the last step
-    /// a partial step in `s` solved to end on it; `t` is then `t_end`
-    /// exactly (see [`ExplicitAdaptive::run_until`](super::ExplicitAdaptive::run_until)).
-    pub fn run_until(&mut self, t_end: f64, mut observe: impl FnMut(&Self)) -> Result<(), Error> {
-        let now = self.node.state.t;
-        if !t_end.is_finite() || t_end < now {
-            return Err(Error::InvalidTarget { target: t_end, state: self.node.state.clone() });
-        }
-        while self.node.state.t < t_end {
-            self.step_toward(t_end)?;
-            observe(self);
-        }
-        Ok(())
     }
 
     /// One step of `σ` in `s`, or, when it would pass `target`, the partial

@@ -54,7 +54,7 @@ pub(crate) use builder::default_penalty;
 pub use builder::{DEFAULT_RTOL, TimeTransformedBuilder};
 pub use density::{Curvature, RadiusPower, StepDensity};
 pub(crate) use dynamic::{RuleInS, RunTimeAdaptive};
-pub use dynamic_splitting::RunTimeSplitting;
+pub(crate) use dynamic_splitting::RunTimeSplitting;
 pub use extended::TimeTransformed;
 pub(crate) use extended::{extended_force, extended_lagrangian, homogeneous, split};
 pub use splitting::{

@@ -10,7 +10,9 @@
 //! discrete solution of the linear chain to round-off.
 #![allow(missing_docs)]
 
-use lagrangian_runtime::{Coupling, DynIntegrator, DynLagrangian, Midpoint, Pattern, Scalar, Separability};
+use lagrangian_runtime::{
+    Coupling, DynIntegrator, DynLagrangian, Midpoint, Pattern, RunTimeStepping, Scalar, Separability,
+};
 
 /// An FPU-β chain with fixed ends, unit masses and springs, of run-time length.
 struct DynFpu {
