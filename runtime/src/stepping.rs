@@ -169,7 +169,7 @@ impl<Sys: Lagrangian<N>, const N: usize> Stepping<N> for ExplicitAdaptive<Sys, f
 
 /// The run-time-sized integrator: fixed steps of `h` (or energy-preserving
 /// ones), the landing step shortened to end on the target.
-impl<S: DynLagrangian + Clone, M: DynMethod + Clone> RunTimeStepping for DynIntegrator<S, M> {
+impl<S: DynLagrangian, M: DynMethod> RunTimeStepping for DynIntegrator<S, M> {
     type System = S;
 
     fn system(&self) -> &S {

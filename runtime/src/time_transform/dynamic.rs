@@ -595,10 +595,7 @@ fn time_of<S: DynLagrangian>(inner: &InS<S>) -> f64 {
 
 /// Steps of `σ` in `s` read in physical time; landing by the partial step
 /// in `s` that ends on the target.
-impl<S: DynLagrangian> RunTimeStepping for RunTimeAdaptive<S>
-where
-    InS<S>: Clone,
-{
+impl<S: DynLagrangian> RunTimeStepping for RunTimeAdaptive<S> {
     type System = S;
 
     fn system(&self) -> &S {
