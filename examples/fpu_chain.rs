@@ -65,6 +65,7 @@ impl<const N: usize> Fpu<N> {
 }
 
 /// The same chain with its length known at run time: `q.len()` masses.
+#[derive(Clone)]
 struct Chain {
     n: usize,
     beta: f64,
