@@ -119,6 +119,38 @@ pub trait RunTimeStepping {
     /// [`DenseKind::Quintic`](crate::DenseKind::Quintic) is refused
     /// ([`SolveError::InvalidPlan`]): no acceleration is computed at a
     /// run-time size. The driver is left at the last node of the solution.
+    ///
+    /// ```
+    /// use lagrangian_runtime::problem::{Problem, Scheme};
+    /// use lagrangian_runtime::{DynLagrangian, Event, Plan, Scalar};
+    ///
+    /// /// Uncoupled oscillators, as many as `n`.
+    /// #[derive(Clone)]
+    /// struct Oscillators { n: usize }
+    /// impl DynLagrangian for Oscillators {
+    ///     const AUTONOMOUS: bool = true;
+    ///     fn dimension(&self) -> usize { self.n }
+    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: &[D], v: &[D]) -> D {
+    ///         let mut l = D::from(0.0);
+    ///         for i in 0..q.len() {
+    ///             l += (v[i] * v[i] - q[i] * q[i]) * 0.5;
+    ///         }
+    ///         l
+    ///     }
+    /// }
+    ///
+    /// let problem = Problem::new(Oscillators { n: 3 }, 0.0, vec![1.0; 3], vec![0.0; 3]);
+    /// let mut sim = problem.stepper(&Scheme::MIDPOINT, 0.01)?;
+    /// let plan = Plan::until(2.0).every(10).save_at(vec![0.125]).event(Event::new(|_t, q, _v| q[0]));
+    /// let solution = sim.solve(plan)?.into_result()?;
+    /// assert_eq!(solution.width(), 3);
+    /// // Nodes 0 and 10, then the save time, interpolated.
+    /// assert_eq!((solution.t[2], solution.step[2]), (0.125, None));
+    /// assert!((solution.q[2][2] - 0.125f64.cos()).abs() < 1e-4);
+    /// // cos t crosses zero at π/2.
+    /// assert!((solution.events[0].t - std::f64::consts::FRAC_PI_2).abs() < 1e-4);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     fn solve(&mut self, plan: Plan<'_>) -> Result<Solution, SolveError>
     where
         Self: Sized + Clone,
