@@ -24,6 +24,7 @@ mod method_matrix;
 mod run_time_energy_balance;
 mod run_time_energy_steps;
 mod run_time_forces;
+mod run_time_galerkin_energy;
 mod run_time_galerkin_errors;
 mod run_time_galerkin_forces;
 mod run_time_solve;

@@ -101,8 +101,8 @@ fn degrees_and_quadratures_not_offered_are_refused() {
     for degree in 1..=16 {
         assert!(problem.stepper(&Scheme::galerkin(degree), 0.1).is_ok(), "degree {degree}");
     }
-    // Variable steps stay refused at a run-time size.
-    let refused = problem.stepper(&Scheme::galerkin(2), Policy::energy_preserving(0.1));
+    // Energy-balance steps with a Galerkin rule are refused at every size.
+    let refused = problem.stepper(&Scheme::galerkin(2), Policy::energy_balance(0.1));
     assert!(matches!(refused, Err(Error::Unsupported { .. })));
     // The const-generic rule at a run-time size (the driver named directly:
     // `Scheme` has no such rule): a quadrature too weak for the degree.

@@ -31,6 +31,7 @@ use num_dual::{Dual64, DualNum};
 
 mod energy;
 mod galerkin;
+mod galerkin_energy;
 
 use energy::EnergySteps;
 pub(crate) use galerkin::RunTimeGalerkin;
@@ -246,8 +247,8 @@ pub struct DynIntegratorBuilder<S, M> {
 
 impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// Energy-preserving variable steps within `bounds`, starting from the
-    /// guess `h` given to [`DynIntegrator::new`], for the one-point rules,
-    /// as
+    /// guess `h` given to [`DynIntegrator::new`], for the one-point and
+    /// Galerkin rules (`dynamic/galerkin_energy.rs`), as
     /// [`IntegratorBuilder::energy_preserving`](crate::IntegratorBuilder::energy_preserving)
     /// at a compile-time size: each step size solves the discrete energy
     /// equation `E_{k+1} = E_k` (for a time-dependent `L`, the discrete
@@ -288,9 +289,9 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
     /// Under [`energy_preserving`](Self::energy_preserving) steps, fails
     /// with [`Error::InvalidStepBounds`] for unusable bounds,
     /// [`Error::InvalidStepSize`] for an `h` outside them, and
-    /// [`Error::Unsupported`] for a Galerkin rule or a composition (their
-    /// energy steps are written for a compile-time size, or their steps are
-    /// fixed) and an [`accuracy`](StepBounds::accuracy) bound.
+    /// [`Error::Unsupported`] for a composition (its steps are fixed), a
+    /// Galerkin rule on a forced, dissipative or time-dependent system (as at
+    /// a compile-time size) and an [`accuracy`](StepBounds::accuracy) bound.
     ///
     /// Fails with [`Error::Unsupported`] for a discrete Lagrangian
     /// without quadrature points ([`DiscreteLagrangian::galerkin_points`]),
@@ -318,7 +319,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
         self.newton.validate().map_err(|reason| Error::InvalidNewtonOptions { reason })?;
         Error::check_step(self.h)?;
         if let Some(bounds) = self.energy_steps {
-            energy_steps_defined(&self.method, bounds, self.h)?;
+            energy_steps_defined::<S, M>(&self.method, bounds, self.h)?;
         }
         let n = self.system.dimension();
         if self.system.constraint_count() > 0 {
@@ -370,7 +371,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegratorBuilder<S, M> {
 
 /// `Ok` when energy-preserving steps within `bounds` from the guess `h` are
 /// defined for `method` on the system `S`; the typed refusal otherwise.
-fn energy_steps_defined<M: DynMethod>(method: &M, bounds: StepBounds, h: f64) -> Result<(), Error> {
+fn energy_steps_defined<S: DynLagrangian, M: DynMethod>(method: &M, bounds: StepBounds, h: f64) -> Result<(), Error> {
     if !bounds.valid() {
         return Err(Error::InvalidStepBounds { h_min: bounds.h_min, h_max: bounds.h_max, max_ratio: bounds.max_ratio });
     }
@@ -380,9 +381,9 @@ fn energy_steps_defined<M: DynMethod>(method: &M, bounds: StepBounds, h: f64) ->
     if bounds.accuracy.is_some() {
         return Err(Error::Unsupported { what: energy::NO_ACCURACY_BOUND });
     }
-    if method.galerkin().is_some() {
+    if method.galerkin().is_some() && (is_forced::<S>() || !S::AUTONOMOUS) {
         return Err(Error::Unsupported {
-            what: "energy-preserving steps with a Galerkin rule on a run-time-sized system: they are written for the compile-time size",
+            what: "energy steps with a Galerkin rule for a forced, dissipative or time-dependent system: they are written for autonomous systems without forces",
         });
     }
     if method.weights().is_some() {

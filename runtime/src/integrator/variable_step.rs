@@ -232,6 +232,13 @@ pub(crate) trait EnergySearch {
     /// What to do where no admissible step solves the energy equation.
     fn fallback(&self) -> EnergyFallback;
 
+    /// Whether the trial `p` solves the energy equation: `g` is round-off
+    /// of its own terms ([`Probe::solved`] unless the family knows its
+    /// round-off better).
+    fn solved(&self, p: &Probe<Self::Trial>) -> bool {
+        p.solved()
+    }
+
     /// [`Error::NoEnergyStep`] for the bracket `[lo, hi]`, whose least
     /// mismatch is at `best`, after `spent` iterations.
     fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<Self::Trial>, spent: usize) -> Error;
@@ -270,7 +277,7 @@ pub(crate) trait EnergySearch {
                 }
             }
         };
-        if at_guess.solved() {
+        if self.solved(&at_guess) {
             return Ok((at_guess.trial, at_guess.report(*spent), Taken::Root));
         }
         let guess = at_guess.h;
@@ -294,7 +301,7 @@ pub(crate) trait EnergySearch {
                     }
                     continue;
                 };
-                if p.solved() {
+                if self.solved(&p) {
                     return Ok((p.trial, p.report(*spent), Taken::Root));
                 }
                 let near = if below { &mut left } else { &mut right };
@@ -358,7 +365,7 @@ pub(crate) trait EnergySearch {
                     self.probe(mid, spent).map_err(|e| self.place(e))?
                 }
             };
-            if p.solved() {
+            if self.solved(&p) {
                 return Ok(p);
             }
             if p.g.signum() == a.g.signum() {
@@ -404,10 +411,10 @@ pub(crate) trait EnergySearch {
                 if p.g.abs() < best.g.abs() {
                     best = p;
                 }
-                if p.g.signum() != start.g.signum() || p.solved() {
+                if p.g.signum() != start.g.signum() || self.solved(&p) {
                     // A root after all, between two roots the sampling stepped over.
                     let (l, r) = if p.h < start.h { (p, start) } else { (start, p) };
-                    let root = if p.solved() { p } else { self.root(l, r, spent)? };
+                    let root = if self.solved(&p) { p } else { self.root(l, r, spent)? };
                     return Ok((root.trial, root.report(*spent), Taken::Root));
                 }
             }

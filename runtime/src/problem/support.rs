@@ -150,12 +150,12 @@ pub struct Combination<'a> {
 /// assert!(supports(&query).is_ok());
 /// query.size = Size::Dynamic;
 /// assert!(supports(&query).is_ok());
-/// // Energy-preserving steps at a run-time size: the one-point rules.
+/// // Energy-preserving steps at a run-time size: the one-point and
+/// // Galerkin rules, for systems without forces.
 /// query.policy = Policy::energy_preserving(0.1);
-/// assert!(supports(&query).unwrap_err().contains("run-time-sized"));
-/// let midpoint = Scheme::MIDPOINT;
-/// query.scheme = &midpoint;
 /// assert!(supports(&query).is_ok());
+/// query.forced = true;
+/// assert!(supports(&query).unwrap_err().contains("forced"));
 /// ```
 pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     if c.constraints != 0 {
@@ -328,14 +328,11 @@ fn dynamic(c: &Combination<'_>) -> Result<(), &'static str> {
         Scheme::Splitting { .. } => {}
     }
     match c.scheme {
-        Scheme::OnePoint(_) => variable_steps(c)?,
+        // Energy-preserving Galerkin steps as at a compile-time size: for
+        // systems without forces (`start` refuses a time-dependent `L`).
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => variable_steps(c)?,
         Scheme::Composition { .. } if !matches!(c.policy, Policy::Fixed { .. }) => {
             return Err("variable steps with a composition: its steps are fixed");
-        }
-        Scheme::Galerkin { .. } if !matches!(c.policy, Policy::Fixed { .. }) => {
-            return Err(
-                "energy steps with a Galerkin rule on a run-time-sized system: they are written for the compile-time size",
-            );
         }
         _ => {}
     }

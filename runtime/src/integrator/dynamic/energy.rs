@@ -48,41 +48,42 @@ pub(super) struct EnergySteps {
     pub(super) bounds: StepBounds,
     fallback: EnergyFallback,
     /// `E_k`: the right side of the next step's energy equation.
-    energy: f64,
+    pub(super) energy: f64,
     /// Kahan compensation of `energy` (a time-dependent `L` or forces
     /// change it).
-    energy_carry: f64,
+    pub(super) energy_carry: f64,
     /// `w_{k−1}^+`: the work of the last step's end force on a variation of
     /// its end time, which the next step's energy equation carries (zero
     /// without forces).
-    behind: f64,
+    pub(super) behind: f64,
     /// Kahan compensation of the time: the times are exact sums of the steps.
-    time_error: f64,
+    pub(super) time_error: f64,
     buffers: EnergyBuffers,
     /// The latest probe.
-    latest: Option<Latest>,
+    pub(super) latest: Option<Latest>,
     /// The number of the latest probe.
-    serial: u64,
+    pub(super) serial: u64,
     /// `dΔq/dh = −J⁻¹c` along the solutions of the DEL at the latest probe
     /// (scratch; valid where its slope is finite).
     tangent: Vec<f64>,
     /// Stage 1: a probe starts its Newton iteration from the latest probe's
     /// increment moved along the tangent, the increment of the bordered
     /// Newton step on `(Δq, h)`.
-    warm: bool,
+    pub(super) warm: bool,
     /// A probe's starting increment and the last step's increment scaled to
     /// its size (scratch, so that a probe does not allocate).
     start: Vec<f64>,
     scaled: Vec<f64>,
 }
 
-/// A probe: its number, size, increment and energy terms.
+/// A probe: its number, size, increment and energy terms (a Galerkin
+/// rule's probe keeps its nodes in its work, and no increment here).
 #[derive(Debug)]
-struct Latest {
-    serial: u64,
-    h: f64,
-    dq: Vec<f64>,
-    terms: EnergyTerms,
+pub(super) struct Latest {
+    pub(super) serial: u64,
+    pub(super) h: f64,
+    pub(super) dq: Vec<f64>,
+    pub(super) terms: EnergyTerms,
 }
 
 impl EnergySteps {
@@ -158,6 +159,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         let start = self.earlier.as_ref().map_or(guess, |(h_earlier, _)| (2.0 * h_prev - h_earlier).clamp(lo, hi));
         let outcome = self.newton_in_h(start, lo, hi).or_else(|spent| self.bracketed(guess, lo, hi, false, spent));
         match outcome {
+            Ok((trial, report, taken)) if self.galerkin.is_some() => self.accept_nodes(trial, report, taken),
             Ok((trial, report, taken)) => self.accept(trial, report, taken),
             Err(e) => {
                 self.stats.failed_steps += 1;
@@ -214,7 +216,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
             if let Some(steps) = self.variable.as_deref_mut() {
                 steps.warm = p.slope.is_finite();
             }
-            if p.solved() {
+            if self.solved(&p) {
                 return Ok((p.trial, p.report(spent), Taken::Root));
             }
             let next = h - p.g / p.slope;
@@ -310,6 +312,9 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
     /// `g(h)` and `g'(h)` with the DEL solved at step `h`, from the
     /// predictor of a fixed step of that size.
     fn probe(&mut self, h: f64, spent: &mut usize) -> Result<Probe<(f64, u64)>, Unplaced> {
+        if self.galerkin.is_some() {
+            return self.node_probe(h, spent);
+        }
         let n = self.state.q.len();
         let last = self.previous.as_ref().map(|last| (last.h, &last.dq[..]));
         let earlier = self.earlier.as_ref().map(|(h, dq)| (*h, &dq[..]));
@@ -365,6 +370,17 @@ impl<S: DynLagrangian, M: DynMethod> EnergySearch for DynIntegrator<S, M> {
 
     fn fallback(&self) -> EnergyFallback {
         self.variable.as_ref().map_or_else(EnergyFallback::default, |steps| steps.fallback)
+    }
+
+    /// A Galerkin rule's energy equation is solved where `g` is within
+    /// `64 ε` of the size of the terms of `E`, as at a compile-time size
+    /// (`galerkin/energy.rs`): its energy error is `O(h^{2s+1})`, so `g'`
+    /// is small and round-off fixes `h` to fewer digits than the nodes.
+    fn solved(&self, p: &Probe<(f64, u64)>) -> bool {
+        match self.galerkin {
+            Some(_) => p.g.abs() <= 64.0 * f64::EPSILON * p.scale,
+            None => p.solved(),
+        }
     }
 
     fn no_energy_step(&self, lo: f64, hi: f64, best: &Probe<(f64, u64)>, spent: usize) -> Error {

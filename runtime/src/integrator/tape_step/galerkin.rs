@@ -24,6 +24,7 @@
 
 use core::cell::RefCell;
 
+use super::galerkin_energy::NodeProbes;
 use super::galerkin_forces::GalerkinForcing;
 pub(crate) use super::galerkin_rule::{BlockLayout, Rule};
 use super::implicit::Slot;
@@ -39,8 +40,8 @@ use crate::tape::{Seeds, Tape, TapeError, Var};
 /// node increments (the next step's start).
 #[derive(Debug)]
 pub(crate) struct GalerkinWork {
-    rule: Rule,
-    n: usize,
+    pub(super) rule: Rule,
+    pub(super) n: usize,
     /// The bandwidth of the action's Hessian in the tape's input order
     /// (`None`: dense seeds).
     hessian_bandwidth: Option<usize>,
@@ -48,21 +49,21 @@ pub(crate) struct GalerkinWork {
     block_bandwidth: Option<usize>,
     /// The bandwidth of `L`'s Hessian (`None`: general coupling).
     coupling_bandwidth: Option<usize>,
-    tape: Tape,
+    pub(super) tape: Tape,
     inputs: Vec<f64>,
-    gradient: Vec<f64>,
-    products: Vec<f64>,
+    pub(super) gradient: Vec<f64>,
+    pub(super) products: Vec<f64>,
     /// The action's Hessian rows in band (or whole-row) storage.
     hessian: Vec<f64>,
     /// The Newton block's rows in band (or whole-row) storage.
     band: Vec<f64>,
-    jacobian: StepSolver,
+    pub(super) jacobian: StepSolver,
     /// The step's position and velocity at one point, as tape numbers.
     point: RefCell<(Vec<Var>, Vec<Var>)>,
     /// `(h, D)` of the last step taken, `D` in the unknowns' order.
-    last: Option<(f64, Vec<f64>)>,
+    pub(super) last: Option<(f64, Vec<f64>)>,
     /// The unknowns of the step being taken.
-    trial: Vec<f64>,
+    pub(super) trial: Vec<f64>,
     /// Newton's residual and correction.
     correction: Vec<f64>,
     /// The extrapolation weights of the last step's polynomial, `s × s`.
@@ -70,6 +71,8 @@ pub(crate) struct GalerkinWork {
     /// The discrete forces' buffers, made at the first step of a forced
     /// system.
     forcing: Option<Box<GalerkinForcing>>,
+    /// The trial steps of energy-preserving steps (scratch).
+    pub(super) probes: NodeProbes,
 }
 
 impl Clone for GalerkinWork {
@@ -93,6 +96,7 @@ impl Clone for GalerkinWork {
             correction: self.correction.clone(),
             extrapolation: self.extrapolation.clone(),
             forcing: None,
+            probes: NodeProbes::default(),
         }
     }
 
@@ -163,6 +167,7 @@ impl GalerkinWork {
             correction: zeroed(Some(unknowns), n)?,
             extrapolation: vec![0.0; s * s],
             forcing: None,
+            probes: NodeProbes::default(),
         })
     }
 
@@ -190,7 +195,7 @@ impl GalerkinWork {
     /// the last step's polynomial extrapolated to this step's control nodes
     /// (error `O(h^{s+1})`), or at the first step the straight line
     /// `τ_m h v_0`.
-    fn predict(&mut self, h: f64, v0: &[f64], out: &mut [f64]) {
+    pub(super) fn predict(&mut self, h: f64, v0: &[f64], out: &mut [f64]) {
         let (n, s) = (self.n, self.rule.s);
         let w = &mut self.extrapolation;
         match &self.last {
@@ -221,7 +226,13 @@ impl GalerkinWork {
     }
 
     /// Records the action at the unknowns `x` from `node`.
-    fn record(&mut self, model: &dyn TapeModel, node: &Node<'_>, h: f64, x: &[f64]) -> Result<f64, TapeError> {
+    pub(super) fn record(
+        &mut self,
+        model: &dyn TapeModel,
+        node: &Node<'_>,
+        h: f64,
+        x: &[f64],
+    ) -> Result<f64, TapeError> {
         let (n, s) = (self.n, self.rule.s);
         let stride = s + 1;
         for i in 0..n {
@@ -414,9 +425,45 @@ impl GalerkinWork {
             }
             None => false,
         };
+        let unknowns = n * s;
+        let (x, solved) = self.solve_nodes(model, node, h, x, options);
+        let mut dq = spare.buffer();
+        for i in 0..n {
+            dq[i] = x[i * s + s - 1];
+        }
+        let guess = Guess { predictor: &predicted, last: has_last.then_some(&scaled[..]) };
+        let checked = solved.and_then(|report| guess.check(&dq, node.q, report.iterations).map(|()| report));
+        spare.recycle(predicted);
+        spare.recycle(scaled);
+        let finished = checked.and_then(|report| self.finish(model, node, h, t1, &x, dq, report, spare));
+        match finished {
+            Ok(done) => {
+                // The step's nodes become the next step's start.
+                let old = self.last.replace((h, x));
+                self.trial = old.map_or_else(|| vec![0.0; unknowns], |(_, d)| d);
+                Ok(done)
+            }
+            Err(failure) => {
+                self.trial = x;
+                Err(failure)
+            }
+        }
+    }
+
+    /// Newton on the node equations of a step of size `h` from `node`,
+    /// started from the unknowns `x`: the iterate it ends at (the solution
+    /// where the report is `Ok`), and the factors of the Newton block at its
+    /// last fresh iterate left in `jacobian`.
+    pub(super) fn solve_nodes(
+        &mut self,
+        model: &dyn TapeModel,
+        node: &Node<'_>,
+        h: f64,
+        x: Vec<f64>,
+        options: &NewtonOptions,
+    ) -> (Vec<f64>, Result<NewtonReport, NewtonFailure>) {
         let q_floor = 4.0 * f64::EPSILON * max_abs(node.q);
         let min_rcond = options.min_rcond;
-        let unknowns = n * s;
         let (iterate, correction) = (RefCell::new(x), RefCell::new(core::mem::take(&mut self.correction)));
         let mut first = true;
         let linearize = |at: &Slot<'_>, jacobian: Jacobian| -> Result<Linearization<Slot<'_>>, Breakdown> {
@@ -442,32 +489,12 @@ impl GalerkinWork {
         let solved = newton::solve(Slot(&iterate), options, linearize).map(|(_, report)| report);
         let x = iterate.into_inner();
         self.correction = correction.into_inner();
-        let mut dq = spare.buffer();
-        for i in 0..n {
-            dq[i] = x[i * s + s - 1];
-        }
-        let guess = Guess { predictor: &predicted, last: has_last.then_some(&scaled[..]) };
-        let checked = solved.and_then(|report| guess.check(&dq, node.q, report.iterations).map(|()| report));
-        spare.recycle(predicted);
-        spare.recycle(scaled);
-        let finished = checked.and_then(|report| self.finish(model, node, h, t1, &x, dq, report, spare));
-        match finished {
-            Ok(done) => {
-                // The step's nodes become the next step's start.
-                let old = self.last.replace((h, x));
-                self.trial = old.map_or_else(|| vec![0.0; unknowns], |(_, d)| d);
-                Ok(done)
-            }
-            Err(failure) => {
-                self.trial = x;
-                Err(failure)
-            }
-        }
+        (x, solved)
     }
 
     /// After convergence at `x`: the new state and the step's energy.
     #[allow(clippy::too_many_arguments)]
-    fn finish(
+    pub(super) fn finish(
         &mut self,
         model: &dyn TapeModel,
         node: &Node<'_>,

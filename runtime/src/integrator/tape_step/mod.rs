@@ -47,6 +47,7 @@ mod energy;
 mod explicit;
 mod forcing;
 mod galerkin;
+mod galerkin_energy;
 mod galerkin_forces;
 mod galerkin_rule;
 mod implicit;
