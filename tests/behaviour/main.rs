@@ -17,6 +17,7 @@ mod ensemble;
 mod errors;
 mod events;
 mod galerkin_collocation;
+mod galerkin_degrees;
 mod galerkin_errors;
 mod guidance;
 mod macro_rewrite;

@@ -204,6 +204,11 @@ fn galerkin_adjoint_agrees_with_forward_sensitivities_and_finite_differences() {
 }
 
 #[test]
+fn high_degree_galerkin_adjoint_agrees_with_forward_sensitivities_and_finite_differences() {
+    adjoint_agrees(&Scheme::galerkin(6));
+}
+
+#[test]
 fn composition_adjoint_agrees_with_forward_sensitivities_and_finite_differences() {
     adjoint_agrees(&Scheme::composition(Composition::KAHAN_LI8, OnePoint::Trapezoid));
 }

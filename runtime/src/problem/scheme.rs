@@ -60,7 +60,8 @@ pub enum GalerkinQuadrature {
 pub enum Scheme {
     /// One step of a one-point rule.
     OnePoint(OnePoint),
-    /// The continuous Galerkin rule of degree `s` (`degree` 2, 3 or 4 on a
+    /// The continuous Galerkin rule of degree `s` (`degree` 2 to 8 with
+    /// Gauss–Legendre quadrature and 2 to 4 with Gauss–Lobatto on a
     /// compile-time-sized [`Problem`](super::Problem), where the
     /// const-generic [`Galerkin`](crate::Galerkin) has every degree; 1 to 16
     /// on a run-time-sized `Problem<S, Dyn>`).

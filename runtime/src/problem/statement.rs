@@ -4,7 +4,7 @@
 use super::extend::Extended;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::stepper::{Driver, DriverBox, Stepper, boxed};
-use super::support::{Capability, Combination, Policy, Size, supports};
+use super::support::{CONST_GALERKIN_DEGREES, Capability, Combination, Policy, Size, supports};
 use crate::auto::Auto;
 use crate::dim::{Coordinates, Dim, Dimension};
 use crate::discrete::{Midpoint, Trapezoid};
@@ -176,7 +176,8 @@ where
         }
     }
 
-    /// The Galerkin driver of degree `degree` (2, 3 or 4).
+    /// The Galerkin driver of degree `degree` (2 to 8 with Gauss–Legendre
+    /// quadrature, 2 to 4 with Gauss–Lobatto).
     fn galerkin(
         &self,
         degree: usize,
@@ -195,6 +196,18 @@ where
             (4, G) => {
                 self.integrator(Galerkin::<4, 4>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss4)
             }
+            (5, G) => {
+                self.integrator(Galerkin::<5, 5>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss5)
+            }
+            (6, G) => {
+                self.integrator(Galerkin::<6, 6>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss6)
+            }
+            (7, G) => {
+                self.integrator(Galerkin::<7, 7>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss7)
+            }
+            (8, G) => {
+                self.integrator(Galerkin::<8, 8>::new(nodes, Quadrature::gauss_legendre()), policy, Driver::Gauss8)
+            }
             (2, L) => {
                 self.integrator(Galerkin::<2, 3>::new(nodes, Quadrature::gauss_lobatto()), policy, Driver::Lobatto2)
             }
@@ -204,7 +217,7 @@ where
             (4, L) => {
                 self.integrator(Galerkin::<4, 5>::new(nodes, Quadrature::gauss_lobatto()), policy, Driver::Lobatto4)
             }
-            _ => Err(Error::Unsupported { what: "a Galerkin degree other than 2, 3 or 4 through `Scheme`" }),
+            _ => Err(Error::Unsupported { what: CONST_GALERKIN_DEGREES }),
         }
     }
 

@@ -37,6 +37,10 @@ where
     Gauss2(Integrator<S, Galerkin<2, 2>, N>),
     Gauss3(Integrator<S, Galerkin<3, 3>, N>),
     Gauss4(Integrator<S, Galerkin<4, 4>, N>),
+    Gauss5(Integrator<S, Galerkin<5, 5>, N>),
+    Gauss6(Integrator<S, Galerkin<6, 6>, N>),
+    Gauss7(Integrator<S, Galerkin<7, 7>, N>),
+    Gauss8(Integrator<S, Galerkin<8, 8>, N>),
     Lobatto2(Integrator<S, Galerkin<2, 3>, N>),
     Lobatto3(Integrator<S, Galerkin<3, 4>, N>),
     Lobatto4(Integrator<S, Galerkin<4, 5>, N>),
@@ -52,7 +56,7 @@ where
 /// bound when `$x` and `$y` are the same variant and `$other` when not.
 macro_rules! each {
     ($($form:tt)*) => {
-        each_of!(($($form)*) Midpoint Trapezoid AlphaBeta Gauss2 Gauss3 Gauss4 Lobatto2 Lobatto3 Lobatto4
+        each_of!(($($form)*) Midpoint Trapezoid AlphaBeta Gauss2 Gauss3 Gauss4 Gauss5 Gauss6 Gauss7 Gauss8 Lobatto2 Lobatto3 Lobatto4
             Composition Transformed Splitting)
     };
 }
@@ -134,6 +138,14 @@ pub enum Interpolant<const N: usize> {
     Galerkin3(GalerkinPolynomial<N, 3>),
     /// The step polynomial of degree 4.
     Galerkin4(GalerkinPolynomial<N, 4>),
+    /// The step polynomial of degree 5.
+    Galerkin5(GalerkinPolynomial<N, 5>),
+    /// The step polynomial of degree 6.
+    Galerkin6(GalerkinPolynomial<N, 6>),
+    /// The step polynomial of degree 7.
+    Galerkin7(GalerkinPolynomial<N, 7>),
+    /// The step polynomial of degree 8.
+    Galerkin8(GalerkinPolynomial<N, 8>),
 }
 
 impl<const N: usize> DenseStep<N> for Interpolant<N> {
@@ -143,6 +155,10 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
             Self::Galerkin2(p) => p.t0(),
             Self::Galerkin3(p) => p.t0(),
             Self::Galerkin4(p) => p.t0(),
+            Self::Galerkin5(p) => p.t0(),
+            Self::Galerkin6(p) => p.t0(),
+            Self::Galerkin7(p) => p.t0(),
+            Self::Galerkin8(p) => p.t0(),
         }
     }
 
@@ -152,6 +168,10 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
             Self::Galerkin2(p) => p.t1(),
             Self::Galerkin3(p) => p.t1(),
             Self::Galerkin4(p) => p.t1(),
+            Self::Galerkin5(p) => p.t1(),
+            Self::Galerkin6(p) => p.t1(),
+            Self::Galerkin7(p) => p.t1(),
+            Self::Galerkin8(p) => p.t1(),
         }
     }
 
@@ -161,6 +181,10 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
             Self::Galerkin2(p) => p.eval(t),
             Self::Galerkin3(p) => p.eval(t),
             Self::Galerkin4(p) => p.eval(t),
+            Self::Galerkin5(p) => p.eval(t),
+            Self::Galerkin6(p) => p.eval(t),
+            Self::Galerkin7(p) => p.eval(t),
+            Self::Galerkin8(p) => p.eval(t),
         }
     }
 }
@@ -417,6 +441,10 @@ where
             Driver::Gauss2(d) => Interpolant::Galerkin2(Stepping::native(d, start, end)),
             Driver::Gauss3(d) => Interpolant::Galerkin3(Stepping::native(d, start, end)),
             Driver::Gauss4(d) => Interpolant::Galerkin4(Stepping::native(d, start, end)),
+            Driver::Gauss5(d) => Interpolant::Galerkin5(Stepping::native(d, start, end)),
+            Driver::Gauss6(d) => Interpolant::Galerkin6(Stepping::native(d, start, end)),
+            Driver::Gauss7(d) => Interpolant::Galerkin7(Stepping::native(d, start, end)),
+            Driver::Gauss8(d) => Interpolant::Galerkin8(Stepping::native(d, start, end)),
             Driver::Lobatto2(d) => Interpolant::Galerkin2(Stepping::native(d, start, end)),
             Driver::Lobatto3(d) => Interpolant::Galerkin3(Stepping::native(d, start, end)),
             Driver::Lobatto4(d) => Interpolant::Galerkin4(Stepping::native(d, start, end)),

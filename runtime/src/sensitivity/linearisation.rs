@@ -41,7 +41,7 @@ use crate::system::Scalar;
 
 /// The largest degree of a step a [`Piece`] holds (the degrees
 /// [`Scheme`](crate::problem::Scheme) offers).
-pub const MAX_DEGREE: usize = 4;
+pub const MAX_DEGREE: usize = 8;
 
 /// The quadrature and Lagrange basis of a Galerkin rule, as the stepper
 /// tabulates them: points `c_j`, weights `b_j`, and `ℓ_0 … ℓ_s` with their
