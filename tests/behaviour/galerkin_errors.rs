@@ -5,7 +5,7 @@ use crate::common::galerkin_reference;
 use common::*;
 use lagrangian::galerkin::StageIteration;
 use lagrangian::prelude::*;
-use lagrangian::{Error, Galerkin, GalerkinIntegrator, NewtonOptions, NodeFamily, Quadrature};
+use lagrangian::{Error, Galerkin, GalerkinIntegrator, NewtonOptions, NodeFamily, Quadrature, StepBounds};
 
 #[test]
 fn degree_zero_is_refused() {
@@ -15,6 +15,27 @@ fn degree_zero_is_refused() {
     let err = GalerkinIntegrator::new(Pendulum { ..PENDULUM }, g, 0.1).start(0.0, [0.1], [0.0]).unwrap_err();
     assert!(matches!(err, Error::InvalidMethod { .. }), "{err}");
     assert!(err.to_string().contains("degree"), "{err}");
+}
+
+#[test]
+fn an_accuracy_bound_on_galerkin_energy_steps_is_refused_not_ignored() {
+    // The capped step of least mismatch is the one-point rules' in f64: a
+    // Galerkin rule (and a one-point rule in double-double, which runs as
+    // one) refuses the bound at the start and through `Problem`.
+    let bounds = StepBounds::around(0.1).with_accuracy(1e-3);
+    let galerkin = Galerkin::<2, 2>::gauss();
+    let err = GalerkinIntegrator::new(Pendulum { ..PENDULUM }, galerkin, 0.1)
+        .energy_preserving(bounds)
+        .start(0.0, [0.1], [0.0])
+        .unwrap_err();
+    let Error::Unsupported { what } = err else { panic!("{err}") };
+    assert!(what.contains("accuracy bound"), "{what}");
+    let problem = Problem::new(Pendulum { ..PENDULUM }, 0.0, [0.1], [0.0]);
+    let policy = Policy::EnergyPreserving { h: 0.1, bounds };
+    let refused = problem.stepper(&Scheme::galerkin(3), policy).unwrap_err();
+    assert_eq!(refused.to_string(), format!("not supported yet: {what}"));
+    // The one-point rules in f64 take it.
+    assert!(problem.stepper(&Scheme::MIDPOINT, policy).is_ok());
 }
 
 #[test]

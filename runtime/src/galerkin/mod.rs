@@ -56,5 +56,6 @@ pub(crate) use method::{PointDerivatives, point_gradient};
 pub(crate) use one_point::as_galerkin;
 pub use quadrature::{Quadrature, QuadratureKind};
 pub(crate) use quadrature::{gauss_legendre_into, gauss_lobatto_into};
+pub(crate) use stepper::GALERKIN_ACCURACY_BOUND;
 pub use stepper::{GalerkinBuilder, GalerkinIntegrator, LastStep, PointEvaluations, tangent_map};
 pub(crate) use stepper::{GalerkinMemory, discrete_energy_of, legendre, supports_policy};

@@ -282,6 +282,11 @@ fn constant(c: &Combination<'_>, n: usize) -> Result<(), &'static str> {
 fn variable_steps(c: &Combination<'_>) -> Result<(), &'static str> {
     match (c.policy, c.forced, c.scheme) {
         (Policy::Fixed { .. }, _, _) => Ok(()),
+        (
+            Policy::EnergyPreserving { bounds, .. } | Policy::EnergyBalance { bounds, .. },
+            _,
+            Scheme::Galerkin { .. },
+        ) if bounds.accuracy.is_some() => Err(crate::galerkin::GALERKIN_ACCURACY_BOUND),
         (Policy::EnergyPreserving { .. }, true, _) => Err(
             "energy-preserving steps of a forced system: its energy changes by the work of the forces (`Policy::EnergyBalance`)",
         ),
