@@ -8,11 +8,12 @@
 //! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies: [`density_ratio`] above [`DENSITY_RATIO`] | any (other than above) | explicit time-transformed splitting (logarithmic), Kahan–Li 8 |
 //! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | the composition of Störmer–Verlet of fewer predicted stages ([`composition_order`]: Kahan–Li 8, or Yoshida 6 where Kahan–Li 8 would be held to its step cap), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
 //! | forces or dissipation | any | `≥ 1e-5` / `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 2 / 4 / 6 / 8` |
-//! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
+//! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-8` ([`HIGHER_DEGREE_RTOL`]) / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8`, `s ≥ 6` at `ρh ≤ 0.7` ([`HIGH_DEGREE_RHO_H`]) |
 //!
 //! The orders follow the report's calibration: Kahan–Li 8 is the fastest
 //! composition on the separable problems at every target, Galerkin `s = 4`
-//! on the double pendulum, pilot included; a lower order is faster only where the run is a few dozen
+//! on the double pendulum at 1e-4 and 1e-7 and `s = 6` at 1e-10 (the
+//! fastest there is `s = 8`, whose coarse pilot steps need Newton), pilot included; a lower order is faster only where the run is a few dozen
 //! steps anyway. Between the composition and Galerkin on a
 //! separable system the solve weighs predicted steps ([`predicted_steps`],
 //! the harmonic oscillator's frequency error of each method at the
@@ -245,18 +246,40 @@ pub fn composition_order(rtol: f64, rho_span: Option<f64>) -> u32 {
     }
 }
 
+/// The relative tolerance below which a system without forces that the
+/// compositions do not apply to runs Galerkin `s = 6` rather than `s = 4`:
+/// on the double pendulum at the report's target 1e-10 (calibrated
+/// `rtol = 5.6e-10`) `s = 6` takes a 77-step pilot and 400 steps, 12.8 M
+/// instructions, where `s = 4` took 740 and 743 steps, 21.2 M, against 7.7 M
+/// of the fastest, fixed-point Galerkin `s = 8` at 200 steps; at 1e-7
+/// (calibrated `rtol = 1e-6`) `s = 4` stays the faster. `s = 8` piloted at
+/// the same step is 20.4 M: its coarse pilot steps need Newton.
+pub const HIGHER_DEGREE_RTOL: f64 = 1e-8;
+
+/// The largest `ρh` of Galerkin `s ≥ 6` on a system not proven
+/// `½ vᵀMv − V(q)` (`ρ` the fastest rate of the linearisation at the
+/// start, where no survey measures it along the orbit), for the pilot's
+/// rounds and the final run. Above it a step that contains the fastest part
+/// of the motion makes an error the pilot does not see when that part lies
+/// at its start, where it is a node: Kepler in polar coordinates from
+/// pericentre over 10 orbits with `s = 6` ends 5.8e-8 from the reference
+/// at `ρh = 1` (281 steps), where 1, 2 and 4 orbits stepped with the same
+/// `h`, a whole number of steps per orbit, end 2.1e-10 per orbit; at
+/// `ρh = 0.5` the two agree (2.9e-12 and 2.9e-13 per orbit), and a pilot
+/// at `ρh = 0.7` estimates 1.8e-10 for a run that ends 1.4e-10
+/// (`rtol = 1e-10`, `HORIZON=0.01 auto_solve kepler-polar 1e-10`).
+pub const HIGH_DEGREE_RHO_H: f64 = 0.7;
+
 /// Galerkin `s = 4` for most tolerances: the report's fastest project
-/// method on the double pendulum from `1e-4` to `1e-10` with its pilot;
-/// with forces `s = 2` at coarse tolerances (the sensor's fastest at
-/// `1e-4`). `s = 6` below `rtol = 1e-8` is faster on the double pendulum
-/// at the target 1e-10 (a 77-step pilot and 400 steps against 611 and
-/// 601), but its pilot's coarse steps are short of the asymptotic range on
-/// Kepler in polar coordinates over a short span (0.01 of the report's
-/// horizon, `rtol = 1e-10`: an estimate 17 times below the error).
+/// method on the double pendulum at `1e-4` and `1e-7` with its pilot; with
+/// forces `s = 2` at coarse tolerances (the sensor's fastest at `1e-4`).
+/// Without forces, `s = 6` below [`HIGHER_DEGREE_RTOL`] (its steps held to
+/// [`HIGH_DEGREE_RHO_H`] where no survey ran); with forces below `1e-11`.
 fn galerkin_degree(rtol: f64, forced: bool) -> u32 {
     match (forced, rtol) {
         (true, r) if r >= 1e-5 => 2,
-        (_, r) if r >= 1e-11 => 4,
+        (true, r) if r >= 1e-11 => 4,
+        (false, r) if r >= HIGHER_DEGREE_RTOL => 4,
         (_, r) if r >= 1e-13 => 6,
         (_, _) => 8,
     }
@@ -436,7 +459,8 @@ mod tests {
         let c = candidates::<2>(KEPLER, 1e-10, Some(2.0), None, Fixed::default()).unwrap();
         assert_eq!(c[1].0, Candidate { family: Family::TimeTransformed, order: 8 });
         assert_eq!(first(GENERAL, 1e-8, None), Candidate { family: Family::Galerkin, order: 8 });
-        assert_eq!(first(GENERAL, 1e-10, None), Candidate { family: Family::Galerkin, order: 8 });
+        assert_eq!(first(GENERAL, 1e-10, None), Candidate { family: Family::Galerkin, order: 12 });
+        assert_eq!(first(FORCED, 1e-10, None), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-12, None), Candidate { family: Family::Galerkin, order: 12 });
         assert_eq!(first(GENERAL, 1e-14, None), Candidate { family: Family::Galerkin, order: 16 });
         assert_eq!(first(FORCED, 1e-4, Some(20.0)), Candidate { family: Family::Galerkin, order: 4 });

@@ -323,6 +323,14 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         for (mut candidate, mut reason) in candidates {
             let h_cap = match candidate.family {
                 Family::Composition if rho_max > 0.0 && self.step.is_none() => COMPOSITION_RHO_H / rho_max,
+                // A high degree where no survey measured `ρ` along the
+                // orbit: no round and no final run beyond the step whose
+                // error a pilot from the start sees.
+                Family::Galerkin
+                    if candidate.order >= 12 && !facts.explicit() && rho_max > 0.0 && self.step.is_none() =>
+                {
+                    choice::HIGH_DEGREE_RHO_H / rho_max
+                }
                 _ => f64::INFINITY,
             };
             let reuse = survey.take().filter(|s| s.0 == candidate).map(|s| (s.1, s.2));
@@ -670,9 +678,22 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // The checkpoints of a round whose fine run is the next round's
         // coarse run (see `HALVE_FROM`): on the nodes of both.
         let mut halved: Option<Vec<f64>> = None;
+        // A Galerkin cap (`s ≥ 6` without a survey, `ρh ≤ HIGH_DEGREE_RHO_H`)
+        // bounds the first round and the step taken; a round whose runs
+        // agree to round-off at it measures again at up to `ρh =
+        // GALERKIN_RHO_H`, the bound of every Galerkin pilot (Kepler in polar
+        // coordinates over 1 000 orbits at `rtol = 1.8e-12`: its runs at
+        // `ρh = 0.7` differ by round-off alone).
+        let measure_cap = match c.family {
+            Family::Galerkin if h_cap.is_finite() => h_cap * choice::GALERKIN_RHO_H / choice::HIGH_DEGREE_RHO_H,
+            _ => h_cap,
+        };
         // A few coarse steps over the pilot at least.
-        let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(h_cap);
+        let h_max = ((checkpoints[CHECKPOINTS - 1] - self.t0) / 4.0).min(measure_cap);
         let fixed_step = c.family != Family::TimeTransformed;
+        if fixed_step && self.step.is_none() {
+            h = h.min(h_cap);
+        }
         // The energy guard of the coarse runs (see `pilot::probe`): Galerkin
         // on a conservative autonomous system, whose pilot starts at up to
         // `ρh = 1` with `ρ` from the start alone (the compositions' steps
@@ -780,9 +801,9 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 if (fixed_step && h >= h_max) || 4.0 * h >= too_coarse {
                     // As coarse as the pilot resolves (or a coarser step
                     // already missed) and still exact to round-off.
-                    return Ok(((h, at_end.max(roundoff)), rich, scale));
+                    return Ok(((h.min(h_cap), at_end.max(roundoff)), rich, scale));
                 }
-                last = Some(((h, at_end.max(roundoff)), rich, scale));
+                last = Some(((h.min(h_cap), at_end.max(roundoff)), rich, scale));
                 if at_end.max(roundoff) <= target {
                     met = last;
                 }
@@ -821,7 +842,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             // asymptotic range, where the error falls faster than `h^p`: a
             // step below half of it is piloted again rather than
             // extrapolated that far.
-            let at_cap = fixed_step && h >= 0.99 * h_cap && ratio < CAPPED_ACCEPT;
+            let at_cap = capped_family && fixed_step && h >= 0.99 * h_cap && ratio < CAPPED_ACCEPT;
             if ACCEPT.contains(&ratio) && !at_cap {
                 break;
             }
