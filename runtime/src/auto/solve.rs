@@ -679,13 +679,16 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         // coarse run (see `HALVE_FROM`): on the nodes of both.
         let mut halved: Option<Vec<f64>> = None;
         // A Galerkin cap (`s ≥ 6` without a survey, `ρh ≤ HIGH_DEGREE_RHO_H`)
-        // bounds the first round and the step taken; a round whose runs
-        // agree to round-off at it measures again at up to `ρh =
-        // GALERKIN_RHO_H`, the bound of every Galerkin pilot (Kepler in polar
-        // coordinates over 1 000 orbits at `rtol = 1.8e-12`: its runs at
-        // `ρh = 0.7` differ by round-off alone).
+        // bounds the first round and the step taken, not the rounds that
+        // measure: a round whose runs agree to round-off at it measures
+        // again at coarser steps, as every Galerkin pilot does (the charged
+        // particle in a magnetic field at `rtol = 1e-12` and Kepler in polar
+        // coordinates over 1 000 orbits at `1.8e-12` differ by round-off
+        // alone at `ρh = 0.7` and at `ρh = 1`, and that difference,
+        // extrapolated over the span, is above the request), and a measured
+        // error asks for the capped step with its estimate scaled to it.
         let measure_cap = match c.family {
-            Family::Galerkin if h_cap.is_finite() => h_cap * choice::GALERKIN_RHO_H / choice::HIGH_DEGREE_RHO_H,
+            Family::Galerkin => f64::INFINITY,
             _ => h_cap,
         };
         // A few coarse steps over the pilot at least.
