@@ -8,11 +8,13 @@
 //! | `½ vᵀMv − V(q)`, `M` constant, no forces | varies: [`density_ratio`] above [`DENSITY_RATIO`] | any (other than above) | explicit time-transformed splitting (logarithmic), Kahan–Li 8 |
 //! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | the composition of Störmer–Verlet of fewer predicted stages ([`composition_order`]: Kahan–Li 8, or Yoshida 6 where Kahan–Li 8 would be held to its step cap), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
 //! | forces or dissipation | any | `≥ 1e-5` / `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 2 / 4 / 6 / 8` |
-//! | anything else (non-separable, time-dependent, position-dependent mass) | any | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
+//! | anything else (non-separable, time-dependent, position-dependent mass), no forces | the linearisation's fastest rate nearly uniform: [`density_ratio`] at most [`HIGH_DEGREE_RATIO`] ([`uniform_high_degree`]) | `≥ 1e-8` ([`HIGHER_DEGREE_RTOL`]) / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8`, `s = 6` at `ρh ≤ 0.7` ([`HIGH_DEGREE_RHO_H`]) |
+//! | anything else | varies, or not surveyed ([`surveys_rates`]) | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
 //!
 //! The orders follow the report's calibration: Kahan–Li 8 is the fastest
 //! composition on the separable problems at every target, Galerkin `s = 4`
-//! on the double pendulum, pilot included; a lower order is faster only where the run is a few dozen
+//! on the double pendulum at 1e-4 and 1e-7 and `s = 6` at 1e-10 (the
+//! fastest there is `s = 8`, whose coarse pilot steps need Newton), pilot included; a lower order is faster only where the run is a few dozen
 //! steps anyway. Between the composition and Galerkin on a
 //! separable system the solve weighs predicted steps ([`predicted_steps`],
 //! the harmonic oscillator's frequency error of each method at the
@@ -245,18 +247,71 @@ pub fn composition_order(rtol: f64, rho_span: Option<f64>) -> u32 {
     }
 }
 
+/// The relative tolerance below which a system without forces that the
+/// compositions do not apply to runs Galerkin `s = 6` rather than `s = 4`:
+/// on the double pendulum at the report's target 1e-10 (calibrated
+/// `rtol = 5.6e-10`) `s = 6` takes a 77-step pilot and 400 steps, 12.8 M
+/// instructions, where `s = 4` took 740 and 743 steps, 21.2 M, against 7.7 M
+/// of the fastest, fixed-point Galerkin `s = 8` at 200 steps; at 1e-7
+/// (calibrated `rtol = 1e-6`) `s = 4` stays the faster. `s = 8` piloted at
+/// the same step is 20.4 M: its coarse pilot steps need Newton.
+pub const HIGHER_DEGREE_RTOL: f64 = 1e-8;
+
+/// The largest `ρh` of Galerkin `s ≥ 6` on a system not proven
+/// `½ vᵀMv − V(q)` (`ρ` the fastest rate of the linearisation at the
+/// start, where no survey measures it along the orbit), for the pilot's
+/// rounds and the final run. Above it a step that contains the fastest part
+/// of the motion makes an error the pilot does not see when that part lies
+/// at its start, where it is a node: Kepler in polar coordinates from
+/// pericentre over 10 orbits with `s = 6` ends 5.8e-8 from the reference
+/// at `ρh = 1` (281 steps), where 1, 2 and 4 orbits stepped with the same
+/// `h`, a whole number of steps per orbit, end 2.1e-10 per orbit; at
+/// `ρh = 0.5` the two agree (2.9e-12 and 2.9e-13 per orbit), and a pilot
+/// at `ρh = 0.7` estimates 1.8e-10 for a run that ends 1.4e-10
+/// (`rtol = 1e-10`, `HORIZON=0.01 auto_solve kepler-polar 1e-10`).
+pub const HIGH_DEGREE_RHO_H: f64 = 0.7;
+
+/// The [`density_ratio`] of the linearisation's fastest rate along a pilot
+/// run up to which a system the compositions do not apply to counts as
+/// uniform for [`HIGHER_DEGREE_RTOL`] (see [`uniform_high_degree`]). The
+/// survey along the first coarse run of the `s = 6` pilot (up to 64
+/// samples of [`guidance::linearize`](crate::guidance::linearize)) measures
+/// 1.00 on the double pendulum (from `(1, −0.5)` rad, `rtol = 5.6e-10`) and
+/// 2.30 on Kepler `e = 0.5` in polar coordinates from pericentre (the
+/// report's 1 000 orbits, `rtol = 1.8e-12`); the bound lies between.
+pub const HIGH_DEGREE_RATIO: f64 = 1.5;
+
+/// Whether the fastest rate is surveyed along the pilot of a system the
+/// compositions do not apply to: without forces, at the tolerances where
+/// its Galerkin degree depends on it (below [`HIGHER_DEGREE_RTOL`], at or
+/// above `1e-13`).
+pub fn surveys_rates(facts: Facts, rtol: f64) -> bool {
+    !facts.explicit() && !facts.forced && (1e-13..HIGHER_DEGREE_RTOL).contains(&rtol)
+}
+
+/// Galerkin `s = 6` below [`HIGHER_DEGREE_RTOL`] on a system the
+/// compositions do not apply to, its steps held to [`HIGH_DEGREE_RHO_H`]:
+/// only where the survey ([`surveys_rates`]) found the fastest rate nearly
+/// uniform along the pilot, `ratio` at most [`HIGH_DEGREE_RATIO`]. Where it
+/// varies, a step that contains the fastest part of the motion makes an
+/// error a pilot from the start does not see, and no cap from the start
+/// bounds it: Kepler in polar coordinates (`e = 0.5`, from pericentre, over
+/// the report's 1 000 orbits) held to `ρh ≤ 0.7` ends 4.8e-8 from the
+/// reference at every `rtol` from `5.6e-9` down to `3.2e-11` (55 196 steps
+/// of `s = 6`, the cap), 40 times the 1.1e-9 asked at `1.8e-12`.
+pub fn uniform_high_degree(facts: Facts, rtol: f64, ratio: Option<f64>) -> bool {
+    surveys_rates(facts, rtol) && ratio.is_some_and(|r| r <= HIGH_DEGREE_RATIO)
+}
+
 /// Galerkin `s = 4` for most tolerances: the report's fastest project
-/// method on the double pendulum from `1e-4` to `1e-10` with its pilot;
-/// with forces `s = 2` at coarse tolerances (the sensor's fastest at
-/// `1e-4`). `s = 6` below `rtol = 1e-8` is faster on the double pendulum
-/// at the target 1e-10 (a 77-step pilot and 400 steps against 611 and
-/// 601), but its pilot's coarse steps are short of the asymptotic range on
-/// Kepler in polar coordinates over a short span (0.01 of the report's
-/// horizon, `rtol = 1e-10`: an estimate 17 times below the error).
-fn galerkin_degree(rtol: f64, forced: bool) -> u32 {
+/// method on the double pendulum at `1e-4` and `1e-7` with its pilot; with
+/// forces `s = 2` at coarse tolerances (the sensor's fastest at `1e-4`).
+/// `s = 6` below `1e-11`, and below [`HIGHER_DEGREE_RTOL`] where the rates
+/// are `uniform` ([`uniform_high_degree`]).
+fn galerkin_degree(rtol: f64, forced: bool, uniform: bool) -> u32 {
     match (forced, rtol) {
         (true, r) if r >= 1e-5 => 2,
-        (_, r) if r >= 1e-11 => 4,
+        (_, r) if r >= 1e-11 && !uniform => 4,
         (_, r) if r >= 1e-13 => 6,
         (_, _) => 8,
     }
@@ -295,7 +350,8 @@ pub fn candidates<const N: usize>(
     let order_in = |family: Family, default: u32| {
         fixed.order.filter(|_| fixed.family == Some(family) || fixed.family.is_none()).unwrap_or(default)
     };
-    let galerkin_order = 2 * galerkin_degree(rtol, facts.forced);
+    let uniform = uniform_high_degree(facts, rtol, density_ratio);
+    let galerkin_order = 2 * galerkin_degree(rtol, facts.forced, uniform);
     match fixed.family {
         Some(Family::TimeTransformed) if !facts.transformable() => {
             return Err(Error::NotSeparable {
@@ -367,6 +423,18 @@ pub fn candidates<const N: usize>(
     } else {
         "not proven `½ vᵀMv − V(q)` with a constant mass matrix"
     };
+    // The survey's verdict, where it decided the degree.
+    let why = match density_ratio.filter(|_| surveys_rates(facts, rtol)) {
+        Some(r) if uniform => format!(
+            "{why}, the fastest rate nearly uniform along the pilot (density ratio {r:.2} ≤ {HIGH_DEGREE_RATIO}), \
+             steps held to ρh ≤ {HIGH_DEGREE_RHO_H}"
+        ),
+        Some(r) => {
+            format!("{why}, the fastest rate varying along the pilot (density ratio {r:.2} > {HIGH_DEGREE_RATIO})")
+        }
+        None => why.to_string(),
+    };
+    let why = why.as_str();
     match fixed.family {
         Some(Family::TimeTransformed) => out.push(tt()),
         Some(Family::Composition) => out.push(composition()),
@@ -436,7 +504,12 @@ mod tests {
         let c = candidates::<2>(KEPLER, 1e-10, Some(2.0), None, Fixed::default()).unwrap();
         assert_eq!(c[1].0, Candidate { family: Family::TimeTransformed, order: 8 });
         assert_eq!(first(GENERAL, 1e-8, None), Candidate { family: Family::Galerkin, order: 8 });
+        // Below 1e-8, s = 6 only where the survey found the fastest rate nearly uniform.
         assert_eq!(first(GENERAL, 1e-10, None), Candidate { family: Family::Galerkin, order: 8 });
+        assert_eq!(first(GENERAL, 1e-10, Some(1.1)), Candidate { family: Family::Galerkin, order: 12 });
+        assert_eq!(first(GENERAL, 1e-10, Some(3.0)), Candidate { family: Family::Galerkin, order: 8 });
+        assert_eq!(first(GENERAL, 1e-7, Some(1.1)), Candidate { family: Family::Galerkin, order: 8 });
+        assert_eq!(first(FORCED, 1e-10, Some(1.1)), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-12, None), Candidate { family: Family::Galerkin, order: 12 });
         assert_eq!(first(GENERAL, 1e-14, None), Candidate { family: Family::Galerkin, order: 16 });
         assert_eq!(first(FORCED, 1e-4, Some(20.0)), Candidate { family: Family::Galerkin, order: 4 });

@@ -164,7 +164,7 @@ pub(crate) fn probe<I: Stepping<N>, const N: usize>(
             k += 1;
             if stride > 0
                 && k.is_multiple_of(stride)
-                && let Some(rate) = rates.as_deref_mut().and_then(|r| r.at(it.system(), s.t, &s.q, POWER_ITERATIONS))
+                && let Some(rate) = rates.as_deref_mut().and_then(|r| r.sample(&it, POWER_ITERATIONS))
             {
                 out.rates.push(rate);
                 if let Some(limit) = stop_above
@@ -197,17 +197,41 @@ const POWER_ITERATIONS: usize = 3;
 /// of many nodes on 15 coordinates cost 100× a whole calibrated run.
 pub(crate) struct Rates<const N: usize> {
     /// `M⁻¹`, shared with the started integrator that formed it.
-    inverse_mass: Arc<SMatrix<f64, N, N>>,
+    /// `None` for a system of any other form: each sample is then the
+    /// dense linearisation of [`guidance::linearize`](crate::guidance::linearize)
+    /// at the node's `(t, q, v)` (on two coordinates, eight accelerations
+    /// and a 4 × 4 eigenvalue problem, a fraction of a Galerkin `s = 6` step).
+    inverse_mass: Option<Arc<SMatrix<f64, N, N>>>,
     mode: [f64; N],
 }
 
 impl<const N: usize> Rates<N> {
     /// From `M⁻¹`, which an explicit integrator forms at its start.
     pub(crate) fn new(inverse_mass: Arc<SMatrix<f64, N, N>>) -> Self {
-        Self { inverse_mass, mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) }
+        Self { inverse_mass: Some(inverse_mass), mode: core::array::from_fn(|i| 1.0 + 0.1 * i as f64) }
     }
 
-    /// `ρ` at `(t, q)` after `iterations` power iterations.
+    /// For a system not proven `½ vᵀMv − V(q)` with a constant `M`: the
+    /// fastest rate of the whole linearisation at each sampled node.
+    pub(crate) fn linearised() -> Self {
+        Self { inverse_mass: None, mode: [0.0; N] }
+    }
+
+    /// `ρ` at the current node of `it`.
+    fn sample<I: Stepping<N>>(&mut self, it: &I, iterations: usize) -> Option<f64> {
+        let s = it.state();
+        if self.inverse_mass.is_some() {
+            return self.at(it.system(), s.t, &s.q, iterations);
+        }
+        let v = it.velocity().ok()?;
+        crate::guidance::linearize(it.system(), s.t, s.q, v)
+            .ok()
+            .map(|l| l.fastest)
+            .filter(|r| r.is_finite() && *r > 0.0)
+    }
+
+    /// `ρ` at `(t, q)` after `iterations` power iterations (`None` for
+    /// [`linearised`](Self::linearised) rates).
     pub(crate) fn at<S: Lagrangian<N> + ?Sized>(
         &mut self,
         system: &S,
@@ -216,6 +240,7 @@ impl<const N: usize> Rates<N> {
         iterations: usize,
     ) -> Option<f64> {
         let delta = f64::EPSILON.cbrt() * q.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let m = self.inverse_mass.clone()?;
         let zero = [0.0; N];
         let (mut plus, mut minus) = ([0.0; N], [0.0; N]);
         let mut lambda = 0.0;
@@ -228,7 +253,7 @@ impl<const N: usize> Rates<N> {
             system.gradient_q(t, &core::array::from_fn(|i| q[i] + delta * u[i]), &zero, &mut plus);
             system.gradient_q(t, &core::array::from_fn(|i| q[i] - delta * u[i]), &zero, &mut minus);
             let force: [f64; N] = core::array::from_fn(|i| (plus[i] - minus[i]) / (2.0 * delta));
-            let m = &*self.inverse_mass;
+            let m = &*m;
             self.mode = core::array::from_fn(|i| (0..N).map(|j| m[(i, j)] * force[j]).sum());
             lambda = self.mode.iter().map(|x| x * x).sum::<f64>().sqrt();
         }
