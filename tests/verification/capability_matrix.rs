@@ -428,15 +428,16 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // fixed steps but for the splitting; no compile-time size above 1024;
     // at run-time size fixed steps and `solve` of the one-point rules, the
     // Galerkin rules, the compositions and the implicit time
-    // transformation, forced or not, of the splitting, unforced, and
-    // energy-preserving and energy-balance steps of the one-point rules;
+    // transformation, forced or not, of the splitting, unforced,
+    // energy-preserving steps of the one-point and Galerkin rules and
+    // energy-balance steps of the one-point rules;
     // sensitivities and the adjoint for fixed steps of
     // the one-point rules, the Galerkin rules, the compositions and the
     // implicit time transformation, forced or not, for energy-preserving
     // steps of the one-point and Galerkin rules, for energy-balance steps
     // of the one-point rules, and for the splitting, unforced.
     let one_point = [true, true, true, true, false, true, true, true, true, true, true, true, true, true];
-    let galerkin = [true, true, false, true, false, true, true, true, false, false, true, true, true, false];
+    let galerkin = [true, true, false, true, false, true, true, true, true, false, true, true, true, false];
     let composition = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let transformed = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let splitting = [true, false, false, false, false, true, true, false, false, false, true, false, false, false];

@@ -801,8 +801,13 @@ fn bad_input_and_undefined_combinations_are_typed_errors() {
         }
         let e = problem.gradient(&scheme, policy, 0.1, &loss(), Checkpoints::Every(10)).unwrap_err();
         assert!(refused(e).contains(named));
-        // The problem itself still solves.
-        assert!(problem.solve(&scheme, policy, plan()).unwrap().is_finished());
+        // The problem itself still solves with a one-point rule; a
+        // Galerkin rule refuses the bound for a run too.
+        match (&scheme, problem.solve(&scheme, policy, plan())) {
+            (Scheme::OnePoint(_), Ok(solution)) => assert!(solution.is_finished()),
+            (Scheme::Galerkin { .. }, Err(SolveError::Step(e))) => assert!(refused(e).contains(named)),
+            (_, other) => panic!("{scheme:?}: {other:?}"),
+        }
     }
     // The explicit time-transformed splitting (on Kepler, which it steps)
     // under a variable-step policy: refused with its name; its fixed steps
