@@ -24,10 +24,10 @@
 
 use core::cell::RefCell;
 
-use super::galerkin_energy::NodeProbes;
 use super::galerkin_forces::GalerkinForcing;
 pub(crate) use super::galerkin_rule::{BlockLayout, Rule};
 use super::implicit::Slot;
+use super::node_probes::NodeProbes;
 use super::{Guess, Node, SparseWork, TAPE_FAILED, Taken, TapeModel, assemble_and_factor, breakdown, filled, zeroed};
 use crate::banded::{LinearSolveError, StepMatrix, StepSolver};
 use crate::newton::{self, Breakdown, Jacobian, Linearization, NewtonFailure, NewtonOptions, NewtonReport};

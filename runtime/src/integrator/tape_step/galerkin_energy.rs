@@ -22,32 +22,11 @@
 //! equation says that the step's discrete energy equals the last one's.
 
 use super::galerkin::GalerkinWork;
+use super::node_probes::NodeProbes;
 use super::{Node, SparseWork, Taken, TapeModel, tape_breakdown, zeroed};
 use crate::banded::StepMatrix;
 use crate::newton::{Breakdown, NewtonFailure, NewtonOptions, NewtonReport};
 use crate::tape::Seeds;
-
-/// The trial steps of an energy-preserving step: the latest probe's
-/// nodes and their tangent, scratch that a copy does not share.
-#[derive(Debug, Default)]
-pub(crate) struct NodeProbes {
-    /// The size of the latest solved probe (`None`: none since the last
-    /// step taken).
-    h: Option<f64>,
-    /// Its unknowns `D`, in the unknowns' order.
-    nodes: Vec<f64>,
-    /// `dD/dh = −J⁻¹b` there (valid where its slope is finite).
-    tangent: Vec<f64>,
-}
-
-impl Clone for NodeProbes {
-    fn clone(&self) -> Self {
-        Self::default()
-    }
-
-    /// Scratch: nothing to copy.
-    fn clone_from(&mut self, _: &Self) {}
-}
 
 /// The energy terms of a solved trial step.
 #[derive(Clone, Copy, Debug)]

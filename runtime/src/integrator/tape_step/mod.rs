@@ -52,6 +52,7 @@ mod galerkin_forces;
 mod galerkin_rule;
 mod implicit;
 mod legendre;
+mod node_probes;
 
 use directional::Directional;
 use forcing::Forcing;
