@@ -30,5 +30,6 @@ mod run_time_galerkin_errors;
 mod run_time_galerkin_forces;
 mod run_time_solve;
 mod run_time_splitting;
+mod run_time_systems;
 mod run_time_time_transform;
 mod solution;

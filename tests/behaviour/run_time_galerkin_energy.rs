@@ -9,81 +9,7 @@ use lagrangian::problem::Capability;
 use lagrangian::{Error, PhasePoint, StepBounds};
 
 use super::run_time_forces::ForcedDyn;
-
-/// Four FPU-β masses between walls, their number known at compile time.
-#[derive(Clone)]
-struct Chain4;
-
-#[lagrangian]
-impl Chain4 {
-    fn lagrangian(&self, q: [f64; 4], v: [f64; 4]) -> f64 {
-        let mut kinetic = 0.0;
-        for i in 0..4 {
-            kinetic += 0.5 * v[i] * v[i];
-        }
-        let mut potential = 0.5 * q[0] * q[0] + 0.25 * q[0].powi(4) + 0.5 * q[3] * q[3] + 0.25 * q[3].powi(4);
-        for i in 0..3 {
-            let d = q[i + 1] - q[i];
-            potential += 0.5 * d * d + 0.25 * d.powi(4);
-        }
-        kinetic - potential
-    }
-}
-
-/// The same chain with its size known at run time.
-#[derive(Clone, Debug)]
-struct Chain {
-    n: usize,
-}
-
-#[lagrangian]
-impl Chain {
-    fn dimension(&self) -> usize {
-        self.n
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        let n = q.len();
-        let mut kinetic = 0.0;
-        for i in 0..n {
-            kinetic += 0.5 * v[i] * v[i];
-        }
-        let mut potential =
-            0.5 * q[0] * q[0] + 0.25 * q[0].powi(4) + 0.5 * q[n - 1] * q[n - 1] + 0.25 * q[n - 1].powi(4);
-        for i in 0..n - 1 {
-            let d = q[i + 1] - q[i];
-            potential += 0.5 * d * d + 0.25 * d.powi(4);
-        }
-        kinetic - potential
-    }
-}
-
-/// A double pendulum (unit masses and lengths, g = 1): its mass matrix
-/// depends on `q`.
-#[derive(Clone)]
-struct DoublePendulum;
-
-#[lagrangian]
-impl DoublePendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos() + 2.0 * q[0].cos() + q[1].cos()
-    }
-}
-
-/// The double pendulum over slices.
-#[derive(Clone)]
-struct DoublePendulumDyn;
-
-#[lagrangian]
-impl DoublePendulumDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos() + 2.0 * q[0].cos() + q[1].cos()
-    }
-}
+use super::run_time_systems::{Chain, Chain4, DoublePendulum, DoublePendulumDyn, PumpedDyn};
 
 /// The largest relative difference of two states.
 fn difference<const N: usize>(a: &State<N>, b: &PhasePoint) -> f64 {
@@ -142,7 +68,7 @@ where
 #[test]
 fn galerkin_energy_steps_are_the_same_at_both_sizes_for_degree_2() {
     let (q0, v0) = ([0.9, -0.3, 0.5, 0.2], [0.0, 0.4, 0.0, -0.2]);
-    let (worst, _, spread) = both_sizes((Chain4, Chain { n: 4 }), (q0, v0), (2, 0.2, 20));
+    let (worst, _, spread) = both_sizes((Chain4, Chain { n: 4, walls: true }), (q0, v0), (2, 0.2, 20));
     assert!(spread > 1.1 && worst < 100.0, "chain: {worst} units, spread {spread}");
     let (worst, _, spread) = both_sizes((DoublePendulum, DoublePendulumDyn), ([0.5, 0.3], [0.0, 0.0]), (2, 0.1, 20));
     assert!(spread > 1.1 && worst < 100.0, "double pendulum: {worst} units, spread {spread}");
@@ -194,7 +120,7 @@ fn a_chain_conserves_its_discrete_energy_over_ten_thousand_galerkin_energy_steps
     let n = 16;
     let q0: Vec<f64> = (0..n).map(|i| 0.5 * (core::f64::consts::PI * (i + 1) as f64 / (n + 1) as f64).sin()).collect();
     let v0: Vec<f64> = (0..n).map(|i| 0.1 * (i as f64 * 0.7).cos()).collect();
-    let problem = Problem::new(Chain { n }, 0.0, q0, v0);
+    let problem = Problem::new(Chain { n, walls: true }, 0.0, q0, v0);
     let mut sim = problem.stepper(&Scheme::galerkin(2), Policy::energy_preserving(0.1)).unwrap();
     sim.step().unwrap();
     let e1 = sim.discrete_energy();
@@ -255,21 +181,6 @@ fn no_galerkin_energy_step_leaves_the_stepper_bit_identical() {
     panic!("every step found an energy root");
 }
 
-/// An oscillator whose stiffness depends on time.
-#[derive(Clone)]
-struct PumpedDyn;
-
-#[lagrangian]
-impl PumpedDyn {
-    fn dimension(&self) -> usize {
-        1
-    }
-
-    fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
-        0.5 * v[0] * v[0] - 0.5 * (1.0 + 0.2 * t.sin()) * q[0] * q[0]
-    }
-}
-
 /// What is refused at a compile-time size is refused here, typed: forced
 /// and time-dependent systems, bad bounds, a guess outside them.
 #[test]
@@ -285,7 +196,7 @@ fn undefined_galerkin_energy_steps_are_typed_errors() {
         panic!("a time-dependent system accepted")
     };
     assert!(what.contains("time-dependent"), "{what}");
-    let chain = Problem::new(Chain { n: 4 }, 0.0, vec![0.1; 4], vec![0.0; 4]);
+    let chain = Problem::new(Chain { n: 4, walls: true }, 0.0, vec![0.1; 4], vec![0.0; 4]);
     let good = StepBounds::around(0.1);
     let policy = |h, bounds| Policy::EnergyPreserving { h, bounds };
     let bad = StepBounds { h_min: 0.2, h_max: 0.1, ..good };

@@ -10,31 +10,7 @@ use lagrangian::prelude::*;
 use lagrangian::{Action, Status};
 use std::f64::consts::PI;
 
-/// Kepler, μ = 1.
-#[derive(Clone)]
-struct Kepler;
-
-#[lagrangian]
-impl Kepler {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
-
-/// Kepler with its size known at run time.
-#[derive(Clone, Debug)]
-struct KeplerDyn;
-
-#[lagrangian]
-impl KeplerDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
+use super::run_time_systems::{Kepler, KeplerDyn};
 
 /// The masses of the three bodies (G = 1).
 const MASSES: [f64; 3] = [1.0, 0.01, 0.003];

@@ -7,31 +7,7 @@
 use lagrangian::prelude::*;
 use lagrangian::{Action, Status};
 
-/// Kepler, μ = 1, at a compile-time size.
-#[derive(Clone)]
-struct Kepler;
-
-#[lagrangian]
-impl Kepler {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
-
-/// Kepler with its size known at run time.
-#[derive(Clone)]
-struct KeplerDyn;
-
-#[lagrangian]
-impl KeplerDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
+use super::run_time_systems::{Kepler, KeplerDyn};
 
 /// A short FPU-β chain between fixed walls at a compile-time size.
 #[derive(Clone)]
