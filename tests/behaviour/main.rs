@@ -22,6 +22,7 @@ mod galerkin_errors;
 mod guidance;
 mod macro_rewrite;
 mod method_matrix;
+mod problem_settings;
 mod run_time_energy_balance;
 mod run_time_energy_steps;
 mod run_time_forces;

@@ -201,13 +201,8 @@ fn bits(sim: &impl RunTimeStepping) -> Vec<u64> {
 fn no_energy_step_leaves_the_stepper_bit_identical() {
     let problem = Problem::new(Pendulum, 0.0, vec![1.0], vec![0.0]);
     let mut sim = problem.stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.05)).unwrap();
-    // The fallback is the driver's setting (named directly: `Policy` has none).
     let start = |fallback| {
-        lagrangian_runtime::DynIntegrator::new(Pendulum, Trapezoid, 0.05)
-            .energy_preserving(StepBounds::around(0.05))
-            .energy_fallback(fallback)
-            .start(0.0, &[1.0], &[0.0])
-            .unwrap()
+        problem.clone().energy_fallback(fallback).stepper(&Scheme::TRAPEZOID, Policy::energy_preserving(0.05)).unwrap()
     };
     for _ in 0..1000 {
         let before = bits(&sim);

@@ -190,7 +190,9 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
     }
 
     fn start<M: DynMethod>(&self, method: M, policy: Policy) -> Result<DynIntegrator<S, M>, Error> {
-        let mut builder = DynIntegrator::new(self.system.clone(), method, policy.step());
+        let mut builder = DynIntegrator::new(self.system.clone(), method, policy.step())
+            .summation(self.summation)
+            .energy_fallback(self.fallback);
         if let Some(options) = self.newton {
             builder = builder.newton(options);
         }

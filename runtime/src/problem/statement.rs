@@ -10,7 +10,7 @@ use crate::dim::{Coordinates, Dim, Dimension};
 use crate::discrete::{Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::{Galerkin, NodeFamily, Quadrature};
-use crate::integrator::{Composition, Integrator, IntegratorBuilder, Method};
+use crate::integrator::{Composition, EnergyFallback, Integrator, IntegratorBuilder, Method, Summation};
 use crate::newton::NewtonOptions;
 use crate::solution::{Plan, Solution, SolveError};
 use crate::system::Lagrangian;
@@ -62,18 +62,71 @@ pub struct Problem<S, Z: Dimension> {
     pub(super) q0: Z::Vector,
     pub(super) v0: Z::Vector,
     pub(super) newton: Option<NewtonOptions>,
+    pub(super) summation: Summation,
+    pub(super) fallback: EnergyFallback,
 }
 
 impl<S, Z: Dimension> Problem<S, Z> {
     /// `system` from `(t0, q0, v0)`; the coordinates' type states the size
     /// (see [`Coordinates`]).
     pub fn new<C: Coordinates<Dimension = Z>>(system: S, t0: f64, q0: C, v0: C) -> Self {
-        Self { system, t0, q0: q0.into_vector(), v0: v0.into_vector(), newton: None }
+        Self {
+            system,
+            t0,
+            q0: q0.into_vector(),
+            v0: v0.into_vector(),
+            newton: None,
+            summation: Summation::Compensated,
+            fallback: EnergyFallback::Fail,
+        }
     }
 
     /// Newton settings for the implicit schemes (default: each driver's own).
     pub fn newton(mut self, options: NewtonOptions) -> Self {
         self.newton = Some(options);
+        self
+    }
+
+    /// How the one-point, Galerkin and composition steps add their
+    /// increments to the state ([`Summation`]; default
+    /// [`Summation::Compensated`]). [`Summation::Plain`] rounds each update
+    /// once, as a hand-written integrator does: a few operations fewer per
+    /// coordinate and step, with round-off accumulating in the state. The
+    /// time transformations keep their compensated sums whatever this says.
+    ///
+    /// ```
+    /// use lagrangian_runtime::problem::{Problem, Scheme};
+    /// use lagrangian_runtime::{Lagrangian, Scalar, Summation};
+    ///
+    /// #[derive(Clone)]
+    /// struct Oscillator;
+    /// impl Lagrangian<1> for Oscillator {
+    ///     const AUTONOMOUS: bool = true;
+    ///     const CYCLIC: [bool; 1] = [false];
+    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+    ///         (v[0] * v[0] - q[0] * q[0]) * 0.5
+    ///     }
+    /// }
+    ///
+    /// let problem = Problem::new(Oscillator, 0.0, [1.0], [0.0]).summation(Summation::Plain);
+    /// let mut sim = problem.stepper(&Scheme::TRAPEZOID, 0.01)?;
+    /// sim.run(100, |_| {})?;
+    /// assert!((sim.state().q[0] - 1f64.cos()).abs() < 1e-4);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    pub fn summation(mut self, summation: Summation) -> Self {
+        self.summation = summation;
+        self
+    }
+
+    /// What energy-preserving and energy-balance steps of the one-point and
+    /// Galerkin rules do where no admissible step size satisfies the energy
+    /// equation ([`EnergyFallback`]; default [`EnergyFallback::Fail`]: the
+    /// step fails with `NoEnergyStep` and the stepper is left as it was;
+    /// [`EnergyFallback::LeastSquares`] takes the step of least energy
+    /// mismatch and counts it in [`Stats::energy_fallbacks`](crate::Stats::energy_fallbacks)).
+    pub fn energy_fallback(mut self, fallback: EnergyFallback) -> Self {
+        self.fallback = fallback;
         self
     }
 
@@ -230,7 +283,9 @@ where
         policy: Policy,
         wrap: fn(Integrator<S, M, N>) -> Driver<S, N>,
     ) -> Result<Box<Driver<S, N>>, Error> {
-        let mut builder: IntegratorBuilder<S, M> = Integrator::new(self.system.clone(), method, policy.step());
+        let mut builder: IntegratorBuilder<S, M> = Integrator::new(self.system.clone(), method, policy.step())
+            .summation(self.summation)
+            .energy_fallback(self.fallback);
         if let Some(bounds) = policy.bounds() {
             builder = builder.energy_preserving(bounds);
         }
