@@ -21,7 +21,8 @@ CASES=(
   hand hand-compensated
   trapezoid trapezoid-plain user-trapezoid user-trapezoid-plain
   dyn-trapezoid dyn-trapezoid-plain dyn-user-trapezoid dyn-user-trapezoid-plain
-  stepper-trapezoid stepper-user-trapezoid
+  stepper-trapezoid stepper-trapezoid-plain stepper-user-trapezoid stepper-user-trapezoid-plain
+  problem-trapezoid problem-trapezoid-plain problem-user-trapezoid problem-user-trapezoid-plain
 )
 
 source scripts/callgrind.sh

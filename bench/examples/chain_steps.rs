@@ -18,16 +18,20 @@
 //! (`user-trapezoid`), and with the size known at run time (`dyn-trapezoid`,
 //! `dyn-user-trapezoid`); each of the four with `-plain` appended runs under
 //! `Summation::Plain`. `stepper-trapezoid` and `stepper-user-trapezoid` take
-//! the run-time-sized steps through `Problem`/`Stepper<S, Dyn>` (compensated
-//! sums), the user's way in: against `dyn-trapezoid` and
-//! `dyn-user-trapezoid`, the driver named directly (a hidden item of the
-//! runtime crate, kept for this comparison), they give the cost of the
-//! stepper's dispatch.
+//! the run-time-sized steps through `Problem`/`Stepper<S, Dyn>`, the user's
+//! way in: against `dyn-trapezoid` and `dyn-user-trapezoid`, the driver
+//! named directly (a hidden item of the runtime crate, kept for this
+//! comparison), they give the cost of the stepper's dispatch.
+//! `problem-trapezoid` and `problem-user-trapezoid` do the same at the
+//! compile-time size (`Problem`/`Stepper<S, Dim<N>>`, `N` 1000 or 1024). The
+//! four take `-plain` too (`Problem::summation(Summation::Plain)`).
 #![allow(missing_docs)]
 
 use std::hint::black_box;
 
+use lagrangian::Dim;
 use lagrangian::prelude::*;
+use lagrangian::problem::Extended;
 use lagrangian_bench::chain::{
     BETA, CompensatedVerlet, DynFpu, DynUserFpu, Fpu, UserFpu, Verlet, start_array, start_q,
 };
@@ -51,8 +55,21 @@ fn fixed<S: Lagrangian<N>, const N: usize>(system: S, plain: bool, steps: usize)
 
 /// `steps` explicit steps of the run-time-sized system `system` through
 /// the stepper.
-fn stepper<S: DynLagrangian + Clone>(system: S, n: usize, steps: usize) {
-    let mut sim = Problem::new(system, 0.0, start_q(n), vec![0.0; n]).stepper(&Scheme::TRAPEZOID, H).expect("start");
+fn stepper<S: DynLagrangian + Clone>(system: S, n: usize, plain: bool, steps: usize) {
+    let problem = Problem::new(system, 0.0, start_q(n), vec![0.0; n]).summation(summation(plain));
+    let mut sim = problem.stepper(&Scheme::TRAPEZOID, H).expect("start");
+    sim.run(steps, |_| {}).expect("steps");
+    black_box(sim.state().q[0]);
+}
+
+/// `steps` explicit steps of the const-size system `system` through the
+/// stepper.
+fn problem<S: Lagrangian<N> + Clone, const N: usize>(system: S, plain: bool, steps: usize)
+where
+    Dim<N>: Extended<N>,
+{
+    let problem = Problem::new(system, 0.0, start_array::<N>(), [0.0; N]).summation(summation(plain));
+    let mut sim = problem.stepper(&Scheme::TRAPEZOID, H).expect("start");
     sim.run(steps, |_| {}).expect("steps");
     black_box(sim.state().q[0]);
 }
@@ -67,7 +84,10 @@ fn dynamic<S: DynLagrangian>(system: S, n: usize, plain: bool, steps: usize) {
     black_box(sim.state().q[0]);
 }
 
-fn case<const N: usize>(case: &str, steps: usize) {
+fn case<const N: usize>(case: &str, steps: usize)
+where
+    Dim<N>: Extended<N>,
+{
     let (name, plain) = match case.strip_suffix("-plain") {
         Some(name) => (name, true),
         None => (case, false),
@@ -91,8 +111,10 @@ fn case<const N: usize>(case: &str, steps: usize) {
         "user-trapezoid" => fixed(UserFpu::<N> { beta: BETA }, plain, steps),
         "dyn-trapezoid" => dynamic(DynFpu(N), N, plain, steps),
         "dyn-user-trapezoid" => dynamic(DynUserFpu { n: N, beta: BETA }, N, plain, steps),
-        "stepper-trapezoid" if !plain => stepper(DynFpu(N), N, steps),
-        "stepper-user-trapezoid" if !plain => stepper(DynUserFpu { n: N, beta: BETA }, N, steps),
+        "stepper-trapezoid" => stepper(DynFpu(N), N, plain, steps),
+        "stepper-user-trapezoid" => stepper(DynUserFpu { n: N, beta: BETA }, N, plain, steps),
+        "problem-trapezoid" => problem(Fpu::<N>, plain, steps),
+        "problem-user-trapezoid" => problem(UserFpu::<N> { beta: BETA }, plain, steps),
         _ => panic!("unknown case {case}"),
     }
 }
