@@ -168,10 +168,8 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     if c.constraints != 0 {
         return Err("a system with holonomic constraints through `Problem`: step it with `Constrained`");
     }
-    if let Scheme::Composition { base, .. } = c.scheme
-        && *base != OnePoint::Trapezoid
-    {
-        return Err("a composition of midpoint or α-β sub-steps: the compositions are of trapezoid sub-steps");
+    if let Scheme::Composition { base, .. } = c.scheme {
+        composed(c, base)?;
     }
     if c.capability == Capability::Sensitivities {
         sensitivities(c)?;
@@ -180,6 +178,41 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
         Size::Const(n) => constant(c, n),
         Size::Dynamic => dynamic(c),
     }
+}
+
+/// The sub-steps a composition is made of: symmetric ones (the trapezoid,
+/// midpoint and Galerkin rules, α-β at `α = ½`), whose order its weights
+/// raise; the base's own rules at the size apply as to a run of it.
+fn composed(c: &Combination<'_>, base: &Scheme) -> Result<(), &'static str> {
+    match base {
+        Scheme::OnePoint(OnePoint::AlphaBeta(m)) if m.alpha() != 0.5 => {
+            return Err(
+                "a composition of α-β sub-steps with α ≠ ½: the α-β step is symmetric only at α = ½, and a composition raises the order of symmetric sub-steps only",
+            );
+        }
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => {}
+        Scheme::Composition { .. } | Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => {
+            return Err(
+                "a composition of a composition, of a time transformation or of the splitting: the sub-steps of a composition are of a one-point or Galerkin rule",
+            );
+        }
+    }
+    if *base == Scheme::TRAPEZOID {
+        return Ok(());
+    }
+    if c.size == Size::Dynamic {
+        return Err(
+            "a composition of midpoint, α-β or Galerkin sub-steps on a run-time-sized system: at a run-time size the compositions are of trapezoid sub-steps",
+        );
+    }
+    if c.capability == Capability::Sensitivities {
+        return Err(
+            "sensitivities of a composition of midpoint, α-β or Galerkin sub-steps: the linearisation keeps the sub-steps of the trapezoid compositions only",
+        );
+    }
+    // The base's degree and size, as for a run of it with the same policy
+    // (the policy itself is refused below: a composition's steps are fixed).
+    supports(&Combination { scheme: base, policy: Policy::Fixed { h: c.policy.step() }, ..*c })
 }
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
