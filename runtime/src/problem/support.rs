@@ -114,7 +114,7 @@ pub enum Capability {
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
     /// initial data (fixed steps of the one-point rules, the Galerkin rules,
-    /// the compositions, the implicit time transformation and the explicit
+    /// the compositions of trapezoid sub-steps, the implicit time transformation and the explicit
     /// time-transformed splitting, and energy-preserving steps of the
     /// one-point and Galerkin rules): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
@@ -217,7 +217,7 @@ fn composed(c: &Combination<'_>, base: &Scheme) -> Result<(), &'static str> {
 
 /// The methods whose step the sensitivities and the adjoint differentiate:
 /// fixed steps of the one-point rules, the Galerkin rules, the
-/// compositions, the implicit time transformation and the explicit
+/// compositions of trapezoid sub-steps (`composed` refuses the others), the implicit time transformation and the explicit
 /// time-transformed splitting (fixed steps in `s`), energy-preserving
 /// steps of the one-point and Galerkin rules, and energy-balance steps of
 /// the one-point rules (`constant` refuses them for the Galerkin rules as
