@@ -208,7 +208,7 @@ where
     }
 
     fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
-        if self.reaches(t_end) { self.land_step(t_end) } else { Stepping::step(self) }
+        if self.reaches(t_end) { Stepping::land(self, t_end) } else { Stepping::step(self) }
     }
 
     fn land(&mut self, t: f64) -> Result<(), Error> {
