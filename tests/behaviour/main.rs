@@ -12,6 +12,7 @@
 mod accepted_forms;
 #[path = "../common/mod.rs"]
 mod common;
+mod composed_schemes;
 mod derivatives;
 mod ensemble;
 mod errors;

@@ -11,6 +11,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "composed_orders.rs"]
+mod composed_orders;
 #[path = "compositions.rs"]
 mod compositions;
 #[path = "convergence.rs"]

@@ -23,6 +23,7 @@
 //! combinations exist is said by [`supports`] alone; the capability page
 //! of the documentation is generated from it.
 
+mod composed;
 mod dynamic;
 mod extend;
 mod scheme;

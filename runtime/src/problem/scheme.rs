@@ -73,13 +73,54 @@ pub enum Scheme {
         /// Its quadrature.
         quadrature: GalerkinQuadrature,
     },
-    /// A symmetric composition of sub-steps of `base` with the weights of
-    /// `weights` (Yoshida 4 or 6, Kahan–Li 8).
+    /// A symmetric composition `Φ_h = Ψ_{γ_m h} ∘ … ∘ Ψ_{γ_1 h}` of
+    /// sub-steps of the symmetric method `base` with the weights of
+    /// `weights` (Yoshida 4 or 6, Kahan–Li 8): the trapezoid rule (the
+    /// fused compositions of [`Composition`], explicit Störmer–Verlet
+    /// sub-steps on a separable system), the midpoint rule, α-β with
+    /// `α = ½` or a Galerkin rule. The weights are built for a symmetric
+    /// base of order 2; on a symmetric base of order `p` they give order
+    /// `max(p, q)`, `q` the weights' own ([`Scheme::order`]). α-β with
+    /// `α ≠ ½` is not symmetric, and a composition of compositions, of a
+    /// time transformation or of the splitting is not offered:
+    /// [`supports`](super::supports) refuses them.
+    ///
+    /// ```
+    /// use lagrangian_runtime::problem::{Problem, Scheme};
+    /// use lagrangian_runtime::{Composition, Lagrangian, Plan, Scalar};
+    ///
+    /// /// A pendulum of unit length, mass and gravity.
+    /// #[derive(Clone)]
+    /// struct Pendulum;
+    /// impl Lagrangian<1> for Pendulum {
+    ///     const AUTONOMOUS: bool = true;
+    ///     const CYCLIC: [bool; 1] = [false];
+    ///     fn lagrangian<D: Scalar>(&self, _t: D, q: [D; 1], v: [D; 1]) -> D {
+    ///         v[0] * v[0] * 0.5 + q[0].cos()
+    ///     }
+    /// }
+    ///
+    /// let problem = Problem::new(Pendulum, 0.0, [1.0], [0.0]);
+    /// // Midpoint sub-steps with Yoshida's order-6 weights, Galerkin s = 2
+    /// // (order 4) sub-steps with the same weights: both order 6.
+    /// let midpoint6 = Scheme::MIDPOINT.composed(Composition::YOSHIDA6);
+    /// let galerkin6 = Scheme::galerkin(2).composed(Composition::YOSHIDA6);
+    /// assert_eq!((midpoint6.order(), galerkin6.order()), (6, 6));
+    /// assert_eq!(midpoint6.name(), "order-6 composition of midpoint");
+    /// let fine = problem.solve(&Scheme::galerkin(4), 0.01, Plan::until(2.0))?;
+    /// for scheme in [midpoint6, galerkin6] {
+    ///     let solution = problem.solve(&scheme, 0.1, Plan::until(2.0).save_at(vec![1.25]))?;
+    ///     let last = solution.len() - 1;
+    ///     assert_eq!(solution.t[last], 2.0);
+    ///     assert!((solution.q[last][0] - fine.q[fine.len() - 1][0]).abs() < 1e-7);
+    /// }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
     Composition {
-        /// The weights and order.
+        /// The weights and their order.
         weights: Composition,
-        /// The rule of each sub-step.
-        base: OnePoint,
+        /// The method of each sub-step.
+        base: Box<Scheme>,
     },
     /// The implicit Sundman–Poincaré time transformation around `inner`:
     /// fixed steps in `s` with `dt/ds = g(t, q)` given by the curvature
@@ -101,6 +142,13 @@ pub enum Scheme {
     },
 }
 
+/// A one-point rule alone is the scheme of its steps.
+impl From<OnePoint> for Scheme {
+    fn from(rule: OnePoint) -> Self {
+        Self::OnePoint(rule)
+    }
+}
+
 impl Scheme {
     /// The midpoint rule.
     pub const MIDPOINT: Self = Self::OnePoint(OnePoint::Midpoint);
@@ -119,9 +167,15 @@ impl Scheme {
         Self::Galerkin { degree, nodes: NodeFamily::GaussLobatto, quadrature: GalerkinQuadrature::GaussLegendre }
     }
 
-    /// A composition of `base` sub-steps.
-    pub fn composition(weights: Composition, base: OnePoint) -> Self {
-        Self::Composition { weights, base }
+    /// A composition of `base` sub-steps with `weights` (a [`OnePoint`]
+    /// rule or any other scheme; see [`Scheme::Composition`]).
+    pub fn composition(weights: Composition, base: impl Into<Scheme>) -> Self {
+        Self::Composition { weights, base: Box::new(base.into()) }
+    }
+
+    /// This scheme as the sub-step of a composition with `weights`.
+    pub fn composed(self, weights: Composition) -> Self {
+        Self::composition(weights, self)
     }
 
     /// This scheme in `s` under the implicit time transformation with the
@@ -142,7 +196,9 @@ impl Scheme {
             Self::OnePoint(OnePoint::AlphaBeta(m)) if m.alpha() != 0.5 => 1,
             Self::OnePoint(_) => 2,
             Self::Galerkin { degree, .. } => 2 * *degree as u32,
-            Self::Composition { weights, .. } => weights.order(),
+            // A composition raises the order of a symmetric base of order 2
+            // to the weights' order and keeps a higher one.
+            Self::Composition { weights, base } => weights.order().max(base.order()),
             Self::TimeTransformed { inner, .. } => inner.order(),
             Self::Splitting { composition, .. } => composition.map_or(2, |c| c.order()),
         }
@@ -151,13 +207,10 @@ impl Scheme {
     /// A short name for tables and errors; a Galerkin rule names its nodes
     /// and quadrature where they are not the defaults of [`Scheme::galerkin`].
     pub fn name(&self) -> String {
-        let one = |m: &OnePoint| match m {
-            OnePoint::Midpoint => "midpoint".to_string(),
-            OnePoint::Trapezoid => "trapezoid".to_string(),
-            OnePoint::AlphaBeta(m) => format!("α-β (α = {})", m.alpha()),
-        };
         match self {
-            Self::OnePoint(m) => one(m),
+            Self::OnePoint(OnePoint::Midpoint) => "midpoint".to_string(),
+            Self::OnePoint(OnePoint::Trapezoid) => "trapezoid".to_string(),
+            Self::OnePoint(OnePoint::AlphaBeta(m)) => format!("α-β (α = {})", m.alpha()),
             Self::Galerkin { degree, nodes, quadrature } => {
                 // The defaults go unnamed: "Galerkin s = 4" is the rule of `Scheme::galerkin(4)`.
                 let nodes = match nodes {
@@ -170,7 +223,7 @@ impl Scheme {
                 };
                 format!("Galerkin s = {degree}{nodes}{quadrature}")
             }
-            Self::Composition { weights, base } => format!("order-{} composition of {}", weights.order(), one(base)),
+            Self::Composition { base, .. } => format!("order-{} composition of {}", self.order(), base.name()),
             Self::TimeTransformed { inner, .. } => format!("time-transformed {}", inner.name()),
             Self::Splitting { composition, .. } => {
                 format!("explicit time-transformed splitting, order {}", composition.map_or(2, |c| c.order()))

@@ -229,6 +229,10 @@ pub(crate) enum ExtendedNode<const N: usize> {
 const REVERSE_COMPOSITION: &str = "sensitivities of a composition stepped in reverse mode (above \
      `Derivatives::FORWARD_MAX_N` coordinates): its sub-steps are not kept";
 
+/// Why a composition of other sub-steps than the trapezoid's has no
+/// sensitivities (the text of `supports`' refusal).
+const COMPOSED: &str = "sensitivities of a composition of midpoint, α-β or Galerkin sub-steps: the linearisation keeps the sub-steps of the trapezoid compositions only";
+
 impl<S: Lagrangian<N> + Clone, const N: usize> Stepper<S, Dim<N>>
 where
     Dim<N>: Extended<N>,
@@ -254,6 +258,8 @@ where
             Driver::Transformed(_) | Driver::Splitting(_) => {
                 return Err(Error::Unsupported { what: "one rule in `t` for the steps of a time transformation" });
             }
+            // Refused by `supports` before a stepper is built.
+            Driver::Composed(_) => return Err(Error::Unsupported { what: COMPOSED }),
         })
     }
 
@@ -301,7 +307,7 @@ where
             Driver::Lobatto2(d) => galerkin(d),
             Driver::Lobatto3(d) => galerkin(d),
             Driver::Lobatto4(d) => galerkin(d),
-            Driver::Composition(_) => None,
+            Driver::Composition(_) | Driver::Composed(_) => None,
         }
     }
 
@@ -478,6 +484,7 @@ where
                 let weights = d.method.weights();
                 out.extend((0..d.memory.stages).map(|i| Piece::segment(&d.memory.substep(i, weights, d.summation))));
             }
+            Driver::Composed(_) => return Err(Error::Unsupported { what: COMPOSED }),
             Driver::Transformed(_) | Driver::Splitting(_) => return Err(missing),
         }
         Ok(())

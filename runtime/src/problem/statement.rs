@@ -1,6 +1,7 @@
 //! The problem: a system and its initial data, stated once; the method and
 //! the step policy are values given when it is solved or stepped.
 
+use super::composed::Composed;
 use super::extend::Extended;
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::stepper::{Driver, DriverBox, Stepper, boxed};
@@ -223,7 +224,10 @@ where
             Scheme::OnePoint(OnePoint::Trapezoid) => self.integrator(Trapezoid, policy, Driver::Trapezoid),
             Scheme::OnePoint(OnePoint::AlphaBeta(m)) => self.integrator(*m, policy, Driver::AlphaBeta),
             Scheme::Galerkin { degree, nodes, quadrature } => self.galerkin(*degree, *nodes, *quadrature, policy),
-            Scheme::Composition { weights, .. } => self.integrator(*weights, policy, Driver::Composition),
+            Scheme::Composition { weights, base } if **base == Scheme::TRAPEZOID => {
+                self.integrator(*weights, policy, Driver::Composition)
+            }
+            Scheme::Composition { weights, base } => self.composed(base, *weights, h),
             Scheme::TimeTransformed { inner, density } => self.transformed(inner, *density, h),
             Scheme::Splitting { function, composition } => self.splitting(*function, *composition, h),
         }
@@ -293,6 +297,14 @@ where
             builder = builder.newton(options);
         }
         builder.start(self.t0, self.q0, self.v0).map(boxed(wrap))
+    }
+
+    /// The composition with `weights` of fixed steps of `base` (other than
+    /// the trapezoid's, whose compositions are fused), step `h`.
+    #[inline(never)]
+    fn composed(&self, base: &Scheme, weights: Composition, h: f64) -> Result<Box<Driver<S, N>>, Error> {
+        let base = self.driver(base, Policy::Fixed { h })?;
+        Ok(Box::new(Driver::Composed(Composed::new(base, weights, h))))
     }
 
     /// The implicit time transformation of `inner` with `density`, step `h`

@@ -7,6 +7,7 @@
 //! go through a function of their own per kind of driver, so that no frame
 //! holds room for every kind at once.
 
+use super::composed::Composed;
 use super::extend::Extended;
 use super::scheme::Scheme;
 use super::support::Policy;
@@ -45,6 +46,7 @@ where
     Lobatto3(Integrator<S, Galerkin<3, 4>, N>),
     Lobatto4(Integrator<S, Galerkin<4, 5>, N>),
     Composition(Integrator<S, Composition, N>),
+    Composed(Composed<S, N>),
     Transformed(<Dim<N> as Extended<N>>::Transformed<S>),
     Splitting(ExplicitAdaptive<S, f64, N>),
 }
@@ -57,7 +59,7 @@ where
 macro_rules! each {
     ($($form:tt)*) => {
         each_of!(($($form)*) Midpoint Trapezoid AlphaBeta Gauss2 Gauss3 Gauss4 Gauss5 Gauss6 Gauss7 Gauss8 Lobatto2 Lobatto3 Lobatto4
-            Composition Transformed Splitting)
+            Composition Composed Transformed Splitting)
     };
 }
 
@@ -122,7 +124,7 @@ fn copy_into<T: Clone>(a: &mut T, b: &T) {
 /// [`Stepper::step`] would exhaust the inliner's budget and leave parts of
 /// the step out of line.
 #[inline(never)]
-fn step_of<D: Stepping<N>, const N: usize>(d: &mut D) -> Result<(), Error> {
+pub(super) fn step_of<D: Stepping<N>, const N: usize>(d: &mut D) -> Result<(), Error> {
     d.step()
 }
 
@@ -186,6 +188,33 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
             Self::Galerkin7(p) => p.eval(t),
             Self::Galerkin8(p) => p.eval(t),
         }
+    }
+}
+
+/// The readouts of whichever driver, for the drivers that wrap one
+/// ([`Composed`]).
+impl<S: Lagrangian<N> + Clone, const N: usize> Driver<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    /// The driver's system.
+    pub(super) fn system(&self) -> &S {
+        each!(self, d => Stepping::system(d))
+    }
+
+    /// The driver's node.
+    pub(super) fn state(&self) -> State<N> {
+        each!(self, d => Stepping::state(d))
+    }
+
+    /// The velocity of the driver's node.
+    pub(super) fn velocity(&self) -> Result<[f64; N], Error> {
+        each!(self, d => Stepping::velocity(d))
+    }
+
+    /// The driver's counters.
+    pub(super) fn stats(&self) -> Stats {
+        each!(self, d => Stepping::stats(d))
     }
 }
 
@@ -452,6 +481,7 @@ where
             Driver::Trapezoid(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
             Driver::AlphaBeta(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
             Driver::Composition(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
+            Driver::Composed(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
             Driver::Transformed(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
             Driver::Splitting(d) => Interpolant::Hermite(Stepping::native(d, start, end)),
         }

@@ -114,7 +114,7 @@ pub enum Capability {
     Solve,
     /// Derivatives of the trajectory with respect to the parameters and the
     /// initial data (fixed steps of the one-point rules, the Galerkin rules,
-    /// the compositions, the implicit time transformation and the explicit
+    /// the compositions of trapezoid sub-steps, the implicit time transformation and the explicit
     /// time-transformed splitting, and energy-preserving steps of the
     /// one-point and Galerkin rules): forward sensitivities
     /// ([`Problem::solve_with_sensitivities`](super::Problem::solve_with_sensitivities))
@@ -168,10 +168,8 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     if c.constraints != 0 {
         return Err("a system with holonomic constraints through `Problem`: step it with `Constrained`");
     }
-    if let Scheme::Composition { base, .. } = c.scheme
-        && *base != OnePoint::Trapezoid
-    {
-        return Err("a composition of midpoint or α-β sub-steps: the compositions are of trapezoid sub-steps");
+    if let Scheme::Composition { base, .. } = c.scheme {
+        composed(c, base)?;
     }
     if c.capability == Capability::Sensitivities {
         sensitivities(c)?;
@@ -182,9 +180,44 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
     }
 }
 
+/// The sub-steps a composition is made of: symmetric ones (the trapezoid,
+/// midpoint and Galerkin rules, α-β at `α = ½`), whose order its weights
+/// raise; the base's own rules at the size apply as to a run of it.
+fn composed(c: &Combination<'_>, base: &Scheme) -> Result<(), &'static str> {
+    match base {
+        Scheme::OnePoint(OnePoint::AlphaBeta(m)) if m.alpha() != 0.5 => {
+            return Err(
+                "a composition of α-β sub-steps with α ≠ ½: the α-β step is symmetric only at α = ½, and a composition raises the order of symmetric sub-steps only",
+            );
+        }
+        Scheme::OnePoint(_) | Scheme::Galerkin { .. } => {}
+        Scheme::Composition { .. } | Scheme::TimeTransformed { .. } | Scheme::Splitting { .. } => {
+            return Err(
+                "a composition of a composition, of a time transformation or of the splitting: the sub-steps of a composition are of a one-point or Galerkin rule",
+            );
+        }
+    }
+    if *base == Scheme::TRAPEZOID {
+        return Ok(());
+    }
+    if c.size == Size::Dynamic {
+        return Err(
+            "a composition of midpoint, α-β or Galerkin sub-steps on a run-time-sized system: at a run-time size the compositions are of trapezoid sub-steps",
+        );
+    }
+    if c.capability == Capability::Sensitivities {
+        return Err(
+            "sensitivities of a composition of midpoint, α-β or Galerkin sub-steps: the linearisation keeps the sub-steps of the trapezoid compositions only",
+        );
+    }
+    // The base's degree and size, as for a run of it with the same policy
+    // (the policy itself is refused below: a composition's steps are fixed).
+    supports(&Combination { scheme: base, policy: Policy::Fixed { h: c.policy.step() }, ..*c })
+}
+
 /// The methods whose step the sensitivities and the adjoint differentiate:
 /// fixed steps of the one-point rules, the Galerkin rules, the
-/// compositions, the implicit time transformation and the explicit
+/// compositions of trapezoid sub-steps (`composed` refuses the others), the implicit time transformation and the explicit
 /// time-transformed splitting (fixed steps in `s`), energy-preserving
 /// steps of the one-point and Galerkin rules, and energy-balance steps of
 /// the one-point rules (`constant` refuses them for the Galerkin rules as
