@@ -13,7 +13,8 @@
 //!    report's fastest at every target, or Yoshida 6 where Kahan–Li 8 would
 //!    be held to its step cap).
 //! 2. **Pilot** ([`pilot`]): the candidate runs over the first tenth of the
-//!    span (at least one period of the fastest mode) with `h` and `h/2`;
+//!    span (a twentieth from `rtol = 1e-5` up; at least one period of the
+//!    fastest mode) with `h` and `h/2`;
 //!    Richardson's estimate of the global error, extrapolated to the end
 //!    with the growth the pilot measures (linear for symplectic methods on
 //!    integrable motion), gives the step that meets the tolerance. Where

@@ -1,6 +1,6 @@
 //! The tolerance-driven solve: choose, pilot, run.
 
-use core::cell::RefCell;
+use core::cell::{OnceCell, RefCell};
 
 use crate::Galerkin;
 use crate::error::Error;
@@ -17,6 +17,16 @@ use super::tolerance::Tolerance;
 /// The fraction of the span the pilot covers (at least one period of the
 /// fastest mode at the start, at most the whole span).
 const PILOT_FRACTION: f64 = 0.1;
+/// [`PILOT_FRACTION`] from [`LOOSE_RTOL`] up. A loose tolerance's error is
+/// far above round-off from the pilot's first checkpoints, so its growth
+/// shows over a shorter pilot; and the pilot is a fixed share of the work
+/// (its coarse and fine runs over `Tp` cost `3 Tp/T` of a final run at the
+/// piloted step), which on the few-dozen-step runs a loose tolerance asks
+/// for is most of what the solve spends beyond the final run.
+const LOOSE_PILOT_FRACTION: f64 = 0.05;
+/// The relative tolerance from which the pilot covers
+/// [`LOOSE_PILOT_FRACTION`] of the span.
+const LOOSE_RTOL: f64 = 1e-5;
 /// The step the pilot's estimate leads to, over the pilot's step, that is
 /// taken without piloting again: finer steps down to a quarter (the
 /// asymptotic model `e ∝ h^p` holds better at finer steps, and an estimate
@@ -177,6 +187,10 @@ pub struct Auto<S, const N: usize> {
     /// shares its `M⁻¹` (on the FPU-β chain of 16 masses a start costs as
     /// much as five Kahan–Li 8 steps, and a solve starts a dozen runs).
     started: RefCell<Option<Integrator<S, Composition, N>>>,
+    /// The time transformation's density at the start, found once: the
+    /// survey, the pilot and the final run's round-off each read it, and
+    /// each reading started the splitting (a tenth of a Kepler pilot round).
+    density: OnceCell<Option<f64>>,
 }
 
 /// Solves `system` from `(t0, q0, v0)` to `t_end` within `tolerance`,
@@ -204,6 +218,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             fixed: Fixed::default(),
             step: None,
             started: RefCell::new(None),
+            density: OnceCell::new(),
         }
     }
 
@@ -264,7 +279,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         }
         .filter(|r| *r > 0.0 && r.is_finite());
         // One period of the fastest mode at the start, at least.
-        let tp = self.t0 + (PILOT_FRACTION * span).max(rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r)).min(span);
+        let fraction = if self.tolerance.rtol >= LOOSE_RTOL { LOOSE_PILOT_FRACTION } else { PILOT_FRACTION };
+        let tp = self.t0 + (fraction * span).max(rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r)).min(span);
         let checkpoints: [f64; CHECKPOINTS] =
             core::array::from_fn(|i| self.t0 + (tp - self.t0) * 0.5f64.powi((CHECKPOINTS - 1 - i) as i32));
         let settle = rho.map_or(0.0, |r| 2.0 * core::f64::consts::PI / r).min(0.25 * (tp - self.t0));
@@ -578,11 +594,13 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
     }
 
     fn tt_density(&self) -> Option<f64> {
-        ExplicitTimeTransformed::new(self.system.clone(), TimeFunction::Logarithmic, 1.0)
-            .start(self.t0, self.q0, self.v0)
-            .ok()
-            .map(|it| it.density())
-            .filter(|g| g.is_finite() && *g > 0.0)
+        *self.density.get_or_init(|| {
+            ExplicitTimeTransformed::new(self.system.clone(), TimeFunction::Logarithmic, 1.0)
+                .start(self.t0, self.q0, self.v0)
+                .ok()
+                .map(|it| it.density())
+                .filter(|g| g.is_finite() && *g > 0.0)
+        })
     }
 
     /// Yoshida 6 in place of Kahan–Li 8 where the survey ran Kahan–Li 8 at
@@ -892,7 +910,17 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
                 halved = Some(times);
                 continue;
             }
-            h *= ratio.clamp(1.0 / 16.0, 4.0);
+            let next = h * ratio.clamp(1.0 / 16.0, 4.0);
+            // A coarser σ whose run would take fewer steps than the pilot
+            // resolves (`TT_PILOT_STEPS`): the extrapolation just measured
+            // is taken, as that round would take it, without running it.
+            if c.family == Family::TimeTransformed
+                && 4.0 * coarse.steps as f64 * h / next < 3.0 * TT_PILOT_STEPS as f64
+                && let Some(prev) = last
+            {
+                return Ok(prev);
+            }
+            h = next;
         }
         last.ok_or(Error::InvalidSetting { reason: "no pilot round completed" })
     }
