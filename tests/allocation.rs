@@ -250,8 +250,12 @@ fn galerkin_compositions_and_double_double_do_not_allocate() {
 #[test]
 fn problem_steppers_and_solve_do_not_allocate_per_step() {
     let h = 0.01;
-    let schemes =
-        [Scheme::MIDPOINT, Scheme::galerkin(2), Scheme::composition(Composition::YOSHIDA4, OnePoint::Trapezoid)];
+    let schemes = [
+        Scheme::MIDPOINT,
+        Scheme::galerkin(2),
+        Scheme::composition(Composition::YOSHIDA4, OnePoint::Trapezoid),
+        Scheme::MIDPOINT.composed(Composition::YOSHIDA4),
+    ];
     for scheme in schemes {
         let problem = Problem::new(DOUBLE_PENDULUM, 0.0, [1.0, 0.5], [0.0, 0.0]);
         let mut sim = problem.stepper(&scheme, h).unwrap();

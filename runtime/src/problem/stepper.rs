@@ -318,7 +318,12 @@ impl<S: Steppable<Z>, Z: Dimension> Clone for Stepper<S, Z> {
     /// In place where the driver copies in place.
     fn clone_from(&mut self, source: &Self) {
         self.driver.clone_from(&source.driver);
-        self.scheme.clone_from(&source.scheme);
+        // A composition's or a time transformation's scheme holds its base in
+        // a box: copied only when it differs, `solve`'s refresh of its copy
+        // before every step allocates nothing.
+        if self.scheme != source.scheme {
+            self.scheme.clone_from(&source.scheme);
+        }
         self.policy = source.policy;
     }
 }
