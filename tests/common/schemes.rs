@@ -24,5 +24,7 @@ pub fn families() -> Vec<(&'static str, Scheme, bool)> {
             Scheme::splitting(TimeFunction::Logarithmic, Some(Composition::KAHAN_LI8)),
             true,
         ),
+        ("Yoshida 6 of midpoint", Scheme::MIDPOINT.composed(Composition::YOSHIDA6), false),
+        ("Yoshida 4 of Galerkin s = 2", Scheme::galerkin(2).composed(Composition::YOSHIDA4), false),
     ]
 }

@@ -427,12 +427,12 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // steps, of a forced system, for the one-point rules); forces with
     // fixed steps but for the splitting; no compile-time size above 1024;
     // at run-time size fixed steps and `solve` of the one-point rules, the
-    // Galerkin rules, the compositions and the implicit time
+    // Galerkin rules, the trapezoid compositions and the implicit time
     // transformation, forced or not, of the splitting, unforced,
     // energy-preserving steps of the one-point and Galerkin rules and
     // energy-balance steps of the one-point rules;
     // sensitivities and the adjoint for fixed steps of
-    // the one-point rules, the Galerkin rules, the compositions and the
+    // the one-point rules, the Galerkin rules, the trapezoid compositions and the
     // implicit time transformation, forced or not, for energy-preserving
     // steps of the one-point and Galerkin rules, for energy-balance steps
     // of the one-point rules, and for the splitting, unforced.
@@ -441,6 +441,9 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     let composition = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let transformed = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let splitting = [true, false, false, false, false, true, true, false, false, false, true, false, false, false];
+    // Compositions of midpoint and Galerkin sub-steps: fixed steps at a
+    // compile-time size, forced or not.
+    let composed = [true, false, false, true, false, false, false, false, false, false, false, false, false, false];
     let expected = [
         one_point,
         one_point,
@@ -454,6 +457,8 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
         transformed,
         transformed,
         splitting,
+        composed,
+        composed,
     ];
     assert_eq!(defined, expected);
     // The expectation: what works today. Energy-preserving trapezoid, α-β
