@@ -23,26 +23,39 @@
 //! stepper is as it was. Dense output is the cubic Hermite through the
 //! nodes of the whole step.
 
-use super::extend::Extended;
-use super::stepper::{Driver, DriverBox, step_of};
 use crate::dense::{Hermite, Node};
-use crate::dim::Dim;
 use crate::error::Error;
-use crate::integrator::{Clock, Composition, F64Readouts, Integrator, Stats};
+use crate::integrator::{Clock, Composition, Stats};
 use crate::solution::Stepping;
 use crate::state::State;
 use crate::system::Lagrangian;
 
-/// A symmetric composition of steps of a base driver with fixed step `h`.
-pub struct Composed<S: Lagrangian<N> + Clone, const N: usize>
-where
-    Dim<N>: Extended<N>,
-{
+/// What a composition asks of its base driver: a step of any size (negative
+/// for some sub-steps) ending on a given time, and the readouts of its node.
+/// The stepper's driver implements it, so this file names no driver.
+pub trait SubSteps<const N: usize>: Clone {
+    /// The integrated system.
+    type System: Lagrangian<N>;
+    /// One step of size `h` ending at `t1`; on failure the driver is
+    /// unchanged.
+    fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error>;
+    /// The system.
+    fn system(&self) -> &Self::System;
+    /// The node.
+    fn state(&self) -> State<N>;
+    /// The velocity at the node.
+    fn velocity(&self) -> Result<[f64; N], Error>;
+    /// The counters.
+    fn stats(&self) -> Stats;
+}
+
+/// A symmetric composition of steps of a base driver `B` with fixed step `h`.
+pub struct Composed<B, const N: usize> {
     /// The base driver, stepped by sub-steps of sizes `γ_i h`.
-    base: DriverBox<S, N>,
+    base: B,
     /// The base as it was before the step in progress: a failed sub-step
     /// puts it back (copied in place, no allocation).
-    before: DriverBox<S, N>,
+    before: B,
     weights: Composition,
     h: f64,
     /// `t_k = clock.t + (k − clock.step) h`, reset after a landing.
@@ -53,10 +66,7 @@ where
     failed_steps: u64,
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Clone for Composed<S, N>
-where
-    Dim<N>: Extended<N>,
-{
+impl<B: Clone, const N: usize> Clone for Composed<B, N> {
     fn clone(&self) -> Self {
         Self {
             base: self.base.clone(),
@@ -78,63 +88,10 @@ where
     }
 }
 
-/// The next step of `it` (a fixed-step integrator), of size `h` and
-/// ending at `t1`: its own step, which stamps `clock.at(k + 1, h) = t1 + 0·h`,
-/// exactly `t1`. The sub-steps run through the stepper's own out-of-line
-/// step of each driver ([`step_of`]), so a composition adds no copy of any
-/// base's step to the code compiled for a system.
-#[inline(always)]
-fn sub_step<S: Lagrangian<N>, M: F64Readouts, const N: usize>(
-    it: &mut Integrator<S, M, N>,
-    h: f64,
-    t1: f64,
-) -> Result<(), Error> {
-    it.h = h;
-    it.clock = Clock { t: t1, step: it.state.step + 1 };
-    step_of(it)
-}
-
-/// Why a driver is not a base of [`Composed`] ([`supports`](super::supports)
-/// refuses those compositions before a driver is built).
-const NOT_A_BASE: &str =
-    "a composition of this method: the sub-steps of a composition are of a one-point or Galerkin rule";
-
-impl<S: Lagrangian<N> + Clone, const N: usize> Driver<S, N>
-where
-    Dim<N>: Extended<N>,
-{
-    /// One step of size `h` (negative for some sub-steps of a composition)
-    /// ending at `t1`; on failure the driver is unchanged.
-    fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
-        match self {
-            Driver::Midpoint(d) => sub_step(d, h, t1),
-            Driver::Trapezoid(d) => sub_step(d, h, t1),
-            Driver::AlphaBeta(d) => sub_step(d, h, t1),
-            Driver::Gauss2(d) => sub_step(d, h, t1),
-            Driver::Gauss3(d) => sub_step(d, h, t1),
-            Driver::Gauss4(d) => sub_step(d, h, t1),
-            Driver::Gauss5(d) => sub_step(d, h, t1),
-            Driver::Gauss6(d) => sub_step(d, h, t1),
-            Driver::Gauss7(d) => sub_step(d, h, t1),
-            Driver::Gauss8(d) => sub_step(d, h, t1),
-            Driver::Lobatto2(d) => sub_step(d, h, t1),
-            Driver::Lobatto3(d) => sub_step(d, h, t1),
-            Driver::Lobatto4(d) => sub_step(d, h, t1),
-            Driver::Composition(_) | Driver::Composed(_) | Driver::Transformed(_) | Driver::Splitting(_) => {
-                Err(Error::Unsupported { what: NOT_A_BASE })
-            }
-        }
-    }
-}
-
-impl<S: Lagrangian<N> + Clone, const N: usize> Composed<S, N>
-where
-    Dim<N>: Extended<N>,
-{
+impl<B: SubSteps<N>, const N: usize> Composed<B, N> {
     /// The composition with `weights` of `base`, a driver that has not
     /// stepped, with fixed step `h`.
-    pub(super) fn new(base: Box<Driver<S, N>>, weights: Composition, h: f64) -> Self {
-        let base = DriverBox(base);
+    pub(super) fn new(base: B, weights: Composition, h: f64) -> Self {
         let t = base.state().t;
         Self { before: base.clone(), base, weights, h, clock: Clock { t, step: 0 }, steps: 0, failed_steps: 0 }
     }
@@ -151,7 +108,7 @@ where
             // The sub-node times as the fused compositions stamp them; the
             // last is the node's own.
             let ti = if i + 1 == weights.len() { t1 } else { t0 + elapsed * h };
-            if let Err(e) = self.base.step_by(gamma * h, ti) {
+            if let Err(e) = self.base.sub_step(gamma * h, ti) {
                 core::mem::swap(&mut self.base, &mut self.before);
                 self.failed_steps += 1;
                 return Err(e.at_state(Stepping::state(self)));
@@ -177,14 +134,11 @@ where
     }
 }
 
-impl<S: Lagrangian<N> + Clone, const N: usize> Stepping<N> for Composed<S, N>
-where
-    Dim<N>: Extended<N>,
-{
-    type System = S;
+impl<B: SubSteps<N>, const N: usize> Stepping<N> for Composed<B, N> {
+    type System = B::System;
     type Native = Hermite<N>;
 
-    fn system(&self) -> &S {
+    fn system(&self) -> &B::System {
         self.base.system()
     }
 

@@ -304,7 +304,7 @@ where
     #[inline(never)]
     fn composed(&self, base: &Scheme, weights: Composition, h: f64) -> Result<Box<Driver<S, N>>, Error> {
         let base = self.driver(base, Policy::Fixed { h })?;
-        Ok(Box::new(Driver::Composed(Composed::new(base, weights, h))))
+        Ok(Box::new(Driver::Composed(Composed::new(DriverBox(base), weights, h))))
     }
 
     /// The implicit time transformation of `inner` with `density`, step `h`

@@ -7,7 +7,7 @@
 //! go through a function of their own per kind of driver, so that no frame
 //! holds room for every kind at once.
 
-use super::composed::Composed;
+use super::composed::{Composed, SubSteps};
 use super::extend::Extended;
 use super::scheme::Scheme;
 use super::support::Policy;
@@ -16,7 +16,7 @@ use crate::dim::{Dim, Dimension};
 use crate::discrete::{AlphaBeta, Midpoint, Trapezoid};
 use crate::error::Error;
 use crate::galerkin::Galerkin;
-use crate::integrator::{Composition, Integrator, Stats};
+use crate::integrator::{Clock, Composition, F64Readouts, Integrator, Stats};
 use crate::mechanics::DiscreteMechanics;
 use crate::solution::{Plan, Solution, SolveError, Stepping};
 use crate::state::State;
@@ -46,7 +46,7 @@ where
     Lobatto3(Integrator<S, Galerkin<3, 4>, N>),
     Lobatto4(Integrator<S, Galerkin<4, 5>, N>),
     Composition(Integrator<S, Composition, N>),
-    Composed(Composed<S, N>),
+    Composed(Composed<DriverBox<S, N>, N>),
     Transformed(<Dim<N> as Extended<N>>::Transformed<S>),
     Splitting(ExplicitAdaptive<S, f64, N>),
 }
@@ -191,30 +191,69 @@ impl<const N: usize> DenseStep<N> for Interpolant<N> {
     }
 }
 
-/// The readouts of whichever driver, for the drivers that wrap one
-/// ([`Composed`]).
-impl<S: Lagrangian<N> + Clone, const N: usize> Driver<S, N>
+/// The next step of `it` (a fixed-step integrator), of size `h` and
+/// ending at `t1`: its own step, which stamps `clock.at(k + 1, h) = t1 + 0·h`,
+/// exactly `t1`. The sub-steps run through the stepper's own out-of-line
+/// step of each driver ([`step_of`]), so a composition adds no copy of any
+/// base's step to the code compiled for a system.
+#[inline(always)]
+fn sub_step<S: Lagrangian<N>, M: F64Readouts, const N: usize>(
+    it: &mut Integrator<S, M, N>,
+    h: f64,
+    t1: f64,
+) -> Result<(), Error> {
+    it.h = h;
+    it.clock = Clock { t: t1, step: it.state.step + 1 };
+    step_of(it)
+}
+
+/// Why a driver is not a base of [`Composed`] ([`supports`](super::supports)
+/// refuses those compositions before a driver is built).
+const NOT_A_BASE: &str =
+    "a composition of this method: the sub-steps of a composition are of a one-point or Galerkin rule";
+
+/// Whichever driver as the base of a composition ([`Composed`]).
+impl<S: Lagrangian<N> + Clone, const N: usize> SubSteps<N> for DriverBox<S, N>
 where
     Dim<N>: Extended<N>,
 {
-    /// The driver's system.
-    pub(super) fn system(&self) -> &S {
-        each!(self, d => Stepping::system(d))
+    type System = S;
+
+    fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error> {
+        match &mut *self.0 {
+            Driver::Midpoint(d) => sub_step(d, h, t1),
+            Driver::Trapezoid(d) => sub_step(d, h, t1),
+            Driver::AlphaBeta(d) => sub_step(d, h, t1),
+            Driver::Gauss2(d) => sub_step(d, h, t1),
+            Driver::Gauss3(d) => sub_step(d, h, t1),
+            Driver::Gauss4(d) => sub_step(d, h, t1),
+            Driver::Gauss5(d) => sub_step(d, h, t1),
+            Driver::Gauss6(d) => sub_step(d, h, t1),
+            Driver::Gauss7(d) => sub_step(d, h, t1),
+            Driver::Gauss8(d) => sub_step(d, h, t1),
+            Driver::Lobatto2(d) => sub_step(d, h, t1),
+            Driver::Lobatto3(d) => sub_step(d, h, t1),
+            Driver::Lobatto4(d) => sub_step(d, h, t1),
+            Driver::Composition(_) | Driver::Composed(_) | Driver::Transformed(_) | Driver::Splitting(_) => {
+                Err(Error::Unsupported { what: NOT_A_BASE })
+            }
+        }
     }
 
-    /// The driver's node.
-    pub(super) fn state(&self) -> State<N> {
-        each!(self, d => Stepping::state(d))
+    fn system(&self) -> &S {
+        each!(&*self.0, d => Stepping::system(d))
     }
 
-    /// The velocity of the driver's node.
-    pub(super) fn velocity(&self) -> Result<[f64; N], Error> {
-        each!(self, d => Stepping::velocity(d))
+    fn state(&self) -> State<N> {
+        each!(&*self.0, d => Stepping::state(d))
     }
 
-    /// The driver's counters.
-    pub(super) fn stats(&self) -> Stats {
-        each!(self, d => Stepping::stats(d))
+    fn velocity(&self) -> Result<[f64; N], Error> {
+        each!(&*self.0, d => Stepping::velocity(d))
+    }
+
+    fn stats(&self) -> Stats {
+        each!(&*self.0, d => Stepping::stats(d))
     }
 }
 
