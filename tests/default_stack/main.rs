@@ -1,17 +1,24 @@
 //! FPU-β chains from 2 to 1 000 masses, stepped and solved with an event,
-//! in a thread with the default 2 MiB stack, with a bounded energy error.
+//! in a thread with the default 2 MiB stack, with a bounded energy error;
+//! the derivatives of large systems' trajectories in such a thread
+//! (`sensitivities.rs`: the forward sensitivities' size limit, the adjoint
+//! of 1000 masses).
 //!
 //! A test binary of the facade, optimised as the other long tests: what
 //! fits a default stack depends on the stack frames the optimiser leaves
 //! (unoptimised, the composition and the solve with an event overflow
-//! it), and the rest of `tests/systems/` is built unoptimised
-//! (`systems-tests/`).
+//! it), and the rest of `tests/systems/` and the small systems'
+//! sensitivities in `tests/verification/` are built unoptimised
+//! (`systems-tests/`, `verification-tests/`).
 
 // `pub` items of the test modules are reachable only inside this test crate.
 #![allow(unreachable_pub)]
 
 #[path = "../systems/chains.rs"]
 mod chains;
+#[path = "../common/parametric_chain.rs"]
+mod parametric_chain;
+mod sensitivities;
 
 use chains::{Fpu, chain_energy_error, chain_mode};
 use lagrangian::prelude::*;

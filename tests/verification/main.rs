@@ -22,7 +22,6 @@ mod galerkin_structure;
 mod noether;
 mod perturbed_pendulum;
 mod run_time_galerkin;
-mod sensitivities;
 mod structure;
 mod time_transformed;
 mod time_transformed_splitting;

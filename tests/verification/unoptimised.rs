@@ -1,5 +1,6 @@
 //! Verification tests that run in seconds unoptimised: fitted orders,
-//! forces, compositions, dense output, compensated sums, the gradient code.
+//! forces, compositions, dense output, compensated sums, the gradient code,
+//! the sensitivities and adjoints of small systems.
 //!
 //! The test `verification` of the package `lagrangian-verification-tests`,
 //! built at opt-level 0 (its `Cargo.toml` says why); the files are modules
@@ -41,6 +42,8 @@ mod gradient_code;
 mod gradient_fuzz;
 #[path = "impulse.rs"]
 mod impulse;
+#[path = "sensitivities.rs"]
+mod sensitivities;
 #[path = "summation.rs"]
 mod summation;
 #[path = "time_dependent.rs"]
