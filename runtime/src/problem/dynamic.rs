@@ -1,12 +1,14 @@
 //! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
 //! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
-//! [`DynIntegrator`] (the implicit time transformation: in `s`, on the
+//! [`DynIntegrator`] (a composition of its midpoint, α-β or Galerkin steps
+//! by the adapter of both sizes, [`Composed`]; the implicit time
+//! transformation: in `s`, on the
 //! extended system of `n + 1` coordinates, by [`RunTimeAdaptive`]; the
 //! explicit time-transformed splitting by [`RunTimeSplitting`]); what those
 //! drivers do not have is refused by
-//! [`supports`](super::supports) with [`Error::Unsupported`]. The three
-//! drivers are [`RunTimeStepping`]s, and so is the stepper: one `match` on
-//! the driver per call.
+//! [`supports`](super::supports) with [`Error::Unsupported`]. The
+//! drivers are [`RunTimeStepping`]s, and so are the enum of them and the
+//! stepper: one `match` on the driver per call.
 
 use super::composed::{Composed, SubSteps};
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
