@@ -4,7 +4,9 @@
 //! and stops on a `Stop` event, the composed step is the base's steps of
 //! sizes `γ_i h` (checked against the closed-form map of each base on the
 //! harmonic oscillator, negative sub-steps included), a failed step leaves
-//! the stepper as it was, and what is not defined is a typed refusal.
+//! the stepper as it was, and what is not defined is a typed refusal; at a
+//! compile-time size and at a run-time size, where the composed step is
+//! the compile-time one to round-off.
 
 use lagrangian::prelude::*;
 use lagrangian::problem::{Combination, Size, supports};
@@ -259,11 +261,182 @@ fn undefined_compositions_are_typed_refusals() {
     query.capability = Capability::Solve;
     assert!(supports(&query).is_ok());
     query.size = Size::Dynamic;
-    assert!(supports(&query).unwrap_err().contains("run-time-sized"));
+    assert!(supports(&query).is_ok());
     // The trapezoid compositions are those they were, and named so.
     let trapezoid = Scheme::composition(Composition::YOSHIDA6, OnePoint::Trapezoid);
     assert_eq!(trapezoid, Scheme::TRAPEZOID.composed(Composition::YOSHIDA6));
     assert_eq!(trapezoid.name(), "order-6 composition of trapezoid");
     assert_eq!(Scheme::galerkin(4).composed(Composition::YOSHIDA4).order(), 8);
     assert_eq!(Scheme::galerkin(4).composed(Composition::YOSHIDA4).name(), "order-8 composition of Galerkin s = 4");
+}
+
+/// The double pendulum over slices: the same `L` at a run-time size.
+#[derive(Clone)]
+struct DoublePendulumDyn;
+
+#[lagrangian]
+impl DoublePendulumDyn {
+    fn dimension(&self) -> usize {
+        2
+    }
+
+    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
+        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
+    }
+}
+
+fn run_time_problem() -> Problem<DoublePendulumDyn, Dyn> {
+    Problem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec())
+}
+
+#[test]
+fn run_time_composed_bases_land_exactly_on_targets() {
+    let problem = run_time_problem();
+    for (base, h) in bases() {
+        for weights in weights() {
+            let scheme = base.clone().composed(weights);
+            let mut sim = problem.stepper(&scheme, h).unwrap();
+            for i in 1..=25 {
+                let target = f64::from(i) * 0.0377;
+                sim.run_until(target).unwrap();
+                assert_eq!(sim.state().t.to_bits(), target.to_bits(), "{}: target {i}", scheme.name());
+            }
+            let steps = sim.stats().steps;
+            assert_eq!(sim.state().step, steps, "{}", scheme.name());
+            assert!(steps >= (25.0 * 0.0377 / h) as u64, "{}: {steps} steps", scheme.name());
+            assert_eq!(sim.last_step_size().map(f64::is_sign_positive), Some(true), "{}", scheme.name());
+            assert_eq!(sim.step_size(), h, "{}: the step is restored after a landing", scheme.name());
+            let e0 = problem.stepper(&scheme, h).unwrap().energy().unwrap();
+            let drift = (sim.energy().unwrap() - e0).abs() / e0.abs();
+            assert!(drift < 1e-4, "{}: energy drift {drift:e}", scheme.name());
+        }
+    }
+}
+
+/// The composed steps at a run-time size are those at a compile-time size:
+/// the same sub-steps, each solved to `1e-15` by Newton (a tape in reverse
+/// mode there, dual numbers here), so the nodes agree to round-off.
+#[test]
+fn run_time_composed_steps_are_the_compile_time_ones() {
+    let tight = NewtonOptions { rtol: 1e-15, ..NewtonOptions::default() };
+    let compiled = Problem::new(DoublePendulum, 0.0, Q0, V0).newton(tight);
+    let dynamic = run_time_problem().newton(tight);
+    for (base, h) in bases() {
+        for weights in weights() {
+            let scheme = base.clone().composed(weights);
+            let mut a = compiled.stepper(&scheme, h).unwrap();
+            let mut b = dynamic.stepper(&scheme, h).unwrap();
+            let mut gap: f64 = 0.0;
+            for _ in 0..10 {
+                let (x, y) = (a.step().unwrap(), b.step().unwrap().clone());
+                assert_eq!((x.step, x.t.to_bits()), (y.step, y.t.to_bits()), "{}", scheme.name());
+                for j in 0..2 {
+                    gap = gap.max((x.q[j] - y.q[j]).abs()).max((x.p[j] - y.p[j]).abs());
+                }
+            }
+            assert!(gap < 1e-12, "{}: {gap:e} between the sizes", scheme.name());
+            assert_eq!(a.stats().newton_iterations > 0, b.stats().newton_iterations > 0, "{}", scheme.name());
+        }
+    }
+}
+
+/// [`Window`] over slices.
+#[derive(Clone)]
+struct WindowDyn {
+    a: f64,
+    b: f64,
+}
+
+#[lagrangian]
+impl WindowDyn {
+    fn dimension(&self) -> usize {
+        1
+    }
+
+    fn lagrangian(&self, t: f64, q: &[f64], v: &[f64]) -> f64 {
+        let window = 1.0 + 0.0 * ((t - self.a) * (t - self.b)).sqrt();
+        0.5 * (v[0] * v[0] - q[0] * q[0] * window)
+    }
+}
+
+#[test]
+fn a_failed_run_time_composed_step_leaves_the_stepper_as_it_was() {
+    let bits = |s: &lagrangian::PhasePoint| {
+        let v = |x: &[f64]| x.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        (s.step, s.t.to_bits(), v(&s.q), v(&s.p))
+    };
+    // The windows of the compile-time test: the third sub-step of Yoshida 4
+    // of midpoint fails, the second of Galerkin s = 2.
+    let gamma = Composition::YOSHIDA4.weights();
+    let cases = [
+        (Scheme::MIDPOINT, WindowDyn { a: 0.3, b: 0.35 }, gamma[2]),
+        (Scheme::galerkin(2), WindowDyn { a: 0.005, b: 0.02 }, gamma[1]),
+    ];
+    for (base, window, failing) in cases {
+        let scheme = base.composed(Composition::YOSHIDA4);
+        let problem = Problem::new(window, 0.0, vec![1.0], vec![0.0]);
+        let mut sim = problem.stepper(&scheme, 1.0).unwrap();
+        let before = sim.clone();
+        let err = sim.step().unwrap_err();
+        let name = scheme.name();
+        let h = match &err {
+            Error::NonFinite { h, .. }
+            | Error::NewtonDidNotConverge { h, .. }
+            | Error::SingularJacobian { h, .. }
+            | Error::StepRejected { h, .. } => *h,
+            other => panic!("{name}: {other}"),
+        };
+        assert_eq!(h, failing, "{name}: {err}");
+        assert_eq!(bits(sim.state()), bits(before.state()), "{name}: {err}");
+        let v = |s: &Stepper<WindowDyn, Dyn>| s.velocity().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(v(&sim), v(&before), "{name}");
+        assert_eq!(sim.discrete_energy().to_bits(), before.discrete_energy().to_bits(), "{name}");
+        let carried = err.state().expect("the error carries the state");
+        assert_eq!((carried.step, carried.t, &carried.q[..]), (0, 0.0, &[1.0][..]), "{name}: {err}");
+        assert_eq!(sim.stats().failed_steps, 1, "{name}");
+        assert_eq!(sim.step().unwrap_err(), before.clone().step().unwrap_err(), "{name}");
+        // Past the window, as the copy from before does, to the bit.
+        let mut copy = before.clone();
+        sim.run_until(0.25).unwrap();
+        copy.run_until(0.25).unwrap();
+        assert_eq!(bits(sim.state()), bits(copy.state()), "{name}");
+        sim.run_until(2.5).unwrap();
+        copy.run_until(2.5).unwrap();
+        assert_eq!(bits(sim.state()), bits(copy.state()), "{name}: after the window");
+    }
+}
+
+#[test]
+fn undefined_compositions_at_a_run_time_size_are_typed_refusals() {
+    let problem = run_time_problem();
+    let refusals = [
+        (Scheme::alpha_beta(0.3).unwrap().composed(Composition::YOSHIDA4), Policy::fixed(0.01), "α ≠ ½"),
+        (
+            Scheme::galerkin(2).composed(Composition::YOSHIDA4).composed(Composition::YOSHIDA4),
+            Policy::fixed(0.01),
+            "a composition of a composition",
+        ),
+        (
+            Scheme::MIDPOINT.time_transformed(Curvature::new(1.0).unwrap()).composed(Composition::YOSHIDA4),
+            Policy::fixed(0.01),
+            "of a time transformation",
+        ),
+        (
+            Scheme::galerkin(2).composed(Composition::YOSHIDA4),
+            Policy::energy_preserving(0.01),
+            "variable steps with a composition",
+        ),
+        (Scheme::galerkin(17).composed(Composition::YOSHIDA4), Policy::fixed(0.01), "a Galerkin degree"),
+    ];
+    for (scheme, policy, says) in refusals {
+        let Err(Error::Unsupported { what }) = problem.stepper(&scheme, policy) else {
+            panic!("{}: not refused", scheme.name())
+        };
+        assert!(what.contains(says), "{}: {what}", scheme.name());
+    }
+    let midpoint4 = Scheme::MIDPOINT.composed(Composition::YOSHIDA4);
+    let refused = problem.supports(&midpoint4, 0.01, Capability::Sensitivities).unwrap_err();
+    assert!(refused.to_string().contains("sensitivities"), "{refused}");
+    assert!(problem.supports(&midpoint4, 0.01, Capability::Solve).is_ok());
 }

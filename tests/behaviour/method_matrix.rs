@@ -309,13 +309,11 @@ fn every_method_through_one_problem() {
     }
     // What the run-time-sized drivers have: every family steps, lands and
     // solves (the one-point rules, the Galerkin rules, the compositions of
-    // trapezoid sub-steps, the implicit time transformation and the
-    // explicit splitting) but the compositions of other sub-steps, whose
-    // refusal carries exactly the text of `supports`.
+    // trapezoid, midpoint and Galerkin sub-steps, the implicit time
+    // transformation and the explicit splitting); a refusal would carry
+    // exactly the text of `supports`.
     let stepping: Vec<bool> = table.iter().map(|(_, d)| !d[0].starts_with("refused")).collect();
-    let mut expected = [true; 14];
-    expected[12..].fill(false);
-    assert_eq!(stepping, expected);
+    assert_eq!(stepping, [true; 14]);
     for ((_, scheme, _), (_, d)) in families().iter().zip(&table) {
         let query = |capability| lagrangian::problem::Combination {
             scheme,
@@ -398,9 +396,8 @@ fn forced_run_time_cells() {
         stepping.push(true);
     }
     // Forced at run-time size: every family but the splitting (separable,
-    // unforced systems) and the compositions of midpoint or Galerkin
-    // sub-steps (compile-time sizes only).
-    let expected = [true, true, true, true, true, true, true, true, true, true, true, false, false, false];
+    // unforced systems).
+    let expected = [true, true, true, true, true, true, true, true, true, true, true, false, true, true];
     assert_eq!(stepping, expected);
 }
 

@@ -427,7 +427,7 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     // steps, of a forced system, for the one-point rules); forces with
     // fixed steps but for the splitting; no compile-time size above 1024;
     // at run-time size fixed steps and `solve` of the one-point rules, the
-    // Galerkin rules, the trapezoid compositions and the implicit time
+    // Galerkin rules, the compositions and the implicit time
     // transformation, forced or not, of the splitting, unforced,
     // energy-preserving steps of the one-point and Galerkin rules and
     // energy-balance steps of the one-point rules;
@@ -441,9 +441,9 @@ fn every_cell_integrates_with_its_property_or_is_refused_typed() {
     let composition = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let transformed = [true, false, false, true, false, true, true, true, false, false, true, true, false, false];
     let splitting = [true, false, false, false, false, true, true, false, false, false, true, false, false, false];
-    // Compositions of midpoint and Galerkin sub-steps: fixed steps at a
-    // compile-time size, forced or not.
-    let composed = [true, false, false, true, false, false, false, false, false, false, false, false, false, false];
+    // Compositions of midpoint and Galerkin sub-steps: fixed steps at both
+    // sizes, forced or not; no sensitivities.
+    let composed = [true, false, false, true, false, true, true, true, false, false, false, false, false, false];
     let expected = [
         one_point,
         one_point,

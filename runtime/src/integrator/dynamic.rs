@@ -719,6 +719,21 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
         Ok(())
     }
 
+    /// One fixed step of size `h` (negative too) whose end node is stamped
+    /// `t1`, apart from the step size and the clock: a sub-step of a
+    /// composition of this rule. On failure nothing changes but the
+    /// failure count.
+    pub(crate) fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error> {
+        self.step_by(h, t1)
+    }
+
+    /// Numbers the current node `k` (a composition of this rule counts its
+    /// nodes, not its sub-steps).
+    pub(crate) fn number_node(&mut self, k: u64) {
+        self.state.step = k;
+        self.work.rekey_node_force(k);
+    }
+
     /// `true` when the next step toward `t_end` is its landing step: a
     /// whole step would reach `t_end` or come within `10⁻⁹ h` of it; under
     /// energy-preserving steps, the largest admissible step would reach it.

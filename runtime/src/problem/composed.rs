@@ -1,5 +1,5 @@
 //! A symmetric composition of any symmetric base method, written once over
-//! the drivers at a compile-time size.
+//! the drivers at both sizes.
 //!
 //! ```text
 //! Φ_h = Ψ_{γ_m h} ∘ … ∘ Ψ_{γ_1 h},   Ψ = a step of the base driver,   Σ γ_i = 1,   γ_i = γ_{m+1−i}
@@ -14,31 +14,45 @@
 //! rules' secant velocities, a Galerkin rule's step polynomial), so the
 //! sub-steps of other sizes start from a guess of the same order as a run
 //! of equal steps. The trapezoid compositions are not made here: they are
-//! the fused const-generic [`Composition`] method, whose explicit
-//! Störmer–Verlet sub-steps on a separable system run without Newton.
+//! the fused [`Composition`] method, whose explicit Störmer–Verlet
+//! sub-steps on a separable system run without Newton.
 //!
 //! The node `k` of the composition is the base's node after `k·m`
 //! sub-steps, its state, momenta and energy the base's there; a failed
 //! sub-step restores the base from its copy before the step, so the
 //! stepper is as it was. Dense output is the cubic Hermite through the
-//! nodes of the whole step.
+//! nodes of the whole step. The same adapter serves a compile-time size
+//! ([`Stepping`], over the const-generic drivers) and a run-time size
+//! ([`RunTimeStepping`], over the reverse-mode drivers); only the readouts
+//! of the node differ.
 
 use crate::dense::{Hermite, Node};
 use crate::error::Error;
 use crate::integrator::{Clock, Composition, Stats};
-use crate::solution::Stepping;
-use crate::state::State;
+use crate::solution::{RunTimeStepping, Stepping};
+use crate::state::{PhasePoint, State};
 use crate::system::Lagrangian;
 
-/// What a composition asks of its base driver: a step of any size (negative
-/// for some sub-steps) ending on a given time, and the readouts of its node.
-/// The stepper's driver implements it, so this file names no driver.
-pub trait SubSteps<const N: usize>: Clone {
-    /// The integrated system.
-    type System: Lagrangian<N>;
+/// What a composition asks of its base driver at either size: a step of any
+/// size (negative for some sub-steps) ending on a given time. The steppers'
+/// drivers implement it, so this file names no driver.
+pub trait SubSteps: Clone {
     /// One step of size `h` ending at `t1`; on failure the driver is
     /// unchanged.
     fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error>;
+    /// The time of the node.
+    fn time(&self) -> f64;
+    /// Numbers the node `k`: a composition counts its nodes, not its
+    /// sub-steps. A driver that hands out its node by reference (a run-time
+    /// size) stamps it; one that hands it out by value leaves the number to
+    /// the composition.
+    fn number(&mut self, _k: u64) {}
+}
+
+/// The readouts of a base driver's node at a compile-time size.
+pub trait ConstSubSteps<const N: usize>: SubSteps {
+    /// The integrated system.
+    type System: Lagrangian<N>;
     /// The system.
     fn system(&self) -> &Self::System;
     /// The node.
@@ -50,7 +64,7 @@ pub trait SubSteps<const N: usize>: Clone {
 }
 
 /// A symmetric composition of steps of a base driver `B` with fixed step `h`.
-pub struct Composed<B, const N: usize> {
+pub struct Composed<B> {
     /// The base driver, stepped by sub-steps of sizes `γ_i h`.
     base: B,
     /// The base as it was before the step in progress: a failed sub-step
@@ -64,9 +78,11 @@ pub struct Composed<B, const N: usize> {
     steps: u64,
     /// Composed steps that failed.
     failed_steps: u64,
+    /// The size of the last composed step; `None` before the first.
+    last_h: Option<f64>,
 }
 
-impl<B: Clone, const N: usize> Clone for Composed<B, N> {
+impl<B: Clone> Clone for Composed<B> {
     fn clone(&self) -> Self {
         Self {
             base: self.base.clone(),
@@ -76,6 +92,7 @@ impl<B: Clone, const N: usize> Clone for Composed<B, N> {
             clock: self.clock,
             steps: self.steps,
             failed_steps: self.failed_steps,
+            last_h: self.last_h,
         }
     }
 
@@ -84,23 +101,37 @@ impl<B: Clone, const N: usize> Clone for Composed<B, N> {
         self.base.clone_from(&source.base);
         self.before.clone_from(&source.before);
         (self.weights, self.h, self.clock) = (source.weights, source.h, source.clock);
-        (self.steps, self.failed_steps) = (source.steps, source.failed_steps);
+        (self.steps, self.failed_steps, self.last_h) = (source.steps, source.failed_steps, source.last_h);
     }
 }
 
-impl<B: SubSteps<N>, const N: usize> Composed<B, N> {
+impl<B: core::fmt::Debug> core::fmt::Debug for Composed<B> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Composed")
+            .field("weights", &self.weights)
+            .field("h", &self.h)
+            .field("steps", &self.steps)
+            .field("base", &self.base)
+            .finish()
+    }
+}
+
+/// The composition itself, the same at both sizes; its errors carry the
+/// sub-node's state until the size's readouts put the composed node's in.
+impl<B: SubSteps> Composed<B> {
     /// The composition with `weights` of `base`, a driver that has not
     /// stepped, with fixed step `h`.
     pub(super) fn new(base: B, weights: Composition, h: f64) -> Self {
-        let t = base.state().t;
-        Self { before: base.clone(), base, weights, h, clock: Clock { t, step: 0 }, steps: 0, failed_steps: 0 }
+        let t = base.time();
+        let (steps, failed_steps, last_h) = (0, 0, None);
+        Self { before: base.clone(), base, weights, h, clock: Clock { t, step: 0 }, steps, failed_steps, last_h }
     }
 
     /// One composed step of size `h` ending at `t1`; on failure the base is
-    /// restored and the error carries the state of the composed node.
+    /// restored.
     fn step_by(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         self.before.clone_from(&self.base);
-        let t0 = self.base.state().t;
+        let t0 = self.base.time();
         let weights = self.weights.weights();
         let mut elapsed = 0.0;
         for (i, gamma) in weights.iter().enumerate() {
@@ -111,30 +142,55 @@ impl<B: SubSteps<N>, const N: usize> Composed<B, N> {
             if let Err(e) = self.base.sub_step(gamma * h, ti) {
                 core::mem::swap(&mut self.base, &mut self.before);
                 self.failed_steps += 1;
-                return Err(e.at_state(Stepping::state(self)));
+                return Err(e);
             }
         }
         self.steps += 1;
+        self.base.number(self.steps);
+        self.last_h = Some(h);
         Ok(())
     }
 
-    /// Whether a step from `t` ends within `10⁻⁹ h` of `t_end` or beyond it:
-    /// the landing rule of the integrators' `run_until`.
-    fn reaches(&self, t_end: f64) -> bool {
-        let t = Stepping::state(self).t;
-        t + self.h >= t_end - 1e-9 * self.h
+    /// The next step of size `h`, on the clock.
+    fn step_on_clock(&mut self) -> Result<(), Error> {
+        let t1 = self.clock.at(self.steps + 1, self.h);
+        self.step_by(self.h, t1)
     }
 
-    /// The step that ends on `t_end` exactly, with the clock restarted there.
-    fn land_step(&mut self, t_end: f64) -> Result<(), Error> {
-        let t = Stepping::state(self).t;
+    /// One step toward `t_end`: the step of size `h`, or, when a step from
+    /// `t` ends within `10⁻⁹ h` of `t_end` or beyond it (the landing rule
+    /// of the integrators' `run_until`), the step that ends on `t_end`
+    /// exactly, with the clock restarted there; a no-op at or beyond `t_end`.
+    fn toward(&mut self, t_end: f64) -> Result<(), Error> {
+        let t = self.base.time();
+        if t.is_nan() || t >= t_end {
+            return Ok(());
+        }
+        if t + self.h < t_end - 1e-9 * self.h {
+            return self.step_on_clock();
+        }
         self.step_by(t_end - t, t_end)?;
         self.clock = Clock { t: t_end, step: self.steps };
         Ok(())
     }
+
+    /// Changes the size of the following steps, the clock restarted at the
+    /// node; a size that is not finite and positive is refused.
+    fn set_h(&mut self, h: f64) -> Result<(), Error> {
+        Error::check_step(h)?;
+        self.clock = Clock { t: self.base.time(), step: self.steps };
+        self.h = h;
+        Ok(())
+    }
+
+    /// The counters of the base, with the composed steps.
+    fn count(&self, base: Stats) -> Stats {
+        Stats { steps: self.steps, failed_steps: self.failed_steps, ..base }
+    }
 }
 
-impl<B: SubSteps<N>, const N: usize> Stepping<N> for Composed<B, N> {
+/// At a compile-time size: the base's node by value, numbered here.
+impl<B: ConstSubSteps<N>, const N: usize> Stepping<N> for Composed<B> {
     type System = B::System;
     type Native = Hermite<N>;
 
@@ -153,28 +209,26 @@ impl<B: SubSteps<N>, const N: usize> Stepping<N> for Composed<B, N> {
 
     /// Composed steps; the Newton iterations of every sub-step.
     fn stats(&self) -> Stats {
-        Stats { steps: self.steps, failed_steps: self.failed_steps, ..self.base.stats() }
+        self.count(self.base.stats())
     }
 
     fn step(&mut self) -> Result<(), Error> {
-        let t1 = self.clock.at(self.steps + 1, self.h);
-        self.step_by(self.h, t1)
+        self.step_on_clock().map_err(|e| e.at_state(Stepping::state(self)))
     }
 
     fn step_toward(&mut self, t_end: f64, _last_h: Option<f64>) -> Result<(), Error> {
-        if self.reaches(t_end) { Stepping::land(self, t_end) } else { Stepping::step(self) }
+        self.toward(t_end).map_err(|e| e.at_state(Stepping::state(self)))
     }
 
+    /// The landing loop of [`RunTimeStepping::run_until`], which the
+    /// run-time size runs over [`step_toward`](RunTimeStepping::step_toward).
     fn land(&mut self, t: f64) -> Result<(), Error> {
         let now = Stepping::state(self);
         if !t.is_finite() || t < now.t {
             return Err(Error::InvalidTarget { target: t, state: now.into() });
         }
-        while Stepping::state(self).t < t {
-            if self.reaches(t) {
-                return self.land_step(t);
-            }
-            Stepping::step(self)?;
+        while self.base.time() < t {
+            Stepping::step_toward(self, t, self.last_h)?;
         }
         Ok(())
     }
@@ -182,5 +236,63 @@ impl<B: SubSteps<N>, const N: usize> Stepping<N> for Composed<B, N> {
     /// The cubic Hermite through both nodes of the whole step.
     fn native(&self, start: &Node<N>, end: &Node<N>) -> Hermite<N> {
         Hermite::cubic(start, end)
+    }
+}
+
+/// At a run-time size: the base's node by reference, numbered by the base
+/// ([`SubSteps::number`]); `run_until` is the trait's landing loop.
+impl<B: SubSteps + RunTimeStepping> RunTimeStepping for Composed<B> {
+    type System = B::System;
+
+    fn system(&self) -> &B::System {
+        self.base.system()
+    }
+
+    fn state(&self) -> &PhasePoint {
+        self.base.state()
+    }
+
+    fn velocity(&self) -> Result<Vec<f64>, Error> {
+        self.base.velocity()
+    }
+
+    fn energy(&self) -> Result<f64, Error> {
+        self.base.energy()
+    }
+
+    /// That of the last sub-step.
+    fn discrete_energy(&self) -> f64 {
+        self.base.discrete_energy()
+    }
+
+    /// Composed steps; the Newton iterations of every sub-step.
+    fn stats(&self) -> Stats {
+        self.count(self.base.stats())
+    }
+
+    fn step(&mut self) -> Result<(), Error> {
+        self.step_on_clock().map_err(|e| e.at_state(self.base.state().clone()))
+    }
+
+    fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        self.toward(t_end).map_err(|e| e.at_state(self.base.state().clone()))
+    }
+
+    fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    fn last_step_size(&self) -> Option<f64> {
+        self.last_h
+    }
+
+    fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        self.set_h(h)
+    }
+
+    /// `None`: dense output is the cubic Hermite of the whole step (a
+    /// Galerkin base's polynomial is that of its last sub-step only).
+    fn step_polynomial(&self) -> Option<(f64, &[f64], &[f64])> {
+        None
     }
 }

@@ -1,13 +1,16 @@
 //! The run-time size of [`Problem`] and [`Stepper`]: the same [`Scheme`] and
 //! [`Policy`] values on a [`DynLagrangian`], stepped by the reverse-mode
-//! [`DynIntegrator`] (the implicit time transformation: in `s`, on the
+//! [`DynIntegrator`] (a composition of its midpoint, α-β or Galerkin steps
+//! by the adapter of both sizes, [`Composed`]; the implicit time
+//! transformation: in `s`, on the
 //! extended system of `n + 1` coordinates, by [`RunTimeAdaptive`]; the
 //! explicit time-transformed splitting by [`RunTimeSplitting`]); what those
 //! drivers do not have is refused by
-//! [`supports`](super::supports) with [`Error::Unsupported`]. The three
-//! drivers are [`RunTimeStepping`]s, and so is the stepper: one `match` on
-//! the driver per call.
+//! [`supports`](super::supports) with [`Error::Unsupported`]. The
+//! drivers are [`RunTimeStepping`]s, and so are the enum of them and the
+//! stepper: one `match` on the driver per call.
 
+use super::composed::{Composed, SubSteps};
 use super::scheme::{GalerkinQuadrature, OnePoint, Scheme};
 use super::statement::Problem;
 use super::stepper::{Steppable, Stepper};
@@ -22,13 +25,16 @@ use crate::system::DynLagrangian;
 use crate::time_transform::{RuleInS, RunTimeAdaptive, RunTimeSplitting, SplittingStats};
 
 /// The driver of a run-time-sized [`Stepper`].
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub enum DynDriver<S> {
     Midpoint(DynIntegrator<S, Midpoint>),
     Trapezoid(DynIntegrator<S, Trapezoid>),
     AlphaBeta(DynIntegrator<S, AlphaBeta>),
     Composition(DynIntegrator<S, Composition>),
     Galerkin(DynIntegrator<S, RunTimeGalerkin>),
+    /// Boxed: it holds its base driver twice (the copy from before the
+    /// step), and the type is recursive.
+    Composed(Box<Composed<DynDriver<S>>>),
     // Boxed: the driver in `s` and its copy from before the step.
     TimeTransformed(Box<RunTimeAdaptive<S>>),
     /// Boxed: its trial points and buffers make it several times the
@@ -46,6 +52,10 @@ macro_rules! each {
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
+            DynDriver::Composed($d) => {
+                let $d = &**$d;
+                $body
+            }
             DynDriver::TimeTransformed($d) => {
                 let $d = &**$d;
                 $body
@@ -63,6 +73,10 @@ macro_rules! each {
             DynDriver::AlphaBeta($d) => $body,
             DynDriver::Composition($d) => $body,
             DynDriver::Galerkin($d) => $body,
+            DynDriver::Composed($d) => {
+                let $d = &mut **$d;
+                $body
+            }
             DynDriver::TimeTransformed($d) => {
                 let $d = &mut **$d;
                 $body
@@ -73,6 +87,74 @@ macro_rules! each {
             }
         }
     };
+}
+
+/// A copy in place when both drivers are of one kind: `solve` refreshes its
+/// copy of the stepper, and a composition its copy of the base, before
+/// every step.
+impl<S: Clone> Clone for DynDriver<S> {
+    fn clone(&self) -> Self {
+        match self {
+            Self::Midpoint(d) => Self::Midpoint(d.clone()),
+            Self::Trapezoid(d) => Self::Trapezoid(d.clone()),
+            Self::AlphaBeta(d) => Self::AlphaBeta(d.clone()),
+            Self::Composition(d) => Self::Composition(d.clone()),
+            Self::Galerkin(d) => Self::Galerkin(d.clone()),
+            Self::Composed(d) => Self::Composed(d.clone()),
+            Self::TimeTransformed(d) => Self::TimeTransformed(d.clone()),
+            Self::Splitting(d) => Self::Splitting(d.clone()),
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        match (self, source) {
+            (Self::Midpoint(a), Self::Midpoint(b)) => a.clone_from(b),
+            (Self::Trapezoid(a), Self::Trapezoid(b)) => a.clone_from(b),
+            (Self::AlphaBeta(a), Self::AlphaBeta(b)) => a.clone_from(b),
+            (Self::Composition(a), Self::Composition(b)) => a.clone_from(b),
+            (Self::Galerkin(a), Self::Galerkin(b)) => a.clone_from(b),
+            (Self::Composed(a), Self::Composed(b)) => a.clone_from(b),
+            (Self::TimeTransformed(a), Self::TimeTransformed(b)) => a.clone_from(b),
+            (Self::Splitting(a), Self::Splitting(b)) => a.clone_from(b),
+            (this, _) => *this = source.clone(),
+        }
+    }
+}
+
+/// Why a driver is not a base of [`Composed`] ([`supports`] refuses those
+/// compositions before a driver is built).
+const NOT_A_BASE: &str =
+    "a composition of this method: the sub-steps of a composition are of a one-point or Galerkin rule";
+
+/// Whichever driver as the base of a composition ([`Composed`]): the
+/// integrators' own step of a given size.
+impl<S: DynLagrangian + Clone> SubSteps for DynDriver<S> {
+    fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error> {
+        match self {
+            Self::Midpoint(d) => d.sub_step(h, t1),
+            Self::Trapezoid(d) => d.sub_step(h, t1),
+            Self::AlphaBeta(d) => d.sub_step(h, t1),
+            Self::Galerkin(d) => d.sub_step(h, t1),
+            Self::Composition(_) | Self::Composed(_) | Self::TimeTransformed(_) | Self::Splitting(_) => {
+                Err(Error::Unsupported { what: NOT_A_BASE })
+            }
+        }
+    }
+
+    fn time(&self) -> f64 {
+        RunTimeStepping::state(self).t
+    }
+
+    fn number(&mut self, k: u64) {
+        match self {
+            Self::Midpoint(d) => d.number_node(k),
+            Self::Trapezoid(d) => d.number_node(k),
+            Self::AlphaBeta(d) => d.number_node(k),
+            Self::Galerkin(d) => d.number_node(k),
+            // Never a base (`sub_step` refuses them).
+            Self::Composition(_) | Self::Composed(_) | Self::TimeTransformed(_) | Self::Splitting(_) => {}
+        }
+    }
 }
 
 impl<S: DynLagrangian + Clone> Steppable<Dyn> for S {
@@ -155,7 +237,14 @@ impl<S: DynLagrangian + Clone> Problem<S, Dyn> {
             Scheme::OnePoint(OnePoint::Midpoint) => DynDriver::Midpoint(self.start(Midpoint, policy)?),
             Scheme::OnePoint(OnePoint::Trapezoid) => DynDriver::Trapezoid(self.start(Trapezoid, policy)?),
             Scheme::OnePoint(OnePoint::AlphaBeta(m)) => DynDriver::AlphaBeta(self.start(*m, policy)?),
-            Scheme::Composition { weights, .. } => DynDriver::Composition(self.start(*weights, policy)?),
+            Scheme::Composition { weights, base } if **base == Scheme::TRAPEZOID => {
+                DynDriver::Composition(self.start(*weights, policy)?)
+            }
+            // Fixed steps of the base (`supports` refuses variable ones).
+            Scheme::Composition { weights, base } => {
+                let base = self.stepper(base, Policy::Fixed { h: policy.step() })?.driver;
+                DynDriver::Composed(Box::new(Composed::new(base, *weights, policy.step())))
+            }
             Scheme::Galerkin { degree, nodes, quadrature } => {
                 let lobatto = *quadrature == GalerkinQuadrature::GaussLobatto;
                 DynDriver::Galerkin(self.start(RunTimeGalerkin::new(*degree, *nodes, lobatto), policy)?)
@@ -320,55 +409,109 @@ impl<S: DynLagrangian + Clone> Stepper<S, Dyn> {
 }
 
 /// Each call is one `match` on the driver.
-impl<S: DynLagrangian + Clone> RunTimeStepping for Stepper<S, Dyn> {
+impl<S: DynLagrangian + Clone> RunTimeStepping for DynDriver<S> {
     type System = S;
 
     fn system(&self) -> &S {
-        each!(ref &self.driver, d => RunTimeStepping::system(d))
+        each!(ref self, d => RunTimeStepping::system(d))
     }
 
     fn state(&self) -> &PhasePoint {
-        each!(ref &self.driver, d => RunTimeStepping::state(d))
+        each!(ref self, d => RunTimeStepping::state(d))
     }
 
     fn velocity(&self) -> Result<Vec<f64>, Error> {
-        each!(ref &self.driver, d => RunTimeStepping::velocity(d))
+        each!(ref self, d => RunTimeStepping::velocity(d))
     }
 
     fn energy(&self) -> Result<f64, Error> {
-        each!(ref &self.driver, d => RunTimeStepping::energy(d))
+        each!(ref self, d => RunTimeStepping::energy(d))
     }
 
     fn discrete_energy(&self) -> f64 {
-        each!(ref &self.driver, d => RunTimeStepping::discrete_energy(d))
+        each!(ref self, d => RunTimeStepping::discrete_energy(d))
     }
 
     fn stats(&self) -> Stats {
-        each!(ref &self.driver, d => RunTimeStepping::stats(d))
+        each!(ref self, d => RunTimeStepping::stats(d))
     }
 
     #[inline]
     fn step(&mut self) -> Result<(), Error> {
-        each!(mut &mut self.driver, d => RunTimeStepping::step(d))
+        each!(mut self, d => RunTimeStepping::step(d))
     }
 
     fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
-        each!(mut &mut self.driver, d => RunTimeStepping::step_toward(d, t_end))
+        each!(mut self, d => RunTimeStepping::step_toward(d, t_end))
     }
 
     fn step_size(&self) -> f64 {
-        each!(ref &self.driver, d => RunTimeStepping::step_size(d))
+        each!(ref self, d => RunTimeStepping::step_size(d))
     }
 
     fn last_step_size(&self) -> Option<f64> {
-        each!(ref &self.driver, d => RunTimeStepping::last_step_size(d))
+        each!(ref self, d => RunTimeStepping::last_step_size(d))
     }
 
     fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
-        each!(mut &mut self.driver, d => RunTimeStepping::set_step_size(d, h))
+        each!(mut self, d => RunTimeStepping::set_step_size(d, h))
     }
 
     fn step_polynomial(&self) -> Option<(f64, &[f64], &[f64])> {
-        each!(ref &self.driver, d => RunTimeStepping::step_polynomial(d))
+        each!(ref self, d => RunTimeStepping::step_polynomial(d))
+    }
+}
+
+/// The driver's, through one `match` on it.
+impl<S: DynLagrangian + Clone> RunTimeStepping for Stepper<S, Dyn> {
+    type System = S;
+
+    fn system(&self) -> &S {
+        RunTimeStepping::system(&self.driver)
+    }
+
+    fn state(&self) -> &PhasePoint {
+        RunTimeStepping::state(&self.driver)
+    }
+
+    fn velocity(&self) -> Result<Vec<f64>, Error> {
+        RunTimeStepping::velocity(&self.driver)
+    }
+
+    fn energy(&self) -> Result<f64, Error> {
+        RunTimeStepping::energy(&self.driver)
+    }
+
+    fn discrete_energy(&self) -> f64 {
+        RunTimeStepping::discrete_energy(&self.driver)
+    }
+
+    fn stats(&self) -> Stats {
+        RunTimeStepping::stats(&self.driver)
+    }
+
+    #[inline]
+    fn step(&mut self) -> Result<(), Error> {
+        RunTimeStepping::step(&mut self.driver)
+    }
+
+    fn step_toward(&mut self, t_end: f64) -> Result<(), Error> {
+        RunTimeStepping::step_toward(&mut self.driver, t_end)
+    }
+
+    fn step_size(&self) -> f64 {
+        RunTimeStepping::step_size(&self.driver)
+    }
+
+    fn last_step_size(&self) -> Option<f64> {
+        RunTimeStepping::last_step_size(&self.driver)
+    }
+
+    fn set_step_size(&mut self, h: f64) -> Result<(), Error> {
+        RunTimeStepping::set_step_size(&mut self.driver, h)
+    }
+
+    fn step_polynomial(&self) -> Option<(f64, &[f64], &[f64])> {
+        RunTimeStepping::step_polynomial(&self.driver)
     }
 }

@@ -16,8 +16,8 @@
 //! or a composition, the implicit time-transformed
 //! [`Adaptive`](crate::Adaptive) or the explicit
 //! [`ExplicitAdaptive`](crate::ExplicitAdaptive); at a run-time size the
-//! reverse-mode integrator on a tape, its implicit time transformation or
-//! its explicit splitting ([`RunTimeStepping`](crate::RunTimeStepping)).
+//! reverse-mode integrator on a tape (with a composition of its steps), its
+//! implicit time transformation or its explicit splitting ([`RunTimeStepping`](crate::RunTimeStepping)).
 //! Every call of the stepper is one `match` on the variant into that
 //! driver. Which
 //! combinations exist is said by [`supports`] alone; the capability page

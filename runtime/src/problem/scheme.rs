@@ -83,7 +83,8 @@ pub enum Scheme {
     /// `max(p, q)`, `q` the weights' own ([`Scheme::order`]). α-β with
     /// `α ≠ ½` is not symmetric, and a composition of compositions, of a
     /// time transformation or of the splitting is not offered:
-    /// [`supports`](super::supports) refuses them.
+    /// [`supports`](super::supports) refuses them. Every base composes at
+    /// both sizes, through one adapter over the base's own steps.
     ///
     /// ```
     /// use lagrangian_runtime::problem::{Problem, Scheme};

@@ -7,7 +7,7 @@
 //! go through a function of their own per kind of driver, so that no frame
 //! holds room for every kind at once.
 
-use super::composed::{Composed, SubSteps};
+use super::composed::{Composed, ConstSubSteps, SubSteps};
 use super::extend::Extended;
 use super::scheme::Scheme;
 use super::support::Policy;
@@ -46,7 +46,7 @@ where
     Lobatto3(Integrator<S, Galerkin<3, 4>, N>),
     Lobatto4(Integrator<S, Galerkin<4, 5>, N>),
     Composition(Integrator<S, Composition, N>),
-    Composed(Composed<DriverBox<S, N>, N>),
+    Composed(Composed<DriverBox<S, N>>),
     Transformed(<Dim<N> as Extended<N>>::Transformed<S>),
     Splitting(ExplicitAdaptive<S, f64, N>),
 }
@@ -213,12 +213,10 @@ const NOT_A_BASE: &str =
     "a composition of this method: the sub-steps of a composition are of a one-point or Galerkin rule";
 
 /// Whichever driver as the base of a composition ([`Composed`]).
-impl<S: Lagrangian<N> + Clone, const N: usize> SubSteps<N> for DriverBox<S, N>
+impl<S: Lagrangian<N> + Clone, const N: usize> SubSteps for DriverBox<S, N>
 where
     Dim<N>: Extended<N>,
 {
-    type System = S;
-
     fn sub_step(&mut self, h: f64, t1: f64) -> Result<(), Error> {
         match &mut *self.0 {
             Driver::Midpoint(d) => sub_step(d, h, t1),
@@ -239,6 +237,18 @@ where
             }
         }
     }
+
+    fn time(&self) -> f64 {
+        each!(&*self.0, d => Stepping::state(d).t)
+    }
+}
+
+/// The readouts of whichever driver as the base of a composition.
+impl<S: Lagrangian<N> + Clone, const N: usize> ConstSubSteps<N> for DriverBox<S, N>
+where
+    Dim<N>: Extended<N>,
+{
+    type System = S;
 
     fn system(&self) -> &S {
         each!(&*self.0, d => Stepping::system(d))

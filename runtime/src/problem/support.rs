@@ -182,7 +182,8 @@ pub fn supports(c: &Combination<'_>) -> Result<(), &'static str> {
 
 /// The sub-steps a composition is made of: symmetric ones (the trapezoid,
 /// midpoint and Galerkin rules, α-β at `α = ½`), whose order its weights
-/// raise; the base's own rules at the size apply as to a run of it.
+/// raise; the base's own rules at the size apply as to a run of it (at a
+/// run-time size, a Galerkin degree from 1 to 16).
 fn composed(c: &Combination<'_>, base: &Scheme) -> Result<(), &'static str> {
     match base {
         Scheme::OnePoint(OnePoint::AlphaBeta(m)) if m.alpha() != 0.5 => {
@@ -199,11 +200,6 @@ fn composed(c: &Combination<'_>, base: &Scheme) -> Result<(), &'static str> {
     }
     if *base == Scheme::TRAPEZOID {
         return Ok(());
-    }
-    if c.size == Size::Dynamic {
-        return Err(
-            "a composition of midpoint, α-β or Galerkin sub-steps on a run-time-sized system: at a run-time size the compositions are of trapezoid sub-steps",
-        );
     }
     if c.capability == Capability::Sensitivities {
         return Err(
