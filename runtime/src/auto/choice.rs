@@ -9,8 +9,7 @@
 //! | `½ vᵀMv − V(t, q)`, `M` constant, no forces | nearly uniform | any | the composition of Störmer–Verlet of fewer predicted stages ([`composition_order`]: Kahan–Li 8, or Yoshida 6 where Kahan–Li 8 would be held to its step cap), or Galerkin `s = 4 / 6 / 8` where the cost model predicts it cheaper |
 //! | forces or dissipation | any | `≥ 1e-5` / `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 2 / 4 / 6 / 8` |
 //! | anything else (non-separable, time-dependent, position-dependent mass), no forces | the linearisation's fastest rate nearly uniform: [`density_ratio`] at most [`HIGH_DEGREE_RATIO`] ([`uniform_high_degree`]) | `≥ 1e-8` ([`HIGHER_DEGREE_RTOL`]) / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8`, `s = 6` at `ρh ≤ 0.7` ([`HIGH_DEGREE_RHO_H`]) |
-//! | anything else, no forces | varies (surveyed below `1e-8`) | `≥ 1e-8` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8`, `s = 6` at the step its pilot measures |
-//! | anything else, with forces | not surveyed | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
+//! | anything else | varies, or not surveyed ([`surveys_rates`]) | `≥ 1e-11` / `≥ 1e-13` / tighter | Galerkin `s = 4 / 6 / 8` |
 //!
 //! The orders follow the report's calibration: Kahan–Li 8 is the fastest
 //! composition on the separable problems at every target, Galerkin `s = 4`
@@ -307,19 +306,12 @@ pub fn uniform_high_degree(facts: Facts, rtol: f64, ratio: Option<f64>) -> bool 
 /// Galerkin `s = 4` for most tolerances: the report's fastest project
 /// method on the double pendulum at `1e-4` and `1e-7` with its pilot; with
 /// forces `s = 2` at coarse tolerances (the sensor's fastest at `1e-4`).
-/// `s = 6` below `1e-11`, and without forces below [`HIGHER_DEGREE_RTOL`]
-/// whether the rates are uniform or not (the survey,
-/// [`uniform_high_degree`], decides only whether its steps are held to
-/// [`HIGH_DEGREE_RHO_H`]): Kepler in polar coordinates over the report's
-/// 1 000 orbits, whose rate varies, meets the target 1e-7 with 40 363 steps
-/// of fixed-point `s = 6` (2.4e-8, 471 M instructions) or 57 082 of `s = 5`
-/// (3.4e-8, 468 M), where `s = 4` ends 2.3e-7 from the reference after
-/// 90 020 steps at `rtol = 1.8e-9`, and needs over 100 000 (621 M).
-fn galerkin_degree(rtol: f64, forced: bool) -> u32 {
+/// `s = 6` below `1e-11`, and below [`HIGHER_DEGREE_RTOL`] where the rates
+/// are `uniform` ([`uniform_high_degree`]).
+fn galerkin_degree(rtol: f64, forced: bool, uniform: bool) -> u32 {
     match (forced, rtol) {
         (true, r) if r >= 1e-5 => 2,
-        (true, r) if r >= 1e-11 => 4,
-        (false, r) if r >= HIGHER_DEGREE_RTOL => 4,
+        (_, r) if r >= 1e-11 && !uniform => 4,
         (_, r) if r >= 1e-13 => 6,
         (_, _) => 8,
     }
@@ -359,7 +351,7 @@ pub fn candidates<const N: usize>(
         fixed.order.filter(|_| fixed.family == Some(family) || fixed.family.is_none()).unwrap_or(default)
     };
     let uniform = uniform_high_degree(facts, rtol, density_ratio);
-    let galerkin_order = 2 * galerkin_degree(rtol, facts.forced);
+    let galerkin_order = 2 * galerkin_degree(rtol, facts.forced, uniform);
     match fixed.family {
         Some(Family::TimeTransformed) if !facts.transformable() => {
             return Err(Error::NotSeparable {
@@ -512,12 +504,10 @@ mod tests {
         let c = candidates::<2>(KEPLER, 1e-10, Some(2.0), None, Fixed::default()).unwrap();
         assert_eq!(c[1].0, Candidate { family: Family::TimeTransformed, order: 8 });
         assert_eq!(first(GENERAL, 1e-8, None), Candidate { family: Family::Galerkin, order: 8 });
-        // Below 1e-8 without forces, s = 6 whether the survey found the
-        // fastest rate nearly uniform (its steps then capped) or varying.
-        assert_eq!(first(GENERAL, 1e-10, None), Candidate { family: Family::Galerkin, order: 12 });
+        // Below 1e-8, s = 6 only where the survey found the fastest rate nearly uniform.
+        assert_eq!(first(GENERAL, 1e-10, None), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-10, Some(1.1)), Candidate { family: Family::Galerkin, order: 12 });
-        assert_eq!(first(GENERAL, 1e-10, Some(3.0)), Candidate { family: Family::Galerkin, order: 12 });
-        assert!(uniform_high_degree(GENERAL, 1e-10, Some(1.1)) && !uniform_high_degree(GENERAL, 1e-10, Some(3.0)));
+        assert_eq!(first(GENERAL, 1e-10, Some(3.0)), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-7, Some(1.1)), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(FORCED, 1e-10, Some(1.1)), Candidate { family: Family::Galerkin, order: 8 });
         assert_eq!(first(GENERAL, 1e-12, None), Candidate { family: Family::Galerkin, order: 12 });

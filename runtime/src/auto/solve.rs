@@ -339,7 +339,7 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
         }
         // A system the compositions do not apply to: the fastest rate along
         // the first coarse run of Galerkin `s = 6`'s pilot, which this run
-        // then is, decides whether `s = 6` is held to `ρh ≤ 0.7`
+        // then is, decides between `s = 6` and `s = 4`
         // (`choice::uniform_high_degree`). It stops once its samples show
         // the rate varying: Kepler in polar coordinates over the report's
         // 1 000 orbits at `rtol = 1.8e-12` measures 2.30 over the whole
@@ -361,8 +361,8 @@ impl<S: Lagrangian<N> + Clone, const N: usize> Auto<S, N> {
             if let Ok(p) = run_probe(c, &self, h, &landings, true, stride, Some(&mut general), stop, S::AUTONOMOUS) {
                 cost.steps += p.steps;
                 density_ratio = choice::density_ratio(&p.rates);
-                // Where the rate varies, an uncapped `s = 6` pilots from its
-                // own step.
+                // Where the rate varies, `s = 4` or an uncapped `s = 6` pilots
+                // from its own step.
                 let uniform = choice::uniform_high_degree(facts, self.tolerance.rtol, density_ratio);
                 survey = (p.complete && uniform).then_some((c, h, p));
             }
