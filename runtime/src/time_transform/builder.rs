@@ -182,8 +182,9 @@ impl<Sys: Lagrangian<N>, G: StepDensity<N>, K, const N: usize, T: Real> TimeTran
         w0[N] = g0;
         let inner =
             self.method.start_s(system, self.sigma, self.newton, x0, w0).map_err(|e| e.map_state(physical_point))?;
+        let saved = inner.clone();
         let mut adaptive =
-            Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None, rate: None };
+            Adaptive { inner, marker: PhantomData, floor, landed: None, v_guess: v0, last_dt: None, rate: None, saved };
         adaptive.rate = adaptive.rate_at(&adaptive.inner.extended_state(), v0);
         Ok(adaptive)
     }
