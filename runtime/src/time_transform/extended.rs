@@ -205,7 +205,7 @@ where
     /// gradient code, where it has it: on dual numbers (the default) every
     /// operation of `L` and of `g` carries `2M` derivative parts, and the
     /// fixed-point steps in `s` are gradients of `L̃` at every point of every
-    /// round. See [`TimeTransformed::extended_gradient`].
+    /// round (`TimeTransformed::extended_gradient`).
     const HAS_GRADIENT_QV: bool = Sys::HAS_GRADIENT_QV;
 
     #[inline(always)]
