@@ -8,21 +8,10 @@
 //! compile-time size and at a run-time size, where the composed step is
 //! the compile-time one to round-off.
 
+use super::run_time_systems::{DoublePendulumDyn, PENDULUM, PENDULUM_DYN};
 use lagrangian::prelude::*;
 use lagrangian::problem::{Combination, Size, supports};
 use lagrangian::{Action, NewtonOptions, Status};
-
-/// The double pendulum (non-separable: every sub-step is solved by Newton).
-#[derive(Clone)]
-struct DoublePendulum;
-
-#[lagrangian]
-impl DoublePendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
-        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
-    }
-}
 
 /// `L = ½v² − ½q²`: every base's step is a rotation of `(q, p)` by an
 /// angle known in closed form.
@@ -58,7 +47,7 @@ fn weights() -> [Composition; 3] {
 
 #[test]
 fn composed_bases_land_exactly_on_targets() {
-    let problem = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let problem = Problem::new(PENDULUM, 0.0, Q0, V0);
     for (base, h) in bases() {
         for weights in weights() {
             let scheme = base.clone().composed(weights);
@@ -81,7 +70,7 @@ fn composed_bases_land_exactly_on_targets() {
 
 #[test]
 fn composed_bases_solve_with_save_times_and_a_stop_event() {
-    let problem = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let problem = Problem::new(PENDULUM, 0.0, Q0, V0);
     let fine = problem.solve(&Scheme::galerkin(6), 0.005, Plan::until(1.3).every(0).save_at(vec![0.3, 0.9])).unwrap();
     for (base, h) in bases() {
         let scheme = base.composed(Composition::YOSHIDA6);
@@ -143,7 +132,7 @@ fn a_composed_step_is_the_base_steps_of_sizes_gamma_h() {
 
 #[test]
 fn a_composed_midpoint_is_a_composed_alpha_beta_at_one_half() {
-    let problem = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let problem = Problem::new(PENDULUM, 0.0, Q0, V0);
     let mut midpoint = problem.stepper(&Scheme::MIDPOINT.composed(Composition::YOSHIDA4), 0.05).unwrap();
     let mut alpha_beta =
         problem.stepper(&Scheme::alpha_beta(0.5).unwrap().composed(Composition::YOSHIDA4), 0.05).unwrap();
@@ -215,7 +204,7 @@ fn a_failed_composed_step_leaves_the_stepper_as_it_was() {
 
 #[test]
 fn undefined_compositions_are_typed_refusals() {
-    let problem = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let problem = Problem::new(PENDULUM, 0.0, Q0, V0);
     let curvature = Curvature::new(1.0).unwrap();
     let refusals = [
         (Scheme::alpha_beta(0.3).unwrap().composed(Composition::YOSHIDA4), Policy::fixed(0.01), "α ≠ ½"),
@@ -270,24 +259,8 @@ fn undefined_compositions_are_typed_refusals() {
     assert_eq!(Scheme::galerkin(4).composed(Composition::YOSHIDA4).name(), "order-8 composition of Galerkin s = 4");
 }
 
-/// The double pendulum over slices: the same `L` at a run-time size.
-#[derive(Clone)]
-struct DoublePendulumDyn;
-
-#[lagrangian]
-impl DoublePendulumDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
-        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
-    }
-}
-
 fn run_time_problem() -> Problem<DoublePendulumDyn, Dyn> {
-    Problem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec())
+    Problem::new(PENDULUM_DYN, 0.0, Q0.to_vec(), V0.to_vec())
 }
 
 #[test]
@@ -320,7 +293,7 @@ fn run_time_composed_bases_land_exactly_on_targets() {
 #[test]
 fn run_time_composed_steps_are_the_compile_time_ones() {
     let tight = NewtonOptions { rtol: 1e-15, ..NewtonOptions::default() };
-    let compiled = Problem::new(DoublePendulum, 0.0, Q0, V0).newton(tight);
+    let compiled = Problem::new(PENDULUM, 0.0, Q0, V0).newton(tight);
     let dynamic = run_time_problem().newton(tight);
     for (base, h) in bases() {
         for weights in weights() {

@@ -24,71 +24,17 @@
 //! capability page lists them). `cargo test --test behaviour method_matrix
 //! -- --nocapture` prints the matrix with each cell's checked number.
 
+use super::run_time_systems::{Kepler, KeplerDyn, PENDULUM, PENDULUM_DYN};
 use crate::common::schemes::families;
 use lagrangian::prelude::*;
 use lagrangian::problem::supports;
 use lagrangian::{Action, Status};
-
-#[derive(Clone)]
-struct DoublePendulum;
-
-#[lagrangian]
-impl DoublePendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
-        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
-    }
-}
 
 const Q0: [f64; 2] = [1.0, -0.5];
 const V0: [f64; 2] = [0.0, 0.3];
 const T_STOP: f64 = 1.7;
 const T_END: f64 = 2.0;
 const SAVE: [f64; 7] = [0.0, 0.1234, 0.5, 0.77, 1.0, 1.333, 1.6];
-
-/// Kepler, μ = 1: separable with a constant mass matrix, for the explicit
-/// time-transformed splitting.
-#[derive(Clone)]
-struct Kepler;
-
-#[lagrangian]
-impl Kepler {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
-
-/// The double pendulum with its size known at run time: the same `L` over
-/// slices.
-#[derive(Clone)]
-struct DoublePendulumDyn;
-
-#[lagrangian]
-impl DoublePendulumDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
-        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
-    }
-}
-
-/// Kepler with its size known at run time.
-#[derive(Clone)]
-struct KeplerDyn;
-
-#[lagrangian]
-impl KeplerDyn {
-    fn dimension(&self) -> usize {
-        2
-    }
-
-    fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        0.5 * (v[0] * v[0] + v[1] * v[1]) + 1.0 / (q[0] * q[0] + q[1] * q[1]).sqrt()
-    }
-}
 
 /// Kepler e = 0.5 from pericentre.
 const KEPLER_Q0: [f64; 2] = [0.5, 0.0];
@@ -278,10 +224,10 @@ fn dynamic_row<S: DynLagrangian + Clone>(
 
 #[test]
 fn every_method_through_one_problem() {
-    let references = [reference(DoublePendulum, Q0, V0), reference(Kepler, KEPLER_Q0, KEPLER_V0)];
-    let pendulum = Problem::new(DoublePendulum, 0.0, Q0, V0);
+    let references = [reference(PENDULUM, Q0, V0), reference(Kepler, KEPLER_Q0, KEPLER_V0)];
+    let pendulum = Problem::new(PENDULUM, 0.0, Q0, V0);
     let kepler = Problem::new(Kepler, 0.0, KEPLER_Q0, KEPLER_V0);
-    let pendulum_dyn = Problem::new(DoublePendulumDyn, 0.0, Q0.to_vec(), V0.to_vec());
+    let pendulum_dyn = Problem::new(PENDULUM_DYN, 0.0, Q0.to_vec(), V0.to_vec());
     let kepler_dyn = Problem::new(KeplerDyn, 0.0, KEPLER_Q0.to_vec(), KEPLER_V0.to_vec());
     let mut table = Vec::new();
     for ((name, scheme, separable), (h, tolerance)) in families().into_iter().zip(STEPS) {

@@ -77,7 +77,8 @@ fn a_chain_takes_the_same_energy_steps_at_both_sizes() {
 
 #[test]
 fn a_double_pendulum_takes_the_same_energy_steps_at_both_sizes() {
-    let worst = both_sizes(DoublePendulum, DoublePendulumDyn, ([0.5, 0.3], [0.0, 0.0]), 0.01, 400);
+    let worst =
+        both_sizes(DoublePendulum { g: 1.0 }, DoublePendulumDyn { g: 1.0 }, ([0.5, 0.3], [0.0, 0.0]), 0.01, 400);
     assert!(worst < 2.0, "{worst}");
 }
 

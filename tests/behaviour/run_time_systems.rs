@@ -54,21 +54,26 @@ impl Chain {
     }
 }
 
-/// A double pendulum (unit masses and lengths, g = 1): a non-separable
-/// `L`, its mass matrix depends on `q`.
+/// A double pendulum (unit masses and lengths, gravity `g`): a
+/// non-separable `L`, its mass matrix depends on `q`.
 #[derive(Clone)]
-pub struct DoublePendulum;
+pub struct DoublePendulum {
+    pub g: f64,
+}
 
 #[lagrangian]
 impl DoublePendulum {
     fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos() + 2.0 * q[0].cos() + q[1].cos()
+        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + 2.0 * self.g * q[0].cos() + self.g * q[1].cos()
     }
 }
 
 /// The double pendulum over slices.
 #[derive(Clone)]
-pub struct DoublePendulumDyn;
+pub struct DoublePendulumDyn {
+    pub g: f64,
+}
 
 #[lagrangian]
 impl DoublePendulumDyn {
@@ -77,9 +82,16 @@ impl DoublePendulumDyn {
     }
 
     fn lagrangian(&self, q: &[f64], v: &[f64]) -> f64 {
-        v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos() + 2.0 * q[0].cos() + q[1].cos()
+        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
+        kinetic + 2.0 * self.g * q[0].cos() + self.g * q[1].cos()
     }
 }
+
+/// [`DoublePendulum`] under the Earth's gravity, `g = 9.81`.
+pub const PENDULUM: DoublePendulum = DoublePendulum { g: 9.81 };
+
+/// [`DoublePendulumDyn`] under the Earth's gravity.
+pub const PENDULUM_DYN: DoublePendulumDyn = DoublePendulumDyn { g: 9.81 };
 
 /// An oscillator whose stiffness depends on time: its discrete energy
 /// changes by `−(∂A/∂t_k + ∂A/∂t_{k+1})` at each step.

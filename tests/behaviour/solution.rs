@@ -2,19 +2,9 @@
 //! bit, node 0 included), thinning and save times, a failure mid-run keeps
 //! the partial solution, bad plans are typed errors, CSV and JSON round-trip.
 
+use super::run_time_systems::{DoublePendulum, PENDULUM};
 use lagrangian::prelude::*;
 use lagrangian::{DenseKind, Event, Plan, Solution, SolveError, Status};
-
-#[derive(Clone)]
-struct DoublePendulum;
-
-#[lagrangian]
-impl DoublePendulum {
-    fn lagrangian(&self, q: [f64; 2], v: [f64; 2]) -> f64 {
-        let kinetic = v[0] * v[0] + 0.5 * v[1] * v[1] + v[0] * v[1] * (q[0] - q[1]).cos();
-        kinetic + 2.0 * 9.81 * q[0].cos() + 9.81 * q[1].cos()
-    }
-}
 
 /// `V = √q` pulls towards q = 0, reached from rest at q = 1 in finite time
 /// (t = 4√2/3 ≈ 1.886, by energy); beyond it `L` is not defined and steps fail.
@@ -29,7 +19,7 @@ impl Collapse {
 }
 
 fn midpoint() -> Integrator<DoublePendulum, Midpoint, 2> {
-    Integrator::new(DoublePendulum, Midpoint, 0.01).start(0.0, [1.0, -0.5], [0.0, 0.3]).unwrap()
+    Integrator::new(PENDULUM, Midpoint, 0.01).start(0.0, [1.0, -0.5], [0.0, 0.3]).unwrap()
 }
 
 /// `solve` with every node kept against `run_until` with an observer.
@@ -46,7 +36,7 @@ fn rows_equal_the_observers_trajectory() {
     for (i, (t, q, p, v)) in rows.iter().enumerate() {
         assert_eq!((sol.t[i], &sol.q[i], &sol.p[i], &sol.v[i]), (*t, &q[..], &p[..], &v[..]), "row {i}");
         assert_eq!(sol.step[i], Some(i as u64));
-        assert_eq!(sol.energy[i], DoublePendulum.energy(*t, *q, *v));
+        assert_eq!(sol.energy[i], PENDULUM.energy(*t, *q, *v));
     }
     assert_eq!(sim.state(), reference.state());
     assert_eq!(sol.stats.steps, 301);
@@ -54,9 +44,7 @@ fn rows_equal_the_observers_trajectory() {
 
     // The same for Galerkin.
     let start = || {
-        GalerkinIntegrator::new(DoublePendulum, Galerkin::<3, 3>::gauss(), 0.05)
-            .start(0.0, [1.0, -0.5], [0.0, 0.3])
-            .unwrap()
+        GalerkinIntegrator::new(PENDULUM, Galerkin::<3, 3>::gauss(), 0.05).start(0.0, [1.0, -0.5], [0.0, 0.3]).unwrap()
     };
     let mut reference = start();
     let mut rows = vec![(reference.state().t, reference.state().q, reference.state().p)];
@@ -90,7 +78,7 @@ fn every_n_and_save_times() {
     assert!((sol.q[at_half][0] - reference.state().q[0]).abs() < 1e-15);
     // Interpolated momenta are ∂L/∂v of the interpolated state.
     let i = sol.t.iter().position(|&t| t == 0.013).unwrap();
-    let p = DoublePendulum.momentum(sol.t[i], sol.q.array(i).unwrap(), sol.v.array(i).unwrap());
+    let p = PENDULUM.momentum(sol.t[i], sol.q.array(i).unwrap(), sol.v.array(i).unwrap());
     assert_eq!(sol.p[i], p);
 }
 
@@ -140,7 +128,7 @@ fn a_failure_mid_run_keeps_the_partial_solution() {
 #[test]
 fn the_energy_watch_warns_when_the_step_is_too_large() {
     // ωh ≈ 2.2 for the fast mode of the double pendulum: a warning.
-    let mut coarse = Integrator::new(DoublePendulum, Midpoint, 0.25).start(0.0, [1.0, -0.5], [0.0, 0.3]).unwrap();
+    let mut coarse = Integrator::new(PENDULUM, Midpoint, 0.25).start(0.0, [1.0, -0.5], [0.0, 0.3]).unwrap();
     let sol = coarse.solve(Plan::until(20.0).every(0).energy_tolerance(1e-3)).unwrap();
     let watch = sol.energy_watch.unwrap();
     assert!(watch.exceeded_at.is_some() && watch.largest > 1e-3, "{watch:?}");
