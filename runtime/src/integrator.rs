@@ -395,6 +395,16 @@ pub(crate) fn first_non_finite(q_finite: bool, p_finite: bool, t_finite: bool) -
     }
 }
 
+/// The landing rule of `run_until` for a fixed step `h`: `true` when the
+/// next node, at `t_next`, would reach `t_end` or come within `10⁻⁹ h` of
+/// it, so that the next step is the shortened one that ends on `t_end` (a
+/// node a rounding short of the target would otherwise leave a step of a
+/// few ulps).
+#[inline]
+pub(crate) fn fixed_step_lands<T: Real>(t_next: T, h: T, t_end: T) -> bool {
+    t_next >= t_end - h * 1e-9
+}
+
 /// Where `t_k = t + (k − step)·h` is measured from; reset whenever `h` changes,
 /// so that times stay exact multiples of `h` instead of accumulating round-off.
 #[derive(Clone, Copy, Debug)]
@@ -734,7 +744,7 @@ impl<S: Lagrangian<N>, M: Method<T>, const N: usize, T: Real> Integrator<S, M, N
                 return Ok(());
             }
             let last = match self.policy {
-                StepPolicy::Fixed => self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9,
+                StepPolicy::Fixed => fixed_step_lands(self.clock.at(self.state.step + 1, self.h), self.h, t_end),
                 StepPolicy::EnergyPreserving(b) => match M::last_step_size(&self.memory) {
                     Some(h_prev) => remaining.to_f64() <= b.bracket(h_prev.to_f64()).1,
                     None => remaining <= self.h,

@@ -15,23 +15,17 @@
 
 use crate::dense::{Hermite, Node};
 use crate::error::Error;
-use crate::integrator::{DynIntegrator, DynMethod, F64Readouts, Integrator, Stats, StepPolicy};
+use crate::integrator::{DynIntegrator, DynMethod, F64Readouts, Integrator, Stats, StepPolicy, fixed_step_lands};
 use crate::solution::{RunTimeStepping, Stepping};
 use crate::state::{PhasePoint, State};
 use crate::system::{DynLagrangian, Lagrangian};
 use crate::time_transform::{Adaptive, ExplicitAdaptive, SStepper, StepDensity, TimeTransformed};
 
-/// `true` when a fixed step of size `h` from `t` ends within `10⁻⁹ h` of
-/// `t_end` or beyond it: the rule of the integrators' `run_until`.
-fn fixed_reaches(t: f64, h: f64, t_end: f64) -> bool {
-    t + h >= t_end - 1e-9 * h
-}
-
 /// Whether the next step of `run_until(t_end)` is its landing step.
 fn reaches<S: Lagrangian<N>, M: F64Readouts, const N: usize>(it: &Integrator<S, M, N>, t_end: f64) -> bool {
     let t = it.state().t;
     match it.policy() {
-        StepPolicy::Fixed => fixed_reaches(t, it.step_size(), t_end),
+        StepPolicy::Fixed => fixed_step_lands(t + it.step_size(), it.step_size(), t_end),
         StepPolicy::EnergyPreserving(b) => match it.last_step_size() {
             Some(h) => t_end - t <= b.bracket(h).1,
             None => t_end - t <= it.step_size(),

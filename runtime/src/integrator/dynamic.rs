@@ -739,7 +739,7 @@ impl<S: DynLagrangian, M: DynMethod> DynIntegrator<S, M> {
     /// energy-preserving steps, the largest admissible step would reach it.
     fn lands(&self, t_end: f64) -> bool {
         match (&self.variable, &self.previous) {
-            (None, _) => self.clock.at(self.state.step + 1, self.h) >= t_end - self.h * 1e-9,
+            (None, _) => super::fixed_step_lands(self.clock.at(self.state.step + 1, self.h), self.h, t_end),
             (Some(steps), Some(last)) => t_end - self.state.t <= steps.bounds.bracket(last.h).1,
             (Some(_), None) => t_end - self.state.t <= self.h,
         }

@@ -28,7 +28,7 @@
 
 use crate::dense::{Hermite, Node};
 use crate::error::Error;
-use crate::integrator::{Clock, Composition, Stats};
+use crate::integrator::{Clock, Composition, Stats, fixed_step_lands};
 use crate::solution::{RunTimeStepping, Stepping};
 use crate::state::{PhasePoint, State};
 use crate::system::Lagrangian;
@@ -166,7 +166,7 @@ impl<B: SubSteps> Composed<B> {
         if t.is_nan() || t >= t_end {
             return Ok(());
         }
-        if t + self.h < t_end - 1e-9 * self.h {
+        if !fixed_step_lands(t + self.h, self.h, t_end) {
             return self.step_on_clock();
         }
         self.step_by(t_end - t, t_end)?;
